@@ -1,0 +1,8 @@
+//! `buslab lab`.
+
+#[derive(clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> anyhow::Result<()> {
+    anyhow::bail!("`buslab lab` is not built yet")
+}

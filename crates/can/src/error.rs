@@ -1,0 +1,36 @@
+//! Errors for building and parsing identifiers and frames.
+
+use alloc::string::String;
+
+/// Bad input when building or parsing an [`Id`](crate::Id) or a [`Frame`](crate::Frame). Every
+/// variant names the offending value and what is allowed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ParseError {
+    #[error(
+        "{} ID 0x{value:X} is out of range 0x000..=0x{max:X}",
+        if *extended { "extended" } else { "standard" }
+    )]
+    IdOutOfRange {
+        value: u32,
+        max: u32,
+        extended: bool,
+    },
+    #[error(
+        "ID {text:?} must be 3 hex digits (standard, 000..7FF) or 8 hex digits (extended, 00000000..1FFFFFFF)"
+    )]
+    IdLength { text: String },
+    #[error("{text:?} is not valid hexadecimal")]
+    BadHex { text: String },
+    #[error("DLC {dlc} is out of range 0..8")]
+    DlcOutOfRange { dlc: u8 },
+    #[error("{len} data bytes given; a classic CAN frame carries 0..8")]
+    TooMuchData { len: usize },
+    #[error("data {text:?} has an odd number of hex digits; each byte takes two")]
+    OddHexDigits { text: String },
+    #[error("frame {text:?} has no '#': expected ID#DATA, e.g. 123#DEADBEEF or 123#R")]
+    MissingSeparator { text: String },
+    #[error("frame {text:?} is CAN FD (##); buslab speaks classic CAN 2.0A/B only")]
+    FdNotSupported { text: String },
+    #[error("remote frame length {text:?} must be one digit 0..8 after R")]
+    BadRemoteLength { text: String },
+}

@@ -1,0 +1,1 @@
+//! Transports: pseudo-terminals, serial ports, pacing sans-IO byte devices to wall-clock time.

@@ -1,0 +1,1 @@
+//! ZELLE measurement cell: sans-IO device model, protocol and host client.
