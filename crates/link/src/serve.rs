@@ -1,0 +1,142 @@
+//! Pacing a sans-IO byte device to the wall clock behind a pseudo-terminal.
+
+use std::collections::VecDeque;
+use std::io;
+use std::os::fd::AsFd;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, TryRecvError};
+use std::time::{Duration, Instant};
+
+use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+
+use crate::{LineSettings, Pty};
+
+/// A device model that talks over one UART, driven in virtual nanoseconds.
+pub trait ByteDevice {
+    /// A byte has fully arrived on the device's RxD at `now_ns`.
+    fn receive(&mut self, now_ns: u64, byte: u8);
+    /// Advance the model to `now_ns`; append the bytes whose transmission on TxD has completed
+    /// by then.
+    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>);
+    /// When [`poll`](ByteDevice::poll) must be called again even if no byte arrives; `None` if
+    /// the device only reacts to input.
+    fn next_deadline(&self) -> Option<u64>;
+}
+
+/// Work done on the served device from another thread (press a key, power-cycle, change an
+/// input), with the current virtual time.
+pub type Control<D> = Box<dyn FnOnce(&mut D, u64) + Send>;
+
+/// How long the loop may sleep without looking at `stop` and the control channel.
+const MAX_IDLE: Duration = Duration::from_millis(20);
+
+/// Serves `device` on `pty` until `stop` is set.
+///
+/// Bytes the client writes arrive at the device no faster than the line allows: each gets an
+/// arrival time at least one character time (at `line`) after the previous one, as on a real
+/// UART, even though a PTY delivers a burst at once. When the client's own settings do not
+/// match `line` (other baud rate, data bits or parity) its bytes would be framing errors on a
+/// real line: they are dropped, and one warning goes to stderr.
+pub fn serve<D: ByteDevice>(
+    device: &mut D,
+    pty: &Pty,
+    line: LineSettings,
+    control: &Receiver<Control<D>>,
+    stop: &AtomicBool,
+) -> io::Result<()> {
+    let epoch = Instant::now();
+    let byte_ns = line.byte_time_ns();
+    let mut inbound: VecDeque<(u64, u8)> = VecDeque::new();
+    let mut last_arrival = 0u64;
+    let mut outbound: VecDeque<u8> = VecDeque::new();
+    let mut produced = Vec::new();
+    let mut buf = [0u8; 4096];
+    let mut warned = false;
+    let mut controls_open = true;
+
+    while !stop.load(Ordering::Relaxed) {
+        let now = epoch.elapsed().as_nanos() as u64;
+        while controls_open {
+            match control.try_recv() {
+                Ok(work) => work(device, now),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => controls_open = false,
+            }
+        }
+        while let Some(&(at, byte)) = inbound.front() {
+            if at > now {
+                break;
+            }
+            device.receive(at, byte);
+            inbound.pop_front();
+        }
+        device.poll(now, &mut produced);
+        outbound.extend(produced.drain(..));
+        flush(pty, &mut outbound)?;
+
+        let wake = [device.next_deadline(), inbound.front().map(|&(at, _)| at)]
+            .into_iter()
+            .flatten()
+            .min();
+        let sleep = match wake {
+            Some(at) => Duration::from_nanos(at.saturating_sub(now)).min(MAX_IDLE),
+            None => MAX_IDLE,
+        };
+        let mut events = PollFlags::POLLIN;
+        if !outbound.is_empty() {
+            events |= PollFlags::POLLOUT;
+        }
+        let mut fds = [PollFd::new(pty.as_fd(), events)];
+        let timeout = PollTimeout::try_from(sleep).unwrap_or(PollTimeout::MAX);
+        match poll(&mut fds, timeout) {
+            Ok(_) | Err(nix::errno::Errno::EINTR) => {}
+            Err(e) => return Err(e.into()),
+        }
+
+        loop {
+            match pty.read(&mut buf) {
+                Ok(0) => break,
+                Ok(n) => {
+                    let peer = pty.peer_settings()?;
+                    if !line.understands(&peer) {
+                        if !warned {
+                            eprintln!(
+                                "warning: the client's port is set to {peer}, the device expects \
+                                 {line}; its bytes are lost as framing errors"
+                            );
+                            warned = true;
+                        }
+                        continue;
+                    }
+                    let read_at = epoch.elapsed().as_nanos() as u64;
+                    for &byte in &buf[..n] {
+                        last_arrival = read_at.max(last_arrival + byte_ns);
+                        inbound.push_back((last_arrival, byte));
+                    }
+                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                // EIO: no client at the moment (cannot happen while we hold the slave open).
+                Err(e) if e.raw_os_error() == Some(libc::EIO) => break,
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    flush(pty, &mut outbound)
+}
+
+/// Writes as much of `outbound` as the PTY takes now.
+fn flush(pty: &Pty, outbound: &mut VecDeque<u8>) -> io::Result<()> {
+    while !outbound.is_empty() {
+        let (front, _) = outbound.as_slices();
+        match pty.write(front) {
+            Ok(n) => {
+                outbound.drain(..n);
+            }
+            Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}

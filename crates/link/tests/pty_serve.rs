@@ -1,0 +1,150 @@
+//! A toy device served on a real pseudo-terminal, driven through `open_serial` like a host tool.
+
+use std::io::{Read, Write};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use buslab_link::{ByteDevice, Control, LineSettings, Pty, open_serial, serve};
+
+/// Answers every byte with byte + 1, each answer finishing one character time after the
+/// request arrived; records arrival times.
+#[derive(Default)]
+struct Echo {
+    byte_ns: u64,
+    pending: Vec<(u64, u8)>,
+    arrivals: Vec<u64>,
+    offset: u8,
+}
+
+impl ByteDevice for Echo {
+    fn receive(&mut self, now_ns: u64, byte: u8) {
+        self.arrivals.push(now_ns);
+        self.pending
+            .push((now_ns + self.byte_ns, byte.wrapping_add(1 + self.offset)));
+    }
+    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>) {
+        while let Some(&(at, byte)) = self.pending.first() {
+            if at > now_ns {
+                break;
+            }
+            out.push(byte);
+            self.pending.remove(0);
+        }
+    }
+    fn next_deadline(&self) -> Option<u64> {
+        self.pending.first().map(|&(at, _)| at)
+    }
+}
+
+struct Served {
+    path: std::path::PathBuf,
+    stop: Arc<AtomicBool>,
+    control: mpsc::Sender<Control<Echo>>,
+    thread: std::thread::JoinHandle<Echo>,
+}
+
+fn start(line: LineSettings) -> Served {
+    let pty = Pty::open().unwrap();
+    let path = pty.path().to_path_buf();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (control, rx) = mpsc::channel();
+    let flag = stop.clone();
+    let thread = std::thread::spawn(move || {
+        let mut dev = Echo {
+            byte_ns: line.byte_time_ns(),
+            ..Echo::default()
+        };
+        serve(&mut dev, &pty, line, &rx, &flag).unwrap();
+        dev
+    });
+    Served {
+        path,
+        stop,
+        control,
+        thread,
+    }
+}
+
+fn read_exact(port: &mut dyn Read, n: usize) -> Vec<u8> {
+    let mut got = vec![0; n];
+    port.read_exact(&mut got).unwrap();
+    got
+}
+
+#[test]
+fn bytes_cross_the_pty_paced_at_the_line_rate() {
+    let line = LineSettings::n82(115_200);
+    let served = start(line);
+    let mut port = open_serial(&served.path, line, Duration::from_secs(5)).unwrap();
+    port.write_all(&[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+    assert_eq!(read_exact(&mut port, 8), [2, 3, 4, 5, 6, 7, 8, 9]);
+
+    // Control work runs on the device between steps.
+    served
+        .control
+        .send(Box::new(|dev: &mut Echo, _now| dev.offset = 10))
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    port.write_all(&[1]).unwrap();
+    assert_eq!(read_exact(&mut port, 1), [12]);
+
+    served.stop.store(true, Ordering::Relaxed);
+    let dev = served.thread.join().unwrap();
+    // The burst of 8 arrived no faster than the line allows: one character time apart.
+    let gaps: Vec<u64> = dev.arrivals[..8].windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(
+        gaps.iter().all(|&g| g >= line.byte_time_ns()),
+        "arrival gaps {gaps:?} shorter than {} ns",
+        line.byte_time_ns()
+    );
+}
+
+#[test]
+fn a_client_at_the_wrong_baud_rate_is_not_understood() {
+    let served = start(LineSettings::n82(9600));
+    let mut port = open_serial(
+        &served.path,
+        LineSettings::n81(19_200),
+        Duration::from_millis(300),
+    )
+    .unwrap();
+    port.write_all(&[1, 2, 3]).unwrap();
+    let mut buf = [0u8; 4];
+    let err = port.read(&mut buf).unwrap_err();
+    assert_eq!(err.kind(), std::io::ErrorKind::TimedOut);
+    served.stop.store(true, Ordering::Relaxed);
+    assert!(served.thread.join().unwrap().arrivals.is_empty());
+}
+
+#[test]
+fn the_pty_reports_what_the_client_set_even_nonstandard_rates() {
+    let pty = Pty::open().unwrap();
+    let _port = open_serial(
+        pty.path(),
+        LineSettings::n82(250_000),
+        Duration::from_secs(1),
+    )
+    .unwrap();
+    assert_eq!(pty.peer_settings().unwrap(), LineSettings::n82(250_000));
+}
+
+#[test]
+fn link_at_makes_and_removes_a_symlink_and_never_replaces_a_file() {
+    let dir = std::env::temp_dir().join(format!("buslab-link-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let link = dir.join("ttyZELLE");
+    {
+        let mut pty = Pty::open().unwrap();
+        pty.link_at(&link).unwrap();
+        assert_eq!(std::fs::read_link(&link).unwrap(), pty.path());
+    }
+    assert!(std::fs::symlink_metadata(&link).is_err());
+    let file = dir.join("plain");
+    std::fs::write(&file, b"keep me").unwrap();
+    let mut pty = Pty::open().unwrap();
+    assert!(pty.link_at(&file).is_err());
+    assert_eq!(std::fs::read(&file).unwrap(), b"keep me");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
