@@ -1,0 +1,131 @@
+//! A fixed-capacity bit string, big enough for any classic CAN frame with its stuff bits.
+
+use core::fmt;
+
+use crate::Level;
+
+/// Up to [`Bits::CAPACITY`] bits stored inline (no heap): the longest classic frame is 128 bits
+/// unstuffed and at most 157 stuffed, SOF to end of EOF.
+#[derive(Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct Bits {
+    words: [u64; 3],
+    len: u16,
+}
+
+impl Bits {
+    pub const CAPACITY: usize = 192;
+
+    pub const fn new() -> Self {
+        Self {
+            words: [0; 3],
+            len: 0,
+        }
+    }
+
+    /// Append one bit (`true` = 1 = recessive).
+    ///
+    /// # Panics
+    /// If the buffer already holds [`Bits::CAPACITY`] bits; frames never get there.
+    #[inline]
+    pub fn push(&mut self, bit: bool) {
+        let i = self.len as usize;
+        assert!(i < Self::CAPACITY, "Bits capacity exceeded");
+        self.words[i / 64] |= (bit as u64) << (i % 64);
+        self.len += 1;
+    }
+
+    /// Bit `i`.
+    ///
+    /// # Panics
+    /// If `i >= len()`, like slice indexing.
+    #[inline]
+    pub fn bit(&self, i: usize) -> bool {
+        assert!(i < self.len as usize, "bit index {i} out of range");
+        self.words[i / 64] >> (i % 64) & 1 == 1
+    }
+
+    /// Bit `i` as a bus level.
+    #[inline]
+    pub fn level(&self, i: usize) -> Level {
+        Level::from_bit(self.bit(i))
+    }
+
+    /// Overwrite bit `i`.
+    pub fn set(&mut self, i: usize, bit: bool) {
+        assert!(i < self.len as usize, "bit index {i} out of range");
+        let mask = 1u64 << (i % 64);
+        if bit {
+            self.words[i / 64] |= mask;
+        } else {
+            self.words[i / 64] &= !mask;
+        }
+    }
+
+    pub const fn len(&self) -> usize {
+        self.len as usize
+    }
+
+    pub const fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = bool> + '_ {
+        (0..self.len()).map(|i| self.bit(i))
+    }
+}
+
+impl FromIterator<bool> for Bits {
+    /// # Panics
+    /// If the iterator yields more than [`Bits::CAPACITY`] bits.
+    fn from_iter<I: IntoIterator<Item = bool>>(iter: I) -> Self {
+        let mut bits = Bits::new();
+        for bit in iter {
+            bits.push(bit);
+        }
+        bits
+    }
+}
+
+/// `0`/`1` characters, first bit first.
+impl fmt::Display for Bits {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for bit in self.iter() {
+            f.write_str(if bit { "1" } else { "0" })?;
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Debug for Bits {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Bits({self})")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alloc::string::ToString;
+
+    #[test]
+    fn push_get_set_across_words() {
+        let mut bits = Bits::new();
+        for i in 0..150 {
+            bits.push(i % 3 == 0);
+        }
+        assert_eq!(bits.len(), 150);
+        assert!(bits.bit(63) && !bits.bit(64) && !bits.bit(65) && bits.bit(66));
+        bits.set(64, true);
+        bits.set(63, false);
+        assert!(bits.bit(64) && !bits.bit(63));
+        assert_eq!(bits.level(64), Level::Recessive);
+        let short: Bits = [false, true, true].into_iter().collect();
+        assert_eq!(short.to_string(), "011");
+    }
+
+    #[test]
+    #[should_panic(expected = "out of range")]
+    fn reading_past_the_end_panics() {
+        Bits::new().bit(0);
+    }
+}

@@ -1,0 +1,467 @@
+//! Wire bits → frame, one bit at a time, with the checks a CAN receiver makes.
+
+use core::fmt;
+
+use super::{Crc15, Field};
+use crate::{ExtendedId, Frame, Id, StandardId};
+
+/// A frame rebuilt from the wire.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Decoded {
+    /// The frame. A raw DLC of 9..15 (8 data bytes) is stored as DLC 8; see [`Decoded::dlc`].
+    pub frame: Frame,
+    /// The DLC as received, 0..15.
+    pub dlc: u8,
+    /// The received CRC sequence (equal to the computed one, or this would be an error).
+    pub crc: u16,
+    /// Whether the ACK slot was dominant (some receiver acknowledged).
+    pub acked: bool,
+    /// Number of stuff bits removed.
+    pub stuff_bits: u32,
+    /// Wire bits SOF..end of EOF.
+    pub wire_len: u32,
+}
+
+/// What went wrong, per the CAN error kinds a receiver checks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum WireErrorKind {
+    /// Six equal consecutive bits in SOF..CRC.
+    Stuff,
+    /// A fixed-form bit (SOF, CRC delimiter, ACK delimiter, EOF) had the wrong level.
+    Form,
+    /// The received CRC sequence differs from the one computed over the received bits.
+    Crc { received: u16, computed: u16 },
+}
+
+/// An error found by the [`Receiver`], at wire bit `bit` (SOF = 0, stuff bits counted).
+///
+/// `field` is the field of the offending bit; a stuff bit belongs to the field whose bits
+/// caused it. A CRC error is signalled, as the protocol does, at the ACK delimiter.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, thiserror::Error)]
+pub struct WireError {
+    pub kind: WireErrorKind,
+    pub bit: u32,
+    pub field: Field,
+}
+
+impl fmt::Display for WireError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (bit, field) = (self.bit, self.field);
+        match self.kind {
+            WireErrorKind::Stuff => write!(
+                f,
+                "stuff error at wire bit {bit} ({field}): 6 consecutive equal bits"
+            ),
+            WireErrorKind::Form => write!(
+                f,
+                "form error at wire bit {bit} ({field}): must be {}",
+                if field == Field::Sof {
+                    "dominant (0)"
+                } else {
+                    "recessive (1)"
+                }
+            ),
+            WireErrorKind::Crc { received, computed } => write!(
+                f,
+                "CRC error signalled at wire bit {bit} ({field}): received CRC 0x{received:04X}, computed 0x{computed:04X}"
+            ),
+        }
+    }
+}
+
+/// Where the receiver is; also the field of the next data bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stage {
+    Sof,
+    Id,
+    /// Bit 12: RTR if standard, SRR if extended (not known before IDE).
+    RtrOrSrr,
+    Ide,
+    IdExt,
+    Rtr,
+    R1,
+    R0,
+    Dlc,
+    Data,
+    Crc,
+    CrcDelimiter,
+    AckSlot,
+    AckDelimiter,
+    Eof,
+    Done,
+}
+
+impl Stage {
+    const fn field(self) -> Field {
+        match self {
+            Stage::Sof => Field::Sof,
+            Stage::Id => Field::Id,
+            Stage::RtrOrSrr | Stage::Rtr => Field::Rtr,
+            Stage::Ide => Field::Ide,
+            Stage::IdExt => Field::IdExt,
+            Stage::R1 => Field::R1,
+            Stage::R0 => Field::R0,
+            Stage::Dlc => Field::Dlc,
+            Stage::Data => Field::Data,
+            Stage::Crc => Field::Crc,
+            Stage::CrcDelimiter => Field::CrcDelimiter,
+            Stage::AckSlot => Field::AckSlot,
+            Stage::AckDelimiter => Field::AckDelimiter,
+            Stage::Eof | Stage::Done => Field::Eof,
+        }
+    }
+}
+
+/// The result of one [`Receiver::push`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// More bits needed (also: the receiver has finished and ignores bits until reset).
+    Pending,
+    /// The last EOF bit was received; the frame is complete.
+    Frame(Decoded),
+    /// An error; the receiver stops until [`Receiver::reset`].
+    Error(WireError),
+}
+
+/// A bit-by-bit CAN receiver: feed it the wire bits from SOF on; it removes stuff bits, follows
+/// the fields, checks CRC and fixed-form bits and says where an error happened.
+///
+/// It is a bus observer: it accepts the ACK slot either way (see [`Decoded::acked`]), and any
+/// value of the reserved bits and SRR. It is strict about EOF: a dominant 7th EOF bit is a form
+/// error here, while a protocol controller treats it as an overload condition (that policy
+/// lives in [`crate::controller`]).
+#[derive(Clone, Debug)]
+pub struct Receiver {
+    stage: Stage,
+    failed: bool,
+    /// Bits left in a multi-bit stage.
+    left: u8,
+    shift: u32,
+    /// Wire bits taken so far (= wire index of the next bit).
+    pos: u32,
+    /// De-stuffed bits taken so far.
+    index: u32,
+    run_bit: bool,
+    run_len: u8,
+    stuffing: bool,
+    last_field: Field,
+    crc: Crc15,
+    crc_rx: u16,
+    id: u32,
+    ide: bool,
+    rtr: bool,
+    dlc: u8,
+    data_len: u8,
+    bytes: u8,
+    data: [u8; 8],
+    acked: bool,
+}
+
+impl Default for Receiver {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Receiver {
+    /// A receiver waiting for SOF.
+    pub const fn new() -> Self {
+        Self {
+            stage: Stage::Sof,
+            failed: false,
+            left: 0,
+            shift: 0,
+            pos: 0,
+            index: 0,
+            run_bit: true,
+            run_len: 0,
+            stuffing: true,
+            last_field: Field::Sof,
+            crc: Crc15::new(),
+            crc_rx: 0,
+            id: 0,
+            ide: false,
+            rtr: false,
+            dlc: 0,
+            data_len: 0,
+            bytes: 0,
+            data: [0; 8],
+            acked: false,
+        }
+    }
+
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+
+    /// Wire index of the next bit (= wire bits taken since SOF).
+    #[inline]
+    pub const fn position(&self) -> u32 {
+        self.pos
+    }
+
+    /// De-stuffed index of the next data bit.
+    #[inline]
+    pub const fn index(&self) -> u32 {
+        self.index
+    }
+
+    /// The field the next data bit belongs to. Bit 12 reads as [`Field::Rtr`] because SRR and
+    /// RTR are told apart only by the IDE bit that follows.
+    #[inline]
+    pub const fn field(&self) -> Field {
+        self.stage.field()
+    }
+
+    /// The next wire bit is a stuff bit.
+    #[inline]
+    pub const fn expects_stuff_bit(&self) -> bool {
+        self.stuffing && self.run_len == 5
+    }
+
+    /// The next wire bit is still inside the stuffed region (SOF..CRC incl. a trailing stuff bit).
+    #[inline]
+    pub const fn in_stuffed_region(&self) -> bool {
+        self.stuffing
+    }
+
+    /// After the CRC field: whether the received CRC matched.
+    #[inline]
+    pub fn crc_ok(&self) -> bool {
+        self.crc_rx == self.crc.value()
+    }
+
+    /// Finished (frame or error).
+    pub const fn is_finished(&self) -> bool {
+        self.failed || matches!(self.stage, Stage::Done)
+    }
+
+    /// The frame, once the ACK delimiter has been received without error.
+    pub fn decoded(&self) -> Option<Decoded> {
+        if self.failed || !matches!(self.stage, Stage::Eof | Stage::Done) {
+            return None;
+        }
+        let id = if self.ide {
+            Id::Extended(ExtendedId::new(self.id).ok()?)
+        } else {
+            Id::Standard(StandardId::new(self.id as u16).ok()?)
+        };
+        let frame = if self.rtr {
+            Frame::remote(id, self.dlc.min(8)).ok()?
+        } else {
+            Frame::data(id, &self.data[..self.data_len as usize]).ok()?
+        };
+        Some(Decoded {
+            frame,
+            dlc: self.dlc,
+            crc: self.crc_rx,
+            acked: self.acked,
+            stuff_bits: self.pos - self.index,
+            wire_len: self.pos - self.index + self.fixed_len(),
+        })
+    }
+
+    /// De-stuffed frame length SOF..end of EOF.
+    fn fixed_len(&self) -> u32 {
+        (if self.ide { 64 } else { 44 }) + 8 * self.data_len as u32
+    }
+
+    fn fail(&mut self, kind: WireErrorKind, bit: u32, field: Field) -> Step {
+        self.failed = true;
+        Step::Error(WireError { kind, bit, field })
+    }
+
+    /// Take one wire bit (`true` = recessive).
+    #[inline]
+    pub fn push(&mut self, bit: bool) -> Step {
+        if self.failed || self.stage == Stage::Done {
+            return Step::Pending;
+        }
+        let pos = self.pos;
+        self.pos += 1;
+        if self.stuffing {
+            if self.run_len == 5 {
+                if bit == self.run_bit {
+                    return self.fail(WireErrorKind::Stuff, pos, self.last_field);
+                }
+                (self.run_bit, self.run_len) = (bit, 1);
+                if self.stage == Stage::CrcDelimiter {
+                    self.stuffing = false;
+                }
+                return Step::Pending;
+            }
+            if bit == self.run_bit {
+                self.run_len += 1;
+            } else {
+                (self.run_bit, self.run_len) = (bit, 1);
+            }
+            self.last_field = self.stage.field();
+            if self.stage != Stage::Crc {
+                self.crc.push(bit);
+            }
+        }
+        self.index += 1;
+        match self.stage {
+            Stage::Sof => {
+                if bit {
+                    return self.fail(WireErrorKind::Form, pos, Field::Sof);
+                }
+                (self.stage, self.left) = (Stage::Id, 11);
+            }
+            Stage::Id => {
+                if self.shift_in(bit) {
+                    (self.id, self.stage) = (self.shift, Stage::RtrOrSrr);
+                }
+            }
+            Stage::RtrOrSrr => {
+                self.rtr = bit;
+                self.stage = Stage::Ide;
+            }
+            Stage::Ide => {
+                self.ide = bit;
+                if bit {
+                    (self.stage, self.left, self.shift) = (Stage::IdExt, 18, 0);
+                } else {
+                    self.stage = Stage::R0;
+                }
+            }
+            Stage::IdExt => {
+                if self.shift_in(bit) {
+                    self.id = self.id << 18 | self.shift;
+                    self.stage = Stage::Rtr;
+                }
+            }
+            Stage::Rtr => {
+                self.rtr = bit;
+                self.stage = Stage::R1;
+            }
+            Stage::R1 => self.stage = Stage::R0,
+            Stage::R0 => (self.stage, self.left, self.shift) = (Stage::Dlc, 4, 0),
+            Stage::Dlc => {
+                if self.shift_in(bit) {
+                    self.dlc = self.shift as u8;
+                    self.data_len = if self.rtr { 0 } else { self.dlc.min(8) };
+                    self.shift = 0;
+                    if self.data_len > 0 {
+                        (self.stage, self.left) = (Stage::Data, 8);
+                    } else {
+                        (self.stage, self.left) = (Stage::Crc, 15);
+                    }
+                }
+            }
+            Stage::Data => {
+                if self.shift_in(bit) {
+                    self.data[self.bytes as usize] = self.shift as u8;
+                    self.bytes += 1;
+                    self.shift = 0;
+                    if self.bytes == self.data_len {
+                        (self.stage, self.left) = (Stage::Crc, 15);
+                    } else {
+                        self.left = 8;
+                    }
+                }
+            }
+            Stage::Crc => {
+                if self.shift_in(bit) {
+                    self.crc_rx = self.shift as u16;
+                    self.stage = Stage::CrcDelimiter;
+                    // A trailing stuff bit follows if the CRC ended with 5 equal bits.
+                    self.stuffing = self.run_len == 5;
+                }
+            }
+            Stage::CrcDelimiter => {
+                if !bit {
+                    return self.fail(WireErrorKind::Form, pos, Field::CrcDelimiter);
+                }
+                self.stage = Stage::AckSlot;
+            }
+            Stage::AckSlot => {
+                self.acked = !bit;
+                self.stage = Stage::AckDelimiter;
+            }
+            Stage::AckDelimiter => {
+                if !bit {
+                    return self.fail(WireErrorKind::Form, pos, Field::AckDelimiter);
+                }
+                if !self.crc_ok() {
+                    let kind = WireErrorKind::Crc {
+                        received: self.crc_rx,
+                        computed: self.crc.value(),
+                    };
+                    return self.fail(kind, pos, Field::AckDelimiter);
+                }
+                (self.stage, self.left) = (Stage::Eof, 7);
+            }
+            Stage::Eof => {
+                if !bit {
+                    return self.fail(WireErrorKind::Form, pos, Field::Eof);
+                }
+                self.left -= 1;
+                if self.left == 0 {
+                    let decoded = self.decoded();
+                    self.stage = Stage::Done;
+                    return decoded.map_or(Step::Pending, Step::Frame);
+                }
+            }
+            Stage::Done => {}
+        }
+        Step::Pending
+    }
+
+    /// Shift a bit into the current multi-bit field; true when the field is complete.
+    #[inline]
+    fn shift_in(&mut self, bit: bool) -> bool {
+        self.shift = self.shift << 1 | bit as u32;
+        self.left -= 1;
+        self.left == 0
+    }
+}
+
+/// Why [`decode`] could not rebuild a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, thiserror::Error)]
+pub enum DecodeError {
+    #[error(transparent)]
+    Wire(#[from] WireError),
+    #[error("the bit string is empty; a frame starts with SOF (0)")]
+    Empty,
+    #[error(
+        "the bit string ends after {bits} bits, inside the {field} field; a frame runs from SOF to the 7th EOF bit"
+    )]
+    Truncated { bits: u32, field: Field },
+    #[error(
+        "dominant bit at wire bit {bit} after the end of the frame; only recessive (idle) bits may follow EOF"
+    )]
+    TrailingDominant { bit: u32 },
+}
+
+/// Decode a whole wire bit string starting at SOF (`true` = 1 = recessive). Recessive bits after
+/// EOF (intermission, idle) are allowed.
+pub fn decode(bits: impl IntoIterator<Item = bool>) -> Result<Decoded, DecodeError> {
+    let mut rx = Receiver::new();
+    let mut bits = bits.into_iter();
+    let mut seen = 0u32;
+    let decoded = loop {
+        let Some(bit) = bits.next() else {
+            return Err(if seen == 0 {
+                DecodeError::Empty
+            } else {
+                DecodeError::Truncated {
+                    bits: seen,
+                    field: rx.field(),
+                }
+            });
+        };
+        seen += 1;
+        match rx.push(bit) {
+            Step::Pending => {}
+            Step::Frame(decoded) => break decoded,
+            Step::Error(error) => return Err(error.into()),
+        }
+    };
+    match bits.position(|bit| !bit) {
+        Some(n) => Err(DecodeError::TrailingDominant {
+            bit: seen + n as u32,
+        }),
+        None => Ok(decoded),
+    }
+}
