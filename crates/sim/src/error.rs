@@ -1,0 +1,65 @@
+//! Errors of the simulator and of scenario files.
+
+/// A duration that is not `<number><unit>`.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "bad duration {text:?}: expected a number with a unit s, ms, us, ns or bits (a bare integer is bit-times)"
+)]
+pub struct DurationError {
+    pub text: String,
+}
+
+/// Something wrong with a simulation set-up or a scenario file.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    #[error("scenario is not valid TOML: {0}")]
+    Toml(#[from] toml::de::Error),
+    #[error("{context}: {source}")]
+    Duration {
+        context: String,
+        source: DurationError,
+    },
+    #[error("{context}: bad frame {text:?}: {source}")]
+    Frame {
+        context: String,
+        text: String,
+        source: buslab_can::ParseError,
+    },
+    #[error("{context}: bad identifier {text:?}: {source}")]
+    Id {
+        context: String,
+        text: String,
+        source: buslab_can::ParseError,
+    },
+    #[error("{context}: unknown node {name:?} (nodes are: {known})")]
+    UnknownNode {
+        context: String,
+        name: String,
+        known: String,
+    },
+    #[error("node name {name:?} is used twice")]
+    DuplicateNode { name: String },
+    #[error("node name {name:?} is not allowed: use 1..32 characters from A-Z a-z 0-9 _ - .")]
+    BadNodeName { name: String },
+    #[error("{context}: end {end} is before start {start}")]
+    EndBeforeStart {
+        context: String,
+        start: String,
+        end: String,
+    },
+    #[error("{context}: {what} {value} is out of range {range}")]
+    OutOfRange {
+        context: String,
+        what: &'static str,
+        value: String,
+        range: &'static str,
+    },
+    #[error("{context}: file data {text:?} is not valid: {why}")]
+    FileData {
+        context: String,
+        text: String,
+        why: &'static str,
+    },
+    #[error("scenario has no nodes; add at least one [[nodes]] table")]
+    NoNodes,
+}

@@ -1,0 +1,145 @@
+//! What the simulation records: a trace of node events, per-node counters, a sampled TEC/REC
+//! series, bus-load statistics and level changes for waveforms.
+
+use buslab_can::Level;
+use buslab_can::controller::{ErrorState, Event};
+
+use crate::time::BitTime;
+
+/// One entry of the trace.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Record {
+    /// Bit-time during which it happened (the bit whose sample produced the event).
+    pub time: BitTime,
+    pub what: Happening,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Happening {
+    /// A controller event of node `node`.
+    Node { node: usize, event: Event },
+    /// Fault `index` (in the order added) became active.
+    FaultStarted { index: usize },
+    /// Fault `index` ended.
+    FaultEnded { index: usize },
+}
+
+/// Counters of one node.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NodeStats {
+    /// Frames this node transmitted successfully.
+    pub sent: u64,
+    /// Frames it received (including its own with self-reception).
+    pub received: u64,
+    /// Errors it detected (error frames it started).
+    pub errors: u64,
+    pub arbitration_lost: u64,
+    pub overloads: u64,
+    /// Single-shot frames dropped by the controller.
+    pub dropped: u64,
+    /// Frames the traffic generators queued, and those refused because the queue was full.
+    pub queued: u64,
+    pub queue_overflows: u64,
+    /// Times it went bus-off.
+    pub bus_off: u64,
+    pub max_tec: u16,
+    pub max_rec: u16,
+}
+
+impl NodeStats {
+    pub(crate) fn count(&mut self, event: &Event) {
+        match event {
+            Event::Received(_) => self.received += 1,
+            Event::Transmitted(_) => self.sent += 1,
+            Event::ArbitrationLost { .. } => self.arbitration_lost += 1,
+            Event::Error { tec, rec, .. } => {
+                self.errors += 1;
+                self.max_tec = self.max_tec.max(*tec);
+                self.max_rec = self.max_rec.max(*rec);
+            }
+            Event::StateChanged { to, tec, rec, .. } => {
+                if *to == ErrorState::BusOff {
+                    self.bus_off += 1;
+                }
+                self.max_tec = self.max_tec.max(*tec);
+                self.max_rec = self.max_rec.max(*rec);
+            }
+            Event::Warning { tec, rec, .. } => {
+                self.max_tec = self.max_tec.max(*tec);
+                self.max_rec = self.max_rec.max(*rec);
+            }
+            Event::Overload => self.overloads += 1,
+            Event::Dropped(_) => self.dropped += 1,
+        }
+    }
+}
+
+/// One point of the TEC/REC series.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CounterSample {
+    pub time: BitTime,
+    pub node: usize,
+    pub tec: u16,
+    pub rec: u16,
+    pub state: ErrorState,
+}
+
+/// Bus-wide statistics.
+///
+/// A bit-time counts as *busy* unless it is the 12th or later of a run of recessive bits: a
+/// frame's ACK delimiter, EOF and intermission are 11 recessive bits, so back-to-back frames
+/// keep the bus 100 % busy and anything beyond is idle bus.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BusStats {
+    pub bits: u64,
+    pub busy_bits: u64,
+    pub dominant_bits: u64,
+    /// Frames transmitted successfully (all nodes).
+    pub frames: u64,
+    /// Error events (all nodes).
+    pub errors: u64,
+    pub(crate) recessive_run: u64,
+}
+
+impl BusStats {
+    /// Fraction of bit-times the bus was busy, 0.0..=1.0.
+    pub fn load(&self) -> f64 {
+        if self.bits == 0 {
+            0.0
+        } else {
+            self.busy_bits as f64 / self.bits as f64
+        }
+    }
+
+    #[inline(always)]
+    pub(crate) fn bit(&mut self, bus: Level) {
+        self.bits += 1;
+        if bus == Level::Dominant {
+            self.dominant_bits += 1;
+            self.recessive_run = 0;
+            self.busy_bits += 1;
+        } else {
+            self.recessive_run += 1;
+            self.busy_bits += (self.recessive_run <= 11) as u64;
+        }
+    }
+}
+
+/// A level change, for waveform writers: `signal` 0 is the bus (main wire), then each node's
+/// TX (`1 + 2 * node`) and RX (`2 + 2 * node`) level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LevelChange {
+    pub time: BitTime,
+    pub signal: usize,
+    pub level: Level,
+}
+
+/// Names of the signals of [`LevelChange`] for `nodes`.
+pub fn signal_names<'a>(nodes: impl Iterator<Item = &'a str>) -> Vec<String> {
+    let mut names = vec!["bus".to_owned()];
+    for n in nodes {
+        names.push(format!("{n}_tx"));
+        names.push(format!("{n}_rx"));
+    }
+    names
+}

@@ -1,0 +1,475 @@
+//! The bus: nodes on one wire, stepped together once per bit-time.
+
+use buslab_can::controller::{Controller, ControllerConfig, Event};
+use buslab_can::{Frame, Level};
+
+use crate::fault::{Fault, Wiring};
+use crate::observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats, Record};
+use crate::rng::SplitMix64;
+use crate::time::BitTime;
+use crate::traffic::{Generator, Traffic};
+
+/// One node: a protocol controller with a name.
+#[derive(Debug)]
+pub struct Node {
+    name: String,
+    controller: Controller,
+    stats: NodeStats,
+}
+
+impl Node {
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    pub fn controller(&self) -> &Controller {
+        &self.controller
+    }
+    pub fn stats(&self) -> &NodeStats {
+        &self.stats
+    }
+}
+
+/// Trace, counters and the sampled series; kept apart from the nodes so the per-bit loop can
+/// borrow both.
+#[derive(Debug, Default)]
+struct Observers {
+    records: Vec<Record>,
+    record_events: bool,
+    bus: BusStats,
+}
+
+/// Traffic generators and the earliest time one of them wants to act.
+#[derive(Debug, Default)]
+struct Schedule {
+    generators: Vec<Generator>,
+    next: BitTime,
+}
+
+impl Schedule {
+    fn recompute(&mut self) {
+        self.next = self
+            .generators
+            .iter()
+            .filter_map(Generator::next)
+            .min()
+            .unwrap_or(BitTime::MAX);
+    }
+}
+
+/// Level changes for waveforms; present only when asked for.
+#[derive(Debug)]
+struct LevelTrace {
+    last: Vec<Level>,
+    changes: Vec<LevelChange>,
+}
+
+impl LevelTrace {
+    #[inline]
+    fn set(&mut self, time: BitTime, signal: usize, level: Level) {
+        if self.last[signal] != level {
+            self.last[signal] = level;
+            self.changes.push(LevelChange {
+                time,
+                signal,
+                level,
+            });
+        }
+    }
+}
+
+/// A CAN bus with its nodes, traffic and faults, in virtual time counted in bit-times.
+///
+/// Deterministic: the same set-up and seed give the same trace, bit for bit.
+#[derive(Debug)]
+pub struct Simulation {
+    bitrate: u32,
+    now: BitTime,
+    nodes: Vec<Node>,
+    schedule: Schedule,
+    faults: Vec<Fault>,
+    fault_active: Vec<bool>,
+    next_fault_change: BitTime,
+    wiring: Wiring,
+    faulty: bool,
+    rng: SplitMix64,
+    seg_levels: Vec<Level>,
+    outputs: Vec<Level>,
+    obs: Observers,
+    sample_every: Option<BitTime>,
+    next_sample: BitTime,
+    series: Vec<CounterSample>,
+    levels: Option<LevelTrace>,
+}
+
+impl Simulation {
+    /// An empty bus at `bitrate` bit/s (used only to convert bit-times to seconds); `seed`
+    /// drives the random faults.
+    pub fn new(bitrate: u32, seed: u64) -> Self {
+        assert!(bitrate > 0, "bit rate must be positive");
+        Self {
+            bitrate,
+            now: 0,
+            nodes: Vec::new(),
+            schedule: Schedule {
+                generators: Vec::new(),
+                next: BitTime::MAX,
+            },
+            faults: Vec::new(),
+            fault_active: Vec::new(),
+            next_fault_change: BitTime::MAX,
+            wiring: Wiring::build(0, core::iter::empty()),
+            faulty: false,
+            rng: SplitMix64::new(seed),
+            seg_levels: Vec::new(),
+            outputs: Vec::new(),
+            obs: Observers {
+                record_events: true,
+                ..Default::default()
+            },
+            sample_every: None,
+            next_sample: BitTime::MAX,
+            series: Vec::new(),
+            levels: None,
+        }
+    }
+
+    /// Adds a node; returns its index (0, 1, ...).
+    pub fn add_node(&mut self, name: impl Into<String>, config: ControllerConfig) -> usize {
+        self.nodes.push(Node {
+            name: name.into(),
+            controller: Controller::new(config),
+            stats: NodeStats::default(),
+        });
+        let n = self.nodes.len();
+        self.outputs.resize(n, Level::Recessive);
+        self.wiring = Wiring::build(n, self.active_faults());
+        self.seg_levels
+            .resize(n + self.faults.len() + 1, Level::Recessive);
+        if let Some(levels) = &mut self.levels {
+            levels.last.resize(1 + 2 * n, Level::Recessive);
+        }
+        n - 1
+    }
+
+    /// Attaches a traffic generator to `node`.
+    pub fn add_traffic(&mut self, node: usize, traffic: Traffic) {
+        assert!(node < self.nodes.len(), "no node {node}");
+        self.schedule.generators.push(Generator::new(node, traffic));
+        self.schedule.recompute();
+    }
+
+    /// Adds a fault; returns its index (as used in [`Happening::FaultStarted`]).
+    pub fn add_fault(&mut self, fault: Fault) -> usize {
+        assert!(
+            fault.kind.nodes().all(|n| n < self.nodes.len()),
+            "fault names a node that does not exist"
+        );
+        self.faults.push(fault);
+        self.fault_active.push(false);
+        self.seg_levels
+            .resize(self.nodes.len() + self.faults.len() + 1, Level::Recessive);
+        self.next_fault_change = self.now;
+        self.faults.len() - 1
+    }
+
+    /// Record node events in the trace (on by default). Counters are kept either way.
+    pub fn set_record_events(&mut self, on: bool) {
+        self.obs.record_events = on;
+    }
+
+    /// Sample every node's TEC/REC every `interval` bit-times into [`Self::series`].
+    pub fn sample_counters_every(&mut self, interval: BitTime) {
+        assert!(interval > 0);
+        self.sample_every = Some(interval);
+        self.next_sample = self.now;
+    }
+
+    /// Record level changes of the bus and of each node's TX and RX (see [`LevelChange`]).
+    pub fn trace_levels(&mut self) {
+        // Every signal starts recessive (the idle bus); only changes are recorded.
+        self.levels = Some(LevelTrace {
+            last: vec![Level::Recessive; 1 + 2 * self.nodes.len()],
+            changes: Vec::new(),
+        });
+    }
+
+    pub fn bitrate(&self) -> u32 {
+        self.bitrate
+    }
+    /// The current bit-time (bits simulated so far).
+    pub fn now(&self) -> BitTime {
+        self.now
+    }
+    pub fn nodes(&self) -> &[Node] {
+        &self.nodes
+    }
+    pub fn node(&self, node: usize) -> &Node {
+        &self.nodes[node]
+    }
+    /// Index of the node called `name`.
+    pub fn find_node(&self, name: &str) -> Option<usize> {
+        self.nodes.iter().position(|n| n.name == name)
+    }
+    /// Direct access to a controller, e.g. to queue a frame or call `recover()`.
+    pub fn controller_mut(&mut self, node: usize) -> &mut Controller {
+        &mut self.nodes[node].controller
+    }
+    pub fn faults(&self) -> &[Fault] {
+        &self.faults
+    }
+    pub fn bus_stats(&self) -> &BusStats {
+        &self.obs.bus
+    }
+    /// The trace so far (since the last [`Self::take_records`]).
+    pub fn records(&self) -> &[Record] {
+        &self.obs.records
+    }
+    /// Takes the trace recorded so far, leaving it empty (for streaming output).
+    pub fn take_records(&mut self) -> Vec<Record> {
+        core::mem::take(&mut self.obs.records)
+    }
+    /// The TEC/REC series (see [`Self::sample_counters_every`]).
+    pub fn series(&self) -> &[CounterSample] {
+        &self.series
+    }
+    /// Takes the level changes recorded so far (see [`Self::trace_levels`]).
+    pub fn take_level_changes(&mut self) -> Vec<LevelChange> {
+        self.levels
+            .as_mut()
+            .map(|l| core::mem::take(&mut l.changes))
+            .unwrap_or_default()
+    }
+    /// Bit-time at which each file transfer of `node` finished (in the order added).
+    pub fn files_finished(&self, node: usize) -> Vec<Option<BitTime>> {
+        self.schedule
+            .generators
+            .iter()
+            .filter(|g| g.node == node && g.is_file())
+            .map(|g| g.finished_at)
+            .collect()
+    }
+
+    /// Simulates `bits` more bit-times.
+    pub fn run_for(&mut self, bits: BitTime) {
+        self.run_until(self.now.saturating_add(bits));
+    }
+
+    /// Simulates up to (not including) bit-time `end`.
+    pub fn run_until(&mut self, end: BitTime) {
+        while self.now < end {
+            self.handle_due();
+            let horizon = end
+                .min(self.schedule.next)
+                .min(self.next_fault_change)
+                .min(self.next_sample);
+            debug_assert!(horizon > self.now);
+            if self.faulty || self.levels.is_some() {
+                while self.now < horizon.min(self.schedule.next) {
+                    self.step_faulty();
+                }
+            } else {
+                self.run_clean(horizon);
+            }
+        }
+    }
+
+    /// Everything scheduled at or before `now`: fault changes, traffic, counter samples.
+    fn handle_due(&mut self) {
+        let now = self.now;
+        if self.next_fault_change <= now {
+            self.update_faults();
+        }
+        if self.schedule.next <= now {
+            for g in &mut self.schedule.generators {
+                if g.next().is_some_and(|t| t <= now) {
+                    let node = &mut self.nodes[g.node];
+                    let q = g.fire(now, &mut node.controller);
+                    node.stats.queued += q.queued;
+                    node.stats.queue_overflows += q.overflows;
+                }
+            }
+            self.schedule.recompute();
+        }
+        if self.next_sample <= now {
+            for (i, n) in self.nodes.iter().enumerate() {
+                self.series.push(CounterSample {
+                    time: now,
+                    node: i,
+                    tec: n.controller.tec(),
+                    rec: n.controller.rec(),
+                    state: n.controller.state(),
+                });
+            }
+            self.next_sample = self
+                .sample_every
+                .map_or(BitTime::MAX, |every| now.saturating_add(every));
+        }
+    }
+
+    fn update_faults(&mut self) {
+        let now = self.now;
+        let mut next = BitTime::MAX;
+        for (index, fault) in self.faults.iter().enumerate() {
+            let active = fault.start <= now && now < fault.end;
+            if active != self.fault_active[index] {
+                self.fault_active[index] = active;
+                let what = if active {
+                    Happening::FaultStarted { index }
+                } else {
+                    Happening::FaultEnded { index }
+                };
+                self.obs.records.push(Record { time: now, what });
+            }
+            for t in [fault.start, fault.end] {
+                if t > now {
+                    next = next.min(t);
+                }
+            }
+        }
+        self.next_fault_change = next;
+        self.faulty = self.fault_active.iter().any(|&a| a);
+        self.wiring = Wiring::build(self.nodes.len(), self.active_faults());
+    }
+
+    fn active_faults(&self) -> impl Iterator<Item = &Fault> {
+        self.faults
+            .iter()
+            .zip(&self.fault_active)
+            .filter(|(_, a)| **a)
+            .map(|(f, _)| f)
+    }
+
+    /// The hot loop: no faults, no level tracing. One wired-AND over all outputs, then every
+    /// node samples the same level.
+    fn run_clean(&mut self, horizon: BitTime) {
+        let Self {
+            nodes,
+            obs,
+            schedule,
+            now,
+            ..
+        } = self;
+        while *now < horizon.min(schedule.next) {
+            let mut bus = Level::Recessive;
+            for node in nodes.iter() {
+                if node.controller.output() == Level::Dominant {
+                    bus = Level::Dominant;
+                }
+            }
+            for (i, node) in nodes.iter_mut().enumerate() {
+                node.controller.sample(bus);
+                while let Some(event) = node.controller.poll_event() {
+                    handle_event(obs, schedule, i, node, *now, event);
+                }
+            }
+            obs.bus.bit(bus);
+            *now += 1;
+        }
+    }
+
+    /// One bit-time with faults (or level tracing) in force.
+    fn step_faulty(&mut self) {
+        let now = self.now;
+        let w = &self.wiring;
+        let segments = w.is_bus.len();
+        let seg_levels = &mut self.seg_levels[..segments];
+        seg_levels.fill(Level::Recessive);
+        for (i, node) in self.nodes.iter().enumerate() {
+            let out = node.controller.output();
+            self.outputs[i] = out;
+            if out == Level::Dominant {
+                seg_levels[w.segment[i]] = Level::Dominant;
+            }
+        }
+        for (level, &is_bus) in seg_levels.iter_mut().zip(&w.is_bus) {
+            if !is_bus {
+                continue;
+            }
+            if w.stuck_dominant {
+                *level = Level::Dominant;
+            }
+            if self.rng.hit(w.bus_noise) {
+                *level = invert(*level);
+            }
+        }
+        let bus = seg_levels[0];
+        for (i, node) in self.nodes.iter_mut().enumerate() {
+            let mut seen = seg_levels[w.segment[i]];
+            if self.rng.hit(w.node_noise[i]) {
+                seen = invert(seen);
+            }
+            if w.flip_all || w.flip_node[i] {
+                seen = invert(seen);
+            }
+            if let Some(levels) = &mut self.levels {
+                levels.set(now, 1 + 2 * i, self.outputs[i]);
+                levels.set(now, 2 + 2 * i, seen);
+            }
+            node.controller.sample(seen);
+            while let Some(event) = node.controller.poll_event() {
+                handle_event(&mut self.obs, &mut self.schedule, i, node, now, event);
+            }
+        }
+        if let Some(levels) = &mut self.levels {
+            levels.set(now, 0, bus);
+        }
+        self.obs.bus.bit(bus);
+        self.now += 1;
+    }
+
+    /// Queue a frame on `node` right now.
+    pub fn enqueue(
+        &mut self,
+        node: usize,
+        frame: Frame,
+    ) -> Result<(), buslab_can::controller::QueueFull> {
+        let n = &mut self.nodes[node];
+        let r = n.controller.enqueue(frame);
+        match r {
+            Ok(()) => n.stats.queued += 1,
+            Err(_) => n.stats.queue_overflows += 1,
+        }
+        r
+    }
+}
+
+fn invert(level: Level) -> Level {
+    match level {
+        Level::Dominant => Level::Recessive,
+        Level::Recessive => Level::Dominant,
+    }
+}
+
+/// Counts and records one event, and lets the file senders move on.
+#[inline]
+fn handle_event(
+    obs: &mut Observers,
+    schedule: &mut Schedule,
+    i: usize,
+    node: &mut Node,
+    now: BitTime,
+    event: Event,
+) {
+    node.stats.count(&event);
+    match &event {
+        Event::Transmitted(frame) | Event::Dropped(frame) => {
+            obs.bus.frames += matches!(event, Event::Transmitted(_)) as u64;
+            for g in schedule.generators.iter_mut().filter(|g| g.node == i) {
+                let q = g.on_done(frame, now, &mut node.controller);
+                node.stats.queued += q.queued;
+                node.stats.queue_overflows += q.overflows;
+                if let Some(t) = g.next() {
+                    schedule.next = schedule.next.min(t);
+                }
+            }
+        }
+        Event::Error { .. } => obs.bus.errors += 1,
+        _ => {}
+    }
+    if obs.record_events {
+        obs.records.push(Record {
+            time: now,
+            what: Happening::Node { node: i, event },
+        });
+    }
+}

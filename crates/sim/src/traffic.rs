@@ -1,0 +1,210 @@
+//! Traffic generators: what each node's host software asks its controller to send, and when.
+
+use buslab_can::controller::Controller;
+use buslab_can::{Frame, Id};
+
+use crate::time::BitTime;
+
+/// One traffic source attached to a node.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Traffic {
+    /// `frame` every `period` bit-times from `start`; `count` frames in all (`None` = forever).
+    Periodic {
+        frame: Frame,
+        period: BitTime,
+        start: BitTime,
+        count: Option<u64>,
+    },
+    /// `count` copies of `frame` queued at once (they go out back to back), every `period`
+    /// from `start`; `period` 0 = one burst only.
+    Burst {
+        frame: Frame,
+        count: u32,
+        period: BitTime,
+        start: BitTime,
+    },
+    /// A file sent with the file protocol (SPEC N5): 8-byte data frames, the last one shorter
+    /// (empty when the length is a multiple of 8). One frame is queued at a time so the chunks
+    /// stay in order; the next is queued when the previous one was transmitted.
+    File {
+        id: Id,
+        data: Vec<u8>,
+        start: BitTime,
+    },
+    /// One frame queued at `at`.
+    Once { frame: Frame, at: BitTime },
+}
+
+impl Traffic {
+    /// The frames of the file protocol for `data`.
+    pub fn file_frames(id: Id, data: &[u8]) -> impl Iterator<Item = Frame> + '_ {
+        (0..=data.len() / 8).filter_map(move |i| file_chunk(id, data, i))
+    }
+
+    fn first_time(&self) -> BitTime {
+        match *self {
+            Traffic::Periodic { start, .. }
+            | Traffic::Burst { start, .. }
+            | Traffic::File { start, .. } => start,
+            Traffic::Once { at, .. } => at,
+        }
+    }
+}
+
+/// Chunk `i` of the file protocol, or `None` past the end.
+fn file_chunk(id: Id, data: &[u8], i: usize) -> Option<Frame> {
+    let start = i.checked_mul(8).filter(|&s| s <= data.len())?;
+    let chunk = &data[start..data.len().min(start + 8)];
+    Some(Frame::data(id, chunk).expect("chunks are at most 8 bytes"))
+}
+
+/// What a generator did, for the statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Queued {
+    pub queued: u64,
+    pub overflows: u64,
+}
+
+/// A traffic source with its progress.
+#[derive(Clone, Debug)]
+pub(crate) struct Generator {
+    pub node: usize,
+    traffic: Traffic,
+    /// When it next wants to queue something; `None` = waiting for an event or done.
+    next: Option<BitTime>,
+    sent: u64,
+    /// File protocol: index of the next chunk to queue, and the chunk on the bus.
+    chunk: usize,
+    in_flight: Option<Frame>,
+    /// File protocol: bit-time the last chunk was transmitted.
+    pub finished_at: Option<BitTime>,
+}
+
+impl Generator {
+    pub fn new(node: usize, traffic: Traffic) -> Self {
+        let next = Some(traffic.first_time());
+        Self {
+            node,
+            traffic,
+            next,
+            sent: 0,
+            chunk: 0,
+            in_flight: None,
+            finished_at: None,
+        }
+    }
+
+    pub fn is_file(&self) -> bool {
+        matches!(self.traffic, Traffic::File { .. })
+    }
+
+    pub fn next(&self) -> Option<BitTime> {
+        self.next
+    }
+
+    /// Queue what is due at `now` (call when `next() <= now`).
+    pub fn fire(&mut self, now: BitTime, controller: &mut Controller) -> Queued {
+        let mut q = Queued::default();
+        let mut push = |frame: Frame| match controller.enqueue(frame) {
+            Ok(()) => {
+                q.queued += 1;
+                true
+            }
+            Err(_) => {
+                q.overflows += 1;
+                false
+            }
+        };
+        match &self.traffic {
+            Traffic::Periodic {
+                frame,
+                period,
+                count,
+                ..
+            } => {
+                push(*frame);
+                self.sent += 1;
+                let more = count.is_none_or(|c| self.sent < c);
+                self.next = (more && *period > 0).then(|| now + period);
+            }
+            Traffic::Burst {
+                frame,
+                count,
+                period,
+                ..
+            } => {
+                for _ in 0..*count {
+                    push(*frame);
+                }
+                self.next = (*period > 0).then(|| now + period);
+            }
+            Traffic::Once { frame, .. } => {
+                push(*frame);
+                self.next = None;
+            }
+            Traffic::File { .. } => {
+                self.next = None;
+                self.queue_chunk(now, controller, &mut q);
+            }
+        }
+        q
+    }
+
+    /// A node's frame left the bus (or was dropped by a single-shot controller): the file
+    /// sender moves on to the next chunk.
+    pub fn on_done(&mut self, frame: &Frame, now: BitTime, controller: &mut Controller) -> Queued {
+        let mut q = Queued::default();
+        if self.in_flight.as_ref() == Some(frame) {
+            self.in_flight = None;
+            self.chunk += 1;
+            self.queue_chunk(now, controller, &mut q);
+        }
+        q
+    }
+
+    fn queue_chunk(&mut self, now: BitTime, controller: &mut Controller, q: &mut Queued) {
+        let Traffic::File { id, data, .. } = &self.traffic else {
+            return;
+        };
+        let Some(frame) = file_chunk(*id, data, self.chunk) else {
+            self.finished_at = Some(now);
+            return;
+        };
+        match controller.enqueue(frame) {
+            Ok(()) => {
+                q.queued += 1;
+                self.in_flight = Some(frame);
+            }
+            // Queue full: try again a little later.
+            Err(_) => {
+                q.overflows += 1;
+                self.next = Some(now + 1);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_protocol_chunks() {
+        let id = Id::standard(0x100).unwrap();
+        let lens = |n: usize| {
+            let data: Vec<u8> = (0..n as u8).collect();
+            Traffic::file_frames(id, &data)
+                .map(|f| f.dlc())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(lens(0), [0]);
+        assert_eq!(lens(5), [5]);
+        assert_eq!(lens(8), [8, 0]);
+        assert_eq!(lens(19), [8, 8, 3]);
+        let data: Vec<u8> = (0..19).collect();
+        let joined: Vec<u8> = Traffic::file_frames(id, &data)
+            .flat_map(|f| f.payload().to_vec())
+            .collect();
+        assert_eq!(joined, data);
+    }
+}
