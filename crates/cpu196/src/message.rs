@@ -176,13 +176,9 @@ impl Start {
     pub fn high_bank(self) -> u8 {
         self.0[1] & 7
     }
-    /// The two bits that must be 0 in the second byte.
-    pub fn check(self) -> Result<(), ()> {
-        if self.0[1] & 0x60 == 0 {
-            Ok(())
-        } else {
-            Err(())
-        }
+    /// Whether the two bits that must be 0 in the second byte are 0.
+    pub fn is_valid(self) -> bool {
+        self.0[1] & 0x60 == 0
     }
 }
 
