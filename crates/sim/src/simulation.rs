@@ -124,6 +124,11 @@ impl Simulation {
             outputs: Vec::new(),
             obs: Observers {
                 record_events: true,
+                // The bus has been idle since forever.
+                bus: BusStats {
+                    recessive_run: 11,
+                    ..Default::default()
+                },
                 ..Default::default()
             },
             sample_every: None,

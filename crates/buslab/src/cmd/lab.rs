@@ -1,8 +1,238 @@
-//! `buslab lab`.
+//! `buslab lab`: the whole virtual bench, paced to real time.
+//!
+//! Today the bench is a simulated CAN bus with a few nodes exchanging periodic and bursty
+//! traffic, and a listen-only monitor whose frames are printed like `candump` prints them.
+//! Devices served on pseudo-terminals (ZELLE, CPU196) are started in [`Lab::start`], next to
+//! the bus, and stepped in [`Lab::advance`].
+
+use std::io::{self, Write};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use buslab_can::controller::{ControllerConfig, Event};
+use buslab_can::{Frame, Id};
+use buslab_sim::{BitTime, Happening, Simulation, Span, Traffic};
 
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Stop after this long (`2s`, `500ms`); default: run until Ctrl-C.
+    #[arg(long)]
+    pub duration: Option<Span>,
+    /// Bit rate of the simulated CAN bus.
+    #[arg(long, default_value_t = 500_000, value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
+    pub bitrate: u32,
+    /// Seed of the simulation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`buslab lab` is not built yet")
+/// Interface name shown in the candump-style output.
+const IFACE: &str = "sim0";
+/// Wall-clock time between two slices of simulation.
+const SLICE: Duration = Duration::from_millis(2);
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
+            .context("cannot install the Ctrl-C handler")?;
+    }
+    let end = args.duration.map(|d| d.to_bits(args.bitrate));
+    let mut lab = Lab::start(args.bitrate, args.seed);
+    eprintln!(
+        "buslab lab: simulated CAN bus {IFACE} at {} bit/s, nodes: {}; Ctrl-C to stop",
+        args.bitrate,
+        lab.node_names().join(", ")
+    );
+
+    let stdout = io::stdout();
+    let mut out = stdout.lock();
+    let mut candump = Candump::default();
+    let started = Instant::now();
+    loop {
+        // Virtual time follows the wall clock and is never ahead of it.
+        let wall = started.elapsed();
+        let mut target = (wall.as_secs_f64() * args.bitrate as f64) as BitTime;
+        if let Some(end) = end {
+            target = target.min(end);
+        }
+        for frame in lab.advance(target) {
+            candump.print(&mut out, IFACE, &frame)?;
+        }
+        out.flush()?;
+        if end.is_some_and(|end| lab.now() >= end) || stop.load(Ordering::SeqCst) {
+            break;
+        }
+        std::thread::sleep(SLICE);
+    }
+    Ok(())
+}
+
+/// The bench: the bus and (later) the devices attached to it.
+struct Lab {
+    bus: Simulation,
+    monitor: usize,
+    counter: CounterNode,
+}
+
+impl Lab {
+    /// Builds the bus with its nodes. ZELLE and CPU196 devices will be started here too.
+    fn start(bitrate: u32, seed: u64) -> Self {
+        let mut bus = Simulation::new(bitrate, seed);
+        let ms = |m: u64| m * bitrate as u64 / 1000;
+        let f = |text: &str| -> Frame { text.parse().expect("built-in frame") };
+        let plain = ControllerConfig::default();
+
+        let brakes = bus.add_node("brakes", plain);
+        bus.add_traffic(brakes, periodic(f("080#0140"), ms(20), 0));
+        let engine = bus.add_node("engine", plain);
+        bus.add_traffic(engine, periodic(f("0C0#0FA0003C00000000"), ms(10), ms(1)));
+        let body = bus.add_node("body", plain);
+        bus.add_traffic(body, periodic(f("18FF0010#A5"), ms(100), ms(3)));
+        let dash = bus.add_node("dash", plain);
+        bus.add_traffic(
+            dash,
+            Traffic::Burst {
+                frame: f("300#D1D2D3D4"),
+                count: 4,
+                period: ms(250),
+                start: ms(5),
+            },
+        );
+        let counter = CounterNode {
+            node: bus.add_node("counter", plain),
+            id: Id::standard(0x200).expect("valid ID"),
+            period: ms(50),
+            next: ms(7),
+            value: 0,
+        };
+        let monitor = bus.add_node(
+            IFACE,
+            ControllerConfig {
+                listen_only: true,
+                ..plain
+            },
+        );
+        Lab {
+            bus,
+            monitor,
+            counter,
+        }
+    }
+
+    fn node_names(&self) -> Vec<&str> {
+        let nodes = self.bus.nodes();
+        nodes[..self.monitor].iter().map(|n| n.name()).collect()
+    }
+
+    fn now(&self) -> BitTime {
+        self.bus.now()
+    }
+
+    /// Runs everything up to bit-time `target`; returns the frames the monitor received.
+    fn advance(&mut self, target: BitTime) -> Vec<Frame> {
+        while self.bus.now() < target {
+            let until = target.min(self.counter.next);
+            self.bus.run_until(until);
+            if self.bus.now() == self.counter.next {
+                self.counter.fire(&mut self.bus);
+            }
+        }
+        self.bus
+            .take_records()
+            .into_iter()
+            .filter_map(|r| match r.what {
+                Happening::Node {
+                    node,
+                    event: Event::Received(frame),
+                } if node == self.monitor => Some(frame),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+fn periodic(frame: Frame, period: BitTime, start: BitTime) -> Traffic {
+    Traffic::Periodic {
+        frame,
+        period,
+        start,
+        count: None,
+    }
+}
+
+/// A node whose payload changes: a 32-bit little-endian counter every `period`.
+struct CounterNode {
+    node: usize,
+    id: Id,
+    period: BitTime,
+    next: BitTime,
+    value: u32,
+}
+
+impl CounterNode {
+    fn fire(&mut self, bus: &mut Simulation) {
+        let frame = Frame::data(self.id, &self.value.to_le_bytes()).expect("4 bytes");
+        // A full queue only means the bus is overloaded; the next value follows anyway.
+        let _ = bus.enqueue(self.node, frame);
+        self.value = self.value.wrapping_add(1);
+        self.next += self.period;
+    }
+}
+
+/// candump's default terminal format: `  sim0  123   [2]  11 22`.
+#[derive(Default)]
+struct Candump {
+    /// Once an extended frame was shown, standard IDs are padded to 8 columns (as candump).
+    eff_seen: bool,
+}
+
+impl Candump {
+    fn print(&mut self, out: &mut impl Write, iface: &str, frame: &Frame) -> io::Result<()> {
+        self.eff_seen |= frame.is_extended();
+        let id = frame.id().to_string();
+        let id = if self.eff_seen && !frame.is_extended() {
+            format!("{id:>8}")
+        } else {
+            id
+        };
+        // As can-utils: "[len] ", then " XX" per byte (so two spaces before the first).
+        write!(out, "  {iface}  {id}   [{}] ", frame.dlc())?;
+        if frame.is_remote() {
+            writeln!(out, " remote request")
+        } else {
+            for byte in frame.payload() {
+                write!(out, " {byte:02X}")?;
+            }
+            writeln!(out)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn show(frames: &[&str]) -> String {
+        let mut c = Candump::default();
+        let mut out = Vec::new();
+        for f in frames {
+            c.print(&mut out, "vcan0", &f.parse().unwrap()).unwrap();
+        }
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn candump_layout() {
+        assert_eq!(
+            show(&["123#112233", "7FF#R", "12345678#DEADBEEF", "123#"]),
+            "  vcan0  123   [3]  11 22 33\n\
+             \x20 vcan0  7FF   [0]  remote request\n\
+             \x20 vcan0  12345678   [4]  DE AD BE EF\n\
+             \x20 vcan0       123   [0] \n"
+        );
+    }
 }

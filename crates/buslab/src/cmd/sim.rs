@@ -1,8 +1,237 @@
-//! `buslab sim`.
+//! `buslab sim`: run a bus scenario in virtual time and print what happened.
+//!
+//! Frames go to stdout in candump log format with the transmitting node as the interface and
+//! virtual time as the timestamp, so `canplayer` and `log2asc` can read the output (they skip
+//! the `#` status lines). A per-node summary ends the run.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::PathBuf;
+
+use anyhow::Context;
+use buslab_can::controller::{ErrorKind, ErrorState, Event};
+use buslab_sim::observe::signal_names;
+use buslab_sim::time::seconds_micros;
+use buslab_sim::{BitTime, Happening, Record, Scenario, Simulation, Span, VcdWriter};
 
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Scenario file (TOML; see docs/sim.md).
+    pub scenario: PathBuf,
+    /// Write the bus level and each node's TX/RX levels to this VCD file.
+    #[arg(long, value_name = "FILE")]
+    pub vcd: Option<PathBuf>,
+    /// Run this long instead of the scenario's duration (`500ms`, `2s`, `100000` bit-times).
+    #[arg(long)]
+    pub duration: Option<Span>,
+    /// Use this seed instead of the scenario's.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Print only the summary.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Also print every frame as each node received it (` R`), transmissions get ` T`.
+    #[arg(long)]
+    pub rx: bool,
+    /// Also print every error a node detected.
+    #[arg(long)]
+    pub errors: bool,
+}
 
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`buslab sim` is not built yet")
+/// Bit-times simulated between two flushes of the output.
+const CHUNK: BitTime = 100_000;
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(&args.scenario)
+        .with_context(|| format!("cannot read scenario {}", args.scenario.display()))?;
+    let mut scenario = Scenario::from_toml(&text)
+        .with_context(|| format!("bad scenario {}", args.scenario.display()))?;
+    if let Some(seed) = args.seed {
+        scenario.seed = seed;
+    }
+    let end = args
+        .duration
+        .map_or(scenario.duration, |d| d.to_bits(scenario.bitrate));
+    let mut sim = scenario.build();
+
+    let mut vcd = match &args.vcd {
+        Some(path) => {
+            sim.trace_levels();
+            let file = File::create(path)
+                .with_context(|| format!("cannot create VCD file {}", path.display()))?;
+            let names = signal_names(sim.nodes().iter().map(|n| n.name()));
+            Some(VcdWriter::new(BufWriter::new(file), sim.bitrate(), &names)?)
+        }
+        None => None,
+    };
+
+    let stdout = io::stdout();
+    let mut out = BufWriter::new(stdout.lock());
+    let printer = Printer::new(&scenario, &args);
+    while sim.now() < end {
+        sim.run_until(end.min(sim.now() + CHUNK));
+        if !args.quiet {
+            for record in sim.take_records() {
+                printer.print(&mut out, &record)?;
+            }
+        } else {
+            sim.take_records();
+        }
+        if let Some(vcd) = &mut vcd {
+            vcd.write_changes(&sim.take_level_changes())?;
+        }
+    }
+    if let Some(vcd) = vcd {
+        vcd.finish(sim.now())?;
+    }
+    summary(&mut out, &sim)?;
+    out.flush()?;
+    Ok(())
+}
+
+/// Formats trace records as candump log lines and `#` status lines.
+struct Printer<'a> {
+    scenario: &'a Scenario,
+    bitrate: u32,
+    width: usize,
+    rx: bool,
+    errors: bool,
+}
+
+impl<'a> Printer<'a> {
+    fn new(scenario: &'a Scenario, args: &Args) -> Self {
+        Self {
+            scenario,
+            bitrate: scenario.bitrate,
+            width: scenario
+                .nodes
+                .iter()
+                .map(|n| n.name.len())
+                .max()
+                .unwrap_or(0),
+            rx: args.rx,
+            errors: args.errors,
+        }
+    }
+
+    fn print(&self, out: &mut impl Write, record: &Record) -> io::Result<()> {
+        let (s, us) = seconds_micros(record.time, self.bitrate);
+        let ts = format!("({s:010}.{us:06})");
+        let (node, event) = match &record.what {
+            Happening::FaultStarted { index } => {
+                let what = self.scenario.describe_fault(*index);
+                return writeln!(out, "# {ts} fault {} started: {what}", index + 1);
+            }
+            Happening::FaultEnded { index } => {
+                let what = self.scenario.describe_fault(*index);
+                return writeln!(out, "# {ts} fault {} ended: {what}", index + 1);
+            }
+            Happening::Node { node, event } => (&self.scenario.nodes[*node].name, event),
+        };
+        let w = self.width;
+        match event {
+            Event::Transmitted(frame) if self.rx => writeln!(out, "{ts} {node:>w$} {frame} T"),
+            Event::Transmitted(frame) => writeln!(out, "{ts} {node:>w$} {frame}"),
+            Event::Received(frame) if self.rx => writeln!(out, "{ts} {node:>w$} {frame} R"),
+            Event::StateChanged { from, to, tec, rec } => writeln!(
+                out,
+                "# {ts} {node}: {} -> {} (TEC {tec}, REC {rec})",
+                state_name(*from),
+                state_name(*to)
+            ),
+            Event::Warning { above, tec, rec } => {
+                let what = if *above {
+                    "error warning: a counter reached 96"
+                } else {
+                    "error warning cleared: both counters below 96"
+                };
+                writeln!(out, "# {ts} {node}: {what} (TEC {tec}, REC {rec})")
+            }
+            Event::Error {
+                kind,
+                transmitter,
+                bit,
+                tec,
+                rec,
+            } if self.errors => {
+                let role = if *transmitter {
+                    "transmitter"
+                } else {
+                    "receiver"
+                };
+                writeln!(
+                    out,
+                    "# {ts} {node}: {} error as {role} at bit {bit} (TEC {tec}, REC {rec})",
+                    kind_name(*kind)
+                )
+            }
+            Event::Dropped(frame) => {
+                writeln!(out, "# {ts} {node}: single-shot frame {frame} dropped")
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+fn state_name(state: ErrorState) -> &'static str {
+    match state {
+        ErrorState::Active => "error-active",
+        ErrorState::Passive => "error-passive",
+        ErrorState::BusOff => "bus-off",
+    }
+}
+
+fn kind_name(kind: ErrorKind) -> &'static str {
+    match kind {
+        ErrorKind::Bit => "bit",
+        ErrorKind::Stuff => "stuff",
+        ErrorKind::Crc => "CRC",
+        ErrorKind::Form => "form",
+        ErrorKind::Ack => "ACK",
+    }
+}
+
+fn summary(out: &mut impl Write, sim: &Simulation) -> io::Result<()> {
+    let width = sim
+        .nodes()
+        .iter()
+        .map(|n| n.name().len())
+        .max()
+        .unwrap_or(0)
+        .max(4);
+    writeln!(out, "#")?;
+    writeln!(
+        out,
+        "# {:<width$} {:>8} {:>8} {:>7} {:>8} {:>8} {:>5} {:>5} {:>8}  state",
+        "node", "sent", "received", "errors", "arb.lost", "bus-off", "TEC", "REC", "max TEC"
+    )?;
+    for n in sim.nodes() {
+        let s = n.stats();
+        let c = n.controller();
+        writeln!(
+            out,
+            "# {:<width$} {:>8} {:>8} {:>7} {:>8} {:>8} {:>5} {:>5} {:>8}  {}",
+            n.name(),
+            s.sent,
+            s.received,
+            s.errors,
+            s.arbitration_lost,
+            s.bus_off,
+            c.tec(),
+            c.rec(),
+            s.max_tec,
+            state_name(c.state())
+        )?;
+    }
+    let bus = sim.bus_stats();
+    let (secs, us) = seconds_micros(sim.now(), sim.bitrate());
+    writeln!(
+        out,
+        "# bus: {} bit/s, {secs}.{us:06} s ({} bit-times), load {:.1} %, {} frames, {} errors",
+        sim.bitrate(),
+        sim.now(),
+        bus.load() * 100.0,
+        bus.frames,
+        bus.errors
+    )
 }
