@@ -1,1 +1,31 @@
-//! ZELLE measurement cell: sans-IO device model, protocol and host client.
+//! ZELLE measurement cell: a sans-IO model of the cell and a host client for it.
+//!
+//! The cell is an 8051 board with a 1 KB EPROM operating system, a 4-channel 8-bit A/D
+//! converter, digital port lines, a START key and battery-backed RAM. A host drives it over a
+//! 9600 baud 8N2 line with one-byte commands (1..19), some followed by a small exchange.
+//!
+//! - [`Cell`]: the device model. Bytes go in with their arrival time (virtual nanoseconds),
+//!   bytes come out with the time their stop bits end on TxD; [`Cell::next_deadline`] says when
+//!   to look again. No threads, clocks or files inside.
+//! - [`analog`]: the sources that feed the A/D inputs (constant, waveforms, ramp, CSV replay).
+//! - [`BatteryRam`]: the battery-backed RAM as a serialisable snapshot (the state file).
+//! - [`client`]: the host side over any [`client::Port`] (a serial port, a PTY, or the model
+//!   itself in virtual time through [`SimPort`]).
+
+pub mod analog;
+mod cell;
+pub mod client;
+mod command;
+mod device;
+mod memory;
+pub mod program;
+mod sim_port;
+pub mod timing;
+
+pub use cell::{Activity, COUNT_HIGH_REGISTER, COUNT_LOW_REGISTER, Cell, InputError, Mode, Stats};
+pub use command::Command;
+pub use memory::{BatteryRam, StateFileError};
+pub use memory::{
+    DATA_AREA, EXT_RAM_SIZE, INTERNAL_RAM_SIZE, PARAMS_LEN, PROGRAM_AREA, START_BYTE,
+};
+pub use sim_port::SimPort;

@@ -1,0 +1,31 @@
+//! The cell's fixed line and its timing, in nanoseconds.
+
+use buslab_link::LineSettings;
+
+/// The cell's line: 9600 baud, 8 data bits, no parity, 2 stop bits.
+pub const LINE: LineSettings = LineSettings::n82(9600);
+
+/// One character on the line: 11 bit-times at 9600 baud.
+pub const BYTE_NS: u64 = LINE.byte_time_ns();
+
+/// One millisecond.
+pub const MS: u64 = 1_000_000;
+
+/// How long the OS sets up its address pointer after commands 1, 2, 3 and 5. The seed asks the
+/// host to pause this long before sending more.
+pub const SETUP_NS: u64 = MS;
+
+/// One A/D conversion. The seed's "interval minus number of channels" means each conversion
+/// takes about a millisecond of the interval.
+pub const CONVERSION_NS: u64 = MS;
+
+/// The gap the seed asks for between the ten reset zeros.
+pub const RESET_GAP_NS: u64 = 2 * MS;
+
+/// START key hold times after a reset, by the seed: about 1 s selects measure mode, about 3 s
+/// program mode, about 5 s the ready state. A shorter press leaves the stored mode alone.
+pub const KEY_HOLD_MEASURE_NS: u64 = 1_000 * MS;
+/// See [`KEY_HOLD_MEASURE_NS`].
+pub const KEY_HOLD_PROGRAM_NS: u64 = 3_000 * MS;
+/// See [`KEY_HOLD_MEASURE_NS`]. The OS stops timing here even if the key is still held.
+pub const KEY_HOLD_READY_NS: u64 = 5_000 * MS;

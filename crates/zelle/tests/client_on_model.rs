@@ -1,0 +1,191 @@
+//! Every command through the host client against the model, in virtual time.
+
+use buslab_zelle::analog::{Source, SourceSpec};
+use buslab_zelle::client::{Client, Error, Port, Progress, SeriesParams, Transfer};
+use buslab_zelle::timing::MS;
+use buslab_zelle::{Activity, Cell, Mode, SimPort};
+
+fn client() -> Client<SimPort> {
+    let mut c = Client::new(SimPort::new(Cell::default())).unwrap();
+    c.reset().unwrap();
+    c
+}
+
+fn source(spec: &str) -> Source {
+    match SourceSpec::parse(spec).unwrap() {
+        SourceSpec::Ready(s) => s,
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn analog_reads_follow_the_inputs() {
+    let mut c = client();
+    let cell = c.port().cell_mut();
+    cell.set_analog(1, source("1V")).unwrap();
+    cell.set_analog(4, source("5V")).unwrap();
+    assert_eq!(c.analog(1).unwrap(), 51);
+    assert_eq!(c.analog(4).unwrap(), 255);
+    assert_eq!(c.analog(2).unwrap(), 0);
+    assert_eq!(c.analog_repeat(&[4, 1, 1, 2]).unwrap(), [255, 51, 51, 0]);
+    // Still in the ready state afterwards.
+    assert!(!c.key_pressed().unwrap());
+    assert!(matches!(c.analog(5), Err(Error::Channel(5))));
+    assert!(matches!(c.analog(0), Err(Error::Channel(0))));
+}
+
+#[test]
+fn port1_is_quasi_bidirectional() {
+    let mut c = client();
+    assert_eq!(c.read_port1().unwrap(), 0xFF, "all high after power-on");
+    c.write_port1(0x5E).unwrap(); // LED on (bit 0 low), bits 5 and 7 low
+    assert_eq!(c.read_port1().unwrap(), 0x5E);
+    assert!(c.port().cell().led_on());
+    // An outside circuit pulls bits 4 and 5 low: only bit 4 changes, bit 5 was low already.
+    c.port().cell_mut().set_port1_pulled_low(0x30);
+    assert_eq!(c.read_port1().unwrap(), 0x4E);
+    // An analog reading leaves bits 0..3 high, the upper four as they were.
+    c.analog(1).unwrap();
+    assert_eq!(c.port().cell().port1_latch(), 0x5F);
+    assert!(!c.port().cell().led_on());
+}
+
+#[test]
+fn p26_key_registers_bus_and_ram() {
+    let mut c = client();
+    assert!(c.read_p26().unwrap());
+    c.write_p26(false).unwrap();
+    assert!(!c.read_p26().unwrap());
+    c.write_p26(true).unwrap();
+    c.port().cell_mut().set_p26_pulled_low(true);
+    assert!(!c.read_p26().unwrap(), "an input pulled low reads low");
+
+    let now = c.port().now();
+    c.port().cell_mut().key_down(now);
+    assert!(c.key_pressed().unwrap());
+    let now = c.port().now();
+    c.port().cell_mut().key_up(now);
+    assert!(!c.key_pressed().unwrap());
+
+    c.write_register(0x30, 0xA5).unwrap();
+    assert_eq!(c.read_register(0x30).unwrap(), 0xA5);
+    assert!(matches!(c.read_register(128), Err(Error::Register(128))));
+
+    c.bus_write(5, 0x42).unwrap();
+    assert_eq!(c.port().cell().bus(5), Some(0x42));
+    c.port().cell_mut().set_bus(6, 0x17).unwrap();
+    assert_eq!(c.bus_read(6).unwrap(), 0x17);
+    assert!(matches!(c.bus_write(128, 0), Err(Error::BusAddress(128))));
+
+    c.poke(0x1234, 0x99).unwrap();
+    assert_eq!(c.peek(0x1234).unwrap(), 0x99);
+    assert_eq!(c.peek(0x8000).unwrap(), 0xFF, "nothing above the RAM");
+}
+
+#[test]
+fn data_ram_round_trips_in_both_transfer_modes() {
+    for mode in [Transfer::Pipelined, Transfer::StopAndWait] {
+        let mut c = client();
+        let data: Vec<u8> = (0..300u32).map(|i| (i * 7 + 3) as u8).collect();
+        c.write_data(&data, mode).unwrap();
+        assert_eq!(c.read_data(data.len(), mode).unwrap(), data, "{mode:?}");
+        assert_eq!(c.peek(0x0800 + 299).unwrap(), data[299]);
+        let stats = c.port().cell().stats();
+        assert_eq!(stats.lost_overrun + stats.lost_in_setup, 0, "{mode:?}");
+    }
+}
+
+#[test]
+fn pipelined_dump_runs_at_line_rate() {
+    let mut c = client();
+    let t0 = c.port().now();
+    c.read_data(1000, Transfer::Pipelined).unwrap();
+    let pipelined = c.port().now() - t0;
+    let t0 = c.port().now();
+    c.read_data(1000, Transfer::StopAndWait).unwrap();
+    let stop_and_wait = c.port().now() - t0;
+    let line = 1000 * buslab_zelle::timing::BYTE_NS;
+    // Virtual time, so these are exact properties of the protocol, not of the machine.
+    assert!(pipelined < line + line / 50, "{pipelined} vs {line}");
+    assert!(stop_and_wait > 2 * line - line / 50, "{stop_and_wait}");
+}
+
+#[test]
+fn program_load_arms_program_mode_and_runs_after_reset() {
+    let mut c = client();
+    c.load_program(&[0x74, 0x01, 0x80, 0xFE], Transfer::Pipelined)
+        .unwrap();
+    assert_eq!(c.peek(0x0402).unwrap(), 0x80);
+    assert_eq!(c.port().cell().mode(), Mode::Program);
+    assert_eq!(
+        c.port().cell().activity(),
+        Activity::Ready,
+        "6 starts it, not 5"
+    );
+    let now = c.port().now();
+    c.port().cell_mut().reset(now);
+    assert_eq!(c.port().cell().activity(), Activity::ProgramRunning);
+    c.reset().unwrap();
+    assert_eq!(c.port().cell().mode(), Mode::Ready);
+    c.run_program().unwrap();
+    c.port().pause(std::time::Duration::from_millis(5));
+    assert_eq!(c.port().cell().activity(), Activity::ProgramRunning);
+    c.interrupt().unwrap();
+    assert_eq!(c.port().cell().activity(), Activity::Ready);
+}
+
+#[test]
+fn measure_produces_a_sine_on_two_channels() {
+    let mut c = client();
+    c.port()
+        .cell_mut()
+        .set_analog(1, source("sine:5Hz:2V:2.5V"))
+        .unwrap();
+    c.port().cell_mut().set_analog(2, source("3V")).unwrap();
+    let params = SeriesParams::new(&[1, 2], 100, 10).unwrap();
+    let mut progressed = 0;
+    let m = c
+        .measure(&params, 2, |p| {
+            if matches!(p, Progress::Measuring { .. }) {
+                progressed += 1
+            }
+        })
+        .unwrap();
+    assert!(progressed > 0);
+    assert_eq!(m.channels, [1, 2]);
+    assert_eq!(m.rows.len(), 200);
+    // A 5 Hz sine sampled every 10 ms: 20 samples a period, spanning 2.5 V ± 2 V.
+    let ch1: Vec<u8> = m.rows.iter().map(|r| r.values[0]).collect();
+    let max = *ch1.iter().max().unwrap();
+    let min = *ch1.iter().min().unwrap();
+    assert!(max >= 225 && min <= 30, "{min}..{max}");
+    for (a, b) in ch1.iter().zip(&ch1[20..100]) {
+        assert!(a.abs_diff(*b) <= 1, "one period later the same value");
+    }
+    assert!(m.rows.iter().all(|r| r.values[1] == 153));
+    assert_eq!(m.rows[1].time_ns - m.rows[0].time_ns, 10 * MS);
+    // The cell is left ready.
+    assert_eq!(c.port().cell().mode(), Mode::Ready);
+}
+
+#[test]
+fn timeouts_are_errors_naming_what_was_awaited() {
+    let mut c = client();
+    let now = c.port().now();
+    c.port().cell_mut().power_off(now);
+    let err = c.peek(0x0800).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            Error::Timeout {
+                got: 0,
+                wanted: 1,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("reading a RAM address"), "{err}");
+    let err = c.read_data(10, Transfer::Pipelined).unwrap_err();
+    assert!(err.to_string().contains("reading data RAM"), "{err}");
+}

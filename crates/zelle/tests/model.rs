@@ -1,0 +1,327 @@
+//! The cell model byte by byte, with exact arrival times.
+
+use buslab_zelle::analog::Source;
+use buslab_zelle::timing::{BYTE_NS, MS};
+use buslab_zelle::{Activity, BatteryRam, Cell, Mode, START_BYTE};
+
+/// Drives a cell like a line would: bytes back to back unless told to wait.
+struct Line {
+    cell: Cell,
+    t: u64,
+    out: Vec<u8>,
+}
+
+impl Line {
+    fn new(cell: Cell) -> Line {
+        Line {
+            cell,
+            t: 0,
+            out: Vec::new(),
+        }
+    }
+
+    /// Sends bytes back to back, each arriving one character time after the previous.
+    fn send(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.t += BYTE_NS;
+            self.cell.receive(self.t, b);
+        }
+    }
+
+    /// Lets `ns` pass on an idle line.
+    fn wait(&mut self, ns: u64) {
+        let end = self.t + ns;
+        while let Some(d) = self.cell.next_deadline().filter(|&d| d <= end) {
+            self.cell.poll(d, &mut self.out);
+        }
+        self.t = end;
+        self.cell.poll(end, &mut self.out);
+    }
+
+    /// Everything the cell sent so far, cleared.
+    fn take(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.out)
+    }
+
+    fn reset(&mut self) {
+        for _ in 0..10 {
+            self.wait(2 * MS);
+            self.send(&[0]);
+        }
+        self.wait(5 * MS);
+        self.take();
+    }
+}
+
+fn ramp_ms() -> Source {
+    // 0..5 V over 255 ms: the reading is the sample time in ms (mod 255).
+    Source::Ramp {
+        from: 0.0,
+        to: 5.0,
+        period_ns: 255 * MS,
+    }
+}
+
+#[test]
+fn setup_pause_after_commands_1_2_3_5_is_enforced() {
+    let mut l = Line::new(Cell::default());
+    // Command 2 then a request right behind it: the request's start bit falls in the set-up.
+    l.send(&[2, 1]);
+    l.wait(10 * MS);
+    assert_eq!(l.take(), Vec::<u8>::new());
+    assert_eq!(l.cell.stats().lost_in_setup, 1);
+    // After the 1 ms pause the same request is answered.
+    l.wait(MS);
+    l.send(&[1, 1, 0]);
+    l.wait(10 * MS);
+    assert_eq!(l.take(), [0, 0]);
+    // Commands without a set-up take their data back to back.
+    l.send(&[19, 0x08, 0x00, 0x77, 18, 0x08, 0x00]);
+    l.wait(5 * MS);
+    assert_eq!(l.take(), [0x77]);
+    assert_eq!(l.cell.stats().lost_in_setup, 1);
+}
+
+#[test]
+fn pipelining_command_4_overruns_the_receive_buffer() {
+    let mut l = Line::new(Cell::default());
+    l.cell.set_analog(1, Source::Constant(5.0)).unwrap();
+    // Conversion (1 ms) plus reply (1.15 ms) is longer than the next request on the line.
+    l.send(&[4, 1, 1, 1, 1, 1, 1, 0]);
+    l.wait(30 * MS);
+    let answered = l.take().len();
+    let lost = l.cell.stats().lost_overrun;
+    assert!(lost > 0 && answered < 6, "answered {answered}, lost {lost}");
+    // Waiting for each reply loses nothing.
+    l.reset();
+    let before = l.cell.stats().lost_overrun;
+    l.send(&[4]);
+    for _ in 0..6 {
+        l.send(&[1]);
+        l.wait(3 * MS);
+    }
+    l.send(&[0]);
+    l.wait(3 * MS);
+    assert_eq!(l.take(), [255; 6]);
+    assert_eq!(l.cell.stats().lost_overrun, before);
+}
+
+#[test]
+fn replies_take_the_documented_time() {
+    let mut l = Line::new(Cell::default());
+    l.send(&[18, 0x03]);
+    let t_last = l.t + BYTE_NS;
+    l.send(&[0xFF]);
+    // The reply's stop bits end one character after the last address byte arrived.
+    assert_eq!(l.cell.next_deadline(), Some(t_last + BYTE_NS));
+    // Command 7: conversion first.
+    l.wait(5 * MS);
+    l.take();
+    l.send(&[7, 2]);
+    assert_eq!(l.cell.next_deadline(), Some(l.t + MS));
+    l.wait(MS);
+    assert_eq!(l.cell.next_deadline(), Some(l.t + BYTE_NS));
+}
+
+#[test]
+fn series_converts_channels_1ms_apart_and_cycles_every_interval() {
+    let mut l = Line::new(Cell::default());
+    l.cell.set_analog(1, ramp_ms()).unwrap();
+    l.cell.set_analog(3, ramp_ms()).unwrap();
+    // 4 cycles, channels 3 and 1, interval 20 ms → 18 ms after the two conversions.
+    l.send(&[1]);
+    l.wait(MS);
+    l.send(&[0, 4, 3, 0, 1, 0, 0, 18]);
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    assert_eq!(l.cell.mode(), Mode::Measure);
+    l.wait(100 * MS);
+    assert_eq!(l.cell.value_count(), 0, "nothing before START");
+    l.send(&[9]);
+    let start_ms = (l.t / MS) as i64;
+    assert_eq!(l.cell.activity(), Activity::Measuring);
+    l.wait(200 * MS);
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    assert_eq!(l.cell.value_count(), 8);
+    let ram = l.cell.ram();
+    assert_eq!(
+        (0..8).map(|i| ram.read(0x0800 + i)).collect::<Vec<_>>(),
+        [0, 4, 3, 0, 1, 0, 0, 18]
+    );
+    let values: Vec<i64> = (0..8).map(|i| i64::from(ram.read(0x0808 + i))).collect();
+    for (i, v) in values.iter().enumerate() {
+        let expected = (start_ms + (i as i64 / 2) * 20 + (i as i64 % 2)) % 255;
+        assert!((v - expected).abs() <= 1, "value {i}: {v} vs {expected}");
+    }
+    // A second START appends the next block.
+    l.send(&[9]);
+    l.wait(200 * MS);
+    assert_eq!(l.cell.value_count(), 16);
+    // Stop; the count stays readable with command 16 (R6:R7).
+    l.send(&[0]);
+    assert_eq!(l.cell.activity(), Activity::Ready);
+    l.wait(3 * MS);
+    l.send(&[16, 6, 16, 7]);
+    l.wait(10 * MS);
+    assert_eq!(l.take(), [0, 16]);
+}
+
+#[test]
+fn byte_0_interrupts_a_block_but_not_a_parameter_exchange() {
+    let mut l = Line::new(Cell::default());
+    l.send(&[1]);
+    l.wait(MS);
+    // Zeros inside the 8 parameters are data: the serial routine masks the interrupt.
+    l.send(&[0, 200, 1, 0, 0, 0, 0, 10]);
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    l.send(&[9]);
+    l.wait(55 * MS);
+    l.send(&[0]);
+    let count = l.cell.value_count();
+    assert!((5..=7).contains(&count), "{count}");
+    assert_eq!(l.cell.activity(), Activity::Ready);
+    assert_eq!(l.cell.ram().read(START_BYTE), 0);
+    l.wait(100 * MS);
+    assert_eq!(l.cell.value_count(), count, "stopped at once");
+    // Other bytes do not interrupt: only 9 starts a block, the rest are ignored.
+    l.send(&[10]);
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    l.send(&[5, 1, 2]);
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    assert_eq!(l.cell.value_count(), 0, "command 10 starts a new series");
+}
+
+#[test]
+fn start_key_starts_blocks_and_9_does_nothing_when_ready() {
+    let mut l = Line::new(Cell::default());
+    l.send(&[9, 13]);
+    l.wait(5 * MS);
+    assert_eq!(l.take(), [1], "9 ignored, then the key reads not pressed");
+    l.send(&[1]);
+    l.wait(MS);
+    l.send(&[0, 3, 2, 0, 0, 0, 0, 4]);
+    let t = l.t;
+    l.cell.press_key_for(t, 200 * MS);
+    assert_eq!(l.cell.activity(), Activity::Measuring);
+    l.wait(300 * MS);
+    assert_eq!(l.cell.value_count(), 3);
+}
+
+#[test]
+fn armed_series_resumes_after_a_power_cycle_through_the_state_file() {
+    let mut l = Line::new(Cell::default());
+    l.cell.set_analog(2, Source::Constant(2.5)).unwrap();
+    l.send(&[1]);
+    l.wait(MS);
+    l.send(&[0, 2, 2, 0, 0, 0, 0, 9]);
+    l.wait(5 * MS);
+    let t = l.t;
+    l.cell.power_off(t);
+    assert_eq!(l.cell.activity(), Activity::Off);
+    // Only the battery-backed RAM survives, here through its file form.
+    let file = l.cell.ram().to_state_file();
+    let mut l = Line::new(Cell::new(BatteryRam::from_state_file(&file).unwrap()));
+    l.cell.set_analog(2, Source::Constant(2.5)).unwrap();
+    assert_eq!(l.cell.mode(), Mode::Measure);
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    l.send(&[9]);
+    l.wait(50 * MS);
+    assert_eq!(l.cell.value_count(), 2);
+    assert_eq!(l.cell.ram().read(0x0808), 128);
+    // Power-cycling the same cell resumes too.
+    let t = l.t;
+    l.cell.power_off(t);
+    l.cell.power_on(t + 1000 * MS);
+    l.t = t + 1000 * MS;
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    assert_eq!(l.cell.value_count(), 0, "a resumed series starts over");
+}
+
+#[test]
+fn start_key_held_at_power_on_selects_the_mode() {
+    let cases = [
+        (500, Mode::Measure),  // too short: the stored mode stays
+        (1200, Mode::Measure), // ~1 s
+        (3300, Mode::Program), // ~3 s
+        (5200, Mode::Ready),   // ~5 s
+        (60_000, Mode::Ready), // held on: ready at 5 s
+    ];
+    for (hold_ms, mode) in cases {
+        let mut ram = BatteryRam::default();
+        ram.write(START_BYTE, 129);
+        let mut cell = Cell::new(ram);
+        cell.power_off(MS);
+        cell.press_key_for(2 * MS, hold_ms * MS);
+        cell.power_on(3 * MS);
+        assert_eq!(cell.activity(), Activity::TimingKey);
+        let mut out = Vec::new();
+        cell.receive(4 * MS, 13); // ignored while the key is timed
+        cell.poll(10_000 * MS, &mut out);
+        assert_eq!(cell.mode(), mode, "held {hold_ms} ms");
+        assert_ne!(cell.activity(), Activity::TimingKey);
+        assert!(out.is_empty());
+    }
+}
+
+#[test]
+fn full_data_area_ends_the_series_in_the_ready_state() {
+    let mut l = Line::new(Cell::default());
+    // 65535 cycles of 4 channels would need 262140 bytes; 30712 fit.
+    l.send(&[1]);
+    l.wait(MS);
+    l.send(&[0xFF, 0xFF, 1, 2, 3, 4, 0, 0]);
+    l.send(&[9]);
+    l.wait(40_000 * MS);
+    assert_eq!(l.cell.value_count(), 0x8000 - 0x0808);
+    assert_eq!(l.cell.mode(), Mode::Ready);
+    assert_eq!(l.cell.activity(), Activity::Ready);
+    // Nothing was written past the RAM; the parameters are intact.
+    assert_eq!(l.cell.ram().read(0x0800), 0xFF);
+    assert_eq!(l.cell.ram().read(0x0806), 0);
+}
+
+#[test]
+fn power_off_cuts_a_reply_and_drops_bytes() {
+    let mut l = Line::new(Cell::default());
+    l.send(&[12]);
+    let t = l.t + BYTE_NS / 2;
+    l.cell.power_off(t);
+    l.wait(5 * MS);
+    assert!(l.take().is_empty());
+    l.send(&[12]);
+    assert_eq!(l.cell.stats().lost_off, 1);
+    let t = l.t;
+    l.cell.power_on(t);
+    l.send(&[12]);
+    l.wait(5 * MS);
+    assert_eq!(l.take(), [0xFF]);
+}
+
+#[test]
+fn upload_sends_a_timing_byte_before_each_byte() {
+    let mut l = Line::new(Cell::default());
+    l.send(&[3]);
+    l.wait(3 * MS);
+    assert_eq!(l.take().len(), 1, "first timing byte after the set-up");
+    l.send(&[1, 0xAB]);
+    l.wait(3 * MS);
+    assert_eq!(l.take().len(), 1);
+    l.send(&[7, 0xCD, 0]); // any nonzero flag means "a byte follows"
+    l.wait(3 * MS);
+    assert_eq!(l.take().len(), 1);
+    assert_eq!(l.cell.activity(), Activity::Ready);
+    assert_eq!(l.cell.ram().read(0x0800), 0xAB);
+    assert_eq!(l.cell.ram().read(0x0801), 0xCD);
+    assert_eq!(
+        l.cell.mode(),
+        Mode::Ready,
+        "command 3 does not arm program mode"
+    );
+}
+
+#[test]
+fn writes_p26_from_bit_0_and_reads_registers_above_127_as_ff() {
+    let mut l = Line::new(Cell::default());
+    l.send(&[14, 0xFE, 15, 14, 0x03, 15, 16, 200, 8, 0x85]);
+    l.wait(10 * MS);
+    assert_eq!(l.take(), [0, 1, 0xFF, 0xFF]);
+}
