@@ -1,5 +1,7 @@
 //! `buslab`: the command-line front end. Each subcommand lives in `cmd/<name>.rs`.
 
+use std::process::ExitCode;
+
 use clap::{Parser, Subcommand};
 
 mod cmd;
@@ -27,8 +29,19 @@ enum Command {
     Cpu196(cmd::cpu196::Args),
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Errors are for people: one line with the chain of causes, never a backtrace.
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Lab(args) => cmd::lab::run(args),
         Command::Wire(args) => cmd::wire::run(args),
