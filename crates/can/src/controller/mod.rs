@@ -3,9 +3,22 @@
 //! Driving it, once per bit-time: ask [`Controller::output`] for the level this node drives,
 //! combine all nodes' outputs on the wire (wired-AND), then hand the sampled bus level to
 //! [`Controller::sample`]. Drain [`Controller::poll_event`] whenever convenient.
+//!
+//! The controller follows the facts sheet (`can-bitlevel.md`): integration (11 recessive bits),
+//! arbitration, ACK, the five error kinds, active/passive error flags and delimiters, overload
+//! frames, intermission, suspend transmission, and fault confinement with all counter rules and
+//! their exceptions. Its receive path is the [`wire::Receiver`]; it counts EOF itself because a
+//! controller and a bare decoder treat the last EOF bit differently.
 
-use crate::Frame;
-use crate::Level;
+mod fault;
+mod queue;
+
+use alloc::collections::VecDeque;
+
+use crate::wire::{self, Encoded, Field, Receiver, Step, WireErrorKind};
+use crate::{Frame, Level};
+use fault::Counters;
+use queue::TxQueue;
 
 /// Options that change how the controller behaves on the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,53 +109,670 @@ pub struct QueueFull {
     pub capacity: usize,
 }
 
+/// Which flag is being sent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Flag {
+    ActiveError,
+    PassiveError,
+    Overload,
+}
+
+/// What the current bit-time is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    /// After reset: waiting for 11 consecutive recessive bits.
+    Integrating { recessive: u8 },
+    /// Bus idle: a pending frame starts with SOF.
+    Idle,
+    /// SOF .. ACK delimiter; every bit goes through the receiver.
+    Frame,
+    /// EOF bit `n` (1..=7).
+    Eof { n: u8 },
+    /// Intermission bit `n` (1..=3).
+    Intermission { n: u8 },
+    /// Suspend transmission bit `n` (1..=8), for an error-passive node after transmitting.
+    Suspend { n: u8 },
+    /// Bit `n` (0-based) of a flag; `equal`/`last` follow the sampled levels for a passive flag.
+    Flag {
+        flag: Flag,
+        n: u8,
+        equal: u8,
+        last: bool,
+    },
+    /// Error or overload delimiter: `dominant` bits seen after the flag while waiting for the
+    /// first recessive bit, then `recessive` delimiter bits seen (1..=7).
+    Delimiter {
+        overload: bool,
+        recessive: u8,
+        dominant: u32,
+    },
+    /// Bus-off; recovery counts 128 sequences of 11 recessive bits.
+    BusOff { recessive: u8, sequences: u8 },
+}
+
+/// Consecutive recessive bits that integrate a node into bus activity.
+const INTEGRATION_BITS: u8 = 11;
+/// Sequences of 11 recessive bits a bus-off node waits for.
+const RECOVERY_SEQUENCES: u8 = 128;
+
 /// One node's protocol controller.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Controller {
     config: ControllerConfig,
+    phase: Phase,
+    /// The level driven during the current bit-time (what [`Controller::output`] returns).
+    drive: Level,
+    rx: Receiver,
+    /// The frame being (or next to be) attempted, already encoded.
+    tx: Option<Encoded>,
+    queue: TxQueue,
+    /// We are the transmitter of the current frame (from SOF to the end of its error frame or
+    /// EOF; cleared when arbitration is lost).
+    transmitting: bool,
+    /// We transmitted the frame that just ended (suspend transmission if error-passive).
+    was_transmitter: bool,
+    counters: Counters,
+    /// A passive transmitter's ACK error: TEC +8 only if a dominant bit shows up during its
+    /// passive error flag (facts §5.2 rule 3, exception 1).
+    ack_exception: bool,
+    /// Bus-off recovery is counting (auto, or after [`Controller::recover`]).
+    recovering: bool,
+    /// Drop the in-flight frame instead of retrying it ([`Controller::abort_all`]).
+    abort_in_flight: bool,
+    /// Wire index of the current bit since the last SOF.
+    frame_bit: u32,
+    events: VecDeque<Event>,
 }
 
 impl Controller {
     pub fn new(config: ControllerConfig) -> Self {
-        Self { config }
+        Self {
+            config,
+            phase: Phase::Integrating { recessive: 0 },
+            drive: Level::Recessive,
+            rx: Receiver::new(),
+            tx: None,
+            queue: TxQueue::with_capacity(config.tx_queue_capacity),
+            transmitting: false,
+            was_transmitter: false,
+            counters: Counters::new(),
+            ack_exception: false,
+            recovering: false,
+            abort_in_flight: false,
+            frame_bit: 0,
+            events: VecDeque::with_capacity(16),
+        }
     }
 
     pub fn config(&self) -> &ControllerConfig {
         &self.config
     }
 
-    /// Queue a frame for transmission (sent in priority order).
+    /// Queue a frame for transmission (sent in priority order; equal frames in queue order).
+    /// The frame in flight counts against the capacity. A listen-only controller accepts frames
+    /// but never sends them.
     pub fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
-        let _ = frame;
-        Err(QueueFull {
-            capacity: self.config.tx_queue_capacity,
-        })
+        if self.pending() >= self.config.tx_queue_capacity {
+            return Err(QueueFull {
+                capacity: self.config.tx_queue_capacity,
+            });
+        }
+        self.queue.push(frame);
+        if self.phase == Phase::Idle {
+            self.drive = self.next_drive();
+        }
+        Ok(())
+    }
+
+    /// Frames waiting, including the one being attempted.
+    pub fn pending(&self) -> usize {
+        self.queue.len() + self.tx.is_some() as usize
+    }
+
+    /// The waiting frames, the one being attempted first, then in the order they will be tried.
+    pub fn queued(&self) -> impl Iterator<Item = &Frame> {
+        self.tx.iter().map(Encoded::frame).chain(self.queue.iter())
+    }
+
+    /// Drop every waiting frame. A frame on the wire right now finishes its attempt but is not
+    /// retried (it is reported as [`Event::Dropped`] if that attempt fails).
+    pub fn abort_all(&mut self) {
+        self.queue.clear();
+        if self.transmitting {
+            self.abort_in_flight = true;
+        } else {
+            self.tx = None;
+        }
     }
 
     /// The level this node drives during the current bit-time.
+    #[inline]
     pub fn output(&self) -> Level {
-        Level::Recessive
+        self.drive
+    }
+
+    /// The bus is idle (integrated, no frame, flag or interframe space in progress): a frame
+    /// queued now starts with the next bit.
+    pub fn is_bus_idle(&self) -> bool {
+        self.phase == Phase::Idle
+    }
+
+    /// We are the transmitter of the frame on the bus (not yet lost arbitration).
+    pub fn is_transmitting(&self) -> bool {
+        self.transmitting
     }
 
     /// The bus level sampled during the current bit-time; advances one bit-time.
     pub fn sample(&mut self, bus: Level) {
-        let _ = bus;
+        let bit = bus.bit();
+        match self.phase {
+            Phase::Integrating { recessive } => {
+                self.phase = match (bit, recessive + 1) {
+                    (false, _) => Phase::Integrating { recessive: 0 },
+                    (true, INTEGRATION_BITS) => Phase::Idle,
+                    (true, n) => Phase::Integrating { recessive: n },
+                };
+            }
+            Phase::Idle => {
+                if !bit {
+                    let sent_sof = self.drive == Level::Dominant;
+                    self.start_frame(sent_sof);
+                }
+            }
+            Phase::Frame => self.frame_bit(bit),
+            Phase::Eof { n } => self.eof_bit(n, bit),
+            Phase::Intermission { n } => self.intermission_bit(n, bit),
+            Phase::Suspend { n } => {
+                self.phase = match (bit, n) {
+                    (false, _) => {
+                        self.start_frame(false);
+                        Phase::Frame
+                    }
+                    (true, 8) => Phase::Idle,
+                    (true, n) => Phase::Suspend { n: n + 1 },
+                };
+            }
+            Phase::Flag {
+                flag,
+                n,
+                equal,
+                last,
+            } => self.flag_bit(flag, n, equal, last, bit),
+            Phase::Delimiter {
+                overload,
+                recessive,
+                dominant,
+            } => self.delimiter_bit(overload, recessive, dominant, bit),
+            Phase::BusOff {
+                recessive,
+                sequences,
+            } => self.bus_off_bit(recessive, sequences, bit),
+        }
+        self.frame_bit = self.frame_bit.saturating_add(1);
+        self.drive = self.next_drive();
     }
 
     pub fn poll_event(&mut self) -> Option<Event> {
-        None
+        self.events.pop_front()
     }
 
     pub fn tec(&self) -> u16 {
-        0
+        self.counters.tec
     }
     pub fn rec(&self) -> u16 {
-        0
+        self.counters.rec
     }
     pub fn state(&self) -> ErrorState {
-        ErrorState::Active
+        self.counters.state()
     }
 
-    /// Start bus-off recovery (when `auto_recover` is off).
-    pub fn recover(&mut self) {}
+    /// Start bus-off recovery (when `auto_recover` is off): after 128 sequences of 11
+    /// recessive bits the node is error-active again with both counters 0.
+    pub fn recover(&mut self) {
+        if self.state() == ErrorState::BusOff {
+            self.recovering = true;
+        }
+    }
+
+    /// The level for the bit-time after the one just sampled.
+    #[inline]
+    fn next_drive(&mut self) -> Level {
+        if self.config.listen_only {
+            return Level::Recessive;
+        }
+        match self.phase {
+            Phase::Idle => {
+                if self.load_tx() {
+                    Level::Dominant
+                } else {
+                    Level::Recessive
+                }
+            }
+            Phase::Frame => {
+                if self.transmitting {
+                    match &self.tx {
+                        Some(tx) => tx.stuffed().level(self.rx.position() as usize),
+                        None => Level::Recessive,
+                    }
+                } else if self.rx.field() == Field::AckSlot
+                    && !self.rx.expects_stuff_bit()
+                    && self.rx.crc_ok()
+                {
+                    Level::Dominant
+                } else {
+                    Level::Recessive
+                }
+            }
+            Phase::Flag {
+                flag: Flag::ActiveError | Flag::Overload,
+                ..
+            } => Level::Dominant,
+            _ => Level::Recessive,
+        }
+    }
+
+    /// Make `tx` the most important waiting frame; false if there is none.
+    fn load_tx(&mut self) -> bool {
+        let better = match (&self.tx, self.queue.peek()) {
+            (_, None) => false,
+            (None, Some(_)) => true,
+            (Some(tx), Some(next)) => next < tx.frame(),
+        };
+        if better
+            && let Some(next) = self.queue.pop()
+            && let Some(old) = self.tx.replace(wire::encode(&next))
+        {
+            self.queue.push(*old.frame());
+        }
+        self.tx.is_some()
+    }
+
+    /// SOF sampled. `transmit`: we take part as a transmitter (sent SOF, or have a frame ready
+    /// when SOF shows up in the 3rd intermission bit).
+    fn start_frame(&mut self, transmit: bool) {
+        self.rx.reset();
+        let _ = self.rx.push(false);
+        self.frame_bit = 0;
+        self.transmitting = transmit && self.tx.is_some();
+        self.phase = Phase::Frame;
+    }
+
+    fn frame_bit(&mut self, bit: bool) {
+        let stuff = self.rx.expects_stuff_bit();
+        let field = self.rx.field();
+        let drove = self.drive.bit();
+        if drove != bit {
+            if self.transmitting {
+                if self.rx.in_stuffed_region() {
+                    let index = self.rx.index();
+                    let extended = self.tx.as_ref().is_some_and(|tx| tx.frame().is_extended());
+                    let arbitration_end = if extended { 32 } else { 12 };
+                    if drove && (1..=arbitration_end).contains(&index) {
+                        if stuff {
+                            // A recessive stuff bit overwritten in arbitration: a stuff error
+                            // that leaves TEC alone (facts §5.2 rule 3, exception 2).
+                            return self.error(ErrorKind::Stuff, false);
+                        }
+                        self.lose_arbitration(index);
+                    } else {
+                        return self.error(ErrorKind::Bit, true);
+                    }
+                }
+                // ACK slot overwritten = acknowledged; fixed-form bits: the receiver reports a
+                // form error below.
+            } else if !drove {
+                // Our dominant ACK read back recessive.
+                return self.error(ErrorKind::Bit, true);
+            }
+        }
+        match self.rx.push(bit) {
+            Step::Pending | Step::Frame(_) => {}
+            Step::Error(error) => {
+                let kind = match error.kind {
+                    WireErrorKind::Stuff => ErrorKind::Stuff,
+                    WireErrorKind::Form => ErrorKind::Form,
+                    WireErrorKind::Crc { .. } => ErrorKind::Crc,
+                };
+                return self.error(kind, true);
+            }
+        }
+        if stuff {
+            return;
+        }
+        match field {
+            Field::AckSlot => {
+                if self.transmitting {
+                    if bit && !self.config.self_test {
+                        self.error(ErrorKind::Ack, true);
+                    }
+                } else if !drove {
+                    // ACK sent successfully: a successful reception (rule 8).
+                    self.counters.receive_ok();
+                    self.update_state();
+                }
+            }
+            Field::AckDelimiter => self.phase = Phase::Eof { n: 1 },
+            _ => {}
+        }
+    }
+
+    fn lose_arbitration(&mut self, bit: u32) {
+        self.transmitting = false;
+        if let Some(tx) = &self.tx {
+            let frame = *tx.frame();
+            self.events.push_back(Event::ArbitrationLost { frame, bit });
+            if self.config.single_shot || self.abort_in_flight {
+                self.drop_tx();
+            }
+        }
+    }
+
+    fn drop_tx(&mut self) {
+        self.abort_in_flight = false;
+        if let Some(tx) = self.tx.take() {
+            self.events.push_back(Event::Dropped(*tx.frame()));
+        }
+    }
+
+    fn eof_bit(&mut self, n: u8, bit: bool) {
+        if !bit {
+            if n == 7 && !self.transmitting {
+                // The frame is already valid for receivers: overload condition.
+                return self.start_overload();
+            }
+            return self.error(ErrorKind::Form, true);
+        }
+        if n == 6
+            && !self.transmitting
+            && let Some(decoded) = self.rx.decoded()
+        {
+            self.events.push_back(Event::Received(decoded.frame));
+        }
+        if n < 7 {
+            self.phase = Phase::Eof { n: n + 1 };
+            return;
+        }
+        if self.transmitting
+            && let Some(tx) = self.tx.take()
+        {
+            let frame = *tx.frame();
+            self.abort_in_flight = false;
+            self.counters.transmit_ok();
+            self.events.push_back(Event::Transmitted(frame));
+            if self.config.self_reception {
+                self.events.push_back(Event::Received(frame));
+            }
+            self.update_state();
+        }
+        self.end_of_frame();
+    }
+
+    /// Into intermission after EOF or a delimiter.
+    fn end_of_frame(&mut self) {
+        self.was_transmitter = self.transmitting;
+        self.transmitting = false;
+        self.phase = Phase::Intermission { n: 1 };
+    }
+
+    fn intermission_bit(&mut self, n: u8, bit: bool) {
+        if !bit {
+            if n < 3 {
+                return self.start_overload();
+            }
+            // Dominant at the 3rd intermission bit is SOF; a node with a frame ready joins
+            // without sending SOF itself (facts §3).
+            let transmit = !self.config.listen_only && !self.suspended() && self.load_tx();
+            return self.start_frame(transmit);
+        }
+        self.phase = if n < 3 {
+            Phase::Intermission { n: n + 1 }
+        } else if self.suspended() {
+            Phase::Suspend { n: 1 }
+        } else {
+            Phase::Idle
+        };
+    }
+
+    /// An error-passive node that transmitted the last frame waits 8 more bits.
+    fn suspended(&self) -> bool {
+        self.was_transmitter && self.state() == ErrorState::Passive
+    }
+
+    fn start_overload(&mut self) {
+        if !self.config.listen_only {
+            self.events.push_back(Event::Overload);
+        }
+        self.was_transmitter |= self.transmitting;
+        self.transmitting = false;
+        self.phase = Phase::Flag {
+            flag: Flag::Overload,
+            n: 0,
+            equal: 0,
+            last: false,
+        };
+    }
+
+    /// An error detected: count it, report it, start the error flag with the next bit.
+    /// `count_tec`: false for the arbitration stuff-bit exception.
+    fn error(&mut self, kind: ErrorKind, count_tec: bool) {
+        // The flag is chosen by the state before this error is counted.
+        let flag = if self.config.listen_only || self.state() == ErrorState::Passive {
+            Flag::PassiveError
+        } else {
+            Flag::ActiveError
+        };
+        if !self.config.listen_only {
+            if self.transmitting {
+                if kind == ErrorKind::Ack && flag == Flag::PassiveError {
+                    self.ack_exception = true;
+                } else if count_tec {
+                    self.counters.add_tec(8);
+                }
+            } else {
+                self.counters.add_rec(1);
+            }
+        }
+        self.events.push_back(Event::Error {
+            kind,
+            transmitter: self.transmitting,
+            bit: self.frame_bit,
+            tec: self.counters.tec,
+            rec: self.counters.rec,
+        });
+        if self.transmitting && (self.config.single_shot || self.abort_in_flight) {
+            self.drop_tx();
+        }
+        self.phase = Phase::Flag {
+            flag,
+            n: 0,
+            equal: 0,
+            last: false,
+        };
+        self.update_state();
+    }
+
+    /// +8 on the counter of our role (transmitter: TEC, receiver: REC).
+    fn add_eight(&mut self) {
+        if self.config.listen_only {
+            return;
+        }
+        if self.transmitting {
+            self.counters.add_tec(8);
+        } else {
+            self.counters.add_rec(8);
+        }
+        self.update_state();
+    }
+
+    fn flag_bit(&mut self, flag: Flag, n: u8, equal: u8, last: bool, bit: bool) {
+        if flag == Flag::PassiveError {
+            if !bit && self.ack_exception {
+                self.ack_exception = false;
+                self.counters.add_tec(8);
+                self.update_state();
+                if self.phase
+                    != (Phase::Flag {
+                        flag,
+                        n,
+                        equal,
+                        last,
+                    })
+                {
+                    return; // went bus-off
+                }
+            }
+            // Complete after 6 equal consecutive bits, whatever their level.
+            let equal = if n > 0 && bit == last { equal + 1 } else { 1 };
+            if equal == 6 {
+                self.ack_exception = false;
+                self.start_delimiter(false);
+            } else {
+                self.phase = Phase::Flag {
+                    flag,
+                    n: n.saturating_add(1),
+                    equal,
+                    last: bit,
+                };
+            }
+            return;
+        }
+        if bit && !self.config.listen_only {
+            // Our dominant flag bit read back recessive: bit error, +8 (rules 4 and 5), and a
+            // new error flag.
+            self.add_eight();
+            self.events.push_back(Event::Error {
+                kind: ErrorKind::Bit,
+                transmitter: self.transmitting,
+                bit: self.frame_bit,
+                tec: self.counters.tec,
+                rec: self.counters.rec,
+            });
+            if matches!(self.phase, Phase::BusOff { .. }) {
+                return;
+            }
+            let flag = if self.state() == ErrorState::Passive {
+                Flag::PassiveError
+            } else {
+                Flag::ActiveError
+            };
+            self.phase = Phase::Flag {
+                flag,
+                n: 0,
+                equal: 0,
+                last: false,
+            };
+            return;
+        }
+        if n + 1 == 6 {
+            self.start_delimiter(flag == Flag::Overload);
+        } else {
+            self.phase = Phase::Flag {
+                flag,
+                n: n + 1,
+                equal,
+                last,
+            };
+        }
+    }
+
+    fn start_delimiter(&mut self, overload: bool) {
+        self.phase = Phase::Delimiter {
+            overload,
+            recessive: 0,
+            dominant: 0,
+        };
+    }
+
+    fn delimiter_bit(&mut self, overload: bool, recessive: u8, dominant: u32, bit: bool) {
+        if recessive == 0 {
+            if bit {
+                self.phase = Phase::Delimiter {
+                    overload,
+                    recessive: 1,
+                    dominant,
+                };
+                return;
+            }
+            let dominant = dominant.saturating_add(1);
+            self.phase = Phase::Delimiter {
+                overload,
+                recessive,
+                dominant,
+            };
+            // Rule 2: a receiver sampling dominant right after its error flag, +8.
+            if dominant == 1 && !overload && !self.transmitting && !self.config.listen_only {
+                self.counters.add_rec(8);
+                self.update_state();
+            }
+            // Rule 6: 7 dominant bits after a flag are tolerated; the 8th and every 8 more
+            // cost 8.
+            if dominant.is_multiple_of(8) {
+                self.add_eight();
+            }
+            return;
+        }
+        let k = recessive + 1;
+        if !bit {
+            if k == 8 {
+                self.start_overload();
+            } else {
+                self.error(ErrorKind::Form, true);
+            }
+        } else if k == 8 {
+            self.end_of_frame();
+        } else {
+            self.phase = Phase::Delimiter {
+                overload,
+                recessive: k,
+                dominant,
+            };
+        }
+    }
+
+    fn bus_off_bit(&mut self, recessive: u8, sequences: u8, bit: bool) {
+        if !self.recovering {
+            return;
+        }
+        if !bit {
+            self.phase = Phase::BusOff {
+                recessive: 0,
+                sequences,
+            };
+            return;
+        }
+        if recessive + 1 < INTEGRATION_BITS {
+            self.phase = Phase::BusOff {
+                recessive: recessive + 1,
+                sequences,
+            };
+            return;
+        }
+        let sequences = sequences + 1;
+        if sequences < RECOVERY_SEQUENCES {
+            self.phase = Phase::BusOff {
+                recessive: 0,
+                sequences,
+            };
+            return;
+        }
+        self.recovering = false;
+        self.counters.reset();
+        self.update_state();
+        self.phase = Phase::Idle;
+    }
+
+    fn update_state(&mut self) {
+        let before = self.counters.state();
+        let events = &mut self.events;
+        self.counters.update(|event| events.push_back(event));
+        if before != ErrorState::BusOff && self.counters.state() == ErrorState::BusOff {
+            self.transmitting = false;
+            self.ack_exception = false;
+            self.recovering = self.config.auto_recover;
+            self.phase = Phase::BusOff {
+                recessive: 0,
+                sequences: 0,
+            };
+        }
+    }
 }
