@@ -2,15 +2,27 @@
 //! 80C196 kernel and its PIC slave, and the host client.
 //!
 //! Layers, bottom up: [`wire`] (byte layout), [`message`] (typed messages), [`decoder`]
-//! (streaming, with the kernel's error handling), then the board model and the host client.
+//! (streaming, with the kernel's error handling); the model: [`board`] (kernel loops and
+//! commands) over [`flash`], [`prginf`], [`acquisition`], [`pic`], [`program`] (user hooks)
+//! and [`image`] (persistent state).
 #![forbid(unsafe_code)]
 
+pub mod acquisition;
 pub mod adconfig;
+pub mod board;
 pub mod codes;
 pub mod decoder;
+pub mod flash;
+pub mod image;
 pub mod message;
+pub mod pic;
+pub mod prginf;
+pub mod program;
+pub mod source;
 pub mod wire;
 
+pub use board::{Board, Mode};
 pub use codes::{Alert, MsgCode};
 pub use decoder::{Decoder, Event, FrameError};
+pub use image::Image;
 pub use message::Message;

@@ -1,0 +1,804 @@
+//! The CPU196 kernel (SPEC C2, C3) as a sans-IO state machine in virtual time: bytes from the
+//! PC go in with their arrival time, bytes to the PC come out when their transmission at the
+//! configured line rate has completed.
+
+use std::collections::VecDeque;
+
+use buslab_link::{ByteDevice, LineSettings};
+
+use crate::acquisition::Acquisition;
+use crate::adconfig::AdConfig;
+use crate::codes::{Alert, MsgCode};
+use crate::decoder::{Decoder, Event, FrameError};
+use crate::flash::FlashError;
+use crate::image::{Image, Protocol};
+use crate::message::*;
+use crate::pic::{Pic, PicCommand, PicEvent};
+use crate::prginf::{self, ConfigSet};
+use crate::program::{Api, Flow, Registry, UserProgram};
+use crate::source::Inputs;
+use crate::wire::{self, PIC_BLOCK};
+
+/// The board's own watchdog: an `FF` after this long without sending anything.
+pub const WATCHDOG_PERIOD_NS: u64 = 1_000_000_000;
+/// With the watchdog on, the lower loop stops if the PC is silent this long.
+pub const LINK_LOST_NS: u64 = 3_000_000_000;
+/// Battery check period.
+pub const BATTERY_PERIOD_NS: u64 = 100_000_000;
+/// Transmit FIFO size: A/D frames that would not fit are dropped (and `alert_ad_overrun`).
+pub const TX_FIFO: usize = 4096;
+/// Share of the line an acquisition may take (the rest is for replies and the watchdog).
+pub const MAX_LINE_SHARE: f64 = 0.97;
+
+/// Kernel commands refused in the lower loop (`_commande_invalide_[9]`).
+pub const INVALID_IN_LOWER_LOOP: [u8; 9] = [
+    wire::CPUINF,
+    wire::START,
+    wire::POWERDOWN,
+    wire::PRGFLASH,
+    wire::PRGPIC,
+    wire::CPUFORMAT,
+    wire::ADCONT,
+    wire::ADSAMPLE,
+    wire::CFGAD,
+];
+
+/// Which loop the kernel is in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Sleeping between events.
+    Upper,
+    /// After START: A/D and timers running, hooks called.
+    Lower { bank: u8, config: u8 },
+    /// Supply cut; only the power button wakes it.
+    PoweredDown,
+}
+
+/// The transmitter: bytes leave one character time apart.
+#[derive(Debug)]
+struct Tx {
+    queue: VecDeque<u8>,
+    byte_ns: u64,
+    /// Completion time of the front byte.
+    front_done: u64,
+    /// When the line became (or becomes) free after the last byte.
+    free_at: u64,
+    last_send: u64,
+}
+
+impl Tx {
+    fn push(&mut self, at: u64, bytes: &[u8]) {
+        if self.queue.is_empty() {
+            self.front_done = at.max(self.free_at) + self.byte_ns;
+        }
+        self.queue.extend(bytes);
+        self.last_send = at;
+    }
+
+    fn poll(&mut self, now: u64, out: &mut Vec<u8>) {
+        while !self.queue.is_empty() && self.front_done <= now {
+            out.push(self.queue.pop_front().expect("not empty"));
+            self.free_at = self.front_done;
+            self.front_done += self.byte_ns;
+        }
+    }
+
+    fn deadline(&self) -> Option<u64> {
+        (!self.queue.is_empty()).then_some(self.front_done)
+    }
+}
+
+struct Run {
+    set: ConfigSet,
+    acq: Option<Acquisition>,
+    program: Option<Box<dyn UserProgram>>,
+    timers: [Option<(u64, u64)>; 2],
+    overrun: bool,
+}
+
+/// The board.
+pub struct Board {
+    image: Image,
+    /// Analog inputs (change them any time).
+    pub inputs: Inputs,
+    registry: Registry,
+    line: LineSettings,
+    decoder: Decoder,
+    tx: Tx,
+    mode: Mode,
+    run: Option<Run>,
+    pic: Pic,
+    pwm196: [u8; 3],
+    pic_ad: [u16; 8],
+    adrs: u8,
+    page: u8,
+    last_rx: u64,
+    battery: Option<u8>,
+    next_battery: u64,
+    next_file: u8,
+    dirty: bool,
+    log: Vec<String>,
+}
+
+impl Board {
+    /// Powers a board on at `now` with `image`; its line runs at the image's baud rate, 8N1.
+    pub fn new(image: Image, inputs: Inputs, now: u64) -> Self {
+        let line = LineSettings::n81(if image.boot.protocol == Protocol::Midi {
+            31250
+        } else {
+            image.boot.baud
+        });
+        let mut b = Self {
+            pic: Pic::with_memory(image.pic_eeprom, image.pic_program.clone()),
+            image,
+            inputs,
+            registry: Registry::default(),
+            line,
+            decoder: Decoder::new(),
+            tx: Tx {
+                queue: VecDeque::new(),
+                byte_ns: line.byte_time_ns(),
+                front_done: 0,
+                free_at: 0,
+                last_send: now,
+            },
+            mode: Mode::Upper,
+            run: None,
+            pwm196: [0; 3],
+            pic_ad: [0; 8],
+            adrs: 0,
+            page: 0,
+            last_rx: now,
+            battery: None,
+            next_battery: now,
+            next_file: 0,
+            dirty: false,
+            log: Vec::new(),
+        };
+        b.boot(now);
+        b
+    }
+
+    /// The line this board expects.
+    pub fn line(&self) -> LineSettings {
+        self.line
+    }
+
+    /// Overrides the line rate (and records it in the boot configuration).
+    pub fn set_baud(&mut self, baud: u32) {
+        self.image.boot.baud = baud;
+        self.line = LineSettings::n81(baud);
+        self.tx.byte_ns = self.line.byte_time_ns();
+        self.dirty = true;
+    }
+
+    pub fn image(&self) -> &Image {
+        &self.image
+    }
+
+    /// Whether the image changed since the last call (the adapter then saves it).
+    pub fn take_dirty(&mut self) -> bool {
+        core::mem::take(&mut self.dirty)
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    pub fn pwm(&self) -> [u8; 3] {
+        self.pwm196
+    }
+
+    pub fn pic(&self) -> &Pic {
+        &self.pic
+    }
+
+    /// Registers a user program under `id` (word 0 of `ptrprg.user[n]`).
+    pub fn registry_mut(&mut self) -> &mut Registry {
+        &mut self.registry
+    }
+
+    /// Kernel log lines (what it did and refused), drained.
+    pub fn take_log(&mut self) -> Vec<String> {
+        core::mem::take(&mut self.log)
+    }
+
+    /// Presses the power button (BPON): a powered-down board boots.
+    pub fn power_button(&mut self, now: u64) {
+        if self.mode == Mode::PoweredDown {
+            self.boot(now);
+        }
+    }
+
+    /// Reset: every variable reinitialised, report `F4 03`, then the boot START if any.
+    fn boot(&mut self, now: u64) {
+        self.mode = Mode::Upper;
+        self.run = None;
+        self.decoder = Decoder::new();
+        self.pic.reset();
+        self.pwm196 = self.image.boot.pwm196;
+        self.pic.pwm[0] = self.image.boot.pic_pwm;
+        self.pic.vref = self.image.boot.pic_vref;
+        self.pic_ad = [0; 8];
+        self.adrs = 0;
+        self.battery = None;
+        self.next_battery = now;
+        self.last_rx = now;
+        self.send(now, &Message::Power(Power::WasReset));
+        let boot = Start::from_word(self.image.boot.boot_start);
+        if self.image.boot.boot_start & 0x8000 == 0 {
+            self.start(now, boot, false);
+        }
+    }
+
+    fn protocol_on(&self) -> bool {
+        self.image.boot.protocol == Protocol::Cpu196
+    }
+
+    fn send(&mut self, at: u64, m: &Message) {
+        if !self.protocol_on() {
+            return;
+        }
+        let mut bytes = Vec::new();
+        if let Err(e) = m.encode(&mut bytes) {
+            self.log.push(format!("not sent: {e}"));
+            return;
+        }
+        self.tx.push(at, &bytes);
+    }
+
+    fn msg(&mut self, at: u64, code: MsgCode) {
+        self.send(at, &Message::Msg(code));
+    }
+
+    // ----- events -------------------------------------------------------------------------
+
+    fn on_frame_error(&mut self, now: u64, e: FrameError) {
+        self.log.push(format!("frame error: {e}"));
+        let code = match e {
+            FrameError::WrongComplement { .. } => MsgCode::RECEPTION_ERROR,
+            FrameError::TimeOut { .. } => MsgCode::TIME_OUT,
+            FrameError::Params(_) | FrameError::Parse(_) => MsgCode::INVALID_PARAMETER_VALUE,
+        };
+        self.msg(now, code);
+    }
+
+    fn on_message(&mut self, now: u64, m: Message) {
+        let cmd = m.command();
+        if matches!(self.mode, Mode::Lower { .. }) && INVALID_IN_LOWER_LOOP.contains(&cmd) {
+            self.log.push(format!(
+                "{} refused in the lower loop",
+                wire::command_name(cmd)
+            ));
+            return self.msg(now, MsgCode::INVALID_COMMAND);
+        }
+        match m {
+            Message::Watchdog => self.send(now, &Message::Watchdog),
+            Message::CpuInfoRequest => {
+                let info = self.cpu_info(now);
+                self.send(now, &Message::CpuInfo(info));
+            }
+            Message::Start(s) => self.start(now, s, true),
+            Message::Stop => {
+                self.end_run(now);
+                self.msg(now, MsgCode::COMPLETED);
+            }
+            Message::Power(Power::PowerDown) => {
+                self.end_run(now);
+                self.send(now, &Message::Power(Power::PoweredDown));
+                self.mode = Mode::PoweredDown;
+            }
+            Message::Power(Power::Reset) => {
+                self.end_run(now);
+                self.boot(now);
+            }
+            Message::FlashReadRequest { bank, block } => match self.image.flash.read(bank, block) {
+                Ok(d) => {
+                    let data = Box::new(<[u8; 256]>::try_from(d).expect("block"));
+                    self.send(now, &Message::FlashData(data));
+                }
+                Err(e) => self.flash_error(now, e),
+            },
+            Message::FlashWrite { bank, block, data } => {
+                match self.image.flash.write(bank, block, &data) {
+                    Ok(()) => {
+                        self.dirty = true;
+                        self.msg(now, MsgCode::COMPLETED);
+                    }
+                    Err(e) => self.flash_error(now, e),
+                }
+            }
+            Message::FlashErase { bank } => match self.image.flash.erase(bank) {
+                Ok(()) => {
+                    self.dirty = true;
+                    self.msg(now, MsgCode::COMPLETED);
+                }
+                Err(e) => self.flash_error(now, e),
+            },
+            Message::PicReadRequest { block } => match pic_range(block) {
+                Some(r) => {
+                    let data =
+                        Box::new(<[u8; PIC_BLOCK]>::try_from(&self.pic.program[r]).expect("block"));
+                    self.send(now, &Message::PicData(data));
+                }
+                None => self.bad_param(now, format!("PIC block {block} is out of range 1..3")),
+            },
+            Message::PicWrite { block, data } => match pic_range(block) {
+                Some(r) => {
+                    self.pic.program[r.clone()].copy_from_slice(&data[..]);
+                    self.image.pic_program[r].copy_from_slice(&data[..]);
+                    self.dirty = true;
+                    for _ in 0..PIC_BLOCK / 256 {
+                        self.msg(now, MsgCode::COMPLETED);
+                    }
+                }
+                None => self.bad_param(now, format!("PIC block {block} is out of range 1..3")),
+            },
+            Message::EepromReadRequest => {
+                self.send(now, &Message::EepromData(Box::new(self.pic.eeprom)));
+            }
+            Message::EepromWrite(data) => {
+                self.pic.eeprom = *data;
+                self.image.pic_eeprom = *data;
+                self.dirty = true;
+                self.msg(now, MsgCode::COMPLETED);
+            }
+            Message::Format(Format::CompressionTable { table, comp }) => {
+                self.image.log_table = crate::acquisition::LogTable::from_bytes(&table);
+                self.image.compression = comp;
+                self.dirty = true;
+                self.msg(now, MsgCode::COMPLETED);
+            }
+            Message::Format(_) => {
+                self.log
+                    .push("CPUFORMAT other than the compression table is not supported yet".into());
+                self.msg(now, MsgCode::NOT_SUPPORTED);
+            }
+            Message::Pwm(Pwm::Set { n, low, value }) => {
+                if n < 3 {
+                    self.pwm196[n as usize] = value;
+                } else {
+                    self.pic.execute(
+                        now,
+                        PicCommand::WritePwm {
+                            n: 0,
+                            value: ((value as u16) << 2) | low as u16,
+                        },
+                    );
+                }
+            }
+            Message::Pwm(Pwm::Dac(v)) => {
+                if v > 31 {
+                    self.bad_param(now, format!("D/A value {v} is out of range 0..31"));
+                } else {
+                    self.pic.execute(now, PicCommand::WriteVref(v));
+                }
+            }
+            Message::Bridge(b) => self.bridge(now, b),
+            Message::CfgAdRequest { bank, config } => match self.config_set(bank, config) {
+                Some(set) => {
+                    let m = Message::CfgAd {
+                        c196: set.ad_init,
+                        pic: [set.adon[0], set.adon[1], set.adrs],
+                    };
+                    self.send(now, &m);
+                }
+                None => self.bad_param(
+                    now,
+                    format!("bank {bank} holds no valid configuration table"),
+                ),
+            },
+            Message::Thread(Thread::ReadData { data, file }) => {
+                self.call_hook(now, |p, k| {
+                    p.fread(k, file, &data);
+                    Flow::CONTINUE
+                });
+            }
+            // Replies to the board's file requests; nothing to do.
+            Message::Msg(code) => self.log.push(format!("PC says {code}")),
+            Message::User { cmd, params } => {
+                if self.run.as_ref().is_some_and(|r| r.program.is_some()) {
+                    self.call_hook(now, |p, k| {
+                        p.rs(k, cmd, &params);
+                        Flow::CONTINUE
+                    });
+                } else {
+                    self.log
+                        .push(format!("user command {cmd:02X}h with no program running"));
+                    self.msg(now, MsgCode::INVALID_COMMAND);
+                }
+            }
+            other => {
+                self.log.push(format!(
+                    "{} is not a command a PC sends",
+                    wire::command_name(other.command())
+                ));
+                self.msg(now, MsgCode::INVALID_COMMAND);
+            }
+        }
+    }
+
+    fn bad_param(&mut self, now: u64, why: String) {
+        self.log.push(why);
+        self.msg(now, MsgCode::INVALID_PARAMETER_VALUE);
+    }
+
+    fn flash_error(&mut self, now: u64, e: FlashError) {
+        self.log.push(e.to_string());
+        let code = match e {
+            FlashError::Forbidden { .. } => MsgCode::INVALID_PARAMETER_VALUE,
+            FlashError::NotBlank { .. } => MsgCode::NOT_BLANK_ERROR,
+        };
+        self.msg(now, code);
+    }
+
+    fn cpu_info(&self, now: u64) -> CpuInfo {
+        let supply = (self.inputs.pic[0].volts(now) * 20.0)
+            .round()
+            .clamp(0.0, 255.0) as u8;
+        CpuInfo {
+            quartz: 20,
+            version_196: 3,
+            version_pic: 2,
+            pic_revision: 0,
+            serial: self.image.serial,
+            address: self.image.boot.address,
+            supply,
+            compression: self.image.compression,
+        }
+    }
+
+    fn bridge(&mut self, now: u64, b: Bridge) {
+        match b {
+            Bridge::SpiSend(d) => {
+                self.pic.execute(now, PicCommand::Spi { cmd: 1, data: d });
+            }
+            Bridge::SciSend(d) => {
+                self.pic.execute(now, PicCommand::SciWrite(d));
+            }
+            Bridge::ParallelWrite(d) => {
+                self.pic.execute(now, PicCommand::PortDWrite(d));
+            }
+            Bridge::ParallelAddress(a) => {
+                self.pic.execute(now, PicCommand::IoAddress(a));
+            }
+            Bridge::ParallelReadRequest => {
+                let d = self.pic.execute(now, PicCommand::ReadPortD)[0];
+                self.send(now, &Message::Bridge(Bridge::ParallelRead(d)));
+            }
+            other => {
+                self.log.push(format!("{other:?} is a board-to-PC report"));
+                self.msg(now, MsgCode::INVALID_COMMAND);
+            }
+        }
+        self.pic_events(now);
+    }
+
+    fn config_set(&self, bank: u8, config: u8) -> Option<ConfigSet> {
+        let a = self.image.flash.read(bank, prginf::PRGINF_BLOCK).ok()?;
+        let p = self.image.flash.read(bank, prginf::PTRPRG_BLOCK).ok()?;
+        prginf::read_config(a, p, config)
+    }
+
+    // ----- lower loop ---------------------------------------------------------------------
+
+    fn start(&mut self, now: u64, s: Start, from_pc: bool) {
+        if !s.is_valid() {
+            return self.bad_param(
+                now,
+                format!(
+                    "START {:04X}h: bits 6 and 5 of the second byte must be 0",
+                    s.word()
+                ),
+            );
+        }
+        if s.no_start() || s.page_change() {
+            self.page = s.bank();
+            return self.msg(now, MsgCode::COMPLETED);
+        }
+        let Some(set) = self.config_set(s.bank(), s.config()) else {
+            return self.bad_param(
+                now,
+                format!("bank {} holds no valid configuration table", s.bank()),
+            );
+        };
+        let acq = if s.ad196() {
+            let cfg = match AdConfig::parse(&set.ad_init) {
+                Ok(c) => c,
+                Err(e) => {
+                    self.log
+                        .push(format!("A/D configuration {}: {e}", s.config()));
+                    return self.msg(now, MsgCode::AD_CONFIG_ERROR);
+                }
+            };
+            if let Some(n) = cfg.frame_data_len() {
+                let frame_ns = cfg.period_ns() * cfg.scans_per_frame() as u64;
+                let need = (n + 3) as f64 * self.tx.byte_ns as f64 / frame_ns as f64;
+                if need > MAX_LINE_SHARE {
+                    self.log.push(format!(
+                        "A/D configuration {} needs {:.0} % of the line at {} baud (at most {:.0} %)",
+                        s.config(),
+                        need * 100.0,
+                        self.line.baud,
+                        MAX_LINE_SHARE * 100.0
+                    ));
+                    return self.msg(now, MsgCode::AD_CONFIG_ERROR);
+                }
+            }
+            Some(Acquisition::new(cfg, now))
+        } else {
+            None
+        };
+        let program = match set.program {
+            0 => None,
+            id => match self.registry.make(id, set.args) {
+                Some(p) => Some(p),
+                None => {
+                    return self.bad_param(
+                        now,
+                        format!(
+                            "configuration {} names program {id}, which is not installed",
+                            s.config()
+                        ),
+                    );
+                }
+            },
+        };
+        if self.run.is_some() {
+            self.end_run(now);
+        }
+        let timer = |has: bool, cycle: u16| {
+            (has && cycle != 0).then(|| (cycle as u64 * 800, now + cycle as u64 * 800))
+        };
+        let has = program.as_ref().map_or([false, false], |p| p.timers());
+        let timers = [timer(has[0], set.cycle1), timer(has[1], set.cycle2)];
+        if from_pc {
+            self.msg(now, MsgCode::COMPLETED);
+        }
+        if acq.is_some() {
+            let m = Message::CfgAd {
+                c196: set.ad_init,
+                pic: [set.adon[0], set.adon[1], set.adrs],
+            };
+            self.send(now, &m);
+        }
+        if s.adpic() {
+            self.pic.execute(
+                now,
+                PicCommand::StartAd {
+                    rate: set.adon[1],
+                    mask: set.adon[0],
+                },
+            );
+            self.adrs = set.adrs;
+        }
+        if s.pic_timer() {
+            let c = u16::from_be_bytes(set.cycle);
+            self.pic.execute(
+                now,
+                PicCommand::StartTimer {
+                    cycle: c & 0xFFFC,
+                    prescale: (c & 3) as u8,
+                },
+            );
+        }
+        self.page = s.bank();
+        self.mode = Mode::Lower {
+            bank: s.bank(),
+            config: s.config(),
+        };
+        self.run = Some(Run {
+            set,
+            acq,
+            program,
+            timers,
+            overrun: false,
+        });
+        self.last_rx = self.last_rx.max(now);
+        self.call_hook(now, |p, k| p.init(k));
+    }
+
+    fn end_run(&mut self, now: u64) {
+        if self.run.is_none() {
+            return;
+        }
+        self.call_hook(now, |p, k| {
+            p.fin(k);
+            Flow::CONTINUE
+        });
+        self.run = None;
+        self.pic.execute(now, PicCommand::StopAd);
+        self.pic.execute(now, PicCommand::StopTimer);
+        self.adrs = 0;
+        self.mode = Mode::Upper;
+    }
+
+    /// Calls a hook of the running program and applies what it returns.
+    fn call_hook(&mut self, now: u64, f: impl FnOnce(&mut dyn UserProgram, &mut Api) -> Flow) {
+        let Some(run) = self.run.as_mut() else { return };
+        let Some(mut program) = run.program.take() else {
+            return;
+        };
+        let ad = run.acq.as_ref().map_or([0; 8], |a| a.values);
+        let args = run.set.args;
+        let mut out = Vec::new();
+        let flow = {
+            let mut api = Api {
+                now_ns: now,
+                args,
+                ad,
+                pic_ad: self.pic_ad,
+                pwm: &mut self.pwm196,
+                out: &mut out,
+                next_file: &mut self.next_file,
+            };
+            f(program.as_mut(), &mut api)
+        };
+        if let Some(run) = self.run.as_mut() {
+            run.program = Some(program);
+        }
+        for m in &out {
+            self.send(now, m);
+        }
+        if flow.stop {
+            self.end_run(now);
+        }
+        if let Some(s) = flow.start {
+            self.start(now, s, false);
+        }
+    }
+
+    fn pic_events(&mut self, now: u64) {
+        for ev in self.pic.take_events() {
+            match ev {
+                PicEvent::Ad { channel, value } => {
+                    self.pic_ad[channel as usize] = value;
+                    if self.adrs & (1 << channel) != 0 {
+                        self.send(now, &Message::AdSample(AdSample::Pic { channel, value }));
+                    }
+                }
+                PicEvent::SciReceived(d) => {
+                    self.send(now, &Message::Bridge(Bridge::SciReceived(d)))
+                }
+                PicEvent::SpiReceived(d) => {
+                    self.send(now, &Message::Bridge(Bridge::SpiReceived(d)))
+                }
+                PicEvent::Error(_) => self.send(now, &Message::Alert(Alert::PIC_ERROR)),
+                _ => {}
+            }
+            self.call_hook(now, |p, k| p.pic(k, ev));
+        }
+    }
+
+    /// The next lower-loop event: (time, 0 = A/D interrupt, 1/2 = software timer).
+    fn next_run_event(&self) -> Option<(u64, u8)> {
+        let run = self.run.as_ref()?;
+        let ad = run.acq.as_ref().map(|a| (a.next_interrupt_at(), 0));
+        let t1 = run.timers[0].map(|(_, at)| (at, 1));
+        let t2 = run.timers[1].map(|(_, at)| (at, 2));
+        [ad, t1, t2].into_iter().flatten().min()
+    }
+
+    fn run_event(&mut self, at: u64, which: u8) {
+        let Some(run) = self.run.as_mut() else { return };
+        if which == 0 {
+            let Some(acq) = run.acq.as_mut() else { return };
+            let data = acq.run_interrupt(&self.inputs.c196, &self.image.log_table);
+            if !data.is_empty() {
+                if self.tx.queue.len() + data.len() + 3 > TX_FIFO {
+                    if !run.overrun {
+                        run.overrun = true;
+                        self.send(at, &Message::Alert(Alert::AD_OVERRUN));
+                    }
+                } else {
+                    self.send(at, &Message::AdCont(data));
+                }
+            }
+            self.call_hook(at, |p, k| p.ad(k));
+        } else {
+            let slot = &mut run.timers[which as usize - 1];
+            if let Some((period, next)) = slot.as_mut() {
+                *next += *period;
+            }
+            self.call_hook(at, |p, k| p.timer(k, which));
+        }
+    }
+
+    fn watchdog_deadline(&self) -> Option<u64> {
+        (self.image.boot.watchdog && self.mode != Mode::PoweredDown && self.protocol_on())
+            .then(|| self.tx.last_send.max(self.tx.free_at) + WATCHDOG_PERIOD_NS)
+    }
+
+    fn link_lost_deadline(&self) -> Option<u64> {
+        (self.image.boot.watchdog && matches!(self.mode, Mode::Lower { .. }))
+            .then(|| self.last_rx + LINK_LOST_NS)
+    }
+
+    fn battery_check(&mut self, now: u64) {
+        let th = self.image.boot.battery_thresholds;
+        self.next_battery = now + BATTERY_PERIOD_NS;
+        if th == [0xFF; 3] {
+            return;
+        }
+        let level = (self.inputs.pic[0].code10(now) >> 2) as u8;
+        let state = th.iter().filter(|&&t| t != 0xFF && level >= t).count() as u8;
+        let report = match self.battery {
+            None => state < 2,
+            Some(old) => old != state,
+        };
+        self.battery = Some(state);
+        if report {
+            self.send(now, &Message::Alert(Alert::battery(state)));
+        }
+    }
+
+    /// Runs everything due up to `now`.
+    fn advance(&mut self, now: u64) {
+        if self.mode == Mode::PoweredDown {
+            return;
+        }
+        if let Some(Event::Error(e)) = self.decoder.poll(now) {
+            self.on_frame_error(now, e);
+        }
+        while let Some((at, which)) = self.next_run_event().filter(|(at, _)| *at <= now) {
+            self.run_event(at, which);
+        }
+        if let Some(at) = self.link_lost_deadline().filter(|&at| at <= now) {
+            self.send(at, &Message::Alert(Alert::LINK_LOST));
+            self.end_run(at);
+        }
+        self.pic
+            .advance(now, &mut |ch, t| self.inputs.pic[ch as usize].code10(t));
+        self.pic_events(now);
+        if self.next_battery <= now {
+            self.battery_check(now);
+        }
+        if let Some(at) = self.watchdog_deadline().filter(|&at| at <= now) {
+            self.send(at, &Message::Watchdog);
+        }
+    }
+}
+
+fn pic_range(block: u8) -> Option<core::ops::Range<usize>> {
+    (1..=3)
+        .contains(&block)
+        .then(|| (block as usize - 1) * PIC_BLOCK..block as usize * PIC_BLOCK)
+}
+
+impl ByteDevice for Board {
+    fn receive(&mut self, now_ns: u64, byte: u8) {
+        if self.mode == Mode::PoweredDown || !self.protocol_on() {
+            return;
+        }
+        self.advance(now_ns);
+        self.last_rx = now_ns;
+        match self.decoder.push(now_ns, byte) {
+            Some(Event::Message(m)) => self.on_message(now_ns, m),
+            Some(Event::Error(e)) => self.on_frame_error(now_ns, e),
+            None => {}
+        }
+    }
+
+    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>) {
+        self.advance(now_ns);
+        self.tx.poll(now_ns, out);
+    }
+
+    fn next_deadline(&self) -> Option<u64> {
+        if self.mode == Mode::PoweredDown {
+            return self.tx.deadline();
+        }
+        [
+            self.tx.deadline(),
+            self.decoder.deadline(),
+            self.next_run_event().map(|(at, _)| at),
+            self.link_lost_deadline(),
+            self.pic.next_deadline(),
+            Some(self.next_battery),
+            self.watchdog_deadline(),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+    }
+}

@@ -1,0 +1,315 @@
+//! The board's persistent state (what survives a power cycle): boot configuration, serial
+//! number, compression table, flash banks (with the configuration sets in blocks 28h/29h of
+//! each bank), PIC program and EEPROM. Stored as TOML with hex strings; written atomically by
+//! [`Image::save`].
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+
+use crate::acquisition::LogTable;
+use crate::adconfig::{AdConfig, ChannelSetup, SampleFormat};
+use crate::flash::Flash;
+use crate::prginf::{self, ConfigSet};
+use crate::program;
+use crate::wire::{FLASH_BLOCK, PIC_BLOCK};
+
+/// Link protocol of a serial port (`csboot.rs.Protocole196`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Protocol {
+    Midi,
+    Cpu196,
+    None,
+    Off,
+}
+
+/// Baud rates of the 3-bit `Bauds196` field; MIDI always runs at 31250.
+pub const BAUD_RATES: [u32; 8] = [1200, 2400, 9600, 19200, 38400, 57600, 115200, 250000];
+
+/// The boot configuration (`csboot`).
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct BootConfig {
+    pub protocol: Protocol,
+    pub protocol_pic: Protocol,
+    /// RS232 driver on (else TTL levels only).
+    pub rs232: bool,
+    /// Send and expect the watchdog (`FF`).
+    pub watchdog: bool,
+    pub watchdog_pic: bool,
+    pub baud: u32,
+    /// MIDI channel (0..16) or pipe address (0..63).
+    pub address: u8,
+    /// START word performed at boot (`8000h` bit set = no start).
+    pub boot_start: u16,
+    pub pwm196: [u8; 3],
+    pub pic_pwm: u16,
+    /// Battery thresholds on PIC channel 0 (8-bit, ascending); FFh disables.
+    pub battery_thresholds: [u8; 3],
+    pub pic_vref: u8,
+}
+
+impl Default for BootConfig {
+    fn default() -> Self {
+        Self {
+            protocol: Protocol::Cpu196,
+            protocol_pic: Protocol::None,
+            rs232: true,
+            watchdog: true,
+            watchdog_pic: false,
+            baud: 115200,
+            address: 0,
+            boot_start: 0x8000,
+            pwm196: [0; 3],
+            pic_pwm: 0,
+            battery_thresholds: [100, 140, 220],
+            pic_vref: 0,
+        }
+    }
+}
+
+/// Why an image cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("cannot read image {path}: {source}")]
+    Read {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("cannot write image {path}: {source}")]
+    Write {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("image {path} is not a CPU196 image: {detail}")]
+    Format { path: String, detail: String },
+}
+
+/// The persistent state.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    pub boot: BootConfig,
+    pub serial: [u8; 8],
+    pub compression: [u8; 8],
+    pub log_table: LogTable,
+    pub flash: Flash,
+    pub pic_program: Vec<u8>,
+    pub pic_eeprom: [u8; 256],
+}
+
+impl Default for Image {
+    /// A board as shipped: bank 0 holds demo configuration sets (see `docs/cpu196.md`).
+    fn default() -> Self {
+        let mut flash = Flash::default();
+        let (a, p) = prginf::encode(&demo_sets());
+        flash
+            .write(0, prginf::PRGINF_BLOCK, &a)
+            .expect("blank at start");
+        flash
+            .write(0, prginf::PTRPRG_BLOCK, &p)
+            .expect("blank at start");
+        Self {
+            boot: BootConfig::default(),
+            serial: *b"BL196001",
+            compression: [0x80, 0, 0, 0, 0, 0, 0, 0],
+            log_table: LogTable::default(),
+            flash,
+            pic_program: vec![0xFF; 3 * PIC_BLOCK],
+            pic_eeprom: [0xFF; 256],
+        }
+    }
+}
+
+/// The demo configuration sets of bank 0.
+pub fn demo_sets() -> [ConfigSet; 8] {
+    let mut sets: [ConfigSet; 8] = Default::default();
+    // 1 kHz: T = 235 gives (75 + 5·235) × 0.8 µs = 1 ms.
+    let set = |chs: &[u8], fmt, ratio| AdConfig::simple(chs, fmt, 235, ratio).encode();
+    sets[0].ad_init = set(&[0, 1, 2, 3], SampleFormat::Bits10, 3);
+    sets[1].ad_init = set(&[0, 1], SampleFormat::Bits10, 3);
+    sets[1].program = program::LOGGER;
+    sets[1].args[0] = 100;
+    sets[2].ad_init = set(&[0], SampleFormat::Bits10, 3);
+    sets[2].program = program::THRESHOLD_ALARM;
+    sets[2].args = [0, 900, 0, 0, 0, 0, 0];
+    sets[3].ad_init = set(&[0, 1], SampleFormat::Bits16, 3);
+    sets[3].program = program::VIRTUAL_CHANNELS;
+    sets[4].program = program::PULSE_TRAIN;
+    sets[4].cycle1 = 1250;
+    sets[4].args = [128, 10, 0, 0, 0, 0, 0];
+    // 5: 4 channels in each format; 6: log8 of a centred input with a low-pass.
+    let mut c5 = AdConfig::simple(&[0, 1, 2, 3], SampleFormat::Bits16, 235, 2);
+    c5.channels[1] = ChannelSetup::from_byte(ChannelSetup::byte(true, SampleFormat::Bits10, 0));
+    c5.channels[2] = ChannelSetup::from_byte(ChannelSetup::byte(true, SampleFormat::Bits8, 0));
+    c5.channels[3] = ChannelSetup::from_byte(ChannelSetup::byte(true, SampleFormat::Log8, 0));
+    sets[5].ad_init = c5.encode();
+    let mut c6 = AdConfig::simple(&[0], SampleFormat::Log8, 235, 3);
+    c6.channels[0] = ChannelSetup::from_byte(ChannelSetup::byte(true, SampleFormat::Log8, 2));
+    sets[6].ad_init = c6.encode();
+    // 7: PIC battery and channel 1 forwarded as FB samples at Fosc/(4096·2^3).
+    sets[7].adon = [0x03, 0x03];
+    sets[7].adrs = 0x03;
+    sets
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ImageFile {
+    format: String,
+    boot: BootConfig,
+    serial: String,
+    compression: String,
+    log_table: String,
+    blank_table: String,
+    /// `"bank.block"` (hex) → 256 bytes in hex, for used blocks only.
+    flash: BTreeMap<String, String>,
+    pic_program: String,
+    pic_eeprom: String,
+}
+
+const FORMAT: &str = "buslab-cpu196-image-1";
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+fn unhex(s: &str, want: usize, what: &str) -> Result<Vec<u8>, String> {
+    let s = s.trim();
+    if s.len() != want * 2 || !s.is_ascii() {
+        return Err(format!(
+            "{what} must be {want} bytes of hex, got {} characters",
+            s.len()
+        ));
+    }
+    (0..want)
+        .map(|i| {
+            u8::from_str_radix(&s[2 * i..2 * i + 2], 16).map_err(|_| format!("{what} is not hex"))
+        })
+        .collect()
+}
+
+impl Image {
+    pub fn to_toml(&self) -> String {
+        let file = ImageFile {
+            format: FORMAT.into(),
+            boot: self.boot.clone(),
+            serial: hex(&self.serial),
+            compression: hex(&self.compression),
+            log_table: hex(&self
+                .log_table
+                .0
+                .iter()
+                .flat_map(|w| w.to_le_bytes())
+                .collect::<Vec<_>>()),
+            blank_table: hex(self.flash.blank_table()),
+            flash: self
+                .flash
+                .used_blocks()
+                .map(|(bank, block, d)| (format!("{bank}.{block:02x}"), hex(d)))
+                .collect(),
+            pic_program: hex(&self.pic_program),
+            pic_eeprom: hex(&self.pic_eeprom),
+        };
+        toml::to_string(&file).expect("image serialises")
+    }
+
+    pub fn from_toml(text: &str) -> Result<Self, String> {
+        let f: ImageFile = toml::from_str(text).map_err(|e| e.to_string())?;
+        if f.format != FORMAT {
+            return Err(format!("format is `{}`, expected `{FORMAT}`", f.format));
+        }
+        if f.boot.protocol != Protocol::Midi && !BAUD_RATES.contains(&f.boot.baud) {
+            return Err(format!(
+                "boot baud {} is not one of {BAUD_RATES:?}",
+                f.boot.baud
+            ));
+        }
+        let table = unhex(&f.log_table, 512, "log_table")?;
+        let mut blocks = Vec::new();
+        for (key, data) in &f.flash {
+            let (bank, block) = key
+                .split_once('.')
+                .and_then(|(a, b)| Some((a.parse::<u8>().ok()?, u8::from_str_radix(b, 16).ok()?)))
+                .filter(|(bank, _)| *bank < 8)
+                .ok_or_else(|| {
+                    format!("flash key `{key}` is not BANK.BLOCK (bank 0..7, block hex)")
+                })?;
+            let d = unhex(data, FLASH_BLOCK, &format!("flash block {key}"))?;
+            blocks.push((bank, block, d.try_into().expect("length checked")));
+        }
+        Ok(Self {
+            boot: f.boot,
+            serial: unhex(&f.serial, 8, "serial")?.try_into().expect("8"),
+            compression: unhex(&f.compression, 8, "compression")?
+                .try_into()
+                .expect("8"),
+            log_table: LogTable::from_bytes(&table.try_into().expect("512")),
+            flash: Flash::restore(
+                unhex(&f.blank_table, 256, "blank_table")?
+                    .try_into()
+                    .expect("256"),
+                blocks,
+            ),
+            pic_program: unhex(&f.pic_program, 3 * PIC_BLOCK, "pic_program")?,
+            pic_eeprom: unhex(&f.pic_eeprom, 256, "pic_eeprom")?
+                .try_into()
+                .expect("256"),
+        })
+    }
+
+    /// Loads `path`.
+    pub fn load(path: &Path) -> Result<Self, ImageError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ImageError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::from_toml(&text).map_err(|detail| ImageError::Format {
+            path: path.display().to_string(),
+            detail,
+        })
+    }
+
+    /// Writes `path` atomically: a temporary file in the same folder, synced, then renamed.
+    pub fn save(&self, path: &Path) -> Result<(), ImageError> {
+        let err = |source| ImageError::Write {
+            path: path.display().to_string(),
+            source,
+        };
+        let dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(err)?;
+        tmp.write_all(self.to_toml().as_bytes()).map_err(err)?;
+        tmp.as_file().sync_all().map_err(err)?;
+        tmp.persist(path).map_err(|e| err(e.error))?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn image_round_trips_through_toml() {
+        let mut img = Image::default();
+        img.flash.write(3, 0x61, &[7; 256]).unwrap();
+        img.pic_eeprom[5] = 9;
+        img.boot.baud = 250000;
+        let text = img.to_toml();
+        assert_eq!(Image::from_toml(&text).unwrap(), img);
+    }
+
+    #[test]
+    fn bad_images_are_refused_with_the_reason() {
+        assert!(Image::from_toml("garbage = [").is_err());
+        let text = Image::default()
+            .to_toml()
+            .replace("baud = 115200", "baud = 1234");
+        assert!(Image::from_toml(&text).unwrap_err().contains("1234"));
+        let text = Image::default()
+            .to_toml()
+            .replace("[flash]", "[flash]\n\"9.60\" = \"00\"");
+        assert!(Image::from_toml(&text).unwrap_err().contains("9.60"));
+    }
+}

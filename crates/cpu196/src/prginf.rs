@@ -1,0 +1,136 @@
+//! The per-bank program information the kernel reads from flash (seed `prginf` at 2800h and
+//! `ptrprg` at 2900h, i.e. blocks 28h and 29h of the bank chosen by START).
+//!
+//! `prginf` (little-endian words): `info_valide` (AA55h) · `hso[8]` · `ad_init[8][18]` ·
+//! `adon[8][2]` · `adrs[8]` · `cycle[8][2]` · `cycle1[8]` · `cycle2[8]`.
+//!
+//! `ptrprg`: 7 upper-level pointers, then `user[8]` of 8 words each. The model cannot run
+//! 80C196 code, so word 0 of `user[n]` selects a built-in Rust program (0 or FFFFh: none) and
+//! words 1..7 are its arguments.
+
+use crate::wire::FLASH_BLOCK;
+
+pub const PRGINF_BLOCK: u8 = 0x28;
+pub const PTRPRG_BLOCK: u8 = 0x29;
+pub const VALID: u16 = 0xAA55;
+
+const AD_INIT: usize = 10;
+const ADON: usize = AD_INIT + 8 * 18;
+const ADRS: usize = ADON + 16;
+const CYCLE: usize = ADRS + 8;
+const CYCLE1: usize = CYCLE + 16;
+const CYCLE2: usize = CYCLE1 + 16;
+const USER: usize = 14;
+const _: () = assert!(CYCLE2 + 16 <= FLASH_BLOCK);
+
+/// One of the 8 configuration sets of a bank.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ConfigSet {
+    pub hso: u8,
+    pub ad_init: [u8; 18],
+    /// PIC A/D: `[mask, rate]` (see PIC `wr_pic_startAD`).
+    pub adon: [u8; 2],
+    /// PIC channels forwarded to the PC as `FB`.
+    pub adrs: u8,
+    /// PIC timer `[high, llllllpp]`.
+    pub cycle: [u8; 2],
+    /// Software timer periods in 0.8 µs steps (1250 per ms); 0 = external clock (never in the
+    /// model).
+    pub cycle1: u16,
+    pub cycle2: u16,
+    /// Built-in program id (0 = none) and its 7 arguments.
+    pub program: u16,
+    pub args: [u16; 7],
+}
+
+impl Default for ConfigSet {
+    fn default() -> Self {
+        Self {
+            hso: 0,
+            ad_init: [0xFF; 18],
+            adon: [0, 0],
+            adrs: 0,
+            cycle: [0, 0],
+            cycle1: 0,
+            cycle2: 0,
+            program: 0,
+            args: [0; 7],
+        }
+    }
+}
+
+fn word(b: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([b[at], b[at + 1]])
+}
+
+fn put(b: &mut [u8], at: usize, w: u16) {
+    b[at..at + 2].copy_from_slice(&w.to_le_bytes());
+}
+
+/// Reads config set `n` from the two blocks; `None` when `prginf` is not marked valid.
+pub fn read_config(prginf: &[u8], ptrprg: &[u8], n: u8) -> Option<ConfigSet> {
+    if word(prginf, 0) != VALID {
+        return None;
+    }
+    let n = n as usize & 7;
+    let mut ad_init = [0u8; 18];
+    ad_init.copy_from_slice(&prginf[AD_INIT + 18 * n..AD_INIT + 18 * n + 18]);
+    let u = USER + 16 * n;
+    let program = match word(ptrprg, u) {
+        0xFFFF => 0,
+        p => p,
+    };
+    Some(ConfigSet {
+        hso: prginf[2 + n],
+        ad_init,
+        adon: [prginf[ADON + 2 * n], prginf[ADON + 2 * n + 1]],
+        adrs: prginf[ADRS + n],
+        cycle: [prginf[CYCLE + 2 * n], prginf[CYCLE + 2 * n + 1]],
+        cycle1: word(prginf, CYCLE1 + 2 * n),
+        cycle2: word(prginf, CYCLE2 + 2 * n),
+        program,
+        args: core::array::from_fn(|i| word(ptrprg, u + 2 + 2 * i)),
+    })
+}
+
+/// Builds the two blocks from 8 config sets.
+pub fn encode(sets: &[ConfigSet; 8]) -> ([u8; FLASH_BLOCK], [u8; FLASH_BLOCK]) {
+    let mut a = [0xFFu8; FLASH_BLOCK];
+    let mut p = [0xFFu8; FLASH_BLOCK];
+    put(&mut a, 0, VALID);
+    for (n, s) in sets.iter().enumerate() {
+        a[2 + n] = s.hso;
+        a[AD_INIT + 18 * n..AD_INIT + 18 * n + 18].copy_from_slice(&s.ad_init);
+        a[ADON + 2 * n..ADON + 2 * n + 2].copy_from_slice(&s.adon);
+        a[ADRS + n] = s.adrs;
+        a[CYCLE + 2 * n..CYCLE + 2 * n + 2].copy_from_slice(&s.cycle);
+        put(&mut a, CYCLE1 + 2 * n, s.cycle1);
+        put(&mut a, CYCLE2 + 2 * n, s.cycle2);
+        let u = USER + 16 * n;
+        put(&mut p, u, s.program);
+        for (i, &arg) in s.args.iter().enumerate() {
+            put(&mut p, u + 2 + 2 * i, arg);
+        }
+    }
+    (a, p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_sets_round_trip_through_flash_blocks() {
+        let mut sets: [ConfigSet; 8] = Default::default();
+        sets[3].ad_init[16] = 42;
+        sets[3].cycle1 = 1250;
+        sets[3].program = 2;
+        sets[3].args[1] = 800;
+        sets[7].adrs = 0x81;
+        let (a, p) = encode(&sets);
+        for n in 0..8 {
+            assert_eq!(read_config(&a, &p, n).as_ref(), Some(&sets[n as usize]));
+        }
+        assert_eq!(read_config(&[0xFF; 256], &p, 0), None);
+    }
+}

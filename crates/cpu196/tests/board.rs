@@ -1,0 +1,555 @@
+//! The kernel model in virtual time: every command, the lower loop, acquisition, hooks, errors.
+
+use buslab_cpu196::acquisition::{LogTable, decode_frame};
+use buslab_cpu196::adconfig::{AdConfig, SampleFormat};
+use buslab_cpu196::codes::{Alert, MsgCode};
+use buslab_cpu196::message::*;
+use buslab_cpu196::source::{Inputs, Source};
+use buslab_cpu196::wire;
+use buslab_cpu196::{Board, Decoder, Event, FrameError, Image, Mode};
+use buslab_link::ByteDevice;
+
+const MS: u64 = 1_000_000;
+
+/// A board and a PC-side decoder, driven in virtual time.
+struct Bench {
+    board: Board,
+    host: Decoder,
+    now: u64,
+    /// Events with the time their last byte arrived.
+    seen: Vec<(u64, Event)>,
+}
+
+impl Bench {
+    fn new() -> Self {
+        Self::with(Image::default(), Inputs::default())
+    }
+
+    fn with(image: Image, inputs: Inputs) -> Self {
+        let mut b = Self {
+            board: Board::new(image, inputs, 0),
+            host: Decoder::new(),
+            now: 0,
+            seen: Vec::new(),
+        };
+        b.run_for(MS);
+        assert_eq!(b.take(), vec![Message::Power(Power::WasReset)]);
+        b
+    }
+
+    fn byte_ns(&self) -> u64 {
+        self.board.line().byte_time_ns()
+    }
+
+    fn run_until(&mut self, t: u64) {
+        let mut out = Vec::new();
+        loop {
+            let next = self
+                .board
+                .next_deadline()
+                .filter(|&d| d <= t)
+                .unwrap_or(t)
+                .max(self.now);
+            self.now = next;
+            self.board.poll(next, &mut out);
+            for b in out.drain(..) {
+                if let Some(e) = self.host.push(next, b) {
+                    self.seen.push((next, e));
+                }
+            }
+            if next >= t {
+                break;
+            }
+        }
+    }
+
+    fn run_for(&mut self, d: u64) {
+        self.run_until(self.now + d);
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.run_for(self.byte_ns());
+            self.board.receive(self.now, b);
+        }
+    }
+
+    fn send(&mut self, m: &Message) {
+        self.write(&m.to_bytes().unwrap());
+    }
+
+    /// Sends `m`, waits `ms`, returns the messages that came back.
+    fn ask(&mut self, m: &Message, ms: u64) -> Vec<Message> {
+        self.send(m);
+        self.run_for(ms * MS);
+        self.take()
+    }
+
+    fn take(&mut self) -> Vec<Message> {
+        self.seen
+            .drain(..)
+            .map(|(_, e)| match e {
+                Event::Message(m) => m,
+                Event::Error(e) => panic!("host saw a frame error: {e}"),
+            })
+            .filter(|m| *m != Message::Watchdog)
+            .collect()
+    }
+}
+
+fn msg(c: MsgCode) -> Message {
+    Message::Msg(c)
+}
+
+#[test]
+fn cpuinf_reports_the_identity() {
+    let mut b = Bench::new();
+    let r = b.ask(&Message::CpuInfoRequest, 10);
+    let [Message::CpuInfo(info)] = &r[..] else {
+        panic!("{r:?}")
+    };
+    assert_eq!(&info.serial, b"BL196001");
+    assert_eq!(info.quartz, 20);
+    assert_eq!(info.supply, 70); // PIC channel 0 at 3.5 V through the 1:2 divider
+}
+
+#[test]
+fn flash_write_read_not_blank_forbidden_erase() {
+    let mut b = Bench::new();
+    let data: Box<[u8; 256]> = Box::new(core::array::from_fn(|i| i as u8));
+    let write = Message::FlashWrite {
+        bank: 2,
+        block: 0x80,
+        data: data.clone(),
+    };
+    assert_eq!(b.ask(&write, 50), vec![msg(MsgCode::COMPLETED)]);
+    assert_eq!(
+        b.ask(
+            &Message::FlashReadRequest {
+                bank: 2,
+                block: 0x80
+            },
+            50
+        ),
+        vec![Message::FlashData(data.clone())]
+    );
+    assert_eq!(b.ask(&write, 50), vec![msg(MsgCode::NOT_BLANK_ERROR)]);
+    let forbidden = Message::FlashWrite {
+        bank: 2,
+        block: 0x03,
+        data: data.clone(),
+    };
+    assert_eq!(
+        b.ask(&forbidden, 50),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    assert_eq!(
+        b.ask(&Message::FlashReadRequest { bank: 9, block: 0 }, 50),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    assert_eq!(
+        b.ask(&Message::FlashErase { bank: 2 }, 50),
+        vec![msg(MsgCode::COMPLETED)]
+    );
+    assert_eq!(b.ask(&write, 50), vec![msg(MsgCode::COMPLETED)]);
+    assert!(b.board.take_dirty());
+    assert_eq!(b.board.image().flash.read(2, 0x80).unwrap(), &data[..]);
+}
+
+#[test]
+fn pic_program_blocks_and_eeprom() {
+    let mut b = Bench::new();
+    let data: Box<[u8; 4096]> = Box::new(core::array::from_fn(|i| (i * 7) as u8));
+    let r = b.ask(
+        &Message::PicWrite {
+            block: 2,
+            data: data.clone(),
+        },
+        100,
+    );
+    assert_eq!(r, vec![msg(MsgCode::COMPLETED); 16]);
+    assert_eq!(
+        b.ask(&Message::PicReadRequest { block: 2 }, 500),
+        vec![Message::PicData(data)]
+    );
+    assert_eq!(
+        b.ask(&Message::PicReadRequest { block: 0 }, 10),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    let ee: Box<[u8; 256]> = Box::new([0x42; 256]);
+    assert_eq!(
+        b.ask(&Message::EepromWrite(ee.clone()), 50),
+        vec![msg(MsgCode::COMPLETED)]
+    );
+    assert_eq!(
+        b.ask(&Message::EepromReadRequest, 50),
+        vec![Message::EepromData(ee)]
+    );
+}
+
+#[test]
+fn lower_loop_refuses_nine_commands_and_stop_leaves_it() {
+    let mut b = Bench::new();
+    let r = b.ask(&Message::Start(Start::run(0, 4, false)), 5);
+    assert_eq!(r, vec![msg(MsgCode::COMPLETED)]);
+    assert_eq!(b.board.mode(), Mode::Lower { bank: 0, config: 4 });
+    let refused = [
+        Message::CpuInfoRequest,
+        Message::Start(Start::run(0, 0, false)),
+        Message::Power(Power::Reset),
+        Message::FlashReadRequest {
+            bank: 0,
+            block: 0x60,
+        },
+        Message::EepromReadRequest,
+        Message::Format(Format::EraseBoot),
+        Message::CfgAdRequest { bank: 0, config: 0 },
+    ];
+    for m in refused {
+        assert_eq!(b.ask(&m, 1), vec![msg(MsgCode::INVALID_COMMAND)], "{m:?}");
+    }
+    // FA/FB from a PC are refused too (the decoder cannot delimit FA: reported as such).
+    assert_eq!(
+        b.ask(
+            &Message::AdSample(AdSample::Pic {
+                channel: 0,
+                value: 1
+            }),
+            1
+        ),
+        vec![msg(MsgCode::INVALID_COMMAND)]
+    );
+    assert_eq!(b.ask(&Message::Stop, 1), vec![msg(MsgCode::COMPLETED)]);
+    assert_eq!(b.board.mode(), Mode::Upper);
+    assert!(matches!(
+        b.ask(&Message::CpuInfoRequest, 5)[..],
+        [Message::CpuInfo(_)]
+    ));
+    assert_eq!(buslab_cpu196::board::INVALID_IN_LOWER_LOOP.len(), 9);
+}
+
+#[test]
+fn line_errors_get_the_kernel_messages_and_the_link_recovers() {
+    let mut b = Bench::new();
+    // Wrong complement.
+    b.write(&[wire::CPUINF, 0x00]);
+    b.run_for(5 * MS);
+    assert_eq!(b.take(), vec![msg(MsgCode::RECEPTION_ERROR)]);
+    // The stray 00h waits for its complement and times out.
+    b.run_for(300 * MS);
+    assert_eq!(b.take(), vec![msg(MsgCode::TIME_OUT)]);
+    // A truncated flash write times out and writes nothing.
+    let full = Message::FlashWrite {
+        bank: 1,
+        block: 0x70,
+        data: Box::new([9; 256]),
+    }
+    .to_bytes()
+    .unwrap();
+    b.write(&full[..100]);
+    b.run_for(300 * MS);
+    assert_eq!(b.take(), vec![msg(MsgCode::TIME_OUT)]);
+    assert!(b.board.image().flash.is_blank(1, 0x70));
+    // Random bytes, then a pause: no crash, and the next command works.
+    b.write(&[0x13, 0x99, 0xF5, 0xF5, 0x42, 0x00, 0xAB]);
+    b.run_for(300 * MS);
+    assert!(!b.take().is_empty());
+    assert!(matches!(
+        b.ask(&Message::CpuInfoRequest, 10)[..],
+        [Message::CpuInfo(_)]
+    ));
+    // An unknown sub-code.
+    b.write(&[wire::PRGFLASH, !wire::PRGFLASH, 0x09]);
+    b.run_for(5 * MS);
+    assert_eq!(b.take(), vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]);
+}
+
+#[test]
+fn streamed_samples_match_the_sources_within_resolution() {
+    let mut inputs = Inputs::default();
+    inputs.c196[0] = Source::Sine {
+        offset: 2.5,
+        amplitude: 2.0,
+        hz: 5.0,
+    };
+    inputs.c196[1] = Source::Ramp {
+        from: 0.0,
+        to: 5.0,
+        period_s: 0.5,
+    };
+    inputs.c196[2] = Source::Constant { volts: 1.25 };
+    inputs.c196[3] = Source::Constant { volts: 3.0 };
+    let mut b = Bench::with(Image::default(), inputs.clone());
+    // Config 5: ch0 16-bit, ch1 10-bit, ch2 8-bit, ch3 log8, 1 kHz, 4 scans per frame.
+    b.send(&Message::Start(Start::run(0, 5, true)));
+    let t0 = b.now;
+    b.run_for(400 * MS);
+    let msgs = b.take();
+    assert_eq!(msgs[0], msg(MsgCode::COMPLETED));
+    let Message::CfgAd { c196, .. } = &msgs[1] else {
+        panic!("{:?}", msgs[1])
+    };
+    let cfg = AdConfig::parse(c196).unwrap();
+    let table = LogTable::default();
+    let mut scan_no = 0u64;
+    for m in &msgs[2..] {
+        let Message::AdCont(data) = m else {
+            panic!("{m:?}")
+        };
+        for scan in decode_frame(&cfg, data, &table) {
+            scan_no += 1;
+            let t = t0 + scan_no * cfg.period_ns();
+            for (ch, v) in scan {
+                let want = inputs.c196[ch as usize].volts(t) * 1023.0 / 5.0;
+                let tol = match cfg.channels[ch as usize].format {
+                    SampleFormat::Bits16 | SampleFormat::Bits10 => 0.5,
+                    SampleFormat::Bits8 => 4.0,
+                    SampleFormat::Log8 => 1023.0 * 0.05,
+                };
+                assert!(
+                    (v - want).abs() <= tol,
+                    "scan {scan_no} ch {ch}: {v} vs {want}"
+                );
+            }
+        }
+    }
+    // 400 ms at 1 kHz, minus the frame still being filled.
+    assert!((396..=400).contains(&scan_no), "{scan_no}");
+}
+
+#[test]
+fn too_fast_acquisition_is_refused() {
+    let mut img = Image::default();
+    let mut sets = buslab_cpu196::image::demo_sets();
+    sets[0].ad_init =
+        AdConfig::simple(&[0, 1, 2, 3, 4, 5, 6, 7], SampleFormat::Bits16, 0, 4).encode();
+    let (a, p) = buslab_cpu196::prginf::encode(&sets);
+    img.flash.erase(0).unwrap();
+    img.flash.write(0, 0x28, &a).unwrap();
+    img.flash.write(0, 0x29, &p).unwrap();
+    let mut b = Bench::with(img, Inputs::default());
+    assert_eq!(
+        b.ask(&Message::Start(Start::run(0, 0, true)), 5),
+        vec![msg(MsgCode::AD_CONFIG_ERROR)]
+    );
+    assert_eq!(b.board.mode(), Mode::Upper);
+}
+
+#[test]
+fn watchdog_both_ways() {
+    let mut b = Bench::new();
+    b.run_for(1500 * MS);
+    assert!(
+        b.seen
+            .iter()
+            .any(|(_, e)| *e == Event::Message(Message::Watchdog))
+    );
+    b.seen.clear();
+    assert_eq!(
+        b.ask(&Message::Start(Start::run(0, 4, false)), 1),
+        vec![msg(MsgCode::COMPLETED)]
+    );
+    // Keep the link alive for a while: still running.
+    for _ in 0..5 {
+        b.send(&Message::Watchdog);
+        b.run_for(900 * MS);
+    }
+    assert!(matches!(b.board.mode(), Mode::Lower { .. }) || b.board.pwm() == [0; 3]);
+    // Pulse train finished by itself after 10 pulses of 1 ms; start a long-running config.
+    b.take();
+    assert_eq!(
+        b.ask(&Message::Start(Start::run(0, 0, true)), 1)[0],
+        msg(MsgCode::COMPLETED)
+    );
+    b.run_for(3100 * MS);
+    let got = b.take();
+    assert!(
+        got.contains(&Message::Alert(Alert::LINK_LOST)),
+        "{:?}",
+        &got[got.len().saturating_sub(3)..]
+    );
+    assert_eq!(b.board.mode(), Mode::Upper);
+}
+
+#[test]
+fn battery_thresholds_raise_alerts() {
+    let mut b = Bench::new();
+    b.board.inputs.pic[0] = Source::Constant { volts: 2.5 }; // 8-bit 127: between 100 and 140
+    b.run_for(200 * MS);
+    assert_eq!(b.take(), vec![Message::Alert(Alert::BATTERY_LOW)]);
+    b.board.inputs.pic[0] = Source::Constant { volts: 0.5 };
+    b.run_for(200 * MS);
+    assert_eq!(b.take(), vec![Message::Alert(Alert::BATTERY_DISCHARGED)]);
+    b.board.inputs.pic[0] = Source::Constant { volts: 4.9 };
+    b.run_for(200 * MS);
+    assert_eq!(b.take(), vec![Message::Alert(Alert::BATTERY_MAINS)]);
+}
+
+#[test]
+fn shipped_programs_run_on_their_hooks() {
+    let mut inputs = Inputs::default();
+    inputs.c196[0] = Source::Ramp {
+        from: 0.0,
+        to: 5.0,
+        period_s: 1.0,
+    };
+    inputs.c196[1] = Source::Constant { volts: 1.0 };
+    let mut b = Bench::with(Image::default(), inputs);
+    // Logger: THREAD text, file open, writes.
+    b.send(&Message::Start(Start::run(0, 1, true)));
+    b.run_for(2500 * MS);
+    b.send(&Message::Stop);
+    b.run_for(20 * MS);
+    let m = b.take();
+    assert!(m.contains(&Message::Thread(Thread::Display {
+        format: DisplayFormat::Text,
+        newline: true,
+        data: b"logger: writing ad.csv".to_vec()
+    })));
+    assert!(m.iter().any(|x| matches!(x, Message::Thread(Thread::Open { mode: FileMode::Write, name, .. }) if name == b"ad.csv")));
+    let writes = m
+        .iter()
+        .filter(|x| matches!(x, Message::Thread(Thread::Write { .. })))
+        .count();
+    assert_eq!(
+        writes,
+        1 + 3,
+        "header + one line per 100 interrupts of 8 ms"
+    );
+    assert!(
+        m.iter()
+            .any(|x| matches!(x, Message::Thread(Thread::Close { .. })))
+    );
+    // Threshold alarm on channel 0 > 900.
+    b.send(&Message::Start(Start::run(0, 2, true)));
+    b.run_for(1000 * MS);
+    b.send(&Message::Stop);
+    b.run_for(10 * MS);
+    assert!(b.take().contains(&Message::Alert(Alert::USER_ALARM)));
+    // Virtual channels.
+    b.send(&Message::Start(Start::run(0, 3, true)));
+    b.run_for(50 * MS);
+    b.send(&Message::Stop);
+    b.run_for(10 * MS);
+    let v: Vec<_> = b
+        .take()
+        .into_iter()
+        .filter_map(|m| match m {
+            Message::AdSample(AdSample::Virtual { channel: 1, value }) => Some(value),
+            _ => None,
+        })
+        .collect();
+    assert!(!v.is_empty());
+    // Pulse train: PWM 0 toggles on timer 1, stops after 10 pulses.
+    b.send(&Message::Start(Start::run(0, 4, false)));
+    b.run_for(MS / 2 + MS);
+    assert_eq!(b.board.pwm()[0], 128);
+    b.run_for(25 * MS);
+    assert_eq!(b.board.mode(), Mode::Upper);
+    assert_eq!(b.board.pwm()[0], 0);
+    assert!(b.take().iter().any(|m| matches!(m, Message::Thread(Thread::Display { data, .. }) if data == b"pulse-train: 10 pulses")));
+}
+
+#[test]
+fn pic_channels_stream_as_fb_samples() {
+    let mut b = Bench::new();
+    b.board.inputs.pic[1] = Source::Constant { volts: 5.0 };
+    let s = Start::new(false, true, 0, 7, 0, false, false, false);
+    b.send(&Message::Start(s));
+    b.run_for(300 * MS);
+    let m = b.take();
+    assert!(m.contains(&Message::AdSample(AdSample::Pic {
+        channel: 1,
+        value: 1023
+    })));
+    assert!(m.contains(&Message::AdSample(AdSample::Pic {
+        channel: 0,
+        value: 716
+    })));
+}
+
+#[test]
+fn power_down_reset_and_the_power_button() {
+    let mut b = Bench::new();
+    assert_eq!(
+        b.ask(&Message::Power(Power::Reset), 5),
+        vec![Message::Power(Power::WasReset)]
+    );
+    assert_eq!(
+        b.ask(&Message::Power(Power::PowerDown), 5),
+        vec![Message::Power(Power::PoweredDown)]
+    );
+    assert_eq!(b.board.mode(), Mode::PoweredDown);
+    assert_eq!(b.ask(&Message::CpuInfoRequest, 5), vec![]);
+    b.board.power_button(b.now);
+    b.run_for(5 * MS);
+    assert_eq!(b.take(), vec![Message::Power(Power::WasReset)]);
+}
+
+#[test]
+fn pwm_bridge_format_and_user_commands() {
+    let mut b = Bench::new();
+    assert_eq!(
+        b.ask(
+            &Message::Pwm(Pwm::Set {
+                n: 1,
+                low: 0,
+                value: 77
+            }),
+            2
+        ),
+        vec![]
+    );
+    assert_eq!(b.board.pwm(), [0, 77, 0]);
+    b.ask(
+        &Message::Pwm(Pwm::Set {
+            n: 3,
+            low: 2,
+            value: 0x80,
+        }),
+        2,
+    );
+    assert_eq!(b.board.pic().pwm[0], 0x202);
+    assert_eq!(
+        b.ask(&Message::Pwm(Pwm::Dac(40)), 2),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    assert_eq!(
+        b.ask(&Message::Bridge(Bridge::SpiSend(0x5A)), 2),
+        vec![Message::Bridge(Bridge::SpiReceived(0x5A))]
+    );
+    assert_eq!(
+        b.ask(&Message::Bridge(Bridge::SciSend(0x41)), 2),
+        vec![Message::Bridge(Bridge::SciReceived(0x41))]
+    );
+    b.ask(&Message::Bridge(Bridge::ParallelAddress(0x00)), 2);
+    b.ask(&Message::Bridge(Bridge::ParallelWrite(0xC3)), 2);
+    assert_eq!(
+        b.ask(&Message::Bridge(Bridge::ParallelReadRequest), 2),
+        vec![Message::Bridge(Bridge::ParallelRead(0xC3))]
+    );
+    assert_eq!(
+        b.ask(&Message::Format(Format::EraseBoot), 2),
+        vec![msg(MsgCode::NOT_SUPPORTED)]
+    );
+    assert_eq!(
+        b.ask(
+            &Message::User {
+                cmd: 0x20,
+                params: vec![]
+            },
+            2
+        ),
+        vec![msg(MsgCode::INVALID_COMMAND)]
+    );
+    assert_eq!(
+        b.ask(&Message::CfgAdRequest { bank: 3, config: 0 }, 2),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    let r = b.ask(&Message::CfgAdRequest { bank: 0, config: 1 }, 5);
+    assert!(matches!(r[..], [Message::CfgAd { .. }]));
+    let _ = FrameError::TimeOut {
+        cmd: 0,
+        received: 0,
+    };
+}
