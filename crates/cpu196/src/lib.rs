@@ -13,11 +13,13 @@ pub mod board;
 pub mod codes;
 pub mod decoder;
 pub mod flash;
+pub mod host;
 pub mod image;
 pub mod message;
 pub mod pic;
 pub mod prginf;
 pub mod program;
+pub mod served;
 pub mod source;
 pub mod wire;
 

@@ -1,0 +1,165 @@
+//! The model served on a real pseudo-terminal, driven by the host client through a serial port.
+
+use std::time::Duration;
+
+use buslab_cpu196::codes::MsgCode;
+use buslab_cpu196::host::{Client, ClientError, Recorder};
+use buslab_cpu196::message::*;
+use buslab_cpu196::served::Served;
+use buslab_cpu196::source::{Inputs, Source};
+use buslab_cpu196::{Board, Image, wire};
+use buslab_link::{LineSettings, open_serial};
+
+const BAUD: u32 = 250_000;
+
+fn board(image: Image) -> Board {
+    let mut b = Board::new(image, Inputs::default(), 0);
+    b.set_baud(BAUD);
+    b
+}
+
+fn connect(s: &Served) -> Client<Box<dyn serialport::SerialPort>> {
+    let port = open_serial(s.path(), LineSettings::n81(BAUD), Duration::from_millis(20)).unwrap();
+    let mut c = Client::new(port, BAUD);
+    // The boot report (F4 03) may or may not have been read: drain.
+    while c.next(Duration::from_millis(30)).unwrap().is_some() {}
+    c
+}
+
+#[test]
+fn info_flash_pic_eeprom_over_a_pty() {
+    let s = Served::spawn(board(Image::default()), None, None).unwrap();
+    let mut c = connect(&s);
+    assert_eq!(&c.info().unwrap().serial, b"BL196001");
+    let data: [u8; 256] = core::array::from_fn(|i| (i as u8) ^ 0x5A);
+    c.flash_write(3, 0x60, &data).unwrap();
+    assert!(matches!(
+        c.flash_write(3, 0x60, &data),
+        Err(ClientError::Board(MsgCode::NOT_BLANK_ERROR))
+    ));
+    assert!(matches!(
+        c.flash_write(3, 0x10, &data),
+        Err(ClientError::Board(MsgCode::INVALID_PARAMETER_VALUE))
+    ));
+    c.flash_erase(3).unwrap();
+    assert_eq!(*c.flash_read(3, 0x60).unwrap(), [0xFF; 256]);
+    let pic: [u8; 4096] = core::array::from_fn(|i| (i / 16) as u8);
+    let mut steps = 0;
+    c.pic_write(1, &pic, &mut |_| steps += 1).unwrap();
+    assert_eq!(steps, 16);
+    c.eeprom_write(&[7; 256]).unwrap();
+    assert_eq!(*c.eeprom_read().unwrap(), [7; 256]);
+    let (c196, _) = c.cfgad(0, 0).unwrap();
+    assert!(buslab_cpu196::adconfig::AdConfig::parse(&c196).is_ok());
+    c.command(&Message::Pwm(Pwm::Set {
+        n: 2,
+        low: 0,
+        value: 99,
+    }))
+    .unwrap();
+    assert!(matches!(
+        c.command(&Message::Pwm(Pwm::Dac(99))),
+        Err(ClientError::Board(MsgCode::INVALID_PARAMETER_VALUE))
+    ));
+    assert_eq!(s.with(|b, _| b.pwm()).unwrap(), [0, 0, 99]);
+    assert_eq!(
+        c.bridge(Bridge::SpiSend(0x33)).unwrap(),
+        Some(Bridge::SpiReceived(0x33))
+    );
+    assert!(matches!(c.start(Start::run(0, 4, false)), Ok(())));
+    assert!(matches!(
+        c.info(),
+        Err(ClientError::Board(MsgCode::INVALID_COMMAND))
+    ));
+    c.stop().unwrap();
+    c.reset().unwrap();
+    c.power_down().unwrap();
+    assert!(matches!(c.info(), Err(ClientError::Lost(_))));
+}
+
+#[test]
+fn corruption_on_the_line_gets_kernel_messages_and_never_corrupts_flash() {
+    let s = Served::spawn(board(Image::default()), None, None).unwrap();
+    let mut c = connect(&s);
+    c.timeout = Duration::from_millis(500);
+    let expect_msg = |c: &mut Client<_>, code: MsgCode| {
+        let m = c.next(Duration::from_millis(600)).unwrap();
+        assert_eq!(m, Some(Message::Msg(code)));
+    };
+    // A wrong complement.
+    c.send_raw(&[wire::CPUINF, 0x12]).unwrap();
+    expect_msg(&mut c, MsgCode::RECEPTION_ERROR);
+    expect_msg(&mut c, MsgCode::TIME_OUT); // the 12h waited for its complement
+    // A truncated frame (a dropped tail).
+    let block = Message::FlashWrite {
+        bank: 4,
+        block: 0x70,
+        data: Box::new([0xA5; 256]),
+    }
+    .to_bytes()
+    .unwrap();
+    c.send_raw(&block[..200]).unwrap();
+    expect_msg(&mut c, MsgCode::TIME_OUT);
+    assert_eq!(*c.flash_read(4, 0x70).unwrap(), [0xFF; 256]);
+    // A dropped byte inside a block, then the next command: the write completes with a
+    // wrong byte, but the client's read-back catches it (no silent corruption).
+    let mut dropped = block.clone();
+    dropped.remove(100);
+    c.send_raw(&dropped).unwrap();
+    let r = c.flash_write(4, 0x71, &[1; 256]);
+    assert!(r.is_err(), "{r:?}");
+    // Random bytes injected between commands: the link recovers.
+    c.send_raw(&[0x00, 0x13, 0x77, 0xF5, 0xF5, 0x31]).unwrap();
+    std::thread::sleep(Duration::from_millis(400));
+    while c.next(Duration::from_millis(50)).unwrap().is_some() {}
+    let _ = c.take_backlog();
+    assert_eq!(&c.info().unwrap().serial, b"BL196001");
+    c.flash_write(5, 0x80, &[3; 256]).unwrap();
+}
+
+#[test]
+fn flash_survives_a_restart_from_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("board.toml");
+    let data: [u8; 256] = core::array::from_fn(|i| i as u8);
+    {
+        let s = Served::spawn(board(Image::default()), None, Some(path.clone())).unwrap();
+        let mut c = connect(&s);
+        c.flash_write(6, 0x90, &data).unwrap();
+        s.stop().unwrap();
+    }
+    let image = Image::load(&path).unwrap();
+    let s = Served::spawn(board(image), None, Some(path)).unwrap();
+    let mut c = connect(&s);
+    assert_eq!(*c.flash_read(6, 0x90).unwrap(), data);
+    assert!(matches!(
+        c.flash_write(6, 0x90, &data),
+        Err(ClientError::Board(MsgCode::NOT_BLANK_ERROR))
+    ));
+}
+
+#[test]
+fn recorded_samples_match_the_sources() {
+    let mut b = board(Image::default());
+    b.inputs.c196[0] = Source::Constant { volts: 4.0 };
+    b.inputs.c196[1] = Source::Constant { volts: 1.0 };
+    let s = Served::spawn(b, None, None).unwrap();
+    let mut c = connect(&s);
+    c.start(Start::run(0, 1, true)).unwrap();
+    let mut rec = Recorder::new(Vec::new()).unwrap();
+    let until = std::time::Instant::now() + Duration::from_millis(300);
+    while std::time::Instant::now() < until {
+        if let Some(m) = c.next(Duration::from_millis(20)).unwrap() {
+            rec.record(&m).unwrap();
+        }
+    }
+    c.stop().unwrap();
+    assert!(rec.frames >= 20, "{}", rec.frames);
+    let csv = String::from_utf8(rec.finish().unwrap()).unwrap();
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let volts: f64 = f[4].parse().unwrap();
+        let want = if f[2] == "0" { 4.0 } else { 1.0 };
+        assert!((volts - want).abs() < 5.0 / 1023.0, "{line}");
+    }
+}
