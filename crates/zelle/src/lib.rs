@@ -16,6 +16,7 @@ pub mod analog;
 mod cell;
 pub mod client;
 mod command;
+pub mod control;
 mod device;
 mod memory;
 pub mod program;

@@ -82,7 +82,7 @@ impl BatteryRam {
                 .map(|chunk| chunk.iter().map(|b| format!("{b:02x}")).collect())
                 .collect(),
         };
-        toml::to_string(&file).expect("a state file always serialises")
+        toml::to_string_pretty(&file).expect("a state file always serialises")
     }
 
     /// Reads a state file written by [`to_state_file`](Self::to_state_file).

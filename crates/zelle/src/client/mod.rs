@@ -78,6 +78,9 @@ pub enum Error {
     ParamsChanged { sent: [u8; 8], found: [u8; 8] },
 }
 
+/// A client on a serial port or PTY opened with `buslab_link::open_serial`.
+pub type SerialClient = Client<Box<dyn serialport::SerialPort>>;
+
 /// Result of client calls.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
@@ -133,11 +136,15 @@ impl<P: Port> Client<P> {
         Ok(())
     }
 
-    /// Sends a command that expects no answer and waits until it has left the port, so the
-    /// call returns once the cell can have acted on it.
+    /// Sends a command that expects no answer and returns once the cell has received it: the
+    /// port is drained, then the bytes' time on the line passes (a pseudo-terminal's drain
+    /// returns before the emulated line has carried them), plus a millisecond.
     fn send_all(&mut self, bytes: &[u8]) -> Result<()> {
         self.send(bytes)?;
         self.port.drain()?;
+        self.port.pause(Duration::from_nanos(
+            bytes.len() as u64 * BYTE_NS + crate::timing::MS,
+        ));
         Ok(())
     }
 
@@ -222,8 +229,7 @@ impl<P: Port> Client<P> {
 
     /// Sends one `0`: stops a running series or program (start byte becomes 0).
     pub fn interrupt(&mut self) -> Result<()> {
-        self.send(&[0])?;
-        self.port.drain()?;
+        self.send_all(&[0])?;
         self.port.pause(Duration::from_nanos(RESET_GAP_NS));
         Ok(())
     }
@@ -266,9 +272,7 @@ impl<P: Port> Client<P> {
 
     /// Command 9: START the next block of the armed series.
     pub fn start_block(&mut self) -> Result<()> {
-        self.send(&[Command::Start as u8])?;
-        self.port.drain()?;
-        Ok(())
+        self.send_all(&[Command::Start as u8])
     }
 
     /// Command 10: arm a series with the parameters already at 0800h.

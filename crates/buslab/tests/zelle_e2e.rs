@@ -1,0 +1,318 @@
+//! The ZELLE cell model served on a real pseudo-terminal at 9600 8N2, driven by the host
+//! client and by the `buslab zelle` CLI. Real time: each exchange is a few bytes.
+
+#[path = "zelle_served.rs"]
+mod served;
+
+use std::io::Write;
+use std::process::Command;
+use std::time::Duration;
+
+use buslab_zelle::client::{Error, Port, SeriesParams, Transfer};
+use buslab_zelle::{BatteryRam, START_BYTE};
+use served::{Served, client_on};
+
+fn buslab(pty: &std::path::Path, args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["zelle", "--port"])
+        .arg(pty)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+#[test]
+fn every_command_through_the_client_over_a_pty() {
+    let mut s = Served::start(&["--analog", "1=1V", "--analog", "3=4V"]);
+    let mut c = s.client();
+    c.reset().unwrap();
+    // 7 and 4: analog reads.
+    assert_eq!(c.analog(1).unwrap(), 51);
+    assert_eq!(c.analog_repeat(&[3, 1, 2]).unwrap(), [204, 51, 0]);
+    // 11, 12: port 1, with an outside pull-down from the control interface.
+    c.write_port1(0xEF).unwrap();
+    assert_eq!(c.read_port1().unwrap(), 0xEF);
+    assert!(s.control("p1 pull 0x40").starts_with("ok"));
+    assert_eq!(c.read_port1().unwrap(), 0xAF);
+    // 13: the START key, held from the control interface.
+    assert!(!c.key_pressed().unwrap());
+    assert!(s.control("key down").starts_with("ok"));
+    assert!(c.key_pressed().unwrap());
+    s.control("key up");
+    // 14, 15: P2.6.
+    c.write_p26(false).unwrap();
+    assert!(!c.read_p26().unwrap());
+    c.write_p26(true).unwrap();
+    assert!(c.read_p26().unwrap());
+    // 16, 17: registers.
+    c.write_register(0x40, 0x5A).unwrap();
+    assert_eq!(c.read_register(0x40).unwrap(), 0x5A);
+    // 8: the parallel bus.
+    c.bus_write(9, 0x33).unwrap();
+    assert_eq!(c.bus_read(9).unwrap(), 0x33);
+    // 18, 19: any RAM address.
+    c.poke(0x2000, 0xC3).unwrap();
+    assert_eq!(c.peek(0x2000).unwrap(), 0xC3);
+    // 3 and 2: data RAM, pipelined and stop-and-wait.
+    let data: Vec<u8> = (0..24).map(|i| i * 11).collect();
+    c.write_data(&data, Transfer::Pipelined).unwrap();
+    assert_eq!(c.read_data(24, Transfer::StopAndWait).unwrap(), data);
+    c.write_data(&data[..5], Transfer::StopAndWait).unwrap();
+    assert_eq!(c.read_data(24, Transfer::Pipelined).unwrap(), data);
+    // 5, 6: load and run a program; 0 interrupts it.
+    c.load_program(&[0x80, 0xFE], Transfer::Pipelined).unwrap();
+    assert_eq!(c.peek(0x0400).unwrap(), 0x80);
+    assert_eq!(c.peek(START_BYTE).unwrap(), 130);
+    c.run_program().unwrap();
+    let st = s.control("status");
+    assert!(st.contains("program running"), "{st}");
+    c.interrupt().unwrap();
+    assert_eq!(c.peek(START_BYTE).unwrap(), 0);
+    // 1, 9, 10: a series of two blocks, then read the count (16) and the values (2).
+    let params = SeriesParams::new(&[3, 1], 3, 4).unwrap();
+    c.start_series(&params).unwrap();
+    c.start_block().unwrap();
+    c.port().pause(Duration::from_millis(40));
+    c.start_block().unwrap();
+    c.port().pause(Duration::from_millis(40));
+    c.interrupt().unwrap();
+    assert_eq!(c.value_count().unwrap(), 12);
+    let dump = c.read_data(20, Transfer::Pipelined).unwrap();
+    assert_eq!(dump[..8], params.to_bytes().unwrap());
+    assert_eq!(
+        dump[8..],
+        [204, 51, 204, 51, 204, 51, 204, 51, 204, 51, 204, 51]
+    );
+    // 10 re-arms with the same parameters and starts counting again.
+    c.repeat_series().unwrap();
+    c.start_block().unwrap();
+    c.port().pause(Duration::from_millis(40));
+    c.interrupt().unwrap();
+    assert_eq!(c.value_count().unwrap(), 6);
+    assert!(s.control("status").contains("lost 0"));
+}
+
+#[test]
+fn cli_measure_follows_the_sine_and_dump_peek_poke_agree() {
+    let s = Served::start(&["--analog", "1=sine:2Hz:2V:2.5V", "--analog", "2=3.3V"]);
+    let csv_path = s.dir.path().join("m.csv");
+    let csv_arg = csv_path.to_str().unwrap();
+    buslab(&s.pty, &["reset"]);
+    let args = [
+        "measure",
+        "-c",
+        "1,2",
+        "--interval",
+        "10ms",
+        "--cycles",
+        "100",
+        "-o",
+        csv_arg,
+    ];
+    buslab(&s.pty, &args);
+    let csv = std::fs::read_to_string(&csv_path).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("time_s,ch1,ch2"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 100);
+    assert!(
+        (rows[1][0] - rows[0][0] - 0.010).abs() < 1e-9,
+        "10 ms apart"
+    );
+    // A 2 Hz sine sampled every 10 ms: periodic over 50 rows, 2.5 V ± 2 V, smooth.
+    let ch1: Vec<f64> = rows.iter().map(|r| r[1]).collect();
+    for i in 0..50 {
+        assert!((ch1[i] - ch1[i + 50]).abs() <= 1.0, "row {i}: {ch1:?}");
+    }
+    let (min, max) = ch1
+        .iter()
+        .fold((255.0f64, 0.0f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    assert!(min <= 30.0 && max >= 225.0, "{min}..{max}");
+    for w in ch1.windows(2) {
+        assert!((w[1] - w[0]).abs() <= 17.0, "a sine, not noise: {w:?}");
+    }
+    assert!(rows.iter().all(|r| r[2] == 168.0), "3.3 V on channel 2");
+
+    // dump: the 8 parameter bytes (100 cycles, channels 1 2, interval 10 - 2), then values.
+    let dump = buslab(&s.pty, &["dump"]);
+    let first = dump.lines().next().unwrap();
+    assert!(
+        first.starts_with("0800: 00 64 01 02 00 00 00 08 "),
+        "{first}"
+    );
+    let listed: usize = dump.lines().map(|l| l.split_whitespace().count() - 1).sum();
+    assert_eq!(listed, 8 + 200);
+    let second: Vec<u8> = first
+        .split_whitespace()
+        .skip(9)
+        .map(|h| u8::from_str_radix(h, 16).unwrap())
+        .collect();
+    assert_eq!(f64::from(second[0]), ch1[0]);
+    assert_eq!(second[1], 168);
+
+    // poke / peek round trip, in the three number spellings.
+    buslab(&s.pty, &["poke", "0x3000", "171"]);
+    assert_eq!(buslab(&s.pty, &["peek", "3000h"]).trim(), "0xab");
+    assert_eq!(buslab(&s.pty, &["peek", "12288"]).trim(), "0xab");
+}
+
+#[test]
+fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
+    let mut s = Served::start(&["--analog", "2=2.5V"]);
+    let mut c = s.client();
+    c.reset().unwrap();
+    c.start_series(&SeriesParams::new(&[2], 5, 2).unwrap())
+        .unwrap();
+    c.port().pause(Duration::from_millis(20));
+    assert!(s.control("status").contains("waiting for START"));
+    let off = s.control("power off");
+    assert!(off.starts_with("ok power off; saved"), "{off}");
+    let ram = BatteryRam::from_state_file(&std::fs::read_to_string(s.state_file()).unwrap());
+    assert_eq!(
+        ram.unwrap().read(START_BYTE),
+        129,
+        "armed in the state file"
+    );
+    let on = s.control("power on");
+    assert!(on.contains("series armed, waiting for START"), "{on}");
+    // It measures: START from the host, then stop and count.
+    c.start_block().unwrap();
+    c.port().pause(Duration::from_millis(40));
+    c.interrupt().unwrap();
+    assert_eq!(c.value_count().unwrap(), 5);
+    assert_eq!(c.read_data(13, Transfer::Pipelined).unwrap()[8..], [128; 5]);
+
+    // Arm again, stop the server (it saves), start a new one on the same state file.
+    c.repeat_series().unwrap();
+    drop(c);
+    let dir = s.stop();
+    let mut s = Served::start_in(dir, &[]);
+    assert!(
+        s.control("status")
+            .contains("series armed, waiting for START")
+    );
+    // START key from the control interface starts a block.
+    s.control("key press 100ms");
+    std::thread::sleep(Duration::from_millis(60));
+    let mut c = s.client();
+    c.interrupt().unwrap();
+    assert_eq!(c.value_count().unwrap(), 5);
+}
+
+#[test]
+fn byte_0_interrupts_a_running_series() {
+    let mut s = Served::start(&[]);
+    let mut c = s.client();
+    c.reset().unwrap();
+    // 60000 cycles every 20 ms: twenty minutes unless interrupted.
+    c.start_series(&SeriesParams::new(&[1], 60_000, 20).unwrap())
+        .unwrap();
+    c.start_block().unwrap();
+    c.port().pause(Duration::from_millis(100));
+    assert!(s.control("status").contains("measuring"));
+    c.interrupt().unwrap();
+    let st = s.control("status");
+    assert!(st.contains("mode Ready, ready"), "{st}");
+    let n = c.value_count().unwrap();
+    assert!(n >= 3, "{n} values in ~100 ms");
+    assert_eq!(c.peek(START_BYTE).unwrap(), 0);
+    c.port().pause(Duration::from_millis(60));
+    assert_eq!(
+        c.value_count().unwrap(),
+        n,
+        "no more values after the interrupt"
+    );
+}
+
+#[test]
+fn ignoring_the_setup_pause_loses_the_byte() {
+    let mut s = Served::start(&[]);
+    let mut c = s.client();
+    c.reset().unwrap();
+    // Command 2 and its first request in one write: back to back on the line.
+    c.port().write_all(&[2, 1]).unwrap();
+    let mut b = [0u8; 1];
+    let err = std::io::Read::read(c.port(), &mut b).unwrap_err();
+    assert_eq!(err.kind(), std::io::ErrorKind::TimedOut);
+    assert!(
+        s.control("status").contains("set-up 1"),
+        "the request was lost"
+    );
+    // With the pause the cell answers (the client keeps it).
+    c.reset().unwrap();
+    assert_eq!(c.read_data(2, Transfer::Pipelined).unwrap().len(), 2);
+}
+
+#[test]
+fn garbage_then_reset_and_wrong_line_settings_give_clear_errors() {
+    let mut s = Served::start(&[]);
+    let mut c = s.client();
+    // 120 pseudo-random bytes at line rate, then the ten-zeros reset.
+    let mut x: u32 = 0x1234_5678;
+    let garbage: Vec<u8> = (0..120)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            (x % 24) as u8
+        })
+        .collect();
+    c.port().write_all(&garbage).unwrap();
+    c.port().pause(Duration::from_millis(200));
+    c.reset().unwrap();
+    assert!(s.control("status").contains(", ready,"));
+    assert!(!c.key_pressed().unwrap());
+    drop(c);
+
+    // A host at the wrong baud rate: its bytes are framing errors, the client times out.
+    let port = buslab_link::open_serial(
+        &s.pty,
+        buslab_link::LineSettings::n82(19200),
+        Duration::from_millis(200),
+    )
+    .unwrap();
+    let mut wrong =
+        buslab_zelle::client::Client::with_timeout(port, Duration::from_millis(200)).unwrap();
+    let err = wrong.peek(0x0800).unwrap_err();
+    assert!(matches!(err, Error::Timeout { .. }), "{err}");
+    assert!(err.to_string().contains("9600 8N2"), "{err}");
+    drop(wrong);
+    let _ = client_on;
+}
+
+#[test]
+fn cli_rejects_bad_arguments_with_the_value_named() {
+    let s = Served::start(&[]);
+    for (args, needle) in [
+        (vec!["peek", "0x10000"], "address `0x10000`"),
+        (vec!["reg", "128"], "register address `128`"),
+        (vec!["analog", "5"], "channel 5 is out of range 1..4"),
+        (
+            vec!["measure", "-c", "1,2,3", "--interval", "2ms"],
+            "interval 2 ms",
+        ),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["zelle", "--port"])
+            .arg(&s.pty)
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["zelle", "key"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--port PATH is required"));
+}

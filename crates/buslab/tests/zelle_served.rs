@@ -1,0 +1,91 @@
+//! Shared by the ZELLE end-to-end tests: `buslab zelle serve` as a child process.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::time::Duration;
+
+use buslab_zelle::client::{Client, SerialClient};
+
+/// A served cell: the child process, its PTY, and its control lines on stdin/stdout.
+pub struct Served {
+    child: Child,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+    pub pty: PathBuf,
+    pub dir: tempfile::TempDir,
+}
+
+impl Served {
+    /// `buslab zelle serve --state DIR/state.toml` plus `extra` arguments.
+    pub fn start(extra: &[&str]) -> Served {
+        let dir = tempfile::tempdir().unwrap();
+        Served::start_in(dir, extra)
+    }
+
+    pub fn start_in(dir: tempfile::TempDir, extra: &[&str]) -> Served {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["zelle", "serve", "--state"])
+            .arg(dir.path().join("state.toml"))
+            .args(extra)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let stdin = child.stdin.take().unwrap();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut line = String::new();
+        stdout.read_line(&mut line).unwrap();
+        let pty = PathBuf::from(line.trim());
+        assert!(pty.exists(), "serve printed {line:?}");
+        Served {
+            child,
+            stdin,
+            stdout,
+            pty,
+            dir,
+        }
+    }
+
+    /// Sends a control line, returns the reply line.
+    pub fn control(&mut self, line: &str) -> String {
+        writeln!(self.stdin, "{line}").unwrap();
+        self.stdin.flush().unwrap();
+        let mut reply = String::new();
+        self.stdout.read_line(&mut reply).unwrap();
+        reply.trim().to_owned()
+    }
+
+    pub fn state_file(&self) -> PathBuf {
+        self.dir.path().join("state.toml")
+    }
+
+    /// A host client on the PTY, at the cell's line settings.
+    pub fn client(&self) -> SerialClient {
+        client_on(&self.pty, Duration::from_millis(300))
+    }
+
+    /// Stops the child (SIGINT, so it saves its state) and gives the directory back.
+    pub fn stop(mut self) -> tempfile::TempDir {
+        let _ = Command::new("kill")
+            .args(["-INT", &self.child.id().to_string()])
+            .status();
+        let _ = self.child.wait();
+        let dir = tempfile::tempdir().unwrap();
+        std::mem::replace(&mut self.dir, dir)
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+pub fn client_on(pty: &Path, timeout: Duration) -> SerialClient {
+    let port = buslab_link::open_serial(pty, buslab_zelle::timing::LINE, timeout).unwrap();
+    Client::with_timeout(port, timeout).unwrap()
+}

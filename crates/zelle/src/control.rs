@@ -1,0 +1,296 @@
+//! The served cell's control language: one command a line, from stdin or a control socket.
+//!
+//! ```text
+//! key press 1.2s | key down | key up      the START key
+//! power off | power on | power cycle      the supply
+//! reset                                   the RESET key
+//! analog CH SOURCE                        feed A/D input CH (1..4), e.g. analog 2 sine:1Hz:2V:2.5V
+//! p1 pull MASK                            port 1 pins pulled low from outside (bit set = low)
+//! p26 pull 0|1                            P2.6 pulled low from outside
+//! bus ADDR VALUE                          what the parallel-bus peripheral at ADDR answers
+//! status                                  mode, activity, value count, bytes lost
+//! save                                    write the state file now
+//! ```
+
+use crate::analog::{SourceError, SourceSpec};
+use crate::{Activity, Cell};
+
+/// Help text for the control language.
+pub const HELP: &str = "key press DURATION | key down | key up | power off | power on | \
+     power cycle | reset | analog CH SOURCE | p1 pull MASK | p26 pull 0|1 | bus ADDR VALUE | \
+     status | save | help";
+
+/// One control line, parsed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ControlCommand {
+    KeyPress { hold_ns: u64 },
+    KeyDown,
+    KeyUp,
+    PowerOff,
+    PowerOn,
+    PowerCycle,
+    Reset,
+    Analog { channel: u8, source: SourceSpec },
+    Port1Pull(u8),
+    P26Pull(bool),
+    Bus { addr: u8, value: u8 },
+    Status,
+    Save,
+    Help,
+}
+
+/// Why a control line was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ControlError {
+    #[error("`{line}`: {why}; commands: {HELP}")]
+    Syntax { line: String, why: String },
+    #[error(transparent)]
+    Source(#[from] SourceError),
+}
+
+impl ControlCommand {
+    /// Parses one line (blank lines and `#` comments give `None`).
+    pub fn parse(line: &str) -> Result<Option<ControlCommand>, ControlError> {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            return Ok(None);
+        }
+        let bad = |why: &str| ControlError::Syntax {
+            line: line.to_owned(),
+            why: why.to_owned(),
+        };
+        let words: Vec<&str> = line.split_whitespace().collect();
+        use ControlCommand::*;
+        let cmd = match words[..] {
+            ["key", "press", d] => KeyPress {
+                hold_ns: parse_duration_ns(d)
+                    .ok_or_else(|| bad("the hold time must look like 1.2s or 500ms"))?,
+            },
+            ["key", "press"] => KeyPress {
+                hold_ns: 200_000_000,
+            },
+            ["key", "down"] => KeyDown,
+            ["key", "up"] => KeyUp,
+            ["power", "off"] => PowerOff,
+            ["power", "on"] => PowerOn,
+            ["power", "cycle"] => PowerCycle,
+            ["reset"] => Reset,
+            ["analog", ch, ref rest @ ..] if !rest.is_empty() => {
+                let channel = parse_number(ch)
+                    .filter(|c| (1..=4).contains(c))
+                    .ok_or_else(|| bad("the channel must be 1..4"))?
+                    as u8;
+                Analog {
+                    channel,
+                    source: SourceSpec::parse(&rest.join(" "))?,
+                }
+            }
+            ["p1", "pull", mask] => Port1Pull(
+                parse_number(mask)
+                    .filter(|&m| m <= 0xFF)
+                    .ok_or_else(|| bad("the mask must be a byte, e.g. 0x30"))?
+                    as u8,
+            ),
+            ["p26", "pull", v] => P26Pull(match v {
+                "0" => false,
+                "1" => true,
+                _ => return Err(bad("p26 pull takes 0 or 1")),
+            }),
+            ["bus", addr, value] => Bus {
+                addr: parse_number(addr)
+                    .filter(|&a| a < 128)
+                    .ok_or_else(|| bad("the bus address must be 0..127"))?
+                    as u8,
+                value: parse_number(value)
+                    .filter(|&v| v <= 0xFF)
+                    .ok_or_else(|| bad("the value must be a byte 0..255"))?
+                    as u8,
+            },
+            ["status"] => Status,
+            ["save"] => Save,
+            ["help"] => Help,
+            _ => return Err(bad("unknown command")),
+        };
+        Ok(Some(cmd))
+    }
+}
+
+/// Applies `cmd` to `cell` at `now` and says what happened. A [`SourceSpec::CsvFile`] must be
+/// loaded by the caller first; [`ControlCommand::Save`] is the caller's to do.
+pub fn apply(cell: &mut Cell, now: u64, cmd: &ControlCommand) -> String {
+    use ControlCommand::*;
+    match cmd {
+        KeyPress { hold_ns } => {
+            cell.press_key_for(now, *hold_ns);
+            format!("START pressed for {:.3} s", *hold_ns as f64 * 1e-9)
+        }
+        KeyDown => {
+            cell.key_down(now);
+            "START down".into()
+        }
+        KeyUp => {
+            cell.key_up(now);
+            "START up".into()
+        }
+        PowerOff => {
+            cell.power_off(now);
+            "power off".into()
+        }
+        PowerOn => {
+            cell.power_on(now);
+            format!("power on: {}", status(cell))
+        }
+        PowerCycle => {
+            cell.power_off(now);
+            cell.power_on(now);
+            format!("power cycled: {}", status(cell))
+        }
+        Reset => {
+            cell.reset(now);
+            format!("reset: {}", status(cell))
+        }
+        Analog { channel, source } => match source {
+            SourceSpec::Ready(s) => match cell.set_analog(*channel, s.clone()) {
+                Ok(()) => format!("analog {channel} = {s}"),
+                Err(e) => format!("error: {e}"),
+            },
+            SourceSpec::CsvFile(p) => format!("error: {} must be loaded first", p.display()),
+        },
+        Port1Pull(mask) => {
+            cell.set_port1_pulled_low(*mask);
+            format!("port 1 pins pulled low: {mask:#04x}")
+        }
+        P26Pull(low) => {
+            cell.set_p26_pulled_low(*low);
+            format!("P2.6 pulled low: {low}")
+        }
+        Bus { addr, value } => match cell.set_bus(*addr, *value) {
+            Ok(()) => format!("bus {addr} = {value:#04x}"),
+            Err(e) => format!("error: {e}"),
+        },
+        Status | Save => status(cell),
+        Help => HELP.into(),
+    }
+}
+
+/// One line about the cell's state.
+pub fn status(cell: &Cell) -> String {
+    let activity = match cell.activity() {
+        Activity::Off => "off",
+        Activity::TimingKey => "timing the START key",
+        Activity::Ready => "ready",
+        Activity::Exchange => "in a command",
+        Activity::MeasureWaiting => "series armed, waiting for START",
+        Activity::Measuring => "measuring",
+        Activity::ProgramRunning => "program running",
+    };
+    let s = cell.stats();
+    format!(
+        "mode {:?}, {activity}, {} values, key {}, lost {} (set-up {}, overrun {}, off {})",
+        cell.mode(),
+        cell.value_count(),
+        if cell.key_is_down() { "down" } else { "up" },
+        s.lost_in_setup + s.lost_overrun + s.lost_off,
+        s.lost_in_setup,
+        s.lost_overrun,
+        s.lost_off,
+    )
+}
+
+/// `12`, `0x1F`, `1Fh`.
+pub fn parse_number(s: &str) -> Option<u32> {
+    let s = s.trim();
+    if let Some(hex) = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
+        u32::from_str_radix(hex, 16).ok()
+    } else if let Some(hex) = s.strip_suffix(['h', 'H']) {
+        u32::from_str_radix(hex, 16).ok()
+    } else {
+        s.parse().ok()
+    }
+}
+
+/// `1.2s`, `500ms`, `2` (seconds).
+pub fn parse_duration_ns(s: &str) -> Option<u64> {
+    let s = s.trim();
+    let (num, scale) = if let Some(n) = s.strip_suffix("ms") {
+        (n, 1e6)
+    } else if let Some(n) = s.strip_suffix("us") {
+        (n, 1e3)
+    } else if let Some(n) = s.strip_suffix('s') {
+        (n, 1e9)
+    } else {
+        (s, 1e9)
+    };
+    let v: f64 = num.parse().ok()?;
+    let ns = v * scale;
+    (ns.is_finite() && (0.0..1e18).contains(&ns)).then_some(ns.round() as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Mode;
+    use crate::analog::Source;
+
+    fn parse(line: &str) -> ControlCommand {
+        ControlCommand::parse(line).unwrap().unwrap()
+    }
+
+    #[test]
+    fn parses_the_documented_lines() {
+        assert_eq!(
+            parse("key press 1.2s"),
+            ControlCommand::KeyPress {
+                hold_ns: 1_200_000_000
+            }
+        );
+        assert_eq!(parse("  power off "), ControlCommand::PowerOff);
+        assert_eq!(
+            parse("analog 2 sine:1Hz:2V:2.5V"),
+            ControlCommand::Analog {
+                channel: 2,
+                source: SourceSpec::parse("sine:1Hz:2V:2.5V").unwrap()
+            }
+        );
+        assert_eq!(parse("p1 pull 0x30"), ControlCommand::Port1Pull(0x30));
+        assert_eq!(
+            parse("bus 7Fh 255"),
+            ControlCommand::Bus {
+                addr: 127,
+                value: 255
+            }
+        );
+        assert_eq!(ControlCommand::parse("# note"), Ok(None));
+    }
+
+    #[test]
+    fn garbage_lines_are_refused_with_the_line() {
+        for line in [
+            "key press soon",
+            "analog 5 1V",
+            "analog 1 wobble:3",
+            "analog 1",
+            "p1 pull 256",
+            "p26 pull 2",
+            "bus 128 0",
+            "bus 1 300",
+            "launch",
+            "\u{0}\u{1b}[A",
+        ] {
+            let err = ControlCommand::parse(line).unwrap_err().to_string();
+            let last = line.split_whitespace().last().unwrap();
+            assert!(err.contains(line.trim()) || err.contains(last), "{err}");
+        }
+    }
+
+    #[test]
+    fn power_cycle_resumes_the_stored_mode() {
+        let mut cell = Cell::default();
+        cell.write_ram(crate::START_BYTE, &[129]);
+        let out = apply(&mut cell, 1_000, &parse("power cycle"));
+        assert!(out.contains("waiting for START"), "{out}");
+        assert_eq!(cell.mode(), Mode::Measure);
+        apply(&mut cell, 2_000, &parse("analog 3 4V"));
+        assert_eq!(cell.analog(3), Some(&Source::Constant(4.0)));
+    }
+}
