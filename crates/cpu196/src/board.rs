@@ -198,6 +198,14 @@ impl Board {
         &mut self.registry
     }
 
+    fn note(&mut self, line: String) {
+        // Bounded: a board nobody reads the log of must not grow.
+        if self.log.len() >= 1000 {
+            self.log.remove(0);
+        }
+        self.log.push(line);
+    }
+
     /// Kernel log lines (what it did and refused), drained.
     pub fn take_log(&mut self) -> Vec<String> {
         core::mem::take(&mut self.log)
@@ -241,7 +249,7 @@ impl Board {
         }
         let mut bytes = Vec::new();
         if let Err(e) = m.encode(&mut bytes) {
-            self.log.push(format!("not sent: {e}"));
+            self.note(format!("not sent: {e}"));
             return;
         }
         self.tx.push(at, &bytes);
@@ -254,7 +262,7 @@ impl Board {
     // ----- events -------------------------------------------------------------------------
 
     fn on_frame_error(&mut self, now: u64, e: FrameError) {
-        self.log.push(format!("frame error: {e}"));
+        self.note(format!("frame error: {e}"));
         let code = match e {
             FrameError::WrongComplement { .. } => MsgCode::RECEPTION_ERROR,
             FrameError::TimeOut { .. } => MsgCode::TIME_OUT,
@@ -266,7 +274,7 @@ impl Board {
     fn on_message(&mut self, now: u64, m: Message) {
         let cmd = m.command();
         if matches!(self.mode, Mode::Lower { .. }) && INVALID_IN_LOWER_LOOP.contains(&cmd) {
-            self.log.push(format!(
+            self.note(format!(
                 "{} refused in the lower loop",
                 wire::command_name(cmd)
             ));
@@ -395,7 +403,7 @@ impl Board {
                 });
             }
             // Replies to the board's file requests; nothing to do.
-            Message::Msg(code) => self.log.push(format!("PC says {code}")),
+            Message::Msg(code) => self.note(format!("PC says {code}")),
             Message::User { cmd, params } => {
                 if self.run.as_ref().is_some_and(|r| r.program.is_some()) {
                     self.call_hook(now, |p, k| {
@@ -409,7 +417,7 @@ impl Board {
                 }
             }
             other => {
-                self.log.push(format!(
+                self.note(format!(
                     "{} is not a command a PC sends",
                     wire::command_name(other.command())
                 ));
@@ -419,12 +427,12 @@ impl Board {
     }
 
     fn bad_param(&mut self, now: u64, why: String) {
-        self.log.push(why);
+        self.note(why);
         self.msg(now, MsgCode::INVALID_PARAMETER_VALUE);
     }
 
     fn flash_error(&mut self, now: u64, e: FlashError) {
-        self.log.push(e.to_string());
+        self.note(e.to_string());
         let code = match e {
             FlashError::Forbidden { .. } => MsgCode::INVALID_PARAMETER_VALUE,
             FlashError::NotBlank { .. } => MsgCode::NOT_BLANK_ERROR,
@@ -467,7 +475,7 @@ impl Board {
                 self.send(now, &Message::Bridge(Bridge::ParallelRead(d)));
             }
             other => {
-                self.log.push(format!("{other:?} is a board-to-PC report"));
+                self.note(format!("{other:?} is a board-to-PC report"));
                 self.msg(now, MsgCode::INVALID_COMMAND);
             }
         }
@@ -515,7 +523,7 @@ impl Board {
                 let frame_ns = cfg.period_ns() * cfg.scans_per_frame() as u64;
                 let need = (n + 3) as f64 * self.tx.byte_ns as f64 / frame_ns as f64;
                 if need > MAX_LINE_SHARE {
-                    self.log.push(format!(
+                    self.note(format!(
                         "A/D configuration {} needs {:.0} % of the line at {} baud (at most {:.0} %)",
                         s.config(),
                         need * 100.0,

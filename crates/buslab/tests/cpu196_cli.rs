@@ -1,0 +1,255 @@
+//! `buslab cpu196` end to end: a served board model on a pseudo-terminal, driven by the CLI.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BAUD: &str = "250000";
+
+struct Board {
+    child: Child,
+    link: PathBuf,
+    dir: tempfile::TempDir,
+}
+
+impl Board {
+    fn serve(extra: &[&str]) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        Self::serve_in(dir, extra)
+    }
+
+    fn serve_in(dir: tempfile::TempDir, extra: &[&str]) -> Self {
+        let link = dir.path().join("board");
+        let image = dir.path().join("image.toml");
+        let child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["cpu196", "serve", "--baud", BAUD, "--link"])
+            .arg(&link)
+            .arg("--image")
+            .arg(&image)
+            .args(extra)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let until = Instant::now() + Duration::from_secs(10);
+        while !link.exists() {
+            assert!(
+                Instant::now() < until,
+                "the board never appeared at {}",
+                link.display()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Self { child, link, dir }
+    }
+
+    fn cli(&self, args: &[&str]) -> Output {
+        Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["cpu196", "--baud", BAUD, "--port"])
+            .arg(&self.link)
+            .args(args)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap()
+    }
+
+    fn ok(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "{args:?} failed: {}{}",
+            text,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        text
+    }
+
+    fn fails(&self, args: &[&str]) -> String {
+        let out = self.cli(args);
+        assert!(!out.status.success(), "{args:?} should have failed");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+
+    /// Stops the model (it saves its image) and returns the folder.
+    fn shut_down(mut self) -> tempfile::TempDir {
+        // SIGINT: the served board saves its image and exits.
+        let _ = Command::new("kill")
+            .args(["-INT", &self.child.id().to_string()])
+            .status();
+        let until = Instant::now() + Duration::from_secs(5);
+        while self.child.try_wait().unwrap().is_none() {
+            if Instant::now() > until {
+                let _ = self.child.kill();
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.child.wait();
+        std::mem::replace(&mut self.dir, tempfile::tempdir().unwrap())
+    }
+}
+
+impl Drop for Board {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn info_prints_the_board_identity() {
+    let b = Board::serve(&[]);
+    let out = b.ok(&["info"]);
+    assert!(out.contains("serial number   BL196001"), "{out}");
+    assert!(out.contains("quartz          20 MHz"), "{out}");
+    let cfg = b.ok(&["cfgad", "0", "5"]);
+    assert!(cfg.contains("channel 3  log8-bit format"), "{cfg}");
+    assert!(b.fails(&["cfgad", "0", "9"]).contains("out of range 0..7"));
+}
+
+#[test]
+fn monitor_shows_thread_text_and_serves_a_file_write() {
+    let b = Board::serve(&[]);
+    let files = b.path("files");
+    std::fs::create_dir(&files).unwrap();
+    let out = b.ok(&[
+        "monitor",
+        "--files",
+        s(&files),
+        "--start",
+        "1",
+        "--duration",
+        "1",
+    ]);
+    assert!(out.contains("THREAD: logger: writing ad.csv"), "{out}");
+    assert!(out.contains("opened `ad.csv`"), "{out}");
+    let csv = std::fs::read_to_string(files.join("ad.csv")).unwrap();
+    assert!(csv.starts_with("ms,ch0,ch1\n"), "{csv}");
+    assert!(csv.lines().count() >= 2, "{csv}");
+}
+
+#[test]
+fn record_writes_the_configured_acquisition_to_csv() {
+    let b = Board::serve(&["--input", "0=const:4", "--input", "1=const:1"]);
+    let out_csv = b.path("rec.csv");
+    let out = b.ok(&[
+        "record",
+        "--config",
+        "1",
+        "--out",
+        s(&out_csv),
+        "--duration",
+        "0.5",
+    ]);
+    assert!(out.contains("recorded"), "{out}");
+    let csv = std::fs::read_to_string(&out_csv).unwrap();
+    let mut rows = 0;
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f[1], "c196");
+        let want = if f[2] == "0" { 4.0 } else { 1.0 };
+        let v: f64 = f[4].parse().unwrap();
+        assert!((v - want).abs() < 0.005, "{line}");
+        rows += 1;
+    }
+    // 0.5 s at 1 kHz, 2 channels.
+    assert!(rows >= 800, "{rows} rows");
+}
+
+#[test]
+fn flash_bank_write_reads_back_identical_and_survives_a_restart() {
+    let b = Board::serve(&[]);
+    let mut bank = vec![0xFFu8; 65536];
+    for (i, x) in bank[0x6000..0x7000].iter_mut().enumerate() {
+        *x = (i * 31 % 251) as u8;
+    }
+    bank[0x2A00..0x2B00].fill(0x11);
+    let input = b.path("bank.bin");
+    std::fs::write(&input, &bank).unwrap();
+    // Destructive: refused without --yes when stdin is not a terminal.
+    assert!(
+        b.fails(&["flash", "write", "--bank", "3", "--in", s(&input)])
+            .contains("--yes")
+    );
+    let out = b.ok(&["--yes", "flash", "write", "--bank", "3", "--in", s(&input)]);
+    assert!(out.contains("wrote and verified 17 blocks"), "{out}");
+    let back = b.path("back.bin");
+    b.ok(&["flash", "read", "--bank", "3", "--out", s(&back)]);
+    assert_eq!(std::fs::read(&back).unwrap(), bank);
+    let err = b.fails(&["--yes", "flash", "write", "--bank", "3", "--in", s(&input)]);
+    assert!(err.contains("msg_not_blank_error"), "{err}");
+    // Data in a kernel area is refused before anything is written.
+    let mut bad = bank.clone();
+    bad[0x0300] = 0;
+    std::fs::write(&input, &bad).unwrap();
+    assert!(
+        b.fails(&["--yes", "flash", "write", "--bank", "4", "--in", s(&input)])
+            .contains("block 03h")
+    );
+
+    let dir = b.shut_down();
+    let b = Board::serve_in(dir, &[]);
+    let again = b.path("again.bin");
+    b.ok(&["flash", "read", "--bank", "3", "--out", s(&again)]);
+    assert_eq!(std::fs::read(&again).unwrap(), bank);
+    b.ok(&["--yes", "flash", "erase", "--bank", "3"]);
+    b.ok(&[
+        "flash",
+        "read",
+        "--bank",
+        "3",
+        "--block",
+        "0x60",
+        "--out",
+        s(&again),
+    ]);
+    assert_eq!(std::fs::read(&again).unwrap(), vec![0xFF; 256]);
+}
+
+#[test]
+fn pic_eeprom_pwm_bridge_start_stop_user_reset_powerdown() {
+    let b = Board::serve(&[]);
+    let pic: Vec<u8> = (0..4096).map(|i| (i % 200) as u8).collect();
+    let f = b.path("pic.bin");
+    std::fs::write(&f, &pic).unwrap();
+    b.ok(&["--yes", "pic", "write", "--block", "2", "--in", s(&f)]);
+    let back = b.path("pic-back.bin");
+    b.ok(&["pic", "read", "--block", "2", "--out", s(&back)]);
+    assert_eq!(std::fs::read(&back).unwrap(), pic);
+    assert!(
+        b.fails(&["pic", "read", "--block", "4", "--out", s(&back)])
+            .contains("1..3")
+    );
+    std::fs::write(&f, [0x42u8; 256]).unwrap();
+    b.ok(&["--yes", "eeprom", "write", "--in", s(&f)]);
+    b.ok(&["eeprom", "read", "--out", s(&back)]);
+    assert_eq!(std::fs::read(&back).unwrap(), vec![0x42; 256]);
+    assert!(b.ok(&["pwm", "1", "200"]).contains("PWM 1 = 200"));
+    assert!(b.fails(&["pwm", "dac", "40"]).contains("0..31"));
+    assert!(
+        b.ok(&["bridge", "spi", "0x5A"])
+            .contains("SPI received 5Ah")
+    );
+    assert!(b.ok(&["bridge", "sci", "65"]).contains("SCI received 41h"));
+    b.ok(&["bridge", "par-mask", "0"]);
+    b.ok(&["bridge", "par-write", "0xC3"]);
+    assert!(b.ok(&["bridge", "par-read"]).contains("reads C3h"));
+    b.ok(&["start", "--config", "0", "--no-ad"]);
+    assert!(b.fails(&["info"]).contains("msg_invalid_command"));
+    b.ok(&["stop"]);
+    assert!(b.ok(&["user", "0x20"]).contains("msg_invalid_command"));
+    assert!(b.fails(&["user", "0xF3"]).contains("00h..EFh"));
+    assert!(b.fails(&["reset"]).contains("--yes"));
+    assert!(b.ok(&["--yes", "reset"]).contains("the board reset"));
+    assert!(b.ok(&["--yes", "powerdown"]).contains("powered down"));
+    assert!(b.fails(&["info"]).contains("board lost"));
+}
