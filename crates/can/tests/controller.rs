@@ -709,3 +709,23 @@ fn error_passive_transmitter_suspends_after_its_frame() {
         .0;
     assert!(t001 < t700);
 }
+
+#[test]
+fn sof_read_back_recessive_is_a_bit_error() {
+    let mut node = Controller::new(ControllerConfig::default());
+    drive(&mut node, 11, |_, _| Level::Recessive);
+    node.enqueue(frame("123#")).unwrap();
+    assert_eq!(node.output(), Level::Dominant);
+    node.sample(Level::Recessive);
+    assert_eq!(
+        node.poll_event(),
+        Some(Event::Error {
+            kind: ErrorKind::Bit,
+            transmitter: true,
+            bit: 0,
+            tec: 8,
+            rec: 0
+        })
+    );
+    assert_eq!(node.output(), Level::Dominant, "active error flag");
+}

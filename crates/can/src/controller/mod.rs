@@ -263,8 +263,33 @@ impl Controller {
     }
 
     /// The bus level sampled during the current bit-time; advances one bit-time.
+    #[inline]
     pub fn sample(&mut self, bus: Level) {
+        // Fast path for most bits of a frame: inside a field, nothing to check but stuffing
+        // and CRC, and (for the transmitter) that the bus shows what we sent.
         let bit = bus.bit();
+        if matches!(self.phase, Phase::Frame) {
+            let drove = self.drive.bit();
+            let quiet = if self.transmitting {
+                drove == bit
+            } else {
+                drove
+            };
+            if quiet && self.rx.push_mid_field(bit) {
+                self.frame_bit += 1;
+                if self.transmitting
+                    && let Some(tx) = &self.tx
+                {
+                    self.drive = tx.stuffed().level(self.rx.position() as usize);
+                }
+                return;
+            }
+        }
+        self.sample_slow(bit);
+    }
+
+    #[inline(never)]
+    fn sample_slow(&mut self, bit: bool) {
         match self.phase {
             Phase::Integrating { recessive } => {
                 self.phase = match (bit, recessive + 1) {
@@ -274,9 +299,13 @@ impl Controller {
                 };
             }
             Phase::Idle => {
+                let sent_sof = self.drive == Level::Dominant;
                 if !bit {
-                    let sent_sof = self.drive == Level::Dominant;
                     self.start_frame(sent_sof);
+                } else if sent_sof {
+                    // Our SOF read back recessive: a bit error at bit 0 of our frame.
+                    self.start_frame(true);
+                    self.error(ErrorKind::Bit, true);
                 }
             }
             Phase::Frame => self.frame_bit(bit),
@@ -312,7 +341,11 @@ impl Controller {
         self.drive = self.next_drive();
     }
 
+    #[inline]
     pub fn poll_event(&mut self) -> Option<Event> {
+        if self.events.is_empty() {
+            return None;
+        }
         self.events.pop_front()
     }
 
@@ -335,7 +368,7 @@ impl Controller {
     }
 
     /// The level for the bit-time after the one just sampled.
-    #[inline]
+    #[inline(always)]
     fn next_drive(&mut self) -> Level {
         if self.config.listen_only {
             return Level::Recessive;
@@ -397,11 +430,19 @@ impl Controller {
         self.phase = Phase::Frame;
     }
 
+    #[inline(always)]
     fn frame_bit(&mut self, bit: bool) {
         let stuff = self.rx.expects_stuff_bit();
         let field = self.rx.field();
         let drove = self.drive.bit();
-        if drove != bit {
+        // Receivers drive recessive except for the ACK: test the rare cases without branching
+        // on the (data) bit first.
+        let mismatch = if self.transmitting {
+            drove != bit
+        } else {
+            !drove & bit
+        };
+        if mismatch {
             if self.transmitting {
                 if self.rx.in_stuffed_region() {
                     let index = self.rx.index();
@@ -456,6 +497,7 @@ impl Controller {
         }
     }
 
+    #[inline(never)]
     fn lose_arbitration(&mut self, bit: u32) {
         self.transmitting = false;
         if let Some(tx) = &self.tx {
@@ -474,6 +516,7 @@ impl Controller {
         }
     }
 
+    #[inline(never)]
     fn eof_bit(&mut self, n: u8, bit: bool) {
         if !bit {
             if n == 7 && !self.transmitting {
@@ -514,6 +557,7 @@ impl Controller {
         self.phase = Phase::Intermission { n: 1 };
     }
 
+    #[inline(never)]
     fn intermission_bit(&mut self, n: u8, bit: bool) {
         if !bit {
             if n < 3 {
@@ -538,6 +582,7 @@ impl Controller {
         self.was_transmitter && self.state() == ErrorState::Passive
     }
 
+    #[inline(never)]
     fn start_overload(&mut self) {
         if !self.config.listen_only {
             self.events.push_back(Event::Overload);
@@ -554,6 +599,7 @@ impl Controller {
 
     /// An error detected: count it, report it, start the error flag with the next bit.
     /// `count_tec`: false for the arbitration stuff-bit exception.
+    #[inline(never)]
     fn error(&mut self, kind: ErrorKind, count_tec: bool) {
         // The flag is chosen by the state before this error is counted.
         let flag = if self.config.listen_only || self.state() == ErrorState::Passive {
@@ -604,6 +650,7 @@ impl Controller {
         self.update_state();
     }
 
+    #[inline(never)]
     fn flag_bit(&mut self, flag: Flag, n: u8, equal: u8, last: bool, bit: bool) {
         if flag == Flag::PassiveError {
             if !bit && self.ack_exception {
@@ -683,6 +730,7 @@ impl Controller {
         };
     }
 
+    #[inline(never)]
     fn delimiter_bit(&mut self, overload: bool, recessive: u8, dominant: u32, bit: bool) {
         if recessive == 0 {
             if bit {
@@ -729,6 +777,7 @@ impl Controller {
         }
     }
 
+    #[inline(never)]
     fn bus_off_bit(&mut self, recessive: u8, sequences: u8, bit: bool) {
         if !self.recovering {
             return;

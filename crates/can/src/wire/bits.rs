@@ -34,6 +34,30 @@ impl Bits {
         self.len += 1;
     }
 
+    /// Append the `len` (≤ 64) low bits of `value`, most significant first (wire order).
+    ///
+    /// # Panics
+    /// If the bits do not fit.
+    #[inline]
+    pub fn push_msb_first(&mut self, value: u64, len: u32) {
+        let at = self.len as usize;
+        assert!(
+            len <= 64 && at + len as usize <= Self::CAPACITY,
+            "Bits capacity exceeded"
+        );
+        if len == 0 {
+            return;
+        }
+        // Storage is first-bit-lowest, so reverse the field into that order.
+        let bits = value.reverse_bits() >> (64 - len);
+        let (word, offset) = (at / 64, at % 64);
+        self.words[word] |= bits << offset;
+        if offset + len as usize > 64 {
+            self.words[word + 1] |= bits >> (64 - offset);
+        }
+        self.len += len as u16;
+    }
+
     /// Bit `i`.
     ///
     /// # Panics
@@ -121,6 +145,15 @@ mod tests {
         assert_eq!(bits.level(64), Level::Recessive);
         let short: Bits = [false, true, true].into_iter().collect();
         assert_eq!(short.to_string(), "011");
+        let mut fields = Bits::new();
+        fields.push_msb_first(0b101, 3);
+        fields.push_msb_first(0, 0);
+        fields.push_msb_first(u64::MAX, 64);
+        fields.push_msb_first(0x123, 11);
+        let text = fields.to_string();
+        assert_eq!(&text[..3], "101");
+        assert_eq!(&text[3..67], "1".repeat(64));
+        assert_eq!(&text[67..], "00100100011");
     }
 
     #[test]

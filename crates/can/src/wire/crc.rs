@@ -18,11 +18,9 @@ impl Crc15 {
     /// Feed one bit (`true` = 1 = recessive).
     #[inline]
     pub fn push(&mut self, bit: bool) {
-        let feedback = bit ^ (self.0 >> 14 & 1 == 1);
-        self.0 = (self.0 << 1) & 0x7FFF;
-        if feedback {
-            self.0 ^= CRC15_POLY;
-        }
+        // Branch-free: the bits are data, a branch on them would be mispredicted half the time.
+        let feedback = (self.0 >> 14 ^ bit as u16) & 1;
+        self.0 = (self.0 << 1 & 0x7FFF) ^ (CRC15_POLY & feedback.wrapping_neg());
     }
 
     /// Feed the bytes MSB first (handy for the byte-wise cross-check).

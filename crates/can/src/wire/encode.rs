@@ -32,113 +32,92 @@ pub fn encode_with_dlc(frame: &Frame, dlc: u8) -> Option<Encoded> {
     (dlc <= 15 && dlc.min(8) == frame.dlc()).then(|| encode_bits(frame, dlc))
 }
 
-fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
-    let mut raw = Bits::new();
-    let mut fields = Spans::new();
-    let mut put = |field: Field, value: u32, len: u16| {
-        fields.push(Span {
+/// De-stuffed bits with their field spans, built field by field.
+struct Layout {
+    raw: Bits,
+    fields: Spans,
+}
+
+impl Layout {
+    fn put(&mut self, field: Field, value: u64, len: u16) {
+        self.fields.push(Span {
             field,
-            start: raw.len() as u16,
+            start: self.raw.len() as u16,
             len,
         });
-        for n in (0..len).rev() {
-            raw.push(value >> n & 1 == 1);
-        }
-    };
-    let id = frame.id().as_raw();
-    let rtr = frame.is_remote() as u32;
-    put(Field::Sof, 0, 1);
-    if frame.is_extended() {
-        put(Field::Id, id >> 18, 11);
-        put(Field::Srr, 1, 1);
-        put(Field::Ide, 1, 1);
-        put(Field::IdExt, id & 0x3_FFFF, 18);
-        put(Field::Rtr, rtr, 1);
-        put(Field::R1, 0, 1);
-    } else {
-        put(Field::Id, id, 11);
-        put(Field::Rtr, rtr, 1);
-        put(Field::Ide, 0, 1);
+        self.raw.push_msb_first(value, len as u32);
     }
-    put(Field::R0, 0, 1);
-    put(Field::Dlc, dlc as u32, 4);
+}
+
+fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
+    let mut layout = Layout {
+        raw: Bits::new(),
+        fields: Spans::new(),
+    };
+    let id = frame.id().as_raw() as u64;
+    let rtr = frame.is_remote() as u64;
+    layout.put(Field::Sof, 0, 1);
+    if frame.is_extended() {
+        layout.put(Field::Id, id >> 18, 11);
+        layout.put(Field::Srr, 1, 1);
+        layout.put(Field::Ide, 1, 1);
+        layout.put(Field::IdExt, id & 0x3_FFFF, 18);
+        layout.put(Field::Rtr, rtr, 1);
+        layout.put(Field::R1, 0, 1);
+    } else {
+        layout.put(Field::Id, id, 11);
+        layout.put(Field::Rtr, rtr, 1);
+        layout.put(Field::Ide, 0, 1);
+    }
+    layout.put(Field::R0, 0, 1);
+    layout.put(Field::Dlc, dlc as u64, 4);
     let payload = frame.payload();
     if !payload.is_empty() {
-        fields.push(Span {
-            field: Field::Data,
-            start: raw.len() as u16,
-            len: 8 * payload.len() as u16,
-        });
-        for byte in payload {
-            for n in (0..8).rev() {
-                raw.push(byte >> n & 1 == 1);
-            }
-        }
+        let mut bytes = [0u8; 8];
+        bytes[..payload.len()].copy_from_slice(payload);
+        let len = 8 * payload.len() as u16;
+        layout.put(Field::Data, u64::from_be_bytes(bytes) >> (64 - len), len);
     }
     let mut crc = Crc15::new();
-    for bit in raw.iter() {
+    for bit in layout.raw.iter() {
         crc.push(bit);
     }
     let crc = crc.value();
-    let mut put = |field: Field, value: u32, len: u16| {
-        fields.push(Span {
-            field,
-            start: raw.len() as u16,
-            len,
-        });
-        for n in (0..len).rev() {
-            raw.push(value >> n & 1 == 1);
-        }
-    };
-    put(Field::Crc, crc as u32, 15);
-    put(Field::CrcDelimiter, 1, 1);
-    put(Field::AckSlot, 1, 1);
-    put(Field::AckDelimiter, 1, 1);
-    put(Field::Eof, 0x7F, 7);
+    let stuff_end = layout.raw.len() + 15;
+    layout.put(Field::Crc, crc as u64, 15);
+    layout.put(Field::CrcDelimiter, 1, 1);
+    layout.put(Field::AckSlot, 1, 1);
+    layout.put(Field::AckDelimiter, 1, 1);
+    layout.put(Field::Eof, 0x7F, 7);
+    let Layout { raw, fields } = layout;
 
     // Stuff SOF..last CRC bit. A stuff bit belongs to the field whose bits caused it, so a
     // field's wire span runs up to the first bit of the next field.
-    let stuff_end = fields.get(Field::Crc).map_or(0, |s| s.end());
     let mut stuffed = Bits::new();
     let mut stuff_mask = Bits::new();
     let mut wire_fields = Spans::new();
-    let mut next_field = 0;
     let (mut run_bit, mut run_len) = (true, 0u8);
-    for (i, bit) in raw.iter().enumerate() {
-        if let Some(span) = fields.as_slice().get(next_field)
-            && span.start as usize == i
-        {
-            wire_fields.push(Span {
-                field: span.field,
-                start: stuffed.len() as u16,
-                len: 0,
-            });
-            next_field += 1;
+    for span in fields.as_slice() {
+        let wire_start = stuffed.len();
+        for i in span.start as usize..span.end() {
+            let bit = raw.bit(i);
+            stuffed.push(bit);
+            stuff_mask.push(false);
+            if i >= stuff_end {
+                continue;
+            }
+            run_len = if bit == run_bit { run_len + 1 } else { 1 };
+            run_bit = bit;
+            if run_len == 5 {
+                stuffed.push(!bit);
+                stuff_mask.push(true);
+                (run_bit, run_len) = (!bit, 1);
+            }
         }
-        stuffed.push(bit);
-        stuff_mask.push(false);
-        if i >= stuff_end {
-            continue;
-        }
-        if bit == run_bit {
-            run_len += 1;
-        } else {
-            (run_bit, run_len) = (bit, 1);
-        }
-        if run_len == 5 {
-            stuffed.push(!bit);
-            stuff_mask.push(true);
-            (run_bit, run_len) = (!bit, 1);
-        }
-    }
-    let starts = wire_fields;
-    let mut wire_fields = Spans::new();
-    let spans = starts.as_slice();
-    for (k, span) in spans.iter().enumerate() {
-        let end = spans.get(k + 1).map_or(stuffed.len(), |s| s.start as usize);
         wire_fields.push(Span {
-            len: (end - span.start as usize) as u16,
-            ..*span
+            field: span.field,
+            start: wire_start as u16,
+            len: (stuffed.len() - wire_start) as u16,
         });
     }
     Encoded {

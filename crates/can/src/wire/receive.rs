@@ -89,6 +89,7 @@ enum Stage {
     AckDelimiter,
     Eof,
     Done,
+    Failed,
 }
 
 impl Stage {
@@ -107,7 +108,7 @@ impl Stage {
             Stage::CrcDelimiter => Field::CrcDelimiter,
             Stage::AckSlot => Field::AckSlot,
             Stage::AckDelimiter => Field::AckDelimiter,
-            Stage::Eof | Stage::Done => Field::Eof,
+            Stage::Eof | Stage::Done | Stage::Failed => Field::Eof,
         }
     }
 }
@@ -133,7 +134,8 @@ pub enum Step {
 #[derive(Clone, Debug)]
 pub struct Receiver {
     stage: Stage,
-    failed: bool,
+    /// The stage before `Failed`, for [`Receiver::field`] after an error.
+    failed_in: Stage,
     /// Bits left in a multi-bit stage.
     left: u8,
     shift: u32,
@@ -144,8 +146,11 @@ pub struct Receiver {
     run_bit: bool,
     run_len: u8,
     stuffing: bool,
-    last_field: Field,
+    /// Stage of the last data bit (a stuff bit belongs to it).
+    last_stage: Stage,
     crc: Crc15,
+    /// The CRC computed over SOF..data, fixed when the CRC field starts.
+    crc_computed: u16,
     crc_rx: u16,
     id: u32,
     ide: bool,
@@ -168,7 +173,7 @@ impl Receiver {
     pub const fn new() -> Self {
         Self {
             stage: Stage::Sof,
-            failed: false,
+            failed_in: Stage::Sof,
             left: 0,
             shift: 0,
             pos: 0,
@@ -176,8 +181,9 @@ impl Receiver {
             run_bit: true,
             run_len: 0,
             stuffing: true,
-            last_field: Field::Sof,
+            last_stage: Stage::Sof,
             crc: Crc15::new(),
+            crc_computed: 0,
             crc_rx: 0,
             id: 0,
             ide: false,
@@ -210,7 +216,10 @@ impl Receiver {
     /// RTR are told apart only by the IDE bit that follows.
     #[inline]
     pub const fn field(&self) -> Field {
-        self.stage.field()
+        match self.stage {
+            Stage::Failed => self.failed_in.field(),
+            stage => stage.field(),
+        }
     }
 
     /// The next wire bit is a stuff bit.
@@ -228,17 +237,17 @@ impl Receiver {
     /// After the CRC field: whether the received CRC matched.
     #[inline]
     pub fn crc_ok(&self) -> bool {
-        self.crc_rx == self.crc.value()
+        self.crc_rx == self.crc_computed
     }
 
     /// Finished (frame or error).
     pub const fn is_finished(&self) -> bool {
-        self.failed || matches!(self.stage, Stage::Done)
+        matches!(self.stage, Stage::Done | Stage::Failed)
     }
 
     /// The frame, once the ACK delimiter has been received without error.
     pub fn decoded(&self) -> Option<Decoded> {
-        if self.failed || !matches!(self.stage, Stage::Eof | Stage::Done) {
+        if !matches!(self.stage, Stage::Eof | Stage::Done) {
             return None;
         }
         let id = if self.ide {
@@ -266,39 +275,71 @@ impl Receiver {
         (if self.ide { 64 } else { 44 }) + 8 * self.data_len as u32
     }
 
+    #[cold]
     fn fail(&mut self, kind: WireErrorKind, bit: u32, field: Field) -> Step {
-        self.failed = true;
+        self.failed_in = self.stage;
+        self.stage = Stage::Failed;
+        self.stuffing = false;
         Step::Error(WireError { kind, bit, field })
     }
 
     /// Take one wire bit (`true` = recessive).
     #[inline]
     pub fn push(&mut self, bit: bool) -> Step {
-        if self.failed || self.stage == Stage::Done {
+        if self.push_mid_field(bit) {
             return Step::Pending;
         }
+        self.push_slow(bit)
+    }
+
+    /// The common case, kept small enough to inline into a controller's per-bit step: a data
+    /// bit inside a multi-bit field of the stuffed region (not its last bit), or a correct
+    /// stuff bit before the end of the stuffed region.
+    /// Takes the bit and returns true in that case; otherwise takes nothing and returns false.
+    #[inline(always)]
+    pub fn push_mid_field(&mut self, bit: bool) -> bool {
+        if !self.stuffing {
+            return false;
+        }
+        if self.run_len == 5 {
+            // A correct stuff bit, not the last one of the region.
+            if bit == self.run_bit || self.stage == Stage::CrcDelimiter {
+                return false;
+            }
+            self.pos += 1;
+            (self.run_bit, self.run_len) = (bit, 1);
+            return true;
+        }
+        // `left` is at most 1 in single-bit stages, so `left > 1` means "inside a field".
+        if self.left <= 1 {
+            return false;
+        }
+        self.pos += 1;
+        self.index += 1;
+        let same = bit == self.run_bit;
+        self.run_len = same as u8 * self.run_len + 1;
+        self.run_bit = bit;
+        self.last_stage = self.stage;
+        self.crc.push(bit);
+        self.shift = self.shift << 1 | bit as u32;
+        self.left -= 1;
+        true
+    }
+
+    #[inline(never)]
+    fn push_slow(&mut self, bit: bool) -> Step {
         let pos = self.pos;
         self.pos += 1;
         if self.stuffing {
             if self.run_len == 5 {
-                if bit == self.run_bit {
-                    return self.fail(WireErrorKind::Stuff, pos, self.last_field);
-                }
-                (self.run_bit, self.run_len) = (bit, 1);
-                if self.stage == Stage::CrcDelimiter {
-                    self.stuffing = false;
-                }
-                return Step::Pending;
+                return self.stuff_bit(bit, pos);
             }
-            if bit == self.run_bit {
-                self.run_len += 1;
-            } else {
-                (self.run_bit, self.run_len) = (bit, 1);
-            }
-            self.last_field = self.stage.field();
-            if self.stage != Stage::Crc {
-                self.crc.push(bit);
-            }
+            // Branch-free run counting (the bits are data).
+            let same = bit == self.run_bit;
+            self.run_len = same as u8 * self.run_len + 1;
+            self.run_bit = bit;
+            self.last_stage = self.stage;
+            self.crc.push(bit);
         }
         self.index += 1;
         match self.stage {
@@ -345,7 +386,7 @@ impl Receiver {
                     if self.data_len > 0 {
                         (self.stage, self.left) = (Stage::Data, 8);
                     } else {
-                        (self.stage, self.left) = (Stage::Crc, 15);
+                        self.start_crc();
                     }
                 }
             }
@@ -355,7 +396,7 @@ impl Receiver {
                     self.bytes += 1;
                     self.shift = 0;
                     if self.bytes == self.data_len {
-                        (self.stage, self.left) = (Stage::Crc, 15);
+                        self.start_crc();
                     } else {
                         self.left = 8;
                     }
@@ -386,7 +427,7 @@ impl Receiver {
                 if !self.crc_ok() {
                     let kind = WireErrorKind::Crc {
                         received: self.crc_rx,
-                        computed: self.crc.value(),
+                        computed: self.crc_computed,
                     };
                     return self.fail(kind, pos, Field::AckDelimiter);
                 }
@@ -403,7 +444,27 @@ impl Receiver {
                     return decoded.map_or(Step::Pending, Step::Frame);
                 }
             }
-            Stage::Done => {}
+            Stage::Done | Stage::Failed => {}
+        }
+        Step::Pending
+    }
+
+    /// The data field is over: the CRC register now holds the CRC to compare with.
+    #[inline]
+    fn start_crc(&mut self) {
+        self.crc_computed = self.crc.value();
+        (self.stage, self.left) = (Stage::Crc, 15);
+    }
+
+    /// The bit after 5 equal bits: must be their complement, and is dropped.
+    #[inline]
+    fn stuff_bit(&mut self, bit: bool, pos: u32) -> Step {
+        if bit == self.run_bit {
+            return self.fail(WireErrorKind::Stuff, pos, self.last_stage.field());
+        }
+        (self.run_bit, self.run_len) = (bit, 1);
+        if self.stage == Stage::CrcDelimiter {
+            self.stuffing = false;
         }
         Step::Pending
     }
