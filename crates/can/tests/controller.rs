@@ -729,3 +729,123 @@ fn sof_read_back_recessive_is_a_bit_error() {
     );
     assert_eq!(node.output(), Level::Dominant, "active error flag");
 }
+
+#[test]
+fn recessive_stuff_bit_overwritten_in_arbitration_leaves_tec_alone() {
+    let f = frame("000#");
+    let enc = encode(&f);
+    assert!(
+        enc.is_stuff_bit(5) && enc.stuffed().bit(5),
+        "SOF + 4 zeros, then a 1"
+    );
+    let mut node = Controller::new(ControllerConfig::default());
+    drive(&mut node, 11, |_, _| Level::Recessive);
+    node.enqueue(f).unwrap();
+    drive(
+        &mut node,
+        6,
+        |t, out| if t == 5 { Level::Dominant } else { out },
+    );
+    let errors: Vec<Event> = std::iter::from_fn(|| node.poll_event()).collect();
+    assert_eq!(
+        errors,
+        [Event::Error {
+            kind: ErrorKind::Stuff,
+            transmitter: true,
+            bit: 5,
+            tec: 0,
+            rec: 0
+        }]
+    );
+    // A dominant data bit read back recessive in arbitration is a bit error, +8.
+    let mut node = Controller::new(ControllerConfig::default());
+    drive(&mut node, 11, |_, _| Level::Recessive);
+    node.enqueue(f).unwrap();
+    drive(
+        &mut node,
+        5,
+        |t, out| if t == 3 { Level::Recessive } else { out },
+    );
+    assert!(matches!(
+        node.poll_event(),
+        Some(Event::Error {
+            kind: ErrorKind::Bit,
+            bit: 3,
+            tec: 8,
+            ..
+        })
+    ));
+}
+
+#[test]
+fn crc_error_at_a_receiver_is_flagged_after_the_ack_delimiter() {
+    let f = frame("123#1122");
+    let enc = encode(&f);
+    let ack_delimiter = enc.ack_slot() as u32 + 1;
+    let first_error = |bus: &Bus, i: usize| {
+        bus.events[i]
+            .iter()
+            .find_map(|(_, e)| match *e {
+                Event::Error { kind, bit, .. } => Some((kind, bit)),
+                _ => None,
+            })
+            .unwrap()
+    };
+    // Wire bit 22 is a data bit whose flip changes no stuffing: only the CRC catches it.
+    let mut bus = Bus::with_nodes(3);
+    bus.run(11);
+    bus.fault = Some(flip_once(1, 22));
+    bus.nodes[0].enqueue(f).unwrap();
+    bus.settle(1000);
+    assert_eq!(first_error(&bus, 1), (ErrorKind::Crc, ack_delimiter));
+    // Its flag starts at the first EOF bit: a form error for the others.
+    assert_eq!(first_error(&bus, 0), (ErrorKind::Form, ack_delimiter + 1));
+    assert_eq!(first_error(&bus, 2), (ErrorKind::Form, ack_delimiter + 1));
+    for i in 1..3 {
+        assert_eq!(bus.received(i), [f]);
+    }
+    assert_eq!(bus.transmitted(0), [f]);
+    // With no other receiver to acknowledge, the transmitter's ACK error flag (from the ACK
+    // delimiter on) comes first and the receiver sees a form error there.
+    let mut bus = Bus::with_nodes(2);
+    bus.run(11);
+    bus.fault = Some(flip_once(1, 22));
+    bus.nodes[0].enqueue(f).unwrap();
+    bus.settle(1000);
+    assert_eq!(first_error(&bus, 0), (ErrorKind::Ack, ack_delimiter - 1));
+    assert_eq!(first_error(&bus, 1), (ErrorKind::Form, ack_delimiter));
+    assert_eq!(bus.received(1), [f]);
+}
+
+#[test]
+fn successful_reception_brings_a_passive_rec_back_to_127() {
+    let mut node = Controller::new(ControllerConfig::default());
+    drive(&mut node, 11, |_, _| Level::Recessive);
+    // Stuff error + flag + 16 dominant bits: REC +25 each time; then the delimiter and
+    // intermission.
+    for _ in 0..6 {
+        drive(&mut node, 6 + 6 + 16, |_, _| Level::Dominant);
+        drive(&mut node, 8 + 3, |_, _| Level::Recessive);
+    }
+    assert_eq!(node.rec(), 150);
+    assert_eq!(node.state(), ErrorState::Passive);
+    while node.poll_event().is_some() {}
+    let bits = encode(&frame("123#1122")).stuffed().to_string();
+    let bits: Vec<bool> = bits.bytes().map(|b| b == b'1').collect();
+    drive(&mut node, bits.len() as u64, |t, out| {
+        out.and(Level::from_bit(bits[t as usize]))
+    });
+    assert_eq!(node.rec(), 127);
+    assert_eq!(node.state(), ErrorState::Active);
+    let events: Vec<Event> = std::iter::from_fn(|| node.poll_event()).collect();
+    assert!(events.contains(&Event::Received(frame("123#1122"))));
+    assert!(events.iter().any(|e| matches!(
+        e,
+        Event::StateChanged {
+            from: ErrorState::Passive,
+            to: ErrorState::Active,
+            rec: 127,
+            ..
+        }
+    )));
+}
