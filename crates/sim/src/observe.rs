@@ -111,6 +111,13 @@ impl BusStats {
         }
     }
 
+    /// `bits` recessive bit-times of idle bus.
+    pub(crate) fn idle(&mut self, bits: u64) {
+        self.bits += bits;
+        self.busy_bits += 11u64.saturating_sub(self.recessive_run).min(bits);
+        self.recessive_run += bits;
+    }
+
     #[inline(always)]
     pub(crate) fn bit(&mut self, bus: Level) {
         self.bits += 1;

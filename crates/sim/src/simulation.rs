@@ -99,7 +99,13 @@ pub struct Simulation {
     next_sample: BitTime,
     series: Vec<CounterSample>,
     levels: Option<LevelTrace>,
+    fast_forward: bool,
+    skipped: BitTime,
 }
+
+/// While the bus is recessive, how often (in bit-times) the clean loop checks whether every
+/// node is idle so it can fast-forward.
+const IDLE_CHECK_EVERY: u64 = 16;
 
 impl Simulation {
     /// An empty bus at `bitrate` bit/s (used only to convert bit-times to seconds); `seed`
@@ -135,6 +141,8 @@ impl Simulation {
             next_sample: BitTime::MAX,
             series: Vec::new(),
             levels: None,
+            fast_forward: true,
+            skipped: 0,
         }
     }
 
@@ -175,6 +183,17 @@ impl Simulation {
             .resize(self.nodes.len() + self.faults.len() + 1, Level::Recessive);
         self.next_fault_change = self.now;
         self.faults.len() - 1
+    }
+
+    /// Jump over idle bus time (on by default; see [`Self::run_until`]). Turning it off
+    /// changes nothing but the speed.
+    pub fn set_fast_forward(&mut self, on: bool) {
+        self.fast_forward = on;
+    }
+
+    /// Bit-times jumped over by fast-forwarding so far.
+    pub fn fast_forwarded(&self) -> BitTime {
+        self.skipped
     }
 
     /// Record node events in the trace (on by default). Counters are kept either way.
@@ -260,6 +279,10 @@ impl Simulation {
     }
 
     /// Simulates up to (not including) bit-time `end`.
+    ///
+    /// When no fault is active, no level trace is on and every controller is idle on an idle
+    /// bus with nothing to send, nothing can happen before the next traffic, fault or sample
+    /// time: the simulation jumps there (idle controllers that sample recessive stay idle).
     pub fn run_until(&mut self, end: BitTime) {
         while self.now < end {
             self.handle_due();
@@ -268,14 +291,38 @@ impl Simulation {
                 .min(self.next_fault_change)
                 .min(self.next_sample);
             debug_assert!(horizon > self.now);
-            if self.faulty || self.levels.is_some() {
+            if self.fast_forward && !self.faulty && self.all_idle() {
+                // Idle levels are all recessive, as they already were: no level changes.
+                self.obs.bus.idle(horizon - self.now);
+                self.skipped += horizon - self.now;
+                self.now = horizon;
+            } else if self.faulty || self.levels.is_some() {
                 while self.now < horizon.min(self.schedule.next) {
                     self.step_faulty();
+                    if self.fast_forward && !self.faulty && self.may_be_idle() && self.all_idle() {
+                        break;
+                    }
                 }
             } else {
                 self.run_clean(horizon);
             }
         }
+    }
+
+    /// Whether it is worth checking [`Self::all_idle`]: a frame ends with 11 recessive bits
+    /// (ACK delimiter, EOF, intermission); only then can everybody be idle. Checked every few
+    /// bits, not every bit, in case a node stays busy (bus-off, suspend) on an idle bus.
+    #[inline]
+    fn may_be_idle(&self) -> bool {
+        let run = self.obs.bus.recessive_run;
+        run >= 11 && (run - 11).is_multiple_of(IDLE_CHECK_EVERY)
+    }
+
+    /// Every controller is bus-idle with nothing to send.
+    fn all_idle(&self) -> bool {
+        self.nodes
+            .iter()
+            .all(|n| n.controller.is_bus_idle() && n.controller.pending() == 0)
     }
 
     /// Everything scheduled at or before `now`: fault changes, traffic, counter samples.
@@ -345,8 +392,10 @@ impl Simulation {
     }
 
     /// The hot loop: no faults, no level tracing. One wired-AND over all outputs, then every
-    /// node samples the same level.
+    /// node samples the same level. Returns early when the bus may have gone idle, so
+    /// [`Self::run_until`] can fast-forward.
     fn run_clean(&mut self, horizon: BitTime) {
+        let fast_forward = self.fast_forward;
         let Self {
             nodes,
             obs,
@@ -355,6 +404,16 @@ impl Simulation {
             ..
         } = self;
         while *now < horizon.min(schedule.next) {
+            // As `may_be_idle` (inlined here because of the split borrow).
+            let run = obs.bus.recessive_run;
+            if fast_forward && run >= 11 && (run - 11).is_multiple_of(IDLE_CHECK_EVERY) {
+                let idle = nodes
+                    .iter()
+                    .all(|n| n.controller.is_bus_idle() && n.controller.pending() == 0);
+                if idle {
+                    return;
+                }
+            }
             let mut bus = Level::Recessive;
             for node in nodes.iter() {
                 if node.controller.output() == Level::Dominant {

@@ -1,0 +1,132 @@
+//! `buslab sim` and `buslab lab` from the outside.
+
+use std::path::PathBuf;
+
+use assert_cmd::Command;
+
+fn scenario(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenarios")
+        .join(name)
+}
+
+fn buslab() -> Command {
+    Command::cargo_bin("buslab").unwrap()
+}
+
+fn stdout_of(args: &[&str]) -> String {
+    let out = buslab().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+#[test]
+fn seed_experiment_shows_bus_off_and_recovery() {
+    let path = scenario("seed-cut-wire.toml");
+    let out = stdout_of(&["sim", path.to_str().unwrap()]);
+    let pos = |needle: &str| {
+        out.find(needle)
+            .unwrap_or_else(|| panic!("{needle:?} not in output:\n{out}"))
+    };
+    let cut = pos("fault 1 started: cut");
+    let warning = pos("sender: error warning: a counter reached 96");
+    let passive = pos("sender: error-active -> error-passive");
+    let bus_off = pos("sender: error-passive -> bus-off");
+    let repaired = pos("fault 1 ended");
+    let recovered = out.rfind("sender: bus-off -> error-active").unwrap();
+    assert!(cut < warning && warning < passive && passive < bus_off && bus_off < repaired);
+    assert!(recovered > repaired);
+    // Frames are candump log lines with the transmitter as interface.
+    assert!(
+        out.lines()
+            .any(|l| l.starts_with("(0000000000.") && l.ends_with(" sender 100#0001020304050607"))
+    );
+    // The summary: the sender is back to error-active at the end.
+    let summary = out.lines().find(|l| l.starts_with("# sender ")).unwrap();
+    assert!(summary.ends_with("error-active"), "{summary}");
+}
+
+#[test]
+fn quiet_prints_only_the_summary_and_vcd_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let vcd = dir.path().join("out.vcd");
+    let path = scenario("arbitration.toml");
+    let out = stdout_of(&[
+        "sim",
+        path.to_str().unwrap(),
+        "--quiet",
+        "--duration",
+        "2ms",
+        "--vcd",
+        vcd.to_str().unwrap(),
+    ]);
+    assert!(out.lines().all(|l| l.starts_with('#')), "{out}");
+    assert!(out.contains("# bus: 500000 bit/s, 0.002000 s (1000 bit-times)"));
+    let text = std::fs::read_to_string(vcd).unwrap();
+    assert!(text.contains("$enddefinitions $end"));
+    assert!(text.contains("$var wire 1 ! bus $end"));
+    assert!(
+        text.lines().any(|l| l == "0!"),
+        "the bus never went dominant"
+    );
+}
+
+#[test]
+fn lab_prints_candump_lines_and_stops_by_itself() {
+    let out = stdout_of(&["lab", "--duration", "1s"]);
+    let frames: Vec<&str> = out.lines().collect();
+    assert!(frames.len() >= 100, "{} lines:\n{out}", frames.len());
+    assert!(
+        frames
+            .iter()
+            .any(|l| l.trim_start().starts_with("sim0") && l.contains("0C0   [8]  0F A0 00 3C"))
+    );
+    assert!(frames.iter().any(|l| l.contains("18FF0010   [1]  A5")));
+    assert!(frames.iter().all(|l| l.starts_with("  sim0  ")), "{out}");
+}
+
+#[test]
+fn bad_scenarios_are_refused_with_the_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "[[nodes]]\nname = \"a\"\n[[faults]]\nkind = \"disconnect\"\nnode = \"ghost\"\nstart = 0\n",
+            "unknown node \"ghost\"",
+        ),
+        (
+            "[[nodes]]\nname = \"a\"\n[[nodes.traffic]]\nkind = \"once\"\nframe = \"123#R9\"\nat = 0\n",
+            "DLC 9 is out of range 0..8",
+        ),
+        ("garbage = [", "not valid TOML"),
+    ];
+    for (i, (text, needle)) in cases.iter().enumerate() {
+        let path = dir.path().join(format!("bad{i}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let out = buslab()
+            .args(["sim", path.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{err}");
+        assert!(err.contains(&format!("bad{i}.toml")), "{err}");
+    }
+    let out = buslab()
+        .args(["sim", "/nonexistent/x.toml"])
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("cannot read scenario /nonexistent/x.toml")
+    );
+    let path = scenario("noise.toml");
+    let out = buslab()
+        .args(["sim", path.to_str().unwrap(), "--duration", "3 fortnights"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("\"3 fortnights\""));
+}
