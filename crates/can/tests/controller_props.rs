@@ -139,3 +139,42 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Any bus input, any options: no panic, counters in range, listen-only stays recessive.
+    #[test]
+    fn garbage_on_the_bus_never_breaks_a_controller(
+        levels in prop::collection::vec(prop_oneof![3 => Just(true), 1 => Just(false)], 0..3000),
+        options in any::<[bool; 5]>(),
+        frames in prop::collection::vec((0u16..0x800, prop::collection::vec(any::<u8>(), 0..=8)), 0..3),
+    ) {
+        let [listen_only, self_test, single_shot, self_reception, auto_recover] = options;
+        let config = ControllerConfig {
+            listen_only,
+            self_test,
+            single_shot,
+            self_reception,
+            auto_recover,
+            tx_queue_capacity: 2,
+        };
+        let mut node = Controller::new(config);
+        for (id, data) in &frames {
+            let _ = node.enqueue(Frame::data(Id::standard(*id).unwrap(), data).unwrap());
+        }
+        for (t, &bit) in levels.iter().enumerate() {
+            let out = node.output();
+            if listen_only {
+                prop_assert_eq!(out, Level::Recessive);
+            }
+            // The bus is never recessive while we drive dominant, unless a fault says so.
+            let bus = if t % 7 == 0 { Level::from_bit(bit) } else { out.and(Level::from_bit(bit)) };
+            node.sample(bus);
+            while node.poll_event().is_some() {}
+            prop_assert!(node.rec() <= 255);
+            prop_assert!(node.tec() <= 255 + 8);
+            prop_assert!(node.pending() <= 2);
+        }
+    }
+}
