@@ -325,3 +325,31 @@ fn writes_p26_from_bit_0_and_reads_registers_above_127_as_ff() {
     l.wait(10 * MS);
     assert_eq!(l.take(), [0, 1, 0xFF, 0xFF]);
 }
+
+#[test]
+fn channel_bytes_select_the_multiplexer_by_their_low_bits_and_0_answers_nothing() {
+    let mut l = Line::new(Cell::default());
+    l.cell.set_analog(1, Source::Constant(1.0)).unwrap();
+    l.cell.set_analog(2, Source::Constant(2.0)).unwrap();
+    // 5 → input 1, 6 → input 2 ((n - 1) & 3); channel 0 ends command 7 without a reading.
+    l.send(&[7, 5]);
+    l.wait(5 * MS);
+    l.send(&[7, 6]);
+    l.wait(5 * MS);
+    l.send(&[7, 0, 13]);
+    l.wait(5 * MS);
+    assert_eq!(l.take(), [51, 102, 1]);
+}
+
+#[test]
+fn internal_ram_is_cleared_by_power_on_but_kept_by_reset() {
+    let mut l = Line::new(Cell::default());
+    l.send(&[17, 0x20, 0x99]);
+    l.wait(2 * MS);
+    let t = l.t;
+    l.cell.reset(t);
+    assert_eq!(l.cell.internal_ram()[0x20], 0x99);
+    l.cell.power_off(t);
+    l.cell.power_on(t + MS);
+    assert_eq!(l.cell.internal_ram()[0x20], 0);
+}

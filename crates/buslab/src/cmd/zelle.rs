@@ -17,7 +17,7 @@ use buslab_zelle::analog::{Source, SourceSpec, to_volts};
 use buslab_zelle::client::{Client, Measurement, Progress, SeriesParams, Transfer};
 use buslab_zelle::control::{self, ControlCommand, parse_duration_ns, parse_number};
 use buslab_zelle::timing::LINE;
-use buslab_zelle::{BatteryRam, Cell, DATA_AREA, PARAMS_LEN};
+use buslab_zelle::{BatteryRam, Cell, DATA_AREA, LinkedCell, PARAMS_LEN};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -397,7 +397,7 @@ pub struct ServeOptions {
 /// A cell served on a PTY by a background thread.
 pub struct ServedCell {
     path: PathBuf,
-    control: Sender<Control<Cell>>,
+    control: Sender<Control<LinkedCell>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<io::Result<()>>>,
 }
@@ -408,13 +408,23 @@ impl ServedCell {
         &self.path
     }
 
-    /// Runs a control command on the cell; the reply line comes back.
-    #[allow(dead_code)] // for `buslab lab` and tests driving a served cell in-process
+    /// Runs a control command on the cell (e.g. `ControlCommand::parse("key press 1s")`); the
+    /// reply line comes back.
+    #[allow(dead_code)] // for `buslab lab`
     pub fn control(&self, cmd: ControlCommand) -> anyhow::Result<String> {
+        self.with_cell(move |cell, now| control::apply(cell, now, &cmd))
+    }
+
+    /// Runs `work` on the cell in its serve thread at the current virtual time, and returns
+    /// its result.
+    pub fn with_cell<R: Send + 'static>(
+        &self,
+        work: impl FnOnce(&mut Cell, u64) -> R + Send + 'static,
+    ) -> anyhow::Result<R> {
         let (tx, rx) = mpsc::channel();
         self.control
-            .send(Box::new(move |cell: &mut Cell, now| {
-                let _ = tx.send(control::apply(cell, now, &cmd));
+            .send(Box::new(move |linked: &mut LinkedCell, now| {
+                let _ = tx.send(work(linked.at(now), now));
             }))
             .ok()
             .context("the cell's serve thread has stopped")?;
@@ -422,8 +432,7 @@ impl ServedCell {
             .context("the cell's serve thread did not answer")
     }
 
-    /// Sends arbitrary work to the cell's thread.
-    pub fn sender(&self) -> Sender<Control<Cell>> {
+    fn sender(&self) -> Sender<Control<LinkedCell>> {
         self.control.clone()
     }
 
@@ -460,13 +469,14 @@ pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
     for (ch, source) in &options.analog {
         cell.set_analog(*ch, source.clone())?;
     }
+    let mut cell = LinkedCell::new(cell);
     let mut pty = Pty::open().context("opening a pseudo-terminal")?;
     if let Some(link) = &options.link {
         pty.link_at(link)
             .with_context(|| format!("linking {}", link.display()))?;
     }
     let path = pty.path().to_path_buf();
-    let (control_tx, control_rx) = mpsc::channel::<Control<Cell>>();
+    let (control_tx, control_rx) = mpsc::channel::<Control<LinkedCell>>();
     let stop = Arc::new(AtomicBool::new(false));
 
     // Every second, ask the serve loop for the RAM if it changed, and save it.
@@ -478,7 +488,8 @@ pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
             while !stop.load(Ordering::Relaxed) {
                 thread::sleep(Duration::from_secs(1));
                 let (tx, rx) = mpsc::channel();
-                let work: Control<Cell> = Box::new(move |cell: &mut Cell, _| {
+                let work: Control<LinkedCell> = Box::new(move |linked: &mut LinkedCell, now| {
+                    let cell = linked.at(now);
                     let _ = tx.send((cell.ram_generation(), cell.ram().clone()));
                 });
                 if sender.send(work).is_err() {
@@ -503,7 +514,7 @@ pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
         .spawn(move || {
             let result = buslab_link::serve(&mut cell, &pty, LINE, &control_rx, &thread_stop);
             if let Some(path) = &state
-                && let Err(e) = save_state(path, cell.ram())
+                && let Err(e) = save_state(path, cell.cell().ram())
             {
                 eprintln!("warning: {e:#}");
             }
@@ -558,7 +569,7 @@ fn load_source(spec: SourceSpec) -> anyhow::Result<Source> {
 /// power-off saves it too. Returns the reply line.
 fn handle_line(
     line: &str,
-    control: &Sender<Control<Cell>>,
+    control: &Sender<Control<LinkedCell>>,
     state: Option<&Path>,
 ) -> Option<String> {
     let cmd = match ControlCommand::parse(line) {
@@ -578,7 +589,8 @@ fn handle_line(
     };
     let save = matches!(cmd, ControlCommand::Save | ControlCommand::PowerOff);
     let (tx, rx) = mpsc::channel();
-    let work: Control<Cell> = Box::new(move |cell: &mut Cell, now| {
+    let work: Control<LinkedCell> = Box::new(move |linked: &mut LinkedCell, now| {
+        let cell = linked.at(now);
         let reply = control::apply(cell, now, &cmd);
         let _ = tx.send((reply, save.then(|| cell.ram().clone())));
     });
@@ -668,7 +680,7 @@ struct ControlSocket {
 impl ControlSocket {
     fn bind(
         path: &Path,
-        sender: Sender<Control<Cell>>,
+        sender: Sender<Control<LinkedCell>>,
         state: Option<PathBuf>,
     ) -> anyhow::Result<ControlSocket> {
         if let Ok(meta) = fs::symlink_metadata(path) {
@@ -698,7 +710,11 @@ impl Drop for ControlSocket {
     }
 }
 
-fn serve_control_client(stream: UnixStream, sender: &Sender<Control<Cell>>, state: Option<&Path>) {
+fn serve_control_client(
+    stream: UnixStream,
+    sender: &Sender<Control<LinkedCell>>,
+    state: Option<&Path>,
+) {
     let Ok(mut writer) = stream.try_clone() else {
         return;
     };
