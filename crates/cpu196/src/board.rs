@@ -43,6 +43,17 @@ pub const INVALID_IN_LOWER_LOOP: [u8; 9] = [
     wire::CFGAD,
 ];
 
+/// Counters for benchmarks and monitors.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// `FA` frames queued for the PC.
+    pub fa_sent: u64,
+    /// `FA` frames dropped because the transmit FIFO was full.
+    pub fa_dropped: u64,
+    /// Frame errors on the PC's stream.
+    pub rx_errors: u64,
+}
+
 /// Which loop the kernel is in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -118,6 +129,7 @@ pub struct Board {
     next_file: u8,
     dirty: bool,
     log: Vec<String>,
+    stats: Stats,
 }
 
 impl Board {
@@ -154,6 +166,7 @@ impl Board {
             next_file: 0,
             dirty: false,
             log: Vec::new(),
+            stats: Stats::default(),
         };
         b.boot(now);
         b
@@ -183,6 +196,10 @@ impl Board {
 
     pub fn mode(&self) -> Mode {
         self.mode
+    }
+
+    pub fn stats(&self) -> Stats {
+        self.stats
     }
 
     pub fn pwm(&self) -> [u8; 3] {
@@ -262,6 +279,7 @@ impl Board {
     // ----- events -------------------------------------------------------------------------
 
     fn on_frame_error(&mut self, now: u64, e: FrameError) {
+        self.stats.rx_errors += 1;
         self.note(format!("frame error: {e}"));
         let code = match e {
             FrameError::WrongComplement { .. } => MsgCode::RECEPTION_ERROR,
@@ -694,11 +712,13 @@ impl Board {
             let data = acq.run_interrupt(&self.inputs.c196, &self.image.log_table);
             if !data.is_empty() {
                 if self.tx.queue.len() + data.len() + 3 > TX_FIFO {
+                    self.stats.fa_dropped += 1;
                     if !run.overrun {
                         run.overrun = true;
                         self.send(at, &Message::Alert(Alert::AD_OVERRUN));
                     }
                 } else {
+                    self.stats.fa_sent += 1;
                     self.send(at, &Message::AdCont(data));
                 }
             }

@@ -241,6 +241,42 @@ impl<P: Port> Client<P> {
         )
     }
 
+    /// Reads a whole bank (256 blocks). Requests are pipelined, two ahead, so the board's
+    /// transmitter never waits for the next request.
+    pub fn flash_read_bank(
+        &mut self,
+        bank: u8,
+        progress: &mut dyn FnMut(usize),
+    ) -> Result<Vec<u8>, ClientError> {
+        const AHEAD: usize = 2;
+        let mut out = Vec::with_capacity(256 * FLASH_BLOCK);
+        let mut asked = 0usize;
+        while asked < AHEAD {
+            self.send(&Message::FlashReadRequest {
+                bank,
+                block: asked as u8,
+            })?;
+            asked += 1;
+        }
+        let budget = self.budget((AHEAD + 1) * 262);
+        while out.len() < 256 * FLASH_BLOCK {
+            let data = self.wait_for(budget, &mut |m| match m {
+                Message::FlashData(d) => Some(d.clone()),
+                _ => None,
+            })?;
+            out.extend_from_slice(&data[..]);
+            progress(out.len());
+            if asked < 256 {
+                self.send(&Message::FlashReadRequest {
+                    bank,
+                    block: asked as u8,
+                })?;
+                asked += 1;
+            }
+        }
+        Ok(out)
+    }
+
     /// Writes a block and reads it back.
     pub fn flash_write(
         &mut self,

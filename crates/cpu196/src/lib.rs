@@ -23,7 +23,7 @@ pub mod served;
 pub mod source;
 pub mod wire;
 
-pub use board::{Board, Mode};
+pub use board::{Board, Mode, Stats};
 pub use codes::{Alert, MsgCode};
 pub use decoder::{Decoder, Event, FrameError};
 pub use image::Image;

@@ -16,7 +16,7 @@ use buslab_cpu196::image::BAUD_RATES;
 use buslab_cpu196::message::{Bridge, DisplayFormat, Message, Pwm, Start, Thread};
 use buslab_cpu196::served::Served;
 use buslab_cpu196::source::{Inputs, Source};
-use buslab_cpu196::wire::{FLASH_BLOCK, PIC_BLOCK, PIC_EEPROM};
+use buslab_cpu196::wire::{PIC_BLOCK, PIC_EEPROM};
 use buslab_cpu196::{Board, Image};
 use buslab_link::{LineSettings, open_serial};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -673,11 +673,7 @@ fn flash<P: Port>(c: &mut Client<P>, f: FlashCmd, yes: bool) -> anyhow::Result<(
             out,
         } => {
             let pb = bar(65536, &format!("reading bank {bank}"));
-            let mut all = Vec::with_capacity(65536);
-            for block in 0..=255u8 {
-                all.extend_from_slice(&c.flash_read(bank, block)?[..]);
-                pb.inc(FLASH_BLOCK as u64);
-            }
+            let all = c.flash_read_bank(bank, &mut |n| pb.set_position(n as u64))?;
             pb.finish();
             write_file(&out, &all)?;
             println!("read bank {bank} (256 blocks) into {}", out.display());
