@@ -70,7 +70,7 @@ fn every_command_through_the_client_over_a_pty() {
     assert_eq!(c.peek(0x0400).unwrap(), 0x80);
     assert_eq!(c.peek(START_BYTE).unwrap(), 130);
     c.run_program().unwrap();
-    let st = s.control("status");
+    let st = s.status_until("program running");
     assert!(st.contains("program running"), "{st}");
     c.interrupt().unwrap();
     assert_eq!(c.peek(START_BYTE).unwrap(), 0);
@@ -78,9 +78,9 @@ fn every_command_through_the_client_over_a_pty() {
     let params = SeriesParams::new(&[3, 1], 3, 4).unwrap();
     c.start_series(&params).unwrap();
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(40));
+    c.port().pause(Duration::from_millis(100));
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(40));
+    c.port().pause(Duration::from_millis(100));
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 12);
     let dump = c.read_data(20, Transfer::Pipelined).unwrap();
@@ -92,7 +92,7 @@ fn every_command_through_the_client_over_a_pty() {
     // 10 re-arms with the same parameters and starts counting again.
     c.repeat_series().unwrap();
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(40));
+    c.port().pause(Duration::from_millis(100));
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 6);
     assert!(s.control("status").contains("lost 0"));
@@ -171,8 +171,8 @@ fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
     c.reset().unwrap();
     c.start_series(&SeriesParams::new(&[2], 5, 2).unwrap())
         .unwrap();
-    c.port().pause(Duration::from_millis(20));
-    assert!(s.control("status").contains("waiting for START"));
+    let st = s.status_until("waiting for START");
+    assert!(st.contains("waiting for START"), "{st}");
     let off = s.control("power off");
     assert!(off.starts_with("ok power off; saved"), "{off}");
     let ram = BatteryRam::from_state_file(&std::fs::read_to_string(s.state_file()).unwrap());
@@ -185,7 +185,7 @@ fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
     assert!(on.contains("series armed, waiting for START"), "{on}");
     // It measures: START from the host, then stop and count.
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(40));
+    c.port().pause(Duration::from_millis(100));
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 5);
     assert_eq!(c.read_data(13, Transfer::Pipelined).unwrap()[8..], [128; 5]);
@@ -201,7 +201,7 @@ fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
     );
     // START key from the control interface starts a block.
     s.control("key press 100ms");
-    std::thread::sleep(Duration::from_millis(60));
+    std::thread::sleep(Duration::from_millis(100));
     let mut c = s.client();
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 5);
@@ -217,9 +217,10 @@ fn byte_0_interrupts_a_running_series() {
         .unwrap();
     c.start_block().unwrap();
     c.port().pause(Duration::from_millis(100));
-    assert!(s.control("status").contains("measuring"));
+    let st = s.status_until("measuring");
+    assert!(st.contains("measuring"), "{st}");
     c.interrupt().unwrap();
-    let st = s.control("status");
+    let st = s.status_until("mode Ready, ready");
     assert!(st.contains("mode Ready, ready"), "{st}");
     let n = c.value_count().unwrap();
     assert!(n >= 3, "{n} values in ~100 ms");
@@ -268,7 +269,8 @@ fn garbage_then_reset_and_wrong_line_settings_give_clear_errors() {
     c.port().write_all(&garbage).unwrap();
     c.port().pause(Duration::from_millis(200));
     c.reset().unwrap();
-    assert!(s.control("status").contains(", ready,"));
+    let st = s.status_until(", ready,");
+    assert!(st.contains(", ready,"), "{st}");
     assert!(!c.key_pressed().unwrap());
     drop(c);
 
@@ -290,7 +292,11 @@ fn garbage_then_reset_and_wrong_line_settings_give_clear_errors() {
 
 #[test]
 fn cli_rejects_bad_arguments_with_the_value_named() {
-    let s = Served::start(&[]);
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("zelle");
+    let s = Served::start_in(dir, &["--link", link.to_str().unwrap()]);
+    // The symlink works as the port.
+    assert_eq!(buslab(&link, &["key"]).trim(), "released");
     for (args, needle) in [
         (vec!["peek", "0x10000"], "address `0x10000`"),
         (vec!["reg", "128"], "register address `128`"),
@@ -315,4 +321,88 @@ fn cli_rejects_bad_arguments_with_the_value_named() {
         .output()
         .unwrap();
     assert!(String::from_utf8_lossy(&out.stderr).contains("--port PATH is required"));
+}
+
+/// An Intel HEX data record for `data` at `addr`, then the end record.
+fn hex_file(addr: u16, data: &[u8]) -> String {
+    let mut record = vec![data.len() as u8, (addr >> 8) as u8, addr as u8, 0];
+    record.extend_from_slice(data);
+    let sum = record.iter().fold(0u8, |s, b| s.wrapping_add(*b));
+    record.push(sum.wrapping_neg());
+    let hex: String = record.iter().map(|b| format!("{b:02X}")).collect();
+    format!(":{hex}\n:00000001FF\n")
+}
+
+#[test]
+fn cli_covers_every_client_command() {
+    let mut s = Served::start(&["--analog", "2=5V"]);
+    let pty = s.pty.clone();
+    let dir = s.dir.path().to_path_buf();
+    let run = |args: &[&str]| buslab(&pty, args).trim().to_owned();
+    assert_eq!(run(&["reset"]), "ready");
+    assert_eq!(run(&["analog", "2"]), "ch2 255 5.000 V");
+    assert_eq!(run(&["analog", "2", "--repeat", "3"]).lines().count(), 3);
+    run(&["port1", "0xEF"]);
+    assert_eq!(run(&["port1"]), "0b11101111");
+    run(&["p26", "0"]);
+    assert_eq!(run(&["p26"]), "0");
+    assert_eq!(run(&["key"]), "released");
+    run(&["reg", "0x21", "7"]);
+    assert_eq!(run(&["reg", "33"]), "0x07");
+    run(&["bus", "4", "0x11"]);
+    assert_eq!(run(&["bus", "4"]), "0x11");
+
+    // upload, then dump to a file, both transfer modes. The 8 bytes are series parameters:
+    // 2 cycles of channel 2, 1 ms apart.
+    let params = [0, 2, 2, 0, 0, 0, 0, 0];
+    std::fs::write(dir.join("p.bin"), params).unwrap();
+    run(&["upload", dir.join("p.bin").to_str().unwrap()]);
+    let out = dir.join("out.bin");
+    run(&["dump", "--len", "8", "-o", out.to_str().unwrap()]);
+    assert_eq!(std::fs::read(&out).unwrap(), params);
+    run(&[
+        "dump",
+        "--len",
+        "8",
+        "--stop-and-wait",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(std::fs::read(&out).unwrap(), params);
+
+    // repeat arms a series with those parameters, start runs a block, stop ends it.
+    run(&["repeat"]);
+    assert!(
+        s.status_until("waiting for START")
+            .contains("waiting for START")
+    );
+    run(&["start"]);
+    std::thread::sleep(Duration::from_millis(50));
+    run(&["stop"]);
+    assert_eq!(run(&["reg", "7"]), "0x02");
+    let dump = run(&["dump"]);
+    assert_eq!(dump, "0800: 00 02 02 00 00 00 00 00 ff ff");
+
+    // load an Intel HEX program, run it, stop it.
+    std::fs::write(dir.join("p.hex"), hex_file(0x0400, &[0x80, 0xFE])).unwrap();
+    assert!(run(&["load", dir.join("p.hex").to_str().unwrap()]).starts_with("loaded 2 bytes"));
+    assert_eq!(run(&["peek", "0x0401"]), "0xfe");
+    run(&["run"]);
+    assert!(
+        s.status_until("program running")
+            .contains("program running")
+    );
+    run(&["stop"]);
+    assert!(s.status_until(", ready,").contains(", ready,"));
+    // A HEX file outside the program area is refused before anything is sent.
+    std::fs::write(dir.join("low.hex"), hex_file(0x0000, &[1])).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["zelle", "--port"])
+        .arg(&pty)
+        .arg("load")
+        .arg(dir.join("low.hex"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("outside the program area"));
 }

@@ -4,12 +4,19 @@
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::sync::{Mutex, MutexGuard};
 use std::time::Duration;
 
 use buslab_zelle::client::{Client, SerialClient};
 
+/// One served cell at a time. `serialport` opens ports with an exclusive `flock` and without
+/// close-on-exec, so a child process spawned by a parallel test would inherit a port and keep
+/// it locked after this test closed it.
+static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
+
 /// A served cell: the child process, its PTY, and its control lines on stdin/stdout.
 pub struct Served {
+    _turn: MutexGuard<'static, ()>,
     child: Child,
     stdin: ChildStdin,
     stdout: BufReader<ChildStdout>,
@@ -25,6 +32,7 @@ impl Served {
     }
 
     pub fn start_in(dir: tempfile::TempDir, extra: &[&str]) -> Served {
+        let turn = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
             .args(["zelle", "serve", "--state"])
             .arg(dir.path().join("state.toml"))
@@ -41,6 +49,7 @@ impl Served {
         let pty = PathBuf::from(line.trim());
         assert!(pty.exists(), "serve printed {line:?}");
         Served {
+            _turn: turn,
             child,
             stdin,
             stdout,
@@ -56,6 +65,19 @@ impl Served {
         let mut reply = String::new();
         self.stdout.read_line(&mut reply).unwrap();
         reply.trim().to_owned()
+    }
+
+    /// Asks for `status` until `want` holds (the cell may still be taking a byte the host
+    /// just wrote), for at most two seconds; returns the last status line.
+    pub fn status_until(&mut self, want: &str) -> String {
+        let deadline = std::time::Instant::now() + Duration::from_secs(2);
+        loop {
+            let status = self.control("status");
+            if status.contains(want) || std::time::Instant::now() > deadline {
+                return status;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
     }
 
     pub fn state_file(&self) -> PathBuf {

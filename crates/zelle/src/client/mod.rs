@@ -20,14 +20,20 @@ use crate::cell::{COUNT_HIGH_REGISTER, COUNT_LOW_REGISTER};
 use crate::memory::{DATA_AREA, EXT_RAM_SIZE, PARAMS_LEN};
 use crate::timing::{BYTE_NS, RESET_GAP_NS};
 
-/// How long the client waits after commands 1, 2, 3 and 5. The cell needs 1 ms after the
-/// command byte has arrived; on a pseudo-terminal `drain` returns before the byte has crossed
-/// the emulated line, so one character time and a margin for scheduling are added.
-pub const SETUP_PAUSE: Duration = Duration::from_millis(5);
+/// How long the client waits after commands 1 and 2 before sending more. The cell needs 1 ms
+/// after the command byte has arrived; on a pseudo-terminal `drain` returns before the byte
+/// has crossed the emulated line, and the server stamps bytes when it gets to read them, so
+/// a generous margin keeps the two apart on a busy machine. (Commands 3 and 5 need no pause:
+/// the client waits for the cell's first timing byte, which comes after the set-up.)
+pub const SETUP_PAUSE: Duration = Duration::from_millis(10);
 
 /// Requests kept on the line ahead of the replies in pipelined transfers. Two would keep a
 /// 9600 baud line busy; more absorbs scheduling jitter on the host.
 pub const WINDOW: usize = 16;
+
+/// Added to each block's length before the next START or the stop in
+/// [`Client::measure`].
+pub const BLOCK_MARGIN_NS: u64 = 50 * crate::timing::MS;
 
 /// How RAM transfers pace themselves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -434,15 +440,20 @@ impl<P: Port> Client<P> {
         mode: Transfer,
         during: &'static str,
     ) -> Result<()> {
-        self.send_with_setup(cmd)?;
+        // The first timing byte comes when the set-up is over: waiting for it keeps the pause
+        // even when the line's timing is blurred (a loaded PTY server reads late).
+        self.send(&[cmd as u8])?;
         let wanted = bytes.len() + 1;
-        let mut timing: usize = 0; // timing bytes seen
         let mut scratch = [0u8; WINDOW + 1];
+        self.read_into(&mut scratch[..1], during)?;
+        let mut timing: usize = 1; // timing bytes seen
         match mode {
             Transfer::StopAndWait => {
-                for &b in bytes {
-                    self.read_into(&mut scratch[..1], during)?;
-                    timing += 1;
+                for (i, &b) in bytes.iter().enumerate() {
+                    if i > 0 {
+                        self.read_into(&mut scratch[..1], during)?;
+                        timing += 1;
+                    }
                     self.send(&[1, b])?;
                 }
             }
@@ -490,9 +501,10 @@ impl<P: Port> Client<P> {
     ) -> Result<Measurement> {
         let sent = params.to_bytes()?;
         self.start_series(params)?;
-        // The cell has no "block done" signal: wait the block's length plus a margin.
+        // The cell has no "block done" signal: wait the block's length plus a margin for the
+        // START byte's way to the cell.
         let block_ns = params.block_ns();
-        let spacing = block_ns + 20 * crate::timing::MS;
+        let spacing = block_ns + BLOCK_MARGIN_NS;
         let total_ns = spacing * u64::from(blocks);
         let step = Duration::from_millis(100);
         let mut starts = Vec::new();
