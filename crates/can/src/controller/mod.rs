@@ -268,22 +268,31 @@ impl Controller {
         // Fast path for most bits of a frame: inside a field, nothing to check but stuffing
         // and CRC, and (for the transmitter) that the bus shows what we sent.
         let bit = bus.bit();
-        if matches!(self.phase, Phase::Frame) {
-            let drove = self.drive.bit();
-            let quiet = if self.transmitting {
-                drove == bit
-            } else {
-                drove
-            };
-            if quiet && self.rx.push_mid_field(bit) {
-                self.frame_bit += 1;
-                if self.transmitting
-                    && let Some(tx) = &self.tx
-                {
-                    self.drive = tx.stuffed().level(self.rx.position() as usize);
+        match self.phase {
+            Phase::Frame => {
+                let drove = self.drive.bit();
+                let quiet = if self.transmitting {
+                    drove == bit
+                } else {
+                    drove
+                };
+                if quiet && self.rx.push_mid_field(bit) {
+                    self.frame_bit += 1;
+                    if self.transmitting
+                        && let Some(tx) = &self.tx
+                    {
+                        self.drive = tx.stuffed().level(self.rx.position() as usize);
+                    }
+                    return;
                 }
+            }
+            // Recessive EOF bits before the 6th: nothing happens, everybody drives recessive.
+            Phase::Eof { n } if bit && n < 5 => {
+                self.phase = Phase::Eof { n: n + 1 };
+                self.frame_bit += 1;
                 return;
             }
+            _ => {}
         }
         self.sample_slow(bit);
     }

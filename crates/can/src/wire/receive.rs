@@ -141,13 +141,12 @@ pub struct Receiver {
     shift: u32,
     /// Wire bits taken so far (= wire index of the next bit).
     pos: u32,
-    /// De-stuffed bits taken so far.
-    index: u32,
+    /// Stuff bits taken so far.
+    stuff_count: u32,
     run_bit: bool,
     run_len: u8,
     stuffing: bool,
-    /// Stage of the last data bit (a stuff bit belongs to it).
-    last_stage: Stage,
+    /// CRC over the completed fields (fed a field at a time, off the per-bit path).
     crc: Crc15,
     /// The CRC computed over SOF..data, fixed when the CRC field starts.
     crc_computed: u16,
@@ -177,11 +176,10 @@ impl Receiver {
             left: 0,
             shift: 0,
             pos: 0,
-            index: 0,
+            stuff_count: 0,
             run_bit: true,
             run_len: 0,
             stuffing: true,
-            last_stage: Stage::Sof,
             crc: Crc15::new(),
             crc_computed: 0,
             crc_rx: 0,
@@ -209,7 +207,7 @@ impl Receiver {
     /// De-stuffed index of the next data bit.
     #[inline]
     pub const fn index(&self) -> u32 {
-        self.index
+        self.pos - self.stuff_count
     }
 
     /// The field the next data bit belongs to. Bit 12 reads as [`Field::Rtr`] because SRR and
@@ -265,8 +263,8 @@ impl Receiver {
             dlc: self.dlc,
             crc: self.crc_rx,
             acked: self.acked,
-            stuff_bits: self.pos - self.index,
-            wire_len: self.pos - self.index + self.fixed_len(),
+            stuff_bits: self.stuff_count,
+            wire_len: self.stuff_count + self.fixed_len(),
         })
     }
 
@@ -307,23 +305,35 @@ impl Receiver {
                 return false;
             }
             self.pos += 1;
+            self.stuff_count += 1;
             (self.run_bit, self.run_len) = (bit, 1);
             return true;
         }
-        // `left` is at most 1 in single-bit stages, so `left > 1` means "inside a field".
-        if self.left <= 1 {
-            return false;
+        // `left` is at most 1 in single-bit stages, so `left > 1` means "inside a field". The
+        // end of a data byte that is not the last one is handled here too.
+        if self.left > 1 {
+            self.take_data_bit(bit);
+            return true;
         }
+        if self.stage == Stage::Data && self.left == 1 && self.bytes + 1 < self.data_len {
+            self.take_data_bit(bit);
+            self.data[self.bytes as usize & 7] = self.shift as u8;
+            self.crc.push_byte(self.shift as u8);
+            self.bytes += 1;
+            (self.shift, self.left) = (0, 8);
+            return true;
+        }
+        false
+    }
+
+    #[inline(always)]
+    fn take_data_bit(&mut self, bit: bool) {
         self.pos += 1;
-        self.index += 1;
         let same = bit == self.run_bit;
-        self.run_len = same as u8 * self.run_len + 1;
+        self.run_len = if same { self.run_len + 1 } else { 1 };
         self.run_bit = bit;
-        self.last_stage = self.stage;
-        self.crc.push(bit);
         self.shift = self.shift << 1 | bit as u32;
         self.left -= 1;
-        true
     }
 
     #[inline(never)]
@@ -336,29 +346,31 @@ impl Receiver {
             }
             // Branch-free run counting (the bits are data).
             let same = bit == self.run_bit;
-            self.run_len = same as u8 * self.run_len + 1;
+            self.run_len = if same { self.run_len + 1 } else { 1 };
             self.run_bit = bit;
-            self.last_stage = self.stage;
-            self.crc.push(bit);
         }
-        self.index += 1;
+        // The CRC is fed when a field (or a single-bit field) of SOF..data is complete.
         match self.stage {
             Stage::Sof => {
                 if bit {
                     return self.fail(WireErrorKind::Form, pos, Field::Sof);
                 }
+                self.crc.push(bit);
                 (self.stage, self.left) = (Stage::Id, 11);
             }
             Stage::Id => {
                 if self.shift_in(bit) {
+                    self.crc.push_bits(self.shift, 11);
                     (self.id, self.stage) = (self.shift, Stage::RtrOrSrr);
                 }
             }
             Stage::RtrOrSrr => {
+                self.crc.push(bit);
                 self.rtr = bit;
                 self.stage = Stage::Ide;
             }
             Stage::Ide => {
+                self.crc.push(bit);
                 self.ide = bit;
                 if bit {
                     (self.stage, self.left, self.shift) = (Stage::IdExt, 18, 0);
@@ -368,18 +380,27 @@ impl Receiver {
             }
             Stage::IdExt => {
                 if self.shift_in(bit) {
+                    self.crc.push_bits(self.shift, 18);
                     self.id = self.id << 18 | self.shift;
                     self.stage = Stage::Rtr;
                 }
             }
             Stage::Rtr => {
+                self.crc.push(bit);
                 self.rtr = bit;
                 self.stage = Stage::R1;
             }
-            Stage::R1 => self.stage = Stage::R0,
-            Stage::R0 => (self.stage, self.left, self.shift) = (Stage::Dlc, 4, 0),
+            Stage::R1 => {
+                self.crc.push(bit);
+                self.stage = Stage::R0;
+            }
+            Stage::R0 => {
+                self.crc.push(bit);
+                (self.stage, self.left, self.shift) = (Stage::Dlc, 4, 0);
+            }
             Stage::Dlc => {
                 if self.shift_in(bit) {
+                    self.crc.push_bits(self.shift, 4);
                     self.dlc = self.shift as u8;
                     self.data_len = if self.rtr { 0 } else { self.dlc.min(8) };
                     self.shift = 0;
@@ -392,6 +413,7 @@ impl Receiver {
             }
             Stage::Data => {
                 if self.shift_in(bit) {
+                    self.crc.push_byte(self.shift as u8);
                     self.data[self.bytes as usize] = self.shift as u8;
                     self.bytes += 1;
                     self.shift = 0;
@@ -460,13 +482,46 @@ impl Receiver {
     #[inline]
     fn stuff_bit(&mut self, bit: bool, pos: u32) -> Step {
         if bit == self.run_bit {
-            return self.fail(WireErrorKind::Stuff, pos, self.last_stage.field());
+            return self.fail(WireErrorKind::Stuff, pos, self.last_data_field());
         }
+        self.stuff_count += 1;
         (self.run_bit, self.run_len) = (bit, 1);
         if self.stage == Stage::CrcDelimiter {
             self.stuffing = false;
         }
         Step::Pending
+    }
+
+    /// The field of the last data bit (a stuff bit belongs to it): the current stage if it has
+    /// taken bits already, else the one before.
+    #[cold]
+    fn last_data_field(&self) -> Field {
+        let started = match self.stage {
+            Stage::Id => self.left < 11,
+            Stage::IdExt => self.left < 18,
+            Stage::Dlc => self.left < 4,
+            Stage::Data => self.left < 8 || self.bytes > 0,
+            Stage::Crc => self.left < 15,
+            _ => false,
+        };
+        if started {
+            return self.stage.field();
+        }
+        match self.stage {
+            Stage::Id => Field::Sof,
+            Stage::RtrOrSrr => Field::Id,
+            Stage::Ide => Field::Rtr,
+            Stage::IdExt => Field::Ide,
+            Stage::Rtr => Field::IdExt,
+            Stage::R1 => Field::Rtr,
+            Stage::R0 if self.ide => Field::R1,
+            Stage::R0 => Field::Ide,
+            Stage::Dlc => Field::R0,
+            Stage::Data => Field::Dlc,
+            Stage::Crc if self.data_len > 0 => Field::Data,
+            Stage::Crc => Field::Dlc,
+            _ => Field::Crc,
+        }
     }
 
     /// Shift a bit into the current multi-bit field; true when the field is complete.

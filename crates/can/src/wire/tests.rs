@@ -266,3 +266,39 @@ fn truncated_and_trailing_input() {
         Err(DecodeError::TrailingDominant { bit: 65 })
     );
 }
+
+#[test]
+fn a_flipped_stuff_bit_is_a_stuff_error_in_the_field_that_caused_it() {
+    let mut checked = 0;
+    for (text, ..) in VECTORS {
+        let enc = encode(&frame(text));
+        let wire = enc.on_bus();
+        for i in (0..wire.len()).filter(|&i| enc.is_stuff_bit(i)) {
+            let mut bits = wire;
+            bits.set(i, !bits.bit(i));
+            let field = enc
+                .wire_fields()
+                .iter()
+                .find(|s| (s.start as usize..s.end()).contains(&i))
+                .unwrap()
+                .field;
+            // Bit 12 reads as RTR until IDE tells SRR apart.
+            let field = if field == Field::Srr {
+                Field::Rtr
+            } else {
+                field
+            };
+            assert_eq!(
+                decode(bits.iter()),
+                Err(DecodeError::Wire(WireError {
+                    kind: WireErrorKind::Stuff,
+                    bit: i as u32,
+                    field
+                })),
+                "{text} stuff bit {i}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 2 + 5 + 1 + 9 + 5 + 16 + 14);
+}
