@@ -406,3 +406,26 @@ fn cli_covers_every_client_command() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("outside the program area"));
 }
+
+#[test]
+fn csv_replay_feeds_an_input_from_the_command_line_and_the_control_interface() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("in.csv");
+    std::fs::write(&csv, "seconds,volts\n0,1.0\n").unwrap();
+    let spec = format!("3=csv:{}", csv.display());
+    let mut s = Served::start_in(dir, &["--analog", &spec]);
+    let mut c = s.client();
+    assert_eq!(c.analog(3).unwrap(), 51);
+    std::fs::write(&csv, "0,4.0\n").unwrap();
+    let reply = s.control(&format!("analog 3 csv:{}", csv.display()));
+    assert!(
+        reply.starts_with("ok analog 3 = replay of 1 points"),
+        "{reply}"
+    );
+    assert_eq!(c.analog(3).unwrap(), 204);
+    let reply = s.control("analog 3 csv:/nonexistent/in.csv");
+    assert!(
+        reply.starts_with("error: reading replay file /nonexistent/in.csv"),
+        "{reply}"
+    );
+}

@@ -592,7 +592,7 @@ impl Cell {
     fn resume(&mut self, now: u64) {
         match self.mode() {
             Mode::Ready => self.os = Os::Ready,
-            Mode::Measure => self.start_series(now),
+            Mode::Measure => self.start_series(),
             Mode::Program => self.os = Os::Program,
         }
     }
@@ -674,7 +674,7 @@ impl Cell {
                         self.ram.write(DATA_AREA + i as u16, b);
                     }
                     self.ram_generation += 1;
-                    self.start_series(now);
+                    self.start_series();
                 }
                 true
             }
@@ -826,7 +826,7 @@ impl Cell {
             }
             // START means nothing outside a series.
             Command::Start => {}
-            Command::RepeatSeries => self.start_series(now),
+            Command::RepeatSeries => self.start_series(),
             Command::ReadPort1 => self.send(now, self.port1_pins()),
             Command::ReadKey => self.send(now, u8::from(!self.key_down)),
             Command::ReadP26 => self.send(now, u8::from(self.p26_pin())),
@@ -906,7 +906,7 @@ impl Cell {
 
     /// Arms a series with the parameters at 0800h: start byte 129, value count 0, waiting for
     /// the first START.
-    fn start_series(&mut self, _now: u64) {
+    fn start_series(&mut self) {
         let mut params = [0; 8];
         for (i, p) in params.iter_mut().enumerate() {
             *p = self.ram.read(DATA_AREA + i as u16);
