@@ -537,7 +537,7 @@ impl Cell {
             if let Os::KeyHold { since } = self.os
                 && t >= since + KEY_HOLD_READY_NS
             {
-                self.end_key_hold(t, t - since);
+                self.end_key_hold(t - since);
             }
             self.run_os(t);
         }
@@ -552,7 +552,7 @@ impl Cell {
         }
         self.key_down = false;
         if let Os::KeyHold { since } = self.os {
-            self.end_key_hold(now, now - since);
+            self.end_key_hold(now - since);
         }
     }
 
@@ -568,11 +568,11 @@ impl Cell {
         if self.key_down {
             self.os = Os::KeyHold { since: now };
         } else {
-            self.resume(now);
+            self.resume();
         }
     }
 
-    fn end_key_hold(&mut self, now: u64, held: u64) {
+    fn end_key_hold(&mut self, held: u64) {
         let start = if held >= KEY_HOLD_READY_NS {
             Some(START_READY)
         } else if held >= KEY_HOLD_PROGRAM_NS {
@@ -585,11 +585,11 @@ impl Cell {
         if let Some(start) = start {
             self.set_start_byte(start);
         }
-        self.resume(now);
+        self.resume();
     }
 
     /// Branches on the start byte.
-    fn resume(&mut self, now: u64) {
+    fn resume(&mut self) {
         match self.mode() {
             Mode::Ready => self.os = Os::Ready,
             Mode::Measure => self.start_series(),
