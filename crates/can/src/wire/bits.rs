@@ -58,6 +58,12 @@ impl Bits {
         self.len += len as u16;
     }
 
+    /// Grow to `len` bits with zeros (never shrinks).
+    pub(crate) fn set_len(&mut self, len: usize) {
+        assert!(len <= Self::CAPACITY, "Bits capacity exceeded");
+        self.len = self.len.max(len as u16);
+    }
+
     /// Bit `i`.
     ///
     /// # Panics

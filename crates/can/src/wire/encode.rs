@@ -32,10 +32,12 @@ pub fn encode_with_dlc(frame: &Frame, dlc: u8) -> Option<Encoded> {
     (dlc <= 15 && dlc.min(8) == frame.dlc()).then(|| encode_bits(frame, dlc))
 }
 
-/// De-stuffed bits with their field spans, built field by field.
+/// De-stuffed bits with their field spans, built field by field; the CRC follows along until
+/// the CRC field.
 struct Layout {
     raw: Bits,
     fields: Spans,
+    crc: Crc15,
 }
 
 impl Layout {
@@ -46,6 +48,19 @@ impl Layout {
             len,
         });
         self.raw.push_msb_first(value, len as u32);
+        match field {
+            Field::Data => {
+                for byte in (0..len / 8).rev() {
+                    self.crc.push_byte((value >> (8 * byte)) as u8);
+                }
+            }
+            Field::Crc
+            | Field::CrcDelimiter
+            | Field::AckSlot
+            | Field::AckDelimiter
+            | Field::Eof => {}
+            _ => self.crc.push_bits(value as u32, len as u32),
+        }
     }
 }
 
@@ -53,6 +68,7 @@ fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
     let mut layout = Layout {
         raw: Bits::new(),
         fields: Spans::new(),
+        crc: Crc15::new(),
     };
     let id = frame.id().as_raw() as u64;
     let rtr = frame.is_remote() as u64;
@@ -78,18 +94,14 @@ fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
         let len = 8 * payload.len() as u16;
         layout.put(Field::Data, u64::from_be_bytes(bytes) >> (64 - len), len);
     }
-    let mut crc = Crc15::new();
-    for bit in layout.raw.iter() {
-        crc.push(bit);
-    }
-    let crc = crc.value();
+    let crc = layout.crc.value();
     let stuff_end = layout.raw.len() + 15;
     layout.put(Field::Crc, crc as u64, 15);
     layout.put(Field::CrcDelimiter, 1, 1);
     layout.put(Field::AckSlot, 1, 1);
     layout.put(Field::AckDelimiter, 1, 1);
     layout.put(Field::Eof, 0x7F, 7);
-    let Layout { raw, fields } = layout;
+    let Layout { raw, fields, .. } = layout;
 
     // Stuff SOF..last CRC bit. A stuff bit belongs to the field whose bits caused it, so a
     // field's wire span runs up to the first bit of the next field.
@@ -102,13 +114,13 @@ fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
         for i in span.start as usize..span.end() {
             let bit = raw.bit(i);
             stuffed.push(bit);
-            stuff_mask.push(false);
             if i >= stuff_end {
                 continue;
             }
             run_len = if bit == run_bit { run_len + 1 } else { 1 };
             run_bit = bit;
             if run_len == 5 {
+                stuff_mask.set_len(stuffed.len());
                 stuffed.push(!bit);
                 stuff_mask.push(true);
                 (run_bit, run_len) = (!bit, 1);
@@ -120,6 +132,7 @@ fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
             len: (stuffed.len() - wire_start) as u16,
         });
     }
+    stuff_mask.set_len(stuffed.len());
     Encoded {
         frame: *frame,
         dlc,
