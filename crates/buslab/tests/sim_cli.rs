@@ -40,6 +40,14 @@ fn seed_experiment_shows_bus_off_and_recovery() {
     let recovered = out.rfind("sender: bus-off -> error-active").unwrap();
     assert!(cut < warning && warning < passive && passive < bus_off && bus_off < repaired);
     assert!(recovered > repaired);
+    // The sampled counters show the TEC on its way up between error-passive and bus-off.
+    let climbing = out[passive..bus_off]
+        .lines()
+        .filter_map(|l| l.split(" TEC/REC: sender ").nth(1))
+        .filter_map(|rest| rest.split('/').next()?.parse::<u16>().ok())
+        .filter(|tec| (129..256).contains(tec))
+        .count();
+    assert!(climbing >= 2, "{}", &out[passive..bus_off]);
     // Frames are candump log lines with the transmitter as interface.
     assert!(
         out.lines()

@@ -256,6 +256,10 @@ impl Simulation {
     pub fn series(&self) -> &[CounterSample] {
         &self.series
     }
+    /// Takes the TEC/REC series recorded so far, leaving it empty (for streaming output).
+    pub fn take_series(&mut self) -> Vec<CounterSample> {
+        core::mem::take(&mut self.series)
+    }
     /// Takes the level changes recorded so far (see [`Self::trace_levels`]).
     pub fn take_level_changes(&mut self) -> Vec<LevelChange> {
         self.levels

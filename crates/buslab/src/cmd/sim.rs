@@ -12,7 +12,9 @@ use anyhow::Context;
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
 use buslab_sim::observe::signal_names;
 use buslab_sim::time::seconds_micros;
-use buslab_sim::{BitTime, Happening, Record, Scenario, Simulation, Span, VcdWriter};
+use buslab_sim::{
+    BitTime, CounterSample, Happening, Record, Scenario, Simulation, Span, VcdWriter,
+};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -67,15 +69,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let stdout = io::stdout();
     let mut out = BufWriter::new(stdout.lock());
-    let printer = Printer::new(&scenario, &args);
+    let mut printer = Printer::new(&scenario, &args);
     while sim.now() < end {
         sim.run_until(end.min(sim.now() + CHUNK));
+        let records = sim.take_records();
+        let series = sim.take_series();
         if !args.quiet {
-            for record in sim.take_records() {
-                printer.print(&mut out, &record)?;
-            }
-        } else {
-            sim.take_records();
+            printer.print_merged(&mut out, &records, &series)?;
         }
         if let Some(vcd) = &mut vcd {
             vcd.write_changes(&sim.take_level_changes())?;
@@ -96,6 +96,8 @@ struct Printer<'a> {
     width: usize,
     rx: bool,
     errors: bool,
+    /// The last TEC/REC values printed, to print the series only when it changes.
+    last_counters: Vec<(u16, u16)>,
 }
 
 impl<'a> Printer<'a> {
@@ -111,7 +113,44 @@ impl<'a> Printer<'a> {
                 .unwrap_or(0),
             rx: args.rx,
             errors: args.errors,
+            last_counters: vec![(0, 0); scenario.nodes.len()],
         }
+    }
+
+    /// Prints records and counter samples in time order (samples first at equal times).
+    fn print_merged(
+        &mut self,
+        out: &mut impl Write,
+        records: &[Record],
+        series: &[CounterSample],
+    ) -> io::Result<()> {
+        let mut samples = series.chunk_by(|a, b| a.time == b.time).peekable();
+        for record in records {
+            while let Some(group) = samples.next_if(|g| g[0].time <= record.time) {
+                self.print_counters(out, group)?;
+            }
+            self.print(out, record)?;
+        }
+        for group in samples {
+            self.print_counters(out, group)?;
+        }
+        Ok(())
+    }
+
+    /// One sample of every node's TEC/REC, if any changed since the last one printed.
+    fn print_counters(&mut self, out: &mut impl Write, group: &[CounterSample]) -> io::Result<()> {
+        let now: Vec<(u16, u16)> = group.iter().map(|s| (s.tec, s.rec)).collect();
+        if now == self.last_counters {
+            return Ok(());
+        }
+        let (s, us) = seconds_micros(group[0].time, self.bitrate);
+        write!(out, "# ({s:010}.{us:06}) TEC/REC:")?;
+        for (sample, node) in group.iter().zip(&self.scenario.nodes) {
+            write!(out, " {} {}/{}", node.name, sample.tec, sample.rec)?;
+        }
+        writeln!(out)?;
+        self.last_counters = now;
+        Ok(())
     }
 
     fn print(&self, out: &mut impl Write, record: &Record) -> io::Result<()> {
