@@ -280,3 +280,62 @@ fn stuck_dominant_bus_sends_the_transmitter_bus_off() {
     assert!(sim.node(1).stats().errors > 0);
     assert!(sim.node(1).stats().max_rec >= 128);
 }
+
+/// A clean cut (no reflections) splits the bus in two working halves: frames are acknowledged
+/// and received on their own side only.
+#[test]
+fn a_clean_cut_makes_two_buses() {
+    let mut sim = bus_with(&[("a", &[]), ("b", &[]), ("c", &[]), ("d", &[])]);
+    sim.add_fault(Fault {
+        kind: FaultKind::Cut {
+            far_side: vec![0, 1],
+            error_rate: 0.0,
+        },
+        start: 0,
+        end: u64::MAX,
+    });
+    for (node, f) in [(0, "100#AA"), (2, "200#CC")] {
+        sim.add_traffic(
+            node,
+            Traffic::Once {
+                frame: frame(f),
+                at: 100,
+            },
+        );
+    }
+    sim.run_for(1_000);
+    let r = sim.records();
+    assert_eq!(received(r, 1), [frame("100#AA")]);
+    assert_eq!(received(r, 3), [frame("200#CC")]);
+    assert!(received(r, 0).is_empty() && received(r, 2).is_empty());
+    // Both went out at the same time, without arbitration between them.
+    let (a, c) = (transmitted(r, 0)[0].0, transmitted(r, 2)[0].0);
+    assert!(a.abs_diff(c) < 10, "{a} {c}");
+    assert!(
+        sim.nodes()
+            .iter()
+            .all(|n| n.stats().errors == 0 && n.stats().arbitration_lost == 0)
+    );
+}
+
+/// A bit flipped at every node at once (a glitch on the wire itself): everybody detects it,
+/// the frame is retransmitted and received once.
+#[test]
+fn a_bit_flipped_at_every_node_is_one_error_frame() {
+    let setup = || bus_with(&[("tx", &["123#1122334455"]), ("b", &[]), ("c", &[])]);
+    let sof = first_sof(setup());
+    let mut sim = setup();
+    sim.add_fault(Fault {
+        kind: FaultKind::Flip { node: None },
+        start: sof + 25,
+        end: sof + 26,
+    });
+    sim.run_for(1_000);
+    let r = sim.records();
+    assert_eq!(transmitted(r, 0).len(), 1);
+    for rx in [1, 2] {
+        assert_eq!(received(r, rx), [frame("123#1122334455")]);
+    }
+    assert!(sim.nodes().iter().all(|n| n.stats().errors >= 1));
+    assert_eq!(sim.node(0).controller().tec(), 7);
+}

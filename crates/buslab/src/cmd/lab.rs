@@ -79,7 +79,11 @@ struct Lab {
 }
 
 impl Lab {
-    /// Builds the bus with its nodes. ZELLE and CPU196 devices will be started here too.
+    /// Builds the bus with its nodes.
+    ///
+    /// Devices served on pseudo-terminals start here too: `super::zelle::spawn_served` and
+    /// `super::cpu196::spawn_served` run in their own threads and stop when their handle is
+    /// dropped, so keep the handles in `Lab` and print their PTY paths with the banner.
     fn start(bitrate: u32, seed: u64) -> Self {
         let mut bus = Simulation::new(bitrate, seed);
         let ms = |m: u64| m * bitrate as u64 / 1000;
