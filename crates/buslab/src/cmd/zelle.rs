@@ -165,9 +165,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 None => vec![cell.analog(channel)?],
                 Some(n) => cell.analog_repeat(&vec![channel; n as usize])?,
             };
-            for v in values {
-                println!("ch{channel} {v} {:.3} V", to_volts(v));
-            }
+            let lines: String = values
+                .iter()
+                .map(|&v| format!("ch{channel} {v} {:.3} V\n", to_volts(v)))
+                .collect();
+            print_stdout(&lines)?;
         }
         ZelleCommand::Measure(m) => measure(&mut cell, m)?,
         ZelleCommand::Dump {
@@ -182,7 +184,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let data = cell.read_data(len, mode(stop_and_wait))?;
             match output {
                 Some(path) => write_atomically(&path, &data)?,
-                None => print_hex(DATA_AREA, &data),
+                None => print_hex(DATA_AREA, &data)?,
             }
         }
         ZelleCommand::Upload {
@@ -295,7 +297,7 @@ fn measure<P: buslab_zelle::client::Port>(
                 path.display()
             );
         }
-        None => print!("{csv}"),
+        None => print_stdout(&csv)?,
     }
     if m.plot {
         eprint!("{}", plot(&series, 72, 16));
@@ -343,10 +345,25 @@ fn plot(series: &Measurement, width: usize, height: usize) -> String {
     out
 }
 
-fn print_hex(start: u16, data: &[u8]) {
+fn print_hex(start: u16, data: &[u8]) -> anyhow::Result<()> {
+    let mut listing = String::new();
     for (i, chunk) in data.chunks(16).enumerate() {
         let hex: Vec<String> = chunk.iter().map(|b| format!("{b:02x}")).collect();
-        println!("{:04x}: {}", usize::from(start) + i * 16, hex.join(" "));
+        listing.push_str(&format!(
+            "{:04x}: {}\n",
+            usize::from(start) + i * 16,
+            hex.join(" ")
+        ));
+    }
+    print_stdout(&listing)
+}
+
+/// Writes to stdout; a reader that went away (`| head`) just ends the output.
+fn print_stdout(text: &str) -> anyhow::Result<()> {
+    let mut out = io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == io::ErrorKind::BrokenPipe => Ok(()),
+        other => Ok(other?),
     }
 }
 
