@@ -11,7 +11,7 @@ use crate::adconfig::AdConfig;
 use crate::codes::{Alert, MsgCode};
 use crate::decoder::{Decoder, Event, FrameError};
 use crate::flash::FlashError;
-use crate::image::{Image, Protocol};
+use crate::image::{BootConfig, Image, Protocol, encrypt_serial};
 use crate::message::*;
 use crate::pic::{Pic, PicCommand, PicEvent};
 use crate::prginf::{self, ConfigSet};
@@ -27,6 +27,8 @@ pub const LINK_LOST_NS: u64 = 3_000_000_000;
 pub const BATTERY_PERIOD_NS: u64 = 100_000_000;
 /// Transmit FIFO size: A/D frames that would not fit are dropped (and `alert_ad_overrun`).
 pub const TX_FIFO: usize = 4096;
+/// CPUFORMAT's emergency erase is accepted this long after a reset.
+pub const EMERGENCY_WINDOW_NS: u64 = 100_000_000;
 /// Share of the line an acquisition may take (the rest is for replies and the watchdog).
 pub const MAX_LINE_SHARE: f64 = 0.97;
 
@@ -130,6 +132,7 @@ pub struct Board {
     dirty: bool,
     log: Vec<String>,
     stats: Stats,
+    reset_at: u64,
 }
 
 impl Board {
@@ -167,6 +170,7 @@ impl Board {
             dirty: false,
             log: Vec::new(),
             stats: Stats::default(),
+            reset_at: now,
         };
         b.boot(now);
         b
@@ -228,6 +232,13 @@ impl Board {
         core::mem::take(&mut self.log)
     }
 
+    /// A rising edge on HSI.0 (the external user interrupt): in the lower loop, `user_prog`
+    /// runs.
+    pub fn external_interrupt(&mut self, now: u64) {
+        self.advance(now);
+        self.call_hook(now, |p, k| p.user(k));
+    }
+
     /// Presses the power button (BPON): a powered-down board boots.
     pub fn power_button(&mut self, now: u64) {
         if self.mode == Mode::PoweredDown {
@@ -237,6 +248,7 @@ impl Board {
 
     /// Reset: every variable reinitialised, report `F4 03`, then the boot START if any.
     fn boot(&mut self, now: u64) {
+        self.reset_at = now;
         self.mode = Mode::Upper;
         self.run = None;
         self.decoder = Decoder::new();
@@ -250,7 +262,8 @@ impl Board {
         self.next_battery = now;
         self.last_rx = now;
         self.send(now, &Message::Power(Power::WasReset));
-        let boot = Start::from_word(self.image.boot.boot_start);
+        // `sefm thhh pabb bnnn`: e and f (PIC A/D and timer kept) are not START bits.
+        let boot = Start::from_word(self.image.boot.boot_start & !0x6000);
         if self.image.boot.boot_start & 0x8000 == 0 {
             self.start(now, boot, false);
         }
@@ -369,17 +382,7 @@ impl Board {
                 self.dirty = true;
                 self.msg(now, MsgCode::COMPLETED);
             }
-            Message::Format(Format::CompressionTable { table, comp }) => {
-                self.image.log_table = crate::acquisition::LogTable::from_bytes(&table);
-                self.image.compression = comp;
-                self.dirty = true;
-                self.msg(now, MsgCode::COMPLETED);
-            }
-            Message::Format(_) => {
-                self.log
-                    .push("CPUFORMAT other than the compression table is not supported yet".into());
-                self.msg(now, MsgCode::NOT_SUPPORTED);
-            }
+            Message::Format(f) => self.format(now, f),
             Message::Pwm(Pwm::Set { n, low, value }) => {
                 if n < 3 {
                     self.pwm196[n as usize] = value;
@@ -439,6 +442,153 @@ impl Board {
                     "{} is not a command a PC sends",
                     wire::command_name(other.command())
                 ));
+                self.msg(now, MsgCode::INVALID_COMMAND);
+            }
+        }
+    }
+
+    /// CPUFORMAT (`F7`).
+    fn format(&mut self, now: u64, f: Format) {
+        let guard = |nsc: &[u8; 8], img: &Image| *nsc == encrypt_serial(&img.serial);
+        match f {
+            Format::ReadPicKernel { nsc }
+            | Format::WritePicKernel { nsc, .. }
+            | Format::NewSerial { nsc, .. }
+                if !guard(&nsc, &self.image) =>
+            {
+                self.bad_param(
+                    now,
+                    "CPUFORMAT: the encrypted serial number does not match this board".into(),
+                )
+            }
+            Format::ReadPicKernel { .. } => {
+                let data = Box::new(
+                    <[u8; PIC_BLOCK]>::try_from(&self.image.pic_kernel[..]).expect("4096"),
+                );
+                self.send(now, &Message::Format(Format::PicKernel(data)));
+            }
+            Format::WritePicKernel { data, .. } => {
+                self.image.pic_kernel.copy_from_slice(&data[..]);
+                self.dirty = true;
+                for _ in 0..PIC_BLOCK / 256 {
+                    self.msg(now, MsgCode::COMPLETED);
+                }
+            }
+            Format::NewSerial { new, .. } => {
+                self.image.serial = new;
+                for bank in 0..8 {
+                    self.image.flash.erase(bank).expect("valid bank");
+                }
+                self.image.pic_program.fill(0xFF);
+                self.image.pic_eeprom = [0xFF; 256];
+                self.pic.program.fill(0xFF);
+                self.pic.eeprom = [0xFF; 256];
+                self.dirty = true;
+                self.msg(now, MsgCode::COMPLETED);
+            }
+            Format::ReadBootBlock { block } => match block {
+                5 => {
+                    let data = if self.image.csboot_blank {
+                        [0xFF; 256]
+                    } else {
+                        self.image.boot.to_csboot(&self.image.boot_user)
+                    };
+                    self.send(now, &Message::Format(Format::BootBlock(Box::new(data))));
+                }
+                // 600h..7FFh: the log table.
+                6 | 7 => {
+                    let words = &self.image.log_table.0[(block as usize - 6) * 128..][..128];
+                    let data: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+                    let data = Box::new(<[u8; 256]>::try_from(&data[..]).expect("256"));
+                    self.send(now, &Message::Format(Format::BootBlock(data)));
+                }
+                8..=31 => self.send(
+                    now,
+                    &Message::Format(Format::BootBlock(Box::new([0xFF; 256]))),
+                ),
+                _ => self.bad_param(now, format!("boot block {block} is out of range 5..31")),
+            },
+            Format::WriteBootBlock(data) => {
+                if !self.image.csboot_blank {
+                    self.note(
+                        "boot block 5 is not blank; erase the boot flash first (F7 07)".into(),
+                    );
+                    return self.msg(now, MsgCode::NOT_BLANK_ERROR);
+                }
+                match BootConfig::from_csboot(&data) {
+                    Some((boot, user)) => {
+                        self.image.boot = boot;
+                        self.image.boot_user = user;
+                        self.image.csboot_blank = false;
+                        self.note("new boot configuration: it applies from the next reset".into());
+                    }
+                    // Not marked valid: the kernel keeps running on its defaults.
+                    None => self
+                        .note("boot block 5 written without AA55h: defaults stay in force".into()),
+                }
+                self.dirty = true;
+                self.msg(now, MsgCode::COMPLETED);
+            }
+            Format::EraseBoot => {
+                self.image.csboot_blank = true;
+                self.image.boot = BootConfig {
+                    baud: self.image.boot.baud,
+                    ..BootConfig::default()
+                };
+                self.dirty = true;
+                self.msg(now, MsgCode::COMPLETED);
+            }
+            Format::CompressionTable { table, comp } => {
+                self.image.log_table = crate::acquisition::LogTable::from_bytes(&table);
+                self.image.compression = comp;
+                self.dirty = true;
+                self.msg(now, MsgCode::COMPLETED);
+            }
+            Format::Emergency { xy } => {
+                if now.saturating_sub(self.reset_at) > EMERGENCY_WINDOW_NS {
+                    self.note("emergency erase is only accepted within 100 ms of a reset".into());
+                    return self.msg(now, MsgCode::INVALID_COMMAND);
+                }
+                let (x, y) = (xy >> 4, xy & 0x0F);
+                let (flash, boot, pic) = (
+                    y == 3 || x == 0xF,
+                    y == 0xC || x == 0xF,
+                    x == 0xC || x == 0xA,
+                );
+                if !(flash || boot || pic) {
+                    return self.bad_param(
+                        now,
+                        format!("emergency erase code {xy:02X}h erases nothing"),
+                    );
+                }
+                if flash {
+                    for bank in 0..8 {
+                        self.image.flash.erase(bank).expect("valid bank");
+                    }
+                }
+                if boot {
+                    self.image.csboot_blank = true;
+                    self.image.boot = BootConfig {
+                        baud: self.image.boot.baud,
+                        ..BootConfig::default()
+                    };
+                }
+                if pic {
+                    self.image.pic_program.fill(0xFF);
+                    self.image.pic_eeprom = [0xFF; 256];
+                    self.pic.program.fill(0xFF);
+                    self.pic.eeprom = [0xFF; 256];
+                }
+                self.dirty = true;
+                self.msg(now, MsgCode::COMPLETED);
+                if x == 0xA {
+                    // PIC high-voltage programming, then standby.
+                    self.send(now, &Message::Power(Power::PoweredDown));
+                    self.mode = Mode::PoweredDown;
+                }
+            }
+            Format::PicKernel(_) | Format::BootBlock(_) => {
+                self.note("CPUFORMAT 01/05 are board-to-PC replies".into());
                 self.msg(now, MsgCode::INVALID_COMMAND);
             }
         }
@@ -608,6 +758,9 @@ impl Board {
                 },
             );
         }
+        for &(cmd, len) in program.as_ref().map_or(&[][..], |p| p.user_commands()) {
+            self.decoder.set_user_len(cmd, len);
+        }
         self.page = s.bank();
         self.mode = Mode::Lower {
             bank: s.bank(),
@@ -632,7 +785,11 @@ impl Board {
             p.fin(k);
             Flow::CONTINUE
         });
-        self.run = None;
+        if let Some(p) = self.run.take().and_then(|r| r.program) {
+            for &(cmd, _) in p.user_commands() {
+                self.decoder.set_user_len(cmd, 0);
+            }
+        }
         self.pic.execute(now, PicCommand::StopAd);
         self.pic.execute(now, PicCommand::StopTimer);
         self.adrs = 0;

@@ -47,6 +47,27 @@ pub struct BootConfig {
     /// Battery thresholds on PIC channel 0 (8-bit, ascending); FFh disables.
     pub battery_thresholds: [u8; 3],
     pub pic_vref: u8,
+    /// `c96inf.pwm[3]`: PWM speed and enables, clock out.
+    #[serde(default)]
+    pub pwm_flags: u8,
+    /// `c96inf.p1masque`.
+    #[serde(default)]
+    pub p1_mask: u8,
+    /// `picinf.cfg` (all ones: PIC not configured).
+    #[serde(default = "unconfigured")]
+    pub pic_cfg: [u8; 2],
+    #[serde(default)]
+    pub pic_cycle: [u8; 2],
+    #[serde(default)]
+    pub pic_adon: [u8; 2],
+    #[serde(default)]
+    pub pic_adrs: u8,
+    #[serde(default)]
+    pub pic_adr: u8,
+}
+
+fn unconfigured() -> [u8; 2] {
+    [0xFF, 0xFF]
 }
 
 impl Default for BootConfig {
@@ -64,9 +85,104 @@ impl Default for BootConfig {
             pic_pwm: 0,
             battery_thresholds: [100, 140, 220],
             pic_vref: 0,
+            pwm_flags: 0,
+            p1_mask: 0xFF,
+            pic_cfg: unconfigured(),
+            pic_cycle: [0, 0],
+            pic_adon: [0, 0],
+            pic_adrs: 0,
+            pic_adr: 0,
         }
     }
 }
+
+fn protocol_code(p: Protocol) -> u16 {
+    match p {
+        Protocol::Midi => 0,
+        Protocol::Cpu196 => 1,
+        Protocol::None => 2,
+        Protocol::Off => 3,
+    }
+}
+
+fn protocol_of(c: u16) -> Protocol {
+    match c & 3 {
+        0 => Protocol::Midi,
+        1 => Protocol::Cpu196,
+        2 => Protocol::None,
+        _ => Protocol::Off,
+    }
+}
+
+impl BootConfig {
+    /// The `csboot` block (boot flash block 5): `info_valide` AA55h, the `rs` bit field (from
+    /// bit 0: Protocole196:2, ProtocolePIC:2, Hardware, Watchdog196, WatchdogPIC, Bauds196:3,
+    /// Adresse:6), `boot`, `c96inf {pwm[4], p1masque}`, `picinf {pwm[4], cfg[2], cycle[2],
+    /// adon[2], adrs, seuil[3], adr, vref}`, then `user` bytes (`info_user`). Little-endian.
+    pub fn to_csboot(&self, user: &[u8]) -> [u8; 256] {
+        let mut b = [0u8; 256];
+        b[0..2].copy_from_slice(&0xAA55u16.to_le_bytes());
+        let baud = BAUD_RATES.iter().position(|&r| r == self.baud).unwrap_or(6) as u16;
+        let rs = protocol_code(self.protocol)
+            | protocol_code(self.protocol_pic) << 2
+            | (self.rs232 as u16) << 4
+            | (self.watchdog as u16) << 5
+            | (self.watchdog_pic as u16) << 6
+            | baud << 7
+            | ((self.address & 0x3F) as u16) << 10;
+        b[2..4].copy_from_slice(&rs.to_le_bytes());
+        b[4..6].copy_from_slice(&self.boot_start.to_le_bytes());
+        b[6..9].copy_from_slice(&self.pwm196);
+        b[9] = self.pwm_flags;
+        b[10] = self.p1_mask;
+        b[11] = (self.pic_pwm >> 2) as u8;
+        b[12] = ((self.pic_pwm & 3) as u8) << 6;
+        b[15..17].copy_from_slice(&self.pic_cfg);
+        b[17..19].copy_from_slice(&self.pic_cycle);
+        b[19..21].copy_from_slice(&self.pic_adon);
+        b[21] = self.pic_adrs;
+        b[22..25].copy_from_slice(&self.battery_thresholds);
+        b[25] = self.pic_adr;
+        b[26] = self.pic_vref;
+        let n = user.len().min(CSBOOT_USER);
+        b[27..27 + n].copy_from_slice(&user[..n]);
+        b
+    }
+
+    /// Decodes a `csboot` block; `None` if `info_valide` is not AA55h (the kernel then uses its
+    /// defaults).
+    pub fn from_csboot(b: &[u8; 256]) -> Option<(Self, Vec<u8>)> {
+        if u16::from_le_bytes([b[0], b[1]]) != 0xAA55 {
+            return None;
+        }
+        let rs = u16::from_le_bytes([b[2], b[3]]);
+        let cfg = Self {
+            protocol: protocol_of(rs),
+            protocol_pic: protocol_of(rs >> 2),
+            rs232: rs & 1 << 4 != 0,
+            watchdog: rs & 1 << 5 != 0,
+            watchdog_pic: rs & 1 << 6 != 0,
+            baud: BAUD_RATES[((rs >> 7) & 7) as usize],
+            address: (rs >> 10) as u8 & 0x3F,
+            boot_start: u16::from_le_bytes([b[4], b[5]]),
+            pwm196: [b[6], b[7], b[8]],
+            pwm_flags: b[9],
+            p1_mask: b[10],
+            pic_pwm: ((b[11] as u16) << 2) | (b[12] >> 6) as u16,
+            pic_cfg: [b[15], b[16]],
+            pic_cycle: [b[17], b[18]],
+            pic_adon: [b[19], b[20]],
+            pic_adrs: b[21],
+            battery_thresholds: [b[22], b[23], b[24]],
+            pic_adr: b[25],
+            pic_vref: b[26],
+        };
+        Some((cfg, b[27..].to_vec()))
+    }
+}
+
+/// Bytes of `info_user` in the `csboot` block.
+pub const CSBOOT_USER: usize = 256 - 27;
 
 /// Why an image cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -95,6 +211,19 @@ pub struct Image {
     pub flash: Flash,
     pub pic_program: Vec<u8>,
     pub pic_eeprom: [u8; 256],
+    /// The PIC's own kernel (CPUFORMAT `00`/`02`).
+    pub pic_kernel: Vec<u8>,
+    /// `csboot.info_user`.
+    pub boot_user: Vec<u8>,
+    /// Boot flash block 5 (`csboot`) erased: the kernel runs on its defaults until it is written.
+    pub csboot_blank: bool,
+}
+
+/// buslab's stand-in for the lost serial-number cipher (`NSC`, CPUFORMAT's guard): byte i is
+/// `serial[i]` rotated left by i, XOR A5h, XOR (i × 3Bh). It protects against accidents, not
+/// attackers.
+pub fn encrypt_serial(serial: &[u8; 8]) -> [u8; 8] {
+    core::array::from_fn(|i| serial[i].rotate_left(i as u32) ^ 0xA5 ^ (i as u8).wrapping_mul(0x3B))
 }
 
 impl Default for Image {
@@ -116,6 +245,9 @@ impl Default for Image {
             flash,
             pic_program: vec![0xFF; 3 * PIC_BLOCK],
             pic_eeprom: [0xFF; 256],
+            pic_kernel: vec![0xFF; PIC_BLOCK],
+            boot_user: vec![0; CSBOOT_USER],
+            csboot_blank: false,
         }
     }
 }
@@ -164,6 +296,12 @@ struct ImageFile {
     flash: BTreeMap<String, String>,
     pic_program: String,
     pic_eeprom: String,
+    #[serde(default)]
+    pic_kernel: Option<String>,
+    #[serde(default)]
+    boot_user: Option<String>,
+    #[serde(default)]
+    csboot_blank: bool,
 }
 
 const FORMAT: &str = "buslab-cpu196-image-1";
@@ -208,6 +346,9 @@ impl Image {
                 .collect(),
             pic_program: hex(&self.pic_program),
             pic_eeprom: hex(&self.pic_eeprom),
+            pic_kernel: Some(hex(&self.pic_kernel)),
+            boot_user: Some(hex(&self.boot_user)),
+            csboot_blank: self.csboot_blank,
         };
         toml::to_string(&file).expect("image serialises")
     }
@@ -253,6 +394,15 @@ impl Image {
             pic_eeprom: unhex(&f.pic_eeprom, 256, "pic_eeprom")?
                 .try_into()
                 .expect("256"),
+            pic_kernel: match &f.pic_kernel {
+                Some(h) => unhex(h, PIC_BLOCK, "pic_kernel")?,
+                None => vec![0xFF; PIC_BLOCK],
+            },
+            boot_user: match &f.boot_user {
+                Some(h) => unhex(h, CSBOOT_USER, "boot_user")?,
+                None => vec![0; CSBOOT_USER],
+            },
+            csboot_blank: f.csboot_blank,
         })
     }
 
@@ -298,6 +448,21 @@ mod tests {
         img.boot.baud = 250000;
         let text = img.to_toml();
         assert_eq!(Image::from_toml(&text).unwrap(), img);
+    }
+
+    #[test]
+    fn csboot_round_trips() {
+        let mut boot = BootConfig::default();
+        boot.baud = 19200;
+        boot.address = 42;
+        boot.watchdog = false;
+        boot.pic_pwm = 0x2A5;
+        boot.battery_thresholds = [1, 2, 0xFF];
+        boot.boot_start = 0x0041;
+        let user: Vec<u8> = (0..CSBOOT_USER as u8).collect();
+        let block = boot.to_csboot(&user);
+        assert_eq!(BootConfig::from_csboot(&block), Some((boot, user)));
+        assert_eq!(BootConfig::from_csboot(&[0xFF; 256]), None);
     }
 
     #[test]

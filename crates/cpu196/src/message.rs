@@ -146,11 +146,13 @@ impl Start {
     pub fn run(bank: u8, config: u8, ad196: bool) -> Self {
         Self::new(ad196, false, bank, config, 0, false, false, false)
     }
+    /// From the 16-bit form hooks return and `csboot.boot` holds: `(s00m thhh)` is the high
+    /// byte (so `0x8000` = no start), `(pabb bnnn)` the low byte.
     pub fn from_word(w: u16) -> Self {
-        Self(w.to_be_bytes())
+        Self(w.to_le_bytes())
     }
     pub fn word(self) -> u16 {
-        u16::from_be_bytes(self.0)
+        u16::from_le_bytes(self.0)
     }
     pub fn adpic(self) -> bool {
         self.0[0] & 0x80 != 0

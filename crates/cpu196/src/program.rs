@@ -131,6 +131,11 @@ pub trait UserProgram: Send {
     fn user(&mut self, _k: &mut Api) -> Flow {
         Flow::CONTINUE
     }
+    /// Parameter counts of the user commands this program understands (`(cmd, len)`); the
+    /// kernel's decoder delimits them while the program runs. Others carry no parameters.
+    fn user_commands(&self) -> &'static [(u8, u8)] {
+        &[]
+    }
     /// `RS_prog`: a user command (00h..EFh) from the PC. No return value (as in the seed).
     fn rs(&mut self, _k: &mut Api, _cmd: u8, _params: &[u8]) {}
     /// `pic_prog`: a PIC event.
@@ -209,6 +214,9 @@ pub const THRESHOLD_ALARM: u16 = 2;
 pub const VIRTUAL_CHANNELS: u16 = 3;
 pub const PULSE_TRAIN: u16 = 4;
 
+/// The threshold alarm's user command: `10h hi lo` sets the threshold (10-bit).
+pub const SET_THRESHOLD: u8 = 0x10;
+
 /// Greets on the THREAD display and writes channels 0 and 1 (10-bit) to `ad.csv` on the PC,
 /// one line every `args[0]` interrupts (default 100).
 pub struct Logger {
@@ -267,7 +275,8 @@ impl UserProgram for Logger {
 }
 
 /// Raises `alert_user_alarm` and prints a line when channel `args[0]` (10-bit) rises above
-/// `args[1]`; stops the lower loop if `args[2]` is 1. Re-arms below the threshold.
+/// `args[1]`; stops the lower loop if `args[2]` is 1. Re-arms below the threshold, or on the
+/// external interrupt (an acknowledge button). User command `10h hi lo` sets the threshold.
 pub struct ThresholdAlarm {
     channel: usize,
     threshold: u16,
@@ -289,6 +298,20 @@ impl ThresholdAlarm {
 impl UserProgram for ThresholdAlarm {
     fn name(&self) -> &'static str {
         "threshold-alarm"
+    }
+    fn user_commands(&self) -> &'static [(u8, u8)] {
+        &[(SET_THRESHOLD, 2)]
+    }
+    fn rs(&mut self, k: &mut Api, cmd: u8, params: &[u8]) {
+        if cmd == SET_THRESHOLD && params.len() == 2 {
+            self.threshold = u16::from_be_bytes([params[0], params[1]]).min(1023);
+            k.display_text(&format!("threshold = {}", self.threshold), true);
+        }
+    }
+    fn user(&mut self, k: &mut Api) -> Flow {
+        self.armed = true;
+        k.display_text("alarm acknowledged", true);
+        Flow::CONTINUE
     }
     fn ad(&mut self, k: &mut Api) -> Flow {
         let v = (k.ad[self.channel] + 32) >> 6;

@@ -423,9 +423,44 @@ fn shipped_programs_run_on_their_hooks() {
     // Threshold alarm on channel 0 > 900.
     b.send(&Message::Start(Start::run(0, 2, true)));
     b.run_for(1000 * MS);
+    assert!(b.take().contains(&Message::Alert(Alert::USER_ALARM)));
+    // Its user command (2 parameter bytes) and the acknowledge button.
+    b.send(&Message::User {
+        cmd: 0x10,
+        params: vec![0x01, 0x2C],
+    });
+    b.run_for(5 * MS);
+    let text = |t: &str| {
+        Message::Thread(Thread::Display {
+            format: DisplayFormat::Text,
+            newline: true,
+            data: t.as_bytes().to_vec(),
+        })
+    };
+    let got = b.take();
+    assert!(
+        got.contains(&text("threshold = 300")),
+        "{got:?} {:?} {:?}",
+        b.board.mode(),
+        b.board.take_log()
+    );
+    b.board.external_interrupt(b.now);
+    b.run_for(5 * MS);
+    assert!(b.take().contains(&text("alarm acknowledged")));
     b.send(&Message::Stop);
     b.run_for(10 * MS);
-    assert!(b.take().contains(&Message::Alert(Alert::USER_ALARM)));
+    b.take();
+    // Outside the program, 10h has no parameters again: 01h would be a new command.
+    assert_eq!(
+        b.ask(
+            &Message::User {
+                cmd: 0x10,
+                params: vec![]
+            },
+            5
+        ),
+        vec![msg(MsgCode::INVALID_COMMAND)]
+    );
     // Virtual channels.
     b.send(&Message::Start(Start::run(0, 3, true)));
     b.run_for(50 * MS);
@@ -529,10 +564,6 @@ fn pwm_bridge_format_and_user_commands() {
         vec![Message::Bridge(Bridge::ParallelRead(0xC3))]
     );
     assert_eq!(
-        b.ask(&Message::Format(Format::EraseBoot), 2),
-        vec![msg(MsgCode::NOT_SUPPORTED)]
-    );
-    assert_eq!(
         b.ask(
             &Message::User {
                 cmd: 0x20,
@@ -552,4 +583,94 @@ fn pwm_bridge_format_and_user_commands() {
         cmd: 0,
         received: 0,
     };
+}
+
+#[test]
+fn cpuformat_is_guarded_and_edits_boot_flash_pic_kernel_and_serial() {
+    use buslab_cpu196::image::{BootConfig, encrypt_serial};
+    let mut b = Bench::new();
+    let nsc = encrypt_serial(b"BL196001");
+    let wrong = [0u8; 8];
+    assert_eq!(
+        b.ask(&Message::Format(Format::ReadPicKernel { nsc: wrong }), 5),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    let kernel: Box<[u8; 4096]> = Box::new(core::array::from_fn(|i| (i % 7) as u8));
+    let r = b.ask(
+        &Message::Format(Format::WritePicKernel {
+            nsc,
+            data: kernel.clone(),
+        }),
+        300,
+    );
+    assert_eq!(r, vec![msg(MsgCode::COMPLETED); 16]);
+    assert_eq!(
+        b.ask(&Message::Format(Format::ReadPicKernel { nsc }), 500),
+        vec![Message::Format(Format::PicKernel(kernel))]
+    );
+    // Boot block 5 is the boot configuration.
+    let r = b.ask(&Message::Format(Format::ReadBootBlock { block: 5 }), 50);
+    let [Message::Format(Format::BootBlock(block))] = &r[..] else {
+        panic!("{r:?}")
+    };
+    let (mut boot, user) = BootConfig::from_csboot(block).unwrap();
+    assert_eq!(boot, BootConfig::default());
+    assert_eq!(
+        b.ask(&Message::Format(Format::ReadBootBlock { block: 4 }), 5),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    boot.battery_thresholds = [10, 20, 30];
+    boot.baud = 9600;
+    let new = Box::new(boot.to_csboot(&user));
+    assert_eq!(
+        b.ask(&Message::Format(Format::WriteBootBlock(new.clone())), 50),
+        vec![msg(MsgCode::NOT_BLANK_ERROR)]
+    );
+    assert_eq!(
+        b.ask(&Message::Format(Format::EraseBoot), 5),
+        vec![msg(MsgCode::COMPLETED)]
+    );
+    assert_eq!(
+        b.ask(&Message::Format(Format::WriteBootBlock(new)), 50),
+        vec![msg(MsgCode::COMPLETED)]
+    );
+    assert_eq!(b.board.image().boot, boot);
+    // New serial number: everything erased, the old NSC no longer opens anything.
+    let r = b.ask(
+        &Message::Format(Format::NewSerial {
+            nsc,
+            new: *b"NEW00002",
+        }),
+        5,
+    );
+    assert_eq!(r, vec![msg(MsgCode::COMPLETED)]);
+    assert_eq!(&b.board.image().serial, b"NEW00002");
+    assert!(b.board.image().flash.is_blank(0, 0x28));
+    assert_eq!(
+        b.ask(&Message::Format(Format::ReadPicKernel { nsc }), 5),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+}
+
+#[test]
+fn emergency_erase_only_right_after_a_reset() {
+    let mut b = Bench::new();
+    b.run_for(200 * MS);
+    let erase = Message::Format(Format::Emergency { xy: 0x03 });
+    assert_eq!(b.ask(&erase, 5), vec![msg(MsgCode::INVALID_COMMAND)]);
+    assert!(!b.board.image().flash.is_blank(0, 0x28));
+    b.send(&Message::Power(Power::Reset));
+    b.run_for(MS);
+    assert_eq!(b.take(), vec![Message::Power(Power::WasReset)]);
+    assert_eq!(b.ask(&erase, 5), vec![msg(MsgCode::COMPLETED)]);
+    assert!(b.board.image().flash.is_blank(0, 0x28));
+    b.send(&Message::Power(Power::Reset));
+    b.run_for(MS);
+    b.take();
+    let r = b.ask(&Message::Format(Format::Emergency { xy: 0xA0 }), 5);
+    assert_eq!(
+        r,
+        vec![msg(MsgCode::COMPLETED), Message::Power(Power::PoweredDown)]
+    );
+    assert_eq!(b.board.mode(), Mode::PoweredDown);
 }
