@@ -452,13 +452,15 @@ mod tests {
 
     #[test]
     fn csboot_round_trips() {
-        let mut boot = BootConfig::default();
-        boot.baud = 19200;
-        boot.address = 42;
-        boot.watchdog = false;
-        boot.pic_pwm = 0x2A5;
-        boot.battery_thresholds = [1, 2, 0xFF];
-        boot.boot_start = 0x0041;
+        let boot = BootConfig {
+            baud: 19200,
+            address: 42,
+            watchdog: false,
+            pic_pwm: 0x2A5,
+            battery_thresholds: [1, 2, 0xFF],
+            boot_start: 0x0041,
+            ..Default::default()
+        };
         let user: Vec<u8> = (0..CSBOOT_USER as u8).collect();
         let block = boot.to_csboot(&user);
         assert_eq!(BootConfig::from_csboot(&block), Some((boot, user)));
