@@ -849,3 +849,79 @@ fn successful_reception_brings_a_passive_rec_back_to_127() {
         }
     )));
 }
+
+/// A receiver with a stuff error at wire bit 5: 6 dominant bits from SOF, then the script.
+fn receiver_after_stuff_error(script: impl FnMut(u64, Level) -> Level, bits: u64) -> Controller {
+    let mut node = Controller::new(ControllerConfig::default());
+    drive(&mut node, 11, |_, _| Level::Recessive);
+    drive(&mut node, 6, |_, _| Level::Dominant);
+    assert_eq!(node.rec(), 1);
+    drive(&mut node, bits, script);
+    node
+}
+
+#[test]
+fn bit_error_in_own_active_flag_costs_8_and_restarts_the_flag() {
+    // Flag bit 3 reads recessive: +8 (rule 5), then a whole new 6-bit flag.
+    let mut outputs = Vec::new();
+    let node = receiver_after_stuff_error(
+        |t, out| {
+            outputs.push(out);
+            if t == 2 { Level::Recessive } else { out }
+        },
+        30,
+    );
+    assert_eq!(node.rec(), 9);
+    let dominant = outputs
+        .iter()
+        .take_while(|l| **l == Level::Dominant)
+        .count();
+    assert_eq!(dominant, 3 + 6, "3 flag bits, then a new flag of 6");
+}
+
+#[test]
+fn form_error_in_own_error_delimiter_and_overload_at_its_last_bit() {
+    // Flag bits 0..5, delimiter 6..13. Dominant at delimiter bit 3 (t = 8): form error, +1.
+    let node = receiver_after_stuff_error(|t, out| if t == 8 { Level::Dominant } else { out }, 40);
+    assert_eq!(node.rec(), 2);
+    // Dominant at the 8th delimiter bit (t = 13): overload frame, no change.
+    let mut node =
+        receiver_after_stuff_error(|t, out| if t == 13 { Level::Dominant } else { out }, 40);
+    assert_eq!(node.rec(), 1);
+    let events: Vec<Event> = std::iter::from_fn(|| node.poll_event()).collect();
+    assert!(events.contains(&Event::Overload), "{events:?}");
+}
+
+#[test]
+fn passive_flag_ends_after_six_equal_bits_of_either_level() {
+    // A receiver made passive, then a stuff error: its passive flag waits for 6 equal bits.
+    let mut node = Controller::new(ControllerConfig::default());
+    drive(&mut node, 11, |_, _| Level::Recessive);
+    for _ in 0..6 {
+        drive(&mut node, 6 + 6 + 16, |_, _| Level::Dominant);
+        drive(&mut node, 8 + 3, |_, _| Level::Recessive);
+    }
+    assert_eq!(node.state(), ErrorState::Passive);
+    let rec = node.rec();
+    // Stuff error, then the bus alternates for 4 bits (no 6 equal bits), then stays recessive:
+    // the flag ends 6 bits later, the 8-bit delimiter and 3-bit intermission follow, then idle.
+    drive(&mut node, 6, |_, _| Level::Dominant);
+    assert_eq!(node.rec(), rec + 1);
+    drive(&mut node, 4, |t, _| Level::from_bit(t % 2 == 0));
+    let mut idle_after = None;
+    for t in 0..40 {
+        node.sample(Level::Recessive);
+        if node.is_bus_idle() {
+            idle_after = Some(t + 1);
+            break;
+        }
+    }
+    // The alternating run ended with a dominant bit; 6 recessive complete the flag, then the
+    // delimiter's 8 recessive bits, intermission 3.
+    assert_eq!(idle_after, Some(6 + 8 + 3));
+    assert_eq!(
+        node.output(),
+        Level::Recessive,
+        "a passive node never drove dominant"
+    );
+}
