@@ -407,6 +407,9 @@ impl Simulation {
             now,
             ..
         } = self;
+        // The wired-AND of what every node drives for the next bit is gathered while the nodes
+        // sample the current one (after their events, which may queue a frame).
+        let mut bus = wired_and(nodes);
         while *now < horizon.min(schedule.next) {
             // As `may_be_idle` (inlined here because of the split borrow).
             let run = obs.bus.recessive_run;
@@ -418,20 +421,17 @@ impl Simulation {
                     return;
                 }
             }
-            let mut bus = Level::Recessive;
-            for node in nodes.iter() {
-                if node.controller.output() == Level::Dominant {
-                    bus = Level::Dominant;
-                }
-            }
+            let mut next_recessive = true;
             for (i, node) in nodes.iter_mut().enumerate() {
                 node.controller.sample(bus);
                 while let Some(event) = node.controller.poll_event() {
                     handle_event(obs, schedule, i, node, *now, event);
                 }
+                next_recessive &= node.controller.output().bit();
             }
             obs.bus.bit(bus);
             *now += 1;
+            bus = Level::from_bit(next_recessive);
         }
     }
 
@@ -499,6 +499,11 @@ impl Simulation {
         }
         r
     }
+}
+
+/// The bus level when every node drives its output.
+fn wired_and(nodes: &[Node]) -> Level {
+    Level::from_bit(nodes.iter().all(|n| n.controller.output().bit()))
 }
 
 fn invert(level: Level) -> Level {
