@@ -37,6 +37,16 @@ fn encode_prints_the_facts_sheet_string() {
 }
 
 #[test]
+fn no_ack_shows_the_transmitters_view() {
+    let sent = stdout(&["wire", "encode", "123#1122", "--no-ack"]);
+    let mut expected = WIRE_123.as_bytes().to_vec();
+    expected[53] = b'1';
+    assert_eq!(sent.trim().as_bytes(), expected.as_slice());
+    let out = stdout(&["wire", "decode", sent.trim()]);
+    assert!(out.contains("not acknowledged"), "{out}");
+}
+
+#[test]
 fn fields_show_crc_and_stuff_bits() {
     let out = stdout(&["wire", "encode", "123#1122", "--fields"]);
     assert!(out.starts_with(WIRE_123));

@@ -33,6 +33,9 @@ struct EncodeArgs {
     /// Annotate the bits field by field (stuff bits in [brackets], CRC in hex).
     #[arg(long)]
     fields: bool,
+    /// Show the ACK slot recessive, as the transmitter sends it (nobody acknowledged).
+    #[arg(long)]
+    no_ack: bool,
     /// Also write the bus level as a VCD waveform, with idle bus before and after the frame.
     #[arg(long, value_name = "FILE")]
     vcd: Option<PathBuf>,
@@ -68,39 +71,68 @@ fn encode(args: EncodeArgs) -> anyhow::Result<()> {
         );
     }
     let enc = wire::encode(&frame);
-    let bits = if args.unstuffed {
-        enc.unstuffed_on_bus()
-    } else {
-        enc.on_bus()
+    let view = View {
+        unstuffed: args.unstuffed,
+        acked: !args.no_ack,
     };
-    println!("{bits}");
+    println!("{}", view.bits(&enc));
     if args.fields {
-        print!("{}", annotate(&enc, args.unstuffed));
+        print!("{}", annotate(&enc, view));
     }
     if let Some(path) = &args.vcd {
-        let text = vcd(&enc.on_bus(), args.bitrate, &frame, enc.crc());
+        let wire = View {
+            unstuffed: false,
+            ..view
+        };
+        let text = vcd(&wire.bits(&enc), args.bitrate, &frame, enc.crc());
         std::fs::write(path, text)
             .with_context(|| format!("cannot write VCD file {}", path.display()))?;
     }
     Ok(())
 }
 
+/// Which bits of an encoded frame to show.
+#[derive(Clone, Copy)]
+struct View {
+    unstuffed: bool,
+    /// ACK slot dominant (a receiver acknowledged) rather than as sent.
+    acked: bool,
+}
+
+impl View {
+    fn bits(self, enc: &Encoded) -> Bits {
+        match (self.unstuffed, self.acked) {
+            (false, true) => enc.on_bus(),
+            (false, false) => *enc.stuffed(),
+            (true, true) => enc.unstuffed_on_bus(),
+            (true, false) => *enc.unstuffed(),
+        }
+    }
+}
+
 /// One line per field: name, bit positions, the bits (stuff bits in brackets), the value.
-fn annotate(enc: &Encoded, unstuffed: bool) -> String {
-    let (bits, spans) = if unstuffed {
-        (enc.unstuffed_on_bus(), enc.fields())
+fn annotate(enc: &Encoded, view: View) -> String {
+    let unstuffed = view.unstuffed;
+    let bits = view.bits(enc);
+    let spans = if unstuffed {
+        enc.fields()
     } else {
-        (enc.on_bus(), enc.wire_fields())
+        enc.wire_fields()
     };
     let frame = enc.frame();
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "{frame}  CRC 0x{:04X}  {} stuff bits  {} {} bits SOF..EOF  (0 = dominant, ACK slot as acknowledged)",
+        "{frame}  CRC 0x{:04X}  {} stuff bits  {} {} bits SOF..EOF  (0 = dominant, ACK slot {})",
         enc.crc(),
         enc.stuff_bits(),
         bits.len(),
         if unstuffed { "de-stuffed" } else { "wire" },
+        if view.acked {
+            "as acknowledged"
+        } else {
+            "as sent"
+        },
     );
     for span in spans {
         let positions = if span.len == 1 {
