@@ -253,3 +253,56 @@ fn pic_eeprom_pwm_bridge_start_stop_user_reset_powerdown() {
     assert!(b.ok(&["--yes", "powerdown"]).contains("powered down"));
     assert!(b.fails(&["info"]).contains("board lost"));
 }
+
+#[test]
+fn format_boot_configuration_serial_and_emergency_erase() {
+    let b = Board::serve(&[]);
+    let out = b.ok(&["format", "boot"]);
+    assert!(
+        out.contains("battery         thresholds [100, 140, 220]"),
+        "{out}"
+    );
+    assert!(
+        b.fails(&["format", "boot-set", "--thresholds", "1,2,3"])
+            .contains("--yes")
+    );
+    b.ok(&[
+        "--yes",
+        "format",
+        "boot-set",
+        "--thresholds",
+        "90,150,230",
+        "--boot-start",
+        "0:1",
+    ]);
+    let out = b.ok(&["format", "boot"]);
+    assert!(out.contains("thresholds [90, 150, 230]"), "{out}");
+    assert!(
+        out.contains("boot START      bank 0 configuration 1 (A/D on)"),
+        "{out}"
+    );
+    assert!(
+        b.fails(&["--yes", "format", "serial", "SHORT"])
+            .contains("exactly 8")
+    );
+    b.ok(&["--yes", "format", "serial", "ABCD1234"]);
+    assert!(b.ok(&["info"]).contains("serial number   ABCD1234"));
+    // Everything was erased: bank 0 holds no configuration table any more.
+    assert!(
+        b.fails(&["cfgad", "0", "0"])
+            .contains("msg_invalid_parameter_value")
+    );
+    let k = b.path("kernel.bin");
+    std::fs::write(&k, [0x3Cu8; 4096]).unwrap();
+    b.ok(&["--yes", "format", "pic-kernel-write", "--in", s(&k)]);
+    let ee = b.path("ee-in.bin");
+    std::fs::write(&ee, [0x3Cu8; 256]).unwrap();
+    b.ok(&["--yes", "eeprom", "write", "--in", s(&ee)]);
+    // The boot START names a configuration that was erased: the board would report it at
+    // every reset. Switch it off first.
+    b.ok(&["--yes", "format", "boot-set", "--boot-start", "none"]);
+    b.ok(&["--yes", "format", "emergency", "0xC0"]);
+    let back = b.path("ee.bin");
+    b.ok(&["eeprom", "read", "--out", s(&back)]);
+    assert_eq!(std::fs::read(&back).unwrap(), vec![0xFF; 256]);
+}

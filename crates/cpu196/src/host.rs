@@ -11,6 +11,7 @@ use crate::acquisition::{LogTable, decode_frame};
 use crate::adconfig::AdConfig;
 use crate::codes::MsgCode;
 use crate::decoder::{Decoder, Event};
+use crate::image::{BootConfig, encrypt_serial};
 use crate::message::*;
 use crate::source::code10_to_volts;
 use crate::wire::{FLASH_BLOCK, PIC_BLOCK, PIC_EEPROM};
@@ -366,6 +367,91 @@ impl<P: Port> Client<P> {
             Message::CfgAd { c196, pic } => Some((*c196, *pic)),
             _ => None,
         })
+    }
+
+    /// CPUFORMAT `04`: a boot flash block (5..31).
+    pub fn boot_block(&mut self, block: u8) -> Result<Box<[u8; 256]>, ClientError> {
+        self.request(
+            &Message::Format(Format::ReadBootBlock { block }),
+            259,
+            |m| match m {
+                Message::Format(Format::BootBlock(d)) => Some(d.clone()),
+                _ => None,
+            },
+        )
+    }
+
+    /// The boot configuration (boot block 5); `None` if erased or not valid.
+    pub fn boot_config(&mut self) -> Result<Option<(BootConfig, Vec<u8>)>, ClientError> {
+        Ok(BootConfig::from_csboot(&*self.boot_block(5)?))
+    }
+
+    /// Erases the boot flash (`F7 07`) and writes a new boot configuration (`F7 06`), then
+    /// reads it back. It applies from the board's next reset.
+    pub fn set_boot_config(&mut self, boot: &BootConfig, user: &[u8]) -> Result<(), ClientError> {
+        let block = boot.to_csboot(user);
+        self.completed(&Message::Format(Format::EraseBoot))?;
+        self.completed(&Message::Format(Format::WriteBootBlock(Box::new(block))))?;
+        if *self.boot_block(5)? != block {
+            return Err(ClientError::Verify(
+                "boot block 5 does not read back as written".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// New serial number (`F7 03`): erases all flash banks and the PIC. `current` is the
+    /// board's serial number (its encrypted form is the guard).
+    pub fn set_serial(&mut self, current: &[u8; 8], new: &[u8; 8]) -> Result<(), ClientError> {
+        let m = Message::Format(Format::NewSerial {
+            nsc: encrypt_serial(current),
+            new: *new,
+        });
+        self.completed(&m)
+    }
+
+    pub fn pic_kernel_read(
+        &mut self,
+        serial: &[u8; 8],
+    ) -> Result<Box<[u8; PIC_BLOCK]>, ClientError> {
+        let m = Message::Format(Format::ReadPicKernel {
+            nsc: encrypt_serial(serial),
+        });
+        self.request(&m, PIC_BLOCK + 3, |r| match r {
+            Message::Format(Format::PicKernel(d)) => Some(d.clone()),
+            _ => None,
+        })
+    }
+
+    /// Writes the PIC kernel (16 × `msg_completed`) and reads it back.
+    pub fn pic_kernel_write(
+        &mut self,
+        serial: &[u8; 8],
+        data: &[u8; PIC_BLOCK],
+    ) -> Result<(), ClientError> {
+        let m = Message::Format(Format::WritePicKernel {
+            nsc: encrypt_serial(serial),
+            data: Box::new(*data),
+        });
+        self.send(&m)?;
+        let budget = self.budget(PIC_BLOCK + 64);
+        for _ in 0..PIC_BLOCK / 256 {
+            self.wait_for(budget, &mut |r| {
+                (*r == Message::Msg(MsgCode::COMPLETED)).then_some(())
+            })?;
+        }
+        if *self.pic_kernel_read(serial)? != *data {
+            return Err(ClientError::Verify(
+                "the PIC kernel does not read back as written".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Emergency erase (`F7 55 AA xy`): resets the board and sends it within its 100 ms window.
+    pub fn emergency_erase(&mut self, xy: u8) -> Result<(), ClientError> {
+        self.reset()?;
+        self.completed(&Message::Format(Format::Emergency { xy }))
     }
 
     /// Sends a command without a reply of its own, then [`sync`](Self::sync)s.

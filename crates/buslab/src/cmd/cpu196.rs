@@ -12,7 +12,7 @@ use anyhow::{Context, bail};
 use buslab_cpu196::codes::MsgCode;
 use buslab_cpu196::flash::is_user_block;
 use buslab_cpu196::host::{Client, FileService, Port, Recorder};
-use buslab_cpu196::image::BAUD_RATES;
+use buslab_cpu196::image::{BAUD_RATES, BootConfig};
 use buslab_cpu196::message::{Bridge, DisplayFormat, Message, Pwm, Start, Thread};
 use buslab_cpu196::served::Served;
 use buslab_cpu196::source::{Inputs, Source};
@@ -106,6 +106,9 @@ pub enum Cmd {
         #[arg(long, default_value_t = 2.0)]
         duration: f64,
     },
+    /// CPUFORMAT: boot configuration, serial number, PIC kernel, emergency erase.
+    #[command(subcommand)]
+    Format(FormatCmd),
     /// Power the board down (it cuts its supply).
     Powerdown,
     /// Software reset.
@@ -221,6 +224,50 @@ pub enum EepromCmd {
     Write {
         #[arg(long = "in")]
         input: PathBuf,
+    },
+}
+
+#[derive(clap::Subcommand)]
+pub enum FormatCmd {
+    /// Show the boot configuration (boot flash block 5).
+    Boot,
+    /// Change the boot configuration (erase + write boot block 5, verified). It applies from
+    /// the board's next reset; a served model takes a new rate when served again.
+    BootSet {
+        #[arg(long)]
+        line_baud: Option<u32>,
+        /// on or off.
+        #[arg(long)]
+        watchdog: Option<String>,
+        /// Three battery thresholds, e.g. 100,140,220 (255 disables one).
+        #[arg(long)]
+        thresholds: Option<String>,
+        #[arg(long)]
+        address: Option<u8>,
+        /// START at boot: BANK:CONFIG (80C196 A/D on), or `none`.
+        #[arg(long)]
+        boot_start: Option<String>,
+    },
+    /// Give the board a new serial number: ERASES all flash banks and the PIC.
+    Serial {
+        /// 8 ASCII characters.
+        new: String,
+    },
+    /// Read the PIC kernel.
+    PicKernelRead {
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Write the PIC kernel (4096 bytes, verified).
+    PicKernelWrite {
+        #[arg(long = "in")]
+        input: PathBuf,
+    },
+    /// Emergency erase right after a reset: y=3 flash, y=C boot, x=F both, x=C PIC,
+    /// x=A PIC + standby (e.g. 03, 0C, F0, C0).
+    Emergency {
+        #[arg(value_parser = parse_u8)]
+        code: u8,
     },
 }
 
@@ -347,6 +394,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             out,
             duration,
         } => record(&mut c, start, &out, duration),
+        Cmd::Format(f) => format(&mut c, f, yes),
         Cmd::Powerdown => {
             confirm(yes, "power the board down (it cuts its own supply)")?;
             c.power_down()?;
@@ -822,5 +870,152 @@ fn record<P: Port>(
         "recorded {samples} samples from {frames} frames into {}",
         out.display()
     );
+    Ok(())
+}
+
+fn show_boot(boot: &BootConfig) {
+    let start = if boot.boot_start & 0x8000 != 0 {
+        "none".to_string()
+    } else {
+        let s = Start::from_word(boot.boot_start & !0x6000);
+        format!(
+            "bank {} configuration {} (A/D {})",
+            s.bank(),
+            s.config(),
+            if s.ad196() { "on" } else { "off" }
+        )
+    };
+    println!("boot configuration");
+    println!(
+        "  protocol        {:?} (PIC port {:?})",
+        boot.protocol, boot.protocol_pic
+    );
+    println!(
+        "  line            {} baud 8N1, {}",
+        boot.baud,
+        if boot.rs232 { "RS232" } else { "TTL" }
+    );
+    println!(
+        "  watchdog        {}",
+        if boot.watchdog { "on" } else { "off" }
+    );
+    println!("  address         {}", boot.address);
+    println!("  boot START      {start}");
+    println!("  PWM             {:?} (PIC {})", boot.pwm196, boot.pic_pwm);
+    println!("  battery         thresholds {:?}", boot.battery_thresholds);
+}
+
+fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result<()> {
+    match f {
+        FormatCmd::Boot => match c.boot_config()? {
+            Some((boot, _)) => show_boot(&boot),
+            None => {
+                println!("boot block 5 is erased or not valid: the kernel runs on its defaults")
+            }
+        },
+        FormatCmd::BootSet {
+            line_baud,
+            watchdog,
+            thresholds,
+            address,
+            boot_start,
+        } => {
+            let (mut boot, user) = c
+                .boot_config()?
+                .unwrap_or_else(|| (BootConfig::default(), Vec::new()));
+            if let Some(b) = line_baud {
+                if !BAUD_RATES.contains(&b) {
+                    bail!("baud rate {b} is not one of {BAUD_RATES:?}");
+                }
+                boot.baud = b;
+            }
+            if let Some(w) = watchdog {
+                boot.watchdog = match w.as_str() {
+                    "on" => true,
+                    "off" => false,
+                    other => bail!("--watchdog `{other}` is not on or off"),
+                };
+            }
+            if let Some(t) = thresholds {
+                let v: Vec<u8> = t
+                    .split(',')
+                    .map(|x| x.trim().parse::<u8>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| {
+                        anyhow::anyhow!("--thresholds `{t}` is not three numbers 0..255")
+                    })?;
+                let [a, b2, c2] = v[..] else {
+                    bail!("--thresholds `{t}` needs exactly three numbers")
+                };
+                boot.battery_thresholds = [a, b2, c2];
+            }
+            if let Some(a) = address {
+                if a > 63 {
+                    bail!("--address {a} is out of range 0..63");
+                }
+                boot.address = a;
+            }
+            if let Some(bs) = boot_start {
+                boot.boot_start = if bs == "none" {
+                    0x8000
+                } else {
+                    let (b, cfg) = bs.split_once(':').with_context(|| {
+                        format!("--boot-start `{bs}` is not BANK:CONFIG or none")
+                    })?;
+                    let (b, cfg) = (
+                        parse_bank(b).map_err(anyhow::Error::msg)?,
+                        parse_bank(cfg).map_err(anyhow::Error::msg)?,
+                    );
+                    Start::run(b, cfg, true).word()
+                };
+            }
+            confirm(
+                yes,
+                "erase the boot flash and write the new boot configuration",
+            )?;
+            c.set_boot_config(&boot, &user)?;
+            show_boot(&boot);
+            println!("written and verified; it applies from the next reset");
+        }
+        FormatCmd::Serial { new } => {
+            let new: [u8; 8] = new.as_bytes().try_into().map_err(|_| {
+                anyhow::anyhow!("serial number `{new}` must be exactly 8 ASCII characters")
+            })?;
+            let current = c.info()?.serial;
+            confirm(
+                yes,
+                &format!(
+                    "change the serial number {} to {} and ERASE all flash banks and the PIC",
+                    String::from_utf8_lossy(&current),
+                    String::from_utf8_lossy(&new)
+                ),
+            )?;
+            c.set_serial(&current, &new)?;
+            println!(
+                "serial number is now {}; flash and PIC erased",
+                String::from_utf8_lossy(&new)
+            );
+        }
+        FormatCmd::PicKernelRead { out } => {
+            let serial = c.info()?.serial;
+            write_file(&out, &c.pic_kernel_read(&serial)?[..])?;
+            println!("read the PIC kernel into {}", out.display());
+        }
+        FormatCmd::PicKernelWrite { input } => {
+            let data: [u8; PIC_BLOCK] = read_padded(&input, PIC_BLOCK)?.try_into().expect("4096");
+            let serial = c.info()?.serial;
+            confirm(yes, "overwrite the PIC kernel")?;
+            c.pic_kernel_write(&serial, &data)?;
+            println!("wrote and verified the PIC kernel");
+        }
+        FormatCmd::Emergency { code } => {
+            confirm(
+                yes,
+                &format!("reset the board and emergency-erase with code {code:02X}h"),
+            )?;
+            c.emergency_erase(code)?;
+            println!("emergency erase {code:02X}h done");
+        }
+    }
     Ok(())
 }
