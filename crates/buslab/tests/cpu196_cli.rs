@@ -132,6 +132,18 @@ fn monitor_shows_thread_text_and_serves_a_file_write() {
     ]);
     assert!(out.contains("THREAD: logger: writing ad.csv"), "{out}");
     assert!(out.contains("opened `ad.csv`"), "{out}");
+    // Numbers in the THREAD stream: unsigned 16-bit, then the same in hex.
+    let lines = std::fs::read_to_string(files.join("ad.csv"))
+        .unwrap()
+        .lines()
+        .count()
+        - 1;
+    assert!(
+        out.contains(&format!(
+            "THREAD: logger: done, lines written: {lines}\nTHREAD: {lines:04X}\n"
+        )),
+        "{out}"
+    );
     let csv = std::fs::read_to_string(files.join("ad.csv")).unwrap();
     assert!(csv.starts_with("ms,ch0,ch1\n"), "{csv}");
     assert!(csv.lines().count() >= 2, "{csv}");

@@ -222,6 +222,7 @@ pub const SET_THRESHOLD: u8 = 0x10;
 pub struct Logger {
     every: u16,
     count: u16,
+    lines: u16,
     file: Option<u8>,
 }
 
@@ -234,6 +235,7 @@ impl Logger {
                 args[0]
             },
             count: 0,
+            lines: 0,
             file: None,
         }
     }
@@ -262,6 +264,7 @@ impl UserProgram for Logger {
                     (k.ad[1] + 32) >> 6
                 );
                 k.fwrite(f, line.as_bytes());
+                self.lines += 1;
             }
         }
         Flow::CONTINUE
@@ -270,7 +273,10 @@ impl UserProgram for Logger {
         if let Some(f) = self.file.take() {
             k.fclose(f);
         }
-        k.display_text("logger: done", true);
+        // The numbers as the seed's monitor shows them: unsigned 16-bit, then hex.
+        k.display_text("logger: done, lines written: ", false);
+        k.display_words(DisplayFormat::Unsigned16, &[self.lines], true);
+        k.display_words(DisplayFormat::Hex16, &[self.lines], true);
     }
 }
 

@@ -13,7 +13,7 @@ use buslab_cpu196::codes::MsgCode;
 use buslab_cpu196::flash::is_user_block;
 use buslab_cpu196::host::{Client, FileService, Port, Recorder};
 use buslab_cpu196::image::{BAUD_RATES, BootConfig};
-use buslab_cpu196::message::{Bridge, DisplayFormat, Message, Pwm, Start, Thread};
+use buslab_cpu196::message::{Bridge, Message, Pwm, Start, Thread};
 use buslab_cpu196::served::Served;
 use buslab_cpu196::source::{Inputs, Source};
 use buslab_cpu196::wire::{PIC_BLOCK, PIC_EEPROM};
@@ -502,22 +502,37 @@ fn hex(b: &[u8]) -> String {
         .join(" ")
 }
 
+/// Whether a THREAD display without newline left the line open.
+static MID_LINE: AtomicBool = AtomicBool::new(false);
+
 /// Shows one board message the way the monitor does; returns the replies to send.
 fn show(m: &Message, files: &mut Option<FileService>) -> Vec<Message> {
-    match m {
-        Message::Thread(Thread::Display {
-            format,
-            newline,
-            data,
-        }) => {
-            let text = format.render(data);
-            if *newline || *format != DisplayFormat::Text {
-                println!("THREAD: {text}");
-            } else {
-                print!("{text}");
-            }
-            Vec::new()
+    let open = MID_LINE.load(Ordering::Relaxed);
+    if let Message::Thread(Thread::Display {
+        format,
+        newline,
+        data,
+    }) = m
+    {
+        // Displays without the newline bit continue the same line, as on the seed's monitor.
+        let prefix = if open { "" } else { "THREAD: " };
+        print!("{prefix}{}", format.render(data));
+        if *newline {
+            println!();
         }
+        MID_LINE.store(!*newline, Ordering::Relaxed);
+        return Vec::new();
+    }
+    if open
+        && !matches!(
+            m,
+            Message::Watchdog | Message::AdCont(_) | Message::AdSample(_)
+        )
+    {
+        println!();
+        MID_LINE.store(false, Ordering::Relaxed);
+    }
+    match m {
         Message::Thread(t) => match files {
             Some(fs) => {
                 let (replies, log) = fs.handle(t);
