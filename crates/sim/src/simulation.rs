@@ -513,8 +513,9 @@ fn invert(level: Level) -> Level {
     }
 }
 
-/// Counts and records one event, and lets the file senders move on.
-#[inline]
+/// Counts and records one event, and lets the file senders move on. Kept out of line: events
+/// are rare next to bits.
+#[inline(never)]
 fn handle_event(
     obs: &mut Observers,
     schedule: &mut Schedule,
