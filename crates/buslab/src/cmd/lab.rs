@@ -34,6 +34,19 @@ const IFACE: &str = "sim0";
 const SLICE: Duration = Duration::from_millis(2);
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // A reader that goes away (`| head`) ends the run quietly, as for other Unix tools.
+    match run_lab(args) {
+        Err(e)
+            if e.downcast_ref::<io::Error>()
+                .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
+        other => other,
+    }
+}
+
+fn run_lab(args: Args) -> anyhow::Result<()> {
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();

@@ -44,6 +44,19 @@ pub struct Args {
 const CHUNK: BitTime = 100_000;
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // A reader that goes away (`| head`) ends the run quietly, as for other Unix tools.
+    match simulate(args) {
+        Err(e)
+            if e.downcast_ref::<io::Error>()
+                .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
+        other => other,
+    }
+}
+
+fn simulate(args: Args) -> anyhow::Result<()> {
     let text = std::fs::read_to_string(&args.scenario)
         .with_context(|| format!("cannot read scenario {}", args.scenario.display()))?;
     let mut scenario = Scenario::from_toml(&text)
