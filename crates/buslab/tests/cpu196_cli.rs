@@ -111,6 +111,11 @@ fn info_prints_the_board_identity() {
     let out = b.ok(&["info"]);
     assert!(out.contains("serial number   BL196001"), "{out}");
     assert!(out.contains("quartz          20 MHz"), "{out}");
+    drop(b);
+    // A scripted device on the PIC's SCI.
+    let b = Board::serve(&["--peer", "script:41=4F4B"]);
+    let out = b.ok(&["bridge", "sci", "0x41"]);
+    assert!(out.contains("SCI received 4Fh"), "{out}");
     let cfg = b.ok(&["cfgad", "0", "5"]);
     assert!(cfg.contains("channel 3  log8-bit format"), "{cfg}");
     assert!(b.fails(&["cfgad", "0", "9"]).contains("out of range 0..7"));

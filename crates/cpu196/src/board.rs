@@ -214,6 +214,11 @@ impl Board {
         &self.pic
     }
 
+    /// Who answers on the PIC's SCI and SPI/I2C bridges.
+    pub fn set_peer(&mut self, peer: crate::pic::Peer) {
+        self.pic.peer = peer;
+    }
+
     /// Registers a user program under `id` (word 0 of `ptrprg.user[n]`).
     pub fn registry_mut(&mut self) -> &mut Registry {
         &mut self.registry

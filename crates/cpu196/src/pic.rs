@@ -198,13 +198,60 @@ impl PicEvent {
 }
 
 /// Who answers on the PIC's SCI and SPI/I2C ports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub enum Peer {
     /// What is sent comes back (a wire from TX to RX, MOSI to MISO).
     #[default]
     Loopback,
     /// Nothing answers.
     Silent,
+    /// A scripted device: a byte sent gets these bytes back (SCI: each arrives; SPI: the
+    /// first is clocked in). Unlisted bytes get nothing (SCI) or FFh (SPI).
+    Script(std::collections::BTreeMap<u8, Vec<u8>>),
+}
+
+impl Peer {
+    fn answer(&self, sent: u8) -> Vec<u8> {
+        match self {
+            Self::Loopback => vec![sent],
+            Self::Silent => Vec::new(),
+            Self::Script(table) => table.get(&sent).cloned().unwrap_or_default(),
+        }
+    }
+}
+
+impl core::str::FromStr for Peer {
+    type Err = String;
+
+    /// `loopback`, `silent`, or `script:SENT=REPLY,...` in hex, e.g. `script:41=4F4B,01=02`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        let err = || {
+            format!(
+                "peer `{s}` is not loopback, silent or script:SENT=REPLY,... (hex bytes, e.g. script:41=4F4B)"
+            )
+        };
+        match s {
+            "loopback" => return Ok(Self::Loopback),
+            "silent" => return Ok(Self::Silent),
+            _ => {}
+        }
+        let body = s.strip_prefix("script:").ok_or_else(err)?;
+        let mut table = std::collections::BTreeMap::new();
+        for pair in body.split(',') {
+            let (k, v) = pair.split_once('=').ok_or_else(err)?;
+            let key = u8::from_str_radix(k.trim(), 16).map_err(|_| err())?;
+            let v = v.trim();
+            if v.len() % 2 != 0 || v.is_empty() || !v.is_ascii() {
+                return Err(err());
+            }
+            let reply = (0..v.len() / 2)
+                .map(|i| u8::from_str_radix(&v[2 * i..2 * i + 2], 16))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|_| err())?;
+            table.insert(key, reply);
+        }
+        Ok(Self::Script(table))
+    }
 }
 
 /// PIC A/D converter clock: Fosc = 20 MHz.
@@ -313,18 +360,14 @@ impl Pic {
             PicCommand::IoAddress(a) => self.io_mask = a,
             PicCommand::EepromAddress(a) => self.eeprom_addr = a,
             PicCommand::SciWrite(d) => {
-                if self.peer == Peer::Loopback {
-                    self.events.push_back(PicEvent::SciReceived(d));
-                }
                 self.events.push_back(PicEvent::SciTxDone);
+                for b in self.peer.answer(d) {
+                    self.events.push_back(PicEvent::SciReceived(b));
+                }
             }
             PicCommand::Spi { data, .. } => {
                 // SPI is full duplex: the peer's byte comes back as the clocked-out one goes.
-                let back = if self.peer == Peer::Loopback {
-                    data
-                } else {
-                    0xFF
-                };
+                let back = self.peer.answer(data).first().copied().unwrap_or(0xFF);
                 self.events.push_back(PicEvent::SpiReceived(back));
             }
             PicCommand::PortDWrite(d) => self.port_d = d,
@@ -374,7 +417,7 @@ impl Pic {
         *self = Self {
             eeprom: self.eeprom,
             program: core::mem::take(&mut self.program),
-            peer: self.peer,
+            peer: core::mem::take(&mut self.peer),
             ..Self::default()
         };
     }
@@ -448,13 +491,47 @@ mod tests {
         assert_eq!(p.execute(0, PicCommand::ReadEeprom), vec![1]);
         assert_eq!(p.execute(0, PicCommand::ReadEeprom), vec![2]);
         p.execute(0, PicCommand::SciWrite(0x33));
-        assert_eq!(p.execute(0, PicCommand::ReadEvent), vec![0x40, 0x33]);
         assert_eq!(p.execute(0, PicCommand::ReadEvent), vec![0xA0, 0]);
+        assert_eq!(p.execute(0, PicCommand::ReadEvent), vec![0x40, 0x33]);
         assert_eq!(p.execute(0, PicCommand::ReadEvent), vec![0, 0]);
         p.execute(0, PicCommand::IoAddress(0x0F));
         p.execute(0, PicCommand::PortDWrite(0xA5));
         p.port_d_inputs = Some(0x03);
         assert_eq!(p.execute(0, PicCommand::ReadPortD), vec![0xA3]);
+    }
+
+    #[test]
+    fn scripted_peers_answer_from_their_table() {
+        let mut p = Pic {
+            peer: "script:41=4F4B,01=02".parse().unwrap(),
+            ..Pic::default()
+        };
+        p.execute(0, PicCommand::SciWrite(0x41));
+        assert_eq!(
+            p.take_events(),
+            vec![
+                PicEvent::SciTxDone,
+                PicEvent::SciReceived(0x4F),
+                PicEvent::SciReceived(0x4B)
+            ]
+        );
+        p.execute(0, PicCommand::Spi { cmd: 1, data: 0x01 });
+        p.execute(0, PicCommand::Spi { cmd: 1, data: 0x07 });
+        assert_eq!(
+            p.take_events(),
+            vec![PicEvent::SpiReceived(0x02), PicEvent::SpiReceived(0xFF)]
+        );
+        for bad in [
+            "",
+            "script:",
+            "script:4=",
+            "script:41=4",
+            "script:zz=00",
+            "loop",
+        ] {
+            assert!(bad.parse::<Peer>().is_err(), "{bad}");
+        }
+        assert_eq!("silent".parse::<Peer>(), Ok(Peer::Silent));
     }
 
     #[test]

@@ -14,6 +14,7 @@ use buslab_cpu196::flash::is_user_block;
 use buslab_cpu196::host::{Client, FileService, Port, Recorder};
 use buslab_cpu196::image::{BAUD_RATES, BootConfig};
 use buslab_cpu196::message::{Bridge, Message, Pwm, Start, Thread};
+use buslab_cpu196::pic::Peer;
 use buslab_cpu196::served::Served;
 use buslab_cpu196::source::{Inputs, Source};
 use buslab_cpu196::wire::{PIC_BLOCK, PIC_EEPROM};
@@ -137,6 +138,10 @@ pub struct ServeArgs {
     /// Analog input CH=SOURCE of the PIC (channel 0 is the battery).
     #[arg(long, value_name = "CH=SOURCE")]
     pub pic_input: Vec<String>,
+    /// The device on the PIC's SCI and SPI/I2C: loopback, silent, or script:SENT=REPLY,...
+    /// (hex, e.g. script:41=4F4B).
+    #[arg(long, default_value = "loopback")]
+    pub peer: String,
 }
 
 #[derive(clap::Args, Clone, Copy)]
@@ -321,11 +326,23 @@ pub fn spawn_served(
     baud: u32,
     inputs: Inputs,
 ) -> anyhow::Result<Served> {
+    spawn_served_with_peer(image, link, baud, inputs, Peer::Loopback)
+}
+
+/// [`spawn_served`] with a chosen device on the PIC's SCI and SPI/I2C bridges.
+pub fn spawn_served_with_peer(
+    image: Option<&Path>,
+    link: Option<&Path>,
+    baud: u32,
+    inputs: Inputs,
+    peer: Peer,
+) -> anyhow::Result<Served> {
     let img = match image {
         Some(p) if p.exists() => Image::load(p)?,
         _ => Image::default(),
     };
     let mut board = Board::new(img, inputs, 0);
+    board.set_peer(peer);
     if board.line().baud != baud {
         board.set_baud(baud);
     }
@@ -456,7 +473,8 @@ fn serve(s: &ServeArgs, baud: u32) -> anyhow::Result<()> {
     let mut inputs = Inputs::default();
     parse_inputs(&s.input, &mut inputs.c196, "--input")?;
     parse_inputs(&s.pic_input, &mut inputs.pic, "--pic-input")?;
-    let served = spawn_served(s.image.as_deref(), s.link.as_deref(), baud, inputs)?;
+    let peer: Peer = s.peer.parse().map_err(anyhow::Error::msg)?;
+    let served = spawn_served_with_peer(s.image.as_deref(), s.link.as_deref(), baud, inputs, peer)?;
     println!("{}", served.path().display());
     if let Some(l) = &s.link {
         println!("{}", l.display());
