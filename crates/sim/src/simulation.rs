@@ -29,8 +29,8 @@ impl Node {
     }
 }
 
-/// Trace, counters and the sampled series; kept apart from the nodes so the per-bit loop can
-/// borrow both.
+/// The trace and the bus statistics; kept apart from the nodes so the per-bit loop can borrow
+/// both.
 #[derive(Debug, Default)]
 struct Observers {
     records: Vec<Record>,
@@ -109,7 +109,7 @@ const IDLE_CHECK_EVERY: u64 = 16;
 
 impl Simulation {
     /// An empty bus at `bitrate` bit/s (used only to convert bit-times to seconds); `seed`
-    /// drives the random faults.
+    /// drives the random faults. Panics if `bitrate` is 0.
     pub fn new(bitrate: u32, seed: u64) -> Self {
         assert!(bitrate > 0, "bit rate must be positive");
         Self {
@@ -209,6 +209,7 @@ impl Simulation {
     }
 
     /// Record level changes of the bus and of each node's TX and RX (see [`LevelChange`]).
+    /// Call it before running: the trace starts from an idle (recessive) bus.
     pub fn trace_levels(&mut self) {
         // Every signal starts recessive (the idle bus); only changes are recorded.
         self.levels = Some(LevelTrace {
@@ -284,9 +285,10 @@ impl Simulation {
 
     /// Simulates up to (not including) bit-time `end`.
     ///
-    /// When no fault is active, no level trace is on and every controller is idle on an idle
-    /// bus with nothing to send, nothing can happen before the next traffic, fault or sample
-    /// time: the simulation jumps there (idle controllers that sample recessive stay idle).
+    /// When no fault is active and every controller is idle on an idle bus with nothing to
+    /// send, nothing can happen before the next traffic, fault or sample time: the simulation
+    /// jumps there (idle controllers that sample recessive stay idle, and every level stays
+    /// recessive).
     pub fn run_until(&mut self, end: BitTime) {
         while self.now < end {
             self.handle_due();
@@ -395,8 +397,8 @@ impl Simulation {
             .map(|(f, _)| f)
     }
 
-    /// The hot loop: no faults, no level tracing. One wired-AND over all outputs, then every
-    /// node samples the same level. Returns early when the bus may have gone idle, so
+    /// The hot loop: no faults, no level tracing, so every node samples the same level, the
+    /// wired-AND of all outputs. Returns early when the bus may have gone idle, so
     /// [`Self::run_until`] can fast-forward.
     fn run_clean(&mut self, horizon: BitTime) {
         let fast_forward = self.fast_forward;
