@@ -320,6 +320,7 @@ fn parse_inputs(spec: &[String], into: &mut [Source; 8], what: &str) -> anyhow::
 /// A served board for `buslab lab` and tests: a PTY in a background thread; stop it by
 /// dropping the handle. `image`: load it if it exists (else start from the default image), and
 /// save it there on changes.
+#[allow(dead_code)] // for `buslab lab`
 pub fn spawn_served(
     image: Option<&Path>,
     link: Option<&Path>,
