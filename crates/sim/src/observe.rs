@@ -42,6 +42,7 @@ pub struct NodeStats {
     pub queue_overflows: u64,
     /// Times it went bus-off.
     pub bus_off: u64,
+    /// The highest TEC and REC the node's events reported (error, state change, warning).
     pub max_tec: u16,
     pub max_rec: u16,
 }

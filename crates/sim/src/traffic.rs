@@ -187,6 +187,68 @@ impl Generator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use buslab_can::controller::ControllerConfig;
+
+    fn frame(text: &str) -> Frame {
+        text.parse().unwrap()
+    }
+
+    #[test]
+    fn periodic_stops_after_count_and_burst_queues_copies() {
+        let mut c = Controller::new(ControllerConfig::default());
+        let mut g = Generator::new(
+            0,
+            Traffic::Periodic {
+                frame: frame("123#01"),
+                period: 10,
+                start: 5,
+                count: Some(2),
+            },
+        );
+        assert_eq!(g.next(), Some(5));
+        assert_eq!(g.fire(5, &mut c).queued, 1);
+        assert_eq!(g.next(), Some(15));
+        g.fire(15, &mut c);
+        assert_eq!(g.next(), None);
+
+        let mut c = Controller::new(ControllerConfig {
+            tx_queue_capacity: 4,
+            ..Default::default()
+        });
+        let mut g = Generator::new(
+            0,
+            Traffic::Burst {
+                frame: frame("200#"),
+                count: 6,
+                period: 100,
+                start: 0,
+            },
+        );
+        let q = g.fire(0, &mut c);
+        assert_eq!((q.queued, q.overflows), (4, 2));
+        assert_eq!(c.pending(), 4);
+        assert_eq!(g.next(), Some(100));
+    }
+
+    #[test]
+    fn file_sender_keeps_one_chunk_in_flight() {
+        let id = Id::standard(0x100).unwrap();
+        let mut c = Controller::new(ControllerConfig::default());
+        let data: Vec<u8> = (0..12).collect();
+        let mut g = Generator::new(0, Traffic::File { id, data, start: 0 });
+        g.fire(0, &mut c);
+        assert_eq!(c.pending(), 1);
+        let first = frame("100#0001020304050607");
+        // Some other frame of the node does not move it on.
+        g.on_done(&frame("100#AA"), 50, &mut c);
+        assert_eq!(c.pending(), 1);
+        // (The controller here never sends, so the first chunk is still queued too.)
+        g.on_done(&first, 100, &mut c);
+        assert_eq!(c.pending(), 2);
+        assert!(c.queued().any(|f| *f == frame("100#08090A0B")));
+        g.on_done(&frame("100#08090A0B"), 200, &mut c);
+        assert_eq!(g.finished_at, Some(200));
+    }
 
     #[test]
     fn file_protocol_chunks() {
