@@ -109,6 +109,18 @@ pub struct QueueFull {
     pub capacity: usize,
 }
 
+/// Where the last error was detected, for error-code capture registers (SJA1000 ECC).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ErrorLocation {
+    /// Inside a data or remote frame: the field and the de-stuffed index (SOF = 0) of the next
+    /// data bit when the error was seen.
+    Frame { field: Field, index: u32 },
+    /// In our own active error flag (`overload`: our overload flag).
+    Flag { overload: bool },
+    /// In an error or overload delimiter.
+    Delimiter { overload: bool },
+}
+
 /// Which flag is being sent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Flag {
@@ -181,6 +193,7 @@ pub struct Controller {
     abort_in_flight: bool,
     /// Wire index of the current bit since the last SOF.
     frame_bit: u32,
+    last_error: ErrorLocation,
     events: VecDeque<Event>,
 }
 
@@ -200,6 +213,10 @@ impl Controller {
             recovering: false,
             abort_in_flight: false,
             frame_bit: 0,
+            last_error: ErrorLocation::Frame {
+                field: Field::Sof,
+                index: 0,
+            },
             events: VecDeque::with_capacity(16),
         }
     }
@@ -260,6 +277,34 @@ impl Controller {
     /// We are the transmitter of the frame on the bus (not yet lost arbitration).
     pub fn is_transmitting(&self) -> bool {
         self.transmitting
+    }
+
+    /// We take part in a frame (or its error/overload frame) on the bus as a receiver.
+    pub fn is_receiving(&self) -> bool {
+        !self.transmitting
+            && matches!(
+                self.phase,
+                Phase::Frame | Phase::Eof { .. } | Phase::Flag { .. } | Phase::Delimiter { .. }
+            )
+    }
+
+    /// Where the last error was detected.
+    pub fn last_error_location(&self) -> ErrorLocation {
+        self.last_error
+    }
+
+    /// Force the error counters (a controller's "write TXERR/RXERR in reset mode"); the state
+    /// follows them. REC saturates at 255 as usual.
+    pub fn set_counters(&mut self, tec: u16, rec: u16) {
+        self.counters.tec = tec;
+        self.counters.rec = rec.min(255);
+        self.update_state();
+    }
+
+    /// Switch single-shot transmission on or off for the frames not yet finished (the SJA1000
+    /// chooses it per transmission request).
+    pub fn set_single_shot(&mut self, on: bool) {
+        self.config.single_shot = on;
     }
 
     /// The bus level sampled during the current bit-time; advances one bit-time.
@@ -610,6 +655,26 @@ impl Controller {
     /// `count_tec`: false for the arbitration stuff-bit exception.
     #[inline(never)]
     fn error(&mut self, kind: ErrorKind, count_tec: bool) {
+        self.last_error = match self.phase {
+            Phase::Delimiter { overload, .. } => ErrorLocation::Delimiter { overload },
+            Phase::Idle => ErrorLocation::Frame {
+                field: Field::Sof,
+                index: 0,
+            },
+            Phase::Eof { .. } => ErrorLocation::Frame {
+                field: Field::Eof,
+                index: self.rx.index(),
+            },
+            // The receiver has already moved past the ACK slot when the ACK error is seen.
+            _ if kind == ErrorKind::Ack => ErrorLocation::Frame {
+                field: Field::AckSlot,
+                index: self.rx.index(),
+            },
+            _ => ErrorLocation::Frame {
+                field: self.rx.field(),
+                index: self.rx.index(),
+            },
+        };
         // The flag is chosen by the state before this error is counted.
         let flag = if self.config.listen_only || self.state() == ErrorState::Passive {
             Flag::PassiveError
@@ -695,6 +760,9 @@ impl Controller {
         if bit && !self.config.listen_only {
             // Our dominant flag bit read back recessive: bit error, +8 (rules 4 and 5), and a
             // new error flag.
+            self.last_error = ErrorLocation::Flag {
+                overload: flag == Flag::Overload,
+            };
             self.add_eight();
             self.events.push_back(Event::Error {
                 kind: ErrorKind::Bit,
