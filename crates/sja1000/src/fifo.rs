@@ -1,0 +1,141 @@
+//! The 64-byte receive FIFO, seen through the receive window.
+
+use crate::layout::{CanMode, stored_len};
+
+/// Size of the FIFO RAM.
+pub const FIFO_SIZE: usize = 64;
+
+/// Circular RAM holding received messages back to back.
+#[derive(Clone, Debug)]
+pub struct RxFifo {
+    ram: [u8; FIFO_SIZE],
+    /// RBSA: RAM address of the message shown in the window.
+    start: u8,
+    /// Bytes occupied by stored messages, from `start`.
+    used: usize,
+    /// RMC: messages stored.
+    count: u8,
+}
+
+impl Default for RxFifo {
+    fn default() -> Self {
+        Self {
+            ram: [0; FIFO_SIZE],
+            start: 0,
+            used: 0,
+            count: 0,
+        }
+    }
+}
+
+/// A message did not fit in the FIFO and was dropped whole.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Overrun;
+
+impl RxFifo {
+    /// Appends a message; errors (storing nothing) if it does not fit.
+    pub fn store(&mut self, message: &[u8]) -> Result<(), Overrun> {
+        if self.used + message.len() > FIFO_SIZE {
+            return Err(Overrun);
+        }
+        for (k, &byte) in message.iter().enumerate() {
+            self.ram[(self.start as usize + self.used + k) % FIFO_SIZE] = byte;
+        }
+        self.used += message.len();
+        self.count += 1;
+        Ok(())
+    }
+
+    /// RRB: drops the message in the window; no effect when empty.
+    pub fn release(&mut self, mode: CanMode) {
+        if self.count == 0 {
+            return;
+        }
+        let len = stored_len(mode, self.window(0), self.window(1));
+        self.start = ((self.start as usize + len) % FIFO_SIZE) as u8;
+        self.used = self.used.saturating_sub(len);
+        self.count -= 1;
+    }
+
+    /// Byte `k` of the receive window (may run into the next message).
+    pub fn window(&self, k: usize) -> u8 {
+        self.ram[(self.start as usize + k) % FIFO_SIZE]
+    }
+
+    /// RMC.
+    pub fn count(&self) -> u8 {
+        self.count
+    }
+
+    /// RBSA.
+    pub fn start(&self) -> u8 {
+        self.start
+    }
+
+    /// Writing RBSA (reset mode only): the next message is stored from there.
+    pub fn set_start(&mut self, rbsa: u8) {
+        self.start = rbsa % FIFO_SIZE as u8;
+    }
+
+    /// Empties the FIFO; RBSA keeps its value (software reset, bus-off).
+    pub fn clear(&mut self) {
+        self.used = 0;
+        self.count = 0;
+    }
+
+    /// Direct RAM access (CAN addresses 32..95).
+    pub fn ram(&self, addr: usize) -> u8 {
+        self.ram[addr % FIFO_SIZE]
+    }
+
+    /// Writing the RAM (reset mode only).
+    pub fn set_ram(&mut self, addr: usize, value: u8) {
+        self.ram[addr % FIFO_SIZE] = value;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_wrap_and_release_in_order() {
+        let mut fifo = RxFifo::default();
+        fifo.set_start(60);
+        fifo.store(&[0x02, 0x24, 0x60, 0xAA, 0xBB]).unwrap();
+        fifo.store(&[0x00, 0x20, 0x00]).unwrap();
+        assert_eq!(fifo.count(), 2);
+        assert_eq!(
+            (0..5).map(|k| fifo.window(k)).collect::<Vec<_>>(),
+            [2, 0x24, 0x60, 0xAA, 0xBB]
+        );
+        assert_eq!(
+            fifo.window(5),
+            0x00,
+            "the window runs into the next message"
+        );
+        fifo.release(CanMode::Peli);
+        assert_eq!(fifo.start(), 1);
+        assert_eq!(fifo.window(1), 0x20);
+        fifo.release(CanMode::Peli);
+        assert_eq!(fifo.count(), 0);
+        fifo.release(CanMode::Peli);
+        assert_eq!((fifo.count(), fifo.start()), (0, 4));
+    }
+
+    #[test]
+    fn a_message_that_does_not_fit_is_dropped_whole() {
+        let mut fifo = RxFifo::default();
+        let full = [0x08u8, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10]; // SFF, 8 data bytes: 11 bytes
+        for _ in 0..5 {
+            fifo.store(&full).unwrap();
+        }
+        assert_eq!(fifo.store(&full), Err(Overrun));
+        assert_eq!(fifo.count(), 5);
+        fifo.store(&[0x40, 0x00, 0x10]).unwrap(); // 3 bytes still fit (55 + 3 <= 64)
+        assert_eq!(fifo.count(), 6);
+        fifo.clear();
+        assert_eq!(fifo.count(), 0);
+        assert_eq!(fifo.start(), 0, "RBSA kept across clear");
+    }
+}
