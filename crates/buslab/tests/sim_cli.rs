@@ -84,6 +84,41 @@ fn quiet_prints_only_the_summary_and_vcd_is_written() {
 }
 
 #[test]
+fn counters_csv_follows_the_tec_to_bus_off_and_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("counters.csv");
+    let path = scenario("seed-cut-wire.toml");
+    stdout_of(&[
+        "sim",
+        path.to_str().unwrap(),
+        "--quiet",
+        "--counters",
+        csv.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("time_s,node,tec,rec,state"));
+    let sender: Vec<(f64, u16, String)> = lines
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f[1] == "sender")
+        .map(|f| {
+            (
+                f[0].parse().unwrap(),
+                f[2].parse().unwrap(),
+                f[4].to_owned(),
+            )
+        })
+        .collect();
+    // One sample per millisecond for the whole second.
+    assert_eq!(sender.len(), 1000);
+    let at = |t: f64| sender.iter().find(|s| s.0 >= t).unwrap();
+    assert_eq!(at(0.05).1, 0);
+    assert!(sender.iter().any(|s| s.2 == "bus-off" && s.1 >= 256));
+    assert_eq!(at(0.289).2, "bus-off");
+    assert_eq!(*at(0.5), (0.5, 0, "error-active".to_owned()));
+}
+
+#[test]
 fn lab_prints_candump_lines_and_stops_by_itself() {
     let out = stdout_of(&["lab", "--duration", "1s"]);
     let frames: Vec<&str> = out.lines().collect();

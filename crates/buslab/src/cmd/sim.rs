@@ -38,6 +38,10 @@ pub struct Args {
     /// Also print every error a node detected.
     #[arg(long)]
     pub errors: bool,
+    /// Write every node's TEC/REC series to this CSV file (`time_s,node,tec,rec,state`), at
+    /// the scenario's `sample_every` (1 ms if it has none).
+    #[arg(long, value_name = "FILE")]
+    pub counters: Option<PathBuf>,
 }
 
 /// Bit-times simulated between two flushes of the output.
@@ -67,7 +71,20 @@ fn simulate(args: Args) -> anyhow::Result<()> {
     let end = args
         .duration
         .map_or(scenario.duration, |d| d.to_bits(scenario.bitrate));
+    if args.counters.is_some() && scenario.sample_every.is_none() {
+        scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
+    }
     let mut sim = scenario.build();
+    let mut counters = match &args.counters {
+        Some(path) => {
+            let file = File::create(path)
+                .with_context(|| format!("cannot create counters file {}", path.display()))?;
+            let mut w = BufWriter::new(file);
+            writeln!(w, "time_s,node,tec,rec,state")?;
+            Some(w)
+        }
+        None => None,
+    };
 
     let mut vcd = match &args.vcd {
         Some(path) => {
@@ -87,6 +104,14 @@ fn simulate(args: Args) -> anyhow::Result<()> {
         sim.run_until(end.min(sim.now() + CHUNK));
         let records = sim.take_records();
         let series = sim.take_series();
+        if let Some(w) = &mut counters {
+            for c in &series {
+                let (secs, us) = seconds_micros(c.time, scenario.bitrate);
+                let name = &scenario.nodes[c.node].name;
+                let state = state_name(c.state);
+                writeln!(w, "{secs}.{us:06},{name},{},{},{state}", c.tec, c.rec)?;
+            }
+        }
         if !args.quiet {
             printer.print_merged(&mut out, &records, &series)?;
         }
@@ -96,6 +121,9 @@ fn simulate(args: Args) -> anyhow::Result<()> {
     }
     if let Some(vcd) = vcd {
         vcd.finish(sim.now())?;
+    }
+    if let Some(mut w) = counters {
+        w.flush()?;
     }
     summary(&mut out, &sim)?;
     out.flush()?;
