@@ -787,17 +787,57 @@ impl Message {
     }
 }
 
-/// Display name of a message for logs: `PRGFLASH write bank 1 block 42`.
+/// One line describing a message for logs and the CLI (long payloads are cut at 120
+/// characters).
 pub fn describe(m: &Message) -> String {
     match m {
         Message::Msg(c) => format!("MSG {c}"),
         Message::Alert(a) => format!("ALERTE {a}"),
         Message::User { cmd, params } => {
-            format!("user command {cmd:02X}h, {} parameter bytes", params.len())
+            let bytes: Vec<String> = params.iter().map(|b| format!("{b:02X}")).collect();
+            format!("user command {cmd:02X}h [{}]", bytes.join(" "))
         }
-        other => format!("{} {:?}", wire::command_name(other.command()), other)
-            .chars()
-            .take(120)
-            .collect(),
+        Message::Thread(Thread::Display { format, data, .. }) => {
+            format!("THREAD {}", format.render(data))
+        }
+        other => {
+            let text = format!("{} {:?}", wire::command_name(other.command()), other);
+            match text.char_indices().nth(120) {
+                Some((cut, _)) => format!("{}…", &text[..cut]),
+                None => text,
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn describe_is_one_bounded_line() {
+        assert_eq!(
+            describe(&Message::User {
+                cmd: 0x10,
+                params: vec![1, 0x2C]
+            }),
+            "user command 10h [01 2C]"
+        );
+        assert_eq!(
+            describe(&Message::Msg(MsgCode::COMPLETED)),
+            "MSG msg_completed (03h)"
+        );
+        let long = describe(&Message::FlashData(Box::new([0xAB; 256])));
+        assert!(
+            long.starts_with("PRGFLASH FlashData") && long.ends_with('…'),
+            "{long}"
+        );
+        assert_eq!(long.chars().count(), 121);
+        let words = Message::Thread(Thread::Display {
+            format: DisplayFormat::Signed16,
+            newline: true,
+            data: vec![0xFF, 0xFF, 0x02, 0x00],
+        });
+        assert_eq!(describe(&words), "THREAD -1 2");
     }
 }
