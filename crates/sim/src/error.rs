@@ -10,26 +10,29 @@ pub struct DurationError {
 }
 
 /// Something wrong with a simulation set-up or a scenario file.
+///
+/// The messages include the underlying error's text (and do not chain it as a `source`, so it
+/// is not printed twice).
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
     #[error("scenario is not valid TOML: {0}")]
-    Toml(#[from] toml::de::Error),
-    #[error("{context}: {source}")]
+    Toml(toml::de::Error),
+    #[error("{context}: {error}")]
     Duration {
         context: String,
-        source: DurationError,
+        error: DurationError,
     },
-    #[error("{context}: bad frame {text:?}: {source}")]
+    #[error("{context}: bad frame {text:?}: {error}")]
     Frame {
         context: String,
         text: String,
-        source: buslab_can::ParseError,
+        error: buslab_can::ParseError,
     },
-    #[error("{context}: bad identifier {text:?}: {source}")]
+    #[error("{context}: bad identifier {text:?}: {error}")]
     Id {
         context: String,
         text: String,
-        source: buslab_can::ParseError,
+        error: buslab_can::ParseError,
     },
     #[error("{context}: unknown node {name:?} (nodes are: {known})")]
     UnknownNode {
@@ -62,4 +65,10 @@ pub enum ScenarioError {
     },
     #[error("scenario has no nodes; add at least one [[nodes]] table")]
     NoNodes,
+}
+
+impl From<toml::de::Error> for ScenarioError {
+    fn from(error: toml::de::Error) -> Self {
+        ScenarioError::Toml(error)
+    }
 }

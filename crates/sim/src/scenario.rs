@@ -214,9 +214,9 @@ impl Resolver<'_> {
     fn span(&self, context: &str, raw: &RawSpan) -> Result<BitTime, ScenarioError> {
         Span::parse(&raw.0)
             .map(|s| s.to_bits(self.bitrate))
-            .map_err(|source| ScenarioError::Duration {
+            .map_err(|error| ScenarioError::Duration {
                 context: context.to_owned(),
-                source,
+                error,
             })
     }
 
@@ -241,10 +241,10 @@ impl Resolver<'_> {
     }
 
     fn frame(&self, context: &str, text: &str) -> Result<Frame, ScenarioError> {
-        text.parse().map_err(|source| ScenarioError::Frame {
+        text.parse().map_err(|error| ScenarioError::Frame {
             context: context.to_owned(),
             text: text.to_owned(),
-            source,
+            error,
         })
     }
 
@@ -443,10 +443,10 @@ impl RawTraffic {
                 hex,
                 start,
             } => {
-                let id_value: Id = id.parse().map_err(|source| ScenarioError::Id {
+                let id_value: Id = id.parse().map_err(|error| ScenarioError::Id {
                     context: context.to_owned(),
                     text: id.clone(),
-                    source,
+                    error,
                 })?;
                 let data = match (size, text, hex) {
                     (Some(n), None, None) if n as usize <= MAX_FILE => {
