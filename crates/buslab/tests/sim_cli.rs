@@ -155,7 +155,7 @@ fn bad_scenarios_are_refused_with_the_value() {
             .unwrap();
         assert!(!out.status.success());
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains(needle), "{err}");
+        assert_eq!(err.matches(needle).count(), 1, "{err}");
         assert!(err.contains(&format!("bad{i}.toml")), "{err}");
     }
     let out = buslab()
