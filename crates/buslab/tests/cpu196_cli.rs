@@ -155,6 +155,45 @@ fn monitor_shows_thread_text_and_serves_a_file_write() {
 }
 
 #[test]
+fn monitor_serves_a_file_the_board_reads() {
+    let b = Board::serve(&[]);
+    let files = b.path("files");
+    std::fs::create_dir(&files).unwrap();
+    std::fs::write(files.join("pattern.bin"), (0..100u8).collect::<Vec<_>>()).unwrap();
+    // Bank 1 set 0: PWM playback of pattern.bin, one byte per millisecond.
+    let out = b.ok(&[
+        "monitor",
+        "--files",
+        s(&files),
+        "--bank",
+        "1",
+        "--start",
+        "0",
+        "--no-ad",
+        "--duration",
+        "0.8",
+    ]);
+    assert!(out.contains("opened `pattern.bin` (Read)"), "{out}");
+    assert!(
+        out.contains("THREAD: pwm-playback: 100 samples played"),
+        "{out}"
+    );
+    // Without a files folder the requests are refused; the program holds its output until the
+    // monitor STOPs it.
+    let out = b.ok(&[
+        "monitor",
+        "--bank",
+        "1",
+        "--start",
+        "0",
+        "--no-ad",
+        "--duration",
+        "0.5",
+    ]);
+    assert!(out.contains("request refused (no --files DIR)"), "{out}");
+}
+
+#[test]
 fn record_writes_the_configured_acquisition_to_csv() {
     let b = Board::serve(&["--input", "0=const:4", "--input", "1=const:1"]);
     let out_csv = b.path("rec.csv");

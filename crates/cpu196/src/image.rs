@@ -237,6 +237,17 @@ impl Default for Image {
         flash
             .write(0, prginf::PTRPRG_BLOCK, &p)
             .expect("blank at start");
+        // Bank 1, set 0: the PWM playback of `pattern.bin` at 1 kHz.
+        let mut bank1: [ConfigSet; 8] = Default::default();
+        bank1[0].program = program::PWM_PLAYBACK;
+        bank1[0].cycle1 = 1250;
+        let (a, p) = prginf::encode(&bank1);
+        flash
+            .write(1, prginf::PRGINF_BLOCK, &a)
+            .expect("blank at start");
+        flash
+            .write(1, prginf::PTRPRG_BLOCK, &p)
+            .expect("blank at start");
         Self {
             boot: BootConfig::default(),
             serial: *b"BL196001",

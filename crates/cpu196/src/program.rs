@@ -170,7 +170,7 @@ pub struct Registry {
 
 impl Default for Registry {
     /// The shipped programs: 1 `logger`, 2 `threshold-alarm`, 3 `virtual-channels`,
-    /// 4 `pulse-train`.
+    /// 4 `pulse-train`, 5 `pwm-playback`.
     fn default() -> Self {
         let mut r = Self {
             programs: BTreeMap::new(),
@@ -190,6 +190,11 @@ impl Default for Registry {
             PULSE_TRAIN,
             "pulse-train",
             Box::new(|a| Box::new(PulseTrain::new(a))),
+        );
+        r.register(
+            PWM_PLAYBACK,
+            "pwm-playback",
+            Box::new(|_| Box::new(PwmPlayback::default())),
         );
         r
     }
@@ -213,6 +218,7 @@ pub const LOGGER: u16 = 1;
 pub const THRESHOLD_ALARM: u16 = 2;
 pub const VIRTUAL_CHANNELS: u16 = 3;
 pub const PULSE_TRAIN: u16 = 4;
+pub const PWM_PLAYBACK: u16 = 5;
 
 /// The threshold alarm's user command: `10h hi lo` sets the threshold (10-bit).
 pub const SET_THRESHOLD: u8 = 0x10;
@@ -399,6 +405,78 @@ impl UserProgram for PulseTrain {
         Flow::CONTINUE
     }
     fn fin(&mut self, k: &mut Api) {
+        k.pwm[0] = 0;
+    }
+}
+
+/// Plays a stimulation pattern kept on the PC: reads `pattern.bin` through the file service
+/// (`fread`, 64 bytes at a time, always one request ahead) and puts one byte on PWM 0 per
+/// software-timer-1 tick; at the end of the file it reports the count and stops.
+#[derive(Default)]
+pub struct PwmPlayback {
+    file: Option<u8>,
+    buffer: std::collections::VecDeque<u8>,
+    asked: bool,
+    at_end: bool,
+    played: u16,
+}
+
+impl PwmPlayback {
+    const CHUNK: u8 = 64;
+
+    fn refill(&mut self, k: &mut Api) {
+        if let Some(f) = self.file
+            && !self.asked
+            && !self.at_end
+            && self.buffer.len() < Self::CHUNK as usize
+        {
+            k.fread(f, Self::CHUNK);
+            self.asked = true;
+        }
+    }
+}
+
+impl UserProgram for PwmPlayback {
+    fn name(&self) -> &'static str {
+        "pwm-playback"
+    }
+    fn timers(&self) -> [bool; 2] {
+        [true, false]
+    }
+    fn init(&mut self, k: &mut Api) -> Flow {
+        self.file = Some(k.fopen("pattern.bin", FileMode::Read));
+        self.refill(k);
+        Flow::CONTINUE
+    }
+    fn fread(&mut self, k: &mut Api, _file: u8, data: &[u8]) {
+        self.asked = false;
+        self.at_end = data.is_empty();
+        self.buffer.extend(data);
+        self.refill(k);
+    }
+    fn timer(&mut self, k: &mut Api, _timer: u8) -> Flow {
+        match self.buffer.pop_front() {
+            Some(v) => {
+                k.pwm[0] = v;
+                self.played += 1;
+                self.refill(k);
+                Flow::CONTINUE
+            }
+            None if self.at_end => {
+                k.display_text(
+                    &format!("pwm-playback: {} samples played", self.played),
+                    true,
+                );
+                Flow::STOP
+            }
+            // Starved: the PC has not answered yet; hold the output.
+            None => Flow::CONTINUE,
+        }
+    }
+    fn fin(&mut self, k: &mut Api) {
+        if let Some(f) = self.file.take() {
+            k.fclose(f);
+        }
         k.pwm[0] = 0;
     }
 }

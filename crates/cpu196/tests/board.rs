@@ -674,3 +674,70 @@ fn emergency_erase_only_right_after_a_reset() {
     );
     assert_eq!(b.board.mode(), Mode::PoweredDown);
 }
+
+#[test]
+fn pwm_playback_reads_its_pattern_through_the_file_service() {
+    let mut b = Bench::new();
+    b.send(&Message::Start(Start::run(1, 0, false)));
+    b.run_for(5 * MS);
+    let m = b.take();
+    assert_eq!(m[0], msg(MsgCode::COMPLETED));
+    let Message::Thread(Thread::Open {
+        mode: FileMode::Read,
+        name,
+        file,
+    }) = &m[1]
+    else {
+        panic!("{m:?}")
+    };
+    assert_eq!(name, b"pattern.bin");
+    let file = *file;
+    assert_eq!(m[2], Message::Thread(Thread::ReadRequest { len: 64, file }));
+    // The PC serves the file: 100 bytes, then the end of the file, one answer per request.
+    let pattern: Vec<u8> = (0..100).map(|i| (i * 2) as u8).collect();
+    b.send(&Message::Msg(MsgCode::NO_ERROR));
+    let mut offset = 0;
+    let mut requests = 1;
+    let answer = |b: &mut Bench, offset: &mut usize| {
+        let end = (*offset + 64).min(pattern.len());
+        b.send(&Message::Thread(Thread::ReadData {
+            data: pattern[*offset..end].to_vec(),
+            file,
+        }));
+        *offset = end;
+    };
+    answer(&mut b, &mut offset);
+    let mut seen = vec![b.board.pwm()[0]];
+    let mut rest = Vec::new();
+    for _ in 0..300 {
+        b.run_for(MS / 2);
+        if seen.last() != Some(&b.board.pwm()[0]) {
+            seen.push(b.board.pwm()[0]);
+        }
+        for m in b.take() {
+            if m == (Message::Thread(Thread::ReadRequest { len: 64, file })) {
+                requests += 1;
+                answer(&mut b, &mut offset);
+            } else {
+                rest.push(m);
+            }
+        }
+    }
+    assert_eq!(
+        requests, 3,
+        "64 + 36 bytes, then the empty read that says end of file"
+    );
+    let m = rest;
+    assert_eq!(b.board.mode(), Mode::Upper);
+    assert!(
+        m.contains(&Message::Thread(Thread::Close { file })),
+        "{m:?}"
+    );
+    assert!(m.iter().any(|x| matches!(x, Message::Thread(Thread::Display { data, .. }) if data == b"pwm-playback: 100 samples played")), "{m:?}");
+    // What PWM 0 showed between our steps is the pattern, in order, up to its last value (the
+    // output returns to 0 at the end). All 100 were counted above.
+    let played: Vec<u8> = seen.into_iter().filter(|&v| v != 0).collect();
+    assert!(played.len() > 50, "{played:?}");
+    assert!(played.windows(2).all(|w| w[1] == w[0] + 2), "{played:?}");
+    assert_eq!(played.last(), pattern.last());
+}

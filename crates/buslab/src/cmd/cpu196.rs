@@ -62,6 +62,9 @@ pub enum Cmd {
         /// Bank of `--start`.
         #[arg(long, default_value_t = 0, value_parser = parse_bank)]
         bank: u8,
+        /// With `--start`: leave the 80C196 A/D off.
+        #[arg(long)]
+        no_ad: bool,
     },
     /// Enter the lower loop with a configuration set (START).
     Start(StartArgs),
@@ -385,11 +388,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             duration,
             start,
             bank,
+            no_ad,
         } => {
             let start = start.map(|config| StartArgs {
                 bank,
                 config,
-                no_ad: false,
+                no_ad,
                 pic_ad: false,
                 pic_timer: false,
             });
