@@ -381,6 +381,14 @@ impl<P: Port> Client<P> {
         )
     }
 
+    /// The board's 16 → 8 bit log table (boot blocks 6 and 7, at 600h).
+    pub fn log_table(&mut self) -> Result<LogTable, ClientError> {
+        let mut bytes = [0u8; 512];
+        bytes[..256].copy_from_slice(&self.boot_block(6)?[..]);
+        bytes[256..].copy_from_slice(&self.boot_block(7)?[..]);
+        Ok(LogTable::from_bytes(&bytes))
+    }
+
     /// The boot configuration (boot block 5); `None` if erased or not valid.
     pub fn boot_config(&mut self) -> Result<Option<(BootConfig, Vec<u8>)>, ClientError> {
         Ok(BootConfig::from_csboot(&*self.boot_block(5)?))
@@ -693,6 +701,11 @@ impl<W: Write> Recorder<W> {
             }
             _ => Ok(false),
         }
+    }
+
+    /// Expands log8 samples through this table (the board's, see [`Client::log_table`]).
+    pub fn set_log_table(&mut self, table: LogTable) {
+        self.table = table;
     }
 
     pub fn finish(mut self) -> io::Result<W> {

@@ -49,6 +49,10 @@ fn info_flash_pic_eeprom_over_a_pty() {
     assert_eq!(steps, 16);
     c.eeprom_write(&[7; 256]).unwrap();
     assert_eq!(*c.eeprom_read().unwrap(), [7; 256]);
+    assert_eq!(
+        c.log_table().unwrap(),
+        buslab_cpu196::acquisition::LogTable::default()
+    );
     let (c196, _) = c.cfgad(0, 0).unwrap();
     assert!(buslab_cpu196::adconfig::AdConfig::parse(&c196).is_ok());
     c.command(&Message::Pwm(Pwm::Set {

@@ -615,6 +615,13 @@ fn monitor<P: Port>(
     let mut last_ping = Instant::now() - Duration::from_secs(1);
     let mut last_heard = Instant::now();
     let mut lost = false;
+    if let Some(r) = rec.as_mut() {
+        // log8 samples expand through the board's own table (readable in the upper loop only).
+        match c.log_table() {
+            Ok(t) => r.set_log_table(t),
+            Err(e) => eprintln!("warning: log table not read ({e}); log8 samples use the default"),
+        }
+    }
     println!("monitoring; Ctrl-C to stop");
     if let Some(s) = start {
         c.start(s.word())?;
@@ -875,6 +882,8 @@ fn record<P: Port>(
     let mut rec = Recorder::new(std::io::BufWriter::new(
         fs::File::create(out).with_context(|| format!("creating {}", out.display()))?,
     ))?;
+    // log8 samples expand through the board's own table.
+    rec.set_log_table(c.log_table()?);
     c.start(start.word())?;
     let end = Instant::now() + Duration::from_secs_f64(duration);
     let mut last_ping = Instant::now();
