@@ -59,6 +59,42 @@ fn seed_experiment_shows_bus_off_and_recovery() {
 }
 
 #[test]
+fn rx_and_errors_add_receptions_and_error_lines() {
+    let path = scenario("noise.toml");
+    let out = stdout_of(&[
+        "sim",
+        path.to_str().unwrap(),
+        "--duration",
+        "100ms",
+        "--rx",
+        "--errors",
+    ]);
+    // Each frame once as sent (T) by its transmitter and once as received (R) by each other
+    // node, as `candump -x` marks them; names right-aligned like candump's interface column.
+    assert!(
+        out.contains("(0000000000.000488)     a 101#0011223344556677 T\n"),
+        "{out}"
+    );
+    assert!(out.contains(") flaky 101#0011223344556677 R\n"), "{out}");
+    let frames = |suffix: &str| {
+        out.lines()
+            .filter(|l| l.starts_with('(') && l.ends_with(suffix))
+            .count()
+    };
+    assert!(frames(" T") > 20);
+    assert_eq!(frames(" R"), 2 * frames(" T"));
+    let error = out
+        .lines()
+        .find(|l| l.contains(" error as "))
+        .expect("the noise scenario has errors");
+    assert!(error.starts_with("# (0000000000."), "{error}");
+    assert!(
+        error.contains(" at bit ") && error.ends_with(')'),
+        "{error}"
+    );
+}
+
+#[test]
 fn quiet_prints_only_the_summary_and_vcd_is_written() {
     let dir = tempfile::tempdir().unwrap();
     let vcd = dir.path().join("out.vcd");
