@@ -741,3 +741,59 @@ fn pwm_playback_reads_its_pattern_through_the_file_service() {
     assert!(played.windows(2).all(|w| w[1] == w[0] + 2), "{played:?}");
     assert_eq!(played.last(), pattern.last());
 }
+
+mod garbage {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Sends `m` and returns what came back, ignoring frame errors (the host may have joined
+    /// the board's stream mid-frame).
+    fn ask_tolerant(b: &mut Bench, m: &Message, ms: u64) -> Vec<Message> {
+        b.send(m);
+        b.run_for(ms * MS);
+        b.seen
+            .drain(..)
+            .filter_map(|(_, e)| match e {
+                Event::Message(m) => Some(m),
+                Event::Error(_) => None,
+            })
+            .collect()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
+        /// Whatever arrives on the line, in either loop, the kernel neither panics nor hangs,
+        /// and after a pause it answers CPUINF again (unless the garbage happened to power it
+        /// down).
+        #[test]
+        fn random_bytes_never_break_the_kernel(
+            bytes in proptest::collection::vec(any::<u8>(), 0..1500),
+            gaps in proptest::collection::vec(0u64..3, 0..1500),
+            lower in any::<bool>(),
+        ) {
+            let mut b = Bench::new();
+            if lower {
+                ask_tolerant(&mut b, &Message::Start(Start::run(0, 0, true)), 2);
+            }
+            let mut out = Vec::new();
+            for (i, &byte) in bytes.iter().enumerate() {
+                let gap = gaps.get(i).copied().unwrap_or(0) * 50_000;
+                b.now += b.byte_ns() + gap;
+                b.board.poll(b.now, &mut out);
+                for x in out.drain(..) {
+                    let _ = b.host.push(b.now, x);
+                }
+                b.board.receive(b.now, byte);
+            }
+            b.run_for(300 * MS);
+            // Error replies on top of a stream can fill the transmit FIFO (4 KiB, 0.36 s at
+            // 115200): give it time to drain.
+            ask_tolerant(&mut b, &Message::Stop, 600);
+            if b.board.mode() == Mode::Upper {
+                let r = ask_tolerant(&mut b, &Message::CpuInfoRequest, 10);
+                prop_assert!(r.iter().any(|m| matches!(m, Message::CpuInfo(_))), "{:?}", r);
+            }
+        }
+    }
+}
