@@ -207,6 +207,7 @@ pub enum FlashCmd {
 
 #[derive(clap::Subcommand)]
 pub enum PicCmd {
+    /// Read a program block (4096 bytes) to a file.
     Read {
         #[arg(long, value_parser = parse_pic_block)]
         block: u8,
@@ -224,6 +225,7 @@ pub enum PicCmd {
 
 #[derive(clap::Subcommand)]
 pub enum EepromCmd {
+    /// Read the EEPROM (256 bytes) to a file.
     Read {
         #[arg(long)]
         out: PathBuf,
