@@ -26,6 +26,9 @@ pub struct Args {
     /// Seed of the simulation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Prefix each frame with its virtual time since the start, as `candump -t z`.
+    #[arg(short = 't', long)]
+    pub timestamps: bool,
 }
 
 /// Interface name shown in the candump-style output.
@@ -63,7 +66,10 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
 
     let stdout = io::stdout();
     let mut out = stdout.lock();
-    let mut candump = Candump::default();
+    let mut candump = Candump {
+        timestamps: args.timestamps.then_some(args.bitrate),
+        ..Candump::default()
+    };
     let started = Instant::now();
     loop {
         // Virtual time follows the wall clock and is never ahead of it.
@@ -72,8 +78,8 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
         if let Some(end) = end {
             target = target.min(end);
         }
-        for frame in lab.advance(target) {
-            candump.print(&mut out, IFACE, &frame)?;
+        for (time, frame) in lab.advance(target) {
+            candump.print(&mut out, IFACE, time, &frame)?;
         }
         out.flush()?;
         if end.is_some_and(|end| lab.now() >= end) || stop.load(Ordering::SeqCst) {
@@ -149,8 +155,9 @@ impl Lab {
         self.bus.now()
     }
 
-    /// Runs everything up to bit-time `target`; returns the frames the monitor received.
-    fn advance(&mut self, target: BitTime) -> Vec<Frame> {
+    /// Runs everything up to bit-time `target`; returns the frames the monitor received, with
+    /// their bit-time.
+    fn advance(&mut self, target: BitTime) -> Vec<(BitTime, Frame)> {
         while self.bus.now() < target {
             let until = target.min(self.counter.next);
             self.bus.run_until(until);
@@ -165,7 +172,7 @@ impl Lab {
                 Happening::Node {
                     node,
                     event: Event::Received(frame),
-                } if node == self.monitor => Some(frame),
+                } if node == self.monitor => Some((r.time, frame)),
                 _ => None,
             })
             .collect()
@@ -200,15 +207,28 @@ impl CounterNode {
     }
 }
 
-/// candump's default terminal format: `  sim0  123   [2]  11 22`.
+/// candump's default terminal format: `  sim0  123   [2]  11 22`, with `-t z` timestamps
+/// ` (000.012345)  sim0  123   [2]  11 22`.
 #[derive(Default)]
 struct Candump {
     /// Once an extended frame was shown, standard IDs are padded to 8 columns (as candump).
     eff_seen: bool,
+    /// Print timestamps (bit-times at this bit rate).
+    timestamps: Option<u32>,
 }
 
 impl Candump {
-    fn print(&mut self, out: &mut impl Write, iface: &str, frame: &Frame) -> io::Result<()> {
+    fn print(
+        &mut self,
+        out: &mut impl Write,
+        iface: &str,
+        time: BitTime,
+        frame: &Frame,
+    ) -> io::Result<()> {
+        if let Some(bitrate) = self.timestamps {
+            let (s, us) = buslab_sim::time::seconds_micros(time, bitrate);
+            write!(out, " ({s:03}.{us:06})")?;
+        }
         self.eff_seen |= frame.is_extended();
         let id = frame.id().to_string();
         let id = if self.eff_seen && !frame.is_extended() {
@@ -237,9 +257,24 @@ mod tests {
         let mut c = Candump::default();
         let mut out = Vec::new();
         for f in frames {
-            c.print(&mut out, "vcan0", &f.parse().unwrap()).unwrap();
+            c.print(&mut out, "vcan0", 0, &f.parse().unwrap()).unwrap();
         }
         String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn candump_zero_based_timestamps() {
+        let mut c = Candump {
+            timestamps: Some(500_000),
+            ..Candump::default()
+        };
+        let mut out = Vec::new();
+        c.print(&mut out, "sim0", 617_284, &"123#11".parse().unwrap())
+            .unwrap();
+        assert_eq!(
+            String::from_utf8(out).unwrap(),
+            " (001.234568)  sim0  123   [1]  11\n"
+        );
     }
 
     #[test]
