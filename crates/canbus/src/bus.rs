@@ -1,0 +1,137 @@
+//! A CAN bus interface in the spirit of python-can's `BusABC`: send frames, receive
+//! timestamped messages, filter by ID and mask, ask for the error state.
+
+use std::fmt;
+use std::time::Duration;
+
+use buslab_can::Frame;
+
+/// One bus: a socketcand connection, a managed SJA1000, a simulated node.
+///
+/// Like python-can: `recv(None)` blocks until a message arrives, `recv(Some(t))` returns
+/// `Ok(None)` when `t` passes without one. An empty filter list accepts every frame.
+pub trait CanBus {
+    /// Queues `frame` for transmission (does not wait for it to reach the bus).
+    fn send(&mut self, frame: &Frame) -> Result<(), BusError>;
+    /// The next message that passes the filters, or `None` after `timeout`.
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError>;
+    /// Replaces the receive filters; `&[]` accepts everything.
+    fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError>;
+    /// The controller's error state.
+    fn state(&mut self) -> Result<BusState, BusError>;
+    /// A human-readable description of the channel (like python-can's `channel_info`).
+    fn channel_info(&self) -> String;
+}
+
+/// A received (or sent, `is_rx = false`) frame with its time and channel, like `can.Message`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Message {
+    /// Seconds (Unix epoch for wall-clock sources; virtual seconds for simulations).
+    pub timestamp: f64,
+    pub channel: String,
+    pub frame: Frame,
+    /// `true` for a received frame, `false` for one this node sent.
+    pub is_rx: bool,
+}
+
+impl Message {
+    /// A received message.
+    pub fn rx(timestamp: f64, channel: impl Into<String>, frame: Frame) -> Self {
+        Self {
+            timestamp,
+            channel: channel.into(),
+            frame,
+            is_rx: true,
+        }
+    }
+}
+
+/// candump-like: `(1700000000.123456) can0 123#DEADBEEF`, with ` TX` for sent frames.
+impl fmt::Display for Message {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "({:.6}) {} {}", self.timestamp, self.channel, self.frame)?;
+        if !self.is_rx {
+            f.write_str(" TX")?;
+        }
+        Ok(())
+    }
+}
+
+/// A receive filter with python-can semantics: a frame matches when
+/// `(frame_id ^ id) & mask == 0` and, if `extended` is `Some`, the ID format agrees.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Filter {
+    pub id: u32,
+    pub mask: u32,
+    /// `Some(true)`: extended IDs only; `Some(false)`: standard IDs only; `None`: both.
+    pub extended: Option<bool>,
+}
+
+impl Filter {
+    /// Matches exactly one standard ID.
+    pub const fn standard(id: u16) -> Self {
+        Self {
+            id: id as u32,
+            mask: 0x7FF,
+            extended: Some(false),
+        }
+    }
+
+    /// Matches exactly one extended ID.
+    pub const fn extended(id: u32) -> Self {
+        Self {
+            id,
+            mask: 0x1FFF_FFFF,
+            extended: Some(true),
+        }
+    }
+
+    pub fn matches(&self, frame: &Frame) -> bool {
+        let id = frame.id();
+        (id.as_raw() ^ self.id) & self.mask == 0
+            && self.extended.is_none_or(|ext| ext == id.is_extended())
+    }
+}
+
+/// Software filtering: whether any filter matches (an empty list matches everything).
+pub fn matches_any(filters: &[Filter], frame: &Frame) -> bool {
+    filters.is_empty() || filters.iter().any(|f| f.matches(frame))
+}
+
+/// The error state of a controller, as python-can names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BusState {
+    /// Error-active (including the warning level).
+    Active,
+    /// Error-passive: a counter is above 127.
+    Passive,
+    /// Bus-off: the controller takes no part in bus traffic.
+    BusOff,
+}
+
+impl fmt::Display for BusState {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            BusState::Active => "error-active",
+            BusState::Passive => "error-passive",
+            BusState::BusOff => "bus-off",
+        })
+    }
+}
+
+/// Why a bus operation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum BusError {
+    #[error("the bus is closed")]
+    Closed,
+    #[error("transmit queue full: {0}")]
+    QueueFull(String),
+    #[error("the controller refused the frame: {0}")]
+    Rejected(String),
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    #[error("protocol error: {0}")]
+    Protocol(String),
+    #[error("{0}")]
+    Other(String),
+}

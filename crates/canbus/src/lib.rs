@@ -1,0 +1,37 @@
+//! buslab's CAN host library (the successor of the seed's CANAPI).
+//!
+//! - [`bus`]: a bus interface in the spirit of python-can's `BusABC` ([`CanBus`], [`Message`],
+//!   [`Filter`], [`BusState`]).
+//! - [`regs`]: register access ([`RegisterAccess`]), the seam between a driver and a chip.
+//! - [`config`]: SJA1000 configuration with defaults and validation ([`Sja1000Config`]).
+//! - [`driver`]: the SJA1000 driver, BasicCAN and PeliCAN behind one interface
+//!   ([`Sja1000Driver`]); it touches the chip only through register reads and writes.
+//! - [`decode`]: status, error-code and arbitration-lost registers decoded into words.
+//! - [`manager`]: the single owner of a driver: one thread, listeners and requests
+//!   ([`Manager`], [`ManagerHandle`]).
+//! - [`file`]: the file protocol for data longer than 8 bytes (SPEC N5).
+
+pub mod bus;
+pub mod config;
+pub mod decode;
+pub mod driver;
+pub mod file;
+pub mod manager;
+pub mod regs;
+
+pub use bus::{BusError, BusState, CanBus, Filter, Message};
+pub use config::{
+    AcceptanceFilter, ClockOut, ConfigError, InterruptEnables, Sja1000Config, Timing,
+};
+pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
+pub use driver::{ControllerState, DriverError, DriverEvent, Sja1000Driver, TxFailure, TxMode};
+pub use file::{FileAssembler, FileError};
+pub use manager::{
+    Confirmation, Manager, ManagerBus, ManagerConfig, ManagerError, ManagerHandle, SendError,
+    Snapshot,
+};
+pub use regs::{NoChip, RegisterAccess, SharedChip, shared_chip};
+
+/// Re-exported so users need not depend on the model crates for the basic types.
+pub use buslab_can::{Frame, Id};
+pub use buslab_sja1000::{BitTiming, CanMode, FilterMode};

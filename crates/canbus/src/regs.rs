@@ -1,0 +1,96 @@
+//! Register access: the only way the driver talks to a chip (the seed's `MemoryMappedDevice`).
+
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use buslab_sja1000::Sja1000;
+
+/// Byte-wide registers at 8-bit addresses, as a CPU sees a memory-mapped SJA1000.
+pub trait RegisterAccess {
+    /// A read, with the chip's side effects (reading IR clears it, ALC/ECC re-arm).
+    fn read(&mut self, addr: u8) -> u8;
+    /// A write, with the chip's side effects.
+    fn write(&mut self, addr: u8, value: u8);
+    /// A read without side effects, if the device can do that (a model can, real hardware
+    /// cannot). The default says it cannot.
+    fn peek(&mut self, addr: u8) -> Option<u8> {
+        let _ = addr;
+        None
+    }
+}
+
+impl RegisterAccess for Sja1000 {
+    fn read(&mut self, addr: u8) -> u8 {
+        Sja1000::read(self, addr)
+    }
+    fn write(&mut self, addr: u8, value: u8) {
+        Sja1000::write(self, addr, value)
+    }
+    fn peek(&mut self, addr: u8) -> Option<u8> {
+        Some(Sja1000::peek(self, addr))
+    }
+}
+
+impl<T: RegisterAccess + ?Sized> RegisterAccess for &mut T {
+    fn read(&mut self, addr: u8) -> u8 {
+        (**self).read(addr)
+    }
+    fn write(&mut self, addr: u8, value: u8) {
+        (**self).write(addr, value)
+    }
+    fn peek(&mut self, addr: u8) -> Option<u8> {
+        (**self).peek(addr)
+    }
+}
+
+impl<T: RegisterAccess + ?Sized> RegisterAccess for Box<T> {
+    fn read(&mut self, addr: u8) -> u8 {
+        (**self).read(addr)
+    }
+    fn write(&mut self, addr: u8, value: u8) {
+        (**self).write(addr, value)
+    }
+    fn peek(&mut self, addr: u8) -> Option<u8> {
+        (**self).peek(addr)
+    }
+}
+
+/// A chip shared between the thread that steps the bus and the thread that owns the driver.
+/// Each register access takes the lock once, like one bus cycle of a CPU.
+pub type SharedChip = Arc<Mutex<Sja1000>>;
+
+/// A new chip (after hardware reset) ready to share.
+pub fn shared_chip() -> SharedChip {
+    Arc::new(Mutex::new(Sja1000::new()))
+}
+
+/// A poisoned lock still holds a consistent chip (every register access is atomic), so it is
+/// used as is.
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+impl<T: RegisterAccess> RegisterAccess for Arc<Mutex<T>> {
+    fn read(&mut self, addr: u8) -> u8 {
+        lock(self).read(addr)
+    }
+    fn write(&mut self, addr: u8, value: u8) {
+        lock(self).write(addr, value)
+    }
+    fn peek(&mut self, addr: u8) -> Option<u8> {
+        lock(self).peek(addr)
+    }
+}
+
+/// A data bus with nothing on it: every read returns 0xFF (pulled-up lines), writes vanish.
+/// Probing it must fail with "no chip".
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoChip;
+
+impl RegisterAccess for NoChip {
+    fn read(&mut self, _addr: u8) -> u8 {
+        0xFF
+    }
+    fn write(&mut self, _addr: u8, _value: u8) {}
+}
