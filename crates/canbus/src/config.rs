@@ -223,7 +223,7 @@ pub enum ConfigError {
     Timing(#[from] TimingError),
     #[error("clock-out divider {divider} is not available: use 1, 2, 4, 6, 8, 10, 12, 14 or off")]
     ClockDivider { divider: u8 },
-    #[error("{what} exists only in PeliCAN mode; BasicCAN has no {what}")]
+    #[error("{what} exists only in PeliCAN mode, not in BasicCAN")]
     PeliOnly { what: &'static str },
     #[error("a {filter} acceptance filter does not fit {mode} mode; {allowed}")]
     FilterMode {
