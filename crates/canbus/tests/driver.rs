@@ -48,7 +48,6 @@ fn default_config_is_the_seed_init_in_the_seed_order() {
     };
     let mut driver = Sja1000Driver::new(&mut recorder);
     driver.init(&Sja1000Config::default()).unwrap();
-    drop(driver);
     let chip = &recorder.inner;
     assert_eq!(chip.mode(), CanMode::Peli);
     assert!(!chip.in_reset_mode());
