@@ -25,7 +25,8 @@ pub struct Pty {
 impl Pty {
     /// Opens a new pseudo-terminal in raw mode (no echo, no line editing, 8 bits).
     pub fn open() -> io::Result<Self> {
-        let master = posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY)?;
+        // Close-on-exec: a child process must not keep the device's side of the line open.
+        let master = posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY | OFlag::O_CLOEXEC)?;
         grantpt(&master)?;
         unlockpt(&master)?;
         let path = PathBuf::from(ptsname_r(&master)?);

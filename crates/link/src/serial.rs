@@ -1,8 +1,10 @@
 //! Opening a serial port (or the slave side of a PTY) as a host tool does.
 
+use std::os::fd::{AsRawFd, BorrowedFd};
 use std::path::Path;
 use std::time::Duration;
 
+use nix::fcntl::{FcntlArg, FdFlag, fcntl};
 use serialport::{DataBits, FlowControl, SerialPort, StopBits};
 
 use crate::{LineSettings, Parity};
@@ -44,15 +46,23 @@ pub fn open_serial(
         Parity::Even => serialport::Parity::Even,
         Parity::Odd => serialport::Parity::Odd,
     };
-    serialport::new(path.to_string_lossy(), line.baud)
+    let open_error = |source| SerialError::Open {
+        path: path.display().to_string(),
+        source,
+    };
+    let port = serialport::new(path.to_string_lossy(), line.baud)
         .data_bits(data_bits)
         .stop_bits(stop_bits)
         .parity(parity)
         .flow_control(FlowControl::None)
         .timeout(timeout)
-        .open()
-        .map_err(|source| SerialError::Open {
-            path: path.display().to_string(),
-            source,
-        })
+        .open_native()
+        .map_err(open_error)?;
+    // serialport leaves the descriptor inheritable: a child process started meanwhile would
+    // keep the port (and its exclusive lock) after we close it.
+    // SAFETY: the descriptor is owned by `port`, which outlives this borrow.
+    let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+    fcntl(fd, FcntlArg::F_SETFD(FdFlag::FD_CLOEXEC))
+        .map_err(|errno| open_error(serialport::Error::from(std::io::Error::from(errno))))?;
+    Ok(Box::new(port))
 }

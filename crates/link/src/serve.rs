@@ -32,9 +32,10 @@ const MAX_IDLE: Duration = Duration::from_millis(20);
 
 /// Serves `device` on `pty` until `stop` is set.
 ///
-/// Bytes the client writes arrive at the device no faster than the line allows: each gets an
-/// arrival time at least one character time (at `line`) after the previous one, as on a real
-/// UART, even though a PTY delivers a burst at once. When the client's own settings do not
+/// Bytes the client writes arrive at the device as over a real UART at `line`: each is
+/// delivered when its stop bits end, one character time after the client wrote it and at
+/// least one character time after the previous byte, even though a PTY passes a burst at once.
+/// Bytes that have arrived are delivered before control work runs. When the client's own settings do not
 /// match `line` (other baud rate, data bits or parity) its bytes would be framing errors on a
 /// real line: they are dropped, and one warning goes to stderr.
 pub fn serve<D: ByteDevice>(
@@ -56,19 +57,20 @@ pub fn serve<D: ByteDevice>(
 
     while !stop.load(Ordering::Relaxed) {
         let now = epoch.elapsed().as_nanos() as u64;
-        while controls_open {
-            match control.try_recv() {
-                Ok(work) => work(device, now),
-                Err(TryRecvError::Empty) => break,
-                Err(TryRecvError::Disconnected) => controls_open = false,
-            }
-        }
+        // Bytes that have finished arriving go first, so control work sees them.
         while let Some(&(at, byte)) = inbound.front() {
             if at > now {
                 break;
             }
             device.receive(at, byte);
             inbound.pop_front();
+        }
+        while controls_open {
+            match control.try_recv() {
+                Ok(work) => work(device, now),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => controls_open = false,
+            }
         }
         device.poll(now, &mut produced);
         outbound.extend(produced.drain(..));
@@ -109,8 +111,10 @@ pub fn serve<D: ByteDevice>(
                         continue;
                     }
                     let read_at = epoch.elapsed().as_nanos() as u64;
+                    // A byte the client wrote at `read_at` has fully arrived one character
+                    // time later, and no sooner than one character after the previous one.
                     for &byte in &buf[..n] {
-                        last_arrival = read_at.max(last_arrival + byte_ns);
+                        last_arrival = read_at.max(last_arrival) + byte_ns;
                         inbound.push_back((last_arrival, byte));
                     }
                 }

@@ -92,7 +92,9 @@ fn bytes_cross_the_pty_paced_at_the_line_rate() {
 
     served.stop.store(true, Ordering::Relaxed);
     let dev = served.thread.join().unwrap();
-    // The burst of 8 arrived no faster than the line allows: one character time apart.
+    // The burst of 8 arrived no faster than the line allows: one character time apart, the
+    // first one a whole character after the serve loop started (nothing arrives instantly).
+    assert!(dev.arrivals[0] >= line.byte_time_ns());
     let gaps: Vec<u64> = dev.arrivals[..8].windows(2).map(|w| w[1] - w[0]).collect();
     assert!(
         gaps.iter().all(|&g| g >= line.byte_time_ns()),
@@ -147,4 +149,41 @@ fn link_at_makes_and_removes_a_symlink_and_never_replaces_a_file() {
     assert!(pty.link_at(&file).is_err());
     assert_eq!(std::fs::read(&file).unwrap(), b"keep me");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn ports_and_ptys_are_not_inherited_by_child_processes() {
+    let pty = Pty::open().unwrap();
+    let _port = open_serial(pty.path(), LineSettings::n81(9600), Duration::from_secs(1)).unwrap();
+    let mut checked = 0;
+    for entry in std::fs::read_dir("/proc/self/fd").unwrap() {
+        let entry = entry.unwrap();
+        let Ok(fd) = entry.file_name().to_string_lossy().parse::<i32>() else {
+            continue;
+        };
+        let Ok(target) = std::fs::read_link(entry.path()) else {
+            continue; // closed meanwhile by another test
+        };
+        let target = target.to_string_lossy();
+        if fd <= 2 || !(target.starts_with("/dev/pts/") || target == "/dev/ptmx") {
+            continue;
+        }
+        // SAFETY: only queried; an fd closed meanwhile just gives EBADF.
+        let flags = nix::fcntl::fcntl(
+            unsafe { std::os::fd::BorrowedFd::borrow_raw(fd) },
+            nix::fcntl::FcntlArg::F_GETFD,
+        );
+        if let Ok(flags) = flags {
+            assert_ne!(
+                flags & libc::FD_CLOEXEC,
+                0,
+                "fd {fd} ({target}) is inheritable"
+            );
+            checked += 1;
+        }
+    }
+    assert!(
+        checked >= 3,
+        "expected master, kept slave and port; saw {checked}"
+    );
 }

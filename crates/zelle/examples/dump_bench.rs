@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use buslab_link::{Control, Pty};
 use buslab_zelle::client::{Client, Transfer};
 use buslab_zelle::timing::{BYTE_NS, LINE};
-use buslab_zelle::{Cell, DATA_AREA, LinkedCell};
+use buslab_zelle::{Cell, DATA_AREA};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let len: usize = match std::env::args().nth(1) {
@@ -24,12 +24,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let pattern: Vec<u8> = (0..len).map(|i| (i * 31 + 7) as u8).collect();
     let mut cell = Cell::default();
     cell.write_ram(DATA_AREA, &pattern);
-    let mut cell = LinkedCell::new(cell);
 
     let pty = Pty::open()?;
     let path = pty.path().to_path_buf();
     let stop = Arc::new(AtomicBool::new(false));
-    let (_control, control_rx) = mpsc::channel::<Control<LinkedCell>>();
+    let (_control, control_rx) = mpsc::channel::<Control<Cell>>();
     let server = {
         let stop = stop.clone();
         std::thread::spawn(move || buslab_link::serve(&mut cell, &pty, LINE, &control_rx, &stop))

@@ -25,7 +25,6 @@ pub mod timing;
 
 pub use cell::{Activity, COUNT_HIGH_REGISTER, COUNT_LOW_REGISTER, Cell, InputError, Mode, Stats};
 pub use command::Command;
-pub use device::LinkedCell;
 pub use memory::{BatteryRam, StateFileError};
 pub use memory::{
     DATA_AREA, EXT_RAM_SIZE, INTERNAL_RAM_SIZE, PARAMS_LEN, PROGRAM_AREA, START_BYTE,

@@ -17,7 +17,7 @@ use buslab_zelle::analog::{Source, SourceSpec, to_volts};
 use buslab_zelle::client::{Client, Measurement, Progress, SeriesParams, Transfer};
 use buslab_zelle::control::{self, ControlCommand, parse_duration_ns, parse_number};
 use buslab_zelle::timing::LINE;
-use buslab_zelle::{BatteryRam, Cell, DATA_AREA, LinkedCell, PARAMS_LEN};
+use buslab_zelle::{BatteryRam, Cell, DATA_AREA, PARAMS_LEN};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -414,7 +414,7 @@ pub struct ServeOptions {
 /// A cell served on a PTY by a background thread.
 pub struct ServedCell {
     path: PathBuf,
-    control: Sender<Control<LinkedCell>>,
+    control: Sender<Control<Cell>>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<io::Result<()>>>,
 }
@@ -440,8 +440,8 @@ impl ServedCell {
     ) -> anyhow::Result<R> {
         let (tx, rx) = mpsc::channel();
         self.control
-            .send(Box::new(move |linked: &mut LinkedCell, now| {
-                let _ = tx.send(work(linked.at(now), now));
+            .send(Box::new(move |cell: &mut Cell, now| {
+                let _ = tx.send(work(cell, now));
             }))
             .ok()
             .context("the cell's serve thread has stopped")?;
@@ -449,7 +449,7 @@ impl ServedCell {
             .context("the cell's serve thread did not answer")
     }
 
-    fn sender(&self) -> Sender<Control<LinkedCell>> {
+    fn sender(&self) -> Sender<Control<Cell>> {
         self.control.clone()
     }
 
@@ -486,14 +486,13 @@ pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
     for (ch, source) in &options.analog {
         cell.set_analog(*ch, source.clone())?;
     }
-    let mut cell = LinkedCell::new(cell);
     let mut pty = Pty::open().context("opening a pseudo-terminal")?;
     if let Some(link) = &options.link {
         pty.link_at(link)
             .with_context(|| format!("linking {}", link.display()))?;
     }
     let path = pty.path().to_path_buf();
-    let (control_tx, control_rx) = mpsc::channel::<Control<LinkedCell>>();
+    let (control_tx, control_rx) = mpsc::channel::<Control<Cell>>();
     let stop = Arc::new(AtomicBool::new(false));
 
     // Every second, ask the serve loop for the RAM if it changed, and save it.
@@ -505,8 +504,7 @@ pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
             while !stop.load(Ordering::Relaxed) {
                 thread::sleep(Duration::from_secs(1));
                 let (tx, rx) = mpsc::channel();
-                let work: Control<LinkedCell> = Box::new(move |linked: &mut LinkedCell, now| {
-                    let cell = linked.at(now);
+                let work: Control<Cell> = Box::new(move |cell: &mut Cell, now| {
                     let _ = tx.send((cell.ram_generation(), cell.ram().clone()));
                 });
                 if sender.send(work).is_err() {
@@ -531,7 +529,7 @@ pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
         .spawn(move || {
             let result = buslab_link::serve(&mut cell, &pty, LINE, &control_rx, &thread_stop);
             if let Some(path) = &state
-                && let Err(e) = save_state(path, cell.cell().ram())
+                && let Err(e) = save_state(path, cell.ram())
             {
                 eprintln!("warning: {e:#}");
             }
@@ -586,7 +584,7 @@ fn load_source(spec: SourceSpec) -> anyhow::Result<Source> {
 /// power-off saves it too. Returns the reply line.
 fn handle_line(
     line: &str,
-    control: &Sender<Control<LinkedCell>>,
+    control: &Sender<Control<Cell>>,
     state: Option<&Path>,
 ) -> Option<String> {
     let cmd = match ControlCommand::parse(line) {
@@ -606,8 +604,7 @@ fn handle_line(
     };
     let save = matches!(cmd, ControlCommand::Save | ControlCommand::PowerOff);
     let (tx, rx) = mpsc::channel();
-    let work: Control<LinkedCell> = Box::new(move |linked: &mut LinkedCell, now| {
-        let cell = linked.at(now);
+    let work: Control<Cell> = Box::new(move |cell: &mut Cell, now| {
         let reply = control::apply(cell, now, &cmd);
         let _ = tx.send((reply, save.then(|| cell.ram().clone())));
     });
@@ -697,7 +694,7 @@ struct ControlSocket {
 impl ControlSocket {
     fn bind(
         path: &Path,
-        sender: Sender<Control<LinkedCell>>,
+        sender: Sender<Control<Cell>>,
         state: Option<PathBuf>,
     ) -> anyhow::Result<ControlSocket> {
         if let Ok(meta) = fs::symlink_metadata(path) {
@@ -727,11 +724,7 @@ impl Drop for ControlSocket {
     }
 }
 
-fn serve_control_client(
-    stream: UnixStream,
-    sender: &Sender<Control<LinkedCell>>,
-    state: Option<&Path>,
-) {
+fn serve_control_client(stream: UnixStream, sender: &Sender<Control<Cell>>, state: Option<&Path>) {
     let Ok(mut writer) = stream.try_clone() else {
         return;
     };
