@@ -13,6 +13,12 @@ fn pyserial_drives_a_served_cell() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let python = root.join(".venv/bin/python");
     if !python.exists() {
+        // CI installs it (scripts/setup-test-deps.sh): there, a missing tool is a failure.
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "{} is missing in CI",
+            python.display()
+        );
         eprintln!(
             "SKIPPED: {} is missing; run scripts/setup-test-deps.sh to install pyserial",
             python.display()
