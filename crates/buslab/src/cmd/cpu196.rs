@@ -22,13 +22,16 @@ use buslab_cpu196::{Board, Image};
 use buslab_link::{LineSettings, open_serial};
 use indicatif::{ProgressBar, ProgressStyle};
 
+/// The line rate a new board image boots with.
+pub const DEFAULT_BAUD: u32 = 115_200;
+
 #[derive(clap::Args)]
 pub struct Args {
     /// Serial port of the board: a real port or the PTY `cpu196 serve` printed.
     #[arg(long, short, global = true, value_name = "PATH")]
     pub port: Option<PathBuf>,
     /// Line rate (the board's boot configuration; 8N1).
-    #[arg(long, global = true, default_value_t = 115200)]
+    #[arg(long, global = true, default_value_t = DEFAULT_BAUD)]
     pub baud: u32,
     /// Do not ask before destructive operations (erase, write, power down, reset).
     #[arg(long, global = true)]
@@ -325,7 +328,6 @@ fn parse_inputs(spec: &[String], into: &mut [Source; 8], what: &str) -> anyhow::
 /// A served board for `buslab lab` and tests: a PTY in a background thread; stop it by
 /// dropping the handle. `image`: load it if it exists (else start from the default image), and
 /// save it there on changes.
-#[allow(dead_code)] // for `buslab lab`
 pub fn spawn_served(
     image: Option<&Path>,
     link: Option<&Path>,

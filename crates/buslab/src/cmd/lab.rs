@@ -1,14 +1,15 @@
 //! `buslab lab`: the whole virtual bench, paced to real time.
 //!
-//! Today the bench is a simulated CAN bus with a few nodes exchanging periodic and bursty
-//! traffic, and a listen-only monitor whose frames are printed like `candump` prints them.
-//! Devices served on pseudo-terminals (ZELLE, CPU196) are started in [`Lab::start`], next to
-//! the bus, and stepped in [`Lab::advance`].
+//! The bench is a simulated CAN bus with a few nodes exchanging periodic and bursty traffic,
+//! and a listen-only monitor whose frames are printed like `candump` prints them; next to it a
+//! ZELLE cell and a CPU196 board, each served on its own pseudo-terminal (see [`Devices`]).
 
 use std::io::{self, Write};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
+
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use buslab_can::controller::{ControllerConfig, Event};
@@ -29,6 +30,13 @@ pub struct Args {
     /// Prefix each frame with its virtual time since the start, as `candump -t z`.
     #[arg(short = 't', long)]
     pub timestamps: bool,
+    /// Keep the devices' state here (zelle.toml, cpu196.toml) and link their ports as
+    /// DIR/zelle and DIR/cpu196; default: in memory, ports printed at start.
+    #[arg(long, value_name = "DIR")]
+    pub dir: Option<PathBuf>,
+    /// Only the CAN bus: no ZELLE cell or CPU196 board.
+    #[arg(long)]
+    pub no_devices: bool,
 }
 
 /// Interface name shown in the candump-style output.
@@ -57,12 +65,21 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
             .context("cannot install the Ctrl-C handler")?;
     }
     let end = args.duration.map(|d| d.to_bits(args.bitrate));
+    let devices = if args.no_devices {
+        None
+    } else {
+        Some(Devices::start(args.dir.as_deref())?)
+    };
     let mut lab = Lab::start(args.bitrate, args.seed);
     eprintln!(
-        "buslab lab: simulated CAN bus {IFACE} at {} bit/s, nodes: {}; Ctrl-C to stop",
+        "buslab lab: simulated CAN bus {IFACE} at {} bit/s, nodes: {}",
         args.bitrate,
         lab.node_names().join(", ")
     );
+    if let Some(devices) = &devices {
+        devices.describe();
+    }
+    eprintln!("Ctrl-C to stop");
 
     let stdout = io::stdout();
     let mut out = stdout.lock();
@@ -87,7 +104,68 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
         }
         std::thread::sleep(SLICE);
     }
+    if let Some(devices) = devices {
+        devices.stop()?;
+    }
     Ok(())
+}
+
+/// The serial devices of the bench, each served on a pseudo-terminal by its own thread (and
+/// stopped, with its state saved, when the bench stops).
+struct Devices {
+    zelle: super::zelle::ServedCell,
+    cpu196: buslab_cpu196::served::Served,
+}
+
+impl Devices {
+    fn start(dir: Option<&Path>) -> anyhow::Result<Self> {
+        if let Some(dir) = dir {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the lab folder {}", dir.display()))?;
+        }
+        let file = |name: &str| dir.map(|d| d.join(name));
+        // Two sine waves on the cell's first channels, so a measurement shows something.
+        let sine = |amplitude, offset| buslab_zelle::analog::Source::Wave {
+            shape: buslab_zelle::analog::Shape::Sine,
+            hz: 0.5,
+            amplitude,
+            offset,
+        };
+        let zelle = super::zelle::spawn_served(super::zelle::ServeOptions {
+            state: file("zelle.toml"),
+            link: file("zelle"),
+            analog: vec![(1, sine(2.0, 2.5)), (2, sine(1.0, 2.5))],
+        })
+        .context("starting the ZELLE cell")?;
+        let cpu196 = super::cpu196::spawn_served(
+            file("cpu196.toml").as_deref(),
+            file("cpu196").as_deref(),
+            super::cpu196::DEFAULT_BAUD,
+            buslab_cpu196::source::Inputs::default(),
+        )
+        .context("starting the CPU196 board")?;
+        Ok(Self { zelle, cpu196 })
+    }
+
+    fn describe(&self) {
+        eprintln!(
+            "  ZELLE cell   on {}  (9600 8N2; try: buslab zelle --port {} analog 1)",
+            self.zelle.path().display(),
+            self.zelle.path().display()
+        );
+        eprintln!(
+            "  CPU196 board on {}  ({} 8N1; try: buslab cpu196 --port {} info)",
+            self.cpu196.path().display(),
+            super::cpu196::DEFAULT_BAUD,
+            self.cpu196.path().display()
+        );
+    }
+
+    fn stop(self) -> anyhow::Result<()> {
+        self.zelle.stop().context("stopping the ZELLE cell")?;
+        self.cpu196.stop().context("stopping the CPU196 board")?;
+        Ok(())
+    }
 }
 
 /// The bench: the bus and (later) the devices attached to it.

@@ -504,7 +504,7 @@ pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
             while !stop.load(Ordering::Relaxed) {
                 thread::sleep(Duration::from_secs(1));
                 let (tx, rx) = mpsc::channel();
-                let work: Control<Cell> = Box::new(move |cell: &mut Cell, now| {
+                let work: Control<Cell> = Box::new(move |cell: &mut Cell, _now| {
                     let _ = tx.send((cell.ram_generation(), cell.ram().clone()));
                 });
                 if sender.send(work).is_err() {

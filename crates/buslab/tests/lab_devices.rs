@@ -1,0 +1,92 @@
+//! `buslab lab` serves a ZELLE cell and a CPU196 board next to the bus; the host tools reach
+//! them through the links it makes.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use assert_cmd::cargo::CommandCargoExt;
+
+fn buslab() -> Command {
+    Command::cargo_bin("buslab").unwrap()
+}
+
+fn wait_for(path: &Path) {
+    let start = Instant::now();
+    while !path.exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "{} never appeared",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn lab_devices_answer_the_host_tools_and_keep_their_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let lab = buslab()
+        .args(["lab", "--duration", "6s", "--dir"])
+        .arg(dir.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (zelle, cpu196) = (dir.path().join("zelle"), dir.path().join("cpu196"));
+    wait_for(&zelle);
+    wait_for(&cpu196);
+
+    let out = buslab()
+        .arg("zelle")
+        .arg("--port")
+        .arg(&zelle)
+        .args(["poke", "0x2000", "0x5A"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = buslab()
+        .arg("zelle")
+        .arg("--port")
+        .arg(&zelle)
+        .args(["peek", "0x2000"])
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("0x5a"),
+        "{out:?}"
+    );
+
+    let out = buslab()
+        .arg("cpu196")
+        .arg("--port")
+        .arg(&cpu196)
+        .arg("info")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("serial number"),
+        "{text}"
+    );
+
+    let done = lab.wait_with_output().unwrap();
+    let banner = String::from_utf8_lossy(&done.stderr);
+    assert!(done.status.success(), "{banner}");
+    assert!(
+        banner.contains("ZELLE cell") && banner.contains("CPU196 board"),
+        "{banner}"
+    );
+    // The links go away with the lab; the battery-backed RAM stays in the state file.
+    assert!(!zelle.exists() && !cpu196.exists());
+    let state = std::fs::read_to_string(dir.path().join("zelle.toml")).unwrap();
+    assert!(
+        state.contains("5A") || state.contains("5a"),
+        "poked byte not saved:\n{state}"
+    );
+    assert!(dir.path().join("cpu196.toml").exists());
+}
