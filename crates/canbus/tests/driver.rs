@@ -290,14 +290,10 @@ fn arbitration_loss_and_bus_errors_are_decoded() {
     assert_eq!(errors.txerr, 8 - 1, "one error (+8), one success (-1)");
 }
 
-#[test]
-fn bus_off_is_reported_and_restart_brings_the_node_back() {
-    let mut bus = Bus::new(2);
-    let mut tx = bus.driver(0, &Sja1000Config::default());
-    let mut rx = bus.driver(1, &Sja1000Config::default());
-    bus.run(20);
+/// Drives chip 0's transmission of `123#FF` to bus-off: a disturber forces the first data bit
+/// of every attempt dominant. Returns the events its driver reported.
+fn jam_to_bus_off<R: RegisterAccess>(bus: &mut Bus, tx: &mut Sja1000Driver<R>) -> Vec<DriverEvent> {
     tx.send(&frame("123#FF")).unwrap();
-    // Every attempt, the first data bit is forced dominant: bit errors until bus-off.
     let mut events = Vec::new();
     let (mut was_transmitting, mut sof) = (false, 0);
     for _ in 0..20_000 {
@@ -315,18 +311,31 @@ fn bus_off_is_reported_and_restart_brings_the_node_back() {
         });
         events.extend(tx.poll());
         if tx.state() == ControllerState::BusOff {
-            break;
+            return events;
         }
     }
-    let states: Vec<ControllerState> = events
+    panic!("no bus-off: {events:?}");
+}
+
+fn states(events: &[DriverEvent]) -> Vec<ControllerState> {
+    events
         .iter()
         .filter_map(|e| match e {
             DriverEvent::StateChanged { to, .. } => Some(*to),
             _ => None,
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn bus_off_is_reported_and_restart_brings_the_node_back() {
+    let mut bus = Bus::new(2);
+    let mut tx = bus.driver(0, &Sja1000Config::default());
+    let mut rx = bus.driver(1, &Sja1000Config::default());
+    bus.run(20);
+    let events = jam_to_bus_off(&mut bus, &mut tx);
     assert_eq!(
-        states,
+        states(&events),
         [
             ControllerState::Warning,
             ControllerState::Passive,
@@ -340,6 +349,7 @@ fn bus_off_is_reported_and_restart_brings_the_node_back() {
     assert!(tx.status().bus_off());
     assert_eq!(tx.send(&frame("124#")), Err(DriverError::BusOff));
 
+    // PeliCAN: TXERR := 0 ends bus-off at once (Linux's restart).
     tx.restart().unwrap();
     let events = tx.poll();
     assert!(
@@ -355,6 +365,38 @@ fn bus_off_is_reported_and_restart_brings_the_node_back() {
     assert_eq!(received(&events), ["124#01"]);
     let errors = tx.error_registers().unwrap();
     assert_eq!((errors.txerr, errors.rxerr), (0, 0));
+}
+
+#[test]
+fn basic_can_restart_waits_for_the_chips_own_recovery() {
+    let mut bus = Bus::new(2);
+    let mut tx = bus.driver(0, &Sja1000Config::basic_can());
+    let mut rx = bus.driver(1, &Sja1000Config::basic_can());
+    bus.run(20);
+    let events = jam_to_bus_off(&mut bus, &mut tx);
+    // BasicCAN cannot read its counters: no passive state, straight from warning to bus-off.
+    assert_eq!(
+        states(&events),
+        [ControllerState::Warning, ControllerState::BusOff]
+    );
+    tx.restart().unwrap();
+    assert!(
+        tx.poll().is_empty(),
+        "still bus-off: 128 × 11 recessive bits to go"
+    );
+    bus.run(128 * 11 - 20);
+    assert!(tx.poll().is_empty());
+    let events = run_until(&mut bus, &mut tx, 200, |e| !e.is_empty());
+    assert_eq!(
+        events,
+        [DriverEvent::StateChanged {
+            from: ControllerState::BusOff,
+            to: ControllerState::Active
+        }]
+    );
+    tx.send(&frame("124#01")).unwrap();
+    let events = run_until(&mut bus, &mut rx, 400, |e| !received(e).is_empty());
+    assert_eq!(received(&events), ["124#01"]);
 }
 
 #[test]
