@@ -135,3 +135,60 @@ pub enum BusError {
     #[error("{0}")]
     Other(String),
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn f(s: &str) -> Frame {
+        s.parse().unwrap()
+    }
+
+    #[test]
+    fn filters_match_like_python_can() {
+        let range = Filter {
+            id: 0x120,
+            mask: 0x7F0,
+            extended: None,
+        };
+        assert!(range.matches(&f("123#")));
+        assert!(range.matches(&f("12F#R")));
+        assert!(!range.matches(&f("130#")));
+        assert!(
+            range.matches(&f("00000123#")),
+            "no format given: both match"
+        );
+        let sff_only = Filter {
+            extended: Some(false),
+            ..range
+        };
+        assert!(!sff_only.matches(&f("00000123#")));
+        assert!(Filter::extended(0x123).matches(&f("00000123#")));
+        assert!(!Filter::extended(0x123).matches(&f("123#")));
+        assert!(!Filter::standard(0x123).matches(&f("00000123#")));
+        // Bits above the mask are ignored, also for IDs wider than the filter's.
+        let low_byte = Filter {
+            id: 0x42,
+            mask: 0xFF,
+            extended: None,
+        };
+        assert!(low_byte.matches(&f("1ABCDE42#")));
+    }
+
+    #[test]
+    fn an_empty_filter_list_accepts_everything_and_filters_are_ored() {
+        assert!(matches_any(&[], &f("7FF#")));
+        let filters = [Filter::standard(0x100), Filter::standard(0x200)];
+        assert!(matches_any(&filters, &f("200#")));
+        assert!(!matches_any(&filters, &f("300#")));
+    }
+
+    #[test]
+    fn messages_print_like_candump() {
+        let mut m = Message::rx(1.5, "vcan0", f("123#DEAD"));
+        assert_eq!(m.to_string(), "(1.500000) vcan0 123#DEAD");
+        m.is_rx = false;
+        assert_eq!(m.to_string(), "(1.500000) vcan0 123#DEAD TX");
+        assert_eq!(BusState::Passive.to_string(), "error-passive");
+    }
+}

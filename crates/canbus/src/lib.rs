@@ -10,6 +10,34 @@
 //! - [`manager`]: the single owner of a driver: one thread, listeners and requests
 //!   ([`Manager`], [`ManagerHandle`]).
 //! - [`file`]: the file protocol for data longer than 8 bytes (SPEC N5).
+//!
+//! Two drivers on a wired-AND bus of two model chips, stepped bit by bit:
+//!
+//! ```
+//! use buslab_can::Level;
+//! use buslab_canbus::{DriverEvent, Sja1000Config, Sja1000Driver, shared_chip};
+//!
+//! let chips = [shared_chip(), shared_chip()];
+//! let mut a = Sja1000Driver::new(chips[0].clone());
+//! let mut b = Sja1000Driver::new(chips[1].clone());
+//! a.init(&Sja1000Config::default())?;
+//! b.init(&Sja1000Config::basic_can())?;
+//! a.send(&"123#CAFE".parse()?)?;
+//! let mut received = Vec::new();
+//! while received.is_empty() {
+//!     let wire = chips.iter().fold(Level::Recessive, |bus, chip| {
+//!         bus.and(chip.lock().unwrap().output())
+//!     });
+//!     chips.iter().for_each(|chip| chip.lock().unwrap().sample(wire));
+//!     for event in b.poll() {
+//!         if let DriverEvent::Received(frame) = event {
+//!             received.push(frame.to_string());
+//!         }
+//!     }
+//! }
+//! assert_eq!(received, ["123#CAFE"]);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod bus;
 pub mod config;
