@@ -9,7 +9,7 @@
 use std::collections::VecDeque;
 use std::fmt;
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -35,7 +35,7 @@ pub fn wall_clock() -> f64 {
 #[derive(Clone)]
 pub struct ManagerConfig {
     /// How often the chip is polled when no request arrives (the seed's
-    /// `managersleepingtime`). Default 1 ms.
+    /// `managersleepingtime`; zero polls without pause). Default 1 ms.
     pub poll_interval: Duration,
     /// The channel name put in every [`Message`]. Default `"sja1000"`.
     pub channel: String,
@@ -88,33 +88,50 @@ pub enum ManagerError {
     Driver(#[from] DriverError),
 }
 
-/// The outcome of one [`ManagerHandle::send`].
+/// The outcome of one [`ManagerHandle::send`]. Once known it is kept: asking again gives the
+/// same answer.
 #[derive(Debug)]
 pub struct Confirmation {
     rx: Receiver<Result<(), SendError>>,
+    outcome: OnceLock<Result<(), SendError>>,
 }
 
 impl Confirmation {
+    fn new(rx: Receiver<Result<(), SendError>>) -> Self {
+        Self {
+            rx,
+            outcome: OnceLock::new(),
+        }
+    }
+
     /// Waits for the outcome; `None` waits as long as it takes. `Timeout` leaves the frame
-    /// queued (it may still be sent).
+    /// queued (it may still be sent, and a later `wait` can still see it confirmed).
     pub fn wait(&self, timeout: Option<Duration>) -> Result<(), SendError> {
-        match timeout {
+        if let Some(outcome) = self.outcome.get() {
+            return outcome.clone();
+        }
+        let outcome = match timeout {
             None => self.rx.recv().unwrap_or(Err(SendError::Shutdown)),
             Some(t) => match self.rx.recv_timeout(t) {
                 Ok(result) => result,
-                Err(RecvTimeoutError::Timeout) => Err(SendError::Timeout),
+                Err(RecvTimeoutError::Timeout) => return Err(SendError::Timeout),
                 Err(RecvTimeoutError::Disconnected) => Err(SendError::Shutdown),
             },
-        }
+        };
+        self.outcome.get_or_init(|| outcome).clone()
     }
 
     /// The outcome if it is known already.
     pub fn try_result(&self) -> Option<Result<(), SendError>> {
-        match self.rx.try_recv() {
-            Ok(result) => Some(result),
-            Err(mpsc::TryRecvError::Empty) => None,
-            Err(mpsc::TryRecvError::Disconnected) => Some(Err(SendError::Shutdown)),
+        if let Some(outcome) = self.outcome.get() {
+            return Some(outcome.clone());
         }
+        let outcome = match self.rx.try_recv() {
+            Ok(result) => result,
+            Err(mpsc::TryRecvError::Empty) => return None,
+            Err(mpsc::TryRecvError::Disconnected) => Err(SendError::Shutdown),
+        };
+        Some(self.outcome.get_or_init(|| outcome).clone())
     }
 }
 
@@ -238,7 +255,7 @@ impl ManagerHandle {
     pub fn send_with(&self, frame: Frame, mode: TxMode) -> Confirmation {
         let (reply, rx) = mpsc::channel();
         let _ = self.post(Request::Send { frame, mode, reply });
-        Confirmation { rx }
+        Confirmation::new(rx)
     }
 
     /// Re-initialises the chip; queued and pending sends fail with [`SendError::Aborted`].

@@ -107,6 +107,7 @@ fn confirmations_come_in_order_and_listeners_get_the_frames() {
     let confirmations: Vec<_> = sent.iter().map(|f| a.send(frame(f))).collect();
     for confirmation in &confirmations {
         assert_eq!(confirmation.wait(Some(LONG)), Ok(()));
+        assert_eq!(confirmation.wait(None), Ok(()), "asked again: same answer");
     }
     let done: Vec<String> = events_a
         .try_iter()
