@@ -518,6 +518,8 @@ impl<R: RegisterAccess> Worker<R> {
     /// One poll of the chip: dispatch events, feed the TX buffer, report changes.
     fn tick(&mut self) {
         for event in self.driver.poll() {
+            // Event listeners hear of a sent frame before its sender is confirmed.
+            publish(&mut self.events, &event);
             match &event {
                 DriverEvent::Received(frame) => {
                     let message = Message::rx((self.config.clock)(), &self.config.channel, *frame);
@@ -535,7 +537,6 @@ impl<R: RegisterAccess> Worker<R> {
                 } => self.fail_all(SendError::BusOff),
                 _ => {}
             }
-            publish(&mut self.events, &event);
         }
         self.feed();
         let status = self.driver.status();
