@@ -9,7 +9,7 @@
 //! - [`decode`]: status, error-code and arbitration-lost registers decoded into words.
 //! - [`manager`]: the single owner of a driver: one thread, listeners and requests
 //!   ([`Manager`], [`ManagerHandle`]).
-//! - [`file`]: the file protocol for data longer than 8 bytes (SPEC N5).
+//! - [`file`](mod@file): the file protocol for data longer than 8 bytes (SPEC N5).
 //!
 //! Two drivers on a wired-AND bus of two model chips, stepped bit by bit:
 //!
