@@ -517,3 +517,48 @@ fn register_dump_leaves_the_chip_alone() {
             .any(|e| matches!(e, DriverEvent::ArbitrationLost(_)))
     );
 }
+
+mod round_trip {
+    use super::*;
+    use buslab_can::{Frame, Id};
+    use proptest::prelude::*;
+
+    fn any_frame() -> impl Strategy<Value = Frame> {
+        let id = prop_oneof![
+            (0u16..=0x7FF).prop_map(|raw| Id::standard(raw).unwrap()),
+            (0u32..=0x1FFF_FFFF).prop_map(|raw| Id::extended(raw).unwrap()),
+        ];
+        let body = prop_oneof![
+            proptest::collection::vec(any::<u8>(), 0..=8).prop_map(Ok),
+            (0u8..=8).prop_map(Err),
+        ];
+        (id, body).prop_map(|(id, body)| match body {
+            Ok(data) => Frame::data(id, &data).unwrap(),
+            Err(dlc) => Frame::remote(id, dlc).unwrap(),
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Whatever a PeliCAN driver sends, a PeliCAN driver receives unchanged, and a
+        /// BasicCAN driver too when the ID is standard.
+        #[test]
+        fn frames_cross_the_bus_unchanged(frame in any_frame()) {
+            let mut bus = Bus::new(3);
+            let mut tx = bus.driver(0, &Sja1000Config::default());
+            let mut peli = bus.driver(1, &Sja1000Config::default());
+            let mut basic = bus.driver(2, &Sja1000Config::basic_can());
+            bus.run(20);
+            tx.send(&frame).unwrap();
+            run_until(&mut bus, &mut tx, 400, |e| e.contains(&DriverEvent::TxDone(frame)));
+            bus.run(20);
+            prop_assert_eq!(peli.poll(), vec![DriverEvent::Received(frame)]);
+            let expected = if frame.is_extended() {
+                vec![]
+            } else {
+                vec![DriverEvent::Received(frame)]
+            };
+            prop_assert_eq!(basic.poll(), expected);
+        }
+    }
+}
