@@ -198,6 +198,32 @@ struct InFlight {
     aborting: bool,
 }
 
+impl InFlight {
+    /// How the transmission ended, once the chip released the TX buffer (or went bus-off).
+    fn outcome(self, status: Status) -> DriverEvent {
+        let reason = if status.bus_off() {
+            TxFailure::BusOff
+        } else if status.transmission_complete() {
+            return DriverEvent::TxDone(self.frame);
+        } else if self.aborting {
+            TxFailure::Aborted
+        } else if matches!(
+            self.mode,
+            TxMode::SingleShot | TxMode::SingleShotSelfReception
+        ) {
+            TxFailure::SingleShot
+        } else {
+            // A retried transmission only ends without TCS when aborted, e.g. by reset mode
+            // entered behind the driver's back.
+            TxFailure::Aborted
+        };
+        DriverEvent::TxFailed {
+            frame: self.frame,
+            reason,
+        }
+    }
+}
+
 /// An SJA1000 driven through its registers.
 #[derive(Debug)]
 pub struct Sja1000Driver<R: RegisterAccess> {
@@ -471,29 +497,7 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
             && (status.transmit_buffer_released() || status.bus_off())
         {
             self.tx = None;
-            events.push(match () {
-                _ if status.bus_off() => DriverEvent::TxFailed {
-                    frame: tx.frame,
-                    reason: TxFailure::BusOff,
-                },
-                _ if status.transmission_complete() => DriverEvent::TxDone(tx.frame),
-                _ if tx.aborting => DriverEvent::TxFailed {
-                    frame: tx.frame,
-                    reason: TxFailure::Aborted,
-                },
-                _ => DriverEvent::TxFailed {
-                    frame: tx.frame,
-                    reason: match tx.mode {
-                        TxMode::SingleShot | TxMode::SingleShotSelfReception => {
-                            TxFailure::SingleShot
-                        }
-                        // A normal transmission only ends without TCS by abort or bus-off;
-                        // an abort of the chip's own (reset mode entered elsewhere) counts
-                        // as an abort.
-                        _ => TxFailure::Aborted,
-                    },
-                },
-            });
+            events.push(tx.outcome(status));
         }
         events
     }
