@@ -115,6 +115,25 @@ fn a_missing_or_dead_chip_is_reported_not_waited_for() {
         driver.send(&frame("123#")),
         Err(DriverError::NotInitialized)
     ));
+
+    /// A data line stuck low: bit 0 of every written byte is lost.
+    struct Bit0Stuck(Sja1000);
+    impl RegisterAccess for Bit0Stuck {
+        fn read(&mut self, addr: u8) -> u8 {
+            self.0.read(addr)
+        }
+        fn write(&mut self, addr: u8, value: u8) {
+            // Keep MOD/CR writable so the chip can enter reset mode.
+            let value = if addr == 0 { value } else { value & !1 };
+            self.0.write(addr, value)
+        }
+    }
+    let mut driver = Sja1000Driver::new(Bit0Stuck(Sja1000::new()));
+    let err = driver.init(&Sja1000Config::default()).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "BTR0 reads 0x06 after writing 0x07 in reset mode"
+    );
 }
 
 #[test]
