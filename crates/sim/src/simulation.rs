@@ -439,9 +439,39 @@ impl Simulation {
 
     /// One bit-time with faults (or level tracing) in force.
     fn step_faulty(&mut self) {
+        self.step_wired(Level::Recessive);
+    }
+
+    /// Whether nothing can happen before [`Self::next_activity`] while the wire stays idle:
+    /// no fault is active and every controller is idle with nothing to send.
+    pub fn is_idle(&self) -> bool {
+        !self.faulty && self.all_idle()
+    }
+
+    /// The next bit-time at which traffic, a fault change or a counter sample is due.
+    pub fn next_activity(&self) -> BitTime {
+        self.schedule
+            .next
+            .min(self.next_fault_change)
+            .min(self.next_sample)
+    }
+
+    /// One bit-time with other nodes on the main wire (e.g. register-level chips stepped by
+    /// the caller): `external` is the wired-AND of what they drive. Returns the main wire's
+    /// level for this bit, which is what they read.
+    pub fn step_external(&mut self, external: Level) -> Level {
+        self.handle_due();
+        self.step_wired(external)
+    }
+
+    /// One bit-time through the wiring, with `external` driving the main wire too.
+    fn step_wired(&mut self, external: Level) -> Level {
         let now = self.now;
         let w = &self.wiring;
         let segments = w.is_bus.len();
+        if self.seg_levels.len() < segments {
+            self.seg_levels.resize(segments, Level::Recessive);
+        }
         let seg_levels = &mut self.seg_levels[..segments];
         seg_levels.fill(Level::Recessive);
         for (i, node) in self.nodes.iter().enumerate() {
@@ -450,6 +480,9 @@ impl Simulation {
             if out == Level::Dominant {
                 seg_levels[w.segment[i]] = Level::Dominant;
             }
+        }
+        if external == Level::Dominant {
+            seg_levels[0] = Level::Dominant;
         }
         for (level, &is_bus) in seg_levels.iter_mut().zip(&w.is_bus) {
             if !is_bus {
@@ -485,6 +518,7 @@ impl Simulation {
         }
         self.obs.bus.bit(bus);
         self.now += 1;
+        bus
     }
 
     /// Queue a frame on `node` right now.

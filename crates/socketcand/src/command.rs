@@ -1,0 +1,321 @@
+//! Client → server: the commands of socketcand, plus buslab's `buslab_*` extensions.
+
+use core::fmt;
+
+use buslab_can::{Frame, Id};
+
+use crate::{ProtocolError, tokens};
+
+/// A node on a buslab virtual bus: its number (given in connection order from 1) or its name.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum NodeRef {
+    Number(u32),
+    Name(String),
+}
+
+impl NodeRef {
+    /// A number if `text` is all digits, else a name.
+    pub fn parse(text: &str) -> Self {
+        match text.parse::<u32>() {
+            Ok(n) if text.bytes().all(|b| b.is_ascii_digit()) => NodeRef::Number(n),
+            _ => NodeRef::Name(text.to_string()),
+        }
+    }
+}
+
+impl fmt::Display for NodeRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NodeRef::Number(n) => write!(f, "{n}"),
+            NodeRef::Name(name) => f.write_str(name),
+        }
+    }
+}
+
+/// One client command.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Command {
+    /// `< open BUS >`: attach to a bus (the server answers `< ok >`).
+    Open(String),
+    /// `< rawmode >`: every frame on the bus is delivered as `< frame … >`.
+    RawMode,
+    /// `< bcmmode >` (the mode after open).
+    BcmMode,
+    /// `< controlmode >`.
+    ControlMode,
+    /// `< isotpmode >`.
+    IsotpMode,
+    /// `< echo >`: answered with `< echo >`.
+    Echo,
+    /// `< send ID DLC B… >`. A remote frame is `< send ID R<dlc> >` (buslab), or a DLC above 0
+    /// with no bytes (what python-can sends for a remote frame).
+    Send(Frame),
+    /// A socketcand command buslab understands but does not implement (BCM jobs and filters,
+    /// statistics, ISO-TP, bus settings): its name and arguments.
+    Unsupported { name: String, args: Vec<String> },
+    /// `< buslab_name NAME >`: names this client's node.
+    Name(String),
+    /// `< buslab_ext >`: received remote frames come as `< frame ID TIME R<dlc> >`.
+    Extensions,
+    /// `< buslab_own 0|1 >`: also deliver this client's own frames once sent (off by default,
+    /// like python-can's `receive_own_messages`).
+    ReceiveOwn(bool),
+    /// `< buslab_nodes >`: list the nodes.
+    Nodes,
+    /// `< buslab_status [NODE] >`: error state, counters and registers of a node (own if absent).
+    Status(Option<NodeRef>),
+    /// `< buslab_regs [NODE] >`: a register dump of a node (own if absent).
+    Regs(Option<NodeRef>),
+    /// `< buslab_btr BTR0 BTR1 >`: reprogram this client's chip with these bit timing
+    /// registers (hex).
+    Btr { btr0: u8, btr1: u8 },
+}
+
+/// socketcand's commands that buslab does not implement.
+const UNSUPPORTED: &[&str] = &[
+    "add",
+    "update",
+    "delete",
+    "filter",
+    "muxfilter",
+    "subscribe",
+    "unsubscribe",
+    "statistics",
+    "isotpconf",
+    "sendpdu",
+];
+
+impl Command {
+    /// Parses an element's inside (`send 123 2 11 22`).
+    pub fn parse(inner: &str) -> Result<Self, ProtocolError> {
+        let t = tokens(inner);
+        let (&name, args) = t.split_first().ok_or(ProtocolError::Empty)?;
+        let no_args = |cmd: Command, command: &'static str| {
+            if args.is_empty() {
+                Ok(cmd)
+            } else {
+                Err(ProtocolError::Arguments {
+                    command,
+                    expected: "no arguments",
+                    got: args.join(" "),
+                })
+            }
+        };
+        match name {
+            "open" => match args {
+                [bus] => Ok(Command::Open(bus.to_string())),
+                _ => Err(arguments("open", "one bus name", args)),
+            },
+            "rawmode" => no_args(Command::RawMode, "rawmode"),
+            "bcmmode" => no_args(Command::BcmMode, "bcmmode"),
+            "controlmode" => no_args(Command::ControlMode, "controlmode"),
+            "isotpmode" => no_args(Command::IsotpMode, "isotpmode"),
+            "echo" => no_args(Command::Echo, "echo"),
+            "send" => parse_send(args).map(Command::Send),
+            "buslab_name" => match args {
+                [n] if valid_name(n) => Ok(Command::Name(n.to_string())),
+                _ => Err(arguments(
+                    "buslab_name",
+                    "one name of 1..32 of A-Z a-z 0-9 _ - . (not all digits)",
+                    args,
+                )),
+            },
+            "buslab_ext" => no_args(Command::Extensions, "buslab_ext"),
+            "buslab_own" => match args {
+                ["0"] => Ok(Command::ReceiveOwn(false)),
+                ["1"] => Ok(Command::ReceiveOwn(true)),
+                _ => Err(arguments("buslab_own", "0 or 1", args)),
+            },
+            "buslab_nodes" => no_args(Command::Nodes, "buslab_nodes"),
+            "buslab_status" | "buslab_regs" => {
+                let node = match args {
+                    [] => None,
+                    [n] => Some(NodeRef::parse(n)),
+                    _ => return Err(arguments("buslab_status", "at most one node", args)),
+                };
+                Ok(if name == "buslab_status" {
+                    Command::Status(node)
+                } else {
+                    Command::Regs(node)
+                })
+            }
+            "buslab_btr" => match args {
+                [a, b] => Ok(Command::Btr {
+                    btr0: hex_byte(a, "BTR0")?,
+                    btr1: hex_byte(b, "BTR1")?,
+                }),
+                _ => Err(arguments("buslab_btr", "BTR0 BTR1 in hex", args)),
+            },
+            n if UNSUPPORTED.contains(&n) => Ok(Command::Unsupported {
+                name: n.to_string(),
+                args: args.iter().map(|s| s.to_string()).collect(),
+            }),
+            // `< vcan0 B … >` / `< vcan0 C … >`: bus settings before open.
+            _ if matches!(args.first(), Some(&"B") | Some(&"C")) => Ok(Command::Unsupported {
+                name: name.to_string(),
+                args: args.iter().map(|s| s.to_string()).collect(),
+            }),
+            _ => Err(ProtocolError::UnknownCommand(name.to_string())),
+        }
+    }
+}
+
+/// A node name: 1..32 of `A-Z a-z 0-9 _ - .`, not all digits (those are node numbers).
+pub fn valid_name(name: &str) -> bool {
+    (1..=32).contains(&name.len())
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+        && !name.bytes().all(|b| b.is_ascii_digit())
+}
+
+fn arguments(command: &'static str, expected: &'static str, args: &[&str]) -> ProtocolError {
+    ProtocolError::Arguments {
+        command,
+        expected,
+        got: args.join(" "),
+    }
+}
+
+fn hex_byte(text: &str, what: &'static str) -> Result<u8, ProtocolError> {
+    let digits = text
+        .strip_prefix("0x")
+        .or_else(|| text.strip_prefix("0X"))
+        .unwrap_or(text);
+    if digits.is_empty() || digits.len() > 2 {
+        return Err(ProtocolError::BadHex {
+            what,
+            text: text.to_string(),
+        });
+    }
+    u8::from_str_radix(digits, 16).map_err(|_| ProtocolError::BadHex {
+        what,
+        text: text.to_string(),
+    })
+}
+
+/// An ID as socketcand reads it: hex; 8 characters mean extended, anything else standard.
+pub(crate) fn parse_id(text: &str) -> Result<Id, ProtocolError> {
+    let raw = u32::from_str_radix(text, 16)
+        .ok()
+        .filter(|_| !text.is_empty() && text.len() <= 8 && !text.starts_with('+'))
+        .ok_or_else(|| ProtocolError::BadHex {
+            what: "ID",
+            text: text.to_string(),
+        })?;
+    let id = if text.len() == 8 {
+        Id::extended(raw)
+    } else {
+        u16::try_from(raw)
+            .map_err(|_| buslab_can::ParseError::IdOutOfRange {
+                value: raw,
+                max: 0x7FF,
+                extended: false,
+            })
+            .and_then(Id::standard)
+    };
+    id.map_err(|e| ProtocolError::BadId {
+        text: text.to_string(),
+        reason: e.to_string(),
+    })
+}
+
+fn parse_send(args: &[&str]) -> Result<Frame, ProtocolError> {
+    let [id, dlc, bytes @ ..] = args else {
+        return Err(arguments("send", "ID DLC BYTES…", args));
+    };
+    let id = parse_id(id)?;
+    let bad_dlc = || ProtocolError::BadDlc {
+        text: dlc.to_string(),
+    };
+    if let Some(n) = dlc.strip_prefix(['R', 'r']) {
+        if !bytes.is_empty() {
+            return Err(arguments("send", "no bytes after R<dlc>", bytes));
+        }
+        let n: u8 = n.parse().map_err(|_| bad_dlc())?;
+        return Frame::remote(id, n).map_err(|_| bad_dlc());
+    }
+    if dlc.is_empty() || !dlc.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(bad_dlc());
+    }
+    let n: u8 = dlc.parse().map_err(|_| bad_dlc())?;
+    if n > 8 {
+        return Err(bad_dlc());
+    }
+    if bytes.is_empty() && n > 0 {
+        // python-can's way of sending a remote frame (socketcand itself rejects it).
+        return Frame::remote(id, n).map_err(|_| bad_dlc());
+    }
+    if bytes.len() != n as usize {
+        return Err(ProtocolError::DataLength {
+            count: bytes.len(),
+            dlc: n,
+        });
+    }
+    let mut data = [0u8; 8];
+    for (slot, b) in data.iter_mut().zip(bytes) {
+        if b.is_empty() || b.len() > 2 || !b.bytes().all(|c| c.is_ascii_hexdigit()) {
+            return Err(ProtocolError::BadByte {
+                text: b.to_string(),
+            });
+        }
+        *slot = u8::from_str_radix(b, 16).map_err(|_| ProtocolError::BadByte {
+            text: b.to_string(),
+        })?;
+    }
+    Frame::data(id, &data[..n as usize]).map_err(|_| bad_dlc())
+}
+
+/// socketcand's ID text: `%03X` standard, `%08X` extended.
+pub(crate) struct IdText(pub Id);
+
+impl fmt::Display for IdText {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            Id::Standard(id) => write!(f, "{:03X}", id.as_raw()),
+            Id::Extended(id) => write!(f, "{:08X}", id.as_raw()),
+        }
+    }
+}
+
+/// The element, with `<` and `>`, as buslab's client sends it.
+impl fmt::Display for Command {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Command::Open(bus) => write!(f, "< open {bus} >"),
+            Command::RawMode => f.write_str("< rawmode >"),
+            Command::BcmMode => f.write_str("< bcmmode >"),
+            Command::ControlMode => f.write_str("< controlmode >"),
+            Command::IsotpMode => f.write_str("< isotpmode >"),
+            Command::Echo => f.write_str("< echo >"),
+            Command::Send(frame) => {
+                write!(f, "< send {} ", IdText(frame.id()))?;
+                if frame.is_remote() {
+                    write!(f, "R{} >", frame.dlc())
+                } else {
+                    write!(f, "{}", frame.dlc())?;
+                    for b in frame.payload() {
+                        write!(f, " {b:02X}")?;
+                    }
+                    f.write_str(" >")
+                }
+            }
+            Command::Unsupported { name, args } => {
+                write!(f, "< {name}")?;
+                for a in args {
+                    write!(f, " {a}")?;
+                }
+                f.write_str(" >")
+            }
+            Command::Name(name) => write!(f, "< buslab_name {name} >"),
+            Command::Extensions => f.write_str("< buslab_ext >"),
+            Command::ReceiveOwn(on) => write!(f, "< buslab_own {} >", *on as u8),
+            Command::Nodes => f.write_str("< buslab_nodes >"),
+            Command::Status(None) => f.write_str("< buslab_status >"),
+            Command::Status(Some(n)) => write!(f, "< buslab_status {n} >"),
+            Command::Regs(None) => f.write_str("< buslab_regs >"),
+            Command::Regs(Some(n)) => write!(f, "< buslab_regs {n} >"),
+            Command::Btr { btr0, btr1 } => write!(f, "< buslab_btr {btr0:02X} {btr1:02X} >"),
+        }
+    }
+}

@@ -1,0 +1,65 @@
+//! The socketcand protocol (TCP, ASCII elements `< … >`), as socketcand and python-can speak it.
+//!
+//! - [`element`]: splitting a byte stream into elements ([`Deframer`]).
+//! - [`command`]: what a client sends ([`Command`]), parsed and formatted.
+//! - [`message`]: what a server sends ([`ServerMessage`]), parsed and formatted.
+//! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over a TCP connection ([`SocketcandBus`]).
+//!
+//! The codec is sans-IO: strings in, values out, and back. buslab's own extensions are
+//! commands and replies whose name starts with `buslab_`; a real socketcand answers them with
+//! `< error unknown command >`.
+
+pub mod client;
+pub mod command;
+pub mod element;
+pub mod message;
+
+pub use client::{ClientError, NodeStatus, SocketcandBus};
+pub use command::{Command, NodeRef};
+pub use element::{Deframer, ElementError, MAX_ELEMENT};
+pub use message::{ServerMessage, Timestamp};
+
+/// The error from parsing one element.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ProtocolError {
+    #[error("empty element: expected a command between < and >")]
+    Empty,
+    #[error("unknown command {0:?}")]
+    UnknownCommand(String),
+    #[error("{command}: expected {expected}, got {got:?}")]
+    Arguments {
+        command: &'static str,
+        expected: &'static str,
+        got: String,
+    },
+    #[error("{what} {text:?} is not hexadecimal")]
+    BadHex { what: &'static str, text: String },
+    #[error("ID {text:?}: {reason}")]
+    BadId { text: String, reason: String },
+    #[error("DLC {text:?} must be a decimal 0..8")]
+    BadDlc { text: String },
+    #[error("{count} data bytes given but DLC is {dlc}")]
+    DataLength { count: usize, dlc: u8 },
+    #[error("byte {text:?} must be 1 or 2 hex digits")]
+    BadByte { text: String },
+    #[error("timestamp {text:?} must be SECONDS.MICROSECONDS")]
+    BadTimestamp { text: String },
+}
+
+/// Splits an element's inside into tokens (runs of spaces separate them).
+pub(crate) fn tokens(inner: &str) -> Vec<&str> {
+    inner.split_ascii_whitespace().collect()
+}
+
+/// Replaces the characters an element cannot carry (`<`, `>`, control characters) so a
+/// free text fits in `< error … >`.
+pub fn sanitize(text: &str) -> String {
+    text.chars()
+        .map(|c| match c {
+            '<' => '(',
+            '>' => ')',
+            c if c.is_control() => ' ',
+            c => c,
+        })
+        .collect()
+}

@@ -1,0 +1,142 @@
+//! The virtual bus in virtual time: chips operated through the driver on one wire.
+
+use buslab_can::Frame;
+use buslab_socketcand::NodeRef;
+use buslab_vbus::VirtualBus;
+
+const RATE: u32 = 500_000;
+
+fn frame(text: &str) -> Frame {
+    text.parse().unwrap()
+}
+
+fn received(bus: &mut VirtualBus, number: u32) -> Vec<String> {
+    let node = bus.node_mut(&NodeRef::Number(number)).unwrap();
+    node.rx.drain(..).map(|d| d.frame.to_string()).collect()
+}
+
+fn field(bus: &mut VirtualBus, number: u32, key: &str) -> String {
+    let (_, _, fields) = bus.status(&NodeRef::Number(number)).unwrap();
+    fields
+        .into_iter()
+        .find(|(k, _)| k == key)
+        .map(|(_, v)| v)
+        .unwrap_or_default()
+}
+
+#[test]
+fn frames_reach_every_other_node_but_not_the_sender() {
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let a = bus.join().unwrap();
+    let b = bus.join().unwrap();
+    let c = bus.join().unwrap();
+    let sent = [
+        "123#1122",
+        "1ABCDEF0#DEADBEEF",
+        "321#R3",
+        "7FF#",
+        "00000001#R",
+    ];
+    for f in sent {
+        bus.node_mut(&NodeRef::Number(a))
+            .unwrap()
+            .tx
+            .push_back(frame(f));
+    }
+    bus.run_until(RATE as u64 / 100);
+    assert_eq!(received(&mut bus, b), sent);
+    assert_eq!(received(&mut bus, c), sent);
+    assert!(received(&mut bus, a).is_empty());
+    assert_eq!(field(&mut bus, a, "sent"), "5");
+    assert_eq!(field(&mut bus, b, "received"), "5");
+}
+
+#[test]
+fn own_frames_come_back_when_asked() {
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let a = bus.join().unwrap();
+    let _b = bus.join().unwrap();
+    let node = bus.node_mut(&NodeRef::Number(a)).unwrap();
+    node.receive_own = true;
+    node.tx.push_back(frame("123#01"));
+    bus.run_until(RATE as u64 / 100);
+    assert_eq!(received(&mut bus, a), ["123#01"]);
+}
+
+#[test]
+fn contending_nodes_go_in_priority_order_and_losers_capture_alc() {
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let rx = bus.join().unwrap();
+    let senders: Vec<u32> = (0..3).map(|_| bus.join().unwrap()).collect();
+    // Queued in the opposite of priority order, all before the bus runs.
+    for (&n, f) in senders.iter().zip(["300#03", "200#02", "100#01"]) {
+        bus.node_mut(&NodeRef::Number(n))
+            .unwrap()
+            .tx
+            .push_back(frame(f));
+    }
+    bus.run_until(RATE as u64 / 100);
+    assert_eq!(received(&mut bus, rx), ["100#01", "200#02", "300#03"]);
+    // 0x300 lost twice, 0x200 once; 0x100 never.
+    assert_eq!(field(&mut bus, senders[0], "arbitration_lost"), "2");
+    assert_eq!(field(&mut bus, senders[1], "arbitration_lost"), "1");
+    assert_eq!(field(&mut bus, senders[2], "arbitration_lost"), "0");
+    // The last loss of 0x300 (011 0000 0000) was against 0x200 (010 ...): bit 2 (ID.26);
+    // 0x200 lost to 0x100 (001 ...) at bit 1 (ID.27).
+    assert_eq!(field(&mut bus, senders[0], "alc"), "02");
+    assert_eq!(field(&mut bus, senders[1], "alc"), "01");
+}
+
+#[test]
+fn a_node_with_the_wrong_bit_rate_cannot_communicate_and_says_so() {
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let good = bus.join().unwrap();
+    let bad = bus.join().unwrap();
+    // The seed's 50 kbit/s registers on a 500 kbit/s bus.
+    bus.set_btr(bad, 0x07, 0x4D).unwrap();
+    assert!(
+        bus.take_log()
+            .iter()
+            .any(|l| l.contains("cannot communicate"))
+    );
+    assert_eq!(field(&mut bus, bad, "timing"), "mismatch");
+    assert_eq!(field(&mut bus, bad, "bitrate"), "50000");
+    bus.node_mut(&NodeRef::Number(bad))
+        .unwrap()
+        .tx
+        .push_back(frame("123#11"));
+    bus.run_until(RATE as u64 / 20);
+    assert!(received(&mut bus, good).is_empty());
+    assert_ne!(field(&mut bus, bad, "bus_errors"), "0");
+    assert!(!field(&mut bus, bad, "ecc").is_empty());
+    // Back to the right timing: it talks again.
+    let (b0, b1) = buslab_vbus::bus::timing_for(RATE).unwrap().registers();
+    bus.set_btr(bad, b0, b1).unwrap();
+    assert_eq!(field(&mut bus, bad, "timing"), "ok");
+    bus.node_mut(&NodeRef::Number(bad))
+        .unwrap()
+        .tx
+        .push_back(frame("124#22"));
+    let end = bus.now() + RATE as u64 / 20;
+    bus.run_until(end);
+    assert_eq!(received(&mut bus, good), ["124#22"]);
+}
+
+#[test]
+fn leaving_and_naming_nodes() {
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let a = bus.join().unwrap();
+    let b = bus.join().unwrap();
+    bus.rename(a, "pc").unwrap();
+    assert!(bus.rename(b, "pc").is_err());
+    assert!(bus.status(&NodeRef::Name("pc".into())).is_ok());
+    bus.leave(a);
+    assert!(bus.status(&NodeRef::Number(a)).is_err());
+    assert_eq!(bus.nodes().len(), 1);
+}
+
+#[test]
+fn an_unreachable_bit_rate_is_refused_by_name() {
+    let err = VirtualBus::new(3).unwrap_err().to_string();
+    assert!(err.contains("bit rate 3"), "{err}");
+}

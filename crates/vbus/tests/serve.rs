@@ -1,0 +1,269 @@
+//! `bus serve` end to end over loopback TCP, with buslab's socketcand client.
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::sync::Arc;
+use std::time::Duration;
+
+use buslab_can::Frame;
+use buslab_canbus::{BusState, CanBus};
+use buslab_socketcand::{NodeRef, SocketcandBus};
+use buslab_vbus::{ServerConfig, ServerHandle, spawn};
+
+const WAIT: Option<Duration> = Some(Duration::from_secs(5));
+
+fn server(bitrate: u32, queue: usize) -> ServerHandle {
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), bitrate);
+    config.client_queue = queue;
+    config.log = Arc::new(|_| {});
+    spawn(config).unwrap()
+}
+
+fn client(s: &ServerHandle) -> SocketcandBus {
+    let mut bus = SocketcandBus::connect(s.local_addr(), "vcan0").unwrap();
+    assert!(bus.enable_extensions().unwrap());
+    bus
+}
+
+fn frame(text: &str) -> Frame {
+    text.parse().unwrap()
+}
+
+fn recv(bus: &mut SocketcandBus) -> String {
+    bus.recv(WAIT)
+        .unwrap()
+        .expect("a frame within 5 s")
+        .frame
+        .to_string()
+}
+
+#[test]
+fn frames_flow_both_ways_standard_extended_remote() {
+    let s = server(500_000, 1024);
+    let mut a = client(&s);
+    let mut b = client(&s);
+    let there = [
+        "123#1122",
+        "1ABCDEF0#DEADBEEF",
+        "321#R3",
+        "7FF#",
+        "00000123#R",
+    ];
+    for f in there {
+        a.send(&frame(f)).unwrap();
+    }
+    let got: Vec<String> = there.iter().map(|_| recv(&mut b)).collect();
+    assert_eq!(got, there);
+    b.send(&frame("456#AA")).unwrap();
+    assert_eq!(recv(&mut a), "456#AA");
+    // The sender does not get its own frames back.
+    assert!(a.recv(Some(Duration::from_millis(50))).unwrap().is_none());
+    assert_eq!(a.state().unwrap(), BusState::Active);
+    s.shutdown();
+}
+
+#[test]
+fn timestamps_are_wall_clock_seconds() {
+    let s = server(500_000, 1024);
+    let mut a = client(&s);
+    let mut b = client(&s);
+    a.send(&frame("123#01")).unwrap();
+    let m = b.recv(WAIT).unwrap().unwrap();
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    assert!((now - m.timestamp).abs() < 2.0, "{} vs {now}", m.timestamp);
+    s.shutdown();
+}
+
+#[test]
+fn contending_nodes_are_received_in_priority_order() {
+    let s = server(1_000_000, 8192);
+    let mut rx = client(&s);
+    let mut blocker = client(&s);
+    // Keep the bus busy with top-priority frames so the three contenders' frames wait in
+    // their chips and then arbitrate against each other.
+    for _ in 0..1000 {
+        blocker.send(&frame("001#0102030405060708")).unwrap();
+    }
+    let mut contenders: Vec<SocketcandBus> = (0..3).map(|_| client(&s)).collect();
+    for (c, f) in contenders.iter_mut().zip(["300#03", "200#02", "100#01"]) {
+        c.send(&frame(f)).unwrap();
+    }
+    let mut order = Vec::new();
+    while order.len() < 3 {
+        let f = recv(&mut rx);
+        if f != "001#0102030405060708" {
+            order.push(f);
+        }
+    }
+    assert_eq!(order, ["100#01", "200#02", "300#03"]);
+    // The losers captured where they lost arbitration.
+    let st = rx.node_status(Some(NodeRef::Number(3))).unwrap();
+    assert_ne!(st.get("arbitration_lost"), Some("0"));
+    assert!(st.get("alc").is_some());
+    s.shutdown();
+}
+
+fn raw(s: &ServerHandle) -> TcpStream {
+    let t = TcpStream::connect(s.local_addr()).unwrap();
+    t.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    t
+}
+
+/// Reads until `want` has been seen; returns everything read.
+fn read_until(t: &mut TcpStream, want: &str) -> String {
+    let mut got = String::new();
+    let mut buf = [0u8; 4096];
+    while !got.contains(want) {
+        let n = t.read(&mut buf).unwrap();
+        assert!(n > 0, "closed before {want:?}; got {got:?}");
+        got.push_str(&String::from_utf8_lossy(&buf[..n]));
+    }
+    got
+}
+
+#[test]
+fn handshake_bytes_are_exactly_what_python_can_compares() {
+    let s = server(500_000, 1024);
+    let mut t = raw(&s);
+    let mut buf = [0u8; 64];
+    let n = t.read(&mut buf).unwrap();
+    assert_eq!(&buf[..n], b"< hi >");
+    t.write_all(b"< open vcan0 >").unwrap();
+    let n = t.read(&mut buf).unwrap();
+    assert_eq!(&buf[..n], b"< ok >");
+    t.write_all(b"< rawmode >").unwrap();
+    let n = t.read(&mut buf).unwrap();
+    assert_eq!(&buf[..n], b"< ok >");
+    s.shutdown();
+}
+
+#[test]
+fn garbage_gets_an_error_and_the_connection_and_server_survive() {
+    let s = server(500_000, 1024);
+    let mut other = client(&s);
+    let mut t = raw(&s);
+    read_until(&mut t, "< hi >");
+    t.write_all(b"< send 123 1 11 >").unwrap();
+    read_until(&mut t, "< error open a bus first");
+    t.write_all(b"< open vcan0 >< rawmode >").unwrap();
+    read_until(&mut t, "< ok >< ok >");
+    for (junk, answer) in [
+        (&b"hello"[..], "< error text outside"),
+        (
+            b"< send 123 9 >",
+            "< error DLC \"9\" must be a decimal 0..8 >",
+        ),
+        (b"< send 800 0 >", "< error ID \"800\""),
+        (b"< fly >", "< error unknown command \"fly\" >"),
+        (b"< \xff\xfe >", "< error element is not UTF-8 text >"),
+        (b"< bcmmode >", "< error buslab serves raw mode only"),
+        (
+            b"< subscribe 0 0 123 >",
+            "< error subscribe is not supported",
+        ),
+        (b"< buslab_status 99 >", "< error no node 99"),
+    ] {
+        t.write_all(junk).unwrap();
+        t.write_all(b"< echo >").unwrap();
+        let got = read_until(&mut t, "< echo >");
+        assert!(got.contains(answer), "{junk:?}: {got:?}");
+    }
+    // The same connection still sends frames, and others still talk.
+    t.write_all(b"< send 123 2 AA BB >").unwrap();
+    assert_eq!(recv(&mut other), "123#AABB");
+    other.send(&frame("321#01")).unwrap();
+    read_until(&mut t, "< frame 321 ");
+    s.shutdown();
+}
+
+#[test]
+fn opening_another_bus_is_refused_and_closes() {
+    let s = server(500_000, 1024);
+    let mut t = raw(&s);
+    read_until(&mut t, "< hi >");
+    t.write_all(b"< open can7 >").unwrap();
+    let got = read_until(&mut t, "< error could not open bus >");
+    assert!(got.ends_with("< error could not open bus >"));
+    let mut buf = [0u8; 16];
+    assert_eq!(t.read(&mut buf).unwrap(), 0, "connection should be closed");
+    s.shutdown();
+}
+
+#[test]
+fn a_client_that_does_not_read_loses_only_its_own_frames() {
+    let s = server(1_000_000, 1024);
+    let mut sender = client(&s);
+    let mut fast = client(&s);
+    // Joins, then never reads.
+    let mut slow = raw(&s);
+    slow.write_all(b"< open vcan0 >< rawmode >< buslab_name slow >")
+        .unwrap();
+    let total = 20_000;
+    let reader = std::thread::spawn(move || {
+        let mut n = 0;
+        while n < total {
+            fast.recv(WAIT)
+                .unwrap()
+                .expect("every frame reaches the fast client");
+            n += 1;
+        }
+        fast
+    });
+    for i in 0..total {
+        let f = Frame::data(
+            buslab_can::Id::standard(0x100).unwrap(),
+            &(i as u64).to_le_bytes(),
+        )
+        .unwrap();
+        sender.send(&f).unwrap();
+    }
+    let mut fast = reader.join().unwrap();
+    let st = fast
+        .node_status(Some(NodeRef::Name("slow".into())))
+        .unwrap();
+    let lost: u64 = st.get("rx_lost").unwrap().parse().unwrap();
+    assert!(lost > 0, "{st}");
+    drop(slow);
+    s.shutdown();
+}
+
+#[test]
+fn registers_and_status_of_a_node_with_the_wrong_bit_timing() {
+    let s = server(500_000, 1024);
+    let mut good = client(&s);
+    let mut bad = client(&s);
+    bad.set_name("slowpoke").unwrap();
+    bad.set_btr(0x07, 0x4D).unwrap();
+    bad.send(&frame("123#11")).unwrap();
+    // It fails to send; the good node sees nothing but errors.
+    assert!(
+        good.recv(Some(Duration::from_millis(100)))
+            .unwrap()
+            .is_none()
+    );
+    let st = good
+        .node_status(Some(NodeRef::Name("slowpoke".into())))
+        .unwrap();
+    assert_eq!(st.get("timing"), Some("mismatch"));
+    assert_eq!(st.get("bitrate"), Some("50000"));
+    assert!(st.error_registers().ecc.is_some(), "{st}");
+    assert!(
+        st.error_registers().txerr > 0 || st.state() != BusState::Active,
+        "{st}"
+    );
+    let (number, name, dump) = good
+        .register_dump(Some(NodeRef::Name("slowpoke".into())))
+        .unwrap();
+    assert_eq!((number, name.as_str()), (2, "slowpoke"));
+    assert_eq!(dump.get(6), Some(0x07));
+    assert_eq!(dump.get(7), Some(0x4D));
+    let nodes = good.nodes().unwrap();
+    assert_eq!(
+        nodes,
+        [(1, "node1".to_string()), (2, "slowpoke".to_string())]
+    );
+    s.shutdown();
+}
