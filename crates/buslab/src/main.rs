@@ -27,6 +27,18 @@ enum Command {
     Zelle(cmd::zelle::Args),
     /// CPU196 controller board: serve the model on a pseudo-terminal, or talk to a board.
     Cpu196(cmd::cpu196::Args),
+    /// Virtual CAN bus server (socketcand protocol; every client gets an SJA1000).
+    Bus(cmd::bus::Args),
+    /// Print the frames on a CAN bus, like candump.
+    Dump(cmd::dump::Args),
+    /// Send frames in cansend syntax (123#1122).
+    Send(cmd::send::Args),
+    /// Generate CAN traffic, like cangen.
+    Gen(cmd::r#gen::Args),
+    /// A node's SJA1000 registers (names and values).
+    Regs(cmd::regs::Args),
+    /// A node's error state, STATUS bits, counters, ALC and ECC in words.
+    Status(cmd::status::Args),
 }
 
 fn main() -> ExitCode {
@@ -48,5 +60,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sim(args) => cmd::sim::run(args),
         Command::Zelle(args) => cmd::zelle::run(args),
         Command::Cpu196(args) => cmd::cpu196::run(args),
+        Command::Bus(args) => cmd::bus::run(args),
+        Command::Dump(args) => cmd::dump::run(args),
+        Command::Send(args) => cmd::send::run(args),
+        Command::Gen(args) => cmd::r#gen::run(args),
+        Command::Regs(args) => cmd::regs::run(args),
+        Command::Status(args) => cmd::status::run(args),
     }
 }

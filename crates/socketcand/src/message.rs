@@ -197,7 +197,8 @@ fn parse_data(tokens: &[&str]) -> Result<Vec<u8>, ProtocolError> {
     Ok(out)
 }
 
-/// Writes a remote frame the way a session asked for.
+/// Writes a frame in raw-mode layout; remote frames as `R<dlc>` if `remote_as_r`, else with
+/// no data (python-can cannot represent them; socketcand drops them).
 pub fn format_frame(
     out: &mut String,
     frame: &Frame,
@@ -205,18 +206,19 @@ pub fn format_frame(
     remote_as_r: bool,
 ) -> fmt::Result {
     use fmt::Write;
+    // Empty data still leaves the data field: `< frame 123 1.000000  >`, as socketcand
+    // writes it and python-can splits it (it needs the third field, even empty).
     write!(out, "< frame {} {} ", IdText(frame.id()), timestamp)?;
     if frame.is_remote() {
         if remote_as_r {
-            write!(out, "R{} ", frame.dlc())?;
+            write!(out, "R{}", frame.dlc())?;
         }
     } else {
         for b in frame.payload() {
             write!(out, "{b:02X}")?;
         }
-        out.push(' ');
     }
-    out.push('>');
+    out.push_str(" >");
     Ok(())
 }
 

@@ -217,6 +217,20 @@ fn exact_bytes_python_can_compares() {
         .to_string(),
         "< frame 123 23.424242 1A220344 >"
     );
+    // Empty data keeps its (empty) field, as socketcand writes it; python-can needs it.
+    assert_eq!(
+        ServerMessage::frame(frame("123#"), Timestamp { secs: 1, micros: 0 }).to_string(),
+        "< frame 123 1.000000  >"
+    );
+    let mut plain = String::new();
+    buslab_socketcand::message::format_frame(
+        &mut plain,
+        &frame("321#R3"),
+        Timestamp { secs: 1, micros: 0 },
+        false,
+    )
+    .unwrap();
+    assert_eq!(plain, "< frame 321 1.000000  >");
     // An error text cannot close the element early.
     assert_eq!(
         ServerMessage::Error("a > b <c>".into()).to_string(),

@@ -1,7 +1,13 @@
 //! One module per subcommand.
 
+pub mod bus;
 pub mod cpu196;
+pub mod dump;
+pub mod r#gen;
 pub mod lab;
+pub mod regs;
+pub mod send;
 pub mod sim;
+pub mod status;
 pub mod wire;
 pub mod zelle;

@@ -1,0 +1,120 @@
+//! `buslab dump`: print every frame on a bus like candump; `-l FILE` also writes a candump log.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::Context;
+use buslab_can::Frame;
+use buslab_canbus::CanBus;
+
+use super::bus::{BusOpt, open};
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub bus: BusOpt,
+    /// Also write every frame to this candump log file (`(SEC.USEC) IFACE ID#DATA`).
+    #[arg(short = 'l', long = "log", value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// Prefix each line with the absolute time, as `candump -t a`.
+    #[arg(short = 't', long)]
+    pub timestamps: bool,
+    /// Exit after this many frames.
+    #[arg(short = 'n', long)]
+    pub count: Option<u64>,
+    /// Name this client's node on a buslab bus.
+    #[arg(long)]
+    pub name: Option<String>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match dump(args) {
+        Err(e)
+            if e.downcast_ref::<io::Error>()
+                .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
+        other => other,
+    }
+}
+
+fn dump(args: Args) -> anyhow::Result<()> {
+    let mut open = open(&args.bus.bus)?;
+    if let (Some(name), true) = (&args.name, open.extensions) {
+        open.bus.set_name(name)?;
+    }
+    let channel = args.bus.bus.channel().to_string();
+    let mut log = match &args.log {
+        Some(path) => {
+            Some(BufWriter::new(File::create(path).with_context(|| {
+                format!("cannot create {}", path.display())
+            })?))
+        }
+        None => None,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    let stdout = io::stdout();
+    let mut out = stdout.lock();
+    let mut printer = Candump::default();
+    let mut seen = 0u64;
+    while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| seen < n) {
+        let Some(m) = open.bus.recv(Some(Duration::from_millis(100)))? else {
+            continue;
+        };
+        seen += 1;
+        let ts = args.timestamps.then_some(m.timestamp);
+        printer.line(&mut out, ts, &channel, &m.frame)?;
+        out.flush()?;
+        if let Some(log) = &mut log {
+            writeln!(log, "({:.6}) {channel} {}", m.timestamp, m.frame)?;
+            log.flush()?;
+        }
+    }
+    Ok(())
+}
+
+/// candump's terminal layout: once an extended frame was seen, standard IDs are indented to
+/// eight columns.
+#[derive(Default)]
+pub struct Candump {
+    extended_seen: bool,
+}
+
+impl Candump {
+    pub fn line(
+        &mut self,
+        out: &mut impl Write,
+        timestamp: Option<f64>,
+        channel: &str,
+        frame: &Frame,
+    ) -> io::Result<()> {
+        self.extended_seen |= frame.is_extended();
+        if let Some(t) = timestamp {
+            write!(out, " ({t:.6})")?;
+        }
+        let raw = frame.id().as_raw();
+        let id = match (frame.is_extended(), self.extended_seen) {
+            (true, _) => format!("{raw:08X}"),
+            (false, true) => format!("{raw:>8X}"),
+            (false, false) => format!("{raw:03X}"),
+        };
+        write!(out, "  {channel}  {id}   [{}] ", frame.dlc())?;
+        if frame.is_remote() {
+            write!(out, " remote request")?;
+        } else {
+            for b in frame.payload() {
+                write!(out, " {b:02X}")?;
+            }
+        }
+        writeln!(out)
+    }
+}
