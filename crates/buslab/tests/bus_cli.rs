@@ -142,15 +142,15 @@ fn wrong_bit_timing_is_an_induced_error_seen_in_status_and_regs() {
     assert!(!ok);
     // Either still trying or given up (bus-off) when the timeout ends.
     assert!(err.contains("frames were"), "{err}");
-    assert!(err.contains("timing   mismatch"), "{err}");
-    assert!(err.contains("ECC:     0x"), "{err}");
+    assert!(err.contains("timing:           mismatch"), "{err}");
+    assert!(err.contains("ECC:              0x"), "{err}");
     // The listener saw the garbage too: its ECC and RXERR tell.
     let (ok, out, err) = run(&serve, &["status", "--node", "pc"]);
     assert!(ok, "{err}");
     assert!(out.starts_with("node 1 (pc)\n"), "{out}");
-    assert!(out.contains("STATUS:  0x"), "{out}");
-    assert!(out.contains("ECC:     0x"), "{out}");
-    assert!(!out.contains("RXERR:   0\n"), "{out}");
+    assert!(out.contains("STATUS:           SR=0x"), "{out}");
+    assert!(out.contains("ECC:              0x"), "{out}");
+    assert!(!out.contains("RXERR:            0\n"), "{out}");
     assert!(
         listener
             .recv(Some(Duration::from_millis(50)))
@@ -164,17 +164,17 @@ fn arbitration_loss_shows_in_status_and_regs() {
     let serve = Serve::start(1_000_000);
     let _rx = serve.client();
     let mut blocker = serve.client();
-    for _ in 0..200 {
-        blocker.send(&frame("001#0102030405060708")).unwrap();
-    }
     let mut loser = serve.client();
     loser.set_name("loser").unwrap();
+    for _ in 0..3000 {
+        blocker.send(&frame("001#0102030405060708")).unwrap();
+    }
     loser.send(&frame("400#01")).unwrap();
     let mut lost = String::new();
     for _ in 0..100 {
         let (ok, out, err) = run(&serve, &["status", "--node", "loser"]);
         assert!(ok, "{err}");
-        if out.contains("ALC:     0x") {
+        if out.contains("ALC:              0x") {
             lost = out;
             break;
         }
@@ -182,7 +182,7 @@ fn arbitration_loss_shows_in_status_and_regs() {
     }
     // 0x400 (100 0000 0000) loses to 0x001 at its first bit.
     assert!(
-        lost.contains("ALC:     0x00 arbitration lost at bit 0 (ID.28)"),
+        lost.contains("ALC:              0x00 arbitration lost at bit 0 (ID.28)"),
         "{lost}"
     );
     let (ok, out, err) = run(&serve, &["regs", "--node", "loser"]);
@@ -282,4 +282,18 @@ fn serve_refuses_a_busy_address() {
         err.contains(&format!("cannot listen on {}", serve.addr)),
         "{err}"
     );
+}
+
+#[test]
+fn status_without_a_node_lists_every_other_node() {
+    let serve = Serve::start(500_000);
+    let mut a = serve.client();
+    a.set_name("alpha").unwrap();
+    let mut b = serve.client();
+    b.set_name("beta").unwrap();
+    let (ok, out, err) = run(&serve, &["status"]);
+    assert!(ok, "{err}");
+    let heads: Vec<&str> = out.lines().filter(|l| l.starts_with("node ")).collect();
+    assert_eq!(heads, ["node 1 (alpha)", "node 2 (beta)"]);
+    assert!(out.contains("bus_bitrate:      500000"), "{out}");
 }

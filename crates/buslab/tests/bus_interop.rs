@@ -65,10 +65,10 @@ fn python_can_exchanges_frames_and_sees_priority_order() {
     // Several nodes contend: the bus is kept busy by a top-priority sender, the contenders'
     // frames wait in their chips and go out in priority order.
     let mut blocker = serve.client();
-    for _ in 0..1000 {
+    let mut contenders: Vec<_> = (0..3).map(|_| serve.client()).collect();
+    for _ in 0..3000 {
         blocker.send(&frame("001#0102030405060708")).unwrap();
     }
-    let mut contenders: Vec<_> = (0..3).map(|_| serve.client()).collect();
     for (c, f) in contenders.iter_mut().zip(["300#03", "200#02", "100#01"]) {
         c.send(&frame(f)).unwrap();
     }

@@ -108,28 +108,31 @@ impl NodeStatus {
 /// the server's other counters.
 impl fmt::Display for NodeStatus {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fn row(f: &mut fmt::Formatter<'_>, label: &str, value: impl fmt::Display) -> fmt::Result {
+            writeln!(f, "{:<18}{value}", format!("{label}:"))
+        }
         writeln!(f, "node {} ({})", self.number, self.name)?;
-        writeln!(f, "state:   {}", self.get("state").unwrap_or("?"))?;
+        row(f, "state", self.get("state").unwrap_or("?"))?;
         if let Some(sr) = self.status() {
-            writeln!(f, "STATUS:  0x{:02X} {sr}", sr.0)?;
+            row(f, "STATUS", sr)?;
         }
         let e = self.error_registers();
-        writeln!(f, "TXERR:   {}", e.txerr)?;
-        writeln!(f, "RXERR:   {}", e.rxerr)?;
+        row(f, "TXERR", e.txerr)?;
+        row(f, "RXERR", e.rxerr)?;
         match e.alc {
-            Some(alc) => writeln!(f, "ALC:     0x{:02X} {alc}", alc.0)?,
-            None => writeln!(f, "ALC:     none captured")?,
+            Some(alc) => row(f, "ALC", format_args!("0x{:02X} {alc}", alc.0))?,
+            None => row(f, "ALC", "none captured")?,
         }
         match e.ecc {
-            Some(ecc) => writeln!(f, "ECC:     0x{:02X} {ecc}", ecc.0)?,
-            None => writeln!(f, "ECC:     none captured")?,
+            Some(ecc) => row(f, "ECC", format_args!("0x{:02X} {ecc}", ecc.0))?,
+            None => row(f, "ECC", "none captured")?,
         }
         for (k, v) in &self.fields {
             if !matches!(
                 k.as_str(),
                 "state" | "sr" | "txerr" | "rxerr" | "alc" | "ecc"
             ) {
-                writeln!(f, "{k:<8} {v}")?;
+                row(f, k, v)?;
             }
         }
         Ok(())

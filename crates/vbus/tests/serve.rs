@@ -82,12 +82,12 @@ fn contending_nodes_are_received_in_priority_order() {
     let s = server(1_000_000, 8192);
     let mut rx = client(&s);
     let mut blocker = client(&s);
-    // Keep the bus busy with top-priority frames so the three contenders' frames wait in
-    // their chips and then arbitrate against each other.
-    for _ in 0..1000 {
+    let mut contenders: Vec<SocketcandBus> = (0..3).map(|_| client(&s)).collect();
+    // Keep the bus busy with top-priority frames (about 0.4 s) so the three contenders'
+    // frames wait in their chips and then arbitrate against each other.
+    for _ in 0..3000 {
         blocker.send(&frame("001#0102030405060708")).unwrap();
     }
-    let mut contenders: Vec<SocketcandBus> = (0..3).map(|_| client(&s)).collect();
     for (c, f) in contenders.iter_mut().zip(["300#03", "200#02", "100#01"]) {
         c.send(&frame(f)).unwrap();
     }
