@@ -61,8 +61,7 @@ impl Deframer {
                     .map_or(self.buf.len(), |p| p + 1)
             });
             let junk: Vec<u8> = self.buf.drain(..end).collect();
-            let text = String::from_utf8_lossy(&junk).trim().to_string();
-            return Some(Err(ElementError::Outside(text)));
+            return Some(Err(ElementError::Outside(excerpt(&junk))));
         }
         let start = match start {
             Some(s) => s,
@@ -90,11 +89,23 @@ impl Deframer {
                 .and_then(|s| {
                     if s.contains('<') {
                         // `<` inside an element: the earlier `<` started garbage.
-                        Err(ElementError::Outside(s))
+                        Err(ElementError::Outside(excerpt(s.as_bytes())))
                     } else {
                         Ok(s)
                     }
                 }),
         )
+    }
+}
+
+/// The first characters of some garbage, for an error message (never the whole flood).
+fn excerpt(bytes: &[u8]) -> String {
+    const KEEP: usize = 40;
+    let text = String::from_utf8_lossy(bytes);
+    let text = text.trim();
+    if text.chars().count() > KEEP {
+        format!("{}…", text.chars().take(KEEP).collect::<String>())
+    } else {
+        text.to_string()
     }
 }

@@ -267,6 +267,16 @@ fn deframer_reports_junk_and_keeps_going() {
 }
 
 #[test]
+fn a_flood_of_junk_is_reported_briefly() {
+    let got = elements(&vec![b'x'; 10_000]);
+    assert_eq!(got.len(), 1);
+    let Err(ElementError::Outside(text)) = &got[0] else {
+        panic!("{got:?}")
+    };
+    assert_eq!(text, &format!("{}…", "x".repeat(40)));
+}
+
+#[test]
 fn deframer_waits_for_the_rest_of_an_element() {
     let mut d = Deframer::new();
     d.push(b"< sen");

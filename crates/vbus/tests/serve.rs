@@ -267,3 +267,43 @@ fn registers_and_status_of_a_node_with_the_wrong_bit_timing() {
     );
     s.shutdown();
 }
+
+#[test]
+fn a_host_that_cannot_keep_up_is_reported() {
+    let lines = Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 1_000_000);
+    // A thousand times real time with traffic on the bus: no host keeps up.
+    config.speed = 1000.0;
+    let sink = lines.clone();
+    config.log = Arc::new(move |l| sink.lock().unwrap().push(l.to_string()));
+    let s = spawn(config).unwrap();
+    let mut a = client(&s);
+    let _b = client(&s);
+    for _ in 0..2000 {
+        a.send(&frame("123#0102030405060708")).unwrap();
+    }
+    let mut found = None;
+    for _ in 0..500 {
+        found = lines
+            .lock()
+            .unwrap()
+            .iter()
+            .find(|l| l.contains("the host is too slow"))
+            .cloned();
+        if found.is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let line = found.expect("a warning within 5 s");
+    assert!(line.contains("ms behind the wall clock"), "{line}");
+    s.shutdown();
+}
+
+#[test]
+fn speed_must_be_positive() {
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+    config.speed = 0.0;
+    let err = spawn(config).err().expect("refused").to_string();
+    assert!(err.contains("speed 0 must be a positive number"), "{err}");
+}
