@@ -374,13 +374,14 @@ impl VirtualBus {
         self.feed_all();
         while self.now < end {
             let stop = end.min(self.next_window);
-            if self.all_idle() {
-                let skip = self
-                    .scenario
-                    .as_ref()
-                    .map_or(stop, |s| s.next_activity().min(stop));
-                let skip = skip.max(self.now + 1);
+            // Scenario traffic or a fault due now must be stepped with the chips, not skipped.
+            let skip = self
+                .scenario
+                .as_ref()
+                .map_or(stop, |s| s.next_activity().min(stop));
+            if skip > self.now && self.all_idle() {
                 if let Some(s) = &mut self.scenario {
+                    // Nothing is due before `skip`: the scenario jumps too.
                     s.run_until(skip);
                 }
                 self.load.idle(skip - self.now);

@@ -140,3 +140,29 @@ fn an_unreachable_bit_rate_is_refused_by_name() {
     let err = VirtualBus::new(3).unwrap_err().to_string();
     assert!(err.contains("bit rate 3"), "{err}");
 }
+
+#[test]
+fn scenario_nodes_and_chips_share_the_wire_without_errors() {
+    let scenario = buslab_sim::Scenario::from_toml(
+        "bitrate = 500000\n[[nodes]]\nname = \"ecu\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0AA#55\"\n  period = \"1ms\"\n  start = \"100us\"\n",
+    )
+    .unwrap();
+    let mut bus = VirtualBus::new(RATE)
+        .unwrap()
+        .with_scenario(scenario.build());
+    let a = bus.join().unwrap();
+    let b = bus.join().unwrap();
+    // The chip's frame loses arbitration to nothing and interleaves with the ECU's.
+    bus.node_mut(&NodeRef::Number(a))
+        .unwrap()
+        .tx
+        .push_back(frame("123#01"));
+    bus.run_until(RATE as u64 / 100 + 10);
+    let got = received(&mut bus, b);
+    assert_eq!(got.iter().filter(|f| *f == "0AA#55").count(), 10, "{got:?}");
+    assert_eq!(got.iter().filter(|f| *f == "123#01").count(), 1, "{got:?}");
+    assert_eq!(field(&mut bus, b, "bus_errors_total"), "0");
+    // The scenario node received the chip's frame.
+    let sim = bus.scenario().unwrap();
+    assert_eq!(sim.node(0).stats().received, 1);
+}
