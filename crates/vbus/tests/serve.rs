@@ -194,7 +194,7 @@ fn opening_another_bus_is_refused_and_closes() {
 
 #[test]
 fn a_client_that_does_not_read_loses_only_its_own_frames() {
-    let s = server(1_000_000, 1024);
+    let s = server(1_000_000, 4096);
     let mut sender = client(&s);
     let mut fast = client(&s);
     // Joins, then never reads.
@@ -244,16 +244,24 @@ fn registers_and_status_of_a_node_with_the_wrong_bit_timing() {
             .unwrap()
             .is_none()
     );
-    let st = good
-        .node_status(Some(NodeRef::Name("slowpoke".into())))
-        .unwrap();
+    let status = |good: &mut SocketcandBus| {
+        good.node_status(Some(NodeRef::Name("slowpoke".into())))
+            .unwrap()
+    };
+    let mut st = status(&mut good);
+    // (On a loaded machine the server may lag the wall clock a little: ask again.)
+    for _ in 0..500 {
+        if st.error_registers().ecc.is_some() {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+        st = status(&mut good);
+    }
     assert_eq!(st.get("timing"), Some("mismatch"));
     assert_eq!(st.get("bitrate"), Some("50000"));
     assert!(st.error_registers().ecc.is_some(), "{st}");
-    assert!(
-        st.error_registers().txerr > 0 || st.state() != BusState::Active,
-        "{st}"
-    );
+    let errors: u64 = st.get("bus_errors").unwrap().parse().unwrap();
+    assert!(errors > 0, "{st}");
     let (number, name, dump) = good
         .register_dump(Some(NodeRef::Name("slowpoke".into())))
         .unwrap();
