@@ -297,3 +297,27 @@ fn status_without_a_node_lists_every_other_node() {
     assert_eq!(heads, ["node 1 (alpha)", "node 2 (beta)"]);
     assert!(out.contains("bus_bitrate:      500000"), "{out}");
 }
+
+#[test]
+fn dump_shows_error_frames_with_e() {
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("e.log");
+    let child = dump(&serve, &["-e", "-n", "1", "-l", log.to_str().unwrap()]);
+    let (ok, _, _) = run(
+        &serve,
+        &["send", "--btr", "07:4D", "--timeout", "0.3", "123#11"],
+    );
+    assert!(!ok);
+    let (ok, _, err) = run(&serve, &["send", "321#01"]);
+    assert!(ok, "{err}");
+    let out = child.wait_with_output().unwrap();
+    let out = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.contains("  vcan0  20000088   [8]  00 00 00 00 00 00 00 00   ERRORFRAME protocol-violation,bus-error\n"),
+        "{out}"
+    );
+    assert!(out.ends_with("321   [1]  01\n"), "{out}");
+    let log = std::fs::read_to_string(log).unwrap();
+    assert!(log.contains(" vcan0 20000088#0000000000000000\n"), "{log}");
+}

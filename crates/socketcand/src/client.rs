@@ -145,6 +145,7 @@ pub struct SocketcandBus {
     stream: TcpStream,
     deframer: Deframer,
     inbox: VecDeque<Message>,
+    error_frames: VecDeque<(u32, f64)>,
     channel: String,
     filters: Vec<Filter>,
     extensions: bool,
@@ -161,6 +162,7 @@ impl SocketcandBus {
             stream,
             deframer: Deframer::new(),
             inbox: VecDeque::new(),
+            error_frames: VecDeque::new(),
             channel: channel.to_string(),
             filters: Vec::new(),
             extensions: false,
@@ -208,6 +210,17 @@ impl SocketcandBus {
     /// Also receive this client's own frames once they were sent.
     pub fn receive_own(&mut self, on: bool) -> Result<(), ClientError> {
         self.request(&Command::ReceiveOwn(on), None).map(drop)
+    }
+
+    /// Also receive error frames (buslab servers; a socketcand started with `-e` sends them
+    /// anyway): they are collected for [`Self::take_error_frames`].
+    pub fn enable_error_frames(&mut self, on: bool) -> Result<(), ClientError> {
+        self.request(&Command::ErrorFrames(on), None).map(drop)
+    }
+
+    /// The error frames received so far: `(SocketCAN error class, timestamp)`.
+    pub fn take_error_frames(&mut self) -> Vec<(u32, f64)> {
+        self.error_frames.drain(..).collect()
     }
 
     /// Reprograms this client's chip with BTR0/BTR1 (buslab servers).
@@ -345,6 +358,13 @@ impl SocketcandBus {
                             self.channel.clone(),
                             frame,
                         ));
+                    }
+                    ServerMessage::ErrorFrame {
+                        class, timestamp, ..
+                    } => {
+                        frames = true;
+                        self.error_frames
+                            .push_back((class, timestamp.as_secs_f64()));
                     }
                     other => return Ok(Pumped::Message(other)),
                 }

@@ -60,6 +60,9 @@ pub enum Command {
     /// `< buslab_own 0|1 >`: also deliver this client's own frames once sent (off by default,
     /// like python-can's `receive_own_messages`).
     ReceiveOwn(bool),
+    /// `< buslab_errors 0|1 >`: also deliver the chip's bus errors, lost arbitrations and
+    /// state changes as `< error CLASS SEC.USEC >` (SocketCAN error classes).
+    ErrorFrames(bool),
     /// `< buslab_nodes >`: list the nodes.
     Nodes,
     /// `< buslab_status [NODE] >`: error state, counters and registers of a node (own if absent).
@@ -125,6 +128,11 @@ impl Command {
                 ["0"] => Ok(Command::ReceiveOwn(false)),
                 ["1"] => Ok(Command::ReceiveOwn(true)),
                 _ => Err(arguments("buslab_own", "0 or 1", args)),
+            },
+            "buslab_errors" => match args {
+                ["0"] => Ok(Command::ErrorFrames(false)),
+                ["1"] => Ok(Command::ErrorFrames(true)),
+                _ => Err(arguments("buslab_errors", "0 or 1", args)),
             },
             "buslab_nodes" => no_args(Command::Nodes, "buslab_nodes"),
             "buslab_status" | "buslab_regs" => {
@@ -310,6 +318,7 @@ impl fmt::Display for Command {
             Command::Name(name) => write!(f, "< buslab_name {name} >"),
             Command::Extensions => f.write_str("< buslab_ext >"),
             Command::ReceiveOwn(on) => write!(f, "< buslab_own {} >", *on as u8),
+            Command::ErrorFrames(on) => write!(f, "< buslab_errors {} >", *on as u8),
             Command::Nodes => f.write_str("< buslab_nodes >"),
             Command::Status(None) => f.write_str("< buslab_status >"),
             Command::Status(Some(n)) => write!(f, "< buslab_status {n} >"),

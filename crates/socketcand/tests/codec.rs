@@ -66,6 +66,8 @@ fn commands_round_trip_through_their_text() {
         Command::Name("pc-1".into()),
         Command::Extensions,
         Command::ReceiveOwn(true),
+        Command::ErrorFrames(true),
+        Command::ErrorFrames(false),
         Command::Nodes,
         Command::Status(None),
         Command::Status(Some(NodeRef::Number(3))),
@@ -120,6 +122,7 @@ fn garbage_commands_name_what_is_wrong() {
         ("buslab_name 123", "buslab_name: expected one name"),
         ("buslab_name a/b", "buslab_name: expected one name"),
         ("buslab_own 2", "buslab_own: expected 0 or 1"),
+        ("buslab_errors yes", "buslab_errors: expected 0 or 1"),
     ];
     for (text, want) in cases {
         let err = Command::parse(text).unwrap_err().to_string();

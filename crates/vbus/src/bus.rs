@@ -45,6 +45,23 @@ pub struct Delivery {
     pub time: u64,
 }
 
+/// SocketCAN error classes (`linux/can/error.h`) for the error frames sent to clients.
+pub mod error_class {
+    pub const LOST_ARBITRATION: u32 = 0x002;
+    pub const CONTROLLER: u32 = 0x004;
+    pub const PROTOCOL: u32 = 0x008;
+    pub const BUS_OFF: u32 = 0x040;
+    pub const BUS_ERROR: u32 = 0x080;
+    pub const RESTARTED: u32 = 0x100;
+}
+
+/// An error frame for a client: its SocketCAN class and the bit-time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ErrorFrame {
+    pub class: u32,
+    pub time: u64,
+}
+
 /// Counters a client and the log can see.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NodeCounters {
@@ -74,6 +91,9 @@ pub struct Node {
     pub rx: Vec<Delivery>,
     /// Also deliver the node's own frames once sent.
     pub receive_own: bool,
+    /// Error frames for the client (collected only when `error_frames` is on).
+    pub errors: Vec<ErrorFrame>,
+    pub error_frames: bool,
     pub counters: NodeCounters,
     bus_off_at: Option<u64>,
 }
@@ -185,6 +205,7 @@ pub struct VirtualBus {
     log: Vec<String>,
     scenario: Option<Simulation>,
     next_window: u64,
+    error_frames: bool,
 }
 
 impl VirtualBus {
@@ -207,6 +228,7 @@ impl VirtualBus {
             log: Vec::new(),
             scenario: None,
             next_window: bitrate as u64,
+            error_frames: false,
         })
     }
 
@@ -215,6 +237,11 @@ impl VirtualBus {
     pub fn with_scenario(mut self, sim: Simulation) -> Self {
         self.scenario = Some(sim);
         self
+    }
+
+    /// Whether nodes that join from now on collect error frames for their clients.
+    pub fn set_error_frames(&mut self, on: bool) {
+        self.error_frames = on;
     }
 
     pub fn bitrate(&self) -> u32 {
@@ -269,6 +296,8 @@ impl VirtualBus {
             tx: VecDeque::new(),
             rx: Vec::new(),
             receive_own: false,
+            errors: Vec::new(),
+            error_frames: self.error_frames,
             counters: NodeCounters::default(),
             bus_off_at: None,
         });
@@ -478,6 +507,11 @@ impl VirtualBus {
                         node.counters.bus_off += 1;
                         node.bus_off_at = Some(now);
                     }
+                    let class = match to {
+                        ControllerState::BusOff => error_class::BUS_OFF,
+                        _ => error_class::CONTROLLER,
+                    };
+                    error_frame(node, class, now);
                     lines.push(format!(
                         "node {} ({}): {from} -> {to} (TXERR {}, RXERR {})",
                         node.number,
@@ -489,8 +523,12 @@ impl VirtualBus {
                 DriverEvent::BusError(_) => {
                     node.counters.bus_errors += 1;
                     self.load.errors += 1;
+                    error_frame(node, error_class::PROTOCOL | error_class::BUS_ERROR, now);
                 }
-                DriverEvent::ArbitrationLost(_) => node.counters.arbitration_lost += 1,
+                DriverEvent::ArbitrationLost(_) => {
+                    node.counters.arbitration_lost += 1;
+                    error_frame(node, error_class::LOST_ARBITRATION, now);
+                }
                 DriverEvent::WakeUp => {}
             }
         }
@@ -518,6 +556,7 @@ impl VirtualBus {
             {
                 n.bus_off_at = None;
                 let result = n.driver.restart();
+                error_frame(n, error_class::RESTARTED, now);
                 lines.push(match result {
                     Ok(()) => format!("node {} ({}): restarted after bus-off", n.number, n.name),
                     Err(e) => format!("node {} ({}): restart failed: {e}", n.number, n.name),
@@ -594,6 +633,13 @@ impl VirtualBus {
     ) -> Result<(u32, String, buslab_canbus::RegisterDump), VbusError> {
         let n = self.node_mut(node)?;
         Ok((n.number, n.name.clone(), n.driver.register_dump()))
+    }
+}
+
+/// Queues an error frame if the node's client asked for them.
+fn error_frame(n: &mut Node, class: u32, time: u64) {
+    if n.error_frames {
+        n.errors.push(ErrorFrame { class, time });
     }
 }
 

@@ -1,6 +1,7 @@
 //! The network side: a TCP listener, one reader and one writer thread per client, and the bus
 //! thread that paces the [`VirtualBus`] to the wall clock.
 
+use std::fmt::Write as _;
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
 use std::sync::Arc;
@@ -30,6 +31,10 @@ pub struct ServerConfig {
     pub client_queue: usize,
     /// Scenario nodes on the same wire.
     pub scenario: Option<Simulation>,
+    /// Send every client its chip's bus errors, lost arbitrations and state changes as
+    /// `< error CLASS SEC.USEC >` (socketcand's `-e`); a client can also ask with
+    /// `< buslab_errors 1 >`.
+    pub error_frames: bool,
     /// Where log lines go.
     pub log: Arc<dyn Fn(&str) + Send + Sync>,
 }
@@ -43,6 +48,7 @@ impl ServerConfig {
             speed: 1.0,
             client_queue: 8192,
             scenario: None,
+            error_frames: false,
             log: Arc::new(|line| eprintln!("{line}")),
         }
     }
@@ -109,6 +115,7 @@ enum Control {
 enum Out {
     Text(String),
     Frame(Frame, Timestamp),
+    ErrorFrame(u32, Timestamp),
     /// From now on frames are delivered; `true`: remote frames as `R<dlc>`.
     Raw(bool),
     /// Remote frames in buslab's form from now on.
@@ -121,6 +128,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         return Err(ServerError::Speed(config.speed));
     }
     let mut bus = VirtualBus::new(config.bitrate)?;
+    bus.set_error_frames(config.error_frames);
     if let Some(sim) = config.scenario.take() {
         bus = bus.with_scenario(sim);
     }
@@ -307,6 +315,16 @@ fn deliver(bus: &mut VirtualBus, links: &mut [Link], unix0: u128, _speed: f64, l
         let Ok(node) = bus.node_mut(&NodeRef::Number(link.number)) else {
             continue;
         };
+        for e in node.errors.drain(..) {
+            match link
+                .out
+                .try_send(Out::ErrorFrame(e.class, stamp(unix0, e.time, bitrate)))
+            {
+                Ok(()) => {}
+                Err(TrySendError::Full(_)) => node.counters.rx_lost += 1,
+                Err(TrySendError::Disconnected(_)) => {}
+            }
+        }
         for d in node.rx.drain(..) {
             match link
                 .out
@@ -365,6 +383,13 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
         Command::Name(name) => bus.rename(me, &name).map(|()| ServerMessage::Ok),
         Command::ReceiveOwn(on) => bus.node_mut(&own).map(|n| {
             n.receive_own = on;
+            ServerMessage::Ok
+        }),
+        Command::ErrorFrames(on) => bus.node_mut(&own).map(|n| {
+            n.error_frames = on;
+            if !on {
+                n.errors.clear();
+            }
             ServerMessage::Ok
         }),
         Command::Btr { btr0, btr1 } => bus.set_btr(me, btr0, btr1).map(|()| ServerMessage::Ok),
@@ -604,6 +629,12 @@ fn writer(mut stream: TcpStream, out: Receiver<Out>) {
                 Out::Frame(frame, ts) => {
                     if raw {
                         let _ = format_frame(&mut text, &frame, ts, remote_as_r);
+                    }
+                }
+                Out::ErrorFrame(class, ts) => {
+                    if raw {
+                        // Raw mode's layout: the class, the time, no data (socketcand -e).
+                        let _ = write!(text, "< error {class:03X} {ts} >");
                     }
                 }
             }

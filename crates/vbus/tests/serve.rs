@@ -315,3 +315,47 @@ fn speed_must_be_positive() {
     let err = spawn(config).err().expect("refused").to_string();
     assert!(err.contains("speed 0 must be a positive number"), "{err}");
 }
+
+#[test]
+fn error_frames_reach_clients_that_ask_for_them() {
+    let s = server(500_000, 1024);
+    let mut watcher = client(&s);
+    watcher.enable_error_frames(true).unwrap();
+    let mut quiet = client(&s);
+    let mut bad = client(&s);
+    bad.set_btr(0x07, 0x4D).unwrap();
+    bad.send(&frame("123#11")).unwrap();
+    let mut classes = Vec::new();
+    for _ in 0..50 {
+        let _ = watcher.recv(Some(Duration::from_millis(20))).unwrap();
+        classes.extend(watcher.take_error_frames().into_iter().map(|(c, _)| c));
+        if classes.contains(&0x088) {
+            break;
+        }
+    }
+    // Protocol violation + bus error, as Linux's SJA1000 driver reports a bus error.
+    assert!(classes.contains(&0x088), "{classes:x?}");
+    let _ = quiet.recv(Some(Duration::from_millis(20))).unwrap();
+    assert!(quiet.take_error_frames().is_empty());
+    s.shutdown();
+}
+
+#[test]
+fn error_frames_for_everybody_in_socketcand_raw_layout() {
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+    config.error_frames = true;
+    config.log = Arc::new(|_| {});
+    let s = spawn(config).unwrap();
+    let mut t = raw(&s);
+    t.write_all(b"< open vcan0 >< rawmode >").unwrap();
+    read_until(&mut t, "< ok >< ok >");
+    let mut bad = client(&s);
+    bad.set_btr(0x07, 0x4D).unwrap();
+    bad.send(&frame("123#11")).unwrap();
+    let got = read_until(&mut t, "< error 088 ");
+    let line = &got[got.find("< error 088 ").unwrap()..];
+    let end = line.find('>').unwrap();
+    // `< error CLASS SEC.USEC >`: no data, as socketcand -e in raw mode.
+    assert_eq!(line[..end + 1].split_whitespace().count(), 5, "{line}");
+    s.shutdown();
+}

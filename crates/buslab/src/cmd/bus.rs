@@ -51,6 +51,10 @@ pub struct ServeArgs {
     /// Frames queued for one client before newer ones are dropped for it.
     #[arg(long, default_value_t = 8192)]
     pub client_queue: usize,
+    /// Send every client its chip's bus errors, lost arbitrations and state changes as
+    /// error frames (`< error CLASS SEC.USEC >`, like socketcand -e).
+    #[arg(short = 'e', long)]
+    pub error_frames: bool,
 }
 
 /// The common `--bus` option.
@@ -231,6 +235,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     config.channel = args.name.clone();
     config.speed = args.speed;
     config.client_queue = args.client_queue.max(1);
+    config.error_frames = args.error_frames;
     if let Some(path) = &args.nodes {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read {}", path.display()))?;

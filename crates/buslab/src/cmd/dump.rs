@@ -29,6 +29,10 @@ pub struct Args {
     /// Name this client's node on a buslab bus.
     #[arg(long)]
     pub name: Option<String>,
+    /// Also show error frames: this node's bus errors, lost arbitrations and state changes
+    /// (candump -e).
+    #[arg(short = 'e', long)]
+    pub errors: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -47,6 +51,9 @@ fn dump(args: Args) -> anyhow::Result<()> {
     let mut open = open(&args.bus.bus)?;
     if let (Some(name), true) = (&args.name, open.extensions) {
         open.bus.set_name(name)?;
+    }
+    if args.errors && open.extensions {
+        open.bus.enable_error_frames(true)?;
     }
     let channel = args.bus.bus.channel().to_string();
     let mut log = match &args.log {
@@ -67,7 +74,23 @@ fn dump(args: Args) -> anyhow::Result<()> {
     let mut printer = Candump::default();
     let mut seen = 0u64;
     while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| seen < n) {
-        let Some(m) = open.bus.recv(Some(Duration::from_millis(100)))? else {
+        let received = open.bus.recv(Some(Duration::from_millis(100)))?;
+        if args.errors {
+            for (class, ts) in open.bus.take_error_frames() {
+                let ts_shown = args.timestamps.then_some(ts);
+                printer.error_line(&mut out, ts_shown, &channel, class)?;
+                out.flush()?;
+                if let Some(log) = &mut log {
+                    writeln!(
+                        log,
+                        "({ts:.6}) {channel} {:08X}#0000000000000000",
+                        ERR_FLAG | class
+                    )?;
+                    log.flush()?;
+                }
+            }
+        }
+        let Some(m) = received else {
             continue;
         };
         seen += 1;
@@ -80,6 +103,34 @@ fn dump(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The error-frame flag of a SocketCAN ID (as candump logs write error frames).
+const ERR_FLAG: u32 = 0x2000_0000;
+
+/// The SocketCAN error classes in words (`linux/can/error.h`).
+pub fn error_class_words(class: u32) -> String {
+    const NAMES: [(u32, &str); 9] = [
+        (0x001, "tx-timeout"),
+        (0x002, "lost-arbitration"),
+        (0x004, "controller-problem"),
+        (0x008, "protocol-violation"),
+        (0x010, "transceiver-status"),
+        (0x020, "no-acknowledgement"),
+        (0x040, "bus-off"),
+        (0x080, "bus-error"),
+        (0x100, "restarted-after-bus-off"),
+    ];
+    let words: Vec<&str> = NAMES
+        .iter()
+        .filter(|(bit, _)| class & bit != 0)
+        .map(|(_, name)| *name)
+        .collect();
+    if words.is_empty() {
+        format!("class 0x{class:03X}")
+    } else {
+        words.join(",")
+    }
 }
 
 /// candump's terminal layout: once an extended frame was seen, standard IDs are indented to
@@ -116,5 +167,24 @@ impl Candump {
             }
         }
         writeln!(out)
+    }
+
+    /// An error frame as `candump -e` shows it (socketcand's raw mode gives only the class).
+    pub fn error_line(
+        &mut self,
+        out: &mut impl Write,
+        timestamp: Option<f64>,
+        channel: &str,
+        class: u32,
+    ) -> io::Result<()> {
+        if let Some(t) = timestamp {
+            write!(out, " ({t:.6})")?;
+        }
+        writeln!(
+            out,
+            "  {channel}  {:08X}   [8]  00 00 00 00 00 00 00 00   ERRORFRAME {}",
+            ERR_FLAG | class,
+            error_class_words(class)
+        )
     }
 }
