@@ -63,6 +63,8 @@ pub enum ServerError {
     Bus(#[from] VbusError),
     #[error("speed {0} must be a positive number")]
     Speed(f64),
+    #[error("cannot start a server thread: {0}")]
+    Thread(io::Error),
 }
 
 /// A running server; dropping it does not stop it (call [`ServerHandle::shutdown`]).
@@ -159,11 +161,10 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         let stop = stop.clone();
         let log = log.clone();
         let speed = config.speed;
-        let queue = config.client_queue;
         thread::Builder::new()
             .name("vbus-bus".into())
-            .spawn(move || run_bus(bus, control_rx, stop, log, speed, queue))
-            .expect("spawn bus thread")
+            .spawn(move || run_bus(bus, control_rx, stop, log, speed))
+            .map_err(ServerError::Thread)?
     };
     let accept_thread = {
         let stop = stop.clone();
@@ -186,7 +187,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
                         .spawn(move || session(stream, control, channel, queue, log));
                 }
             })
-            .expect("spawn accept thread")
+            .map_err(ServerError::Thread)?
     };
     Ok(ServerHandle {
         addr,
@@ -217,7 +218,6 @@ fn run_bus(
     stop: Arc<AtomicBool>,
     log: Arc<dyn Fn(&str) + Send + Sync>,
     speed: f64,
-    _queue: usize,
 ) {
     let bitrate = bus.bitrate() as f64;
     let start = Instant::now();
@@ -263,7 +263,7 @@ fn run_bus(
                 }
             }
             bus.run_until(target.min(now + slice));
-            deliver(&mut bus, &mut links, unix0, speed, &*log);
+            deliver(&mut bus, &mut links, unix0, &*log);
             for line in bus.take_log() {
                 log(&line);
             }
@@ -309,7 +309,7 @@ fn stamp(unix0: u128, time: u64, bitrate: u32) -> Timestamp {
 
 /// Moves received frames to the clients' writer queues; a full queue loses the frame for
 /// that client only.
-fn deliver(bus: &mut VirtualBus, links: &mut [Link], unix0: u128, _speed: f64, log: &dyn Fn(&str)) {
+fn deliver(bus: &mut VirtualBus, links: &mut [Link], unix0: u128, log: &dyn Fn(&str)) {
     let bitrate = bus.bitrate();
     for link in links.iter_mut() {
         let Ok(node) = bus.node_mut(&NodeRef::Number(link.number)) else {
