@@ -10,8 +10,8 @@ use std::time::Duration;
 use bus_common::{Serve, frame};
 use buslab_canbus::CanBus;
 
-#[test]
-fn python_can_exchanges_frames_and_sees_priority_order() {
+/// The venv's python with python-can, or `None` (allowed outside CI only).
+fn python_can() -> Option<(PathBuf, PathBuf)> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let python = root.join(".venv/bin/python");
     let has_can = python.exists()
@@ -26,8 +26,37 @@ fn python_can_exchanges_frames_and_sees_priority_order() {
             python.display()
         );
         eprintln!("SKIPPED: python-can is missing; run scripts/setup-test-deps.sh");
-        return;
+        return None;
     }
+    Some((root, python))
+}
+
+#[test]
+fn python_can_detects_the_beacon() {
+    let Some((root, python)) = python_can() else {
+        return;
+    };
+    let serve = Serve::start_with(500_000, &["--beacon"]);
+    let out = Command::new(&python)
+        .arg(root.join("tests/interop/can_detect_beacon.py"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout).trim(),
+        format!("socketcand 127.0.0.1 {} vcan0", serve.addr.port())
+    );
+}
+
+#[test]
+fn python_can_exchanges_frames_and_sees_priority_order() {
+    let Some((root, python)) = python_can() else {
+        return;
+    };
     let serve = Serve::start(1_000_000);
     let mut child = Command::new(&python)
         .arg(root.join("tests/interop/can_socketcand_peer.py"))

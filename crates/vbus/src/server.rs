@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 use std::io::{self, Read, Write};
-use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
+use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, UdpSocket};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender, TrySendError};
@@ -35,6 +35,9 @@ pub struct ServerConfig {
     /// `< error CLASS SEC.USEC >` (socketcand's `-e`); a client can also ask with
     /// `< buslab_errors 1 >`.
     pub error_frames: bool,
+    /// Send socketcand's discovery beacon (UDP, every 3 s) to this address, so python-can's
+    /// `detect_beacon()` finds the bus (socketcand broadcasts to port 42000).
+    pub beacon: Option<SocketAddr>,
     /// Where log lines go.
     pub log: Arc<dyn Fn(&str) + Send + Sync>,
 }
@@ -49,6 +52,7 @@ impl ServerConfig {
             client_queue: 8192,
             scenario: None,
             error_frames: false,
+            beacon: None,
             log: Arc::new(|line| eprintln!("{line}")),
         }
     }
@@ -65,6 +69,11 @@ pub enum ServerError {
     Speed(f64),
     #[error("cannot start a server thread: {0}")]
     Thread(io::Error),
+    #[error("cannot send the beacon to {target}: {source}")]
+    Beacon {
+        target: SocketAddr,
+        source: io::Error,
+    },
 }
 
 /// A running server; dropping it does not stop it (call [`ServerHandle::shutdown`]).
@@ -189,11 +198,52 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
             })
             .map_err(ServerError::Thread)?
     };
+    let mut threads = vec![accept_thread, bus_thread];
+    if let Some(target) = config.beacon {
+        let socket = UdpSocket::bind(if target.is_ipv4() {
+            "0.0.0.0:0"
+        } else {
+            "[::]:0"
+        })
+        .and_then(|s| s.set_broadcast(true).map(|()| s))
+        .map_err(|source| ServerError::Beacon { target, source })?;
+        let text = beacon_text(addr, &config.channel);
+        let stop = stop.clone();
+        let log = log.clone();
+        log(&format!("beacon to {target} every 3 s"));
+        threads.push(
+            thread::Builder::new()
+                .name("vbus-beacon".into())
+                .spawn(move || {
+                    let mut next = Instant::now();
+                    while !stop.load(Ordering::SeqCst) {
+                        if Instant::now() >= next {
+                            if let Err(e) = socket.send_to(text.as_bytes(), target) {
+                                log(&format!("beacon to {target}: {e}"));
+                            }
+                            next += BEACON_EVERY;
+                        }
+                        thread::sleep(Duration::from_millis(50));
+                    }
+                })
+                .map_err(ServerError::Thread)?,
+        );
+    }
     Ok(ServerHandle {
         addr,
         stop,
-        threads: vec![accept_thread, bus_thread],
+        threads,
     })
+}
+
+/// socketcand sends its beacon about every 3 s.
+const BEACON_EVERY: Duration = Duration::from_secs(3);
+
+/// socketcand's discovery beacon: a `CANBeacon` element with the server's URL and its bus.
+pub fn beacon_text(addr: SocketAddr, channel: &str) -> String {
+    format!(
+        "<CANBeacon name=\"buslab\" type=\"SocketCAN\" description=\"buslab bus serve\">\n<URL>can://{addr}</URL><Bus name=\"{channel}\"/></CANBeacon>"
+    )
 }
 
 /// Kernel send buffer per client (the kernel doubles it): a few thousand frames.

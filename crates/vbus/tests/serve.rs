@@ -359,3 +359,24 @@ fn error_frames_for_everybody_in_socketcand_raw_layout() {
     assert_eq!(line[..end + 1].split_whitespace().count(), 5, "{line}");
     s.shutdown();
 }
+
+#[test]
+fn the_beacon_names_the_server_and_its_bus() {
+    let udp = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    udp.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+    config.beacon = Some(udp.local_addr().unwrap());
+    config.log = Arc::new(|_| {});
+    let s = spawn(config).unwrap();
+    let mut buf = [0u8; 2048];
+    let n = udp.recv(&mut buf).unwrap();
+    let text = String::from_utf8_lossy(&buf[..n]);
+    assert_eq!(
+        text,
+        format!(
+            "<CANBeacon name=\"buslab\" type=\"SocketCAN\" description=\"buslab bus serve\">\n<URL>can://{}</URL><Bus name=\"vcan0\"/></CANBeacon>",
+            s.local_addr()
+        )
+    );
+    s.shutdown();
+}

@@ -55,6 +55,11 @@ pub struct ServeArgs {
     /// error frames (`< error CLASS SEC.USEC >`, like socketcand -e).
     #[arg(short = 'e', long)]
     pub error_frames: bool,
+    /// Send socketcand's discovery beacon every 3 s (python-can's `detect_beacon()`), to
+    /// ADDR, by default 127.0.0.1:42000 when listening on loopback, else the broadcast
+    /// address 255.255.255.255:42000.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "auto")]
+    pub beacon: Option<String>,
 }
 
 /// The common `--bus` option.
@@ -236,6 +241,15 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     config.speed = args.speed;
     config.client_queue = args.client_queue.max(1);
     config.error_frames = args.error_frames;
+    config.beacon = match args.beacon.as_deref() {
+        None => None,
+        Some("auto") if args.listen.ip().is_loopback() => Some(([127, 0, 0, 1], 42000).into()),
+        Some("auto") => Some(([255, 255, 255, 255], 42000).into()),
+        Some(addr) => Some(
+            addr.parse()
+                .map_err(|_| anyhow::anyhow!("beacon address {addr:?} must be IP:PORT"))?,
+        ),
+    };
     if let Some(path) = &args.nodes {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read {}", path.display()))?;
