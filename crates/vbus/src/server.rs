@@ -236,6 +236,9 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     })
 }
 
+/// How long frames wait after the rawmode `< ok >` (see `writer`).
+const RAW_HOLD: Duration = Duration::from_millis(20);
+
 /// socketcand sends its beacon about every 3 s.
 const BEACON_EVERY: Duration = Duration::from_secs(3);
 
@@ -674,7 +677,12 @@ fn writer(mut stream: TcpStream, out: Receiver<Out>) {
                         return;
                     }
                 }
-                Out::Raw(on) => raw = on,
+                Out::Raw(on) => {
+                    raw = on;
+                    // python-can reads the rawmode `< ok >` with one recv() and compares it
+                    // whole: frames must not share that read. They wait in the queue.
+                    thread::sleep(RAW_HOLD);
+                }
                 Out::Extensions => remote_as_r = true,
                 Out::Frame(frame, ts) => {
                     if raw {

@@ -380,3 +380,26 @@ fn the_beacon_names_the_server_and_its_bus() {
     );
     s.shutdown();
 }
+
+#[test]
+fn joining_a_busy_bus_the_rawmode_ok_still_comes_alone() {
+    let s = server(1_000_000, 8192);
+    let mut a = client(&s);
+    let _b = client(&s);
+    for _ in 0..3000 {
+        a.send(&frame("123#0102030405060708")).unwrap();
+    }
+    let mut t = raw(&s);
+    let mut buf = [0u8; 256];
+    let n = t.read(&mut buf).unwrap();
+    assert_eq!(&buf[..n], b"< hi >");
+    t.write_all(b"< open vcan0 >").unwrap();
+    let n = t.read(&mut buf).unwrap();
+    assert_eq!(&buf[..n], b"< ok >");
+    t.write_all(b"< rawmode >").unwrap();
+    // python-can compares this one read with "< ok >".
+    let n = t.read(&mut buf).unwrap();
+    assert_eq!(&buf[..n], b"< ok >");
+    read_until(&mut t, "< frame 123 ");
+    s.shutdown();
+}
