@@ -237,7 +237,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
 }
 
 /// How long frames wait after the rawmode `< ok >` (see `writer`).
-const RAW_HOLD: Duration = Duration::from_millis(20);
+const RAW_HOLD: Duration = Duration::from_millis(50);
 
 /// socketcand sends its beacon about every 3 s.
 const BEACON_EVERY: Duration = Duration::from_secs(3);
