@@ -37,8 +37,7 @@ pub enum VbusError {
     Driver(String),
 }
 
-/// A frame for a client: what it was, when it ended on the bus (bit-time), whether it is the
-/// client's own.
+/// A frame for a client and the bit-time at which its chip had it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Delivery {
     pub frame: Frame,
@@ -233,7 +232,8 @@ impl VirtualBus {
     }
 
     /// Puts a scenario's simulated nodes on the same wire (their traffic and faults run in
-    /// the same virtual time; faults act on the scenario's own nodes).
+    /// the same virtual time; bus-wide faults reach the chips, node faults only the
+    /// scenario's nodes).
     pub fn with_scenario(mut self, sim: Simulation) -> Self {
         self.scenario = Some(sim);
         self

@@ -166,3 +166,26 @@ fn scenario_nodes_and_chips_share_the_wire_without_errors() {
     let sim = bus.scenario().unwrap();
     assert_eq!(sim.node(0).stats().received, 1);
 }
+
+#[test]
+fn bus_wide_scenario_faults_reach_the_chips() {
+    let scenario = buslab_sim::Scenario::from_toml(
+        "bitrate = 500000\n[[nodes]]\nname = \"ecu\"\n[[faults]]\nkind = \"stuck_dominant\"\nstart = \"1ms\"\nend = \"3ms\"\n",
+    )
+    .unwrap();
+    let mut bus = VirtualBus::new(RATE)
+        .unwrap()
+        .with_scenario(scenario.build());
+    let a = bus.join().unwrap();
+    let b = bus.join().unwrap();
+    bus.run_until(RATE as u64 / 1000 + 100);
+    bus.node_mut(&NodeRef::Number(a))
+        .unwrap()
+        .tx
+        .push_back(frame("123#01"));
+    bus.run_until(RATE as u64 / 100);
+    // The stuck wire gave errors; once it is released the frame goes through.
+    assert_ne!(field(&mut bus, a, "bus_errors"), "0");
+    assert_ne!(field(&mut bus, b, "bus_errors"), "0");
+    assert_eq!(received(&mut bus, b), ["123#01"]);
+}
