@@ -1,8 +1,10 @@
 //! `buslab lab` serves a ZELLE cell and a CPU196 board next to the bus; the host tools reach
 //! them through the links it makes.
 
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Command, Stdio};
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use assert_cmd::cargo::CommandCargoExt;
@@ -26,13 +28,33 @@ fn wait_for(path: &Path) {
 #[test]
 fn lab_devices_answer_the_host_tools_and_keep_their_state() {
     let dir = tempfile::tempdir().unwrap();
-    let lab = buslab()
-        .args(["lab", "--duration", "6s", "--dir"])
+    let mut lab = buslab()
+        .args(["lab", "--duration", "8s", "--dir"])
         .arg(dir.path())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    // The banner's lines, as they come.
+    let (lines_tx, lines) = mpsc::channel();
+    let stderr = lab.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut all = String::new();
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = lines_tx.send(line.clone());
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    let url = loop {
+        let line = lines
+            .recv_timeout(Duration::from_secs(10))
+            .expect("the lab's banner names its bus");
+        if let Some(at) = line.find("socketcand://") {
+            break line[at..].split_whitespace().next().unwrap().to_string();
+        }
+    };
     let (zelle, cpu196) = (dir.path().join("zelle"), dir.path().join("cpu196"));
     wait_for(&zelle);
     wait_for(&cpu196);
@@ -74,9 +96,25 @@ fn lab_devices_answer_the_host_tools_and_keep_their_state() {
         "{text}"
     );
 
-    let done = lab.wait_with_output().unwrap();
-    let banner = String::from_utf8_lossy(&done.stderr);
-    assert!(done.status.success(), "{banner}");
+    // Any socketcand client joins the lab's bus and sees its nodes' traffic.
+    let out = buslab()
+        .args(["dump", "-n", "30", "--bus", &url])
+        .output()
+        .unwrap();
+    let dump = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        dump.contains("0C0   [8]  0F A0 00 3C") && dump.contains("200   [4]"),
+        "{dump}"
+    );
+
+    let status = lab.wait().unwrap();
+    let banner = reader.join().unwrap();
+    assert!(status.success(), "{banner}");
     assert!(
         banner.contains("ZELLE cell") && banner.contains("CPU196 board"),
         "{banner}"

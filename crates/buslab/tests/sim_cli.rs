@@ -162,10 +162,14 @@ fn lab_prints_candump_lines_and_stops_by_itself() {
     assert!(
         frames
             .iter()
-            .any(|l| l.trim_start().starts_with("sim0") && l.contains("0C0   [8]  0F A0 00 3C"))
+            .any(|l| l.trim_start().starts_with("vcan0") && l.contains("0C0   [8]  0F A0 00 3C"))
     );
     assert!(frames.iter().any(|l| l.contains("18FF0010   [1]  A5")));
-    assert!(frames.iter().all(|l| l.starts_with("  sim0  ")), "{out}");
+    assert!(
+        frames.iter().any(|l| l.contains("200   [4]")),
+        "the counter node:\n{out}"
+    );
+    assert!(frames.iter().all(|l| l.starts_with("  vcan0  ")), "{out}");
 }
 
 #[test]

@@ -133,6 +133,21 @@ pub fn error_class_words(class: u32) -> String {
     }
 }
 
+/// ` (SSS.UUUUUU)`: seconds with at least 3 digits, as candump prints `-t a` (absolute) and
+/// `-t z` (since the start) times.
+fn write_timestamp(out: &mut impl Write, timestamp: Option<f64>) -> io::Result<()> {
+    if let Some(t) = timestamp {
+        let micros = (t.max(0.0) * 1e6).round() as u64;
+        write!(
+            out,
+            " ({:03}.{:06})",
+            micros / 1_000_000,
+            micros % 1_000_000
+        )?;
+    }
+    Ok(())
+}
+
 /// candump's terminal layout: once an extended frame was seen, standard IDs are indented to
 /// eight columns.
 #[derive(Default)]
@@ -149,14 +164,13 @@ impl Candump {
         frame: &Frame,
     ) -> io::Result<()> {
         self.extended_seen |= frame.is_extended();
-        if let Some(t) = timestamp {
-            write!(out, " ({t:.6})")?;
-        }
-        let raw = frame.id().as_raw();
-        let id = match (frame.is_extended(), self.extended_seen) {
-            (true, _) => format!("{raw:08X}"),
-            (false, true) => format!("{raw:>8X}"),
-            (false, false) => format!("{raw:03X}"),
+        write_timestamp(out, timestamp)?;
+        // Once an extended ID was shown, standard IDs keep their 3 digits, right-aligned in 8.
+        let id = frame.id().to_string();
+        let id = if self.extended_seen && !frame.is_extended() {
+            format!("{id:>8}")
+        } else {
+            id
         };
         write!(out, "  {channel}  {id}   [{}] ", frame.dlc())?;
         if frame.is_remote() {
@@ -177,14 +191,50 @@ impl Candump {
         channel: &str,
         class: u32,
     ) -> io::Result<()> {
-        if let Some(t) = timestamp {
-            write!(out, " ({t:.6})")?;
-        }
+        write_timestamp(out, timestamp)?;
         writeln!(
             out,
             "  {channel}  {:08X}   [8]  00 00 00 00 00 00 00 00   ERRORFRAME {}",
             ERR_FLAG | class,
             error_class_words(class)
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn show(frames: &[&str], timestamp: Option<f64>) -> String {
+        let mut c = Candump::default();
+        let mut out = Vec::new();
+        for f in frames {
+            c.line(&mut out, timestamp, "vcan0", &f.parse().unwrap())
+                .unwrap();
+        }
+        String::from_utf8(out).unwrap()
+    }
+
+    #[test]
+    fn candump_layout() {
+        assert_eq!(
+            show(&["123#112233", "07F#R", "12345678#DEADBEEF", "080#"], None),
+            "  vcan0  123   [3]  11 22 33\n\
+             \x20 vcan0  07F   [0]  remote request\n\
+             \x20 vcan0  12345678   [4]  DE AD BE EF\n\
+             \x20 vcan0       080   [0] \n"
+        );
+    }
+
+    #[test]
+    fn candump_timestamps() {
+        assert_eq!(
+            show(&["123#11"], Some(1.2345678)),
+            " (001.234568)  vcan0  123   [1]  11\n"
+        );
+        assert_eq!(
+            show(&["123#11"], Some(1_795_251_323.218_691)),
+            " (1795251323.218691)  vcan0  123   [1]  11\n"
+        );
     }
 }

@@ -1,20 +1,29 @@
 //! `buslab lab`: the whole virtual bench, paced to real time.
 //!
-//! The bench is a simulated CAN bus with a few nodes exchanging periodic and bursty traffic,
-//! and a listen-only monitor whose frames are printed like `candump` prints them; next to it a
-//! ZELLE cell and a CPU196 board, each served on its own pseudo-terminal (see [`Devices`]).
+//! The bench's CAN bus is a virtual bus server (`buslab bus serve` in-process): simulated
+//! nodes exchange periodic and bursty traffic on the bit-level wire, and any socketcand client
+//! (python-can, `buslab dump`) can join it. The lab itself joins with two clients: a monitor
+//! whose receptions are printed the way `candump` prints them, and a node sending a counter.
+//! Next to the bus, a ZELLE cell and a CPU196 board are served on pseudo-terminals
+//! ([`Devices`]).
 
 use std::io::{self, Write};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
-
-use std::path::{Path, PathBuf};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
-use buslab_can::controller::{ControllerConfig, Event};
+use buslab_can::controller::ControllerConfig;
 use buslab_can::{Frame, Id};
-use buslab_sim::{BitTime, Happening, Simulation, Span, Traffic};
+use buslab_canbus::CanBus;
+use buslab_sim::{BitTime, Simulation, Span, Traffic};
+use buslab_socketcand::SocketcandBus;
+use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
+
+use super::dump::Candump;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -27,9 +36,13 @@ pub struct Args {
     /// Seed of the simulation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Prefix each frame with its virtual time since the start, as `candump -t z`.
+    /// Prefix each frame with the time since the start, as `candump -t z`.
     #[arg(short = 't', long)]
     pub timestamps: bool,
+    /// Where the bus server listens (socketcand); if the default port is taken, a free one is
+    /// used. The URL is printed at start.
+    #[arg(long, value_name = "ADDR")]
+    pub listen: Option<SocketAddr>,
     /// Keep the devices' state here (zelle.toml, cpu196.toml) and link their ports as
     /// DIR/zelle and DIR/cpu196; default: in memory, ports printed at start.
     #[arg(long, value_name = "DIR")]
@@ -39,10 +52,11 @@ pub struct Args {
     pub no_devices: bool,
 }
 
-/// Interface name shown in the candump-style output.
-const IFACE: &str = "sim0";
-/// Wall-clock time between two slices of simulation.
-const SLICE: Duration = Duration::from_millis(2);
+/// The bus name clients open.
+const CHANNEL: &str = "vcan0";
+/// The lab's counter node: `200#` with a 32-bit little-endian counter.
+const COUNTER_ID: u16 = 0x200;
+const COUNTER_PERIOD: Duration = Duration::from_millis(50);
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     // A reader that goes away (`| head`) ends the run quietly, as for other Unix tools.
@@ -64,50 +78,165 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
             .context("cannot install the Ctrl-C handler")?;
     }
-    let end = args.duration.map(|d| d.to_bits(args.bitrate));
     let devices = if args.no_devices {
         None
     } else {
         Some(Devices::start(args.dir.as_deref())?)
     };
-    let mut lab = Lab::start(args.bitrate, args.seed);
+    let (scenario, names) = lab_nodes(args.bitrate, args.seed);
+    // Frame times are the server's start plus virtual time: `-t` counts from here.
+    let start_unix = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64());
+    let server = start_server(args.listen, args.bitrate, scenario)?;
+    let addr = server.local_addr();
     eprintln!(
-        "buslab lab: simulated CAN bus {IFACE} at {} bit/s, nodes: {}",
+        "buslab lab: CAN bus socketcand://{addr}/{CHANNEL} at {} bit/s, nodes: {}, counter",
         args.bitrate,
-        lab.node_names().join(", ")
+        names.join(", ")
     );
     if let Some(devices) = &devices {
         devices.describe();
     }
     eprintln!("Ctrl-C to stop");
 
-    let stdout = io::stdout();
-    let mut out = stdout.lock();
-    let mut candump = Candump {
-        timestamps: args.timestamps.then_some(args.bitrate),
-        ..Candump::default()
-    };
-    let started = Instant::now();
-    loop {
-        // Virtual time follows the wall clock and is never ahead of it.
-        let wall = started.elapsed();
-        let mut target = (wall.as_secs_f64() * args.bitrate as f64) as BitTime;
-        if let Some(end) = end {
-            target = target.min(end);
-        }
-        for (time, frame) in lab.advance(target) {
-            candump.print(&mut out, IFACE, time, &frame)?;
-        }
-        out.flush()?;
-        if end.is_some_and(|end| lab.now() >= end) || stop.load(Ordering::SeqCst) {
-            break;
-        }
-        std::thread::sleep(SLICE);
-    }
+    let counter = spawn_counter(addr, stop.clone())?;
+    let result = monitor(addr, &args, start_unix, &stop);
+    stop.store(true, Ordering::SeqCst);
+    let counted = counter.join();
+    server.shutdown();
     if let Some(devices) = devices {
         devices.stop()?;
     }
+    result?;
+    counted.map_err(|_| anyhow::anyhow!("the counter node panicked"))?
+}
+
+/// Prints what the monitor's node receives until `stop` or the end of `--duration`.
+fn monitor(
+    addr: SocketAddr,
+    args: &Args,
+    start_unix: f64,
+    stop: &AtomicBool,
+) -> anyhow::Result<()> {
+    let mut bus = join(addr, "monitor")?;
+    let started = Instant::now();
+    let end = args
+        .duration
+        .map(|d| Duration::from_secs_f64(d.to_bits(args.bitrate) as f64 / args.bitrate as f64));
+    let stdout = io::stdout();
+    let mut out = stdout.lock();
+    let mut candump = Candump::default();
+    while !stop.load(Ordering::SeqCst) {
+        let left = end.map(|end| end.saturating_sub(started.elapsed()));
+        if left == Some(Duration::ZERO) {
+            break;
+        }
+        let wait = left.map_or(Duration::from_millis(100), |l| {
+            l.min(Duration::from_millis(100))
+        });
+        if let Some(m) = bus.recv(Some(wait))? {
+            let since_start = args.timestamps.then(|| (m.timestamp - start_unix).max(0.0));
+            candump.line(&mut out, since_start, CHANNEL, &m.frame)?;
+            out.flush()?;
+        }
+    }
     Ok(())
+}
+
+/// The counter node: a socketcand client sending `200#` + counter every 50 ms.
+fn spawn_counter(
+    addr: SocketAddr,
+    stop: Arc<AtomicBool>,
+) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
+    let mut bus = join(addr, "counter")?;
+    let id = Id::standard(COUNTER_ID).expect("valid ID");
+    Ok(thread::spawn(move || {
+        let mut value = 0u32;
+        let mut next = Instant::now();
+        while !stop.load(Ordering::SeqCst) {
+            let frame = Frame::data(id, &value.to_le_bytes()).expect("4 bytes");
+            bus.send(&frame).context("counter node")?;
+            value = value.wrapping_add(1);
+            next += COUNTER_PERIOD;
+            thread::sleep(next.saturating_duration_since(Instant::now()));
+        }
+        Ok(())
+    }))
+}
+
+/// Joins the lab's bus as a named node.
+fn join(addr: SocketAddr, name: &str) -> anyhow::Result<SocketcandBus> {
+    let mut bus = SocketcandBus::connect(addr, CHANNEL)
+        .with_context(|| format!("the {name} cannot join the lab's bus at {addr}"))?;
+    if bus.enable_extensions()? {
+        bus.set_name(name)?;
+    }
+    Ok(bus)
+}
+
+/// Starts the bus server; on the default address, a taken port falls back to a free one.
+fn start_server(
+    listen: Option<SocketAddr>,
+    bitrate: u32,
+    scenario: Simulation,
+) -> anyhow::Result<ServerHandle> {
+    let config = |addr, scenario| ServerConfig {
+        channel: CHANNEL.to_string(),
+        scenario: Some(scenario),
+        log: Arc::new(|line: &str| {
+            // The server's routine log would drown the frames; keep its warnings.
+            if line.starts_with("warning") {
+                eprintln!("{line}");
+            }
+        }),
+        ..ServerConfig::new(addr, bitrate)
+    };
+    let default: SocketAddr = ([127, 0, 0, 1], 29536).into();
+    match buslab_vbus::spawn(config(listen.unwrap_or(default), scenario)) {
+        Err(ServerError::Listen { source, .. })
+            if listen.is_none() && source.kind() == io::ErrorKind::AddrInUse =>
+        {
+            let (scenario, _) = lab_nodes(bitrate, 0);
+            buslab_vbus::spawn(config(([127, 0, 0, 1], 0).into(), scenario))
+                .context("starting the lab's bus server")
+        }
+        other => other.context("starting the lab's bus server"),
+    }
+}
+
+/// The simulated nodes of the bench and their traffic.
+fn lab_nodes(bitrate: u32, seed: u64) -> (Simulation, Vec<&'static str>) {
+    let mut bus = Simulation::new(bitrate, seed);
+    let ms = |m: u64| m * bitrate as u64 / 1000;
+    let f = |text: &str| -> Frame { text.parse().expect("built-in frame") };
+    let plain = ControllerConfig::default();
+    let brakes = bus.add_node("brakes", plain);
+    bus.add_traffic(brakes, periodic(f("080#0140"), ms(20), 0));
+    let engine = bus.add_node("engine", plain);
+    bus.add_traffic(engine, periodic(f("0C0#0FA0003C00000000"), ms(10), ms(1)));
+    let body = bus.add_node("body", plain);
+    bus.add_traffic(body, periodic(f("18FF0010#A5"), ms(100), ms(3)));
+    let dash = bus.add_node("dash", plain);
+    bus.add_traffic(
+        dash,
+        Traffic::Burst {
+            frame: f("300#D1D2D3D4"),
+            count: 4,
+            period: ms(250),
+            start: ms(5),
+        },
+    );
+    (bus, vec!["brakes", "engine", "body", "dash"])
+}
+
+fn periodic(frame: Frame, period: BitTime, start: BitTime) -> Traffic {
+    Traffic::Periodic {
+        frame,
+        period,
+        start,
+        count: None,
+    }
 }
 
 /// The serial devices of the bench, each served on a pseudo-terminal by its own thread (and
@@ -165,204 +294,5 @@ impl Devices {
         self.zelle.stop().context("stopping the ZELLE cell")?;
         self.cpu196.stop().context("stopping the CPU196 board")?;
         Ok(())
-    }
-}
-
-/// The bench: the bus and (later) the devices attached to it.
-struct Lab {
-    bus: Simulation,
-    monitor: usize,
-    counter: CounterNode,
-}
-
-impl Lab {
-    /// Builds the bus with its nodes.
-    ///
-    /// Devices served on pseudo-terminals start here too: `super::zelle::spawn_served` and
-    /// `super::cpu196::spawn_served` run in their own threads and stop when their handle is
-    /// dropped, so keep the handles in `Lab` and print their PTY paths with the banner.
-    fn start(bitrate: u32, seed: u64) -> Self {
-        let mut bus = Simulation::new(bitrate, seed);
-        let ms = |m: u64| m * bitrate as u64 / 1000;
-        let f = |text: &str| -> Frame { text.parse().expect("built-in frame") };
-        let plain = ControllerConfig::default();
-
-        let brakes = bus.add_node("brakes", plain);
-        bus.add_traffic(brakes, periodic(f("080#0140"), ms(20), 0));
-        let engine = bus.add_node("engine", plain);
-        bus.add_traffic(engine, periodic(f("0C0#0FA0003C00000000"), ms(10), ms(1)));
-        let body = bus.add_node("body", plain);
-        bus.add_traffic(body, periodic(f("18FF0010#A5"), ms(100), ms(3)));
-        let dash = bus.add_node("dash", plain);
-        bus.add_traffic(
-            dash,
-            Traffic::Burst {
-                frame: f("300#D1D2D3D4"),
-                count: 4,
-                period: ms(250),
-                start: ms(5),
-            },
-        );
-        let counter = CounterNode {
-            node: bus.add_node("counter", plain),
-            id: Id::standard(0x200).expect("valid ID"),
-            period: ms(50),
-            next: ms(7),
-            value: 0,
-        };
-        let monitor = bus.add_node(
-            IFACE,
-            ControllerConfig {
-                listen_only: true,
-                ..plain
-            },
-        );
-        Lab {
-            bus,
-            monitor,
-            counter,
-        }
-    }
-
-    fn node_names(&self) -> Vec<&str> {
-        let nodes = self.bus.nodes();
-        nodes[..self.monitor].iter().map(|n| n.name()).collect()
-    }
-
-    fn now(&self) -> BitTime {
-        self.bus.now()
-    }
-
-    /// Runs everything up to bit-time `target`; returns the frames the monitor received, with
-    /// their bit-time.
-    fn advance(&mut self, target: BitTime) -> Vec<(BitTime, Frame)> {
-        while self.bus.now() < target {
-            let until = target.min(self.counter.next);
-            self.bus.run_until(until);
-            if self.bus.now() == self.counter.next {
-                self.counter.fire(&mut self.bus);
-            }
-        }
-        self.bus
-            .take_records()
-            .into_iter()
-            .filter_map(|r| match r.what {
-                Happening::Node {
-                    node,
-                    event: Event::Received(frame),
-                } if node == self.monitor => Some((r.time, frame)),
-                _ => None,
-            })
-            .collect()
-    }
-}
-
-fn periodic(frame: Frame, period: BitTime, start: BitTime) -> Traffic {
-    Traffic::Periodic {
-        frame,
-        period,
-        start,
-        count: None,
-    }
-}
-
-/// A node whose payload changes: a 32-bit little-endian counter every `period`.
-struct CounterNode {
-    node: usize,
-    id: Id,
-    period: BitTime,
-    next: BitTime,
-    value: u32,
-}
-
-impl CounterNode {
-    fn fire(&mut self, bus: &mut Simulation) {
-        let frame = Frame::data(self.id, &self.value.to_le_bytes()).expect("4 bytes");
-        // A full queue only means the bus is overloaded; the next value follows anyway.
-        let _ = bus.enqueue(self.node, frame);
-        self.value = self.value.wrapping_add(1);
-        self.next += self.period;
-    }
-}
-
-/// candump's default terminal format: `  sim0  123   [2]  11 22`, with `-t z` timestamps
-/// ` (000.012345)  sim0  123   [2]  11 22`.
-#[derive(Default)]
-struct Candump {
-    /// Once an extended frame was shown, standard IDs are padded to 8 columns (as candump).
-    eff_seen: bool,
-    /// Print timestamps (bit-times at this bit rate).
-    timestamps: Option<u32>,
-}
-
-impl Candump {
-    fn print(
-        &mut self,
-        out: &mut impl Write,
-        iface: &str,
-        time: BitTime,
-        frame: &Frame,
-    ) -> io::Result<()> {
-        if let Some(bitrate) = self.timestamps {
-            let (s, us) = buslab_sim::time::seconds_micros(time, bitrate);
-            write!(out, " ({s:03}.{us:06})")?;
-        }
-        self.eff_seen |= frame.is_extended();
-        let id = frame.id().to_string();
-        let id = if self.eff_seen && !frame.is_extended() {
-            format!("{id:>8}")
-        } else {
-            id
-        };
-        // As can-utils: "[len] ", then " XX" per byte (so two spaces before the first).
-        write!(out, "  {iface}  {id}   [{}] ", frame.dlc())?;
-        if frame.is_remote() {
-            writeln!(out, " remote request")
-        } else {
-            for byte in frame.payload() {
-                write!(out, " {byte:02X}")?;
-            }
-            writeln!(out)
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn show(frames: &[&str]) -> String {
-        let mut c = Candump::default();
-        let mut out = Vec::new();
-        for f in frames {
-            c.print(&mut out, "vcan0", 0, &f.parse().unwrap()).unwrap();
-        }
-        String::from_utf8(out).unwrap()
-    }
-
-    #[test]
-    fn candump_zero_based_timestamps() {
-        let mut c = Candump {
-            timestamps: Some(500_000),
-            ..Candump::default()
-        };
-        let mut out = Vec::new();
-        c.print(&mut out, "sim0", 617_284, &"123#11".parse().unwrap())
-            .unwrap();
-        assert_eq!(
-            String::from_utf8(out).unwrap(),
-            " (001.234568)  sim0  123   [1]  11\n"
-        );
-    }
-
-    #[test]
-    fn candump_layout() {
-        assert_eq!(
-            show(&["123#112233", "7FF#R", "12345678#DEADBEEF", "123#"]),
-            "  vcan0  123   [3]  11 22 33\n\
-             \x20 vcan0  7FF   [0]  remote request\n\
-             \x20 vcan0  12345678   [4]  DE AD BE EF\n\
-             \x20 vcan0       123   [0] \n"
-        );
     }
 }
