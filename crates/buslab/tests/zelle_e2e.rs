@@ -1,7 +1,7 @@
 //! The ZELLE cell model served on a real pseudo-terminal at 9600 8N2, driven by the host
 //! client and by the `buslab zelle` CLI. Real time: each exchange is a few bytes.
 
-#[path = "zelle_served.rs"]
+#[path = "support/zelle_served.rs"]
 mod served;
 
 use std::io::Write;

@@ -1,6 +1,6 @@
 //! An independent serial program (pyserial) drives the served cell.
 
-#[path = "zelle_served.rs"]
+#[path = "support/zelle_served.rs"]
 mod served;
 
 use std::path::PathBuf;
