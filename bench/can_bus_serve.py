@@ -3,8 +3,8 @@
 python-can's udp_multicast bus measured the same way in the same run, as the peer.
 
 Usage: .venv/bin/python bench/can_bus_serve.py [--frames N] [--receivers 8]
-(needs python-can and msgpack in .venv: scripts/setup-test-deps.sh, then
- .venv/bin/pip install msgpack; builds buslab with --release first; takes about a minute)
+(needs python-can and msgpack in .venv, which scripts/setup-test-deps.sh installs; builds
+ buslab with --release first; takes about a minute)
 
 Every frame carries a sequence number and the sender's monotonic time (µs) in its 8 data
 bytes; each receiver process counts what it got and the latency from the send call to its
