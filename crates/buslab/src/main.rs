@@ -47,10 +47,27 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", describe(&err));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes on one line, `a: b: c`. A cause whose text the message already
+/// ends with is left out: library errors often show their source in their own text.
+fn describe(err: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in err.chain() {
+        let text = cause.to_string();
+        if line.ends_with(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -66,5 +83,40 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gen(args) => cmd::r#gen::run(args),
         Command::Regs(args) => cmd::regs::run(args),
         Command::Status(args) => cmd::status::run(args),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::describe;
+
+    /// An error that shows its source in its own text, as many library errors do.
+    #[derive(Debug)]
+    struct Open {
+        source: std::io::Error,
+    }
+
+    impl std::fmt::Display for Open {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            write!(f, "cannot open port: {}", self.source)
+        }
+    }
+
+    impl std::error::Error for Open {
+        fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+            Some(&self.source)
+        }
+    }
+
+    #[test]
+    fn causes_already_in_the_message_are_not_repeated() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        let err = anyhow::Error::new(Open { source: io }).context("opening the cell");
+        assert_eq!(
+            describe(&err),
+            "opening the cell: cannot open port: no such file"
+        );
+        let plain = anyhow::anyhow!("root cause").context("outer");
+        assert_eq!(describe(&plain), "outer: root cause");
     }
 }
