@@ -49,6 +49,8 @@ pub struct Sja1000 {
     /// The transmission requested by TR/SRR, until it ends.
     pending: Option<Pending>,
     sleeping: bool,
+    /// Recessive bits in a row during bus-off recovery (TXERR counts down every 11).
+    recovery_run: u8,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -96,6 +98,7 @@ impl Sja1000 {
             mac: Mac::new(false, false, 0, 0),
             pending: None,
             sleeping: false,
+            recovery_run: 0,
         }
     }
 
@@ -384,7 +387,12 @@ impl Sja1000 {
             if self.txerr == 255 {
                 return self.enter_bus_off();
             }
-            // A real bus-off: wait 128 × 11 recessive bits (the controller counts them).
+            // Wait 128 × 11 recessive bits (the controller counts them). A bus-off the CPU forced
+            // with TXERR 255 has a controller that is not bus-off yet: give it one that is.
+            if !self.mac.is_bus_off() {
+                self.mac = Mac::bus_off(self.mac.is_listen_only(), self.mac.is_self_test());
+            }
+            self.recovery_run = 0;
             self.mac.recover();
             return;
         }
@@ -490,6 +498,9 @@ impl Sja1000 {
             }
             return;
         }
+        if self.bs {
+            self.count_recovery_bit(bus);
+        }
         self.mac.sample(bus);
         while let Some(event) = self.mac.poll_event() {
             self.on_event(event);
@@ -580,12 +591,22 @@ impl Sja1000 {
         }
     }
 
+    /// Bus-off recovery progress: TXERR counts down from 127 once per 11 recessive bits.
+    fn count_recovery_bit(&mut self, bus: Level) {
+        if bus == Level::Dominant {
+            self.recovery_run = 0;
+            return;
+        }
+        self.recovery_run += 1;
+        if self.recovery_run == 11 {
+            self.recovery_run = 0;
+            self.txerr = self.txerr.saturating_sub(1);
+        }
+    }
+
     /// Mirrors the counters and recomputes ES (EI on every change of ES).
     fn update_error_status(&mut self) {
         if self.reset || self.bs {
-            if self.bs && !self.reset {
-                self.txerr = self.mac.tec().min(255) as u8; // recovery progress
-            }
             return;
         }
         self.txerr = self.mac.tec().min(255) as u8;

@@ -1,7 +1,7 @@
 //! The chip's bit-stream processor: buslab's protocol controller, seen the way the register
 //! logic needs it. Everything the chip asks of the controller goes through here.
 
-use buslab_can::controller::{Controller, ControllerConfig, ErrorLocation, Event};
+use buslab_can::controller::{Controller, ControllerConfig, ErrorLocation, ErrorState, Event};
 use buslab_can::wire::Field;
 use buslab_can::{Frame, Level};
 
@@ -25,6 +25,19 @@ impl Mac {
         let mut controller = Controller::new(config);
         controller.set_counters(tec as u16, rec as u16);
         Self { controller }
+    }
+
+    /// A controller already bus-off (the CPU forced it by writing TXERR 255), not recovering.
+    pub fn bus_off(listen_only: bool, self_test: bool) -> Self {
+        let mut mac = Self::new(listen_only, self_test, 0, 0);
+        mac.controller.set_counters(256, 0);
+        // The chip has already signalled this bus-off itself.
+        while mac.controller.poll_event().is_some() {}
+        mac
+    }
+
+    pub fn is_bus_off(&self) -> bool {
+        self.controller.state() == ErrorState::BusOff
     }
 
     pub fn is_listen_only(&self) -> bool {
