@@ -1010,3 +1010,171 @@ fn basic_can_filter() {
     rx.write(CMR, RRB);
     assert_eq!(rx.read(SR) & SR_RBS, 0, "0x128 and 0x0A0 were filtered out");
 }
+
+// ------------------------------------------------------------------ more §3, §7, §8 rules
+
+/// §8.4 (decision): ending bus-off by writing TXERR 0..254 changes BS, so it raises EI at
+/// once; leaving reset mode then clears ES (EI again).
+#[test]
+fn fast_restart_raises_ei() {
+    let mut bus = forced_bus_off(EI);
+    let chip = &mut bus.chips[0];
+    assert_eq!(chip.read(IR), EI, "bus-off");
+    chip.write(TXERR, 0);
+    assert_eq!(chip.read(IR), EI, "BS cleared");
+    assert_eq!(
+        chip.read(SR) & (SR_BS | SR_ES),
+        SR_ES,
+        "ES kept until reset mode is left"
+    );
+    chip.write(MOD, 0x00);
+    assert_eq!(chip.read(SR) & SR_ES, 0);
+    assert_eq!(chip.read(IR), EI, "ES cleared");
+}
+
+/// §8.4: a bus-off reached by bit errors shows TXERR 127 counting down once reset mode is
+/// left (not the protocol controller's TEC above 255).
+#[test]
+fn real_bus_off_recovery_counts_txerr_down_from_127() {
+    let mut bus = Bus::new(vec![peli(0, 0), peli(0, 0)]);
+    load_tx(&mut bus.chips[0], "123#FF");
+    bus.chips[0].write(CMR, TR);
+    // Every attempt, a disturber forces a recessive data bit dominant (a bit error).
+    let (mut was_transmitting, mut sof) = (false, 0);
+    for _ in 0..20_000 {
+        let transmitting = bus.chips[0].peek(SR) & SR_TS != 0;
+        if transmitting && !was_transmitting {
+            sof = bus.time - 1;
+        }
+        was_transmitting = transmitting;
+        bus.step_with(|t, level| {
+            if transmitting && t == sof + 20 {
+                Level::Dominant
+            } else {
+                level
+            }
+        });
+        if bus.chips[0].peek(SR) & SR_BS != 0 {
+            break;
+        }
+    }
+    assert_eq!(bus.chips[0].read(SR) & SR_BS, SR_BS, "bus-off");
+    assert_eq!(bus.chips[0].read(TXERR), 127);
+    bus.chips[0].write(MOD, 0x00);
+    // The other node may still be finishing its error frame: wait for the first bus-free.
+    bus.run_until(40, "the first bus-free", |bus| {
+        bus.chips[0].peek(TXERR) == 126
+    });
+    bus.run(100 * 11);
+    assert_eq!(bus.chips[0].read(TXERR), 26);
+}
+
+/// §3.1, §7: after RM is cleared the chip takes part only after 11 recessive bits.
+#[test]
+fn leaving_reset_mode_waits_for_bus_free() {
+    let mut bus = Bus::new(vec![peli_reset(0), peli(0, 0)]);
+    bus.chips[0].write(MOD, 0x00);
+    load_tx(&mut bus.chips[0], "123#");
+    bus.chips[0].write(CMR, TR);
+    for bit in 0..11 {
+        assert_eq!(bus.chips[0].output(), Level::Recessive, "bit {bit}");
+        bus.run(1);
+    }
+    assert_eq!(
+        bus.chips[0].output(),
+        Level::Dominant,
+        "SOF after the bus-free"
+    );
+}
+
+/// §3.1, §8.6: a listen-only chip gives no ACK, and its error counters stay frozen.
+#[test]
+fn listen_only_counters_are_frozen() {
+    let mut bus = Bus::new(vec![peli(0, 0), peli(0, 0x02)]); // chip 1: LOM
+    load_tx(&mut bus.chips[0], "123#AA");
+    bus.chips[0].write(CMR, TR);
+    bus.run(300);
+    assert!(
+        bus.chips[0].read(TXERR) >= 16,
+        "no ACK: the sender keeps failing"
+    );
+    let lom = &mut bus.chips[1];
+    assert_eq!((lom.read(RXERR), lom.read(TXERR)), (0, 0));
+    assert_eq!(lom.read(RMC), 0, "the frame never completed");
+}
+
+/// §3.6: ECC bit 5 (DIR) is 0 for an error while transmitting and 1 while receiving.
+#[test]
+fn ecc_direction_bit() {
+    let mut bus = Bus::new(vec![peli(BEI, 0), peli(BEI, 0)]);
+    load_tx(&mut bus.chips[0], "123#FF");
+    bus.chips[0].write(CMR, TR);
+    bus.run_until(50, "SOF", |bus| bus.chips[0].peek(SR) & SR_TS != 0);
+    let sof = bus.time - 1;
+    for _ in 0..60 {
+        bus.step_with(|t, level| {
+            if t == sof + 20 {
+                Level::Dominant
+            } else {
+                level
+            }
+        });
+    }
+    let tx = bus.chips[0].read(ECC);
+    let rx = bus.chips[1].read(ECC);
+    assert_eq!(bus.chips[1].read(IR), BEI, "the receiver saw an error too");
+    assert_eq!(tx & 0x20, 0x00, "transmitter: ECC = {tx:#04x}");
+    assert_eq!(rx & 0x20, 0x20, "receiver: ECC = {rx:#04x}");
+    assert_eq!(bus.chips[1].read(RXERR), 1, "receiver REC +1");
+}
+
+/// §7: a software reset aborts the pending request (TBS 1, nothing sent later), leaves the
+/// error counters alone and clears SM.
+#[test]
+fn software_reset_aborts_the_request_and_keeps_the_counters() {
+    let mut bus = Bus::new(vec![peli(0, 0)]);
+    load_tx(&mut bus.chips[0], "123#");
+    bus.chips[0].write(CMR, TR);
+    bus.run_until(500, "two failed attempts", |bus| {
+        bus.chips[0].peek(TXERR) == 16
+    });
+    bus.chips[0].write(MOD, MOD_RM);
+    assert_eq!(bus.chips[0].read(SR) & SR_TBS, SR_TBS, "TX buffer released");
+    assert_eq!(bus.chips[0].read(TXERR), 16, "counter kept in reset mode");
+    bus.chips[0].write(MOD, 0x00);
+    for _ in 0..300 {
+        assert_eq!(
+            bus.chips[0].output(),
+            Level::Recessive,
+            "the request is gone"
+        );
+        bus.run(1);
+    }
+    assert_eq!(
+        bus.chips[0].read(TXERR),
+        16,
+        "counter kept after reset mode"
+    );
+    bus.chips[0].write(MOD, MOD_SM);
+    assert_eq!(bus.chips[0].read(MOD), MOD_SM, "asleep");
+    bus.chips[0].write(MOD, MOD_SM | MOD_RM);
+    assert_eq!(bus.chips[0].read(MOD), MOD_RM, "software reset clears SM");
+}
+
+/// §8.1: a BasicCAN FIFO holds 32 two-byte remote frames; the 33rd sets DOS and DOI (OIE).
+#[test]
+fn basic_fifo_holds_32_remote_frames() {
+    let mut bus = Bus::new(vec![peli(0, 0), basic(0x10)]); // OIE
+    for i in 0..33 {
+        bus.send(0, &format!("{:03X}#R", 0x100 + i), TR);
+    }
+    let rx = &mut bus.chips[1];
+    assert_eq!(rx.read(SR) & SR_DOS, SR_DOS);
+    assert_eq!(rx.read(IR), 0xE0 | DOI);
+    let mut held = 0;
+    while rx.read(SR) & SR_RBS != 0 {
+        held += 1;
+        rx.write(CMR, RRB);
+    }
+    assert_eq!(held, 32);
+}
