@@ -1178,3 +1178,35 @@ fn basic_fifo_holds_32_remote_frames() {
     }
     assert_eq!(held, 32);
 }
+
+/// §8.1: RBSA written in reset mode decides where the next message is stored; the window
+/// and the FIFO RAM wrap from RAM address 63 to 0.
+#[test]
+fn rbsa_places_the_next_message_and_the_fifo_wraps() {
+    let mut chip = peli_reset(0);
+    chip.write(RBSA, 62);
+    chip.write(MOD, MOD_STM | MOD_AFM);
+    let mut bus = Bus::new(vec![chip]);
+    bus.send(0, "123#AABB", SRR);
+    let chip = &mut bus.chips[0];
+    assert_eq!(chip.read(RBSA), 62);
+    assert_eq!(window(chip, 5), [0x02, 0x24, 0x60, 0xAA, 0xBB]);
+    let ram: Vec<u8> = [94, 95, 32, 33, 34].iter().map(|&a| chip.read(a)).collect();
+    assert_eq!(ram, [0x02, 0x24, 0x60, 0xAA, 0xBB]);
+    chip.write(CMR, RRB);
+    assert_eq!(chip.read(RBSA), 3, "(62 + 5) mod 64");
+}
+
+/// §3.3: CDO may be given together with RRB: both take effect.
+#[test]
+fn cdo_together_with_rrb() {
+    let mut bus = self_test_chip(0);
+    for i in 0..22 {
+        bus.send(0, &format!("{:03X}#", 0x100 + i), SRR);
+    }
+    let chip = &mut bus.chips[0];
+    assert_eq!(chip.read(SR) & SR_DOS, SR_DOS);
+    chip.write(CMR, RRB | CDO);
+    assert_eq!(chip.read(SR) & SR_DOS, 0);
+    assert_eq!(chip.read(RMC), 20);
+}
