@@ -58,6 +58,8 @@ fn main() {
         let cfg = fastest(baud);
         sets[0].ad_init = cfg.encode();
         let (a, p) = prginf::encode(&sets);
+        // Bank 1 ships with a demo set; the benchmark's sets replace it.
+        image.flash.erase(1).unwrap();
         image.flash.write(1, prginf::PRGINF_BLOCK, &a).unwrap();
         image.flash.write(1, prginf::PTRPRG_BLOCK, &p).unwrap();
         for block in 0x60..=0xFF {
