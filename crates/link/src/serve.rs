@@ -7,7 +7,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
-use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+use nix::poll::{PollFd, PollFlags, ppoll};
+use nix::sys::time::TimeSpec;
 
 use crate::{LineSettings, Pty};
 
@@ -89,8 +90,9 @@ pub fn serve<D: ByteDevice>(
             events |= PollFlags::POLLOUT;
         }
         let mut fds = [PollFd::new(pty.as_fd(), events)];
-        let timeout = PollTimeout::try_from(sleep).unwrap_or(PollTimeout::MAX);
-        match poll(&mut fds, timeout) {
+        // ppoll, not poll: poll's whole milliseconds would round a wait under 1 ms (a byte at
+        // 115200 baud is 87 µs) down to 0 and spin the loop.
+        match ppoll(&mut fds, Some(TimeSpec::from_duration(sleep)), None) {
             Ok(_) | Err(nix::errno::Errno::EINTR) => {}
             Err(e) => return Err(e.into()),
         }

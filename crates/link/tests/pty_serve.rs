@@ -187,3 +187,54 @@ fn ports_and_ptys_are_not_inherited_by_child_processes() {
         "expected master, kept slave and port; saw {checked}"
     );
 }
+
+/// Wants a look every `period_ns` and counts how often it is polled.
+struct Ticker {
+    period_ns: u64,
+    next: u64,
+    polls: u64,
+    last_now: u64,
+}
+
+impl ByteDevice for Ticker {
+    fn receive(&mut self, _now_ns: u64, _byte: u8) {}
+    fn poll(&mut self, now_ns: u64, _out: &mut Vec<u8>) {
+        self.polls += 1;
+        self.last_now = now_ns;
+        while self.next <= now_ns {
+            self.next += self.period_ns;
+        }
+    }
+    fn next_deadline(&self) -> Option<u64> {
+        Some(self.next)
+    }
+}
+
+#[test]
+fn deadlines_shorter_than_a_millisecond_are_slept_not_spun() {
+    // 700 µs between deadlines (a byte at 115200 baud is 87 µs): a poll timeout in whole
+    // milliseconds would round each wait down to 0 and spin the loop at 100 % CPU.
+    let pty = Pty::open().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (_control, rx) = mpsc::channel::<Control<Ticker>>();
+    let flag = stop.clone();
+    let thread = std::thread::spawn(move || {
+        let mut dev = Ticker {
+            period_ns: 700_000,
+            next: 700_000,
+            polls: 0,
+            last_now: 0,
+        };
+        serve(&mut dev, &pty, LineSettings::n81(115_200), &rx, &flag).unwrap();
+        dev
+    });
+    std::thread::sleep(Duration::from_millis(300));
+    stop.store(true, Ordering::Relaxed);
+    let dev = thread.join().unwrap();
+    let deadlines = dev.last_now / dev.period_ns;
+    assert!(
+        dev.polls <= 2 * deadlines + 20,
+        "{} polls for {deadlines} deadlines: the loop spins",
+        dev.polls
+    );
+}
