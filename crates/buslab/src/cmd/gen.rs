@@ -16,7 +16,7 @@ pub struct Args {
     #[command(flatten)]
     pub bus: BusOpt,
     /// Gap between frames in milliseconds (cangen's -g; 0 = as fast as the bus takes them).
-    #[arg(short = 'g', long, default_value_t = 200.0)]
+    #[arg(short = 'g', long, default_value_t = 200.0, value_parser = parse_gap)]
     pub gap: f64,
     /// Stop after this many frames (default: until Ctrl-C).
     #[arg(short = 'n', long)]
@@ -39,6 +39,15 @@ pub struct Args {
     /// Seed for the random modes.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+/// `-g`: milliseconds, 0..=86400000 (a day); more would overflow the pacing arithmetic.
+fn parse_gap(text: &str) -> Result<f64, String> {
+    text.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|g| (0.0..=86_400_000.0).contains(g))
+        .ok_or_else(|| format!("gap {text:?} must be a number of milliseconds 0..=86400000"))
 }
 
 /// How one field is chosen for each frame.
@@ -177,9 +186,6 @@ impl Generator {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if !(args.gap >= 0.0 && args.gap.is_finite()) {
-        bail!("gap {} ms must be 0 or more", args.gap);
-    }
     let mut generator = Generator::new(&args)?;
     let mut open = open(&args.bus.bus)?;
     let stop = Arc::new(AtomicBool::new(false));
