@@ -65,8 +65,10 @@ pub enum ServerError {
     Listen { addr: SocketAddr, source: io::Error },
     #[error("{0}")]
     Bus(#[from] VbusError),
-    #[error("speed {0} must be a positive number")]
+    #[error("speed {0} must be a positive number 0.001..=1000000 (times real time)")]
     Speed(f64),
+    #[error("bus name {0:?} must be 1..=64 of A-Z a-z 0-9 _ - . : (one token clients can open)")]
+    Channel(String),
     #[error("cannot start a server thread: {0}")]
     Thread(io::Error),
     #[error("cannot send the beacon to {target}: {source}")]
@@ -133,10 +135,22 @@ enum Out {
     Extensions,
 }
 
+/// A bus name a client can `< open >` (one token) and the beacon can carry (no XML quoting).
+fn valid_channel(name: &str) -> bool {
+    (1..=64).contains(&name.len())
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.' | b':'))
+}
+
 /// Starts the server: binds, then runs the bus and accepts clients in background threads.
 pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
-    if !(config.speed > 0.0 && config.speed.is_finite()) {
+    // Outside this range the pacing arithmetic overflows `Duration`.
+    if !(0.001..=1_000_000.0).contains(&config.speed) {
         return Err(ServerError::Speed(config.speed));
+    }
+    if !valid_channel(&config.channel) {
+        return Err(ServerError::Channel(config.channel));
     }
     let mut bus = VirtualBus::new(config.bitrate)?;
     bus.set_error_frames(config.error_frames);

@@ -403,3 +403,47 @@ fn joining_a_busy_bus_the_rawmode_ok_still_comes_alone() {
     read_until(&mut t, "< frame 123 ");
     s.shutdown();
 }
+
+#[test]
+fn speed_beyond_the_clock_arithmetic_is_refused() {
+    // A tiny speed made the bus thread's wait overflow `Duration` (a panic); a huge one is
+    // no bus at all.
+    for speed in [1e-300, 1e-7, 1e300, 1e7] {
+        let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+        config.speed = speed;
+        let err = spawn(config).err().expect("refused").to_string();
+        assert!(
+            err.contains(&format!("speed {speed} must be")) && err.contains("0.001..=1000000"),
+            "{err}"
+        );
+    }
+    for speed in [0.001, 1_000_000.0] {
+        let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+        config.speed = speed;
+        spawn(config).expect("accepted").shutdown();
+    }
+}
+
+#[test]
+fn a_bus_name_clients_cannot_open_is_refused() {
+    // `< open NAME >` takes one token, and the name goes into the beacon's XML.
+    for name in [
+        "",
+        "two words",
+        "a>b",
+        "q\"uote",
+        "a<b",
+        "x".repeat(65).as_str(),
+    ] {
+        let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+        config.channel = name.to_string();
+        let err = spawn(config).err().expect("refused").to_string();
+        assert!(
+            err.contains(&format!("bus name {name:?}")) && err.contains("1..=64"),
+            "{err}"
+        );
+    }
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+    config.channel = "can_0-x.y".to_string();
+    spawn(config).expect("accepted").shutdown();
+}
