@@ -51,15 +51,20 @@ pub(crate) fn tokens(inner: &str) -> Vec<&str> {
     inner.split_ascii_whitespace().collect()
 }
 
-/// Replaces the characters an element cannot carry (`<`, `>`, control characters) so a
+/// Replaces the characters an element cannot carry (`<`, `>`, control characters, and
+/// anything not ASCII: python-can decodes every read as ASCII and fails on the rest) so a
 /// free text fits in `< error … >`.
 pub fn sanitize(text: &str) -> String {
-    text.chars()
-        .map(|c| match c {
-            '<' => '(',
-            '>' => ')',
-            c if c.is_control() => ' ',
-            c => c,
-        })
-        .collect()
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '<' => out.push('('),
+            '>' => out.push(')'),
+            '…' => out.push_str("..."),
+            c if c.is_ascii_control() => out.push(' '),
+            c if !c.is_ascii() => out.push('?'),
+            c => out.push(c),
+        }
+    }
+    out
 }

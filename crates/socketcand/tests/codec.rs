@@ -357,3 +357,23 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn error_replies_are_ascii_as_python_can_decodes_them() {
+    // python-can decodes every read with `.decode("ascii")`: one non-ASCII byte in any reply
+    // makes its `recv` raise. Garbage quoted back (U+FFFD for bad bytes, `…` for a cut) must
+    // not carry any.
+    let junk = elements(
+        &[
+            b"\xc3\xa9t\xc3\xa9 \xff\xfe".as_slice(),
+            &[b'x'; 100],
+            b"< echo >",
+        ]
+        .concat(),
+    );
+    let Err(e) = &junk[0] else { panic!("{junk:?}") };
+    let reply = ServerMessage::Error(e.to_string()).to_string();
+    assert!(reply.is_ascii(), "{reply:?}");
+    assert!(reply.contains("?t? ??xxx"), "{reply:?}");
+    assert!(reply.ends_with("xxx...\" >"), "{reply:?}");
+}
