@@ -204,6 +204,12 @@ fn hex_byte(text: &str, what: &'static str) -> Result<u8, ProtocolError> {
 
 /// An ID as socketcand reads it: hex; 8 characters mean extended, anything else standard.
 pub(crate) fn parse_id(text: &str) -> Result<Id, ProtocolError> {
+    if text.len() > 8 && text.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(ProtocolError::BadId {
+            text: text.to_string(),
+            reason: "an ID is 1..8 hex digits (8 digits: extended, 00000000..1FFFFFFF; fewer: standard, 000..7FF)".to_string(),
+        });
+    }
     let raw = u32::from_str_radix(text, 16)
         .ok()
         .filter(|_| !text.is_empty() && text.len() <= 8 && !text.starts_with('+'))

@@ -107,6 +107,10 @@ fn garbage_commands_name_what_is_wrong() {
         ("send 20000000 0", "ID \"20000000\""),
         ("send xyz 0", "ID \"xyz\" is not hexadecimal"),
         (
+            "send 1FFFFFFFF 0",
+            "ID \"1FFFFFFFF\": an ID is 1..8 hex digits",
+        ),
+        (
             "send 123 9 1 2 3 4 5 6 7 8 9",
             "DLC \"9\" must be a decimal 0..8",
         ),
