@@ -31,14 +31,26 @@ pub type Control<D> = Box<dyn FnOnce(&mut D, u64) + Send>;
 /// How long the loop may sleep without looking at `stop` and the control channel.
 const MAX_IDLE: Duration = Duration::from_millis(20);
 
+/// Bytes from the client waiting for their line time. Beyond this the loop stops reading the
+/// PTY, so a writer that outruns the line blocks (as on a real port) instead of piling its
+/// bytes up in memory.
+const MAX_INBOUND: usize = 4096;
+
+/// Bytes for the client that the PTY did not take yet. A client that does not read loses what
+/// comes beyond this, as a real port's receive buffer overflows.
+const MAX_OUTBOUND: usize = 64 * 1024;
+
 /// Serves `device` on `pty` until `stop` is set.
 ///
 /// Bytes the client writes arrive at the device as over a real UART at `line`: each is
 /// delivered when its stop bits end, one character time after the client wrote it and at
 /// least one character time after the previous byte, even though a PTY passes a burst at once.
-/// Bytes that have arrived are delivered before control work runs. When the client's own settings do not
-/// match `line` (other baud rate, data bits or parity) its bytes would be framing errors on a
-/// real line: they are dropped, and one warning goes to stderr.
+/// Bytes that have arrived are delivered before control work runs. When the client's own
+/// settings do not match `line` (other baud rate, data bits or parity) its bytes would be
+/// framing errors on a real line: they are dropped, and one warning goes to stderr. A client
+/// that writes faster than the line carries is held back (its writes block once 4 KiB wait, as
+/// on a real port), and one that does not read loses the device's output beyond 64 KiB
+/// waiting (one warning).
 pub fn serve<D: ByteDevice>(
     device: &mut D,
     pty: &Pty,
@@ -54,6 +66,7 @@ pub fn serve<D: ByteDevice>(
     let mut produced = Vec::new();
     let mut buf = [0u8; 4096];
     let mut warned = false;
+    let mut overflowed = false;
     let mut controls_open = true;
 
     while !stop.load(Ordering::Relaxed) {
@@ -74,7 +87,15 @@ pub fn serve<D: ByteDevice>(
             }
         }
         device.poll(now, &mut produced);
-        outbound.extend(produced.drain(..));
+        let room = MAX_OUTBOUND.saturating_sub(outbound.len());
+        if produced.len() > room && !overflowed {
+            eprintln!(
+                "warning: the client does not read; the device's output beyond {MAX_OUTBOUND} \
+                 waiting bytes is lost"
+            );
+            overflowed = true;
+        }
+        outbound.extend(produced.drain(..).take(room));
         flush(pty, &mut outbound)?;
 
         let wake = [device.next_deadline(), inbound.front().map(|&(at, _)| at)]
@@ -85,7 +106,10 @@ pub fn serve<D: ByteDevice>(
             Some(at) => Duration::from_nanos(at.saturating_sub(now)).min(MAX_IDLE),
             None => MAX_IDLE,
         };
-        let mut events = PollFlags::POLLIN;
+        let mut events = PollFlags::empty();
+        if inbound.len() < MAX_INBOUND {
+            events |= PollFlags::POLLIN;
+        }
         if !outbound.is_empty() {
             events |= PollFlags::POLLOUT;
         }
@@ -97,8 +121,9 @@ pub fn serve<D: ByteDevice>(
             Err(e) => return Err(e.into()),
         }
 
-        loop {
-            match pty.read(&mut buf) {
+        while inbound.len() < MAX_INBOUND {
+            let room = (MAX_INBOUND - inbound.len()).min(buf.len());
+            match pty.read(&mut buf[..room]) {
                 Ok(0) => break,
                 Ok(n) => {
                     let peer = pty.peer_settings()?;

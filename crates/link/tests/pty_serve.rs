@@ -238,3 +238,74 @@ fn deadlines_shorter_than_a_millisecond_are_slept_not_spun() {
         dev.polls
     );
 }
+
+#[test]
+fn a_client_writing_faster_than_the_line_is_held_back() {
+    // 1 MiB takes 91 s at 115200 8N1: the serve loop must not swallow it at once (it would
+    // pile up in memory; `cat /dev/zero > PTY` grew it by gigabytes), the writer must wait.
+    let line = LineSettings::n81(115_200);
+    let served = start(line);
+    let mut port = open_serial(&served.path, line, Duration::from_secs(1)).unwrap();
+    let (done_tx, done) = mpsc::channel();
+    let writer = std::thread::spawn(move || {
+        let result = port.write_all(&vec![0u8; 1 << 20]);
+        let _ = done_tx.send(());
+        result
+    });
+    assert_eq!(
+        done.recv_timeout(Duration::from_secs(1)),
+        Err(mpsc::RecvTimeoutError::Timeout),
+        "1 MiB went into the PTY at once"
+    );
+    served.stop.store(true, Ordering::Relaxed);
+    served.thread.join().unwrap();
+    // The master is gone: the blocked write fails now.
+    assert!(writer.join().unwrap().is_err());
+}
+
+/// Sends `len` bytes as soon as it is first polled.
+struct Flood {
+    len: usize,
+}
+
+impl ByteDevice for Flood {
+    fn receive(&mut self, _now_ns: u64, _byte: u8) {}
+    fn poll(&mut self, _now_ns: u64, out: &mut Vec<u8>) {
+        out.resize(std::mem::take(&mut self.len), 0x55);
+    }
+    fn next_deadline(&self) -> Option<u64> {
+        None
+    }
+}
+
+#[test]
+fn output_to_a_client_that_does_not_read_is_bounded() {
+    let pty = Pty::open().unwrap();
+    let path = pty.path().to_path_buf();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (_control, rx) = mpsc::channel::<Control<Flood>>();
+    let flag = stop.clone();
+    let line = LineSettings::n81(115_200);
+    let thread = std::thread::spawn(move || {
+        let mut dev = Flood { len: 4 << 20 };
+        serve(&mut dev, &pty, line, &rx, &flag).unwrap();
+    });
+    let mut port = open_serial(&path, line, Duration::from_millis(300)).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let mut total = 0;
+    let mut buf = [0u8; 65536];
+    loop {
+        match port.read(&mut buf) {
+            Ok(n) => total += n,
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => break,
+            Err(e) => panic!("{e}"),
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    thread.join().unwrap();
+    assert!(total > 0);
+    assert!(
+        total < 1 << 20,
+        "{total} bytes were kept for a client that did not read"
+    );
+}
