@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, UdpSocket};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender, TrySendError};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -29,6 +29,9 @@ pub struct ServerConfig {
     pub speed: f64,
     /// Frames waiting for one client before newer ones are dropped (counted per node).
     pub client_queue: usize,
+    /// TCP connections served at once, joined or not (each costs two threads and its queue);
+    /// more are answered `< error too many connections … >` and closed.
+    pub max_connections: usize,
     /// Scenario nodes on the same wire.
     pub scenario: Option<Simulation>,
     /// Send every client its chip's bus errors, lost arbitrations and state changes as
@@ -50,6 +53,7 @@ impl ServerConfig {
             channel: "vcan0".to_string(),
             speed: 1.0,
             client_queue: 8192,
+            max_connections: 256,
             scenario: None,
             error_frames: false,
             beacon: None,
@@ -193,21 +197,40 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         let stop = stop.clone();
         let channel = config.channel.clone();
         let queue = config.client_queue;
+        let max_connections = config.max_connections;
         let log = log.clone();
         thread::Builder::new()
             .name("vbus-accept".into())
             .spawn(move || {
+                // Without a bound, a flood of idle connections exhausts threads and memory.
+                let open = Arc::new(AtomicUsize::new(0));
                 for conn in listener.incoming() {
                     if stop.load(Ordering::SeqCst) {
                         break;
                     }
-                    let Ok(stream) = conn else { continue };
+                    let Ok(mut stream) = conn else { continue };
+                    if open.load(Ordering::SeqCst) >= max_connections {
+                        let refusal = ServerMessage::Error(format!(
+                            "too many connections ({max_connections} open); try again later"
+                        ));
+                        let _ = stream.write_all(refusal.to_string().as_bytes());
+                        continue;
+                    }
+                    open.fetch_add(1, Ordering::SeqCst);
                     let control = control_tx.clone();
                     let channel = channel.clone();
                     let log = log.clone();
-                    let _ = thread::Builder::new()
-                        .name("vbus-client".into())
-                        .spawn(move || session(stream, control, channel, queue, log));
+                    let slot = open.clone();
+                    let spawned =
+                        thread::Builder::new()
+                            .name("vbus-client".into())
+                            .spawn(move || {
+                                session(stream, control, channel, queue, log);
+                                slot.fetch_sub(1, Ordering::SeqCst);
+                            });
+                    if spawned.is_err() {
+                        open.fetch_sub(1, Ordering::SeqCst);
+                    }
                 }
             })
             .map_err(ServerError::Thread)?
