@@ -362,3 +362,27 @@ fn format_boot_configuration_serial_and_emergency_erase() {
     b.ok(&["eeprom", "read", "--out", s(&back)]);
     assert_eq!(std::fs::read(&back).unwrap(), vec![0xFF; 256]);
 }
+
+#[test]
+fn bad_durations_are_refused_with_the_value_not_a_panic() {
+    for args in [
+        &["record", "--out", "x.csv", "--duration", "nan"][..],
+        &["record", "--out", "x.csv", "--duration=-1"],
+        &["monitor", "--duration", "1e300"],
+        &["monitor", "--duration", "inf"],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["cpu196", "--port", "/nonexistent/board"])
+            .args(args)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        let value = args.last().unwrap().trim_start_matches("--duration=");
+        assert!(
+            err.contains(&format!("`{value}` is not a number of seconds")),
+            "{args:?}: {err}"
+        );
+    }
+}

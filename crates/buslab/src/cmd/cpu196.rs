@@ -56,7 +56,7 @@ pub enum Cmd {
         #[arg(long)]
         record: Option<PathBuf>,
         /// Stop after this many seconds (default: until Ctrl-C).
-        #[arg(long)]
+        #[arg(long, value_parser = parse_seconds)]
         duration: Option<f64>,
         /// START this configuration set first (80C196 A/D on) and STOP at the end, so the
         /// monitor sees the program's start-up output and knows the sample layout.
@@ -110,7 +110,7 @@ pub enum Cmd {
         #[arg(long)]
         out: PathBuf,
         /// Seconds to record.
-        #[arg(long, default_value_t = 2.0)]
+        #[arg(long, default_value_t = 2.0, value_parser = parse_seconds)]
         duration: f64,
     },
     /// CPUFORMAT: boot configuration, serial number, PIC kernel, emergency erase.
@@ -294,6 +294,19 @@ fn parse_u8(s: &str) -> Result<u8, String> {
         t.parse()
     };
     r.map_err(|_| format!("`{s}` is not a byte (0..255, 0x1F or 1Fh)"))
+}
+
+/// Longest `--duration` (about 31 years); `Duration::from_secs_f64` panics on NaN, negative
+/// or huge values.
+const MAX_SECONDS: f64 = 1e9;
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if (0.0..=MAX_SECONDS).contains(&v) => Ok(v),
+        _ => Err(format!(
+            "`{s}` is not a number of seconds in 0..{MAX_SECONDS}"
+        )),
+    }
 }
 
 fn parse_bank(s: &str) -> Result<u8, String> {
