@@ -98,23 +98,36 @@ impl FromStr for BusUrl {
                     "bus URL {s:?}: channel {channel:?} must be one name"
                 ));
             }
-            let (host, port) = match hostport.rsplit_once(':') {
-                Some((h, p)) if !h.ends_with(':') || h.starts_with('[') => (
-                    h,
-                    p.parse::<u16>().map_err(|_| {
-                        format!("bus URL {s:?}: port {p:?} must be a number 1..65535")
-                    })?,
-                ),
-                _ => (hostport, 29536),
+            let parse_port = |p: &str| {
+                p.parse::<u16>()
+                    .ok()
+                    .filter(|&p| p != 0)
+                    .ok_or_else(|| format!("bus URL {s:?}: port {p:?} must be a number 1..65535"))
+            };
+            let (host, port) = if let Some(bracketed) = hostport.strip_prefix('[') {
+                // An IPv6 address: `[::1]` or `[::1]:PORT`.
+                let (h, after) = bracketed
+                    .split_once(']')
+                    .ok_or_else(|| format!("bus URL {s:?}: unclosed [ in the host"))?;
+                let port = match after {
+                    "" => 29536,
+                    _ => parse_port(after.strip_prefix(':').ok_or_else(|| {
+                        format!("bus URL {s:?}: expected :PORT or nothing after ], got {after:?}")
+                    })?)?,
+                };
+                (h, port)
+            } else {
+                match hostport.rsplit_once(':') {
+                    // `fe80::1` without brackets: an IPv6 address on the default port.
+                    Some((h, p)) if !h.ends_with(':') => (h, parse_port(p)?),
+                    _ => (hostport, 29536),
+                }
             };
             if host.is_empty() {
                 return Err(format!("bus URL {s:?} has no host"));
             }
             return Ok(BusUrl::Socketcand {
-                host: host
-                    .trim_start_matches('[')
-                    .trim_end_matches(']')
-                    .to_string(),
+                host: host.to_string(),
                 port,
                 channel: channel.to_string(),
             });
@@ -304,6 +317,19 @@ mod tests {
         assert_eq!(u.to_string(), "socketcand://localhost:29536/vcan0");
         let u: BusUrl = "socketcand://[::1]:5/x".parse().unwrap();
         assert_eq!(u.to_string(), "socketcand://[::1]:5/x");
+        // A bracketed IPv6 host without a port takes the default one.
+        let u: BusUrl = "socketcand://[::1]/x".parse().unwrap();
+        assert_eq!(u.to_string(), "socketcand://[::1]:29536/x");
+        let u: BusUrl = "socketcand://[fe80::1]".parse().unwrap();
+        assert_eq!(u.to_string(), "socketcand://[fe80::1]:29536/vcan0");
+        for (bad, want) in [
+            ("socketcand://[::1/x", "unclosed ["),
+            ("socketcand://[::1]x/x", "after ]"),
+            ("socketcand://h:0/x", "port \"0\" must be a number 1..65535"),
+        ] {
+            let err = bad.parse::<BusUrl>().unwrap_err();
+            assert!(err.contains(want), "{bad}: {err}");
+        }
         assert_eq!(
             "socketcan:can0".parse::<BusUrl>().unwrap(),
             BusUrl::SocketCan {
