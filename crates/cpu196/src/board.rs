@@ -437,8 +437,7 @@ impl Board {
                         Flow::CONTINUE
                     });
                 } else {
-                    self.log
-                        .push(format!("user command {cmd:02X}h with no program running"));
+                    self.note(format!("user command {cmd:02X}h with no program running"));
                     self.msg(now, MsgCode::INVALID_COMMAND);
                 }
             }
@@ -687,8 +686,7 @@ impl Board {
             let cfg = match AdConfig::parse(&set.ad_init) {
                 Ok(c) => c,
                 Err(e) => {
-                    self.log
-                        .push(format!("A/D configuration {}: {e}", s.config()));
+                    self.note(format!("A/D configuration {}: {e}", s.config()));
                     return self.msg(now, MsgCode::AD_CONFIG_ERROR);
                 }
             };

@@ -742,6 +742,20 @@ fn pwm_playback_reads_its_pattern_through_the_file_service() {
     assert_eq!(played.last(), pattern.last());
 }
 
+#[test]
+fn the_kernel_log_stays_bounded_when_nobody_reads_it() {
+    // A served board in `buslab lab` never has its log drained: user commands without a
+    // program (each refused and noted) must not grow it without end.
+    let mut b = Bench::new();
+    for _ in 0..1200 {
+        b.write(&[0x10, !0x10]);
+    }
+    b.run_for(10 * MS);
+    let log = b.board.take_log();
+    assert!(log.len() <= 1000, "{} log lines kept", log.len());
+    assert!(log.last().unwrap().contains("user command 10h"), "{log:?}");
+}
+
 mod garbage {
     use super::*;
     use proptest::prelude::*;
