@@ -535,20 +535,20 @@ impl FileService {
             return Err(FileNameError::Escapes(text.to_string()));
         }
         let path = self.root.join(rel);
-        // Follow symlinks as far as the path exists: it must stay under the root.
+        // Follow symlinks as far as the path exists: it must stay under the root. A link counts
+        // as existing even when it dangles (opening would follow it); one that cannot be
+        // resolved cannot be shown to stay inside.
         let mut probe = path.clone();
-        while !probe.exists() {
+        while probe.symlink_metadata().is_err() {
             match probe.parent() {
                 Some(p) => probe = p.to_path_buf(),
                 None => break,
             }
         }
-        if let Ok(real) = probe.canonicalize()
-            && !real.starts_with(&self.root)
-        {
-            return Err(FileNameError::Symlink(text.to_string()));
+        match probe.canonicalize() {
+            Ok(real) if real.starts_with(&self.root) => Ok(path),
+            _ => Err(FileNameError::Symlink(text.to_string())),
         }
-        Ok(path)
     }
 
     /// Handles a THREAD file message; returns the messages to send back and a log line.
@@ -742,6 +742,15 @@ mod tests {
             fs.resolve(b"out/x"),
             Err(FileNameError::Symlink(_))
         ));
+        // A dangling link: File::create would follow it and make the file outside.
+        std::os::unix::fs::symlink(outside.path().join("new"), dir.path().join("dangling"))
+            .unwrap();
+        for bad in [&b"dangling"[..], b"dangling/x"] {
+            assert!(
+                matches!(fs.resolve(bad), Err(FileNameError::Symlink(_))),
+                "{bad:?}"
+            );
+        }
         assert!(matches!(
             fs.resolve(&[0xFF, 0xFE]),
             Err(FileNameError::NotText(_))
