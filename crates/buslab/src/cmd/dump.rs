@@ -83,7 +83,8 @@ fn dump(args: Args) -> anyhow::Result<()> {
                 if let Some(log) = &mut log {
                     writeln!(
                         log,
-                        "({ts:.6}) {channel} {:08X}#0000000000000000",
+                        "{} {channel} {:08X}#0000000000000000",
+                        log_timestamp(ts),
                         ERR_FLAG | class
                     )?;
                     log.flush()?;
@@ -98,11 +99,17 @@ fn dump(args: Args) -> anyhow::Result<()> {
         printer.line(&mut out, ts, &channel, &m.frame)?;
         out.flush()?;
         if let Some(log) = &mut log {
-            writeln!(log, "({:.6}) {channel} {}", m.timestamp, m.frame)?;
+            writeln!(log, "{} {channel} {}", log_timestamp(m.timestamp), m.frame)?;
             log.flush()?;
         }
     }
     Ok(())
+}
+
+/// A candump log timestamp, `(%010u.%06u)` as candump writes it (a server's clock may start
+/// near 0, and log readers expect the fixed width).
+fn log_timestamp(seconds: f64) -> String {
+    format!("({:017.6})", seconds.max(0.0))
 }
 
 /// The error-frame flag of a SocketCAN ID (as candump logs write error frames).
@@ -224,6 +231,12 @@ mod tests {
              \x20 vcan0  12345678   [4]  DE AD BE EF\n\
              \x20 vcan0       080   [0] \n"
         );
+    }
+
+    #[test]
+    fn log_timestamps_have_candumps_fixed_width() {
+        assert_eq!(log_timestamp(1.5), "(0000000001.500000)");
+        assert_eq!(log_timestamp(1_795_251_323.218_691), "(1795251323.218691)");
     }
 
     #[test]
