@@ -19,8 +19,16 @@ pub enum ParseError {
         "ID {text:?} must be 3 hex digits (standard, 000..7FF) or 8 hex digits (extended, 00000000..1FFFFFFF)"
     )]
     IdLength { text: String },
-    #[error("{text:?} is not valid hexadecimal")]
+    #[error("{text:?} is not valid hexadecimal (allowed: 0-9, a-f, A-F; '.' between data bytes)")]
     BadHex { text: String },
+    #[error(
+        "frame {text:?} has a raw DLC 9..F (_{dlc}); buslab frames carry DLC 0..8 (9..15 mean 8 bytes on the wire)"
+    )]
+    RawDlcNotSupported { text: String, dlc: char },
+    #[error(
+        "frame {text:?} is an error frame (ID with the 0x20000000 flag); buslab sends only data and remote frames"
+    )]
+    ErrorFrameNotSupported { text: String },
     #[error("DLC {dlc} is out of range 0..8")]
     DlcOutOfRange { dlc: u8 },
     #[error("{len} data bytes given; a classic CAN frame carries 0..8")]

@@ -128,9 +128,21 @@ impl FromStr for Frame {
         let (id, rest) = s
             .split_once('#')
             .ok_or_else(|| ParseError::MissingSeparator { text: text.into() })?;
+        if id.len() == 8 && u32::from_str_radix(id, 16).is_ok_and(|raw| raw & 0x2000_0000 != 0) {
+            return Err(ParseError::ErrorFrameNotSupported { text: text.into() });
+        }
         let id: Id = id.parse()?;
         if rest.starts_with('#') {
             return Err(ParseError::FdNotSupported { text: text.into() });
+        }
+        if let Some((_, dlc)) = rest.rsplit_once('_') {
+            let mut chars = dlc.chars();
+            if let (Some(d @ ('9' | 'A'..='F' | 'a'..='f')), None) = (chars.next(), chars.next()) {
+                return Err(ParseError::RawDlcNotSupported {
+                    text: text.into(),
+                    dlc: d,
+                });
+            }
         }
         if let Some(len) = rest.strip_prefix(['R', 'r']) {
             let dlc = match len.as_bytes() {
@@ -208,6 +220,11 @@ mod tests {
             ("123#R9", "DLC 9 is out of range 0..8"),
             ("123#R12", "one digit"),
             ("123#ZZ", "not valid hexadecimal"),
+            ("123#1 2", "allowed: 0-9, a-f, A-F"),
+            // can-utils syntax that classic 0..8-byte frames cannot carry: named, not "bad hex".
+            ("333#R8_E", "raw DLC 9..F (_E)"),
+            ("1F334455#1122334455667788_B", "raw DLC 9..F (_B)"),
+            ("20000080#0000000000000000", "error frame"),
             ("123##1", "CAN FD"),
             ("#", "3 hex digits"),
             ("", "no '#'"),
