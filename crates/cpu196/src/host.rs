@@ -128,6 +128,11 @@ impl<P: Port> Client<P> {
             if let Some(m) = self.inbox.pop_front() {
                 return Ok(Some(m));
             }
+            // Checked before reading, not only when nothing came: a board that keeps talking
+            // (an acquisition, watchdogs) must not hold a caller past its deadline.
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
             let n = self.port.recv(&mut buf)?;
             let now = self.epoch.elapsed().as_nanos() as u64;
             for &b in &buf[..n] {
@@ -139,9 +144,6 @@ impl<P: Port> Client<P> {
             }
             if let Some(Event::Error(e)) = self.decoder.poll(now) {
                 self.frame_errors.push(e.to_string());
-            }
-            if self.inbox.is_empty() && Instant::now() >= deadline {
-                return Ok(None);
             }
         }
     }
@@ -755,6 +757,37 @@ mod tests {
             fs.resolve(&[0xFF, 0xFE]),
             Err(FileNameError::NotText(_))
         ));
+    }
+
+    /// A board that never stops talking: a watchdog `FF 00` on every read.
+    struct Chatty;
+
+    impl Port for Chatty {
+        fn send(&mut self, _bytes: &[u8]) -> io::Result<()> {
+            Ok(())
+        }
+        fn recv(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            std::thread::sleep(Duration::from_millis(1));
+            buf[..2].copy_from_slice(&[0xFF, 0x00]);
+            Ok(2)
+        }
+    }
+
+    #[test]
+    fn a_reply_that_never_comes_times_out_even_while_the_board_streams() {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut c = Client::new(Chatty, 115_200);
+            c.timeout = Duration::from_millis(100);
+            let _ = tx.send(c.info().map(|_| ()).map_err(|e| e.to_string()));
+        });
+        let result = rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("info() still waiting after 10 s with a 100 ms time-out");
+        assert!(
+            result.as_ref().is_err_and(|e| e.contains("no answer")),
+            "{result:?}"
+        );
     }
 
     #[test]
