@@ -1,7 +1,11 @@
 //! Out-of-range numbers on the CAN client and server command lines are refused by name,
 //! never a panic (found in review).
 
+mod bus_common;
+
 use std::process::Command;
+
+use bus_common::Serve;
 
 /// Runs buslab; nobody listens on port 1, so a command that gets past its options fails there.
 fn buslab(args: &[&str]) -> (bool, String) {
@@ -43,4 +47,20 @@ fn gen_gap_must_be_a_sane_number_of_milliseconds() {
     }
     let (ok, err) = buslab(&["gen", "--bus", NOBODY, "-n", "1", "-g", "0"]);
     assert!(!ok && err.contains("cannot join"), "{err}");
+}
+
+#[test]
+fn gen_names_its_node_as_docs_bus_md_shows() {
+    // docs/bus.md: `buslab gen … --name loser`, then `buslab status --node loser`. Alone on
+    // the bus its frame gets no ACK, and the failure shows the node's status by name.
+    let serve = Serve::start(500_000);
+    let out = serve
+        .buslab()
+        .args(["gen", "--bus", &serve.url, "--name", "genny"])
+        .args(["-n", "1", "-g", "0", "-I", "123", "-L", "1", "-D", "11"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("\nnode 1 (genny)\n"), "{err}");
 }

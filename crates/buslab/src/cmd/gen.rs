@@ -39,6 +39,9 @@ pub struct Args {
     /// Seed for the random modes.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Name this client's node on a buslab bus.
+    #[arg(long)]
+    pub name: Option<String>,
 }
 
 /// `-g`: milliseconds, 0..=86400000 (a day); more would overflow the pacing arithmetic.
@@ -188,6 +191,9 @@ impl Generator {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut generator = Generator::new(&args)?;
     let mut open = open(&args.bus.bus)?;
+    if let (Some(name), true) = (&args.name, open.extensions) {
+        open.bus.set_name(name)?;
+    }
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
