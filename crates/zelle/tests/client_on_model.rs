@@ -189,3 +189,21 @@ fn timeouts_are_errors_naming_what_was_awaited() {
     let err = c.read_data(10, Transfer::Pipelined).unwrap_err();
     assert!(err.to_string().contains("reading data RAM"), "{err}");
 }
+
+#[test]
+fn transfers_past_the_end_of_ram_are_refused_naming_the_sizes() {
+    let mut c = client();
+    let err = c
+        .write_data(&vec![0; 0x7801], Transfer::Pipelined)
+        .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "30721 bytes from 0800h do not fit below the end of RAM at 8000h"
+    );
+    assert!(matches!(
+        c.read_data(0x7801, Transfer::Pipelined),
+        Err(Error::TooLong { .. })
+    ));
+    // Nothing went on the line: the cell still answers.
+    assert!(!c.key_pressed().unwrap());
+}

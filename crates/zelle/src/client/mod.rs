@@ -73,7 +73,7 @@ pub enum Error {
         byte: u8,
         expected: &'static str,
     },
-    #[error("{len} bytes from {start:#06X}h do not fit below the end of RAM at 8000h")]
+    #[error("{len} bytes from {start:04X}h do not fit below the end of RAM at 8000h")]
     TooLong { start: u16, len: usize },
     #[error(transparent)]
     Series(#[from] SeriesError),
