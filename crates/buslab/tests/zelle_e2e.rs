@@ -323,6 +323,24 @@ fn cli_rejects_bad_arguments_with_the_value_named() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--port PATH is required"));
 }
 
+#[test]
+fn serve_rejects_bad_analog_channels_with_the_range() {
+    for arg in ["9=1V", "0=1V", "x=1V"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["zelle", "serve", "--analog", arg])
+            .stdin(std::process::Stdio::null())
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{arg} was accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        let ch = arg.split('=').next().unwrap();
+        assert!(
+            err.contains(&format!("channel `{ch}` is out of range 1..4")),
+            "{arg}: {err}"
+        );
+    }
+}
+
 /// An Intel HEX data record for `data` at `addr`, then the end record.
 fn hex_file(addr: u16, data: &[u8]) -> String {
     let mut record = vec![data.len() as u8, (addr >> 8) as u8, addr as u8, 0];

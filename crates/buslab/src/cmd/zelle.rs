@@ -562,10 +562,10 @@ fn analog_arg(arg: &str) -> anyhow::Result<(u8, Source)> {
     let (ch, spec) = arg
         .split_once('=')
         .with_context(|| format!("--analog `{arg}` must look like CH=SOURCE, e.g. 1=sine:1Hz"))?;
-    let ch = number(ch, "analog channel", 4)? as u8;
-    if ch == 0 {
-        bail!("analog channel 0 is out of range 1..4");
-    }
+    let ch = match parse_number(ch) {
+        Some(c @ 1..=4) => c as u8,
+        _ => bail!("--analog `{arg}`: channel `{ch}` is out of range 1..4"),
+    };
     Ok((ch, load_source(SourceSpec::parse(spec)?)?))
 }
 
