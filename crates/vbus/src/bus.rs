@@ -25,7 +25,8 @@ pub const RESTART_AFTER_MS: u64 = 100;
 /// Why a bus could not be set up or a request failed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum VbusError {
-    #[error("bit rate {0} bit/s: {1}")]
+    /// The bus bit rate and why a client chip cannot run at it (the reason names the rate).
+    #[error("{1}")]
     Bitrate(u32, String),
     #[error("no node {0} (see buslab_nodes)")]
     NoNode(String),
@@ -216,7 +217,7 @@ impl VirtualBus {
             .map_err(|e| VbusError::Bitrate(bitrate, e.to_string()))?;
         config
             .validate()
-            .map_err(|e| VbusError::Bitrate(bitrate, e.to_string()))?;
+            .map_err(|e| VbusError::Bitrate(bitrate, format!("bit rate {bitrate} bit/s: {e}")))?;
         Ok(Self {
             bitrate,
             now: 0,

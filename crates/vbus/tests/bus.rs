@@ -139,6 +139,9 @@ fn leaving_and_naming_nodes() {
 fn an_unreachable_bit_rate_is_refused_by_name() {
     let err = VirtualBus::new(3).unwrap_err().to_string();
     assert!(err.contains("bit rate 3"), "{err}");
+    // Said once, with the clock it was tried from.
+    assert_eq!(err.matches("bit rate 3 bit/s").count(), 1, "{err}");
+    assert!(err.contains("8000000 Hz CAN clock"), "{err}");
 }
 
 #[test]
