@@ -13,7 +13,7 @@ const FILL: u8 = 0xFF;
 pub enum ProgramError {
     #[error("Intel HEX: {0}")]
     Hex(String),
-    #[error("Intel HEX data at {addr:#06X}h is outside the program area 0400h..07FFh")]
+    #[error("Intel HEX data at {addr:04X}h is outside the program area 0400h..07FFh")]
     OutsideArea { addr: u32 },
     #[error("the program is {len} bytes; the program area 0400h..07FFh holds 1024")]
     TooLong { len: usize },
@@ -52,9 +52,10 @@ fn from_hex(text: &str) -> Result<Vec<u8>, ProgramError> {
         match record.map_err(|e| ProgramError::Hex(e.to_string()))? {
             Record::Data { offset, value } => {
                 let start = base + u32::from(offset);
-                let end = start + value.len() as u32;
+                // In u64: a record at the top of the 32-bit space would overflow.
+                let end = u64::from(start) + value.len() as u64;
                 let area = u32::from(PROGRAM_AREA)..u32::from(DATA_AREA);
-                if !area.contains(&start) || end > area.end {
+                if !area.contains(&start) || end > u64::from(area.end) {
                     return Err(ProgramError::OutsideArea { addr: start });
                 }
                 let at = (start - area.start) as usize;
@@ -121,6 +122,21 @@ mod tests {
         assert_eq!(
             image_from_file(low.as_bytes()),
             Err(ProgramError::OutsideArea { addr: 0 })
+        );
+        // Addresses at the top of the 32-bit space must not overflow.
+        let top = hex(&[
+            Record::ExtendedLinearAddress(0xFFFF),
+            Record::Data {
+                offset: 0xFFFF,
+                value: vec![1, 2],
+            },
+            Record::EndOfFile,
+        ]);
+        let err = image_from_file(top.as_bytes()).unwrap_err();
+        assert_eq!(err, ProgramError::OutsideArea { addr: 0xFFFF_FFFF });
+        assert_eq!(
+            err.to_string(),
+            "Intel HEX data at FFFFFFFFh is outside the program area 0400h..07FFh"
         );
         let err = image_from_file(b":10garbage\n").unwrap_err();
         assert!(matches!(err, ProgramError::Hex(_)), "{err:?}");
