@@ -71,6 +71,8 @@ pub enum ServerError {
     Bus(#[from] VbusError),
     #[error("speed {0} must be a positive number 0.001..=1000000 (times real time)")]
     Speed(f64),
+    #[error("client queue {0} must be 16..=1048576 frames")]
+    ClientQueue(usize),
     #[error("bus name {0:?} must be 1..=64 of A-Z a-z 0-9 _ - . : (one token clients can open)")]
     Channel(String),
     #[error("cannot start a server thread: {0}")]
@@ -152,6 +154,10 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     // Outside this range the pacing arithmetic overflows `Duration`.
     if !(0.001..=1_000_000.0).contains(&config.speed) {
         return Err(ServerError::Speed(config.speed));
+    }
+    // The queue is allocated whole for each client, and must hold a few replies.
+    if !(16..=1_048_576).contains(&config.client_queue) {
+        return Err(ServerError::ClientQueue(config.client_queue));
     }
     if !valid_channel(&config.channel) {
         return Err(ServerError::Channel(config.channel));

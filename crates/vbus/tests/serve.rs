@@ -488,3 +488,21 @@ fn a_flood_of_connections_is_bounded_and_the_server_recovers() {
     );
     s.shutdown();
 }
+
+#[test]
+fn a_client_queue_the_server_cannot_allocate_is_refused() {
+    // The queue is allocated whole for every client: usize::MAX panicked each client thread
+    // ("capacity overflow") and a few hundred million took gigabytes per client.
+    for queue in [0, 15, 1_048_577, usize::MAX] {
+        let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+        config.client_queue = queue;
+        let err = spawn(config).err().expect("refused").to_string();
+        assert!(
+            err.contains(&format!("client queue {queue} must be 16..=1048576")),
+            "{err}"
+        );
+    }
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+    config.client_queue = 16;
+    spawn(config).expect("accepted").shutdown();
+}

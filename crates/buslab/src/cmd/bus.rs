@@ -48,7 +48,7 @@ pub struct ServeArgs {
     /// then virtual, not the wall clock).
     #[arg(long, default_value_t = 1.0)]
     pub speed: f64,
-    /// Frames queued for one client before newer ones are dropped for it.
+    /// Frames queued for one client before newer ones are dropped for it (16..=1048576).
     #[arg(long, default_value_t = 8192)]
     pub client_queue: usize,
     /// Send every client its chip's bus errors, lost arbitrations and state changes as
@@ -252,7 +252,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let mut config = buslab_vbus::ServerConfig::new(args.listen, args.bitrate);
     config.channel = args.name.clone();
     config.speed = args.speed;
-    config.client_queue = args.client_queue.max(1);
+    config.client_queue = args.client_queue;
     config.error_frames = args.error_frames;
     config.beacon = match args.beacon.as_deref() {
         None => None,
