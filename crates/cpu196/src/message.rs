@@ -339,6 +339,18 @@ pub enum ParseError {
     Checksum { got: u8, want: u8 },
 }
 
+/// Lengths for [`Message::parse`]'s check of kernel frames, which never asks for these.
+struct AnyLength;
+
+impl Lengths for AnyLength {
+    fn user_len(&self, _: u8) -> usize {
+        0
+    }
+    fn adcont_len(&self) -> Option<usize> {
+        None
+    }
+}
+
 fn boxed<const N: usize>(s: &[u8]) -> Box<[u8; N]> {
     let mut b = Box::new([0u8; N]);
     b.copy_from_slice(&s[..N]);
@@ -608,7 +620,7 @@ impl Message {
     }
 
     /// Builds the message from a complete frame's parameters (as delimited by
-    /// [`wire::params_len`]).
+    /// [`wire::params_len`]); a slice of another length is refused.
     pub fn parse(cmd: u8, p: &[u8]) -> Result<Self, ParseError> {
         let bad = |detail: String| ParseError::InvalidParameter { cmd, detail };
         if cmd <= USER_MAX {
@@ -616,6 +628,17 @@ impl Message {
                 cmd,
                 params: p.to_vec(),
             });
+        }
+        let want = match cmd {
+            // Any length the acquisition layout gives, plus the checksum.
+            ADCONT => (!p.is_empty()).then_some(p.len()),
+            _ => wire::params_len(cmd, p, &AnyLength).map_err(|e| bad(e.to_string()))?,
+        };
+        if want != Some(p.len()) {
+            return Err(bad(match want {
+                Some(n) => format!("{} parameter bytes, the frame has {n}", p.len()),
+                None => format!("{} parameter bytes do not make a whole frame", p.len()),
+            }));
         }
         Ok(match cmd {
             STOP => Self::Stop,
@@ -813,6 +836,32 @@ pub fn describe(m: &Message) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn parse_refuses_wrong_lengths_instead_of_panicking() {
+        for cmd in 0xF0..=0xFF {
+            for sub in 0..=255u8 {
+                for len in [0, 1, 2, 3, 4, 5, 9, 17, 22, 23, 24, 257, 300, 4098] {
+                    let mut p = vec![0u8; len];
+                    if let Some(first) = p.first_mut() {
+                        *first = sub;
+                    }
+                    let _ = Message::parse(cmd, &p);
+                }
+            }
+        }
+        assert_eq!(
+            Message::parse(MSG, &[]).unwrap_err().to_string(),
+            "MSG (FEh): 0 parameter bytes, the frame has 1"
+        );
+        assert!(Message::parse(ADCONT, &[]).is_err());
+        assert!(Message::parse(PRGFLASH, &[0x02, 0, 0x28]).is_err());
+        // The right length still parses.
+        assert_eq!(
+            Message::parse(MSG, &[3]),
+            Ok(Message::Msg(MsgCode::COMPLETED))
+        );
+    }
 
     #[test]
     fn describe_is_one_bounded_line() {
