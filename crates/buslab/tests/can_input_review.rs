@@ -64,3 +64,27 @@ fn gen_names_its_node_as_docs_bus_md_shows() {
     assert!(!out.status.success(), "{err}");
     assert!(err.contains("\nnode 1 (genny)\n"), "{err}");
 }
+
+#[test]
+fn an_endless_scenario_file_is_refused_not_read_forever() {
+    // `read_to_string("/dev/zero")` grew until memory ran out.
+    let (ok, err) = buslab(&["sim", "/dev/zero"]);
+    assert!(!ok);
+    assert!(
+        err.contains("scenario /dev/zero is larger than 64 MiB"),
+        "{err}"
+    );
+    let (ok, err) = buslab(&[
+        "bus",
+        "serve",
+        "--listen",
+        "127.0.0.1:0",
+        "--nodes",
+        "/dev/zero",
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("scenario /dev/zero is larger than 64 MiB"),
+        "{err}"
+    );
+}

@@ -264,8 +264,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         ),
     };
     if let Some(path) = &args.nodes {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
+        let text = super::sim::read_scenario(path)?;
         let scenario = buslab_sim::Scenario::from_toml(&text)
             .with_context(|| format!("bad scenario {}", path.display()))?;
         if scenario.bitrate != args.bitrate {

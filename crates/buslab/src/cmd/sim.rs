@@ -60,9 +60,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
+/// The most a scenario file may hold: a `file` traffic of the largest size (16 MiB) as hex
+/// fits, and `/dev/zero` or a wrong path is not read until memory runs out.
+const MAX_SCENARIO_BYTES: u64 = 64 << 20;
+
+/// Reads a scenario file, refusing one larger than [`MAX_SCENARIO_BYTES`].
+pub fn read_scenario(path: &std::path::Path) -> anyhow::Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_SCENARIO_BYTES + 1).read_to_string(&mut text))
+        .with_context(|| format!("cannot read scenario {}", path.display()))?;
+    if text.len() as u64 > MAX_SCENARIO_BYTES {
+        anyhow::bail!("scenario {} is larger than 64 MiB", path.display());
+    }
+    Ok(text)
+}
+
 fn simulate(args: Args) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(&args.scenario)
-        .with_context(|| format!("cannot read scenario {}", args.scenario.display()))?;
+    let text = read_scenario(&args.scenario)?;
     let mut scenario = Scenario::from_toml(&text)
         .with_context(|| format!("bad scenario {}", args.scenario.display()))?;
     if let Some(seed) = args.seed {
