@@ -27,6 +27,10 @@ pub const LINK_LOST_NS: u64 = 3_000_000_000;
 pub const BATTERY_PERIOD_NS: u64 = 100_000_000;
 /// Transmit FIFO size: A/D frames that would not fit are dropped (and `alert_ad_overrun`).
 pub const TX_FIFO: usize = 4096;
+/// Replies waiting beyond this mean the kernel is still inside its send routine when the next
+/// byte arrives: that byte is lost. A PC flooding small requests for large replies (4-byte
+/// PIC block reads get 4100 bytes) must not grow the queue without end.
+pub const TX_BACKLOG: usize = 64 * 1024;
 /// CPUFORMAT's emergency erase is accepted this long after a reset.
 pub const EMERGENCY_WINDOW_NS: u64 = 100_000_000;
 /// Share of the line an acquisition may take (the rest is for replies and the watchdog).
@@ -54,6 +58,8 @@ pub struct Stats {
     pub fa_dropped: u64,
     /// Frame errors on the PC's stream.
     pub rx_errors: u64,
+    /// Bytes from the PC lost because more than [`TX_BACKLOG`] bytes of replies waited.
+    pub rx_lost: u64,
 }
 
 /// Which loop the kernel is in.
@@ -960,6 +966,10 @@ impl ByteDevice for Board {
         }
         self.advance(now_ns);
         self.last_rx = now_ns;
+        if self.tx.queue.len() > TX_BACKLOG {
+            self.stats.rx_lost += 1;
+            return;
+        }
         match self.decoder.push(now_ns, byte) {
             Some(Event::Message(m)) => self.on_message(now_ns, m),
             Some(Event::Error(e)) => self.on_frame_error(now_ns, e),

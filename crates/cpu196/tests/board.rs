@@ -756,6 +756,29 @@ fn the_kernel_log_stays_bounded_when_nobody_reads_it() {
     assert!(log.last().unwrap().contains("user command 10h"), "{log:?}");
 }
 
+#[test]
+fn a_pc_flooding_large_requests_does_not_grow_the_reply_queue_without_end() {
+    // Each 4-byte PIC block read asks for 4100 bytes: back to back, replies pile up 1000
+    // times faster than they leave.
+    let mut b = Bench::new();
+    let request = Message::PicReadRequest { block: 1 }.to_bytes().unwrap();
+    for _ in 0..40 {
+        b.write(&request);
+    }
+    b.run_for(20_000 * MS);
+    let blocks = b
+        .seen
+        .drain(..)
+        .filter(|(_, e)| matches!(e, Event::Message(Message::PicData(_))))
+        .count();
+    assert!(blocks < 40, "all {blocks} replies were queued");
+    assert!(blocks >= 10, "only {blocks} replies");
+    assert!(b.board.stats().rx_lost > 0);
+    // Once the replies have left, the kernel listens again.
+    let r = b.ask(&Message::CpuInfoRequest, 10);
+    assert!(r.iter().any(|m| matches!(m, Message::CpuInfo(_))), "{r:?}");
+}
+
 mod garbage {
     use super::*;
     use proptest::prelude::*;
