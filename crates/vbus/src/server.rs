@@ -250,7 +250,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         })
         .and_then(|s| s.set_broadcast(true).map(|()| s))
         .map_err(|source| ServerError::Beacon { target, source })?;
-        let text = beacon_text(addr, &config.channel);
+        let text = beacon_text(beacon_url_addr(addr, target), &config.channel);
         let stop = stop.clone();
         let log = log.clone();
         log(&format!("beacon to {target} every 3 s"));
@@ -284,6 +284,26 @@ const RAW_HOLD: Duration = Duration::from_millis(50);
 
 /// socketcand sends its beacon about every 3 s.
 const BEACON_EVERY: Duration = Duration::from_secs(3);
+
+/// The address the beacon announces: the listening one, or, when listening on every
+/// interface (`0.0.0.0`, `::`), the address of the interface the beacon leaves from (as
+/// socketcand names its interface's address; `0.0.0.0` would send a client to itself).
+pub fn beacon_url_addr(listen: SocketAddr, target: SocketAddr) -> SocketAddr {
+    if !listen.ip().is_unspecified() {
+        return listen;
+    }
+    let local = UdpSocket::bind(SocketAddr::new(listen.ip(), 0))
+        .and_then(|probe| {
+            probe.set_broadcast(true)?;
+            probe.connect(target)?;
+            probe.local_addr()
+        })
+        .map(|a| a.ip());
+    match local {
+        Ok(ip) if !ip.is_unspecified() => SocketAddr::new(ip, listen.port()),
+        _ => listen,
+    }
+}
 
 /// socketcand's discovery beacon: a `CANBeacon` element with the server's URL and its bus.
 pub fn beacon_text(addr: SocketAddr, channel: &str) -> String {

@@ -506,3 +506,20 @@ fn a_client_queue_the_server_cannot_allocate_is_refused() {
     config.client_queue = 16;
     spawn(config).expect("accepted").shutdown();
 }
+
+#[test]
+fn a_beacon_from_all_interfaces_names_a_reachable_address() {
+    // Listening on 0.0.0.0, the beacon said `can://0.0.0.0:PORT`: python-can's
+    // `detect_beacon()` on another host would then connect to itself. socketcand names the
+    // interface's address; buslab names the one the beacon leaves from.
+    use buslab_vbus::server::beacon_url_addr;
+    let all: std::net::SocketAddr = "0.0.0.0:29536".parse().unwrap();
+    let to_lo: std::net::SocketAddr = "127.0.0.1:42000".parse().unwrap();
+    assert_eq!(
+        beacon_url_addr(all, to_lo),
+        "127.0.0.1:29536".parse().unwrap()
+    );
+    // A specific address is kept as it is.
+    let one: std::net::SocketAddr = "127.0.0.2:5".parse().unwrap();
+    assert_eq!(beacon_url_addr(one, to_lo), one);
+}
