@@ -207,3 +207,47 @@ fn transfers_past_the_end_of_ram_are_refused_naming_the_sizes() {
     // Nothing went on the line: the cell still answers.
     assert!(!c.key_pressed().unwrap());
 }
+
+/// Takes the first `room` bytes written, then fails every write.
+struct FillingPort {
+    room: usize,
+}
+
+impl std::io::Read for FillingPort {
+    fn read(&mut self, _: &mut [u8]) -> std::io::Result<usize> {
+        Err(std::io::ErrorKind::TimedOut.into())
+    }
+}
+
+impl std::io::Write for FillingPort {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.room < buf.len() {
+            return Err(std::io::ErrorKind::BrokenPipe.into());
+        }
+        self.room -= buf.len();
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Port for FillingPort {
+    fn set_timeout(&mut self, _: std::time::Duration) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn pause(&mut self, _: std::time::Duration) {}
+    fn discard_input(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+#[test]
+fn the_longest_series_times_the_most_blocks_does_not_overflow() {
+    // 65535 cycles of 65.539 s, u32::MAX blocks: the total time overflows u64 nanoseconds.
+    let params = SeriesParams::new(&[1, 2, 3, 4], u16::MAX, 65_539).unwrap();
+    // The series is armed (9 bytes), then the first START fails: an error, not a panic.
+    let mut c = Client::new(FillingPort { room: 9 }).unwrap();
+    let err = c.measure(&params, u32::MAX, |_| {}).unwrap_err();
+    assert!(matches!(err, Error::Io(_)), "{err}");
+}

@@ -505,12 +505,14 @@ impl<P: Port> Client<P> {
         // START byte's way to the cell.
         let block_ns = params.block_ns();
         let spacing = block_ns + BLOCK_MARGIN_NS;
-        let total_ns = spacing * u64::from(blocks);
+        // Saturating: 65535 cycles of 65 s times u32::MAX blocks is past u64 nanoseconds.
+        let total_ns = spacing.saturating_mul(u64::from(blocks));
         let step = Duration::from_millis(100);
         let mut starts = Vec::new();
         for block in 0..blocks {
             self.start_block()?;
-            starts.push(u64::from(block) * spacing);
+            let start = u64::from(block).saturating_mul(spacing);
+            starts.push(start);
             let mut waited = 0;
             while waited < spacing {
                 let chunk = (spacing - waited).min(step.as_nanos() as u64);
@@ -519,7 +521,7 @@ impl<P: Port> Client<P> {
                 progress(Progress::Measuring {
                     block,
                     blocks,
-                    done_ns: u64::from(block) * spacing + waited,
+                    done_ns: start.saturating_add(waited),
                     total_ns,
                 });
             }
