@@ -301,6 +301,11 @@ fn cli_rejects_bad_arguments_with_the_value_named() {
         (vec!["peek", "0x10000"], "address `0x10000`"),
         (vec!["reg", "128"], "register address `128`"),
         (vec!["analog", "5"], "channel 5 is out of range 1..4"),
+        // Each reading was a byte of one up-front allocation: 4 GB.
+        (
+            vec!["analog", "1", "--repeat", "4000000000"],
+            "4000000000 is not in 1..=1000000",
+        ),
         (
             vec!["measure", "-c", "1,2,3", "--interval", "2ms"],
             "interval 2 ms",

@@ -41,8 +41,8 @@ pub enum ZelleCommand {
     Analog {
         /// Channel 1..4.
         channel: u8,
-        /// Read this many times in one command-4 exchange.
-        #[arg(long)]
+        /// Read this many times in one command-4 exchange (1..1000000).
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
         repeat: Option<u32>,
     },
     /// Run a measurement series and write it as CSV (time, one column per channel).
