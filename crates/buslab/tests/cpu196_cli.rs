@@ -386,3 +386,28 @@ fn bad_durations_are_refused_with_the_value_not_a_panic() {
         );
     }
 }
+
+#[test]
+fn a_refused_start_names_the_bank_and_configuration() {
+    // Bank 3 of the default image holds no configuration table.
+    let board = Board::serve(&[]);
+    let err = board.fails(&["start", "--bank", "3", "--config", "2"]);
+    assert!(
+        err.contains(
+            "START bank 3 configuration 2: the board answered msg_invalid_parameter_value"
+        ),
+        "{err}"
+    );
+    let err = board.fails(&["cfgad", "3", "1"]);
+    assert!(err.contains("CFGAD bank 3 configuration 1: "), "{err}");
+    let err = board.fails(&[
+        "record",
+        "--bank",
+        "3",
+        "--out",
+        "/dev/null",
+        "--duration",
+        "0",
+    ]);
+    assert!(err.contains("START bank 3 configuration 0: "), "{err}");
+}

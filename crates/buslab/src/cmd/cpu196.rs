@@ -417,7 +417,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             monitor(&mut c, files.as_deref(), record.as_deref(), duration, start)
         }
         Cmd::Start(s) => {
-            c.start(s.word())?;
+            c.start(s.word())
+                .with_context(|| format!("START bank {} configuration {}", s.bank, s.config))?;
             println!("started bank {} configuration {}", s.bank, s.config);
             Ok(())
         }
@@ -641,7 +642,8 @@ fn monitor<P: Port>(
     }
     println!("monitoring; Ctrl-C to stop");
     if let Some(s) = start {
-        c.start(s.word())?;
+        c.start(s.word())
+            .with_context(|| format!("START bank {} configuration {}", s.bank, s.config))?;
         println!("started bank {} configuration {}", s.bank, s.config);
         // What the program said while we waited for START's answer.
         for m in c.take_backlog() {
@@ -861,7 +863,9 @@ fn eeprom<P: Port>(c: &mut Client<P>, e: EepromCmd, yes: bool) -> anyhow::Result
 }
 
 fn cfgad<P: Port>(c: &mut Client<P>, bank: u8, config: u8) -> anyhow::Result<()> {
-    let (c196, pic) = c.cfgad(bank, config)?;
+    let (c196, pic) = c
+        .cfgad(bank, config)
+        .with_context(|| format!("CFGAD bank {bank} configuration {config}"))?;
     println!("bank {bank} configuration {config}");
     println!("  raw        {}", hex(&c196));
     match buslab_cpu196::adconfig::AdConfig::parse(&c196) {
@@ -901,7 +905,8 @@ fn record<P: Port>(
     ))?;
     // log8 samples expand through the board's own table.
     rec.set_log_table(c.log_table()?);
-    c.start(start.word())?;
+    c.start(start.word())
+        .with_context(|| format!("START bank {} configuration {}", start.bank, start.config))?;
     let end = Instant::now() + Duration::from_secs_f64(duration);
     let mut last_ping = Instant::now();
     let mut files = None;
