@@ -411,3 +411,16 @@ fn a_refused_start_names_the_bank_and_configuration() {
     ]);
     assert!(err.contains("START bank 3 configuration 0: "), "{err}");
 }
+
+#[test]
+fn a_serial_number_must_be_8_ascii_characters() {
+    let board = Board::serve(&[]);
+    // 8 bytes, but not 8 ASCII characters.
+    let err = board.fails(&["format", "serial", "éééé", "--yes"]);
+    assert!(
+        err.contains("serial number `éééé` must be exactly 8 ASCII characters"),
+        "{err}"
+    );
+    // Nothing changed.
+    assert!(board.ok(&["info"]).contains("BL196001"));
+}

@@ -1047,9 +1047,14 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
             println!("written and verified; it applies from the next reset");
         }
         FormatCmd::Serial { new } => {
-            let new: [u8; 8] = new.as_bytes().try_into().map_err(|_| {
-                anyhow::anyhow!("serial number `{new}` must be exactly 8 ASCII characters")
-            })?;
+            let new: [u8; 8] = new
+                .as_bytes()
+                .try_into()
+                .ok()
+                .filter(|_| new.is_ascii())
+                .with_context(|| {
+                    format!("serial number `{new}` must be exactly 8 ASCII characters")
+                })?;
             let current = c.info()?.serial;
             confirm(
                 yes,
