@@ -54,7 +54,8 @@ impl Pty {
     }
 
     /// Makes `link` a symlink to the slave path (replacing an old symlink there); it is removed
-    /// when the `Pty` is dropped. Refuses to replace anything that is not a symlink.
+    /// when the `Pty` is dropped, unless it points elsewhere by then. Refuses to replace
+    /// anything that is not a symlink.
     pub fn link_at(&mut self, link: &Path) -> io::Result<()> {
         match std::fs::symlink_metadata(link) {
             Ok(meta) if meta.file_type().is_symlink() => std::fs::remove_file(link)?,
@@ -100,7 +101,10 @@ impl AsFd for Pty {
 
 impl Drop for Pty {
     fn drop(&mut self) {
-        if let Some(link) = &self.link {
+        // Only our own link: another server may have taken the name over meanwhile.
+        if let Some(link) = &self.link
+            && std::fs::read_link(link).is_ok_and(|to| to == self.path)
+        {
             let _ = std::fs::remove_file(link);
         }
     }

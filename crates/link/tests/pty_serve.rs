@@ -143,6 +143,16 @@ fn link_at_makes_and_removes_a_symlink_and_never_replaces_a_file() {
         assert_eq!(std::fs::read_link(&link).unwrap(), pty.path());
     }
     assert!(std::fs::symlink_metadata(&link).is_err());
+    // A second server takes the name over: the first one leaves it alone when it ends.
+    {
+        let mut first = Pty::open().unwrap();
+        first.link_at(&link).unwrap();
+        let mut second = Pty::open().unwrap();
+        second.link_at(&link).unwrap();
+        drop(first);
+        assert_eq!(std::fs::read_link(&link).unwrap(), second.path());
+    }
+    assert!(std::fs::symlink_metadata(&link).is_err());
     let file = dir.join("plain");
     std::fs::write(&file, b"keep me").unwrap();
     let mut pty = Pty::open().unwrap();
