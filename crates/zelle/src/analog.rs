@@ -129,8 +129,12 @@ impl Source {
             if line.is_empty() || line.starts_with('#') {
                 continue;
             }
-            let mut fields = line.split([',', ';', '\t']).map(str::trim);
-            let (Some(t), Some(v)) = (fields.next(), fields.next()) else {
+            let mut fields: Vec<&str> = line.split([',', ';', '\t']).map(str::trim).collect();
+            while fields.last() == Some(&"") {
+                fields.pop(); // trailing separators, as spreadsheets write them
+            }
+            // A third column would be dropped without a word (`time,ch1,ch2` is not a replay).
+            let [t, v] = fields[..] else {
                 return Err(SourceError::CsvLine {
                     line: line_no,
                     text: line.to_owned(),
@@ -456,6 +460,15 @@ mod tests {
             Err(SourceError::CsvEmpty)
         );
         assert!(Source::replay_from_csv("-1,2").is_err());
+        let err = Source::replay_from_csv("0,1\n0.5,2,3\n").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "replay CSV line 2 `0.5,2,3`: expected two fields `seconds,volts`"
+        );
+        assert_eq!(
+            Source::replay_from_csv("0;1;\n").unwrap(),
+            Source::Replay(vec![(0, 1.0)])
+        );
         assert!(Source::replay_from_csv("5").is_err());
     }
 }
