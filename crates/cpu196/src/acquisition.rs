@@ -122,6 +122,10 @@ pub fn format_value(format: SampleFormat, v16: u16, table: &LogTable, out: &mut 
 /// Decodes one `FA` frame into scans of (channel, value in 10-bit units as f64).
 pub fn decode_frame(cfg: &AdConfig, data: &[u8], table: &LogTable) -> Vec<Vec<(u8, f64)>> {
     let mut scans = Vec::new();
+    if cfg.scan_bytes() == 0 {
+        // Nothing is transmitted: the loop below would never move through `data`.
+        return scans;
+    }
     let mut at = 0;
     while at < data.len() {
         let mut scan = Vec::new();
@@ -259,5 +263,10 @@ mod tests {
         assert_eq!(acq.next_interrupt_at(), 4 * 60_000);
         let scans = decode_frame(&cfg, &frame, &table);
         assert_eq!(scans, vec![vec![(0, 1023.0), (2, 512.0)]; 2]);
+        // A frame for a layout that transmits nothing has no scans (it looped forever).
+        let silent = AdConfig::simple(&[], SampleFormat::Bits10, 0, 1);
+        assert!(decode_frame(&silent, &frame, &table).is_empty());
+        // A short tail is left out.
+        assert_eq!(decode_frame(&cfg, &frame[..5], &table).len(), 1);
     }
 }
