@@ -31,6 +31,9 @@ pub const TX_FIFO: usize = 4096;
 /// byte arrives: that byte is lost. A PC flooding small requests for large replies (4-byte
 /// PIC block reads get 4100 bytes) must not grow the queue without end.
 pub const TX_BACKLOG: usize = 64 * 1024;
+/// A START asked for by a hook while a START is being performed (an `init_prog` that starts
+/// a set) is done this much later, on a later pass of the kernel, not recursively.
+pub const NESTED_START_DELAY_NS: u64 = 1_000_000;
 /// CPUFORMAT's emergency erase is accepted this long after a reset.
 pub const EMERGENCY_WINDOW_NS: u64 = 100_000_000;
 /// Share of the line an acquisition may take (the rest is for replies and the watchdog).
@@ -136,6 +139,11 @@ pub struct Board {
     next_battery: u64,
     next_file: u8,
     dirty: bool,
+    /// A START a hook asked for while a START was already being performed (an `init_prog`
+    /// that starts a set), and when it is done.
+    pending_start: Option<(u64, Start)>,
+    /// Whether a hook-requested START is being performed.
+    starting: bool,
     log: Vec<String>,
     stats: Stats,
     reset_at: u64,
@@ -174,6 +182,8 @@ impl Board {
             next_battery: now,
             next_file: 0,
             dirty: false,
+            pending_start: None,
+            starting: false,
             log: Vec::new(),
             stats: Stats::default(),
             reset_at: now,
@@ -260,6 +270,7 @@ impl Board {
     /// Reset: every variable reinitialised, report `F4 03`, then the boot START if any.
     fn boot(&mut self, now: u64) {
         self.reset_at = now;
+        self.pending_start = None;
         self.mode = Mode::Upper;
         self.run = None;
         self.decoder = Decoder::new();
@@ -787,6 +798,8 @@ impl Board {
     }
 
     fn end_run(&mut self, now: u64) {
+        // A STOP (or a stop from a hook, a lost link) also cancels a START still to come.
+        self.pending_start = None;
         if self.run.is_none() {
             return;
         }
@@ -836,7 +849,14 @@ impl Board {
             self.end_run(now);
         }
         if let Some(s) = flow.start {
-            self.start(now, s, false);
+            if self.starting {
+                // Not recursively: a set whose init starts itself would never return.
+                self.pending_start = Some((now + NESTED_START_DELAY_NS, s));
+            } else {
+                self.starting = true;
+                self.start(now, s, false);
+                self.starting = false;
+            }
         }
     }
 
@@ -931,6 +951,12 @@ impl Board {
         if self.mode == Mode::PoweredDown {
             return;
         }
+        if let Some((at, s)) = self.pending_start.filter(|&(at, _)| at <= now) {
+            self.pending_start = None;
+            self.starting = true;
+            self.start(at, s, false);
+            self.starting = false;
+        }
         if let Some(Event::Error(e)) = self.decoder.poll(now) {
             self.on_frame_error(now, e);
         }
@@ -989,6 +1015,7 @@ impl ByteDevice for Board {
         [
             self.tx.deadline(),
             self.decoder.deadline(),
+            self.pending_start.map(|(at, _)| at),
             self.next_run_event().map(|(at, _)| at),
             self.link_lost_deadline(),
             self.pic.next_deadline(),

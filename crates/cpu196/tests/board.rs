@@ -779,6 +779,38 @@ fn a_pc_flooding_large_requests_does_not_grow_the_reply_queue_without_end() {
     assert!(r.iter().any(|m| matches!(m, Message::CpuInfo(_))), "{r:?}");
 }
 
+/// Asks, on entering the lower loop, for a START of its own configuration set.
+struct Restarter;
+
+impl buslab_cpu196::program::UserProgram for Restarter {
+    fn name(&self) -> &'static str {
+        "restarter"
+    }
+    fn init(&mut self, k: &mut buslab_cpu196::program::Api) -> buslab_cpu196::program::Flow {
+        k.display_text("again", true);
+        buslab_cpu196::program::Flow {
+            stop: false,
+            start: Some(Start::run(0, 1, false)),
+        }
+    }
+}
+
+#[test]
+fn a_program_that_starts_itself_from_init_does_not_recurse_without_end() {
+    // Set 1 of bank 0 runs program 1: make that a program whose init STARTs set 1 again.
+    let mut b = Bench::new();
+    b.board
+        .registry_mut()
+        .register(1, "restarter", Box::new(|_| Box::new(Restarter)));
+    let r = b.ask(&Message::Start(Start::run(0, 1, false)), 5);
+    assert!(r.contains(&msg(MsgCode::COMPLETED)), "{r:?}");
+    // It keeps restarting (once per kernel pass), and the kernel still serves the line.
+    assert!(r.len() > 3, "{r:?}");
+    let r = b.ask(&Message::Stop, 5);
+    assert!(r.contains(&msg(MsgCode::COMPLETED)), "{r:?}");
+    assert_eq!(b.board.mode(), Mode::Upper);
+}
+
 mod garbage {
     use super::*;
     use proptest::prelude::*;
