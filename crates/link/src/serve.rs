@@ -60,7 +60,9 @@ pub fn serve<D: ByteDevice>(
 ) -> io::Result<()> {
     let epoch = Instant::now();
     let byte_ns = line.byte_time_ns();
-    let mut inbound: VecDeque<(u64, u8)> = VecDeque::new();
+    // `None`: a character the device cannot decode (the client's settings differ); it still
+    // takes its time on the line.
+    let mut inbound: VecDeque<(u64, Option<u8>)> = VecDeque::new();
     let mut last_arrival = 0u64;
     let mut outbound: VecDeque<u8> = VecDeque::new();
     let mut produced = Vec::new();
@@ -76,7 +78,9 @@ pub fn serve<D: ByteDevice>(
             if at > now {
                 break;
             }
-            device.receive(at, byte);
+            if let Some(byte) = byte {
+                device.receive(at, byte);
+            }
             inbound.pop_front();
         }
         while controls_open {
@@ -127,22 +131,22 @@ pub fn serve<D: ByteDevice>(
                 Ok(0) => break,
                 Ok(n) => {
                     let peer = pty.peer_settings()?;
-                    if !line.understands(&peer) {
-                        if !warned {
-                            eprintln!(
-                                "warning: the client's port is set to {peer}, the device expects \
-                                 {line}; its bytes are lost as framing errors"
-                            );
-                            warned = true;
-                        }
-                        continue;
+                    let understood = line.understands(&peer);
+                    if !understood && !warned {
+                        eprintln!(
+                            "warning: the client's port is set to {peer}, the device expects \
+                             {line}; its bytes are lost as framing errors"
+                        );
+                        warned = true;
                     }
                     let read_at = epoch.elapsed().as_nanos() as u64;
                     // A byte the client wrote at `read_at` has fully arrived one character
                     // time later, and no sooner than one character after the previous one.
+                    // Bytes sent at other settings occupy the line too (a writer cannot
+                    // outrun it), but the device never gets them.
                     for &byte in &buf[..n] {
                         last_arrival = read_at.max(last_arrival) + byte_ns;
-                        inbound.push_back((last_arrival, byte));
+                        inbound.push_back((last_arrival, understood.then_some(byte)));
                     }
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,

@@ -273,6 +273,33 @@ fn a_client_writing_faster_than_the_line_is_held_back() {
     assert!(writer.join().unwrap().is_err());
 }
 
+#[test]
+fn a_client_at_the_wrong_rate_cannot_outrun_the_line_either() {
+    // Its bytes are framing errors, but they still take line time: before, the server read
+    // and dropped them as fast as the client wrote (hundreds of MB/s, a core busy).
+    let served = start(LineSettings::n82(9600));
+    let mut port = open_serial(
+        &served.path,
+        LineSettings::n81(19_200),
+        Duration::from_secs(1),
+    )
+    .unwrap();
+    let (done_tx, done) = mpsc::channel();
+    let writer = std::thread::spawn(move || {
+        let result = port.write_all(&vec![0x55u8; 1 << 20]);
+        let _ = done_tx.send(());
+        result
+    });
+    assert_eq!(
+        done.recv_timeout(Duration::from_secs(1)),
+        Err(mpsc::RecvTimeoutError::Timeout),
+        "1 MiB at the wrong rate went into the PTY at once"
+    );
+    served.stop.store(true, Ordering::Relaxed);
+    assert!(served.thread.join().unwrap().arrivals.is_empty());
+    assert!(writer.join().unwrap().is_err());
+}
+
 /// Sends `len` bytes as soon as it is first polled.
 struct Flood {
     len: usize,
