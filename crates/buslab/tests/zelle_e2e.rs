@@ -452,3 +452,60 @@ fn csv_replay_feeds_an_input_from_the_command_line_and_the_control_interface() {
         "{reply}"
     );
 }
+
+/// A child process killed when dropped (also when an assertion fails first).
+struct Child(std::process::Child);
+
+impl Drop for Child {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn a_stopping_server_leaves_a_newer_servers_control_socket_alone() {
+    use std::io::{BufRead, BufReader};
+    use std::os::unix::fs::MetadataExt;
+    use std::process::Stdio;
+
+    let dir = tempfile::tempdir().unwrap();
+    let sock = dir.path().join("zelle.sock");
+    let serve = || {
+        Child(
+            Command::new(env!("CARGO_BIN_EXE_buslab"))
+                .args(["zelle", "serve", "--control"])
+                .arg(&sock)
+                .stdin(Stdio::piped())
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap(),
+        )
+    };
+    let inode = || std::fs::symlink_metadata(&sock).ok().map(|m| m.ino());
+    let wait_for = |what: &dyn Fn() -> bool| {
+        let until = std::time::Instant::now() + Duration::from_secs(10);
+        while !what() {
+            assert!(std::time::Instant::now() < until, "timed out");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let mut first = serve();
+    wait_for(&|| inode().is_some());
+    let first_inode = inode();
+    // A second server takes the name over (the first one's socket file is replaced).
+    let _second = serve();
+    wait_for(&|| inode().is_some() && inode() != first_inode);
+    let _ = Command::new("kill")
+        .args(["-INT", &first.0.id().to_string()])
+        .status();
+    first.0.wait().unwrap();
+    // The second server's socket is still there and answers.
+    let stream = std::os::unix::net::UnixStream::connect(&sock)
+        .expect("the second server's control socket was removed");
+    writeln!(&stream, "status").unwrap();
+    let mut reply = String::new();
+    BufReader::new(&stream).read_line(&mut reply).unwrap();
+    assert!(reply.starts_with("ok mode"), "{reply}");
+}

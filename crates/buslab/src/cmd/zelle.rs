@@ -689,6 +689,14 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
 /// A unix socket that takes control lines, one reply line each.
 struct ControlSocket {
     path: PathBuf,
+    /// Device and inode of our socket file, so that one another server has bound at the same
+    /// path since is not removed.
+    id: Option<(u64, u64)>,
+}
+
+fn file_id(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    fs::symlink_metadata(path).ok().map(|m| (m.dev(), m.ino()))
 }
 
 impl ControlSocket {
@@ -714,13 +722,16 @@ impl ControlSocket {
         });
         Ok(ControlSocket {
             path: path.to_path_buf(),
+            id: file_id(path),
         })
     }
 }
 
 impl Drop for ControlSocket {
     fn drop(&mut self) {
-        let _ = fs::remove_file(&self.path);
+        if self.id.is_some() && file_id(&self.path) == self.id {
+            let _ = fs::remove_file(&self.path);
+        }
     }
 }
 
