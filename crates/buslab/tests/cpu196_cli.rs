@@ -424,3 +424,31 @@ fn a_serial_number_must_be_8_ascii_characters() {
     // Nothing changed.
     assert!(board.ok(&["info"]).contains("BL196001"));
 }
+
+#[test]
+fn serve_refuses_an_image_it_cannot_write() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["cpu196", "serve", "--image", "/nonexistent/dir/board.toml"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // It must stop at once with an error (before, it served on and lost every change).
+    let until = std::time::Instant::now() + Duration::from_secs(10);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > until {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("still serving with a file it cannot write");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("cannot write image /nonexistent/dir/board.toml"),
+        "{err}"
+    );
+}

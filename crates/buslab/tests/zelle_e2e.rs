@@ -509,3 +509,28 @@ fn a_stopping_server_leaves_a_newer_servers_control_socket_alone() {
     BufReader::new(&stream).read_line(&mut reply).unwrap();
     assert!(reply.starts_with("ok mode"), "{reply}");
 }
+
+#[test]
+fn serve_refuses_a_state_file_it_cannot_write() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["zelle", "serve", "--state", "/nonexistent/dir/cell.toml"])
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // It must stop at once with an error (before, it served on and lost every change).
+    let until = std::time::Instant::now() + Duration::from_secs(10);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > until {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("still serving with a file it cannot write");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("writing /nonexistent/dir/cell.toml"), "{err}");
+}

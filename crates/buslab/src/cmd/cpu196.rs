@@ -367,6 +367,11 @@ pub fn spawn_served_with_peer(
     if board.line().baud != baud {
         board.set_baud(baud);
     }
+    // Saved once now, so an image that cannot be written is an error at start, not a warning
+    // when the first change is lost.
+    if let Some(path) = image {
+        board.image().save(path)?;
+    }
     Ok(Served::spawn(board, link, image.map(Path::to_path_buf))?)
 }
 

@@ -479,7 +479,13 @@ impl Drop for ServedCell {
 /// every second), on power-off and when the cell stops.
 pub fn spawn_served(options: ServeOptions) -> anyhow::Result<ServedCell> {
     let ram = match &options.state {
-        Some(path) => load_state(path)?,
+        Some(path) => {
+            let ram = load_state(path)?;
+            // Written once now, so a state file that cannot be written is an error at start,
+            // not a warning when the first change is lost.
+            save_state(path, &ram)?;
+            ram
+        }
         None => BatteryRam::default(),
     };
     let mut cell = Cell::new(ram);
