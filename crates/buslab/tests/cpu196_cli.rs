@@ -452,3 +452,23 @@ fn serve_refuses_an_image_it_cannot_write() {
         "{err}"
     );
 }
+
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    // `buslab cpu196 info | head -1`: the reader goes away, the writer must not panic.
+    let board = Board::serve(&[]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["cpu196", "--baud", BAUD, "--port"])
+        .arg(&board.link)
+        .arg("info")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(0), "{err}");
+}

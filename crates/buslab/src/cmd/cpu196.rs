@@ -22,6 +22,34 @@ use buslab_cpu196::{Board, Image};
 use buslab_link::{LineSettings, open_serial};
 use indicatif::{ProgressBar, ProgressStyle};
 
+/// `println!` for an output that may be a pipe closed early (`| head`): the program then ends
+/// quietly instead of panicking.
+macro_rules! say {
+    () => {
+        emit(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        emit(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `print!` to match [`say!`].
+macro_rules! say_inline {
+    ($($arg:tt)*) => {
+        emit(format_args!($($arg)*))
+    };
+}
+
+fn emit(args: std::fmt::Arguments) {
+    if let Err(e) = std::io::stdout().lock().write_fmt(args) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: writing to stdout: {e}");
+        std::process::exit(1);
+    }
+}
+
 /// The line rate a new board image boots with.
 pub const DEFAULT_BAUD: u32 = 115_200;
 
@@ -424,7 +452,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Cmd::Start(s) => {
             c.start(s.word())
                 .with_context(|| format!("START bank {} configuration {}", s.bank, s.config))?;
-            println!("started bank {} configuration {}", s.bank, s.config);
+            say!("started bank {} configuration {}", s.bank, s.config);
             Ok(())
         }
         Cmd::Stop => Ok(c.stop()?),
@@ -443,13 +471,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Cmd::Powerdown => {
             confirm(yes, "power the board down (it cuts its own supply)")?;
             c.power_down()?;
-            println!("the board powered down");
+            say!("the board powered down");
             Ok(())
         }
         Cmd::Reset => {
             confirm(yes, "reset the board")?;
             c.reset()?;
-            println!("the board reset");
+            say!("the board reset");
             Ok(())
         }
         Cmd::User { cmd, bytes } => {
@@ -461,7 +489,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.send(&Message::User { cmd, params: bytes })?;
             let until = Instant::now() + c.timeout;
             while let Some(m) = c.next(until.saturating_duration_since(Instant::now()))? {
-                println!("{}", buslab_cpu196::message::describe(&m));
+                say!("{}", buslab_cpu196::message::describe(&m));
             }
             Ok(())
         }
@@ -503,9 +531,9 @@ fn serve(s: &ServeArgs, baud: u32) -> anyhow::Result<()> {
     parse_inputs(&s.pic_input, &mut inputs.pic, "--pic-input")?;
     let peer: Peer = s.peer.parse().map_err(anyhow::Error::msg)?;
     let served = spawn_served_with_peer(s.image.as_deref(), s.link.as_deref(), baud, inputs, peer)?;
-    println!("{}", served.path().display());
+    say!("{}", served.path().display());
     if let Some(l) = &s.link {
-        println!("{}", l.display());
+        say!("{}", l.display());
     }
     eprintln!("CPU196 board model serving at {baud} baud 8N1; Ctrl-C to stop");
     std::io::stdout().flush().ok();
@@ -527,17 +555,18 @@ fn serve(s: &ServeArgs, baud: u32) -> anyhow::Result<()> {
 
 fn info<P: Port>(c: &mut Client<P>) -> anyhow::Result<()> {
     let i = c.info()?;
-    println!("CPU196 board");
-    println!("  serial number   {}", String::from_utf8_lossy(&i.serial));
-    println!("  quartz          {} MHz", i.quartz);
-    println!("  kernel 80C196   {}", i.version_196);
-    println!(
+    say!("CPU196 board");
+    say!("  serial number   {}", String::from_utf8_lossy(&i.serial));
+    say!("  quartz          {} MHz", i.quartz);
+    say!("  kernel 80C196   {}", i.version_196);
+    say!(
         "  PIC             version {} revision {}",
-        i.version_pic, i.pic_revision
+        i.version_pic,
+        i.pic_revision
     );
-    println!("  address         {}", i.address);
-    println!("  supply          {:.1} V", i.supply as f64 / 10.0);
-    println!("  compression     {}", hex(&i.compression));
+    say!("  address         {}", i.address);
+    say!("  supply          {:.1} V", i.supply as f64 / 10.0);
+    say!("  compression     {}", hex(&i.compression));
     Ok(())
 }
 
@@ -562,9 +591,9 @@ fn show(m: &Message, files: &mut Option<FileService>) -> Vec<Message> {
     {
         // Displays without the newline bit continue the same line, as on the seed's monitor.
         let prefix = if open { "" } else { "THREAD: " };
-        print!("{prefix}{}", format.render(data));
+        say_inline!("{prefix}{}", format.render(data));
         if *newline {
-            println!();
+            say!();
         }
         MID_LINE.store(!*newline, Ordering::Relaxed);
         return Vec::new();
@@ -575,7 +604,7 @@ fn show(m: &Message, files: &mut Option<FileService>) -> Vec<Message> {
             Message::Watchdog | Message::AdCont(_) | Message::AdSample(_)
         )
     {
-        println!();
+        say!();
         MID_LINE.store(false, Ordering::Relaxed);
     }
     match m {
@@ -583,29 +612,29 @@ fn show(m: &Message, files: &mut Option<FileService>) -> Vec<Message> {
             Some(fs) => {
                 let (replies, log) = fs.handle(t);
                 if let Some(l) = log {
-                    println!("FILE: {l}");
+                    say!("FILE: {l}");
                 }
                 replies
             }
             None => {
-                println!("FILE: request refused (no --files DIR): {t:?}");
+                say!("FILE: request refused (no --files DIR): {t:?}");
                 vec![Message::Msg(MsgCode::FILE_ERROR)]
             }
         },
         Message::Alert(a) => {
-            println!("ALERT: {a}");
+            say!("ALERT: {a}");
             Vec::new()
         }
         Message::Msg(code) => {
-            println!("MSG: {code}");
+            say!("MSG: {code}");
             Vec::new()
         }
         Message::Power(p) => {
-            println!("POWER: {p:?}");
+            say!("POWER: {p:?}");
             Vec::new()
         }
         Message::Bridge(b) => {
-            println!("BRIDGE: {b:?}");
+            say!("BRIDGE: {b:?}");
             Vec::new()
         }
         _ => Vec::new(),
@@ -645,11 +674,11 @@ fn monitor<P: Port>(
             Err(e) => eprintln!("warning: log table not read ({e}); log8 samples use the default"),
         }
     }
-    println!("monitoring; Ctrl-C to stop");
+    say!("monitoring; Ctrl-C to stop");
     if let Some(s) = start {
         c.start(s.word())
             .with_context(|| format!("START bank {} configuration {}", s.bank, s.config))?;
-        println!("started bank {} configuration {}", s.bank, s.config);
+        say!("started bank {} configuration {}", s.bank, s.config);
         // What the program said while we waited for START's answer.
         for m in c.take_backlog() {
             if let Some(r) = rec.as_mut() {
@@ -668,7 +697,7 @@ fn monitor<P: Port>(
         if let Some(m) = c.next(Duration::from_millis(50))? {
             last_heard = Instant::now();
             if lost {
-                println!("board is back");
+                say!("board is back");
                 lost = false;
             }
             if let Some(r) = rec.as_mut() {
@@ -678,7 +707,7 @@ fn monitor<P: Port>(
                 c.send(&reply)?;
             }
         } else if !lost && last_heard.elapsed() > Duration::from_secs(3) {
-            println!("board lost: nothing heard for 3 s");
+            say!("board lost: nothing heard for 3 s");
             lost = true;
         }
         std::io::stdout().flush().ok();
@@ -691,12 +720,12 @@ fn monitor<P: Port>(
                 c.send(&reply)?;
             }
         }
-        println!("stopped");
+        say!("stopped");
     }
     if let Some(r) = rec {
         let (frames, samples) = (r.frames, r.samples);
         r.finish()?;
-        println!("recorded {samples} samples from {frames} frames");
+        say!("recorded {samples} samples from {frames} frames");
     }
     Ok(())
 }
@@ -732,7 +761,7 @@ fn pwm<P: Port>(c: &mut Client<P>, output: &str, value: u16) -> anyhow::Result<(
         other => bail!("PWM output `{other}` is not 0, 1, 2, 3 or dac"),
     };
     c.command(&Message::Pwm(m))?;
-    println!("PWM {output} = {value}");
+    say!("PWM {output} = {value}");
     Ok(())
 }
 
@@ -749,10 +778,10 @@ fn bridge<P: Port>(c: &mut Client<P>, op: &str, byte: Option<u8>) -> anyhow::Res
         }
     };
     match c.bridge(b)? {
-        Some(Bridge::SpiReceived(d)) => println!("SPI received {d:02X}h"),
-        Some(Bridge::SciReceived(d)) => println!("SCI received {d:02X}h"),
-        Some(Bridge::ParallelRead(d)) => println!("parallel bus reads {d:02X}h"),
-        _ => println!("done"),
+        Some(Bridge::SpiReceived(d)) => say!("SPI received {d:02X}h"),
+        Some(Bridge::SciReceived(d)) => say!("SCI received {d:02X}h"),
+        Some(Bridge::ParallelRead(d)) => say!("parallel bus reads {d:02X}h"),
+        _ => say!("done"),
     }
     Ok(())
 }
@@ -782,7 +811,7 @@ fn flash<P: Port>(c: &mut Client<P>, f: FlashCmd, yes: bool) -> anyhow::Result<(
             out,
         } => {
             write_file(&out, &c.flash_read(bank, block)?[..])?;
-            println!("read bank {bank} block {block:02X}h into {}", out.display());
+            say!("read bank {bank} block {block:02X}h into {}", out.display());
         }
         FlashCmd::Read {
             bank,
@@ -793,7 +822,7 @@ fn flash<P: Port>(c: &mut Client<P>, f: FlashCmd, yes: bool) -> anyhow::Result<(
             let all = c.flash_read_bank(bank, &mut |n| pb.set_position(n as u64))?;
             pb.finish();
             write_file(&out, &all)?;
-            println!("read bank {bank} (256 blocks) into {}", out.display());
+            say!("read bank {bank} (256 blocks) into {}", out.display());
         }
         FlashCmd::Write { bank, input } => {
             let data = read_padded(&input, 65536)?;
@@ -822,12 +851,12 @@ fn flash<P: Port>(c: &mut Client<P>, f: FlashCmd, yes: bool) -> anyhow::Result<(
                 pb.inc(256);
             }
             pb.finish();
-            println!("wrote and verified {} blocks of bank {bank}", blocks.len());
+            say!("wrote and verified {} blocks of bank {bank}", blocks.len());
         }
         FlashCmd::Erase { bank } => {
             confirm(yes, &format!("erase flash bank {bank}"))?;
             c.flash_erase(bank)?;
-            println!("erased bank {bank}");
+            say!("erased bank {bank}");
         }
     }
     Ok(())
@@ -837,7 +866,7 @@ fn pic<P: Port>(c: &mut Client<P>, p: PicCmd, yes: bool) -> anyhow::Result<()> {
     match p {
         PicCmd::Read { block, out } => {
             write_file(&out, &c.pic_read(block)?[..])?;
-            println!("read PIC block {block} into {}", out.display());
+            say!("read PIC block {block} into {}", out.display());
         }
         PicCmd::Write { block, input } => {
             let data: [u8; PIC_BLOCK] = read_padded(&input, PIC_BLOCK)?.try_into().expect("4096");
@@ -845,7 +874,7 @@ fn pic<P: Port>(c: &mut Client<P>, p: PicCmd, yes: bool) -> anyhow::Result<()> {
             let pb = bar(PIC_BLOCK as u64, &format!("writing PIC block {block}"));
             c.pic_write(block, &data, &mut |n| pb.set_position(n as u64))?;
             pb.finish();
-            println!("wrote and verified PIC block {block}");
+            say!("wrote and verified PIC block {block}");
         }
     }
     Ok(())
@@ -855,13 +884,13 @@ fn eeprom<P: Port>(c: &mut Client<P>, e: EepromCmd, yes: bool) -> anyhow::Result
     match e {
         EepromCmd::Read { out } => {
             write_file(&out, &c.eeprom_read()?[..])?;
-            println!("read the EEPROM into {}", out.display());
+            say!("read the EEPROM into {}", out.display());
         }
         EepromCmd::Write { input } => {
             let data: [u8; PIC_EEPROM] = read_padded(&input, PIC_EEPROM)?.try_into().expect("256");
             confirm(yes, "write the PIC EEPROM")?;
             c.eeprom_write(&data)?;
-            println!("wrote and verified the EEPROM");
+            say!("wrote and verified the EEPROM");
         }
     }
     Ok(())
@@ -871,30 +900,32 @@ fn cfgad<P: Port>(c: &mut Client<P>, bank: u8, config: u8) -> anyhow::Result<()>
     let (c196, pic) = c
         .cfgad(bank, config)
         .with_context(|| format!("CFGAD bank {bank} configuration {config}"))?;
-    println!("bank {bank} configuration {config}");
-    println!("  raw        {}", hex(&c196));
+    say!("bank {bank} configuration {config}");
+    say!("  raw        {}", hex(&c196));
     match buslab_cpu196::adconfig::AdConfig::parse(&c196) {
         Ok(cfg) => {
-            println!("  sequence   {:?}", cfg.sequence);
-            println!(
+            say!("  sequence   {:?}", cfg.sequence);
+            say!(
                 "  period     {:.1} µs (T = {}), {} scans per interrupt",
                 cfg.period_ns() as f64 / 1000.0,
                 cfg.time_base,
                 cfg.scans_per_frame()
             );
             for (ch, s) in cfg.transmitted() {
-                println!(
+                say!(
                     "  channel {ch}  {}-bit format, filter {:?}",
                     s.format.name(),
                     s.filter
                 );
             }
         }
-        Err(e) => println!("  80C196 A/D not usable: {e}"),
+        Err(e) => say!("  80C196 A/D not usable: {e}"),
     }
-    println!(
+    say!(
         "  PIC        A/D mask {:02X}h rate {:02X}h, forwarded {:02X}h",
-        pic[0], pic[1], pic[2]
+        pic[0],
+        pic[1],
+        pic[2]
     );
     Ok(())
 }
@@ -940,7 +971,7 @@ fn record<P: Port>(
             c.frame_errors[0]
         );
     }
-    println!(
+    say!(
         "recorded {samples} samples from {frames} frames into {}",
         out.display()
     );
@@ -959,24 +990,25 @@ fn show_boot(boot: &BootConfig) {
             if s.ad196() { "on" } else { "off" }
         )
     };
-    println!("boot configuration");
-    println!(
+    say!("boot configuration");
+    say!(
         "  protocol        {:?} (PIC port {:?})",
-        boot.protocol, boot.protocol_pic
+        boot.protocol,
+        boot.protocol_pic
     );
-    println!(
+    say!(
         "  line            {} baud 8N1, {}",
         boot.baud,
         if boot.rs232 { "RS232" } else { "TTL" }
     );
-    println!(
+    say!(
         "  watchdog        {}",
         if boot.watchdog { "on" } else { "off" }
     );
-    println!("  address         {}", boot.address);
-    println!("  boot START      {start}");
-    println!("  PWM             {:?} (PIC {})", boot.pwm196, boot.pic_pwm);
-    println!("  battery         thresholds {:?}", boot.battery_thresholds);
+    say!("  address         {}", boot.address);
+    say!("  boot START      {start}");
+    say!("  PWM             {:?} (PIC {})", boot.pwm196, boot.pic_pwm);
+    say!("  battery         thresholds {:?}", boot.battery_thresholds);
 }
 
 fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result<()> {
@@ -984,7 +1016,7 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
         FormatCmd::Boot => match c.boot_config()? {
             Some((boot, _)) => show_boot(&boot),
             None => {
-                println!("boot block 5 is erased or not valid: the kernel runs on its defaults")
+                say!("boot block 5 is erased or not valid: the kernel runs on its defaults")
             }
         },
         FormatCmd::BootSet {
@@ -1049,7 +1081,7 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
             )?;
             c.set_boot_config(&boot, &user)?;
             show_boot(&boot);
-            println!("written and verified; it applies from the next reset");
+            say!("written and verified; it applies from the next reset");
         }
         FormatCmd::Serial { new } => {
             let new: [u8; 8] = new
@@ -1070,7 +1102,7 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
                 ),
             )?;
             c.set_serial(&current, &new)?;
-            println!(
+            say!(
                 "serial number is now {}; flash and PIC erased",
                 String::from_utf8_lossy(&new)
             );
@@ -1078,14 +1110,14 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
         FormatCmd::PicKernelRead { out } => {
             let serial = c.info()?.serial;
             write_file(&out, &c.pic_kernel_read(&serial)?[..])?;
-            println!("read the PIC kernel into {}", out.display());
+            say!("read the PIC kernel into {}", out.display());
         }
         FormatCmd::PicKernelWrite { input } => {
             let data: [u8; PIC_BLOCK] = read_padded(&input, PIC_BLOCK)?.try_into().expect("4096");
             let serial = c.info()?.serial;
             confirm(yes, "overwrite the PIC kernel")?;
             c.pic_kernel_write(&serial, &data)?;
-            println!("wrote and verified the PIC kernel");
+            say!("wrote and verified the PIC kernel");
         }
         FormatCmd::Emergency { code } => {
             confirm(
@@ -1093,7 +1125,7 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
                 &format!("reset the board and emergency-erase with code {code:02X}h"),
             )?;
             c.emergency_erase(code)?;
-            println!("emergency erase {code:02X}h done");
+            say!("emergency erase {code:02X}h done");
         }
     }
     Ok(())
