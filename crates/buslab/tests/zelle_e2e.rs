@@ -534,3 +534,23 @@ fn serve_refuses_a_state_file_it_cannot_write() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("writing /nonexistent/dir/cell.toml"), "{err}");
 }
+
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    // `buslab zelle --port PTY key | true`: the reader is gone before the answer is printed.
+    let s = Served::start(&[]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["zelle", "--port"])
+        .arg(&s.pty)
+        .arg("key")
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(0), "{err}");
+}

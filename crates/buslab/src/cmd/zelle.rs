@@ -19,6 +19,14 @@ use buslab_zelle::control::{self, ControlCommand, parse_duration_ns, parse_numbe
 use buslab_zelle::timing::LINE;
 use buslab_zelle::{BatteryRam, Cell, DATA_AREA, PARAMS_LEN};
 
+/// `println!` through [`print_stdout`]: a reader that went away (`| head`) ends the output
+/// quietly instead of a panic.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        print_stdout(&format!("{}\n", format_args!($($arg)*)))?
+    };
+}
+
 #[derive(clap::Args)]
 pub struct Args {
     /// Serial port of the cell: a real port (/dev/ttyUSB0) or the PTY `zelle serve` printed.
@@ -158,7 +166,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ZelleCommand::Serve(_) => unreachable!(),
         ZelleCommand::Reset => {
             cell.reset()?;
-            println!("ready");
+            say!("ready");
         }
         ZelleCommand::Analog { channel, repeat } => {
             let values = match repeat {
@@ -193,25 +201,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } => {
             let data = fs::read(&file).with_context(|| format!("reading {}", file.display()))?;
             cell.write_data(&data, mode(stop_and_wait))?;
-            println!("wrote {} bytes from 0800h", data.len());
+            say!("wrote {} bytes from 0800h", data.len());
         }
         ZelleCommand::Peek { addr } => {
             let addr = number(&addr, "address", 0xFFFF)? as u16;
-            println!("{:#04x}", cell.peek(addr)?);
+            say!("{:#04x}", cell.peek(addr)?);
         }
         ZelleCommand::Poke { addr, value } => {
             let addr = number(&addr, "address", 0xFFFF)? as u16;
             cell.poke(addr, number(&value, "value", 0xFF)? as u8)?;
         }
-        ZelleCommand::Port1 { value: None } => println!("{:#010b}", cell.read_port1()?),
+        ZelleCommand::Port1 { value: None } => say!("{:#010b}", cell.read_port1()?),
         ZelleCommand::Port1 { value: Some(v) } => {
             cell.write_port1(number(&v, "port value", 0xFF)? as u8)?
         }
-        ZelleCommand::P26 { value: None } => println!("{}", u8::from(cell.read_p26()?)),
+        ZelleCommand::P26 { value: None } => say!("{}", u8::from(cell.read_p26()?)),
         ZelleCommand::P26 { value: Some(v) } => {
             cell.write_p26(number(&v, "P2.6 level", 1)? == 1)?
         }
-        ZelleCommand::Key => println!(
+        ZelleCommand::Key => say!(
             "{}",
             if cell.key_pressed()? {
                 "pressed"
@@ -222,14 +230,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ZelleCommand::Reg { addr, value } => {
             let addr = number(&addr, "register address", 127)? as u8;
             match value {
-                None => println!("{:#04x}", cell.read_register(addr)?),
+                None => say!("{:#04x}", cell.read_register(addr)?),
                 Some(v) => cell.write_register(addr, number(&v, "value", 0xFF)? as u8)?,
             }
         }
         ZelleCommand::Bus { addr, value } => {
             let addr = number(&addr, "bus address", 127)? as u8;
             match value {
-                None => println!("{:#04x}", cell.bus_read(addr)?),
+                None => say!("{:#04x}", cell.bus_read(addr)?),
                 Some(v) => cell.bus_write(addr, number(&v, "value", 0xFF)? as u8)?,
             }
         }
@@ -242,7 +250,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let image = buslab_zelle::program::image_from_file(&contents)
                 .with_context(|| format!("{}", file.display()))?;
             cell.load_program(&image, mode(stop_and_wait))?;
-            println!(
+            say!(
                 "loaded {} bytes at 0400h; `run` starts it (so do reset and power-on)",
                 image.len()
             );
@@ -646,7 +654,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         analog,
     })?;
     // The path alone on the first line, for scripts.
-    println!("{}", served.path().display());
+    say!("{}", served.path().display());
     eprintln!(
         "ZELLE cell model at 9600 8N2 on {}{}; control lines on stdin ({})",
         served.path().display(),
@@ -671,8 +679,8 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         for line in io::stdin().lock().lines() {
             let Ok(line) = line else { break };
             if let Some(reply) = handle_line(&line, &sender, state.as_deref()) {
-                println!("{reply}");
-                let _ = io::stdout().flush();
+                // A closed stdout (`serve | head -1`) must not end the control thread.
+                let _ = print_stdout(&format!("{reply}\n"));
             }
         }
     });
