@@ -11,6 +11,7 @@ extern crate std;
 
 pub mod controller;
 mod error;
+pub mod file;
 mod frame;
 mod id;
 mod level;

@@ -4,13 +4,7 @@
 
 use buslab_can::{Frame, Id};
 
-/// The frames that carry `data` on `id`: `len / 8` full frames, then one with `len % 8` bytes.
-pub fn frames(id: Id, data: &[u8]) -> impl Iterator<Item = Frame> + '_ {
-    let full = data.chunks_exact(8);
-    let tail = full.remainder();
-    full.chain(std::iter::once(tail))
-        .map(move |chunk| Frame::data(id, chunk).expect("chunks hold at most 8 bytes"))
-}
+pub use buslab_can::file::frames;
 
 /// Bad input to a [`FileAssembler`].
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]

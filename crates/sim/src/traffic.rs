@@ -38,7 +38,7 @@ pub enum Traffic {
 impl Traffic {
     /// The frames of the file protocol for `data`.
     pub fn file_frames(id: Id, data: &[u8]) -> impl Iterator<Item = Frame> + '_ {
-        (0..=data.len() / 8).filter_map(move |i| file_chunk(id, data, i))
+        buslab_can::file::frames(id, data)
     }
 
     fn first_time(&self) -> BitTime {
@@ -49,13 +49,6 @@ impl Traffic {
             Traffic::Once { at, .. } => at,
         }
     }
-}
-
-/// Chunk `i` of the file protocol, or `None` past the end.
-fn file_chunk(id: Id, data: &[u8], i: usize) -> Option<Frame> {
-    let start = i.checked_mul(8).filter(|&s| s <= data.len())?;
-    let chunk = &data[start..data.len().min(start + 8)];
-    Some(Frame::data(id, chunk).expect("chunks are at most 8 bytes"))
 }
 
 /// What a generator did, for the statistics.
@@ -166,7 +159,7 @@ impl Generator {
         let Traffic::File { id, data, .. } = &self.traffic else {
             return;
         };
-        let Some(frame) = file_chunk(*id, data, self.chunk) else {
+        let Some(frame) = buslab_can::file::frame(*id, data, self.chunk) else {
             self.finished_at = Some(now);
             return;
         };
