@@ -1,7 +1,10 @@
 //! SJA1000 chips on a wired-AND bus, programmed only through their registers.
 
-use buslab_can::{Frame, Level};
+mod support;
+
+use buslab_can::Level;
 use buslab_sja1000::Sja1000;
+use support::{Bus, load_tx};
 
 const MOD: u8 = 0;
 const CMR: u8 = 1;
@@ -53,68 +56,17 @@ fn seed_init(chip: &mut Sja1000, ier: u8, mode: u8) {
     }
 }
 
-/// Chips on one wire, plus an optional disturber that overrides the bus level.
-struct Bus {
-    chips: Vec<Sja1000>,
-    time: u64,
-}
-
-impl Bus {
-    fn new(chips: Vec<Sja1000>) -> Self {
-        Self { chips, time: 0 }
-    }
-
-    fn peli(n: usize, ier: u8) -> Self {
-        Self::new(
-            (0..n)
-                .map(|_| {
-                    let mut chip = Sja1000::new();
-                    seed_init(&mut chip, ier, 0x08);
-                    chip
-                })
-                .collect(),
-        )
-    }
-
-    /// One bit-time; `force` may replace the wire level.
-    fn step_with(&mut self, force: impl Fn(u64, Level) -> Level) {
-        let wire = self
-            .chips
-            .iter()
-            .fold(Level::Recessive, |bus, chip| bus.and(chip.output()));
-        let level = force(self.time, wire);
-        for chip in &mut self.chips {
-            chip.sample(level);
-        }
-        self.time += 1;
-    }
-
-    fn run(&mut self, bits: u64) {
-        for _ in 0..bits {
-            self.step_with(|_, level| level);
-        }
-    }
-
-    /// Runs until `done` holds, at most `limit` bit-times; panics with `what` otherwise.
-    fn run_until(&mut self, limit: u64, what: &str, done: impl Fn(&mut Self) -> bool) {
-        for _ in 0..limit {
-            if done(self) {
-                return;
-            }
-            self.run(1);
-        }
-        panic!("{what} did not happen within {limit} bit-times");
-    }
-}
-
-/// Writes `frame` into the PeliCAN TX buffer.
-fn load_tx(chip: &mut Sja1000, frame: &str) {
-    let frame: Frame = frame.parse().unwrap();
-    let mut buf = [0u8; 13];
-    let len = buslab_sja1000::layout::encode(buslab_sja1000::CanMode::Peli, &frame, &mut buf);
-    for (k, &byte) in buf[..len].iter().enumerate() {
-        chip.write(16 + k as u8, byte);
-    }
+/// `n` PeliCAN chips after the seed's init, on one wire.
+fn peli_bus(n: usize, ier: u8) -> Bus {
+    Bus::new(
+        (0..n)
+            .map(|_| {
+                let mut chip = Sja1000::new();
+                seed_init(&mut chip, ier, 0x08);
+                chip
+            })
+            .collect(),
+    )
 }
 
 /// Reads the message in the receive window and releases it (the driver's RX path).
@@ -135,7 +87,7 @@ fn take_rx(chip: &mut Sja1000) -> Vec<u8> {
 
 #[test]
 fn seed_init_then_a_frame_crosses_the_bus() {
-    let mut bus = Bus::peli(2, 0x03); // RIE, TIE
+    let mut bus = peli_bus(2, 0x03); // RIE, TIE
     load_tx(&mut bus.chips[0], "123#AABB");
     bus.chips[0].write(CMR, 0x01);
     bus.run_until(300, "reception", |bus| bus.chips[1].read(SR) & SR_RBS != 0);
@@ -155,7 +107,7 @@ fn seed_init_then_a_frame_crosses_the_bus() {
 
 #[test]
 fn fifo_overflow_keeps_the_first_frames_and_sets_data_overrun() {
-    let mut bus = Bus::peli(2, 0x08); // DOIE on both
+    let mut bus = peli_bus(2, 0x08); // DOIE on both
     let frames: Vec<String> = (0..7)
         .map(|i| format!("{:03X}#{}", 0x100 + i, "11".repeat(8)))
         .collect();
@@ -184,7 +136,7 @@ fn fifo_overflow_keeps_the_first_frames_and_sets_data_overrun() {
 
 #[test]
 fn acceptance_filter_drops_frames_before_the_fifo() {
-    let mut bus = Bus::peli(2, 0);
+    let mut bus = peli_bus(2, 0);
     let rx = &mut bus.chips[1];
     rx.write(MOD, 0x01);
     // Single filter, exactly 0x123 data frames.
@@ -210,7 +162,7 @@ fn acceptance_filter_drops_frames_before_the_fifo() {
 
 #[test]
 fn arbitration_loss_is_captured_in_alc() {
-    let mut bus = Bus::peli(2, 0x40); // ALIE
+    let mut bus = peli_bus(2, 0x40); // ALIE
     load_tx(&mut bus.chips[0], "123#");
     load_tx(&mut bus.chips[1], "122#");
     bus.chips[0].write(CMR, 0x01);
@@ -227,7 +179,7 @@ fn arbitration_loss_is_captured_in_alc() {
 
 #[test]
 fn a_bit_error_in_the_data_field_is_captured_in_ecc() {
-    let mut bus = Bus::peli(2, 0x80); // BEIE
+    let mut bus = peli_bus(2, 0x80); // BEIE
     load_tx(&mut bus.chips[0], "123#FF");
     bus.chips[0].write(CMR, 0x01);
     // Find when the frame starts (SOF) and force the first data bit dominant once.
@@ -261,7 +213,7 @@ fn a_bit_error_in_the_data_field_is_captured_in_ecc() {
 
 #[test]
 fn repeated_bit_errors_drive_the_transmitter_to_bus_off_and_it_recovers() {
-    let mut bus = Bus::peli(2, 0x04); // EIE
+    let mut bus = peli_bus(2, 0x04); // EIE
     load_tx(&mut bus.chips[0], "123#FF");
     bus.chips[0].write(CMR, 0x01);
     // Every attempt, a disturber forces the first data bit (recessive) dominant.
@@ -349,7 +301,7 @@ fn self_test_with_self_reception_needs_no_other_node() {
 
 #[test]
 fn single_shot_without_ack_tries_once() {
-    let mut bus = Bus::peli(1, 0x02);
+    let mut bus = peli_bus(1, 0x02);
     load_tx(&mut bus.chips[0], "123#");
     bus.chips[0].write(CMR, 0x03); // TR + AT
     bus.run(400);

@@ -2,8 +2,11 @@
 //! that `registers.rs` and `bus.rs` do not already pin. Section numbers in the test comments
 //! refer to the facts sheet. Everything is observed through register reads, as a driver would.
 
-use buslab_can::{Frame, Level};
+mod support;
+
+use buslab_can::Level;
 use buslab_sja1000::{CanMode, Sja1000};
+use support::{Bus, load_tx};
 
 const MOD: u8 = 0;
 const CMR: u8 = 1;
@@ -80,73 +83,22 @@ fn basic(cr: u8) -> Sja1000 {
     chip
 }
 
-/// Chips on one wired-AND wire.
-struct Bus {
-    chips: Vec<Sja1000>,
-    time: u64,
+/// Chips on one wire, after everybody integrated (11 recessive bits).
+fn integrated(chips: Vec<Sja1000>) -> Bus {
+    let mut bus = Bus::new(chips);
+    bus.run(12);
+    bus
 }
 
-impl Bus {
-    fn new(chips: Vec<Sja1000>) -> Self {
-        let mut bus = Self { chips, time: 0 };
-        bus.run(12); // everybody integrates (11 recessive bits)
-        bus
-    }
-
-    /// One bit-time; `force` may replace the wire level (a disturber).
-    fn step_with(&mut self, force: impl Fn(u64, Level) -> Level) {
-        let wire = self
-            .chips
-            .iter()
-            .fold(Level::Recessive, |bus, chip| bus.and(chip.output()));
-        let level = force(self.time, wire);
-        for chip in &mut self.chips {
-            chip.sample(level);
-        }
-        self.time += 1;
-    }
-
-    fn run(&mut self, bits: u64) {
-        for _ in 0..bits {
-            self.step_with(|_, level| level);
-        }
-    }
-
-    /// Runs until `done` holds, at most `limit` bit-times; panics with `what` otherwise.
-    fn run_until(&mut self, limit: u64, what: &str, done: impl Fn(&Self) -> bool) {
-        for _ in 0..limit {
-            if done(self) {
-                return;
-            }
-            self.run(1);
-        }
-        panic!("{what} did not happen within {limit} bit-times");
-    }
-
-    /// Chip `n` sends `frame` with command `cmd` and the bus runs until its TX buffer is
-    /// released again (plus the intermission).
-    fn send(&mut self, n: usize, frame: &str, cmd: u8) {
-        load_tx(&mut self.chips[n], frame);
-        self.chips[n].write(CMR, cmd);
-        self.run_until(2_000, "transmission end", |bus| {
-            bus.chips[n].peek(SR) & SR_TBS != 0
-        });
-        self.run(4);
-    }
-}
-
-/// Writes `frame` into the TX buffer (PeliCAN 16.., BasicCAN 10..).
-fn load_tx(chip: &mut Sja1000, frame: &str) {
-    let frame: Frame = frame.parse().unwrap();
-    let mut buf = [0u8; 13];
-    let len = buslab_sja1000::layout::encode(chip.mode(), &frame, &mut buf);
-    let base = match chip.mode() {
-        CanMode::Peli => 16,
-        CanMode::Basic => 10,
-    };
-    for (k, &byte) in buf[..len].iter().enumerate() {
-        chip.write(base + k as u8, byte);
-    }
+/// Chip `n` sends `frame` with command `cmd` and the bus runs until its TX buffer is released
+/// again (plus the intermission).
+fn send(bus: &mut Bus, n: usize, frame: &str, cmd: u8) {
+    load_tx(&mut bus.chips[n], frame);
+    bus.chips[n].write(CMR, cmd);
+    bus.run_until(2_000, "transmission end", |bus| {
+        bus.chips[n].peek(SR) & SR_TBS != 0
+    });
+    bus.run(4);
 }
 
 /// The first `n` bytes of the receive window.
@@ -160,7 +112,7 @@ fn window(chip: &mut Sja1000, n: usize) -> Vec<u8> {
 
 /// A lone PeliCAN chip in self-test mode (no ACK needed) that receives its own frames (SRR).
 fn self_test_chip(ier: u8) -> Bus {
-    Bus::new(vec![peli(ier, MOD_STM | MOD_AFM)])
+    integrated(vec![peli(ier, MOD_STM | MOD_AFM)])
 }
 
 // ------------------------------------------------------------------ §2, §4: access tables
@@ -303,8 +255,8 @@ fn cdr_bit_4_reads_0_and_software_reset_keeps_cdr() {
 #[test]
 fn peli_ir_read_keeps_ri_while_the_fifo_holds_messages() {
     let mut bus = self_test_chip(RI | TI);
-    bus.send(0, "100#01", SRR);
-    bus.send(0, "101#02", SRR);
+    send(&mut bus, 0, "100#01", SRR);
+    send(&mut bus, 0, "101#02", SRR);
     let chip = &mut bus.chips[0];
     assert_eq!(chip.read(RMC), 2);
     assert_eq!(chip.read(IR), RI | TI);
@@ -321,7 +273,7 @@ fn peli_ir_read_keeps_ri_while_the_fifo_holds_messages() {
 #[test]
 fn peli_ri_follows_rie() {
     let mut bus = self_test_chip(RI);
-    bus.send(0, "100#01", SRR);
+    send(&mut bus, 0, "100#01", SRR);
     let chip = &mut bus.chips[0];
     assert!(chip.interrupt());
     chip.write(IER, 0);
@@ -334,9 +286,9 @@ fn peli_ri_follows_rie() {
 /// §3.5: BasicCAN: reading IR clears RI too; RRB raises it again while a message remains.
 #[test]
 fn basic_ir_read_clears_ri_and_rrb_raises_it_again() {
-    let mut bus = Bus::new(vec![peli(0, 0), basic(0x02)]); // RIE
-    bus.send(0, "100#01", TR);
-    bus.send(0, "101#02", TR);
+    let mut bus = integrated(vec![peli(0, 0), basic(0x02)]); // RIE
+    send(&mut bus, 0, "100#01", TR);
+    send(&mut bus, 0, "101#02", TR);
     let rx = &mut bus.chips[1];
     assert_eq!(rx.read(SR) & SR_RBS, SR_RBS);
     assert!(rx.interrupt());
@@ -355,7 +307,7 @@ fn basic_ir_read_clears_ri_and_rrb_raises_it_again() {
 /// A lone node (nobody ACKs) retries until error-passive, then the request is aborted:
 /// BEI, EI (ES at 96), EPI (passive at 128) and TI (abort) happen. Returns the chip.
 fn lone_node_until_passive_then_abort(ier: u8) -> Sja1000 {
-    let mut bus = Bus::new(vec![peli(ier, 0)]);
+    let mut bus = integrated(vec![peli(ier, 0)]);
     load_tx(&mut bus.chips[0], "123#AA");
     bus.chips[0].write(CMR, TR);
     bus.run_until(5_000, "error-passive", |bus| {
@@ -389,8 +341,8 @@ fn interrupt_bits_are_set_only_when_enabled() {
 #[test]
 fn basic_interrupts_need_their_cr_enable() {
     for (cr, expected_tx, expected_rx) in [(0x00, 0xE0, 0xE0), (0x06, 0xE0 | TI, 0xE0 | RI)] {
-        let mut bus = Bus::new(vec![basic(cr), basic(cr)]);
-        bus.send(0, "123#01", TR);
+        let mut bus = integrated(vec![basic(cr), basic(cr)]);
+        send(&mut bus, 0, "123#01", TR);
         assert_eq!(bus.chips[0].read(SR) & SR_TCS, SR_TCS);
         assert_eq!(bus.chips[0].read(IR), expected_tx, "CR = {cr:#04x}");
         assert_eq!(bus.chips[1].read(IR), expected_rx, "CR = {cr:#04x}");
@@ -426,11 +378,11 @@ fn ei_on_es_set_and_on_es_clear() {
     tx.write(EWLR, 1);
     tx.write(TXERR, 1);
     tx.write(MOD, 0x00);
-    let mut bus = Bus::new(vec![tx, peli(0, 0)]);
+    let mut bus = integrated(vec![tx, peli(0, 0)]);
     assert_eq!(bus.chips[0].read(SR) & SR_ES, SR_ES);
     assert_eq!(bus.chips[0].read(IR), EI, "ES set");
     assert_eq!(bus.chips[0].read(IR), 0);
-    bus.send(0, "123#", TR);
+    send(&mut bus, 0, "123#", TR);
     let tx = &mut bus.chips[0];
     assert_eq!(tx.read(TXERR), 0, "a success counts TEC down");
     assert_eq!(tx.read(SR) & SR_ES, 0);
@@ -441,7 +393,7 @@ fn ei_on_es_set_and_on_es_clear() {
 #[test]
 fn epi_on_entering_and_leaving_error_passive() {
     // Chip 1 stays in reset mode (it gives no ACK) until chip 0 is passive.
-    let mut bus = Bus::new(vec![peli(EPI, 0), peli_reset(0)]);
+    let mut bus = integrated(vec![peli(EPI, 0), peli_reset(0)]);
     load_tx(&mut bus.chips[0], "123#AA");
     bus.chips[0].write(CMR, TR);
     bus.run_until(5_000, "error-passive", |bus| {
@@ -464,20 +416,20 @@ fn epi_on_entering_and_leaving_error_passive() {
 fn doi_only_when_dos_was_0() {
     let mut bus = self_test_chip(DOI);
     for i in 0..21 {
-        bus.send(0, &format!("{:03X}#", 0x100 + i), SRR);
+        send(&mut bus, 0, &format!("{:03X}#", 0x100 + i), SRR);
     }
     assert_eq!(bus.chips[0].read(RMC), 21);
     assert_eq!(bus.chips[0].read(SR) & SR_DOS, 0);
-    bus.send(0, "200#", SRR);
+    send(&mut bus, 0, "200#", SRR);
     let chip = &mut bus.chips[0];
     assert_eq!(chip.read(RMC), 21, "the 22nd message was dropped");
     assert_eq!(chip.read(SR) & SR_DOS, SR_DOS);
     assert_eq!(chip.read(IR), DOI);
-    bus.send(0, "201#", SRR);
+    send(&mut bus, 0, "201#", SRR);
     assert_eq!(bus.chips[0].read(IR), 0, "DOS still 1: no new DOI");
     bus.chips[0].write(CMR, CDO);
     assert_eq!(bus.chips[0].read(SR) & SR_DOS, 0, "CDO clears DOS");
-    bus.send(0, "202#", SRR);
+    send(&mut bus, 0, "202#", SRR);
     assert_eq!(bus.chips[0].read(IR), DOI, "DOI again after CDO");
     assert_eq!(window(&mut bus.chips[0], 3), [0x00, 0x20, 0x00]);
 }
@@ -486,7 +438,7 @@ fn doi_only_when_dos_was_0() {
 #[test]
 fn rrb_on_an_empty_fifo_has_no_effect() {
     let mut bus = self_test_chip(0);
-    bus.send(0, "100#0102", SRR);
+    send(&mut bus, 0, "100#0102", SRR);
     let chip = &mut bus.chips[0];
     chip.write(CMR, RRB);
     assert_eq!((chip.read(RMC), chip.read(RBSA)), (0, 5));
@@ -537,7 +489,7 @@ fn command_combinations() {
         } = *expected;
         let (stm, cmd, what) = (*stm, *cmd, *what);
         let mode = if stm { MOD_STM | MOD_AFM } else { MOD_AFM };
-        let mut bus = Bus::new(vec![peli(0, mode)]);
+        let mut bus = integrated(vec![peli(0, mode)]);
         load_tx(&mut bus.chips[0], "321#55");
         bus.chips[0].write(CMR, cmd);
         bus.run(400);
@@ -556,7 +508,7 @@ fn command_combinations() {
 /// §3.3: a request cannot be withdrawn by writing TR = 0; the frame is still sent.
 #[test]
 fn tr_cannot_be_withdrawn_by_writing_0() {
-    let mut bus = Bus::new(vec![peli(0, 0), peli(0, 0)]);
+    let mut bus = integrated(vec![peli(0, 0), peli(0, 0)]);
     load_tx(&mut bus.chips[0], "123#");
     bus.chips[0].write(CMR, TR);
     bus.chips[0].write(CMR, 0x00);
@@ -570,7 +522,7 @@ fn tr_cannot_be_withdrawn_by_writing_0() {
 /// tells that the frame was sent.
 #[test]
 fn abort_does_not_stop_a_frame_on_the_bus() {
-    let mut bus = Bus::new(vec![peli(TI, 0), peli(0, 0)]);
+    let mut bus = integrated(vec![peli(TI, 0), peli(0, 0)]);
     load_tx(&mut bus.chips[0], "123#AABB");
     bus.chips[0].write(CMR, TR);
     bus.run_until(50, "frame start", |bus| bus.chips[0].peek(SR) & SR_TS != 0);
@@ -587,7 +539,7 @@ fn abort_does_not_stop_a_frame_on_the_bus() {
 /// §3.3: AT during a frame that then fails: not retried, TBS 1, TCS 0, TI.
 #[test]
 fn abort_during_a_failing_frame_stops_the_retries() {
-    let mut bus = Bus::new(vec![peli(TI, 0)]);
+    let mut bus = integrated(vec![peli(TI, 0)]);
     load_tx(&mut bus.chips[0], "123#AABB");
     bus.chips[0].write(CMR, TR);
     bus.run_until(50, "frame start", |bus| bus.chips[0].peek(SR) & SR_TS != 0);
@@ -602,7 +554,7 @@ fn abort_during_a_failing_frame_stops_the_retries() {
 /// §3.4: TS while transmitting, RS while receiving, both 0 on an idle bus.
 #[test]
 fn sr_shows_transmitting_and_receiving() {
-    let mut bus = Bus::new(vec![peli(0, 0), peli(0, 0)]);
+    let mut bus = integrated(vec![peli(0, 0), peli(0, 0)]);
     assert_eq!(bus.chips[0].read(SR) & (SR_RS | SR_TS), 0);
     load_tx(&mut bus.chips[0], "123#AABB");
     bus.chips[0].write(CMR, TR);
@@ -631,7 +583,7 @@ fn alc_positions() {
         ("048C0000#R", "048C0000#", 31, "RTR of an extended frame"),
     ];
     for &(loser, winner, alc, what) in rows {
-        let mut bus = Bus::new(vec![peli(ALI, 0), peli(0, 0)]);
+        let mut bus = integrated(vec![peli(ALI, 0), peli(0, 0)]);
         load_tx(&mut bus.chips[0], loser);
         load_tx(&mut bus.chips[1], winner);
         bus.chips[0].write(CMR, TR);
@@ -646,7 +598,7 @@ fn alc_positions() {
 /// §3.6: ALC is frozen after a capture and no new ALI comes until ALC has been read.
 #[test]
 fn no_new_ali_until_alc_is_read() {
-    let mut bus = Bus::new(vec![peli(ALI, 0), peli(0, 0)]);
+    let mut bus = integrated(vec![peli(ALI, 0), peli(0, 0)]);
     let round = |bus: &mut Bus, loser: &str, winner: &str| {
         load_tx(&mut bus.chips[0], loser);
         load_tx(&mut bus.chips[1], winner);
@@ -675,7 +627,7 @@ fn no_new_ali_until_alc_is_read() {
 /// §3.6, §3.5: ECC for a missing ACK; ECC frozen and no new BEI until ECC has been read.
 #[test]
 fn no_new_bei_until_ecc_is_read() {
-    let mut bus = Bus::new(vec![peli(BEI, 0)]);
+    let mut bus = integrated(vec![peli(BEI, 0)]);
     load_tx(&mut bus.chips[0], "7FF#FF");
     bus.chips[0].write(CMR, TR);
     bus.run_until(200, "first error", |bus| bus.chips[0].peek(IR) & BEI != 0);
@@ -713,7 +665,7 @@ fn forced_bus_off(ier: u8) -> Bus {
     let mut chip = peli_reset(ier);
     chip.write(TXERR, 255);
     chip.write(MOD, 0x00);
-    Bus::new(vec![chip, peli(0, 0)])
+    integrated(vec![chip, peli(0, 0)])
 }
 
 /// §8.4: writing TXERR 255 forces a bus-off when reset mode is left.
@@ -747,7 +699,7 @@ fn bus_off_recovery_counts_txerr_down() {
     assert_eq!(chip.read(SR) & (SR_BS | SR_ES), 0, "recovered");
     assert_eq!((chip.read(TXERR), chip.read(RXERR)), (0, 0));
     assert_eq!(chip.read(IR), EI);
-    bus.send(0, "123#", TR);
+    send(&mut bus, 0, "123#", TR);
     assert_eq!(bus.chips[0].read(SR) & SR_TCS, SR_TCS, "can send again");
 }
 
@@ -796,7 +748,7 @@ fn forced_counters_raise_epi_when_reset_mode_is_left() {
     assert_eq!(chip.read(IR), 0);
     assert_eq!(chip.read(SR) & SR_ES, 0);
     chip.write(MOD, 0x00);
-    let mut bus = Bus::new(vec![chip]);
+    let mut bus = integrated(vec![chip]);
     let chip = &mut bus.chips[0];
     assert_eq!(chip.read(SR) & SR_ES, SR_ES);
     assert_eq!(chip.read(IR), EI | EPI);
@@ -808,7 +760,7 @@ fn forced_counters_raise_epi_when_reset_mode_is_left() {
 #[test]
 fn sleep_is_refused_while_an_interrupt_is_pending() {
     let mut bus = self_test_chip(RI | WUI);
-    bus.send(0, "100#", SRR); // RI pending
+    send(&mut bus, 0, "100#", SRR); // RI pending
     bus.chips[0].write(MOD, MOD_STM | MOD_AFM | MOD_SM);
     assert_eq!(bus.chips[0].read(MOD) & MOD_SM, 0);
     assert_eq!(bus.chips[0].read(IR), RI | WUI);
@@ -817,7 +769,7 @@ fn sleep_is_refused_while_an_interrupt_is_pending() {
 /// §8.7: sleep is refused (WUI) while the bus is busy.
 #[test]
 fn sleep_is_refused_while_the_bus_is_busy() {
-    let mut bus = Bus::new(vec![peli(0, 0), peli(WUI, 0)]);
+    let mut bus = integrated(vec![peli(0, 0), peli(WUI, 0)]);
     load_tx(&mut bus.chips[0], "123#AABB");
     bus.chips[0].write(CMR, TR);
     bus.run(10);
@@ -831,7 +783,7 @@ fn sleep_is_refused_while_the_bus_is_busy() {
 #[test]
 fn a_dominant_bit_wakes_a_sleeping_chip() {
     // Chip 0 sends, chip 1 acknowledges, chip 2 sleeps.
-    let mut bus = Bus::new(vec![peli(0, 0), peli(0, 0), peli(WUI, 0)]);
+    let mut bus = integrated(vec![peli(0, 0), peli(0, 0), peli(WUI, 0)]);
     bus.chips[2].write(MOD, MOD_SM);
     assert_eq!(bus.chips[2].read(MOD), MOD_SM, "asleep");
     assert_eq!(bus.chips[2].read(IR), 0);
@@ -841,7 +793,7 @@ fn a_dominant_bit_wakes_a_sleeping_chip() {
         MOD_SM,
         "still asleep on a quiet bus"
     );
-    bus.send(0, "123#01", TR);
+    send(&mut bus, 0, "123#01", TR);
     assert_eq!(bus.chips[2].read(MOD) & MOD_SM, 0, "woken");
     assert_eq!(bus.chips[2].read(IR), WUI);
     assert_eq!(
@@ -850,14 +802,14 @@ fn a_dominant_bit_wakes_a_sleeping_chip() {
         "the waking frame is not received"
     );
     bus.run(12);
-    bus.send(0, "124#02", TR);
+    send(&mut bus, 0, "124#02", TR);
     assert_eq!(bus.chips[2].read(RMC), 1);
 }
 
 /// §8.7: clearing SM wakes the chip (WUI).
 #[test]
 fn clearing_sm_wakes_the_chip() {
-    let mut bus = Bus::new(vec![peli(WUI, 0)]);
+    let mut bus = integrated(vec![peli(WUI, 0)]);
     bus.chips[0].write(MOD, MOD_SM);
     assert_eq!(bus.chips[0].read(MOD), MOD_SM);
     bus.chips[0].write(MOD, 0x00);
@@ -869,7 +821,7 @@ fn clearing_sm_wakes_the_chip() {
 /// bit there.
 #[test]
 fn basic_go_to_sleep() {
-    let mut bus = Bus::new(vec![basic(0)]);
+    let mut bus = integrated(vec![basic(0)]);
     let chip = &mut bus.chips[0];
     chip.write(CMR, 0x00);
     assert_eq!(chip.read(IR), 0xE0, "GTS = 0 while awake: no wake-up");
@@ -902,8 +854,8 @@ fn tx_buffer_reads_back_at_96_to_108() {
 #[test]
 fn fifo_ram_shows_received_messages() {
     let mut bus = self_test_chip(0);
-    bus.send(0, "123#AABB", SRR);
-    bus.send(0, "7FF#R", SRR);
+    send(&mut bus, 0, "123#AABB", SRR);
+    send(&mut bus, 0, "7FF#R", SRR);
     let chip = &mut bus.chips[0];
     let ram: Vec<u8> = (32..40).map(|a| chip.read(a)).collect();
     assert_eq!(ram, [0x02, 0x24, 0x60, 0xAA, 0xBB, 0x40, 0xFF, 0xF0]);
@@ -920,7 +872,7 @@ fn fifo_ram_shows_received_messages() {
 fn software_reset_empties_the_fifo_and_keeps_rbsa() {
     let mut bus = self_test_chip(0);
     for i in 0..22 {
-        bus.send(0, &format!("{:03X}#", 0x100 + i), SRR); // the 22nd overruns
+        send(&mut bus, 0, &format!("{:03X}#", 0x100 + i), SRR); // the 22nd overruns
     }
     bus.chips[0].write(CMR, RRB);
     let chip = &mut bus.chips[0];
@@ -931,7 +883,7 @@ fn software_reset_empties_the_fifo_and_keeps_rbsa() {
     assert_eq!(chip.read(SR) & (SR_RBS | SR_DOS), 0);
     chip.write(MOD, MOD_STM | MOD_AFM);
     bus.run(12);
-    bus.send(0, "555#", SRR);
+    send(&mut bus, 0, "555#", SRR);
     let chip = &mut bus.chips[0];
     assert_eq!((chip.read(RMC), chip.read(RBSA)), (1, 3));
     assert_eq!(window(chip, 3), [0x00, 0xAA, 0xA0]);
@@ -943,9 +895,9 @@ fn software_reset_empties_the_fifo_and_keeps_rbsa() {
 #[test]
 fn rx_window_runs_into_the_next_message() {
     let mut bus = self_test_chip(0);
-    bus.send(0, "123#R4", SRR);
-    bus.send(0, "02468ACE#R2", SRR);
-    bus.send(0, "456#01", SRR);
+    send(&mut bus, 0, "123#R4", SRR);
+    send(&mut bus, 0, "02468ACE#R2", SRR);
+    send(&mut bus, 0, "456#01", SRR);
     let chip = &mut bus.chips[0];
     assert_eq!(
         window(chip, 13),
@@ -984,11 +936,11 @@ fn dlc_above_8_in_the_tx_buffer() {
 /// §4: BasicCAN does not store extended frames (CAN 2.0B passive) but still ACKs them.
 #[test]
 fn basic_can_does_not_store_extended_frames() {
-    let mut bus = Bus::new(vec![peli(0, 0), basic(0)]);
-    bus.send(0, "12345678#01", TR);
+    let mut bus = integrated(vec![peli(0, 0), basic(0)]);
+    send(&mut bus, 0, "12345678#01", TR);
     assert_eq!(bus.chips[0].read(SR) & SR_TCS, SR_TCS, "acknowledged");
     assert_eq!(bus.chips[1].read(SR) & SR_RBS, 0, "not stored");
-    bus.send(0, "123#01", TR);
+    send(&mut bus, 0, "123#01", TR);
     assert_eq!(window(&mut bus.chips[1], 3), [0x24, 0x61, 0x01]);
 }
 
@@ -999,9 +951,9 @@ fn basic_can_filter() {
     rx.write(4, 0x24); // ACR: IDs 0x120..0x127
     rx.write(5, 0x00); // AMR: compare all 8 bits
     rx.write(0, 0x00);
-    let mut bus = Bus::new(vec![peli(0, 0), rx]);
+    let mut bus = integrated(vec![peli(0, 0), rx]);
     for frame in ["120#01", "128#02", "127#R", "0A0#03"] {
-        bus.send(0, frame, TR);
+        send(&mut bus, 0, frame, TR);
     }
     let rx = &mut bus.chips[1];
     assert_eq!(window(rx, 3), [0x24, 0x01, 0x01]);
@@ -1036,7 +988,7 @@ fn fast_restart_raises_ei() {
 /// left (not the protocol controller's TEC above 255).
 #[test]
 fn real_bus_off_recovery_counts_txerr_down_from_127() {
-    let mut bus = Bus::new(vec![peli(0, 0), peli(0, 0)]);
+    let mut bus = integrated(vec![peli(0, 0), peli(0, 0)]);
     load_tx(&mut bus.chips[0], "123#FF");
     bus.chips[0].write(CMR, TR);
     // Every attempt, a disturber forces a recessive data bit dominant (a bit error).
@@ -1072,7 +1024,7 @@ fn real_bus_off_recovery_counts_txerr_down_from_127() {
 /// §3.1, §7: after RM is cleared the chip takes part only after 11 recessive bits.
 #[test]
 fn leaving_reset_mode_waits_for_bus_free() {
-    let mut bus = Bus::new(vec![peli_reset(0), peli(0, 0)]);
+    let mut bus = integrated(vec![peli_reset(0), peli(0, 0)]);
     bus.chips[0].write(MOD, 0x00);
     load_tx(&mut bus.chips[0], "123#");
     bus.chips[0].write(CMR, TR);
@@ -1090,7 +1042,7 @@ fn leaving_reset_mode_waits_for_bus_free() {
 /// §3.1, §8.6: a listen-only chip gives no ACK, and its error counters stay frozen.
 #[test]
 fn listen_only_counters_are_frozen() {
-    let mut bus = Bus::new(vec![peli(0, 0), peli(0, 0x02)]); // chip 1: LOM
+    let mut bus = integrated(vec![peli(0, 0), peli(0, 0x02)]); // chip 1: LOM
     load_tx(&mut bus.chips[0], "123#AA");
     bus.chips[0].write(CMR, TR);
     bus.run(300);
@@ -1106,7 +1058,7 @@ fn listen_only_counters_are_frozen() {
 /// §3.6: ECC bit 5 (DIR) is 0 for an error while transmitting and 1 while receiving.
 #[test]
 fn ecc_direction_bit() {
-    let mut bus = Bus::new(vec![peli(BEI, 0), peli(BEI, 0)]);
+    let mut bus = integrated(vec![peli(BEI, 0), peli(BEI, 0)]);
     load_tx(&mut bus.chips[0], "123#FF");
     bus.chips[0].write(CMR, TR);
     bus.run_until(50, "SOF", |bus| bus.chips[0].peek(SR) & SR_TS != 0);
@@ -1132,7 +1084,7 @@ fn ecc_direction_bit() {
 /// error counters alone and clears SM.
 #[test]
 fn software_reset_aborts_the_request_and_keeps_the_counters() {
-    let mut bus = Bus::new(vec![peli(0, 0)]);
+    let mut bus = integrated(vec![peli(0, 0)]);
     load_tx(&mut bus.chips[0], "123#");
     bus.chips[0].write(CMR, TR);
     bus.run_until(500, "two failed attempts", |bus| {
@@ -1164,9 +1116,9 @@ fn software_reset_aborts_the_request_and_keeps_the_counters() {
 /// §8.1: a BasicCAN FIFO holds 32 two-byte remote frames; the 33rd sets DOS and DOI (OIE).
 #[test]
 fn basic_fifo_holds_32_remote_frames() {
-    let mut bus = Bus::new(vec![peli(0, 0), basic(0x10)]); // OIE
+    let mut bus = integrated(vec![peli(0, 0), basic(0x10)]); // OIE
     for i in 0..33 {
-        bus.send(0, &format!("{:03X}#R", 0x100 + i), TR);
+        send(&mut bus, 0, &format!("{:03X}#R", 0x100 + i), TR);
     }
     let rx = &mut bus.chips[1];
     assert_eq!(rx.read(SR) & SR_DOS, SR_DOS);
@@ -1186,8 +1138,8 @@ fn rbsa_places_the_next_message_and_the_fifo_wraps() {
     let mut chip = peli_reset(0);
     chip.write(RBSA, 62);
     chip.write(MOD, MOD_STM | MOD_AFM);
-    let mut bus = Bus::new(vec![chip]);
-    bus.send(0, "123#AABB", SRR);
+    let mut bus = integrated(vec![chip]);
+    send(&mut bus, 0, "123#AABB", SRR);
     let chip = &mut bus.chips[0];
     assert_eq!(chip.read(RBSA), 62);
     assert_eq!(window(chip, 5), [0x02, 0x24, 0x60, 0xAA, 0xBB]);
@@ -1202,7 +1154,7 @@ fn rbsa_places_the_next_message_and_the_fifo_wraps() {
 fn cdo_together_with_rrb() {
     let mut bus = self_test_chip(0);
     for i in 0..22 {
-        bus.send(0, &format!("{:03X}#", 0x100 + i), SRR);
+        send(&mut bus, 0, &format!("{:03X}#", 0x100 + i), SRR);
     }
     let chip = &mut bus.chips[0];
     assert_eq!(chip.read(SR) & SR_DOS, SR_DOS);
