@@ -5,12 +5,15 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod cmd;
+mod logging;
 
 /// CAN, CPU196 and ZELLE devices as faithful software models, and the host tools that talk to
 /// them (or to the real hardware).
 #[derive(Parser)]
 #[command(name = "buslab", version, about)]
 struct Cli {
+    #[command(flatten)]
+    verbosity: logging::Verbosity,
     #[command(subcommand)]
     command: Command,
 }
@@ -43,6 +46,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    logging::init(&cli.verbosity);
     // Errors are for people: one line with the chain of causes, never a backtrace.
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -71,10 +75,11 @@ fn describe(err: &anyhow::Error) -> String {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    let quiet = cli.verbosity.quiet();
     match cli.command {
         Command::Lab(args) => cmd::lab::run(args),
         Command::Wire(args) => cmd::wire::run(args),
-        Command::Sim(args) => cmd::sim::run(args),
+        Command::Sim(args) => cmd::sim::run(args, quiet),
         Command::Zelle(args) => cmd::zelle::run(args),
         Command::Cpu196(args) => cmd::cpu196::run(args),
         Command::Bus(args) => cmd::bus::run(args),

@@ -21,6 +21,10 @@ pub trait CanBus {
     fn state(&mut self) -> Result<BusState, BusError>;
     /// A human-readable description of the channel (like python-can's `channel_info`).
     fn channel_info(&self) -> String;
+    /// The bus's administration side (node list, status, registers), if it has one.
+    fn admin(&mut self) -> Option<&mut dyn crate::admin::BusAdmin> {
+        None
+    }
 }
 
 /// A received (or sent, `is_rx = false`) frame with its time and channel, like `can.Message`.

@@ -2,6 +2,7 @@
 //!
 //! - [`bus`]: a bus interface in the spirit of python-can's `BusABC` ([`CanBus`], [`Message`],
 //!   [`Filter`], [`BusState`]).
+//! - [`admin`]: nodes, typed node status and registers of buslab's virtual bus ([`BusAdmin`]).
 //! - [`regs`]: register access ([`RegisterAccess`]), the seam between a driver and a chip.
 //! - [`config`]: SJA1000 configuration with defaults and validation ([`Sja1000Config`]).
 //! - [`driver`]: the SJA1000 driver, BasicCAN and PeliCAN behind one interface
@@ -39,6 +40,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod admin;
 pub mod bus;
 pub mod config;
 pub mod decode;
@@ -47,6 +49,10 @@ pub mod file;
 pub mod manager;
 pub mod regs;
 
+pub use admin::{
+    BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming,
+    TxReport,
+};
 pub use bus::{BusError, BusState, CanBus, Filter, Message};
 pub use config::{
     AcceptanceFilter, ClockOut, ConfigError, InterruptEnables, Sja1000Config, Timing,

@@ -6,31 +6,7 @@ use buslab_can::{Frame, Id};
 
 use crate::{ProtocolError, tokens};
 
-/// A node on a buslab virtual bus: its number (given in connection order from 1) or its name.
-#[derive(Clone, Debug, PartialEq, Eq, Hash)]
-pub enum NodeRef {
-    Number(u32),
-    Name(String),
-}
-
-impl NodeRef {
-    /// A number if `text` is all digits, else a name.
-    pub fn parse(text: &str) -> Self {
-        match text.parse::<u32>() {
-            Ok(n) if text.bytes().all(|b| b.is_ascii_digit()) => NodeRef::Number(n),
-            _ => NodeRef::Name(text.to_string()),
-        }
-    }
-}
-
-impl fmt::Display for NodeRef {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            NodeRef::Number(n) => write!(f, "{n}"),
-            NodeRef::Name(name) => f.write_str(name),
-        }
-    }
-}
+pub use buslab_canbus::NodeRef;
 
 /// One client command.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -29,9 +29,6 @@ pub struct Args {
     /// Use this seed instead of the scenario's.
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Print only the summary.
-    #[arg(long, short)]
-    pub quiet: bool,
     /// Also print every frame as each node received it (` R`), transmissions get ` T`.
     #[arg(long)]
     pub rx: bool,
@@ -47,9 +44,10 @@ pub struct Args {
 /// Bit-times simulated between two flushes of the output.
 const CHUNK: BitTime = 100_000;
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// `quiet` (the global `-q`): print only the summary.
+pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     // A reader that goes away (`| head`) ends the run quietly, as for other Unix tools.
-    match simulate(args) {
+    match simulate(args, quiet) {
         Err(e)
             if e.downcast_ref::<io::Error>()
                 .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe) =>
@@ -77,7 +75,7 @@ pub fn read_scenario(path: &std::path::Path) -> anyhow::Result<String> {
     Ok(text)
 }
 
-fn simulate(args: Args) -> anyhow::Result<()> {
+fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let text = read_scenario(&args.scenario)?;
     let mut scenario = Scenario::from_toml(&text)
         .with_context(|| format!("bad scenario {}", args.scenario.display()))?;
@@ -128,7 +126,7 @@ fn simulate(args: Args) -> anyhow::Result<()> {
                 writeln!(w, "{secs}.{us:06},{name},{},{},{state}", c.tec, c.rec)?;
             }
         }
-        if !args.quiet {
+        if !quiet {
             printer.print_merged(&mut out, &records, &series)?;
         }
         if let Some(vcd) = &mut vcd {

@@ -1,0 +1,202 @@
+//! Administration of a bus that has more to tell than frames: buslab's virtual bus lists its
+//! nodes and reports each one's error state, counters and registers ([`BusAdmin`]).
+//!
+//! The values are typed here; a transport carries them however it must (the socketcand
+//! extension as `key=value` text) and turns them back into these types at its edge.
+
+use std::fmt;
+
+use crate::bus::{BusError, BusState};
+use crate::decode::{ErrorRegisters, RegisterDump, Status};
+
+/// A node on a buslab virtual bus: its number (given in joining order from 1) or its name.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum NodeRef {
+    Number(u32),
+    Name(String),
+}
+
+impl NodeRef {
+    /// A number if `text` is all digits, else a name.
+    pub fn parse(text: &str) -> Self {
+        match text.parse::<u32>() {
+            Ok(n) if text.bytes().all(|b| b.is_ascii_digit()) => NodeRef::Number(n),
+            _ => NodeRef::Name(text.to_string()),
+        }
+    }
+}
+
+impl fmt::Display for NodeRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NodeRef::Number(n) => write!(f, "{n}"),
+            NodeRef::Name(name) => f.write_str(name),
+        }
+    }
+}
+
+/// A node's number and name.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct NodeInfo {
+    pub number: u32,
+    pub name: String,
+}
+
+/// What a node has done since it joined.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct NodeCounters {
+    /// Frames it transmitted successfully.
+    pub sent: u64,
+    /// Frames it received (and, for a client, its chip accepted).
+    pub received: u64,
+    /// Frames that were given up (aborted, single-shot failures, refused by the chip).
+    pub tx_failed: u64,
+    /// Bus errors it detected.
+    pub bus_errors: u64,
+    pub arbitration_lost: u64,
+    /// Frames lost in the chip's receive FIFO.
+    pub overruns: u64,
+    /// Times it went bus-off.
+    pub bus_off: u64,
+    /// Frames its client could not take in time (dropped by the server for that client only).
+    pub rx_lost: u64,
+}
+
+/// A node's bit timing and whether it lets the node follow the bus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct NodeTiming {
+    pub btr0: u8,
+    pub btr1: u8,
+    /// The bit rate BTR0/BTR1 give with the node's crystal.
+    pub bitrate: u32,
+    /// Within the oscillator tolerance of the bus's bit rate.
+    pub matches_bus: bool,
+}
+
+/// The whole bus, as seen when a node's status was taken.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BusSummary {
+    pub bitrate: u32,
+    /// Per cent of bit-times the bus was busy during the last complete second.
+    pub load_percent: f64,
+    /// Frames transmitted successfully by every node since the bus started.
+    pub frames: u64,
+    /// Error frames on the bus since it started (every node's detected errors).
+    pub errors: u64,
+}
+
+/// A node's status: error state, registers, counters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeStatus {
+    pub number: u32,
+    pub name: String,
+    pub state: BusState,
+    /// TXERR, RXERR and the last captured ALC and ECC.
+    pub errors: ErrorRegisters,
+    /// The status register, for nodes that are SJA1000 chips.
+    pub sr: Option<Status>,
+    /// The bit timing, for nodes whose timing is programmable.
+    pub timing: Option<NodeTiming>,
+    pub counters: NodeCounters,
+    /// Frames waiting to be sent (the client's queue and the chip's buffer).
+    pub tx_queued: u64,
+    pub bus: BusSummary,
+}
+
+/// Several lines: the node, its state, SR in words, the counters, ALC and ECC in words, then
+/// the timing and the node's and the bus's counters.
+impl fmt::Display for NodeStatus {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fn row(f: &mut fmt::Formatter<'_>, label: &str, value: impl fmt::Display) -> fmt::Result {
+            writeln!(f, "{:<18}{value}", format!("{label}:"))
+        }
+        writeln!(f, "node {} ({})", self.number, self.name)?;
+        row(f, "state", self.state)?;
+        if let Some(sr) = self.sr {
+            row(f, "STATUS", sr)?;
+        }
+        let e = self.errors;
+        row(f, "TXERR", e.txerr)?;
+        row(f, "RXERR", e.rxerr)?;
+        match e.alc {
+            Some(alc) => row(f, "ALC", format_args!("0x{:02X} {alc}", alc.0))?,
+            None => row(f, "ALC", "none captured")?,
+        }
+        match e.ecc {
+            Some(ecc) => row(f, "ECC", format_args!("0x{:02X} {ecc}", ecc.0))?,
+            None => row(f, "ECC", "none captured")?,
+        }
+        if let Some(t) = self.timing {
+            row(
+                f,
+                "timing",
+                format_args!(
+                    "BTR0=0x{:02X} BTR1=0x{:02X}: {} bit/s{}",
+                    t.btr0,
+                    t.btr1,
+                    t.bitrate,
+                    if t.matches_bus {
+                        ""
+                    } else {
+                        " (does not match the bus: cannot communicate)"
+                    }
+                ),
+            )?;
+        }
+        let c = self.counters;
+        row(f, "sent", c.sent)?;
+        row(f, "received", c.received)?;
+        row(f, "tx_failed", c.tx_failed)?;
+        row(f, "bus_errors", c.bus_errors)?;
+        row(f, "arbitration_lost", c.arbitration_lost)?;
+        row(f, "overruns", c.overruns)?;
+        row(f, "bus_off", c.bus_off)?;
+        row(f, "rx_lost", c.rx_lost)?;
+        row(f, "tx_queued", self.tx_queued)?;
+        let b = self.bus;
+        row(
+            f,
+            "bus",
+            format_args!(
+                "{} bit/s, load {:.1} % (last second), {} frames, {} errors",
+                b.bitrate, b.load_percent, b.frames, b.errors
+            ),
+        )
+    }
+}
+
+/// A node's register dump with the node it came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NodeRegisters {
+    pub number: u32,
+    pub name: String,
+    pub dump: RegisterDump,
+}
+
+/// What a transmit queue did with the frames handed to it ([`BusAdmin::flush`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TxReport {
+    /// Frames transmitted successfully since this client joined.
+    pub sent: u64,
+    /// Frames given up since this client joined.
+    pub failed: u64,
+}
+
+/// The administration side of a bus: nodes, status, registers, and settings of this client's
+/// own node. Backends that have none of it return `None` from
+/// [`CanBus::admin`](crate::CanBus::admin).
+pub trait BusAdmin {
+    /// Every node on the bus.
+    fn nodes(&mut self) -> Result<Vec<NodeInfo>, BusError>;
+    /// A node's status (this client's own node if `None`).
+    fn node_status(&mut self, node: Option<&NodeRef>) -> Result<NodeStatus, BusError>;
+    /// A node's registers (this client's own node if `None`).
+    fn register_dump(&mut self, node: Option<&NodeRef>) -> Result<NodeRegisters, BusError>;
+    /// Names this client's node.
+    fn set_name(&mut self, name: &str) -> Result<(), BusError>;
+    /// Reprograms this client's chip with BTR0/BTR1.
+    fn set_btr(&mut self, btr0: u8, btr1: u8) -> Result<(), BusError>;
+    /// Waits until every frame this client sent so far was transmitted or given up, and says
+    /// how many of each since it joined; an error after `timeout`.
+    fn flush(&mut self, timeout: std::time::Duration) -> Result<TxReport, BusError>;
+}
