@@ -45,6 +45,10 @@ pub enum Command {
     Status(Option<NodeRef>),
     /// `< buslab_regs [NODE] >`: a register dump of a node (own if absent).
     Regs(Option<NodeRef>),
+    /// `< buslab_flush >`: answered `< buslab_flushed SENT FAILED >` once every frame this
+    /// client sent before it was transmitted or given up (SENT and FAILED count since the
+    /// client joined).
+    Flush,
     /// `< buslab_btr BTR0 BTR1 >`: reprogram this client's chip with these bit timing
     /// registers (hex).
     Btr { btr0: u8, btr1: u8 },
@@ -111,6 +115,7 @@ impl Command {
                 _ => Err(arguments("buslab_errors", "0 or 1", args)),
             },
             "buslab_nodes" => no_args(Command::Nodes, "buslab_nodes"),
+            "buslab_flush" => no_args(Command::Flush, "buslab_flush"),
             "buslab_status" | "buslab_regs" => {
                 let node = match args {
                     [] => None,
@@ -302,6 +307,7 @@ impl fmt::Display for Command {
             Command::ReceiveOwn(on) => write!(f, "< buslab_own {} >", *on as u8),
             Command::ErrorFrames(on) => write!(f, "< buslab_errors {} >", *on as u8),
             Command::Nodes => f.write_str("< buslab_nodes >"),
+            Command::Flush => f.write_str("< buslab_flush >"),
             Command::Status(None) => f.write_str("< buslab_status >"),
             Command::Status(Some(n)) => write!(f, "< buslab_status {n} >"),
             Command::Regs(None) => f.write_str("< buslab_regs >"),
