@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod cmd;
 mod logging;
+mod units;
 
 /// CAN, CPU196 and ZELLE devices as faithful software models, and the host tools that talk to
 /// them (or to the real hardware).

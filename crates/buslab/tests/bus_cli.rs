@@ -137,7 +137,7 @@ fn wrong_bit_timing_is_an_induced_error_seen_in_status_and_regs() {
     // The seed's 50 kbit/s registers on a 500 kbit/s bus: the frame cannot get through.
     let (ok, _, err) = run(
         &serve,
-        &["send", "--btr", "07:4D", "--timeout", "0.3", "123#11"],
+        &["send", "--btr", "07:4D", "--timeout", "300ms", "123#11"],
     );
     assert!(!ok);
     // Either still trying or given up (bus-off) when the timeout ends.
@@ -306,7 +306,7 @@ fn dump_shows_error_frames_with_e() {
     let child = dump(&serve, &["-e", "-n", "1", "-l", log.to_str().unwrap()]);
     let (ok, _, _) = run(
         &serve,
-        &["send", "--btr", "07:4D", "--timeout", "0.3", "123#11"],
+        &["send", "--btr", "07:4D", "--timeout", "300ms", "123#11"],
     );
     assert!(!ok);
     let (ok, _, err) = run(&serve, &["send", "321#01"]);

@@ -228,8 +228,8 @@ pub fn wait_sent(open: &mut OpenBus, count: u64, timeout: Duration) -> anyhow::R
         }
         if Instant::now() >= deadline {
             bail!(
-                "only {sent} of {count} frames were sent within {:.1} s (no other node to acknowledge them, or a bit rate mismatch?); the node's status:\n{st}",
-                timeout.as_secs_f64()
+                "only {sent} of {count} frames were sent within {} (no other node to acknowledge them, or a bit rate mismatch?); the node's status:\n{st}",
+                crate::units::Human(timeout)
             );
         }
         // Drain frames meanwhile so the server never has to drop ours.

@@ -21,21 +21,9 @@ pub struct Args {
     /// Name this client's node on a buslab bus.
     #[arg(long)]
     pub name: Option<String>,
-    /// How long to wait for the frames to be sent, in seconds.
-    #[arg(long, default_value_t = 2.0, value_parser = parse_timeout)]
-    pub timeout: f64,
-}
-
-/// The longest wait accepted (a day); more would overflow the clock arithmetic.
-const MAX_TIMEOUT_S: f64 = 86_400.0;
-
-/// `--timeout`: seconds, 0..=86400.
-pub fn parse_timeout(text: &str) -> Result<f64, String> {
-    text.trim()
-        .parse::<f64>()
-        .ok()
-        .filter(|t| (0.0..=MAX_TIMEOUT_S).contains(t))
-        .ok_or_else(|| format!("timeout {text:?} must be a number of seconds 0..=86400"))
+    /// How long to wait for the frames to be sent (`2s`, `500ms`).
+    #[arg(long, default_value = "10s", value_parser = crate::units::duration)]
+    pub timeout: Duration,
 }
 
 /// `07:4D` → (0x07, 0x4D).
@@ -66,9 +54,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for f in &args.frames {
         open.bus.send(f)?;
     }
-    wait_sent(
-        &mut open,
-        args.frames.len() as u64,
-        Duration::from_secs_f64(args.timeout),
-    )
+    wait_sent(&mut open, args.frames.len() as u64, args.timeout)
 }
