@@ -24,9 +24,10 @@ impl Verbosity {
         self.quiet
     }
 
-    /// The filter directive these flags ask for.
-    fn directive(&self) -> &'static str {
-        match (self.quiet, self.verbose) {
+    /// The filter directive these flags ask for; `chatty` commands (servers) show what they
+    /// do without `-v`.
+    fn directive(&self, chatty: bool) -> &'static str {
+        match (self.quiet, self.verbose + chatty as u8) {
             (true, _) => "error",
             (false, 0) => "warn",
             (false, 1) => "info",
@@ -36,11 +37,12 @@ impl Verbosity {
     }
 }
 
-/// Installs the subscriber: plain lines on stderr (`warning: …`), no timestamps unless
-/// verbose, colour only on a terminal.
-pub fn init(verbosity: &Verbosity) {
-    let filter =
-        EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(verbosity.directive()));
+/// Installs the subscriber: plain lines on stderr (`WARN …`), no timestamps unless verbose,
+/// colour only on a terminal. `chatty`: the command is a server whose routine log (clients,
+/// devices) is shown by default.
+pub fn init(verbosity: &Verbosity, chatty: bool) {
+    let filter = EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| EnvFilter::new(verbosity.directive(chatty)));
     let verbose = verbosity.verbose > 0 || std::env::var_os("RUST_LOG").is_some();
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)

@@ -47,7 +47,13 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    logging::init(&cli.verbosity);
+    let chatty = matches!(
+        &cli.command,
+        Command::Bus(cmd::bus::Args {
+            command: cmd::bus::BusCommand::Serve(_)
+        })
+    );
+    logging::init(&cli.verbosity, chatty);
     // Errors are for people: one line with the chain of causes, never a backtrace.
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -155,8 +155,8 @@ fn counters_csv_follows_the_tec_to_bus_off_and_back() {
 }
 
 #[test]
-fn lab_prints_candump_lines_and_stops_by_itself() {
-    let out = stdout_of(&["lab", "--duration", "1s"]);
+fn lab_prints_candump_lines_when_asked_and_stops_by_itself() {
+    let out = stdout_of(&["lab", "--duration", "1s", "--no-devices", "--frames"]);
     let frames: Vec<&str> = out.lines().collect();
     assert!(frames.len() >= 100, "{} lines:\n{out}", frames.len());
     assert!(
@@ -170,6 +170,34 @@ fn lab_prints_candump_lines_and_stops_by_itself() {
         "the counter node:\n{out}"
     );
     assert!(frames.iter().all(|l| l.starts_with("  vcan0  ")), "{out}");
+}
+
+#[test]
+fn lab_shows_a_status_line_and_no_frames_by_default() {
+    let out = buslab()
+        .args(["lab", "--duration", "1s", "--no-devices"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        out.stdout.is_empty(),
+        "{:?}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let status = err
+        .lines()
+        .find(|l| l.starts_with("bus: "))
+        .unwrap_or_else(|| panic!("no status line:\n{err}"));
+    // Five nodes (four simulated, the counter) and frames from them.
+    assert!(status.contains("5 nodes (5 active)"), "{status}");
+    let frames: u64 = status
+        .split("; ")
+        .last()
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{status}"));
+    assert!(frames > 0, "{status}");
 }
 
 #[test]

@@ -15,6 +15,7 @@ pub mod file;
 mod frame;
 mod id;
 mod level;
+pub mod node;
 pub mod wire;
 
 pub use error::ParseError;

@@ -261,6 +261,11 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
         &mut self.regs
     }
 
+    /// The register access, read-only (e.g. to see a model's bus level).
+    pub fn chip(&self) -> &R {
+        &self.regs
+    }
+
     pub fn into_registers(self) -> R {
         self.regs
     }

@@ -48,6 +48,34 @@ impl FaultKind {
         list.iter().copied().chain(one)
     }
 
+    /// Node `removed` left the bus: indices above it move down one. Returns `false` when the
+    /// fault has nothing left to act on (it named that node alone).
+    pub fn forget_node(&mut self, removed: usize) -> bool {
+        let shift = |n: &mut usize| {
+            if *n > removed {
+                *n -= 1;
+            }
+        };
+        let forget_in = |list: &mut Vec<usize>| {
+            let had = !list.is_empty();
+            list.retain(|&n| n != removed);
+            list.iter_mut().for_each(shift);
+            !had || !list.is_empty()
+        };
+        match self {
+            FaultKind::Disconnect { node } | FaultKind::Flip { node: Some(node) } => {
+                if *node == removed {
+                    return false;
+                }
+                shift(node);
+                true
+            }
+            FaultKind::Cut { far_side, .. } => forget_in(far_side),
+            FaultKind::Noise { nodes, .. } => forget_in(nodes),
+            FaultKind::Flip { node: None } | FaultKind::StuckDominant => true,
+        }
+    }
+
     /// Short name, as in scenario files.
     pub fn name(&self) -> &'static str {
         match self {

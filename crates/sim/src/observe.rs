@@ -112,6 +112,25 @@ impl BusStats {
         }
     }
 
+    /// What happened between `earlier` (a copy taken before) and now: bit-times, busy bits,
+    /// frames and errors in that window (its [`load`](Self::load) is the window's load).
+    pub fn since(&self, earlier: &BusStats) -> BusStats {
+        BusStats {
+            bits: self.bits - earlier.bits,
+            busy_bits: self.busy_bits - earlier.busy_bits,
+            dominant_bits: self.dominant_bits - earlier.dominant_bits,
+            frames: self.frames - earlier.frames,
+            errors: self.errors - earlier.errors,
+            recessive_run: self.recessive_run,
+        }
+    }
+
+    /// Whether the last 11 bit-times were recessive: no frame, flag or delimiter is on the
+    /// wire (the bus is idle or between frames).
+    pub fn is_between_frames(&self) -> bool {
+        self.recessive_run >= 11
+    }
+
     /// `bits` recessive bit-times of idle bus.
     pub(crate) fn idle(&mut self, bits: u64) {
         self.bits += bits;

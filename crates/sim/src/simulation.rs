@@ -1,6 +1,7 @@
 //! The bus: nodes on one wire, stepped together once per bit-time.
 
-use buslab_can::controller::{Controller, ControllerConfig, Event};
+use buslab_can::controller::{Controller, ControllerConfig, ErrorState, Event, QueueFull};
+use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 
 use crate::fault::{Fault, Wiring};
@@ -9,23 +10,119 @@ use crate::rng::SplitMix64;
 use crate::time::BitTime;
 use crate::traffic::{Generator, Traffic};
 
-/// One node: a protocol controller with a name.
-#[derive(Debug)]
+/// One node on the wire (any [`BusNode`]: a protocol controller, a chip, a device) with its
+/// name and counters.
 pub struct Node {
     name: String,
-    controller: Controller,
+    device: Device,
     stats: NodeStats,
+}
+
+/// What is behind a node. Bare protocol controllers, the bulk of simulated nodes, are called
+/// directly in the per-bit loop; anything else through the [`BusNode`] seam.
+// Controllers stay inline on purpose: the per-bit loop walks them in order.
+#[allow(clippy::large_enum_variant)]
+enum Device {
+    Controller(Controller),
+    Other(Box<dyn BusNode>),
+}
+
+impl Device {
+    /// Samples `bus` at `now`; returns the level driven for the next bit-time and whether
+    /// events wait. One dispatch per node and bit-time.
+    #[inline(always)]
+    fn step(&mut self, now: BitTime, bus: Level) -> (Level, bool) {
+        match self {
+            Device::Controller(c) => {
+                c.sample(bus);
+                (c.output(), c.has_events())
+            }
+            Device::Other(n) => {
+                n.sample(now, bus);
+                (n.output(), true)
+            }
+        }
+    }
+    #[inline(always)]
+    fn output(&self) -> Level {
+        match self {
+            Device::Controller(c) => c.output(),
+            Device::Other(n) => n.output(),
+        }
+    }
+    #[inline(always)]
+    fn sample(&mut self, now: BitTime, bus: Level) {
+        match self {
+            Device::Controller(c) => c.sample(bus),
+            Device::Other(n) => n.sample(now, bus),
+        }
+    }
+    #[inline(always)]
+    fn poll_event(&mut self) -> Option<Event> {
+        match self {
+            Device::Controller(c) => c.poll_event(),
+            Device::Other(n) => n.poll_event(),
+        }
+    }
+    fn node(&self) -> &dyn BusNode {
+        match self {
+            Device::Controller(c) => c,
+            Device::Other(n) => &**n,
+        }
+    }
+    fn node_mut(&mut self) -> &mut dyn BusNode {
+        match self {
+            Device::Controller(c) => c,
+            Device::Other(n) => &mut **n,
+        }
+    }
+}
+
+impl core::fmt::Debug for Node {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Node")
+            .field("name", &self.name)
+            .field("state", &self.device().state())
+            .field("tec", &self.device().tec())
+            .field("rec", &self.device().rec())
+            .field("stats", &self.stats)
+            .finish()
+    }
 }
 
 impl Node {
     pub fn name(&self) -> &str {
         &self.name
     }
-    pub fn controller(&self) -> &Controller {
-        &self.controller
+    pub fn set_name(&mut self, name: impl Into<String>) {
+        self.name = name.into();
     }
     pub fn stats(&self) -> &NodeStats {
         &self.stats
+    }
+    /// The node behind the seam (drive, counters, queue).
+    pub fn device(&self) -> &dyn BusNode {
+        self.device.node()
+    }
+    pub fn device_mut(&mut self) -> &mut dyn BusNode {
+        self.device.node_mut()
+    }
+    pub fn tec(&self) -> u16 {
+        self.device().tec()
+    }
+    pub fn rec(&self) -> u16 {
+        self.device().rec()
+    }
+    pub fn state(&self) -> ErrorState {
+        self.device().state()
+    }
+    /// The node as its own type, if it is a `T` (e.g. a [`Controller`]).
+    pub fn get<T: BusNode>(&self) -> Option<&T> {
+        self.device().as_any().downcast_ref()
+    }
+    /// The node as its own type, mutable.
+    pub fn get_mut<T: BusNode>(&mut self) -> Option<&mut T> {
+        self.device_mut().as_any_mut().downcast_mut()
     }
 }
 
@@ -146,11 +243,20 @@ impl Simulation {
         }
     }
 
-    /// Adds a node; returns its index (0, 1, ...).
+    /// Adds a protocol controller; returns its index (0, 1, ...).
     pub fn add_node(&mut self, name: impl Into<String>, config: ControllerConfig) -> usize {
+        self.push_node(name.into(), Device::Controller(Controller::new(config)))
+    }
+
+    /// Adds any bit-level node (a chip with its driver, a device); returns its index.
+    pub fn add_device(&mut self, name: impl Into<String>, device: Box<dyn BusNode>) -> usize {
+        self.push_node(name.into(), Device::Other(device))
+    }
+
+    fn push_node(&mut self, name: String, device: Device) -> usize {
         self.nodes.push(Node {
-            name: name.into(),
-            controller: Controller::new(config),
+            name,
+            device,
             stats: NodeStats::default(),
         });
         let n = self.nodes.len();
@@ -162,6 +268,33 @@ impl Simulation {
             levels.last.resize(1 + 2 * n, Level::Recessive);
         }
         n - 1
+    }
+
+    /// Takes node `index` off the wire (its connector is pulled, even in the middle of a
+    /// frame) and returns it. Nodes after it move down one index; its traffic goes with it, and
+    /// faults forget it (a fault that named only this node never becomes active again).
+    pub fn remove_node(&mut self, index: usize) -> Node {
+        let node = self.nodes.remove(index);
+        self.outputs.remove(index);
+        self.schedule.generators.retain(|g| g.node != index);
+        for g in &mut self.schedule.generators {
+            if g.node > index {
+                g.node -= 1;
+            }
+        }
+        self.schedule.recompute();
+        for fault in &mut self.faults {
+            if !fault.kind.forget_node(index) {
+                fault.end = fault.start.min(self.now);
+            }
+        }
+        if let Some(levels) = &mut self.levels {
+            let first = 1 + 2 * index;
+            levels.last.drain(first..first + 2);
+        }
+        self.wiring = Wiring::build(self.nodes.len(), self.active_faults());
+        self.next_fault_change = self.now;
+        node
     }
 
     /// Attaches a traffic generator to `node`.
@@ -235,9 +368,16 @@ impl Simulation {
     pub fn find_node(&self, name: &str) -> Option<usize> {
         self.nodes.iter().position(|n| n.name == name)
     }
-    /// Direct access to a controller, e.g. to queue a frame or call `recover()`.
-    pub fn controller_mut(&mut self, node: usize) -> &mut Controller {
-        &mut self.nodes[node].controller
+    pub fn nodes_mut(&mut self) -> &mut [Node] {
+        &mut self.nodes
+    }
+    pub fn node_mut(&mut self, node: usize) -> &mut Node {
+        &mut self.nodes[node]
+    }
+    /// Direct access to a node's protocol controller (e.g. to call `recover()`), if the node
+    /// is a bare controller.
+    pub fn controller_mut(&mut self, node: usize) -> Option<&mut Controller> {
+        self.nodes[node].get_mut()
     }
     pub fn faults(&self) -> &[Fault] {
         &self.faults
@@ -324,11 +464,9 @@ impl Simulation {
         run >= 11 && (run - 11).is_multiple_of(IDLE_CHECK_EVERY)
     }
 
-    /// Every controller is bus-idle with nothing to send.
+    /// Every node is quiescent: a recessive bus changes nothing but the time.
     fn all_idle(&self) -> bool {
-        self.nodes
-            .iter()
-            .all(|n| n.controller.is_bus_idle() && n.controller.pending() == 0)
+        self.nodes.iter().all(|n| n.device().is_quiescent())
     }
 
     /// Everything scheduled at or before `now`: fault changes, traffic, counter samples.
@@ -341,7 +479,7 @@ impl Simulation {
             for g in &mut self.schedule.generators {
                 if g.next().is_some_and(|t| t <= now) {
                     let node = &mut self.nodes[g.node];
-                    let q = g.fire(now, &mut node.controller);
+                    let q = g.fire(now, node.device.node_mut());
                     node.stats.queued += q.queued;
                     node.stats.queue_overflows += q.overflows;
                 }
@@ -353,9 +491,9 @@ impl Simulation {
                 self.series.push(CounterSample {
                     time: now,
                     node: i,
-                    tec: n.controller.tec(),
-                    rec: n.controller.rec(),
-                    state: n.controller.state(),
+                    tec: n.device().tec(),
+                    rec: n.device().rec(),
+                    state: n.device().state(),
                 });
             }
             self.next_sample = self
@@ -415,21 +553,24 @@ impl Simulation {
         while *now < horizon.min(schedule.next) {
             // As `may_be_idle` (inlined here because of the split borrow).
             let run = obs.bus.recessive_run;
-            if fast_forward && run >= 11 && (run - 11).is_multiple_of(IDLE_CHECK_EVERY) {
-                let idle = nodes
-                    .iter()
-                    .all(|n| n.controller.is_bus_idle() && n.controller.pending() == 0);
-                if idle {
-                    return;
-                }
+            if fast_forward
+                && run >= 11
+                && (run - 11).is_multiple_of(IDLE_CHECK_EVERY)
+                && nodes.iter().all(|n| n.device().is_quiescent())
+            {
+                return;
             }
             let mut next_recessive = true;
             for (i, node) in nodes.iter_mut().enumerate() {
-                node.controller.sample(bus);
-                while let Some(event) = node.controller.poll_event() {
-                    handle_event(obs, schedule, i, node, *now, event);
+                let (mut out, events) = node.device.step(*now, bus);
+                if events {
+                    while let Some(event) = node.device.poll_event() {
+                        handle_event(obs, schedule, i, node, *now, event);
+                    }
+                    // An event (a generator's next frame) may change what the node drives.
+                    out = node.device.output();
                 }
-                next_recessive &= node.controller.output().bit();
+                next_recessive &= out.bit();
             }
             obs.bus.bit(bus);
             *now += 1;
@@ -439,7 +580,7 @@ impl Simulation {
 
     /// One bit-time with faults (or level tracing) in force.
     fn step_faulty(&mut self) {
-        self.step_wired(Level::Recessive);
+        self.step_wired();
     }
 
     /// Whether nothing can happen before [`Self::next_activity`] while the wire stays idle:
@@ -456,16 +597,8 @@ impl Simulation {
             .min(self.next_sample)
     }
 
-    /// One bit-time with other nodes on the main wire (e.g. register-level chips stepped by
-    /// the caller): `external` is the wired-AND of what they drive. Returns the main wire's
-    /// level for this bit, which is what they read.
-    pub fn step_external(&mut self, external: Level) -> Level {
-        self.handle_due();
-        self.step_wired(external)
-    }
-
-    /// One bit-time through the wiring, with `external` driving the main wire too.
-    fn step_wired(&mut self, external: Level) -> Level {
+    /// One bit-time through the wiring.
+    fn step_wired(&mut self) {
         let now = self.now;
         let w = &self.wiring;
         let segments = w.is_bus.len();
@@ -475,14 +608,11 @@ impl Simulation {
         let seg_levels = &mut self.seg_levels[..segments];
         seg_levels.fill(Level::Recessive);
         for (i, node) in self.nodes.iter().enumerate() {
-            let out = node.controller.output();
+            let out = node.device.output();
             self.outputs[i] = out;
             if out == Level::Dominant {
                 seg_levels[w.segment[i]] = Level::Dominant;
             }
-        }
-        if external == Level::Dominant {
-            seg_levels[0] = Level::Dominant;
         }
         for (level, &is_bus) in seg_levels.iter_mut().zip(&w.is_bus) {
             if !is_bus {
@@ -508,8 +638,8 @@ impl Simulation {
                 levels.set(now, 1 + 2 * i, self.outputs[i]);
                 levels.set(now, 2 + 2 * i, seen);
             }
-            node.controller.sample(seen);
-            while let Some(event) = node.controller.poll_event() {
+            node.device.sample(now, seen);
+            while let Some(event) = node.device.poll_event() {
                 handle_event(&mut self.obs, &mut self.schedule, i, node, now, event);
             }
         }
@@ -518,17 +648,12 @@ impl Simulation {
         }
         self.obs.bus.bit(bus);
         self.now += 1;
-        bus
     }
 
     /// Queue a frame on `node` right now.
-    pub fn enqueue(
-        &mut self,
-        node: usize,
-        frame: Frame,
-    ) -> Result<(), buslab_can::controller::QueueFull> {
+    pub fn enqueue(&mut self, node: usize, frame: Frame) -> Result<(), QueueFull> {
         let n = &mut self.nodes[node];
-        let r = n.controller.enqueue(frame);
+        let r = n.device_mut().enqueue(frame);
         match r {
             Ok(()) => n.stats.queued += 1,
             Err(_) => n.stats.queue_overflows += 1,
@@ -539,7 +664,7 @@ impl Simulation {
 
 /// The bus level when every node drives its output.
 fn wired_and(nodes: &[Node]) -> Level {
-    Level::from_bit(nodes.iter().all(|n| n.controller.output().bit()))
+    Level::from_bit(nodes.iter().all(|n| n.device.output().bit()))
 }
 
 fn invert(level: Level) -> Level {
@@ -565,7 +690,7 @@ fn handle_event(
         Event::Transmitted(frame) | Event::Dropped(frame) => {
             obs.bus.frames += matches!(event, Event::Transmitted(_)) as u64;
             for g in schedule.generators.iter_mut().filter(|g| g.node == i) {
-                let q = g.on_done(frame, now, &mut node.controller);
+                let q = g.on_done(frame, now, node.device.node_mut());
                 node.stats.queued += q.queued;
                 node.stats.queue_overflows += q.overflows;
                 if let Some(t) = g.next() {

@@ -1,6 +1,6 @@
 //! Traffic generators: what each node's host software asks its controller to send, and when.
 
-use buslab_can::controller::Controller;
+use buslab_can::node::BusNode;
 use buslab_can::{Frame, Id};
 
 use crate::time::BitTime;
@@ -96,7 +96,7 @@ impl Generator {
     }
 
     /// Queue what is due at `now` (call when `next() <= now`).
-    pub fn fire(&mut self, now: BitTime, controller: &mut Controller) -> Queued {
+    pub fn fire(&mut self, now: BitTime, controller: &mut dyn BusNode) -> Queued {
         let mut q = Queued::default();
         let mut push = |frame: Frame| match controller.enqueue(frame) {
             Ok(()) => {
@@ -145,7 +145,7 @@ impl Generator {
 
     /// A node's frame left the bus (or was dropped by a single-shot controller): the file
     /// sender moves on to the next chunk.
-    pub fn on_done(&mut self, frame: &Frame, now: BitTime, controller: &mut Controller) -> Queued {
+    pub fn on_done(&mut self, frame: &Frame, now: BitTime, controller: &mut dyn BusNode) -> Queued {
         let mut q = Queued::default();
         if self.in_flight.as_ref() == Some(frame) {
             self.in_flight = None;
@@ -155,7 +155,7 @@ impl Generator {
         q
     }
 
-    fn queue_chunk(&mut self, now: BitTime, controller: &mut Controller, q: &mut Queued) {
+    fn queue_chunk(&mut self, now: BitTime, controller: &mut dyn BusNode, q: &mut Queued) {
         let Traffic::File { id, data, .. } = &self.traffic else {
             return;
         };
@@ -180,7 +180,7 @@ impl Generator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use buslab_can::controller::ControllerConfig;
+    use buslab_can::controller::{Controller, ControllerConfig};
 
     fn frame(text: &str) -> Frame {
         text.parse().unwrap()

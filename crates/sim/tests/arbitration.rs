@@ -51,7 +51,7 @@ fn lowest_id_wins_and_losers_retry() {
     assert!(
         sim.nodes()
             .iter()
-            .all(|n| n.stats().errors == 0 && n.controller().tec() == 0)
+            .all(|n| n.stats().errors == 0 && n.tec() == 0)
     );
 }
 

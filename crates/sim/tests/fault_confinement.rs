@@ -77,7 +77,7 @@ fn cut_wire_drives_the_sender_to_bus_off_and_it_recovers_after_reconnection() {
     let last_recovery = *recoveries.last().unwrap();
     assert_eq!(bus_off.len(), recoveries.len());
     assert!(*bus_off.last().unwrap() < cut.end && cut.end < last_recovery);
-    let c = sim.node(sender).controller();
+    let c = sim.node(sender);
     assert_eq!(c.state(), ErrorState::Active);
     assert!(
         c.tec() < 96 && c.rec() < 96,
@@ -114,7 +114,7 @@ fn a_node_alone_stops_at_tec_128() {
         .collect();
     assert!(errors.len() > 100, "{} errors", errors.len());
     assert!(errors.iter().all(|(k, _)| *k == ErrorKind::Ack));
-    let c = sim.node(0).controller();
+    let c = sim.node(0);
     assert_eq!(c.tec(), 128);
     assert_eq!(c.state(), ErrorState::Passive);
     assert!(entered(sim.records(), 0, ErrorState::BusOff).is_empty());
@@ -159,7 +159,7 @@ fn a_bit_flipped_at_one_receiver_causes_one_retransmission() {
             );
         }
         // One error as transmitter (+8), one success (−1).
-        assert_eq!(sim.node(0).controller().tec(), 7, "offset {offset}");
+        assert_eq!(sim.node(0).tec(), 7, "offset {offset}");
     }
 }
 
@@ -234,7 +234,7 @@ fn a_listen_only_node_never_drives_dominant() {
     let s = sim.node(spy).stats();
     assert!(s.received > 150, "{s:?}");
     assert!(s.errors > 0, "{s:?}");
-    assert_eq!(sim.node(spy).controller().tec(), 0);
+    assert_eq!(sim.node(spy).tec(), 0);
 }
 
 /// A disconnected node's frames get no ACK and the others never see them; once reconnected its
@@ -249,14 +249,14 @@ fn a_disconnected_node_is_invisible() {
     });
     sim.run_for(19_000);
     assert!(received(sim.records(), 1).is_empty());
-    assert_eq!(sim.node(0).controller().tec(), 128);
+    assert_eq!(sim.node(0).tec(), 128);
     assert!(sim.node(1).stats().errors == 0);
     sim.run_for(2_000);
     assert_eq!(received(sim.records(), 1), [frame("123#01")]);
     // Reconnected in the middle of an attempt: the other node flags an error during the
     // sender's passive error flag, so the ACK-error exception does not apply (TEC 128 + 8),
     // then the retransmission succeeds (− 1).
-    assert_eq!(sim.node(0).controller().tec(), 135);
+    assert_eq!(sim.node(0).tec(), 135);
 }
 
 /// A stuck-dominant bus: the transmitter's TEC climbs by 8 per 8 dominant bits after its error
@@ -337,5 +337,5 @@ fn a_bit_flipped_at_every_node_is_one_error_frame() {
         assert_eq!(received(r, rx), [frame("123#1122334455")]);
     }
     assert!(sim.nodes().iter().all(|n| n.stats().errors >= 1));
-    assert_eq!(sim.node(0).controller().tec(), 7);
+    assert_eq!(sim.node(0).tec(), 7);
 }

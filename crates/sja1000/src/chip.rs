@@ -1,5 +1,7 @@
 //! The chip: register file, command logic and interrupts around one protocol controller.
 
+use std::collections::VecDeque;
+
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
 use buslab_can::{Frame, Level};
 
@@ -51,7 +53,13 @@ pub struct Sja1000 {
     sleeping: bool,
     /// Recessive bits in a row during bus-off recovery (TXERR counts down every 11).
     recovery_run: u8,
+    /// The protocol controller's events, for the bus engine's observers (bounded: the oldest
+    /// go when nobody reads them).
+    bus_events: VecDeque<Event>,
 }
+
+/// Protocol events kept for [`Sja1000::poll_bus_event`] when nobody reads them.
+const BUS_EVENTS_KEPT: usize = 64;
 
 #[derive(Clone, Copy, Debug)]
 struct Pending {
@@ -99,6 +107,7 @@ impl Sja1000 {
             pending: None,
             sleeping: false,
             recovery_run: 0,
+            bus_events: VecDeque::new(),
         }
     }
 
@@ -503,9 +512,36 @@ impl Sja1000 {
         }
         self.mac.sample(bus);
         while let Some(event) = self.mac.poll_event() {
+            if self.bus_events.len() == BUS_EVENTS_KEPT {
+                self.bus_events.pop_front();
+            }
+            self.bus_events.push_back(event.clone());
             self.on_event(event);
         }
         self.update_error_status();
+    }
+
+    /// The next event of the chip's protocol controller (frames on the wire, errors, state
+    /// changes), as the bus engine's observers see every node's; the register side is not
+    /// affected by reading them. The last 64 are kept.
+    pub fn poll_bus_event(&mut self) -> Option<Event> {
+        self.bus_events.pop_front()
+    }
+
+    /// Whether a recessive bus changes nothing in the chip: in reset mode or asleep, or idle
+    /// on the bus with no transmission requested.
+    pub fn is_quiescent(&self) -> bool {
+        self.reset
+            || self.sleeping
+            || (!self.bs
+                && self.pending.is_none()
+                && self.mac.is_bus_idle()
+                && self.mac.pending() == 0)
+    }
+
+    /// Whether a transmission request is in progress (TR or SRR until it ends).
+    pub fn transmission_pending(&self) -> bool {
+        self.pending.is_some()
     }
 
     fn on_event(&mut self, event: Event) {
@@ -626,4 +662,45 @@ impl Sja1000 {
 /// `mask` if `on`, else 0.
 const fn flag(on: bool, mask: u8) -> u8 {
     if on { mask } else { 0 }
+}
+
+/// The chip on the one bus engine. A bare chip has no CPU: frames reach its transmit buffer
+/// only through register writes (the host library's driver wraps the chip for that), so
+/// [`BusNode::enqueue`] refuses them.
+impl buslab_can::node::BusNode for Sja1000 {
+    fn output(&self) -> Level {
+        Sja1000::output(self)
+    }
+    fn sample(&mut self, _now: u64, bus: Level) {
+        Sja1000::sample(self, bus)
+    }
+    fn poll_event(&mut self) -> Option<Event> {
+        self.poll_bus_event()
+    }
+    /// TXERR as the CPU reads it (255 on entering bus-off, then counting down during the
+    /// recovery, as the seed watched it fall).
+    fn tec(&self) -> u16 {
+        self.txerr as u16
+    }
+    fn rec(&self) -> u16 {
+        self.rxerr as u16
+    }
+    fn state(&self) -> ErrorState {
+        self.error_state()
+    }
+    fn is_quiescent(&self) -> bool {
+        Sja1000::is_quiescent(self)
+    }
+    fn enqueue(&mut self, _frame: Frame) -> Result<(), buslab_can::controller::QueueFull> {
+        Err(buslab_can::controller::QueueFull { capacity: 0 })
+    }
+    fn pending(&self) -> usize {
+        self.pending.is_some() as usize
+    }
+    fn as_any(&self) -> &dyn core::any::Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn core::any::Any {
+        self
+    }
 }

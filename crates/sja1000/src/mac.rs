@@ -102,6 +102,10 @@ impl Mac {
     pub fn is_bus_idle(&self) -> bool {
         self.controller.is_bus_idle()
     }
+
+    pub fn pending(&self) -> usize {
+        self.controller.pending()
+    }
 }
 
 /// ECC bits 4..0 for an error location (datasheet segment codes; Linux's CAN_ERR_PROT_LOC_*).

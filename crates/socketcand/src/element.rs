@@ -34,6 +34,11 @@ impl Deframer {
         self.buf.extend_from_slice(bytes);
     }
 
+    /// Bytes buffered.
+    pub fn len(&self) -> usize {
+        self.buf.len()
+    }
+
     /// Whether an unfinished element is buffered.
     pub fn is_empty(&self) -> bool {
         self.buf.iter().all(|b| b.is_ascii_whitespace())

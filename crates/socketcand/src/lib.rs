@@ -3,6 +3,7 @@
 //! - [`element`]: splitting a byte stream into elements ([`Deframer`]).
 //! - [`command`]: what a client sends ([`Command`]), parsed and formatted.
 //! - [`message`]: what a server sends ([`ServerMessage`]), parsed and formatted.
+//! - [`server`]: one client connection of a server, sans-IO ([`server::Session`]).
 //! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over a TCP connection ([`SocketcandBus`]).
 //!
 //! The codec is sans-IO: strings in, values out, and back. buslab's own extensions are
@@ -13,6 +14,7 @@ pub mod client;
 pub mod command;
 pub mod element;
 pub mod message;
+pub mod server;
 
 pub use client::{ClientError, NodeStatus, SocketcandBus};
 pub use command::{Command, NodeRef};

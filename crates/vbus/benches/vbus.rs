@@ -7,7 +7,6 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use buslab_can::{Frame, Id};
-use buslab_socketcand::NodeRef;
 use buslab_vbus::VirtualBus;
 use criterion::{Criterion, Throughput, criterion_group};
 
@@ -29,15 +28,13 @@ fn run(bus: &mut VirtualBus, sender: u32, bits: u64) -> u64 {
     let end = bus.now() + bits;
     let mut sent = 0;
     while bus.now() < end {
-        let node = bus.node_mut(&NodeRef::Number(sender)).unwrap();
-        while node.tx.len() < 64 {
-            node.tx.push_back(frame);
-        }
-        let before = bus.load().frames;
+        let node = bus.client_mut(sender).unwrap();
+        while node.submit(frame).is_ok() {}
+        let before = bus.stats().frames;
         bus.run_until((bus.now() + 1000).min(end));
-        sent += bus.load().frames - before;
-        for n in bus.nodes_mut() {
-            n.rx.clear();
+        sent += bus.stats().frames - before;
+        for (_, n) in bus.clients_mut() {
+            n.take_deliveries();
         }
     }
     sent

@@ -1,26 +1,21 @@
-//! The virtual bus, sans-IO: SJA1000 chips on one wired-AND wire, stepped once per bit-time in
-//! virtual time, each operated through the host library's driver as a client's computer would.
+//! The virtual bus, sans-IO: the one bus engine ([`Simulation`]) with a client's SJA1000
+//! ([`ClientNode`]) for every client that joins, beside whatever simulated nodes a scenario put
+//! on the same wire. Faults, counters, traces and bus load see every node alike.
 //!
-//! The network side ([`crate::server`]) moves frames between clients and [`Node`] queues and
-//! decides how far to run; everything here is plain state.
+//! The network side ([`crate::server`]) moves frames between clients and [`ClientNode`]
+//! queues and decides how far to run; everything here is plain state in virtual time.
 
-use std::collections::VecDeque;
+use std::fmt;
 
-use buslab_can::{Frame, Level};
+use buslab_can::controller::ErrorState;
 use buslab_canbus::{
-    ControllerState, DriverEvent, Sja1000Config, Sja1000Driver, Timing, TxFailure,
+    BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef, NodeRegisters,
+    NodeStatus, NodeTiming,
 };
-use buslab_sim::Simulation;
-use buslab_sja1000::{BitTiming, Sja1000};
-use buslab_socketcand::NodeRef;
+use buslab_sim::{BusStats, Simulation};
+use buslab_sja1000::BitTiming;
 
-/// Crystal of every client's SJA1000 (the seed's boards: 16 MHz, CAN clock 8 MHz).
-pub const CRYSTAL_HZ: u32 = 16_000_000;
-/// A node whose bit rate differs from the bus by more than this (per mille) cannot follow it.
-/// CAN's oscillator tolerance is at most 1.58 %; 1 % is a round figure inside it.
-pub const TOLERANCE_PERMILLE: u64 = 10;
-/// How long a bus-off node waits before its driver restarts it (Linux's `restart-ms` idea).
-pub const RESTART_AFTER_MS: u64 = 100;
+use crate::node::{ClientNode, NodeNotice, node_config};
 
 /// Why a bus could not be set up or a request failed.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -30,182 +25,170 @@ pub enum VbusError {
     Bitrate(u32, String),
     #[error("no node {0} (see buslab_nodes)")]
     NoNode(String),
+    #[error("node {0} is a simulated protocol controller: it has no registers")]
+    NoRegisters(String),
+    #[error("node {0} is not this client's")]
+    NotAClient(String),
     #[error("the bus is full ({0} nodes)")]
     Full(usize),
     #[error("name {0:?} is taken by node {1}")]
     NameTaken(String, u32),
+    #[error("name {0:?} must be 1..=64 of A-Z a-z 0-9 _ - . (not only digits)")]
+    BadName(String),
     #[error("the chip refused the configuration: {0}")]
     Driver(String),
 }
 
-/// A frame for a client and the bit-time at which its chip had it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Delivery {
-    pub frame: Frame,
-    pub time: u64,
-}
-
-/// SocketCAN error classes (`linux/can/error.h`) for the error frames sent to clients.
-pub mod error_class {
-    pub const LOST_ARBITRATION: u32 = 0x002;
-    pub const CONTROLLER: u32 = 0x004;
-    pub const PROTOCOL: u32 = 0x008;
-    pub const BUS_OFF: u32 = 0x040;
-    pub const BUS_ERROR: u32 = 0x080;
-    pub const RESTARTED: u32 = 0x100;
-}
-
-/// An error frame for a client: its SocketCAN class and the bit-time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ErrorFrame {
-    pub class: u32,
-    pub time: u64,
-}
-
-/// Counters a client and the log can see.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct NodeCounters {
-    pub sent: u64,
-    pub received: u64,
-    pub tx_failed: u64,
-    pub bus_errors: u64,
-    pub arbitration_lost: u64,
-    pub overruns: u64,
-    pub bus_off: u64,
-    /// Frames the client could not take in time (counted by the network side).
-    pub rx_lost: u64,
-}
-
-/// One client's SJA1000 with its driver.
-#[derive(Debug)]
-pub struct Node {
-    pub number: u32,
-    pub name: String,
-    driver: Sja1000Driver<Sja1000>,
-    config: Sja1000Config,
-    /// The node's own bit rate when it differs from the bus's.
-    mismatch: Option<u32>,
-    /// Frames the client sent, not yet handed to the chip.
-    pub tx: VecDeque<Frame>,
-    /// Frames for the client.
-    pub rx: Vec<Delivery>,
-    /// Also deliver the node's own frames once sent.
-    pub receive_own: bool,
-    /// Error frames for the client (collected only when `error_frames` is on).
-    pub errors: Vec<ErrorFrame>,
-    pub error_frames: bool,
-    pub counters: NodeCounters,
-    bus_off_at: Option<u64>,
-}
-
-impl Node {
-    /// The node's bit rate from its BTR0/BTR1 and crystal.
-    pub fn bitrate(&mut self) -> u32 {
-        self.driver.registers().bit_timing().bitrate(CRYSTAL_HZ / 2)
-    }
-
-    pub fn mismatch(&self) -> Option<u32> {
-        self.mismatch
-    }
-
-    pub fn state(&self) -> ControllerState {
-        self.driver.state()
-    }
-}
-
-/// Bus load over the whole run and over the last virtual second.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Load {
-    pub frames: u64,
-    pub errors: u64,
-    busy_total: u64,
-    bits_total: u64,
-    window_busy: u64,
-    window_bits: u64,
-    last_percent: f64,
-    last_frames: u64,
-    window_frames: u64,
-    recessive_run: u64,
-}
-
-impl Load {
-    /// Per cent of bit-times that were busy (not the 12th or later recessive bit in a row).
-    pub fn total_percent(&self) -> f64 {
-        percent(self.busy_total, self.bits_total)
-    }
-    /// Load over the last complete second (or so far, in the first).
-    pub fn last_second_percent(&self) -> f64 {
-        if self.last_percent == 0.0 && self.window_bits > 0 {
-            percent(self.window_busy, self.window_bits)
-        } else {
-            self.last_percent
-        }
-    }
-    pub fn frames_last_second(&self) -> u64 {
-        self.last_frames
-    }
-
-    #[inline]
-    fn bit(&mut self, level: Level) {
-        if level == Level::Recessive {
-            self.recessive_run += 1;
-        } else {
-            self.recessive_run = 0;
-        }
-        let busy = (self.recessive_run < 12) as u64;
-        self.busy_total += busy;
-        self.window_busy += busy;
-        self.bits_total += 1;
-        self.window_bits += 1;
-    }
-
-    fn idle(&mut self, bits: u64) {
-        let busy = 11u64.saturating_sub(self.recessive_run).min(bits);
-        self.recessive_run += bits;
-        self.busy_total += busy;
-        self.window_busy += busy;
-        self.bits_total += bits;
-        self.window_bits += bits;
-    }
-
-    fn close_window(&mut self) {
-        self.last_percent = percent(self.window_busy, self.window_bits);
-        self.last_frames = self.window_frames;
-        self.window_busy = 0;
-        self.window_bits = 0;
-        self.window_frames = 0;
-    }
-}
-
-fn percent(part: u64, whole: u64) -> f64 {
-    if whole == 0 {
-        0.0
-    } else {
-        100.0 * part as f64 / whole as f64
-    }
-}
-
-/// `key=value` pairs of a status report, in order.
-pub type Fields = Vec<(String, String)>;
-
-/// Per-node transmit queue length (frames waiting for the chip's single TX buffer).
-pub const TX_QUEUE: usize = 64;
 /// Most nodes on one bus (an ISO 11898 segment allows far fewer real ones).
 pub const MAX_NODES: usize = 64;
+
+/// Something that happened on the bus that its operator may want to read, with words.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BusEvent {
+    Joined {
+        number: u32,
+        name: String,
+        btr0: u8,
+        btr1: u8,
+    },
+    Left {
+        number: u32,
+        name: String,
+        counters: NodeCounters,
+    },
+    Renamed {
+        number: u32,
+        old: String,
+        new: String,
+    },
+    /// A client reprogrammed its bit timing.
+    Timing {
+        number: u32,
+        name: String,
+        btr0: u8,
+        btr1: u8,
+        bitrate: u32,
+        bus_bitrate: u32,
+    },
+    /// What a client node's driver noticed.
+    Node {
+        number: u32,
+        name: String,
+        notice: NodeNotice,
+    },
+}
+
+impl BusEvent {
+    /// Whether the operator should be warned (rather than informed).
+    pub fn is_warning(&self) -> bool {
+        match self {
+            BusEvent::Timing {
+                bitrate,
+                bus_bitrate,
+                ..
+            } => !within_tolerance(*bitrate, *bus_bitrate),
+            BusEvent::Node { notice, .. } => {
+                matches!(notice, NodeNotice::Overrun | NodeNotice::Restarted(Err(_)))
+            }
+            _ => false,
+        }
+    }
+}
+
+impl fmt::Display for BusEvent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BusEvent::Joined {
+                number,
+                name,
+                btr0,
+                btr1,
+            } => write!(
+                f,
+                "node {number} ({name}) joined (PeliCAN, accept all, BTR0={btr0:02X} BTR1={btr1:02X})"
+            ),
+            BusEvent::Left {
+                number,
+                name,
+                counters: c,
+            } => write!(
+                f,
+                "node {number} ({name}) left: sent {}, received {}, lost {}",
+                c.sent, c.received, c.rx_lost
+            ),
+            BusEvent::Renamed { number, old, new } => {
+                write!(f, "node {number} ({old}) is now called {new}")
+            }
+            BusEvent::Timing {
+                number,
+                name,
+                btr0,
+                btr1,
+                bitrate,
+                bus_bitrate,
+            } => {
+                write!(
+                    f,
+                    "node {number} ({name}): BTR0={btr0:02X} BTR1={btr1:02X} give {bitrate} bit/s"
+                )?;
+                if within_tolerance(*bitrate, *bus_bitrate) {
+                    write!(f, " (bus {bus_bitrate} bit/s)")
+                } else {
+                    write!(
+                        f,
+                        ", the bus runs at {bus_bitrate} bit/s: this node cannot communicate"
+                    )
+                }
+            }
+            BusEvent::Node {
+                number,
+                name,
+                notice,
+            } => {
+                write!(f, "node {number} ({name}): ")?;
+                match notice {
+                    NodeNotice::NotSent { frame, reason } => {
+                        write!(f, "frame {frame} not sent: {reason}")
+                    }
+                    NodeNotice::Refused { frame } => {
+                        write!(
+                            f,
+                            "frame {frame} refused by the chip (bus-off or reset mode)"
+                        )
+                    }
+                    NodeNotice::Overrun => f.write_str("RX FIFO overrun, frames lost in the chip"),
+                    NodeNotice::StateChanged {
+                        from,
+                        to,
+                        txerr,
+                        rxerr,
+                    } => write!(f, "{from} -> {to} (TXERR {txerr}, RXERR {rxerr})"),
+                    NodeNotice::Restarted(Ok(())) => f.write_str("restarted after bus-off"),
+                    NodeNotice::Restarted(Err(e)) => write!(f, "restart failed: {e}"),
+                }
+            }
+        }
+    }
+}
+
+fn within_tolerance(rate: u32, bus: u32) -> bool {
+    let diff = (rate as i64 - bus as i64).unsigned_abs();
+    diff * 1000 <= bus as u64 * crate::node::TOLERANCE_PERMILLE
+}
 
 /// The bus and its nodes.
 #[derive(Debug)]
 pub struct VirtualBus {
-    bitrate: u32,
-    now: u64,
-    nodes: Vec<Node>,
+    sim: Simulation,
+    /// The number of each node of `sim`, index for index.
+    numbers: Vec<u32>,
     next_number: u32,
-    load: Load,
-    rng: u64,
-    log: Vec<String>,
-    scenario: Option<Simulation>,
+    /// Bus statistics at the start of the current second, and over the last complete one.
+    window_start: BusStats,
+    last_second: BusStats,
     next_window: u64,
     error_frames: bool,
+    events: Vec<(u64, BusEvent)>,
 }
 
 impl VirtualBus {
@@ -218,26 +201,42 @@ impl VirtualBus {
         config
             .validate()
             .map_err(|e| VbusError::Bitrate(bitrate, format!("bit rate {bitrate} bit/s: {e}")))?;
-        Ok(Self {
-            bitrate,
-            now: 0,
-            nodes: Vec::new(),
-            next_number: 1,
-            load: Load::default(),
-            rng: 0x9E37_79B9_7F4A_7C15,
-            log: Vec::new(),
-            scenario: None,
-            next_window: bitrate as u64,
-            error_frames: false,
-        })
+        let mut sim = Simulation::new(bitrate, 1);
+        sim.set_record_events(false);
+        Ok(Self::around(sim))
     }
 
-    /// Puts a scenario's simulated nodes on the same wire (their traffic and faults run in
-    /// the same virtual time; bus-wide faults reach the chips, node faults only the
-    /// scenario's nodes).
-    pub fn with_scenario(mut self, sim: Simulation) -> Self {
-        self.scenario = Some(sim);
-        self
+    fn around(sim: Simulation) -> Self {
+        let bitrate = sim.bitrate() as u64;
+        let now = sim.now();
+        let stats = *sim.bus_stats();
+        let count = sim.nodes().len() as u32;
+        Self {
+            numbers: (1..=count).collect(),
+            next_number: count + 1,
+            window_start: stats,
+            last_second: BusStats::default(),
+            next_window: now + bitrate,
+            sim,
+            error_frames: false,
+            events: Vec::new(),
+        }
+    }
+
+    /// The bus is the scenario's simulation: its nodes, traffic and faults are on the wire,
+    /// numbered 1.. in the scenario's order, and clients join beside them. The scenario's bit
+    /// rate must be the bus's (`bitrate`).
+    pub fn with_scenario(self, mut sim: Simulation) -> Self {
+        assert_eq!(
+            sim.bitrate(),
+            self.bitrate(),
+            "a scenario at another bit rate"
+        );
+        sim.set_record_events(false);
+        Self {
+            error_frames: self.error_frames,
+            ..Self::around(sim)
+        }
     }
 
     /// Whether nodes that join from now on collect error frames for their clients.
@@ -246,434 +245,323 @@ impl VirtualBus {
     }
 
     pub fn bitrate(&self) -> u32 {
-        self.bitrate
+        self.sim.bitrate()
     }
     /// Bit-times simulated so far.
     pub fn now(&self) -> u64 {
-        self.now
+        self.sim.now()
     }
-    pub fn load(&self) -> &Load {
-        &self.load
+    /// The bus engine (every node, faults, statistics).
+    pub fn sim(&self) -> &Simulation {
+        &self.sim
     }
-    pub fn nodes(&self) -> &[Node] {
-        &self.nodes
+    pub fn sim_mut(&mut self) -> &mut Simulation {
+        &mut self.sim
     }
-    pub fn nodes_mut(&mut self) -> &mut [Node] {
-        &mut self.nodes
+    /// Statistics since the bus started.
+    pub fn stats(&self) -> &BusStats {
+        self.sim.bus_stats()
     }
-    pub fn scenario(&self) -> Option<&Simulation> {
-        self.scenario.as_ref()
-    }
-
-    /// Log lines (in words, with the virtual time) since the last call.
-    pub fn take_log(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.log)
-    }
-
-    fn say(&mut self, line: String) {
-        let t = self.now as f64 / self.bitrate as f64;
-        self.log.push(format!("({t:.6}) {line}"));
+    /// Statistics of the last complete second (or of the first one so far).
+    pub fn last_second(&self) -> BusStats {
+        if self.last_second.bits == 0 {
+            self.sim.bus_stats().since(&self.window_start)
+        } else {
+            self.last_second
+        }
     }
 
-    /// A new node: a fresh SJA1000 initialised by the driver (PeliCAN, accept all, the bus's
-    /// bit rate). Returns its number.
+    /// What happened since the last call, with the bit-time.
+    pub fn take_events(&mut self) -> Vec<(u64, BusEvent)> {
+        self.collect_notices();
+        std::mem::take(&mut self.events)
+    }
+
+    /// Every node: number and name.
+    pub fn nodes(&self) -> Vec<NodeInfo> {
+        self.numbers
+            .iter()
+            .zip(self.sim.nodes())
+            .map(|(&number, n)| NodeInfo {
+                number,
+                name: n.name().to_string(),
+            })
+            .collect()
+    }
+
+    /// The index in the engine of a node.
+    pub fn index(&self, node: &NodeRef) -> Option<usize> {
+        match node {
+            NodeRef::Number(k) => self.numbers.iter().position(|n| n == k),
+            NodeRef::Name(name) => self.sim.find_node(name),
+        }
+    }
+
+    fn index_of(&self, node: &NodeRef) -> Result<usize, VbusError> {
+        self.index(node)
+            .ok_or_else(|| VbusError::NoNode(node.to_string()))
+    }
+
+    /// A client's node.
+    pub fn client_mut(&mut self, number: u32) -> Result<&mut ClientNode, VbusError> {
+        let i = self.index_of(&NodeRef::Number(number))?;
+        self.sim
+            .node_mut(i)
+            .get_mut::<ClientNode>()
+            .ok_or_else(|| VbusError::NotAClient(number.to_string()))
+    }
+
+    /// Every client node with its number.
+    pub fn clients_mut(&mut self) -> impl Iterator<Item = (u32, &mut ClientNode)> {
+        self.numbers
+            .iter()
+            .zip(self.sim.nodes_mut())
+            .filter_map(|(&number, n)| n.get_mut::<ClientNode>().map(|c| (number, c)))
+    }
+
+    /// A new client node: a fresh SJA1000 initialised by the driver (PeliCAN, accept all, the
+    /// bus's bit rate), called `node<number>`. Returns its number.
     pub fn join(&mut self) -> Result<u32, VbusError> {
-        if self.nodes.len() >= MAX_NODES {
+        if self.sim.nodes().len() >= MAX_NODES {
             return Err(VbusError::Full(MAX_NODES));
         }
+        let node = ClientNode::new(self.bitrate(), self.error_frames).map_err(VbusError::Driver)?;
+        let (btr0, btr1) = node.btr();
         let number = self.next_number;
-        let config = node_config(self.bitrate);
-        let mut driver = Sja1000Driver::new(Sja1000::new());
-        driver
-            .init(&config)
-            .map_err(|e| VbusError::Driver(e.to_string()))?;
+        let mut name = format!("node{number}");
+        // A scenario node may already have that name.
+        while self.sim.find_node(&name).is_some() {
+            name.push('_');
+        }
         self.next_number += 1;
-        self.nodes.push(Node {
+        self.sim.add_device(name.clone(), Box::new(node));
+        self.numbers.push(number);
+        self.say(BusEvent::Joined {
             number,
-            name: format!("node{number}"),
-            driver,
-            config,
-            mismatch: None,
-            tx: VecDeque::new(),
-            rx: Vec::new(),
-            receive_own: false,
-            errors: Vec::new(),
-            error_frames: self.error_frames,
-            counters: NodeCounters::default(),
-            bus_off_at: None,
+            name,
+            btr0,
+            btr1,
         });
-        let (btr0, btr1) = self
-            .nodes
-            .last_mut()
-            .map_or((0, 0), |n| n.driver.registers().bit_timing().registers());
-        self.say(format!(
-            "node {number} joined (PeliCAN, accept all, BTR0={btr0:02X} BTR1={btr1:02X})"
-        ));
         Ok(number)
     }
 
-    /// Removes a node (its connector is pulled, even in the middle of a frame).
+    /// Removes a node (its connector is pulled, even in the middle of a frame; its queued
+    /// frames are dropped).
     pub fn leave(&mut self, number: u32) {
-        if let Some(i) = self.index(&NodeRef::Number(number)) {
-            let n = self.nodes.remove(i);
-            self.say(format!(
-                "node {} ({}) left: sent {}, received {}, lost {}",
-                n.number, n.name, n.counters.sent, n.counters.received, n.counters.rx_lost
-            ));
-        }
-    }
-
-    pub fn index(&self, node: &NodeRef) -> Option<usize> {
-        self.nodes.iter().position(|n| match node {
-            NodeRef::Number(k) => n.number == *k,
-            NodeRef::Name(name) => &n.name == name,
-        })
-    }
-
-    pub fn node_mut(&mut self, node: &NodeRef) -> Result<&mut Node, VbusError> {
-        let i = self
-            .index(node)
-            .ok_or_else(|| VbusError::NoNode(node.to_string()))?;
-        Ok(&mut self.nodes[i])
-    }
-
-    pub fn rename(&mut self, number: u32, name: &str) -> Result<(), VbusError> {
-        if let Some(other) = self
-            .nodes
-            .iter()
-            .find(|n| n.name == name && n.number != number)
-        {
-            return Err(VbusError::NameTaken(name.to_string(), other.number));
-        }
-        let node = self.node_mut(&NodeRef::Number(number))?;
-        let old = std::mem::replace(&mut node.name, name.to_string());
-        self.say(format!("node {number} ({old}) is now called {name}"));
-        Ok(())
-    }
-
-    /// Reprograms a node's bit timing through the driver. A timing that does not give the
-    /// bus's bit rate (within [`TOLERANCE_PERMILLE`]) leaves the node unable to communicate:
-    /// it samples the bus at the wrong instants and reads noise (see docs/bus.md).
-    pub fn set_btr(&mut self, number: u32, btr0: u8, btr1: u8) -> Result<(), VbusError> {
-        let bus = self.bitrate;
-        let node = self.node_mut(&NodeRef::Number(number))?;
-        let mut config = node.config.clone();
-        config.timing = Timing::Registers { btr0, btr1 };
-        node.driver
-            .init(&config)
-            .map_err(|e| VbusError::Driver(e.to_string()))?;
-        node.config = config;
-        node.bus_off_at = None;
-        let rate = node.bitrate();
-        let diff = (rate as i64 - bus as i64).unsigned_abs();
-        node.mismatch = (diff * 1000 > bus as u64 * TOLERANCE_PERMILLE).then_some(rate);
-        let line = match node.mismatch {
-            Some(rate) => format!(
-                "node {number} ({}): BTR0={btr0:02X} BTR1={btr1:02X} give {rate} bit/s, the bus runs at {bus} bit/s: this node cannot communicate",
-                node.name
-            ),
-            None => format!(
-                "node {number} ({}): BTR0={btr0:02X} BTR1={btr1:02X} give {rate} bit/s (bus {bus} bit/s)",
-                node.name
-            ),
+        let Some(i) = self.index(&NodeRef::Number(number)) else {
+            return;
         };
-        self.say(line);
+        self.collect_notices();
+        let mut node = self.sim.remove_node(i);
+        self.numbers.remove(i);
+        let counters = node
+            .get_mut::<ClientNode>()
+            .map(|c| c.counters)
+            .unwrap_or_default();
+        self.say(BusEvent::Left {
+            number,
+            name: node.name().to_string(),
+            counters,
+        });
+    }
+
+    /// Renames node `number`.
+    pub fn rename(&mut self, number: u32, name: &str) -> Result<(), VbusError> {
+        let valid = (1..=64).contains(&name.len())
+            && name
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+            && !name.bytes().all(|b| b.is_ascii_digit());
+        if !valid {
+            return Err(VbusError::BadName(name.to_string()));
+        }
+        let i = self.index_of(&NodeRef::Number(number))?;
+        if let Some(other) = self.sim.find_node(name).filter(|&j| j != i) {
+            return Err(VbusError::NameTaken(name.to_string(), self.numbers[other]));
+        }
+        let node = self.sim.node_mut(i);
+        let old = node.name().to_string();
+        node.set_name(name);
+        self.say(BusEvent::Renamed {
+            number,
+            old,
+            new: name.to_string(),
+        });
         Ok(())
     }
 
-    /// Whether every chip is idle with nothing to send and the bus has been recessive long
-    /// enough: then stepping changes nothing but time.
-    fn all_idle(&mut self) -> bool {
-        if self.load.recessive_run < 11 {
-            return false;
-        }
-        let scenario_idle = self.scenario.as_ref().is_none_or(|s| s.is_idle());
-        scenario_idle
-            && self.nodes.iter_mut().all(|n| {
-                if n.mismatch.is_some() || !n.tx.is_empty() || n.driver.tx_pending() {
-                    return false;
-                }
-                // SR: RS, TS clear; BS clear (a bus-off chip counts recessive bits).
-                let sr = n.driver.registers().peek(2);
-                sr & 0xB0 == 0
-            })
+    /// Reprograms a client's bit timing through its driver (see [`ClientNode::set_btr`]).
+    pub fn set_btr(&mut self, number: u32, btr0: u8, btr1: u8) -> Result<(), VbusError> {
+        let bus_bitrate = self.bitrate();
+        let i = self.index_of(&NodeRef::Number(number))?;
+        let node = self.sim.node_mut(i);
+        let name = node.name().to_string();
+        let client = node
+            .get_mut::<ClientNode>()
+            .ok_or_else(|| VbusError::NotAClient(number.to_string()))?;
+        client.set_btr(btr0, btr1).map_err(VbusError::Driver)?;
+        let bitrate = client.bitrate();
+        self.say(BusEvent::Timing {
+            number,
+            name,
+            btr0,
+            btr1,
+            bitrate,
+            bus_bitrate,
+        });
+        Ok(())
     }
 
     /// Simulates up to (not including) bit-time `end`.
     pub fn run_until(&mut self, end: u64) {
-        self.feed_all();
-        while self.now < end {
+        while self.now() < end {
             let stop = end.min(self.next_window);
-            // Scenario traffic or a fault due now must be stepped with the chips, not skipped.
-            let skip = self
-                .scenario
-                .as_ref()
-                .map_or(stop, |s| s.next_activity().min(stop));
-            if skip > self.now && self.all_idle() {
-                if let Some(s) = &mut self.scenario {
-                    // Nothing is due before `skip`: the scenario jumps too.
-                    s.run_until(skip);
-                }
-                self.load.idle(skip - self.now);
-                self.now = skip;
-            } else {
-                let mut k = 0u32;
-                while self.now < stop {
-                    self.step();
-                    k += 1;
-                    if k.is_multiple_of(16) && self.load.recessive_run >= 11 && self.all_idle() {
-                        break;
-                    }
-                }
-            }
-            if self.now >= self.next_window {
-                self.load.close_window();
-                self.next_window += self.bitrate as u64;
-                self.check_restarts();
+            self.sim.run_until(stop);
+            if self.now() >= self.next_window {
+                let stats = *self.sim.bus_stats();
+                self.last_second = stats.since(&self.window_start);
+                self.window_start = stats;
+                self.next_window += self.bitrate() as u64;
             }
         }
-        self.check_restarts();
     }
 
-    /// One bit-time.
-    fn step(&mut self) {
-        let mut recessive = true;
-        for n in &mut self.nodes {
-            recessive &= n.driver.registers().output().bit();
+    /// Whether the bus would only let time pass until [`Self::next_activity`]: no fault, and
+    /// every node idle with nothing to send.
+    pub fn is_idle(&self) -> bool {
+        self.sim.is_idle()
+    }
+
+    /// The next bit-time at which scenario traffic, a fault change or a sample is due.
+    pub fn next_activity(&self) -> u64 {
+        self.sim.next_activity()
+    }
+
+    /// A node's status (typed; the socketcand extension carries it as text).
+    pub fn status(&mut self, node: &NodeRef) -> Result<NodeStatus, VbusError> {
+        let i = self.index_of(node)?;
+        let number = self.numbers[i];
+        let bus = BusSummary {
+            bitrate: self.bitrate(),
+            load_percent: 100.0 * self.last_second().load(),
+            frames: self.stats().frames,
+            errors: self.stats().errors,
+        };
+        let bus_bitrate = self.bitrate();
+        let node = self.sim.node_mut(i);
+        let name = node.name().to_string();
+        let stats = *node.stats();
+        let (tec, rec, state) = (node.tec(), node.rec(), node.state());
+        if let Some(client) = node.get_mut::<ClientNode>() {
+            let (btr0, btr1) = client.btr();
+            let bitrate = client.bitrate();
+            let timing = Some(NodeTiming {
+                btr0,
+                btr1,
+                bitrate,
+                matches_bus: client.mismatch().is_none() && within_tolerance(bitrate, bus_bitrate),
+            });
+            let tx_queued = client.tx_queued() as u64;
+            let counters = client.counters;
+            let state = client.state().bus_state();
+            let driver = client.driver();
+            let sr = Some(driver.status());
+            let errors = driver.error_registers().unwrap_or(ErrorRegisters {
+                alc: None,
+                ecc: None,
+                rxerr: rec.min(255) as u8,
+                txerr: tec.min(255) as u8,
+            });
+            return Ok(NodeStatus {
+                number,
+                name,
+                state,
+                errors,
+                sr,
+                timing,
+                counters,
+                tx_queued,
+                bus,
+            });
         }
-        let mut bus = Level::from_bit(recessive);
-        if let Some(s) = &mut self.scenario {
-            bus = s.step_external(bus);
-        }
-        let now = self.now;
-        for i in 0..self.nodes.len() {
-            let node = &mut self.nodes[i];
-            let seen = if node.mismatch.is_some() {
-                // Sampling at the wrong instants: what it reads has nothing to do with the bus.
-                self.rng ^= self.rng << 13;
-                self.rng ^= self.rng >> 7;
-                self.rng ^= self.rng << 17;
-                Level::from_bit(self.rng & 1 == 1)
-            } else {
-                bus
+        Ok(NodeStatus {
+            number,
+            name,
+            state: match state {
+                ErrorState::Active => BusState::Active,
+                ErrorState::Passive => BusState::Passive,
+                ErrorState::BusOff => BusState::BusOff,
+            },
+            errors: ErrorRegisters {
+                alc: None,
+                ecc: None,
+                rxerr: rec.min(255) as u8,
+                txerr: tec.min(255) as u8,
+            },
+            sr: None,
+            timing: None,
+            counters: NodeCounters {
+                sent: stats.sent,
+                received: stats.received,
+                tx_failed: stats.dropped,
+                bus_errors: stats.errors,
+                arbitration_lost: stats.arbitration_lost,
+                bus_off: stats.bus_off,
+                ..NodeCounters::default()
+            },
+            tx_queued: node.device().pending() as u64,
+            bus,
+        })
+    }
+
+    /// A client node's register dump.
+    pub fn regs(&mut self, node: &NodeRef) -> Result<NodeRegisters, VbusError> {
+        let i = self.index_of(node)?;
+        let number = self.numbers[i];
+        let n = self.sim.node_mut(i);
+        let name = n.name().to_string();
+        let client = n
+            .get_mut::<ClientNode>()
+            .ok_or_else(|| VbusError::NoRegisters(name.clone()))?;
+        Ok(NodeRegisters {
+            number,
+            name,
+            dump: client.driver().register_dump(),
+        })
+    }
+
+    fn say(&mut self, event: BusEvent) {
+        self.events.push((self.now(), event));
+    }
+
+    /// Moves what the client nodes' drivers noticed into the bus's events.
+    fn collect_notices(&mut self) {
+        let Self {
+            sim,
+            numbers,
+            events,
+            ..
+        } = self;
+        for (&number, node) in numbers.iter().zip(sim.nodes_mut()) {
+            let Some(notices) = node
+                .get_mut::<ClientNode>()
+                .map(ClientNode::take_notices)
+                .filter(|n| !n.is_empty())
+            else {
+                continue;
             };
-            let chip = node.driver.registers();
-            chip.sample(seen);
-            if chip.interrupt() {
-                self.service(i, now);
+            for (time, notice) in notices {
+                let name = node.name().to_string();
+                events.push((
+                    time,
+                    BusEvent::Node {
+                        number,
+                        name,
+                        notice,
+                    },
+                ));
             }
         }
-        self.load.bit(bus);
-        self.now += 1;
-    }
-
-    /// The interrupt handler: the driver's poll, then the next frame into the TX buffer.
-    #[inline(never)]
-    fn service(&mut self, i: usize, now: u64) {
-        let events = self.nodes[i].driver.poll();
-        let mut lines = Vec::new();
-        let node = &mut self.nodes[i];
-        for event in events {
-            match event {
-                DriverEvent::Received(frame) => {
-                    node.counters.received += 1;
-                    node.rx.push(Delivery { frame, time: now });
-                }
-                DriverEvent::TxDone(frame) => {
-                    node.counters.sent += 1;
-                    self.load.frames += 1;
-                    self.load.window_frames += 1;
-                    if node.receive_own {
-                        node.rx.push(Delivery { frame, time: now });
-                    }
-                }
-                DriverEvent::TxFailed { frame, reason } => {
-                    node.counters.tx_failed += 1;
-                    if reason != TxFailure::Aborted {
-                        lines.push(format!(
-                            "node {} ({}): frame {frame} not sent: {reason}",
-                            node.number, node.name
-                        ));
-                    }
-                }
-                DriverEvent::DataOverrun => {
-                    node.counters.overruns += 1;
-                    lines.push(format!(
-                        "node {} ({}): RX FIFO overrun, frames lost in the chip",
-                        node.number, node.name
-                    ));
-                }
-                DriverEvent::StateChanged { from, to } => {
-                    if to == ControllerState::BusOff {
-                        node.counters.bus_off += 1;
-                        node.bus_off_at = Some(now);
-                    }
-                    let class = match to {
-                        ControllerState::BusOff => error_class::BUS_OFF,
-                        _ => error_class::CONTROLLER,
-                    };
-                    error_frame(node, class, now);
-                    lines.push(format!(
-                        "node {} ({}): {from} -> {to} (TXERR {}, RXERR {})",
-                        node.number,
-                        node.name,
-                        node.driver.registers().peek(15),
-                        node.driver.registers().peek(14),
-                    ));
-                }
-                DriverEvent::BusError(_) => {
-                    node.counters.bus_errors += 1;
-                    self.load.errors += 1;
-                    error_frame(node, error_class::PROTOCOL | error_class::BUS_ERROR, now);
-                }
-                DriverEvent::ArbitrationLost(_) => {
-                    node.counters.arbitration_lost += 1;
-                    error_frame(node, error_class::LOST_ARBITRATION, now);
-                }
-                DriverEvent::WakeUp => {}
-            }
-        }
-        feed(node);
-        for line in lines {
-            self.say(line);
-        }
-    }
-
-    /// Hands waiting frames to free TX buffers (after the network side queued some).
-    pub fn feed_all(&mut self) {
-        for n in &mut self.nodes {
-            feed(n);
-        }
-    }
-
-    /// Restarts bus-off nodes after [`RESTART_AFTER_MS`].
-    fn check_restarts(&mut self) {
-        let wait = self.bitrate as u64 * RESTART_AFTER_MS / 1000;
-        let now = self.now;
-        let mut lines = Vec::new();
-        for n in &mut self.nodes {
-            if let Some(t) = n.bus_off_at
-                && now >= t + wait
-            {
-                n.bus_off_at = None;
-                let result = n.driver.restart();
-                error_frame(n, error_class::RESTARTED, now);
-                lines.push(match result {
-                    Ok(()) => format!("node {} ({}): restarted after bus-off", n.number, n.name),
-                    Err(e) => format!("node {} ({}): restart failed: {e}", n.number, n.name),
-                });
-                // The driver's state follows at the next poll.
-                n.driver.poll();
-                feed(n);
-            }
-        }
-        for line in lines {
-            self.say(line);
-        }
-    }
-
-    /// The status of a node as `key=value` fields (see docs/bus.md).
-    pub fn status(&mut self, node: &NodeRef) -> Result<(u32, String, Fields), VbusError> {
-        let bus = self.bitrate;
-        let load = self.load;
-        let n = self.node_mut(node)?;
-        let rate = n.bitrate();
-        let sr = n.driver.status();
-        let errs = n.driver.error_registers();
-        let (btr0, btr1) = n.driver.registers().bit_timing().registers();
-        let mut f: Vec<(String, String)> = Vec::new();
-        let mut put = |k: &str, v: String| f.push((k.to_string(), v));
-        put("state", state_word(n.driver.state()).to_string());
-        put("sr", format!("{:02X}", sr.0));
-        if let Some(e) = errs {
-            put("txerr", e.txerr.to_string());
-            put("rxerr", e.rxerr.to_string());
-            if let Some(alc) = e.alc {
-                put("alc", format!("{:02X}", alc.0));
-            }
-            if let Some(ecc) = e.ecc {
-                put("ecc", format!("{:02X}", ecc.0));
-            }
-        }
-        put("btr0", format!("{btr0:02X}"));
-        put("btr1", format!("{btr1:02X}"));
-        put("bitrate", rate.to_string());
-        put("bus_bitrate", bus.to_string());
-        put(
-            "timing",
-            if n.mismatch.is_some() {
-                "mismatch"
-            } else {
-                "ok"
-            }
-            .to_string(),
-        );
-        let c = n.counters;
-        put("sent", c.sent.to_string());
-        put("received", c.received.to_string());
-        put("tx_failed", c.tx_failed.to_string());
-        put("bus_errors", c.bus_errors.to_string());
-        put("arbitration_lost", c.arbitration_lost.to_string());
-        put("overruns", c.overruns.to_string());
-        put("bus_off", c.bus_off.to_string());
-        put("rx_lost", c.rx_lost.to_string());
-        put(
-            "tx_queued",
-            (n.tx.len() + n.driver.tx_pending() as usize).to_string(),
-        );
-        put("bus_load", format!("{:.1}%", load.last_second_percent()));
-        put("bus_frames", load.frames.to_string());
-        put("bus_errors_total", load.errors.to_string());
-        Ok((n.number, n.name.clone(), f))
-    }
-
-    /// A node's register dump: mode and values (`None` where not readable).
-    pub fn regs(
-        &mut self,
-        node: &NodeRef,
-    ) -> Result<(u32, String, buslab_canbus::RegisterDump), VbusError> {
-        let n = self.node_mut(node)?;
-        Ok((n.number, n.name.clone(), n.driver.register_dump()))
-    }
-}
-
-/// Queues an error frame if the node's client asked for them.
-fn error_frame(n: &mut Node, class: u32, time: u64) {
-    if n.error_frames {
-        n.errors.push(ErrorFrame { class, time });
-    }
-}
-
-fn feed(n: &mut Node) {
-    if n.driver.tx_pending() || n.bus_off_at.is_some() {
-        return;
-    }
-    // A refused frame (bus-off, reset mode) cannot be fixed by retrying now: it is counted.
-    if let Some(frame) = n.tx.pop_front()
-        && n.driver.send(&frame).is_err()
-    {
-        n.counters.tx_failed += 1;
-    }
-}
-
-/// The configuration every client's chip gets: PeliCAN, accept all, the bus's bit rate.
-pub fn node_config(bitrate: u32) -> Sja1000Config {
-    Sja1000Config {
-        timing: Timing::Bitrate {
-            bitrate,
-            sample_point_permille: None,
-        },
-        crystal_hz: CRYSTAL_HZ,
-        ..Sja1000Config::default()
-    }
-}
-
-/// python-can's names for the error states (warning is still error-active).
-pub fn state_word(state: ControllerState) -> &'static str {
-    match state {
-        ControllerState::Active | ControllerState::Warning => "error-active",
-        ControllerState::Passive => "error-passive",
-        ControllerState::BusOff => "bus-off",
     }
 }
 

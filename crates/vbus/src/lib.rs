@@ -1,11 +1,13 @@
 //! The virtual CAN bus server behind `buslab bus serve`.
 //!
-//! The bit-level bus runs paced to the wall clock; every TCP client gets its own SJA1000
-//! (register model) on it, initialised and operated through the host library's driver, and
-//! talks socketcand in raw mode, so python-can's `socketcand` interface can join.
+//! The one bus engine (`buslab-sim`) runs paced to the wall clock; every TCP client gets its own
+//! SJA1000 (register model) on it, initialised and operated through the host library's driver,
+//! and talks socketcand in raw mode, so python-can's `socketcand` interface can join.
 //!
-//! - [`bus`]: the sans-IO part, [`VirtualBus`]: chips on one wire in virtual time.
-//! - [`server`]: listener, client sessions and the pacing loop ([`spawn`]).
+//! - [`node`]: a client's chip and driver as a node of the engine ([`ClientNode`]).
+//! - [`bus`]: the sans-IO part, [`VirtualBus`]: the engine with its client nodes.
+//! - [`server`]: one event loop (listener, client sessions, pacing) around [`VirtualBus`] and
+//!   the socketcand crate's sans-IO sessions ([`spawn`]).
 //!
 //! Start one in-process (e.g. from `buslab lab`):
 //!
@@ -17,7 +19,9 @@
 //! ```
 
 pub mod bus;
+pub mod node;
 pub mod server;
 
-pub use bus::{Delivery, NodeCounters, VbusError, VirtualBus};
+pub use bus::{BusEvent, MAX_NODES, VbusError, VirtualBus};
+pub use node::{ClientNode, Delivery, ErrorFrame, NodeNotice};
 pub use server::{ServerConfig, ServerError, ServerHandle, spawn};

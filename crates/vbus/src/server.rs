@@ -1,22 +1,27 @@
-//! The network side: a TCP listener, one reader and one writer thread per client, and the bus
-//! thread that paces the [`VirtualBus`] to the wall clock.
+//! The network side: one thread runs an event loop (mio) around the [`VirtualBus`] and one
+//! sans-IO socketcand [`Session`] per TCP client, pacing the bus to the wall clock.
+//!
+//! The loop sleeps until the next thing that can happen: a client's bytes, the bus's next
+//! scheduled activity, a session's timer; while frames are on the wire it wakes every
+//! [`BUSY_SLICE`] so deliveries leave within a fraction of a millisecond.
 
-use std::fmt::Write as _;
 use std::io::{self, Read, Write};
-use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, UdpSocket};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender, TrySendError};
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use buslab_can::Frame;
-use buslab_canbus::CanMode;
+use buslab_canbus::{CanMode, NodeRef, NodeRegisters, NodeStatus};
 use buslab_sim::Simulation;
-use buslab_socketcand::message::format_frame;
-use buslab_socketcand::{Command, Deframer, NodeRef, ServerMessage, Timestamp};
+use buslab_socketcand::server::{Action, Session, SessionConfig};
+use buslab_socketcand::{Command, ServerMessage, Timestamp};
+use mio::net::{TcpListener, TcpStream};
+use mio::{Events, Interest, Poll, Token, Waker};
+use tracing::{debug, info, warn};
 
-use crate::bus::{TX_QUEUE, VbusError, VirtualBus};
+use crate::bus::{BusEvent, VbusError, VirtualBus};
 
 /// Everything `buslab bus serve` can set.
 pub struct ServerConfig {
@@ -29,9 +34,11 @@ pub struct ServerConfig {
     pub speed: f64,
     /// Frames waiting for one client before newer ones are dropped (counted per node).
     pub client_queue: usize,
-    /// TCP connections served at once, joined or not (each costs two threads and its queue);
-    /// more are answered `< error too many connections … >` and closed.
+    /// TCP connections served at once, joined or not; more are answered
+    /// `< error too many connections … >` and closed.
     pub max_connections: usize,
+    /// How long a connection may stay without opening the bus.
+    pub open_timeout: Duration,
     /// Scenario nodes on the same wire.
     pub scenario: Option<Simulation>,
     /// Send every client its chip's bus errors, lost arbitrations and state changes as
@@ -41,8 +48,6 @@ pub struct ServerConfig {
     /// Send socketcand's discovery beacon (UDP, every 3 s) to this address, so python-can's
     /// `detect_beacon()` finds the bus (socketcand broadcasts to port 42000).
     pub beacon: Option<SocketAddr>,
-    /// Where log lines go.
-    pub log: Arc<dyn Fn(&str) + Send + Sync>,
 }
 
 impl ServerConfig {
@@ -54,10 +59,10 @@ impl ServerConfig {
             speed: 1.0,
             client_queue: 8192,
             max_connections: 256,
+            open_timeout: Duration::from_secs(30),
             scenario: None,
             error_frames: false,
             beacon: None,
-            log: Arc::new(|line| eprintln!("{line}")),
         }
     }
 }
@@ -75,8 +80,10 @@ pub enum ServerError {
     ClientQueue(usize),
     #[error("bus name {0:?} must be 1..=64 of A-Z a-z 0-9 _ - . : (one token clients can open)")]
     Channel(String),
-    #[error("cannot start a server thread: {0}")]
-    Thread(io::Error),
+    #[error("the scenario runs at {scenario} bit/s but the bus at {bus} bit/s")]
+    ScenarioBitrate { scenario: u32, bus: u32 },
+    #[error("cannot start the server: {0}")]
+    Io(io::Error),
     #[error("cannot send the beacon to {target}: {source}")]
     Beacon {
         target: SocketAddr,
@@ -84,11 +91,26 @@ pub enum ServerError {
     },
 }
 
+/// Work for the bus thread, run between two slices of bus time.
+type Job = Box<dyn FnOnce(&mut VirtualBus) + Send>;
+
+/// How far the server's virtual time fell behind the wall clock.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Lag {
+    /// The worst lag after catching up, since the start.
+    pub worst: Duration,
+    /// Time spent more than [`LAG_WARNING`] behind.
+    pub behind_for: Duration,
+}
+
 /// A running server; dropping it does not stop it (call [`ServerHandle::shutdown`]).
 pub struct ServerHandle {
     addr: SocketAddr,
     stop: Arc<AtomicBool>,
-    threads: Vec<JoinHandle<()>>,
+    waker: Arc<Waker>,
+    jobs: Sender<Job>,
+    lag: Arc<Mutex<Lag>>,
+    thread: Option<JoinHandle<()>>,
 }
 
 impl ServerHandle {
@@ -97,48 +119,46 @@ impl ServerHandle {
         self.addr
     }
 
-    /// Stops accepting, stops the bus and waits for the server threads.
-    pub fn shutdown(self) {
+    /// Runs `job` on the bus thread between two slices of bus time and returns its result
+    /// (`None` if the server has stopped).
+    pub fn with_bus<R: Send + 'static>(
+        &self,
+        job: impl FnOnce(&mut VirtualBus) -> R + Send + 'static,
+    ) -> Option<R> {
+        let (tx, rx) = mpsc::channel();
+        self.jobs
+            .send(Box::new(move |bus| {
+                let _ = tx.send(job(bus));
+            }))
+            .ok()?;
+        self.waker.wake().ok()?;
+        rx.recv().ok()
+    }
+
+    /// How far virtual time fell behind the wall clock so far.
+    pub fn lag(&self) -> Lag {
+        *lock(&self.lag)
+    }
+
+    /// Stops accepting, disconnects the clients, stops the bus and waits for the thread.
+    pub fn shutdown(mut self) {
         self.stop.store(true, Ordering::SeqCst);
-        // Wake the accept loop.
-        let _ = TcpStream::connect(self.addr);
-        for t in self.threads {
+        let _ = self.waker.wake();
+        if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
     }
 
     /// Waits until the server stops (it runs until shut down).
-    pub fn wait(self) {
-        for t in self.threads {
+    pub fn wait(mut self) {
+        if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
     }
 }
 
-/// What the bus thread is asked to do.
-enum Control {
-    Join {
-        out: SyncSender<Out>,
-        frames: Receiver<Frame>,
-        reply: Sender<Result<u32, String>>,
-    },
-    Leave(u32),
-    Request {
-        node: u32,
-        command: Command,
-        reply: Sender<ServerMessage>,
-    },
-}
-
-/// To a client's writer thread.
-enum Out {
-    Text(String),
-    Frame(Frame, Timestamp),
-    ErrorFrame(u32, Timestamp),
-    /// From now on frames are delivered; `true`: remote frames as `R<dlc>`.
-    Raw(bool),
-    /// Remote frames in buslab's form from now on.
-    Extensions,
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// A bus name a client can `< open >` (one token) and the beacon can carry (no XML quoting).
@@ -149,13 +169,17 @@ fn valid_channel(name: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.' | b':'))
 }
 
-/// Starts the server: binds, then runs the bus and accepts clients in background threads.
+const LISTENER: Token = Token(0);
+const WAKER: Token = Token(1);
+/// Client tokens start here.
+const FIRST_CLIENT: usize = 2;
+
+/// Starts the server: binds, then runs the bus and serves clients in a background thread.
 pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     // Outside this range the pacing arithmetic overflows `Duration`.
     if !(0.001..=1_000_000.0).contains(&config.speed) {
         return Err(ServerError::Speed(config.speed));
     }
-    // The queue is allocated whole for each client, and must hold a few replies.
     if !(16..=1_048_576).contains(&config.client_queue) {
         return Err(ServerError::ClientQueue(config.client_queue));
     }
@@ -165,9 +189,15 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     let mut bus = VirtualBus::new(config.bitrate)?;
     bus.set_error_frames(config.error_frames);
     if let Some(sim) = config.scenario.take() {
+        if sim.bitrate() != config.bitrate {
+            return Err(ServerError::ScenarioBitrate {
+                scenario: sim.bitrate(),
+                bus: config.bitrate,
+            });
+        }
         bus = bus.with_scenario(sim);
     }
-    let listener = TcpListener::bind(config.listen).map_err(|source| ServerError::Listen {
+    let mut listener = TcpListener::bind(config.listen).map_err(|source| ServerError::Listen {
         addr: config.listen,
         source,
     })?;
@@ -177,11 +207,33 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
             addr: config.listen,
             source,
         })?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let (control_tx, control_rx) = mpsc::channel();
-    let log = config.log.clone();
-    log(&format!(
-        "buslab bus serve: {} at {} bit/s on {addr}{}",
+    let poll = Poll::new().map_err(ServerError::Io)?;
+    poll.registry()
+        .register(&mut listener, LISTENER, Interest::READABLE)
+        .map_err(ServerError::Io)?;
+    let waker = Arc::new(Waker::new(poll.registry(), WAKER).map_err(ServerError::Io)?);
+    let beacon = match config.beacon {
+        None => None,
+        Some(target) => {
+            let socket = UdpSocket::bind(if target.is_ipv4() {
+                "0.0.0.0:0"
+            } else {
+                "[::]:0"
+            })
+            .and_then(|s| s.set_broadcast(true).map(|()| s))
+            .map_err(|source| ServerError::Beacon { target, source })?;
+            let text = beacon_text(beacon_url_addr(addr, target), &config.channel);
+            info!("beacon to {target} every 3 s");
+            Some(Beacon {
+                socket,
+                target,
+                text,
+                next: Instant::now(),
+            })
+        }
+    };
+    info!(
+        "{} at {} bit/s on {addr}{}",
         config.channel,
         config.bitrate,
         if config.speed == 1.0 {
@@ -189,98 +241,49 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         } else {
             format!(", {}x FASTER THAN REAL TIME", config.speed)
         }
-    ));
-    let bus_thread = {
-        let stop = stop.clone();
-        let log = log.clone();
-        let speed = config.speed;
-        thread::Builder::new()
-            .name("vbus-bus".into())
-            .spawn(move || run_bus(bus, control_rx, stop, log, speed))
-            .map_err(ServerError::Thread)?
+    );
+    let stop = Arc::new(AtomicBool::new(false));
+    let lag = Arc::new(Mutex::new(Lag::default()));
+    let (jobs_tx, jobs) = mpsc::channel();
+    let mut session_config = SessionConfig::new(config.channel.clone());
+    // A raw-mode frame line is at most ~45 bytes.
+    session_config.max_output = config.client_queue * 48;
+    session_config.open_timeout_ns = config.open_timeout.as_nanos().min(u64::MAX as u128) as u64;
+    let server = Server {
+        poll,
+        listener,
+        clients: Vec::new(),
+        open: 0,
+        bus,
+        session_config,
+        max_connections: config.max_connections,
+        speed: config.speed,
+        jobs,
+        stop: stop.clone(),
+        lag: lag.clone(),
+        beacon,
+        epoch: Instant::now(),
+        unix0: SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .unwrap_or_default()
+            .as_nanos(),
+        lag_state: LagState::default(),
+        last_summary: Instant::now(),
+        summarised: (0, 0),
     };
-    let accept_thread = {
-        let stop = stop.clone();
-        let channel = config.channel.clone();
-        let queue = config.client_queue;
-        let max_connections = config.max_connections;
-        let log = log.clone();
-        thread::Builder::new()
-            .name("vbus-accept".into())
-            .spawn(move || {
-                // Without a bound, a flood of idle connections exhausts threads and memory.
-                let open = Arc::new(AtomicUsize::new(0));
-                for conn in listener.incoming() {
-                    if stop.load(Ordering::SeqCst) {
-                        break;
-                    }
-                    let Ok(mut stream) = conn else { continue };
-                    if open.load(Ordering::SeqCst) >= max_connections {
-                        let refusal = ServerMessage::Error(format!(
-                            "too many connections ({max_connections} open); try again later"
-                        ));
-                        let _ = stream.write_all(refusal.to_string().as_bytes());
-                        continue;
-                    }
-                    open.fetch_add(1, Ordering::SeqCst);
-                    let control = control_tx.clone();
-                    let channel = channel.clone();
-                    let log = log.clone();
-                    let slot = open.clone();
-                    let spawned =
-                        thread::Builder::new()
-                            .name("vbus-client".into())
-                            .spawn(move || {
-                                session(stream, control, channel, queue, log);
-                                slot.fetch_sub(1, Ordering::SeqCst);
-                            });
-                    if spawned.is_err() {
-                        open.fetch_sub(1, Ordering::SeqCst);
-                    }
-                }
-            })
-            .map_err(ServerError::Thread)?
-    };
-    let mut threads = vec![accept_thread, bus_thread];
-    if let Some(target) = config.beacon {
-        let socket = UdpSocket::bind(if target.is_ipv4() {
-            "0.0.0.0:0"
-        } else {
-            "[::]:0"
-        })
-        .and_then(|s| s.set_broadcast(true).map(|()| s))
-        .map_err(|source| ServerError::Beacon { target, source })?;
-        let text = beacon_text(beacon_url_addr(addr, target), &config.channel);
-        let stop = stop.clone();
-        let log = log.clone();
-        log(&format!("beacon to {target} every 3 s"));
-        threads.push(
-            thread::Builder::new()
-                .name("vbus-beacon".into())
-                .spawn(move || {
-                    let mut next = Instant::now();
-                    while !stop.load(Ordering::SeqCst) {
-                        if Instant::now() >= next {
-                            if let Err(e) = socket.send_to(text.as_bytes(), target) {
-                                log(&format!("beacon to {target}: {e}"));
-                            }
-                            next += BEACON_EVERY;
-                        }
-                        thread::sleep(Duration::from_millis(50));
-                    }
-                })
-                .map_err(ServerError::Thread)?,
-        );
-    }
+    let thread = thread::Builder::new()
+        .name("vbus".into())
+        .spawn(move || server.run())
+        .map_err(ServerError::Io)?;
     Ok(ServerHandle {
         addr,
         stop,
-        threads,
+        waker,
+        jobs: jobs_tx,
+        lag,
+        thread: Some(thread),
     })
 }
-
-/// How long frames wait after the rawmode `< ok >` (see `writer`).
-const RAW_HOLD: Duration = Duration::from_millis(50);
 
 /// socketcand sends its beacon about every 3 s.
 const BEACON_EVERY: Duration = Duration::from_secs(3);
@@ -312,182 +315,538 @@ pub fn beacon_text(addr: SocketAddr, channel: &str) -> String {
     )
 }
 
-/// Kernel send buffer per client (the kernel doubles it): a few thousand frames.
+struct Beacon {
+    socket: UdpSocket,
+    target: SocketAddr,
+    text: String,
+    next: Instant,
+}
+
+/// Kernel send buffer per client (the kernel doubles it): a few thousand frames, so the
+/// per-client queue is what decides when its frames are dropped.
 const SEND_BUFFER: usize = 32 * 1024;
+/// While frames are on the wire, the loop wakes at least this often (wall clock).
+pub const BUSY_SLICE: Duration = Duration::from_micros(100);
+/// The longest wall time spent simulating before the loop looks at the clients again (it
+/// matters when the host cannot keep up).
+const MAX_RUN: Duration = Duration::from_millis(2);
+/// Elements handled per client per loop turn, so one client cannot starve the others or the
+/// bus.
+const ACTIONS_PER_TURN: usize = 256;
+/// Virtual time this far behind the wall clock, after catching up, means clients see frames
+/// late: worth a warning.
+pub const LAG_WARNING: Duration = Duration::from_millis(50);
+/// While the lag lasts, a summary at most this often.
+const LAG_SUMMARY_EVERY: Duration = Duration::from_secs(60);
+/// How often the bus's load is summarised (only when something changed).
+const SUMMARY_EVERY: Duration = Duration::from_secs(5);
 
-/// Longest stretch simulated without looking at clients (bit-times = bitrate / this).
-const SLICES_PER_SECOND: u64 = 2000;
-/// Virtual time more than this behind the wall clock is reported.
-const LAG_REPORT: Duration = Duration::from_millis(20);
-
-/// One client's queues on the bus thread.
-struct Link {
-    number: u32,
-    out: SyncSender<Out>,
-    frames: Receiver<Frame>,
+struct Client {
+    stream: TcpStream,
+    peer: SocketAddr,
+    session: Session,
+    /// Readiness not used up yet (mio is edge-triggered).
+    readable: bool,
+    writable: bool,
+    /// The peer closed or the socket failed: the node leaves at once.
+    gone: bool,
+    /// A frame the node's full queue could not take yet.
+    backlog: Option<buslab_can::Frame>,
+    /// `< buslab_flush >`: answered once the node has done this many frames.
+    flush: Option<u64>,
     dropped_reported: u64,
 }
 
-fn run_bus(
-    mut bus: VirtualBus,
-    control: Receiver<Control>,
-    stop: Arc<AtomicBool>,
-    log: Arc<dyn Fn(&str) + Send + Sync>,
+#[derive(Default)]
+struct LagState {
+    /// When the current stretch of lag started.
+    since: Option<Instant>,
+    warned: bool,
+    last_summary: Option<Instant>,
+    worst_in_stretch: Duration,
+}
+
+struct Server {
+    poll: Poll,
+    listener: TcpListener,
+    clients: Vec<Option<Client>>,
+    open: usize,
+    bus: VirtualBus,
+    session_config: SessionConfig,
+    max_connections: usize,
     speed: f64,
-) {
-    let bitrate = bus.bitrate() as f64;
-    let start = Instant::now();
-    let unix0 = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .unwrap_or_default()
-        .as_nanos();
-    let slice = (bus.bitrate() as u64 / SLICES_PER_SECOND).max(1);
-    let mut links: Vec<Link> = Vec::new();
-    let mut last_lag_report = Instant::now() - Duration::from_secs(10);
-    let mut max_lag = Duration::ZERO;
-    let mut last_summary = Instant::now();
-    let mut last_frames = 0u64;
-    while !stop.load(Ordering::SeqCst) {
-        // Clients first, so their frames start as soon as possible.
-        while let Ok(c) = control.try_recv() {
-            handle_control(&mut bus, &mut links, c);
-        }
-        for link in &links {
-            if let Ok(node) = bus.node_mut(&NodeRef::Number(link.number)) {
-                while node.tx.len() < TX_QUEUE {
-                    match link.frames.try_recv() {
-                        Ok(f) => node.tx.push_back(f),
-                        Err(_) => break,
+    jobs: Receiver<Job>,
+    stop: Arc<AtomicBool>,
+    lag: Arc<Mutex<Lag>>,
+    beacon: Option<Beacon>,
+    epoch: Instant,
+    unix0: u128,
+    lag_state: LagState,
+    last_summary: Instant,
+    summarised: (u64, u64),
+}
+
+impl Server {
+    fn run(mut self) {
+        let mut events = Events::with_capacity(256);
+        while !self.stop.load(Ordering::SeqCst) {
+            while let Ok(job) = self.jobs.try_recv() {
+                job(&mut self.bus);
+            }
+            let busy_io = self.serve_clients();
+            self.advance_bus();
+            self.deliver();
+            self.flush_all();
+            self.reap();
+            self.housekeeping();
+            let timeout = if busy_io {
+                Some(Duration::ZERO)
+            } else {
+                self.sleep_for()
+            };
+            if let Err(e) = self.poll.poll(&mut events, timeout)
+                && e.kind() != io::ErrorKind::Interrupted
+            {
+                warn!("the server's event loop failed: {e}");
+                break;
+            }
+            for event in events.iter() {
+                match event.token() {
+                    LISTENER => self.accept(),
+                    WAKER => {}
+                    Token(t) => {
+                        if let Some(Some(c)) = self.clients.get_mut(t - FIRST_CLIENT) {
+                            c.readable |= event.is_readable();
+                            c.writable |= event.is_writable();
+                            c.gone |= event.is_read_closed() || event.is_error();
+                            if event.is_write_closed() {
+                                c.gone = true;
+                            }
+                        }
                     }
                 }
             }
         }
-        let elapsed = start.elapsed();
-        let target = (elapsed.as_secs_f64() * speed * bitrate) as u64;
-        let now = bus.now();
-        if target > now {
-            let behind = Duration::from_secs_f64((target - now) as f64 / bitrate / speed);
-            if behind > LAG_REPORT {
-                max_lag = max_lag.max(behind);
-                if last_lag_report.elapsed() >= Duration::from_secs(1) {
-                    log(&format!(
-                        "warning: the host is too slow: virtual time is {:.1} ms behind the wall clock (worst {:.1} ms)",
-                        behind.as_secs_f64() * 1e3,
-                        max_lag.as_secs_f64() * 1e3
-                    ));
-                    last_lag_report = Instant::now();
-                }
-            }
-            bus.run_until(target.min(now + slice));
-            deliver(&mut bus, &mut links, unix0, &*log);
-            for line in bus.take_log() {
-                log(&line);
-            }
-        } else {
-            // Ahead of nothing: wait for a client or for the next slice of wall time.
-            let wait = Duration::from_secs_f64(slice as f64 / bitrate / speed);
-            match control.recv_timeout(wait) {
-                Ok(c) => handle_control(&mut bus, &mut links, c),
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => break,
+        for slot in self.clients.iter_mut() {
+            if let Some(c) = slot.take()
+                && let Some(n) = c.session.node()
+            {
+                self.bus.leave(n);
             }
         }
-        if last_summary.elapsed() >= Duration::from_secs(5) {
-            let load = bus.load();
-            if load.frames != last_frames || load.errors > 0 {
-                let mut line = format!(
-                    "bus: load {:.1} % (last second), {} frames/s, {} frames, {} bus errors",
-                    load.last_second_percent(),
-                    load.frames_last_second(),
-                    load.frames,
-                    load.errors
-                );
-                for n in bus.nodes() {
-                    line.push_str(&format!(
-                        "; {} {} {}",
-                        n.number,
-                        n.name,
-                        crate::bus::state_word(n.state())
-                    ));
-                }
-                log(&line);
-                last_frames = load.frames;
-            }
-            last_summary = Instant::now();
+        self.log_bus_events();
+        let lag = *lock(&self.lag);
+        if lag.worst >= LAG_WARNING {
+            warn!(
+                "the host was too slow: virtual time fell up to {} ms behind the wall clock, for {:.1} s in all",
+                lag.worst.as_millis(),
+                lag.behind_for.as_secs_f64()
+            );
         }
     }
-}
 
-/// Virtual bit-time → Unix time for frame timestamps.
-fn stamp(unix0: u128, time: u64, bitrate: u32) -> Timestamp {
-    Timestamp::from_nanos(unix0 + time as u128 * 1_000_000_000 / bitrate as u128)
-}
+    /// Nanoseconds since the server started (the sessions' clock).
+    fn now_ns(&self) -> u64 {
+        self.epoch.elapsed().as_nanos() as u64
+    }
 
-/// Moves received frames to the clients' writer queues; a full queue loses the frame for
-/// that client only.
-fn deliver(bus: &mut VirtualBus, links: &mut [Link], unix0: u128, log: &dyn Fn(&str)) {
-    let bitrate = bus.bitrate();
-    for link in links.iter_mut() {
-        let Ok(node) = bus.node_mut(&NodeRef::Number(link.number)) else {
-            continue;
-        };
-        for e in node.errors.drain(..) {
-            match link
-                .out
-                .try_send(Out::ErrorFrame(e.class, stamp(unix0, e.time, bitrate)))
-            {
-                Ok(()) => {}
-                Err(TrySendError::Full(_)) => node.counters.rx_lost += 1,
-                Err(TrySendError::Disconnected(_)) => {}
+    /// The bit-time the bus should have reached by now.
+    fn target_bits(&self) -> u64 {
+        let bits = self.epoch.elapsed().as_secs_f64() * self.speed * self.bus.bitrate() as f64;
+        bits as u64
+    }
+
+    fn bits_to_wall(&self, bits: u64) -> Duration {
+        Duration::from_secs_f64(bits as f64 / self.bus.bitrate() as f64 / self.speed)
+    }
+
+    /// Runs the bus up to the wall clock, at most [`MAX_RUN`] of wall time's worth at once so
+    /// clients keep being served when the host is slow; records the lag.
+    fn advance_bus(&mut self) {
+        let started = Instant::now();
+        // Busy bus time is simulated in chunks of this many bit-times, so the wall time spent
+        // is checked often enough; idle bus time is skipped in one go.
+        let chunk = (self.bus.bitrate() as u64 / 2000).max(1);
+        loop {
+            let target = self.target_bits();
+            let now = self.bus.now();
+            if now >= target || started.elapsed() >= MAX_RUN {
+                break;
             }
+            self.bus.run_until(target.min(now + chunk));
         }
-        for d in node.rx.drain(..) {
-            match link
-                .out
-                .try_send(Out::Frame(d.frame, stamp(unix0, d.time, bitrate)))
-            {
-                Ok(()) => {}
-                Err(TrySendError::Full(_)) => node.counters.rx_lost += 1,
-                Err(TrySendError::Disconnected(_)) => {}
+        let behind = self.bits_to_wall(self.target_bits().saturating_sub(self.bus.now()));
+        self.track_lag(behind);
+    }
+
+    fn track_lag(&mut self, behind: Duration) {
+        let now = Instant::now();
+        let mut lag = lock(&self.lag);
+        lag.worst = lag.worst.max(behind);
+        let state = &mut self.lag_state;
+        if behind < LAG_WARNING {
+            if let Some(since) = state.since.take() {
+                lag.behind_for += now - since;
             }
+            return;
         }
-        let lost = node.counters.rx_lost;
-        if lost > link.dropped_reported
-            && (link.dropped_reported == 0 || lost >= link.dropped_reported * 2)
+        state.worst_in_stretch = state.worst_in_stretch.max(behind);
+        let since = *state.since.get_or_insert(now);
+        if !state.warned {
+            state.warned = true;
+            state.last_summary = Some(now);
+            warn!(
+                "the host is too slow: virtual time is {} ms behind the wall clock, so clients get frames late (said once; a summary follows while it lasts)",
+                behind.as_millis()
+            );
+        } else if state
+            .last_summary
+            .is_none_or(|t| now - t >= LAG_SUMMARY_EVERY)
         {
-            log(&format!(
-                "node {} ({}): the client does not keep up: {lost} frames dropped for it so far",
-                node.number, node.name
-            ));
-            link.dropped_reported = lost;
+            state.last_summary = Some(now);
+            warn!(
+                "the host is still too slow: up to {} ms behind for the last {:.0} s",
+                state.worst_in_stretch.as_millis(),
+                (now - since).as_secs_f64()
+            );
+            state.worst_in_stretch = Duration::ZERO;
         }
     }
-}
 
-fn handle_control(bus: &mut VirtualBus, links: &mut Vec<Link>, control: Control) {
-    match control {
-        Control::Join { out, frames, reply } => {
-            let r = bus.join();
-            if let Ok(number) = r {
-                links.push(Link {
-                    number,
-                    out,
-                    frames,
-                    dropped_reported: 0,
+    /// How long the loop may sleep: until the bus has something to do, a session's timer, the
+    /// beacon, or (frames on the wire) one [`BUSY_SLICE`].
+    fn sleep_for(&self) -> Option<Duration> {
+        let mut wait = if self.bus.is_idle() {
+            let next = self.bus.next_activity();
+            let wall_of_next = self.bits_to_wall(next.saturating_sub(self.bus.now()));
+            // The bus is at the wall clock: sleep until its next activity.
+            Some(wall_of_next)
+        } else {
+            Some(BUSY_SLICE)
+        };
+        let now_ns = self.now_ns();
+        for c in self.clients.iter().flatten() {
+            if let Some(d) = c.session.next_deadline() {
+                let d = Duration::from_nanos(d.saturating_sub(now_ns));
+                wait = Some(wait.map_or(d, |w| w.min(d)));
+            }
+            if c.backlog.is_some() || c.flush.is_some() {
+                wait = Some(wait.map_or(BUSY_SLICE, |w| w.min(BUSY_SLICE)));
+            }
+        }
+        if let Some(b) = &self.beacon {
+            let d = b.next.saturating_duration_since(Instant::now());
+            wait = Some(wait.map_or(d, |w| w.min(d)));
+        }
+        // The bus's statistics window closes every virtual second.
+        let second = self.bits_to_wall(self.bus.bitrate() as u64);
+        wait.map(|w| w.min(second).min(SUMMARY_EVERY))
+    }
+
+    fn accept(&mut self) {
+        loop {
+            let (mut stream, peer) = match self.listener.accept() {
+                Ok(s) => s,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    // Out of file descriptors and the like: try again at the next event.
+                    debug!("accept failed: {e}");
+                    return;
+                }
+            };
+            if self.open >= self.max_connections {
+                let refusal = ServerMessage::Error(format!(
+                    "too many connections ({} open); try again later",
+                    self.max_connections
+                ));
+                let _ = stream.write(refusal.to_string().as_bytes());
+                debug!("refused {peer}: {} connections open", self.open);
+                continue;
+            }
+            let _ = stream.set_nodelay(true);
+            let _ = nix::sys::socket::setsockopt(
+                &stream,
+                nix::sys::socket::sockopt::SndBuf,
+                &SEND_BUFFER,
+            );
+            let slot = match self.clients.iter().position(Option::is_none) {
+                Some(i) => i,
+                None => {
+                    self.clients.push(None);
+                    self.clients.len() - 1
+                }
+            };
+            if let Err(e) = self.poll.registry().register(
+                &mut stream,
+                Token(FIRST_CLIENT + slot),
+                Interest::READABLE | Interest::WRITABLE,
+            ) {
+                debug!("cannot watch {peer}: {e}");
+                continue;
+            }
+            let session = Session::new(self.session_config.clone(), self.now_ns());
+            self.clients[slot] = Some(Client {
+                stream,
+                peer,
+                session,
+                readable: true,
+                writable: true,
+                gone: false,
+                backlog: None,
+                flush: None,
+                dropped_reported: 0,
+            });
+            self.open += 1;
+            debug!("{peer} connected");
+        }
+    }
+
+    /// Reads what clients sent and carries out their sessions' actions. Returns whether some
+    /// client still has work ready (its turn's budget ran out).
+    fn serve_clients(&mut self) -> bool {
+        let mut more = false;
+        let now_ns = self.now_ns();
+        for slot in 0..self.clients.len() {
+            let Some(mut c) = self.clients[slot].take() else {
+                continue;
+            };
+            if let Some(action) = c.session.handle_timeout(now_ns) {
+                self.act(&mut c, action);
+            }
+            more |= self.serve(&mut c);
+            self.clients[slot] = Some(c);
+        }
+        more
+    }
+
+    fn serve(&mut self, c: &mut Client) -> bool {
+        let mut buf = [0u8; 16 * 1024];
+        let mut budget = ACTIONS_PER_TURN;
+        loop {
+            // A frame waiting for room in the node's queue holds up everything behind it.
+            if let Some(frame) = c.backlog.take()
+                && !self.submit(c, frame)
+            {
+                return false;
+            }
+            while budget > 0 {
+                let Some(action) = c.session.poll_action() else {
+                    break;
+                };
+                budget -= 1;
+                self.act(c, action);
+                if c.backlog.is_some() {
+                    return false;
+                }
+            }
+            if budget == 0 {
+                return true;
+            }
+            if !(c.readable && c.session.wants_input() && !c.gone) {
+                return false;
+            }
+            match c.stream.read(&mut buf) {
+                Ok(0) => {
+                    c.gone = true;
+                    return false;
+                }
+                Ok(n) => c.session.receive(&buf[..n]),
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    c.readable = false;
+                    return false;
+                }
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(_) => {
+                    c.gone = true;
+                    return false;
+                }
+            }
+        }
+    }
+
+    /// Hands a client's frame to its node; `false` (frame kept back) when the queue is full.
+    fn submit(&mut self, c: &mut Client, frame: buslab_can::Frame) -> bool {
+        let Some(number) = c.session.node() else {
+            return true;
+        };
+        match self.bus.client_mut(number).map(|n| n.submit(frame)) {
+            Ok(Ok(())) | Err(_) => true,
+            Ok(Err(frame)) => {
+                c.backlog = Some(frame);
+                false
+            }
+        }
+    }
+
+    fn act(&mut self, c: &mut Client, action: Action) {
+        match action {
+            Action::Join => {
+                let result = self.bus.join().map_err(|e| e.to_string());
+                if let Ok(number) = result {
+                    info!("client {} is node {number}", c.peer);
+                }
+                if let Some(Action::Close) = c.session.joined(result) {
+                    // The session closes itself once its last words are written.
+                }
+            }
+            Action::Send(frame) => {
+                self.submit(c, frame);
+            }
+            Action::Request(command) => {
+                let Some(me) = c.session.node() else {
+                    c.session.reply(&ServerMessage::Error(
+                        "open a bus first: < open BUS >".into(),
+                    ));
+                    return;
+                };
+                match command {
+                    Command::Flush => match self.bus.client_mut(me) {
+                        Ok(node) => c.flush = Some(node.submitted()),
+                        Err(e) => c.session.reply(&ServerMessage::Error(e.to_string())),
+                    },
+                    other => {
+                        let reply = answer(&mut self.bus, me, other);
+                        c.session.reply(&reply);
+                    }
+                }
+            }
+            Action::Close => {}
+        }
+    }
+
+    /// Moves frames and error frames from the client nodes to their sessions, and answers
+    /// flushes whose frames are done.
+    fn deliver(&mut self) {
+        let bitrate = self.bus.bitrate() as u128;
+        let unix0 = self.unix0;
+        let stamp =
+            |time: u64| Timestamp::from_nanos(unix0 + time as u128 * 1_000_000_000 / bitrate);
+        let now_ns = self.now_ns();
+        for c in self.clients.iter_mut().flatten() {
+            let Some(number) = c.session.node() else {
+                continue;
+            };
+            let Ok(node) = self.bus.client_mut(number) else {
+                continue;
+            };
+            let mut lost = 0;
+            for e in node.take_error_frames() {
+                lost += !c
+                    .session
+                    .deliver_error_frame(e.class, stamp(e.time), now_ns)
+                    as u64;
+            }
+            for d in node.take_deliveries() {
+                lost += !c.session.deliver_frame(&d.frame, stamp(d.time), now_ns) as u64;
+            }
+            node.counters.rx_lost += lost;
+            if let Some(target) = c.flush
+                && node.done() >= target
+            {
+                c.flush = None;
+                c.session.reply(&ServerMessage::Other {
+                    name: "buslab_flushed".into(),
+                    args: vec![
+                        node.counters.sent.to_string(),
+                        node.counters.tx_failed.to_string(),
+                    ],
                 });
             }
-            let _ = reply.send(r.map_err(|e| e.to_string()));
+            let lost = node.counters.rx_lost;
+            if lost > c.dropped_reported
+                && (c.dropped_reported == 0 || lost >= c.dropped_reported * 2)
+            {
+                warn!(
+                    "node {number} ({}): the client does not keep up: {lost} frames dropped for it so far",
+                    c.peer
+                );
+                c.dropped_reported = lost;
+            }
         }
-        Control::Leave(number) => {
-            bus.leave(number);
-            links.retain(|l| l.number != number);
+    }
+
+    fn flush_all(&mut self) {
+        let now_ns = self.now_ns();
+        for c in self.clients.iter_mut().flatten() {
+            while c.writable && c.session.has_output() && !c.gone {
+                let (a, b) = c.session.output();
+                let first = if a.is_empty() { b } else { a };
+                match c.stream.write(first) {
+                    Ok(0) => c.gone = true,
+                    Ok(n) => c.session.consumed(n, now_ns),
+                    Err(e) if e.kind() == io::ErrorKind::WouldBlock => c.writable = false,
+                    Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                    Err(_) => c.gone = true,
+                }
+            }
         }
-        Control::Request {
-            node,
-            command,
-            reply,
-        } => {
-            let _ = reply.send(answer(bus, node, command));
+    }
+
+    /// Drops connections that are over: the peer left (its node leaves at once, queued frames
+    /// and all), or the session closed and its last words are out.
+    fn reap(&mut self) {
+        for slot in self.clients.iter_mut() {
+            let over = slot
+                .as_ref()
+                .is_some_and(|c| c.gone || (c.session.is_closing() && !c.session.has_output()));
+            if !over {
+                continue;
+            }
+            let Some(mut c) = slot.take() else { continue };
+            let _ = self.poll.registry().deregister(&mut c.stream);
+            let _ = c.stream.shutdown(std::net::Shutdown::Both);
+            self.open -= 1;
+            match c.session.node() {
+                Some(number) => {
+                    self.bus.leave(number);
+                    info!("client {} (node {number}) disconnected", c.peer);
+                }
+                None => debug!("{} disconnected", c.peer),
+            }
+        }
+    }
+
+    /// The beacon, the bus's log, the periodic summary.
+    fn housekeeping(&mut self) {
+        if let Some(b) = &mut self.beacon {
+            let now = Instant::now();
+            if now >= b.next {
+                if let Err(e) = b.socket.send_to(b.text.as_bytes(), b.target) {
+                    debug!("beacon to {}: {e}", b.target);
+                }
+                b.next = now + BEACON_EVERY;
+            }
+        }
+        self.log_bus_events();
+        if self.last_summary.elapsed() >= SUMMARY_EVERY {
+            self.last_summary = Instant::now();
+            let stats = *self.bus.stats();
+            if (stats.frames, stats.errors) != self.summarised {
+                self.summarised = (stats.frames, stats.errors);
+                let last = self.bus.last_second();
+                info!(
+                    "bus: load {:.1} % (last second), {} frames/s, {} frames, {} errors",
+                    100.0 * last.load(),
+                    last.frames,
+                    stats.frames,
+                    stats.errors
+                );
+            }
+        }
+    }
+
+    fn log_bus_events(&mut self) {
+        let bitrate = self.bus.bitrate() as f64;
+        for (time, event) in self.bus.take_events() {
+            let t = time as f64 / bitrate;
+            if event.is_warning() {
+                warn!("({t:.6}) {event}");
+            } else if matches!(event, BusEvent::Node { .. }) {
+                debug!("({t:.6}) {event}");
+            } else {
+                info!("({t:.6}) {event}");
+            }
         }
     }
 }
@@ -497,15 +856,12 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
     let own = NodeRef::Number(me);
     let result: Result<ServerMessage, VbusError> = match command {
         Command::Name(name) => bus.rename(me, &name).map(|()| ServerMessage::Ok),
-        Command::ReceiveOwn(on) => bus.node_mut(&own).map(|n| {
+        Command::ReceiveOwn(on) => bus.client_mut(me).map(|n| {
             n.receive_own = on;
             ServerMessage::Ok
         }),
-        Command::ErrorFrames(on) => bus.node_mut(&own).map(|n| {
-            n.error_frames = on;
-            if !on {
-                n.errors.clear();
-            }
+        Command::ErrorFrames(on) => bus.client_mut(me).map(|n| {
+            n.set_error_frames(on);
             ServerMessage::Ok
         }),
         Command::Btr { btr0, btr1 } => bus.set_btr(me, btr0, btr1).map(|()| ServerMessage::Ok),
@@ -519,42 +875,16 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
         }),
         Command::Status(node) => {
             bus.status(node.as_ref().unwrap_or(&own))
-                .map(|(number, name, fields)| {
-                    let mut args = vec![number.to_string(), name];
-                    args.extend(fields.into_iter().map(|(k, v)| format!("{k}={v}")));
-                    ServerMessage::Other {
-                        name: "buslab_status".into(),
-                        args,
-                    }
+                .map(|status| ServerMessage::Other {
+                    name: "buslab_status".into(),
+                    args: status_args(&status),
                 })
         }
         Command::Regs(node) => {
             bus.regs(node.as_ref().unwrap_or(&own))
-                .map(|(number, name, dump)| {
-                    let mut args = vec![
-                        number.to_string(),
-                        name,
-                        match dump.mode {
-                            CanMode::Peli => "peli",
-                            CanMode::Basic => "basic",
-                        }
-                        .into(),
-                        if dump.reset_mode {
-                            "reset"
-                        } else {
-                            "operating"
-                        }
-                        .into(),
-                    ];
-                    args.extend(
-                        dump.values
-                            .iter()
-                            .map(|v| v.map_or("--".to_string(), |v| format!("{v:02X}"))),
-                    );
-                    ServerMessage::Other {
-                        name: "buslab_regs".into(),
-                        args,
-                    }
+                .map(|regs| ServerMessage::Other {
+                    name: "buslab_regs".into(),
+                    args: regs_args(&regs),
                 })
         }
         other => Ok(ServerMessage::Error(format!(
@@ -564,207 +894,73 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
     result.unwrap_or_else(|e| ServerMessage::Error(e.to_string()))
 }
 
-/// Where a client is in socketcand's state machine.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Mode {
-    NoBus,
-    Bcm,
-    Raw,
+/// `buslab_status`'s arguments: number, name, then `key=value` fields (docs/bus.md).
+fn status_args(s: &NodeStatus) -> Vec<String> {
+    let mut args = vec![s.number.to_string(), s.name.clone()];
+    let mut put = |k: &str, v: String| args.push(format!("{k}={v}"));
+    put("state", s.state.to_string());
+    if let Some(sr) = s.sr {
+        put("sr", format!("{:02X}", sr.0));
+    }
+    put("txerr", s.errors.txerr.to_string());
+    put("rxerr", s.errors.rxerr.to_string());
+    if let Some(alc) = s.errors.alc {
+        put("alc", format!("{:02X}", alc.0));
+    }
+    if let Some(ecc) = s.errors.ecc {
+        put("ecc", format!("{:02X}", ecc.0));
+    }
+    if let Some(t) = s.timing {
+        put("btr0", format!("{:02X}", t.btr0));
+        put("btr1", format!("{:02X}", t.btr1));
+        put("bitrate", t.bitrate.to_string());
+    }
+    put("bus_bitrate", s.bus.bitrate.to_string());
+    if let Some(t) = s.timing {
+        put(
+            "timing",
+            if t.matches_bus { "ok" } else { "mismatch" }.to_string(),
+        );
+    }
+    let c = s.counters;
+    put("sent", c.sent.to_string());
+    put("received", c.received.to_string());
+    put("tx_failed", c.tx_failed.to_string());
+    put("bus_errors", c.bus_errors.to_string());
+    put("arbitration_lost", c.arbitration_lost.to_string());
+    put("overruns", c.overruns.to_string());
+    put("bus_off", c.bus_off.to_string());
+    put("rx_lost", c.rx_lost.to_string());
+    put("tx_queued", s.tx_queued.to_string());
+    put("bus_load", format!("{:.1}%", s.bus.load_percent));
+    put("bus_frames", s.bus.frames.to_string());
+    put("bus_errors_total", s.bus.errors.to_string());
+    args
 }
 
-/// One client: the reader loop (this thread) and a writer thread.
-fn session(
-    stream: TcpStream,
-    control: Sender<Control>,
-    channel: String,
-    queue: usize,
-    log: Arc<dyn Fn(&str) + Send + Sync>,
-) {
-    let peer = stream
-        .peer_addr()
-        .map_or_else(|_| "?".to_string(), |a| a.to_string());
-    let _ = stream.set_nodelay(true);
-    // Bound what the kernel holds for a client that does not read, so the per-client queue is
-    // what decides when its frames are dropped (not megabytes of socket buffer).
-    let _ = nix::sys::socket::setsockopt(&stream, nix::sys::socket::sockopt::SndBuf, &SEND_BUFFER);
-    let (out_tx, out_rx) = mpsc::sync_channel::<Out>(queue.max(16));
-    let Ok(write_half) = stream.try_clone() else {
-        return;
-    };
-    let writer = thread::spawn(move || writer(write_half, out_rx));
-    let _ = out_tx.send(Out::Text(ServerMessage::Hi.to_string()));
-    let mut reader = stream;
-    let mut deframer = Deframer::new();
-    let mut buf = [0u8; 16 * 1024];
-    let mut mode = Mode::NoBus;
-    let mut node: Option<(u32, SyncSender<Frame>)> = None;
-    let reply = |msg: ServerMessage| {
-        let _ = out_tx.send(Out::Text(msg.to_string()));
-    };
-    'conn: loop {
-        let n = match reader.read(&mut buf) {
-            Ok(0) | Err(_) => break,
-            Ok(n) => n,
-        };
-        deframer.push(&buf[..n]);
-        while let Some(element) = deframer.next_element() {
-            let element = match element {
-                Ok(e) => e,
-                Err(e) => {
-                    reply(ServerMessage::Error(e.to_string()));
-                    continue;
-                }
-            };
-            let command = match Command::parse(&element) {
-                Ok(c) => c,
-                Err(e) => {
-                    reply(ServerMessage::Error(e.to_string()));
-                    continue;
-                }
-            };
-            match (mode, command) {
-                (_, Command::Echo) => reply(ServerMessage::Echo),
-                (Mode::NoBus, Command::Open(bus)) => {
-                    if bus != channel {
-                        // As socketcand: refuse and close.
-                        reply(ServerMessage::Error("could not open bus".into()));
-                        break 'conn;
-                    }
-                    let (frames_tx, frames_rx) = mpsc::sync_channel(TX_QUEUE);
-                    let (r_tx, r_rx) = mpsc::channel();
-                    let joined = control
-                        .send(Control::Join {
-                            out: out_tx.clone(),
-                            frames: frames_rx,
-                            reply: r_tx,
-                        })
-                        .ok()
-                        .and_then(|()| r_rx.recv().ok());
-                    match joined {
-                        Some(Ok(number)) => {
-                            node = Some((number, frames_tx));
-                            mode = Mode::Bcm;
-                            log(&format!("client {peer} is node {number}"));
-                            reply(ServerMessage::Ok);
-                        }
-                        Some(Err(e)) => {
-                            reply(ServerMessage::Error(e));
-                            break 'conn;
-                        }
-                        None => break 'conn,
-                    }
-                }
-                (Mode::NoBus, _) => reply(ServerMessage::Error(
-                    "open a bus first: < open BUS >".into(),
-                )),
-                (Mode::Bcm, Command::RawMode) => {
-                    mode = Mode::Raw;
-                    reply(ServerMessage::Ok);
-                    let _ = out_tx.send(Out::Raw(true));
-                }
-                (Mode::Raw, Command::RawMode) => {
-                    reply(ServerMessage::Error("already in raw mode".into()))
-                }
-                (_, Command::Open(_)) => reply(ServerMessage::Error(
-                    "a bus is already open on this connection".into(),
-                )),
-                (_, Command::BcmMode | Command::ControlMode | Command::IsotpMode) => reply(
-                    ServerMessage::Error("buslab serves raw mode only (send rawmode)".into()),
-                ),
-                (_, Command::Unsupported { name, .. }) => reply(ServerMessage::Error(format!(
-                    "{name} is not supported by buslab (raw mode only)"
-                ))),
-                (_, Command::Send(frame)) => {
-                    if let Some((_, frames)) = &node {
-                        // Blocks when the node's queue is full: only this client waits
-                        // (TCP pushes back on it), the bus goes on.
-                        if frames.send(frame).is_err() {
-                            break 'conn;
-                        }
-                    }
-                }
-                (_, Command::Extensions) => {
-                    let _ = out_tx.send(Out::Extensions);
-                    reply(ServerMessage::Ok);
-                }
-                (_, command) => {
-                    let Some((number, _)) = &node else { continue };
-                    let (r_tx, r_rx) = mpsc::channel();
-                    if control
-                        .send(Control::Request {
-                            node: *number,
-                            command,
-                            reply: r_tx,
-                        })
-                        .is_err()
-                    {
-                        break 'conn;
-                    }
-                    match r_rx.recv() {
-                        Ok(msg) => reply(msg),
-                        Err(_) => break 'conn,
-                    }
-                }
-            }
+/// `buslab_regs`'s arguments: number, name, mode, reset|operating, every value (`--` where
+/// not readable).
+fn regs_args(r: &NodeRegisters) -> Vec<String> {
+    let mut args = vec![
+        r.number.to_string(),
+        r.name.clone(),
+        match r.dump.mode {
+            CanMode::Peli => "peli",
+            CanMode::Basic => "basic",
         }
-    }
-    if let Some((number, _)) = node {
-        let _ = control.send(Control::Leave(number));
-        log(&format!("client {peer} (node {number}) disconnected"));
-    }
-    // The writer sends what is queued (e.g. the last error), then the connection closes.
-    drop(out_tx);
-    let _ = writer.join();
-    let _ = reader.shutdown(Shutdown::Both);
-}
-
-/// Writes everything queued for one client, batching what is already waiting.
-fn writer(mut stream: TcpStream, out: Receiver<Out>) {
-    let mut raw = false;
-    let mut remote_as_r = false;
-    let mut text = String::with_capacity(64 * 1024);
-    while let Ok(first) = out.recv() {
-        text.clear();
-        let mut item = Some(first);
-        while let Some(o) = item.take() {
-            match o {
-                Out::Text(t) => {
-                    // Handshake replies go out alone: python-can compares each whole recv.
-                    if !text.is_empty() {
-                        if stream.write_all(text.as_bytes()).is_err() {
-                            return;
-                        }
-                        text.clear();
-                    }
-                    if stream.write_all(t.as_bytes()).is_err() {
-                        return;
-                    }
-                }
-                Out::Raw(on) => {
-                    raw = on;
-                    // python-can reads the rawmode `< ok >` with one recv() and compares it
-                    // whole: frames must not share that read. They wait in the queue.
-                    thread::sleep(RAW_HOLD);
-                }
-                Out::Extensions => remote_as_r = true,
-                Out::Frame(frame, ts) => {
-                    if raw {
-                        let _ = format_frame(&mut text, &frame, ts, remote_as_r);
-                    }
-                }
-                Out::ErrorFrame(class, ts) => {
-                    if raw {
-                        // Raw mode's layout: the class, the time, no data (socketcand -e).
-                        let _ = write!(text, "< error {class:03X} {ts} >");
-                    }
-                }
-            }
-            if text.len() < 60 * 1024 {
-                item = out.try_recv().ok();
-            }
+        .into(),
+        if r.dump.reset_mode {
+            "reset"
+        } else {
+            "operating"
         }
-        if !text.is_empty() && stream.write_all(text.as_bytes()).is_err() {
-            return;
-        }
-    }
+        .into(),
+    ];
+    args.extend(
+        r.dump
+            .values
+            .iter()
+            .map(|v| v.map_or("--".to_string(), |v| format!("{v:02X}"))),
+    );
+    args
 }

@@ -2,7 +2,6 @@
 
 use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::sync::Arc;
 use std::time::Duration;
 
 use buslab_can::Frame;
@@ -15,7 +14,6 @@ const WAIT: Option<Duration> = Some(Duration::from_secs(5));
 fn server(bitrate: u32, queue: usize) -> ServerHandle {
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), bitrate);
     config.client_queue = queue;
-    config.log = Arc::new(|_| {});
     spawn(config).unwrap()
 }
 
@@ -278,33 +276,19 @@ fn registers_and_status_of_a_node_with_the_wrong_bit_timing() {
 
 #[test]
 fn a_host_that_cannot_keep_up_is_reported() {
-    let lines = Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 1_000_000);
     // A thousand times real time with traffic on the bus: no host keeps up.
     config.speed = 1000.0;
-    let sink = lines.clone();
-    config.log = Arc::new(move |l| sink.lock().unwrap().push(l.to_string()));
     let s = spawn(config).unwrap();
     let mut a = client(&s);
     let _b = client(&s);
     for _ in 0..2000 {
         a.send(&frame("123#0102030405060708")).unwrap();
     }
-    let mut found = None;
-    for _ in 0..500 {
-        found = lines
-            .lock()
-            .unwrap()
-            .iter()
-            .find(|l| l.contains("the host is too slow"))
-            .cloned();
-        if found.is_some() {
-            break;
-        }
+    // Waits for the event: the server measures its lag after catching up each turn.
+    while s.lag().worst < buslab_vbus::server::LAG_WARNING {
         std::thread::sleep(Duration::from_millis(10));
     }
-    let line = found.expect("a warning within 5 s");
-    assert!(line.contains("ms behind the wall clock"), "{line}");
     s.shutdown();
 }
 
@@ -344,7 +328,6 @@ fn error_frames_reach_clients_that_ask_for_them() {
 fn error_frames_for_everybody_in_socketcand_raw_layout() {
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
     config.error_frames = true;
-    config.log = Arc::new(|_| {});
     let s = spawn(config).unwrap();
     let mut t = raw(&s);
     t.write_all(b"< open vcan0 >< rawmode >").unwrap();
@@ -366,7 +349,6 @@ fn the_beacon_names_the_server_and_its_bus() {
     udp.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
     config.beacon = Some(udp.local_addr().unwrap());
-    config.log = Arc::new(|_| {});
     let s = spawn(config).unwrap();
     let mut buf = [0u8; 2048];
     let n = udp.recv(&mut buf).unwrap();
@@ -454,7 +436,6 @@ fn a_flood_of_connections_is_bounded_and_the_server_recovers() {
     // 660 MB before there was a bound.
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
     config.max_connections = 3;
-    config.log = Arc::new(|_| {});
     let s = spawn(config).unwrap();
     let mut held: Vec<TcpStream> = (0..3).map(|_| raw(&s)).collect();
     for t in &mut held {

@@ -288,7 +288,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let server = buslab_vbus::spawn(config)?;
     // The URL on stdout (tests and scripts read it when the port was 0).
     println!("socketcand://{}/{}", server.local_addr(), args.name);
-    eprintln!("Ctrl-C to stop");
+    tracing::info!("Ctrl-C to stop");
     while !stop.load(Ordering::SeqCst) {
         std::thread::sleep(Duration::from_millis(50));
     }

@@ -2,12 +2,12 @@
 //!
 //! The bench's CAN bus is a virtual bus server (`buslab bus serve` in-process): simulated
 //! nodes exchange periodic and bursty traffic on the bit-level wire, and any socketcand client
-//! (python-can, `buslab dump`) can join it. The lab itself joins with two clients: a monitor
-//! whose receptions are printed the way `candump` prints them, and a node sending a counter.
-//! Next to the bus, a ZELLE cell and a CPU196 board are served on pseudo-terminals
-//! ([`Devices`]).
+//! (python-can, `buslab dump`) can join it. The lab itself joins with a node sending a counter
+//! and, with `--frames`, a monitor whose receptions are printed the way `candump` prints them.
+//! By default a compact status line tells how the bench is doing. Next to the bus, a ZELLE cell
+//! and a CPU196 board are served on pseudo-terminals ([`Devices`]).
 
-use std::io::{self, Write};
+use std::io::{self, IsTerminal, Write};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -17,9 +17,10 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 use buslab_can::controller::ControllerConfig;
+use buslab_can::controller::ErrorState;
 use buslab_can::{Frame, Id};
 use buslab_canbus::CanBus;
-use buslab_sim::{BitTime, Simulation, Span, Traffic};
+use buslab_sim::{BitTime, Simulation, Traffic};
 use buslab_socketcand::SocketcandBus;
 use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
 
@@ -27,17 +28,21 @@ use super::dump::Candump;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Stop after this long (`2s`, `500ms`); default: run until Ctrl-C.
-    #[arg(long)]
-    pub duration: Option<Span>,
-    /// Bit rate of the simulated CAN bus.
+    /// Stop after this long (`2s`, `500ms`, `1h`); default: run until Ctrl-C.
+    #[arg(long, value_parser = crate::units::duration)]
+    pub duration: Option<Duration>,
+    /// Bit rate of the simulated CAN bus, in bit/s.
     #[arg(long, default_value_t = 500_000, value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
     pub bitrate: u32,
-    /// Seed of the simulation.
+    /// Seed of the simulation (its random faults and choices).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Prefix each frame with the time since the start, as `candump -t z`.
-    #[arg(short = 't', long)]
+    /// Print every frame on the bus to stdout, as candump does (by default only a status
+    /// line on stderr; `buslab dump` on the printed URL shows them too).
+    #[arg(long)]
+    pub frames: bool,
+    /// With --frames: prefix each frame with the time since the start, as `candump -t z`.
+    #[arg(short = 't', long, requires = "frames")]
     pub timestamps: bool,
     /// Where the bus server listens (socketcand); if the default port is taken, a free one is
     /// used. The URL is printed at start.
@@ -95,13 +100,19 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
         args.bitrate,
         names.join(", ")
     );
+    eprintln!("  watch it:   buslab dump --bus socketcand://{addr}/{CHANNEL}");
     if let Some(devices) = &devices {
         devices.describe();
     }
     eprintln!("Ctrl-C to stop");
 
     let counter = spawn_counter(addr, stop.clone())?;
-    let result = monitor(addr, &args, start_unix, &stop);
+    let end = args.duration.map(|d| Instant::now() + d);
+    let result = if args.frames {
+        monitor(addr, &args, end, start_unix, &stop)
+    } else {
+        status_lines(&server, end, &stop)
+    };
     stop.store(true, Ordering::SeqCst);
     let counted = counter.join();
     server.shutdown();
@@ -112,23 +123,97 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
     counted.map_err(|_| anyhow::anyhow!("the counter node panicked"))?
 }
 
-/// Prints what the monitor's node receives until `stop` or the end of `--duration`.
+/// How often the status line is refreshed on a terminal, and written as a new line otherwise.
+const STATUS_ON_TERMINAL: Duration = Duration::from_secs(1);
+const STATUS_IN_LOG: Duration = Duration::from_secs(10);
+
+/// The bench in one line (stderr) until `stop` or `end`: on a terminal updated in place every
+/// second, otherwise a new line every 10 s; and once more at the end.
+fn status_lines(
+    server: &ServerHandle,
+    end: Option<Instant>,
+    stop: &AtomicBool,
+) -> anyhow::Result<()> {
+    let terminal = io::stderr().is_terminal();
+    let every = if terminal {
+        STATUS_ON_TERMINAL
+    } else {
+        STATUS_IN_LOG
+    };
+    let mut next = Instant::now() + every;
+    while !stop.load(Ordering::SeqCst) && end.is_none_or(|e| Instant::now() < e) {
+        let wake = end.map_or(next, |e| e.min(next));
+        thread::sleep(
+            wake.saturating_duration_since(Instant::now())
+                .min(Duration::from_millis(100)),
+        );
+        if Instant::now() < next {
+            continue;
+        }
+        next += every;
+        let Some(line) = server.with_bus(status_line) else {
+            break;
+        };
+        let mut err = io::stderr().lock();
+        if terminal {
+            write!(err, "\r\x1b[2K{line}")?;
+        } else {
+            writeln!(err, "{line}")?;
+        }
+        err.flush()?;
+    }
+    // The last word, on its own line.
+    if let Some(line) = server.with_bus(status_line) {
+        let mut err = io::stderr().lock();
+        if terminal {
+            write!(err, "\r\x1b[2K")?;
+        }
+        writeln!(err, "{line}")?;
+    }
+    Ok(())
+}
+
+/// `bus: 23.4 % load, 812 frames/s, 5 nodes active, 0 errors; 12034 frames`.
+fn status_line(bus: &mut buslab_vbus::VirtualBus) -> String {
+    let last = bus.last_second();
+    let total = *bus.stats();
+    let nodes = bus.sim().nodes();
+    let count = |state| nodes.iter().filter(|n| n.state() == state).count();
+    let mut states = format!("{} active", count(ErrorState::Active));
+    for (state, word) in [
+        (ErrorState::Passive, "error-passive"),
+        (ErrorState::BusOff, "bus-off"),
+    ] {
+        let n = count(state);
+        if n > 0 {
+            states.push_str(&format!(", {n} {word}"));
+        }
+    }
+    format!(
+        "bus: {:.1} % load, {} frames/s, {} errors/s; {} nodes ({states}); {} frames, {} errors in all",
+        100.0 * last.load(),
+        last.frames,
+        last.errors,
+        nodes.len(),
+        total.frames,
+        total.errors
+    )
+}
+
+/// Prints what the monitor's node receives until `stop` or `end`.
 fn monitor(
     addr: SocketAddr,
     args: &Args,
+    end: Option<Instant>,
     start_unix: f64,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
     let mut bus = join(addr, "monitor")?;
-    let started = Instant::now();
-    let end = args
-        .duration
-        .map(|d| Duration::from_secs_f64(d.to_bits(args.bitrate) as f64 / args.bitrate as f64));
     let stdout = io::stdout();
     let mut out = stdout.lock();
     let mut candump = Candump::default();
     while !stop.load(Ordering::SeqCst) {
-        let left = end.map(|end| end.saturating_sub(started.elapsed()));
+        let left = end.map(|end| end.saturating_duration_since(Instant::now()));
         if left == Some(Duration::ZERO) {
             break;
         }
@@ -184,12 +269,6 @@ fn start_server(
     let config = |addr, scenario| ServerConfig {
         channel: CHANNEL.to_string(),
         scenario: Some(scenario),
-        log: Arc::new(|line: &str| {
-            // The server's routine log would drown the frames; keep its warnings.
-            if line.starts_with("warning") {
-                eprintln!("{line}");
-            }
-        }),
         ..ServerConfig::new(addr, bitrate)
     };
     let default: SocketAddr = ([127, 0, 0, 1], 29536).into();

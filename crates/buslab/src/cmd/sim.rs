@@ -301,7 +301,7 @@ fn summary(out: &mut impl Write, sim: &Simulation) -> io::Result<()> {
     )?;
     for n in sim.nodes() {
         let s = n.stats();
-        let c = n.controller();
+        let c = n;
         writeln!(
             out,
             "# {:<width$} {:>8} {:>8} {:>7} {:>8} {:>8} {:>5} {:>5} {:>8}  {}",

@@ -395,6 +395,12 @@ impl Controller {
         self.drive = self.next_drive();
     }
 
+    /// Whether [`Self::poll_event`] has something.
+    #[inline]
+    pub fn has_events(&self) -> bool {
+        !self.events.is_empty()
+    }
+
     #[inline]
     pub fn poll_event(&mut self) -> Option<Event> {
         if self.events.is_empty() {

@@ -1,0 +1,89 @@
+//! The seam between the one bus engine and every kind of node on its wire.
+//!
+//! A node is anything that drives a level and samples the bus once per bit-time: the bare
+//! protocol [`Controller`], an SJA1000 chip with the CPU that services it, a P82C150 SLIO. The
+//! engine (`buslab-sim`) combines every node's [`output`](BusNode::output) on a wired-AND wire
+//! and hands each one the level it sees; what happened comes back as protocol [`Event`]s,
+//! which the engine counts and records for every node alike.
+
+use core::any::Any;
+
+use crate::Frame;
+use crate::Level;
+use crate::controller::{Controller, ErrorState, Event, QueueFull};
+
+/// A bit-level node on a CAN wire, driven once per bit-time: read [`output`](Self::output),
+/// then [`sample`](Self::sample) the bus, then drain [`poll_event`](Self::poll_event).
+pub trait BusNode: Any + Send {
+    /// The level this node drives during the current bit-time.
+    fn output(&self) -> Level;
+
+    /// The bus level this node sees during bit-time `now` (bit-times since the bus started;
+    /// it may jump forward over idle bus while [`is_quiescent`](Self::is_quiescent)).
+    fn sample(&mut self, now: u64, bus: Level);
+
+    /// The next protocol event of this node's controller (what the engine counts and traces).
+    fn poll_event(&mut self) -> Option<Event>;
+
+    /// Transmit error counter (0..=256; above 255 means bus-off).
+    fn tec(&self) -> u16;
+    /// Receive error counter.
+    fn rec(&self) -> u16;
+    /// Fault confinement state.
+    fn state(&self) -> ErrorState;
+
+    /// Whether a recessive bus changes nothing in this node but the time: it is idle with
+    /// nothing to send and no timer of its own running. The engine may then skip bit-times
+    /// without sampling, and the next [`sample`](Self::sample) comes with a later `now`.
+    fn is_quiescent(&self) -> bool;
+
+    /// Queues a frame for transmission (traffic generators, scenario one-shots).
+    fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull>;
+
+    /// Frames waiting to be sent, including the one being attempted.
+    fn pending(&self) -> usize;
+
+    /// The node as [`Any`], so its owner can reach its own type.
+    fn as_any(&self) -> &dyn Any;
+    /// The node as mutable [`Any`].
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+}
+
+impl BusNode for Controller {
+    #[inline]
+    fn output(&self) -> Level {
+        Controller::output(self)
+    }
+    #[inline]
+    fn sample(&mut self, _now: u64, bus: Level) {
+        Controller::sample(self, bus)
+    }
+    #[inline]
+    fn poll_event(&mut self) -> Option<Event> {
+        Controller::poll_event(self)
+    }
+    fn tec(&self) -> u16 {
+        Controller::tec(self)
+    }
+    fn rec(&self) -> u16 {
+        Controller::rec(self)
+    }
+    fn state(&self) -> ErrorState {
+        Controller::state(self)
+    }
+    fn is_quiescent(&self) -> bool {
+        self.is_bus_idle() && Controller::pending(self) == 0
+    }
+    fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
+        Controller::enqueue(self, frame)
+    }
+    fn pending(&self) -> usize {
+        Controller::pending(self)
+    }
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}

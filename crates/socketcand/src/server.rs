@@ -1,0 +1,470 @@
+//! One client connection of a socketcand server, sans-IO (quinn-proto's shape): bytes from the
+//! client go in, bytes for the client and [`Action`]s for the bus come out, and time is given.
+//!
+//! The session keeps socketcand's state machine (`< hi >`, `< open BUS >`, `< rawmode >`),
+//! answers what it can itself (echo, mode changes, protocol errors) and hands the rest to the
+//! host as actions: join the bus, send a frame, answer an extension request. The host answers
+//! a [`Action::Join`] with [`Session::joined`] and a [`Action::Request`] with
+//! [`Session::reply`]; until then the session hands out nothing more, so replies keep the order
+//! of the requests. Frames from the bus go in with [`Session::deliver_frame`].
+
+use std::collections::VecDeque;
+use std::fmt::Write as _;
+
+use buslab_can::Frame;
+
+use crate::command::Command;
+use crate::element::Deframer;
+use crate::message::{ServerMessage, Timestamp, format_frame};
+
+/// What the host must do for the session.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// Put a node on the bus for this client; answer with [`Session::joined`].
+    Join,
+    /// Transmit a frame from this client's node.
+    Send(Frame),
+    /// An extension command for the bus (`buslab_*`); answer with [`Session::reply`].
+    Request(Command),
+    /// Close the connection once the pending output is written.
+    Close,
+}
+
+/// Limits and behaviour of a session.
+#[derive(Clone, Debug)]
+pub struct SessionConfig {
+    /// The one bus name clients may open.
+    pub channel: String,
+    /// Bytes waiting for the client beyond which frames are dropped for it (counted).
+    pub max_output: usize,
+    /// How long (ns) frames wait after the rawmode `< ok >`: python-can reads that reply with
+    /// one `recv()` and compares it whole, so frames must not share its read.
+    pub raw_hold_ns: u64,
+    /// A client that has not opened the bus this long (ns) after connecting is told so and
+    /// closed, so idle connections cannot lock others out.
+    pub open_timeout_ns: u64,
+}
+
+impl SessionConfig {
+    pub fn new(channel: impl Into<String>) -> Self {
+        Self {
+            channel: channel.into(),
+            max_output: 256 * 1024,
+            raw_hold_ns: 50_000_000,
+            open_timeout_ns: 30_000_000_000,
+        }
+    }
+}
+
+/// Where a client is in socketcand's state machine.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    NoBus,
+    Bcm,
+    Raw,
+}
+
+/// What the session waits for from the host.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Waiting {
+    Nothing,
+    Join,
+    Reply,
+}
+
+/// One client connection.
+#[derive(Debug)]
+pub struct Session {
+    config: SessionConfig,
+    deframer: Deframer,
+    mode: Mode,
+    waiting: Waiting,
+    node: Option<u32>,
+    /// Remote frames as `R<dlc>` (buslab's extension).
+    remote_as_r: bool,
+    out: VecDeque<u8>,
+    /// Frames formatted while the rawmode reply must go out alone, and until when.
+    held: String,
+    hold_until: Option<u64>,
+    open_deadline: Option<u64>,
+    closing: bool,
+    dropped: u64,
+}
+
+impl Session {
+    /// A new connection at `now` (ns): the greeting is queued.
+    pub fn new(config: SessionConfig, now: u64) -> Self {
+        let open_deadline = Some(now.saturating_add(config.open_timeout_ns));
+        let mut s = Self {
+            config,
+            deframer: Deframer::new(),
+            mode: Mode::NoBus,
+            waiting: Waiting::Nothing,
+            node: None,
+            remote_as_r: false,
+            out: VecDeque::new(),
+            held: String::new(),
+            hold_until: None,
+            open_deadline,
+            closing: false,
+            dropped: 0,
+        };
+        s.send(&ServerMessage::Hi);
+        s
+    }
+
+    /// The node this client joined as, once it has.
+    pub fn node(&self) -> Option<u32> {
+        self.node
+    }
+
+    /// Frames dropped for this client because it did not read them in time.
+    pub fn dropped(&self) -> u64 {
+        self.dropped
+    }
+
+    /// Whether the session wants more bytes from the client now. While it waits for the host,
+    /// or is closing, the host should leave them in the socket (TCP pushes back).
+    pub fn wants_input(&self) -> bool {
+        !self.closing && self.waiting == Waiting::Nothing && self.deframer_len() < 64 * 1024
+    }
+
+    fn deframer_len(&self) -> usize {
+        self.deframer.len()
+    }
+
+    /// Bytes received from the client.
+    pub fn receive(&mut self, bytes: &[u8]) {
+        if !self.closing {
+            self.deframer.push(bytes);
+        }
+    }
+
+    /// The next thing the host must do, after handling every element that needs nothing from
+    /// it. `None`: nothing until more bytes arrive (or the host answers).
+    pub fn poll_action(&mut self) -> Option<Action> {
+        if self.closing {
+            return None;
+        }
+        while self.waiting == Waiting::Nothing {
+            let element = match self.deframer.next_element()? {
+                Ok(e) => e,
+                Err(e) => {
+                    self.send(&ServerMessage::Error(e.to_string()));
+                    continue;
+                }
+            };
+            let command = match Command::parse(&element) {
+                Ok(c) => c,
+                Err(e) => {
+                    self.send(&ServerMessage::Error(e.to_string()));
+                    continue;
+                }
+            };
+            if let Some(action) = self.handle(command) {
+                return Some(action);
+            }
+        }
+        None
+    }
+
+    fn handle(&mut self, command: Command) -> Option<Action> {
+        match (self.mode, command) {
+            (_, Command::Echo) => self.send(&ServerMessage::Echo),
+            (Mode::NoBus, Command::Open(bus)) => {
+                if bus != self.config.channel {
+                    // As socketcand: refuse and close.
+                    self.send(&ServerMessage::Error("could not open bus".into()));
+                    return Some(self.close());
+                }
+                self.waiting = Waiting::Join;
+                return Some(Action::Join);
+            }
+            (Mode::NoBus, _) => self.send(&ServerMessage::Error(
+                "open a bus first: < open BUS >".into(),
+            )),
+            (Mode::Bcm, Command::RawMode) => {
+                self.mode = Mode::Raw;
+                self.send(&ServerMessage::Ok);
+                self.hold_until = Some(0);
+            }
+            (Mode::Raw, Command::RawMode) => {
+                self.send(&ServerMessage::Error("already in raw mode".into()))
+            }
+            (_, Command::Open(_)) => self.send(&ServerMessage::Error(
+                "a bus is already open on this connection".into(),
+            )),
+            (_, Command::BcmMode | Command::ControlMode | Command::IsotpMode) => self.send(
+                &ServerMessage::Error("buslab serves raw mode only (send rawmode)".into()),
+            ),
+            (_, Command::Unsupported { name, .. }) => self.send(&ServerMessage::Error(format!(
+                "{name} is not supported by buslab (raw mode only)"
+            ))),
+            (_, Command::Send(frame)) => return Some(Action::Send(frame)),
+            (_, Command::Extensions) => {
+                self.remote_as_r = true;
+                self.send(&ServerMessage::Ok);
+            }
+            (_, command) => {
+                self.waiting = Waiting::Reply;
+                return Some(Action::Request(command));
+            }
+        }
+        None
+    }
+
+    /// The host's answer to [`Action::Join`]: the node's number, or why it could not join
+    /// (the client is told and the connection closes).
+    pub fn joined(&mut self, result: Result<u32, String>) -> Option<Action> {
+        self.waiting = Waiting::Nothing;
+        match result {
+            Ok(number) => {
+                self.node = Some(number);
+                self.mode = Mode::Bcm;
+                self.open_deadline = None;
+                self.send(&ServerMessage::Ok);
+                None
+            }
+            Err(reason) => {
+                self.send(&ServerMessage::Error(reason));
+                Some(self.close())
+            }
+        }
+    }
+
+    /// The host's answer to an [`Action::Request`].
+    pub fn reply(&mut self, message: &ServerMessage) {
+        self.waiting = Waiting::Nothing;
+        self.send(message);
+    }
+
+    /// A frame from the bus at `timestamp`; `false` if it was dropped because the client does
+    /// not read fast enough. Frames are delivered only in raw mode.
+    pub fn deliver_frame(&mut self, frame: &Frame, timestamp: Timestamp, now: u64) -> bool {
+        if self.mode != Mode::Raw || self.closing {
+            return true;
+        }
+        let remote_as_r = self.remote_as_r;
+        self.deliver(now, |text| {
+            let _ = format_frame(text, frame, timestamp, remote_as_r);
+        })
+    }
+
+    /// An error frame (SocketCAN class) from the bus, in raw mode's layout (socketcand -e).
+    pub fn deliver_error_frame(&mut self, class: u32, timestamp: Timestamp, now: u64) -> bool {
+        if self.mode != Mode::Raw || self.closing {
+            return true;
+        }
+        self.deliver(now, |text| {
+            let _ = write!(text, "< error {class:03X} {timestamp} >");
+        })
+    }
+
+    fn deliver(&mut self, now: u64, write: impl FnOnce(&mut String)) -> bool {
+        self.release_held(now);
+        if self.out.len() + self.held.len() >= self.config.max_output {
+            self.dropped += 1;
+            return false;
+        }
+        if self.hold_until.is_some() {
+            write(&mut self.held);
+        } else {
+            let mut text = String::with_capacity(48);
+            write(&mut text);
+            self.out.extend(text.as_bytes());
+        }
+        true
+    }
+
+    /// Releases frames held after the rawmode reply once their time has come.
+    fn release_held(&mut self, now: u64) {
+        if let Some(until) = self.hold_until
+            && until != 0
+            && now >= until
+        {
+            self.hold_until = None;
+            self.out.extend(self.held.as_bytes());
+            self.held.clear();
+        }
+    }
+
+    /// Time passes: held frames are released, a client that never opened the bus is closed.
+    pub fn handle_timeout(&mut self, now: u64) -> Option<Action> {
+        self.release_held(now);
+        if self.open_deadline.is_some_and(|d| now >= d) && !self.closing {
+            self.open_deadline = None;
+            self.send(&ServerMessage::Error(
+                "the bus was not opened in time (send < open BUS > first); closing".into(),
+            ));
+            return Some(self.close());
+        }
+        None
+    }
+
+    /// When [`Self::handle_timeout`] must be called even if nothing else happens.
+    pub fn next_deadline(&self) -> Option<u64> {
+        let hold = self.hold_until.filter(|&t| t != 0);
+        [hold, self.open_deadline].into_iter().flatten().min()
+    }
+
+    /// The bytes waiting for the client, as two slices.
+    pub fn output(&self) -> (&[u8], &[u8]) {
+        self.out.as_slices()
+    }
+
+    /// Whether bytes wait for the client.
+    pub fn has_output(&self) -> bool {
+        !self.out.is_empty()
+    }
+
+    /// `n` bytes of [`Self::output`] were written to the client. When the rawmode reply has
+    /// left alone, the hold on frames starts at `now`.
+    pub fn consumed(&mut self, n: usize, now: u64) {
+        self.out.drain(..n.min(self.out.len()));
+        if self.out.is_empty() && self.hold_until == Some(0) {
+            self.hold_until = Some(now.saturating_add(self.config.raw_hold_ns));
+        }
+    }
+
+    /// Whether the session is over (its last words may still be in [`Self::output`]).
+    pub fn is_closing(&self) -> bool {
+        self.closing
+    }
+
+    fn close(&mut self) -> Action {
+        self.closing = true;
+        self.waiting = Waiting::Nothing;
+        Action::Close
+    }
+
+    fn send(&mut self, message: &ServerMessage) {
+        self.out.extend(message.to_string().as_bytes());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn output(s: &mut Session, now: u64) -> String {
+        let (a, b) = s.output();
+        let text = String::from_utf8([a, b].concat()).unwrap();
+        s.consumed(text.len(), now);
+        text
+    }
+
+    fn frame(text: &str) -> Frame {
+        text.parse().unwrap()
+    }
+
+    fn ts(secs: u64) -> Timestamp {
+        Timestamp { secs, micros: 0 }
+    }
+
+    /// A session through `< open vcan0 >` and `< rawmode >`, joined as node 7.
+    fn raw_session() -> Session {
+        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
+        assert_eq!(output(&mut s, 0), "< hi >");
+        s.receive(b"< open vcan0 >");
+        assert_eq!(s.poll_action(), Some(Action::Join));
+        assert_eq!(s.joined(Ok(7)), None);
+        assert_eq!(output(&mut s, 0), "< ok >");
+        s.receive(b"< rawmode >");
+        assert_eq!(s.poll_action(), None);
+        assert_eq!(output(&mut s, 0), "< ok >");
+        s
+    }
+
+    #[test]
+    fn handshake_then_frames_both_ways() {
+        let mut s = raw_session();
+        s.receive(b"< send 123 2 11 22 >< send 7ff 0 >");
+        assert_eq!(s.poll_action(), Some(Action::Send(frame("123#1122"))));
+        assert_eq!(s.poll_action(), Some(Action::Send(frame("7FF#"))));
+        assert_eq!(s.poll_action(), None);
+        // Frames wait 50 ms after the rawmode reply left, then go out.
+        assert!(s.deliver_frame(&frame("321#AA"), ts(1), 1_000));
+        assert!(!s.has_output());
+        assert_eq!(s.next_deadline(), Some(50_000_000));
+        assert_eq!(s.handle_timeout(50_000_000), None);
+        assert_eq!(output(&mut s, 50_000_000), "< frame 321 1.000000 AA >");
+        assert!(s.deliver_frame(&frame("1ABCDEF0#R2"), ts(2), 60_000_000));
+        assert_eq!(output(&mut s, 60_000_000), "< frame 1ABCDEF0 2.000000  >");
+    }
+
+    #[test]
+    fn requests_are_answered_in_order_and_block_what_follows() {
+        let mut s = raw_session();
+        s.receive(b"< buslab_status >< send 123 0 >");
+        assert_eq!(
+            s.poll_action(),
+            Some(Action::Request(Command::Status(None)))
+        );
+        assert!(!s.wants_input());
+        assert_eq!(s.poll_action(), None, "waits for the reply");
+        s.reply(&ServerMessage::Other {
+            name: "buslab_status".into(),
+            args: vec!["7".into()],
+        });
+        assert_eq!(s.poll_action(), Some(Action::Send(frame("123#"))));
+        assert_eq!(output(&mut s, 0), "< buslab_status 7 >");
+    }
+
+    #[test]
+    fn garbage_gets_one_error_per_element_and_the_session_goes_on() {
+        let mut s = raw_session();
+        s.receive(b"junk< nonsense >< send 123 9 >< echo >");
+        assert_eq!(s.poll_action(), None);
+        let text = output(&mut s, 0);
+        assert_eq!(text.matches("< error").count(), 3, "{text}");
+        assert!(text.ends_with("< echo >"), "{text}");
+    }
+
+    #[test]
+    fn the_wrong_bus_and_a_failed_join_close_the_connection() {
+        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
+        s.receive(b"< open can9 >");
+        assert_eq!(s.poll_action(), Some(Action::Close));
+        assert!(output(&mut s, 0).ends_with("< error could not open bus >"));
+        assert!(s.is_closing());
+        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
+        s.receive(b"< open vcan0 >");
+        assert_eq!(s.poll_action(), Some(Action::Join));
+        assert_eq!(s.joined(Err("the bus is full".into())), Some(Action::Close));
+        assert!(output(&mut s, 0).ends_with("< error the bus is full >"));
+    }
+
+    #[test]
+    fn a_client_that_never_opens_is_closed_after_the_timeout() {
+        let mut config = SessionConfig::new("vcan0");
+        config.open_timeout_ns = 1_000;
+        let mut s = Session::new(config, 10);
+        assert_eq!(s.next_deadline(), Some(1_010));
+        assert_eq!(s.handle_timeout(1_009), None);
+        assert_eq!(s.handle_timeout(1_010), Some(Action::Close));
+        assert!(output(&mut s, 0).contains("the bus was not opened in time"));
+    }
+
+    #[test]
+    fn a_client_that_does_not_read_loses_frames_beyond_its_output_limit() {
+        let mut s = raw_session();
+        s.handle_timeout(u64::MAX / 2);
+        let mut config = SessionConfig::new("vcan0");
+        config.max_output = 100;
+        s.config = config;
+        let mut delivered = 0;
+        for _ in 0..10 {
+            delivered += s.deliver_frame(&frame("123#11"), ts(1), u64::MAX / 2) as u32;
+        }
+        assert!(delivered > 0 && delivered < 10);
+        assert_eq!(s.dropped(), 10 - delivered as u64);
+    }
+
+    #[test]
+    fn frames_before_rawmode_are_not_delivered() {
+        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
+        output(&mut s, 0);
+        assert!(s.deliver_frame(&frame("123#"), ts(0), 0));
+        assert!(!s.has_output());
+    }
+}
