@@ -473,7 +473,13 @@ impl Server {
             if now >= target || started.elapsed() >= MAX_RUN {
                 break;
             }
-            self.bus.run_until(target.min(now + chunk));
+            // An idle bus jumps to its next activity at once (nothing to look at meanwhile).
+            let step = if self.bus.is_idle() {
+                target - now
+            } else {
+                chunk
+            };
+            self.bus.run_until(target.min(now + step));
         }
         let behind = self.bits_to_wall(self.target_bits().saturating_sub(self.bus.now()));
         self.track_lag(behind);
