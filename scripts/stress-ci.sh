@@ -21,16 +21,24 @@ logs=$(mktemp -d "${TMPDIR:-/tmp}/buslab-stress.XXXXXX")
 echo "logs in $logs"
 
 busy=()
-stop_load() {
+suite=
+# Ends what this script started, by process id: the busy loops and a running suite (started in
+# its own process group, so cargo, nextest and the tests go with it).
+stop_all() {
+    if [ -n "$suite" ]; then
+        kill -TERM -- "-$suite" 2>/dev/null || true
+        wait "$suite" 2>/dev/null || true
+        suite=
+    fi
     if [ ${#busy[@]} -gt 0 ]; then
         kill "${busy[@]}" 2>/dev/null || true
         wait "${busy[@]}" 2>/dev/null || true
         busy=()
     fi
 }
-trap stop_load EXIT
-trap 'stop_load; exit 130' INT
-trap 'stop_load; exit 143' TERM
+trap stop_all EXIT
+trap 'stop_all; exit 130' INT
+trap 'stop_all; exit 143' TERM
 
 echo "setup and build (once, before the load)"
 if ! { bash scripts/setup-test-deps.sh &&
@@ -70,7 +78,13 @@ failed=0
 for ((i = 1; i <= runs; i++)); do
     log="$logs/run-$i.log"
     start=$SECONDS
-    if bash scripts/test.sh --no-setup >"$log" 2>&1; then
+    # In the background and waited for, so that Ctrl-C or a TERM is handled at once.
+    setsid bash scripts/test.sh --no-setup >"$log" 2>&1 &
+    suite=$!
+    status=0
+    wait "$suite" || status=$?
+    suite=
+    if [ "$status" = 0 ]; then
         passed=$((passed + 1))
         echo "run $i: passed ($((SECONDS - start)) s)"
     else
