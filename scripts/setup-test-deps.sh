@@ -1,27 +1,59 @@
 #!/usr/bin/env bash
-# Installs what the interop tests use besides the Rust toolchain (idempotent, quick when done):
+# Installs what the test suite uses besides the Rust toolchain (idempotent, quick when done):
+# - crates.io: cargo-nextest, the test runner of scripts/test.sh (the machine image has it in
+#   /usr/local/bin; elsewhere it is built once with `cargo install --locked`, a few minutes);
 # - Debian: sigrok-cli (decodes our VCD waveforms independently);
 # - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can).
+# Whatever cannot be installed stops the script with a message and a non-zero exit: the interop
+# tests must not pass by skipping (under CI=1 they fail when a tool is missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if ! command -v sigrok-cli >/dev/null 2>&1; then
-    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-        echo "installing sigrok-cli (Debian)"
-        apt-get update -qq
-        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq sigrok-cli >/dev/null
-    else
-        echo "warning: sigrok-cli is missing and cannot be installed here (needs root and apt-get)" >&2
+fail() {
+    echo "setup-test-deps: error: $*" >&2
+    exit 1
+}
+
+if ! cargo nextest --version >/dev/null 2>&1; then
+    echo "installing cargo-nextest (crates.io, built once)"
+    cargo install --locked cargo-nextest ||
+        fail "cannot install cargo-nextest (cargo install --locked cargo-nextest); scripts/test.sh needs it"
+fi
+
+apt_updated=false
+apt_install() {
+    [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 ||
+        fail "$1 is missing and cannot be installed here (needs root and apt-get): install Debian's '$1' package"
+    if ! $apt_updated; then
+        apt-get update -qq || fail "apt-get update failed"
+        apt_updated=true
     fi
+    echo "installing $1 (Debian)"
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$1" >/dev/null ||
+        fail "apt-get install $1 failed"
+}
+
+if ! command -v sigrok-cli >/dev/null 2>&1; then
+    apt_install sigrok-cli
+    command -v sigrok-cli >/dev/null 2>&1 || fail "sigrok-cli is still missing after installing it"
 fi
 
 requirements=scripts/test-requirements.txt
 stamp=.venv/.requirements
 if [ ! -x .venv/bin/python ]; then
-    python3 -m venv .venv
+    command -v python3 >/dev/null 2>&1 || fail "python3 is missing (the interop tests need it)"
+    if ! python3 -m venv .venv; then
+        rm -rf .venv
+        # Debian's own python3 needs its venv module as a package.
+        apt_install python3-venv
+        python3 -m venv .venv || fail "python3 -m venv .venv failed"
+    fi
 fi
 if ! cmp -s "$requirements" "$stamp"; then
     echo "installing Python test packages into .venv"
-    .venv/bin/pip install --quiet --disable-pip-version-check -r "$requirements"
+    .venv/bin/pip install --quiet --disable-pip-version-check -r "$requirements" ||
+        fail "pip could not install $requirements into .venv"
     cp "$requirements" "$stamp"
 fi
+.venv/bin/python -c "import serial, can" ||
+    fail "the .venv lacks pyserial or python-can; delete .venv and run this script again"

@@ -518,6 +518,54 @@ fn single_shot_drops_after_an_error_or_lost_arbitration() {
     assert_eq!(bus.received(0), [frame("100#")]);
 }
 
+/// Regression (the manager's rare `Timeout` instead of `Aborted`): an abort during the error
+/// frame of a frame that was already dropped has nothing on the wire to stop. It must not stay
+/// armed and drop the next frame at its first error.
+#[test]
+fn abort_after_the_in_flight_frame_was_dropped_does_not_drop_the_next_frame() {
+    let mut bus = Bus::with_nodes(1); // nobody acknowledges: every attempt fails
+    bus.run(11);
+    let first = frame("100#");
+    bus.nodes[0].enqueue(first).unwrap();
+    bus.run(5);
+    assert!(bus.nodes[0].is_transmitting());
+    bus.nodes[0].abort_all();
+    let dropped = |bus: &Bus, f: Frame| {
+        bus.events[0]
+            .iter()
+            .filter(|(_, e)| *e == Event::Dropped(f))
+            .count()
+    };
+    for _ in 0..200 {
+        if dropped(&bus, first) == 1 {
+            break;
+        }
+        bus.step();
+    }
+    assert_eq!(
+        dropped(&bus, first),
+        1,
+        "the aborted frame ends at its error"
+    );
+    assert!(
+        bus.nodes[0].is_transmitting(),
+        "still in the error frame of our own transmission"
+    );
+    bus.nodes[0].abort_all(); // nothing left to abort
+    assert_eq!(bus.nodes[0].pending(), 0);
+
+    let next = frame("101#");
+    bus.nodes[0].enqueue(next).unwrap();
+    bus.run(1_000);
+    assert_eq!(
+        dropped(&bus, next),
+        0,
+        "the next frame is retried, not dropped"
+    );
+    assert!(bus.errors(0).len() > 3, "{:?}", bus.errors(0));
+    assert_eq!(bus.nodes[0].pending(), 1);
+}
+
 /// One node driven directly: the bus is what it drives, except where `script` overrides.
 fn drive(node: &mut Controller, bits: u64, mut script: impl FnMut(u64, Level) -> Level) {
     for t in 0..bits {

@@ -406,7 +406,9 @@ struct Pending {
     reply: Sender<Result<(), SendError>>,
 }
 
-/// The manager thread's state.
+/// The manager's state and decisions, without the thread: [`handle`](Self::handle) one
+/// request, [`tick`](Self::tick) once per poll. [`run`](Self::run) is the thread's loop; tests
+/// call the steps by hand to interleave requests, bus bit-times and polls exactly.
 struct Worker<R: RegisterAccess> {
     driver: Sja1000Driver<R>,
     config: ManagerConfig,
@@ -591,5 +593,91 @@ impl<R: RegisterAccess> Worker<R> {
         for pending in self.queue.drain(..) {
             let _ = pending.reply.send(Err(error.clone()));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The worker driven by hand, without its thread: requests, bus bit-times and polls
+    //! interleave exactly as a test says, so races become plain sequences.
+
+    use buslab_sja1000::Sja1000;
+
+    use super::*;
+
+    /// Bit-times a confirmation may take here: a few frames with their error frames.
+    const BITS: u32 = 2_000;
+
+    fn worker() -> Worker<Sja1000> {
+        let mut driver = Sja1000Driver::new(Sja1000::new());
+        driver.init(&Sja1000Config::default()).unwrap();
+        Worker::new(driver, ManagerConfig::default())
+    }
+
+    fn send(worker: &mut Worker<Sja1000>, frame: &str) -> Confirmation {
+        let (reply, rx) = mpsc::channel();
+        let frame = frame.parse().unwrap();
+        assert!(worker.handle(Request::Send {
+            frame,
+            mode: TxMode::Normal,
+            reply
+        }));
+        Confirmation::new(rx)
+    }
+
+    /// One bit-time of a bus where this chip is alone (nobody acknowledges), then one poll.
+    fn step(worker: &mut Worker<Sja1000>) {
+        let chip = worker.driver.registers();
+        let level = chip.output();
+        chip.sample(level);
+        worker.tick();
+    }
+
+    /// Steps until `done` holds; panics after [`BITS`] bit-times.
+    fn step_until(
+        worker: &mut Worker<Sja1000>,
+        what: &str,
+        done: impl Fn(&mut Worker<Sja1000>) -> bool,
+    ) {
+        for _ in 0..BITS {
+            if done(worker) {
+                return;
+            }
+            step(worker);
+        }
+        panic!("{what} did not happen within {BITS} bit-times");
+    }
+
+    /// Regression: `abort_current_fails_only_the_frame_in_the_buffer` rarely saw `Timeout`
+    /// instead of `Aborted`. The first abort drops the frame at its error; the same poll that
+    /// confirms it hands the next frame to the chip while the chip still sends its error frame.
+    /// An abort at that instant used to be taken for "a frame on the bus, let it finish": the
+    /// chip withdrew the frame yet never released its TX buffer, so no outcome ever came.
+    #[test]
+    fn abort_of_the_next_frame_during_the_error_frame_of_the_aborted_one_fails_it() {
+        let mut worker = worker();
+        let first = send(&mut worker, "100#");
+        let second = send(&mut worker, "101#");
+        step_until(&mut worker, "the first attempt", |w| {
+            w.driver.status().transmitting()
+        });
+        assert!(worker.handle(Request::AbortCurrent));
+        step_until(&mut worker, "the first frame's outcome", |_| {
+            first.try_result().is_some()
+        });
+        assert_eq!(first.try_result(), Some(Err(SendError::Aborted)));
+        let status = worker.driver.status();
+        assert!(status.transmitting(), "still in the error frame: {status}");
+        assert!(
+            !status.transmit_buffer_released(),
+            "the second frame is requested"
+        );
+
+        assert!(worker.handle(Request::AbortCurrent));
+        step_until(&mut worker, "the second frame's outcome", |_| {
+            second.try_result().is_some()
+        });
+        assert_eq!(second.try_result(), Some(Err(SendError::Aborted)));
+        assert!(worker.queue.is_empty() && worker.current.is_none());
     }
 }

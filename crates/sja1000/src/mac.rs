@@ -57,9 +57,11 @@ impl Mac {
     /// Withdraws the pending frame if it has not started (`true`); a frame already on the bus
     /// finishes this attempt and is not retried.
     pub fn abort_pending(&mut self) -> bool {
-        let started = self.controller.is_transmitting();
         self.controller.abort_all();
-        !started
+        // Only a frame on the wire survives an abort. `is_transmitting` is no test for that: it
+        // stays set during the error frame of a frame already dropped, while the TX buffer's
+        // next frame still waits (it would then never start, and TBS never return to 1).
+        self.controller.pending() == 0
     }
 
     pub fn recover(&mut self) {

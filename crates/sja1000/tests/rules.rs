@@ -551,6 +551,35 @@ fn abort_during_a_failing_frame_stops_the_retries() {
     assert_eq!(tx.read(IR), TI);
 }
 
+/// §3.3, regression (the manager's rare `Timeout` instead of `Aborted`): the aborted frame is
+/// dropped at its error, TBS returns to 1 while the chip still sends its error frame (TS 1); a
+/// frame loaded and requested then has not started, so an AT right away releases it at once.
+/// It used to be taken for a frame on the bus: withdrawn, yet TBS stayed 0 forever.
+#[test]
+fn abort_of_a_frame_requested_during_the_error_frame_of_an_aborted_one_releases_it() {
+    let mut bus = integrated(vec![peli(TI, 0)]);
+    load_tx(&mut bus.chips[0], "100#");
+    bus.chips[0].write(CMR, TR);
+    bus.run_until(50, "frame start", |bus| bus.chips[0].peek(SR) & SR_TS != 0);
+    bus.chips[0].write(CMR, AT);
+    bus.run_until(200, "the aborted frame's release", |bus| {
+        bus.chips[0].peek(SR) & SR_TBS != 0
+    });
+    let tx = &mut bus.chips[0];
+    assert_eq!(tx.read(SR) & SR_TS, SR_TS, "still in our error frame");
+    assert_eq!(tx.read(IR), TI);
+    load_tx(tx, "101#");
+    tx.write(CMR, TR);
+    assert_eq!(tx.read(SR) & SR_TBS, 0, "requested");
+    tx.write(CMR, AT);
+    assert_eq!(tx.read(SR) & (SR_TBS | SR_TCS), SR_TBS, "released unsent");
+    assert_eq!(tx.read(IR), TI);
+    bus.run(400);
+    let tx = &mut bus.chips[0];
+    assert_eq!(tx.read(TXERR), 8, "the second frame never went on the bus");
+    assert_eq!(tx.read(SR) & (SR_TBS | SR_TS), SR_TBS);
+}
+
 /// §3.4: TS while transmitting, RS while receiving, both 0 on an idle bus.
 #[test]
 fn sr_shows_transmitting_and_receiving() {

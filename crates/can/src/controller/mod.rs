@@ -252,10 +252,13 @@ impl Controller {
     }
 
     /// Drop every waiting frame. A frame on the wire right now finishes its attempt but is not
-    /// retried (it is reported as [`Event::Dropped`] if that attempt fails).
+    /// retried (it is reported as [`Event::Dropped`] if that attempt fails); afterwards
+    /// [`pending`](Self::pending) counts only that frame.
     pub fn abort_all(&mut self) {
         self.queue.clear();
-        if self.transmitting {
+        // During the error frame of a frame already dropped we are still the transmitter, but
+        // nothing is in flight: arming the abort then would drop the next frame instead.
+        if self.transmitting && self.tx.is_some() {
             self.abort_in_flight = true;
         } else {
             self.tx = None;
