@@ -36,7 +36,7 @@ impl Stepper {
         let jam = Arc::new(AtomicBool::new(false));
         let (s, j) = (stop.clone(), jam.clone());
         let join = thread::spawn(move || {
-            let mut bus = Bus { chips, time: 0 };
+            let mut bus = Bus::from_chips(chips);
             let (mut was_transmitting, mut sof) = (false, 0);
             while !s.load(Ordering::Relaxed) {
                 for _ in 0..64 {

@@ -4,7 +4,7 @@ use buslab_can::controller::{Controller, ControllerConfig, ErrorState, Event, Qu
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 
-use crate::fault::{Fault, Wiring};
+use crate::fault::{Fault, FaultKind, Wiring};
 use crate::observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats, Record};
 use crate::rng::SplitMix64;
 use crate::time::BitTime;
@@ -115,6 +115,13 @@ impl Node {
     }
     pub fn state(&self) -> ErrorState {
         self.device().state()
+    }
+    /// The node itself, to be taken back as its own type (`downcast`).
+    pub fn into_any(self) -> Box<dyn core::any::Any> {
+        match self.device {
+            Device::Controller(c) => Box::new(c),
+            Device::Other(n) => n,
+        }
     }
     /// The node as its own type, if it is a `T` (e.g. a [`Controller`]).
     pub fn get<T: BusNode>(&self) -> Option<&T> {
@@ -416,6 +423,29 @@ impl Simulation {
             .filter(|g| g.node == node && g.is_file())
             .map(|g| g.finished_at)
             .collect()
+    }
+
+    /// One bit-time with the wire level passed through `disturb`, as a disturber on the wire
+    /// would change it (force a dominant bit, invert one): it becomes a fault lasting this one
+    /// bit-time. Panics if `disturb` would force the wire recessive, which no disturber can (a
+    /// dominant driver always wins).
+    pub fn step_disturbed(&mut self, disturb: impl Fn(Level) -> Level) {
+        let kind = match (disturb(Level::Recessive), disturb(Level::Dominant)) {
+            (Level::Recessive, Level::Dominant) => None,
+            (Level::Dominant, Level::Dominant) => Some(FaultKind::StuckDominant),
+            (Level::Dominant, Level::Recessive) => Some(FaultKind::Flip { node: None }),
+            (Level::Recessive, Level::Recessive) => {
+                panic!("a disturber cannot hold the wire recessive")
+            }
+        };
+        if let Some(kind) = kind {
+            self.add_fault(Fault {
+                kind,
+                start: self.now,
+                end: self.now + 1,
+            });
+        }
+        self.run_for(1);
     }
 
     /// Simulates `bits` more bit-times.
