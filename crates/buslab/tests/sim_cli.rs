@@ -266,8 +266,8 @@ fn sigrok_decodes_the_vcd() {
     std::fs::write(
         &scenario,
         "bitrate = 125000\nduration = \"2ms\"\n\
-         [[nodes]]\nname = \"a\"\n[[nodes.traffic]]\nkind = \"once\"\nframe = \"123#1122\"\nat = 20\n\
-         [[nodes]]\nname = \"b\"\n[[nodes.traffic]]\nkind = \"once\"\nframe = \"1ABCDEF0#DEADBEEF\"\nat = 20\n",
+         [[nodes]]\nname = \"a\"\n[[nodes.traffic]]\nkind = \"once\"\nframe = \"123#1122\"\nat = \"20bits\"\n\
+         [[nodes]]\nname = \"b\"\n[[nodes.traffic]]\nkind = \"once\"\nframe = \"1ABCDEF0#DEADBEEF\"\nat = \"20bits\"\n",
     )
     .unwrap();
     stdout_of(&[

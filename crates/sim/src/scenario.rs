@@ -587,7 +587,7 @@ mod tests {
         kind = "file"
         id = "100"
         text = "hello, world"
-        start = 100
+        start = "100bits"
 
         [[nodes]]
         name = "b"
@@ -602,7 +602,7 @@ mod tests {
         [[faults]]
         kind = "flip"
         node = "b"
-        at = 5000
+        at = "5000bits"
     "#;
 
     #[test]

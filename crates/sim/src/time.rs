@@ -16,8 +16,8 @@ pub enum Span {
 }
 
 impl Span {
-    /// Parses `2s`, `1.5s`, `500ms`, `250us`, `100ns`, `1000bits` / `1000 bits`, or a bare
-    /// integer (bit-times).
+    /// Parses `2s`, `1.5s`, `500ms`, `250us`, `100ns`, `1000bits` / `1000 bits`, or `0`. A
+    /// bare number other than 0 is refused: it could mean bit-times or seconds.
     pub fn parse(text: &str) -> Result<Self, DurationError> {
         let bad = || DurationError {
             text: text.to_owned(),
@@ -31,7 +31,13 @@ impl Span {
             return Err(bad());
         }
         let unit = unit.trim();
-        if unit.is_empty() || unit == "bits" || unit == "bit" || unit == "b" {
+        if unit.is_empty() {
+            return match number.parse::<u64>() {
+                Ok(0) => Ok(Span::Bits(0)),
+                _ => Err(bad()),
+            };
+        }
+        if unit == "bits" || unit == "bit" || unit == "b" {
             return number.parse::<u64>().map(Span::Bits).map_err(|_| bad());
         }
         let scale = match unit {
@@ -101,7 +107,8 @@ mod tests {
         assert_eq!(Span::parse("2s").unwrap().to_bits(500_000), 1_000_000);
         assert_eq!(Span::parse("1.5ms").unwrap().to_bits(1_000_000), 1_500);
         assert_eq!(Span::parse("250us").unwrap().to_bits(125_000), 31);
-        assert_eq!(Span::parse("1000").unwrap().to_bits(1), 1000);
+        assert_eq!(Span::parse("1000bits").unwrap().to_bits(1), 1000);
+        assert_eq!(Span::parse("0").unwrap(), Span::Bits(0));
         assert_eq!(Span::parse("1000 bits").unwrap(), Span::Bits(1000));
         assert_eq!(Span::parse(" 7bit ").unwrap(), Span::Bits(7));
     }
@@ -110,6 +117,7 @@ mod tests {
     fn garbage_names_the_value() {
         for bad in [
             "",
+            "1000",
             "s",
             "10 parsecs",
             "1.5",

@@ -23,7 +23,7 @@ pub struct Args {
     /// Write the bus level and each node's TX/RX levels to this VCD file.
     #[arg(long, value_name = "FILE")]
     pub vcd: Option<PathBuf>,
-    /// Run this long instead of the scenario's duration (`500ms`, `2s`, `100000` bit-times).
+    /// Run this long instead of the scenario's duration (`500ms`, `2s`, or bit-times: `100000bits`).
     #[arg(long)]
     pub duration: Option<Span>,
     /// Use this seed instead of the scenario's.
