@@ -91,8 +91,9 @@ pub struct NodeStatus {
     pub number: u32,
     pub name: String,
     pub state: BusState,
-    /// TXERR, RXERR and the last captured ALC and ECC.
-    pub errors: ErrorRegisters,
+    /// TXERR, RXERR and the last captured ALC and ECC, for nodes that have these registers
+    /// (an SJA1000 in PeliCAN mode; BasicCAN cannot read its counters).
+    pub errors: Option<ErrorRegisters>,
     /// The status register, for nodes that are SJA1000 chips.
     pub sr: Option<Status>,
     /// The bit timing, for nodes whose timing is programmable.
@@ -115,16 +116,17 @@ impl fmt::Display for NodeStatus {
         if let Some(sr) = self.sr {
             row(f, "STATUS", sr)?;
         }
-        let e = self.errors;
-        row(f, "TXERR", e.txerr)?;
-        row(f, "RXERR", e.rxerr)?;
-        match e.alc {
-            Some(alc) => row(f, "ALC", format_args!("0x{:02X} {alc}", alc.0))?,
-            None => row(f, "ALC", "none captured")?,
-        }
-        match e.ecc {
-            Some(ecc) => row(f, "ECC", format_args!("0x{:02X} {ecc}", ecc.0))?,
-            None => row(f, "ECC", "none captured")?,
+        if let Some(e) = self.errors {
+            row(f, "TXERR", e.txerr)?;
+            row(f, "RXERR", e.rxerr)?;
+            match e.alc {
+                Some(alc) => row(f, "ALC", format_args!("0x{:02X} {alc}", alc.0))?,
+                None => row(f, "ALC", "none captured")?,
+            }
+            match e.ecc {
+                Some(ecc) => row(f, "ECC", format_args!("0x{:02X} {ecc}", ecc.0))?,
+                None => row(f, "ECC", "none captured")?,
+            }
         }
         if let Some(t) = self.timing {
             row(
