@@ -215,11 +215,8 @@ pub fn wait_sent(open: &mut OpenBus, count: u64, timeout: Duration) -> anyhow::R
     let deadline = Instant::now() + timeout;
     loop {
         let st = open.bus.node_status(None)?;
-        let sent: u64 = st.get("sent").and_then(|v| v.parse().ok()).unwrap_or(0);
-        let failed: u64 = st
-            .get("tx_failed")
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(0);
+        let sent = st.counters.sent;
+        let failed = st.counters.tx_failed;
         if sent + failed >= count {
             if failed > 0 {
                 bail!("{failed} of {count} frames were not sent; the node's status:\n{st}");

@@ -53,7 +53,7 @@ fn dump(args: Args) -> anyhow::Result<()> {
         open.bus.set_name(name)?;
     }
     if args.errors && open.extensions {
-        open.bus.enable_error_frames(true)?;
+        open.bus.set_error_frames(true)?;
     }
     let channel = args.bus.bus.channel().to_string();
     let mut log = match &args.log {
@@ -74,9 +74,10 @@ fn dump(args: Args) -> anyhow::Result<()> {
     let mut printer = Candump::default();
     let mut seen = 0u64;
     while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| seen < n) {
-        let received = open.bus.recv(Some(Duration::from_millis(100)))?;
-        if args.errors {
-            for (class, ts) in open.bus.take_error_frames() {
+        let received = match open.bus.recv_event(Some(Duration::from_millis(100)))? {
+            Some(buslab_canbus::BusEvent::Frame(m)) => Some(m),
+            Some(buslab_canbus::BusEvent::Error(e)) => {
+                let (class, ts) = (e.error.class(), e.timestamp);
                 let ts_shown = args.timestamps.then_some(ts);
                 printer.error_line(&mut out, ts_shown, &channel, class)?;
                 out.flush()?;
@@ -89,8 +90,10 @@ fn dump(args: Args) -> anyhow::Result<()> {
                     )?;
                     log.flush()?;
                 }
+                None
             }
-        }
+            None => None,
+        };
         let Some(m) = received else {
             continue;
         };

@@ -20,8 +20,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.bus.bus
         );
     }
-    let (number, name, dump) = open.bus.register_dump(Some(node_ref(&args.node)))?;
-    println!("node {number} ({name})");
-    print!("{dump}");
+    let regs = open.bus.register_dump(Some(&node_ref(&args.node)))?;
+    println!("node {} ({})", regs.number, regs.name);
+    print!("{}", regs.dump);
     Ok(())
 }

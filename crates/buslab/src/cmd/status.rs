@@ -26,8 +26,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             open.bus
                 .nodes()?
                 .into_iter()
-                .filter(|(n, _)| *n != me)
-                .map(|(n, _)| buslab_socketcand::NodeRef::Number(n))
+                .filter(|n| n.number != me)
+                .map(|n| buslab_socketcand::NodeRef::Number(n.number))
                 .collect()
         }
     };
@@ -35,7 +35,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if i > 0 {
             println!();
         }
-        print!("{}", open.bus.node_status(Some(node))?);
+        print!("{}", open.bus.node_status(Some(&node))?);
     }
     Ok(())
 }
