@@ -112,6 +112,14 @@ pub struct Filter {
 }
 
 impl Filter {
+    /// Matches no frame (a client that only sends need not keep what it receives): bit 31
+    /// is never set in a 29-bit ID.
+    pub const NONE: Self = Self {
+        id: 1 << 31,
+        mask: 1 << 31,
+        extended: None,
+    };
+
     /// Matches exactly one standard ID.
     pub const fn standard(id: u16) -> Self {
         Self {
@@ -249,6 +257,9 @@ mod tests {
         let filters = [Filter::standard(0x100), Filter::standard(0x200)];
         assert!(matches_any(&filters, &f("200#")));
         assert!(!matches_any(&filters, &f("300#")));
+        for frame in ["000#", "7FF#R", "00000000#", "1FFFFFFF#11"] {
+            assert!(!matches_any(&[Filter::NONE], &f(frame)), "{frame}");
+        }
     }
 
     #[test]

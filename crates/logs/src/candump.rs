@@ -360,6 +360,12 @@ impl Terminal {
         }
     }
 
+    /// The time `-t z` counts from (by default the first line's).
+    pub fn with_zero(mut self, zero: Duration) -> Self {
+        self.first = Some(zero);
+        self
+    }
+
     /// One entry's text without the final newline (with `-e` an error frame takes several
     /// lines).
     pub fn line(&mut self, entry: &Entry) -> String {
@@ -520,6 +526,15 @@ mod tests {
                 .collect();
             assert_eq!(got, want, "{mode:?}");
         }
+        let mut since_start = Terminal::new(View {
+            timestamps: Some(TimestampMode::Zero),
+            ..View::default()
+        })
+        .with_zero(seconds(9.5));
+        assert_eq!(
+            since_start.line(&entry("123#", 10.0))[1..13],
+            *"(000.500000)"
+        );
     }
 
     #[test]
