@@ -202,3 +202,64 @@ pub trait BusAdmin {
     /// how many of each since it joined; an error after `timeout`.
     fn flush(&mut self, timeout: std::time::Duration) -> Result<TxReport, BusError>;
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::decode::{Alc, Ecc};
+
+    #[test]
+    fn status_prints_in_the_layout_of_buslab_status() {
+        let mut st = NodeStatus {
+            number: 3,
+            name: "loser".into(),
+            state: BusState::Passive,
+            errors: Some(ErrorRegisters {
+                alc: Some(Alc(0)),
+                ecc: Some(Ecc(0x0A)),
+                rxerr: 0,
+                txerr: 128,
+            }),
+            sr: Some(Status(0x0C)),
+            timing: Some(NodeTiming {
+                btr0: 0x07,
+                btr1: 0x4D,
+                bitrate: 50_000,
+                matches_bus: false,
+            }),
+            counters: NodeCounters {
+                sent: 1,
+                ..NodeCounters::default()
+            },
+            tx_queued: 2,
+            bus: BusSummary {
+                bitrate: 500_000,
+                load_percent: 12.34,
+                frames: 7,
+                errors: 9,
+            },
+        };
+        let text = st.to_string();
+        for line in [
+            "node 3 (loser)\n",
+            "\nstate:            error-passive\n",
+            "\nTXERR:            128\n",
+            "\nALC:              0x00 arbitration lost at bit 0 (ID.28)\n",
+            "\nECC:              0x0A bit error during transmission in data field\n",
+            "\ntiming:           BTR0=0x07 BTR1=0x4D: 50000 bit/s (does not match the bus: cannot communicate)\n",
+            "\nsent:             1\n",
+            "\ntx_queued:        2\n",
+            "\nbus:              500000 bit/s, load 12.3 % (last second), 7 frames, 9 errors\n",
+        ] {
+            assert!(text.contains(line), "{line:?} in\n{text}");
+        }
+        // No registers to show: the lines are left out, not printed as zeros.
+        st.errors = None;
+        st.sr = None;
+        st.timing = None;
+        let text = st.to_string();
+        for absent in ["TXERR", "ALC", "STATUS", "timing"] {
+            assert!(!text.contains(absent), "{absent} in\n{text}");
+        }
+    }
+}

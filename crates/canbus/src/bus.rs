@@ -184,7 +184,8 @@ pub enum BusError {
     Io(#[from] std::io::Error),
     #[error("protocol error: {0}")]
     Protocol(String),
-    #[error("{what} did not happen within {}", human(*after))]
+    /// `what` names what did not come: "answer to < buslab_flush >".
+    #[error("no {what} within {}", human(*after))]
     Timeout { what: String, after: Duration },
     #[error("{backend} cannot deliver {what}")]
     Unsupported { what: &'static str, backend: String },

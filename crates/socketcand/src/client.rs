@@ -70,7 +70,7 @@ impl From<ClientError> for BusError {
             ClientError::Io(e) => BusError::Io(e),
             ClientError::Closed => BusError::Closed,
             ClientError::Timeout { request, after } => BusError::Timeout {
-                what: format!("an answer to {request}"),
+                what: format!("answer to {request}"),
                 after,
             },
             ClientError::Protocol(_) | ClientError::Element(_) | ClientError::Reply(_) => {
