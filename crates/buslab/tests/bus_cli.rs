@@ -1,34 +1,68 @@
-//! The CAN client commands (`dump`, `send`, `gen`, `regs`, `status`) against `buslab bus serve`.
+//! The CAN client commands (`dump`, `send`, `gen`, `regs`, `status`) against `buslab bus serve`
+//! (and a tiny plain socketcand for what a server without buslab's extensions gives).
 
 mod bus_common;
 
-use std::process::{Command, Stdio};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpListener;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use bus_common::{Serve, frame};
 use buslab_canbus::CanBus;
 
-/// `buslab dump` in the background, printing `count` frames.
-fn dump(serve: &Serve, extra: &[&str]) -> std::process::Child {
+/// How long a test waits for something that normally comes within milliseconds: a deadline
+/// for an event, not a measure of speed (CI machines are loaded).
+const EVENT: Duration = Duration::from_secs(60);
+const WAIT: Option<Duration> = Some(EVENT);
+
+/// `buslab dump` in the background; returned once it said (with -v) that it listens, so
+/// everything sent from then on reaches it. Its stderr is collected for `finish`.
+struct Dump {
+    child: Child,
+    stderr: JoinHandle<String>,
+}
+
+fn dump(serve: &Serve, extra: &[&str]) -> Dump {
     let mut child = serve
         .buslab()
-        .args(["dump", "--bus", &serve.url])
+        .args(["-v", "dump", "--bus", &serve.url])
         .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    // Joined once the server lists it (dump prints nothing before the first frame).
-    let mut probe = serve.client();
-    for _ in 0..200 {
-        if probe.nodes().unwrap().len() >= 2 {
-            return child;
+    let (ready, listening) = mpsc::channel();
+    let lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    let stderr = thread::spawn(move || {
+        let mut all = String::new();
+        for line in lines.map_while(Result::ok) {
+            if line.contains("dump: listening") {
+                let _ = ready.send(());
+            }
+            all.push_str(&line);
+            all.push('\n');
         }
-        std::thread::sleep(Duration::from_millis(10));
+        all
+    });
+    if listening.recv_timeout(EVENT).is_err() {
+        let _ = child.kill();
+        let _ = child.wait();
+        panic!("dump did not start listening: {}", stderr.join().unwrap());
     }
-    let _ = child.kill();
-    let _ = child.wait();
-    panic!("dump did not join");
+    Dump { child, stderr }
+}
+
+impl Dump {
+    /// Waits for dump to end; its stdout.
+    fn finish(self) -> String {
+        let out = self.child.wait_with_output().unwrap();
+        let err = self.stderr.join().unwrap();
+        assert!(out.status.success(), "{err}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
 }
 
 fn run(serve: &Serve, args: &[&str]) -> (bool, String, String) {
@@ -56,10 +90,8 @@ fn send_and_dump_with_a_candump_log() {
         &["send", "123#1122", "1ABCDEF0#DEADBEEF", "321#R3", "7FF#"],
     );
     assert!(ok, "{err}");
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success());
     assert_eq!(
-        String::from_utf8_lossy(&out.stdout),
+        child.finish(),
         "  vcan0  123   [2]  11 22\n  vcan0  1ABCDEF0   [4]  DE AD BE EF\n  vcan0       321   [3]  remote request\n  vcan0       7FF   [0] \n"
     );
     let log = std::fs::read_to_string(log).unwrap();
@@ -91,7 +123,7 @@ fn a_frame_the_bus_receives_comes_to_the_library_client_too() {
     let mut me = serve.client();
     let (ok, _, err) = run(&serve, &["send", "00000005#01"]);
     assert!(ok, "{err}");
-    let m = me.recv(Some(Duration::from_secs(5))).unwrap().unwrap();
+    let m = me.recv(WAIT).unwrap().unwrap();
     assert_eq!(m.frame, frame("00000005#01"));
 }
 
@@ -102,12 +134,12 @@ fn gen_increments_ids_and_data() {
     let (ok, _, err) = run(
         &serve,
         &[
-            "gen", "-n", "20", "-g", "0", "-I", "i", "-L", "2", "-D", "i",
+            "gen", "-n", "20", "-g", "0s", "-I", "i", "-L", "2", "-D", "i",
         ],
     );
     assert!(ok, "{err}");
     for i in 0..20u32 {
-        let m = me.recv(Some(Duration::from_secs(5))).unwrap().unwrap();
+        let m = me.recv(WAIT).unwrap().unwrap();
         assert_eq!(m.frame.to_string(), format!("{i:03X}#{i:02X}00"));
     }
 }
@@ -123,6 +155,15 @@ fn gen_refuses_bad_modes_by_name() {
             &["gen", "-D", "1122", "-L", "3"][..],
             "data has 2 bytes but -L says 3",
         ),
+        // cangen's gap is milliseconds, buslab's durations carry their unit.
+        (
+            &["gen", "-g", "10"][..],
+            "duration \"10\" has no unit: write e.g. 10s or 10ms",
+        ),
+        (
+            &["dump", "-t", "q"][..],
+            "timestamp mode \"q\" must be a (absolute), d (delta) or z (from zero)",
+        ),
     ] {
         let (ok, _, err) = run(&serve, args);
         assert!(!ok && err.contains(want), "{args:?}: {err}");
@@ -134,15 +175,16 @@ fn wrong_bit_timing_is_an_induced_error_seen_in_status_and_regs() {
     let serve = Serve::start(500_000);
     let mut listener = serve.client();
     listener.set_name("pc").unwrap();
-    // The seed's 50 kbit/s registers on a 500 kbit/s bus: the frame cannot get through.
-    let (ok, _, err) = run(
-        &serve,
-        &["send", "--btr", "07:4D", "--timeout", "300ms", "123#11"],
-    );
+    // The seed's 50 kbit/s registers on a 500 kbit/s bus: the frame cannot get through; the
+    // node goes bus-off and the frame is given up.
+    let (ok, _, err) = run(&serve, &["send", "--btr", "07:4D", "123#11"]);
     assert!(!ok);
-    // Either still trying or given up (bus-off) when the timeout ends.
-    assert!(err.contains("frames were"), "{err}");
-    assert!(err.contains("timing:           mismatch"), "{err}");
+    assert!(err.contains("1 of 1 frames were not sent"), "{err}");
+    assert!(err.contains("state:            bus-off"), "{err}");
+    assert!(
+        err.contains("50000 bit/s (does not match the bus: cannot communicate)"),
+        "{err}"
+    );
     assert!(err.contains("ECC:              0x"), "{err}");
     // The listener saw the garbage too: its ECC and RXERR tell.
     let (ok, out, err) = run(&serve, &["status", "--node", "pc"]);
@@ -170,20 +212,15 @@ fn arbitration_loss_shows_in_status_and_regs() {
         blocker.send(&frame("001#0102030405060708")).unwrap();
     }
     loser.send(&frame("400#01")).unwrap();
-    let mut lost = String::new();
-    for _ in 0..100 {
-        let (ok, out, err) = run(&serve, &["status", "--node", "loser"]);
-        assert!(ok, "{err}");
-        if out.contains("ALC:              0x") {
-            lost = out;
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    // Sent only once the blocker is through: by then it lost arbitration.
+    let report = loser.flush(EVENT).unwrap();
+    assert_eq!((report.sent, report.failed), (1, 0));
+    let (ok, out, err) = run(&serve, &["status", "--node", "loser"]);
+    assert!(ok, "{err}");
     // 0x400 (100 0000 0000) loses to 0x001 at its first bit.
     assert!(
-        lost.contains("ALC:              0x00 arbitration lost at bit 0 (ID.28)"),
-        "{lost}"
+        out.contains("ALC:              0x00 arbitration lost at bit 0 (ID.28)"),
+        "{out}"
     );
     let (ok, out, err) = run(&serve, &["regs", "--node", "loser"]);
     assert!(ok, "{err}");
@@ -210,7 +247,10 @@ fn other_backends_and_bad_urls_are_refused_clearly() {
     for (url, want) in [
         ("socketcan:can0", "socketcan backend is not available yet"),
         ("slcan:/dev/ttyACM0", "slcan backend is not available yet"),
-        ("tcp://x", "expected socketcand://HOST[:PORT]/CHANNEL"),
+        (
+            "tcp://x",
+            "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL]",
+        ),
         ("socketcand://h:99999/x", "port \"99999\" must be a number"),
     ] {
         let out = Command::new(bin)
@@ -230,6 +270,10 @@ fn other_backends_and_bad_urls_are_refused_clearly() {
         err.contains("cannot join socketcand://127.0.0.1:1/vcan0"),
         "{err}"
     );
+    assert!(
+        err.contains("start a bus with `buslab bus serve` or `buslab lab`"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -244,7 +288,7 @@ fn scenario_nodes_share_the_wire_with_clients() {
     let serve = Serve::start_with(500_000, &["--nodes", path.to_str().unwrap()]);
     let mut me = serve.client();
     for _ in 0..3 {
-        let m = me.recv(Some(Duration::from_secs(5))).unwrap().unwrap();
+        let m = me.recv(WAIT).unwrap().unwrap();
         assert_eq!(m.frame, frame("0AA#55"));
     }
     // And the scenario node acknowledges a client's frame: the sender completes.
@@ -295,7 +339,10 @@ fn status_without_a_node_lists_every_other_node() {
     assert!(ok, "{err}");
     let heads: Vec<&str> = out.lines().filter(|l| l.starts_with("node ")).collect();
     assert_eq!(heads, ["node 1 (alpha)", "node 2 (beta)"]);
-    assert!(out.contains("bus_bitrate:      500000"), "{out}");
+    assert!(
+        out.contains("\nbus:              500000 bit/s, load "),
+        "{out}"
+    );
 }
 
 #[test]
@@ -304,20 +351,130 @@ fn dump_shows_error_frames_with_e() {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("e.log");
     let child = dump(&serve, &["-e", "-n", "1", "-l", log.to_str().unwrap()]);
-    let (ok, _, _) = run(
-        &serve,
-        &["send", "--btr", "07:4D", "--timeout", "300ms", "123#11"],
-    );
+    let (ok, _, _) = run(&serve, &["send", "--btr", "07:4D", "123#11"]);
     assert!(!ok);
     let (ok, _, err) = run(&serve, &["send", "321#01"]);
     assert!(ok, "{err}");
-    let out = child.wait_with_output().unwrap();
-    let out = String::from_utf8_lossy(&out.stdout);
+    let out = child.finish();
+    // candump -e's words, one class per line: what Linux's SJA1000 driver reports for a bus
+    // error (protocol violation + bus error, with the type and place from ECC and the
+    // counters; which error the mistimed node meets depends on when it sends).
+    let first = out.lines().next().unwrap_or_default();
     assert!(
-        out.contains("  vcan0  20000088   [8]  00 00 00 00 00 00 00 00   ERRORFRAME protocol-violation,bus-error\n"),
+        first.starts_with("  vcan0  20000288   [8]  ") && first.ends_with("   ERRORFRAME"),
         "{out}"
     );
+    assert!(out.contains("\n\tprotocol-violation{{"), "{out}");
+    assert!(out.contains("\n\tbus-error\n"), "{out}");
+    assert!(out.contains("\n\terror-counter-tx-rx{{"), "{out}");
     assert!(out.ends_with("321   [1]  01\n"), "{out}");
     let log = std::fs::read_to_string(log).unwrap();
-    assert!(log.contains(" vcan0 20000088#0000000000000000\n"), "{log}");
+    assert!(log.contains(" vcan0 20000288#"), "{log}");
+}
+
+#[test]
+fn dump_views_like_candump_t_a_x() {
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("x.log");
+    let child = dump(
+        &serve,
+        &[
+            "-t",
+            "z",
+            "-a",
+            "-x",
+            "-n",
+            "2",
+            "-l",
+            log.to_str().unwrap(),
+        ],
+    );
+    let (ok, _, err) = run(&serve, &["send", "123#4142", "124#00"]);
+    assert!(ok, "{err}");
+    let out = child.finish();
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[0],
+        " (000.000000)  vcan0  RX - -  123   [2]  41 42                     'AB'"
+    );
+    // Since the first frame: bus time, as long as the server took to get the second.
+    let (stamp, rest) = lines[1].split_at(13);
+    assert!(
+        stamp.starts_with(" (") && stamp.ends_with(")") && stamp.as_bytes()[5] == b'.',
+        "{out}"
+    );
+    assert_eq!(
+        rest,
+        "  vcan0  RX - -  124   [1]  00                        '.'"
+    );
+    // The log gets R (received) after each frame, as candump -x writes it.
+    let log = std::fs::read_to_string(log).unwrap();
+    assert!(log.ends_with(" vcan0 124#00 R\n"), "{log}");
+}
+
+/// A socketcand without buslab's extensions: greets, opens, takes frames silently, and
+/// answers everything else `< error unknown command >`.
+fn plain_socketcand() -> (String, JoinHandle<()>) {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!("socketcand://{}/vcan0", listener.local_addr().unwrap());
+    let server = thread::spawn(move || {
+        for stream in listener.incoming().take(3) {
+            let mut s = stream.unwrap();
+            s.write_all(b"< hi >").unwrap();
+            let mut deframer = buslab_socketcand::Deframer::new();
+            let mut buf = [0u8; 1024];
+            while let Ok(n @ 1..) = s.read(&mut buf) {
+                deframer.push(&buf[..n]);
+                while let Some(Ok(element)) = deframer.next_element() {
+                    let answer: &[u8] = match element.split_whitespace().next() {
+                        Some("open" | "rawmode") => b"< ok >",
+                        Some("send") => b"",
+                        _ => b"< error unknown command >",
+                    };
+                    let _ = s.write_all(answer);
+                }
+            }
+        }
+    });
+    (url, server)
+}
+
+#[test]
+fn a_plain_socketcand_gets_frames_but_no_confirmation_status_or_registers() {
+    let (url, server) = plain_socketcand();
+    let bin = env!("CARGO_BIN_EXE_buslab");
+    let out = Command::new(bin)
+        .args(["send", "--bus", &url, "--name", "x", "123#11"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("--name x is ignored"), "{err}");
+    assert!(
+        err.contains("cannot confirm that the 1 frame(s) were sent"),
+        "{err}"
+    );
+    for (args, want) in [
+        (
+            &["status"][..],
+            "the server has no node status (not a buslab bus)",
+        ),
+        (
+            &["regs", "--node", "1"][..],
+            "the server has no register access (not a buslab bus)",
+        ),
+    ] {
+        let out = Command::new(bin)
+            .args(args)
+            .args(["--bus", &url])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(want),
+            "{args:?}: {err}"
+        );
+    }
+    server.join().unwrap();
 }

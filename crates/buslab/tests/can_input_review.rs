@@ -22,7 +22,7 @@ const NOBODY: &str = "socketcand://127.0.0.1:1/vcan0";
 
 #[test]
 fn send_timeout_must_be_a_sane_duration_with_a_unit() {
-    for bad in ["1e300s", "nans", "inf", "1e19", "-1s", "200000000s"] {
+    for bad in ["1e300s", "nans", "inf", "1e19", "-1s", "0.5", "101days"] {
         let (ok, err) = buslab(&["send", "--bus", NOBODY, &format!("--timeout={bad}"), "123#"]);
         assert!(!ok, "{bad}");
         assert!(err.contains(&format!("duration \"{bad}\"")), "{bad}: {err}");
@@ -36,16 +36,13 @@ fn send_timeout_must_be_a_sane_duration_with_a_unit() {
 }
 
 #[test]
-fn gen_gap_must_be_a_sane_number_of_milliseconds() {
-    for bad in ["1e300", "NaN", "1e22", "-5"] {
+fn gen_gap_must_be_a_sane_duration_with_a_unit() {
+    for bad in ["1e300ms", "NaN", "1e22", "-5ms", "10", "101days"] {
         let (ok, err) = buslab(&["gen", "--bus", NOBODY, "-n", "1", &format!("--gap={bad}")]);
         assert!(!ok, "{bad}");
-        assert!(
-            err.contains(&format!("gap \"{bad}\" must be")) && err.contains("0..=86400000"),
-            "{bad}: {err}"
-        );
+        assert!(err.contains(&format!("duration \"{bad}\"")), "{bad}: {err}");
     }
-    let (ok, err) = buslab(&["gen", "--bus", NOBODY, "-n", "1", "-g", "0"]);
+    let (ok, err) = buslab(&["gen", "--bus", NOBODY, "-n", "1", "-g", "0s"]);
     assert!(!ok && err.contains("cannot join"), "{err}");
 }
 
@@ -57,7 +54,9 @@ fn gen_names_its_node_as_docs_bus_md_shows() {
     let out = serve
         .buslab()
         .args(["gen", "--bus", &serve.url, "--name", "genny"])
-        .args(["-n", "1", "-g", "0", "-I", "123", "-L", "1", "-D", "11"])
+        // Nobody acknowledges: it fails whenever the timeout ends.
+        .args(["-n", "1", "-g", "0s", "-I", "123", "-L", "1", "-D", "11"])
+        .args(["--timeout", "1s"])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);

@@ -91,8 +91,9 @@ pub struct NodeStatus {
     pub number: u32,
     pub name: String,
     pub state: BusState,
-    /// TXERR, RXERR and the last captured ALC and ECC.
-    pub errors: ErrorRegisters,
+    /// TXERR, RXERR and the last captured ALC and ECC, for nodes that have these registers
+    /// (an SJA1000 in PeliCAN mode; BasicCAN cannot read its counters).
+    pub errors: Option<ErrorRegisters>,
     /// The status register, for nodes that are SJA1000 chips.
     pub sr: Option<Status>,
     /// The bit timing, for nodes whose timing is programmable.
@@ -115,16 +116,17 @@ impl fmt::Display for NodeStatus {
         if let Some(sr) = self.sr {
             row(f, "STATUS", sr)?;
         }
-        let e = self.errors;
-        row(f, "TXERR", e.txerr)?;
-        row(f, "RXERR", e.rxerr)?;
-        match e.alc {
-            Some(alc) => row(f, "ALC", format_args!("0x{:02X} {alc}", alc.0))?,
-            None => row(f, "ALC", "none captured")?,
-        }
-        match e.ecc {
-            Some(ecc) => row(f, "ECC", format_args!("0x{:02X} {ecc}", ecc.0))?,
-            None => row(f, "ECC", "none captured")?,
+        if let Some(e) = self.errors {
+            row(f, "TXERR", e.txerr)?;
+            row(f, "RXERR", e.rxerr)?;
+            match e.alc {
+                Some(alc) => row(f, "ALC", format_args!("0x{:02X} {alc}", alc.0))?,
+                None => row(f, "ALC", "none captured")?,
+            }
+            match e.ecc {
+                Some(ecc) => row(f, "ECC", format_args!("0x{:02X} {ecc}", ecc.0))?,
+                None => row(f, "ECC", "none captured")?,
+            }
         }
         if let Some(t) = self.timing {
             row(
@@ -199,4 +201,65 @@ pub trait BusAdmin {
     /// Waits until every frame this client sent so far was transmitted or given up, and says
     /// how many of each since it joined; an error after `timeout`.
     fn flush(&mut self, timeout: std::time::Duration) -> Result<TxReport, BusError>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::decode::{Alc, Ecc};
+
+    #[test]
+    fn status_prints_in_the_layout_of_buslab_status() {
+        let mut st = NodeStatus {
+            number: 3,
+            name: "loser".into(),
+            state: BusState::Passive,
+            errors: Some(ErrorRegisters {
+                alc: Some(Alc(0)),
+                ecc: Some(Ecc(0x0A)),
+                rxerr: 0,
+                txerr: 128,
+            }),
+            sr: Some(Status(0x0C)),
+            timing: Some(NodeTiming {
+                btr0: 0x07,
+                btr1: 0x4D,
+                bitrate: 50_000,
+                matches_bus: false,
+            }),
+            counters: NodeCounters {
+                sent: 1,
+                ..NodeCounters::default()
+            },
+            tx_queued: 2,
+            bus: BusSummary {
+                bitrate: 500_000,
+                load_percent: 12.34,
+                frames: 7,
+                errors: 9,
+            },
+        };
+        let text = st.to_string();
+        for line in [
+            "node 3 (loser)\n",
+            "\nstate:            error-passive\n",
+            "\nTXERR:            128\n",
+            "\nALC:              0x00 arbitration lost at bit 0 (ID.28)\n",
+            "\nECC:              0x0A bit error during transmission in data field\n",
+            "\ntiming:           BTR0=0x07 BTR1=0x4D: 50000 bit/s (does not match the bus: cannot communicate)\n",
+            "\nsent:             1\n",
+            "\ntx_queued:        2\n",
+            "\nbus:              500000 bit/s, load 12.3 % (last second), 7 frames, 9 errors\n",
+        ] {
+            assert!(text.contains(line), "{line:?} in\n{text}");
+        }
+        // No registers to show: the lines are left out, not printed as zeros.
+        st.errors = None;
+        st.sr = None;
+        st.timing = None;
+        let text = st.to_string();
+        for absent in ["TXERR", "ALC", "STATUS", "timing"] {
+            assert!(!text.contains(absent), "{absent} in\n{text}");
+        }
+    }
 }

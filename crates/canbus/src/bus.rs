@@ -1,20 +1,44 @@
 //! A CAN bus interface in the spirit of python-can's `BusABC`: send frames, receive
-//! timestamped messages, filter by ID and mask, ask for the error state.
+//! timestamped messages (and, when asked for, error frames), filter by ID and mask, ask for the
+//! error state.
 
 use std::fmt;
 use std::time::Duration;
 
 use buslab_can::Frame;
 
+use crate::error_frame::ErrorFrame;
+
 /// One bus: a socketcand connection, a managed SJA1000, a simulated node.
 ///
 /// Like python-can: `recv(None)` blocks until a message arrives, `recv(Some(t))` returns
 /// `Ok(None)` when `t` passes without one. An empty filter list accepts every frame.
+///
+/// Error frames are off by default; after `set_error_frames(true)` [`CanBus::recv_event`]
+/// gives them in order with the frames, while `recv` keeps giving frames only (and drops the
+/// error frames it passes).
 pub trait CanBus {
     /// Queues `frame` for transmission (does not wait for it to reach the bus).
     fn send(&mut self, frame: &Frame) -> Result<(), BusError>;
     /// The next message that passes the filters, or `None` after `timeout`.
     fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError>;
+    /// The next frame that passes the filters or error frame, in the order they happened, or
+    /// `None` after `timeout`. Backends without error frames give frames only.
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+        Ok(self.recv(timeout)?.map(BusEvent::Frame))
+    }
+    /// Asks for error frames (bus errors, lost arbitrations, state changes) too; a backend
+    /// that cannot deliver them refuses with [`BusError::Unsupported`].
+    fn set_error_frames(&mut self, on: bool) -> Result<(), BusError> {
+        if on {
+            Err(BusError::Unsupported {
+                what: "error frames",
+                backend: self.channel_info(),
+            })
+        } else {
+            Ok(())
+        }
+    }
     /// Replaces the receive filters; `&[]` accepts everything.
     fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError>;
     /// The controller's error state.
@@ -61,6 +85,22 @@ impl fmt::Display for Message {
     }
 }
 
+/// An error frame with its time and channel (python-can's `Message` with `is_error_frame`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ErrorMessage {
+    /// Seconds, as [`Message::timestamp`].
+    pub timestamp: f64,
+    pub channel: String,
+    pub error: ErrorFrame,
+}
+
+/// What [`CanBus::recv_event`] gives: a frame or an error frame.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BusEvent {
+    Frame(Message),
+    Error(ErrorMessage),
+}
+
 /// A receive filter with python-can semantics: a frame matches when
 /// `(frame_id ^ id) & mask == 0` and, if `extended` is `Some`, the ID format agrees.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -72,6 +112,14 @@ pub struct Filter {
 }
 
 impl Filter {
+    /// Matches no frame (a client that only sends need not keep what it receives): bit 31
+    /// is never set in a 29-bit ID.
+    pub const NONE: Self = Self {
+        id: 1 << 31,
+        mask: 1 << 31,
+        extended: None,
+    };
+
     /// Matches exactly one standard ID.
     pub const fn standard(id: u16) -> Self {
         Self {
@@ -136,8 +184,33 @@ pub enum BusError {
     Io(#[from] std::io::Error),
     #[error("protocol error: {0}")]
     Protocol(String),
+    /// `what` names what did not come: "answer to < buslab_flush >".
+    #[error("no {what} within {}", human(*after))]
+    Timeout { what: String, after: Duration },
+    #[error("{backend} cannot deliver {what}")]
+    Unsupported { what: &'static str, backend: String },
     #[error("{0}")]
     Other(String),
+}
+
+/// `2.06 s`, `350 ms`: three significant digits and a unit, for messages.
+pub fn human(d: Duration) -> String {
+    let s = d.as_secs_f64();
+    let (value, unit) = if s >= 1.0 {
+        (s, "s")
+    } else if s >= 1e-3 {
+        (s * 1e3, "ms")
+    } else {
+        (s * 1e6, "µs")
+    };
+    let decimals = if value >= 100.0 {
+        0
+    } else if value >= 10.0 {
+        1
+    } else {
+        2
+    };
+    format!("{value:.decimals$} {unit}")
 }
 
 #[cfg(test)]
@@ -185,6 +258,9 @@ mod tests {
         let filters = [Filter::standard(0x100), Filter::standard(0x200)];
         assert!(matches_any(&filters, &f("200#")));
         assert!(!matches_any(&filters, &f("300#")));
+        for frame in ["000#", "7FF#R", "00000000#", "1FFFFFFF#11"] {
+            assert!(!matches_any(&[Filter::NONE], &f(frame)), "{frame}");
+        }
     }
 
     #[test]

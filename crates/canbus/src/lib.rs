@@ -8,6 +8,8 @@
 //! - [`driver`]: the SJA1000 driver, BasicCAN and PeliCAN behind one interface
 //!   ([`Sja1000Driver`]); it touches the chip only through register reads and writes.
 //! - [`decode`]: status, error-code and arbitration-lost registers decoded into words.
+//! - [`error_frame`]: SocketCAN error frames as typed values ([`ErrorFrame`]), decoded,
+//!   encoded, and in can-utils' words.
 //! - [`manager`]: the single owner of a driver: one thread, listeners and requests
 //!   ([`Manager`], [`ManagerHandle`]).
 //! - [`file`](mod@file): the file protocol for data longer than 8 bytes (SPEC N5).
@@ -45,6 +47,7 @@ pub mod bus;
 pub mod config;
 pub mod decode;
 pub mod driver;
+pub mod error_frame;
 pub mod file;
 pub mod manager;
 pub mod regs;
@@ -53,12 +56,16 @@ pub use admin::{
     BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming,
     TxReport,
 };
-pub use bus::{BusError, BusState, CanBus, Filter, Message};
+pub use bus::{BusError, BusEvent, BusState, CanBus, ErrorMessage, Filter, Message};
 pub use config::{
     AcceptanceFilter, ClockOut, ConfigError, InterruptEnables, Sja1000Config, Timing,
 };
 pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 pub use driver::{ControllerState, DriverError, DriverEvent, Sja1000Driver, TxFailure, TxMode};
+pub use error_frame::{
+    CanError, ControllerProblems, ErrorCounters, ErrorFrame, ErrorFrameError, ProtocolLocation,
+    ProtocolViolation, TransceiverStatus,
+};
 pub use file::{FileAssembler, FileError};
 pub use manager::{
     Confirmation, Manager, ManagerBus, ManagerConfig, ManagerError, ManagerHandle, SendError,

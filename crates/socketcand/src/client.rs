@@ -1,25 +1,45 @@
-//! A [`CanBus`] over a socketcand TCP connection in raw mode (the IO adapter around the codec).
+//! A [`CanBus`] over a socketcand TCP connection in raw mode (the IO adapter around the codec),
+//! with buslab's extensions as a [`BusAdmin`] when the server has them.
 
 use std::collections::VecDeque;
-use std::fmt;
 use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
 use buslab_can::Frame;
-use buslab_canbus::bus::matches_any;
+use buslab_canbus::bus::{human, matches_any};
 use buslab_canbus::{
-    Alc, BusError, BusState, CanBus, CanMode, Ecc, ErrorRegisters, Filter, Message, RegisterDump,
-    Status,
+    BusAdmin, BusError, BusEvent, BusState, CanBus, ErrorFrame, ErrorMessage, Filter, Message,
+    NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport,
 };
 
-use crate::command::{Command, NodeRef};
+use crate::command::Command;
 use crate::element::{Deframer, ElementError};
 use crate::message::ServerMessage;
+use crate::reply::{self, ReplyError};
 use crate::{ProtocolError, sanitize};
 
-/// How long the client waits for the answer to a request.
-const REPLY_TIMEOUT: Duration = Duration::from_secs(5);
+/// Received frames and error frames kept for `recv` at most; beyond, the oldest are dropped
+/// (with a warning). A client busy in a long request on a busy bus must not grow without end.
+pub const MAX_INBOX: usize = 1 << 18;
+
+/// Deadlines of a client.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClientOptions {
+    /// How long to wait for the TCP connection.
+    pub connect_timeout: Duration,
+    /// How long to wait for the answer to a request (the handshake, status, registers…).
+    pub reply_timeout: Duration,
+}
+
+impl Default for ClientOptions {
+    fn default() -> Self {
+        Self {
+            connect_timeout: Duration::from_secs(10),
+            reply_timeout: Duration::from_secs(5),
+        }
+    }
+}
 
 /// Why talking to a socketcand server failed.
 #[derive(Debug, thiserror::Error)]
@@ -32,14 +52,16 @@ pub enum ClientError {
     Handshake { expected: &'static str, got: String },
     #[error("the server answered: {0}")]
     Server(String),
-    #[error("no answer to {0} within 5 s")]
-    Timeout(String),
+    #[error("no answer to {request} within {}", human(*after))]
+    Timeout { request: String, after: Duration },
     #[error("bad message from the server: {0}")]
     Protocol(#[from] ProtocolError),
     #[error("bad data from the server: {0}")]
     Element(#[from] ElementError),
-    #[error("bad {what} reply: {text}")]
-    Reply { what: &'static str, text: String },
+    #[error("bad reply from the server: {0}")]
+    Reply(#[from] ReplyError),
+    #[error("{0} needs a buslab server (this one has no buslab extensions)")]
+    NoExtensions(&'static str),
 }
 
 impl From<ClientError> for BusError {
@@ -47,7 +69,11 @@ impl From<ClientError> for BusError {
         match e {
             ClientError::Io(e) => BusError::Io(e),
             ClientError::Closed => BusError::Closed,
-            ClientError::Protocol(_) | ClientError::Element(_) | ClientError::Reply { .. } => {
+            ClientError::Timeout { request, after } => BusError::Timeout {
+                what: format!("answer to {request}"),
+                after,
+            },
+            ClientError::Protocol(_) | ClientError::Element(_) | ClientError::Reply(_) => {
                 BusError::Protocol(e.to_string())
             }
             other => BusError::Other(other.to_string()),
@@ -55,88 +81,15 @@ impl From<ClientError> for BusError {
     }
 }
 
-/// A node's status as a buslab server reports it (`< buslab_status … >`).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct NodeStatus {
-    pub number: u32,
-    pub name: String,
-    /// Every `key=value` pair in the order the server sent them.
-    pub fields: Vec<(String, String)>,
-}
-
-impl NodeStatus {
-    pub fn get(&self, key: &str) -> Option<&str> {
-        self.fields
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.as_str())
-    }
-
-    fn hex(&self, key: &str) -> Option<u8> {
-        self.get(key).and_then(|v| u8::from_str_radix(v, 16).ok())
-    }
-
-    fn num(&self, key: &str) -> Option<u64> {
-        self.get(key).and_then(|v| v.parse().ok())
-    }
-
-    /// SR.
-    pub fn status(&self) -> Option<Status> {
-        self.hex("sr").map(Status)
-    }
-
-    /// RXERR, TXERR and the last captured ALC and ECC.
-    pub fn error_registers(&self) -> ErrorRegisters {
-        ErrorRegisters {
-            alc: self.hex("alc").map(Alc),
-            ecc: self.hex("ecc").map(Ecc),
-            rxerr: self.num("rxerr").unwrap_or(0) as u8,
-            txerr: self.num("txerr").unwrap_or(0) as u8,
-        }
-    }
-
-    pub fn state(&self) -> BusState {
-        match self.get("state") {
-            Some("bus-off") => BusState::BusOff,
-            Some("error-passive") => BusState::Passive,
-            _ => BusState::Active,
-        }
-    }
-}
-
-/// Several lines: the node, its state, SR in words, the counters, ALC and ECC in words, and
-/// the server's other counters.
-impl fmt::Display for NodeStatus {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        fn row(f: &mut fmt::Formatter<'_>, label: &str, value: impl fmt::Display) -> fmt::Result {
-            writeln!(f, "{:<18}{value}", format!("{label}:"))
-        }
-        writeln!(f, "node {} ({})", self.number, self.name)?;
-        row(f, "state", self.get("state").unwrap_or("?"))?;
-        if let Some(sr) = self.status() {
-            row(f, "STATUS", sr)?;
-        }
-        let e = self.error_registers();
-        row(f, "TXERR", e.txerr)?;
-        row(f, "RXERR", e.rxerr)?;
-        match e.alc {
-            Some(alc) => row(f, "ALC", format_args!("0x{:02X} {alc}", alc.0))?,
-            None => row(f, "ALC", "none captured")?,
-        }
-        match e.ecc {
-            Some(ecc) => row(f, "ECC", format_args!("0x{:02X} {ecc}", ecc.0))?,
-            None => row(f, "ECC", "none captured")?,
-        }
-        for (k, v) in &self.fields {
-            if !matches!(
-                k.as_str(),
-                "state" | "sr" | "txerr" | "rxerr" | "alc" | "ecc"
-            ) {
-                row(f, k, v)?;
-            }
-        }
-        Ok(())
-    }
+/// How this client learns that its frames were sent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum FlushMode {
+    /// Not tried yet.
+    Unknown,
+    /// `< buslab_flush >`, answered when done.
+    Event,
+    /// FALLBACK for buslab servers older than `buslab_flush`: poll `buslab_status`.
+    Polling,
 }
 
 /// A connection to a socketcand server, in raw mode on one bus.
@@ -144,183 +97,267 @@ impl fmt::Display for NodeStatus {
 pub struct SocketcandBus {
     stream: TcpStream,
     deframer: Deframer,
-    inbox: VecDeque<Message>,
-    error_frames: VecDeque<(u32, f64)>,
+    inbox: VecDeque<BusEvent>,
+    /// Events dropped because the inbox was full, and the count last warned about.
+    dropped: u64,
+    dropped_warned: u64,
     channel: String,
     filters: Vec<Filter>,
     extensions: bool,
+    error_frames: bool,
+    flush: FlushMode,
+    /// Frames written since the connection opened (the node's counters start there too).
+    sent: u64,
+    /// Replies still owed for requests that timed out, by reply name (`ok` for `< ok >`):
+    /// dropped when they come, so they cannot answer a later request.
+    late: Vec<&'static str>,
+    options: ClientOptions,
     buf: Vec<u8>,
 }
 
 impl SocketcandBus {
     /// Connects, checks `< hi >`, opens `channel` and switches to raw mode (python-can's
-    /// sequence).
+    /// sequence), with the default deadlines.
     pub fn connect(addr: impl ToSocketAddrs, channel: &str) -> Result<Self, ClientError> {
-        let stream = TcpStream::connect(addr)?;
+        Self::connect_with(addr, channel, ClientOptions::default())
+    }
+
+    /// [`Self::connect`] with other deadlines.
+    pub fn connect_with(
+        addr: impl ToSocketAddrs,
+        channel: &str,
+        options: ClientOptions,
+    ) -> Result<Self, ClientError> {
+        let stream = connect_any(addr, options.connect_timeout)?;
         stream.set_nodelay(true)?;
         let mut bus = Self {
             stream,
             deframer: Deframer::new(),
             inbox: VecDeque::new(),
-            error_frames: VecDeque::new(),
+            dropped: 0,
+            dropped_warned: 0,
             channel: channel.to_string(),
             filters: Vec::new(),
             extensions: false,
+            error_frames: false,
+            flush: FlushMode::Unknown,
+            sent: 0,
+            late: Vec::new(),
+            options,
             buf: vec![0; 64 * 1024],
         };
-        let deadline = Instant::now() + REPLY_TIMEOUT;
+        let deadline = Instant::now() + options.reply_timeout;
         match bus.next_message(Some(deadline))? {
             Some(ServerMessage::Hi) => {}
-            other => return Err(handshake("< hi >", other)),
+            other => return Err(bus.handshake("< hi >", other)),
         }
         bus.write(&Command::Open(channel.to_string()))?;
         bus.expect_ok("< ok > after open")?;
         bus.write(&Command::RawMode)?;
         bus.expect_ok("< ok > after rawmode")?;
+        tracing::debug!("joined {}", bus.channel_info());
         Ok(bus)
     }
 
     fn expect_ok(&mut self, expected: &'static str) -> Result<(), ClientError> {
-        let deadline = Instant::now() + REPLY_TIMEOUT;
+        let deadline = Instant::now() + self.options.reply_timeout;
         match self.next_message(Some(deadline))? {
             Some(ServerMessage::Ok) => Ok(()),
-            other => Err(handshake(expected, other)),
+            other => Err(self.handshake(expected, other)),
         }
     }
 
-    /// Turns on buslab's extensions (remote frames as `R<dlc>`); `false` if the server is a
-    /// plain socketcand that does not know them.
+    fn handshake(&self, expected: &'static str, got: Option<ServerMessage>) -> ClientError {
+        ClientError::Handshake {
+            expected,
+            got: got.map_or_else(
+                || format!("nothing within {}", human(self.options.reply_timeout)),
+                |m| sanitize(&m.to_string()),
+            ),
+        }
+    }
+
+    /// Turns on buslab's extensions (remote frames as `R<dlc>`, status, registers, flush);
+    /// `false` if the server is a plain socketcand that does not know them.
     pub fn enable_extensions(&mut self) -> Result<bool, ClientError> {
-        match self.request(&Command::Extensions, None) {
+        match self.request(&Command::Extensions, None, self.options.reply_timeout) {
             Ok(_) => {
                 self.extensions = true;
                 Ok(true)
             }
-            Err(ClientError::Server(_)) => Ok(false),
+            Err(ClientError::Server(text)) => {
+                tracing::debug!("no buslab extensions: the server answered {text:?}");
+                Ok(false)
+            }
             Err(e) => Err(e),
+        }
+    }
+
+    /// Whether [`Self::enable_extensions`] found them.
+    pub fn has_extensions(&self) -> bool {
+        self.extensions
+    }
+
+    fn need_extensions(&self, what: &'static str) -> Result<(), ClientError> {
+        if self.extensions {
+            Ok(())
+        } else {
+            Err(ClientError::NoExtensions(what))
         }
     }
 
     /// Names this client's node (buslab servers).
     pub fn set_name(&mut self, name: &str) -> Result<(), ClientError> {
-        self.request(&Command::Name(name.to_string()), None)
-            .map(drop)
+        self.need_extensions("naming a node")?;
+        self.request(
+            &Command::Name(name.to_string()),
+            None,
+            self.options.reply_timeout,
+        )
+        .map(drop)
     }
 
-    /// Also receive this client's own frames once they were sent.
+    /// Also receive this client's own frames once they were sent (buslab servers).
     pub fn receive_own(&mut self, on: bool) -> Result<(), ClientError> {
-        self.request(&Command::ReceiveOwn(on), None).map(drop)
-    }
-
-    /// Also receive error frames (buslab servers; a socketcand started with `-e` sends them
-    /// anyway): they are collected for [`Self::take_error_frames`].
-    pub fn enable_error_frames(&mut self, on: bool) -> Result<(), ClientError> {
-        self.request(&Command::ErrorFrames(on), None).map(drop)
-    }
-
-    /// The error frames received so far: `(SocketCAN error class, timestamp)`.
-    pub fn take_error_frames(&mut self) -> Vec<(u32, f64)> {
-        self.error_frames.drain(..).collect()
+        self.need_extensions("receiving own frames")?;
+        self.request(&Command::ReceiveOwn(on), None, self.options.reply_timeout)
+            .map(drop)
     }
 
     /// Reprograms this client's chip with BTR0/BTR1 (buslab servers).
     pub fn set_btr(&mut self, btr0: u8, btr1: u8) -> Result<(), ClientError> {
-        self.request(&Command::Btr { btr0, btr1 }, None).map(drop)
+        self.need_extensions("setting the bit timing")?;
+        self.request(
+            &Command::Btr { btr0, btr1 },
+            None,
+            self.options.reply_timeout,
+        )
+        .map(drop)
     }
 
-    /// The nodes on the bus: `(number, name)`.
-    pub fn nodes(&mut self) -> Result<Vec<(u32, String)>, ClientError> {
-        let args = self.request(&Command::Nodes, Some("buslab_nodes"))?;
-        args.iter()
-            .map(|a| {
-                a.split_once(':')
-                    .and_then(|(n, name)| Some((n.parse().ok()?, name.to_string())))
-                    .ok_or_else(|| ClientError::Reply {
-                        what: "buslab_nodes",
-                        text: a.clone(),
-                    })
-            })
-            .collect()
+    /// The nodes on the bus.
+    pub fn nodes(&mut self) -> Result<Vec<NodeInfo>, ClientError> {
+        self.need_extensions("listing nodes")?;
+        let args = self.request(
+            &Command::Nodes,
+            Some(reply::NODES),
+            self.options.reply_timeout,
+        )?;
+        Ok(reply::parse_nodes(&args)?)
     }
 
     /// A node's status (own node if `None`).
-    pub fn node_status(&mut self, node: Option<NodeRef>) -> Result<NodeStatus, ClientError> {
-        let args = self.request(&Command::Status(node), Some("buslab_status"))?;
-        let bad = |args: &[String]| ClientError::Reply {
-            what: "buslab_status",
-            text: args.join(" "),
-        };
-        let [number, name, fields @ ..] = args.as_slice() else {
-            return Err(bad(&args));
-        };
-        let fields = fields
-            .iter()
-            .map(|f| {
-                f.split_once('=')
-                    .map(|(k, v)| (k.to_string(), v.to_string()))
-            })
-            .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| bad(&args))?;
-        Ok(NodeStatus {
-            number: number.parse().map_err(|_| bad(&args))?,
-            name: name.clone(),
-            fields,
-        })
+    pub fn node_status(&mut self, node: Option<&NodeRef>) -> Result<NodeStatus, ClientError> {
+        self.need_extensions("node status")?;
+        let args = self.request(
+            &Command::Status(node.cloned()),
+            Some(reply::STATUS),
+            self.options.reply_timeout,
+        )?;
+        Ok(reply::parse_status(&args)?)
     }
 
-    /// A node's register dump (own node if `None`): `(number, name, dump)`.
-    pub fn register_dump(
-        &mut self,
-        node: Option<NodeRef>,
-    ) -> Result<(u32, String, RegisterDump), ClientError> {
-        let args = self.request(&Command::Regs(node), Some("buslab_regs"))?;
-        let bad = || ClientError::Reply {
-            what: "buslab_regs",
-            text: args.join(" "),
-        };
-        let [number, name, mode, state, values @ ..] = args.as_slice() else {
-            return Err(bad());
-        };
-        let mode = match mode.as_str() {
-            "peli" => CanMode::Peli,
-            "basic" => CanMode::Basic,
-            _ => return Err(bad()),
-        };
-        let values = values
-            .iter()
-            .map(|v| match v.as_str() {
-                "--" => Ok(None),
-                v => u8::from_str_radix(v, 16).map(Some),
-            })
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|_| bad())?;
-        Ok((
-            number.parse().map_err(|_| bad())?,
-            name.clone(),
-            RegisterDump {
-                mode,
-                reset_mode: state == "reset",
-                values,
-            },
-        ))
+    /// A node's register dump (own node if `None`).
+    pub fn register_dump(&mut self, node: Option<&NodeRef>) -> Result<NodeRegisters, ClientError> {
+        self.need_extensions("register dumps")?;
+        let args = self.request(
+            &Command::Regs(node.cloned()),
+            Some(reply::REGS),
+            self.options.reply_timeout,
+        )?;
+        Ok(reply::parse_regs(&args)?)
     }
 
-    /// Sends `cmd` and waits for `< ok >`, for the reply element called `reply`, or for
-    /// `< error … >`. Frames that arrive meanwhile are kept for [`CanBus::recv`].
-    fn request(&mut self, cmd: &Command, reply: Option<&str>) -> Result<Vec<String>, ClientError> {
-        self.write(cmd)?;
-        let deadline = Instant::now() + REPLY_TIMEOUT;
+    /// Waits until every frame this client sent so far was transmitted or given up
+    /// (`< buslab_flush >`); frames received meanwhile are kept for `recv`.
+    pub fn flush(&mut self, timeout: Duration) -> Result<TxReport, ClientError> {
+        self.need_extensions("confirming sent frames")?;
+        if self.flush == FlushMode::Polling {
+            return self.flush_by_polling(timeout);
+        }
+        match self.request(&Command::Flush, Some(reply::FLUSHED), timeout) {
+            Ok(args) => {
+                self.flush = FlushMode::Event;
+                Ok(reply::parse_flushed(&args)?)
+            }
+            Err(ClientError::Server(text))
+                if self.flush == FlushMode::Unknown && unknown_command(&text) =>
+            {
+                tracing::debug!(
+                    "the server does not know buslab_flush ({text:?}): polling buslab_status instead"
+                );
+                self.flush = FlushMode::Polling;
+                self.flush_by_polling(timeout)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// FALLBACK, only for buslab servers that answer `buslab_flush` as an unknown command
+    /// (before issue 8): polls this node's status every 5 ms until its sent and failed
+    /// counters account for every frame this client wrote.
+    fn flush_by_polling(&mut self, timeout: Duration) -> Result<TxReport, ClientError> {
+        let deadline = Instant::now() + timeout;
         loop {
-            match self.next_message(Some(deadline))? {
-                None => return Err(ClientError::Timeout(cmd.to_string())),
-                Some(ServerMessage::Ok) if reply.is_none() => return Ok(Vec::new()),
-                Some(ServerMessage::Other { name, args }) if Some(name.as_str()) == reply => {
-                    return Ok(args);
-                }
-                Some(ServerMessage::Error(text)) => return Err(ClientError::Server(text)),
-                Some(_) => {}
+            let st = self.node_status(None)?;
+            let report = TxReport {
+                sent: st.counters.sent,
+                failed: st.counters.tx_failed,
+            };
+            if report.sent + report.failed >= self.sent {
+                return Ok(report);
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(ClientError::Timeout {
+                    request: Command::Flush.to_string(),
+                    after: timeout,
+                });
+            }
+            // Take in frames meanwhile so the server never has to drop ours.
+            let pause = deadline.min(now + Duration::from_millis(5));
+            while let Some(m) = self.next_message(Some(pause))? {
+                self.unsolicited(m);
             }
         }
+    }
+
+    /// Sends `cmd` and waits up to `timeout` for `< ok >` (`reply` = `None`), for the reply
+    /// element called `reply`, or for `< error … >`. Frames that arrive meanwhile are kept
+    /// for [`CanBus::recv`].
+    fn request(
+        &mut self,
+        cmd: &Command,
+        reply: Option<&'static str>,
+        timeout: Duration,
+    ) -> Result<Vec<String>, ClientError> {
+        self.write(cmd)?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            let Some(m) = self.next_message(Some(deadline))? else {
+                self.late.push(reply.unwrap_or("ok"));
+                return Err(ClientError::Timeout {
+                    request: cmd.to_string(),
+                    after: timeout,
+                });
+            };
+            match m {
+                ServerMessage::Ok if reply.is_none() => return Ok(Vec::new()),
+                ServerMessage::Other { name, args } if Some(name.as_str()) == reply => {
+                    return Ok(args);
+                }
+                ServerMessage::Error(text) => return Err(ClientError::Server(text)),
+                other => self.unsolicited(other),
+            }
+        }
+    }
+
+    /// A message nobody waits for: logged.
+    fn unsolicited(&mut self, m: ServerMessage) {
+        tracing::debug!(
+            "unsolicited message from the server: {}",
+            sanitize(&m.to_string())
+        );
     }
 
     fn write(&mut self, cmd: &Command) -> Result<(), ClientError> {
@@ -353,20 +390,45 @@ impl SocketcandBus {
                 match msg {
                     ServerMessage::Frame { frame, timestamp } => {
                         frames = true;
-                        self.inbox.push_back(Message::rx(
-                            timestamp.as_secs_f64(),
-                            self.channel.clone(),
-                            frame,
-                        ));
+                        let m = Message::rx(timestamp.as_secs_f64(), self.channel.clone(), frame);
+                        // Filtered on arrival too, so unwanted traffic does not pile up.
+                        if matches_any(&self.filters, &m.frame) {
+                            self.keep(BusEvent::Frame(m));
+                        }
                     }
                     ServerMessage::ErrorFrame {
-                        class, timestamp, ..
+                        class,
+                        timestamp,
+                        data,
                     } => {
                         frames = true;
-                        self.error_frames
-                            .push_back((class, timestamp.as_secs_f64()));
+                        // A plain socketcand started with -e sends them unasked.
+                        if self.error_frames {
+                            let error = ErrorFrame::decode(class, &data).map_err(|e| {
+                                ProtocolError::Arguments {
+                                    command: "error",
+                                    expected: "an error frame",
+                                    got: e.to_string(),
+                                }
+                            })?;
+                            self.keep(BusEvent::Error(ErrorMessage {
+                                timestamp: timestamp.as_secs_f64(),
+                                channel: self.channel.clone(),
+                                error,
+                            }));
+                        }
                     }
-                    other => return Ok(Pumped::Message(other)),
+                    other => {
+                        if let Some(i) = self.late.iter().position(|&r| owed(r, &other)) {
+                            self.late.remove(i);
+                            tracing::debug!(
+                                "a late reply dropped: {}",
+                                sanitize(&other.to_string())
+                            );
+                            continue;
+                        }
+                        return Ok(Pumped::Message(other));
+                    }
                 }
             }
             if frames {
@@ -376,6 +438,23 @@ impl SocketcandBus {
                 return Ok(Pumped::Deadline);
             }
         }
+    }
+
+    /// Keeps an event for `recv`, dropping the oldest when the inbox is full.
+    fn keep(&mut self, event: BusEvent) {
+        if self.inbox.len() >= MAX_INBOX {
+            self.inbox.pop_front();
+            self.dropped += 1;
+            if self.dropped >= self.dropped_warned.max(1) * 2 || self.dropped_warned == 0 {
+                tracing::warn!(
+                    "{}: {} received frames dropped so far: the program does not read them (at most {MAX_INBOX} are kept)",
+                    self.channel,
+                    self.dropped
+                );
+                self.dropped_warned = self.dropped;
+            }
+        }
+        self.inbox.push_back(event);
     }
 
     /// Reads more bytes; `false` at the deadline.
@@ -410,15 +489,70 @@ impl SocketcandBus {
         }
     }
 
-    /// The next received message that passes the filters.
-    fn pop_matching(&mut self) -> Option<Message> {
-        while let Some(m) = self.inbox.pop_front() {
-            if matches_any(&self.filters, &m.frame) {
-                return Some(m);
+    /// The next kept event: error frames only if `with_errors` (else dropped), frames that
+    /// pass the filters.
+    fn pop(&mut self, with_errors: bool) -> Option<BusEvent> {
+        while let Some(event) = self.inbox.pop_front() {
+            match &event {
+                BusEvent::Frame(m) if matches_any(&self.filters, &m.frame) => return Some(event),
+                BusEvent::Error(_) if with_errors => return Some(event),
+                _ => {}
             }
         }
         None
     }
+
+    /// The next event (see [`Self::pop`]) or `None` after `timeout`.
+    fn next_event(
+        &mut self,
+        timeout: Option<Duration>,
+        with_errors: bool,
+    ) -> Result<Option<BusEvent>, BusError> {
+        let deadline = timeout.map(|t| Instant::now() + t);
+        loop {
+            if let Some(event) = self.pop(with_errors) {
+                return Ok(Some(event));
+            }
+            match self.pump(deadline)? {
+                Pumped::Deadline => return Ok(None),
+                // An error sent without a request (e.g. for a refused command): report it.
+                Pumped::Message(ServerMessage::Error(text)) => {
+                    return Err(BusError::Rejected(text));
+                }
+                Pumped::Message(other) => self.unsolicited(other),
+                Pumped::Frames => {}
+            }
+        }
+    }
+}
+
+/// Whether `m` is the reply a timed-out request named `reply` still owes.
+fn owed(reply: &str, m: &ServerMessage) -> bool {
+    match m {
+        ServerMessage::Ok => reply == "ok",
+        ServerMessage::Other { name, .. } => name == reply,
+        _ => false,
+    }
+}
+
+/// socketcand's `< error unknown command >`, and what buslab servers before `buslab_flush`
+/// answered it (`( buslab_flush ) is not an extension command`).
+fn unknown_command(text: &str) -> bool {
+    text.contains("unknown command") || text.contains("is not an extension command")
+}
+
+/// Connects to the first address that answers within `timeout`.
+fn connect_any(addr: impl ToSocketAddrs, timeout: Duration) -> io::Result<TcpStream> {
+    let mut last = None;
+    for a in addr.to_socket_addrs()? {
+        match TcpStream::connect_timeout(&a, timeout) {
+            Ok(s) => return Ok(s),
+            Err(e) => last = Some(e),
+        }
+    }
+    Err(last.unwrap_or_else(|| {
+        io::Error::new(io::ErrorKind::InvalidInput, "the host name has no address")
+    }))
 }
 
 /// What [`SocketcandBus::pump`] found.
@@ -428,37 +562,37 @@ enum Pumped {
     Deadline,
 }
 
-fn handshake(expected: &'static str, got: Option<ServerMessage>) -> ClientError {
-    ClientError::Handshake {
-        expected,
-        got: got.map_or_else(
-            || "nothing within 5 s".to_string(),
-            |m| sanitize(&m.to_string()),
-        ),
-    }
-}
-
 impl CanBus for SocketcandBus {
     fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
         self.write(&Command::Send(*frame))?;
+        self.sent += 1;
         Ok(())
     }
 
     fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
-        let deadline = timeout.map(|t| Instant::now() + t);
-        loop {
-            if let Some(m) = self.pop_matching() {
-                return Ok(Some(m));
-            }
-            match self.pump(deadline)? {
-                Pumped::Deadline => return Ok(None),
-                // An error sent without a request (e.g. for a refused command): report it.
-                Pumped::Message(ServerMessage::Error(text)) => {
-                    return Err(BusError::Rejected(text));
-                }
-                _ => {}
-            }
+        Ok(match self.next_event(timeout, false)? {
+            Some(BusEvent::Frame(m)) => Some(m),
+            _ => None,
+        })
+    }
+
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+        self.next_event(timeout, true)
+    }
+
+    /// On a buslab server `< buslab_errors 0|1 >`; a plain socketcand sends error frames only
+    /// when it was started with `-e`, so there this just keeps or drops what comes.
+    fn set_error_frames(&mut self, on: bool) -> Result<(), BusError> {
+        if self.extensions {
+            self.request(&Command::ErrorFrames(on), None, self.options.reply_timeout)?;
+        } else if on {
+            tracing::info!(
+                "{}: a plain socketcand sends error frames only when started with -e",
+                self.channel_info()
+            );
         }
+        self.error_frames = on;
+        Ok(())
     }
 
     fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError> {
@@ -470,7 +604,7 @@ impl CanBus for SocketcandBus {
         if !self.extensions {
             return Ok(BusState::Active);
         }
-        Ok(self.node_status(None)?.state())
+        Ok(self.node_status(None)?.state)
     }
 
     fn channel_info(&self) -> String {
@@ -478,5 +612,36 @@ impl CanBus for SocketcandBus {
             Ok(addr) => format!("socketcand://{addr}/{}", self.channel),
             Err(_) => format!("socketcand {}", self.channel),
         }
+    }
+
+    fn admin(&mut self) -> Option<&mut dyn BusAdmin> {
+        if self.extensions { Some(self) } else { None }
+    }
+}
+
+/// buslab's extensions, typed (the wire's text is parsed in [`crate::reply`]).
+impl BusAdmin for SocketcandBus {
+    fn nodes(&mut self) -> Result<Vec<NodeInfo>, BusError> {
+        Ok(SocketcandBus::nodes(self)?)
+    }
+
+    fn node_status(&mut self, node: Option<&NodeRef>) -> Result<NodeStatus, BusError> {
+        Ok(SocketcandBus::node_status(self, node)?)
+    }
+
+    fn register_dump(&mut self, node: Option<&NodeRef>) -> Result<NodeRegisters, BusError> {
+        Ok(SocketcandBus::register_dump(self, node)?)
+    }
+
+    fn set_name(&mut self, name: &str) -> Result<(), BusError> {
+        Ok(SocketcandBus::set_name(self, name)?)
+    }
+
+    fn set_btr(&mut self, btr0: u8, btr1: u8) -> Result<(), BusError> {
+        Ok(SocketcandBus::set_btr(self, btr0, btr1)?)
+    }
+
+    fn flush(&mut self, timeout: Duration) -> Result<TxReport, BusError> {
+        Ok(SocketcandBus::flush(self, timeout)?)
     }
 }

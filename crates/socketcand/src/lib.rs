@@ -4,7 +4,9 @@
 //! - [`command`]: what a client sends ([`Command`]), parsed and formatted.
 //! - [`message`]: what a server sends ([`ServerMessage`]), parsed and formatted.
 //! - [`server`]: one client connection of a server, sans-IO ([`server::Session`]).
-//! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over a TCP connection ([`SocketcandBus`]).
+//! - [`reply`]: buslab's extension replies (status, registers, nodes, flush) typed both ways.
+//! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over a TCP connection ([`SocketcandBus`]),
+//!   and a [`BusAdmin`](buslab_canbus::BusAdmin) when the server has buslab's extensions.
 //!
 //! The codec is sans-IO: strings in, values out, and back. buslab's own extensions are
 //! commands and replies whose name starts with `buslab_`; a real socketcand answers them with
@@ -14,12 +16,17 @@ pub mod client;
 pub mod command;
 pub mod element;
 pub mod message;
+pub mod reply;
 pub mod server;
 
-pub use client::{ClientError, NodeStatus, SocketcandBus};
+pub use client::{ClientError, ClientOptions, SocketcandBus};
 pub use command::{Command, NodeRef};
 pub use element::{Deframer, ElementError, MAX_ELEMENT};
 pub use message::{ServerMessage, Timestamp};
+pub use reply::{
+    ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_regs, parse_status,
+    regs_reply, status_fields, status_reply,
+};
 
 /// The error from parsing one element.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]

@@ -6,7 +6,8 @@
 //! host as actions: join the bus, send a frame, answer an extension request. The host answers
 //! a [`Action::Join`] with [`Session::joined`] and a [`Action::Request`] with
 //! [`Session::reply`]; until then the session hands out nothing more, so replies keep the order
-//! of the requests. Frames from the bus go in with [`Session::deliver_frame`].
+//! of the requests (except `buslab_flush`, answered when the frames are done, which lets
+//! later commands through). Frames from the bus go in with [`Session::deliver_frame`].
 
 use std::collections::VecDeque;
 use std::fmt::Write as _;
@@ -16,6 +17,9 @@ use buslab_can::Frame;
 use crate::command::Command;
 use crate::element::Deframer;
 use crate::message::{ServerMessage, Timestamp, format_frame};
+
+/// SocketCAN's "error counters in data[6..7]" class bit.
+const CAN_ERR_CNT: u32 = 0x200;
 
 /// What the host must do for the session.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -205,6 +209,9 @@ impl Session {
                 self.remote_as_r = true;
                 self.send(&ServerMessage::Ok);
             }
+            // Answered whenever the node's frames are done, which may be never (no ACK): the
+            // client must still be able to ask for its status meanwhile.
+            (_, Command::Flush) => return Some(Action::Request(Command::Flush)),
             (_, command) => {
                 self.waiting = Waiting::Reply;
                 return Some(Action::Request(command));
@@ -232,7 +239,8 @@ impl Session {
         }
     }
 
-    /// The host's answer to an [`Action::Request`].
+    /// The host's answer to an [`Action::Request`] (for `buslab_flush`, which does not hold
+    /// up what follows it, whenever it comes).
     pub fn reply(&mut self, message: &ServerMessage) {
         self.waiting = Waiting::Nothing;
         self.send(message);
@@ -250,13 +258,34 @@ impl Session {
         })
     }
 
-    /// An error frame (SocketCAN class) from the bus, in raw mode's layout (socketcand -e).
-    pub fn deliver_error_frame(&mut self, class: u32, timestamp: Timestamp, now: u64) -> bool {
+    /// An error frame from the bus (SocketCAN's CAN ID with the class bits, and its 8 data
+    /// bytes): in raw mode's layout, the class alone as socketcand -e sends it, or with the
+    /// data bytes too for a client that asked for buslab's extensions.
+    pub fn deliver_error_frame(
+        &mut self,
+        class: u32,
+        data: &[u8; 8],
+        timestamp: Timestamp,
+        now: u64,
+    ) -> bool {
         if self.mode != Mode::Raw || self.closing {
             return true;
         }
+        let with_data = self.remote_as_r;
+        // Without the data bytes the counters bit (CAN_ERR_CNT) would promise what is not sent.
+        let class = if with_data {
+            class
+        } else {
+            class & !CAN_ERR_CNT
+        };
         self.deliver(now, |text| {
-            let _ = write!(text, "< error {class:03X} {timestamp} >");
+            let _ = write!(text, "< error {class:03X} {timestamp}");
+            if with_data {
+                for b in data {
+                    let _ = write!(text, " {b:02X}");
+                }
+            }
+            text.push_str(" >");
         })
     }
 
@@ -408,6 +437,17 @@ mod tests {
         });
         assert_eq!(s.poll_action(), Some(Action::Send(frame("123#"))));
         assert_eq!(output(&mut s, 0), "< buslab_status 7 >");
+    }
+
+    #[test]
+    fn a_flush_does_not_hold_up_the_commands_after_it() {
+        let mut s = raw_session();
+        s.receive(b"< buslab_flush >< buslab_status >");
+        assert_eq!(s.poll_action(), Some(Action::Request(Command::Flush)));
+        assert_eq!(
+            s.poll_action(),
+            Some(Action::Request(Command::Status(None)))
+        );
     }
 
     #[test]

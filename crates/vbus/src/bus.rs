@@ -466,12 +466,8 @@ impl VirtualBus {
             let state = client.state().bus_state();
             let driver = client.driver();
             let sr = Some(driver.status());
-            let errors = driver.error_registers().unwrap_or(ErrorRegisters {
-                alc: None,
-                ecc: None,
-                rxerr: rec.min(255) as u8,
-                txerr: tec.min(255) as u8,
-            });
+            // BasicCAN cannot read its counters: none then, as the chip shows.
+            let errors = driver.error_registers();
             return Ok(NodeStatus {
                 number,
                 name,
@@ -492,12 +488,12 @@ impl VirtualBus {
                 ErrorState::Passive => BusState::Passive,
                 ErrorState::BusOff => BusState::BusOff,
             },
-            errors: ErrorRegisters {
+            errors: Some(ErrorRegisters {
                 alc: None,
                 ecc: None,
                 rxerr: rec.min(255) as u8,
                 txerr: tec.min(255) as u8,
-            },
+            }),
             sr: None,
             timing: None,
             counters: NodeCounters {

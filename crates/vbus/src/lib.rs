@@ -23,5 +23,5 @@ pub mod node;
 pub mod server;
 
 pub use bus::{BusEvent, MAX_NODES, VbusError, VirtualBus};
-pub use node::{ClientNode, Delivery, ErrorFrame, NodeNotice};
+pub use node::{ClientNode, Delivery, NodeNotice, TimedErrorFrame};
 pub use server::{ServerConfig, ServerError, ServerHandle, spawn};

@@ -8,7 +8,8 @@ use buslab_can::controller::{ErrorState, Event, QueueFull};
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 use buslab_canbus::{
-    ControllerState, DriverEvent, NodeCounters, Sja1000Config, Sja1000Driver, Timing, TxFailure,
+    ControllerState, DriverEvent, ErrorFrame, NodeCounters, Sja1000Config, Sja1000Driver, Timing,
+    TxFailure,
 };
 use buslab_sja1000::Sja1000;
 
@@ -29,20 +30,11 @@ pub struct Delivery {
     pub time: u64,
 }
 
-/// SocketCAN error classes (`linux/can/error.h`) for the error frames sent to clients.
-pub mod error_class {
-    pub const LOST_ARBITRATION: u32 = 0x002;
-    pub const CONTROLLER: u32 = 0x004;
-    pub const PROTOCOL: u32 = 0x008;
-    pub const BUS_OFF: u32 = 0x040;
-    pub const BUS_ERROR: u32 = 0x080;
-    pub const RESTARTED: u32 = 0x100;
-}
-
-/// An error frame for a client: its SocketCAN class and the bit-time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ErrorFrame {
-    pub class: u32,
+/// An error frame for a client (SocketCAN's layout, as Linux's SJA1000 driver fills it) and
+/// the bit-time.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TimedErrorFrame {
+    pub frame: ErrorFrame,
     pub time: u64,
 }
 
@@ -80,7 +72,7 @@ pub struct ClientNode {
     /// Frames for the client.
     rx: Vec<Delivery>,
     /// Error frames for the client (collected only when `error_frames` is on).
-    errors: Vec<ErrorFrame>,
+    errors: Vec<TimedErrorFrame>,
     /// Also deliver the node's own frames once sent.
     pub receive_own: bool,
     pub error_frames: bool,
@@ -148,7 +140,7 @@ impl ClientNode {
     }
 
     /// Error frames for the client since the last call.
-    pub fn take_error_frames(&mut self) -> std::vec::Drain<'_, ErrorFrame> {
+    pub fn take_error_frames(&mut self) -> std::vec::Drain<'_, TimedErrorFrame> {
         self.errors.drain(..)
     }
 
@@ -217,6 +209,12 @@ impl ClientNode {
     #[inline(never)]
     fn service(&mut self, now: u64) {
         for event in self.driver.poll() {
+            if self.error_frames {
+                let registers = self.driver.error_registers();
+                if let Some(frame) = ErrorFrame::from_driver_event(&event, registers) {
+                    self.errors.push(TimedErrorFrame { frame, time: now });
+                }
+            }
             match event {
                 DriverEvent::Received(frame) => {
                     self.counters.received += 1;
@@ -245,11 +243,6 @@ impl ClientNode {
                         self.restart_at =
                             Some(now + self.bus_bitrate as u64 * RESTART_AFTER_MS / 1000);
                     }
-                    let class = match to {
-                        ControllerState::BusOff => error_class::BUS_OFF,
-                        _ => error_class::CONTROLLER,
-                    };
-                    self.error_frame(class, now);
                     let chip = self.driver.chip();
                     let (txerr, rxerr) = (chip.peek(15), chip.peek(14));
                     self.notices.push((
@@ -262,25 +255,12 @@ impl ClientNode {
                         },
                     ));
                 }
-                DriverEvent::BusError(_) => {
-                    self.counters.bus_errors += 1;
-                    self.error_frame(error_class::PROTOCOL | error_class::BUS_ERROR, now);
-                }
-                DriverEvent::ArbitrationLost(_) => {
-                    self.counters.arbitration_lost += 1;
-                    self.error_frame(error_class::LOST_ARBITRATION, now);
-                }
+                DriverEvent::BusError(_) => self.counters.bus_errors += 1,
+                DriverEvent::ArbitrationLost(_) => self.counters.arbitration_lost += 1,
                 DriverEvent::WakeUp => {}
             }
         }
         self.feed();
-    }
-
-    /// Queues an error frame if the client asked for them.
-    fn error_frame(&mut self, class: u32, time: u64) {
-        if self.error_frames {
-            self.errors.push(ErrorFrame { class, time });
-        }
     }
 
     /// Hands the next waiting frame to a free TX buffer. A refused frame (bus-off, reset
@@ -301,7 +281,12 @@ impl ClientNode {
     fn restart(&mut self, now: u64) {
         self.restart_at = None;
         let result = self.driver.restart().map_err(|e| e.to_string());
-        self.error_frame(error_class::RESTARTED, now);
+        if self.error_frames {
+            self.errors.push(TimedErrorFrame {
+                frame: ErrorFrame::restarted(),
+                time: now,
+            });
+        }
         self.notices.push((now, NodeNotice::Restarted(result)));
         // The driver's state follows at the next poll.
         self.service(now);

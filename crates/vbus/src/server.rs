@@ -5,6 +5,7 @@
 //! scheduled activity, a session's timer; while frames are on the wire it wakes every
 //! [`BUSY_SLICE`] so deliveries leave within a fraction of a millisecond.
 
+use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -13,15 +14,18 @@ use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use buslab_canbus::{CanMode, NodeRef, NodeRegisters, NodeStatus};
+use buslab_canbus::{NodeRef, TxReport};
 use buslab_sim::Simulation;
 use buslab_socketcand::server::{Action, Session, SessionConfig};
-use buslab_socketcand::{Command, ServerMessage, Timestamp};
+use buslab_socketcand::{
+    Command, ServerMessage, Timestamp, flushed_reply, nodes_reply, regs_reply, status_reply,
+};
 use mio::net::{TcpListener, TcpStream};
 use mio::{Events, Interest, Poll, Token, Waker};
 use tracing::{debug, info, warn};
 
 use crate::bus::{BusEvent, VbusError, VirtualBus};
+use crate::node::TimedErrorFrame;
 
 /// Everything `buslab bus serve` can set.
 pub struct ServerConfig {
@@ -352,8 +356,8 @@ struct Client {
     gone: bool,
     /// A frame the node's full queue could not take yet.
     backlog: Option<buslab_can::Frame>,
-    /// `< buslab_flush >`: answered once the node has done this many frames.
-    flush: Option<u64>,
+    /// `< buslab_flush >`es: each answered once the node has done this many frames.
+    flushes: VecDeque<u64>,
     dropped_reported: u64,
 }
 
@@ -536,7 +540,7 @@ impl Server {
                 let d = Duration::from_nanos(d.saturating_sub(now_ns));
                 wait = Some(wait.map_or(d, |w| w.min(d)));
             }
-            if c.backlog.is_some() || c.flush.is_some() {
+            if c.backlog.is_some() || !c.flushes.is_empty() {
                 wait = Some(wait.map_or(BUSY_SLICE, |w| w.min(BUSY_SLICE)));
             }
         }
@@ -600,7 +604,7 @@ impl Server {
                 writable: true,
                 gone: false,
                 backlog: None,
-                flush: None,
+                flushes: VecDeque::new(),
                 dropped_reported: 0,
             });
             self.open += 1;
@@ -708,7 +712,7 @@ impl Server {
                 };
                 match command {
                     Command::Flush => match self.bus.client_mut(me) {
-                        Ok(node) => c.flush = Some(node.submitted()),
+                        Ok(node) => c.flushes.push_back(node.submitted()),
                         Err(e) => c.session.reply(&ServerMessage::Error(e.to_string())),
                     },
                     other => {
@@ -736,28 +740,30 @@ impl Server {
             let Ok(node) = self.bus.client_mut(number) else {
                 continue;
             };
+            // Frames and error frames in the order they happened.
+            let errors: Vec<_> = node.take_error_frames().collect();
+            let mut errors = errors.into_iter().peekable();
             let mut lost = 0;
-            for e in node.take_error_frames() {
-                lost += !c
-                    .session
-                    .deliver_error_frame(e.class, stamp(e.time), now_ns)
-                    as u64;
-            }
             for d in node.take_deliveries() {
+                while let Some(e) = errors.next_if(|e| e.time <= d.time) {
+                    lost += !deliver_error(&mut c.session, &e, stamp(e.time), now_ns) as u64;
+                }
                 lost += !c.session.deliver_frame(&d.frame, stamp(d.time), now_ns) as u64;
             }
+            for e in errors {
+                lost += !deliver_error(&mut c.session, &e, stamp(e.time), now_ns) as u64;
+            }
             node.counters.rx_lost += lost;
-            if let Some(target) = c.flush
-                && node.done() >= target
+            while c
+                .flushes
+                .front()
+                .is_some_and(|&target| node.done() >= target)
             {
-                c.flush = None;
-                c.session.reply(&ServerMessage::Other {
-                    name: "buslab_flushed".into(),
-                    args: vec![
-                        node.counters.sent.to_string(),
-                        node.counters.tx_failed.to_string(),
-                    ],
-                });
+                c.flushes.pop_front();
+                c.session.reply(&flushed_reply(&TxReport {
+                    sent: node.counters.sent,
+                    failed: node.counters.tx_failed,
+                }));
             }
             let lost = node.counters.rx_lost;
             if lost > c.dropped_reported
@@ -857,6 +863,18 @@ impl Server {
     }
 }
 
+/// An error frame in socketcand's raw layout (its data bytes only for clients with buslab's
+/// extensions; socketcand -e sends the class alone, without the counters bit).
+fn deliver_error(
+    session: &mut Session,
+    e: &TimedErrorFrame,
+    timestamp: Timestamp,
+    now_ns: u64,
+) -> bool {
+    let (class, data) = e.frame.encode();
+    session.deliver_error_frame(class, &data, timestamp, now_ns)
+}
+
 /// The reply to an extension command from node `me`.
 fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
     let own = NodeRef::Number(me);
@@ -871,102 +889,16 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
             ServerMessage::Ok
         }),
         Command::Btr { btr0, btr1 } => bus.set_btr(me, btr0, btr1).map(|()| ServerMessage::Ok),
-        Command::Nodes => Ok(ServerMessage::Other {
-            name: "buslab_nodes".into(),
-            args: bus
-                .nodes()
-                .iter()
-                .map(|n| format!("{}:{}", n.number, n.name))
-                .collect(),
-        }),
-        Command::Status(node) => {
-            bus.status(node.as_ref().unwrap_or(&own))
-                .map(|status| ServerMessage::Other {
-                    name: "buslab_status".into(),
-                    args: status_args(&status),
-                })
-        }
-        Command::Regs(node) => {
-            bus.regs(node.as_ref().unwrap_or(&own))
-                .map(|regs| ServerMessage::Other {
-                    name: "buslab_regs".into(),
-                    args: regs_args(&regs),
-                })
-        }
+        Command::Nodes => Ok(nodes_reply(&bus.nodes())),
+        Command::Status(node) => bus
+            .status(node.as_ref().unwrap_or(&own))
+            .map(|status| status_reply(&status)),
+        Command::Regs(node) => bus
+            .regs(node.as_ref().unwrap_or(&own))
+            .map(|regs| regs_reply(&regs)),
         other => Ok(ServerMessage::Error(format!(
             "{other} is not an extension command"
         ))),
     };
     result.unwrap_or_else(|e| ServerMessage::Error(e.to_string()))
-}
-
-/// `buslab_status`'s arguments: number, name, then `key=value` fields (docs/bus.md).
-fn status_args(s: &NodeStatus) -> Vec<String> {
-    let mut args = vec![s.number.to_string(), s.name.clone()];
-    let mut put = |k: &str, v: String| args.push(format!("{k}={v}"));
-    put("state", s.state.to_string());
-    if let Some(sr) = s.sr {
-        put("sr", format!("{:02X}", sr.0));
-    }
-    put("txerr", s.errors.txerr.to_string());
-    put("rxerr", s.errors.rxerr.to_string());
-    if let Some(alc) = s.errors.alc {
-        put("alc", format!("{:02X}", alc.0));
-    }
-    if let Some(ecc) = s.errors.ecc {
-        put("ecc", format!("{:02X}", ecc.0));
-    }
-    if let Some(t) = s.timing {
-        put("btr0", format!("{:02X}", t.btr0));
-        put("btr1", format!("{:02X}", t.btr1));
-        put("bitrate", t.bitrate.to_string());
-    }
-    put("bus_bitrate", s.bus.bitrate.to_string());
-    if let Some(t) = s.timing {
-        put(
-            "timing",
-            if t.matches_bus { "ok" } else { "mismatch" }.to_string(),
-        );
-    }
-    let c = s.counters;
-    put("sent", c.sent.to_string());
-    put("received", c.received.to_string());
-    put("tx_failed", c.tx_failed.to_string());
-    put("bus_errors", c.bus_errors.to_string());
-    put("arbitration_lost", c.arbitration_lost.to_string());
-    put("overruns", c.overruns.to_string());
-    put("bus_off", c.bus_off.to_string());
-    put("rx_lost", c.rx_lost.to_string());
-    put("tx_queued", s.tx_queued.to_string());
-    put("bus_load", format!("{:.1}%", s.bus.load_percent));
-    put("bus_frames", s.bus.frames.to_string());
-    put("bus_errors_total", s.bus.errors.to_string());
-    args
-}
-
-/// `buslab_regs`'s arguments: number, name, mode, reset|operating, every value (`--` where
-/// not readable).
-fn regs_args(r: &NodeRegisters) -> Vec<String> {
-    let mut args = vec![
-        r.number.to_string(),
-        r.name.clone(),
-        match r.dump.mode {
-            CanMode::Peli => "peli",
-            CanMode::Basic => "basic",
-        }
-        .into(),
-        if r.dump.reset_mode {
-            "reset"
-        } else {
-            "operating"
-        }
-        .into(),
-    ];
-    args.extend(
-        r.dump
-            .values
-            .iter()
-            .map(|v| v.map_or("--".to_string(), |v| format!("{v:02X}"))),
-    );
-    args
 }

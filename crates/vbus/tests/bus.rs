@@ -78,11 +78,19 @@ fn contending_nodes_go_in_priority_order_and_losers_capture_alc() {
     // The last loss of 0x300 (011 0000 0000) was against 0x200 (010 ...): bit 2 (ID.26);
     // 0x200 lost to 0x100 (001 ...) at bit 1 (ID.27).
     assert_eq!(
-        status(&mut bus, senders[0]).errors.alc.map(|a| a.0),
+        status(&mut bus, senders[0])
+            .errors
+            .unwrap()
+            .alc
+            .map(|a| a.0),
         Some(0x02)
     );
     assert_eq!(
-        status(&mut bus, senders[1]).errors.alc.map(|a| a.0),
+        status(&mut bus, senders[1])
+            .errors
+            .unwrap()
+            .alc
+            .map(|a| a.0),
         Some(0x01)
     );
 }
@@ -106,7 +114,7 @@ fn a_node_with_the_wrong_bit_rate_cannot_communicate_and_says_so() {
     bus.run_until(RATE as u64 / 20);
     assert!(received(&mut bus, good).is_empty());
     assert_ne!(status(&mut bus, bad).counters.bus_errors, 0);
-    assert!(status(&mut bus, bad).errors.ecc.is_some());
+    assert!(status(&mut bus, bad).errors.unwrap().ecc.is_some());
     // Back to the right timing: it talks again.
     let (b0, b1) = buslab_vbus::bus::timing_for(RATE).unwrap().registers();
     bus.set_btr(bad, b0, b1).unwrap();

@@ -1,4 +1,5 @@
 //! `buslab dump`: print every frame on a bus like candump; `-l FILE` also writes a candump log.
+//! The formats are `buslab_logs::candump`'s.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
@@ -8,31 +9,53 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use anyhow::Context;
-use buslab_can::Frame;
-use buslab_canbus::CanBus;
+use buslab_canbus::BusEvent;
+use buslab_logs::Entry;
+use buslab_logs::candump::{Terminal, TimestampMode, View, Writer};
 
-use super::bus::{BusOpt, open};
+use super::busopt::{BusOpt, open, set_name};
 
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
     pub bus: BusOpt,
-    /// Also write every frame to this candump log file (`(SEC.USEC) IFACE ID#DATA`).
+    /// Also write every frame to this candump log file (`(SEC.USEC) IFACE ID#DATA`), which
+    /// can-utils and python-can read.
     #[arg(short = 'l', long = "log", value_name = "FILE")]
     pub log: Option<PathBuf>,
-    /// Prefix each line with the absolute time, as `candump -t a`.
-    #[arg(short = 't', long)]
-    pub timestamps: bool,
-    /// Exit after this many frames.
-    #[arg(short = 'n', long)]
+    /// Prefix each line with a time, as candump -t: `a` absolute (the default when MODE is
+    /// left out), `d` since the previous line, `z` since the first line.
+    #[arg(short = 't', long = "timestamps", value_name = "MODE", num_args = 0..=1,
+          default_missing_value = "a", value_parser = parse_mode)]
+    pub timestamps: Option<TimestampMode>,
+    /// Show the data as ASCII too, as candump -a.
+    #[arg(short = 'a', long)]
+    pub ascii: bool,
+    /// Show the direction (RX/TX) after the interface, as candump -x (and R/T in the log).
+    #[arg(short = 'x', long)]
+    pub extra: bool,
+    /// Exit after this many frames (error frames do not count).
+    #[arg(short = 'n', long, value_name = "COUNT")]
     pub count: Option<u64>,
-    /// Name this client's node on a buslab bus.
-    #[arg(long)]
+    /// Name this client's node on a buslab bus (shown by `buslab status`).
+    #[arg(long, value_name = "NAME")]
     pub name: Option<String>,
-    /// Also show error frames: this node's bus errors, lost arbitrations and state changes
-    /// (candump -e).
+    /// Also show error frames: this node's bus errors, lost arbitrations and state changes,
+    /// in words as candump -e.
     #[arg(short = 'e', long)]
     pub errors: bool,
+}
+
+/// `a`, `d` or `z`.
+fn parse_mode(text: &str) -> Result<TimestampMode, String> {
+    match text {
+        "a" => Ok(TimestampMode::Absolute),
+        "d" => Ok(TimestampMode::Delta),
+        "z" => Ok(TimestampMode::Zero),
+        _ => Err(format!(
+            "timestamp mode {text:?} must be a (absolute), d (delta) or z (from zero)"
+        )),
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -48,20 +71,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn dump(args: Args) -> anyhow::Result<()> {
-    let mut open = open(&args.bus.bus)?;
-    if let (Some(name), true) = (&args.name, open.extensions) {
-        open.bus.set_name(name)?;
+    let url = &args.bus.bus;
+    let mut bus = open(url)?;
+    set_name(&mut bus, url, args.name.as_deref())?;
+    if args.errors {
+        bus.set_error_frames(true)?;
     }
-    if args.errors && open.extensions {
-        open.bus.enable_error_frames(true)?;
-    }
-    let channel = args.bus.bus.channel().to_string();
     let mut log = match &args.log {
-        Some(path) => {
-            Some(BufWriter::new(File::create(path).with_context(|| {
-                format!("cannot create {}", path.display())
-            })?))
-        }
+        Some(path) => Some(
+            Writer::new(BufWriter::new(
+                File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
+            ))
+            .with_direction(args.extra),
+        ),
         None => None,
     };
     let stop = Arc::new(AtomicBool::new(false));
@@ -69,185 +91,42 @@ fn dump(args: Args) -> anyhow::Result<()> {
         let stop = stop.clone();
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
     }
+    // Tests and scripts wait for this line (-v) before they send.
+    tracing::info!(
+        "dump: listening on {url}{}",
+        if args.errors {
+            " with error frames"
+        } else {
+            ""
+        }
+    );
+    let mut terminal = Terminal::new(View {
+        timestamps: args.timestamps,
+        ascii: args.ascii,
+        extra: args.extra,
+        error_words: true,
+    });
     let stdout = io::stdout();
     let mut out = stdout.lock();
-    let mut printer = Candump::default();
     let mut seen = 0u64;
+    // The channel as the URL names it (a server may call itself something else).
+    let channel = url.channel().to_string();
     while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| seen < n) {
-        let received = open.bus.recv(Some(Duration::from_millis(100)))?;
-        if args.errors {
-            for (class, ts) in open.bus.take_error_frames() {
-                let ts_shown = args.timestamps.then_some(ts);
-                printer.error_line(&mut out, ts_shown, &channel, class)?;
-                out.flush()?;
-                if let Some(log) = &mut log {
-                    writeln!(
-                        log,
-                        "{} {channel} {:08X}#0000000000000000",
-                        log_timestamp(ts),
-                        ERR_FLAG | class
-                    )?;
-                    log.flush()?;
-                }
-            }
-        }
-        let Some(m) = received else {
+        // Short waits, so Ctrl-C is noticed.
+        let Some(event) = bus.recv_event(Some(Duration::from_millis(100)))? else {
             continue;
         };
-        seen += 1;
-        let ts = args.timestamps.then_some(m.timestamp);
-        printer.line(&mut out, ts, &channel, &m.frame)?;
+        if let BusEvent::Frame(_) = event {
+            seen += 1;
+        }
+        let mut entry = Entry::from_event(&event);
+        entry.interface.clone_from(&channel);
+        writeln!(out, "{}", terminal.line(&entry))?;
         out.flush()?;
         if let Some(log) = &mut log {
-            writeln!(log, "{} {channel} {}", log_timestamp(m.timestamp), m.frame)?;
+            log.write(&entry)?;
             log.flush()?;
         }
     }
     Ok(())
-}
-
-/// A candump log timestamp, `(%010u.%06u)` as candump writes it (a server's clock may start
-/// near 0, and log readers expect the fixed width).
-fn log_timestamp(seconds: f64) -> String {
-    format!("({:017.6})", seconds.max(0.0))
-}
-
-/// The error-frame flag of a SocketCAN ID (as candump logs write error frames).
-const ERR_FLAG: u32 = 0x2000_0000;
-
-/// The SocketCAN error classes in words (`linux/can/error.h`).
-pub fn error_class_words(class: u32) -> String {
-    const NAMES: [(u32, &str); 9] = [
-        (0x001, "tx-timeout"),
-        (0x002, "lost-arbitration"),
-        (0x004, "controller-problem"),
-        (0x008, "protocol-violation"),
-        (0x010, "transceiver-status"),
-        (0x020, "no-acknowledgement"),
-        (0x040, "bus-off"),
-        (0x080, "bus-error"),
-        (0x100, "restarted-after-bus-off"),
-    ];
-    let words: Vec<&str> = NAMES
-        .iter()
-        .filter(|(bit, _)| class & bit != 0)
-        .map(|(_, name)| *name)
-        .collect();
-    if words.is_empty() {
-        format!("class 0x{class:03X}")
-    } else {
-        words.join(",")
-    }
-}
-
-/// ` (SSS.UUUUUU)`: seconds with at least 3 digits, as candump prints `-t a` (absolute) and
-/// `-t z` (since the start) times.
-fn write_timestamp(out: &mut impl Write, timestamp: Option<f64>) -> io::Result<()> {
-    if let Some(t) = timestamp {
-        let micros = (t.max(0.0) * 1e6).round() as u64;
-        write!(
-            out,
-            " ({:03}.{:06})",
-            micros / 1_000_000,
-            micros % 1_000_000
-        )?;
-    }
-    Ok(())
-}
-
-/// candump's terminal layout: once an extended frame was seen, standard IDs are indented to
-/// eight columns.
-#[derive(Default)]
-pub struct Candump {
-    extended_seen: bool,
-}
-
-impl Candump {
-    pub fn line(
-        &mut self,
-        out: &mut impl Write,
-        timestamp: Option<f64>,
-        channel: &str,
-        frame: &Frame,
-    ) -> io::Result<()> {
-        self.extended_seen |= frame.is_extended();
-        write_timestamp(out, timestamp)?;
-        // Once an extended ID was shown, standard IDs keep their 3 digits, right-aligned in 8.
-        let id = frame.id().to_string();
-        let id = if self.extended_seen && !frame.is_extended() {
-            format!("{id:>8}")
-        } else {
-            id
-        };
-        write!(out, "  {channel}  {id}   [{}] ", frame.dlc())?;
-        if frame.is_remote() {
-            write!(out, " remote request")?;
-        } else {
-            for b in frame.payload() {
-                write!(out, " {b:02X}")?;
-            }
-        }
-        writeln!(out)
-    }
-
-    /// An error frame as `candump -e` shows it (socketcand's raw mode gives only the class).
-    pub fn error_line(
-        &mut self,
-        out: &mut impl Write,
-        timestamp: Option<f64>,
-        channel: &str,
-        class: u32,
-    ) -> io::Result<()> {
-        write_timestamp(out, timestamp)?;
-        writeln!(
-            out,
-            "  {channel}  {:08X}   [8]  00 00 00 00 00 00 00 00   ERRORFRAME {}",
-            ERR_FLAG | class,
-            error_class_words(class)
-        )
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn show(frames: &[&str], timestamp: Option<f64>) -> String {
-        let mut c = Candump::default();
-        let mut out = Vec::new();
-        for f in frames {
-            c.line(&mut out, timestamp, "vcan0", &f.parse().unwrap())
-                .unwrap();
-        }
-        String::from_utf8(out).unwrap()
-    }
-
-    #[test]
-    fn candump_layout() {
-        assert_eq!(
-            show(&["123#112233", "07F#R", "12345678#DEADBEEF", "080#"], None),
-            "  vcan0  123   [3]  11 22 33\n\
-             \x20 vcan0  07F   [0]  remote request\n\
-             \x20 vcan0  12345678   [4]  DE AD BE EF\n\
-             \x20 vcan0       080   [0] \n"
-        );
-    }
-
-    #[test]
-    fn log_timestamps_have_candumps_fixed_width() {
-        assert_eq!(log_timestamp(1.5), "(0000000001.500000)");
-        assert_eq!(log_timestamp(1_795_251_323.218_691), "(1795251323.218691)");
-    }
-
-    #[test]
-    fn candump_timestamps() {
-        assert_eq!(
-            show(&["123#11"], Some(1.2345678)),
-            " (001.234568)  vcan0  123   [1]  11\n"
-        );
-        assert_eq!(
-            show(&["123#11"], Some(1_795_251_323.218_691)),
-            " (1795251323.218691)  vcan0  123   [1]  11\n"
-        );
-    }
 }

@@ -7,28 +7,34 @@ use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use buslab_can::{Frame, Id};
-use buslab_canbus::CanBus;
+use buslab_canbus::Filter;
 
-use super::bus::{BusOpt, open, wait_sent};
+use super::busopt::{BusOpt, confirm_sent, open, set_name};
 
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
     pub bus: BusOpt,
-    /// Gap between frames in milliseconds (cangen's -g; 0 = as fast as the bus takes them).
-    #[arg(short = 'g', long, default_value_t = 200.0, value_parser = parse_gap)]
-    pub gap: f64,
+    /// Gap between frames, with a unit (cangen's -g 10 is `-g 10ms`; `0s` = as fast as the
+    /// bus takes them).
+    #[arg(short = 'g', long, value_name = "DURATION", default_value = "200ms", value_parser = crate::units::duration)]
+    pub gap: Duration,
     /// Stop after this many frames (default: until Ctrl-C).
-    #[arg(short = 'n', long)]
+    #[arg(short = 'n', long, value_name = "COUNT")]
     pub count: Option<u64>,
     /// ID: a hex value, `r` random or `i` increment.
-    #[arg(short = 'I', long = "id", default_value = "r")]
+    #[arg(short = 'I', long = "id", value_name = "ID|r|i", default_value = "r")]
     pub id: Mode<u32>,
     /// DLC: 0..8, `r` random or `i` increment.
-    #[arg(short = 'L', long = "dlc", default_value = "r")]
+    #[arg(short = 'L', long = "dlc", value_name = "DLC|r|i", default_value = "r")]
     pub dlc: Mode<u8>,
     /// Data: hex bytes (e.g. DEADBEEF), `r` random or `i` increment (a counter in the bytes).
-    #[arg(short = 'D', long = "data", default_value = "r")]
+    #[arg(
+        short = 'D',
+        long = "data",
+        value_name = "HEX|r|i",
+        default_value = "r"
+    )]
     pub data: Mode<Vec<u8>>,
     /// Extended (29-bit) IDs.
     #[arg(short = 'e', long)]
@@ -36,21 +42,16 @@ pub struct Args {
     /// Remote frames.
     #[arg(short = 'R', long)]
     pub remote: bool,
-    /// Seed for the random modes.
-    #[arg(long, default_value_t = 1)]
+    /// Seed for the random modes (the same seed gives the same frames).
+    #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
-    /// Name this client's node on a buslab bus.
-    #[arg(long)]
+    /// Name this client's node on a buslab bus (shown by `buslab status`).
+    #[arg(long, value_name = "NAME")]
     pub name: Option<String>,
-}
-
-/// `-g`: milliseconds, 0..=86400000 (a day); more would overflow the pacing arithmetic.
-fn parse_gap(text: &str) -> Result<f64, String> {
-    text.trim()
-        .parse::<f64>()
-        .ok()
-        .filter(|g| (0.0..=86_400_000.0).contains(g))
-        .ok_or_else(|| format!("gap {text:?} must be a number of milliseconds 0..=86400000"))
+    /// How long to wait at the end for the frames to be sent, beyond the time they need on
+    /// the bus, with a unit (`2s`, `500ms`). A plain socketcand cannot confirm: no wait.
+    #[arg(long, value_name = "DURATION", default_value = "10s", value_parser = crate::units::duration)]
+    pub timeout: Duration,
 }
 
 /// How one field is chosen for each frame.
@@ -190,30 +191,35 @@ impl Generator {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut generator = Generator::new(&args)?;
-    let mut open = open(&args.bus.bus)?;
-    if let (Some(name), true) = (&args.name, open.extensions) {
-        open.bus.set_name(name)?;
-    }
+    let url = &args.bus.bus;
+    let mut bus = open(url)?;
+    set_name(&mut bus, url, args.name.as_deref())?;
+    // Only this client's own frames matter; what the bus carries is read and let go.
+    bus.set_filters(&[Filter::NONE])?;
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
     }
-    let gap = Duration::from_secs_f64(args.gap / 1000.0);
-    let start = Instant::now();
+    // Paced against the start so the rate does not drift.
+    let mut due = Instant::now();
     let mut sent = 0u64;
     while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| sent < n) {
-        open.bus.send(&generator.next_frame())?;
+        bus.send(&generator.next_frame())?;
         sent += 1;
-        if !gap.is_zero() {
-            // Paced against the start so the rate does not drift.
-            let due = start + gap * sent as u32;
-            let now = Instant::now();
-            if due > now {
-                std::thread::sleep(due - now);
+        if !args.gap.is_zero() {
+            let Some(next) = due.checked_add(args.gap) else {
+                bail!("gap {:?} is too long for this clock", args.gap);
+            };
+            due = next;
+            // Waiting = reading: the server need not hold the bus's frames back for us.
+            while let Some(left) = due.checked_duration_since(Instant::now()) {
+                if left.is_zero() {
+                    break;
+                }
+                bus.recv(Some(left))?;
             }
         }
     }
-    let timeout = Duration::from_secs(2) + Duration::from_millis(sent / 2);
-    wait_sent(&mut open, sent, timeout)
+    confirm_sent(&mut bus, url, sent, args.timeout)
 }

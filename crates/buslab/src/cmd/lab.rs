@@ -24,7 +24,8 @@ use buslab_sim::{BitTime, Simulation, Traffic};
 use buslab_socketcand::SocketcandBus;
 use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
 
-use super::dump::Candump;
+use buslab_logs::Entry;
+use buslab_logs::candump::{Terminal, TimestampMode, View};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -211,7 +212,12 @@ fn monitor(
     let mut bus = join(addr, "monitor")?;
     let stdout = io::stdout();
     let mut out = stdout.lock();
-    let mut candump = Candump::default();
+    // candump's layout; `-t`: seconds since the lab started, as `candump -t z`.
+    let mut terminal = Terminal::new(View {
+        timestamps: args.timestamps.then_some(TimestampMode::Zero),
+        ..View::default()
+    })
+    .with_zero(buslab_logs::seconds(start_unix));
     while !stop.load(Ordering::SeqCst) {
         let left = end.map(|end| end.saturating_duration_since(Instant::now()));
         if left == Some(Duration::ZERO) {
@@ -221,8 +227,12 @@ fn monitor(
             l.min(Duration::from_millis(100))
         });
         if let Some(m) = bus.recv(Some(wait))? {
-            let since_start = args.timestamps.then(|| (m.timestamp - start_unix).max(0.0));
-            candump.line(&mut out, since_start, CHANNEL, &m.frame)?;
+            let entry = Entry {
+                interface: CHANNEL.to_string(),
+                direction: None,
+                ..Entry::from_message(&m)
+            };
+            writeln!(out, "{}", terminal.line(&entry))?;
             out.flush()?;
         }
     }

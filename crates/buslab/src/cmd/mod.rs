@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod bus;
+pub mod busopt;
 pub mod cpu196;
 pub mod dump;
 pub mod r#gen;

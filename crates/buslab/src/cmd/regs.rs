@@ -1,27 +1,23 @@
 //! `buslab regs --node N`: a node's SJA1000 registers with names and values (the seed's
 //! regb/regp), read without side effects.
 
-use super::bus::{BusOpt, node_ref, open};
+use super::busopt::{BusOpt, admin, node_ref, open};
 
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
     pub bus: BusOpt,
     /// The node: its number (connection order from 1) or its name.
-    #[arg(long)]
+    #[arg(long, value_name = "NODE")]
     pub node: String,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut open = open(&args.bus.bus)?;
-    if !open.extensions {
-        anyhow::bail!(
-            "{}: the server has no register access (not a buslab bus)",
-            args.bus.bus
-        );
-    }
-    let (number, name, dump) = open.bus.register_dump(Some(node_ref(&args.node)))?;
-    println!("node {number} ({name})");
-    print!("{dump}");
+    let url = &args.bus.bus;
+    let mut bus = open(url)?;
+    let regs =
+        admin(&mut bus, url, "register access")?.register_dump(Some(&node_ref(&args.node)))?;
+    println!("node {} ({})", regs.number, regs.name);
+    print!("{}", regs.dump);
     Ok(())
 }

@@ -3,9 +3,8 @@
 use std::time::Duration;
 
 use buslab_can::Frame;
-use buslab_canbus::CanBus;
 
-use super::bus::{BusOpt, open, wait_sent};
+use super::busopt::{BusOpt, admin, confirm_sent, open, set_name};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -15,14 +14,15 @@ pub struct Args {
     #[arg(required = true, value_name = "FRAME")]
     pub frames: Vec<Frame>,
     /// Program this client's SJA1000 with BTR0:BTR1 (hex) first, e.g. 07:4D; a bit rate that
-    /// does not match the bus cannot communicate (an induced error).
+    /// does not match the bus cannot communicate (an induced error). Needs a buslab bus.
     #[arg(long, value_name = "BTR0:BTR1", value_parser = parse_btr)]
     pub btr: Option<(u8, u8)>,
-    /// Name this client's node on a buslab bus.
-    #[arg(long)]
+    /// Name this client's node on a buslab bus (shown by `buslab status`).
+    #[arg(long, value_name = "NAME")]
     pub name: Option<String>,
-    /// How long to wait for the frames to be sent (`2s`, `500ms`).
-    #[arg(long, default_value = "10s", value_parser = crate::units::duration)]
+    /// How long to wait for the frames to be sent, beyond the time they need on the bus, with
+    /// a unit (`2s`, `500ms`). A plain socketcand cannot confirm: then there is no wait.
+    #[arg(long, value_name = "DURATION", default_value = "10s", value_parser = crate::units::duration)]
     pub timeout: Duration,
 }
 
@@ -40,19 +40,16 @@ pub fn parse_btr(text: &str) -> Result<(u8, u8), String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut open = open(&args.bus.bus)?;
-    if open.extensions {
-        if let Some(name) = &args.name {
-            open.bus.set_name(name)?;
-        }
-        if let Some((btr0, btr1)) = args.btr {
-            open.bus.set_btr(btr0, btr1)?;
-        }
-    } else if args.btr.is_some() {
-        anyhow::bail!("--btr needs a buslab server (this one does not know buslab_btr)");
+    let url = &args.bus.bus;
+    let mut bus = open(url)?;
+    set_name(&mut bus, url, args.name.as_deref())?;
+    if let Some((btr0, btr1)) = args.btr {
+        admin(&mut bus, url, "bit timing setting (--btr)")?.set_btr(btr0, btr1)?;
     }
+    // Only this client's own frames matter now; what the bus carries is not kept.
+    bus.set_filters(&[buslab_canbus::Filter::NONE])?;
     for f in &args.frames {
-        open.bus.send(f)?;
+        bus.send(f)?;
     }
-    wait_sent(&mut open, args.frames.len() as u64, args.timeout)
+    confirm_sent(&mut bus, url, args.frames.len() as u64, args.timeout)
 }

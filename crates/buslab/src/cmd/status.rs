@@ -1,41 +1,41 @@
 //! `buslab status [--node N]`: error state, STATUS bits, error counters, ALC and ECC in words.
 
-use super::bus::{BusOpt, node_ref, open};
+use buslab_canbus::NodeRef;
+
+use super::busopt::{BusOpt, admin, node_ref, open};
 
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
     pub bus: BusOpt,
-    /// The node: its number (connection order from 1) or its name; every node if absent.
-    #[arg(long)]
+    /// The node: its number (connection order from 1) or its name; every other node if
+    /// absent.
+    #[arg(long, value_name = "NODE")]
     pub node: Option<String>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut open = open(&args.bus.bus)?;
-    if !open.extensions {
-        anyhow::bail!(
-            "{}: the server reports no node status (not a buslab bus)",
-            args.bus.bus
-        );
-    }
+    let url = &args.bus.bus;
+    let mut bus = open(url)?;
+    let admin = admin(&mut bus, url, "node status")?;
     let nodes = match &args.node {
         Some(n) => vec![node_ref(n)],
         None => {
-            let me = open.bus.node_status(None)?.number;
-            open.bus
+            // Every node but this command's own.
+            let me = admin.node_status(None)?.number;
+            admin
                 .nodes()?
                 .into_iter()
-                .filter(|(n, _)| *n != me)
-                .map(|(n, _)| buslab_socketcand::NodeRef::Number(n))
+                .filter(|n| n.number != me)
+                .map(|n| NodeRef::Number(n.number))
                 .collect()
         }
     };
-    for (i, node) in nodes.into_iter().enumerate() {
+    for (i, node) in nodes.iter().enumerate() {
         if i > 0 {
             println!();
         }
-        print!("{}", open.bus.node_status(Some(node))?);
+        print!("{}", admin.node_status(Some(node))?);
     }
     Ok(())
 }

@@ -1,0 +1,182 @@
+//! The backends, keyed by URL scheme: how each reads its URLs and opens a bus.
+
+use std::io;
+use std::time::Duration;
+
+use buslab_canbus::CanBus;
+use buslab_socketcand::{ClientError, ClientOptions, SocketcandBus};
+
+use crate::url::{self, BusUrl, UrlError, UrlProblem};
+
+/// Deadlines for opening a bus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OpenOptions {
+    /// How long to wait for a connection.
+    pub connect_timeout: Duration,
+    /// How long to wait for each answer of the server or device.
+    pub reply_timeout: Duration,
+}
+
+impl Default for OpenOptions {
+    fn default() -> Self {
+        let c = ClientOptions::default();
+        Self {
+            connect_timeout: c.connect_timeout,
+            reply_timeout: c.reply_timeout,
+        }
+    }
+}
+
+/// An open bus, of whichever backend.
+pub type DynBus = Box<dyn CanBus + Send>;
+
+/// A backend's way to open a bus.
+pub type OpenFn = fn(&BusUrl, &OpenOptions) -> Result<DynBus, OpenError>;
+
+/// Why a bus could not be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum OpenError {
+    #[error(transparent)]
+    Url(#[from] UrlError),
+    #[error(
+        "{url}: the {scheme} backend is not available yet (use {})",
+        available_syntaxes()
+    )]
+    NotAvailable { url: String, scheme: &'static str },
+    /// The reason's text is part of the message (with a hint when nobody listens).
+    #[error("cannot join {url}: {reason}{}", hint(reason))]
+    Connect { url: String, reason: ClientError },
+}
+
+/// What to do about a refused connection.
+fn hint(reason: &ClientError) -> &'static str {
+    match reason {
+        ClientError::Io(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
+            " (nobody listens there: start a bus with `buslab bus serve` or `buslab lab`)"
+        }
+        _ => "",
+    }
+}
+
+/// One backend.
+pub struct Backend {
+    /// The URL scheme, the registry's key.
+    pub scheme: &'static str,
+    /// The URL syntax, for help texts and errors.
+    pub syntax: &'static str,
+    pub description: &'static str,
+    /// Reads a whole URL of this scheme.
+    pub parse: fn(&str) -> Result<BusUrl, UrlError>,
+    /// Opens a bus; `None` for a slot a later version fills.
+    pub open: Option<OpenFn>,
+}
+
+/// Every backend, by scheme.
+pub static BACKENDS: &[Backend] = &[
+    Backend {
+        scheme: "socketcand",
+        syntax: "socketcand://HOST[:PORT][/CHANNEL]",
+        description: "socketcand raw mode over TCP (buslab bus serve, buslab lab, socketcand)",
+        parse: url::parse_socketcand,
+        open: Some(open_socketcand),
+    },
+    Backend {
+        scheme: "socketcan",
+        syntax: "socketcan:IFACE",
+        description: "a Linux SocketCAN interface (not available yet)",
+        parse: url::parse_socketcan,
+        open: None,
+    },
+    Backend {
+        scheme: "slcan",
+        syntax: "slcan:DEVICE[@BAUD][?bitrate=N]",
+        description: "an SLCAN (Lawicel) serial adapter (not available yet)",
+        parse: url::parse_slcan,
+        open: None,
+    },
+];
+
+/// The backend for `scheme`.
+pub fn backend(scheme: &str) -> Option<&'static Backend> {
+    BACKENDS.iter().find(|b| b.scheme == scheme)
+}
+
+/// Every syntax: "A, B or C".
+pub fn syntaxes() -> String {
+    or_list(BACKENDS.iter().map(|b| b.syntax))
+}
+
+/// The syntaxes of the backends that can be opened.
+fn available_syntaxes() -> String {
+    or_list(
+        BACKENDS
+            .iter()
+            .filter(|b| b.open.is_some())
+            .map(|b| b.syntax),
+    )
+}
+
+fn or_list<'a>(items: impl Iterator<Item = &'a str>) -> String {
+    let items: Vec<&str> = items.collect();
+    match items.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        Some((last, _)) => last.to_string(),
+        None => String::new(),
+    }
+}
+
+/// Opens the bus behind a URL (python-can's `can.Bus(interface=…, channel=…)`), with the
+/// default deadlines.
+pub fn open(url: &str) -> Result<DynBus, OpenError> {
+    open_url(&url.parse()?, &OpenOptions::default())
+}
+
+/// Opens a parsed URL with its backend from the registry.
+pub fn open_url(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> {
+    let scheme = url.scheme();
+    match backend(scheme).and_then(|b| b.open) {
+        Some(open) => open(url, options),
+        None => Err(OpenError::NotAvailable {
+            url: url.to_string(),
+            scheme,
+        }),
+    }
+}
+
+/// Connects, and turns buslab's extensions on when the server has them.
+fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> {
+    let BusUrl::Socketcand {
+        host,
+        port,
+        channel,
+    } = url
+    else {
+        // Only reachable by calling this backend's `open` with another backend's URL.
+        return Err(OpenError::Url(UrlError {
+            url: url.to_string(),
+            problem: UrlProblem::Syntax {
+                expected: "socketcand://HOST[:PORT][/CHANNEL]",
+            },
+        }));
+    };
+    let connect = |reason| OpenError::Connect {
+        url: url.to_string(),
+        reason,
+    };
+    let client = ClientOptions {
+        connect_timeout: options.connect_timeout,
+        reply_timeout: options.reply_timeout,
+    };
+    let mut bus =
+        SocketcandBus::connect_with((host.as_str(), *port), channel, client).map_err(connect)?;
+    let extensions = bus.enable_extensions().map_err(connect)?;
+    tracing::info!(
+        "joined {url}{}",
+        if extensions {
+            " (a buslab bus)"
+        } else {
+            " (a plain socketcand: no node status, registers or send confirmation)"
+        }
+    );
+    Ok(Box::new(bus))
+}

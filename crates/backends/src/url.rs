@@ -1,0 +1,386 @@
+//! Bus URLs: which backend, and where (`socketcand://HOST[:PORT]/CHANNEL`, `socketcan:IFACE`,
+//! `slcan:DEVICE[@BAUD][?bitrate=N]`).
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::registry;
+
+/// socketcand's port.
+pub const SOCKETCAND_PORT: u16 = 29536;
+/// The channel a socketcand URL without one opens.
+pub const DEFAULT_CHANNEL: &str = "vcan0";
+
+/// Where a bus is: a parsed bus URL.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum BusUrl {
+    /// socketcand raw mode over TCP.
+    Socketcand {
+        host: String,
+        port: u16,
+        channel: String,
+    },
+    /// A Linux SocketCAN interface.
+    SocketCan { interface: String },
+    /// An SLCAN (Lawicel) serial adapter: the device, its line's baud rate, the CAN bit rate.
+    Slcan {
+        device: String,
+        baud: Option<u32>,
+        bitrate: Option<u32>,
+    },
+}
+
+/// A bus URL that cannot be read, with what is wrong.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("bus URL {url:?}: {problem}")]
+pub struct UrlError {
+    pub url: String,
+    pub problem: UrlProblem,
+}
+
+/// What is wrong with a bus URL.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum UrlProblem {
+    #[error("unknown backend {scheme:?}: expected {expected}")]
+    UnknownScheme { scheme: String, expected: String },
+    #[error("expected {expected}")]
+    Syntax { expected: &'static str },
+    #[error("has no host")]
+    NoHost,
+    #[error("unclosed [ in the host")]
+    UnclosedBracket,
+    #[error("expected :PORT or nothing after ], got {0:?}")]
+    AfterBracket(String),
+    #[error("port {0:?} must be a number 1..65535")]
+    Port(String),
+    #[error(
+        "channel {0:?} must be one name: 1..64 printable ASCII characters without spaces, /, < or >"
+    )]
+    Channel(String),
+    #[error("interface {0:?} must be 1..15 characters without spaces or /")]
+    Interface(String),
+    #[error("has no device")]
+    NoDevice,
+    #[error("baud rate {0:?} must be a number of bit/s 1..4000000")]
+    Baud(String),
+    #[error("bitrate {0:?} must be a number of bit/s 1..1000000")]
+    Bitrate(String),
+    #[error("unknown option {0:?}: slcan takes ?bitrate=N")]
+    Option(String),
+}
+
+impl UrlError {
+    fn new(url: &str, problem: UrlProblem) -> Self {
+        Self {
+            url: url.to_string(),
+            problem,
+        }
+    }
+}
+
+impl FromStr for BusUrl {
+    type Err = UrlError;
+
+    /// Finds the backend by the URL's scheme in the registry and lets it read the rest.
+    fn from_str(url: &str) -> Result<Self, UrlError> {
+        let scheme = url.split_once(':').map_or("", |(s, _)| s);
+        match registry::backend(scheme) {
+            Some(b) => (b.parse)(url),
+            None => Err(UrlError::new(
+                url,
+                UrlProblem::UnknownScheme {
+                    scheme: scheme.to_string(),
+                    expected: registry::syntaxes(),
+                },
+            )),
+        }
+    }
+}
+
+/// `socketcand://HOST[:PORT][/CHANNEL]` (port 29536 and channel vcan0 by default; IPv6 as
+/// `[::1]`).
+pub(crate) fn parse_socketcand(url: &str) -> Result<BusUrl, UrlError> {
+    let err = |p| UrlError::new(url, p);
+    let rest = url.strip_prefix("socketcand://").ok_or_else(|| {
+        err(UrlProblem::Syntax {
+            expected: "socketcand://HOST[:PORT][/CHANNEL]",
+        })
+    })?;
+    let (hostport, channel) = rest.split_once('/').unwrap_or((rest, DEFAULT_CHANNEL));
+    let channel = if channel.is_empty() {
+        DEFAULT_CHANNEL
+    } else {
+        channel
+    };
+    if channel.len() > 64
+        || !channel
+            .bytes()
+            .all(|b| b.is_ascii_graphic() && !matches!(b, b'/' | b'<' | b'>'))
+    {
+        return Err(err(UrlProblem::Channel(channel.to_string())));
+    }
+    let parse_port = |p: &str| {
+        p.parse::<u16>()
+            .ok()
+            .filter(|&n| n != 0 && p.bytes().all(|b| b.is_ascii_digit()))
+            .ok_or_else(|| err(UrlProblem::Port(p.to_string())))
+    };
+    let (host, port) = if let Some(bracketed) = hostport.strip_prefix('[') {
+        // An IPv6 address: `[::1]` or `[::1]:PORT`.
+        let (h, after) = bracketed
+            .split_once(']')
+            .ok_or_else(|| err(UrlProblem::UnclosedBracket))?;
+        let port = match after {
+            "" => SOCKETCAND_PORT,
+            _ => parse_port(
+                after
+                    .strip_prefix(':')
+                    .ok_or_else(|| err(UrlProblem::AfterBracket(after.to_string())))?,
+            )?,
+        };
+        (h, port)
+    } else {
+        match hostport.rsplit_once(':') {
+            None => (hostport, SOCKETCAND_PORT),
+            // `fe80::1` without brackets: an IPv6 address on the default port (a port after
+            // an IPv6 address needs the brackets).
+            Some((h, _)) if h.contains(':') => (hostport, SOCKETCAND_PORT),
+            Some((h, p)) => (h, parse_port(p)?),
+        }
+    };
+    if host.is_empty() {
+        return Err(err(UrlProblem::NoHost));
+    }
+    Ok(BusUrl::Socketcand {
+        host: host.to_string(),
+        port,
+        channel: channel.to_string(),
+    })
+}
+
+/// `socketcan:IFACE` (a Linux interface name: 1..15 characters).
+pub(crate) fn parse_socketcan(url: &str) -> Result<BusUrl, UrlError> {
+    let interface = url.strip_prefix("socketcan:").ok_or_else(|| {
+        UrlError::new(
+            url,
+            UrlProblem::Syntax {
+                expected: "socketcan:IFACE",
+            },
+        )
+    })?;
+    if !(1..=15).contains(&interface.len())
+        || !interface.bytes().all(|b| b.is_ascii_graphic() && b != b'/')
+    {
+        return Err(UrlError::new(
+            url,
+            UrlProblem::Interface(interface.to_string()),
+        ));
+    }
+    Ok(BusUrl::SocketCan {
+        interface: interface.to_string(),
+    })
+}
+
+/// `slcan:DEVICE[@BAUD][?bitrate=N]`.
+pub(crate) fn parse_slcan(url: &str) -> Result<BusUrl, UrlError> {
+    let err = |p| UrlError::new(url, p);
+    let rest = url.strip_prefix("slcan:").ok_or_else(|| {
+        err(UrlProblem::Syntax {
+            expected: "slcan:DEVICE[@BAUD][?bitrate=N]",
+        })
+    })?;
+    let (path, query) = rest.split_once('?').unwrap_or((rest, ""));
+    let number = |text: &str, max: u32| {
+        text.parse::<u32>()
+            .ok()
+            .filter(|n| (1..=max).contains(n) && text.bytes().all(|b| b.is_ascii_digit()))
+    };
+    let (device, baud) = match path.rsplit_once('@') {
+        Some((d, b)) => (
+            d,
+            Some(number(b, 4_000_000).ok_or_else(|| err(UrlProblem::Baud(b.to_string())))?),
+        ),
+        None => (path, None),
+    };
+    if device.is_empty() {
+        return Err(err(UrlProblem::NoDevice));
+    }
+    let mut bitrate = None;
+    for option in query.split('&').filter(|o| !o.is_empty()) {
+        match option.split_once('=') {
+            Some(("bitrate", v)) if bitrate.is_none() => {
+                bitrate = Some(
+                    number(v, 1_000_000).ok_or_else(|| err(UrlProblem::Bitrate(v.to_string())))?,
+                );
+            }
+            _ => return Err(err(UrlProblem::Option(option.to_string()))),
+        }
+    }
+    Ok(BusUrl::Slcan {
+        device: device.to_string(),
+        baud,
+        bitrate,
+    })
+}
+
+impl BusUrl {
+    /// The URL's scheme, the registry's key: `socketcand`, `socketcan`, `slcan`.
+    pub fn scheme(&self) -> &'static str {
+        match self {
+            BusUrl::Socketcand { .. } => "socketcand",
+            BusUrl::SocketCan { .. } => "socketcan",
+            BusUrl::Slcan { .. } => "slcan",
+        }
+    }
+
+    /// The channel name shown in candump-like output.
+    pub fn channel(&self) -> &str {
+        match self {
+            BusUrl::Socketcand { channel, .. } => channel,
+            BusUrl::SocketCan { interface } => interface,
+            BusUrl::Slcan { device, .. } => device.rsplit('/').next().unwrap_or(device),
+        }
+    }
+}
+
+/// The URL in its full form (defaults written out).
+impl fmt::Display for BusUrl {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BusUrl::Socketcand {
+                host,
+                port,
+                channel,
+            } if host.contains(':') => write!(f, "socketcand://[{host}]:{port}/{channel}"),
+            BusUrl::Socketcand {
+                host,
+                port,
+                channel,
+            } => write!(f, "socketcand://{host}:{port}/{channel}"),
+            BusUrl::SocketCan { interface } => write!(f, "socketcan:{interface}"),
+            BusUrl::Slcan {
+                device,
+                baud,
+                bitrate,
+            } => {
+                write!(f, "slcan:{device}")?;
+                if let Some(b) = baud {
+                    write!(f, "@{b}")?;
+                }
+                if let Some(r) = bitrate {
+                    write!(f, "?bitrate={r}")?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn url(text: &str) -> BusUrl {
+        text.parse().unwrap_or_else(|e| panic!("{text}: {e}"))
+    }
+
+    #[test]
+    fn socketcand_urls() {
+        assert_eq!(
+            url("socketcand://127.0.0.1:29537/can1"),
+            BusUrl::Socketcand {
+                host: "127.0.0.1".into(),
+                port: 29537,
+                channel: "can1".into()
+            }
+        );
+        for (text, full) in [
+            (
+                "socketcand://127.0.0.1:29537/can1",
+                "socketcand://127.0.0.1:29537/can1",
+            ),
+            (
+                "socketcand://localhost",
+                "socketcand://localhost:29536/vcan0",
+            ),
+            ("socketcand://h:1/", "socketcand://h:1/vcan0"),
+            ("socketcand://[::1]:5/x", "socketcand://[::1]:5/x"),
+            // A bracketed IPv6 host without a port takes the default one.
+            ("socketcand://[::1]/x", "socketcand://[::1]:29536/x"),
+            (
+                "socketcand://[fe80::1]",
+                "socketcand://[fe80::1]:29536/vcan0",
+            ),
+            // Without brackets an IPv6 address has no port.
+            ("socketcand://fe80::1/x", "socketcand://[fe80::1]:29536/x"),
+        ] {
+            assert_eq!(url(text).to_string(), full, "{text}");
+            assert_eq!(url(full), url(text), "{full}");
+        }
+        assert_eq!(url("socketcand://h/can1").channel(), "can1");
+    }
+
+    #[test]
+    fn other_backends_parse_for_their_slots() {
+        assert_eq!(
+            url("socketcan:can0"),
+            BusUrl::SocketCan {
+                interface: "can0".into()
+            }
+        );
+        assert_eq!(
+            url("slcan:/dev/ttyACM0@115200?bitrate=500000"),
+            BusUrl::Slcan {
+                device: "/dev/ttyACM0".into(),
+                baud: Some(115_200),
+                bitrate: Some(500_000)
+            }
+        );
+        let plain = url("slcan:/dev/ttyUSB0");
+        assert_eq!(plain.to_string(), "slcan:/dev/ttyUSB0");
+        assert_eq!(plain.channel(), "ttyUSB0");
+        assert_eq!(plain.scheme(), "slcan");
+    }
+
+    #[test]
+    fn bad_urls_name_the_url_and_what_is_wrong() {
+        for (bad, want) in [
+            ("socketcand://[::1/x", "unclosed ["),
+            (
+                "socketcand://[::1]x/x",
+                "expected :PORT or nothing after ], got \"x\"",
+            ),
+            ("socketcand://h:0/x", "port \"0\" must be a number 1..65535"),
+            ("socketcand://h:99999/x", "port \"99999\" must be a number"),
+            ("socketcand://h:+5/x", "port \"+5\""),
+            ("socketcand://h:/x", "port \"\""),
+            ("socketcand://:1/x", "has no host"),
+            ("socketcand://h:1/a b", "channel \"a b\" must be one name"),
+            ("socketcand://h:1/a/b", "channel \"a/b\""),
+            (
+                "socketcand:h",
+                "expected socketcand://HOST[:PORT][/CHANNEL]",
+            ),
+            ("socketcan:", "interface \"\" must be 1..15"),
+            ("socketcan:averyveryverylongname", "must be 1..15"),
+            ("slcan:", "has no device"),
+            ("slcan:/dev/x@fast", "baud rate \"fast\""),
+            ("slcan:/dev/x?bitrate=0", "bitrate \"0\""),
+            ("slcan:/dev/x?speed=1", "unknown option \"speed=1\""),
+            (
+                "tcp://x",
+                "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE or slcan:DEVICE[@BAUD][?bitrate=N]",
+            ),
+            ("", "unknown backend \"\""),
+            ("vcan0", "unknown backend \"\""),
+        ] {
+            let err = bad.parse::<BusUrl>().unwrap_err();
+            assert_eq!(err.url, bad);
+            let text = err.to_string();
+            assert!(
+                text.starts_with(&format!("bus URL {bad:?}: ")) && text.contains(want),
+                "{bad}: {text}"
+            );
+        }
+    }
+}

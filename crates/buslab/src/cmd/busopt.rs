@@ -1,0 +1,105 @@
+//! What the CAN client commands (`dump`, `send`, `gen`, `regs`, `status`) share: the `--bus`
+//! option, opening the bus through the backend registry, and waiting until frames were sent.
+
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use buslab_backends::{BusUrl, DEFAULT_URL, DynBus, OpenOptions};
+use buslab_canbus::{BusAdmin, BusError, NodeRef};
+
+use crate::units::Human;
+
+/// The common `--bus` option.
+#[derive(clap::Args, Clone)]
+pub struct BusOpt {
+    /// The bus: socketcand://HOST[:PORT][/CHANNEL] (port 29536 and channel vcan0 by default;
+    /// socketcan:IFACE and slcan:DEVICE are recognised but not available yet).
+    #[arg(long, value_name = "URL", default_value = DEFAULT_URL)]
+    pub bus: BusUrl,
+}
+
+/// Opens the bus behind `url` with the backend its scheme names.
+pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
+    Ok(buslab_backends::open_url(url, &OpenOptions::default())?)
+}
+
+/// The bus's administration side, or an error saying `what` needs a buslab bus.
+pub fn admin<'a>(
+    bus: &'a mut DynBus,
+    url: &BusUrl,
+    what: &str,
+) -> anyhow::Result<&'a mut dyn BusAdmin> {
+    match bus.admin() {
+        Some(admin) => Ok(admin),
+        None => bail!("{url}: the server has no {what} (not a buslab bus)"),
+    }
+}
+
+/// Names this client's node if asked to; a plain socketcand has no node names (a warning).
+pub fn set_name(bus: &mut DynBus, url: &BusUrl, name: Option<&str>) -> anyhow::Result<()> {
+    let Some(name) = name else {
+        return Ok(());
+    };
+    match bus.admin() {
+        Some(admin) => admin
+            .set_name(name)
+            .with_context(|| format!("cannot name this node {name:?}")),
+        None => {
+            tracing::warn!("{url} is not a buslab bus: --name {name} is ignored");
+            Ok(())
+        }
+    }
+}
+
+/// `--node` as the server names nodes: a number (connection order from 1) or a name.
+pub fn node_ref(text: &str) -> NodeRef {
+    NodeRef::parse(text)
+}
+
+/// Bits a classic frame takes on the wire at most: 8 data bytes, extended ID, worst-case
+/// stuffing, intermission.
+const WORST_FRAME_BITS: u64 = 160;
+
+/// Waits until the `count` frames this client sent were transmitted or given up, for
+/// `timeout` beyond the time the frames still queued need on the bus (a socketcand `send`
+/// has no confirmation, and leaving earlier would pull the node off the bus with frames still
+/// queued). A plain socketcand cannot tell: a warning, and success.
+pub fn confirm_sent(
+    bus: &mut DynBus,
+    url: &BusUrl,
+    count: u64,
+    timeout: Duration,
+) -> anyhow::Result<()> {
+    let Some(admin) = bus.admin() else {
+        tracing::warn!(
+            "{url} is not a buslab bus: cannot confirm that the {count} frame(s) were sent"
+        );
+        return Ok(());
+    };
+    let before = admin.node_status(None)?;
+    let done = before.counters.sent + before.counters.tx_failed;
+    let pending = count.saturating_sub(done);
+    let on_the_bus = Duration::from_secs_f64(
+        (pending * WORST_FRAME_BITS) as f64 / f64::from(before.bus.bitrate.max(1)),
+    );
+    let wait = timeout.saturating_add(on_the_bus);
+    match admin.flush(wait) {
+        Ok(report) if report.failed > 0 => {
+            let st = admin.node_status(None)?;
+            bail!(
+                "{} of {count} frames were not sent; the node's status:\n{st}",
+                report.failed
+            )
+        }
+        Ok(_) => Ok(()),
+        Err(BusError::Timeout { .. }) => {
+            let st = admin.node_status(None)?;
+            bail!(
+                "only {} of {count} frames were sent within {} (no other node to acknowledge them, or a bit rate mismatch?); the node's status:\n{st}",
+                st.counters.sent,
+                Human(wait)
+            )
+        }
+        Err(e) => Err(e.into()),
+    }
+}

@@ -1,0 +1,267 @@
+//! candump log lines: what can-utils and python-can write, round trips, and garbage.
+
+use std::io::Cursor;
+use std::time::Duration;
+
+use buslab_can::{Frame, Id};
+use buslab_canbus::{CanError, ErrorFrame};
+use buslab_logs::candump::{
+    LineError, MAX_LINE, ReadError, Reader, Writer, format_line, parse_line,
+};
+use buslab_logs::{Direction, Entry, Record};
+use proptest::prelude::*;
+
+fn frame(text: &str) -> Frame {
+    text.parse().unwrap()
+}
+
+#[test]
+fn lines_as_can_utils_writes_them() {
+    let e = parse_line("(1700000000.123456) can1 12345678#DEADBEEF").unwrap();
+    assert_eq!(
+        e,
+        Entry {
+            timestamp: Duration::new(1_700_000_000, 123_456_000),
+            interface: "can1".into(),
+            record: Record::Frame(frame("12345678#DEADBEEF")),
+            direction: None,
+        }
+    );
+    assert_eq!(
+        parse_line("(1700000000.200000) can0 7FF#R").unwrap().record,
+        Record::Frame(frame("7FF#R"))
+    );
+    // candump -x, interface names right-aligned to the longest, -N nanoseconds, -t z zero.
+    let x = parse_line("(1700000000.500000)  can0 123#112233 T").unwrap();
+    assert_eq!(x.direction, Some(Direction::Tx));
+    assert_eq!(
+        parse_line("(1700000000.000000001) vcan0 5A1#11.2233.44556677.88")
+            .unwrap()
+            .timestamp,
+        Duration::new(1_700_000_000, 1)
+    );
+    assert_eq!(
+        parse_line("(000.000000) vcan0 123#").unwrap().timestamp,
+        Duration::ZERO
+    );
+    // python-can's writer: any number of decimals up to 9.
+    assert_eq!(
+        parse_line("(1.5) vcan0 123#").unwrap().timestamp,
+        Duration::from_millis(1500)
+    );
+}
+
+#[test]
+fn error_frames_decode() {
+    let e = parse_line("(1700000000.400000) can0 20000080#0000000000000000").unwrap();
+    assert_eq!(
+        e.record,
+        Record::Error(ErrorFrame {
+            errors: vec![CanError::BusError],
+            counters: None
+        })
+    );
+    let e = parse_line("(1.000000) can0 20000204#0020000000008005 R").unwrap();
+    let Record::Error(err) = &e.record else {
+        panic!("{e:?}")
+    };
+    assert_eq!(
+        err.to_string(),
+        "controller-problem{tx-error-passive},error-counter-tx-rx{{128}{5}}"
+    );
+    assert_eq!(
+        format_line(&e, true),
+        "(0000000001.000000) can0 20000204#0020000000008005 R"
+    );
+}
+
+#[test]
+fn lines_round_trip() {
+    for line in [
+        "(1700000000.000000) vcan0 123#1122334455667788",
+        "(0000000001.500000) can1 12345678#",
+        "(1700000000.200000) can0 7FF#R",
+        "(1700000000.200000) can0 00000123#R3",
+        "(1700000000.400000) can0 20000288#0000080A00000800",
+    ] {
+        assert_eq!(format_line(&parse_line(line).unwrap(), false), line);
+    }
+}
+
+#[test]
+fn garbage_lines_name_what_is_wrong() {
+    for (line, want) in [
+        ("", LineError::Empty),
+        ("   ", LineError::Empty),
+        ("(1.5)", LineError::NoInterface),
+        ("(1.5) vcan0", LineError::NoFrame("vcan0".into())),
+        ("1.5 vcan0 123#", LineError::Timestamp("1.5".into())),
+        ("(1) vcan0 123#", LineError::Timestamp("(1)".into())),
+        ("(1.) vcan0 123#", LineError::Timestamp("(1.)".into())),
+        (
+            "(1.1234567890) vcan0 123#",
+            LineError::Timestamp("(1.1234567890)".into()),
+        ),
+        ("(-1.5) vcan0 123#", LineError::Timestamp("(-1.5)".into())),
+        (
+            "(99999999999999999999.0) vcan0 123#",
+            LineError::Timestamp("(99999999999999999999.0)".into()),
+        ),
+        ("(1.5) vcan0 123#11 X", LineError::Trailing("X".into())),
+        (
+            "(1.5) vcan0 123#11 R extra",
+            LineError::Trailing("extra".into()),
+        ),
+    ] {
+        assert_eq!(parse_line(line), Err(want), "{line:?}");
+    }
+    for (line, want) in [
+        ("(1.5) vcan0 123", "has no '#'"),
+        ("(1.5) vcan0 123##1112233", "CAN FD"),
+        ("(1.5) vcan0 800#", "out of range"),
+        ("(1.5) vcan0 123#112", "odd number"),
+        ("(1.5) vcan0 123#11223344556677889900", "0..8"),
+        ("(1.5) vcan0 20000080#000", "pairs of hex digits"),
+        ("(1.5) vcan0 20000080#GG", "pairs of hex digits"),
+        (
+            "(1.5) vcan0 20000080#000000000000000000",
+            "at most 8 data bytes",
+        ),
+        ("(1.5) vcan0 60000080#00", "wider than a 29-bit"),
+    ] {
+        let err = parse_line(line).unwrap_err().to_string();
+        assert!(err.contains(want), "{line:?}: {err}");
+    }
+}
+
+#[test]
+fn the_reader_skips_notes_and_names_bad_lines() {
+    let log = "(1.000000) vcan0 123#11\n\
+               DROPCOUNT: dropped 3 CAN frames on 'vcan0' socket (total drops 3)\n\
+               \n\
+               (2.000000) vcan0 nonsense\n\
+               (3.000000) vcan0 124#22\r\n\
+               (4.000000) vcan0 125#33";
+    let mut reader = Reader::new(Cursor::new(log));
+    let first = reader.next().unwrap().unwrap();
+    assert_eq!(first.record, Record::Frame(frame("123#11")));
+    let err = reader.next().unwrap().unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            ReadError::Line {
+                line: 4,
+                error: LineError::Frame(_)
+            }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().starts_with("line 4: "), "{err}");
+    // Reading goes on after a bad line; CRLF and a missing last newline are fine.
+    let rest: Vec<Entry> = reader.by_ref().map(Result::unwrap).collect();
+    assert_eq!(rest.len(), 2);
+    assert_eq!(rest[1].record, Record::Frame(frame("125#33")));
+    assert_eq!(reader.skipped(), 2);
+}
+
+#[test]
+fn the_reader_bounds_lines_and_refuses_binary() {
+    let mut input = vec![b'('; MAX_LINE * 3];
+    input.extend_from_slice(b"\n(1.0) vcan0 123#\n\xFF\xFE(\n");
+    let mut reader = Reader::new(Cursor::new(input));
+    assert!(matches!(
+        reader.next().unwrap(),
+        Err(ReadError::Line {
+            line: 1,
+            error: LineError::TooLong
+        })
+    ));
+    assert!(reader.next().unwrap().is_ok());
+    assert!(matches!(
+        reader.next().unwrap(),
+        Err(ReadError::Line {
+            line: 3,
+            error: LineError::NotText
+        })
+    ));
+    assert!(reader.next().is_none());
+}
+
+#[test]
+fn the_writer_writes_what_the_reader_reads() {
+    let entries = vec![
+        Entry {
+            timestamp: Duration::new(1_700_000_000, 123_456_789),
+            interface: "vcan0".into(),
+            record: Record::Frame(frame("1ABCDEF0#DEADBEEF")),
+            direction: Some(Direction::Rx),
+        },
+        Entry {
+            timestamp: Duration::new(1_700_000_001, 0),
+            interface: "vcan0".into(),
+            record: Record::Error(ErrorFrame::decode(0x040, &[]).unwrap()),
+            direction: Some(Direction::Tx),
+        },
+    ];
+    let mut w = Writer::new(Vec::new()).with_direction(true);
+    for e in &entries {
+        w.write(e).unwrap();
+    }
+    let text = String::from_utf8(w.into_inner()).unwrap();
+    assert_eq!(
+        text,
+        "(1700000000.123456) vcan0 1ABCDEF0#DEADBEEF R\n(1700000001.000000) vcan0 20000040#0000000000000000 T\n"
+    );
+    let back: Vec<Entry> = Reader::new(Cursor::new(text)).map(Result::unwrap).collect();
+    // Microseconds, as candump writes them.
+    assert_eq!(back[0].timestamp, Duration::new(1_700_000_000, 123_456_000));
+    assert_eq!(back[1], entries[1]);
+}
+
+fn any_frame() -> impl Strategy<Value = Frame> {
+    (
+        any::<bool>(),
+        any::<u32>(),
+        any::<bool>(),
+        proptest::collection::vec(any::<u8>(), 0..=8),
+    )
+        .prop_map(|(ext, raw, remote, data)| {
+            let id = if ext {
+                Id::extended(raw & 0x1FFF_FFFF).unwrap()
+            } else {
+                Id::standard((raw & 0x7FF) as u16).unwrap()
+            };
+            if remote {
+                Frame::remote(id, data.len() as u8).unwrap()
+            } else {
+                Frame::data(id, &data).unwrap()
+            }
+        })
+}
+
+proptest! {
+    /// Fuzz-friendly: any text is an entry or an error, never a panic.
+    #[test]
+    fn any_text_parses_without_panic(line in "\\PC{0,80}") {
+        let _ = parse_line(&line);
+    }
+
+    #[test]
+    fn lines_that_look_almost_right_parse_without_panic(
+        secs in "[0-9]{0,22}", frac in "[0-9]{0,11}", iface in "[a-z0-9]{0,6}",
+        id in "[0-9A-Fa-f]{0,9}", data in "[0-9A-Fa-fR.#_]{0,20}", tail in "( [RTX])?",
+    ) {
+        let _ = parse_line(&format!("({secs}.{frac}) {iface} {id}#{data}{tail}"));
+    }
+
+    #[test]
+    fn any_frame_round_trips(f in any_frame(), secs in 0u64..10_000_000_000, micros in 0u32..1_000_000) {
+        let e = Entry {
+            timestamp: Duration::new(secs, micros * 1000),
+            interface: "can0".into(),
+            record: Record::Frame(f),
+            direction: None,
+        };
+        prop_assert_eq!(parse_line(&format_line(&e, false)).unwrap(), e);
+    }
+}
