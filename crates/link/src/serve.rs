@@ -10,19 +10,9 @@ use std::time::{Duration, Instant};
 use nix::poll::{PollFd, PollFlags, ppoll};
 use nix::sys::time::TimeSpec;
 
-use crate::{LineSettings, Pty};
+use buslab_device::{ByteDevice, LineSettings};
 
-/// A device model that talks over one UART, driven in virtual nanoseconds.
-pub trait ByteDevice {
-    /// A byte has fully arrived on the device's RxD at `now_ns`.
-    fn receive(&mut self, now_ns: u64, byte: u8);
-    /// Advance the model to `now_ns`; append the bytes whose transmission on TxD has completed
-    /// by then.
-    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>);
-    /// When [`poll`](ByteDevice::poll) must be called again even if no byte arrives; `None` if
-    /// the device only reacts to input.
-    fn next_deadline(&self) -> Option<u64>;
-}
+use crate::Pty;
 
 /// Work done on the served device from another thread (press a key, power-cycle, change an
 /// input), with the current virtual time.
@@ -47,16 +37,94 @@ const MAX_OUTBOUND: usize = 64 * 1024;
 /// least one character time after the previous byte, even though a PTY passes a burst at once.
 /// Bytes that have arrived are delivered before control work runs. When the client's own
 /// settings do not match `line` (other baud rate, data bits or parity) its bytes would be
-/// framing errors on a real line: they are dropped, and one warning goes to stderr. A client
-/// that writes faster than the line carries is held back (its writes block once 4 KiB wait, as
-/// on a real port), and one that does not read loses the device's output beyond 64 KiB
-/// waiting (one warning).
+/// framing errors on a real line: they are dropped, with one warning (`tracing`). A client that
+/// writes faster than the line carries is held back (its writes block once 4 KiB wait, as on a
+/// real port), and one that does not read loses the device's output beyond 64 KiB waiting (one
+/// warning). When serving ends, a summary of what was lost is logged if anything was.
 pub fn serve<D: ByteDevice>(
     device: &mut D,
     pty: &Pty,
     line: LineSettings,
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
+) -> io::Result<()> {
+    serve_with(device, pty, line, control, stop, &mut |_, _| {})
+}
+
+/// [`serve`], calling `after_poll(device, now)` each time the device has been polled, before
+/// the bytes it produced go to the client (where an adapter takes snapshots to persist, or
+/// would sync a journal before an acknowledgement leaves).
+pub(crate) fn serve_with<D: ByteDevice>(
+    device: &mut D,
+    pty: &Pty,
+    line: LineSettings,
+    control: &Receiver<Control<D>>,
+    stop: &AtomicBool,
+    after_poll: &mut dyn FnMut(&mut D, u64),
+) -> io::Result<()> {
+    let mut losses = Losses::default();
+    let result = serve_loop(device, pty, line, control, stop, after_poll, &mut losses);
+    losses.summarise(line);
+    result
+}
+
+/// What the line lost, for one warning each and a summary at the end.
+#[derive(Default)]
+struct Losses {
+    /// Bytes from a client at other settings (framing errors), and the last such settings.
+    garbled: u64,
+    peer: Option<LineSettings>,
+    /// Device output beyond what a client that does not read may have waiting.
+    overflowed: u64,
+}
+
+impl Losses {
+    fn garbled(&mut self, n: usize, peer: LineSettings, line: LineSettings) {
+        if self.garbled == 0 {
+            tracing::warn!(
+                "the client's port is set to {peer}, the device expects {line}; its bytes are \
+                 lost as framing errors"
+            );
+        }
+        self.garbled += n as u64;
+        self.peer = Some(peer);
+    }
+
+    fn overflowed(&mut self, n: usize) {
+        if self.overflowed == 0 {
+            tracing::warn!(
+                "the client does not read; the device's output beyond {MAX_OUTBOUND} waiting \
+                 bytes is lost"
+            );
+        }
+        self.overflowed += n as u64;
+    }
+
+    fn summarise(&self, line: LineSettings) {
+        if let Some(peer) = self.peer {
+            tracing::warn!(
+                "{} bytes from the client were lost as framing errors (client at {peer}, \
+                 device at {line})",
+                self.garbled
+            );
+        }
+        if self.overflowed > 0 {
+            tracing::warn!(
+                "{} bytes of the device's output were lost: the client did not read them",
+                self.overflowed
+            );
+        }
+    }
+}
+
+fn serve_loop<D: ByteDevice>(
+    device: &mut D,
+    pty: &Pty,
+    line: LineSettings,
+    control: &Receiver<Control<D>>,
+    stop: &AtomicBool,
+    after_poll: &mut dyn FnMut(&mut D, u64),
+    losses: &mut Losses,
 ) -> io::Result<()> {
     let epoch = Instant::now();
     let byte_ns = line.byte_time_ns();
@@ -67,8 +135,6 @@ pub fn serve<D: ByteDevice>(
     let mut outbound: VecDeque<u8> = VecDeque::new();
     let mut produced = Vec::new();
     let mut buf = [0u8; 4096];
-    let mut warned = false;
-    let mut overflowed = false;
     let mut controls_open = true;
 
     while !stop.load(Ordering::Relaxed) {
@@ -91,13 +157,10 @@ pub fn serve<D: ByteDevice>(
             }
         }
         device.poll(now, &mut produced);
+        after_poll(device, now);
         let room = MAX_OUTBOUND.saturating_sub(outbound.len());
-        if produced.len() > room && !overflowed {
-            eprintln!(
-                "warning: the client does not read; the device's output beyond {MAX_OUTBOUND} \
-                 waiting bytes is lost"
-            );
-            overflowed = true;
+        if produced.len() > room {
+            losses.overflowed(produced.len() - room);
         }
         outbound.extend(produced.drain(..).take(room));
         flush(pty, &mut outbound)?;
@@ -132,12 +195,8 @@ pub fn serve<D: ByteDevice>(
                 Ok(n) => {
                     let peer = pty.peer_settings()?;
                     let understood = line.understands(&peer);
-                    if !understood && !warned {
-                        eprintln!(
-                            "warning: the client's port is set to {peer}, the device expects \
-                             {line}; its bytes are lost as framing errors"
-                        );
-                        warned = true;
+                    if !understood {
+                        losses.garbled(n, peer, line);
                     }
                     let read_at = epoch.elapsed().as_nanos() as u64;
                     // A byte the client wrote at `read_at` has fully arrived one character
