@@ -27,14 +27,16 @@ impl Board {
     fn serve_in(dir: tempfile::TempDir, extra: &[&str]) -> Self {
         let link = dir.path().join("board");
         let image = dir.path().join("image.toml");
+        // The board's log (what the kernel refused, and why), shown when a command fails.
+        let log = std::fs::File::create(dir.path().join("serve.log")).unwrap();
         let child = Command::new(env!("CARGO_BIN_EXE_buslab"))
-            .args(["cpu196", "serve", "--baud", BAUD, "--link"])
+            .args(["-vv", "cpu196", "serve", "--baud", BAUD, "--link"])
             .arg(&link)
             .arg("--image")
             .arg(&image)
             .args(extra)
             .stdout(Stdio::null())
-            .stderr(Stdio::null())
+            .stderr(log)
             .spawn()
             .unwrap();
         let until = Instant::now() + Duration::from_secs(ALLOWANCE_S);
@@ -68,9 +70,10 @@ impl Board {
         let text = String::from_utf8_lossy(&out.stdout).into_owned();
         assert!(
             out.status.success(),
-            "{args:?} failed: {}{}",
+            "{args:?} failed: {}{}\nthe served board's log:\n{}",
             text,
-            String::from_utf8_lossy(&out.stderr)
+            String::from_utf8_lossy(&out.stderr),
+            self.log()
         );
         text
     }
@@ -79,6 +82,11 @@ impl Board {
         let out = self.cli(args);
         assert!(!out.status.success(), "{args:?} should have failed");
         String::from_utf8_lossy(&out.stderr).into_owned()
+    }
+
+    /// What the served board logged so far.
+    fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.path().join("serve.log")).unwrap_or_default()
     }
 
     fn path(&self, name: &str) -> PathBuf {
@@ -335,7 +343,13 @@ fn pic_eeprom_pwm_bridge_start_stop_user_reset_powerdown() {
     b.ok(&["start", "--config", "0", "--no-ad"]);
     assert!(b.fails(&["info"]).contains("msg_invalid_command"));
     b.ok(&["stop"]);
-    assert!(b.ok(&["user", "0x20"]).contains("msg_invalid_command"));
+    // `user` prints what the board sends within its time-out: a few seconds are plenty for
+    // the answer, and the test need not listen for the whole allowance.
+    let out = b.cli_waiting("5s", &["user", "0x20"]);
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("msg_invalid_command"),
+        "{out:?}"
+    );
     assert!(b.fails(&["user", "0xF3"]).contains("00h..EFh"));
     assert!(b.fails(&["reset"]).contains("--yes"));
     assert!(b.ok(&["--yes", "reset"]).contains("the board reset"));

@@ -15,7 +15,8 @@ pub trait Port {
     fn send(&mut self, bytes: &[u8]) -> io::Result<()>;
 
     /// Waits at most `timeout` for bytes from the device and reads what is there; `Ok(0)` when
-    /// nothing came in time.
+    /// nothing came in time, and then only once `timeout` has passed on the port's clock
+    /// (clients loop on their deadline by [`now`](Port::now)).
     fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize>;
 
     /// The port's clock: it starts at an arbitrary point and only moves forward (the wall

@@ -607,9 +607,13 @@ fn serve(s: &ServeArgs) -> anyhow::Result<()> {
     );
     std::io::stdout().flush().ok();
     let stopped = super::zelle::ctrl_c()?;
-    // The kernel's log (what it refused and why), as it comes.
+    // The kernel's log (what it refused and why), as it comes. A serve thread that ended (an
+    // error on the PTY) ends the wait too; `stop` then reports why.
     while stopped.recv_timeout(Duration::from_millis(100)).is_err() {
-        for line in served.with(|b, _| b.take_log())? {
+        let Ok(log) = served.with(|b, _| b.take_log()) else {
+            break;
+        };
+        for line in log {
             eprintln!("board: {line}");
         }
     }

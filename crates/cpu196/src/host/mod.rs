@@ -71,6 +71,12 @@ pub struct Client<P: Port> {
     inbox: Backlog,
     /// Frame errors seen on the board's stream (reported, not fatal).
     pub frame_errors: Vec<String>,
+    /// The decoder's clock: the silence this client has seen on the line, in nanoseconds. It
+    /// moves only while a `recv` waits and gets nothing, never while the client is busy or
+    /// descheduled: a client that reads late (a loaded machine) finds a frame's bytes in two
+    /// reads far apart, though the board sent them back to back, and must not take that for
+    /// a pause inside the frame.
+    silence_ns: u64,
 }
 
 /// The default allowance for a reply beyond its bytes' time on the line.
@@ -87,6 +93,7 @@ impl<P: Port> Client<P> {
             backlog: Backlog::new(),
             inbox: Backlog::new(),
             frame_errors: Vec::new(),
+            silence_ns: 0,
         }
     }
 
@@ -153,17 +160,24 @@ impl<P: Port> Client<P> {
             if left.is_zero() {
                 return Ok(None);
             }
+            let before = self.port.now();
             let n = self.port.recv(&mut buf, left)?;
-            let now = self.port.now().as_nanos().min(u128::from(u64::MAX)) as u64;
+            if n == 0 {
+                // Nothing came while waiting: the line was silent that long.
+                let waited = self.port.now().saturating_sub(before);
+                self.silence_ns = self
+                    .silence_ns
+                    .saturating_add(waited.as_nanos().min(u128::from(u64::MAX)) as u64);
+                if let Some(Event::Error(e)) = self.decoder.poll(self.silence_ns) {
+                    self.frame_errors.push(e.to_string());
+                }
+            }
             for &b in &buf[..n] {
-                match self.decoder.push(now, b) {
+                match self.decoder.push(self.silence_ns, b) {
                     Some(Event::Message(m)) => self.inbox.push_back(m),
                     Some(Event::Error(e)) => self.frame_errors.push(e.to_string()),
                     None => {}
                 }
-            }
-            if let Some(Event::Error(e)) = self.decoder.poll(now) {
-                self.frame_errors.push(e.to_string());
             }
         }
     }
@@ -569,6 +583,88 @@ mod tests {
         fn discard_input(&mut self) -> io::Result<()> {
             Ok(())
         }
+    }
+
+    /// Hands out the board's bytes in the chunks given, each after the client was away (busy,
+    /// or descheduled) for the time given; then silence.
+    struct LateReader {
+        chunks: VecDeque<(Duration, Vec<u8>)>,
+        now: Duration,
+    }
+
+    impl Port for LateReader {
+        fn send(&mut self, _bytes: &[u8]) -> io::Result<()> {
+            Ok(())
+        }
+        fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+            match self.chunks.pop_front() {
+                Some((away, bytes)) => {
+                    self.now += away;
+                    buf[..bytes.len()].copy_from_slice(&bytes);
+                    Ok(bytes.len())
+                }
+                None => {
+                    self.now += timeout;
+                    Ok(0)
+                }
+            }
+        }
+        fn now(&self) -> Duration {
+            self.now
+        }
+        fn pause(&mut self, d: Duration) {
+            self.now += d;
+        }
+        fn drain(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+        fn discard_input(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_client_that_reads_late_does_not_cut_a_frame_in_two() {
+        // The bug behind `no answer from the board within 2.06 s` on a loaded machine: the
+        // client was descheduled in the middle of a 259-byte reply; its decoder stamped the
+        // rest with the time it got to read it, saw a 200 ms pause inside the frame, dropped
+        // it, and waited for a reply that had come.
+        let data: [u8; 256] = core::array::from_fn(|i| i as u8);
+        let reply = Message::FlashData(Box::new(data)).to_bytes().unwrap();
+        let (head, tail) = reply.split_at(100);
+        let port = LateReader {
+            chunks: [
+                (Duration::ZERO, head.to_vec()),
+                (Duration::from_millis(500), tail.to_vec()),
+            ]
+            .into(),
+            now: Duration::ZERO,
+        };
+        let mut c = Client::new(port, 115_200);
+        assert_eq!(*c.flash_read(3, 0x60).unwrap(), data);
+        assert!(c.frame_errors.is_empty(), "{:?}", c.frame_errors);
+    }
+
+    #[test]
+    fn a_frame_that_stops_on_a_silent_line_is_dropped_and_the_next_one_is_read() {
+        // Silence the client waited through is a real pause: the half frame goes, as on the
+        // board, and the stream resynchronises.
+        let data: [u8; 256] = [7; 256];
+        let reply = Message::FlashData(Box::new(data)).to_bytes().unwrap();
+        let mut c = Client::new(
+            LateReader {
+                chunks: [(Duration::ZERO, reply[..100].to_vec())].into(),
+                now: Duration::ZERO,
+            },
+            115_200,
+        );
+        assert_eq!(c.next(Duration::from_millis(300)).unwrap(), None);
+        assert_eq!(c.frame_errors.len(), 1, "{:?}", c.frame_errors);
+        c.port().chunks.push_back((Duration::ZERO, reply.clone()));
+        assert_eq!(
+            c.next(Duration::from_millis(300)).unwrap(),
+            Some(Message::FlashData(Box::new(data)))
+        );
     }
 
     #[test]
