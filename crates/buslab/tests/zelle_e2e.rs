@@ -193,6 +193,8 @@ fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
 
     // Arm again, stop the server (it saves), start a new one on the same state file.
     c.repeat_series().unwrap();
+    // Stopped only once the cell has the command (the server may read it late).
+    s.status_where("armed again", |st| st.contains("waiting for START"));
     drop(c);
     let dir = s.stop();
     let mut s = Served::start_in(dir, &[]);

@@ -976,13 +976,19 @@ fn pic_range(block: u8) -> Option<core::ops::Range<usize>> {
 }
 
 impl Persistent for Board {
+    type Snapshot = Image;
+
     fn state_generation(&self) -> u64 {
         self.generation
     }
 
+    fn snapshot(&self) -> Image {
+        self.image.clone()
+    }
+
     /// The image file (TOML).
-    fn state_bytes(&self) -> Vec<u8> {
-        self.image.to_toml().into_bytes()
+    fn file_bytes(image: &Image) -> Vec<u8> {
+        image.to_toml().into_bytes()
     }
 }
 

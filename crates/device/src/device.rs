@@ -16,10 +16,16 @@ pub trait ByteDevice {
 /// image file holds. Pure: the host decides when and where the bytes are written.
 ///
 /// Adapters look at [`state_generation`](Persistent::state_generation) between two byte events
-/// and save [`state_bytes`](Persistent::state_bytes) when it moved.
+/// and, when it moved, take a [`snapshot`](Persistent::snapshot) there (a copy, cheap, so the
+/// device's pacing does not suffer), then turn it into the file's bytes
+/// ([`file_bytes`](Persistent::file_bytes)) elsewhere.
 pub trait Persistent {
+    /// A copy of the persistent state.
+    type Snapshot: Send + 'static;
     /// Changes whenever the persistent state changes (a counter: compared, never interpreted).
     fn state_generation(&self) -> u64;
-    /// The persistent state as the contents of its file.
-    fn state_bytes(&self) -> Vec<u8>;
+    /// The persistent state now.
+    fn snapshot(&self) -> Self::Snapshot;
+    /// A snapshot as the contents of its file.
+    fn file_bytes(snapshot: &Self::Snapshot) -> Vec<u8>;
 }

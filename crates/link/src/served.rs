@@ -51,13 +51,21 @@ pub enum ServedError {
     Panicked,
 }
 
+/// A snapshot taken in the serve thread, turned into the file's bytes in the saver thread.
+type Snapshot = Box<dyn FnOnce() -> Vec<u8> + Send>;
+
+fn take_snapshot<D: Persistent>(device: &D) -> Snapshot {
+    let snapshot = device.snapshot();
+    Box::new(move || D::file_bytes(&snapshot))
+}
+
 /// Where and how often a device's persistent state is saved.
 struct Persistence<D> {
     path: PathBuf,
     what: &'static str,
     every: Duration,
     generation: fn(&D) -> u64,
-    bytes: fn(&D) -> Vec<u8>,
+    snapshot: fn(&D) -> Snapshot,
 }
 
 /// What to serve, and how: `Serve::new(device, line).link(..).persist(..).spawn()`.
@@ -113,7 +121,7 @@ impl<D: ByteDevice + Send + 'static> Serve<D> {
         let saver = match persistence {
             Some(p) => {
                 // Written once now: a file that cannot be written is an error at start.
-                write_atomic(&p.path, &(p.bytes)(&device)).map_err(|e| ServedError::Save {
+                write_atomic(&p.path, &(p.snapshot)(&device)()).map_err(|e| ServedError::Save {
                     what: p.what,
                     path: e.path,
                     source: e.source,
@@ -153,7 +161,7 @@ impl<D: ByteDevice + Persistent + Send + 'static> Serve<D> {
             what,
             every,
             generation: D::state_generation,
-            bytes: D::state_bytes,
+            snapshot: take_snapshot::<D>,
         });
         self
     }
@@ -305,17 +313,18 @@ impl<D: 'static> Handle<D> {
 
 /// A snapshot on its way to the file; `done` hears how writing it went.
 struct SaveJob {
-    bytes: Vec<u8>,
+    snapshot: Snapshot,
     done: Option<Sender<Result<(), ServedError>>>,
 }
 
-/// The serve thread's side of the saver thread.
+/// The serve thread's side of the saver thread: snapshots are taken here (a copy), turned into
+/// bytes and written there, so the device's pacing never waits for serialisation or the disk.
 struct Saver<D> {
     jobs: Sender<SaveJob>,
     path: PathBuf,
     every_ns: u64,
     generation: fn(&D) -> u64,
-    bytes: fn(&D) -> Vec<u8>,
+    snapshot: fn(&D) -> Snapshot,
     /// The generation last handed to the saver thread (`u64::MAX` after a failed write, so
     /// the next look saves again).
     enqueued: Arc<AtomicU64>,
@@ -328,7 +337,7 @@ impl<D> Clone for Saver<D> {
             path: self.path.clone(),
             every_ns: self.every_ns,
             generation: self.generation,
-            bytes: self.bytes,
+            snapshot: self.snapshot,
             enqueued: self.enqueued.clone(),
         }
     }
@@ -352,7 +361,7 @@ impl<D> Saver<D> {
             path: p.path,
             every_ns: p.every.as_nanos().min(u128::from(u64::MAX)) as u64,
             generation: p.generation,
-            bytes: p.bytes,
+            snapshot: p.snapshot,
             enqueued,
         })
     }
@@ -362,7 +371,7 @@ impl<D> Saver<D> {
         let generation = (self.generation)(device);
         if self.enqueued.swap(generation, Ordering::SeqCst) != generation {
             let _ = self.jobs.send(SaveJob {
-                bytes: (self.bytes)(device),
+                snapshot: (self.snapshot)(device),
                 done: None,
             });
         }
@@ -374,7 +383,7 @@ impl<D> Saver<D> {
         self.enqueued
             .store((self.generation)(device), Ordering::SeqCst);
         let job = SaveJob {
-            bytes: (self.bytes)(device),
+            snapshot: (self.snapshot)(device),
             done: Some(tx),
         };
         if let Err(unsent) = self.jobs.send(job)
@@ -398,13 +407,13 @@ fn save_jobs(jobs: &Receiver<SaveJob>, path: &Path, what: &'static str, enqueued
     let mut failing = false;
     while let Ok(first) = jobs.recv() {
         // Snapshots queue in the order they were taken: only the newest needs writing.
-        let mut latest = first.bytes;
+        let mut latest = first.snapshot;
         let mut waiting: Vec<_> = first.done.into_iter().collect();
         while let Ok(next) = jobs.try_recv() {
-            latest = next.bytes;
+            latest = next.snapshot;
             waiting.extend(next.done);
         }
-        let result = write_atomic(path, &latest);
+        let result = write_atomic(path, &latest());
         match &result {
             Err(e) => {
                 enqueued.store(u64::MAX, Ordering::SeqCst);

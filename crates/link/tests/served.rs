@@ -41,11 +41,15 @@ impl ByteDevice for Recorder {
 }
 
 impl Persistent for Recorder {
+    type Snapshot = Vec<u8>;
     fn state_generation(&self) -> u64 {
         self.generation
     }
-    fn state_bytes(&self) -> Vec<u8> {
+    fn snapshot(&self) -> Vec<u8> {
         self.state.clone()
+    }
+    fn file_bytes(snapshot: &Vec<u8>) -> Vec<u8> {
+        snapshot.clone()
     }
 }
 

@@ -21,12 +21,19 @@ impl ByteDevice for Cell {
 }
 
 impl Persistent for Cell {
+    type Snapshot = crate::BatteryRam;
+
     fn state_generation(&self) -> u64 {
         self.ram_generation()
     }
 
-    fn state_bytes(&self) -> Vec<u8> {
-        self.ram().to_state_file().into_bytes()
+    fn snapshot(&self) -> crate::BatteryRam {
+        self.ram().clone()
+    }
+
+    /// The state file (TOML).
+    fn file_bytes(ram: &crate::BatteryRam) -> Vec<u8> {
+        ram.to_state_file().into_bytes()
     }
 }
 

@@ -26,7 +26,7 @@ use crate::timing::{BYTE_NS, RESET_GAP_NS};
 /// a generous margin keeps the two apart on a busy machine (the server thread must be late by
 /// this much for the next byte to fall into the set-up). Commands 3 and 5 need no pause: the
 /// client waits for the cell's first timing byte, which comes after the set-up.
-pub const SETUP_PAUSE: Duration = Duration::from_millis(20);
+pub const SETUP_PAUSE: Duration = Duration::from_millis(50);
 
 /// Requests kept on the line ahead of the replies in pipelined transfers. Two would keep a
 /// 9600 baud line busy; more absorbs scheduling jitter on the host.
