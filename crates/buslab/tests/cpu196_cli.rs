@@ -340,6 +340,11 @@ fn pic_eeprom_pwm_bridge_start_stop_user_reset_powerdown() {
     b.ok(&["bridge", "par-mask", "0"]);
     b.ok(&["bridge", "par-write", "0xC3"]);
     assert!(b.ok(&["bridge", "par-read"]).contains("reads C3h"));
+    // The lower loop refuses CPUINF. Its watchdog would end the run after 3 s without a byte
+    // from the PC (the next CLI process may take that long to start on a loaded machine):
+    // off, from the next reset.
+    b.ok(&["--yes", "format", "boot-set", "--watchdog", "off"]);
+    b.ok(&["--yes", "reset"]);
     b.ok(&["start", "--config", "0", "--no-ad"]);
     assert!(b.fails(&["info"]).contains("msg_invalid_command"));
     b.ok(&["stop"]);

@@ -109,7 +109,10 @@ fn pipelined_dump_runs_at_line_rate() {
     // The host's pause after command 2, before the first request.
     let setup = buslab_zelle::client::SETUP_PAUSE.as_nanos() as u64;
     // Virtual time, so these are exact properties of the protocol, not of the machine.
-    assert!(pipelined < setup + line + line / 50, "{pipelined} vs {line}");
+    assert!(
+        pipelined < setup + line + line / 50,
+        "{pipelined} vs {line}"
+    );
     assert!(stop_and_wait > 2 * line - line / 50, "{stop_and_wait}");
 }
 
