@@ -7,7 +7,7 @@
 //! (streaming, with the kernel's error handling); the model: [`board`] (kernel loops and
 //! commands) over [`flash`], [`prginf`], [`acquisition`], [`pic`], [`program`] (user hooks)
 //! and [`image`] (persistent state, as TOML text); the host: [`host`] (client over any
-//! [`Port`](buslab_device::Port), monitor session, recorder) and [`values`] (what host tools
+//! [`Port`], monitor session, recorder) and [`values`] (what host tools
 //! accept, checked).
 #![forbid(unsafe_code)]
 
