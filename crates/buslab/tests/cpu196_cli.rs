@@ -6,6 +6,12 @@ use std::time::{Duration, Instant};
 
 const BAUD: &str = "250000";
 
+/// How long the CLI waits for an answer beyond its time on the line, and how long a test waits
+/// for the served board to appear or stop: far above any scheduling delay on a loaded machine
+/// (waiting costs nothing when things happen). Only commands that expect silence wait less.
+const ALLOWANCE: &str = "30s";
+const ALLOWANCE_S: u64 = 30;
+
 struct Board {
     child: Child,
     link: PathBuf,
@@ -21,17 +27,19 @@ impl Board {
     fn serve_in(dir: tempfile::TempDir, extra: &[&str]) -> Self {
         let link = dir.path().join("board");
         let image = dir.path().join("image.toml");
+        // The board's log (what the kernel refused, and why), shown when a command fails.
+        let log = std::fs::File::create(dir.path().join("serve.log")).unwrap();
         let child = Command::new(env!("CARGO_BIN_EXE_buslab"))
-            .args(["cpu196", "serve", "--baud", BAUD, "--link"])
+            .args(["-vv", "cpu196", "serve", "--baud", BAUD, "--link"])
             .arg(&link)
             .arg("--image")
             .arg(&image)
             .args(extra)
             .stdout(Stdio::null())
-            .stderr(Stdio::null())
+            .stderr(log)
             .spawn()
             .unwrap();
-        let until = Instant::now() + Duration::from_secs(10);
+        let until = Instant::now() + Duration::from_secs(ALLOWANCE_S);
         while !link.exists() {
             assert!(
                 Instant::now() < until,
@@ -44,8 +52,12 @@ impl Board {
     }
 
     fn cli(&self, args: &[&str]) -> Output {
+        self.cli_waiting(ALLOWANCE, args)
+    }
+
+    fn cli_waiting(&self, timeout: &str, args: &[&str]) -> Output {
         Command::new(env!("CARGO_BIN_EXE_buslab"))
-            .args(["cpu196", "--baud", BAUD, "--port"])
+            .args(["cpu196", "--baud", BAUD, "--timeout", timeout, "--port"])
             .arg(&self.link)
             .args(args)
             .stdin(Stdio::null())
@@ -58,9 +70,10 @@ impl Board {
         let text = String::from_utf8_lossy(&out.stdout).into_owned();
         assert!(
             out.status.success(),
-            "{args:?} failed: {}{}",
+            "{args:?} failed: {}{}\nthe served board's log:\n{}",
             text,
-            String::from_utf8_lossy(&out.stderr)
+            String::from_utf8_lossy(&out.stderr),
+            self.log()
         );
         text
     }
@@ -69,6 +82,11 @@ impl Board {
         let out = self.cli(args);
         assert!(!out.status.success(), "{args:?} should have failed");
         String::from_utf8_lossy(&out.stderr).into_owned()
+    }
+
+    /// What the served board logged so far.
+    fn log(&self) -> String {
+        std::fs::read_to_string(self.dir.path().join("serve.log")).unwrap_or_default()
     }
 
     fn path(&self, name: &str) -> PathBuf {
@@ -81,11 +99,11 @@ impl Board {
         let _ = Command::new("kill")
             .args(["-INT", &self.child.id().to_string()])
             .status();
-        let until = Instant::now() + Duration::from_secs(5);
+        let until = Instant::now() + Duration::from_secs(ALLOWANCE_S);
         while self.child.try_wait().unwrap().is_none() {
             if Instant::now() > until {
                 let _ = self.child.kill();
-                break;
+                panic!("the served board did not stop within {ALLOWANCE}");
             }
             std::thread::sleep(Duration::from_millis(20));
         }
@@ -133,7 +151,7 @@ fn monitor_shows_thread_text_and_serves_a_file_write() {
         "--start",
         "1",
         "--duration",
-        "1",
+        "1s",
     ]);
     assert!(out.contains("THREAD: logger: writing ad.csv"), "{out}");
     assert!(out.contains("opened `ad.csv`"), "{out}");
@@ -171,7 +189,7 @@ fn monitor_serves_a_file_the_board_reads() {
         "0",
         "--no-ad",
         "--duration",
-        "0.8",
+        "3s",
     ]);
     assert!(out.contains("opened `pattern.bin` (Read)"), "{out}");
     assert!(
@@ -188,9 +206,32 @@ fn monitor_serves_a_file_the_board_reads() {
         "0",
         "--no-ad",
         "--duration",
-        "0.5",
+        "500ms",
     ]);
     assert!(out.contains("request refused (no --files DIR)"), "{out}");
+}
+
+#[test]
+fn monitor_starts_a_set_without_an_acquisition_as_the_docs_show() {
+    // docs/cpu196.md: `monitor --start 4 --duration 2s` (the pulse train has no A/D sequence).
+    let b = Board::serve(&[]);
+    let out = b.ok(&["monitor", "--start", "4", "--duration", "2s"]);
+    assert!(
+        out.contains("started bank 0 configuration 4 with the 80C196 A/D off"),
+        "{out}"
+    );
+    assert!(out.contains("THREAD: pulse-train: 10 pulses"), "{out}");
+    // `start` says why the board refuses the acquisition, and what to do.
+    let err = b.fails(&["start", "--config", "4"]);
+    assert!(
+        err.contains(
+            "START bank 0 configuration 4: the board answered msg_ad_config_error: the \
+             conversion sequence is empty"
+        ),
+        "{err}"
+    );
+    assert!(err.contains("--no-ad starts the set"), "{err}");
+    b.ok(&["start", "--config", "4", "--no-ad"]);
 }
 
 #[test]
@@ -204,7 +245,7 @@ fn record_writes_the_configured_acquisition_to_csv() {
         "--out",
         s(&out_csv),
         "--duration",
-        "0.5",
+        "0.5s",
     ]);
     assert!(out.contains("recorded"), "{out}");
     let csv = std::fs::read_to_string(&out_csv).unwrap();
@@ -299,15 +340,31 @@ fn pic_eeprom_pwm_bridge_start_stop_user_reset_powerdown() {
     b.ok(&["bridge", "par-mask", "0"]);
     b.ok(&["bridge", "par-write", "0xC3"]);
     assert!(b.ok(&["bridge", "par-read"]).contains("reads C3h"));
+    // The lower loop refuses CPUINF. Its watchdog would end the run after 3 s without a byte
+    // from the PC (the next CLI process may take that long to start on a loaded machine):
+    // off, from the next reset.
+    b.ok(&["--yes", "format", "boot-set", "--watchdog", "off"]);
+    b.ok(&["--yes", "reset"]);
     b.ok(&["start", "--config", "0", "--no-ad"]);
     assert!(b.fails(&["info"]).contains("msg_invalid_command"));
     b.ok(&["stop"]);
-    assert!(b.ok(&["user", "0x20"]).contains("msg_invalid_command"));
+    // `user` prints what the board sends within its time-out: a few seconds are plenty for
+    // the answer, and the test need not listen for the whole allowance.
+    let out = b.cli_waiting("5s", &["user", "0x20"]);
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("msg_invalid_command"),
+        "{out:?}"
+    );
     assert!(b.fails(&["user", "0xF3"]).contains("00h..EFh"));
     assert!(b.fails(&["reset"]).contains("--yes"));
     assert!(b.ok(&["--yes", "reset"]).contains("the board reset"));
     assert!(b.ok(&["--yes", "powerdown"]).contains("powered down"));
-    assert!(b.fails(&["info"]).contains("board lost"));
+    // A powered-down board stays silent: no need to wait long for that.
+    let out = b.cli_waiting("300ms", &["info"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("board lost"), "{err}");
+    assert!(err.contains("at 250000 8N1 like this client"), "{err}");
 }
 
 #[test]
@@ -370,6 +427,8 @@ fn bad_durations_are_refused_with_the_value_not_a_panic() {
         &["record", "--out", "x.csv", "--duration=-1"],
         &["monitor", "--duration", "1e300"],
         &["monitor", "--duration", "inf"],
+        // A unit is always needed.
+        &["monitor", "--duration", "2"],
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
             .args(["cpu196", "--port", "/nonexistent/board"])
@@ -381,9 +440,81 @@ fn bad_durations_are_refused_with_the_value_not_a_panic() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         let value = args.last().unwrap().trim_start_matches("--duration=");
         assert!(
-            err.contains(&format!("`{value}` is not a number of seconds")),
+            err.contains(&format!("duration {value:?}")),
             "{args:?}: {err}"
         );
+    }
+}
+
+#[test]
+fn serve_offers_only_what_it_uses_and_every_argument_has_help() {
+    let help = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(args)
+            .arg("--help")
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{args:?}");
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let serve = help(&["cpu196", "serve"]);
+    for client_only in ["--port", "--timeout", "--yes"] {
+        assert!(
+            !serve.contains(client_only),
+            "serve offers {client_only}:\n{serve}"
+        );
+    }
+    assert!(serve.contains("--baud"), "{serve}");
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["cpu196", "--port", "/dev/null", "serve"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("are for the client commands"));
+    // Every option and positional of every subcommand says what it is.
+    for cmd in [
+        &["cpu196"][..],
+        &["cpu196", "serve"],
+        &["cpu196", "monitor"],
+        &["cpu196", "record"],
+        &["cpu196", "user"],
+        &["cpu196", "bridge"],
+        &["cpu196", "pwm"],
+        &["cpu196", "cfgad"],
+        &["cpu196", "flash", "read"],
+        &["cpu196", "flash", "write"],
+        &["cpu196", "flash", "erase"],
+        &["cpu196", "pic", "write"],
+        &["cpu196", "eeprom", "write"],
+        &["cpu196", "format", "boot-set"],
+        &["cpu196", "format", "serial"],
+        &["cpu196", "format", "emergency"],
+        &["zelle"],
+        &["zelle", "serve"],
+        &["zelle", "measure"],
+        &["zelle", "peek"],
+        &["zelle", "poke"],
+        &["zelle", "reg"],
+        &["zelle", "bus"],
+        &["zelle", "upload"],
+        &["zelle", "load"],
+        &["zelle", "port1"],
+        &["zelle", "p26"],
+    ] {
+        let text = help(cmd);
+        for line in text.lines() {
+            let entry = line.trim_start();
+            let is_arg = entry.starts_with('-') || entry.starts_with('<') || entry.starts_with('[');
+            if is_arg {
+                // `  --name <VALUE>  Help text`: two spaces separate the name from its help.
+                assert!(
+                    entry
+                        .split_once("  ")
+                        .is_some_and(|(_, h)| !h.trim().is_empty()),
+                    "{cmd:?}: no help for `{entry}`"
+                );
+            }
+        }
     }
 }
 
@@ -407,7 +538,7 @@ fn a_refused_start_names_the_bank_and_configuration() {
         "--out",
         "/dev/null",
         "--duration",
-        "0",
+        "0s",
     ]);
     assert!(err.contains("START bank 3 configuration 0: "), "{err}");
 }
@@ -435,7 +566,7 @@ fn serve_refuses_an_image_it_cannot_write() {
         .spawn()
         .unwrap();
     // It must stop at once with an error (before, it served on and lost every change).
-    let until = std::time::Instant::now() + Duration::from_secs(10);
+    let until = std::time::Instant::now() + Duration::from_secs(ALLOWANCE_S);
     while child.try_wait().unwrap().is_none() {
         if std::time::Instant::now() > until {
             let _ = child.kill();
@@ -458,7 +589,7 @@ fn output_into_a_closed_pipe_ends_quietly() {
     // `buslab cpu196 info | head -1`: the reader goes away, the writer must not panic.
     let board = Board::serve(&[]);
     let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
-        .args(["cpu196", "--baud", BAUD, "--port"])
+        .args(["cpu196", "--baud", BAUD, "--timeout", ALLOWANCE, "--port"])
         .arg(&board.link)
         .arg("info")
         .stdin(Stdio::null())

@@ -60,8 +60,7 @@ fn lab_devices_answer_the_host_tools_and_keep_their_state() {
     wait_for(&cpu196);
 
     let out = buslab()
-        .arg("zelle")
-        .arg("--port")
+        .args(["zelle", "--timeout", "30s", "--port"])
         .arg(&zelle)
         .args(["poke", "0x2000", "0x5A"])
         .output()
@@ -72,8 +71,7 @@ fn lab_devices_answer_the_host_tools_and_keep_their_state() {
         String::from_utf8_lossy(&out.stderr)
     );
     let out = buslab()
-        .arg("zelle")
-        .arg("--port")
+        .args(["zelle", "--timeout", "30s", "--port"])
         .arg(&zelle)
         .args(["peek", "0x2000"])
         .output()
@@ -84,8 +82,7 @@ fn lab_devices_answer_the_host_tools_and_keep_their_state() {
     );
 
     let out = buslab()
-        .arg("cpu196")
-        .arg("--port")
+        .args(["cpu196", "--timeout", "30s", "--port"])
         .arg(&cpu196)
         .arg("info")
         .output()

@@ -12,9 +12,10 @@ use buslab_zelle::client::{Error, Port, SeriesParams, Transfer};
 use buslab_zelle::{BatteryRam, START_BYTE};
 use served::{Served, client_on};
 
+/// Runs `buslab zelle` on the cell, with a time-out far above any scheduling delay.
 fn buslab(pty: &std::path::Path, args: &[&str]) -> String {
     let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
-        .args(["zelle", "--port"])
+        .args(["zelle", "--timeout", "30s", "--port"])
         .arg(pty)
         .args(args)
         .output()
@@ -78,9 +79,9 @@ fn every_command_through_the_client_over_a_pty() {
     let params = SeriesParams::new(&[3, 1], 3, 4).unwrap();
     c.start_series(&params).unwrap();
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(100));
+    s.block_done(6);
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(100));
+    s.block_done(12);
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 12);
     let dump = c.read_data(20, Transfer::Pipelined).unwrap();
@@ -92,7 +93,7 @@ fn every_command_through_the_client_over_a_pty() {
     // 10 re-arms with the same parameters and starts counting again.
     c.repeat_series().unwrap();
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(100));
+    s.block_done(6);
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 6);
     assert!(s.control("status").contains("lost 0"));
@@ -185,13 +186,15 @@ fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
     assert!(on.contains("series armed, waiting for START"), "{on}");
     // It measures: START from the host, then stop and count.
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(100));
+    s.block_done(5);
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 5);
     assert_eq!(c.read_data(13, Transfer::Pipelined).unwrap()[8..], [128; 5]);
 
     // Arm again, stop the server (it saves), start a new one on the same state file.
     c.repeat_series().unwrap();
+    // Stopped only once the cell has the command (the server may read it late).
+    s.status_where("armed again", |st| st.contains("waiting for START"));
     drop(c);
     let dir = s.stop();
     let mut s = Served::start_in(dir, &[]);
@@ -201,7 +204,7 @@ fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
     );
     // START key from the control interface starts a block.
     s.control("key press 100ms");
-    std::thread::sleep(Duration::from_millis(100));
+    s.block_done(5);
     let mut c = s.client();
     c.interrupt().unwrap();
     assert_eq!(c.value_count().unwrap(), 5);
@@ -216,14 +219,20 @@ fn byte_0_interrupts_a_running_series() {
     c.start_series(&SeriesParams::new(&[1], 60_000, 20).unwrap())
         .unwrap();
     c.start_block().unwrap();
-    c.port().pause(Duration::from_millis(100));
-    let st = s.status_until("measuring");
-    assert!(st.contains("measuring"), "{st}");
+    // Measuring, with a few values stored (one every 20 ms).
+    s.status_where("measuring with 3 values", |st| {
+        st.contains("measuring")
+            && st
+                .split(", ")
+                .find_map(|f| f.strip_suffix(" values"))
+                .and_then(|n| n.parse::<u32>().ok())
+                .is_some_and(|n| n >= 3)
+    });
     c.interrupt().unwrap();
     let st = s.status_until("mode Ready, ready");
     assert!(st.contains("mode Ready, ready"), "{st}");
     let n = c.value_count().unwrap();
-    assert!(n >= 3, "{n} values in ~100 ms");
+    assert!(n >= 3, "{n} values");
     assert_eq!(c.peek(START_BYTE).unwrap(), 0);
     c.port().pause(Duration::from_millis(60));
     assert_eq!(
@@ -239,13 +248,15 @@ fn ignoring_the_setup_pause_loses_the_byte() {
     let mut c = s.client();
     c.reset().unwrap();
     // Command 2 and its first request in one write: back to back on the line.
-    c.port().write_all(&[2, 1]).unwrap();
+    c.port().send(&[2, 1]).unwrap();
+    // The request was lost: the cell counts it, and never answers.
+    s.status_where("losing the request in the set-up", |st| {
+        st.contains("set-up 1")
+    });
     let mut b = [0u8; 1];
-    let err = std::io::Read::read(c.port(), &mut b).unwrap_err();
-    assert_eq!(err.kind(), std::io::ErrorKind::TimedOut);
-    assert!(
-        s.control("status").contains("set-up 1"),
-        "the request was lost"
+    assert_eq!(
+        c.port().recv(&mut b, Duration::from_millis(300)).unwrap(),
+        0
     );
     // With the pause the cell answers (the client keeps it).
     c.reset().unwrap();
@@ -266,7 +277,7 @@ fn garbage_then_reset_and_wrong_line_settings_give_clear_errors() {
             (x % 24) as u8
         })
         .collect();
-    c.port().write_all(&garbage).unwrap();
+    c.port().send(&garbage).unwrap();
     c.port().pause(Duration::from_millis(200));
     c.reset().unwrap();
     let st = s.status_until(", ready,");
@@ -275,14 +286,9 @@ fn garbage_then_reset_and_wrong_line_settings_give_clear_errors() {
     drop(c);
 
     // A host at the wrong baud rate: its bytes are framing errors, the client times out.
-    let port = buslab_link::open_serial(
-        &s.pty,
-        buslab_link::LineSettings::n82(19200),
-        Duration::from_millis(200),
-    )
-    .unwrap();
-    let mut wrong =
-        buslab_zelle::client::Client::with_timeout(port, Duration::from_millis(200)).unwrap();
+    let port =
+        buslab_link::SerialLine::open(&s.pty, buslab_link::LineSettings::n82(19200)).unwrap();
+    let mut wrong = buslab_zelle::client::Client::with_timeout(port, Duration::from_millis(200));
     let err = wrong.peek(0x0800).unwrap_err();
     assert!(matches!(err, Error::Timeout { .. }), "{err}");
     assert!(err.to_string().contains("9600 8N2"), "{err}");
@@ -400,7 +406,7 @@ fn cli_covers_every_client_command() {
             .contains("waiting for START")
     );
     run(&["start"]);
-    std::thread::sleep(Duration::from_millis(50));
+    s.block_done(2);
     run(&["stop"]);
     assert_eq!(run(&["reg", "7"]), "0x02");
     let dump = run(&["dump"]);
@@ -448,7 +454,7 @@ fn csv_replay_feeds_an_input_from_the_command_line_and_the_control_interface() {
     assert_eq!(c.analog(3).unwrap(), 204);
     let reply = s.control("analog 3 csv:/nonexistent/in.csv");
     assert!(
-        reply.starts_with("error: reading replay file /nonexistent/in.csv"),
+        reply.starts_with("error: cannot read /nonexistent/in.csv"),
         "{reply}"
     );
 }
@@ -532,7 +538,10 @@ fn serve_refuses_a_state_file_it_cannot_write() {
     let out = child.wait_with_output().unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("writing /nonexistent/dir/cell.toml"), "{err}");
+    assert!(
+        err.contains("cannot write state file /nonexistent/dir/cell.toml"),
+        "{err}"
+    );
 }
 
 #[test]

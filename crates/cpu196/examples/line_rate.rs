@@ -10,13 +10,12 @@ use buslab_cpu196::board::MAX_LINE_SHARE;
 use buslab_cpu196::host::Client;
 use buslab_cpu196::image::{Image, demo_sets};
 use buslab_cpu196::message::{Message, Start};
-use buslab_cpu196::served::Served;
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, prginf};
-use buslab_link::{LineSettings, open_serial};
+use buslab_link::{LineSettings, SerialLine, Serve, Served};
 
-fn connect(s: &Served, baud: u32) -> Client<Box<dyn serialport::SerialPort>> {
-    let port = open_serial(s.path(), LineSettings::n81(baud), Duration::from_millis(5)).unwrap();
+fn connect(s: &Served<Board>, baud: u32) -> Client<SerialLine> {
+    let port = SerialLine::open(s.path(), LineSettings::n81(baud)).unwrap();
     let mut c = Client::new(port, baud);
     while c.next(Duration::from_millis(30)).unwrap().is_some() {}
     c
@@ -67,7 +66,8 @@ fn main() {
         }
         let mut board = Board::new(image, Inputs::default(), 0);
         board.set_baud(baud);
-        let served = Served::spawn(board, None, None).unwrap();
+        let line = board.line();
+        let served = Serve::new(board, line).name("cpu196").spawn().unwrap();
         let mut c = connect(&served, baud);
         let row = |op: &str, bytes: usize, secs: f64| {
             println!(

@@ -1,6 +1,13 @@
 //! The 18-byte acquisition configuration of the 80C196 (`ad_init[n]`, SPEC C4) and the `FA`
 //! frame layout it implies.
 
+use core::fmt;
+
+use buslab_device::LineSettings;
+
+/// Share of the line an acquisition may take (the rest is for replies and the watchdog).
+pub const MAX_LINE_SHARE: f64 = 0.97;
+
 /// Sample format of one channel (`cc` in `0scc ffff`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum SampleFormat {
@@ -117,7 +124,46 @@ pub enum AdConfigError {
     EmptySequence(u8),
 }
 
+/// Why START refuses a configuration set's acquisition (the board answers only
+/// `msg_ad_config_error`; the host finds the reason from the set's CFGAD).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum AdRefusal {
+    #[error(transparent)]
+    Config(#[from] AdConfigError),
+    #[error(
+        "the acquisition needs {percent:.0} % of the line at {baud} baud, at most {max:.0} % is \
+         allowed (a longer sampling period, fewer channels or a faster line fit)",
+        max = MAX_LINE_SHARE * 100.0
+    )]
+    LineShare { percent: f64, baud: u32 },
+}
+
 impl AdConfig {
+    /// What START decides about `raw` with the 80C196 A/D on, on a line at `line`: the
+    /// configuration, or why it cannot run.
+    pub fn check_start(raw: &[u8; 18], line: LineSettings) -> Result<AdConfig, AdRefusal> {
+        let cfg = AdConfig::parse(raw)?;
+        let share = cfg.line_share(line);
+        if share > MAX_LINE_SHARE {
+            return Err(AdRefusal::LineShare {
+                percent: share * 100.0,
+                baud: line.baud,
+            });
+        }
+        Ok(cfg)
+    }
+
+    /// Share of the line at `line` the `FA` frames take (0 when nothing is transmitted).
+    pub fn line_share(&self, line: LineSettings) -> f64 {
+        match self.frame_data_len() {
+            Some(n) => {
+                let frame_ns = self.period_ns() * self.scans_per_frame() as u64;
+                (n + 3) as f64 * line.byte_time_ns() as f64 / frame_ns as f64
+            }
+            None => 0.0,
+        }
+    }
+
     /// Slot order of the packed nibbles: byte 0 = (slot 0, slot 15), byte i = (slot 16−2i,
     /// slot 15−2i) for i ≥ 1 (the seed's "(0 15) (14 13) … (2 1)").
     fn slot_of(byte: usize, high: bool) -> usize {
@@ -218,6 +264,52 @@ impl AdConfig {
     }
 }
 
+/// A configuration set's acquisition as `buslab cpu196 cfgad` shows it: the raw bytes, the
+/// 80C196 sequence, period and channels, and the PIC's masks.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ConfigReport {
+    pub bank: u8,
+    pub config: u8,
+    /// `ad_init` of the set.
+    pub c196: [u8; 18],
+    /// PIC A/D mask, rate, forwarded mask.
+    pub pic: [u8; 3],
+}
+
+impl fmt::Display for ConfigReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let raw: Vec<String> = self.c196.iter().map(|b| format!("{b:02X}")).collect();
+        writeln!(f, "bank {} configuration {}", self.bank, self.config)?;
+        writeln!(f, "  raw        {}", raw.join(" "))?;
+        match AdConfig::parse(&self.c196) {
+            Ok(cfg) => {
+                writeln!(f, "  sequence   {:?}", cfg.sequence)?;
+                writeln!(
+                    f,
+                    "  period     {:.1} µs (T = {}), {} scans per interrupt",
+                    cfg.period_ns() as f64 / 1000.0,
+                    cfg.time_base,
+                    cfg.scans_per_frame()
+                )?;
+                for (ch, s) in cfg.transmitted() {
+                    writeln!(
+                        f,
+                        "  channel {ch}  {}-bit format, filter {:?}",
+                        s.format.name(),
+                        s.filter
+                    )?;
+                }
+            }
+            Err(e) => writeln!(f, "  80C196 A/D not usable: {e}")?,
+        }
+        write!(
+            f,
+            "  PIC        A/D mask {:02X}h rate {:02X}h, forwarded {:02X}h",
+            self.pic[0], self.pic[1], self.pic[2]
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -251,6 +343,57 @@ mod tests {
         let mut bad = one.encode();
         bad[17] = 5;
         assert_eq!(AdConfig::parse(&bad), Err(AdConfigError::Ratio(5)));
+    }
+
+    #[test]
+    fn start_refusals_say_why() {
+        let empty = [0xFF; 18];
+        let err = AdConfig::check_start(&empty, LineSettings::n81(115_200)).unwrap_err();
+        assert_eq!(err, AdRefusal::Config(AdConfigError::EmptySequence(0xF)));
+        assert!(
+            err.to_string().contains("conversion sequence is empty"),
+            "{err}"
+        );
+        let fast = AdConfig::simple(&[0, 1, 2, 3, 4, 5, 6, 7], SampleFormat::Bits16, 0, 4);
+        let err = AdConfig::check_start(&fast.encode(), LineSettings::n81(9600)).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("% of the line at 9600 baud, at most 97 %"),
+            "{err}"
+        );
+        let slow = AdConfig::simple(&[0], SampleFormat::Bits10, 235, 3);
+        assert!(AdConfig::check_start(&slow.encode(), LineSettings::n81(115_200)).is_ok());
+    }
+
+    #[test]
+    fn a_report_shows_the_sequence_period_and_channels() {
+        let cfg = AdConfig::simple(&[0, 1], SampleFormat::Bits10, 235, 3);
+        let report = ConfigReport {
+            bank: 0,
+            config: 1,
+            c196: cfg.encode(),
+            pic: [3, 3, 0],
+        }
+        .to_string();
+        assert!(
+            report.starts_with("bank 0 configuration 1\n  raw        "),
+            "{report}"
+        );
+        assert!(report.contains("  sequence   [0, 1]\n"), "{report}");
+        assert!(report.contains("  period     1000.0 µs (T = 235), 8 scans per interrupt"));
+        assert!(report.contains("  channel 1  10-bit format, filter LowPass(0)"));
+        assert!(report.ends_with("  PIC        A/D mask 03h rate 03h, forwarded 00h"));
+        let empty = ConfigReport {
+            c196: [0xFF; 18],
+            ..ConfigReport {
+                bank: 0,
+                config: 4,
+                c196: [0; 18],
+                pic: [0; 3],
+            }
+        }
+        .to_string();
+        assert!(empty.contains("80C196 A/D not usable: the conversion sequence is empty"));
     }
 
     #[test]

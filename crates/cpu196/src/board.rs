@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use buslab_link::{ByteDevice, LineSettings};
+use buslab_device::{ByteDevice, LineSettings, Persistent};
 
 use crate::acquisition::Acquisition;
 use crate::adconfig::AdConfig;
@@ -36,8 +36,7 @@ pub const TX_BACKLOG: usize = 64 * 1024;
 pub const NESTED_START_DELAY_NS: u64 = 1_000_000;
 /// CPUFORMAT's emergency erase is accepted this long after a reset.
 pub const EMERGENCY_WINDOW_NS: u64 = 100_000_000;
-/// Share of the line an acquisition may take (the rest is for replies and the watchdog).
-pub const MAX_LINE_SHARE: f64 = 0.97;
+pub use crate::adconfig::MAX_LINE_SHARE;
 
 /// Kernel commands refused in the lower loop (`_commande_invalide_[9]`).
 pub const INVALID_IN_LOWER_LOOP: [u8; 9] = [
@@ -138,7 +137,9 @@ pub struct Board {
     battery: Option<u8>,
     next_battery: u64,
     next_file: u8,
-    dirty: bool,
+    /// Counts changes of the image; `clean` is the count [`Board::take_dirty`] last saw.
+    generation: u64,
+    clean: u64,
     /// A START a hook asked for while a START was already being performed (an `init_prog`
     /// that starts a set), and when it is done.
     pending_start: Option<(u64, Start)>,
@@ -181,7 +182,8 @@ impl Board {
             battery: None,
             next_battery: now,
             next_file: 0,
-            dirty: false,
+            generation: 0,
+            clean: 0,
             pending_start: None,
             starting: false,
             log: Vec::new(),
@@ -202,7 +204,7 @@ impl Board {
         self.image.boot.baud = baud;
         self.line = LineSettings::n81(baud);
         self.tx.byte_ns = self.line.byte_time_ns();
-        self.dirty = true;
+        self.generation += 1;
     }
 
     pub fn image(&self) -> &Image {
@@ -211,7 +213,9 @@ impl Board {
 
     /// Whether the image changed since the last call (the adapter then saves it).
     pub fn take_dirty(&mut self) -> bool {
-        core::mem::take(&mut self.dirty)
+        let dirty = self.clean != self.generation;
+        self.clean = self.generation;
+        dirty
     }
 
     pub fn mode(&self) -> Mode {
@@ -363,7 +367,7 @@ impl Board {
             Message::FlashWrite { bank, block, data } => {
                 match self.image.flash.write(bank, block, &data) {
                     Ok(()) => {
-                        self.dirty = true;
+                        self.generation += 1;
                         self.msg(now, MsgCode::COMPLETED);
                     }
                     Err(e) => self.flash_error(now, e),
@@ -371,7 +375,7 @@ impl Board {
             }
             Message::FlashErase { bank } => match self.image.flash.erase(bank) {
                 Ok(()) => {
-                    self.dirty = true;
+                    self.generation += 1;
                     self.msg(now, MsgCode::COMPLETED);
                 }
                 Err(e) => self.flash_error(now, e),
@@ -388,7 +392,7 @@ impl Board {
                 Some(r) => {
                     self.pic.program[r.clone()].copy_from_slice(&data[..]);
                     self.image.pic_program[r].copy_from_slice(&data[..]);
-                    self.dirty = true;
+                    self.generation += 1;
                     for _ in 0..PIC_BLOCK / 256 {
                         self.msg(now, MsgCode::COMPLETED);
                     }
@@ -401,7 +405,7 @@ impl Board {
             Message::EepromWrite(data) => {
                 self.pic.eeprom = *data;
                 self.image.pic_eeprom = *data;
-                self.dirty = true;
+                self.generation += 1;
                 self.msg(now, MsgCode::COMPLETED);
             }
             Message::Format(f) => self.format(now, f),
@@ -490,7 +494,7 @@ impl Board {
             }
             Format::WritePicKernel { data, .. } => {
                 self.image.pic_kernel.copy_from_slice(&data[..]);
-                self.dirty = true;
+                self.generation += 1;
                 for _ in 0..PIC_BLOCK / 256 {
                     self.msg(now, MsgCode::COMPLETED);
                 }
@@ -504,7 +508,7 @@ impl Board {
                 self.image.pic_eeprom = [0xFF; 256];
                 self.pic.program.fill(0xFF);
                 self.pic.eeprom = [0xFF; 256];
-                self.dirty = true;
+                self.generation += 1;
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::ReadBootBlock { block } => match block {
@@ -547,7 +551,7 @@ impl Board {
                     None => self
                         .note("boot block 5 written without AA55h: defaults stay in force".into()),
                 }
-                self.dirty = true;
+                self.generation += 1;
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::EraseBoot => {
@@ -556,13 +560,13 @@ impl Board {
                     baud: self.image.boot.baud,
                     ..BootConfig::default()
                 };
-                self.dirty = true;
+                self.generation += 1;
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::CompressionTable { table, comp } => {
                 self.image.log_table = crate::acquisition::LogTable::from_bytes(&table);
                 self.image.compression = comp;
-                self.dirty = true;
+                self.generation += 1;
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::Emergency { xy } => {
@@ -600,7 +604,7 @@ impl Board {
                     self.pic.program.fill(0xFF);
                     self.pic.eeprom = [0xFF; 256];
                 }
-                self.dirty = true;
+                self.generation += 1;
                 self.msg(now, MsgCode::COMPLETED);
                 if x == 0xA {
                     // PIC high-voltage programming, then standby.
@@ -700,27 +704,13 @@ impl Board {
             );
         };
         let acq = if s.ad196() {
-            let cfg = match AdConfig::parse(&set.ad_init) {
+            let cfg = match AdConfig::check_start(&set.ad_init, self.line) {
                 Ok(c) => c,
                 Err(e) => {
                     self.note(format!("A/D configuration {}: {e}", s.config()));
                     return self.msg(now, MsgCode::AD_CONFIG_ERROR);
                 }
             };
-            if let Some(n) = cfg.frame_data_len() {
-                let frame_ns = cfg.period_ns() * cfg.scans_per_frame() as u64;
-                let need = (n + 3) as f64 * self.tx.byte_ns as f64 / frame_ns as f64;
-                if need > MAX_LINE_SHARE {
-                    self.note(format!(
-                        "A/D configuration {} needs {:.0} % of the line at {} baud (at most {:.0} %)",
-                        s.config(),
-                        need * 100.0,
-                        self.line.baud,
-                        MAX_LINE_SHARE * 100.0
-                    ));
-                    return self.msg(now, MsgCode::AD_CONFIG_ERROR);
-                }
-            }
             Some(Acquisition::new(cfg, now))
         } else {
             None
@@ -983,6 +973,23 @@ fn pic_range(block: u8) -> Option<core::ops::Range<usize>> {
     (1..=3)
         .contains(&block)
         .then(|| (block as usize - 1) * PIC_BLOCK..block as usize * PIC_BLOCK)
+}
+
+impl Persistent for Board {
+    type Snapshot = Image;
+
+    fn state_generation(&self) -> u64 {
+        self.generation
+    }
+
+    fn snapshot(&self) -> Image {
+        self.image.clone()
+    }
+
+    /// The image file (TOML).
+    fn file_bytes(image: &Image) -> Vec<u8> {
+        image.to_toml().into_bytes()
+    }
 }
 
 impl ByteDevice for Board {

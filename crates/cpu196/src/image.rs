@@ -1,11 +1,9 @@
 //! The board's persistent state (what survives a power cycle): boot configuration, serial
 //! number, compression table, flash banks (with the configuration sets in blocks 28h/29h of
-//! each bank), PIC program and EEPROM. Stored as TOML with hex strings; written atomically by
-//! [`Image::save`].
+//! each bank), PIC program and EEPROM. Stored as TOML with hex strings
+//! ([`Image::to_toml`], [`Image::from_toml`]); the host reads and writes the file.
 
 use std::collections::BTreeMap;
-use std::io::Write;
-use std::path::Path;
 
 use crate::acquisition::LogTable;
 use crate::adconfig::{AdConfig, ChannelSetup, SampleFormat};
@@ -181,25 +179,102 @@ impl BootConfig {
     }
 }
 
+impl core::fmt::Display for BootConfig {
+    /// The block `buslab cpu196 format boot` prints.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let start = if self.boot_start & 0x8000 != 0 {
+            "none".to_string()
+        } else {
+            let s = crate::message::Start::from_word(self.boot_start & !0x6000);
+            format!(
+                "bank {} configuration {} (A/D {})",
+                s.bank(),
+                s.config(),
+                if s.ad196() { "on" } else { "off" }
+            )
+        };
+        writeln!(f, "boot configuration")?;
+        writeln!(
+            f,
+            "  protocol        {:?} (PIC port {:?})",
+            self.protocol, self.protocol_pic
+        )?;
+        writeln!(
+            f,
+            "  line            {} baud 8N1, {}",
+            self.baud,
+            if self.rs232 { "RS232" } else { "TTL" }
+        )?;
+        writeln!(
+            f,
+            "  watchdog        {}",
+            if self.watchdog { "on" } else { "off" }
+        )?;
+        writeln!(f, "  address         {}", self.address)?;
+        writeln!(f, "  boot START      {start}")?;
+        writeln!(
+            f,
+            "  PWM             {:?} (PIC {})",
+            self.pwm196, self.pic_pwm
+        )?;
+        write!(
+            f,
+            "  battery         thresholds {:?}",
+            self.battery_thresholds
+        )
+    }
+}
+
+/// Changes to a boot configuration (`buslab cpu196 format boot-set`); `None` keeps a field.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct BootEdit {
+    pub baud: Option<u32>,
+    pub watchdog: Option<bool>,
+    pub thresholds: Option<[u8; 3]>,
+    pub address: Option<u8>,
+    /// The START word performed at boot (see [`crate::values::parse_boot_start`]).
+    pub boot_start: Option<u16>,
+}
+
+/// A boot configuration value the board cannot hold.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum BootEditError {
+    #[error("baud rate {0} is not one of {BAUD_RATES:?}")]
+    Baud(u32),
+    #[error("address {0} is out of range 0..63")]
+    Address(u8),
+}
+
+impl BootConfig {
+    /// Applies `edit`, checking every value first (nothing changes if one is refused).
+    pub fn apply(&mut self, edit: &BootEdit) -> Result<(), BootEditError> {
+        if let Some(b) = edit.baud.filter(|b| !BAUD_RATES.contains(b)) {
+            return Err(BootEditError::Baud(b));
+        }
+        if let Some(a) = edit.address.filter(|&a| a > 63) {
+            return Err(BootEditError::Address(a));
+        }
+        if let Some(b) = edit.baud {
+            self.baud = b;
+        }
+        if let Some(w) = edit.watchdog {
+            self.watchdog = w;
+        }
+        if let Some(t) = edit.thresholds {
+            self.battery_thresholds = t;
+        }
+        if let Some(a) = edit.address {
+            self.address = a;
+        }
+        if let Some(s) = edit.boot_start {
+            self.boot_start = s;
+        }
+        Ok(())
+    }
+}
+
 /// Bytes of `info_user` in the `csboot` block.
 pub const CSBOOT_USER: usize = 256 - 27;
-
-/// Why an image cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum ImageError {
-    #[error("cannot read image {path}: {source}")]
-    Read {
-        path: String,
-        source: std::io::Error,
-    },
-    #[error("cannot write image {path}: {source}")]
-    Write {
-        path: String,
-        source: std::io::Error,
-    },
-    #[error("image {path} is not a CPU196 image: {detail}")]
-    Format { path: String, detail: String },
-}
 
 /// The persistent state.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -416,43 +491,6 @@ impl Image {
             csboot_blank: f.csboot_blank,
         })
     }
-
-    /// Loads `path`.
-    pub fn load(path: &Path) -> Result<Self, ImageError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ImageError::Read {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::from_toml(&text).map_err(|detail| ImageError::Format {
-            path: path.display().to_string(),
-            detail,
-        })
-    }
-
-    /// Writes `path` atomically: a temporary file in the same folder, synced, then renamed.
-    pub fn save(&self, path: &Path) -> Result<(), ImageError> {
-        let err = |source| ImageError::Write {
-            path: path.display().to_string(),
-            source,
-        };
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(err)?;
-        tmp.write_all(self.to_toml().as_bytes()).map_err(err)?;
-        // A temporary file is private (0600); an image is an ordinary file.
-        let mode = std::fs::metadata(path)
-            .map(|m| m.permissions())
-            .unwrap_or_else(|_| {
-                use std::os::unix::fs::PermissionsExt;
-                std::fs::Permissions::from_mode(0o644)
-            });
-        tmp.as_file().set_permissions(mode).map_err(err)?;
-        tmp.as_file().sync_all().map_err(err)?;
-        tmp.persist(path).map_err(|e| err(e.error))?;
-        Ok(())
-    }
 }
 
 #[cfg(test)]
@@ -484,6 +522,52 @@ mod tests {
         let block = boot.to_csboot(&user);
         assert_eq!(BootConfig::from_csboot(&block), Some((boot, user)));
         assert_eq!(BootConfig::from_csboot(&[0xFF; 256]), None);
+    }
+
+    #[test]
+    fn boot_edits_are_checked_before_anything_changes() {
+        let mut boot = BootConfig::default();
+        let edit = BootEdit {
+            thresholds: Some([1, 2, 3]),
+            address: Some(64),
+            ..Default::default()
+        };
+        assert_eq!(boot.apply(&edit), Err(BootEditError::Address(64)));
+        assert_eq!(boot, BootConfig::default());
+        let edit = BootEdit {
+            baud: Some(19200),
+            watchdog: Some(false),
+            boot_start: Some(0x0041),
+            ..Default::default()
+        };
+        boot.apply(&edit).unwrap();
+        assert_eq!(
+            (boot.baud, boot.watchdog, boot.boot_start),
+            (19200, false, 0x0041)
+        );
+        let shown = boot.to_string();
+        assert!(
+            shown.contains("line            19200 baud 8N1, RS232"),
+            "{shown}"
+        );
+        assert!(
+            shown.contains("boot START      bank 0 configuration 1 (A/D on)"),
+            "{shown}"
+        );
+        assert!(
+            BootConfig::default()
+                .to_string()
+                .ends_with("battery         thresholds [100, 140, 220]")
+        );
+        assert_eq!(
+            boot.apply(&BootEdit {
+                baud: Some(1234),
+                ..Default::default()
+            })
+            .unwrap_err()
+            .to_string(),
+            "baud rate 1234 is not one of [1200, 2400, 9600, 19200, 38400, 57600, 115200, 250000]"
+        );
     }
 
     #[test]

@@ -1,10 +1,14 @@
 //! CPU196 controller board (SPEC C1–C6): the PC ↔ board protocol codec, a sans-IO model of the
-//! 80C196 kernel and its PIC slave, and the host client.
+//! 80C196 kernel and its PIC slave, and the host client. Std only: no clock, thread or file;
+//! the host side (serial ports, served boards, image files, the monitor's file service) lives
+//! in `buslab-link` and `buslab-served`.
 //!
 //! Layers, bottom up: [`wire`] (byte layout), [`message`] (typed messages), [`decoder`]
 //! (streaming, with the kernel's error handling); the model: [`board`] (kernel loops and
 //! commands) over [`flash`], [`prginf`], [`acquisition`], [`pic`], [`program`] (user hooks)
-//! and [`image`] (persistent state).
+//! and [`image`] (persistent state, as TOML text); the host: [`host`] (client over any
+//! [`Port`], monitor session, recorder) and [`values`] (what host tools
+//! accept, checked).
 #![forbid(unsafe_code)]
 
 pub mod acquisition;
@@ -19,11 +23,12 @@ pub mod message;
 pub mod pic;
 pub mod prginf;
 pub mod program;
-pub mod served;
 pub mod source;
+pub mod values;
 pub mod wire;
 
 pub use board::{Board, Mode, Stats};
+pub use buslab_device::{ByteDevice, Persistent, Port, SimPort};
 pub use codes::{Alert, MsgCode};
 pub use decoder::{Decoder, Event, FrameError};
 pub use image::Image;

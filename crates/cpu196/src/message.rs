@@ -115,6 +115,37 @@ pub struct CpuInfo {
     pub compression: [u8; 8],
 }
 
+impl core::fmt::Display for CpuInfo {
+    /// The identity block `buslab cpu196 info` prints.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let compression: Vec<String> = self
+            .compression
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect();
+        writeln!(f, "CPU196 board")?;
+        writeln!(
+            f,
+            "  serial number   {}",
+            String::from_utf8_lossy(&self.serial)
+        )?;
+        writeln!(f, "  quartz          {} MHz", self.quartz)?;
+        writeln!(f, "  kernel 80C196   {}", self.version_196)?;
+        writeln!(
+            f,
+            "  PIC             version {} revision {}",
+            self.version_pic, self.pic_revision
+        )?;
+        writeln!(f, "  address         {}", self.address)?;
+        writeln!(
+            f,
+            "  supply          {:.1} V",
+            f64::from(self.supply) / 10.0
+        )?;
+        write!(f, "  compression     {}", compression.join(" "))
+    }
+}
+
 /// The 2-byte START word `(pabb bnnn) (s00m thhh)`, kept raw so any byte pair round-trips;
 /// [`Start::is_valid`] tells whether the kernel accepts it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

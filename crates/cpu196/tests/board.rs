@@ -7,7 +7,7 @@ use buslab_cpu196::message::*;
 use buslab_cpu196::source::{Inputs, Source};
 use buslab_cpu196::wire;
 use buslab_cpu196::{Board, Decoder, Event, FrameError, Image, Mode};
-use buslab_link::ByteDevice;
+use buslab_device::ByteDevice;
 
 const MS: u64 = 1_000_000;
 

@@ -1,16 +1,26 @@
-//! Transports for buslab's device models and host tools.
+//! Transports and adapters for buslab's serial device models and host tools.
 //!
 //! - [`Pty`]: a pseudo-terminal a model serves on, so any serial program can open it.
-//! - [`serve`]: paces a sans-IO [`ByteDevice`] to the wall clock behind a [`Pty`], as if the
+//! - [`serve()`]: paces a sans-IO [`ByteDevice`] to the wall clock behind a [`Pty`], as if the
 //!   bytes crossed a real UART at the configured line settings.
-//! - [`open_serial`]: the host side, a real serial port or a PTY, set to given line settings.
+//! - [`Serve`] / [`Served`]: the one served-device adapter: a device on a PTY in a background
+//!   thread, with an optional symlink, persistence of its state and work from other threads;
+//!   [`ControlSocket`] takes control lines for it.
+//! - [`SerialLine`]: the host side, a real serial port or a PTY as the [`Port`] clients use;
+//!   [`open_serial`] opens one as a plain `serialport` port.
+//! - [`fs`]: every file buslab writes is written atomically; files it reads are read with a
+//!   size limit.
 
-mod line;
+mod control;
+pub mod fs;
 mod pty;
 mod serial;
 mod serve;
+mod served;
 
-pub use line::{LineSettings, Parity};
+pub use buslab_device::{ByteDevice, LineSettings, Parity, Persistent, Port};
+pub use control::{ControlSocket, LineHandler};
 pub use pty::Pty;
-pub use serial::{SerialError, open_serial};
-pub use serve::{ByteDevice, Control, serve};
+pub use serial::{SerialError, SerialLine, open_serial};
+pub use serve::{Control, serve};
+pub use served::{Handle, Serve, Served, ServedError};

@@ -11,7 +11,7 @@ use nix::fcntl::{FcntlArg, OFlag, fcntl};
 use nix::pty::{PtyMaster, grantpt, posix_openpt, ptsname_r, unlockpt};
 use nix::sys::termios::{self, SetArg};
 
-use crate::{LineSettings, Parity};
+use buslab_device::{LineSettings, Parity};
 
 /// The master side of a pseudo-terminal, non-blocking.
 pub struct Pty {

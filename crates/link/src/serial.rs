@@ -1,13 +1,13 @@
 //! Opening a serial port (or the slave side of a PTY) as a host tool does.
 
+use std::io::{self, Read, Write};
 use std::os::fd::{AsRawFd, BorrowedFd};
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
+use buslab_device::{LineSettings, Parity, Port};
 use nix::fcntl::{FcntlArg, FdFlag, fcntl};
-use serialport::{DataBits, FlowControl, SerialPort, StopBits};
-
-use crate::{LineSettings, Parity};
+use serialport::{ClearBuffer, DataBits, FlowControl, SerialPort, StopBits};
 
 /// Why a serial port could not be opened.
 #[derive(Debug, thiserror::Error)]
@@ -65,4 +65,65 @@ pub fn open_serial(
     fcntl(fd, FcntlArg::F_SETFD(FdFlag::FD_CLOEXEC))
         .map_err(|errno| open_error(serialport::Error::from(std::io::Error::from(errno))))?;
     Ok(Box::new(port))
+}
+
+/// A serial port (or the slave side of a PTY) as the [`Port`] host clients talk through,
+/// keeping time by the wall clock.
+pub struct SerialLine {
+    port: Box<dyn SerialPort>,
+    line: LineSettings,
+    epoch: Instant,
+}
+
+impl SerialLine {
+    /// Opens `path` at `line`, no flow control.
+    pub fn open(path: &Path, line: LineSettings) -> Result<Self, SerialError> {
+        Ok(Self {
+            port: open_serial(path, line, Duration::from_millis(100))?,
+            line,
+            epoch: Instant::now(),
+        })
+    }
+
+    /// The settings the port was opened with.
+    pub fn line(&self) -> LineSettings {
+        self.line
+    }
+}
+
+impl Port for SerialLine {
+    fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.port.write_all(bytes)
+    }
+
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        self.port.set_timeout(timeout).map_err(io::Error::from)?;
+        loop {
+            match self.port.read(buf) {
+                Err(e) if e.kind() == io::ErrorKind::TimedOut => return Ok(0),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                other => return other,
+            }
+        }
+    }
+
+    fn now(&self) -> Duration {
+        self.epoch.elapsed()
+    }
+
+    fn pause(&mut self, duration: Duration) {
+        std::thread::sleep(duration);
+    }
+
+    fn drain(&mut self) -> io::Result<()> {
+        // serialport's flush waits for the output queue to empty (tcdrain).
+        self.port.flush()
+    }
+
+    fn discard_input(&mut self) -> io::Result<()> {
+        self.port.clear(ClearBuffer::Input).map_err(io::Error::from)
+    }
 }

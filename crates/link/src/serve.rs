@@ -10,19 +10,9 @@ use std::time::{Duration, Instant};
 use nix::poll::{PollFd, PollFlags, ppoll};
 use nix::sys::time::TimeSpec;
 
-use crate::{LineSettings, Pty};
+use buslab_device::{ByteDevice, LineSettings};
 
-/// A device model that talks over one UART, driven in virtual nanoseconds.
-pub trait ByteDevice {
-    /// A byte has fully arrived on the device's RxD at `now_ns`.
-    fn receive(&mut self, now_ns: u64, byte: u8);
-    /// Advance the model to `now_ns`; append the bytes whose transmission on TxD has completed
-    /// by then.
-    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>);
-    /// When [`poll`](ByteDevice::poll) must be called again even if no byte arrives; `None` if
-    /// the device only reacts to input.
-    fn next_deadline(&self) -> Option<u64>;
-}
+use crate::Pty;
 
 /// Work done on the served device from another thread (press a key, power-cycle, change an
 /// input), with the current virtual time.
@@ -47,10 +37,10 @@ const MAX_OUTBOUND: usize = 64 * 1024;
 /// least one character time after the previous byte, even though a PTY passes a burst at once.
 /// Bytes that have arrived are delivered before control work runs. When the client's own
 /// settings do not match `line` (other baud rate, data bits or parity) its bytes would be
-/// framing errors on a real line: they are dropped, and one warning goes to stderr. A client
-/// that writes faster than the line carries is held back (its writes block once 4 KiB wait, as
-/// on a real port), and one that does not read loses the device's output beyond 64 KiB
-/// waiting (one warning).
+/// framing errors on a real line: they are dropped, with one warning (`tracing`). A client that
+/// writes faster than the line carries is held back (its writes block once 4 KiB wait, as on a
+/// real port), and one that does not read loses the device's output beyond 64 KiB waiting (one
+/// warning). When serving ends, a summary of what was lost is logged if anything was.
 pub fn serve<D: ByteDevice>(
     device: &mut D,
     pty: &Pty,
@@ -58,30 +48,105 @@ pub fn serve<D: ByteDevice>(
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
 ) -> io::Result<()> {
+    serve_with(device, pty, line, control, stop, &mut |_, _| {})
+}
+
+/// [`serve`], calling `after_poll(device, now)` each time the device has been polled, before
+/// the bytes it produced go to the client (where an adapter takes snapshots to persist, or
+/// would sync a journal before an acknowledgement leaves).
+pub(crate) fn serve_with<D: ByteDevice>(
+    device: &mut D,
+    pty: &Pty,
+    line: LineSettings,
+    control: &Receiver<Control<D>>,
+    stop: &AtomicBool,
+    after_poll: &mut dyn FnMut(&mut D, u64),
+) -> io::Result<()> {
+    let mut losses = Losses::default();
+    let result = serve_loop(device, pty, line, control, stop, after_poll, &mut losses);
+    losses.summarise(line);
+    result
+}
+
+/// What the line lost, for one warning each and a summary at the end.
+#[derive(Default)]
+struct Losses {
+    /// Bytes from a client at other settings (framing errors), and the last such settings.
+    garbled: u64,
+    peer: Option<LineSettings>,
+    /// Device output beyond what a client that does not read may have waiting.
+    overflowed: u64,
+}
+
+impl Losses {
+    fn garbled(&mut self, n: usize, peer: LineSettings, line: LineSettings) {
+        if self.garbled == 0 {
+            tracing::warn!(
+                "the client's port is set to {peer}, the device expects {line}; its bytes are \
+                 lost as framing errors"
+            );
+        }
+        self.garbled += n as u64;
+        self.peer = Some(peer);
+    }
+
+    fn overflowed(&mut self, n: usize) {
+        if self.overflowed == 0 {
+            tracing::warn!(
+                "the client does not read; the device's output beyond {MAX_OUTBOUND} waiting \
+                 bytes is lost"
+            );
+        }
+        self.overflowed += n as u64;
+    }
+
+    fn summarise(&self, line: LineSettings) {
+        if let Some(peer) = self.peer {
+            tracing::warn!(
+                "{} bytes from the client were lost as framing errors (client at {peer}, \
+                 device at {line})",
+                self.garbled
+            );
+        }
+        if self.overflowed > 0 {
+            tracing::warn!(
+                "{} bytes of the device's output were lost: the client did not read them",
+                self.overflowed
+            );
+        }
+    }
+}
+
+fn serve_loop<D: ByteDevice>(
+    device: &mut D,
+    pty: &Pty,
+    line: LineSettings,
+    control: &Receiver<Control<D>>,
+    stop: &AtomicBool,
+    after_poll: &mut dyn FnMut(&mut D, u64),
+    losses: &mut Losses,
+) -> io::Result<()> {
     let epoch = Instant::now();
-    let byte_ns = line.byte_time_ns();
-    // `None`: a character the device cannot decode (the client's settings differ); it still
-    // takes its time on the line.
-    let mut inbound: VecDeque<(u64, Option<u8>)> = VecDeque::new();
-    let mut last_arrival = 0u64;
+    let clock = || epoch.elapsed().as_nanos() as u64;
+    let mut inbound = Inbound {
+        queue: VecDeque::new(),
+        arrivals: Arrivals::new(line.byte_time_ns()),
+        buf: vec![0; MAX_INBOUND],
+    };
     let mut outbound: VecDeque<u8> = VecDeque::new();
     let mut produced = Vec::new();
-    let mut buf = [0u8; 4096];
-    let mut warned = false;
-    let mut overflowed = false;
     let mut controls_open = true;
 
     while !stop.load(Ordering::Relaxed) {
-        let now = epoch.elapsed().as_nanos() as u64;
-        // Bytes that have finished arriving go first, so control work sees them.
-        while let Some(&(at, byte)) = inbound.front() {
-            if at > now {
+        let now = clock();
+        // Bytes that have finished arriving go first, so control work sees them. Bytes the
+        // client wrote while it was held back go in before the device's time moves past them.
+        loop {
+            inbound.deliver(device, now);
+            if !inbound.arrivals.held_back || inbound.queue.len() >= MAX_INBOUND {
                 break;
             }
-            if let Some(byte) = byte {
-                device.receive(at, byte);
-            }
-            inbound.pop_front();
+            inbound.read(pty, line, &clock, losses)?;
         }
         while controls_open {
             match control.try_recv() {
@@ -91,18 +156,15 @@ pub fn serve<D: ByteDevice>(
             }
         }
         device.poll(now, &mut produced);
+        after_poll(device, now);
         let room = MAX_OUTBOUND.saturating_sub(outbound.len());
-        if produced.len() > room && !overflowed {
-            eprintln!(
-                "warning: the client does not read; the device's output beyond {MAX_OUTBOUND} \
-                 waiting bytes is lost"
-            );
-            overflowed = true;
+        if produced.len() > room {
+            losses.overflowed(produced.len() - room);
         }
         outbound.extend(produced.drain(..).take(room));
         flush(pty, &mut outbound)?;
 
-        let wake = [device.next_deadline(), inbound.front().map(|&(at, _)| at)]
+        let wake = [device.next_deadline(), inbound.next_arrival()]
             .into_iter()
             .flatten()
             .min();
@@ -111,7 +173,7 @@ pub fn serve<D: ByteDevice>(
             None => MAX_IDLE,
         };
         let mut events = PollFlags::empty();
-        if inbound.len() < MAX_INBOUND {
+        if inbound.queue.len() < MAX_INBOUND {
             events |= PollFlags::POLLIN;
         }
         if !outbound.is_empty() {
@@ -124,40 +186,122 @@ pub fn serve<D: ByteDevice>(
             Ok(_) | Err(nix::errno::Errno::EINTR) => {}
             Err(e) => return Err(e.into()),
         }
+        inbound.read(pty, line, &clock, losses)?;
+    }
+    flush(pty, &mut outbound)
+}
 
-        while inbound.len() < MAX_INBOUND {
-            let room = (MAX_INBOUND - inbound.len()).min(buf.len());
-            match pty.read(&mut buf[..room]) {
-                Ok(0) => break,
+/// Bytes from the client waiting for their line time. `None`: a character the device cannot
+/// decode (the client's settings differ); it still takes its time on the line.
+struct Inbound {
+    queue: VecDeque<(u64, Option<u8>)>,
+    arrivals: Arrivals,
+    buf: Vec<u8>,
+}
+
+impl Inbound {
+    /// Hands the device every byte that has fully arrived by `now`.
+    fn deliver<D: ByteDevice>(&mut self, device: &mut D, now: u64) {
+        while let Some(&(at, byte)) = self.queue.front() {
+            if at > now {
+                break;
+            }
+            if let Some(byte) = byte {
+                device.receive(at, byte);
+            }
+            self.queue.pop_front();
+        }
+    }
+
+    fn next_arrival(&self) -> Option<u64> {
+        self.queue.front().map(|&(at, _)| at)
+    }
+
+    /// Reads what the client wrote, as far as the queue has room; notes whether the client is
+    /// being held back.
+    fn read(
+        &mut self,
+        pty: &Pty,
+        line: LineSettings,
+        clock: &dyn Fn() -> u64,
+        losses: &mut Losses,
+    ) -> io::Result<()> {
+        loop {
+            if self.queue.len() >= MAX_INBOUND {
+                // What the client writes meanwhile waits in the PTY, on the line already.
+                self.arrivals.held_back = true;
+                return Ok(());
+            }
+            let room = MAX_INBOUND - self.queue.len();
+            match pty.read(&mut self.buf[..room]) {
+                Ok(0) => {
+                    self.arrivals.held_back = false;
+                    return Ok(());
+                }
                 Ok(n) => {
                     let peer = pty.peer_settings()?;
                     let understood = line.understands(&peer);
-                    if !understood && !warned {
-                        eprintln!(
-                            "warning: the client's port is set to {peer}, the device expects \
-                             {line}; its bytes are lost as framing errors"
-                        );
-                        warned = true;
+                    if !understood {
+                        losses.garbled(n, peer, line);
                     }
-                    let read_at = epoch.elapsed().as_nanos() as u64;
-                    // A byte the client wrote at `read_at` has fully arrived one character
-                    // time later, and no sooner than one character after the previous one.
                     // Bytes sent at other settings occupy the line too (a writer cannot
                     // outrun it), but the device never gets them.
-                    for &byte in &buf[..n] {
-                        last_arrival = read_at.max(last_arrival) + byte_ns;
-                        inbound.push_back((last_arrival, understood.then_some(byte)));
+                    let stamps = self.arrivals.stamp(clock(), n);
+                    for (&byte, at) in self.buf[..n].iter().zip(stamps) {
+                        self.queue.push_back((at, understood.then_some(byte)));
                     }
                 }
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    // Nothing was waiting: the next bytes are written from now on.
+                    self.arrivals.held_back = false;
+                    return Ok(());
+                }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 // EIO: no client at the moment (cannot happen while we hold the slave open).
-                Err(e) if e.raw_os_error() == Some(libc::EIO) => break,
+                Err(e) if e.raw_os_error() == Some(libc::EIO) => {
+                    self.arrivals.held_back = false;
+                    return Ok(());
+                }
                 Err(e) => return Err(e),
             }
         }
     }
-    flush(pty, &mut outbound)
+}
+
+/// When the bytes read from the PTY finish arriving at the device. A PTY passes a burst at
+/// once and says nothing of when each byte was written: a byte read at `read_at` has fully
+/// arrived one character time later, and no sooner than one character after the previous one.
+/// Bytes that waited in the PTY because the server held the client back (its queue was full)
+/// were on the line already: they follow the previous ones without a gap, however late the
+/// server got to read them (a gap would be a pause inside a frame, which a device may time
+/// out).
+#[derive(Debug)]
+struct Arrivals {
+    byte_ns: u64,
+    last: u64,
+    held_back: bool,
+}
+
+impl Arrivals {
+    fn new(byte_ns: u64) -> Self {
+        Self {
+            byte_ns,
+            last: 0,
+            held_back: false,
+        }
+    }
+
+    /// Arrival times of `n` bytes read at `read_at`.
+    fn stamp(&mut self, read_at: u64, n: usize) -> impl Iterator<Item = u64> + use<> {
+        let start = if self.held_back {
+            self.last
+        } else {
+            read_at.max(self.last)
+        };
+        let byte_ns = self.byte_ns;
+        self.last = start + n as u64 * byte_ns;
+        (1..=n as u64).map(move |k| start + k * byte_ns)
+    }
 }
 
 /// Writes as much of `outbound` as the PTY takes now.
@@ -174,4 +318,31 @@ fn flush(pty: &Pty, outbound: &mut VecDeque<u8>) -> io::Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Arrivals;
+
+    #[test]
+    fn bytes_follow_each_other_at_line_rate_from_when_they_were_read() {
+        let mut a = Arrivals::new(10);
+        assert_eq!(a.stamp(100, 3).collect::<Vec<_>>(), [110, 120, 130]);
+        // Read before the line is free: they queue behind the previous ones.
+        assert_eq!(a.stamp(105, 2).collect::<Vec<_>>(), [140, 150]);
+        // Read later: they start then.
+        assert_eq!(a.stamp(1000, 1).collect::<Vec<_>>(), [1010]);
+    }
+
+    #[test]
+    fn bytes_the_server_held_back_follow_without_a_gap_however_late_it_reads_them() {
+        let mut a = Arrivals::new(10);
+        assert_eq!(a.stamp(0, 2).collect::<Vec<_>>(), [10, 20]);
+        a.held_back = true;
+        // The server was away for a long time (a loaded machine): no pause inside the frame.
+        assert_eq!(a.stamp(500_000_000, 2).collect::<Vec<_>>(), [30, 40]);
+        // Once nothing waits any more, read times count again.
+        a.held_back = false;
+        assert_eq!(a.stamp(500_000_000, 1).collect::<Vec<_>>(), [500_000_010]);
+    }
 }

@@ -8,6 +8,10 @@ use std::time::Duration;
 
 use buslab_link::{ByteDevice, Control, LineSettings, Pty, open_serial, serve};
 
+/// How long a test waits for what must come: far above any scheduling delay on a loaded
+/// machine (a wait ends as soon as the bytes are there). Waits for silence are shorter.
+const ALLOWANCE: Duration = Duration::from_secs(30);
+
 /// Answers every byte with byte + 1, each answer finishing one character time after the
 /// request arrived; records arrival times.
 #[derive(Default)]
@@ -77,16 +81,20 @@ fn read_exact(port: &mut dyn Read, n: usize) -> Vec<u8> {
 fn bytes_cross_the_pty_paced_at_the_line_rate() {
     let line = LineSettings::n82(115_200);
     let served = start(line);
-    let mut port = open_serial(&served.path, line, Duration::from_secs(5)).unwrap();
+    let mut port = open_serial(&served.path, line, ALLOWANCE).unwrap();
     port.write_all(&[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
     assert_eq!(read_exact(&mut port, 8), [2, 3, 4, 5, 6, 7, 8, 9]);
 
-    // Control work runs on the device between steps.
+    // Control work runs on the device between steps; the byte goes once it has run.
+    let (ran, done) = mpsc::channel();
     served
         .control
-        .send(Box::new(|dev: &mut Echo, _now| dev.offset = 10))
+        .send(Box::new(move |dev: &mut Echo, _now| {
+            dev.offset = 10;
+            let _ = ran.send(());
+        }))
         .unwrap();
-    std::thread::sleep(Duration::from_millis(50));
+    done.recv_timeout(ALLOWANCE).unwrap();
     port.write_all(&[1]).unwrap();
     assert_eq!(read_exact(&mut port, 1), [12]);
 
@@ -123,12 +131,7 @@ fn a_client_at_the_wrong_baud_rate_is_not_understood() {
 #[test]
 fn the_pty_reports_what_the_client_set_even_nonstandard_rates() {
     let pty = Pty::open().unwrap();
-    let _port = open_serial(
-        pty.path(),
-        LineSettings::n82(250_000),
-        Duration::from_secs(1),
-    )
-    .unwrap();
+    let _port = open_serial(pty.path(), LineSettings::n82(250_000), ALLOWANCE).unwrap();
     assert_eq!(pty.peer_settings().unwrap(), LineSettings::n82(250_000));
 }
 
@@ -255,7 +258,8 @@ fn a_client_writing_faster_than_the_line_is_held_back() {
     // pile up in memory; `cat /dev/zero > PTY` grew it by gigabytes), the writer must wait.
     let line = LineSettings::n81(115_200);
     let served = start(line);
-    let mut port = open_serial(&served.path, line, Duration::from_secs(1)).unwrap();
+    // A blocked write must stay blocked (not time out) until the server goes.
+    let mut port = open_serial(&served.path, line, ALLOWANCE).unwrap();
     let (done_tx, done) = mpsc::channel();
     let writer = std::thread::spawn(move || {
         let result = port.write_all(&vec![0u8; 1 << 20]);
@@ -278,12 +282,7 @@ fn a_client_at_the_wrong_rate_cannot_outrun_the_line_either() {
     // Its bytes are framing errors, but they still take line time: before, the server read
     // and dropped them as fast as the client wrote (hundreds of MB/s, a core busy).
     let served = start(LineSettings::n82(9600));
-    let mut port = open_serial(
-        &served.path,
-        LineSettings::n81(19_200),
-        Duration::from_secs(1),
-    )
-    .unwrap();
+    let mut port = open_serial(&served.path, LineSettings::n81(19_200), ALLOWANCE).unwrap();
     let (done_tx, done) = mpsc::channel();
     let writer = std::thread::spawn(move || {
         let result = port.write_all(&vec![0x55u8; 1 << 20]);
@@ -327,10 +326,11 @@ fn output_to_a_client_that_does_not_read_is_bounded() {
         let mut dev = Flood { len: 4 << 20 };
         serve(&mut dev, &pty, line, &rx, &flag).unwrap();
     });
-    let mut port = open_serial(&path, line, Duration::from_millis(300)).unwrap();
-    std::thread::sleep(Duration::from_millis(200));
-    let mut total = 0;
+    let mut port = open_serial(&path, line, ALLOWANCE).unwrap();
     let mut buf = [0u8; 65536];
+    // The flood has begun once the first bytes are here; then read until it dries up.
+    let mut total = port.read(&mut buf).unwrap();
+    port.set_timeout(Duration::from_millis(300)).unwrap();
     loop {
         match port.read(&mut buf) {
             Ok(n) => total += n,

@@ -4,12 +4,9 @@
 //! `cargo run --release -p buslab-zelle --example dump_bench [BYTES]` (default 8192; about
 //! 10 s pipelined and 20 s stop-and-wait per 8 KiB). Not part of the test suite.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use buslab_link::{Control, Pty};
+use buslab_link::{SerialLine, Serve};
 use buslab_zelle::client::{Client, Transfer};
 use buslab_zelle::timing::{BYTE_NS, LINE};
 use buslab_zelle::{Cell, DATA_AREA};
@@ -25,18 +22,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut cell = Cell::default();
     cell.write_ram(DATA_AREA, &pattern);
 
-    let pty = Pty::open()?;
-    let path = pty.path().to_path_buf();
-    let stop = Arc::new(AtomicBool::new(false));
-    let (_control, control_rx) = mpsc::channel::<Control<Cell>>();
-    let server = {
-        let stop = stop.clone();
-        std::thread::spawn(move || buslab_link::serve(&mut cell, &pty, LINE, &control_rx, &stop))
-    };
-
-    let timeout = Duration::from_secs(2);
-    let mut client =
-        Client::with_timeout(buslab_link::open_serial(&path, LINE, timeout)?, timeout)?;
+    let served = Serve::new(cell, LINE).name("zelle").spawn()?;
+    let path = served.path().to_path_buf();
+    let mut client = Client::with_timeout(SerialLine::open(&path, LINE)?, Duration::from_secs(2));
     client.reset()?;
 
     let line_rate = 1e9 / BYTE_NS as f64;
@@ -64,7 +52,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         client.reset()?;
     }
-    stop.store(true, Ordering::SeqCst);
-    server.join().map_err(|_| "the serve thread panicked")??;
+    served.stop()?;
     Ok(())
 }

@@ -214,6 +214,25 @@ pub enum SourceSpec {
 pub const SPEC_HELP: &str = "VOLTS | const:VOLTS | sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]] \
      | ramp:FROM:TO:PERIOD | csv:FILE  (e.g. 2.5V, sine:1Hz:2V:2.5V, ramp:0V:5V:10s)";
 
+/// `CH=SOURCE` (`1=sine:1Hz:2V:2.5V`), as `serve --analog` takes it: the channel (1..4) and
+/// the source spec.
+pub fn parse_channel_source(arg: &str) -> Result<(u8, SourceSpec), SourceError> {
+    let (ch, spec) = arg.split_once('=').ok_or_else(|| SourceError::Spec {
+        spec: arg.to_owned(),
+        why: "must look like CH=SOURCE, e.g. 1=sine:1Hz".into(),
+    })?;
+    let channel = match crate::control::parse_number(ch) {
+        Some(c @ 1..=4) => c as u8,
+        _ => {
+            return Err(SourceError::Channel {
+                arg: arg.to_owned(),
+                channel: ch.to_owned(),
+            });
+        }
+    };
+    Ok((channel, SourceSpec::parse(spec)?))
+}
+
 impl SourceSpec {
     /// Parses `VOLTS`, `const:VOLTS`, `sine:FREQ[:AMPLITUDE[:OFFSET]]` (also `triangle`,
     /// `square`; amplitude and offset default to 2.5 V, i.e. full scale), `ramp:FROM:TO:PERIOD`
@@ -293,6 +312,8 @@ impl SourceSpec {
 pub enum SourceError {
     #[error("analog source `{spec}`: {why}")]
     Spec { spec: String, why: String },
+    #[error("analog input `{arg}`: channel `{channel}` is out of range 1..4")]
+    Channel { arg: String, channel: String },
     #[error("replay CSV line {line} `{text}`: {why}")]
     CsvLine {
         line: usize,
@@ -408,6 +429,23 @@ mod tests {
                 offset: 2.5
             }
         );
+    }
+
+    #[test]
+    fn channel_source_arguments_name_the_bad_part() {
+        assert_eq!(
+            parse_channel_source("2=3.3V").unwrap(),
+            (2, SourceSpec::Ready(Source::Constant(3.3)))
+        );
+        for (arg, needle) in [
+            ("9=1V", "channel `9` is out of range 1..4"),
+            ("x=1V", "channel `x` is out of range 1..4"),
+            ("1V", "must look like CH=SOURCE"),
+            ("1=wobble", "analog source `wobble`"),
+        ] {
+            let err = parse_channel_source(arg).unwrap_err().to_string();
+            assert!(err.contains(needle), "{arg}: {err}");
+        }
     }
 
     #[test]

@@ -209,6 +209,26 @@ pub fn parse_number(s: &str) -> Option<u32> {
     }
 }
 
+/// A number argument outside what is allowed.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[error("{what} `{text}` is not a number in 0..{max} (decimal, 0x1F or 1Fh)")]
+pub struct NumberError {
+    pub what: &'static str,
+    pub text: String,
+    pub max: u32,
+}
+
+/// [`parse_number`] limited to `0..=max`; `what` names the value in the error.
+pub fn parse_number_in(text: &str, what: &'static str, max: u32) -> Result<u32, NumberError> {
+    parse_number(text)
+        .filter(|&v| v <= max)
+        .ok_or_else(|| NumberError {
+            what,
+            text: text.to_owned(),
+            max,
+        })
+}
+
 /// `1.2s`, `500ms`, `2` (seconds).
 pub fn parse_duration_ns(s: &str) -> Option<u64> {
     let s = s.trim();
@@ -261,6 +281,19 @@ mod tests {
             }
         );
         assert_eq!(ControlCommand::parse("# note"), Ok(None));
+    }
+
+    #[test]
+    fn numbers_in_range_in_three_spellings() {
+        assert_eq!(parse_number_in("0x1F", "value", 255), Ok(31));
+        assert_eq!(parse_number_in("1Fh", "value", 255), Ok(31));
+        assert_eq!(parse_number_in("31", "value", 255), Ok(31));
+        assert_eq!(
+            parse_number_in("0x10000", "address", 0xFFFF)
+                .unwrap_err()
+                .to_string(),
+            "address `0x10000` is not a number in 0..65535 (decimal, 0x1F or 1Fh)"
+        );
     }
 
     #[test]

@@ -1,8 +1,10 @@
-//! The cell as a [`ByteDevice`] the link crate paces to the wall clock.
+//! The cell as a [`ByteDevice`] the link crate paces to the wall clock, and as a
+//! [`Persistent`] device whose battery-backed RAM is kept in its state file.
 
-use buslab_link::ByteDevice;
+use buslab_device::{ByteDevice, LineSettings, Persistent, SimPort};
 
 use crate::Cell;
+use crate::timing::LINE;
 
 impl ByteDevice for Cell {
     fn receive(&mut self, now_ns: u64, byte: u8) {
@@ -15,5 +17,36 @@ impl ByteDevice for Cell {
 
     fn next_deadline(&self) -> Option<u64> {
         Cell::next_deadline(self)
+    }
+}
+
+impl Persistent for Cell {
+    type Snapshot = crate::BatteryRam;
+
+    fn state_generation(&self) -> u64 {
+        self.ram_generation()
+    }
+
+    fn snapshot(&self) -> crate::BatteryRam {
+        self.ram().clone()
+    }
+
+    /// The state file (TOML).
+    fn file_bytes(ram: &crate::BatteryRam) -> Vec<u8> {
+        ram.to_state_file().into_bytes()
+    }
+}
+
+impl Cell {
+    /// The cell's line: 9600 8N2.
+    pub fn line(&self) -> LineSettings {
+        LINE
+    }
+
+    /// A port to this cell in virtual time, from the cell's current time, so the host client
+    /// runs against the model as fast as the CPU allows with the line's exact timing.
+    pub fn into_sim_port(self) -> SimPort<Cell> {
+        let now = self.now();
+        SimPort::new(self, LINE, now)
     }
 }

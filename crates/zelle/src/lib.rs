@@ -9,8 +9,9 @@
 //!   to look again. No threads, clocks or files inside.
 //! - [`analog`]: the sources that feed the A/D inputs (constant, waveforms, ramp, CSV replay).
 //! - [`BatteryRam`]: the battery-backed RAM as a serialisable snapshot (the state file).
-//! - [`client`]: the host side over any [`client::Port`] (a serial port, a PTY, or the model
-//!   itself in virtual time through [`SimPort`]).
+//! - [`client`]: the host side over any [`Port`] (a serial port or PTY through
+//!   `buslab_link::SerialLine`, or the model itself in virtual time through [`SimPort`], see
+//!   [`Cell::into_sim_port`]). No clock, sleep or file inside: the port keeps the time.
 
 pub mod analog;
 mod cell;
@@ -20,13 +21,12 @@ pub mod control;
 mod device;
 mod memory;
 pub mod program;
-mod sim_port;
 pub mod timing;
 
+pub use buslab_device::{ByteDevice, Persistent, Port, SimPort};
 pub use cell::{Activity, COUNT_HIGH_REGISTER, COUNT_LOW_REGISTER, Cell, InputError, Mode, Stats};
 pub use command::Command;
-pub use memory::{BatteryRam, StateFileError};
+pub use memory::{BatteryRam, StateFileError, hex_listing};
 pub use memory::{
     DATA_AREA, EXT_RAM_SIZE, INTERNAL_RAM_SIZE, PARAMS_LEN, PROGRAM_AREA, START_BYTE,
 };
-pub use sim_port::SimPort;

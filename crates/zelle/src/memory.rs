@@ -116,6 +116,20 @@ impl BatteryRam {
     }
 }
 
+/// A hex listing of `data` as read from `start`: 16 bytes a line, `0800: 00 64 01 ...`.
+pub fn hex_listing(start: u16, data: &[u8]) -> String {
+    let mut listing = String::new();
+    for (i, chunk) in data.chunks(16).enumerate() {
+        let hex: Vec<String> = chunk.iter().map(|b| format!("{b:02x}")).collect();
+        listing.push_str(&format!(
+            "{:04x}: {}\n",
+            usize::from(start) + i * 16,
+            hex.join(" ")
+        ));
+    }
+    listing
+}
+
 const FORMAT: &str = "buslab-zelle-battery-ram";
 const VERSION: u32 = 1;
 
@@ -144,6 +158,15 @@ pub enum StateFileError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn hex_listing_is_sixteen_bytes_a_line_from_the_start_address() {
+        let data: Vec<u8> = (0..18).collect();
+        assert_eq!(
+            hex_listing(DATA_AREA, &data),
+            "0800: 00 01 02 03 04 05 06 07 08 09 0a 0b 0c 0d 0e 0f\n0810: 10 11\n"
+        );
+    }
 
     #[test]
     fn state_file_round_trips() {

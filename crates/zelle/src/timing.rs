@@ -1,6 +1,6 @@
 //! The cell's fixed line and its timing, in nanoseconds.
 
-use buslab_link::LineSettings;
+use buslab_device::LineSettings;
 
 /// The cell's line: 9600 baud, 8 data bits, no parity, 2 stop bits.
 pub const LINE: LineSettings = LineSettings::n82(9600);

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use buslab_zelle::client::{Client, Port, SeriesParams, Transfer};
 use buslab_zelle::timing::MS;
-use buslab_zelle::{Activity, Cell, SimPort};
+use buslab_zelle::{Activity, Cell};
 use proptest::prelude::*;
 
 /// A byte, and how long the host waited before sending it (0 = back to back).
@@ -21,16 +21,16 @@ proptest! {
 
     #[test]
     fn ten_zeros_bring_any_state_back_to_ready(bytes in garbage()) {
-        let mut c = Client::new(SimPort::new(Cell::default())).unwrap();
+        let mut c = Client::new(Cell::default().into_sim_port());
         for (b, gap_us) in bytes {
             c.port().pause(Duration::from_micros(u64::from(gap_us)));
-            c.port().write_all_bytes(&[b]);
+            c.port().send(&[b]).unwrap();
         }
         c.reset().unwrap();
-        prop_assert_eq!(c.port().cell().activity(), Activity::Ready);
+        prop_assert_eq!(c.port().device().activity(), Activity::Ready);
         // And it answers commands.
         prop_assert_eq!(c.key_pressed().unwrap(), false);
-        prop_assert_eq!(c.peek(0x0000).unwrap(), c.port().cell().ram().read(0));
+        prop_assert_eq!(c.peek(0x0000).unwrap(), c.port().device().ram().read(0));
     }
 
     #[test]
@@ -60,7 +60,7 @@ proptest! {
 
     #[test]
     fn the_client_survives_garbage_replies(replies in prop::collection::vec(any::<u8>(), 0..64)) {
-        let mut c = Client::new(GarbagePort { replies: replies.into() }).unwrap();
+        let mut c = Client::new(GarbagePort { replies: replies.into(), now: Duration::ZERO });
         // Each call either succeeds or fails cleanly; none panics or waits forever.
         let _ = c.key_pressed();
         let _ = c.read_p26();
@@ -75,50 +75,37 @@ proptest! {
     }
 }
 
-/// Answers with whatever it was given, then times out.
+/// Answers with whatever it was given, a few bytes at a time, then times out.
 struct GarbagePort {
     replies: VecDeque<u8>,
+    now: Duration,
 }
 
-impl io::Read for GarbagePort {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+impl Port for GarbagePort {
+    fn send(&mut self, _: &[u8]) -> io::Result<()> {
+        Ok(())
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let n = buf.len().min(self.replies.len()).min(3);
         if n == 0 {
-            return Err(io::ErrorKind::TimedOut.into());
+            self.now += timeout;
         }
         for (slot, b) in buf.iter_mut().zip(self.replies.drain(..n)) {
             *slot = b;
         }
         Ok(n)
     }
-}
-
-impl io::Write for GarbagePort {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        Ok(buf.len())
+    fn now(&self) -> Duration {
+        self.now
     }
-    fn flush(&mut self) -> io::Result<()> {
+    fn pause(&mut self, d: Duration) {
+        self.now += d;
+    }
+    fn drain(&mut self) -> io::Result<()> {
         Ok(())
     }
-}
-
-impl Port for GarbagePort {
-    fn set_timeout(&mut self, _: Duration) -> io::Result<()> {
-        Ok(())
-    }
-    fn pause(&mut self, _: Duration) {}
     fn discard_input(&mut self) -> io::Result<()> {
         self.replies.clear();
         Ok(())
-    }
-}
-
-trait WriteAll {
-    fn write_all_bytes(&mut self, bytes: &[u8]);
-}
-
-impl WriteAll for SimPort {
-    fn write_all_bytes(&mut self, bytes: &[u8]) {
-        io::Write::write_all(self, bytes).unwrap();
     }
 }

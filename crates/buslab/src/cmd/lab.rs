@@ -331,8 +331,12 @@ fn periodic(frame: Frame, period: BitTime, start: BitTime) -> Traffic {
 /// The serial devices of the bench, each served on a pseudo-terminal by its own thread (and
 /// stopped, with its state saved, when the bench stops).
 struct Devices {
-    zelle: super::zelle::ServedCell,
-    cpu196: buslab_cpu196::served::Served,
+    zelle: buslab_served::zelle::ServedCell,
+    cpu196: buslab_link::Served<buslab_cpu196::Board>,
+    /// What the banner tells tools to open: the stable links when there is a folder, else the
+    /// PTYs.
+    zelle_port: PathBuf,
+    cpu196_port: PathBuf,
 }
 
 impl Devices {
@@ -349,33 +353,39 @@ impl Devices {
             amplitude,
             offset,
         };
-        let zelle = super::zelle::spawn_served(super::zelle::ServeOptions {
+        let zelle = buslab_served::zelle::ServedCell::spawn(buslab_served::zelle::CellOptions {
             state: file("zelle.toml"),
             link: file("zelle"),
             analog: vec![(1, sine(2.0, 2.5)), (2, sine(1.0, 2.5))],
         })
         .context("starting the ZELLE cell")?;
-        let cpu196 = super::cpu196::spawn_served(
-            file("cpu196.toml").as_deref(),
-            file("cpu196").as_deref(),
-            super::cpu196::DEFAULT_BAUD,
-            buslab_cpu196::source::Inputs::default(),
-        )
+        let cpu196 = buslab_served::cpu196::spawn_board(buslab_served::cpu196::BoardOptions {
+            image: file("cpu196.toml"),
+            link: file("cpu196"),
+            baud: super::cpu196::DEFAULT_BAUD,
+            inputs: buslab_cpu196::source::Inputs::default(),
+            peer: buslab_cpu196::pic::Peer::default(),
+        })
         .context("starting the CPU196 board")?;
-        Ok(Self { zelle, cpu196 })
+        Ok(Self {
+            zelle_port: file("zelle").unwrap_or_else(|| zelle.path().to_path_buf()),
+            cpu196_port: file("cpu196").unwrap_or_else(|| cpu196.path().to_path_buf()),
+            zelle,
+            cpu196,
+        })
     }
 
     fn describe(&self) {
         eprintln!(
             "  ZELLE cell   on {}  (9600 8N2; try: buslab zelle --port {} analog 1)",
             self.zelle.path().display(),
-            self.zelle.path().display()
+            self.zelle_port.display()
         );
         eprintln!(
             "  CPU196 board on {}  ({} 8N1; try: buslab cpu196 --port {} info)",
             self.cpu196.path().display(),
             super::cpu196::DEFAULT_BAUD,
-            self.cpu196.path().display()
+            self.cpu196_port.display()
         );
     }
 

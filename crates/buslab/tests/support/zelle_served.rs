@@ -5,9 +5,18 @@ use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::sync::{Mutex, MutexGuard};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use buslab_zelle::client::{Client, SerialClient};
+use buslab_link::SerialLine;
+use buslab_zelle::client::Client;
+
+/// A client on a served cell.
+pub type SerialClient = Client<SerialLine>;
+
+/// How long an answer may take beyond its time on the line: far more than any scheduling delay
+/// on a loaded machine. Waiting costs nothing when the answer comes; only tests that expect
+/// silence use a short time-out.
+pub const ALLOWANCE: Duration = Duration::from_secs(30);
 
 /// One served cell at a time. `serialport` opens ports with an exclusive `flock` and without
 /// close-on-exec, so a child process spawned by a parallel test would inherit a port and keep
@@ -68,25 +77,49 @@ impl Served {
     }
 
     /// Asks for `status` until `want` holds (the cell may still be taking a byte the host
-    /// just wrote), for at most two seconds; returns the last status line.
+    /// just wrote), for at most [`ALLOWANCE`]; returns the last status line.
     pub fn status_until(&mut self, want: &str) -> String {
-        let deadline = std::time::Instant::now() + Duration::from_secs(2);
+        let deadline = Instant::now() + ALLOWANCE;
         loop {
             let status = self.control("status");
-            if status.contains(want) || std::time::Instant::now() > deadline {
+            if status.contains(want) || Instant::now() > deadline {
                 return status;
             }
             std::thread::sleep(Duration::from_millis(5));
         }
     }
 
+    /// Asks for `status` until `done` holds for its line, for at most [`ALLOWANCE`]; panics
+    /// naming `what` otherwise.
+    pub fn status_where(&mut self, what: &str, done: impl Fn(&str) -> bool) -> String {
+        let deadline = Instant::now() + ALLOWANCE;
+        loop {
+            let status = self.control("status");
+            if done(&status) {
+                return status;
+            }
+            assert!(Instant::now() < deadline, "never {what}: {status}");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    /// Waits until the armed series is back waiting for START with `values` stored: a block
+    /// has run to its end, however late the server read the START.
+    pub fn block_done(&mut self, values: u32) -> String {
+        let want = format!(", {values} values,");
+        self.status_where(&format!("waiting for START with {values} values"), |s| {
+            s.contains("waiting for START") && s.contains(&want)
+        })
+    }
+
     pub fn state_file(&self) -> PathBuf {
         self.dir.path().join("state.toml")
     }
 
-    /// A host client on the PTY, at the cell's line settings.
+    /// A host client on the PTY, at the cell's line settings, waiting [`ALLOWANCE`] beyond the
+    /// line time for each answer.
     pub fn client(&self) -> SerialClient {
-        client_on(&self.pty, Duration::from_millis(300))
+        client_on(&self.pty, ALLOWANCE)
     }
 
     /// Stops the child (SIGINT, so it saves its state) and gives the directory back.
@@ -108,6 +141,6 @@ impl Drop for Served {
 }
 
 pub fn client_on(pty: &Path, timeout: Duration) -> SerialClient {
-    let port = buslab_link::open_serial(pty, buslab_zelle::timing::LINE, timeout).unwrap();
-    Client::with_timeout(port, timeout).unwrap()
+    let port = SerialLine::open(pty, buslab_zelle::timing::LINE).unwrap();
+    Client::with_timeout(port, timeout)
 }

@@ -6,13 +6,13 @@
 //! next request on the line). Data RAM transfers are pipelined: the client keeps a window of
 //! requests on the line ahead of the replies instead of waiting for each.
 
-mod port;
 mod series;
 
 use std::io;
 use std::time::Duration;
 
-pub use port::Port;
+use buslab_device::Human;
+pub use buslab_device::Port;
 pub use series::{Measurement, Row, SeriesError, SeriesParams};
 
 use crate::Command;
@@ -23,9 +23,10 @@ use crate::timing::{BYTE_NS, RESET_GAP_NS};
 /// How long the client waits after commands 1 and 2 before sending more. The cell needs 1 ms
 /// after the command byte has arrived; on a pseudo-terminal `drain` returns before the byte
 /// has crossed the emulated line, and the server stamps bytes when it gets to read them, so
-/// a generous margin keeps the two apart on a busy machine. (Commands 3 and 5 need no pause:
-/// the client waits for the cell's first timing byte, which comes after the set-up.)
-pub const SETUP_PAUSE: Duration = Duration::from_millis(10);
+/// a generous margin keeps the two apart on a busy machine (the server thread must be late by
+/// this much for the next byte to fall into the set-up). Commands 3 and 5 need no pause: the
+/// client waits for the cell's first timing byte, which comes after the set-up.
+pub const SETUP_PAUSE: Duration = Duration::from_millis(50);
 
 /// Requests kept on the line ahead of the replies in pipelined transfers. Two would keep a
 /// 9600 baud line busy; more absorbs scheduling jitter on the host.
@@ -51,9 +52,9 @@ pub enum Error {
     #[error("serial I/O: {0}")]
     Io(#[from] io::Error),
     #[error(
-        "the cell did not answer within {} ms while {during} (got {got} of {wanted} bytes); \
+        "the cell did not answer within {} while {during} (got {got} of {wanted} bytes); \
          is it switched on, at 9600 8N2, and in the ready state (try `reset`)?",
-        timeout.as_millis()
+        Human(*timeout)
     )]
     Timeout {
         during: &'static str,
@@ -84,9 +85,6 @@ pub enum Error {
     ParamsChanged { sent: [u8; 8], found: [u8; 8] },
 }
 
-/// A client on a serial port or PTY opened with `buslab_link::open_serial`.
-pub type SerialClient = Client<Box<dyn serialport::SerialPort>>;
-
 /// Result of client calls.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
@@ -110,19 +108,19 @@ pub struct Client<P: Port> {
     timeout: Duration,
 }
 
-impl<P: Port> Client<P> {
-    /// Default time to wait for an answer.
-    pub const DEFAULT_TIMEOUT: Duration = Duration::from_millis(500);
+/// The default allowance for an answer, beyond its bytes' time on the line.
+pub const DEFAULT_TIMEOUT: Duration = Duration::from_millis(500);
 
-    /// A client on `port` with [`DEFAULT_TIMEOUT`](Self::DEFAULT_TIMEOUT).
-    pub fn new(port: P) -> Result<Self> {
-        Self::with_timeout(port, Self::DEFAULT_TIMEOUT)
+impl<P: Port> Client<P> {
+    /// A client on `port` with [`DEFAULT_TIMEOUT`].
+    pub fn new(port: P) -> Self {
+        Self::with_timeout(port, DEFAULT_TIMEOUT)
     }
 
-    /// A client that waits `timeout` for each answer.
-    pub fn with_timeout(mut port: P, timeout: Duration) -> Result<Self> {
-        port.set_timeout(timeout)?;
-        Ok(Client { port, timeout })
+    /// A client that waits for each answer its bytes' time on the line (and that of the
+    /// requests it answers) plus `timeout`.
+    pub fn with_timeout(port: P, timeout: Duration) -> Self {
+        Client { port, timeout }
     }
 
     /// The port.
@@ -138,8 +136,14 @@ impl<P: Port> Client<P> {
     // ----- plumbing -------------------------------------------------------------------------
 
     fn send(&mut self, bytes: &[u8]) -> Result<()> {
-        self.port.write_all(bytes)?;
+        self.port.send(bytes)?;
         Ok(())
+    }
+
+    /// How long `bytes` answer bytes may take: the requests' and the answers' time on the
+    /// line, plus the allowance.
+    fn budget(&self, bytes: usize) -> Duration {
+        Duration::from_nanos((2 * bytes as u64).saturating_mul(BYTE_NS)) + self.timeout
     }
 
     /// Sends a command that expects no answer and returns once the cell has received it: the
@@ -165,22 +169,21 @@ impl<P: Port> Client<P> {
 
     /// Reads exactly `buf.len()` bytes, or fails naming what it was waiting for.
     fn read_into(&mut self, buf: &mut [u8], during: &'static str) -> Result<()> {
+        let budget = self.budget(buf.len());
+        let deadline = self.port.now() + budget;
         let mut got = 0;
         while got < buf.len() {
-            match self.port.read(&mut buf[got..]) {
-                Ok(0) => return Err(self.timeout_error(during, got, buf.len())),
-                Ok(n) => got += n,
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                Err(e) if e.kind() == io::ErrorKind::TimedOut => {
-                    return Err(self.timeout_error(during, got, buf.len()));
-                }
-                Err(e) => return Err(e.into()),
+            let left = deadline.saturating_sub(self.port.now());
+            if left.is_zero() {
+                return Err(self.timeout_error(during, got, buf.len(), budget));
             }
+            got += self.port.recv(&mut buf[got..], left)?;
         }
         Ok(())
     }
 
-    /// Reads whatever of up to `buf.len()` bytes arrives first (at least one).
+    /// Reads whatever of up to `buf.len()` bytes arrives first (at least one); `got` of
+    /// `wanted` name the progress in a time-out.
     fn read_some(
         &mut self,
         buf: &mut [u8],
@@ -188,15 +191,16 @@ impl<P: Port> Client<P> {
         got: usize,
         wanted: usize,
     ) -> Result<usize> {
+        let budget = self.budget(buf.len());
+        let deadline = self.port.now() + budget;
         loop {
-            match self.port.read(buf) {
-                Ok(0) => return Err(self.timeout_error(during, got, wanted)),
-                Ok(n) => return Ok(n),
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                Err(e) if e.kind() == io::ErrorKind::TimedOut => {
-                    return Err(self.timeout_error(during, got, wanted));
-                }
-                Err(e) => return Err(e.into()),
+            let left = deadline.saturating_sub(self.port.now());
+            if left.is_zero() {
+                return Err(self.timeout_error(during, got, wanted, budget));
+            }
+            match self.port.recv(buf, left)? {
+                0 => {}
+                n => return Ok(n),
             }
         }
     }
@@ -207,12 +211,18 @@ impl<P: Port> Client<P> {
         Ok(b[0])
     }
 
-    fn timeout_error(&self, during: &'static str, got: usize, wanted: usize) -> Error {
+    fn timeout_error(
+        &self,
+        during: &'static str,
+        got: usize,
+        wanted: usize,
+        waited: Duration,
+    ) -> Error {
         Error::Timeout {
             during,
             got,
             wanted,
-            timeout: self.timeout,
+            timeout: waited,
         }
     }
 

@@ -36,6 +36,20 @@ impl SeriesParams {
         Ok(params)
     }
 
+    /// [`new`](Self::new) with the interval as a duration, which must be a whole number of
+    /// milliseconds.
+    pub fn with_interval(
+        channels: &[u8],
+        cycles: u16,
+        interval: std::time::Duration,
+    ) -> Result<Self, SeriesError> {
+        let interval_ms = u32::try_from(interval.as_millis())
+            .ok()
+            .filter(|_| interval.subsec_nanos().is_multiple_of(1_000_000))
+            .ok_or(SeriesError::WholeMilliseconds(interval))?;
+        Self::new(channels, cycles, interval_ms)
+    }
+
     /// The enabled channels in slot order.
     pub fn channels(&self) -> Vec<u8> {
         self.slots.iter().copied().filter(|&c| c != 0).collect()
@@ -105,6 +119,8 @@ pub enum SeriesError {
         u32::from(u16::MAX) + channels
     )]
     Interval { interval_ms: u32, channels: u32 },
+    #[error("interval {} must be a whole number of ms", buslab_device::Human(*.0))]
+    WholeMilliseconds(std::time::Duration),
 }
 
 /// A finished series: one row per scan cycle.
@@ -187,9 +203,84 @@ impl Measurement {
     }
 }
 
+impl Measurement {
+    /// A character plot of every channel, `width` × `height` points, 0..255 on the y axis,
+    /// with the time axis and a legend below.
+    pub fn plot(&self, width: usize, height: usize) -> String {
+        const MARKS: [char; 4] = ['*', '+', 'o', 'x'];
+        let (width, height) = (width.max(8), height.max(2));
+        let mut grid = vec![vec![' '; width]; height];
+        let n = self.rows.len().max(1);
+        for (i, row) in self.rows.iter().enumerate() {
+            let x = i * (width - 1) / n.max(2).saturating_sub(1).max(1);
+            for (c, &v) in row.values.iter().enumerate() {
+                let y = (height - 1) - usize::from(v) * (height - 1) / 255;
+                grid[y][x.min(width - 1)] = MARKS[c % MARKS.len()];
+            }
+        }
+        let mut out = String::new();
+        for (r, line) in grid.iter().enumerate() {
+            out.push_str(match r {
+                0 => "255 |",
+                r if r == height - 1 => "  0 |",
+                _ => "    |",
+            });
+            out.extend(line.iter());
+            out.push('\n');
+        }
+        let last = self.rows.last().map_or(0.0, |r| r.time_ns as f64 * 1e-9);
+        let _ = writeln!(out, "    +{}", "-".repeat(width));
+        let _ = writeln!(out, "     0 s{:>w$}", format!("{last:.2} s"), w = width - 3);
+        let legend: Vec<String> = self
+            .channels
+            .iter()
+            .enumerate()
+            .map(|(i, ch)| format!("{} ch{ch}", MARKS[i % MARKS.len()]))
+            .collect();
+        let _ = writeln!(out, "     {}", legend.join("   "));
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn intervals_must_be_whole_milliseconds() {
+        use std::time::Duration;
+        let p = SeriesParams::with_interval(&[1], 3, Duration::from_millis(10)).unwrap();
+        assert_eq!(p.interval_ms, 10);
+        let err = SeriesParams::with_interval(&[1], 3, Duration::from_micros(1500)).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "interval 1.50 ms must be a whole number of ms"
+        );
+        let err = SeriesParams::with_interval(&[1, 2, 3], 3, Duration::from_millis(2)).unwrap_err();
+        assert!(
+            err.to_string().starts_with("interval 2 ms is out of range"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn the_plot_marks_each_channel_and_names_the_span() {
+        let p = SeriesParams::new(&[1, 2], 3, 10).unwrap();
+        let m = Measurement::split(p, &[0, 255, 128, 128, 255, 0], &[0]);
+        let plot = m.plot(20, 5);
+        let lines: Vec<&str> = plot.lines().collect();
+        assert_eq!(lines.len(), 5 + 3);
+        assert!(
+            lines[0].starts_with("255 |+") && lines[0].ends_with('*'),
+            "{plot}"
+        );
+        assert!(
+            lines[4].starts_with("  0 |*") && lines[4].ends_with('+'),
+            "{plot}"
+        );
+        assert!(lines[6].trim_end().ends_with("0.02 s"), "{plot}");
+        assert_eq!(lines[7].trim(), "* ch1   + ch2");
+    }
 
     #[test]
     fn parameter_bytes_subtract_the_conversions() {

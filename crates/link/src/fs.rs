@@ -1,0 +1,214 @@
+//! Files as buslab writes and reads them: written atomically, read with a size limit.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Read, Write};
+use std::os::unix::fs::{FileTypeExt, OpenOptionsExt, PermissionsExt};
+use std::path::{Path, PathBuf};
+
+/// Why a file could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write {}: {source}", path.display())]
+pub struct WriteError {
+    pub path: PathBuf,
+    #[source]
+    pub source: io::Error,
+}
+
+/// Why a file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    #[error("cannot read {}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error("{} is {kind}, not a regular file; give the path of a file", path.display())]
+    NotRegular { path: PathBuf, kind: &'static str },
+    #[error("{} is larger than {max_bytes} bytes, the most accepted here", path.display())]
+    TooLarge { path: PathBuf, max_bytes: u64 },
+    #[error("{} is not UTF-8 text", path.display())]
+    NotText { path: PathBuf },
+}
+
+impl ReadError {
+    /// Whether the file does not exist (a missing state file means a fresh device).
+    pub fn is_not_found(&self) -> bool {
+        matches!(self, ReadError::Io { source, .. } if source.kind() == io::ErrorKind::NotFound)
+    }
+}
+
+/// Writes `path` so that a crash or a concurrent writer leaves either the old or the new
+/// contents: a temporary file with a unique name in the same folder, synced, renamed over
+/// `path`, then the folder synced. An existing file keeps its permissions; a new one gets
+/// `rw-r--r--`.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    let error = |source| WriteError {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .ok_or_else(|| error(io::Error::other("the path names no file")))?;
+    let mut tmp = tempfile::Builder::new()
+        .prefix(&format!(".{}.", name.to_string_lossy()))
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(error)?;
+    tmp.write_all(bytes).map_err(error)?;
+    // A temporary file is private (0600); the file it becomes is an ordinary one.
+    let permissions = fs::metadata(path)
+        .map(|m| m.permissions())
+        .unwrap_or_else(|_| fs::Permissions::from_mode(0o644));
+    tmp.as_file().set_permissions(permissions).map_err(error)?;
+    tmp.as_file().sync_all().map_err(error)?;
+    tmp.persist(path).map_err(|e| error(e.error))?;
+    // The rename is durable once the folder is.
+    File::open(dir).and_then(|d| d.sync_all()).map_err(error)
+}
+
+/// Reads the whole of `path`, refusing what is not a regular file (a FIFO would block, a
+/// device such as `/dev/zero` never ends) and files larger than `max_bytes`.
+pub fn read_limited(path: &Path, max_bytes: u64) -> Result<Vec<u8>, ReadError> {
+    let io_error = |source| ReadError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    // Non-blocking: opening a FIFO for reading would otherwise wait for a writer. Regular
+    // files ignore the flag.
+    let file = OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)
+        .map_err(io_error)?;
+    let meta = file.metadata().map_err(io_error)?;
+    let kind = meta.file_type();
+    if !kind.is_file() {
+        let kind = if kind.is_dir() {
+            "a folder"
+        } else if kind.is_fifo() {
+            "a FIFO"
+        } else if kind.is_socket() {
+            "a socket"
+        } else if kind.is_char_device() || kind.is_block_device() {
+            "a device"
+        } else {
+            "not a file"
+        };
+        return Err(ReadError::NotRegular {
+            path: path.to_path_buf(),
+            kind,
+        });
+    }
+    let too_large = || ReadError::TooLarge {
+        path: path.to_path_buf(),
+        max_bytes,
+    };
+    if meta.len() > max_bytes {
+        return Err(too_large());
+    }
+    // The file may grow while it is read: never more than the limit.
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(io_error)?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large());
+    }
+    Ok(bytes)
+}
+
+/// [`read_limited`], as UTF-8 text.
+pub fn read_text_limited(path: &Path, max_bytes: u64) -> Result<String, ReadError> {
+    String::from_utf8(read_limited(path, max_bytes)?).map_err(|_| ReadError::NotText {
+        path: path.to_path_buf(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_replace_the_file_and_leave_no_temporary_behind() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("state.toml");
+        write_atomic(&path, b"one").unwrap();
+        fs::set_permissions(&path, fs::Permissions::from_mode(0o600)).unwrap();
+        write_atomic(&path, b"two").unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"two");
+        assert_eq!(
+            fs::metadata(&path).unwrap().permissions().mode() & 0o777,
+            0o600,
+            "an existing file keeps its permissions"
+        );
+        let names: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["state.toml"]);
+        let err = write_atomic(&dir.path().join("missing/x.toml"), b"x").unwrap_err();
+        assert!(err.to_string().contains("missing/x.toml"), "{err}");
+    }
+
+    #[test]
+    fn concurrent_writers_never_mix_their_contents() {
+        // The same file written by many threads at once: each write is whole.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("image.toml");
+        let contents: Vec<Vec<u8>> = (0..8u8).map(|i| vec![b'a' + i; 200_000]).collect();
+        std::thread::scope(|s| {
+            for c in &contents {
+                let path = &path;
+                s.spawn(move || {
+                    for _ in 0..5 {
+                        write_atomic(path, c).unwrap();
+                    }
+                });
+            }
+        });
+        let read = fs::read(&path).unwrap();
+        assert!(
+            contents.contains(&read),
+            "a mixed file of {} bytes",
+            read.len()
+        );
+    }
+
+    #[test]
+    fn reads_refuse_fifos_devices_folders_and_large_files_naming_the_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("f.bin");
+        fs::write(&file, [1, 2, 3]).unwrap();
+        assert_eq!(read_limited(&file, 3).unwrap(), [1, 2, 3]);
+        let err = read_limited(&file, 2).unwrap_err();
+        assert!(matches!(err, ReadError::TooLarge { .. }), "{err}");
+        assert!(err.to_string().contains("f.bin"), "{err}");
+
+        let fifo = dir.path().join("fifo");
+        nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
+        let err = read_limited(&fifo, 100).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{} is a FIFO, not a regular file; give the path of a file",
+                fifo.display()
+            )
+        );
+        let err = read_limited(Path::new("/dev/zero"), 100).unwrap_err();
+        assert!(err.to_string().contains("/dev/zero is a device"), "{err}");
+        let err = read_limited(dir.path(), 100).unwrap_err();
+        assert!(err.to_string().contains("is a folder"), "{err}");
+        let err = read_limited(&dir.path().join("none"), 100).unwrap_err();
+        assert!(err.is_not_found(), "{err}");
+        fs::write(&file, [0xFF, 0xFE]).unwrap();
+        assert!(matches!(
+            read_text_limited(&file, 10),
+            Err(ReadError::NotText { .. })
+        ));
+    }
+}

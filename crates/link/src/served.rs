@@ -1,0 +1,440 @@
+//! One device model served on a pseudo-terminal by a background thread: the adapter every
+//! served device uses (`buslab zelle serve`, `buslab cpu196 serve`, `buslab lab`, tests).
+//!
+//! It opens the PTY (and an optional symlink to it), paces the device with [`serve`], runs
+//! work on the device from other threads, and keeps a [`Persistent`] device's state in a file:
+//! written at start (so a file that cannot be written is an error at once, not a lost change
+//! later), whenever the state changed (looked at periodically, between two byte events, so it
+//! is never seen half-updated), on request, and when serving stops. All writes of one device go
+//! through one saver thread in the order the snapshots were taken, each with
+//! [`write_atomic`](crate::fs::write_atomic). Dropping the handle stops the device.
+//!
+//! [`serve`]: crate::serve()
+
+use std::io;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use buslab_device::{ByteDevice, LineSettings, Persistent};
+
+use crate::Pty;
+use crate::fs::write_atomic;
+use crate::serve::{Control, serve_with};
+
+/// Why a served device failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ServedError {
+    #[error("cannot open a pseudo-terminal: {0}")]
+    Pty(#[source] io::Error),
+    #[error("cannot make the link {}: {source}", path.display())]
+    Link {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error("cannot write {what} {}: {source}", path.display())]
+    Save {
+        what: &'static str,
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error("serving the device failed: {0}")]
+    Serve(#[source] io::Error),
+    #[error("the device is no longer served")]
+    Stopped,
+    #[error("the device's serve thread panicked")]
+    Panicked,
+}
+
+/// A snapshot taken in the serve thread, turned into the file's bytes in the saver thread.
+type Snapshot = Box<dyn FnOnce() -> Vec<u8> + Send>;
+
+fn take_snapshot<D: Persistent>(device: &D) -> Snapshot {
+    let snapshot = device.snapshot();
+    Box::new(move || D::file_bytes(&snapshot))
+}
+
+/// Where and how often a device's persistent state is saved.
+struct Persistence<D> {
+    path: PathBuf,
+    what: &'static str,
+    every: Duration,
+    generation: fn(&D) -> u64,
+    snapshot: fn(&D) -> Snapshot,
+}
+
+/// What to serve, and how: `Serve::new(device, line).link(..).persist(..).spawn()`.
+pub struct Serve<D> {
+    device: D,
+    line: LineSettings,
+    name: String,
+    link: Option<PathBuf>,
+    persistence: Option<Persistence<D>>,
+}
+
+impl<D: ByteDevice + Send + 'static> Serve<D> {
+    /// `device` on a line at `line`.
+    pub fn new(device: D, line: LineSettings) -> Self {
+        Self {
+            device,
+            line,
+            name: "device".into(),
+            link: None,
+            persistence: None,
+        }
+    }
+
+    /// The device's name in thread names and log lines (`zelle`, `cpu196`).
+    pub fn name(mut self, name: &str) -> Self {
+        self.name = name.into();
+        self
+    }
+
+    /// Also makes this symlink to the PTY (removed when serving stops).
+    pub fn link(mut self, link: Option<PathBuf>) -> Self {
+        self.link = link;
+        self
+    }
+
+    /// Opens the PTY and serves the device on it in a background thread.
+    pub fn spawn(self) -> Result<Served<D>, ServedError> {
+        let Serve {
+            device,
+            line,
+            name,
+            link,
+            persistence,
+        } = self;
+        let mut pty = Pty::open().map_err(ServedError::Pty)?;
+        if let Some(link) = &link {
+            pty.link_at(link).map_err(|source| ServedError::Link {
+                path: link.clone(),
+                source,
+            })?;
+        }
+        let path = pty.path().to_path_buf();
+        let saver = match persistence {
+            Some(p) => {
+                // Written once now: a file that cannot be written is an error at start.
+                write_atomic(&p.path, &(p.snapshot)(&device)()).map_err(|e| ServedError::Save {
+                    what: p.what,
+                    path: e.path,
+                    source: e.source,
+                })?;
+                let saved = (p.generation)(&device);
+                Some(Saver::spawn(&name, p, saved)?)
+            }
+            None => None,
+        };
+        let (control, control_rx) = channel::<Control<D>>();
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let stop = stop.clone();
+            let saver = saver.clone();
+            std::thread::Builder::new()
+                .name(format!("{name}-serve"))
+                .spawn(move || run(device, pty, line, &control_rx, &stop, saver))
+                .map_err(ServedError::Serve)?
+        };
+        tracing::info!(device = %name, pty = %path.display(), "serving at {line}");
+        Ok(Served {
+            path,
+            handle: Handle { control, saver },
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl<D: ByteDevice + Persistent + Send + 'static> Serve<D> {
+    /// Keeps the device's state in `path` (nothing if `None`): written at start, whenever it
+    /// changed (looked at every `every`), on [`Handle::save`] and when serving stops. `what`
+    /// names the file in messages (`state file`, `image`).
+    pub fn persist(mut self, path: Option<PathBuf>, what: &'static str, every: Duration) -> Self {
+        self.persistence = path.map(|path| Persistence {
+            path,
+            what,
+            every,
+            generation: D::state_generation,
+            snapshot: take_snapshot::<D>,
+        });
+        self
+    }
+}
+
+/// The serve thread: paces the device, takes snapshots when its state changed, saves it at
+/// the end.
+fn run<D: ByteDevice>(
+    mut device: D,
+    pty: Pty,
+    line: LineSettings,
+    control: &Receiver<Control<D>>,
+    stop: &AtomicBool,
+    saver: Option<Saver<D>>,
+) -> Result<(), ServedError> {
+    let mut next_look = 0u64;
+    let result = serve_with(
+        &mut device,
+        &pty,
+        line,
+        control,
+        stop,
+        &mut |device, now| {
+            if let Some(saver) = &saver
+                && now >= next_look
+            {
+                next_look = now.saturating_add(saver.every_ns);
+                saver.save_if_changed(device);
+            }
+        },
+    );
+    // The link goes before the final save: a new server may take the name meanwhile.
+    drop(pty);
+    let saved = match &saver {
+        Some(saver) => saver.save_and_wait(&device),
+        None => Ok(()),
+    };
+    result.map_err(ServedError::Serve)?;
+    saved
+}
+
+/// A device served on a PTY. Dropping it stops the device (and saves its state).
+pub struct Served<D> {
+    path: PathBuf,
+    handle: Handle<D>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<(), ServedError>>>,
+}
+
+impl<D: 'static> Served<D> {
+    /// The PTY path clients open.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// A handle for other threads (control lines from a socket, say).
+    pub fn handle(&self) -> Handle<D> {
+        self.handle.clone()
+    }
+
+    /// See [`Handle::with`].
+    pub fn with<T: Send + 'static>(
+        &self,
+        work: impl FnOnce(&mut D, u64) -> T + Send + 'static,
+    ) -> Result<T, ServedError> {
+        self.handle.with(work)
+    }
+
+    /// See [`Handle::save`].
+    pub fn save(&self) -> Result<Option<PathBuf>, ServedError> {
+        self.handle.save()
+    }
+
+    /// Stops serving, saves the state, and waits for the serve thread.
+    pub fn stop(mut self) -> Result<(), ServedError> {
+        self.halt()
+    }
+
+    fn halt(&mut self) -> Result<(), ServedError> {
+        self.stop.store(true, Ordering::SeqCst);
+        match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(result)) => result,
+            Some(Err(_)) => Err(ServedError::Panicked),
+            None => Ok(()),
+        }
+    }
+}
+
+impl<D> Drop for Served<D> {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(thread) = self.thread.take() {
+            match thread.join() {
+                Ok(Err(e)) => tracing::warn!("{e}"),
+                Err(_) => tracing::warn!("{}", ServedError::Panicked),
+                Ok(Ok(())) => {}
+            }
+        }
+    }
+}
+
+/// Reaches a served device from any thread.
+pub struct Handle<D> {
+    control: Sender<Control<D>>,
+    saver: Option<Saver<D>>,
+}
+
+impl<D> Clone for Handle<D> {
+    fn clone(&self) -> Self {
+        Self {
+            control: self.control.clone(),
+            saver: self.saver.clone(),
+        }
+    }
+}
+
+impl<D: 'static> Handle<D> {
+    /// Runs `work` on the device inside its serve thread, between two byte events, at the
+    /// current virtual time, and waits for its result.
+    pub fn with<T: Send + 'static>(
+        &self,
+        work: impl FnOnce(&mut D, u64) -> T + Send + 'static,
+    ) -> Result<T, ServedError> {
+        let (tx, rx) = channel();
+        self.control(Box::new(move |device, now| {
+            let _ = tx.send(work(device, now));
+        }))?;
+        // Answered, or dropped unrun when serving ends: no time-out needed.
+        rx.recv().map_err(|_| ServedError::Stopped)
+    }
+
+    /// Queues `work` for the serve thread without waiting.
+    pub fn control(&self, work: Control<D>) -> Result<(), ServedError> {
+        self.control.send(work).map_err(|_| ServedError::Stopped)
+    }
+
+    /// Saves the state now; the file's path, or `None` if the device keeps no file.
+    pub fn save(&self) -> Result<Option<PathBuf>, ServedError> {
+        let Some(saver) = self.saver.clone() else {
+            return Ok(None);
+        };
+        let path = saver.path.clone();
+        self.with(move |device, _| saver.save_and_wait_later(device))?
+            .recv()
+            .map_err(|_| ServedError::Stopped)??;
+        Ok(Some(path))
+    }
+}
+
+/// A snapshot on its way to the file; `done` hears how writing it went.
+struct SaveJob {
+    snapshot: Snapshot,
+    done: Option<Sender<Result<(), ServedError>>>,
+}
+
+/// The serve thread's side of the saver thread: snapshots are taken here (a copy), turned into
+/// bytes and written there, so the device's pacing never waits for serialisation or the disk.
+struct Saver<D> {
+    jobs: Sender<SaveJob>,
+    path: PathBuf,
+    every_ns: u64,
+    generation: fn(&D) -> u64,
+    snapshot: fn(&D) -> Snapshot,
+    /// The generation last handed to the saver thread (`u64::MAX` after a failed write, so
+    /// the next look saves again).
+    enqueued: Arc<AtomicU64>,
+}
+
+impl<D> Clone for Saver<D> {
+    fn clone(&self) -> Self {
+        Self {
+            jobs: self.jobs.clone(),
+            path: self.path.clone(),
+            every_ns: self.every_ns,
+            generation: self.generation,
+            snapshot: self.snapshot,
+            enqueued: self.enqueued.clone(),
+        }
+    }
+}
+
+impl<D> Saver<D> {
+    fn spawn(name: &str, p: Persistence<D>, saved: u64) -> Result<Self, ServedError> {
+        let (jobs, rx) = channel();
+        let enqueued = Arc::new(AtomicU64::new(saved));
+        {
+            let path = p.path.clone();
+            let what = p.what;
+            let enqueued = enqueued.clone();
+            std::thread::Builder::new()
+                .name(format!("{name}-save"))
+                .spawn(move || save_jobs(&rx, &path, what, &enqueued))
+                .map_err(ServedError::Serve)?;
+        }
+        Ok(Self {
+            jobs,
+            path: p.path,
+            every_ns: p.every.as_nanos().min(u128::from(u64::MAX)) as u64,
+            generation: p.generation,
+            snapshot: p.snapshot,
+            enqueued,
+        })
+    }
+
+    /// In the serve thread: hands a snapshot to the saver thread if the state moved.
+    fn save_if_changed(&self, device: &D) {
+        let generation = (self.generation)(device);
+        if self.enqueued.swap(generation, Ordering::SeqCst) != generation {
+            let _ = self.jobs.send(SaveJob {
+                snapshot: (self.snapshot)(device),
+                done: None,
+            });
+        }
+    }
+
+    /// In the serve thread: hands a snapshot over; the receiver hears when it is written.
+    fn save_and_wait_later(&self, device: &D) -> Receiver<Result<(), ServedError>> {
+        let (tx, rx) = channel();
+        self.enqueued
+            .store((self.generation)(device), Ordering::SeqCst);
+        let job = SaveJob {
+            snapshot: (self.snapshot)(device),
+            done: Some(tx),
+        };
+        if let Err(unsent) = self.jobs.send(job)
+            && let Some(done) = unsent.0.done
+        {
+            let _ = done.send(Err(ServedError::Stopped));
+        }
+        rx
+    }
+
+    fn save_and_wait(&self, device: &D) -> Result<(), ServedError> {
+        self.save_and_wait_later(device)
+            .recv()
+            .map_err(|_| ServedError::Stopped)?
+    }
+}
+
+/// The saver thread: writes the newest snapshot waiting, tells whoever waits for it; one
+/// warning when periodic saving starts failing, one line when it works again.
+fn save_jobs(jobs: &Receiver<SaveJob>, path: &Path, what: &'static str, enqueued: &AtomicU64) {
+    let mut failing = false;
+    while let Ok(first) = jobs.recv() {
+        // Snapshots queue in the order they were taken: only the newest needs writing.
+        let mut latest = first.snapshot;
+        let mut waiting: Vec<_> = first.done.into_iter().collect();
+        while let Ok(next) = jobs.try_recv() {
+            latest = next.snapshot;
+            waiting.extend(next.done);
+        }
+        let result = write_atomic(path, &latest());
+        match &result {
+            Err(e) => {
+                enqueued.store(u64::MAX, Ordering::SeqCst);
+                if !failing {
+                    tracing::warn!("{what}: {e}; trying again at the next change");
+                }
+                failing = true;
+            }
+            Ok(()) => {
+                if failing {
+                    tracing::info!("{what} {} written again", path.display());
+                }
+                failing = false;
+            }
+        }
+        for done in waiting {
+            let _ = done.send(result.as_ref().map(|_| ()).map_err(|e| ServedError::Save {
+                what,
+                path: e.path.clone(),
+                source: io::Error::new(e.source.kind(), e.source.to_string()),
+            }));
+        }
+    }
+}
