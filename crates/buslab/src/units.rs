@@ -4,7 +4,6 @@
 //! with a single unit). A bare number is refused, because in one option it would mean seconds
 //! and in the next milliseconds. Durations are printed the same way (`2.06 s`, `350 ms`).
 
-use std::fmt;
 use std::time::Duration;
 
 /// The longest duration any option accepts: long runs are measured in days, and beyond this
@@ -56,31 +55,7 @@ fn decimal(text: &str) -> Option<Duration> {
 }
 
 /// A duration for people: three significant digits and a unit (`2.06 s`, `350 ms`, `87.0 µs`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Human(pub Duration);
-
-impl fmt::Display for Human {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let s = self.0.as_secs_f64();
-        let (value, unit) = if s >= 1.0 {
-            (s, "s")
-        } else if s >= 1e-3 {
-            (s * 1e3, "ms")
-        } else if s >= 1e-6 {
-            (s * 1e6, "µs")
-        } else {
-            (s * 1e9, "ns")
-        };
-        let decimals = if value >= 100.0 {
-            0
-        } else if value >= 10.0 {
-            1
-        } else {
-            2
-        };
-        write!(f, "{value:.decimals$} {unit}")
-    }
-}
+pub use buslab_device::Human;
 
 #[cfg(test)]
 mod tests {

@@ -185,7 +185,7 @@ pub enum BusError {
     #[error("protocol error: {0}")]
     Protocol(String),
     /// `what` names what did not come: "answer to < buslab_flush >".
-    #[error("no {what} within {}", human(*after))]
+    #[error("no {what} within {}", Human(*after))]
     Timeout { what: String, after: Duration },
     #[error("{backend} cannot deliver {what}")]
     Unsupported { what: &'static str, backend: String },
@@ -194,24 +194,7 @@ pub enum BusError {
 }
 
 /// `2.06 s`, `350 ms`: three significant digits and a unit, for messages.
-pub fn human(d: Duration) -> String {
-    let s = d.as_secs_f64();
-    let (value, unit) = if s >= 1.0 {
-        (s, "s")
-    } else if s >= 1e-3 {
-        (s * 1e3, "ms")
-    } else {
-        (s * 1e6, "µs")
-    };
-    let decimals = if value >= 100.0 {
-        0
-    } else if value >= 10.0 {
-        1
-    } else {
-        2
-    };
-    format!("{value:.decimals$} {unit}")
-}
+pub use buslab_device::Human;
 
 #[cfg(test)]
 mod tests {

@@ -7,7 +7,7 @@ use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
 use buslab_can::Frame;
-use buslab_canbus::bus::{human, matches_any};
+use buslab_canbus::bus::{Human, matches_any};
 use buslab_canbus::{
     BusAdmin, BusError, BusEvent, BusState, CanBus, ErrorFrame, ErrorMessage, Filter, Message,
     NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport,
@@ -52,7 +52,7 @@ pub enum ClientError {
     Handshake { expected: &'static str, got: String },
     #[error("the server answered: {0}")]
     Server(String),
-    #[error("no answer to {request} within {}", human(*after))]
+    #[error("no answer to {request} within {}", Human(*after))]
     Timeout { request: String, after: Duration },
     #[error("bad message from the server: {0}")]
     Protocol(#[from] ProtocolError),
@@ -171,7 +171,7 @@ impl SocketcandBus {
         ClientError::Handshake {
             expected,
             got: got.map_or_else(
-                || format!("nothing within {}", human(self.options.reply_timeout)),
+                || format!("nothing within {}", Human(self.options.reply_timeout)),
                 |m| sanitize(&m.to_string()),
             ),
         }
