@@ -13,11 +13,21 @@ fn buslab() -> Command {
     Command::cargo_bin("buslab").unwrap()
 }
 
+/// The lab process, killed if the test ends early (it runs until told to stop).
+struct Lab(std::process::Child);
+
+impl Drop for Lab {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
 fn wait_for(path: &Path) {
     let start = Instant::now();
     while !path.exists() {
         assert!(
-            start.elapsed() < Duration::from_secs(10),
+            start.elapsed() < Duration::from_secs(60),
             "{} never appeared",
             path.display()
         );
@@ -28,16 +38,16 @@ fn wait_for(path: &Path) {
 #[test]
 fn lab_devices_answer_the_host_tools_and_keep_their_state() {
     let dir = tempfile::tempdir().unwrap();
-    let mut lab = buslab()
-        .args(["lab", "--duration", "8s", "--dir"])
+    let mut lab = Lab(buslab()
+        .args(["lab", "--dir"])
         .arg(dir.path())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
-        .unwrap();
+        .unwrap());
     // The banner's lines, as they come.
     let (lines_tx, lines) = mpsc::channel();
-    let stderr = lab.stderr.take().unwrap();
+    let stderr = lab.0.stderr.take().unwrap();
     let reader = std::thread::spawn(move || {
         let mut all = String::new();
         for line in BufReader::new(stderr).lines().map_while(Result::ok) {
@@ -49,7 +59,7 @@ fn lab_devices_answer_the_host_tools_and_keep_their_state() {
     });
     let url = loop {
         let line = lines
-            .recv_timeout(Duration::from_secs(10))
+            .recv_timeout(Duration::from_secs(60))
             .expect("the lab's banner names its bus");
         if let Some(at) = line.find("socketcand://") {
             break line[at..].split_whitespace().next().unwrap().to_string();
@@ -109,7 +119,13 @@ fn lab_devices_answer_the_host_tools_and_keep_their_state() {
         "{dump}"
     );
 
-    let status = lab.wait().unwrap();
+    // SIGTERM stops the lab as cleanly as Ctrl-C: links removed, state saved.
+    let killed = Command::new("kill")
+        .args(["-TERM", &lab.0.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = lab.0.wait().unwrap();
     let banner = reader.join().unwrap();
     assert!(status.success(), "{banner}");
     assert!(
