@@ -13,7 +13,8 @@ pub struct Verbosity {
     /// (RUST_LOG overrides).
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
-    /// Fewer log lines: errors only (RUST_LOG overrides); `sim` prints only its summary.
+    /// Fewer log lines: errors only (RUST_LOG overrides); `sim` prints only its summary,
+    /// `lab` no status line.
     #[arg(short, long, global = true, conflicts_with = "verbose")]
     quiet: bool,
 }

@@ -84,7 +84,7 @@ fn describe(err: &anyhow::Error) -> String {
 fn run(cli: Cli) -> anyhow::Result<()> {
     let quiet = cli.verbosity.quiet();
     match cli.command {
-        Command::Lab(args) => cmd::lab::run(args),
+        Command::Lab(args) => cmd::lab::run(args, quiet),
         Command::Wire(args) => cmd::wire::run(args),
         Command::Sim(args) => cmd::sim::run(args, quiet),
         Command::Zelle(args) => cmd::zelle::run(args),

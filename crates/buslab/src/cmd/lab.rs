@@ -64,9 +64,10 @@ const CHANNEL: &str = "vcan0";
 const COUNTER_ID: u16 = 0x200;
 const COUNTER_PERIOD: Duration = Duration::from_millis(50);
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// `quiet` (the global `-q`): no status line.
+pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     // A reader that goes away (`| head`) ends the run quietly, as for other Unix tools.
-    match run_lab(args) {
+    match run_lab(args, quiet) {
         Err(e)
             if e.downcast_ref::<io::Error>()
                 .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe) =>
@@ -77,7 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-fn run_lab(args: Args) -> anyhow::Result<()> {
+fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
@@ -112,7 +113,7 @@ fn run_lab(args: Args) -> anyhow::Result<()> {
     let result = if args.frames {
         monitor(addr, &args, end, start_unix, &stop)
     } else {
-        status_lines(&server, end, &stop)
+        status_lines(&server, end, &stop, quiet)
     };
     stop.store(true, Ordering::SeqCst);
     let counted = counter.join();
@@ -134,7 +135,14 @@ fn status_lines(
     server: &ServerHandle,
     end: Option<Instant>,
     stop: &AtomicBool,
+    quiet: bool,
 ) -> anyhow::Result<()> {
+    if quiet {
+        while !stop.load(Ordering::SeqCst) && end.is_none_or(|e| Instant::now() < e) {
+            thread::sleep(Duration::from_millis(100));
+        }
+        return Ok(());
+    }
     let terminal = io::stderr().is_terminal();
     let every = if terminal {
         STATUS_ON_TERMINAL
