@@ -36,8 +36,10 @@ fn connect(s: &Served<Board>) -> Client<SerialLine> {
     let port = SerialLine::open(s.path(), LineSettings::n81(BAUD)).unwrap();
     let mut c = Client::new(port, BAUD);
     c.timeout = ALLOWANCE;
-    // The boot report (F4 03) may or may not have been read: drain.
-    while c.next(Duration::from_millis(30)).unwrap().is_some() {}
+    // The boot report (F4 03) may or may not reach the client, and a loaded machine may take
+    // any time to deliver it: a watchdog round trip puts whatever came before it behind us.
+    c.sync().unwrap();
+    c.take_backlog();
     c
 }
 
