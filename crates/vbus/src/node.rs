@@ -333,12 +333,13 @@ impl BusNode for ClientNode {
         self.chip().error_state()
     }
 
-    fn is_quiescent(&self) -> bool {
-        self.mismatch.is_none()
+    fn quiet_until(&self) -> Option<u64> {
+        let quiet = self.mismatch.is_none()
             && self.tx.is_empty()
             && !self.driver.tx_pending()
-            && self.restart_at.is_none()
-            && self.chip().is_quiescent()
+            && self.chip().is_quiescent();
+        // A restart after bus-off is the driver's timer.
+        quiet.then_some(self.restart_at.unwrap_or(u64::MAX))
     }
 
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
