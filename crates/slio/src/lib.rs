@@ -6,14 +6,17 @@
 //! - [`slio`]: the chip as a bit-level node of the one bus engine (calibration, register
 //!   logic, edge reports, ADC, DPM, the network watchdog).
 //! - [`board`]: the demo board (ID/input switches, potentiometer, LEDs, DPM outputs).
+//! - [`master`]: the host side, sans-IO: calibration, inventory, confirmed register access.
 #![forbid(unsafe_code)]
 
 pub mod board;
 pub mod ids;
+pub mod master;
 pub mod registers;
 pub mod slio;
 
 pub use board::DemoBoard;
 pub use ids::{CALIBRATION_ID, Direction, SlioId, calibration_frame};
+pub use master::{Master, MasterEvent, RequestId, Transmit};
 pub use registers::{Register, Reply, Request, Status};
 pub use slio::{Calibration, ModeChangeCause, Slio, SlioError, SlioNotice};
