@@ -43,6 +43,9 @@ enum Command {
     Regs(cmd::regs::Args),
     /// A node's error state, STATUS bits, counters, ALC and ECC in words.
     Status(cmd::status::Args),
+    /// P82C150 SLIO I/O nodes on a bus: calibrate, list, read/write registers, outputs, ADC,
+    /// DPM.
+    Slio(cmd::slio::Args),
 }
 
 fn main() -> ExitCode {
@@ -95,6 +98,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gen(args) => cmd::r#gen::run(args),
         Command::Regs(args) => cmd::regs::run(args),
         Command::Status(args) => cmd::status::run(args),
+        Command::Slio(args) => cmd::slio::run(args),
     }
 }
 

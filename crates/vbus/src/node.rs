@@ -121,6 +121,14 @@ impl ClientNode {
         Ok(())
     }
 
+    /// Gives up the frame in the chip's buffer (CMR.AT: one on the wire finishes this attempt
+    /// and is not retried) and every frame queued behind it; they count as failed.
+    pub fn abort(&mut self) {
+        self.counters.tx_failed += self.tx.len() as u64;
+        self.tx.clear();
+        self.driver.abort();
+    }
+
     /// Room in the transmit queue.
     pub fn tx_room(&self) -> usize {
         TX_QUEUE - self.tx.len()
