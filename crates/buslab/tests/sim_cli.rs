@@ -362,16 +362,28 @@ fn a_slio_on_a_bus_it_cannot_follow_is_refused_by_name() {
         "bitrate = 500000\n[[nodes]]\nname = \"host\"\n[[nodes]]\nname = \"s\"\nkind = \"slio\"\nid = \"3\"\n",
     )
     .unwrap();
-    let out = buslab().args(["sim", path.to_str().unwrap()]).output().unwrap();
+    let out = buslab()
+        .args(["sim", path.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("node \"s\"") && err.contains("20000..=125000"), "{err}");
+    assert!(
+        err.contains("node \"s\"") && err.contains("20000..=125000"),
+        "{err}"
+    );
     std::fs::write(
         &path,
         "bitrate = 125000\n[[nodes]]\nname = \"s\"\nkind = \"slio\"\nid = \"G\"\n",
     )
     .unwrap();
-    let out = buslab().args(["sim", path.to_str().unwrap()]).output().unwrap();
+    let out = buslab()
+        .args(["sim", path.to_str().unwrap()])
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("SLIO id \"G\""), "{err}");
+    assert!(
+        !out.status.success() && err.contains("SLIO id \"G\""),
+        "{err}"
+    );
 }

@@ -125,6 +125,20 @@ impl<'a> SlioHost<'a> {
         Ok(())
     }
 
+    /// How long a request waits for its answer.
+    pub fn set_answer_within(&mut self, wait: Duration) {
+        self.master
+            .set_answer_within(wait.as_nanos().min(u64::MAX as u128) as u64);
+    }
+
+    /// Sends the start-up calibration (if the host was made to calibrate) and listens until
+    /// the sign-ons are in: all 48 frames sent, then as long as 16 SLIOs take to sign on (a
+    /// few frames each at the bus's bit rate, generously), at least 100 ms.
+    pub fn settle(&mut self, bitrate: u32) -> Result<Vec<(SlioId, u16)>, BusError> {
+        let sign_ons = Duration::from_secs_f64(16.0 * 80.0 * 4.0 / f64::from(bitrate.max(1)));
+        self.listen(sign_ons.max(Duration::from_millis(100)))
+    }
+
     /// Runs for `wait` and returns the SLIOs that signed on or answered meanwhile.
     pub fn listen(&mut self, wait: Duration) -> Result<Vec<(SlioId, u16)>, BusError> {
         self.run(Instant::now() + wait, |_| false)?;

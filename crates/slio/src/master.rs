@@ -83,6 +83,7 @@ struct Pending {
 #[derive(Debug)]
 pub struct Master {
     bit_ns: u64,
+    answer_within_ns: u64,
     outbox: VecDeque<Transmit>,
     events: VecDeque<MasterEvent>,
     known: [Option<Known>; 16],
@@ -98,6 +99,7 @@ impl Master {
         let bit_ns = 1_000_000_000 / u64::from(bitrate.max(1));
         let mut m = Self {
             bit_ns,
+            answer_within_ns: ANSWER_WITHIN_BITS * bit_ns,
             outbox: VecDeque::new(),
             events: VecDeque::new(),
             known: [None; 16],
@@ -126,6 +128,12 @@ impl Master {
             });
         }
         self.next_calibration = Some(now + CALIBRATION_EVERY_BITS * self.bit_ns);
+    }
+
+    /// How long requests wait for their answer before [`MasterEvent::NoAnswer`] (default
+    /// [`ANSWER_WITHIN_BITS`] bit-times; a host on a loaded machine may want more).
+    pub fn set_answer_within(&mut self, ns: u64) {
+        self.answer_within_ns = ns.max(1);
     }
 
     /// Stops the periodic calibration (the SLIOs will lose it after 8192 bit-times).
@@ -173,7 +181,7 @@ impl Master {
             id,
             slio,
             register,
-            deadline: now + ANSWER_WITHIN_BITS * self.bit_ns,
+            deadline: now + self.answer_within_ns,
         });
         id
     }

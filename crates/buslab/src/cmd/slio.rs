@@ -25,7 +25,8 @@ pub struct Args {
     /// them calibrated).
     #[arg(long, global = true)]
     pub calibrate: bool,
-    /// How long to wait for a SLIO's answer (`500ms`, `2s`).
+    /// How long to wait for a SLIO's answer (`500ms`, `2s`); `list` takes that long for the
+    /// numbers nobody answers.
     #[arg(long, global = true, default_value = "2s", value_parser = crate::units::duration)]
     pub timeout: Duration,
     #[command(subcommand)]
@@ -69,7 +70,7 @@ pub enum SlioCommand {
         #[arg(value_parser = clap::value_parser!(u8).range(0..=15))]
         pin: u8,
         /// on/off, 1/0, high/low.
-        #[arg(value_parser = parse_level)]
+        #[arg(action = clap::ArgAction::Set, value_parser = parse_level)]
         level: bool,
     },
     /// Convert an analog input of a demo board: 1 = ADC1 (P5), 2 = ADC2 (P6, the
@@ -116,12 +117,6 @@ fn parse_level(text: &str) -> Result<bool, String> {
     }
 }
 
-/// The time the start-up calibration takes: 48 frames of ~60 bits at the bit rate, plus a
-/// loaded machine's slack.
-fn calibration_time(bitrate: u32) -> Duration {
-    Duration::from_secs_f64(48.0 * 60.0 / f64::from(bitrate)) * 20 + Duration::from_millis(500)
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let url = args.bus.bus.clone();
     let mut bus = open(&url)?;
@@ -136,9 +131,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let calibrate = args.calibrate || matches!(args.command, SlioCommand::Calibrate { .. });
     let mut host = SlioHost::new(&mut *bus, bitrate, calibrate);
     let wait = args.timeout;
+    host.set_answer_within(wait);
     match args.command {
         SlioCommand::Calibrate { keep } => {
-            let signed = host.listen(calibration_time(bitrate))?;
+            let signed = host.settle(bitrate)?;
             if signed.is_empty() {
                 println!(
                     "no SLIO signed on (already calibrated ones do not: try `buslab slio list`)"
@@ -157,7 +153,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         SlioCommand::List => {
             if calibrate {
-                host.listen(calibration_time(bitrate))?;
+                host.settle(bitrate)?;
             }
             let found = host.scan(wait)?;
             if found.is_empty() {
@@ -247,7 +243,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// With --calibrate, the start-up calibration before a request.
 fn prepare(host: &mut SlioHost<'_>, calibrate: bool, bitrate: u32) -> anyhow::Result<()> {
     if calibrate {
-        host.listen(calibration_time(bitrate))?;
+        host.settle(bitrate)?;
     }
     Ok(())
 }
