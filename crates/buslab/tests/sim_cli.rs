@@ -330,3 +330,60 @@ fn sigrok_decodes_the_vcd() {
         "{text}"
     );
 }
+
+#[test]
+fn slio_calibration_start_up_shows_unacknowledged_frames_then_sign_ons() {
+    let path = scenario("slio-calibration.toml");
+    let out = stdout_of(&["sim", path.to_str().unwrap(), "--errors"]);
+    let lines: Vec<&str> = out.lines().collect();
+    let ack_errors = lines
+        .iter()
+        .filter(|l| l.contains("host: ACK error as transmitter"))
+        .count();
+    // The first frames go unacknowledged (wake-up, rough calibration, one more valid frame).
+    assert_eq!(ack_errors, 3, "{out}");
+    let first_sign_on = lines.iter().position(|l| l.contains("285#30")).unwrap();
+    let last_error = lines.iter().rposition(|l| l.contains("ACK error")).unwrap();
+    assert!(last_error < first_sign_on, "{out}");
+    // Sign-ons with RSTD set and the ID switches on P0..P3, then SLIO 3's answers.
+    for sign_on in ["slio0 285#300000", "slio3 29D#300003", "slioA 395#30000A"] {
+        assert!(out.contains(sign_on), "{sign_on}:\n{out}");
+    }
+    assert!(out.contains("slio3 29D#243F90"), "{out}");
+    assert!(out.contains("slio3 29D#232080"), "{out}");
+}
+
+#[test]
+fn a_slio_on_a_bus_it_cannot_follow_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fast.toml");
+    std::fs::write(
+        &path,
+        "bitrate = 500000\n[[nodes]]\nname = \"host\"\n[[nodes]]\nname = \"s\"\nkind = \"slio\"\nid = \"3\"\n",
+    )
+    .unwrap();
+    let out = buslab()
+        .args(["sim", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("node \"s\"") && err.contains("20000..=125000"),
+        "{err}"
+    );
+    std::fs::write(
+        &path,
+        "bitrate = 125000\n[[nodes]]\nname = \"s\"\nkind = \"slio\"\nid = \"G\"\n",
+    )
+    .unwrap();
+    let out = buslab()
+        .args(["sim", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("SLIO id \"G\""),
+        "{err}"
+    );
+}

@@ -19,7 +19,7 @@ pub trait BusNode: Any + Send {
     fn output(&self) -> Level;
 
     /// The bus level this node sees during bit-time `now` (bit-times since the bus started;
-    /// it may jump forward over idle bus while [`is_quiescent`](Self::is_quiescent)).
+    /// it may jump forward over idle bus while the node is [quiet](Self::quiet_until)).
     fn sample(&mut self, now: u64, bus: Level);
 
     /// The next protocol event of this node's controller (what the engine counts and traces).
@@ -32,10 +32,12 @@ pub trait BusNode: Any + Send {
     /// Fault confinement state.
     fn state(&self) -> ErrorState;
 
-    /// Whether a recessive bus changes nothing in this node but the time: it is idle with
-    /// nothing to send and no timer of its own running. The engine may then skip bit-times
-    /// without sampling, and the next [`sample`](Self::sample) comes with a later `now`.
-    fn is_quiescent(&self) -> bool;
+    /// Until when a recessive bus changes nothing in this node but the time: `None` while it
+    /// is busy (it must see every bit), `Some(u64::MAX)` when it is idle with nothing to send,
+    /// `Some(t)` when it is idle but has a timer of its own that runs out at bit-time `t`. The
+    /// engine may skip bit-times without sampling up to that time; the next
+    /// [`sample`](Self::sample) then comes with a later `now`.
+    fn quiet_until(&self) -> Option<u64>;
 
     /// Queues a frame for transmission (traffic generators, scenario one-shots).
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull>;
@@ -71,8 +73,8 @@ impl BusNode for Controller {
     fn state(&self) -> ErrorState {
         Controller::state(self)
     }
-    fn is_quiescent(&self) -> bool {
-        self.is_bus_idle() && Controller::pending(self) == 0
+    fn quiet_until(&self) -> Option<u64> {
+        (self.is_bus_idle() && Controller::pending(self) == 0).then_some(u64::MAX)
     }
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
         Controller::enqueue(self, frame)

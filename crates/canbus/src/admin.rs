@@ -201,6 +201,9 @@ pub trait BusAdmin {
     /// Waits until every frame this client sent so far was transmitted or given up, and says
     /// how many of each since it joined; an error after `timeout`.
     fn flush(&mut self, timeout: std::time::Duration) -> Result<TxReport, BusError>;
+    /// Gives up the frame this client's controller is trying (as CMR.AT: a frame already on
+    /// the wire finishes its attempt but is not retried) and the frames queued behind it.
+    fn abort(&mut self) -> Result<(), BusError>;
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@
 //!   encoded, and in can-utils' words.
 //! - [`manager`]: the single owner of a driver: one thread, listeners and requests
 //!   ([`Manager`], [`ManagerHandle`]).
+//! - [`slio`]: SLIOs from any bus ([`slio::SlioHost`], CANAPI's `SlIo` class).
 //! - [`file`](mod@file): the file protocol for data longer than 8 bytes (SPEC N5).
 //!
 //! Two drivers on a wired-AND bus of two model chips, stepped bit by bit:
@@ -51,6 +52,7 @@ pub mod error_frame;
 pub mod file;
 pub mod manager;
 pub mod regs;
+pub mod slio;
 
 pub use admin::{
     BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming,

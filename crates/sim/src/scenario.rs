@@ -3,6 +3,7 @@
 
 use buslab_can::controller::ControllerConfig;
 use buslab_can::{Frame, Id};
+use buslab_slio::{DemoBoard, SlioId};
 use serde::Deserialize;
 
 use crate::error::ScenarioError;
@@ -30,8 +31,22 @@ pub struct Scenario {
 #[derive(Clone, Debug, PartialEq)]
 pub struct NodeSpec {
     pub name: String,
-    pub config: ControllerConfig,
+    pub kind: NodeKind,
     pub traffic: Vec<Traffic>,
+}
+
+/// What a scenario node is.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NodeKind {
+    /// A bare protocol controller with these options.
+    Controller(ControllerConfig),
+    /// A P82C150 SLIO on the seed's demo board, ID switches set to `id`; ADC1 (P5) and the
+    /// potentiometer (P6) at constant voltages.
+    Slio {
+        id: SlioId,
+        adc1: f64,
+        potentiometer: f64,
+    },
 }
 
 impl Scenario {
@@ -45,7 +60,24 @@ impl Scenario {
     pub fn build(&self) -> Simulation {
         let mut sim = Simulation::new(self.bitrate, self.seed);
         for node in &self.nodes {
-            let index = sim.add_node(&node.name, node.config);
+            let index = match &node.kind {
+                NodeKind::Controller(config) => sim.add_node(&node.name, *config),
+                NodeKind::Slio {
+                    id,
+                    adc1,
+                    potentiometer,
+                } => {
+                    // The bit rate was checked when the scenario was read.
+                    let board = DemoBoard::new(
+                        *id,
+                        self.bitrate,
+                        Box::new(*adc1),
+                        Box::new(*potentiometer),
+                    )
+                    .expect("bit rate checked");
+                    sim.add_device(&node.name, Box::new(board))
+                }
+            };
             for t in &node.traffic {
                 sim.add_traffic(index, t.clone());
             }
@@ -131,6 +163,13 @@ struct RawScenario {
 #[serde(deny_unknown_fields)]
 struct RawNode {
     name: String,
+    /// `controller` (the default) or `slio`.
+    kind: Option<String>,
+    /// A SLIO's number, 0..F.
+    id: Option<String>,
+    /// A SLIO board's ADC1 and potentiometer voltages.
+    adc1: Option<f64>,
+    potentiometer: Option<f64>,
     #[serde(default)]
     listen_only: bool,
     #[serde(default)]
@@ -376,15 +415,80 @@ impl RawNode {
             auto_recover: self.auto_recover.unwrap_or(defaults.auto_recover),
             tx_queue_capacity,
         };
-        let traffic = self
+        let traffic: Vec<Traffic> = self
             .traffic
             .into_iter()
             .enumerate()
             .map(|(i, t)| t.resolve(r, &format!("{context}, traffic {}", i + 1)))
             .collect::<Result<_, _>>()?;
+        let kind = match self.kind.as_deref() {
+            None | Some("controller") => {
+                if let Some(id) = &self.id {
+                    return Err(ScenarioError::OutOfRange {
+                        context,
+                        what: "id",
+                        value: id.clone(),
+                        range: "only for kind = \"slio\"",
+                    });
+                }
+                NodeKind::Controller(config)
+            }
+            Some("slio") => {
+                let id_text = self.id.as_deref().unwrap_or("");
+                let id = id_text
+                    .parse::<SlioId>()
+                    .map_err(|_| ScenarioError::OutOfRange {
+                        context: context.clone(),
+                        what: "SLIO id",
+                        value: format!("{id_text:?}"),
+                        range: "0..F (one hex digit)",
+                    })?;
+                if !(buslab_slio::slio::MIN_BITRATE..=buslab_slio::slio::MAX_BITRATE)
+                    .contains(&r.bitrate)
+                {
+                    return Err(ScenarioError::OutOfRange {
+                        context,
+                        what: "bit rate for a SLIO",
+                        value: r.bitrate.to_string(),
+                        range: "20000..=125000 bit/s (the P82C150's RC oscillator)",
+                    });
+                }
+                if !traffic.is_empty() {
+                    return Err(ScenarioError::OutOfRange {
+                        context,
+                        what: "traffic",
+                        value: traffic.len().to_string(),
+                        range: "none: a SLIO sends only its answers, sign-on and input reports",
+                    });
+                }
+                let volts = |what: &'static str, v: Option<f64>, default: f64| match v {
+                    None => Ok(default),
+                    Some(v) if (0.0..=5.0).contains(&v) => Ok(v),
+                    Some(v) => Err(ScenarioError::OutOfRange {
+                        context: context.clone(),
+                        what,
+                        value: v.to_string(),
+                        range: "0.0..=5.0 V",
+                    }),
+                };
+                NodeKind::Slio {
+                    id,
+                    adc1: volts("adc1", self.adc1, 1.25)?,
+                    potentiometer: volts("potentiometer", self.potentiometer, 2.5)?,
+                }
+            }
+            Some(other) => {
+                return Err(ScenarioError::OutOfRange {
+                    context,
+                    what: "kind",
+                    value: format!("{other:?}"),
+                    range: "\"controller\" or \"slio\"",
+                });
+            }
+        };
         Ok(NodeSpec {
             name: self.name,
-            config,
+            kind,
             traffic,
         })
     }
@@ -612,7 +716,7 @@ mod tests {
         assert_eq!(s.duration, 12_500);
         assert_eq!(s.sample_every, Some(125));
         assert_eq!(s.nodes.len(), 2);
-        assert!(s.nodes[1].config.listen_only);
+        assert!(matches!(s.nodes[1].kind, NodeKind::Controller(c) if c.listen_only));
         assert_eq!(
             s.nodes[0].traffic[0],
             Traffic::Periodic {

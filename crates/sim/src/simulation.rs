@@ -467,11 +467,21 @@ impl Simulation {
                 .min(self.next_fault_change)
                 .min(self.next_sample);
             debug_assert!(horizon > self.now);
-            if self.fast_forward && !self.faulty && self.all_idle() {
-                // Idle levels are all recessive, as they already were: no level changes.
-                self.obs.bus.idle(horizon - self.now);
-                self.skipped += horizon - self.now;
-                self.now = horizon;
+            let quiet = if self.fast_forward && !self.faulty {
+                self.quiet_until()
+            } else {
+                None
+            };
+            if let Some(until) = quiet {
+                // Idle levels are all recessive, as they already were: no level changes. A
+                // node's own timer ends the jump; it is then sampled again.
+                let to = horizon.min(until);
+                self.obs.bus.idle(to - self.now);
+                self.skipped += to - self.now;
+                self.now = to;
+                if to == until && to < horizon {
+                    self.run_clean(to + 1);
+                }
             } else if self.faulty || self.levels.is_some() {
                 while self.now < horizon.min(self.schedule.next) {
                     self.step_faulty();
@@ -494,9 +504,18 @@ impl Simulation {
         run >= 11 && (run - 11).is_multiple_of(IDLE_CHECK_EVERY)
     }
 
-    /// Every node is quiescent: a recessive bus changes nothing but the time.
+    /// Every node is quiet: a recessive bus changes nothing but the time until the returned
+    /// bit-time (the earliest of the nodes' own timers), which is later than now.
+    fn quiet_until(&self) -> Option<BitTime> {
+        let mut until = BitTime::MAX;
+        for n in &self.nodes {
+            until = until.min(n.device().quiet_until()?);
+        }
+        (until > self.now).then_some(until)
+    }
+
     fn all_idle(&self) -> bool {
-        self.nodes.iter().all(|n| n.device().is_quiescent())
+        self.quiet_until().is_some()
     }
 
     /// Everything scheduled at or before `now`: fault changes, traffic, counter samples.
@@ -586,7 +605,9 @@ impl Simulation {
             if fast_forward
                 && run >= 11
                 && (run - 11).is_multiple_of(IDLE_CHECK_EVERY)
-                && nodes.iter().all(|n| n.device().is_quiescent())
+                && nodes
+                    .iter()
+                    .all(|n| n.device().quiet_until().is_some_and(|t| t > *now))
             {
                 return;
             }
@@ -614,17 +635,19 @@ impl Simulation {
     }
 
     /// Whether nothing can happen before [`Self::next_activity`] while the wire stays idle:
-    /// no fault is active and every controller is idle with nothing to send.
+    /// no fault is active and every node is quiet at least until then.
     pub fn is_idle(&self) -> bool {
         !self.faulty && self.all_idle()
     }
 
-    /// The next bit-time at which traffic, a fault change or a counter sample is due.
+    /// The next bit-time at which traffic, a fault change, a counter sample or a node's own
+    /// timer is due.
     pub fn next_activity(&self) -> BitTime {
         self.schedule
             .next
             .min(self.next_fault_change)
             .min(self.next_sample)
+            .min(self.quiet_until().unwrap_or(BitTime::MAX))
     }
 
     /// One bit-time through the wiring.

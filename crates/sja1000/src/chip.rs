@@ -688,8 +688,8 @@ impl buslab_can::node::BusNode for Sja1000 {
     fn state(&self) -> ErrorState {
         self.error_state()
     }
-    fn is_quiescent(&self) -> bool {
-        Sja1000::is_quiescent(self)
+    fn quiet_until(&self) -> Option<u64> {
+        Sja1000::is_quiescent(self).then_some(u64::MAX)
     }
     fn enqueue(&mut self, _frame: Frame) -> Result<(), buslab_can::controller::QueueFull> {
         Err(buslab_can::controller::QueueFull { capacity: 0 })

@@ -224,6 +224,13 @@ impl SocketcandBus {
             .map(drop)
     }
 
+    /// Gives up this client's frame being tried and the queued ones (buslab servers).
+    pub fn abort(&mut self) -> Result<(), ClientError> {
+        self.need_extensions("aborting a transmission")?;
+        self.request(&Command::Abort, None, self.options.reply_timeout)
+            .map(drop)
+    }
+
     /// Reprograms this client's chip with BTR0/BTR1 (buslab servers).
     pub fn set_btr(&mut self, btr0: u8, btr1: u8) -> Result<(), ClientError> {
         self.need_extensions("setting the bit timing")?;
@@ -643,5 +650,9 @@ impl BusAdmin for SocketcandBus {
 
     fn flush(&mut self, timeout: Duration) -> Result<TxReport, BusError> {
         Ok(SocketcandBus::flush(self, timeout)?)
+    }
+
+    fn abort(&mut self) -> Result<(), BusError> {
+        Ok(SocketcandBus::abort(self)?)
     }
 }

@@ -49,6 +49,9 @@ pub enum Command {
     /// client sent before it was transmitted or given up (SENT and FAILED count since the
     /// client joined).
     Flush,
+    /// `< buslab_abort >`: gives up this client's frame being tried and its queued ones
+    /// (`< ok >`).
+    Abort,
     /// `< buslab_btr BTR0 BTR1 >`: reprogram this client's chip with these bit timing
     /// registers (hex).
     Btr { btr0: u8, btr1: u8 },
@@ -116,6 +119,7 @@ impl Command {
             },
             "buslab_nodes" => no_args(Command::Nodes, "buslab_nodes"),
             "buslab_flush" => no_args(Command::Flush, "buslab_flush"),
+            "buslab_abort" => no_args(Command::Abort, "buslab_abort"),
             "buslab_status" | "buslab_regs" => {
                 let node = match args {
                     [] => None,
@@ -308,6 +312,7 @@ impl fmt::Display for Command {
             Command::ErrorFrames(on) => write!(f, "< buslab_errors {} >", *on as u8),
             Command::Nodes => f.write_str("< buslab_nodes >"),
             Command::Flush => f.write_str("< buslab_flush >"),
+            Command::Abort => f.write_str("< buslab_abort >"),
             Command::Status(None) => f.write_str("< buslab_status >"),
             Command::Status(Some(n)) => write!(f, "< buslab_status {n} >"),
             Command::Regs(None) => f.write_str("< buslab_regs >"),

@@ -70,6 +70,7 @@ fn commands_round_trip_through_their_text() {
         Command::ErrorFrames(false),
         Command::Nodes,
         Command::Flush,
+        Command::Abort,
         Command::Status(None),
         Command::Status(Some(NodeRef::Number(3))),
         Command::Regs(Some(NodeRef::Name("pc".into()))),

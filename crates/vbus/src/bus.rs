@@ -8,12 +8,15 @@
 use std::fmt;
 
 use buslab_can::controller::ErrorState;
+use buslab_can::node::BusNode;
 use buslab_canbus::{
     BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef, NodeRegisters,
     NodeStatus, NodeTiming,
 };
 use buslab_sim::{BusStats, Simulation};
 use buslab_sja1000::BitTiming;
+
+use buslab_slio::{Calibration, DemoBoard, ModeChangeCause, SlioNotice};
 
 use crate::node::{ClientNode, NodeNotice, node_config};
 
@@ -76,6 +79,12 @@ pub enum BusEvent {
         name: String,
         notice: NodeNotice,
     },
+    /// A SLIO board's calibration changed, or it changed its bus mode.
+    Slio {
+        number: u32,
+        name: String,
+        notice: SlioNotice,
+    },
 }
 
 impl BusEvent {
@@ -90,6 +99,7 @@ impl BusEvent {
             BusEvent::Node { notice, .. } => {
                 matches!(notice, NodeNotice::Overrun | NodeNotice::Restarted(Err(_)))
             }
+            BusEvent::Slio { notice, .. } => matches!(notice, SlioNotice::BusModeChange(_)),
             _ => false,
         }
     }
@@ -138,6 +148,30 @@ impl fmt::Display for BusEvent {
                         f,
                         ", the bus runs at {bus_bitrate} bit/s: this node cannot communicate"
                     )
+                }
+            }
+            BusEvent::Slio {
+                number,
+                name,
+                notice,
+            } => {
+                write!(f, "node {number} ({name}): SLIO ")?;
+                match notice {
+                    SlioNotice::Calibration(c) => f.write_str(match c {
+                        Calibration::Asleep => "asleep (bus mode 3)",
+                        Calibration::Unsynced => "awake, waiting for edges to measure a bit",
+                        Calibration::Rough => "roughly calibrated (executes, does not acknowledge)",
+                        Calibration::Calibrated => "calibrated: signs on, acknowledges, answers",
+                    }),
+                    SlioNotice::BusModeChange(ModeChangeCause::Watchdog) => f.write_str(
+                        "lost its calibration: no calibration frame for 8192 bit-times (bus-mode change, registers cleared)",
+                    ),
+                    SlioNotice::BusModeChange(ModeChangeCause::BusOff) => {
+                        f.write_str("went bus-off (bus-mode change, registers cleared)")
+                    }
+                    SlioNotice::Register { register, value } => {
+                        write!(f, "{register} = 0x{value:04X}")
+                    }
                 }
             }
             BusEvent::Node {
@@ -345,6 +379,28 @@ impl VirtualBus {
         Ok(number)
     }
 
+    /// Puts a simulated node on the bus (a SLIO board, the PowerPC node): numbered like the
+    /// others, reported by `status`, served by nobody's socket. Returns its number.
+    pub fn add_node(&mut self, name: &str, node: Box<dyn BusNode>) -> Result<u32, VbusError> {
+        if self.sim.nodes().len() >= MAX_NODES {
+            return Err(VbusError::Full(MAX_NODES));
+        }
+        if let Some(i) = self.sim.find_node(name) {
+            return Err(VbusError::NameTaken(name.to_string(), self.numbers[i]));
+        }
+        let number = self.next_number;
+        self.next_number += 1;
+        self.sim.add_device(name, node);
+        self.numbers.push(number);
+        Ok(number)
+    }
+
+    /// A node of type `T` by its name (a SLIO board, the PowerPC node).
+    pub fn device_mut<T: BusNode>(&mut self, name: &str) -> Option<&mut T> {
+        let i = self.sim.find_node(name)?;
+        self.sim.node_mut(i).get_mut()
+    }
+
     /// Removes a node (its connector is pulled, even in the middle of a frame; its queued
     /// frames are dropped).
     pub fn leave(&mut self, number: u32) {
@@ -539,6 +595,21 @@ impl VirtualBus {
             ..
         } = self;
         for (&number, node) in numbers.iter().zip(sim.nodes_mut()) {
+            if let Some(board) = node.get_mut::<DemoBoard>() {
+                for (time, notice) in board.take_notices() {
+                    if !matches!(notice, SlioNotice::Register { .. }) {
+                        events.push((
+                            time,
+                            BusEvent::Slio {
+                                number,
+                                name: node.name().to_string(),
+                                notice,
+                            },
+                        ));
+                    }
+                }
+                continue;
+            }
             let Some(notices) = node
                 .get_mut::<ClientNode>()
                 .map(ClientNode::take_notices)

@@ -121,6 +121,14 @@ impl ClientNode {
         Ok(())
     }
 
+    /// Gives up the frame in the chip's buffer (CMR.AT: one on the wire finishes this attempt
+    /// and is not retried) and every frame queued behind it; they count as failed.
+    pub fn abort(&mut self) {
+        self.counters.tx_failed += self.tx.len() as u64;
+        self.tx.clear();
+        self.driver.abort();
+    }
+
     /// Room in the transmit queue.
     pub fn tx_room(&self) -> usize {
         TX_QUEUE - self.tx.len()
@@ -333,12 +341,13 @@ impl BusNode for ClientNode {
         self.chip().error_state()
     }
 
-    fn is_quiescent(&self) -> bool {
-        self.mismatch.is_none()
+    fn quiet_until(&self) -> Option<u64> {
+        let quiet = self.mismatch.is_none()
             && self.tx.is_empty()
             && !self.driver.tx_pending()
-            && self.restart_at.is_none()
-            && self.chip().is_quiescent()
+            && self.chip().is_quiescent();
+        // A restart after bus-off is the driver's timer.
+        quiet.then_some(self.restart_at.unwrap_or(u64::MAX))
     }
 
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {

@@ -45,6 +45,8 @@ pub struct ServerConfig {
     pub open_timeout: Duration,
     /// Scenario nodes on the same wire.
     pub scenario: Option<Simulation>,
+    /// More simulated nodes on the wire, by name (SLIO boards, the PowerPC node).
+    pub devices: Vec<(String, Box<dyn buslab_can::node::BusNode>)>,
     /// Send every client its chip's bus errors, lost arbitrations and state changes as
     /// `< error CLASS SEC.USEC >` (socketcand's `-e`); a client can also ask with
     /// `< buslab_errors 1 >`.
@@ -65,6 +67,7 @@ impl ServerConfig {
             max_connections: 256,
             open_timeout: Duration::from_secs(30),
             scenario: None,
+            devices: Vec::new(),
             error_frames: false,
             beacon: None,
         }
@@ -200,6 +203,9 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
             });
         }
         bus = bus.with_scenario(sim);
+    }
+    for (name, device) in std::mem::take(&mut config.devices) {
+        bus.add_node(&name, device)?;
     }
     let mut listener = TcpListener::bind(config.listen).map_err(|source| ServerError::Listen {
         addr: config.listen,
@@ -397,8 +403,10 @@ impl Server {
             while let Ok(job) = self.jobs.try_recv() {
                 job(&mut self.bus);
             }
-            let busy_io = self.serve_clients();
+            // The bus first catches up with the wall clock, so what clients send now enters
+            // the bus now (not at the instant the loop last ran it, maybe long ago).
             self.advance_bus();
+            let busy_io = self.serve_clients();
             self.deliver();
             self.flush_all();
             self.reap();
@@ -889,6 +897,10 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
             ServerMessage::Ok
         }),
         Command::Btr { btr0, btr1 } => bus.set_btr(me, btr0, btr1).map(|()| ServerMessage::Ok),
+        Command::Abort => bus.client_mut(me).map(|n| {
+            n.abort();
+            ServerMessage::Ok
+        }),
         Command::Nodes => Ok(nodes_reply(&bus.nodes())),
         Command::Status(node) => bus
             .status(node.as_ref().unwrap_or(&own))

@@ -519,3 +519,43 @@ fn a_beacon_from_all_interfaces_names_a_reachable_address() {
     let one: std::net::SocketAddr = "127.0.0.2:5".parse().unwrap();
     assert_eq!(beacon_url_addr(one, to_lo), one);
 }
+
+#[test]
+fn abort_gives_up_a_frame_nobody_acknowledges() {
+    let s = server(500_000, 1024);
+    let mut alone = client(&s);
+    // Nobody else on the bus: no ACK, the chip would retry for ever.
+    alone.send(&frame("123#11")).unwrap();
+    alone.send(&frame("124#22")).unwrap();
+    alone.abort().unwrap();
+    let report = alone.flush(EVENT).unwrap();
+    assert_eq!((report.sent, report.failed), (0, 2), "{report:?}");
+    // The node is free again: with a listener, the next frame goes through.
+    let mut listener = client(&s);
+    alone.send(&frame("125#33")).unwrap();
+    assert_eq!(recv(&mut listener), "125#33");
+    s.shutdown();
+}
+
+#[test]
+fn a_frame_sent_after_a_quiet_spell_enters_the_bus_at_the_wall_clock_time() {
+    // Regression: the loop served clients before catching the idle bus up with the wall
+    // clock, so a frame sent after a quiet spell entered the bus in the past (by as much as
+    // the loop had slept): its timestamp was hundreds of milliseconds early, and a SLIO
+    // calibrated every 40 ms saw gaps past its 8192-bit watchdog.
+    let s = server(500_000, 1024);
+    let mut a = client(&s);
+    let mut b = client(&s);
+    std::thread::sleep(Duration::from_millis(500));
+    let before = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    a.send(&frame("123#01")).unwrap();
+    let m = b.recv(WAIT).unwrap().expect("the frame");
+    // Virtual time never runs ahead of the wall clock, so the frame cannot be stamped later
+    // than it really ended; and it entered the bus no earlier than it was sent (1 ms for the
+    // two clocks' rounding).
+    assert!(m.timestamp >= before - 0.001, "{} < {before}", m.timestamp);
+    s.shutdown();
+}

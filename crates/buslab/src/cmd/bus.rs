@@ -48,6 +48,11 @@ pub struct ServeArgs {
     /// error frames (`< error CLASS SEC.USEC >`, like socketcand -e).
     #[arg(short = 'e', long)]
     pub error_frames: bool,
+    /// Put SLIO demo boards on the bus with these numbers (0..F, comma-separated, e.g.
+    /// 0,3,A): P82C150 nodes that need calibrating (a host such as `buslab slio calibrate
+    /// --keep` or python-can sending 0AA#AA04); the bus must run at 20000..125000 bit/s.
+    #[arg(long, value_name = "IDS", value_delimiter = ',')]
+    pub slio: Vec<buslab_slio::SlioId>,
     /// Send socketcand's discovery beacon every 3 s (python-can's `detect_beacon()`), to
     /// ADDR, by default 127.0.0.1:42000 when listening on loopback, else the broadcast
     /// address 255.255.255.255:42000.
@@ -76,6 +81,11 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 .map_err(|_| anyhow::anyhow!("beacon address {addr:?} must be IP:PORT"))?,
         ),
     };
+    for &id in &args.slio {
+        let board = demo_board(id, args.bitrate)
+            .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
+        config.devices.push((format!("slio{id}"), Box::new(board)));
+    }
     if let Some(path) = &args.nodes {
         let text = super::sim::read_scenario(path)?;
         let scenario = buslab_sim::Scenario::from_toml(&text)
@@ -107,4 +117,17 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     }
     server.shutdown();
     Ok(())
+}
+
+/// A SLIO demo board as `bus serve` and the lab put it on the bus: ADC1 (P5) reads 1.25 V,
+/// the potentiometer (P6) turns slowly (a 0..5 V sine, 10 s a turn).
+pub fn demo_board(
+    id: buslab_slio::SlioId,
+    bitrate: u32,
+) -> Result<buslab_slio::DemoBoard, buslab_slio::SlioError> {
+    let potentiometer = |t_ns: u64| {
+        let t = t_ns as f64 * 1e-9;
+        2.5 + 2.5 * (2.0 * std::f64::consts::PI * t / 10.0).sin()
+    };
+    buslab_slio::DemoBoard::new(id, bitrate, Box::new(1.25), Box::new(potentiometer))
 }

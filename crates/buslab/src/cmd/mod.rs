@@ -1,5 +1,10 @@
 //! One module per subcommand.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::Context;
+
 pub mod bus;
 pub mod busopt;
 pub mod cpu196;
@@ -9,6 +14,17 @@ pub mod lab;
 pub mod regs;
 pub mod send;
 pub mod sim;
+pub mod slio;
 pub mod status;
 pub mod wire;
 pub mod zelle;
+
+/// A flag set by Ctrl-C, SIGTERM or SIGHUP, so a long-running command stops as cleanly for
+/// each of them.
+pub fn interrupted() -> anyhow::Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
+        .context("cannot install the Ctrl-C handler")?;
+    Ok(stop)
+}

@@ -248,6 +248,24 @@ impl Receiver {
         if !matches!(self.stage, Stage::Eof | Stage::Done) {
             return None;
         }
+        self.rebuilt()
+    }
+
+    /// The frame as soon as its CRC delimiter has been received with a matching CRC, before
+    /// the ACK slot (what an observer that neither acknowledges nor checks the rest sees, e.g.
+    /// a SLIO calibrating itself on unacknowledged frames). `acked` is not known yet (false).
+    pub fn decoded_before_ack(&self) -> Option<Decoded> {
+        if !matches!(
+            self.stage,
+            Stage::AckSlot | Stage::AckDelimiter | Stage::Eof | Stage::Done
+        ) || !self.crc_ok()
+        {
+            return None;
+        }
+        self.rebuilt()
+    }
+
+    fn rebuilt(&self) -> Option<Decoded> {
         let id = if self.ide {
             Id::Extended(ExtendedId::new(self.id).ok()?)
         } else {

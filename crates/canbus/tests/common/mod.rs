@@ -41,8 +41,8 @@ impl BusNode for SharedNode {
         self.chip().error_state()
     }
     /// Never: the driver may write a transmission request between two steps.
-    fn is_quiescent(&self) -> bool {
-        false
+    fn quiet_until(&self) -> Option<u64> {
+        None
     }
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
         BusNode::enqueue(&mut *self.chip(), frame)

@@ -1,0 +1,170 @@
+//! `buslab slio` against `buslab bus serve --slio`: the SLIO demo boards answer the host
+//! library's requests, calibrated by `buslab slio` itself or by python-can.
+
+mod bus_common;
+
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+
+use bus_common::Serve;
+
+/// 20 kbit/s, the slowest a SLIO follows: its watchdog (8192 bit-times) is then 410 ms, so a
+/// calibrating host loaded by other tests keeps it calibrated.
+const RATE: u32 = 20_000;
+
+/// `buslab slio` on the served bus; answers are awaited 30 s (they come in milliseconds) unless
+/// the arguments say otherwise.
+fn slio(serve: &Serve, args: &[&str]) -> (bool, String, String) {
+    let timeout: &[&str] = if args.contains(&"--timeout") {
+        &[]
+    } else {
+        &["--timeout", "30s"]
+    };
+    let out = serve
+        .buslab()
+        .args(["slio", "--bus", &serve.url])
+        .args(timeout)
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn calibrate_then_drive_a_demo_board() {
+    let serve = Serve::start_with(RATE, &["--slio", "0,3,A"]);
+    let (ok, out, err) = slio(&serve, &["calibrate"]);
+    assert!(ok, "{err}");
+    // (Sign-ons are listed as they come within the settling time; `list` below is the check.)
+    for line in out.lines() {
+        assert!(
+            line.starts_with("SLIO ") && line.contains(" signed on: inputs 0x000"),
+            "{out}"
+        );
+    }
+    let (ok, out, err) = slio(&serve, &["--calibrate", "--timeout", "2s", "list"]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        out,
+        "SLIO 0: id 284/285, inputs 0x0000\nSLIO 3: id 29C/29D, inputs 0x0003\nSLIO A: id 394/395, inputs 0x000A\n"
+    );
+    // Each command calibrates first: nobody keeps them calibrated between commands.
+    let (ok, out, err) = slio(
+        &serve,
+        &["--calibrate", "write", "3", "OUTPUT_ENABLE", "0x3F90"],
+    );
+    assert!(ok, "{err}");
+    assert_eq!(out.trim(), "SLIO 3 OUTPUT_ENABLE = 0x3F90");
+    let (ok, out, err) = slio(
+        &serve,
+        &["--calibrate", "write", "3", "DATA_OUTPUT", "0x2080"],
+    );
+    assert!(ok, "{err}");
+    assert_eq!(out.trim(), "SLIO 3 DATA_OUTPUT = 0x2080");
+    // A SLIO that is not there, and one whose output is not enabled, say so.
+    let (ok, _, err) = slio(
+        &serve,
+        &["--calibrate", "--timeout", "300ms", "read", "5", "0"],
+    );
+    assert!(!ok && err.contains("SLIO 5: no answer"), "{err}");
+    let (ok, _, err) = slio(&serve, &["--calibrate", "set", "0", "7", "on"]);
+    assert!(!ok && err.contains("P7 is not an output"), "{err}");
+    // Garbage arguments name the value.
+    for (args, want) in [
+        (&["read", "G", "0"][..], "SLIO number"),
+        (&["read", "3", "ten"], "register \"ten\""),
+        (&["write", "3", "DPM1", "0x10000"], "value \"0x10000\""),
+        (&["set", "3", "16", "on"], "16"),
+        (&["set", "3", "7", "maybe"], "level \"maybe\""),
+        (&["dpm", "3", "1", "1024"], "1024"),
+    ] {
+        let (ok, _, err) = slio(&serve, args);
+        assert!(!ok && err.contains(want), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn a_bus_too_fast_for_slios_is_refused() {
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["bus", "serve", "--listen", "127.0.0.1:0", "--slio", "3"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--slio 3") && err.contains("500000 bit/s") && err.contains("20000..=125000"),
+        "{err}"
+    );
+}
+
+/// The venv's python with python-can, or `None` (allowed outside CI only).
+fn python_can() -> Option<(PathBuf, PathBuf)> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let python = root.join(".venv/bin/python");
+    let has_can = python.exists()
+        && Command::new(&python)
+            .args(["-c", "import can"])
+            .status()
+            .is_ok_and(|s| s.success());
+    if !has_can {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "python-can is missing in CI ({})",
+            python.display()
+        );
+        eprintln!("SKIPPED: python-can is missing; run scripts/setup-test-deps.sh");
+        return None;
+    }
+    Some((root, python))
+}
+
+#[test]
+fn python_can_calibrates_and_buslab_slio_drives_them() {
+    let Some((root, python)) = python_can() else {
+        return;
+    };
+    let serve = Serve::start_with(RATE, &["--slio", "0,3,A"]);
+    // python-can sends the calibration frame every 3000 bit-times (150 ms at 20 kbit/s).
+    let mut calibrator = Command::new(&python)
+        .arg(root.join("tests/interop/slio_calibrator.py"))
+        .args(["127.0.0.1", &serve.addr.port().to_string(), "0.15"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(calibrator.stdout.take().unwrap()).lines();
+    for want in ["ready", "sent 4"] {
+        let line = lines.next().expect("the calibrator's line").unwrap();
+        assert_eq!(line, want);
+    }
+    // Its first frames calibrated the SLIOs (nobody acknowledged them at first: python-can's
+    // node retried until they did).
+    // (SLIOs that are there answer in milliseconds; the other 13 numbers take the timeout.)
+    let (ok, out, err) = slio(&serve, &["--timeout", "2s", "list"]);
+    assert!(ok, "{err}");
+    let found: Vec<&str> = out.lines().collect();
+    assert_eq!(found.len(), 3, "{out}");
+    assert!(
+        found[1].starts_with("SLIO 3: id 29C/29D, inputs 0x0003"),
+        "{out}"
+    );
+    let (ok, _, err) = slio(&serve, &["write", "3", "OUTPUT_ENABLE", "0x3F90"]);
+    assert!(ok, "{err}");
+    let (ok, out, err) = slio(&serve, &["set", "3", "7", "on"]);
+    assert!(ok, "{err}");
+    assert_eq!(out.trim(), "SLIO 3 P7 high (DATA_OUTPUT = 0x0080)");
+    // ADC1 reads the board's 1.25 V.
+    let (ok, out, err) = slio(&serve, &["adc", "3", "1"]);
+    assert!(ok, "{err}");
+    assert_eq!(out.trim(), "SLIO 3 ADC1 = 256 (1.251 V)");
+    let (ok, out, err) = slio(&serve, &["dpm", "A", "2", "512"]);
+    assert!(ok, "{err}");
+    assert!(out.starts_with("SLIO A DPM2 = 512 (2.500 V"), "{out}");
+    drop(calibrator.stdin.take());
+    assert!(calibrator.wait().unwrap().success());
+}

@@ -1,0 +1,228 @@
+//! The seed's SLIO demo board (§3.2): a P82C150 with switches, a potentiometer and LEDs.
+//!
+//! - P0..P3: the ID switches, multiplexed with four digital input switches. The multiplexer
+//!   (an EPLD on the board) is driven by P13, "sélection des entrées": P13 low (as at reset,
+//!   floating) shows the ID switches, so the SLIO latches its ID; P13 driven high shows the
+//!   input switches (MoniCAN drives DATA_OUTPUT = 0x2000 for that).
+//! - P5: analog input ADC1, selected by ANALOG_CONFIGURATION 0xE0 (multiplexer input 6).
+//! - P6: the potentiometer, ADC2, selected by 0xC0 (multiplexer input 4).
+//! - P7, P8, P9, P11, P12: LEDs (digital outputs).
+//! - P10 and P4: the DPM1 and DPM2 quasi-analog outputs.
+//! - OUTPUT_ENABLE for all of these: 0x3F90.
+//!
+//! Its inputs can be changed while it runs ([`DemoBoard::set_switches`], the
+//! [`Signal`]s on the analog inputs) and its outputs observed ([`DemoBoard::leds`],
+//! [`DemoBoard::dpm_volts`]).
+
+use std::any::Any;
+
+use buslab_can::controller::{ErrorState, Event, QueueFull};
+use buslab_can::node::BusNode;
+use buslab_can::{Frame, Level};
+
+use crate::ids::SlioId;
+use crate::registers::Register;
+use crate::slio::{AnalogInputs, Slio, SlioError, SlioNotice};
+
+/// The demo board's OUTPUT_ENABLE: LEDs, DPM outputs, the input select.
+pub const OUTPUT_ENABLE: u16 = 0x3F90;
+/// The LED pins, in MoniCAN's order.
+pub const LED_PINS: [u8; 5] = [7, 8, 9, 11, 12];
+/// The pin that selects the input switches instead of the ID switches.
+pub const SELECT_PIN: u8 = 13;
+/// ANALOG_CONFIGURATION values that convert ADC1 (P5) and ADC2 (P6, the potentiometer).
+pub const CONVERT_ADC1: u16 = 0xE0;
+pub const CONVERT_ADC2: u16 = 0xC0;
+/// The multiplexer inputs the board wires to P5 and P6.
+const ADC1_INPUT: u8 = 6;
+const ADC2_INPUT: u8 = 4;
+/// The supply: analog inputs span 0..5 V, DPM outputs swing to it.
+pub const VDD: f64 = 5.0;
+
+/// A voltage that changes with time: a constant, a waveform, a recording.
+pub trait Signal: Send {
+    /// The level in volts at `t_ns` nanoseconds since the board started.
+    fn volts(&mut self, t_ns: u64) -> f64;
+}
+
+/// A constant level.
+impl Signal for f64 {
+    fn volts(&mut self, _t_ns: u64) -> f64 {
+        *self
+    }
+}
+
+impl<F: FnMut(u64) -> f64 + Send> Signal for F {
+    fn volts(&mut self, t_ns: u64) -> f64 {
+        self(t_ns)
+    }
+}
+
+/// The two analog inputs of the board.
+struct BoardAnalog {
+    adc1: Box<dyn Signal>,
+    potentiometer: Box<dyn Signal>,
+}
+
+impl AnalogInputs for BoardAnalog {
+    fn code(&mut self, input: u8, t_ns: u64) -> u16 {
+        let volts = match input {
+            ADC1_INPUT => self.adc1.volts(t_ns),
+            ADC2_INPUT => self.potentiometer.volts(t_ns),
+            _ => 0.0,
+        };
+        volts_to_code(volts)
+    }
+}
+
+/// A level in volts as the 10-bit ADC reads it (0..5 V → 0..1023, clamped).
+pub fn volts_to_code(volts: f64) -> u16 {
+    if volts.is_nan() {
+        return 0;
+    }
+    (volts / VDD * 1023.0).round().clamp(0.0, 1023.0) as u16
+}
+
+/// The board: its SLIO and the switches.
+pub struct DemoBoard {
+    slio: Slio,
+    id_switches: u8,
+    input_switches: u8,
+    notices: Vec<(u64, SlioNotice)>,
+}
+
+impl core::fmt::Debug for DemoBoard {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("DemoBoard")
+            .field("slio", &self.slio)
+            .field("input_switches", &self.input_switches)
+            .finish()
+    }
+}
+
+impl DemoBoard {
+    /// A board whose ID switches are set to `id`, on a bus at `bitrate`, with these signals on
+    /// ADC1 (P5) and the potentiometer (P6).
+    pub fn new(
+        id: SlioId,
+        bitrate: u32,
+        adc1: Box<dyn Signal>,
+        potentiometer: Box<dyn Signal>,
+    ) -> Result<Self, SlioError> {
+        let slio = Slio::new(id, bitrate)?.with_analog(Box::new(BoardAnalog {
+            adc1,
+            potentiometer,
+        }));
+        let mut board = Self {
+            slio,
+            id_switches: id.number(),
+            input_switches: 0,
+            notices: Vec::new(),
+        };
+        board.update_pins(0);
+        Ok(board)
+    }
+
+    pub fn slio(&self) -> &Slio {
+        &self.slio
+    }
+
+    pub fn id(&self) -> SlioId {
+        self.slio.id()
+    }
+
+    /// The four input switches (bit 0 = the switch on P0), as set at bit-time `now`.
+    pub fn set_switches(&mut self, now: u64, switches: u8) {
+        self.input_switches = switches & 0xF;
+        self.update_pins(now);
+    }
+
+    pub fn switches(&self) -> u8 {
+        self.input_switches
+    }
+
+    /// What the SLIO did since the last call (calibration, bus-mode changes, registers).
+    pub fn take_notices(&mut self) -> Vec<(u64, SlioNotice)> {
+        std::mem::take(&mut self.notices)
+    }
+
+    /// The five LEDs (P7, P8, P9, P11, P12): lit while the SLIO drives them high.
+    pub fn leds(&self) -> [bool; 5] {
+        let driven = self.slio.driven();
+        LED_PINS.map(|pin| driven & (1 << pin) != 0)
+    }
+
+    /// The mean voltage of DPM1 (P10) and DPM2 (P4), `None` while the pin floats.
+    pub fn dpm_volts(&self) -> [Option<f64>; 2] {
+        [Register::Dpm1, Register::Dpm2].map(|r| self.slio.dpm_fraction(r).map(|f| f * VDD))
+    }
+
+    /// The levels on P0..P3 follow the multiplexer: the input switches while P13 is driven
+    /// high, the ID switches otherwise.
+    fn update_pins(&mut self, now: u64) {
+        let select = self.slio.driven() & (1 << SELECT_PIN) != 0;
+        let low = if select {
+            self.input_switches
+        } else {
+            self.id_switches
+        };
+        self.slio.set_inputs(now, u16::from(low & 0xF));
+    }
+}
+
+impl BusNode for DemoBoard {
+    fn output(&self) -> Level {
+        self.slio.output()
+    }
+
+    fn sample(&mut self, now: u64, bus: Level) {
+        self.slio.sample(now, bus);
+        let before = self.notices.len();
+        // Bounded: a board nobody asks keeps the latest news only.
+        if before > 4096 {
+            self.notices.drain(..before - 1024);
+        }
+        let start = self.notices.len();
+        self.notices.extend(self.slio.take_notices());
+        let outputs_changed = self.notices[start..].iter().any(|(_, n)| {
+            matches!(
+                n,
+                SlioNotice::Register {
+                    register: Register::DataOutput | Register::OutputEnable,
+                    ..
+                } | SlioNotice::BusModeChange(_)
+            )
+        });
+        if outputs_changed {
+            self.update_pins(now);
+        }
+    }
+
+    fn poll_event(&mut self) -> Option<Event> {
+        self.slio.poll_event()
+    }
+    fn tec(&self) -> u16 {
+        self.slio.tec()
+    }
+    fn rec(&self) -> u16 {
+        self.slio.rec()
+    }
+    fn state(&self) -> ErrorState {
+        self.slio.state()
+    }
+    fn quiet_until(&self) -> Option<u64> {
+        self.slio.quiet_until()
+    }
+    fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
+        self.slio.enqueue(frame)
+    }
+    fn pending(&self) -> usize {
+        self.slio.pending()
+    }
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}

@@ -1,0 +1,366 @@
+//! The host side of SLIOs, sans-IO: what the seed's `slio.s` does on the PowerPC node and
+//! CANAPI's unfinished `SlIo` class meant to do on the PC.
+//!
+//! A [`Master`] decides which frames to send and when, and makes sense of what SLIOs send
+//! back; an adapter moves the frames (a `CanBus`, or an SJA1000 driven through its
+//! registers) and gives it the time in nanoseconds:
+//! - calibration at start: 48 calibration frames, each tried once
+//!   ([`Transmit::single_shot`]): before they are calibrated the SLIOs do not acknowledge,
+//!   and a frame nobody acknowledges would be retried forever (the seed aborts it);
+//! - periodic calibration: a calibration frame every 5000 bit-times (inside the 3000..8000 the
+//!   seed asks for, well before the 8192 of the SLIO's watchdog);
+//! - the inventory, from sign-ons and every frame a SLIO sends;
+//! - register writes and reads that complete only when the SLIO confirms them.
+
+use std::collections::VecDeque;
+
+use buslab_can::Frame;
+
+use crate::ids::{Direction, SlioId, calibration_frame};
+use crate::registers::{Register, Reply, Request};
+
+/// Calibration frames sent at start (the seed's `calibration_slio` loops 48 times).
+pub const START_CALIBRATIONS: u32 = 48;
+/// Bit-times between two periodic calibration frames.
+pub const CALIBRATION_EVERY_BITS: u64 = 5000;
+/// How long a request waits for the SLIO's answer, in bit-times: a few frames' worth on a
+/// busy bus.
+pub const ANSWER_WITHIN_BITS: u64 = 4000;
+
+/// A frame for the adapter to send.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Transmit {
+    pub frame: Frame,
+    /// Try once, give up if not acknowledged (CMR.AT after TR on an SJA1000).
+    pub single_shot: bool,
+}
+
+/// What the master learned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MasterEvent {
+    /// A SLIO signed on (or answered for the first time): its number and its inputs.
+    Present { slio: SlioId, inputs: u16 },
+    /// A SLIO sent a register's content (the answer to a request, a conversion result, an
+    /// input report).
+    Register {
+        slio: SlioId,
+        register: Register,
+        value: u16,
+    },
+    /// A request was answered: what the SLIO confirmed.
+    Confirmed {
+        request: RequestId,
+        slio: SlioId,
+        register: Register,
+        value: u16,
+    },
+    /// A request got no answer in time.
+    NoAnswer { request: RequestId, slio: SlioId },
+}
+
+/// Identifies a request in [`MasterEvent::Confirmed`] and [`MasterEvent::NoAnswer`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct RequestId(pub u64);
+
+/// What the master knows of one SLIO.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Known {
+    /// The last content each register was seen with (confirmed by the SLIO), by number.
+    pub registers: [Option<u16>; 9],
+    /// When it last sent anything (ns).
+    pub last_heard: u64,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    id: RequestId,
+    slio: SlioId,
+    register: Register,
+    deadline: u64,
+}
+
+/// The host side of SLIOs on one bus.
+#[derive(Debug)]
+pub struct Master {
+    bit_ns: u64,
+    answer_within_ns: u64,
+    outbox: VecDeque<Transmit>,
+    events: VecDeque<MasterEvent>,
+    known: [Option<Known>; 16],
+    pending: Vec<Pending>,
+    next_request: u64,
+    next_calibration: Option<u64>,
+}
+
+impl Master {
+    /// A master for a bus at `bitrate`, calibrating from `now` on: the 48 start-up
+    /// calibration frames are queued, then one every [`CALIBRATION_EVERY_BITS`].
+    pub fn new(bitrate: u32, now: u64) -> Self {
+        let bit_ns = 1_000_000_000 / u64::from(bitrate.max(1));
+        let mut m = Self {
+            bit_ns,
+            answer_within_ns: ANSWER_WITHIN_BITS * bit_ns,
+            outbox: VecDeque::new(),
+            events: VecDeque::new(),
+            known: [None; 16],
+            pending: Vec::new(),
+            next_request: 0,
+            next_calibration: None,
+        };
+        m.calibrate(now);
+        m
+    }
+
+    /// A master that keeps SLIOs calibrated but does not run the start-up calibration (they
+    /// are already calibrated by another host).
+    pub fn keeping(bitrate: u32, now: u64) -> Self {
+        let mut m = Self::new(bitrate, now);
+        m.outbox.clear();
+        m
+    }
+
+    /// Queues the start-up calibration (48 frames, each tried once) and restarts the period.
+    pub fn calibrate(&mut self, now: u64) {
+        for _ in 0..START_CALIBRATIONS {
+            self.outbox.push_back(Transmit {
+                frame: calibration_frame(),
+                single_shot: true,
+            });
+        }
+        self.next_calibration = Some(now + CALIBRATION_EVERY_BITS * self.bit_ns);
+    }
+
+    /// How long requests wait for their answer before [`MasterEvent::NoAnswer`] (default
+    /// [`ANSWER_WITHIN_BITS`] bit-times; a host on a loaded machine may want more).
+    pub fn set_answer_within(&mut self, ns: u64) {
+        self.answer_within_ns = ns.max(1);
+    }
+
+    /// Stops the periodic calibration (the SLIOs will lose it after 8192 bit-times).
+    pub fn stop_calibrating(&mut self) {
+        self.next_calibration = None;
+    }
+
+    /// What is known of a SLIO, if it was heard from.
+    pub fn known(&self, slio: SlioId) -> Option<&Known> {
+        self.known[slio.number() as usize].as_ref()
+    }
+
+    /// Every SLIO heard from, in number order.
+    pub fn present(&self) -> impl Iterator<Item = (SlioId, &Known)> {
+        SlioId::all().filter_map(|s| self.known(s).map(|k| (s, k)))
+    }
+
+    /// Writes `value` into a SLIO register; confirmed (or not) by a later event.
+    pub fn write(&mut self, now: u64, slio: SlioId, register: Register, value: u16) -> RequestId {
+        self.request(now, slio, Request::Write { register, value })
+    }
+
+    /// Asks a SLIO for a register's content (ADC: a conversion).
+    pub fn read(&mut self, now: u64, slio: SlioId, register: Register) -> RequestId {
+        self.request(now, slio, Request::Read { register })
+    }
+
+    fn request(&mut self, now: u64, slio: SlioId, request: Request) -> RequestId {
+        let id = RequestId(self.next_request);
+        self.next_request += 1;
+        let frame = Frame::data(slio.command_id(), &request.encode()).expect("1..3 bytes");
+        self.outbox.push_back(Transmit {
+            frame,
+            single_shot: false,
+        });
+        // A conversion request is answered with the ADC register.
+        let register = match request {
+            Request::Write {
+                register: Register::AnalogConfig,
+                value,
+            } if value & crate::registers::CONVERT != 0 => Register::Adc,
+            other => other.register(),
+        };
+        self.pending.push(Pending {
+            id,
+            slio,
+            register,
+            deadline: now + self.answer_within_ns,
+        });
+        id
+    }
+
+    /// A frame from the bus. Returns whether it was a SLIO's.
+    pub fn handle_frame(&mut self, now: u64, frame: &Frame) -> bool {
+        let Some((slio, Direction::FromSlio)) = SlioId::from_id(frame.id()) else {
+            return false;
+        };
+        if frame.is_remote() {
+            return true;
+        }
+        let Ok(reply) = Reply::parse(frame.payload()) else {
+            return true;
+        };
+        let entry = &mut self.known[slio.number() as usize];
+        let first = entry.is_none();
+        let known = entry.get_or_insert_with(Known::default);
+        known.registers[reply.register.index()] = Some(reply.value);
+        known.last_heard = now;
+        if first || reply.status.reset_detected {
+            let inputs = if reply.register == Register::DataInput {
+                reply.value
+            } else {
+                0
+            };
+            self.events.push_back(MasterEvent::Present { slio, inputs });
+        }
+        self.events.push_back(MasterEvent::Register {
+            slio,
+            register: reply.register,
+            value: reply.value,
+        });
+        if let Some(i) = self
+            .pending
+            .iter()
+            .position(|p| p.slio == slio && p.register == reply.register)
+        {
+            let p = self.pending.remove(i);
+            self.events.push_back(MasterEvent::Confirmed {
+                request: p.id,
+                slio,
+                register: reply.register,
+                value: reply.value,
+            });
+        }
+        true
+    }
+
+    /// Time passes: the periodic calibration, requests that got no answer.
+    pub fn handle_timeout(&mut self, now: u64) {
+        if let Some(t) = self.next_calibration
+            && now >= t
+        {
+            self.outbox.push_back(Transmit {
+                frame: calibration_frame(),
+                single_shot: true,
+            });
+            // Keep the rhythm, but never queue a burst after a long pause.
+            let period = CALIBRATION_EVERY_BITS * self.bit_ns;
+            self.next_calibration = Some((t + period).max(now + period / 2));
+        }
+        let mut late = Vec::new();
+        self.pending.retain(|p| {
+            let expired = now >= p.deadline;
+            if expired {
+                late.push((p.id, p.slio));
+            }
+            !expired
+        });
+        for (request, slio) in late {
+            self.events
+                .push_back(MasterEvent::NoAnswer { request, slio });
+        }
+    }
+
+    /// When [`Self::handle_timeout`] must be called.
+    pub fn next_deadline(&self) -> Option<u64> {
+        let request = self.pending.iter().map(|p| p.deadline).min();
+        [self.next_calibration, request].into_iter().flatten().min()
+    }
+
+    /// The next frame to send.
+    pub fn poll_transmit(&mut self) -> Option<Transmit> {
+        self.outbox.pop_front()
+    }
+
+    /// Frames waiting to be sent.
+    pub fn queued(&self) -> usize {
+        self.outbox.len()
+    }
+
+    /// The next thing learned.
+    pub fn poll_event(&mut self) -> Option<MasterEvent> {
+        self.events.pop_front()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slio(n: u8) -> SlioId {
+        SlioId::new(n).unwrap()
+    }
+
+    #[test]
+    fn start_up_calibration_then_every_5000_bit_times() {
+        let mut m = Master::new(125_000, 0);
+        let mut start = 0;
+        while let Some(t) = m.poll_transmit() {
+            assert!(t.single_shot);
+            assert_eq!(t.frame, calibration_frame());
+            start += 1;
+        }
+        assert_eq!(start, 48);
+        // 5000 bit-times at 125 kbit/s = 40 ms.
+        assert_eq!(m.next_deadline(), Some(40_000_000));
+        m.handle_timeout(39_999_999);
+        assert!(m.poll_transmit().is_none());
+        m.handle_timeout(40_000_000);
+        assert_eq!(
+            m.poll_transmit().map(|t| t.frame),
+            Some(calibration_frame())
+        );
+        assert_eq!(m.next_deadline(), Some(80_000_000));
+    }
+
+    #[test]
+    fn a_sign_on_makes_a_slio_present_and_writes_complete_on_confirmation() {
+        let mut m = Master::keeping(125_000, 0);
+        let sign_on = Frame::data(slio(3).reply_id(), &[0x30, 0x00, 0x03]).unwrap();
+        assert!(m.handle_frame(10, &sign_on));
+        assert_eq!(
+            m.poll_event(),
+            Some(MasterEvent::Present {
+                slio: slio(3),
+                inputs: 3
+            })
+        );
+        m.poll_event();
+        let r = m.write(20, slio(3), Register::DataOutput, 0x2000);
+        let sent = m.poll_transmit().unwrap();
+        assert!(!sent.single_shot);
+        assert_eq!(sent.frame.to_string(), "29C#032000");
+        // Another SLIO's frame does not confirm it.
+        m.handle_frame(
+            30,
+            &Frame::data(slio(4).reply_id(), &[0x23, 0x20, 0x00]).unwrap(),
+        );
+        let confirmed = |m: &mut Master| {
+            std::iter::from_fn(|| m.poll_event())
+                .any(|e| matches!(e, MasterEvent::Confirmed { request, .. } if request == r))
+        };
+        assert!(!confirmed(&mut m));
+        m.handle_frame(
+            40,
+            &Frame::data(slio(3).reply_id(), &[0x23, 0x20, 0x00]).unwrap(),
+        );
+        assert!(confirmed(&mut m));
+        assert_eq!(
+            m.known(slio(3)).unwrap().registers[Register::DataOutput.index()],
+            Some(0x2000)
+        );
+    }
+
+    #[test]
+    fn an_unanswered_request_times_out_and_garbage_is_ignored() {
+        let mut m = Master::keeping(125_000, 0);
+        let r = m.read(0, slio(5), Register::Adc);
+        m.handle_frame(1, &Frame::data(slio(5).reply_id(), &[0x20]).unwrap());
+        m.handle_frame(1, &Frame::remote(slio(5).reply_id(), 3).unwrap());
+        assert!(!m.handle_frame(1, &"123#112233".parse().unwrap()));
+        let deadline = ANSWER_WITHIN_BITS * 8000;
+        m.handle_timeout(deadline);
+        let events: Vec<_> = std::iter::from_fn(|| m.poll_event()).collect();
+        assert!(events.contains(&MasterEvent::NoAnswer {
+            request: r,
+            slio: slio(5)
+        }));
+    }
+}
