@@ -43,6 +43,10 @@ enum Command {
     Regs(cmd::regs::Args),
     /// A node's error state, STATUS bits, counters, ALC and ECC in words.
     Status(cmd::status::Args),
+    /// Copy frames between two buses (like cangw): a real adapter joins the virtual bench.
+    Bridge(cmd::bridge::Args),
+    /// SLCAN (Lawicel) adapters: serve an adapter model on a pseudo-terminal.
+    Slcan(cmd::slcan::Args),
 }
 
 fn main() -> ExitCode {
@@ -51,7 +55,8 @@ fn main() -> ExitCode {
         &cli.command,
         Command::Bus(cmd::bus::Args {
             command: cmd::bus::BusCommand::Serve(_)
-        })
+        }) | Command::Bridge(_)
+            | Command::Slcan(_)
     );
     logging::init(&cli.verbosity, chatty);
     // Errors are for people: one line with the chain of causes, never a backtrace.
@@ -95,6 +100,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gen(args) => cmd::r#gen::run(args),
         Command::Regs(args) => cmd::regs::run(args),
         Command::Status(args) => cmd::status::run(args),
+        Command::Bridge(args) => cmd::bridge::run(args),
+        Command::Slcan(args) => cmd::slcan::run(args),
     }
 }
 

@@ -4,9 +4,9 @@
 //! Opening closes the channel (`C`), sets the bit rate (`S0`..`S8` for the standard rates,
 //! `sxxyy` with SJA1000 registers at 8 MHz for others), turns timestamps on (`Z1`, optional:
 //! an adapter that refuses is used without), reads the version (`V`) and serial number (`N`),
-//! and opens (`O`, or `L` listen-only). Dropping the bus closes the channel. Frames are sent
-//! without waiting for the adapter's answer (as python-can does); a refused frame (BEL) is
-//! logged. Received frames carry the host time, refined by the adapter's timestamps.
+//! and opens (`O`, or `L` listen-only). Dropping the bus waits for the answers to the frames
+//! sent, then closes the channel. Frames are sent without waiting for the adapter's answer (as
+//! python-can does); a refused frame (BEL) is logged. Received frames carry the host time, refined by the adapter's timestamps.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
@@ -423,7 +423,16 @@ impl CanBus for SlcanBus {
 }
 
 impl Drop for SlcanBus {
+    /// Waits (up to 2 s) for the adapter to answer the frames sent, so closing does not cut
+    /// them off, then closes the channel.
     fn drop(&mut self) {
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while self.owed > 0 {
+            match self.read_some(Some(deadline)) {
+                Ok(Some(replies)) => replies.into_iter().for_each(|r| self.later(r)),
+                _ => break,
+            }
+        }
         let mut bytes = Vec::new();
         format_command(&Command::Close, &mut bytes);
         let _ = self.port.write_all(&bytes);

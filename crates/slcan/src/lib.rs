@@ -8,6 +8,7 @@
 //! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over an adapter on a serial port
 //!   ([`SlcanBus`]), the `slcan:` backend.
 //! - [`clock`]: the adapter's wrapping millisecond timestamps mapped onto the host clock.
+//! - [`serve`](mod@serve): the adapter model served on a pseudo-terminal's master side.
 //!
 //! ```
 //! use buslab_slcan::{Adapter, AdapterEvent};
@@ -26,6 +27,7 @@ pub mod adapter;
 pub mod client;
 pub mod clock;
 pub mod codec;
+pub mod serve;
 
 pub use adapter::{Adapter, AdapterEvent, Identity, MAX_OUTPUT, Mode, Timing};
 pub use client::{BTR_CLOCK_HZ, SlcanBus, SlcanError, SlcanOptions, bitrate_command};
@@ -34,3 +36,4 @@ pub use codec::{
     BEL, CR, CodecError, Command, Line, LineSplitter, MAX_LINE, Reply, STANDARD_BITRATES,
     StatusFlags, format_command, format_frame, format_reply, parse_command, parse_reply,
 };
+pub use serve::{INPUT_QUEUE, Input, serve};

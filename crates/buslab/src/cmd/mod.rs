@@ -1,5 +1,6 @@
 //! One module per subcommand.
 
+pub mod bridge;
 pub mod bus;
 pub mod busopt;
 pub mod cpu196;
@@ -9,6 +10,7 @@ pub mod lab;
 pub mod regs;
 pub mod send;
 pub mod sim;
+pub mod slcan;
 pub mod status;
 pub mod wire;
 pub mod zelle;
