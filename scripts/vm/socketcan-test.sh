@@ -57,6 +57,23 @@ fi
 show /tmp/dump1 /tmp/dump1.err
 kill $dump1 2>/dev/null
 
+# 1b. An error frame (cansend can write one) decoded by buslab dump -e, in candump's words.
+buslab -v dump -e socketcan:vcan0 >/tmp/dump1e 2>/tmp/dump1e.err &
+dump1e=$!
+if wait_for /tmp/dump1e.err "dump: listening"; then
+    cansend vcan0 20000004#0004000000000000
+    if wait_for /tmp/dump1e "controller-problem{rx-error-warning}" &&
+        grep -qF "  vcan0  20000004   [8]  00 04 00 00 00 00 00 00   ERRORFRAME" /tmp/dump1e; then
+        ok error-frame-decoded
+    else
+        bad error-frame-decoded "buslab dump -e did not decode the error frame"
+    fi
+else
+    bad error-frame-decoded "buslab dump -e did not start"
+fi
+show /tmp/dump1e
+kill $dump1e 2>/dev/null
+
 # 2. buslab send socketcan:vcan0 -> candump
 candump -L vcan0 >/tmp/candump2 2>&1 &
 candump2=$!

@@ -2,7 +2,8 @@
 //! with software emulation boots Debian's kernel with a busybox initramfs holding the CAN
 //! modules, this buslab binary and can-utils (`scripts/vm/build-initramfs.sh`); the checks in
 //! `scripts/vm/socketcan-test.sh` run inside and report over the serial console:
-//! cansend → `buslab dump socketcan:vcan0`, `buslab send socketcan:vcan0` → candump,
+//! cansend → `buslab dump socketcan:vcan0` (frames, and an error frame in candump's words),
+//! `buslab send socketcan:vcan0` → candump,
 //! `buslab bridge` between `buslab bus serve` and vcan0, and `buslab slcan serve` attached
 //! with slcand as slcan0 and read by candump.
 //!
@@ -16,8 +17,9 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 /// What must pass inside the VM.
-const CHECKS: [&str; 5] = [
+const CHECKS: [&str; 6] = [
     "cansend-to-buslab-dump",
+    "error-frame-decoded",
     "buslab-send-to-candump",
     "bridge-virtual-bus-and-vcan0",
     "slcand-slcan0-candump",
