@@ -120,6 +120,8 @@ pub struct SlcanBus {
 impl SlcanBus {
     /// Opens the adapter at `device` and its channel.
     pub fn open(device: &str, options: &SlcanOptions) -> Result<Self, SlcanError> {
+        // A bit rate no command reaches is refused before anything is sent.
+        let bitrate = options.bitrate.map(bitrate_command).transpose()?;
         let port = serialport::new(device, options.baud)
             .flow_control(FlowControl::None)
             .timeout(options.reply_timeout)
@@ -147,9 +149,8 @@ impl SlcanBus {
         // A channel left open by an earlier user answers C with CR, a closed one may say BEL:
         // either is fine.
         bus.request(&Command::Close, wait)?;
-        if let Some(bitrate) = options.bitrate {
-            let command = bitrate_command(bitrate)?;
-            bus.expect_ok(&command, wait)?;
+        if let Some(command) = &bitrate {
+            bus.expect_ok(command, wait)?;
         }
         if let Ok(Reply::Error) = bus.request(&Command::Timestamps(true), wait) {
             tracing::debug!("{device}: no timestamps (Z1 refused): frames get the host's time");
@@ -437,5 +438,31 @@ impl Drop for SlcanBus {
         format_command(&Command::Close, &mut bytes);
         let _ = self.port.write_all(&bytes);
         let _ = self.port.flush();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_rates_become_s_codes_or_registers() {
+        assert_eq!(bitrate_command(500_000).unwrap(), Command::Bitrate(6));
+        assert_eq!(bitrate_command(10_000).unwrap(), Command::Bitrate(0));
+        // 33.333 kbit/s (GMLAN) is no S code: SJA1000 registers at 8 MHz.
+        let Command::Btr { btr0, btr1 } = bitrate_command(33_333).unwrap() else {
+            panic!("not registers");
+        };
+        assert_eq!(
+            BitTiming::from_registers(btr0, btr1).bitrate(BTR_CLOCK_HZ),
+            33_333
+        );
+        let err = bitrate_command(999_999).unwrap_err().to_string();
+        assert!(
+            err.starts_with(
+                "bit rate 999999 bit/s cannot be set: not a standard rate (10000, 20000"
+            ),
+            "{err}"
+        );
     }
 }
