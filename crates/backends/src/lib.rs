@@ -32,7 +32,7 @@ pub mod socketcan;
 pub mod spec;
 pub mod url;
 
-pub use pump::{BusJob, JOB_LATENCY, Pump, PumpEvent, PumpSender, PumpStopped};
+pub use pump::{BusJob, JOB_LATENCY, Pump, PumpEvent, PumpSender, PumpStopped, TrySendError};
 pub use registry::{
     BACKENDS, Backend, DynBus, OpenError, OpenFn, OpenOptions, backend, open, open_url,
 };

@@ -47,6 +47,15 @@ enum Job {
 #[error("the bus is no longer served (its pump stopped)")]
 pub struct PumpStopped;
 
+/// Why [`PumpSender::try_send`] did not queue a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TrySendError {
+    #[error("{QUEUE} frames already wait for the bus")]
+    Full,
+    #[error(transparent)]
+    Stopped(#[from] PumpStopped),
+}
+
 /// A handle that hands frames to a pump from any thread.
 #[derive(Clone)]
 pub struct PumpSender(SyncSender<Job>);
@@ -55,6 +64,17 @@ impl PumpSender {
     /// Queues a frame for the bus (blocks while [`QUEUE`] jobs wait).
     pub fn send(&self, frame: Frame) -> Result<(), PumpStopped> {
         self.0.send(Job::Send(frame)).map_err(|_| PumpStopped)
+    }
+
+    /// Queues a frame unless [`QUEUE`] jobs wait already. Whoever forwards frames between
+    /// pumps must not block (two pumps waiting on each other's full queues would wait
+    /// forever): a full queue means the bus does not take frames as fast as they come, and
+    /// the frame is dropped, as a gateway drops them when the interface queue is full.
+    pub fn try_send(&self, frame: Frame) -> Result<(), TrySendError> {
+        self.0.try_send(Job::Send(frame)).map_err(|e| match e {
+            mpsc::TrySendError::Full(_) => TrySendError::Full,
+            mpsc::TrySendError::Disconnected(_) => TrySendError::Stopped(PumpStopped),
+        })
     }
 
     /// Runs `job` on the bus from the pump's thread.
@@ -95,9 +115,14 @@ impl Pump {
         self.sender.clone()
     }
 
-    /// Queues a frame for the bus.
+    /// Queues a frame for the bus (blocks while [`QUEUE`] jobs wait).
     pub fn send(&self, frame: Frame) -> Result<(), PumpStopped> {
         self.sender.send(frame)
+    }
+
+    /// Queues a frame unless the queue is full (see [`PumpSender::try_send`]).
+    pub fn try_send(&self, frame: Frame) -> Result<(), TrySendError> {
+        self.sender.try_send(frame)
     }
 
     /// Whether the thread has ended (its bus failed or the callback said stop).
@@ -164,5 +189,50 @@ fn run(
                 return;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use buslab_canbus::{BusState, Filter, Message};
+    use std::sync::mpsc::Sender;
+
+    /// A bus whose transmit queue stays full; it reports each attempt.
+    struct Jammed(Sender<()>);
+
+    impl CanBus for Jammed {
+        fn send(&mut self, _: &Frame) -> Result<(), BusError> {
+            let _ = self.0.send(());
+            Err(BusError::QueueFull("jammed".into()))
+        }
+        fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+            std::thread::sleep(timeout.unwrap_or(JOB_LATENCY));
+            Ok(None)
+        }
+        fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
+            Ok(())
+        }
+        fn state(&mut self) -> Result<BusState, BusError> {
+            Ok(BusState::Active)
+        }
+        fn channel_info(&self) -> String {
+            "jammed".into()
+        }
+    }
+
+    #[test]
+    fn a_full_queue_refuses_instead_of_blocking() {
+        let (tx, attempts) = mpsc::channel();
+        let pump = Pump::spawn("jammed", Box::new(Jammed(tx)), |_| true).unwrap();
+        let f: Frame = "123#".parse().unwrap();
+        pump.try_send(f).unwrap();
+        // The pump holds that frame for the bus and takes no further job meanwhile.
+        attempts.recv_timeout(Duration::from_secs(60)).unwrap();
+        for _ in 0..QUEUE {
+            pump.try_send(f).unwrap();
+        }
+        assert_eq!(pump.try_send(f), Err(TrySendError::Full));
+        drop(pump);
     }
 }

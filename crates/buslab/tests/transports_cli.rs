@@ -405,3 +405,51 @@ fn cansend_and_candump_habits() {
     assert!(out.starts_with("\x1b[31m (20"), "{out:?}");
     assert!(out.ends_with(")  vcan0  042   [0] \x1b[0m\n"), "{out:?}");
 }
+
+/// Traffic both ways at full bus load: the bridge keeps copying afterwards. (Its hand-over
+/// never blocks, so two pumps cannot wait on each other's full queues; with socketcand on both
+/// sides TCP buffers absorb the backlog first, so this is a liveness check, and
+/// `pump::tests::a_full_queue_refuses_instead_of_blocking` pins the non-blocking hand-over.)
+#[test]
+fn a_bridge_flooded_both_ways_keeps_copying() {
+    let one = Serve::start(1_000_000);
+    let two = Serve::start(1_000_000);
+    let (_bridge, _) = Running::start(&["-v", "bridge", &one.url, &two.url], "bridge: socketcand");
+    let (mut a_watch, mut b_watch) = (one.client(), two.client());
+    let flood = |serve: &Serve, f: &'static str| {
+        let mut c = serve.client();
+        thread::spawn(move || {
+            for _ in 0..3000 {
+                c.send(&frame(f)).unwrap();
+            }
+            c.admin().unwrap().flush(EVENT).unwrap();
+        })
+    };
+    let floods = [
+        flood(&one, "100#0102030405060708"),
+        flood(&two, "200#0102030405060708"),
+    ];
+    floods.into_iter().for_each(|t| t.join().unwrap());
+    // After the floods, a frame each way still crosses (sent again until seen: one sent while
+    // a queue was full may be dropped).
+    for (from, to, f) in [
+        (&one, &mut b_watch, "7FF#A5"),
+        (&two, &mut a_watch, "7FE#5A"),
+    ] {
+        let mut sender = from.client();
+        let deadline = Instant::now() + EVENT;
+        'seen: loop {
+            assert!(Instant::now() < deadline, "{f} never crossed the bridge");
+            sender.send(&frame(f)).unwrap();
+            let resend = Instant::now() + Duration::from_millis(500);
+            while let Some(m) = to
+                .recv(Some(resend.saturating_duration_since(Instant::now())))
+                .unwrap()
+            {
+                if m.frame == frame(f) {
+                    break 'seen;
+                }
+            }
+        }
+    }
+}

@@ -13,7 +13,7 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use anyhow::bail;
-use buslab_backends::{BusUrl, FilterItem, Pump, PumpEvent, filter_set, resolve};
+use buslab_backends::{BusUrl, FilterItem, Pump, PumpEvent, TrySendError, filter_set, resolve};
 use buslab_can::Frame;
 use buslab_canbus::{BusEvent, Filter};
 
@@ -111,7 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             format!(" (frames passing {})", shown.join(","))
         }
     );
-    let (mut a_to_b, mut b_to_a, mut filtered) = (0u64, 0u64, 0u64);
+    let (mut a_to_b, mut b_to_a, mut filtered, mut dropped) = (0u64, 0u64, 0u64, 0u64);
     while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| a_to_b + b_to_a < n) {
         let (way, frame) = match frames.recv_timeout(Duration::from_millis(100)) {
             Ok(got) => got,
@@ -122,19 +122,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             filtered += 1;
             continue;
         }
+        // Never blocks: this thread also drains what both pumps receive.
         let sent = match way {
-            Way::AtoB => {
-                a_to_b += 1;
-                pump_b.send(frame)
-            }
+            Way::AtoB => pump_b.try_send(frame),
             Way::BtoA if args.one_way => continue,
-            Way::BtoA => {
-                b_to_a += 1;
-                pump_a.send(frame)
-            }
+            Way::BtoA => pump_a.try_send(frame),
         };
-        if sent.is_err() {
-            break;
+        match sent {
+            Ok(()) if way == Way::AtoB => a_to_b += 1,
+            Ok(()) => b_to_a += 1,
+            Err(TrySendError::Full) => {
+                dropped += 1;
+                if dropped.is_power_of_two() {
+                    tracing::warn!(
+                        "{} does not take frames as fast as {} gives them: {dropped} dropped so far",
+                        if way == Way::AtoB { &args.b } else { &args.a },
+                        if way == Way::AtoB { &args.a } else { &args.b },
+                    );
+                }
+                continue;
+            }
+            Err(TrySendError::Stopped(_)) => break,
         }
         tracing::debug!(
             "{frame} {}",
@@ -145,7 +153,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     drop(pump_a);
     drop(pump_b);
     tracing::info!(
-        "bridge: stopped; {a_to_b} frames A -> B, {b_to_a} B -> A, {filtered} held back by the filter"
+        "bridge: stopped; {a_to_b} frames A -> B, {b_to_a} B -> A, {filtered} held back by the filter, {dropped} dropped (a bus too slow)"
     );
     Ok(())
 }

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 
 use anyhow::Context;
-use buslab_backends::{BusUrl, Pump, PumpEvent, PumpSender, resolve};
+use buslab_backends::{BusUrl, Pump, PumpEvent, PumpSender, TrySendError, resolve};
 use buslab_canbus::{BitTiming, BusEvent, CanBus};
 use buslab_link::Pty;
 use buslab_slcan::{Adapter, AdapterEvent, BTR_CLOCK_HZ, Identity, Input, Timing};
@@ -120,11 +120,14 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
 /// What the host asked of the adapter, carried out on the bus.
 fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
     match event {
-        AdapterEvent::Transmit(frame) => {
-            if bus.send(frame).is_err() {
-                tracing::warn!("{frame} not sent: the bus is gone");
+        // Never blocks: the pump may be waiting for this loop to take what it received.
+        AdapterEvent::Transmit(frame) => match bus.try_send(frame) {
+            Ok(()) => {}
+            Err(TrySendError::Full) => {
+                tracing::warn!("{frame} dropped: the host sends faster than the bus takes frames")
             }
-        }
+            Err(TrySendError::Stopped(_)) => tracing::warn!("{frame} not sent: the bus is gone"),
+        },
         AdapterEvent::Opened {
             listen_only,
             timing,
