@@ -46,6 +46,10 @@ enum Command {
     /// P82C150 SLIO I/O nodes on a bus: calibrate, list, read/write registers, outputs, ADC,
     /// DPM.
     Slio(cmd::slio::Args),
+    /// Copy frames between two buses (like cangw): a real adapter joins the virtual bench.
+    Bridge(cmd::bridge::Args),
+    /// SLCAN (Lawicel) adapters: serve an adapter model on a pseudo-terminal.
+    Slcan(cmd::slcan::Args),
 }
 
 fn main() -> ExitCode {
@@ -54,7 +58,8 @@ fn main() -> ExitCode {
         &cli.command,
         Command::Bus(cmd::bus::Args {
             command: cmd::bus::BusCommand::Serve(_)
-        })
+        }) | Command::Bridge(_)
+            | Command::Slcan(_)
     );
     logging::init(&cli.verbosity, chatty);
     // Errors are for people: one line with the chain of causes, never a backtrace.
@@ -99,6 +104,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Regs(args) => cmd::regs::run(args),
         Command::Status(args) => cmd::status::run(args),
         Command::Slio(args) => cmd::slio::run(args),
+        Command::Bridge(args) => cmd::bridge::run(args),
+        Command::Slcan(args) => cmd::slcan::run(args),
     }
 }
 

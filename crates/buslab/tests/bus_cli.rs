@@ -245,8 +245,11 @@ fn status_and_regs_name_a_missing_node() {
 fn other_backends_and_bad_urls_are_refused_clearly() {
     let bin = env!("CARGO_BIN_EXE_buslab");
     for (url, want) in [
-        ("socketcan:can0", "socketcan backend is not available yet"),
-        ("slcan:/dev/ttyACM0", "slcan backend is not available yet"),
+        ("socketcan:nosuchcan9", "cannot open socketcan:nosuchcan9: "),
+        (
+            "slcan:/nonexistent/ttyACM0",
+            "cannot open slcan:/nonexistent/ttyACM0: cannot open serial port",
+        ),
         (
             "tcp://x",
             "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL]",

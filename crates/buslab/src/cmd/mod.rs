@@ -5,6 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
 
+pub mod bridge;
 pub mod bus;
 pub mod busopt;
 pub mod cpu196;
@@ -14,6 +15,7 @@ pub mod lab;
 pub mod regs;
 pub mod send;
 pub mod sim;
+pub mod slcan;
 pub mod slio;
 pub mod status;
 pub mod wire;
