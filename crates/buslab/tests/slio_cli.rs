@@ -40,10 +40,12 @@ fn calibrate_then_drive_a_demo_board() {
     let serve = Serve::start_with(RATE, &["--slio", "0,3,A"]);
     let (ok, out, err) = slio(&serve, &["calibrate"]);
     assert!(ok, "{err}");
-    // (Sign-ons are listed as they come within the settling time; `list` below is the check.)
+    // Sign-ons are listed as they come within the settling time (a loaded machine may see
+    // them later: `list` below is the check that they are there).
     for line in out.lines() {
         assert!(
-            line.starts_with("SLIO ") && line.contains(" signed on: inputs 0x000"),
+            (line.starts_with("SLIO ") && line.contains(" signed on: inputs 0x000"))
+                || line.starts_with("no SLIO signed on"),
             "{out}"
         );
     }
