@@ -548,6 +548,7 @@ impl MoniCan {
 
     fn drain_master(&mut self) {
         while let Some(event) = self.master.poll_event() {
+            self.dirty = true;
             match event {
                 MasterEvent::Present { slio, .. } => {
                     self.slios[slio.number() as usize].present = true;
