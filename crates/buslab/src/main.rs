@@ -43,6 +43,8 @@ enum Command {
     Regs(cmd::regs::Args),
     /// A node's error state, STATUS bits, counters, ALC and ECC in words.
     Status(cmd::status::Args),
+    /// MoniCAN in this terminal: calibrate, find and drive up to 16 SLIO boards on a bus.
+    Monican(cmd::monican::Args),
 }
 
 fn main() -> ExitCode {
@@ -95,6 +97,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gen(args) => cmd::r#gen::run(args),
         Command::Regs(args) => cmd::regs::run(args),
         Command::Status(args) => cmd::status::run(args),
+        Command::Monican(args) => cmd::monican::run(args),
     }
 }
 

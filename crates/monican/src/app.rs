@@ -269,6 +269,12 @@ impl MoniCan {
         self.dirty = true;
     }
 
+    /// Empties the notice row (a mail notice stays until the mail is read).
+    pub fn clear_notice(&mut self) {
+        self.notice = None;
+        self.dirty = true;
+    }
+
     /// The next event.
     pub fn poll_event(&mut self) -> Option<Event> {
         self.events.pop_front()
