@@ -423,3 +423,35 @@ fn a_lone_powerpc_gives_up_unacknowledged_frames_and_keeps_calibrating() {
         "error passive at most, never bus-off"
     );
 }
+
+/// The screen as text: 24 rows, trailing blanks removed.
+fn capture(bench: &Bench) -> String {
+    (1..=24)
+        .map(|r| bench.row(r))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// docs/monican.md shows the bench's screen after start-up and two commands: this keeps the
+/// capture true (on a mismatch the message has the screen to paste there).
+#[test]
+fn the_capture_in_docs_monican_md_is_the_bench_screen() {
+    let mut bench = started(&[(0x0, 0x0), (0x3, 0x5), (0xA, 0xF)]);
+    bench.type_keys("3O701");
+    bench.run_until(50, "the LED", |b| b.slio_cell(3, OUTPUTS_COL, 4) == "2080");
+    bench.type_keys("3I6");
+    bench.run_until(50, "ADC2", |b| b.slio_cell(3, ADC2_COL, 2) == "80");
+    let screen = capture(&bench);
+    let doc_path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/monican.md");
+    let doc = std::fs::read_to_string(doc_path).unwrap();
+    let start = "<!-- capture: crates/ppc/tests/bench.rs -->\n```text\n";
+    let block = doc
+        .split_once(start)
+        .and_then(|(_, rest)| rest.split_once("\n```"))
+        .map(|(block, _)| block);
+    assert_eq!(
+        block,
+        Some(screen.as_str()),
+        "docs/monican.md's capture differs from the bench's screen:\n{screen}"
+    );
+}
