@@ -50,6 +50,8 @@ enum Command {
     Bridge(cmd::bridge::Args),
     /// SLCAN (Lawicel) adapters: serve an adapter model on a pseudo-terminal.
     Slcan(cmd::slcan::Args),
+    /// MoniCAN in this terminal: calibrate, find and drive up to 16 SLIO boards on a bus.
+    Monican(cmd::monican::Args),
 }
 
 fn main() -> ExitCode {
@@ -106,6 +108,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Slio(args) => cmd::slio::run(args),
         Command::Bridge(args) => cmd::bridge::run(args),
         Command::Slcan(args) => cmd::slcan::run(args),
+        Command::Monican(args) => cmd::monican::run(args),
     }
 }
 

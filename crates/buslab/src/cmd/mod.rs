@@ -12,6 +12,7 @@ pub mod cpu196;
 pub mod dump;
 pub mod r#gen;
 pub mod lab;
+pub mod monican;
 pub mod regs;
 pub mod send;
 pub mod sim;

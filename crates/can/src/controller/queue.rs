@@ -53,6 +53,7 @@ impl TxQueue {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use alloc::string::{String, ToString};
 
     fn f(text: &str) -> Frame {
         text.parse().unwrap()
