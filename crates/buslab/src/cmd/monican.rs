@@ -193,59 +193,32 @@ fn session(
 }
 
 /// Sends MoniCAN's frames. A single-shot frame (calibration) on a buslab bus is followed by a
-/// flush: if nobody acknowledges it in [`SINGLE_SHOT_WAIT`], the client's node keeps retrying
-/// it (a socketcand client cannot abort), so further calibration frames are not piled up
-/// behind it until the node's queue is empty again. Other backends just send.
+/// flush; if nobody acknowledges it within [`SINGLE_SHOT_WAIT`] it is aborted
+/// (`< buslab_abort >`, the seed's CMR.AT), so an unacknowledged frame never holds up the
+/// next ones. Other backends just send: their adapters retry until a SLIO acknowledges.
 #[derive(Default)]
-struct Sender {
-    /// A frame was not acknowledged and may still be retried by the node: since when.
-    stuck_since: Option<Instant>,
-    /// The user was told that frames stay unacknowledged.
-    told: bool,
-}
-
-/// How long frames may stay unacknowledged before the user is told why.
-const TELL_AFTER: Duration = Duration::from_secs(1);
+struct Sender;
 
 impl Sender {
-    fn send(&mut self, bus: &mut DynBus, app: &mut MoniCan, t: Transmit) -> anyhow::Result<()> {
-        if !t.single_shot || bus.admin().is_none() {
-            return bus
-                .send(&t.frame)
-                .with_context(|| format!("cannot send {}", t.frame));
-        }
-        if let Some(since) = self.stuck_since {
-            let admin = bus.admin().expect("checked");
-            if admin.node_status(None)?.tx_queued > 0 {
-                if !self.told && since.elapsed() >= TELL_AFTER {
-                    self.told = true;
-                    tracing::warn!(
-                        "frames stay unacknowledged: the SLIOs lost their calibration and no other node acknowledges; this client cannot abort them (keep another node on the bus)"
-                    );
-                    app.set_notice(
-                        "frames not acknowledged: no SLIO calibrated, no other node on the bus?",
-                    );
-                }
-                return Ok(());
-            }
-            self.stuck_since = None;
-            if self.told {
-                self.told = false;
-                app.clear_notice();
-            }
-        }
+    fn send(&mut self, bus: &mut DynBus, _app: &mut MoniCan, t: Transmit) -> anyhow::Result<()> {
         bus.send(&t.frame)
             .with_context(|| format!("cannot send {}", t.frame))?;
-        let admin = bus.admin().expect("checked");
+        if !t.single_shot {
+            return Ok(());
+        }
+        let Some(admin) = bus.admin() else {
+            return Ok(());
+        };
         match admin.flush(SINGLE_SHOT_WAIT) {
             Ok(_) => Ok(()),
             Err(BusError::Timeout { .. }) => {
                 tracing::debug!(
-                    "calibration frame not acknowledged within {}",
+                    "calibration frame not acknowledged within {}: aborted",
                     Human(SINGLE_SHOT_WAIT)
                 );
-                self.stuck_since = Some(Instant::now());
-                Ok(())
+                admin
+                    .abort()
+                    .context("aborting an unacknowledged calibration frame")
             }
             Err(e) => Err(e).context("waiting for a calibration frame to be sent"),
         }
