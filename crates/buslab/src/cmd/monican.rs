@@ -149,7 +149,6 @@ fn session(
             "this terminal is {cols} x {rows}; MoniCAN needs 80 x 24"
         ));
     }
-    let mut sender = Sender::default();
     let mut stdout = std::io::stdout();
     while !quit.load(Ordering::Relaxed) {
         loop {
@@ -171,7 +170,7 @@ fn session(
             app.handle_timeout(now());
         }
         while let Some(t) = app.poll_transmit() {
-            sender.send(bus, &mut app, t)?;
+            send(bus, t)?;
         }
         let screen = app.take_screen();
         if !screen.is_empty() {
@@ -196,32 +195,27 @@ fn session(
 /// flush; if nobody acknowledges it within [`SINGLE_SHOT_WAIT`] it is aborted
 /// (`< buslab_abort >`, the seed's CMR.AT), so an unacknowledged frame never holds up the
 /// next ones. Other backends just send: their adapters retry until a SLIO acknowledges.
-#[derive(Default)]
-struct Sender;
-
-impl Sender {
-    fn send(&mut self, bus: &mut DynBus, _app: &mut MoniCan, t: Transmit) -> anyhow::Result<()> {
-        bus.send(&t.frame)
-            .with_context(|| format!("cannot send {}", t.frame))?;
-        if !t.single_shot {
-            return Ok(());
+fn send(bus: &mut DynBus, t: Transmit) -> anyhow::Result<()> {
+    bus.send(&t.frame)
+        .with_context(|| format!("cannot send {}", t.frame))?;
+    if !t.single_shot {
+        return Ok(());
+    }
+    let Some(admin) = bus.admin() else {
+        return Ok(());
+    };
+    match admin.flush(SINGLE_SHOT_WAIT) {
+        Ok(_) => Ok(()),
+        Err(BusError::Timeout { .. }) => {
+            tracing::debug!(
+                "calibration frame not acknowledged within {}: aborted",
+                Human(SINGLE_SHOT_WAIT)
+            );
+            admin
+                .abort()
+                .context("aborting an unacknowledged calibration frame")
         }
-        let Some(admin) = bus.admin() else {
-            return Ok(());
-        };
-        match admin.flush(SINGLE_SHOT_WAIT) {
-            Ok(_) => Ok(()),
-            Err(BusError::Timeout { .. }) => {
-                tracing::debug!(
-                    "calibration frame not acknowledged within {}: aborted",
-                    Human(SINGLE_SHOT_WAIT)
-                );
-                admin
-                    .abort()
-                    .context("aborting an unacknowledged calibration frame")
-            }
-            Err(e) => Err(e).context("waiting for a calibration frame to be sent"),
-        }
+        Err(e) => Err(e).context("waiting for a calibration frame to be sent"),
     }
 }
 
