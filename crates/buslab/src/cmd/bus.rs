@@ -53,6 +53,11 @@ pub struct ServeArgs {
     /// --keep` or python-can sending 0AA#AA04); the bus must run at 20000..125000 bit/s.
     #[arg(long, value_name = "IDS", value_delimiter = ',')]
     pub slio: Vec<buslab_slio::SlioId>,
+    /// Put the PowerPC node running MoniCAN on the bus (it calibrates and drives the SLIOs)
+    /// and serve its VT100 terminal on a pseudo-terminal (19200 8N1) linked at PATH: open it
+    /// with `screen PATH 19200`, `picocom -b 19200 PATH` or minicom.
+    #[arg(long, value_name = "PATH")]
+    pub ppc: Option<PathBuf>,
     /// Send socketcand's discovery beacon every 3 s (python-can's `detect_beacon()`), to
     /// ADDR, by default 127.0.0.1:42000 when listening on loopback, else the broadcast
     /// address 255.255.255.255:42000.
@@ -86,6 +91,10 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
         config.devices.push((format!("slio{id}"), Box::new(board)));
     }
+    if args.ppc.is_some() {
+        let ppc = ppc_node(args.bitrate).context("--ppc: the PowerPC node cannot join this bus")?;
+        config.devices.push((PPC_NODE.to_string(), Box::new(ppc)));
+    }
     if let Some(path) = &args.nodes {
         let text = super::sim::read_scenario(path)?;
         let scenario = buslab_sim::Scenario::from_toml(&text)
@@ -109,8 +118,23 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             .context("cannot install the Ctrl-C handler")?;
     }
     let server = buslab_vbus::spawn(config)?;
+    let terminal = match &args.ppc {
+        Some(path) => Some(
+            buslab_served::ppc::serve_terminal(PPC_NODE, server.poster(), Some(path.clone()))
+                .context("cannot serve the PowerPC node's terminal")?,
+        ),
+        None => None,
+    };
     // The URL on stdout (tests and scripts read it when the port was 0).
     println!("socketcand://{}/{}", server.local_addr(), args.name);
+    if let (Some(path), Some(t)) = (&args.ppc, &terminal) {
+        tracing::info!(
+            "MoniCAN's terminal on {} ({}, 19200 8N1): screen {} 19200",
+            path.display(),
+            t.path().display(),
+            path.display()
+        );
+    }
     tracing::info!("Ctrl-C to stop");
     while !stop.load(Ordering::SeqCst) {
         std::thread::sleep(Duration::from_millis(50));
@@ -130,4 +154,15 @@ pub fn demo_board(
         2.5 + 2.5 * (2.0 * std::f64::consts::PI * t / 10.0).sin()
     };
     buslab_slio::DemoBoard::new(id, bitrate, Box::new(1.25), Box::new(potentiometer))
+}
+
+/// The PowerPC node's name on the bus.
+pub const PPC_NODE: &str = "ppc";
+
+/// The PowerPC node running MoniCAN, as `bus serve --ppc` and the lab put it on the bus.
+pub fn ppc_node(bitrate: u32) -> Result<buslab_ppc::PpcNode, buslab_ppc::PpcError> {
+    buslab_ppc::PpcNode::new(buslab_monican::Config {
+        bitrate,
+        ..buslab_monican::Config::default()
+    })
 }
