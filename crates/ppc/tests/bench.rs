@@ -394,11 +394,12 @@ fn a_lone_powerpc_gives_up_unacknowledged_frames_and_keeps_calibrating() {
     bench.run_until(100, "the notice", |b| {
         b.row(NOTICE_ROW) == "SLIO 3 did not answer (inputs)"
     });
-    // The periodic calibration still goes out (it is not stuck behind the command): one
-    // attempt every 5000 bit-times, none repeated.
+    // The periodic calibration still goes out (it is not stuck behind the command): each
+    // 5000 bit-times a frame is tried, retried by the SJA1000 as any unacknowledged frame, and
+    // given up after GIVE_UP_BITS so the next period's goes out.
     bench.records.clear();
     bench.run(50_000);
-    let attempts = bench
+    let periods: std::collections::BTreeSet<u64> = bench
         .records
         .iter()
         .filter(|(_, h)| {
@@ -413,10 +414,12 @@ fn a_lone_powerpc_gives_up_unacknowledged_frames_and_keeps_calibrating() {
                 }
             )
         })
-        .count();
+        .map(|(t, _)| t / 5000)
+        .collect();
     assert!(
-        (9..=11).contains(&attempts),
-        "{attempts} calibration attempts in 10 periods"
+        periods.len() >= 9,
+        "calibration attempts in only {} of 10 periods",
+        periods.len()
     );
     assert!(
         bench.sim.node(PPC).tec() <= 128,
