@@ -53,6 +53,14 @@ pub struct ServeArgs {
     /// --keep` or python-can sending 0AA#AA04); the bus must run at 20000..125000 bit/s.
     #[arg(long, value_name = "IDS", value_delimiter = ',')]
     pub slio: Vec<buslab_slio::SlioId>,
+    /// The SLIO boards' potentiometer (P6, ADC2): VOLTS, const:VOLTS,
+    /// sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]], ramp:FROM:TO:PERIOD or csv:FILE (the
+    /// ZELLE's source grammar); default a 0..5 V sine of 10 s.
+    #[arg(long, value_name = "SOURCE", default_value = POTENTIOMETER)]
+    pub slio_pot: String,
+    /// The SLIO boards' ADC1 input (P5), same grammar; default 1.25 V.
+    #[arg(long, value_name = "SOURCE", default_value = "1.25V")]
+    pub slio_adc1: String,
     /// Put the PowerPC node running MoniCAN on the bus (it calibrates and drives the SLIOs)
     /// and serve its VT100 terminal on a pseudo-terminal (19200 8N1) linked at PATH: open it
     /// with `screen PATH 19200`, `picocom -b 19200 PATH` or minicom.
@@ -86,10 +94,14 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 .map_err(|_| anyhow::anyhow!("beacon address {addr:?} must be IP:PORT"))?,
         ),
     };
-    for &id in &args.slio {
-        let board = demo_board(id, args.bitrate)
-            .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
-        config.devices.push((format!("slio{id}"), Box::new(board)));
+    if !args.slio.is_empty() {
+        let adc1 = board_source("--slio-adc1", &args.slio_adc1)?;
+        let pot = board_source("--slio-pot", &args.slio_pot)?;
+        for &id in &args.slio {
+            let board = demo_board_with(id, args.bitrate, adc1.clone(), pot.clone())
+                .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
+            config.devices.push((format!("slio{id}"), Box::new(board)));
+        }
     }
     if args.ppc.is_some() {
         let ppc = ppc_node(args.bitrate).context("--ppc: the PowerPC node cannot join this bus")?;
@@ -143,17 +155,36 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A SLIO demo board as `bus serve` and the lab put it on the bus: ADC1 (P5) reads 1.25 V,
-/// the potentiometer (P6) turns slowly (a 0..5 V sine, 10 s a turn).
-pub fn demo_board(
+/// The lab's potentiometer: a 0..5 V sine, 10 s a turn.
+const POTENTIOMETER: &str = "sine:100mHz:2.5V:2.5V";
+
+/// A SLIO demo board as the lab puts it on the bus: ADC1 (P5) reads 1.25 V, the
+/// potentiometer (P6) turns slowly.
+pub fn demo_board(id: buslab_slio::SlioId, bitrate: u32) -> anyhow::Result<buslab_slio::DemoBoard> {
+    let adc1 = board_source("ADC1", "1.25V")?;
+    let pot = board_source("potentiometer", POTENTIOMETER)?;
+    Ok(demo_board_with(id, bitrate, adc1, pot)?)
+}
+
+/// A demo board with these sources on ADC1 and the potentiometer.
+fn demo_board_with(
     id: buslab_slio::SlioId,
     bitrate: u32,
+    adc1: buslab_zelle::analog::Source,
+    pot: buslab_zelle::analog::Source,
 ) -> Result<buslab_slio::DemoBoard, buslab_slio::SlioError> {
-    let potentiometer = |t_ns: u64| {
-        let t = t_ns as f64 * 1e-9;
-        2.5 + 2.5 * (2.0 * std::f64::consts::PI * t / 10.0).sin()
-    };
-    buslab_slio::DemoBoard::new(id, bitrate, Box::new(1.25), Box::new(potentiometer))
+    buslab_slio::DemoBoard::new(
+        id,
+        bitrate,
+        Box::new(move |t| adc1.volts(t)),
+        Box::new(move |t| pot.volts(t)),
+    )
+}
+
+/// An analog source in the ZELLE's grammar (a CSV replay file read here).
+fn board_source(what: &str, spec: &str) -> anyhow::Result<buslab_zelle::analog::Source> {
+    let spec = buslab_zelle::analog::SourceSpec::parse(spec).context(what.to_string())?;
+    buslab_served::zelle::load_source(spec).context(what.to_string())
 }
 
 /// The PowerPC node's name on the bus.
