@@ -2,7 +2,8 @@
 # Installs what the test suite uses besides the Rust toolchain (idempotent, quick when done):
 # - crates.io: cargo-nextest, the test runner of scripts/test.sh (the machine image has it in
 #   /usr/local/bin; elsewhere it is built once with `cargo install --locked`, a few minutes);
-# - Debian: sigrok-cli (decodes our VCD waveforms independently);
+# - Debian: sigrok-cli (decodes our VCD waveforms independently); can-utils (log2asc/asc2log,
+#   the log-format interop tests) and tshark/editcap (decode buslab's pcap and pcapng);
 # - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can).
 # Whatever cannot be installed stops the script with a message and a non-zero exit: the interop
 # tests must not pass by skipping (under CI=1 they fail when a tool is missing).
@@ -36,6 +37,20 @@ apt_install() {
 if ! command -v sigrok-cli >/dev/null 2>&1; then
     apt_install sigrok-cli
     command -v sigrok-cli >/dev/null 2>&1 || fail "sigrok-cli is still missing after installing it"
+fi
+
+if ! command -v log2asc >/dev/null 2>&1 || ! command -v asc2log >/dev/null 2>&1; then
+    apt_install can-utils
+    command -v log2asc >/dev/null 2>&1 || fail "log2asc is still missing after installing can-utils"
+fi
+
+if ! command -v tshark >/dev/null 2>&1 || ! command -v editcap >/dev/null 2>&1; then
+    # tshark asks whether non-root users may capture: answer no, without a dialog.
+    echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections ||
+        fail "cannot preseed wireshark-common/install-setuid (debconf-set-selections)"
+    apt_install tshark
+    command -v tshark >/dev/null 2>&1 && command -v editcap >/dev/null 2>&1 ||
+        fail "tshark or editcap is still missing after installing tshark"
 fi
 
 requirements=scripts/test-requirements.txt

@@ -43,6 +43,10 @@ enum Command {
     Regs(cmd::regs::Args),
     /// A node's error state, STATUS bits, counters, ALC and ECC in words.
     Status(cmd::status::Args),
+    /// CAN log files (candump, ASC, BLF, TRC, CSV, pcap, pcapng, SQLite): convert, info, cat.
+    Log(cmd::log::Args),
+    /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
+    Play(cmd::play::Args),
 }
 
 fn main() -> ExitCode {
@@ -95,6 +99,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gen(args) => cmd::r#gen::run(args),
         Command::Regs(args) => cmd::regs::run(args),
         Command::Status(args) => cmd::status::run(args),
+        Command::Log(args) => cmd::log::run(args, quiet),
+        Command::Play(args) => cmd::play::run(args, quiet),
     }
 }
 

@@ -115,12 +115,17 @@ pub struct LogSource {
     pub len: u64,
 }
 
+/// Called when a followed file has no more bytes for now (e.g. to flush what was written).
+pub type OnWait = Arc<dyn Fn() + Send + Sync>;
+
 /// How to open a log.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Default)]
 pub struct OpenOptions {
     /// Follow a growing file (like `tail -f`): at its end, wait for more until this flag is
     /// set, then end. Not for SQLite.
     pub follow_until: Option<Arc<AtomicBool>>,
+    /// While following: called once each time the reader catches up with the file's end.
+    pub on_wait: Option<OnWait>,
 }
 
 /// Opens a log file for reading as `format`; errors name the file and, when reading, the line
@@ -169,6 +174,7 @@ pub fn open_source(
         Some(stop) => Box::new(Follow {
             inner: counted,
             stop: stop.clone(),
+            on_wait: options.on_wait.clone(),
         }),
         None => Box::new(counted),
     };
@@ -257,6 +263,7 @@ impl<R: Read> Read for Counted<R> {
 struct Follow<R> {
     inner: R,
     stop: Arc<AtomicBool>,
+    on_wait: Option<OnWait>,
 }
 
 /// How often a followed file is looked at for new bytes.
@@ -264,10 +271,17 @@ const FOLLOW_POLL: Duration = Duration::from_millis(100);
 
 impl<R: Read> Read for Follow<R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let mut waited = false;
         loop {
             let n = self.inner.read(buf)?;
             if n > 0 || buf.is_empty() || self.stop.load(Ordering::SeqCst) {
                 return Ok(n);
+            }
+            if !waited {
+                waited = true;
+                if let Some(f) = &self.on_wait {
+                    f();
+                }
             }
             std::thread::sleep(FOLLOW_POLL);
         }

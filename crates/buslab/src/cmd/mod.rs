@@ -6,6 +6,8 @@ pub mod cpu196;
 pub mod dump;
 pub mod r#gen;
 pub mod lab;
+pub mod log;
+pub mod play;
 pub mod regs;
 pub mod send;
 pub mod sim;
