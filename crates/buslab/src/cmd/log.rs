@@ -219,6 +219,7 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
         }));
     }
     let mut source = open_source(input, from, &options)?;
+    drop(options); // its hook holds the writer too
     let bar = progress(source.len, quiet || args.follow);
     let started = Instant::now();
     let mut tally = Tally::default();
