@@ -447,7 +447,10 @@ impl<W: Write> Writer<W> {
     }
 
     fn header(&mut self, first: Duration) -> io::Result<u64> {
-        let start_us = (first.as_nanos() / 1000).min(u128::from(u64::MAX)) as u64;
+        let start_us = first
+            .as_secs()
+            .saturating_mul(1_000_000)
+            .saturating_add(u64::from(first.subsec_micros()));
         let start = Duration::from_micros(start_us);
         let date = time::asc_date(start);
         write!(
@@ -466,7 +469,11 @@ impl<W: Write> Writer<W> {
             Some(s) => s,
             None => self.header(entry.timestamp)?,
         };
-        let us = (entry.timestamp.as_nanos() / 1000).min(u128::from(u64::MAX)) as u64;
+        let t = entry.timestamp;
+        let us = t
+            .as_secs()
+            .saturating_mul(1_000_000)
+            .saturating_add(u64::from(t.subsec_micros()));
         let offset = us.saturating_sub(start);
         let channel = self.channels.number(&entry.interface);
         let line = &mut self.line;
@@ -499,10 +506,7 @@ impl<W: Write> Writer<W> {
                 } else {
                     line.extend_from_slice(b"d ");
                     text::push_hex(line, u32::from(f.dlc()), 1);
-                    for &b in f.payload() {
-                        line.push(b' ');
-                        text::push_hex_byte(line, b);
-                    }
+                    text::push_spaced_hex(line, f.payload());
                 }
             }
         }

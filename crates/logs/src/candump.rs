@@ -177,6 +177,10 @@ const POW10: [u32; 10] = [
 #[inline]
 fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
     let n = line.len();
+    // candump's own `(%010u.%06u) ` in one go.
+    if let Some((secs, micros)) = candump_time(line) {
+        return parse_after_time(line, 19, secs, micros * 1000, entry);
+    }
     let mut i = 0;
     while i < n && is_blank(line[i]) {
         i += 1;
@@ -208,7 +212,62 @@ fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
         return None;
     }
     frac *= POW10[decimals];
-    i += 1;
+    parse_after_time(line, i + 1, secs, frac, entry)
+}
+
+/// Eight ASCII digits as a number (SWAR: all eight at once), or `None`.
+#[inline]
+fn eight_digits(b: &[u8]) -> Option<u32> {
+    let v = u64::from_le_bytes(b.get(..8)?.try_into().ok()?);
+    let digits = (v & 0xF0F0_F0F0_F0F0_F0F0)
+        | (((v.wrapping_add(0x0606_0606_0606_0606)) & 0xF0F0_F0F0_F0F0_F0F0) >> 4);
+    if digits != 0x3333_3333_3333_3333 {
+        return None;
+    }
+    let v = v - 0x3030_3030_3030_3030;
+    let v = v * 10 + (v >> 8);
+    let v = ((v & 0x0000_00FF_0000_00FF).wrapping_mul(100 + (1_000_000 << 32))
+        + ((v >> 16) & 0x0000_00FF_0000_00FF).wrapping_mul(1 + (10_000 << 32)))
+        >> 32;
+    Some(v as u32)
+}
+
+/// `(SSSSSSSSSS.UUUUUU) ` exactly (candump's layout): seconds and microseconds.
+#[inline]
+fn candump_time(line: &[u8]) -> Option<(u64, u32)> {
+    if line.len() < 21 || line[0] != b'(' || line[11] != b'.' || line[18] != b')' {
+        return None;
+    }
+    if !is_blank(line[19]) {
+        return None;
+    }
+    let high = eight_digits(&line[1..9])?;
+    let (d9, d10) = (line[9].wrapping_sub(b'0'), line[10].wrapping_sub(b'0'));
+    if d9 > 9 || d10 > 9 {
+        return None;
+    }
+    let secs = u64::from(high) * 100 + u64::from(d9) * 10 + u64::from(d10);
+    let mut micros = 0u32;
+    for &b in &line[12..18] {
+        let d = b.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
+        }
+        micros = micros * 10 + u32::from(d);
+    }
+    Some((secs, micros))
+}
+
+/// The rest of a line after its timestamp, from `i` on.
+#[inline]
+fn parse_after_time(
+    line: &[u8],
+    mut i: usize,
+    secs: u64,
+    frac: u32,
+    entry: &mut Entry,
+) -> Option<()> {
+    let n = line.len();
     // interface
     let start = i;
     while i < n && is_blank(line[i]) {
@@ -217,15 +276,16 @@ fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
     if i == start {
         return None;
     }
+    // Graphic ASCII up to a space or tab (anything else: the reference parser decides).
     let start = i;
-    while i < n && !is_blank(line[i]) {
-        if !line[i].is_ascii_graphic() {
+    while i < n && line[i] > b' ' {
+        if line[i] >= 0x7F {
             return None;
         }
         i += 1;
     }
     let interface = &line[start..i];
-    if interface.is_empty() {
+    if interface.is_empty() || (i < n && !is_blank(line[i])) {
         return None;
     }
     // frame
@@ -237,8 +297,11 @@ fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
         return None;
     }
     let start = i;
-    while i < n && !is_blank(line[i]) {
+    while i < n && line[i] > b' ' {
         i += 1;
+    }
+    if i < n && !is_blank(line[i]) {
+        return None;
     }
     let frame = fast_frame(&line[start..i])?;
     while i < n && is_blank(line[i]) {
@@ -262,11 +325,14 @@ fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
         None
     };
     entry.timestamp = Duration::new(secs, frac);
-    entry.interface.clear();
-    // The interface bytes are ASCII graphic characters (checked above).
-    entry
-        .interface
-        .push_str(std::str::from_utf8(interface).ok()?);
+    // Mostly the same interface as the line before: then nothing to copy.
+    if entry.interface.as_bytes() != interface {
+        entry.interface.clear();
+        // The interface bytes are ASCII graphic characters (checked above).
+        entry
+            .interface
+            .extend(interface.iter().map(|&b| char::from(b)));
+    }
     entry.record = Record::Frame(frame);
     entry.direction = direction;
     Some(())
@@ -274,10 +340,15 @@ fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
 
 #[inline]
 fn fast_frame(text: &[u8]) -> Option<Frame> {
-    let hash = memchr::memchr(b'#', text)?;
+    // The ID has 3 or 8 digits: the '#' is right after them.
+    let hash = match text.get(3) {
+        Some(b'#') => 3,
+        _ if text.get(8) == Some(&b'#') => 8,
+        _ => return None,
+    };
     let (id, rest) = (&text[..hash], &text[hash + 1..]);
     let raw = text::hex_u32(id)?;
-    let id = match id.len() {
+    let id = match hash {
         3 if raw <= 0x7FF => Id::standard(raw as u16).ok()?,
         8 if raw <= 0x1FFF_FFFF => Id::extended(raw).ok()?,
         _ => return None,
@@ -291,12 +362,14 @@ fn fast_frame(text: &[u8]) -> Option<Frame> {
         return None;
     }
     let mut data = [0u8; 8];
+    let mut bad = 0u8;
     for (k, pair) in rest.chunks_exact(2).enumerate() {
         let (hi, lo) = (text::hex_digit(pair[0]), text::hex_digit(pair[1]));
-        if hi > 15 || lo > 15 {
-            return None;
-        }
-        data[k] = (hi << 4) | lo;
+        bad |= hi | lo;
+        data[k] = (hi << 4) | (lo & 15);
+    }
+    if bad > 15 {
+        return None;
     }
     Frame::data(id, &data[..rest.len() / 2]).ok()
 }

@@ -126,31 +126,43 @@ pub fn trim(text: &[u8]) -> &[u8] {
     &text[start..end.max(start)]
 }
 
+/// Each byte's value as a hex digit, or 0xFF.
+static HEX_VALUE: [u8; 256] = {
+    let mut t = [0xFFu8; 256];
+    let mut i = 0;
+    while i < 10 {
+        t[b'0' as usize + i] = i as u8;
+        i += 1;
+    }
+    let mut i = 0;
+    while i < 6 {
+        t[b'a' as usize + i] = 10 + i as u8;
+        t[b'A' as usize + i] = 10 + i as u8;
+        i += 1;
+    }
+    t
+};
+
 /// The value of one hex digit, or 0xFF.
 #[inline]
 pub fn hex_digit(b: u8) -> u8 {
-    match b {
-        b'0'..=b'9' => b - b'0',
-        b'a'..=b'f' => b - b'a' + 10,
-        b'A'..=b'F' => b - b'A' + 10,
-        _ => 0xFF,
-    }
+    HEX_VALUE[usize::from(b)]
 }
 
 /// 1..=8 hex digits as a number.
+#[inline]
 pub fn hex_u32(text: &[u8]) -> Option<u32> {
     if text.is_empty() || text.len() > 8 {
         return None;
     }
     let mut v = 0u32;
+    let mut bad = 0u8;
     for &b in text {
         let d = hex_digit(b);
-        if d > 15 {
-            return None;
-        }
-        v = (v << 4) | u32::from(d);
+        bad |= d;
+        v = (v << 4) | u32::from(d & 15);
     }
-    Some(v)
+    (bad <= 15).then_some(v)
 }
 
 /// 1..=19 decimal digits as a number.
@@ -227,20 +239,31 @@ pub fn push_u64_zeros(out: &mut Vec<u8>, v: u64, width: usize) {
         }
     }
     let len = digits.len() - i;
-    for _ in len..width {
-        out.push(b'0');
+    if len < width {
+        out.extend_from_slice(&b"00000000000000000000"[..(width - len).min(20)]);
     }
     out.extend_from_slice(&digits[i..]);
 }
 
 /// Appends `v` right-aligned in `width` columns (leading spaces).
+#[inline]
 pub fn push_u64_right(out: &mut Vec<u8>, v: u64, width: usize) {
-    let start = out.len();
-    push_u64(out, v);
-    let len = out.len() - start;
-    if len < width {
-        out.splice(start..start, std::iter::repeat_n(b' ', width - len));
+    let mut digits = [0u8; 20];
+    let mut i = digits.len();
+    let mut v = v;
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
     }
+    let len = digits.len() - i;
+    if len < width {
+        out.extend_from_slice(&SPACES[..(width - len).min(SPACES.len())]);
+    }
+    out.extend_from_slice(&digits[i..]);
 }
 
 const HEX: &[u8; 16] = b"0123456789ABCDEF";
@@ -271,11 +294,27 @@ pub fn push_hex(out: &mut Vec<u8>, v: u32, width: usize) {
     out.extend_from_slice(&digits[i..]);
 }
 
-/// Appends spaces until the line (since `start`) is `width` long.
+const SPACES: [u8; 64] = [b' '; 64];
+
+/// Appends spaces until the line (since `start`) is `width` long (at most 64 at once).
+#[inline]
 pub fn pad_to(out: &mut Vec<u8>, start: usize, width: usize) {
-    while out.len() - start < width {
-        out.push(b' ');
+    let have = out.len() - start;
+    if have < width {
+        out.extend_from_slice(&SPACES[..(width - have).min(SPACES.len())]);
     }
+}
+
+/// Appends ` XX` for each byte (uppercase hex).
+#[inline]
+pub fn push_spaced_hex(out: &mut Vec<u8>, bytes: &[u8]) {
+    let mut buf = [0u8; 24];
+    for (k, &b) in bytes.iter().take(8).enumerate() {
+        buf[3 * k] = b' ';
+        buf[3 * k + 1] = HEX[usize::from(b >> 4)];
+        buf[3 * k + 2] = HEX[usize::from(b & 15)];
+    }
+    out.extend_from_slice(&buf[..3 * bytes.len().min(8)]);
 }
 
 #[cfg(test)]

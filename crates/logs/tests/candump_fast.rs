@@ -8,6 +8,9 @@ use proptest::prelude::*;
 fn token() -> impl Strategy<Value = String> {
     prop_oneof![
         Just("(1700000000.123456)".to_string()),
+        "\\([0-9:/ ]{10}\\.[0-9a ]{6}\\)",
+        Just("(1700000000.12345a)".to_string()),
+        Just("(17000:0000.123456)".to_string()),
         Just("(0.5)".to_string()),
         Just("(12.1234567890)".to_string()),
         Just("(99999999999999999999.1)".to_string()),
