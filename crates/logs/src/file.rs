@@ -370,9 +370,11 @@ fn create(
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
+        // As a plain create would: 0666 less the umask (not the temporary file's 0600).
         let temp = tempfile::Builder::new()
             .prefix(&format!(".{name}."))
             .suffix(".part")
+            .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
             .tempfile_in(dir)
             .map_err(create_err)?;
         let (file, temp) = temp.into_parts();

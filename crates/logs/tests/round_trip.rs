@@ -384,3 +384,21 @@ fn an_atomic_writer_dropped_unfinished_leaves_nothing() {
     assert!(!path.exists());
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
+
+#[test]
+fn an_atomic_writer_gives_the_file_the_usual_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let atomic = dir.path().join("atomic.pcap");
+    let direct = dir.path().join("direct.pcap");
+    create_writer_atomic(&atomic, Format::Pcap)
+        .unwrap()
+        .finish()
+        .unwrap();
+    create_writer(&direct, Format::Pcap)
+        .unwrap()
+        .finish()
+        .unwrap();
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode(&atomic), mode(&direct));
+}

@@ -89,13 +89,15 @@ pub struct CatArgs {
 }
 
 pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
-    match args.command {
+    let result = match args.command {
         LogCommand::Convert(a) => convert(a, quiet),
         LogCommand::Info(a) => info(a),
-        LogCommand::Cat(a) => match cat(a) {
-            Err(e) if is_broken_pipe(&e) => Ok(()),
-            other => other,
-        },
+        LogCommand::Cat(a) => cat(a),
+    };
+    match result {
+        // The reader of our output left (`| head`): not an error.
+        Err(e) if is_broken_pipe(&e) => Ok(()),
+        other => other,
     }
 }
 
