@@ -72,7 +72,7 @@ fn a_bad_line_stops_the_conversion_naming_it_and_keeps_what_came_before() {
         err.contains("in.log: line 2:")
             && err.contains("odd number")
             && err.contains("--skip-bad")
-            && err.contains("out.csv holds the 1 entries before it"),
+            && err.contains("out.csv holds the 1 entry before it"),
         "{err}"
     );
     let (ok, out, _) = run(&["log", "cat", "out.csv"], dir.path());

@@ -178,7 +178,9 @@ impl ReadFailure {
                 } else {
                     " (--skip-bad steps over bad lines and records)".to_string()
                 };
-                anyhow::anyhow!("{e}{hint}; {kept} the {} entries before it", tally.entries)
+                let n = tally.entries;
+                let entries = if n == 1 { "entry" } else { "entries" };
+                anyhow::anyhow!("{e}{hint}; {kept} the {n} {entries} before it")
             }
             ReadFailure::Other(e) => e,
         }
