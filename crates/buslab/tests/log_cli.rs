@@ -153,6 +153,31 @@ fn cat_prints_candump_lines_and_no_progress_when_piped() {
     assert_same_lines(&out, &lines(20_000, 0));
 }
 
+#[test]
+fn a_long_conversion_shows_progress_on_a_terminal() {
+    // util-linux's `script` gives the command a pseudo-terminal and records what it draws.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("a.log"), lines(100_000, 0)).unwrap();
+    let command = format!("{} log convert a.log a.asc", env!("CARGO_BIN_EXE_buslab"));
+    let out = Command::new("script")
+        .args(["-qec", &command, "typescript"])
+        .current_dir(dir.path())
+        .stdin(Stdio::null())
+        .output()
+        .expect("script (util-linux) runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let screen = std::fs::read_to_string(dir.path().join("typescript")).unwrap();
+    assert!(
+        screen.contains("frames/s") && screen.contains("MiB"),
+        "{screen}"
+    );
+    assert_eq!(entries_in(&dir.path().join("a.asc")), 100_000);
+}
+
 /// `buslab log cat FILE` line count, or 0 while it cannot be read yet.
 fn entries_in(path: &Path) -> usize {
     let out = buslab().args(["log", "cat"]).arg(path).output().unwrap();

@@ -243,7 +243,7 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
             if written.is_multiple_of(16_384) && !bar.is_hidden() {
                 bar.set_position(bytes.get());
                 let rate = written as f64 / started.elapsed().as_secs_f64().max(1e-9);
-                bar.set_message(format!("{written} frames, {rate:.0} frames/s"));
+                bar.set_message(format!("{rate:.0} frames/s"));
             }
             Ok(())
         },
@@ -304,11 +304,9 @@ fn progress(len: u64, hidden: bool) -> ProgressBar {
     }
     let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
     bar.set_style(
-        ProgressStyle::with_template(
-            "{bytes:>10}/{total_bytes} [{bar:30}] {percent:>3}% {msg} eta {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar())
-        .progress_chars("=> "),
+        ProgressStyle::with_template("{bytes:>9}/{total_bytes} [{bar:20}] {percent:>3}% {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
     );
     bar
 }
