@@ -153,6 +153,12 @@ pub fn parse_line_into(line: &[u8], entry: &mut Entry) -> Result<(), LineError> 
     Ok(())
 }
 
+/// `!` to `~`: one comparison.
+#[inline]
+fn is_graphic(b: u8) -> bool {
+    b.wrapping_sub(0x21) < 0x5E
+}
+
 #[inline]
 fn is_blank(b: u8) -> bool {
     b == b' ' || b == b'\t'
@@ -278,10 +284,7 @@ fn parse_after_time(
     }
     // Graphic ASCII up to a space or tab (anything else: the reference parser decides).
     let start = i;
-    while i < n && line[i] > b' ' {
-        if line[i] >= 0x7F {
-            return None;
-        }
+    while i < n && is_graphic(line[i]) {
         i += 1;
     }
     let interface = &line[start..i];
@@ -297,7 +300,7 @@ fn parse_after_time(
         return None;
     }
     let start = i;
-    while i < n && line[i] > b' ' {
+    while i < n && is_graphic(line[i]) {
         i += 1;
     }
     if i < n && !is_blank(line[i]) {
