@@ -52,6 +52,10 @@ enum Command {
     Slcan(cmd::slcan::Args),
     /// MoniCAN in this terminal: calibrate, find and drive up to 16 SLIO boards on a bus.
     Monican(cmd::monican::Args),
+    /// CAN log files (candump, ASC, BLF, TRC, CSV, pcap, pcapng, SQLite): convert, info, cat.
+    Log(cmd::log::Args),
+    /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
+    Play(cmd::play::Args),
 }
 
 fn main() -> ExitCode {
@@ -109,6 +113,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bridge(args) => cmd::bridge::run(args),
         Command::Slcan(args) => cmd::slcan::run(args),
         Command::Monican(args) => cmd::monican::run(args),
+        Command::Log(args) => cmd::log::run(args, quiet),
+        Command::Play(args) => cmd::play::run(args, quiet),
     }
 }
 

@@ -13,6 +13,8 @@ pub mod dump;
 pub mod r#gen;
 pub mod lab;
 pub mod monican;
+pub mod log;
+pub mod play;
 pub mod regs;
 pub mod send;
 pub mod sim;
