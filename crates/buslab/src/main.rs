@@ -54,6 +54,8 @@ enum Command {
     Monican(cmd::monican::Args),
     /// CAN log files (candump, ASC, BLF, TRC, CSV, pcap, pcapng, SQLite): convert, info, cat.
     Log(cmd::log::Args),
+    /// Send a program (an S-record file) to the PowerPC node's CAN loader, like JerryCAN.
+    Load(cmd::load::Args),
     /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
     Play(cmd::play::Args),
 }
@@ -115,6 +117,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Monican(args) => cmd::monican::run(args),
         Command::Log(args) => cmd::log::run(args, quiet),
         Command::Play(args) => cmd::play::run(args, quiet),
+        Command::Load(args) => cmd::load::run(args),
     }
 }
 

@@ -12,6 +12,7 @@ pub mod cpu196;
 pub mod dump;
 pub mod r#gen;
 pub mod lab;
+pub mod load;
 pub mod log;
 pub mod monican;
 pub mod play;
@@ -21,6 +22,7 @@ pub mod sim;
 pub mod slcan;
 pub mod slio;
 pub mod status;
+pub mod transfer;
 pub mod wire;
 pub mod zelle;
 
