@@ -56,6 +56,10 @@ enum Command {
     Log(cmd::log::Args),
     /// Send a program (an S-record file) to the PowerPC node's CAN loader, like JerryCAN.
     Load(cmd::load::Args),
+    /// Send a file with the file protocol (8 bytes a frame on one ID, the last shorter).
+    Sendfile(cmd::sendfile::Args),
+    /// Receive one file sent with the file protocol and write it atomically.
+    Recvfile(cmd::recvfile::Args),
     /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
     Play(cmd::play::Args),
 }
@@ -118,6 +122,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Log(args) => cmd::log::run(args, quiet),
         Command::Play(args) => cmd::play::run(args, quiet),
         Command::Load(args) => cmd::load::run(args),
+        Command::Sendfile(args) => cmd::sendfile::run(args),
+        Command::Recvfile(args) => cmd::recvfile::run(args),
     }
 }
 
