@@ -28,8 +28,15 @@ const PANEL_HEIGHT: u32 = 260;
 const LANE_HEIGHT: u32 = 24;
 /// Caption and time axis of the lanes.
 const LANES_EXTRA: u32 = 90;
-/// The legend column right of each chart.
-const LEGEND_WIDTH: u32 = 230;
+/// The legend column right of each chart: at least this wide, wider for long names.
+const LEGEND_MIN_WIDTH: u32 = 180;
+/// Beyond it a name runs out of the picture (it is still in the file).
+const LEGEND_MAX_WIDTH: u32 = 800;
+/// A generous width of one character of the legend's 14-pixel font (the viewer lays the text
+/// out; this only keeps long names inside the picture).
+const LEGEND_CHAR_WIDTH: u32 = 8;
+/// The least width of a chart.
+const CHART_MIN_WIDTH: u32 = 700;
 const LEGEND_LINE: i32 = 20;
 
 fn shade_color(shade: Shade) -> RGBAColor {
@@ -63,11 +70,24 @@ impl Figure {
             PlotError::NoData(format!("every series of \"{}\" is empty", self.title))
         })?;
         let unit = TimeUnit::for_span(t1 - t0);
+        // Each chart is tall enough for its legend.
+        let legend_height = |entries: usize| 50 + LEGEND_LINE as u32 * entries as u32;
+        let panel_heights: Vec<u32> = self
+            .panels
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let bands = if i == 0 { self.time_bands.len() } else { 0 };
+                PANEL_HEIGHT.max(legend_height(p.series.len() + p.bands.len() + bands))
+            })
+            .collect();
         let lanes_height = self.lanes.as_ref().map_or(0, |l| {
-            LANES_EXTRA + LANE_HEIGHT * l.lanes.len().max(1) as u32
+            (LANES_EXTRA + LANE_HEIGHT * l.lanes.len().max(1) as u32)
+                .max(legend_height(l.states.len()))
         });
-        let height = TITLE_HEIGHT + PANEL_HEIGHT * self.panels.len() as u32 + lanes_height;
-        let width = self.width.max(LEGEND_WIDTH + 300);
+        let height = TITLE_HEIGHT + panel_heights.iter().sum::<u32>() + lanes_height;
+        let legend_width = self.legend_width();
+        let width = self.width.max(legend_width + CHART_MIN_WIDTH);
         let mut svg = String::new();
         {
             let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
@@ -75,8 +95,12 @@ impl Figure {
             let root = root
                 .titled(&self.title, (FONT, 22).into_font())
                 .map_err(draw_error)?;
-            let mut breaks: Vec<u32> = (1..=self.panels.len() as u32)
-                .map(|i| i * PANEL_HEIGHT)
+            let mut breaks: Vec<u32> = panel_heights
+                .iter()
+                .scan(0, |top, h| {
+                    *top += h;
+                    Some(*top)
+                })
                 .collect();
             if self.lanes.is_none() {
                 breaks.pop();
@@ -84,14 +108,34 @@ impl Figure {
             let areas = root.split_by_breakpoints::<u32, u32, _, _>([], breaks);
             let axis = TimeAxis { t0, t1, unit };
             for (i, (panel, area)) in self.panels.iter().zip(&areas).enumerate() {
-                self.draw_panel(panel, area, &axis, i == 0)?;
+                self.draw_panel(panel, area, &axis, legend_width, i == 0)?;
             }
             if let (Some(lanes), Some(area)) = (&self.lanes, areas.get(self.panels.len())) {
-                self.draw_lanes(lanes, area, &axis)?;
+                self.draw_lanes(lanes, area, &axis, legend_width)?;
             }
             root.present().map_err(draw_error)?;
         }
         Ok(svg)
+    }
+
+    /// The legend column's width: room for the longest name.
+    fn legend_width(&self) -> u32 {
+        let panels = self.panels.iter().flat_map(|p| {
+            let series = p
+                .series
+                .iter()
+                .map(|s| s.name().chars().count() + " (no data)".len());
+            series.chain(p.bands.iter().map(|b| b.label.chars().count()))
+        });
+        let bands = self.time_bands.iter().map(|b| b.label.chars().count());
+        let states = self
+            .lanes
+            .iter()
+            .flat_map(|l| l.states.iter().map(|s| s.0.chars().count()));
+        let longest = panels.chain(bands).chain(states).max().unwrap_or(0);
+        let longest = u32::try_from(longest).unwrap_or(u32::MAX);
+        (48u32.saturating_add(longest.saturating_mul(LEGEND_CHAR_WIDTH)))
+            .clamp(LEGEND_MIN_WIDTH, LEGEND_MAX_WIDTH)
     }
 
     /// First and last instant shown, in seconds; `None` when there is no data at all.
@@ -127,10 +171,11 @@ impl Figure {
         panel: &Panel,
         area: &DrawingArea<SVGBackend, Shift>,
         axis: &TimeAxis,
+        legend_width: u32,
         first: bool,
     ) -> Result<(), PlotError> {
         let (chart_area, legend_area) =
-            area.split_horizontally(area.dim_in_pixel().0 - LEGEND_WIDTH);
+            area.split_horizontally(area.dim_in_pixel().0 - legend_width);
         let (y0, y1) = value_span(panel);
         let mut chart = ChartBuilder::on(&chart_area)
             .caption(&panel.caption, (FONT, 17).into_font())
@@ -145,6 +190,8 @@ impl Figure {
             .y_desc(panel.axis_title())
             .axis_desc_style((FONT, 15))
             .label_style((FONT, 13))
+            .x_label_formatter(&tick_label)
+            .y_label_formatter(&tick_label)
             .light_line_style(WHITE.mix(0.0))
             .draw()
             .map_err(draw_error)?;
@@ -207,9 +254,10 @@ impl Figure {
         lanes: &StateLanes,
         area: &DrawingArea<SVGBackend, Shift>,
         axis: &TimeAxis,
+        legend_width: u32,
     ) -> Result<(), PlotError> {
         let (chart_area, legend_area) =
-            area.split_horizontally(area.dim_in_pixel().0 - LEGEND_WIDTH);
+            area.split_horizontally(area.dim_in_pixel().0 - legend_width);
         let n = lanes.lanes.len().max(1) as i32;
         let names: Vec<&str> = lanes.lanes.iter().map(|l| l.name.as_str()).collect();
         let lane_name = |v: &SegmentValue<i32>| match v {
@@ -225,13 +273,17 @@ impl Figure {
             .margin(8)
             .x_label_area_size(42)
             .y_label_area_size(72)
-            .build_cartesian_2d(axis.x(axis.t0)..axis.x(axis.t1), (0..n).into_segmented())
+            .build_cartesian_2d(
+                axis.x(axis.t0)..axis.x(axis.t1),
+                (0..n - 1).into_segmented(),
+            )
             .map_err(draw_error)?;
         chart
             .configure_mesh()
             .x_desc(axis.title())
             .axis_desc_style((FONT, 15))
             .label_style((FONT, 13))
+            .x_label_formatter(&tick_label)
             .y_label_formatter(&lane_name)
             .y_labels(n as usize)
             .disable_y_mesh()
@@ -297,6 +349,17 @@ impl TimeAxis {
     fn title(&self) -> String {
         format!("time ({})", self.unit.symbol())
     }
+}
+
+/// A tick value as short as it can be: `250`, `0.25`, `1e-7` (the axis' steps are round, so
+/// six decimals are plenty; the float noise of `0.30000000000000004` goes).
+fn tick_label(v: &f64) -> String {
+    let v = if v.abs() < 1e-12 { 0.0 } else { *v };
+    if v != 0.0 && v.abs() < 1e-4 {
+        return format!("{v:e}");
+    }
+    let fixed = format!("{v:.6}");
+    fixed.trim_end_matches('0').trim_end_matches('.').to_owned()
 }
 
 /// The value axis: every point and `covers`, with a margin of 5 % beyond the points (none at
@@ -411,4 +474,19 @@ fn draw_legend(area: &DrawingArea<SVGBackend, Shift>, entries: &[Entry]) -> Resu
             .map_err(draw_error)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick_label(&250.0), "250");
+        assert_eq!(tick_label(&0.30000000000000004), "0.3");
+        assert_eq!(tick_label(&-2.5), "-2.5");
+        assert_eq!(tick_label(&1e-15), "0");
+        assert_eq!(tick_label(&2e-7), "2e-7");
+        assert_eq!(tick_label(&1e9), "1000000000");
+    }
 }
