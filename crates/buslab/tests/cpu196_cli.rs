@@ -310,6 +310,14 @@ fn record_plot_shows_each_channel_in_volts() {
         s(&b.path("x.png")),
     ]);
     assert!(err.contains("ending in .svg"), "{err}");
+    let err = b.fails(&[
+        "record",
+        "--out",
+        "/dev/null",
+        "--plot",
+        s(&b.path("x.svg")),
+    ]);
+    assert!(err.contains("/dev/null is not a regular file"), "{err}");
 }
 
 #[test]

@@ -711,6 +711,13 @@ fn record<P: Port>(
 ) -> anyhow::Result<()> {
     if let Some(path) = plot {
         super::plot::check_target(path)?;
+        // The figure is drawn from the CSV read back: a device or FIFO cannot be read back.
+        if std::fs::metadata(out_path).is_ok_and(|m| !m.is_file()) {
+            bail!(
+                "--plot draws the recording from --out read back; {} is not a regular file",
+                out_path.display()
+            );
+        }
     }
     let mut recorder = new_recorder(c, out_path)?;
     // log8 samples expand through the board's own table.
