@@ -16,6 +16,7 @@ pub mod load;
 pub mod log;
 pub mod monican;
 pub mod play;
+pub mod plot;
 pub mod recvfile;
 pub mod regs;
 pub mod send;
