@@ -41,7 +41,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let url = &args.bus.bus;
     let mut bus = open(url)?;
     bus.set_filters(&[Filter::standard(args.id)])?;
-    tracing::info!("waiting for a file on ID {:03X} of {url}", args.id);
+    eprintln!("waiting for a file on ID {:03X} of {url}", args.id);
     let mut file = FileAssembler::with_limit(id, args.max_size);
     let bar = ProgressBar::new_spinner();
     bar.set_style(
