@@ -56,6 +56,9 @@ enum Command {
     Log(cmd::log::Args),
     /// Send a program (an S-record file) to the PowerPC node's CAN loader, like JerryCAN.
     Load(cmd::load::Args),
+    /// The mail notifier: new mail in an IMAP mailbox announced on the bus and sent to
+    /// MoniCAN when its user asks (Ctrl R).
+    Mail(cmd::mail::Args),
     /// Send a file with the file protocol (8 bytes a frame on one ID, the last shorter).
     Sendfile(cmd::sendfile::Args),
     /// Receive one file sent with the file protocol and write it atomically.
@@ -123,6 +126,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Play(args) => cmd::play::run(args, quiet),
         Command::Load(args) => cmd::load::run(args),
         Command::Sendfile(args) => cmd::sendfile::run(args),
+        Command::Mail(args) => cmd::mail::run(args),
         Command::Recvfile(args) => cmd::recvfile::run(args),
     }
 }

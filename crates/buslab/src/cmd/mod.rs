@@ -14,6 +14,7 @@ pub mod r#gen;
 pub mod lab;
 pub mod load;
 pub mod log;
+pub mod mail;
 pub mod monican;
 pub mod play;
 pub mod plot;
