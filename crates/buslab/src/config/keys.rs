@@ -205,7 +205,7 @@ pub static KEYS: &[Key] = &[
     Key {
         name: "log_file",
         allowed: "must be a file path (relative to the current directory; ~/ is the home folder)",
-        help: "the candump log `buslab dump -w` writes every frame to",
+        help: "the log `buslab dump -w` writes every frame to (its format from the extension, as with -l)",
         jerrycan: Some("logfile"),
         apply: |s, raw, allowed| {
             let t = plain(raw, 4096, allowed)?;

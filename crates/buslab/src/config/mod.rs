@@ -48,7 +48,7 @@ pub struct Config {
     pub bus: BusUrl,
     /// The bus as written (`vcan0`, `can0`, a URL): what `--bus` shows as its default.
     pub bus_name: String,
-    /// The file `buslab dump -w` writes (JerryCAN's `logfile`); `~/` is the home folder.
+    /// The log `buslab dump -w` writes (JerryCAN's `logfile`); `~/` is the home folder.
     pub log_file: Option<PathBuf>,
     /// The identifier of the loader handshake's remote frame (JerryCAN's `idloader`).
     pub loader_id: u16,

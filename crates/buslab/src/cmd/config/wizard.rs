@@ -62,7 +62,7 @@ pub fn run(args: WizardArgs) -> anyhow::Result<()> {
 
 /// Every step, in the seed's order, then the keys JerryCAN kept in its properties file.
 pub fn ask_all(p: &mut dyn Prompter, mut s: Settings) -> anyhow::Result<Settings> {
-    p.say("buslab configuration assistant: press Enter to keep the value in brackets.");
+    p.say("buslab configuration assistant: press Enter to keep the value shown.");
     ask_mode(p, &mut s)?;
     ask_filter(p, &mut s)?;
     ask_timing(p, &mut s)?;
@@ -164,11 +164,7 @@ fn ask_timing(p: &mut dyn Prompter, s: &mut Settings) -> anyhow::Result<()> {
         let chip = s.controller();
         match chip.bit_timing() {
             Ok(t) => {
-                let (btr0, btr1) = t.registers();
-                p.say(&format!(
-                    "BTR0=0x{btr0:02X} BTR1=0x{btr1:02X}: {} bit/s, {t}",
-                    t.bitrate(chip.can_clock_hz())
-                ));
+                p.say(&format!("{} bit/s: {t}", t.bitrate(chip.can_clock_hz())));
                 return Ok(());
             }
             Err(e) => p.say(&format!("This timing cannot be used: {e}. Again:")),
