@@ -12,19 +12,20 @@ use super::{
     ConfigError, ENV_FILE, ENV_MAIL_PASSWORD, FILE_NAME, Loaded, MAX_FILE_BYTES, Password, Source,
 };
 
-/// The global options that choose the configuration.
+/// The options that choose the configuration. They come before the subcommand
+/// (`buslab --config lab.toml status`): `cpu196 start --config N` is another option.
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct ConfigArgs {
     /// Read the configuration from this file (default: $BUSLAB_CONFIG, ./buslab.toml, then
-    /// ~/.config/buslab/buslab.toml; docs/config.md).
-    #[arg(long, value_name = "FILE", global = true)]
+    /// ~/.config/buslab/buslab.toml; docs/config.md). Before the subcommand.
+    #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Read no configuration file: the defaults, the environment and --set only.
-    #[arg(long, global = true, conflicts_with = "config")]
+    #[arg(long, conflicts_with = "config")]
     pub no_config: bool,
     /// Set a configuration key for this run, over the file and the environment
-    /// (e.g. --set controller.bitrate=125000); repeatable.
-    #[arg(long = "set", value_name = "KEY=VALUE", global = true)]
+    /// (e.g. --set controller.bitrate=125000); repeatable; before the subcommand.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
 }
 
@@ -41,24 +42,27 @@ pub struct Lookup {
 
 impl Lookup {
     /// The options from the raw arguments, before clap parses them (the other options take
-    /// their defaults from the configuration). Stops at `--`.
+    /// their defaults from the configuration): the words before the subcommand only.
     pub fn scan(args: &[OsString]) -> Self {
         let mut lookup = Lookup::default();
-        let mut words = args.iter().skip(1).map(|a| a.to_string_lossy());
+        let mut words = args.iter().skip(1);
         while let Some(word) = words.next() {
-            if word == "--" {
-                break;
-            }
-            if let Some(v) = word.strip_prefix("--config=") {
+            let text = word.to_string_lossy();
+            if let Some(v) = text.strip_prefix("--config=") {
                 lookup.file = Some(PathBuf::from(v));
-            } else if word == "--config" {
-                lookup.file = words.next().map(|v| PathBuf::from(v.as_ref()));
-            } else if word == "--no-config" {
+            } else if text == "--config" {
+                lookup.file = words.next().map(PathBuf::from);
+            } else if text == "--no-config" {
                 lookup.no_file = true;
-            } else if let Some(v) = word.strip_prefix("--set=") {
+            } else if let Some(v) = text.strip_prefix("--set=") {
                 lookup.sets.push(v.to_string());
-            } else if word == "--set" {
-                lookup.sets.extend(words.next().map(|v| v.to_string()));
+            } else if text == "--set" {
+                lookup
+                    .sets
+                    .extend(words.next().map(|v| v.to_string_lossy().into_owned()));
+            } else if !text.starts_with('-') || text == "--" {
+                // The subcommand (the other top-level options are flags).
+                break;
             }
         }
         lookup
@@ -332,14 +336,17 @@ mod tests {
             "-v",
             "--config",
             "a.toml",
-            "dump",
             "--set",
             "bus=can0",
             "--set=mail_id=0x701",
+            "-q",
+            "dump",
         ]));
         assert_eq!(l.file, Some(PathBuf::from("a.toml")));
         assert_eq!(l.sets, ["bus=can0", "mail_id=0x701"]);
-        let l = Lookup::scan(&os(&["buslab", "send", "--", "--config", "x"]));
+        let l = Lookup::scan(&os(&["buslab", "cpu196", "start", "--config", "3"]));
+        assert_eq!(l, Lookup::default(), "a subcommand's --config is its own");
+        let l = Lookup::scan(&os(&["buslab", "--", "--config", "x"]));
         assert_eq!(l, Lookup::default(), "nothing after --");
         assert!(Lookup::scan(&os(&["buslab", "--no-config", "dump"])).no_file);
     }
