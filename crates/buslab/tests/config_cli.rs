@@ -339,3 +339,27 @@ fn the_wizard_needs_a_terminal() {
     assert!(stderr(&out).contains("on a terminal"), "{}", stderr(&out));
     assert!(!dir.path().join("x.toml").exists());
 }
+
+#[test]
+fn a_subcommand_s_own_config_option_is_not_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    // `cpu196 start --config N` is a configuration set: it reaches the command (which then
+    // cannot open the port), neither read as a file nor a clash of options.
+    let out = run(
+        dir.path(),
+        &[
+            "cpu196",
+            "--port",
+            "/nonexistent/pty",
+            "start",
+            "--config",
+            "3",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("/nonexistent/pty"),
+        "{}",
+        stderr(&out)
+    );
+}
