@@ -363,3 +363,20 @@ fn a_subcommand_s_own_config_option_is_not_the_file() {
         stderr(&out)
     );
 }
+
+#[test]
+fn escape_in_the_wizard_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("buslab.toml");
+    let mut w = Wizard::start(dir.path(), &out);
+    w.answer("Controller mode", ENTER);
+    w.answer("Acceptance filter", "\x1b");
+    let status = w.wait_exit();
+    assert_eq!(status.code(), Some(1), "{}", w.contents());
+    assert!(
+        w.contents().contains("cancelled; nothing written"),
+        "{}",
+        w.contents()
+    );
+    assert!(!out.exists());
+}
