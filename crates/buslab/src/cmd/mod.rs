@@ -16,6 +16,7 @@ pub mod lab;
 pub mod log;
 pub mod monican;
 pub mod play;
+pub mod plot;
 pub mod regs;
 pub mod send;
 pub mod sim;
