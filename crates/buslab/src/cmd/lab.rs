@@ -416,6 +416,11 @@ impl SlioBench {
         if self.ids.is_empty() {
             return Ok(None);
         }
+        if let Some(dir) = dir {
+            // `--no-devices` leaves the folder to the PowerPC node.
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the lab folder {}", dir.display()))?;
+        }
         let options = buslab_served::ppc::PpcOptions {
             link: dir.map(|d| d.join("monican")),
             memory: dir.map(|d| d.join("ppc.s37")),
