@@ -30,8 +30,9 @@ pub struct Args {
     pub file: PathBuf,
     #[command(flatten)]
     pub bus: BusOpt,
-    /// The loader's identifier (JerryCAN's `idloader`; hex with 0x, or decimal).
-    #[arg(long, value_name = "N", default_value = "0", value_parser = parse_loader_id)]
+    /// The loader's identifier (JerryCAN's `idloader`, `loader_id` in buslab.toml; hex with
+    /// 0x, or decimal).
+    #[arg(long, value_name = "N", default_value_t = crate::config::get().loader_id, value_parser = parse_loader_id)]
     pub id: u16,
     /// How long to wait for the loader's answer (`2s`, `500ms`).
     #[arg(long, value_name = "DURATION", default_value = "5s", value_parser = crate::units::duration)]

@@ -8,7 +8,6 @@
 //! (the seed's `MailWatcher user password` shows it to `ps`).
 
 use std::collections::VecDeque;
-use std::io::IsTerminal;
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::{Duration, Instant};
@@ -20,19 +19,17 @@ use buslab_canbus::Filter;
 use super::busopt::{BusOpt, open};
 use crate::units::Human;
 
-/// The environment variable the password is read from.
-pub const PASSWORD_ENV: &str = "BUSLAB_MAIL_PASSWORD";
-
 #[derive(clap::Args)]
 pub struct Args {
     #[command(flatten)]
     pub bus: BusOpt,
-    /// The IMAP server, HOST[:PORT] (port 143 unless given; 993 is TLS).
+    /// The IMAP server, HOST[:PORT] (default: `mail.host` and `mail.port` of buslab.toml;
+    /// port 143 unless given; 993 is TLS).
     #[arg(long, value_name = "HOST[:PORT]")]
-    pub imap: String,
-    /// The IMAP user (the password: $BUSLAB_MAIL_PASSWORD or a prompt).
+    pub imap: Option<String>,
+    /// The IMAP user (default: `mail.user`; the password: $BUSLAB_MAIL_PASSWORD or a prompt).
     #[arg(long)]
-    pub user: String,
+    pub user: Option<String>,
     /// auto: TLS on port 993, else STARTTLS when the server offers it, else plain; tls,
     /// starttls: required; plain: never.
     #[arg(long, value_enum, default_value_t = TlsMode::Auto)]
@@ -40,12 +37,13 @@ pub struct Args {
     /// The mailbox watched.
     #[arg(long, default_value = "INBOX")]
     pub mailbox: String,
-    /// How often the mailbox is polled (JerryCAN's `mailsleepingtime`), with a unit.
-    #[arg(long, value_name = "DURATION", default_value = "60s", value_parser = crate::units::duration)]
-    pub interval: Duration,
+    /// How often the mailbox is polled (JerryCAN's `mailsleepingtime`), with a unit
+    /// (default: `mail.interval`, 60 s).
+    #[arg(long, value_name = "DURATION", value_parser = crate::units::duration)]
+    pub interval: Option<Duration>,
     /// The identifier mail is announced and sent on (JerryCAN's `idmail`; MoniCAN's
     /// `--mail-id`; hex with 0x, or decimal).
-    #[arg(long, value_name = "ID", default_value = "0x700", value_parser = super::monican::parse_id)]
+    #[arg(long, value_name = "ID", default_value_t = crate::config::get().mail_id, value_parser = super::monican::parse_id)]
     pub id: u16,
     /// Bytes of a mail sent at most (MoniCAN keeps 2048 by default); a longer mail is cut
     /// and says how much was left out.
@@ -276,17 +274,16 @@ impl Imap {
     }
 }
 
-fn password() -> anyhow::Result<String> {
-    if let Ok(p) = std::env::var(PASSWORD_ENV) {
-        return Ok(p);
-    }
-    if !std::io::stdin().is_terminal() {
-        bail!("no mail password: set {PASSWORD_ENV} (or run in a terminal to be asked)");
-    }
-    rpassword::prompt_password("IMAP password: ").context("cannot read the password")
+/// The password: `$BUSLAB_MAIL_PASSWORD`, else a prompt on the terminal.
+fn password(host: &str, user: &str) -> anyhow::Result<String> {
+    let mut settings = crate::config::get().mail.clone();
+    settings.host = Some(host.to_string());
+    settings.user = Some(user.to_string());
+    let password = settings.password_or_prompt()?;
+    Ok(password.expose().to_string())
 }
 
-fn host_port(text: &str) -> anyhow::Result<(String, u16)> {
+fn host_port(text: &str, default_port: u16) -> anyhow::Result<(String, u16)> {
     match text.rsplit_once(':') {
         Some((host, port)) if !host.contains(':') || host.starts_with('[') => {
             let port = port
@@ -294,17 +291,26 @@ fn host_port(text: &str) -> anyhow::Result<(String, u16)> {
                 .with_context(|| format!("--imap {text:?}: the port must be 1..65535"))?;
             Ok((host.trim_matches(['[', ']']).to_string(), port))
         }
-        _ => Ok((text.to_string(), 143)),
+        _ => Ok((text.to_string(), default_port)),
     }
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (host, port) = host_port(&args.imap)?;
+    let settings = &crate::config::get().mail;
+    let (host, port) = match (&args.imap, &settings.host) {
+        (Some(imap), _) => host_port(imap, settings.port)?,
+        (None, Some(host)) => (host.clone(), settings.port),
+        (None, None) => bail!("no IMAP server: --imap HOST[:PORT], or mail.host in buslab.toml"),
+    };
+    let Some(user) = args.user.clone().or_else(|| settings.user.clone()) else {
+        bail!("no IMAP user: --user NAME, or mail.user in buslab.toml");
+    };
+    let interval = args.interval.unwrap_or(settings.interval);
     let imap = Imap {
-        host,
+        password: password(&host, &user)?,
+        host: host.clone(),
         port,
-        user: args.user.clone(),
-        password: password()?,
+        user: user.clone(),
         mode: args.tls,
         mailbox: args.mailbox.clone(),
         limit: args.limit as usize,
@@ -316,7 +322,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let id = Id::standard(args.id).context("the mail identifier")?;
     let mut announcer = Announcer::new(id);
     let (tx, polled): (Sender<Polled>, Receiver<Polled>) = mpsc::channel();
-    let interval = args.interval;
     std::thread::Builder::new()
         .name("imap-poll".into())
         .spawn(move || imap.run(interval, tx))?;
@@ -334,11 +339,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 Polled::Watching { existing } => {
                     watching = true;
                     eprintln!(
-                        "watching {} of {} on {}:{} every {} ({existing} mails there; new ones are announced on ID {:03X})",
+                        "watching {} of {user} on {host}:{port} every {} ({existing} mails there; new ones are announced on ID {:03X})",
                         args.mailbox,
-                        args.user,
-                        args.imap,
-                        port,
                         Human(interval),
                         args.id
                     );
