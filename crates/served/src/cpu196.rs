@@ -43,7 +43,11 @@ pub struct BoardOptions {
 /// a new PTY.
 pub fn spawn_board(options: BoardOptions) -> Result<Served<Board>, ServeError> {
     let image = match &options.image {
-        Some(path) => load_image(path)?.unwrap_or_default(),
+        Some(path) => {
+            let mut image = load_image(path)?.unwrap_or_default();
+            crate::replay_journals::<Board>(path, &mut image)?;
+            image
+        }
         None => Image::default(),
     };
     let mut board = Board::new(image, options.inputs, 0);

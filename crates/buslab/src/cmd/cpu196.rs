@@ -715,11 +715,10 @@ fn record<P: Port>(
     }
     session.stop(c, &mut out)?;
     show(&mut out);
-    if !c.frame_errors.is_empty() {
+    if let Some(first) = c.frame_errors.first() {
         tracing::warn!(
-            "{} damaged frames skipped (first: {})",
-            c.frame_errors.len(),
-            c.frame_errors[0]
+            "{} damaged frames skipped (first: {first})",
+            c.frame_errors.count()
         );
     }
     let (_, frames, samples) = session.finish()?.expect("a recorder was given");

@@ -105,7 +105,8 @@ pub enum ZelleCommand {
     Key,
     /// Read an internal RAM register (command 16), or write it (command 17).
     Reg {
-        /// Register address 0..127.
+        /// Register address: 0..127 internal RAM, 128..255 (80h..FFh) special function
+        /// registers (read only).
         addr: String,
         /// Byte to write (0..255); none: read it.
         value: Option<String>,
@@ -268,13 +269,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "released"
             }
         ),
-        ZelleCommand::Reg { addr, value } => {
-            let addr = parse_number_in(&addr, "register address", 127)? as u8;
-            match value {
-                None => say!("{:#04x}", cell.read_register(addr)?),
-                Some(v) => cell.write_register(addr, parse_number_in(&v, "value", 0xFF)? as u8)?,
+        ZelleCommand::Reg { addr, value } => match value {
+            None => {
+                let addr = parse_number_in(&addr, "register address", 0xFF)? as u8;
+                say!("{:#04x}", cell.read_register(addr)?)
             }
-        }
+            Some(v) => {
+                // Command 17 writes internal RAM only.
+                let addr = parse_number_in(&addr, "register address to write", 127)? as u8;
+                cell.write_register(addr, parse_number_in(&v, "value", 0xFF)? as u8)?
+            }
+        },
         ZelleCommand::Bus { addr, value } => {
             let addr = parse_number_in(&addr, "bus address", 127)? as u8;
             match value {
