@@ -66,24 +66,29 @@ fn gen_names_its_node_as_docs_bus_md_shows() {
 
 #[test]
 fn an_endless_scenario_file_is_refused_not_read_forever() {
-    // `read_to_string("/dev/zero")` grew until memory ran out.
-    let (ok, err) = buslab(&["sim", "/dev/zero"]);
-    assert!(!ok);
+    // `read_to_string("/dev/zero")` grew until memory ran out; a FIFO blocked forever.
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("scenario.toml");
     assert!(
-        err.contains("scenario /dev/zero is larger than 64 MiB"),
-        "{err}"
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
     );
-    let (ok, err) = buslab(&[
-        "bus",
-        "serve",
-        "--listen",
-        "127.0.0.1:0",
-        "--nodes",
-        "/dev/zero",
-    ]);
-    assert!(!ok);
-    assert!(
-        err.contains("scenario /dev/zero is larger than 64 MiB"),
-        "{err}"
-    );
+    let fifo = fifo.to_string_lossy().into_owned();
+    for (path, why) in [("/dev/zero", "is a device"), (fifo.as_str(), "is a FIFO")] {
+        let (ok, err) = buslab(&["sim", path]);
+        assert!(!ok);
+        assert!(
+            err.contains(&format!("{path} {why}, not a regular file")),
+            "{err}"
+        );
+        let (ok, err) = buslab(&["bus", "serve", "--listen", "127.0.0.1:0", "--nodes", path]);
+        assert!(!ok);
+        assert!(
+            err.contains(&format!("{path} {why}, not a regular file")),
+            "{err}"
+        );
+    }
 }

@@ -13,7 +13,7 @@ use buslab_cpu196::message::{FileMode, Message, Thread};
 use buslab_cpu196::pic::Peer;
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, Image};
-use buslab_link::fs::read_text_limited;
+use buslab_link::fs::{open_regular, read_text_limited};
 use buslab_link::{Serve, Served};
 
 use crate::ServeError;
@@ -142,16 +142,20 @@ impl FileRequests for FileService {
                     .resolve(name)
                     .map_err(|e| e.to_string())
                     .and_then(|path| {
-                        match mode {
-                            FileMode::Read => File::open(&path),
-                            FileMode::Write => {
-                                if let Some(dir) = path.parent() {
-                                    std::fs::create_dir_all(dir).ok();
-                                }
-                                File::create(&path)
-                            }
+                        // A FIFO or a device in the folder is refused without blocking: the
+                        // monitor must keep sending its watchdogs.
+                        if *mode == FileMode::Write
+                            && let Some(dir) = path.parent()
+                        {
+                            std::fs::create_dir_all(dir).ok();
                         }
-                        .map_err(|e| format!("{}: {e}", path.display()))
+                        open_regular(&path, *mode == FileMode::Write).map_err(|e| {
+                            if e.kind() == io::ErrorKind::InvalidInput {
+                                e.to_string()
+                            } else {
+                                format!("{}: {e}", path.display())
+                            }
+                        })
                     });
                 match opened {
                     Ok(f) => {
@@ -298,5 +302,30 @@ mod tests {
         });
         assert_eq!(r, vec![Message::Msg(MsgCode::FILE_ERROR)]);
         assert!(!dir.path().parent().unwrap().join("evil").exists());
+    }
+
+    #[test]
+    fn file_service_refuses_a_fifo_at_once_for_reading_and_writing() {
+        // A FIFO in the served folder blocked the monitor, which stopped sending watchdogs.
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        assert!(
+            std::process::Command::new("mkfifo")
+                .arg(&fifo)
+                .status()
+                .unwrap()
+                .success()
+        );
+        let mut fs = FileService::new(dir.path()).unwrap();
+        for mode in [FileMode::Read, FileMode::Write] {
+            let (r, log) = fs.handle(&Thread::Open {
+                mode,
+                name: b"pipe".to_vec(),
+                file: 1,
+            });
+            assert_eq!(r, vec![Message::Msg(MsgCode::FILE_ERROR)]);
+            let log = log.unwrap();
+            assert!(log.contains("is a FIFO, not a regular file"), "{log}");
+        }
     }
 }

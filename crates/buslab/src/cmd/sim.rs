@@ -62,17 +62,11 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
 /// fits, and `/dev/zero` or a wrong path is not read until memory runs out.
 const MAX_SCENARIO_BYTES: u64 = 64 << 20;
 
-/// Reads a scenario file, refusing one larger than [`MAX_SCENARIO_BYTES`].
+/// Reads a scenario file, refusing one larger than [`MAX_SCENARIO_BYTES`] and what is not a
+/// regular file (a FIFO would block, a device never end).
 pub fn read_scenario(path: &std::path::Path) -> anyhow::Result<String> {
-    use std::io::Read;
-    let mut text = String::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_SCENARIO_BYTES + 1).read_to_string(&mut text))
-        .with_context(|| format!("cannot read scenario {}", path.display()))?;
-    if text.len() as u64 > MAX_SCENARIO_BYTES {
-        anyhow::bail!("scenario {} is larger than 64 MiB", path.display());
-    }
-    Ok(text)
+    buslab_link::fs::read_text_limited(path, MAX_SCENARIO_BYTES)
+        .with_context(|| format!("cannot read scenario {}", path.display()))
 }
 
 fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
