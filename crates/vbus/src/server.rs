@@ -54,6 +54,9 @@ pub struct ServerConfig {
     /// Send socketcand's discovery beacon (UDP, every 3 s) to this address, so python-can's
     /// `detect_beacon()` finds the bus (socketcand broadcasts to port 42000).
     pub beacon: Option<SocketAddr>,
+    /// How client chips come back after bus-off: the seed's (the chip counts 128 × 11 recessive
+    /// bits, TXERR falling; the default) or Linux's fast restart after 100 ms.
+    pub bus_off_recovery: buslab_canbus::BusOffRecovery,
 }
 
 impl ServerConfig {
@@ -70,6 +73,7 @@ impl ServerConfig {
             devices: Vec::new(),
             error_frames: false,
             beacon: None,
+            bus_off_recovery: buslab_canbus::BusOffRecovery::default(),
         }
     }
 }
@@ -195,6 +199,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     }
     let mut bus = VirtualBus::new(config.bitrate)?;
     bus.set_error_frames(config.error_frames);
+    bus.set_bus_off_recovery(config.bus_off_recovery);
     if let Some(sim) = config.scenario.take() {
         if sim.bitrate() != config.bitrate {
             return Err(ServerError::ScenarioBitrate {

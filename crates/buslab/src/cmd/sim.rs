@@ -82,7 +82,7 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     if args.counters.is_some() && scenario.sample_every.is_none() {
         scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
     }
-    let mut sim = scenario.build();
+    let mut sim = scenario.build_with(&buslab_canbus::node::ScenarioNodes)?;
     let mut counters = match &args.counters {
         Some(path) => {
             let file = File::create(path)
@@ -254,7 +254,8 @@ impl<'a> Printer<'a> {
                 )
             }
             Event::Dropped(frame) => {
-                writeln!(out, "# {ts} {node}: single-shot frame {frame} dropped")
+                // A single-shot attempt that failed, or what a chip's bus-off aborted.
+                writeln!(out, "# {ts} {node}: frame {frame} given up")
             }
             _ => Ok(()),
         }
