@@ -6,6 +6,7 @@ mod bus_common;
 use std::process::Command;
 
 use bus_common::Serve;
+use buslab_canbus::CanBus;
 
 /// Runs buslab; nobody listens on port 1, so a command that gets past its options fails there.
 fn buslab(args: &[&str]) -> (bool, String) {
@@ -91,4 +92,54 @@ fn an_endless_scenario_file_is_refused_not_read_forever() {
             "{err}"
         );
     }
+}
+
+#[test]
+fn ids_follow_the_digit_rule_and_jerrycan_ids_are_read_the_jerrycan_way() {
+    // `0x800#` was taken as an extended ID despite the "3 or 8 digits" rule; `+f` passed as a
+    // hex byte.
+    for (args, needle) in [
+        (
+            &["send", "--bus", NOBODY, "0x800#"][..],
+            "must be 3 hex digits",
+        ),
+        (
+            &["send", "--bus", NOBODY, "--btr", "+f:4D", "123#"],
+            "BTR0:BTR1",
+        ),
+        (
+            &["gen", "--bus", NOBODY, "-n", "1", "-D", "+f"],
+            "must be 0..8 bytes of hex",
+        ),
+        (
+            &["gen", "--bus", NOBODY, "-n", "1", "-I", "+1"],
+            "must be hex",
+        ),
+        (
+            &["send", "--bus", NOBODY, "--jerrycan", "1000#"],
+            "JerryCAN ID",
+        ),
+    ] {
+        let (ok, err) = buslab(args);
+        assert!(!ok, "{args:?}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    // Seed 002 §5.4.4.4: JerryCAN's 246 is the ID 123h.
+    let serve = Serve::start(500_000);
+    let mut rx = serve.client();
+    let out = serve
+        .buslab()
+        .args(["send", "--bus", &serve.url, "--jerrycan", "246#1122"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got = rx
+        .recv(Some(std::time::Duration::from_secs(30)))
+        .unwrap()
+        .expect("the frame");
+    assert_eq!(got.frame.to_string(), "123#1122");
 }

@@ -458,7 +458,8 @@ impl Sja1000 {
             return;
         }
         let frame = layout::decode_tx(self.mode, &self.tx_buf);
-        if self.mac.enqueue(frame, single_shot) {
+        let dlc = layout::raw_dlc(self.mode, &self.tx_buf);
+        if self.mac.enqueue(frame, dlc, single_shot) {
             self.tbs = false;
             self.tcs = false;
             self.pending = Some(Pending { self_reception });

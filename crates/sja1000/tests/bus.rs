@@ -316,6 +316,35 @@ fn during_the_bus_off_recovery_txerr_falls_and_es_clears_below_the_warning_limit
     assert_eq!(bus.chips[0].peek(SR) & (SR_BS | SR_ES), 0);
 }
 
+/// Facts sheet §6.1: "DLC > 8 is transmitted as coded, but at most 8 data bytes are sent".
+#[test]
+fn a_dlc_of_9_to_15_in_the_tx_buffer_goes_on_the_wire_as_coded() {
+    let mut bus = peli_bus(2, 0);
+    load_tx(&mut bus.chips[0], "123#0102030405060708");
+    bus.chips[0].write(16, 0x0C); // frame info: standard data frame, DLC 12
+    bus.chips[0].write(CMR, 0x01);
+    // The wire: the wired-AND of what the chips drive, bit-time by bit-time.
+    let mut bits = Vec::new();
+    for _ in 0..200 {
+        let wire = bus
+            .chips
+            .iter()
+            .fold(Level::Recessive, |wire, chip| wire.and(chip.output()));
+        bits.push(wire.bit());
+        bus.run(1);
+    }
+    let sof = bits.iter().position(|&b| !b).expect("a frame was sent");
+    let decoded = buslab_can::wire::decode(bits[sof..].iter().copied()).unwrap();
+    assert_eq!(decoded.dlc, 12);
+    assert_eq!(decoded.frame.to_string(), "123#0102030405060708");
+    // The receiver takes 8 bytes (its RX buffer shows DLC 8: buslab's frames carry 0..8).
+    assert_eq!(bus.chips[0].read(SR) & SR_TCS, SR_TCS);
+    assert_eq!(
+        take_rx(&mut bus.chips[1]),
+        [0x08, 0x24, 0x60, 1, 2, 3, 4, 5, 6, 7, 8]
+    );
+}
+
 #[test]
 fn listen_only_chip_receives_but_never_drives_the_bus() {
     let mut chips: Vec<Sja1000> = (0..3).map(|_| Sja1000::new()).collect();

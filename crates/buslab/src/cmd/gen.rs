@@ -77,6 +77,7 @@ impl FromStr for Mode<u32> {
             u32::from_str_radix(t, 16)
                 .ok()
                 .filter(|&v| v <= 0x1FFF_FFFF && t.len() <= 8)
+                .filter(|_| t.bytes().all(|b| b.is_ascii_hexdigit()))
                 .ok_or_else(|| format!("ID {t:?} must be hex 0..1FFFFFFF, r or i"))
         })
     }
@@ -99,7 +100,8 @@ impl FromStr for Mode<Vec<u8>> {
     fn from_str(s: &str) -> Result<Self, String> {
         mode(s, |t| {
             let bad = || format!("data {t:?} must be 0..8 bytes of hex (or r, i)");
-            if t.len() % 2 != 0 || t.len() > 16 {
+            // Hex digits only: `from_str_radix` would take a sign (`+f`).
+            if t.len() % 2 != 0 || t.len() > 16 || !t.bytes().all(|b| b.is_ascii_hexdigit()) {
                 return Err(bad());
             }
             (0..t.len())

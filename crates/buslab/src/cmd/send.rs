@@ -11,8 +11,12 @@ pub struct Args {
     #[command(flatten)]
     pub bus: BusOpt,
     /// Frames in can-utils syntax: 123#DEADBEEF, 1F334455#, 123#R, 00000123#R3.
-    #[arg(required = true, value_name = "FRAME")]
+    #[arg(required_unless_present = "jerrycan", value_name = "FRAME")]
     pub frames: Vec<Frame>,
+    /// A frame whose ID is spelled the JerryCAN way (3 hex digits: the ID shifted left by
+    /// one, e.g. 246#1122 is 123#1122); repeatable, sent after the others.
+    #[arg(long, value_name = "FRAME", value_parser = Frame::from_jerrycan)]
+    pub jerrycan: Vec<Frame>,
     /// Program this client's SJA1000 with BTR0:BTR1 (hex) first, e.g. 07:4D; a bit rate that
     /// does not match the bus cannot communicate (an induced error). Needs a buslab bus.
     #[arg(long, value_name = "BTR0:BTR1", value_parser = parse_btr)]
@@ -31,8 +35,7 @@ pub fn parse_btr(text: &str) -> Result<(u8, u8), String> {
     let bad = || format!("bit timing {text:?} must be BTR0:BTR1 in hex, e.g. 07:4D");
     let (a, b) = text.split_once(':').ok_or_else(bad)?;
     let byte = |t: &str| {
-        (1..=2)
-            .contains(&t.len())
+        ((1..=2).contains(&t.len()) && t.bytes().all(|b| b.is_ascii_hexdigit()))
             .then(|| u8::from_str_radix(t, 16).ok())
             .flatten()
     };
@@ -48,8 +51,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // Only this client's own frames matter now; what the bus carries is not kept.
     bus.set_filters(&[buslab_canbus::Filter::NONE])?;
-    for f in &args.frames {
+    let frames: Vec<&Frame> = args.frames.iter().chain(&args.jerrycan).collect();
+    for f in &frames {
         bus.send(f)?;
     }
-    confirm_sent(&mut bus, url, args.frames.len() as u64, args.timeout)
+    confirm_sent(&mut bus, url, frames.len() as u64, args.timeout)
 }
