@@ -143,3 +143,35 @@ fn ids_follow_the_digit_rule_and_jerrycan_ids_are_read_the_jerrycan_way() {
         .expect("the frame");
     assert_eq!(got.frame.to_string(), "123#1122");
 }
+
+#[test]
+fn gen_as_fast_as_the_bus_takes_them_confirms_every_frame() {
+    // `gen -g 0 -n 40000` ran 20000 frames ahead of the bus: its last `< buslab_status >`
+    // waited behind them, timed out after 5 s, and the last frames were lost as it left.
+    const COUNT: usize = 40_000;
+    let serve = Serve::start(500_000);
+    let mut rx = serve.client();
+    let reader = std::thread::spawn(move || {
+        let mut got = 0;
+        while got < COUNT {
+            match rx.recv(Some(std::time::Duration::from_secs(60))).unwrap() {
+                Some(_) => got += 1,
+                None => break,
+            }
+        }
+        got
+    });
+    let out = serve
+        .buslab()
+        .args(["gen", "--bus", &serve.url, "-g", "0s", "-n"])
+        .arg(COUNT.to_string())
+        .args(["-L", "8", "-I", "i"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(reader.join().unwrap(), COUNT);
+}

@@ -441,3 +441,39 @@ fn a_slio_on_a_bus_it_cannot_follow_is_refused_by_name() {
         "{err}"
     );
 }
+
+#[test]
+fn a_duration_beyond_an_hour_is_refused_not_run_for_hours() {
+    // `--duration 18446744073709551615` ran for hours.
+    let path = scenario("noise.toml");
+    let out = buslab()
+        .args([
+            "sim",
+            path.to_str().unwrap(),
+            "--duration",
+            "18446744073709551615bits",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains(
+            "--duration 18446744073709551615 bits is longer than a simulation may run: up to 3600 s"
+        ),
+        "{err}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let long = dir.path().join("long.toml");
+    std::fs::write(&long, "duration = \"7200s\"\n[[nodes]]\nname = \"a\"\n").unwrap();
+    let out = buslab()
+        .args(["sim", long.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("duration 7200s is out of range up to 1 h"),
+        "{err}"
+    );
+}

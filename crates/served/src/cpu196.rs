@@ -111,8 +111,10 @@ impl FileService {
     pub fn resolve(&self, name: &[u8]) -> Result<PathBuf, FileNameError> {
         let text = std::str::from_utf8(name).map_err(|_| FileNameError::NotText(name.to_vec()))?;
         let rel = Path::new(text);
+        // Names in messages are shown with their control characters written out.
+        let shown = || buslab_cpu196::message::printable(name);
         if text.is_empty() || !rel.components().all(|c| matches!(c, Component::Normal(_))) {
-            return Err(FileNameError::Escapes(text.to_string()));
+            return Err(FileNameError::Escapes(shown()));
         }
         let path = self.root.join(rel);
         // Follow symlinks as far as the path exists: it must stay under the root. A link counts
@@ -127,7 +129,7 @@ impl FileService {
         }
         match probe.canonicalize() {
             Ok(real) if real.starts_with(&self.root) => Ok(path),
-            _ => Err(FileNameError::Symlink(text.to_string())),
+            _ => Err(FileNameError::Symlink(shown())),
         }
     }
 }
@@ -137,7 +139,7 @@ impl FileRequests for FileService {
     fn handle(&mut self, t: &Thread) -> (Vec<Message>, Option<String>) {
         match t {
             Thread::Open { mode, name, file } => {
-                let shown = String::from_utf8_lossy(name).into_owned();
+                let shown = buslab_cpu196::message::printable(name);
                 let opened = self
                     .resolve(name)
                     .map_err(|e| e.to_string())

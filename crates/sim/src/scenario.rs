@@ -13,6 +13,14 @@ use crate::simulation::Simulation;
 use crate::time::{BitTime, Span};
 use crate::traffic::Traffic;
 
+/// The longest a simulation may run, in virtual seconds (a `u64::MAX` duration ran for hours).
+pub const MAX_DURATION_S: u64 = 3600;
+
+/// [`MAX_DURATION_S`] in bit-times at `bitrate`.
+pub fn max_duration(bitrate: u32) -> BitTime {
+    MAX_DURATION_S * u64::from(bitrate)
+}
+
 /// Largest file a scenario may send (16 MiB).
 const MAX_FILE: usize = 16 << 20;
 
@@ -407,6 +415,18 @@ impl RawScenario {
             names: &names,
         };
         let duration = r.opt_span("duration", &self.duration, bitrate as BitTime)?;
+        if duration > max_duration(bitrate) {
+            return Err(ScenarioError::OutOfRange {
+                context: "duration".to_owned(),
+                what: "duration",
+                value: self
+                    .duration
+                    .as_ref()
+                    .map(|d| d.0.clone())
+                    .unwrap_or_default(),
+                range: "up to 1 h of virtual time",
+            });
+        }
         let sample_every = match &self.sample_every {
             Some(raw) => match r.span("sample_every", raw)? {
                 0 => {
@@ -602,6 +622,15 @@ impl RawTraffic {
                         what: "period",
                         value: period.0,
                         range: "at least 1 bit-time",
+                    });
+                }
+                // `count = 0` sent one frame: a count says how many, at least one.
+                if count == Some(0) {
+                    return Err(ScenarioError::OutOfRange {
+                        context: context.to_owned(),
+                        what: "count",
+                        value: "0".into(),
+                        range: "1 or more (leave it out for no end)",
                     });
                 }
                 Traffic::Periodic {
@@ -852,6 +881,24 @@ mod tests {
             (
                 format!("{NODE}[[nodes.traffic]]\nkind = \"once\"\nframe = \"12#00\"\nat = 0"),
                 "bad frame \"12#00\"",
+            ),
+            (
+                format!(
+                    "{NODE}[[nodes.traffic]]\nkind = \"periodic\"\nframe = \"123#\"\nperiod = \"1ms\"\ncount = 0"
+                ),
+                "count 0 is out of range 1 or more",
+            ),
+            (
+                format!("{NODE}[[nodes.traffic]]\nkind = \"burst\"\nframe = \"123#+f\"\ncount = 1"),
+                "bad frame \"123#+f\"",
+            ),
+            (
+                format!("{NODE}kind = \"sja1000\"\nrecovery = \"slow\""),
+                "recovery \"slow\" is out of range \"counted\"",
+            ),
+            (
+                format!("{NODE}recovery = \"fast\""),
+                "only for kind = \"sja1000\"",
             ),
             (
                 format!(

@@ -16,7 +16,7 @@ use buslab_cpu196::host::{
     Client, ClientError, DEFAULT_TIMEOUT, FileRequests, Monitor, Port, Recorder,
 };
 use buslab_cpu196::image::{BAUD_RATES, BootConfig, BootEdit};
-use buslab_cpu196::message::{Bridge, Message, Start};
+use buslab_cpu196::message::{Bridge, Message, Start, printable};
 use buslab_cpu196::pic::Peer;
 use buslab_cpu196::source::{Inputs, Source};
 use buslab_cpu196::values::{self, ValueError};
@@ -885,14 +885,14 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
                 yes,
                 &format!(
                     "change the serial number {} to {} and ERASE all flash banks and the PIC",
-                    String::from_utf8_lossy(&current),
-                    String::from_utf8_lossy(&new)
+                    printable(&current),
+                    printable(&new)
                 ),
             )?;
             c.set_serial(&current, &new)?;
             say!(
                 "serial number is now {}; flash and PIC erased",
-                String::from_utf8_lossy(&new)
+                printable(&new)
             );
         }
         FormatCmd::PicKernelRead { out } => {

@@ -79,6 +79,13 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let end = args
         .duration
         .map_or(scenario.duration, |d| d.to_bits(scenario.bitrate));
+    if end > buslab_sim::scenario::max_duration(scenario.bitrate) {
+        anyhow::bail!(
+            "--duration {} is longer than a simulation may run: up to {} s of virtual time",
+            args.duration.map(|d| d.to_string()).unwrap_or_default(),
+            buslab_sim::scenario::MAX_DURATION_S
+        );
+    }
     if args.counters.is_some() && scenario.sample_every.is_none() {
         scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
     }
