@@ -287,3 +287,40 @@ fn cpu196_flash_pic_and_eeprom_writes_confirmed_before_a_kill_9_survive_it() {
 fn wait(mut child: Child) -> std::process::ExitStatus {
     child.wait().unwrap()
 }
+
+#[test]
+fn a_signal_as_soon_as_the_device_is_served_stops_it_cleanly() {
+    // The handler was installed after the PTY, its link and the first line: SIGTERM or SIGHUP
+    // sent when the path appeared killed the process, left the link and saved nothing.
+    for (device, file_option) in [("zelle", "--state"), ("cpu196", "--image")] {
+        for signal in ["INT", "TERM", "HUP"] {
+            let dir = tempfile::tempdir().unwrap();
+            let file = dir.path().join("state.toml");
+            let link = dir.path().join("tty");
+            let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+                .args(["-q", device, "serve", file_option])
+                .arg(&file)
+                .arg("--link")
+                .arg(&link)
+                .stdin(Stdio::piped())
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap();
+            let mut first = String::new();
+            BufReader::new(child.stdout.take().unwrap())
+                .read_line(&mut first)
+                .unwrap();
+            assert!(link.exists(), "{device}: {first:?}");
+            let sent = Command::new("kill")
+                .args([&format!("-{signal}"), &child.id().to_string()])
+                .status()
+                .unwrap();
+            assert!(sent.success());
+            let status = child.wait().unwrap();
+            assert!(status.success(), "{device} serve, SIG{signal}: {status}");
+            assert!(!link.exists(), "{device} serve, SIG{signal} left the link");
+            assert!(file.exists(), "{device} serve, SIG{signal} saved nothing");
+        }
+    }
+}

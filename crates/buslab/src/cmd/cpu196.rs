@@ -583,6 +583,8 @@ fn bar(len: u64, what: &str) -> ProgressBar {
 }
 
 fn serve(s: &ServeArgs) -> anyhow::Result<()> {
+    // Before the PTY and its link exist (see `zelle serve`).
+    let stopped = super::zelle::ctrl_c()?;
     let mut inputs = Inputs::default();
     for &(ch, source) in &s.input {
         inputs.c196[ch] = source;
@@ -606,7 +608,6 @@ fn serve(s: &ServeArgs) -> anyhow::Result<()> {
         s.baud
     );
     std::io::stdout().flush().ok();
-    let stopped = super::zelle::ctrl_c()?;
     // The kernel's log (what it refused and why), as it comes. A serve thread that ended (an
     // error on the PTY) ends the wait too; `stop` then reports why.
     while stopped.recv_timeout(Duration::from_millis(100)).is_err() {

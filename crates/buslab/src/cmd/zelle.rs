@@ -363,6 +363,9 @@ fn print_stdout(text: &str) -> anyhow::Result<()> {
 // ----- serving the model --------------------------------------------------------------------
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    // Before the PTY and its link exist: a signal that finds them must find the handler too
+    // (an early SIGTERM killed the process and left the link behind).
+    let stopped = ctrl_c()?;
     let analog = args
         .analog
         .iter()
@@ -384,7 +387,6 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             .unwrap_or_default(),
         control::HELP
     );
-    let stopped = ctrl_c()?;
     let control = served.control();
     {
         let control = control.clone();
@@ -415,7 +417,7 @@ fn control_socket(
         .with_context(|| format!("binding control socket {}", path.display()))
 }
 
-/// A channel that hears Ctrl-C (SIGINT).
+/// A channel that hears Ctrl-C (SIGINT), SIGTERM and SIGHUP.
 pub fn ctrl_c() -> anyhow::Result<std::sync::mpsc::Receiver<()>> {
     let (tx, rx) = std::sync::mpsc::channel();
     ctrlc::set_handler(move || {
