@@ -683,7 +683,18 @@ fn monitor<P: Port>(
     if let Some((_, frames, samples)) = session.finish()? {
         say!("recorded {samples} samples from {frames} frames");
     }
+    report_frame_errors(c);
     Ok(())
+}
+
+/// Tells how many damaged frames the client skipped (a noisy line, a wrong baud rate).
+fn report_frame_errors<P: Port>(c: &Client<P>) {
+    if let Some(first) = c.frame_errors.first() {
+        tracing::warn!(
+            "{} damaged frames skipped (first: {first})",
+            c.frame_errors.count()
+        );
+    }
 }
 
 /// A CSV recorder on a new file. (Written as the samples come, so a run cut short keeps what
@@ -716,12 +727,7 @@ fn record<P: Port>(
     }
     session.stop(c, &mut out)?;
     show(&mut out);
-    if let Some(first) = c.frame_errors.first() {
-        tracing::warn!(
-            "{} damaged frames skipped (first: {first})",
-            c.frame_errors.count()
-        );
-    }
+    report_frame_errors(c);
     let (_, frames, samples) = session.finish()?.expect("a recorder was given");
     say!(
         "recorded {samples} samples from {frames} frames into {}",
