@@ -8,6 +8,7 @@ use anyhow::Context;
 pub mod bridge;
 pub mod bus;
 pub mod busopt;
+pub mod config;
 pub mod cpu196;
 pub mod dump;
 pub mod r#gen;
