@@ -383,3 +383,17 @@ fn error_replies_are_ascii_as_python_can_decodes_them() {
     assert!(reply.contains("?t? ??xxx"), "{reply:?}");
     assert!(reply.ends_with("xxx...\" >"), "{reply:?}");
 }
+
+#[test]
+fn a_sign_is_not_a_hex_digit() {
+    // `from_str_radix` takes `+f`; socketcand's hex does not.
+    for text in [
+        " buslab_btr +f 4D ",
+        " buslab_btr 07 +4 ",
+        " send 123 1 +f ",
+        " send +23 0 ",
+    ] {
+        assert!(Command::parse(text).is_err(), "{text:?} parsed");
+    }
+    assert!(Command::parse(" buslab_btr 07 4D ").is_ok());
+}

@@ -108,7 +108,8 @@ pub enum ZelleCommand {
     Key,
     /// Read an internal RAM register (command 16), or write it (command 17).
     Reg {
-        /// Register address 0..127.
+        /// Register address: 0..127 internal RAM, 128..255 (80h..FFh) special function
+        /// registers (read only).
         addr: String,
         /// Byte to write (0..255); none: read it.
         value: Option<String>,
@@ -272,13 +273,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "released"
             }
         ),
-        ZelleCommand::Reg { addr, value } => {
-            let addr = parse_number_in(&addr, "register address", 127)? as u8;
-            match value {
-                None => say!("{:#04x}", cell.read_register(addr)?),
-                Some(v) => cell.write_register(addr, parse_number_in(&v, "value", 0xFF)? as u8)?,
+        ZelleCommand::Reg { addr, value } => match value {
+            None => {
+                let addr = parse_number_in(&addr, "register address", 0xFF)? as u8;
+                say!("{:#04x}", cell.read_register(addr)?)
             }
-        }
+            Some(v) => {
+                // Command 17 writes internal RAM only.
+                let addr = parse_number_in(&addr, "register address to write", 127)? as u8;
+                cell.write_register(addr, parse_number_in(&v, "value", 0xFF)? as u8)?
+            }
+        },
         ZelleCommand::Bus { addr, value } => {
             let addr = parse_number_in(&addr, "bus address", 127)? as u8;
             match value {
@@ -409,6 +414,9 @@ fn print_stdout(text: &str) -> anyhow::Result<()> {
 // ----- serving the model --------------------------------------------------------------------
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    // Before the PTY and its link exist: a signal that finds them must find the handler too
+    // (an early SIGTERM killed the process and left the link behind).
+    let stopped = ctrl_c()?;
     let analog = args
         .analog
         .iter()
@@ -430,7 +438,6 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             .unwrap_or_default(),
         control::HELP
     );
-    let stopped = ctrl_c()?;
     let control = served.control();
     {
         let control = control.clone();
@@ -461,7 +468,7 @@ fn control_socket(
         .with_context(|| format!("binding control socket {}", path.display()))
 }
 
-/// A channel that hears Ctrl-C (SIGINT).
+/// A channel that hears Ctrl-C (SIGINT), SIGTERM and SIGHUP.
 pub fn ctrl_c() -> anyhow::Result<std::sync::mpsc::Receiver<()>> {
     let (tx, rx) = std::sync::mpsc::channel();
     ctrlc::set_handler(move || {

@@ -257,17 +257,23 @@ impl<P: Port> Client<P> {
         self.read_byte("reading an analog channel")
     }
 
-    /// Command 4: one reading per entry of `channels`, each waited for before the next is
-    /// asked for, then `0` to end.
+    /// Command 4: one reading per entry of `channels`, then `0` to end. The seed lets the
+    /// channel bytes go at full line speed (the cell converts within their stop bits), so they
+    /// are sent back to back, a batch at a time (the cell waits for the next channel byte as
+    /// long as it takes), and the readings read back.
     pub fn analog_repeat(&mut self, channels: &[u8]) -> Result<Vec<u8>> {
+        /// Channel bytes in flight at once: well inside any port's buffers.
+        const BATCH: usize = 64;
         for &c in channels {
             check_channel(c)?;
         }
         self.send(&[Command::AnalogRepeat as u8])?;
         let mut values = Vec::with_capacity(channels.len());
-        for &c in channels {
-            self.send(&[c])?;
-            values.push(self.read_byte("reading analog channels repeatedly")?);
+        for batch in channels.chunks(BATCH) {
+            self.send(batch)?;
+            for _ in batch {
+                values.push(self.read_byte("reading analog channels repeatedly")?);
+            }
         }
         self.send(&[0])?;
         Ok(values)
@@ -341,9 +347,9 @@ impl<P: Port> Client<P> {
         }
     }
 
-    /// Command 16: internal RAM at `addr` (0..127).
+    /// Command 16: internal RAM at `addr` (0..127), or a special function register (80h..FFh,
+    /// see [`crate::sfr`]).
     pub fn read_register(&mut self, addr: u8) -> Result<u8> {
-        check_register(addr)?;
         self.send(&[Command::ReadRegister as u8, addr])?;
         self.read_byte("reading a register")
     }
