@@ -19,7 +19,7 @@ use buslab_can::{Frame, Level};
 use buslab_canbus::{
     ControllerState, DriverError, DriverEvent, Sja1000Config, Sja1000Driver, Timing, TxFailure,
 };
-use buslab_device::Persistent;
+use buslab_device::{Changes, Persistent, ReplayError};
 use buslab_loader::report::report;
 use buslab_loader::{Loader, MemoryImage, MemoryMap, Outcome};
 use buslab_monican::screen::Screen;
@@ -159,6 +159,8 @@ pub struct PpcNode {
     generation: u64,
     /// The generation the host reported saved.
     saved: u64,
+    /// The generation the last [`Persistent::take_changes`] reported.
+    changes_taken: u64,
     /// A host saves the memory image: reports wait for it.
     durable: bool,
     last_load: Option<LoadRecord>,
@@ -203,6 +205,7 @@ impl PpcNode {
             memory: MemoryImage::new(),
             generation: 0,
             saved: 0,
+            changes_taken: 0,
             durable: false,
             last_load: None,
             loads: 0,
@@ -614,6 +617,22 @@ impl Persistent for PpcNode {
 
     fn file_bytes(snapshot: &MemoryImage) -> Vec<u8> {
         snapshot.to_srec(IMAGE_HEADER)
+    }
+
+    /// A load changes up to megabytes at once: the image is saved whole, never journalled.
+    fn take_changes(&mut self) -> Changes {
+        if self.generation == self.changes_taken {
+            return Changes::Records(Vec::new());
+        }
+        self.changes_taken = self.generation;
+        Changes::Snapshot
+    }
+
+    fn replay(_: &mut MemoryImage, record: &[u8]) -> Result<(), ReplayError> {
+        Err(ReplayError::new(
+            record,
+            "the PowerPC node writes no journal records (its memory image is saved whole)",
+        ))
     }
 }
 
