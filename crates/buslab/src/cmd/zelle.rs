@@ -173,7 +173,7 @@ pub struct MeasureArgs {
     pub blocks: u32,
     /// Waited beyond each block's length before the next START or the stop (the cell sends
     /// no "block done"): how late the host and the line may be without cutting a block short.
-    #[arg(long, default_value = "50ms", value_parser = duration, value_name = "DURATION")]
+    #[arg(long, default_value = "250ms", value_parser = duration, value_name = "DURATION")]
     pub block_margin: Duration,
     /// Write the CSV here instead of stdout.
     #[arg(long, short, value_name = "FILE")]

@@ -34,7 +34,7 @@ pub const WINDOW: usize = 16;
 
 /// Added by default to each block's length before the next START or the stop in
 /// [`Client::measure`] ([`Client::set_block_margin`] changes it).
-pub const BLOCK_MARGIN: Duration = Duration::from_millis(50);
+pub const BLOCK_MARGIN: Duration = Duration::from_millis(250);
 
 /// How RAM transfers pace themselves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
