@@ -171,6 +171,10 @@ pub struct MeasureArgs {
     /// Blocks to run, each started by the host (command 9).
     #[arg(long, default_value_t = 1)]
     pub blocks: u32,
+    /// Waited beyond each block's length before the next START or the stop (the cell sends
+    /// no "block done"): how late the host and the line may be without cutting a block short.
+    #[arg(long, default_value = "250ms", value_parser = duration, value_name = "DURATION")]
+    pub block_margin: Duration,
     /// Write the CSV here instead of stdout.
     #[arg(long, short, value_name = "FILE")]
     pub output: Option<PathBuf>,
@@ -322,6 +326,7 @@ fn measure<P: Port>(cell: &mut Client<P>, m: MeasureArgs) -> anyhow::Result<()> 
         indicatif::ProgressStyle::with_template("{msg:>10} [{bar:40}] {percent:>3}%")
             .expect("a valid template"),
     );
+    cell.set_block_margin(m.block_margin);
     let result = cell.measure(&params, m.blocks, |p| match p {
         Progress::Measuring {
             block,
@@ -356,6 +361,18 @@ fn measure<P: Port>(cell: &mut Client<P>, m: MeasureArgs) -> anyhow::Result<()> 
         Some(None) => eprint!("{}", series.plot(72, 16)),
         Some(Some(path)) => super::plot::write(&measurement_figure(&series), path)?,
         None => {}
+    }
+    let missing = series.missing_values();
+    if missing > 0 {
+        anyhow::bail!(
+            "the cell measured {} of {} readings: a block was cut short (the stop or the next \
+             START reached the cell before the block ended: the host or the line was late by \
+             more than --block-margin {}), or the data area filled up; what was measured is \
+             above",
+            series.expected_values - missing,
+            series.expected_values,
+            buslab_device::Human(m.block_margin)
+        );
     }
     Ok(())
 }

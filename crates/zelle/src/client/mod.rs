@@ -32,9 +32,9 @@ pub const SETUP_PAUSE: Duration = Duration::from_millis(50);
 /// 9600 baud line busy; more absorbs scheduling jitter on the host.
 pub const WINDOW: usize = 16;
 
-/// Added to each block's length before the next START or the stop in
-/// [`Client::measure`].
-pub const BLOCK_MARGIN_NS: u64 = 50 * crate::timing::MS;
+/// Added by default to each block's length before the next START or the stop in
+/// [`Client::measure`] ([`Client::set_block_margin`] changes it).
+pub const BLOCK_MARGIN: Duration = Duration::from_millis(250);
 
 /// How RAM transfers pace themselves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -106,6 +106,7 @@ pub enum Progress {
 pub struct Client<P: Port> {
     port: P,
     timeout: Duration,
+    block_margin: Duration,
 }
 
 /// The default allowance for an answer, beyond its bytes' time on the line.
@@ -120,7 +121,18 @@ impl<P: Port> Client<P> {
     /// A client that waits for each answer its bytes' time on the line (and that of the
     /// requests it answers) plus `timeout`.
     pub fn with_timeout(port: P, timeout: Duration) -> Self {
-        Client { port, timeout }
+        Client {
+            port,
+            timeout,
+            block_margin: BLOCK_MARGIN,
+        }
+    }
+
+    /// How long [`measure`](Self::measure) waits beyond each block's length before the next
+    /// START or the stop (the cell sends no "block done"): the time the host and the line may
+    /// be late without cutting a block short.
+    pub fn set_block_margin(&mut self, margin: Duration) {
+        self.block_margin = margin;
     }
 
     /// The port.
@@ -520,7 +532,8 @@ impl<P: Port> Client<P> {
         // The cell has no "block done" signal: wait the block's length plus a margin for the
         // START byte's way to the cell.
         let block_ns = params.block_ns();
-        let spacing = block_ns + BLOCK_MARGIN_NS;
+        let margin_ns = u64::try_from(self.block_margin.as_nanos()).unwrap_or(u64::MAX);
+        let spacing = block_ns.saturating_add(margin_ns);
         // Saturating: 65535 cycles of 65 s times u32::MAX blocks is past u64 nanoseconds.
         let total_ns = spacing.saturating_mul(u64::from(blocks));
         let step = Duration::from_millis(100);
