@@ -50,7 +50,8 @@ pub struct Args {
     /// used. The URL is printed at start.
     #[arg(long, value_name = "ADDR")]
     pub listen: Option<SocketAddr>,
-    /// Keep the devices' state here (zelle.toml, cpu196.toml) and link their ports as
+    /// Keep the devices' state here (zelle.toml, cpu196.toml, the PowerPC memory ppc.s37 with its
+    /// control socket ppc.sock) and link their ports as
     /// DIR/zelle, DIR/cpu196 and DIR/monican; default: in memory, ports printed at start.
     #[arg(long, value_name = "DIR")]
     pub dir: Option<PathBuf>,
@@ -411,23 +412,28 @@ impl SlioBench {
         &self,
         server: &ServerHandle,
         dir: Option<&Path>,
-    ) -> anyhow::Result<Option<buslab_link::Served<buslab_served::ppc::PpcTerminal>>> {
+    ) -> anyhow::Result<Option<buslab_served::ppc::ServedPpc>> {
         if self.ids.is_empty() {
             return Ok(None);
         }
-        let link = dir.map(|d| d.join("monican"));
-        Ok(Some(buslab_served::ppc::serve_terminal(
+        if let Some(dir) = dir {
+            // `--no-devices` leaves the folder to the PowerPC node.
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the lab folder {}", dir.display()))?;
+        }
+        let options = buslab_served::ppc::PpcOptions {
+            link: dir.map(|d| d.join("monican")),
+            memory: dir.map(|d| d.join("ppc.s37")),
+            control: dir.map(|d| d.join("ppc.sock")),
+        };
+        Ok(Some(buslab_served::ppc::serve(
             super::bus::PPC_NODE,
             server.poster(),
-            link,
+            options,
         )?))
     }
 
-    fn describe(
-        &self,
-        terminal: Option<&buslab_link::Served<buslab_served::ppc::PpcTerminal>>,
-        dir: Option<&Path>,
-    ) {
+    fn describe(&self, terminal: Option<&buslab_served::ppc::ServedPpc>, dir: Option<&Path>) {
         let Some(terminal) = terminal else {
             eprintln!(
                 "  no SLIO boards: they follow 20000..125000 bit/s (the lab's default is 125000)"
@@ -447,6 +453,14 @@ impl SlioBench {
         eprintln!(
             "  MoniCAN      on {pty}  (19200 8N1, VT100; open it: screen {path} 19200, or picocom -b 19200 {path}; Ctrl-L redraws)"
         );
+        if let (Some(memory), Some(control)) = (terminal.memory_file(), terminal.control_socket()) {
+            eprintln!(
+                "  PowerPC      memory in {}, control socket {} (load a program: buslab load PROG.s37 --bus URL --verify {})",
+                memory.display(),
+                control.display(),
+                control.display()
+            );
+        }
     }
 }
 
