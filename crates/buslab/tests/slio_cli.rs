@@ -198,12 +198,22 @@ fn a_bad_analog_source_is_named() {
         ("--slio-adc1", "csv:/no/such/file.csv", "/no/such/file.csv"),
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
-            .args(["bus", "serve", "--listen", "127.0.0.1:0", "--bitrate", "125000"])
+            .args([
+                "bus",
+                "serve",
+                "--listen",
+                "127.0.0.1:0",
+                "--bitrate",
+                "125000",
+            ])
             .args(["--slio", "3", flag, spec])
             .output()
             .unwrap();
         assert!(!out.status.success());
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains(flag) && err.contains(want), "{flag} {spec}: {err}");
+        assert!(
+            err.contains(flag) && err.contains(want),
+            "{flag} {spec}: {err}"
+        );
     }
 }

@@ -336,7 +336,24 @@ enum Output {
 /// Creates (or truncates) a log file written as `format`, straight to `path`: what was
 /// flushed is in the file even if the process is killed (the choice for live logging).
 pub fn create_writer(path: &Path, format: Format) -> Result<Box<dyn LogWriter + Send>, LogError> {
-    create(path, format, false)
+    create(path, format, false, WriteOptions::default())
+}
+
+/// Choices a format leaves to the writer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// candump: ` R`/` T` after each frame that has a direction (candump `-x`); the other
+    /// formats record the direction wherever they have a field for it.
+    pub direction: bool,
+}
+
+/// [`create_writer`] with options.
+pub fn create_writer_with(
+    path: &Path,
+    format: Format,
+    options: WriteOptions,
+) -> Result<Box<dyn LogWriter + Send>, LogError> {
+    create(path, format, false, options)
 }
 
 /// Creates a log file written as `format` into a temporary file in the same directory, put in
@@ -346,13 +363,14 @@ pub fn create_writer_atomic(
     path: &Path,
     format: Format,
 ) -> Result<Box<dyn LogWriter + Send>, LogError> {
-    create(path, format, true)
+    create(path, format, true, WriteOptions::default())
 }
 
 fn create(
     path: &Path,
     format: Format,
     atomic: bool,
+    options: WriteOptions,
 ) -> Result<Box<dyn LogWriter + Send>, LogError> {
     let create_err = |source| LogError::Create {
         path: path.to_path_buf(),
@@ -412,7 +430,10 @@ fn create(
     }
     let out = BufWriter::with_capacity(WRITE_BUFFER, file);
     Ok(match format {
-        Format::Candump => FileWriter::boxed(candump::Writer::new(out), output),
+        Format::Candump => FileWriter::boxed(
+            candump::Writer::new(out).with_direction(options.direction),
+            output,
+        ),
         Format::Asc => FileWriter::boxed(asc::Writer::new(out), output),
         Format::Blf => FileWriter::boxed(blf::Writer::new(out).map_err(create_err)?, output),
         Format::Trc11 => FileWriter::boxed(trc::Writer::new(out, trc::Version::V1_1), output),

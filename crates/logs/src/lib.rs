@@ -40,8 +40,8 @@ pub mod trc;
 pub use channel::{ChannelMap, channel_name};
 pub use error::{Location, LogError, Problem, ReadError};
 pub use file::{
-    ByteCounter, Entries, LogReader, LogSource, LogWriter, OnWait, OpenOptions, create_writer,
-    create_writer_atomic, open_reader, open_source, reader,
+    ByteCounter, Entries, LogReader, LogSource, LogWriter, OnWait, OpenOptions, WriteOptions,
+    create_writer, create_writer_atomic, create_writer_with, open_reader, open_source, reader,
 };
 pub use format::{Format, FormatError};
 

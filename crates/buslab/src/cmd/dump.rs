@@ -1,20 +1,19 @@
 //! `buslab dump [IFACE[,FILTER…]]…`: print every frame on one or more buses like candump;
-//! `-l FILE` also writes a candump log, `-L` prints log lines instead. The formats are
-//! `buslab_logs::candump`'s; interface arguments and filters are `buslab_backends::BusSpec`.
+//! `-l FILE` also writes a log in any format `buslab_logs` writes, `-L` prints candump log
+//! lines instead; interface arguments and filters are `buslab_backends::BusSpec`.
 
-use std::fs::File;
-use std::io::{self, BufWriter, Write};
-use std::path::PathBuf;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
-use std::time::{Duration, UNIX_EPOCH};
+use std::time::{Duration, Instant, UNIX_EPOCH};
 
 use anyhow::{Context, bail};
 use buslab_backends::{BusSpec, BusUrl, DynBus, FilterSet, resolve};
 use buslab_canbus::BusEvent;
-use buslab_logs::Entry;
-use buslab_logs::candump::{Terminal, TimestampMode, View, Writer, format_line};
+use buslab_logs::candump::{Terminal, TimestampMode, View, format_line};
+use buslab_logs::{Entry, Format, LogWriter, WriteOptions, create_writer_with};
 
 use super::busopt::{open, set_name};
 
@@ -29,10 +28,15 @@ pub struct Args {
     /// One more bus, without filters (the URL form of IFACE).
     #[arg(long, value_name = "BUS", value_parser = resolve)]
     pub bus: Option<BusUrl>,
-    /// Also write every frame to this candump log file (`(SEC.USEC) IFACE ID#DATA`), which
-    /// can-utils and python-can read.
+    /// Also write every frame to this log file, in the format its extension names: .log
+    /// (candump, also without an extension), .asc, .blf, .trc, .csv, .pcap, .pcapng, .db
+    /// (python-can's SQLite).
     #[arg(short = 'l', long = "log", value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// The log's format whatever FILE's extension: candump, asc, blf, trc, trc11, csv, pcap,
+    /// pcapng or sqlite.
+    #[arg(long, value_name = "FORMAT", requires = "log")]
+    pub to: Option<Format>,
     /// Print candump log lines (`(SEC.USEC) IFACE ID#DATA`) instead of the terminal layout,
     /// as candump -L.
     #[arg(short = 'L', long = "log-format")]
@@ -145,6 +149,10 @@ fn dump(args: Args) -> anyhow::Result<()> {
             "-L writes absolute times or, with -t z, times from zero: -t d and -t A do not apply"
         );
     }
+    let mut log = match &args.log {
+        Some(path) => Some(Log::create(path, args.to, args.extra)?),
+        None => None,
+    };
     let sources = sources(&args);
     let mut buses = Vec::with_capacity(sources.len());
     for source in &sources {
@@ -155,15 +163,6 @@ fn dump(args: Args) -> anyhow::Result<()> {
         }
         buses.push(bus);
     }
-    let mut log = match &args.log {
-        Some(path) => Some(
-            Writer::new(BufWriter::new(
-                File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
-            ))
-            .with_direction(args.extra),
-        ),
-        None => None,
-    };
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
@@ -214,7 +213,12 @@ fn dump(args: Args) -> anyhow::Result<()> {
         let (index, event) = match events.recv_timeout(Duration::from_millis(100)) {
             Ok((index, Ok(event))) => (index, event),
             Ok((_, Err(e))) => break Err(e),
-            Err(mpsc::RecvTimeoutError::Timeout) => continue,
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                if let Some(log) = &mut log {
+                    log.idle()?;
+                }
+                continue;
+            }
             Err(mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
         };
         let source = &sources[index];
@@ -253,7 +257,6 @@ fn dump(args: Args) -> anyhow::Result<()> {
         out.flush()?;
         if let Some(log) = &mut log {
             log.write(&entry)?;
-            log.flush()?;
         }
     };
     stop.store(true, Ordering::SeqCst);
@@ -261,7 +264,88 @@ fn dump(args: Args) -> anyhow::Result<()> {
     for r in readers {
         let _ = r.join();
     }
-    result
+    // Finished on every way out (Ctrl-C, SIGTERM, SIGHUP, -n, an error): BLF's last container,
+    // ASC's end line and SQLite's last rows are in the file.
+    let finished = match log {
+        Some(log) => log.finish(),
+        None => Ok(()),
+    };
+    result.and(finished)
+}
+
+/// The `-l` log and when it reaches the file.
+struct Log {
+    writer: Box<dyn LogWriter + Send>,
+    path: PathBuf,
+    /// Flushed after every entry (a text line or a pcap record costs one write), or only when
+    /// the bus is idle and at least once a second (a BLF flush closes a compressed container,
+    /// an SQLite flush is a commit).
+    every_entry: bool,
+    unflushed: bool,
+    last_flush: Instant,
+}
+
+impl Log {
+    /// The most a BLF or SQLite log keeps in memory while the bus is busy.
+    const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
+
+    fn create(path: &Path, to: Option<Format>, direction: bool) -> anyhow::Result<Self> {
+        let format = match to {
+            Some(format) => format,
+            // candump's habit: `-l` names a candump log.
+            None if path.extension().is_none() => Format::Candump,
+            None => Format::from_path(path)?,
+        };
+        let writer = create_writer_with(path, format, WriteOptions { direction })?;
+        Ok(Self {
+            writer,
+            path: path.to_owned(),
+            every_entry: !matches!(format, Format::Blf | Format::Sqlite),
+            unflushed: false,
+            last_flush: Instant::now(),
+        })
+    }
+
+    fn write(&mut self, entry: &Entry) -> anyhow::Result<()> {
+        self.writer.write(entry).with_context(|| self.failed())?;
+        self.unflushed = true;
+        if self.every_entry || self.last_flush.elapsed() >= Self::FLUSH_INTERVAL {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// The bus has been quiet for a moment: what was logged goes to the file.
+    fn idle(&mut self) -> anyhow::Result<()> {
+        if self.unflushed {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> anyhow::Result<()> {
+        self.writer.flush().with_context(|| self.failed())?;
+        self.unflushed = false;
+        self.last_flush = Instant::now();
+        Ok(())
+    }
+
+    fn finish(self) -> anyhow::Result<()> {
+        let failed = self.failed();
+        let left_out = self.writer.left_out();
+        self.writer.finish().context(failed)?;
+        if left_out > 0 {
+            tracing::warn!(
+                "{}: {left_out} entries the format cannot hold were left out",
+                self.path.display()
+            );
+        }
+        Ok(())
+    }
+
+    fn failed(&self) -> String {
+        format!("cannot write the log {}", self.path.display())
+    }
 }
 
 /// Reads one bus until `stop`, handing every event to the printer.
