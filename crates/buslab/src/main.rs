@@ -56,6 +56,8 @@ enum Command {
     Log(cmd::log::Args),
     /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
     Play(cmd::play::Args),
+    /// The bus as web pages (the seed's CAN WebServer) and a live dashboard.
+    Web(cmd::web::Args),
 }
 
 fn main() -> ExitCode {
@@ -115,6 +117,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Monican(args) => cmd::monican::run(args),
         Command::Log(args) => cmd::log::run(args, quiet),
         Command::Play(args) => cmd::play::run(args, quiet),
+        Command::Web(args) => cmd::web::run(args),
     }
 }
 

@@ -21,6 +21,7 @@ pub mod sim;
 pub mod slcan;
 pub mod slio;
 pub mod status;
+pub mod web;
 pub mod wire;
 pub mod zelle;
 
