@@ -226,7 +226,10 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
         worst = worst.max(st.errors.unwrap().txerr);
         passive |= st.state != BusState::Active;
     }
-    assert!(passive, "the cut sender never left error-active (worst TEC {worst})");
+    assert!(
+        passive,
+        "the cut sender never left error-active (worst TEC {worst})"
+    );
     assert_eq!(bus.repair(), 1);
     // Bus-off recovery (128 x 11 bits), then each frame through takes 1 off the TEC.
     bus.run_until(bus.now() + RATE as u64 / 2);
