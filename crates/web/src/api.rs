@@ -111,7 +111,11 @@ pub async fn events(
             v.cursor = view.advance(now);
             delta
         };
-        v.lost += delta.log_skipped;
+        // A whole view holds the frames from before the viewer came: those it was never sent
+        // are history, not updates it lost.
+        if !delta.full {
+            v.lost += delta.log_skipped;
+        }
         let update = Update {
             delta: &delta,
             lost: v.lost,

@@ -3,9 +3,10 @@
 //! - The **CAN WebServer** (the seed's feature): server-rendered pages that work without
 //!   JavaScript: nodes with their state and counters, the bus load, the last frames, the
 //!   per-ID table.
-//! - **Live updates** over server-sent events (`/api/events`); each viewer pulls what changed since its own
-//!   cursor in [`buslab_view::BusView`], so a slow viewer gets fewer, larger updates and the
-//!   log lines it had no room for are counted, never queued without bound.
+//! - A **live dashboard** (`/dashboard`, plain JavaScript) on server-sent events (`/api/events`);
+//!   each viewer pulls what changed since its own cursor in [`buslab_view::BusView`], so a
+//!   slow viewer gets fewer, larger updates and the log lines it had no room for are counted,
+//!   never queued without bound.
 //! - **Writes** (send a frame, inject or repair a fault on a virtual bus) only with the
 //!   server's token in the `X-Buslab-Token` header; without a token the server is read-only.
 //!

@@ -1,5 +1,5 @@
 //! The CAN WebServer: pages rendered on the server that work without JavaScript (they reload
-//! themselves every few seconds unless `?refresh=0`), and their stylesheet.
+//! themselves every few seconds unless `?refresh=0`), and the live dashboard's files.
 
 use std::fmt::Write as _;
 
@@ -12,6 +12,8 @@ use serde::Deserialize;
 use crate::routes::{ApiError, App};
 
 const STYLE: &str = include_str!("assets/style.css");
+const DASHBOARD: &str = include_str!("assets/dashboard.html");
+const DASHBOARD_JS: &str = include_str!("assets/dashboard.js");
 
 /// Frames on the overview.
 const OVERVIEW_FRAMES: usize = 20;
@@ -131,13 +133,18 @@ pub async fn node(
     ))
 }
 
+pub async fn dashboard() -> Html<&'static str> {
+    Html(DASHBOARD)
+}
+
 pub async fn asset(Path(name): Path<String>) -> Result<Response, ApiError> {
     let (body, kind) = match name.as_str() {
         "style.css" => (STYLE, "text/css; charset=utf-8"),
+        "dashboard.js" => (DASHBOARD_JS, "text/javascript; charset=utf-8"),
         _ => {
             return Err(ApiError::new(
                 StatusCode::NOT_FOUND,
-                format!("no asset {name:?}: there is style.css"),
+                format!("no asset {name:?}: there are style.css and dashboard.js"),
             ));
         }
     };
@@ -161,7 +168,7 @@ fn layout(title: &str, refresh: u32, body: &str) -> Html<String> {
     Html(format!(
         "<!doctype html><html lang=en><head><meta charset=utf-8>{reload}\
          <title>buslab: {}</title><link rel=stylesheet href=/assets/style.css></head><body>\
-         <nav><b>buslab</b> <a href=/>bus</a> <a href=/ids>per ID</a> <a href=/frames>frames</a> <span class=right>{toggle}</span></nav>\
+         <nav><b>buslab</b> <a href=/>bus</a> <a href=/ids>per ID</a> <a href=/frames>frames</a> <a href=/dashboard>live dashboard</a> <span class=right>{toggle}</span></nav>\
          <main>{body}</main></body></html>",
         esc(title)
     ))

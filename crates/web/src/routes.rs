@@ -28,6 +28,7 @@ pub fn router(app: App) -> Router {
         .route("/ids", get(pages::ids))
         .route("/frames", get(pages::frames))
         .route("/nodes/{number}", get(pages::node))
+        .route("/dashboard", get(pages::dashboard))
         .route("/assets/{name}", get(pages::asset))
         .route("/api/state", get(api::state))
         .route("/api/events", get(api::events))

@@ -478,3 +478,20 @@ fn connections_beyond_the_limit_get_503_and_the_server_recovers() {
         std::thread::sleep(Duration::from_millis(20));
     }
 }
+
+#[test]
+fn the_dashboard_and_its_files_are_served_from_the_binary() {
+    let b = bench(None, 64);
+    let addr = b.server.addr();
+    let (status, page) = get(addr, "/dashboard");
+    assert_eq!(status, 200);
+    assert!(page.contains("<script src=/assets/dashboard.js"), "{page}");
+    let (status, js) = get(addr, "/assets/dashboard.js");
+    assert_eq!(status, 200);
+    assert!(js.contains("text/javascript") && js.contains("EventSource"));
+    let (status, css) = get(addr, "/assets/style.css");
+    assert_eq!(status, 200);
+    assert!(css.contains("text/css"));
+    let (status, text) = get(addr, "/assets/../Cargo.toml");
+    assert!(status == 404 || status == 400, "{status}: {text}");
+}
