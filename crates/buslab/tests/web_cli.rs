@@ -149,3 +149,62 @@ fn the_cut_wire_experiment_from_the_web_api() {
     assert_eq!(status, 400, "{body}");
     assert!(body.contains("nobody"), "{body}");
 }
+
+#[test]
+fn the_lab_starts_the_web_pages_and_prints_the_dashboard_with_its_token() {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args([
+            "lab",
+            "--no-devices",
+            "--listen",
+            "127.0.0.1:0",
+            "--web",
+            "127.0.0.1:0",
+        ])
+        .env_remove("BUSLAB_BUS")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let _lab = Web(child);
+    let mut lines = BufReader::new(stderr).lines();
+    let dashboard = loop {
+        let line = lines.next().expect("the banner ended").unwrap();
+        if let Some(url) = line.trim().strip_prefix("dashboard:") {
+            break url.trim().to_string();
+        }
+    };
+    // Keep reading the status lines so the lab never blocks on a full pipe.
+    std::thread::spawn(move || lines.for_each(drop));
+    let (base, token) = dashboard
+        .split_once("dashboard#token=")
+        .unwrap_or_else(|| panic!("{dashboard}"));
+    let addr: SocketAddr = base
+        .strip_prefix("http://")
+        .and_then(|r| r.strip_suffix('/'))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let deadline = Instant::now() + HANG;
+    loop {
+        let (status, body) = get(addr, "/api/state?n=1");
+        assert_eq!(status, 200, "{body}");
+        let state: serde_json::Value = serde_json::from_str(&body).unwrap();
+        if state["delta"]["frames"].as_u64() > Some(0)
+            && !state["delta"]["nodes"].as_array().unwrap().is_empty()
+        {
+            assert_eq!(state["writable"], true);
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the lab's pages never showed its bus: {body}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let frame = r#"{"frame":"7AB#01"}"#;
+    assert_eq!(post(addr, "/api/send", None, frame).0, 401);
+    let (status, body) = post(addr, "/api/send", Some(token), frame);
+    assert_eq!(status, 202, "{body}");
+}
