@@ -58,6 +58,9 @@ enum Command {
     Play(cmd::play::Args),
     /// The bus as web pages (the seed's CAN WebServer) and a live dashboard.
     Web(cmd::web::Args),
+    /// The bus in this terminal: per-ID table with changed bytes, frame log, load, node
+    /// error state and registers.
+    Monitor(cmd::monitor::Args),
 }
 
 fn main() -> ExitCode {
@@ -118,6 +121,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Log(args) => cmd::log::run(args, quiet),
         Command::Play(args) => cmd::play::run(args, quiet),
         Command::Web(args) => cmd::web::run(args),
+        Command::Monitor(args) => cmd::monitor::run(args),
     }
 }
 

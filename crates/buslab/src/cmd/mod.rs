@@ -14,6 +14,7 @@ pub mod r#gen;
 pub mod lab;
 pub mod log;
 pub mod monican;
+pub mod monitor;
 pub mod play;
 pub mod regs;
 pub mod send;
