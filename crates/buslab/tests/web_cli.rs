@@ -120,11 +120,16 @@ fn the_cut_wire_experiment_from_the_web_api() {
     engine_until(addr, "error-active with frames sent", |e| {
         e["state"] == "error-active" && e["sent"].as_u64() > Some(0)
     });
-    let (_, page) = get(addr, "/?refresh=0");
-    assert!(
-        page.contains("engine") && page.contains("0C0#0FA0"),
-        "{page}"
-    );
+    // The frames reach the pages through the server's own client, maybe a little later.
+    let deadline = Instant::now() + HANG;
+    loop {
+        let (_, page) = get(addr, "/?refresh=0");
+        if page.contains("engine") && page.contains("0C0#0FA0") {
+            break;
+        }
+        assert!(Instant::now() < deadline, "no frames on the page: {page}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
 
     let cut = r#"{"kind":"cut","nodes":["engine"],"rate":0.05}"#;
     let (status, body) = post(addr, "/api/fault", None, cut);
