@@ -5,7 +5,7 @@
 # share of one core). Targets (issue 12): keeps up with the bus (frames/s as the bus's own),
 # CPU < 30 % of a core with 5 viewers, at most 20 updates per second per viewer.
 #
-# Needs curl. VIEWERS and MEASURE_SECONDS change the run. Machines are noisy: run it more than once.
+# Needs curl. VIEWERS, MEASURE_SECONDS and BUSLAB change the run. Machines are noisy: run it more than once.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -13,8 +13,14 @@ VIEWERS=${VIEWERS:-5}
 SECONDS_MEASURED=${MEASURE_SECONDS:-20}
 command -v curl >/dev/null 2>&1 || { echo "bench/web.sh: curl is missing" >&2; exit 1; }
 
-cargo build --release -q -p buslab --bin buslab
-buslab=target/release/buslab
+# BUSLAB=path measures that binary instead of a fresh release build (a debug build gives an
+# upper bound).
+if [ -n "${BUSLAB:-}" ]; then
+    buslab=$BUSLAB
+else
+    cargo build --release -q -p buslab --bin buslab
+    buslab=target/release/buslab
+fi
 work=$(mktemp -d)
 pids=()
 cleanup() {
