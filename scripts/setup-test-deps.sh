@@ -49,6 +49,15 @@ if [ ! -x /usr/sbin/dovecot ]; then
     [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"
 fi
 
+# The web dashboard's browser test (crates/buslab/tests/web_browser.rs): headless Chromium
+# driven over WebDriver.
+for tool in chromium:chromium chromedriver:chromium-driver; do
+    if ! command -v "${tool%%:*}" >/dev/null 2>&1; then
+        apt_install "${tool#*:}"
+        command -v "${tool%%:*}" >/dev/null 2>&1 || fail "${tool%%:*} is still missing after installing ${tool#*:}"
+    fi
+done
+
 # The SocketCAN test VM: QEMU (software emulation), a busybox initramfs with can-utils.
 for tool in qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio \
     candump:can-utils slcand:can-utils strip:binutils; do

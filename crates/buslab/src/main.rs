@@ -69,6 +69,11 @@ enum Command {
     Recvfile(cmd::recvfile::Args),
     /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
     Play(cmd::play::Args),
+    /// The bus as web pages (the seed's CAN WebServer) and a live dashboard.
+    Web(cmd::web::Args),
+    /// The bus in this terminal: per-ID table with changed bytes, frame log, load, node
+    /// error state and registers.
+    Monitor(cmd::monitor::Args),
     /// The configuration file (buslab.toml): show the effective configuration and where each
     /// value came from, or write one step by step.
     Config(cmd::config::Args),
@@ -145,6 +150,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sendfile(args) => cmd::sendfile::run(args),
         Command::Mail(args) => cmd::mail::run(args),
         Command::Recvfile(args) => cmd::recvfile::run(args),
+        Command::Web(args) => cmd::web::run(args),
+        Command::Monitor(args) => cmd::monitor::run(args),
         Command::Config(args) => cmd::config::run(args),
     }
 }

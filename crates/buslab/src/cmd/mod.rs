@@ -17,6 +17,7 @@ pub mod load;
 pub mod log;
 pub mod mail;
 pub mod monican;
+pub mod monitor;
 pub mod play;
 pub mod plot;
 pub mod recvfile;
@@ -28,6 +29,7 @@ pub mod slcan;
 pub mod slio;
 pub mod status;
 pub mod transfer;
+pub mod web;
 pub mod wire;
 pub mod zelle;
 
