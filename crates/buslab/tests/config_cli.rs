@@ -243,7 +243,10 @@ impl Wizard {
         let start = Instant::now();
         loop {
             if let Some(status) = self.child.try_wait().unwrap() {
-                while let Ok(bytes) = self.output.try_recv() {
+                // Its last words may still be in the pseudo-terminal: read until the reader
+                // meets the end (no process holds the terminal any more).
+                let left = CEILING.saturating_sub(start.elapsed());
+                while let Ok(bytes) = self.output.recv_timeout(left) {
                     self.screen.process(&bytes);
                 }
                 return status;
