@@ -14,7 +14,17 @@ use libfuzzer_sys::fuzz_target;
 fn served() -> &'static (FileService, PathBuf) {
     static SERVED: OnceLock<(FileService, PathBuf)> = OnceLock::new();
     SERVED.get_or_init(|| {
-        let base = std::env::temp_dir().join(format!("buslab-fuzz-files-{}", std::process::id()));
+        // One folder per process (parallel jobs), and those of finished runs removed.
+        let tmp = std::env::temp_dir();
+        for old in std::fs::read_dir(&tmp).into_iter().flatten().flatten() {
+            let name = old.file_name().to_string_lossy().into_owned();
+            if let Some(pid) = name.strip_prefix("buslab-fuzz-files-")
+                && !Path::new("/proc").join(pid).exists()
+            {
+                let _ = std::fs::remove_dir_all(old.path());
+            }
+        }
+        let base = tmp.join(format!("buslab-fuzz-files-{}", std::process::id()));
         let root = base.join("root");
         let _ = std::fs::remove_dir_all(&base);
         std::fs::create_dir_all(root.join("sub/deeper")).unwrap();

@@ -71,7 +71,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 }
             }
             4 => {
-                for _ in 0..u.int_in_range(1..=10_000)? {
+                for _ in 0..u.int_in_range(1..=2_000)? {
                     wire.bit(true);
                 }
             }
