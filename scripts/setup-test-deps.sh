@@ -2,7 +2,11 @@
 # Installs what the test suite uses besides the Rust toolchain (idempotent, quick when done):
 # - crates.io: cargo-nextest, the test runner of scripts/test.sh (the machine image has it in
 #   /usr/local/bin; elsewhere it is built once with `cargo install --locked`, a few minutes);
-# - Debian: sigrok-cli (decodes our VCD waveforms independently);
+# - Debian: sigrok-cli (decodes our VCD waveforms independently); can-utils (log2asc/asc2log,
+#   the log-format interop tests) and tshark/editcap (decode buslab's pcap and pcapng); for the
+#   SocketCAN test VM (scripts/vm/, crates/buslab/tests/vm_socketcan.rs): qemu-system-x86,
+#   busybox-static, cpio, can-utils, binutils, and Debian's kernel package downloaded (not
+#   installed) into target/vm-cache/;
 # - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can).
 # Whatever cannot be installed stops the script with a message and a non-zero exit: the interop
 # tests must not pass by skipping (under CI=1 they fail when a tool is missing).
@@ -36,6 +40,50 @@ apt_install() {
 if ! command -v sigrok-cli >/dev/null 2>&1; then
     apt_install sigrok-cli
     command -v sigrok-cli >/dev/null 2>&1 || fail "sigrok-cli is still missing after installing it"
+fi
+
+# The SocketCAN test VM: QEMU (software emulation), a busybox initramfs with can-utils.
+for tool in qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio \
+    candump:can-utils slcand:can-utils strip:binutils; do
+    if ! command -v "${tool%%:*}" >/dev/null 2>&1; then
+        apt_install "${tool#*:}"
+        command -v "${tool%%:*}" >/dev/null 2>&1 || fail "${tool%%:*} is still missing after installing ${tool#*:}"
+    fi
+done
+# busybox must be the static one: the initramfs has no libraries for it.
+busybox_path="$(command -v busybox)"
+if ldd "$busybox_path" >/dev/null 2>&1; then
+    apt_install busybox-static
+    ldd "$(command -v busybox)" >/dev/null 2>&1 && fail "busybox is dynamically linked; install busybox-static"
+fi
+# Debian's current amd64 kernel package (linux-image-amd64 depends on it), kept in target/.
+if ! ls target/vm-cache/linux-image-*-amd64_*.deb >/dev/null 2>&1; then
+    if ! $apt_updated && [ "$(id -u)" = 0 ]; then
+        apt-get update -qq || fail "apt-get update failed"
+        apt_updated=true
+    fi
+    kernel="$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-/ { print $2; exit }')"
+    [ -n "$kernel" ] || fail "apt-cache finds no kernel package behind linux-image-amd64 (apt-get update?)"
+    echo "downloading $kernel (Debian; unpacked for the SocketCAN test VM, not installed)"
+    mkdir -p target/vm-cache
+    (cd target/vm-cache && apt-get download -qq "$kernel" 2>/dev/null) ||
+        fail "apt-get download $kernel failed"
+    ls target/vm-cache/linux-image-*-amd64_*.deb >/dev/null 2>&1 ||
+        fail "apt-get download $kernel left no package in target/vm-cache/"
+fi
+
+if ! command -v log2asc >/dev/null 2>&1 || ! command -v asc2log >/dev/null 2>&1; then
+    apt_install can-utils
+    command -v log2asc >/dev/null 2>&1 || fail "log2asc is still missing after installing can-utils"
+fi
+
+if ! command -v tshark >/dev/null 2>&1 || ! command -v editcap >/dev/null 2>&1; then
+    # tshark asks whether non-root users may capture: answer no, without a dialog.
+    echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections ||
+        fail "cannot preseed wireshark-common/install-setuid (debconf-set-selections)"
+    apt_install tshark
+    command -v tshark >/dev/null 2>&1 && command -v editcap >/dev/null 2>&1 ||
+        fail "tshark or editcap is still missing after installing tshark"
 fi
 
 requirements=scripts/test-requirements.txt

@@ -4,8 +4,13 @@
 //! | URL | backend |
 //! |---|---|
 //! | `socketcand://HOST[:PORT][/CHANNEL]` | socketcand raw mode over TCP (port 29536, channel vcan0 by default) |
-//! | `socketcan:IFACE` | Linux SocketCAN (a slot: "not available yet") |
-//! | `slcan:DEVICE[@BAUD][?bitrate=N]` | an SLCAN serial adapter (a slot: "not available yet") |
+//! | `socketcan:IFACE` | a Linux SocketCAN interface (raw socket, kernel timestamps and filters, error frames) |
+//! | `slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]` | an SLCAN (Lawicel) serial adapter |
+//!
+//! [`resolve`] turns names as can-utils users type them (`vcan0`, `can0`, `/dev/ttyACM0`)
+//! into URLs; [`Pump`] drives a bus from a thread of its own so a program can send to it while
+//! it waits for frames (bridges, the SLCAN adapter model); [`BusSpec`] reads candump's
+//! interface arguments with their filters (`can0,123:7FF,~200:700,#FFFFFFFF`).
 //!
 //! ```no_run
 //! use buslab_canbus::CanBus;
@@ -20,13 +25,21 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod pump;
 pub mod registry;
+#[cfg(target_os = "linux")]
+pub mod socketcan;
+pub mod spec;
 pub mod url;
 
+pub use pump::{BusJob, JOB_LATENCY, Pump, PumpEvent, PumpSender, PumpStopped, TrySendError};
 pub use registry::{
     BACKENDS, Backend, DynBus, OpenError, OpenFn, OpenOptions, backend, open, open_url,
 };
-pub use url::{BusUrl, DEFAULT_CHANNEL, SOCKETCAND_PORT, UrlError, UrlProblem};
+pub use spec::{BusSpec, FilterItem, FilterSet, IdFilter, SpecError, filter_set};
+pub use url::{
+    BusUrl, DEFAULT_CHANNEL, DEFAULT_NAME, SOCKETCAND_PORT, UrlError, UrlProblem, resolve,
+};
 
 /// The bus the command-line tools use by default: `buslab bus serve` on this machine.
 pub const DEFAULT_URL: &str = "socketcand://127.0.0.1:29536/vcan0";

@@ -46,7 +46,35 @@ pub enum OpenError {
     /// The reason's text is part of the message (with a hint when nobody listens).
     #[error("cannot join {url}: {reason}{}", hint(reason))]
     Connect { url: String, reason: ClientError },
+    /// A SocketCAN interface that cannot be opened, with what to do about it.
+    #[error("cannot open {url}: {source}{}", socketcan_hint(source, interface))]
+    SocketCan {
+        url: String,
+        interface: String,
+        source: io::Error,
+    },
+    /// An SLCAN adapter that cannot be opened or does not answer.
+    #[error("cannot open {url}: {source}")]
+    Slcan {
+        url: String,
+        source: buslab_slcan::SlcanError,
+    },
 }
+
+/// What to do about an interface that cannot be opened.
+fn socketcan_hint(e: &io::Error, interface: &str) -> String {
+    match e.raw_os_error() {
+        Some(libc_enodev) if libc_enodev == ENODEV => format!(
+            " (no interface {interface}: a virtual one is made with `ip link add dev {interface} type vcan && ip link set up {interface}`; a bus served by buslab is vcan0, socketcand://HOST/CHANNEL)"
+        ),
+        Some(no_family) if no_family == EAFNOSUPPORT => " (this kernel has no SocketCAN: load the can and can-raw modules, or use a bus served by `buslab bus serve`)".to_string(),
+        _ => String::new(),
+    }
+}
+
+/// Linux's errno values for the hints (the same on every Linux architecture buslab builds on).
+const ENODEV: i32 = 19;
+const EAFNOSUPPORT: i32 = 97;
 
 /// What to do about a refused connection.
 fn hint(reason: &ClientError) -> &'static str {
@@ -83,16 +111,16 @@ pub static BACKENDS: &[Backend] = &[
     Backend {
         scheme: "socketcan",
         syntax: "socketcan:IFACE",
-        description: "a Linux SocketCAN interface (not available yet)",
+        description: "a Linux SocketCAN interface (can0, vcan0, slcan0; Linux only)",
         parse: url::parse_socketcan,
-        open: None,
+        open: SOCKETCAN_OPEN,
     },
     Backend {
         scheme: "slcan",
-        syntax: "slcan:DEVICE[@BAUD][?bitrate=N]",
-        description: "an SLCAN (Lawicel) serial adapter (not available yet)",
+        syntax: "slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]",
+        description: "an SLCAN (Lawicel) serial adapter: CANable, CANUSB, `buslab slcan serve`",
         parse: url::parse_slcan,
-        open: None,
+        open: Some(open_slcan),
     },
 ];
 
@@ -143,6 +171,61 @@ pub fn open_url(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError
     }
 }
 
+#[cfg(target_os = "linux")]
+const SOCKETCAN_OPEN: Option<OpenFn> = Some(open_socketcan);
+/// SocketCAN is Linux's: elsewhere the slot says "not available".
+#[cfg(not(target_os = "linux"))]
+const SOCKETCAN_OPEN: Option<OpenFn> = None;
+
+/// A wrong URL kind handed to a backend's `open` (only by calling it directly).
+fn wrong_kind(url: &BusUrl, expected: &'static str) -> OpenError {
+    OpenError::Url(UrlError {
+        url: url.to_string(),
+        problem: UrlProblem::Syntax { expected },
+    })
+}
+
+#[cfg(target_os = "linux")]
+fn open_socketcan(url: &BusUrl, _options: &OpenOptions) -> Result<DynBus, OpenError> {
+    let BusUrl::SocketCan { interface } = url else {
+        return Err(wrong_kind(url, "socketcan:IFACE"));
+    };
+    let bus =
+        crate::socketcan::SocketCanBus::open(interface).map_err(|source| OpenError::SocketCan {
+            url: url.to_string(),
+            interface: interface.clone(),
+            source,
+        })?;
+    tracing::info!("opened {url}");
+    Ok(Box::new(bus))
+}
+
+fn open_slcan(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> {
+    let BusUrl::Slcan {
+        device,
+        baud,
+        bitrate,
+        listen_only,
+    } = url
+    else {
+        return Err(wrong_kind(
+            url,
+            "slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]",
+        ));
+    };
+    let slcan = buslab_slcan::SlcanOptions {
+        baud: baud.unwrap_or(buslab_slcan::SlcanOptions::default().baud),
+        bitrate: *bitrate,
+        listen_only: *listen_only,
+        reply_timeout: options.reply_timeout,
+    };
+    let bus = buslab_slcan::SlcanBus::open(device, &slcan).map_err(|source| OpenError::Slcan {
+        url: url.to_string(),
+        source,
+    })?;
+    Ok(Box::new(bus))
+}
+
 /// Connects, and turns buslab's extensions on when the server has them.
 fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> {
     let BusUrl::Socketcand {
@@ -151,13 +234,7 @@ fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenEr
         channel,
     } = url
     else {
-        // Only reachable by calling this backend's `open` with another backend's URL.
-        return Err(OpenError::Url(UrlError {
-            url: url.to_string(),
-            problem: UrlProblem::Syntax {
-                expected: "socketcand://HOST[:PORT][/CHANNEL]",
-            },
-        }));
+        return Err(wrong_kind(url, "socketcand://HOST[:PORT][/CHANNEL]"));
     };
     let connect = |reason| OpenError::Connect {
         url: url.to_string(),

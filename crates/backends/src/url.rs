@@ -22,11 +22,13 @@ pub enum BusUrl {
     },
     /// A Linux SocketCAN interface.
     SocketCan { interface: String },
-    /// An SLCAN (Lawicel) serial adapter: the device, its line's baud rate, the CAN bit rate.
+    /// An SLCAN (Lawicel) serial adapter: the device, its line's baud rate, the CAN bit rate,
+    /// and whether to open it listen-only.
     Slcan {
         device: String,
         baud: Option<u32>,
         bitrate: Option<u32>,
+        listen_only: bool,
     },
 }
 
@@ -65,8 +67,14 @@ pub enum UrlProblem {
     Baud(String),
     #[error("bitrate {0:?} must be a number of bit/s 1..1000000")]
     Bitrate(String),
-    #[error("unknown option {0:?}: slcan takes ?bitrate=N")]
+    #[error("unknown option {0:?}: slcan takes ?bitrate=N&listen_only=1")]
     Option(String),
+    #[error("listen_only={0:?} must be 0 or 1")]
+    ListenOnly(String),
+    #[error(
+        "bus name {0:?}: expected an interface name (vcan0, can0), a device path or a bus URL ({1})"
+    )]
+    Name(String, String),
 }
 
 impl UrlError {
@@ -95,6 +103,46 @@ impl FromStr for BusUrl {
             )),
         }
     }
+}
+
+/// The interface name that means buslab's own bus: `buslab bus serve`'s or `buslab lab`'s on
+/// this machine, [`crate::DEFAULT_URL`].
+pub const DEFAULT_NAME: &str = "vcan0";
+
+/// A bus as a person types it on the command line, as can-utils take interface names:
+///
+/// | name | bus |
+/// |---|---|
+/// | `vcan0` | buslab's bus on this machine, [`crate::DEFAULT_URL`] (`buslab bus serve`, `buslab lab`) |
+/// | a URL (`socketcand://…`, `socketcan:…`, `slcan:…`) | as it says |
+/// | a path (`/dev/ttyACM0`, `./adapter`) | the SLCAN adapter there, `slcan:PATH` |
+/// | any other interface name (`can0`, `vcan1`, `slcan0`) | the Linux interface, `socketcan:NAME` |
+///
+/// ```
+/// use buslab_backends::{BusUrl, resolve};
+///
+/// assert_eq!(resolve("vcan0")?.to_string(), "socketcand://127.0.0.1:29536/vcan0");
+/// assert_eq!(resolve("can0")?.to_string(), "socketcan:can0");
+/// assert_eq!(resolve("/dev/ttyACM0")?.to_string(), "slcan:/dev/ttyACM0");
+/// assert_eq!(resolve("socketcand://bench:29536/can1")?.to_string(), "socketcand://bench:29536/can1");
+/// # Ok::<(), buslab_backends::UrlError>(())
+/// ```
+pub fn resolve(name: &str) -> Result<BusUrl, UrlError> {
+    if name == DEFAULT_NAME {
+        return crate::DEFAULT_URL.parse();
+    }
+    if name.starts_with('/') || name.starts_with("./") || name.starts_with("../") {
+        return parse_slcan(&format!("slcan:{name}")).map_err(|e| UrlError::new(name, e.problem));
+    }
+    if name.contains(':') {
+        return name.parse();
+    }
+    parse_socketcan(&format!("socketcan:{name}")).map_err(|_| {
+        UrlError::new(
+            name,
+            UrlProblem::Name(name.to_string(), registry::syntaxes()),
+        )
+    })
 }
 
 /// `socketcand://HOST[:PORT][/CHANNEL]` (port 29536 and channel vcan0 by default; IPv6 as
@@ -206,12 +254,20 @@ pub(crate) fn parse_slcan(url: &str) -> Result<BusUrl, UrlError> {
         return Err(err(UrlProblem::NoDevice));
     }
     let mut bitrate = None;
+    let mut listen_only = None;
     for option in query.split('&').filter(|o| !o.is_empty()) {
         match option.split_once('=') {
             Some(("bitrate", v)) if bitrate.is_none() => {
                 bitrate = Some(
                     number(v, 1_000_000).ok_or_else(|| err(UrlProblem::Bitrate(v.to_string())))?,
                 );
+            }
+            Some(("listen_only", v)) if listen_only.is_none() => {
+                listen_only = Some(match v {
+                    "0" => false,
+                    "1" => true,
+                    _ => return Err(err(UrlProblem::ListenOnly(v.to_string()))),
+                });
             }
             _ => return Err(err(UrlProblem::Option(option.to_string()))),
         }
@@ -220,6 +276,7 @@ pub(crate) fn parse_slcan(url: &str) -> Result<BusUrl, UrlError> {
         device: device.to_string(),
         baud,
         bitrate,
+        listen_only: listen_only.unwrap_or(false),
     })
 }
 
@@ -262,13 +319,19 @@ impl fmt::Display for BusUrl {
                 device,
                 baud,
                 bitrate,
+                listen_only,
             } => {
                 write!(f, "slcan:{device}")?;
                 if let Some(b) = baud {
                     write!(f, "@{b}")?;
                 }
+                let mut sep = '?';
                 if let Some(r) = bitrate {
-                    write!(f, "?bitrate={r}")?;
+                    write!(f, "{sep}bitrate={r}")?;
+                    sep = '&';
+                }
+                if *listen_only {
+                    write!(f, "{sep}listen_only=1")?;
                 }
                 Ok(())
             }
@@ -333,13 +396,64 @@ mod tests {
             BusUrl::Slcan {
                 device: "/dev/ttyACM0".into(),
                 baud: Some(115_200),
-                bitrate: Some(500_000)
+                bitrate: Some(500_000),
+                listen_only: false,
             }
         );
         let plain = url("slcan:/dev/ttyUSB0");
         assert_eq!(plain.to_string(), "slcan:/dev/ttyUSB0");
         assert_eq!(plain.channel(), "ttyUSB0");
         assert_eq!(plain.scheme(), "slcan");
+    }
+
+    #[test]
+    fn names_resolve_as_can_utils_users_type_them() {
+        for (name, want) in [
+            ("vcan0", "socketcand://127.0.0.1:29536/vcan0"),
+            ("can0", "socketcan:can0"),
+            ("vcan1", "socketcan:vcan1"),
+            ("slcan0", "socketcan:slcan0"),
+            ("/dev/ttyACM0", "slcan:/dev/ttyACM0"),
+            ("./adapter", "slcan:./adapter"),
+            ("socketcan:vcan0", "socketcan:vcan0"),
+            (
+                "slcan:/dev/ttyUSB0@115200?bitrate=250000",
+                "slcan:/dev/ttyUSB0@115200?bitrate=250000",
+            ),
+            ("socketcand://h/x", "socketcand://h:29536/x"),
+        ] {
+            assert_eq!(resolve(name).unwrap().to_string(), want, "{name}");
+        }
+        for (bad, want) in [
+            ("", "bus name \"\": expected an interface name"),
+            (
+                "a very long interface",
+                "expected an interface name (vcan0, can0)",
+            ),
+            ("tcp://x", "unknown backend \"tcp\""),
+        ] {
+            let err = resolve(bad).unwrap_err().to_string();
+            assert!(err.contains(want), "{bad:?}: {err}");
+        }
+    }
+
+    #[test]
+    fn slcan_listen_only_is_an_option() {
+        let u = url("slcan:/dev/x?listen_only=1&bitrate=125000");
+        assert_eq!(u.to_string(), "slcan:/dev/x?bitrate=125000&listen_only=1");
+        assert_eq!(url(&u.to_string()), u);
+        assert_eq!(
+            url("slcan:/dev/x?listen_only=1").to_string(),
+            "slcan:/dev/x?listen_only=1"
+        );
+        let err = "slcan:/dev/x?listen_only=yes"
+            .parse::<BusUrl>()
+            .unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("listen_only=\"yes\" must be 0 or 1"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -369,7 +483,7 @@ mod tests {
             ("slcan:/dev/x?speed=1", "unknown option \"speed=1\""),
             (
                 "tcp://x",
-                "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE or slcan:DEVICE[@BAUD][?bitrate=N]",
+                "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE or slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]",
             ),
             ("", "unknown backend \"\""),
             ("vcan0", "unknown backend \"\""),

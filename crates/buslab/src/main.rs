@@ -46,6 +46,16 @@ enum Command {
     /// P82C150 SLIO I/O nodes on a bus: calibrate, list, read/write registers, outputs, ADC,
     /// DPM.
     Slio(cmd::slio::Args),
+    /// Copy frames between two buses (like cangw): a real adapter joins the virtual bench.
+    Bridge(cmd::bridge::Args),
+    /// SLCAN (Lawicel) adapters: serve an adapter model on a pseudo-terminal.
+    Slcan(cmd::slcan::Args),
+    /// MoniCAN in this terminal: calibrate, find and drive up to 16 SLIO boards on a bus.
+    Monican(cmd::monican::Args),
+    /// CAN log files (candump, ASC, BLF, TRC, CSV, pcap, pcapng, SQLite): convert, info, cat.
+    Log(cmd::log::Args),
+    /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
+    Play(cmd::play::Args),
 }
 
 fn main() -> ExitCode {
@@ -54,7 +64,8 @@ fn main() -> ExitCode {
         &cli.command,
         Command::Bus(cmd::bus::Args {
             command: cmd::bus::BusCommand::Serve(_)
-        })
+        }) | Command::Bridge(_)
+            | Command::Slcan(_)
     );
     logging::init(&cli.verbosity, chatty);
     // Errors are for people: one line with the chain of causes, never a backtrace.
@@ -99,6 +110,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Regs(args) => cmd::regs::run(args),
         Command::Status(args) => cmd::status::run(args),
         Command::Slio(args) => cmd::slio::run(args),
+        Command::Bridge(args) => cmd::bridge::run(args),
+        Command::Slcan(args) => cmd::slcan::run(args),
+        Command::Monican(args) => cmd::monican::run(args),
+        Command::Log(args) => cmd::log::run(args, quiet),
+        Command::Play(args) => cmd::play::run(args, quiet),
     }
 }
 

@@ -245,8 +245,11 @@ fn status_and_regs_name_a_missing_node() {
 fn other_backends_and_bad_urls_are_refused_clearly() {
     let bin = env!("CARGO_BIN_EXE_buslab");
     for (url, want) in [
-        ("socketcan:can0", "socketcan backend is not available yet"),
-        ("slcan:/dev/ttyACM0", "slcan backend is not available yet"),
+        ("socketcan:nosuchcan9", "cannot open socketcan:nosuchcan9: "),
+        (
+            "slcan:/nonexistent/ttyACM0",
+            "cannot open slcan:/nonexistent/ttyACM0: cannot open serial port",
+        ),
         (
             "tcp://x",
             "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL]",
@@ -477,4 +480,100 @@ fn a_plain_socketcand_gets_frames_but_no_confirmation_status_or_registers() {
         );
     }
     server.join().unwrap();
+}
+
+#[test]
+fn dump_logs_in_every_format_its_extension_names() {
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let frames = ["123#1122", "1ABCDEF0#DEADBEEF", "7FF#"];
+    // The frames as `log cat` prints any log back (candump lines, after the timestamp).
+    let want = ["vcan0 123#1122", "vcan0 1ABCDEF0#DEADBEEF", "vcan0 7FF#"];
+    for ext in ["log", "asc", "blf", "trc", "csv", "pcap", "pcapng", "db"] {
+        let log = dir.path().join(format!("x.{ext}"));
+        let child = dump(&serve, &["-n", "3", "-l", log.to_str().unwrap()]);
+        let (ok, _, err) = run(&serve, &[&["send"][..], &frames].concat());
+        assert!(ok, "{err}");
+        child.finish();
+        let out = serve
+            .buslab()
+            .args(["log", "cat"])
+            .arg(&log)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{ext}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8_lossy(&out.stdout);
+        let got: Vec<&str> = text.lines().map(|l| l.split_once(' ').unwrap().1).collect();
+        // Only candump and pcapng keep interface names; the others keep a channel number or
+        // nothing (docs/logs.md): only the frames are compared.
+        if !matches!(ext, "log" | "pcapng") {
+            let frames_only: Vec<&str> = got.iter().map(|l| l.split_once(' ').unwrap().1).collect();
+            assert_eq!(frames_only, frames, "{ext}: {text}");
+        } else {
+            assert_eq!(got, want, "{ext}: {text}");
+        }
+    }
+}
+
+#[test]
+fn a_terminated_dump_finishes_its_blf_log() {
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("live.blf");
+    let child = dump(&serve, &["-l", log.to_str().unwrap()]);
+    let (ok, _, err) = run(&serve, &["send", "123#01", "124#02"]);
+    assert!(ok, "{err}");
+    // dump printed both frames, so both are in the writer; SIGTERM must close the file
+    // properly (BLF's last container and header counts).
+    let mut child = child;
+    let mut stdout = BufReader::new(child.child.stdout.take().unwrap());
+    for _ in 0..2 {
+        let mut line = String::new();
+        stdout.read_line(&mut line).unwrap();
+    }
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(child.child.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    )
+    .unwrap();
+    let status = child.child.wait().unwrap();
+    assert!(status.success(), "{}", child.stderr.join().unwrap());
+    let out = serve
+        .buslab()
+        .args(["log", "cat"])
+        .arg(&log)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    let got: Vec<&str> = text
+        .lines()
+        .map(|l| l.rsplit_once(' ').unwrap().1)
+        .collect();
+    assert_eq!(got, ["123#01", "124#02"], "{text}");
+}
+
+#[test]
+fn dump_refuses_an_unknown_log_extension() {
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args([
+            "dump",
+            "--bus",
+            "socketcand://127.0.0.1:1/can0",
+            "-l",
+            "x.mf4",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("\"mf4\"") && err.contains(".blf"), "{err}");
 }

@@ -18,14 +18,16 @@ use std::fmt::Write as _;
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
 
-use buslab_can::Frame;
+use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
 use buslab_canbus::error_frame::ERROR_FLAG;
 
-use crate::{Direction, Entry, Record};
+use crate::file::{Encoder, LogReader};
+use crate::text::{self, Lines, TooLong};
+use crate::{Direction, Entry, Location, ReadError, Record};
 
 /// The longest line [`Reader`] takes (a classic CAN line is under 80 characters).
-pub const MAX_LINE: usize = 4096;
+pub const MAX_LINE: usize = text::MAX_LINE;
 
 /// Why a log line cannot be read.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -140,23 +142,292 @@ fn excerpt(text: &str) -> String {
     }
 }
 
-/// `(%010u.%06u)`: candump's log timestamp (microseconds, truncated as candump does).
-fn log_timestamp(out: &mut String, t: Duration) {
-    let _ = write!(out, "({:010}.{:06})", t.as_secs(), t.subsec_micros());
+/// Reads one log line into `entry`, reusing its interface's allocation: the reader's hot path
+/// (no allocation for an ordinary line). Same result as [`parse_line`] on any input.
+pub fn parse_line_into(line: &[u8], entry: &mut Entry) -> Result<(), LineError> {
+    if parse_fast(line, entry).is_some() {
+        return Ok(());
+    }
+    let text = std::str::from_utf8(line).map_err(|_| LineError::NotText)?;
+    *entry = parse_line(text)?;
+    Ok(())
 }
 
-/// The frame in can-utils syntax; an error frame as `20000088#` and its 8 data bytes.
-fn record_text(out: &mut String, record: &Record) {
-    match record {
-        Record::Frame(f) => {
-            let _ = write!(out, "{f}");
+/// `!` to `~`: one comparison.
+#[inline]
+fn is_graphic(b: u8) -> bool {
+    b.wrapping_sub(0x21) < 0x5E
+}
+
+#[inline]
+fn is_blank(b: u8) -> bool {
+    b == b' ' || b == b'\t'
+}
+
+const POW10: [u32; 10] = [
+    1_000_000_000,
+    100_000_000,
+    10_000_000,
+    1_000_000,
+    100_000,
+    10_000,
+    1_000,
+    100,
+    10,
+    1,
+];
+
+/// The common shape of a line, parsed byte by byte: `(SECS.FRAC) IFACE ID#DATA [R|T]` with a
+/// 3- or 8-digit ID and plain hex data or `R[dlc]`. `None` for anything else (then
+/// [`parse_line`] decides, with its precise error).
+#[inline]
+fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
+    let n = line.len();
+    // candump's own `(%010u.%06u) ` in one go.
+    if let Some((secs, micros)) = candump_time(line) {
+        return parse_after_time(line, 19, secs, micros * 1000, entry);
+    }
+    let mut i = 0;
+    while i < n && is_blank(line[i]) {
+        i += 1;
+    }
+    if *line.get(i)? != b'(' {
+        return None;
+    }
+    i += 1;
+    let start = i;
+    let mut secs: u64 = 0;
+    while i < n && line[i].is_ascii_digit() {
+        secs = secs
+            .wrapping_mul(10)
+            .wrapping_add(u64::from(line[i] - b'0'));
+        i += 1;
+    }
+    if i == start || i - start > 19 || *line.get(i)? != b'.' {
+        return None;
+    }
+    i += 1;
+    let start = i;
+    let mut frac: u32 = 0;
+    while i < n && line[i].is_ascii_digit() && i - start < 9 {
+        frac = frac * 10 + u32::from(line[i] - b'0');
+        i += 1;
+    }
+    let decimals = i - start;
+    if decimals == 0 || *line.get(i)? != b')' {
+        return None;
+    }
+    frac *= POW10[decimals];
+    parse_after_time(line, i + 1, secs, frac, entry)
+}
+
+/// Eight ASCII digits as a number (SWAR: all eight at once), or `None`.
+#[inline]
+fn eight_digits(b: &[u8]) -> Option<u32> {
+    let v = u64::from_le_bytes(b.get(..8)?.try_into().ok()?);
+    let digits = (v & 0xF0F0_F0F0_F0F0_F0F0)
+        | (((v.wrapping_add(0x0606_0606_0606_0606)) & 0xF0F0_F0F0_F0F0_F0F0) >> 4);
+    if digits != 0x3333_3333_3333_3333 {
+        return None;
+    }
+    let v = v - 0x3030_3030_3030_3030;
+    let v = v * 10 + (v >> 8);
+    let v = ((v & 0x0000_00FF_0000_00FF).wrapping_mul(100 + (1_000_000 << 32))
+        + ((v >> 16) & 0x0000_00FF_0000_00FF).wrapping_mul(1 + (10_000 << 32)))
+        >> 32;
+    Some(v as u32)
+}
+
+/// `(SSSSSSSSSS.UUUUUU) ` exactly (candump's layout): seconds and microseconds.
+#[inline]
+fn candump_time(line: &[u8]) -> Option<(u64, u32)> {
+    if line.len() < 21 || line[0] != b'(' || line[11] != b'.' || line[18] != b')' {
+        return None;
+    }
+    if !is_blank(line[19]) {
+        return None;
+    }
+    let high = eight_digits(&line[1..9])?;
+    let (d9, d10) = (line[9].wrapping_sub(b'0'), line[10].wrapping_sub(b'0'));
+    if d9 > 9 || d10 > 9 {
+        return None;
+    }
+    let secs = u64::from(high) * 100 + u64::from(d9) * 10 + u64::from(d10);
+    let mut micros = 0u32;
+    for &b in &line[12..18] {
+        let d = b.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
         }
+        micros = micros * 10 + u32::from(d);
+    }
+    Some((secs, micros))
+}
+
+/// The rest of a line after its timestamp, from `i` on.
+#[inline]
+fn parse_after_time(
+    line: &[u8],
+    mut i: usize,
+    secs: u64,
+    frac: u32,
+    entry: &mut Entry,
+) -> Option<()> {
+    let n = line.len();
+    // interface
+    let start = i;
+    while i < n && is_blank(line[i]) {
+        i += 1;
+    }
+    if i == start {
+        return None;
+    }
+    // Graphic ASCII up to a space or tab (anything else: the reference parser decides).
+    let start = i;
+    while i < n && is_graphic(line[i]) {
+        i += 1;
+    }
+    let interface = &line[start..i];
+    if interface.is_empty() || (i < n && !is_blank(line[i])) {
+        return None;
+    }
+    // frame
+    let start = i;
+    while i < n && is_blank(line[i]) {
+        i += 1;
+    }
+    if i == start {
+        return None;
+    }
+    let start = i;
+    while i < n && is_graphic(line[i]) {
+        i += 1;
+    }
+    if i < n && !is_blank(line[i]) {
+        return None;
+    }
+    let frame = fast_frame(&line[start..i])?;
+    while i < n && is_blank(line[i]) {
+        i += 1;
+    }
+    let direction = if i < n {
+        let d = match line[i] {
+            b'R' => Direction::Rx,
+            b'T' => Direction::Tx,
+            _ => return None,
+        };
+        i += 1;
+        while i < n && is_blank(line[i]) {
+            i += 1;
+        }
+        if i != n {
+            return None;
+        }
+        Some(d)
+    } else {
+        None
+    };
+    entry.timestamp = Duration::new(secs, frac);
+    // Mostly the same interface as the line before: then nothing to copy.
+    if entry.interface.as_bytes() != interface {
+        entry.interface.clear();
+        // The interface bytes are ASCII graphic characters (checked above).
+        entry
+            .interface
+            .extend(interface.iter().map(|&b| char::from(b)));
+    }
+    entry.record = Record::Frame(frame);
+    entry.direction = direction;
+    Some(())
+}
+
+#[inline]
+fn fast_frame(text: &[u8]) -> Option<Frame> {
+    // The ID has 3 or 8 digits: the '#' is right after them.
+    let hash = match text.get(3) {
+        Some(b'#') => 3,
+        _ if text.get(8) == Some(&b'#') => 8,
+        _ => return None,
+    };
+    let (id, rest) = (&text[..hash], &text[hash + 1..]);
+    let raw = text::hex_u32(id)?;
+    let id = match hash {
+        3 if raw <= 0x7FF => Id::standard(raw as u16).ok()?,
+        8 if raw <= 0x1FFF_FFFF => Id::extended(raw).ok()?,
+        _ => return None,
+    };
+    match rest {
+        [b'R' | b'r'] => return Frame::remote(id, 0).ok(),
+        [b'R' | b'r', d @ b'0'..=b'8'] => return Frame::remote(id, d - b'0').ok(),
+        _ => {}
+    }
+    if rest.len() % 2 != 0 || rest.len() > 16 {
+        return None;
+    }
+    let mut data = [0u8; 8];
+    let mut bad = 0u8;
+    for (k, pair) in rest.chunks_exact(2).enumerate() {
+        let (hi, lo) = (text::hex_digit(pair[0]), text::hex_digit(pair[1]));
+        bad |= hi | lo;
+        data[k] = (hi << 4) | (lo & 15);
+    }
+    if bad > 15 {
+        return None;
+    }
+    Frame::data(id, &data[..rest.len() / 2]).ok()
+}
+
+/// Appends one log line without the newline: `(%010u.%06u) IFACE FRAME` (microseconds, cut
+/// as candump does; nanoseconds with `nanos`), then ` R`/` T` if `direction` and the entry has
+/// one (candump `-x`).
+pub fn write_line(out: &mut Vec<u8>, entry: &Entry, direction: bool, nanos: bool) {
+    let t = entry.timestamp;
+    out.push(b'(');
+    text::push_u64_zeros(out, t.as_secs(), 10);
+    out.push(b'.');
+    if nanos {
+        text::push_u64_zeros(out, u64::from(t.subsec_nanos()), 9);
+    } else {
+        text::push_u64_zeros(out, u64::from(t.subsec_micros()), 6);
+    }
+    out.extend_from_slice(b") ");
+    out.extend_from_slice(entry.interface.as_bytes());
+    out.push(b' ');
+    match &entry.record {
+        Record::Frame(f) => push_frame(out, f),
         Record::Error(e) => {
             let (class, data) = e.encode();
-            let _ = write!(out, "{:08X}#", ERROR_FLAG | class);
+            text::push_hex(out, ERROR_FLAG | class, 8);
+            out.push(b'#');
             for b in data {
-                let _ = write!(out, "{b:02X}");
+                text::push_hex_byte(out, b);
             }
+        }
+    }
+    if direction {
+        match entry.direction {
+            Some(Direction::Rx) => out.extend_from_slice(b" R"),
+            Some(Direction::Tx) => out.extend_from_slice(b" T"),
+            None => {}
+        }
+    }
+}
+
+/// A frame in can-utils syntax (`123#1122`, `12345678#R3`).
+fn push_frame(out: &mut Vec<u8>, f: &Frame) {
+    match f.id() {
+        Id::Standard(id) => text::push_hex(out, u32::from(id.as_raw()), 3),
+        Id::Extended(id) => text::push_hex(out, id.as_raw(), 8),
+    }
+    out.push(b'#');
+    if f.is_remote() {
+        out.push(b'R');
+        if f.dlc() > 0 {
+            out.push(b'0' + f.dlc());
+        }
+    } else {
+        for &b in f.payload() {
+            text::push_hex_byte(out, b);
         }
     }
 }
@@ -164,48 +435,24 @@ fn record_text(out: &mut String, record: &Record) {
 /// One log line without the newline; the direction (` R`/` T`) only if `direction` is set
 /// and the entry has one (candump `-x`).
 pub fn format_line(entry: &Entry, direction: bool) -> String {
-    let mut out = String::with_capacity(64);
-    log_timestamp(&mut out, entry.timestamp);
-    out.push(' ');
-    out.push_str(&entry.interface);
-    out.push(' ');
-    record_text(&mut out, &entry.record);
-    if direction {
-        match entry.direction {
-            Some(Direction::Rx) => out.push_str(" R"),
-            Some(Direction::Tx) => out.push_str(" T"),
-            None => {}
-        }
-    }
-    out
-}
-
-/// Why [`Reader`] stopped at a line.
-#[derive(Debug, thiserror::Error)]
-pub enum ReadError {
-    #[error("line {line}: {error}")]
-    Line { line: u64, error: LineError },
-    #[error("{0}")]
-    Io(#[from] io::Error),
+    let mut out = Vec::with_capacity(64);
+    write_line(&mut out, entry, direction, false);
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 /// Reads a candump log line by line. Like canplayer it skips lines that do not start with
 /// `(` (blank lines, `DROPCOUNT: …` notes) and counts them; a bad line is an error naming
 /// its number, after which reading goes on with the next line.
 pub struct Reader<R> {
-    input: R,
-    line: u64,
+    lines: Lines<R>,
     skipped: u64,
-    buf: Vec<u8>,
 }
 
 impl<R: BufRead> Reader<R> {
     pub fn new(input: R) -> Self {
         Self {
-            input,
-            line: 0,
+            lines: Lines::new(input),
             skipped: 0,
-            buf: Vec::new(),
         }
     }
 
@@ -214,44 +461,36 @@ impl<R: BufRead> Reader<R> {
         self.skipped
     }
 
-    /// The next line's bytes (without the newline), `Ok(None)` at the end, or
-    /// `Err(TooLong)` for a line beyond [`MAX_LINE`] (the rest of it is skipped).
-    fn next_raw(&mut self) -> io::Result<Option<Result<(), LineError>>> {
-        self.buf.clear();
-        let mut too_long = false;
+    /// Reads the next entry into `entry`; `Ok(false)` at the end.
+    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
         loop {
-            let chunk = self.input.fill_buf()?;
-            if chunk.is_empty() {
-                return Ok(if self.buf.is_empty() && !too_long {
-                    None
-                } else if too_long {
-                    Some(Err(LineError::TooLong))
-                } else {
-                    Some(Ok(()))
-                });
-            }
-            let (part, done) = match chunk.iter().position(|&b| b == b'\n') {
-                Some(i) => (&chunk[..i], Some(i + 1)),
-                None => (chunk, None),
-            };
-            if !too_long {
-                if self.buf.len() + part.len() > MAX_LINE {
-                    too_long = true;
-                    self.buf.clear();
-                } else {
-                    self.buf.extend_from_slice(part);
+            let step = self.lines.next(|number, line| {
+                let at = Location::Line(number);
+                let line = match line {
+                    Ok(line) => line,
+                    Err(TooLong) => return Some(Err(ReadError::bad(at, LineError::TooLong))),
+                };
+                let first = line.iter().position(|b| !b.is_ascii_whitespace());
+                if first.is_none_or(|i| line[i] != b'(') {
+                    if std::str::from_utf8(line).is_err() {
+                        return Some(Err(ReadError::bad(at, LineError::NotText)));
+                    }
+                    return None;
                 }
-            }
-            let used = done.unwrap_or(chunk.len());
-            self.input.consume(used);
-            if done.is_some() {
-                return Ok(Some(if too_long {
-                    Err(LineError::TooLong)
-                } else {
-                    Ok(())
-                }));
+                Some(parse_line_into(line, entry).map_err(|e| ReadError::bad(at, e)))
+            })?;
+            match step {
+                None => return Ok(false),
+                Some(None) => self.skipped += 1,
+                Some(Some(result)) => return result.map(|()| true),
             }
         }
+    }
+}
+
+impl<R: BufRead + Send> LogReader for Reader<R> {
+    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        Reader::read_into(self, entry)
     }
 }
 
@@ -259,27 +498,11 @@ impl<R: BufRead> Iterator for Reader<R> {
     type Item = Result<Entry, ReadError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        loop {
-            let raw = match self.next_raw() {
-                Ok(None) => return None,
-                Ok(Some(raw)) => raw,
-                Err(e) => return Some(Err(e.into())),
-            };
-            self.line += 1;
-            let line = self.line;
-            let error = |error| Some(Err(ReadError::Line { line, error }));
-            if let Err(e) = raw {
-                return error(e);
-            }
-            let Ok(text) = std::str::from_utf8(&self.buf) else {
-                return error(LineError::NotText);
-            };
-            let text = text.trim_end_matches('\r');
-            if !text.trim_start().starts_with('(') {
-                self.skipped += 1;
-                continue;
-            }
-            return Some(parse_line(text).map_err(|error| ReadError::Line { line, error }));
+        let mut entry = Entry::default();
+        match self.read_into(&mut entry) {
+            Ok(true) => Some(Ok(entry)),
+            Ok(false) => None,
+            Err(e) => Some(Err(e)),
         }
     }
 }
@@ -288,6 +511,8 @@ impl<R: BufRead> Iterator for Reader<R> {
 pub struct Writer<W> {
     out: W,
     direction: bool,
+    nanos: bool,
+    line: Vec<u8>,
 }
 
 impl<W: Write> Writer<W> {
@@ -295,6 +520,8 @@ impl<W: Write> Writer<W> {
         Self {
             out,
             direction: false,
+            nanos: false,
+            line: Vec::with_capacity(128),
         }
     }
 
@@ -304,10 +531,17 @@ impl<W: Write> Writer<W> {
         self
     }
 
+    /// Nine decimals (nanoseconds, candump `-N`) instead of six.
+    pub fn with_nanos(mut self, on: bool) -> Self {
+        self.nanos = on;
+        self
+    }
+
     pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
-        let mut line = format_line(entry, self.direction);
-        line.push('\n');
-        self.out.write_all(line.as_bytes())
+        self.line.clear();
+        write_line(&mut self.line, entry, self.direction, self.nanos);
+        self.line.push(b'\n');
+        self.out.write_all(&self.line)
     }
 
     pub fn flush(&mut self) -> io::Result<()> {
@@ -316,6 +550,19 @@ impl<W: Write> Writer<W> {
 
     pub fn into_inner(self) -> W {
         self.out
+    }
+}
+
+impl<W: Write + Send> Encoder<W> for Writer<W> {
+    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        Writer::write(self, entry)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Writer::flush(self)
+    }
+    fn finish(mut self) -> io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
     }
 }
 

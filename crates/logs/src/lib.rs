@@ -2,7 +2,16 @@
 //! type, [`Entry`]:
 //!
 //! - [`candump`]: can-utils' log line `(SEC.USEC) IFACE FRAME` (candump `-l`, canplayer,
-//!   python-can's `.log`), and candump's terminal layout with its `-t`/`-a`/`-x`/`-e` views.
+//!   python-can's `.log`), and candump's terminal layout with its `-t`/`-a`/`-x`/`-e` views;
+//! - [`asc`]: Vector ASC text logs; [`blf`]: Vector BLF binary logs (zlib containers);
+//! - [`trc`]: PEAK TRC 1.1 and 2.1 (reads 1.0 to 2.1); [`csv`]: python-can's CSV;
+//! - [`pcap`] and [`pcapng`]: captures with `LINKTYPE_CAN_SOCKETCAN` (227), for Wireshark;
+//! - [`sqlite`]: python-can's SQLite database (table `messages`).
+//!
+//! [`open_reader`] and [`create_writer`] pick the module by [`Format`] (from a file's
+//! extension or a name). Every reader is bounded in memory whatever the input size, names the
+//! line or byte offset of a bad record, and goes on after one that it can step over. Every
+//! reader's core works on any `BufRead`/`Read`, so a fuzz target can feed it bytes.
 //!
 //! Timestamps are [`Duration`]s since the Unix epoch (or since whatever zero the log uses),
 //! exact to the nanosecond a format carries.
@@ -12,7 +21,29 @@ use std::time::Duration;
 use buslab_can::Frame;
 use buslab_canbus::{BusEvent, ErrorFrame, ErrorMessage, Message};
 
+pub mod asc;
+pub mod blf;
 pub mod candump;
+mod channel;
+pub mod csv;
+mod error;
+mod file;
+mod format;
+pub mod pcap;
+pub mod pcapng;
+mod socketcan;
+pub mod sqlite;
+mod text;
+mod time;
+pub mod trc;
+
+pub use channel::{ChannelMap, channel_name};
+pub use error::{Location, LogError, Problem, ReadError};
+pub use file::{
+    ByteCounter, Entries, LogReader, LogSource, LogWriter, OnWait, OpenOptions, WriteOptions,
+    create_writer, create_writer_atomic, create_writer_with, open_reader, open_source, reader,
+};
+pub use format::{Format, FormatError};
 
 /// One logged event: a frame or an error frame, when and where.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -37,6 +68,19 @@ pub enum Record {
 pub enum Direction {
     Rx,
     Tx,
+}
+
+impl Default for Entry {
+    /// An empty error frame at time 0 on no interface: a buffer for
+    /// [`LogReader::read_into`].
+    fn default() -> Self {
+        Self {
+            timestamp: Duration::ZERO,
+            interface: String::new(),
+            record: Record::Error(ErrorFrame::default()),
+            direction: None,
+        }
+    }
 }
 
 impl Entry {
@@ -68,6 +112,14 @@ impl Entry {
         match event {
             BusEvent::Frame(m) => Self::from_message(m),
             BusEvent::Error(e) => Self::from_error(e),
+        }
+    }
+
+    /// The frame, if this entry is one (not an error frame).
+    pub fn frame(&self) -> Option<&Frame> {
+        match &self.record {
+            Record::Frame(f) => Some(f),
+            Record::Error(_) => None,
         }
     }
 }

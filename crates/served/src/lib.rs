@@ -5,11 +5,14 @@
 //!   analog inputs (CSV replays read here), and its control lines.
 //! - [`cpu196`]: the CPU196 board on a pseudo-terminal with its image file, and the file
 //!   service the monitor offers a board ([`cpu196::FileService`]).
+//! - [`ppc`]: the PowerPC node's VT100 terminal on a pseudo-terminal, while the node runs on a
+//!   virtual bus server.
 //!
 //! Both use the one served-device adapter, [`buslab_link::Serve`]; files are read with a size
 //! limit and written atomically ([`buslab_link::fs`]).
 
 pub mod cpu196;
+pub mod ppc;
 pub mod zelle;
 
 use std::path::PathBuf;

@@ -8,7 +8,8 @@
 //!   ([`Transmit::single_shot`]): before they are calibrated the SLIOs do not acknowledge,
 //!   and a frame nobody acknowledges would be retried forever (the seed aborts it);
 //! - periodic calibration: a calibration frame every 5000 bit-times (inside the 3000..8000 the
-//!   seed asks for, well before the 8192 of the SLIO's watchdog);
+//!   seed asks for, well before the 8192 of the SLIO's watchdog), retried like any frame: one
+//!   that lost arbitration to other traffic must still go out in time;
 //! - the inventory, from sign-ons and every frame a SLIO sends;
 //! - register writes and reads that complete only when the SLIO confirms them.
 
@@ -236,9 +237,12 @@ impl Master {
         if let Some(t) = self.next_calibration
             && now >= t
         {
+            // Retried like any frame (the seed's `send_calibration` sends it plainly): calibrated
+            // SLIOs acknowledge it, and one that lost arbitration must still go out before the
+            // SLIOs' watchdog runs out.
             self.outbox.push_back(Transmit {
                 frame: calibration_frame(),
-                single_shot: true,
+                single_shot: false,
             });
             // Keep the rhythm, but never queue a burst after a long pause.
             let period = CALIBRATION_EVERY_BITS * self.bit_ns;

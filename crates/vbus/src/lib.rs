@@ -24,4 +24,4 @@ pub mod server;
 
 pub use bus::{BusEvent, MAX_NODES, VbusError, VirtualBus};
 pub use node::{ClientNode, Delivery, NodeNotice, TimedErrorFrame};
-pub use server::{ServerConfig, ServerError, ServerHandle, spawn};
+pub use server::{Poster, ServerConfig, ServerError, ServerHandle, spawn};

@@ -110,6 +110,22 @@ pub struct Lag {
     pub behind_for: Duration,
 }
 
+/// Posts work to a running server's bus thread without waiting for it (clonable, e.g. for a
+/// device's terminal thread).
+#[derive(Clone)]
+pub struct Poster {
+    jobs: Sender<Job>,
+    waker: Arc<Waker>,
+}
+
+impl Poster {
+    /// Runs `job` on the bus thread between two slices of bus time; `false` if the server has
+    /// stopped.
+    pub fn post(&self, job: impl FnOnce(&mut VirtualBus) + Send + 'static) -> bool {
+        self.jobs.send(Box::new(job)).is_ok() && self.waker.wake().is_ok()
+    }
+}
+
 /// A running server; dropping it does not stop it (call [`ServerHandle::shutdown`]).
 pub struct ServerHandle {
     addr: SocketAddr,
@@ -140,6 +156,14 @@ impl ServerHandle {
             .ok()?;
         self.waker.wake().ok()?;
         rx.recv().ok()
+    }
+
+    /// A handle that posts work to the bus thread without waiting.
+    pub fn poster(&self) -> Poster {
+        Poster {
+            jobs: self.jobs.clone(),
+            waker: self.waker.clone(),
+        }
     }
 
     /// How far virtual time fell behind the wall clock so far.

@@ -53,6 +53,19 @@ pub struct ServeArgs {
     /// --keep` or python-can sending 0AA#AA04); the bus must run at 20000..125000 bit/s.
     #[arg(long, value_name = "IDS", value_delimiter = ',')]
     pub slio: Vec<buslab_slio::SlioId>,
+    /// The SLIO boards' potentiometer (P6, ADC2): VOLTS, const:VOLTS,
+    /// sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]], ramp:FROM:TO:PERIOD or csv:FILE (the
+    /// ZELLE's source grammar); default a 0..5 V sine of 10 s.
+    #[arg(long, value_name = "SOURCE", default_value = POTENTIOMETER)]
+    pub slio_pot: String,
+    /// The SLIO boards' ADC1 input (P5), same grammar; default 1.25 V.
+    #[arg(long, value_name = "SOURCE", default_value = "1.25V")]
+    pub slio_adc1: String,
+    /// Put the PowerPC node running MoniCAN on the bus (it calibrates and drives the SLIOs)
+    /// and serve its VT100 terminal on a pseudo-terminal (19200 8N1) linked at PATH: open it
+    /// with `screen PATH 19200`, `picocom -b 19200 PATH` or minicom.
+    #[arg(long, value_name = "PATH")]
+    pub ppc: Option<PathBuf>,
     /// Send socketcand's discovery beacon every 3 s (python-can's `detect_beacon()`), to
     /// ADDR, by default 127.0.0.1:42000 when listening on loopback, else the broadcast
     /// address 255.255.255.255:42000.
@@ -81,10 +94,18 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 .map_err(|_| anyhow::anyhow!("beacon address {addr:?} must be IP:PORT"))?,
         ),
     };
-    for &id in &args.slio {
-        let board = demo_board(id, args.bitrate)
-            .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
-        config.devices.push((format!("slio{id}"), Box::new(board)));
+    if !args.slio.is_empty() {
+        let adc1 = board_source("--slio-adc1", &args.slio_adc1)?;
+        let pot = board_source("--slio-pot", &args.slio_pot)?;
+        for &id in &args.slio {
+            let board = demo_board_with(id, args.bitrate, adc1.clone(), pot.clone())
+                .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
+            config.devices.push((format!("slio{id}"), Box::new(board)));
+        }
+    }
+    if args.ppc.is_some() {
+        let ppc = ppc_node(args.bitrate).context("--ppc: the PowerPC node cannot join this bus")?;
+        config.devices.push((PPC_NODE.to_string(), Box::new(ppc)));
     }
     if let Some(path) = &args.nodes {
         let text = super::sim::read_scenario(path)?;
@@ -109,8 +130,23 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             .context("cannot install the Ctrl-C handler")?;
     }
     let server = buslab_vbus::spawn(config)?;
+    let terminal = match &args.ppc {
+        Some(path) => Some(
+            buslab_served::ppc::serve_terminal(PPC_NODE, server.poster(), Some(path.clone()))
+                .context("cannot serve the PowerPC node's terminal")?,
+        ),
+        None => None,
+    };
     // The URL on stdout (tests and scripts read it when the port was 0).
     println!("socketcand://{}/{}", server.local_addr(), args.name);
+    if let (Some(path), Some(t)) = (&args.ppc, &terminal) {
+        tracing::info!(
+            "MoniCAN's terminal on {} ({}, 19200 8N1): screen {} 19200",
+            path.display(),
+            t.path().display(),
+            path.display()
+        );
+    }
     tracing::info!("Ctrl-C to stop");
     while !stop.load(Ordering::SeqCst) {
         std::thread::sleep(Duration::from_millis(50));
@@ -119,15 +155,45 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A SLIO demo board as `bus serve` and the lab put it on the bus: ADC1 (P5) reads 1.25 V,
-/// the potentiometer (P6) turns slowly (a 0..5 V sine, 10 s a turn).
-pub fn demo_board(
+/// The lab's potentiometer: a 0..5 V sine, 10 s a turn.
+const POTENTIOMETER: &str = "sine:100mHz:2.5V:2.5V";
+
+/// A SLIO demo board as the lab puts it on the bus: ADC1 (P5) reads 1.25 V, the
+/// potentiometer (P6) turns slowly.
+pub fn demo_board(id: buslab_slio::SlioId, bitrate: u32) -> anyhow::Result<buslab_slio::DemoBoard> {
+    let adc1 = board_source("ADC1", "1.25V")?;
+    let pot = board_source("potentiometer", POTENTIOMETER)?;
+    Ok(demo_board_with(id, bitrate, adc1, pot)?)
+}
+
+/// A demo board with these sources on ADC1 and the potentiometer.
+fn demo_board_with(
     id: buslab_slio::SlioId,
     bitrate: u32,
+    adc1: buslab_zelle::analog::Source,
+    pot: buslab_zelle::analog::Source,
 ) -> Result<buslab_slio::DemoBoard, buslab_slio::SlioError> {
-    let potentiometer = |t_ns: u64| {
-        let t = t_ns as f64 * 1e-9;
-        2.5 + 2.5 * (2.0 * std::f64::consts::PI * t / 10.0).sin()
-    };
-    buslab_slio::DemoBoard::new(id, bitrate, Box::new(1.25), Box::new(potentiometer))
+    buslab_slio::DemoBoard::new(
+        id,
+        bitrate,
+        Box::new(move |t| adc1.volts(t)),
+        Box::new(move |t| pot.volts(t)),
+    )
+}
+
+/// An analog source in the ZELLE's grammar (a CSV replay file read here).
+fn board_source(what: &str, spec: &str) -> anyhow::Result<buslab_zelle::analog::Source> {
+    let spec = buslab_zelle::analog::SourceSpec::parse(spec).context(what.to_string())?;
+    buslab_served::zelle::load_source(spec).context(what.to_string())
+}
+
+/// The PowerPC node's name on the bus.
+pub const PPC_NODE: &str = "ppc";
+
+/// The PowerPC node running MoniCAN, as `bus serve --ppc` and the lab put it on the bus.
+pub fn ppc_node(bitrate: u32) -> Result<buslab_ppc::PpcNode, buslab_ppc::PpcError> {
+    buslab_ppc::PpcNode::new(buslab_monican::Config {
+        bitrate,
+        ..buslab_monican::Config::default()
+    })
 }

@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use buslab_backends::{BusUrl, DEFAULT_URL, DynBus, OpenOptions};
+use buslab_backends::{BusUrl, DEFAULT_URL, DynBus, OpenOptions, resolve};
 use buslab_canbus::{BusAdmin, BusError, NodeRef};
 
 use crate::units::Human;
@@ -12,9 +12,10 @@ use crate::units::Human;
 /// The common `--bus` option.
 #[derive(clap::Args, Clone)]
 pub struct BusOpt {
-    /// The bus: socketcand://HOST[:PORT][/CHANNEL] (port 29536 and channel vcan0 by default;
-    /// socketcan:IFACE and slcan:DEVICE are recognised but not available yet).
-    #[arg(long, value_name = "URL", default_value = DEFAULT_URL)]
+    /// The bus: vcan0 (buslab's bus on this machine), an interface (can0: SocketCAN), an
+    /// SLCAN adapter's path (/dev/ttyACM0), or a URL: socketcand://HOST[:PORT][/CHANNEL],
+    /// socketcan:IFACE, slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1] (docs/transports.md).
+    #[arg(long, value_name = "BUS", default_value = DEFAULT_URL, value_parser = resolve)]
     pub bus: BusUrl,
 }
 
@@ -71,9 +72,13 @@ pub fn confirm_sent(
     timeout: Duration,
 ) -> anyhow::Result<()> {
     let Some(admin) = bus.admin() else {
-        tracing::warn!(
-            "{url} is not a buslab bus: cannot confirm that the {count} frame(s) were sent"
-        );
+        // A plain socketcand says nothing about its frames; a SocketCAN interface or an SLCAN
+        // adapter took them into its queue, as cansend leaves it.
+        if matches!(url, BusUrl::Socketcand { .. }) {
+            tracing::warn!(
+                "{url} is not a buslab bus: cannot confirm that the {count} frame(s) were sent"
+            );
+        }
         return Ok(());
     };
     let before = admin.node_status(None)?;

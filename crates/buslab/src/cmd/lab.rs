@@ -32,8 +32,9 @@ pub struct Args {
     /// Stop after this long (`2s`, `500ms`, `1h`); default: run until Ctrl-C.
     #[arg(long, value_parser = crate::units::duration)]
     pub duration: Option<Duration>,
-    /// Bit rate of the simulated CAN bus, in bit/s.
-    #[arg(long, default_value_t = 500_000, value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
+    /// Bit rate of the simulated CAN bus, in bit/s (the SLIO boards and the PowerPC node
+    /// take part at 20000..125000 only).
+    #[arg(long, default_value_t = 125_000, value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
     pub bitrate: u32,
     /// Seed of the simulation (its random faults and choices).
     #[arg(long, default_value_t = 1)]
@@ -50,7 +51,7 @@ pub struct Args {
     #[arg(long, value_name = "ADDR")]
     pub listen: Option<SocketAddr>,
     /// Keep the devices' state here (zelle.toml, cpu196.toml) and link their ports as
-    /// DIR/zelle and DIR/cpu196; default: in memory, ports printed at start.
+    /// DIR/zelle, DIR/cpu196 and DIR/monican; default: in memory, ports printed at start.
     #[arg(long, value_name = "DIR")]
     pub dir: Option<PathBuf>,
     /// Only the CAN bus: no ZELLE cell or CPU196 board.
@@ -95,14 +96,24 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     let start_unix = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64());
-    let server = start_server(args.listen, args.bitrate, scenario)?;
+    let slio_bench = SlioBench::new(args.bitrate);
+    let server = start_server(args.listen, args.bitrate, scenario, &slio_bench)?;
     let addr = server.local_addr();
+    let terminal = slio_bench
+        .start_terminal(&server, args.dir.as_deref())
+        .context("starting the PowerPC node's terminal")?;
     eprintln!(
         "buslab lab: CAN bus socketcand://{addr}/{CHANNEL} at {} bit/s, nodes: {}, counter",
         args.bitrate,
-        names.join(", ")
+        names
+            .iter()
+            .copied()
+            .chain(slio_bench.names())
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     eprintln!("  watch it:   buslab dump --bus socketcand://{addr}/{CHANNEL}");
+    slio_bench.describe(terminal.as_ref(), args.dir.as_deref());
     if let Some(devices) = &devices {
         devices.describe();
     }
@@ -117,6 +128,7 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     };
     stop.store(true, Ordering::SeqCst);
     let counted = counter.join();
+    drop(terminal);
     server.shutdown();
     if let Some(devices) = devices {
         devices.stop()?;
@@ -283,19 +295,23 @@ fn start_server(
     listen: Option<SocketAddr>,
     bitrate: u32,
     scenario: Simulation,
+    slio_bench: &SlioBench,
 ) -> anyhow::Result<ServerHandle> {
-    let config = |addr, scenario| ServerConfig {
-        channel: CHANNEL.to_string(),
-        scenario: Some(scenario),
-        ..ServerConfig::new(addr, bitrate)
+    let config = |addr, scenario| -> anyhow::Result<ServerConfig> {
+        Ok(ServerConfig {
+            channel: CHANNEL.to_string(),
+            scenario: Some(scenario),
+            devices: slio_bench.devices(bitrate)?,
+            ..ServerConfig::new(addr, bitrate)
+        })
     };
     let default: SocketAddr = ([127, 0, 0, 1], 29536).into();
-    match buslab_vbus::spawn(config(listen.unwrap_or(default), scenario)) {
+    match buslab_vbus::spawn(config(listen.unwrap_or(default), scenario)?) {
         Err(ServerError::Listen { source, .. })
             if listen.is_none() && source.kind() == io::ErrorKind::AddrInUse =>
         {
             let (scenario, _) = lab_nodes(bitrate, 0);
-            buslab_vbus::spawn(config(([127, 0, 0, 1], 0).into(), scenario))
+            buslab_vbus::spawn(config(([127, 0, 0, 1], 0).into(), scenario)?)
                 .context("starting the lab's bus server")
         }
         other => other.context("starting the lab's bus server"),
@@ -333,6 +349,104 @@ fn periodic(frame: Frame, period: BitTime, start: BitTime) -> Traffic {
         period,
         start,
         count: None,
+    }
+}
+
+/// The seed's SLIO bench (002 §3.2, §4.3): three demo boards and the PowerPC node running
+/// MoniCAN, whose VT100 terminal is served on a pseudo-terminal. SLIOs follow 20..125 kbit/s
+/// only; on a faster bus the bench has none (and says so).
+struct SlioBench {
+    ids: Vec<buslab_slio::SlioId>,
+}
+
+/// The demo boards' numbers: three, as the seed's figure shows a few of its 16.
+const LAB_SLIOS: [u8; 3] = [0, 3, 10];
+
+impl SlioBench {
+    fn new(bitrate: u32) -> Self {
+        let fits =
+            (buslab_slio::slio::MIN_BITRATE..=buslab_slio::slio::MAX_BITRATE).contains(&bitrate);
+        let ids = if fits {
+            LAB_SLIOS
+                .iter()
+                .map(|&n| buslab_slio::SlioId::new(n).expect("0..15"))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Self { ids }
+    }
+
+    fn names(&self) -> Vec<&'static str> {
+        if self.ids.is_empty() {
+            return Vec::new();
+        }
+        vec!["slio0", "slio3", "slioA", super::bus::PPC_NODE]
+    }
+
+    /// The boards and the PowerPC node, fresh for a server.
+    fn devices(
+        &self,
+        bitrate: u32,
+    ) -> anyhow::Result<Vec<(String, Box<dyn buslab_can::node::BusNode>)>> {
+        let mut devices: Vec<(String, Box<dyn buslab_can::node::BusNode>)> = Vec::new();
+        if self.ids.is_empty() {
+            return Ok(devices);
+        }
+        for &id in &self.ids {
+            devices.push((
+                format!("slio{id}"),
+                Box::new(super::bus::demo_board(id, bitrate)?),
+            ));
+        }
+        devices.push((
+            super::bus::PPC_NODE.to_string(),
+            Box::new(super::bus::ppc_node(bitrate)?),
+        ));
+        Ok(devices)
+    }
+
+    /// The PowerPC node's terminal, linked as DIR/monican.
+    fn start_terminal(
+        &self,
+        server: &ServerHandle,
+        dir: Option<&Path>,
+    ) -> anyhow::Result<Option<buslab_link::Served<buslab_served::ppc::PpcTerminal>>> {
+        if self.ids.is_empty() {
+            return Ok(None);
+        }
+        let link = dir.map(|d| d.join("monican"));
+        Ok(Some(buslab_served::ppc::serve_terminal(
+            super::bus::PPC_NODE,
+            server.poster(),
+            link,
+        )?))
+    }
+
+    fn describe(
+        &self,
+        terminal: Option<&buslab_link::Served<buslab_served::ppc::PpcTerminal>>,
+        dir: Option<&Path>,
+    ) {
+        let Some(terminal) = terminal else {
+            eprintln!(
+                "  no SLIO boards: they follow 20000..125000 bit/s (the lab's default is 125000)"
+            );
+            return;
+        };
+        let ids: Vec<String> = self.ids.iter().map(ToString::to_string).collect();
+        eprintln!(
+            "  SLIO boards  {} (demo boards; MoniCAN calibrates and drives them; try: buslab slio list)",
+            ids.join(", ")
+        );
+        let pty = terminal.path().display();
+        let link = dir.map(|d| d.join("monican"));
+        let path = link
+            .as_deref()
+            .map_or_else(|| pty.to_string(), |l| l.display().to_string());
+        eprintln!(
+            "  MoniCAN      on {pty}  (19200 8N1, VT100; open it: screen {path} 19200, or picocom -b 19200 {path}; Ctrl-L redraws)"
+        );
     }
 }
 

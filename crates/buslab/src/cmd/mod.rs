@@ -5,15 +5,20 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context;
 
+pub mod bridge;
 pub mod bus;
 pub mod busopt;
 pub mod cpu196;
 pub mod dump;
 pub mod r#gen;
 pub mod lab;
+pub mod log;
+pub mod monican;
+pub mod play;
 pub mod regs;
 pub mod send;
 pub mod sim;
+pub mod slcan;
 pub mod slio;
 pub mod status;
 pub mod wire;

@@ -1,18 +1,23 @@
-//! `buslab send 123#1122`: send frames in cansend syntax, and wait until they were sent.
+//! `buslab send [IFACE] 123#1122`: send frames in cansend syntax (the interface first, as
+//! cansend takes it, or `--bus`), and wait until they were sent.
 
 use std::time::Duration;
 
+use anyhow::{Context, bail};
+use buslab_backends::{BusUrl, DEFAULT_URL, resolve};
 use buslab_can::Frame;
 
-use super::busopt::{BusOpt, admin, confirm_sent, open, set_name};
+use super::busopt::{admin, confirm_sent, open, set_name};
 
 #[derive(clap::Args)]
 pub struct Args {
-    #[command(flatten)]
-    pub bus: BusOpt,
-    /// Frames in can-utils syntax: 123#DEADBEEF, 1F334455#, 123#R, 00000123#R3.
-    #[arg(required = true, value_name = "FRAME")]
-    pub frames: Vec<Frame>,
+    /// The bus (default vcan0, buslab's bus on this machine): a name or URL as IFACE takes.
+    #[arg(long, value_name = "BUS", value_parser = resolve)]
+    pub bus: Option<BusUrl>,
+    /// `[IFACE] FRAME…`: the interface as cansend takes it (vcan0, can0, /dev/ttyACM0 or a
+    /// URL), then frames in can-utils syntax: 123#DEADBEEF, 1F334455#, 123#R, 00000123#R3.
+    #[arg(required = true, value_name = "[IFACE] FRAME")]
+    pub words: Vec<String>,
     /// Program this client's SJA1000 with BTR0:BTR1 (hex) first, e.g. 07:4D; a bit rate that
     /// does not match the bus cannot communicate (an induced error). Needs a buslab bus.
     #[arg(long, value_name = "BTR0:BTR1", value_parser = parse_btr)]
@@ -39,8 +44,38 @@ pub fn parse_btr(text: &str) -> Result<(u8, u8), String> {
     Ok((byte(a).ok_or_else(bad)?, byte(b).ok_or_else(bad)?))
 }
 
+/// The bus and frames from `[IFACE] FRAME…` and `--bus`: a first word without `#` is the
+/// interface.
+fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
+    let (iface, frames) = match args.words.split_first() {
+        Some((first, rest)) if !first.contains('#') => (Some(first), rest),
+        _ => (None, &args.words[..]),
+    };
+    let url = match (iface, &args.bus) {
+        (Some(_), Some(_)) => bail!(
+            "the bus is given twice: as IFACE ({}) and --bus",
+            iface.unwrap()
+        ),
+        (Some(name), None) => resolve(name)?,
+        (None, Some(url)) => url.clone(),
+        (None, None) => DEFAULT_URL.parse()?,
+    };
+    if frames.is_empty() {
+        bail!("no frame to send: expected [IFACE] FRAME…, e.g. `buslab send vcan0 123#1122`");
+    }
+    let frames = frames
+        .iter()
+        .map(|f| {
+            f.parse::<Frame>()
+                .with_context(|| format!("invalid value '{f}' for '[IFACE] FRAME'"))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    Ok((url, frames))
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let url = &args.bus.bus;
+    let (url, frames) = bus_and_frames(&args)?;
+    let url = &url;
     let mut bus = open(url)?;
     set_name(&mut bus, url, args.name.as_deref())?;
     if let Some((btr0, btr1)) = args.btr {
@@ -48,8 +83,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // Only this client's own frames matter now; what the bus carries is not kept.
     bus.set_filters(&[buslab_canbus::Filter::NONE])?;
-    for f in &args.frames {
+    for f in &frames {
         bus.send(f)?;
     }
-    confirm_sent(&mut bus, url, args.frames.len() as u64, args.timeout)
+    confirm_sent(&mut bus, url, frames.len() as u64, args.timeout)
 }

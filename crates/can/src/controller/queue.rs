@@ -6,8 +6,9 @@ use crate::Frame;
 
 #[derive(Debug, Clone)]
 pub(super) struct TxQueue {
-    /// Sorted from least to most important, so the next frame to send is `last()`. Equal frames
-    /// keep their enqueue order.
+    /// Sorted from least to most important (arbitration field only: what follows it cannot
+    /// change who wins), so the next frame to send is `last()`. Frames with equal arbitration
+    /// fields keep their enqueue order, as a controller's FIFO does.
     frames: Vec<Frame>,
 }
 
@@ -23,8 +24,11 @@ impl TxQueue {
     }
 
     pub(super) fn push(&mut self, frame: Frame) {
-        // Before any equal frames: those were queued earlier and go first.
-        let at = self.frames.partition_point(|queued| *queued > frame);
+        // Before any equal ones: those were queued earlier and go first.
+        let key = frame.arbitration_key();
+        let at = self
+            .frames
+            .partition_point(|queued| queued.arbitration_key() > key);
         self.frames.insert(at, frame);
     }
 
@@ -43,5 +47,26 @@ impl TxQueue {
     /// Most important first.
     pub(super) fn iter(&self) -> impl Iterator<Item = &Frame> {
         self.frames.iter().rev()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alloc::string::{String, ToString};
+
+    fn f(text: &str) -> Frame {
+        text.parse().unwrap()
+    }
+
+    #[test]
+    fn priority_first_and_equal_identifiers_in_the_order_queued() {
+        let mut q = TxQueue::with_capacity(8);
+        // A SLIO answering two requests: DATA_OUTPUT first, then DATA_INPUT, same ID.
+        for text in ["29D#232000", "300#", "29D#206001", "100#"] {
+            q.push(f(text));
+        }
+        let order: Vec<String> = core::iter::from_fn(|| q.pop().map(|f| f.to_string())).collect();
+        assert_eq!(order, ["100#", "29D#232000", "29D#206001", "300#"]);
     }
 }

@@ -1,0 +1,463 @@
+//! `buslab log convert|info|cat`: CAN log files in every format `buslab_logs` reads (candump,
+//! ASC, BLF, TRC, CSV, pcap, pcapng, SQLite).
+
+use std::collections::{BTreeMap, HashMap};
+use std::io::{self, IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use buslab_logs::{
+    Entry, Format, LogSource, LogWriter, OpenOptions, ReadError, Record, candump, create_writer,
+    create_writer_atomic, open_source,
+};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::units::Human;
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: LogCommand,
+}
+
+#[derive(clap::Subcommand)]
+pub enum LogCommand {
+    /// Convert a log to another format (formats from the extensions, or --from/--to), e.g.
+    /// `buslab log convert trace.log trace.blf`.
+    Convert(ConvertArgs),
+    /// What a log holds: entries, interfaces, IDs, time span, bus load.
+    Info(InfoArgs),
+    /// Print a log as candump log lines (`(SECONDS) IFACE FRAME`).
+    Cat(CatArgs),
+}
+
+/// The log to read and how.
+#[derive(clap::Args)]
+pub struct Input {
+    /// The log file to read (a regular file).
+    #[arg(value_name = "IN")]
+    pub input: PathBuf,
+    /// Its format when the extension does not tell: candump (.log), asc, blf, trc, csv, pcap,
+    /// pcapng, sqlite (.db).
+    #[arg(long, value_name = "FORMAT")]
+    pub from: Option<Format>,
+    /// Step over bad lines or records (each is reported; the count at the end) instead of
+    /// stopping at the first one.
+    #[arg(long)]
+    pub skip_bad: bool,
+}
+
+#[derive(clap::Args)]
+pub struct ConvertArgs {
+    #[command(flatten)]
+    pub input: Input,
+    /// The file to write (replaced only when the conversion is done, unless --follow).
+    #[arg(value_name = "OUT")]
+    pub output: PathBuf,
+    /// The output's format when the extension does not tell: candump, asc, blf, trc (2.1),
+    /// trc11, trc21, csv, pcap, pcapng, sqlite.
+    #[arg(long, value_name = "FORMAT")]
+    pub to: Option<Format>,
+    /// Keep reading IN as it grows (like `tail -f`, e.g. a `candump -l` log) until Ctrl-C,
+    /// SIGTERM or SIGHUP; OUT is written in place and flushed whenever IN has nothing new.
+    #[arg(short, long)]
+    pub follow: bool,
+}
+
+#[derive(clap::Args)]
+pub struct InfoArgs {
+    #[command(flatten)]
+    pub input: Input,
+    /// The bit rate the load is estimated for, in bit/s.
+    #[arg(long, value_name = "BIT/S", default_value_t = 500_000)]
+    pub bitrate: u32,
+}
+
+#[derive(clap::Args)]
+pub struct CatArgs {
+    #[command(flatten)]
+    pub input: Input,
+    /// Add the direction after each frame, ` R` or ` T`, when the log knows it (candump -x).
+    #[arg(short = 'x', long)]
+    pub direction: bool,
+    /// Nine decimals (nanoseconds, as candump -N) instead of six.
+    #[arg(short = 'N', long)]
+    pub nanos: bool,
+}
+
+pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
+    let result = match args.command {
+        LogCommand::Convert(a) => convert(a, quiet),
+        LogCommand::Info(a) => info(a),
+        LogCommand::Cat(a) => cat(a),
+    };
+    match result {
+        // The reader of our output left (`| head`): not an error.
+        Err(e) if is_broken_pipe(&e) => Ok(()),
+        other => other,
+    }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.downcast_ref::<io::Error>()
+        .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe)
+}
+
+/// A flag set by Ctrl-C, SIGTERM or SIGHUP, so a command stops cleanly: writers finish,
+/// nothing read is lost.
+pub fn stop_on_signals() -> anyhow::Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [
+        signal_hook::consts::SIGINT,
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGHUP,
+    ] {
+        signal_hook::flag::register(signal, stop.clone())
+            .with_context(|| format!("cannot handle signal {signal}"))?;
+    }
+    Ok(stop)
+}
+
+/// The input's format: `--from`, else its extension.
+fn input_format(input: &Input) -> anyhow::Result<Format> {
+    Ok(match input.from {
+        Some(f) => f,
+        None => Format::from_path(&input.input)?,
+    })
+}
+
+/// What reading a log came to.
+#[derive(Default)]
+struct Tally {
+    entries: u64,
+    bad: u64,
+}
+
+/// Reads every entry of `source` into `each` until the end, `stop` or an error. Bad records
+/// are skipped with a warning when `skip_bad`; otherwise (and for fatal errors) the error is
+/// returned, after `each` has seen everything before it.
+fn read_all(
+    source: &mut LogSource,
+    skip_bad: bool,
+    stop: &AtomicBool,
+    tally: &mut Tally,
+    mut each: impl FnMut(&Entry) -> anyhow::Result<()>,
+) -> Result<(), ReadFailure> {
+    let mut entry = Entry::default();
+    while !stop.load(Ordering::Relaxed) {
+        match source.reader.read_into(&mut entry) {
+            Ok(true) => {
+                tally.entries += 1;
+                each(&entry).map_err(ReadFailure::Other)?;
+            }
+            Ok(false) => return Ok(()),
+            Err(e) if skip_bad && !e.is_fatal() => {
+                tally.bad += 1;
+                tracing::warn!("skipped: {e}");
+            }
+            Err(e) => return Err(ReadFailure::Read(e)),
+        }
+    }
+    Ok(())
+}
+
+enum ReadFailure {
+    Read(ReadError),
+    Other(anyhow::Error),
+}
+
+impl ReadFailure {
+    fn into_error(self, tally: &Tally, kept: &str) -> anyhow::Error {
+        match self {
+            ReadFailure::Read(e) => {
+                let hint = if e.is_fatal() {
+                    String::new()
+                } else {
+                    " (--skip-bad steps over bad lines and records)".to_string()
+                };
+                let n = tally.entries;
+                let entries = if n == 1 { "entry" } else { "entries" };
+                anyhow::anyhow!("{e}{hint}; {kept} the {n} {entries} before it")
+            }
+            ReadFailure::Other(e) => e,
+        }
+    }
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
+fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
+    let from = input_format(&args.input)?;
+    let to = match args.to {
+        Some(f) => f,
+        None => Format::from_path(&args.output)?,
+    };
+    let (input, output) = (&args.input.input, &args.output);
+    if same_file(input, output) {
+        bail!("{} is both input and output", input.display());
+    }
+    let stop = stop_on_signals()?;
+    let writer = if args.follow {
+        create_writer(output, to)?
+    } else {
+        create_writer_atomic(output, to)?
+    };
+    // Shared with the follower, which flushes it whenever the input has nothing new.
+    let writer: Arc<Mutex<Box<dyn LogWriter + Send>>> = Arc::new(Mutex::new(writer));
+    let mut options = OpenOptions::default();
+    if args.follow {
+        options.follow_until = Some(stop.clone());
+        let w = writer.clone();
+        options.on_wait = Some(Arc::new(move || {
+            if let Err(e) = lock(&w).flush() {
+                tracing::warn!("flushing the output: {e}");
+            }
+        }));
+    }
+    let mut source = open_source(input, from, &options)?;
+    drop(options); // its hook holds the writer too
+    let bar = progress(source.len, quiet || args.follow);
+    let started = Instant::now();
+    let mut tally = Tally::default();
+    let bytes = source.bytes_read.clone();
+    let mut written = 0u64;
+    let read = read_all(
+        &mut source,
+        args.input.skip_bad,
+        &stop,
+        &mut tally,
+        |entry| {
+            lock(&writer)
+                .write(entry)
+                .with_context(|| format!("writing {}", output.display()))?;
+            written += 1;
+            // Every 16384th entry: cheaper than moving the bar each time.
+            if written.is_multiple_of(16_384) && !bar.is_hidden() {
+                bar.set_position(bytes.get());
+                let rate = written as f64 / started.elapsed().as_secs_f64().max(1e-9);
+                bar.set_message(format!("{rate:.0} frames/s"));
+            }
+            Ok(())
+        },
+    );
+    drop(source); // the follower's hook holds the writer
+    bar.finish_and_clear();
+    let writer = match Arc::try_unwrap(writer) {
+        Ok(m) => m.into_inner().unwrap_or_else(|p| p.into_inner()),
+        Err(_) => bail!("internal: the output is still shared"),
+    };
+    let left_out = writer.left_out();
+    // Whatever happened, what was read is written.
+    writer
+        .finish()
+        .with_context(|| format!("finishing {}", output.display()))?;
+    let counted = count_line(&tally, entries_word(tally.entries, from));
+    if let Err(failure) = read {
+        return Err(failure.into_error(&tally, &format!("{} holds", output.display())));
+    }
+    if !quiet {
+        let mut line = format!(
+            "{} ({from}) → {} ({to}): {counted} in {}",
+            input.display(),
+            output.display(),
+            Human(started.elapsed())
+        );
+        if left_out > 0 {
+            line.push_str(&format!("; {left_out} left out ({to} cannot hold them)"));
+        }
+        if stop.load(Ordering::Relaxed) && !args.follow {
+            line.push_str("; interrupted");
+        }
+        eprintln!("{line}");
+    }
+    Ok(())
+}
+
+fn entries_word(n: u64, _format: Format) -> String {
+    format!("{n} {}", if n == 1 { "entry" } else { "entries" })
+}
+
+fn count_line(tally: &Tally, entries: String) -> String {
+    if tally.bad > 0 {
+        format!("{entries}, {} bad skipped", tally.bad)
+    } else {
+        entries
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// A progress bar of bytes read and frames per second, on a terminal only.
+fn progress(len: u64, hidden: bool) -> ProgressBar {
+    if hidden || !io::stderr().is_terminal() || len == 0 {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template("{bytes:>9}/{total_bytes} [{bar:20}] {percent:>3}% {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Per interface: what `log info` counts.
+#[derive(Default)]
+struct Stats {
+    frames: u64,
+    errors: u64,
+    remote: u64,
+    extended: u64,
+    bits: u64,
+    first: Option<Duration>,
+    last: Option<Duration>,
+    ids: HashMap<(bool, u32), u64>,
+    ids_overflow: bool,
+}
+
+/// The most distinct IDs `log info` counts per interface (bounded memory).
+const MAX_IDS: usize = 100_000;
+
+fn info(args: InfoArgs) -> anyhow::Result<()> {
+    let format = input_format(&args.input)?;
+    let path = &args.input.input;
+    let mut source = open_source(path, format, &OpenOptions::default())?;
+    let stop = stop_on_signals()?;
+    let mut per: BTreeMap<String, Stats> = BTreeMap::new();
+    let mut tally = Tally::default();
+    let read = read_all(&mut source, args.input.skip_bad, &stop, &mut tally, |e| {
+        let s = match per.get_mut(&e.interface) {
+            Some(s) => s,
+            None => per.entry(e.interface.clone()).or_default(),
+        };
+        s.first = Some(s.first.map_or(e.timestamp, |f| f.min(e.timestamp)));
+        s.last = Some(s.last.map_or(e.timestamp, |l| l.max(e.timestamp)));
+        match &e.record {
+            Record::Error(_) => s.errors += 1,
+            Record::Frame(f) => {
+                s.frames += 1;
+                s.remote += u64::from(f.is_remote());
+                s.extended += u64::from(f.is_extended());
+                // Wire bits with stuffing, plus the 3-bit intermission.
+                s.bits += buslab_can::wire::encode(f).on_bus().len() as u64 + 3;
+                let key = (f.is_extended(), f.id().as_raw());
+                if let Some(n) = s.ids.get_mut(&key) {
+                    *n += 1;
+                } else if s.ids.len() < MAX_IDS {
+                    s.ids.insert(key, 1);
+                } else {
+                    s.ids_overflow = true;
+                }
+            }
+        }
+        Ok(())
+    });
+    if let Err(failure) = read {
+        return Err(failure.into_error(&tally, "counted"));
+    }
+    let mut out = io::stdout().lock();
+    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    writeln!(
+        out,
+        "file        {} ({format}, {size} bytes)",
+        path.display()
+    )?;
+    let frames: u64 = per.values().map(|s| s.frames).sum();
+    let errors: u64 = per.values().map(|s| s.errors).sum();
+    writeln!(
+        out,
+        "entries     {} frames, {errors} error frames{}",
+        frames,
+        if tally.bad > 0 {
+            format!(", {} bad skipped", tally.bad)
+        } else {
+            String::new()
+        }
+    )?;
+    let first = per.values().filter_map(|s| s.first).min();
+    let last = per.values().filter_map(|s| s.last).max();
+    if let (Some(first), Some(last)) = (first, last) {
+        writeln!(
+            out,
+            "time        {} .. {} ({})",
+            seconds(first),
+            seconds(last),
+            Human(last - first)
+        )?;
+    }
+    for (name, s) in &per {
+        let span = s.last.unwrap_or_default() - s.first.unwrap_or_default();
+        let load = if span.is_zero() {
+            "n/a (one instant)".to_string()
+        } else {
+            format!(
+                "{:.1} % at {} kbit/s",
+                100.0 * s.bits as f64 / (span.as_secs_f64() * f64::from(args.bitrate.max(1))),
+                f64::from(args.bitrate) / 1000.0
+            )
+        };
+        let mut busiest: Vec<(&(bool, u32), &u64)> = s.ids.iter().collect();
+        busiest.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+        let top: Vec<String> = busiest
+            .iter()
+            .take(5)
+            .map(|((ext, id), n)| {
+                if *ext {
+                    format!("{id:08X} ({n})")
+                } else {
+                    format!("{id:03X} ({n})")
+                }
+            })
+            .collect();
+        writeln!(
+            out,
+            "{name:<11} {} frames ({} extended, {} remote), {} error frames, {}{} IDs, load {load}",
+            s.frames,
+            s.extended,
+            s.remote,
+            s.errors,
+            if s.ids_overflow { "more than " } else { "" },
+            s.ids.len()
+        )?;
+        if !top.is_empty() {
+            writeln!(out, "{:<11} busiest: {}", "", top.join(", "))?;
+        }
+    }
+    Ok(())
+}
+
+fn seconds(t: Duration) -> String {
+    format!("{}.{:06}", t.as_secs(), t.subsec_micros())
+}
+
+fn cat(args: CatArgs) -> anyhow::Result<()> {
+    let format = input_format(&args.input)?;
+    let mut source = open_source(&args.input.input, format, &OpenOptions::default())?;
+    let stop = stop_on_signals()?;
+    let stdout = io::stdout();
+    let mut out = io::BufWriter::with_capacity(64 * 1024, stdout.lock());
+    let mut line = Vec::with_capacity(128);
+    let mut tally = Tally::default();
+    let read = read_all(&mut source, args.input.skip_bad, &stop, &mut tally, |e| {
+        line.clear();
+        candump::write_line(&mut line, e, args.direction, args.nanos);
+        line.push(b'\n');
+        out.write_all(&line)?;
+        Ok(())
+    });
+    out.flush()?;
+    if let Err(failure) = read {
+        return Err(failure.into_error(&tally, "printed"));
+    }
+    Ok(())
+}

@@ -1,0 +1,233 @@
+//! `buslab monican --bus URL`: MoniCAN in the user's terminal, driving SLIOs on any bus.
+//!
+//! The same sans-IO application as on the PowerPC node ([`buslab_monican::MoniCan`]): this
+//! adapter owns the terminal (raw mode and the alternate screen, restored on every way out),
+//! the bus, and the wall clock. Keys go to MoniCAN as the bytes the terminal sends; Ctrl-Q or
+//! Ctrl-C quit (SIGTERM, SIGINT and SIGHUP too).
+
+use std::io::{IsTerminal, Read, Write};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, TryRecvError};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use buslab_backends::DynBus;
+use buslab_canbus::BusError;
+use buslab_monican::{Config, MoniCan, Transmit};
+
+use super::busopt::{self, BusOpt};
+use crate::units::Human;
+
+/// Keys that leave `buslab monican` (MoniCAN itself gives them no meaning).
+const CTRL_C: u8 = 0x03;
+const CTRL_Q: u8 = 0x11;
+
+/// The longest the loop waits for a frame before looking at keys and signals again.
+const SLICE: Duration = Duration::from_millis(20);
+/// How long a calibration frame may take to be acknowledged on a buslab bus before MoniCAN
+/// stops waiting for it (nobody acknowledges: no SLIO calibrated and no other node).
+const SINGLE_SHOT_WAIT: Duration = Duration::from_millis(250);
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub bus: BusOpt,
+    /// The bus's bit rate, when the bus cannot tell (a buslab bus tells): the calibration
+    /// frames go every 5000 bit-times.
+    #[arg(long, default_value_t = 125_000)]
+    pub bitrate: u32,
+    /// The 11-bit identifier a supervisor's mail arrives on (hex with 0x, or decimal).
+    #[arg(long, value_name = "ID", default_value = "0x700", value_parser = parse_id)]
+    pub mail_id: u16,
+}
+
+fn parse_id(text: &str) -> Result<u16, String> {
+    let t = text.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(hex) => u16::from_str_radix(hex, 16),
+        None => t.parse(),
+    };
+    parsed
+        .ok()
+        .filter(|&id| id <= 0x7FF)
+        .ok_or_else(|| format!("{text:?} is not an 11-bit identifier (0x001..0x7FF)"))
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if !std::io::stdin().is_terminal() || !std::io::stdout().is_terminal() {
+        bail!("buslab monican needs a terminal (its keys and its VT100 screen)");
+    }
+    let mut bus = busopt::open(&args.bus.bus)?;
+    let bitrate = match bus.admin() {
+        Some(admin) => {
+            let _ = admin.set_name("monican");
+            admin.node_status(None)?.bus.bitrate
+        }
+        None => args.bitrate,
+    };
+    let config = Config {
+        bitrate,
+        mail_id: args.mail_id,
+        ..Config::default()
+    };
+    config.validate()?;
+    let quit = Arc::new(AtomicBool::new(false));
+    for signal in [
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGINT,
+        signal_hook::consts::SIGHUP,
+    ] {
+        signal_hook::flag::register(signal, quit.clone())
+            .context("cannot watch for termination signals")?;
+    }
+    let terminal = Terminal::enter()?;
+    let keys = read_keys();
+    let result = session(&mut bus, config, &keys, &quit);
+    drop(terminal);
+    result
+}
+
+/// The terminal in raw mode on the alternate screen, until dropped.
+struct Terminal;
+
+impl Terminal {
+    fn enter() -> anyhow::Result<Self> {
+        crossterm::terminal::enable_raw_mode().context("cannot put the terminal in raw mode")?;
+        let terminal = Terminal;
+        crossterm::execute!(std::io::stdout(), crossterm::terminal::EnterAlternateScreen)
+            .context("cannot switch to the alternate screen")?;
+        Ok(terminal)
+    }
+}
+
+impl Drop for Terminal {
+    fn drop(&mut self) {
+        let _ = crossterm::execute!(
+            std::io::stdout(),
+            crossterm::cursor::Show,
+            crossterm::terminal::LeaveAlternateScreen
+        );
+        let _ = crossterm::terminal::disable_raw_mode();
+    }
+}
+
+/// Bytes from the terminal, as they come (a thread blocked in `read`; it ends with the
+/// process).
+fn read_keys() -> Receiver<Vec<u8>> {
+    let (tx, rx) = mpsc::sync_channel(64);
+    std::thread::spawn(move || {
+        let mut stdin = std::io::stdin();
+        let mut buf = [0u8; 256];
+        loop {
+            match stdin.read(&mut buf) {
+                Ok(0) | Err(_) => break,
+                Ok(n) => {
+                    if tx.send(buf[..n].to_vec()).is_err() {
+                        break;
+                    }
+                }
+            }
+        }
+    });
+    rx
+}
+
+fn session(
+    bus: &mut DynBus,
+    config: Config,
+    keys: &Receiver<Vec<u8>>,
+    quit: &AtomicBool,
+) -> anyhow::Result<()> {
+    let epoch = Instant::now();
+    let now = || epoch.elapsed().as_nanos() as u64;
+    let mut app = MoniCan::new(config, now())?;
+    if let Ok((cols, rows)) = crossterm::terminal::size()
+        && (cols < 80 || rows < 24)
+    {
+        app.set_notice(format!(
+            "this terminal is {cols} x {rows}; MoniCAN needs 80 x 24"
+        ));
+    }
+    let mut stdout = std::io::stdout();
+    while !quit.load(Ordering::Relaxed) {
+        loop {
+            match keys.try_recv() {
+                Ok(bytes) => {
+                    for byte in bytes {
+                        if byte == CTRL_Q || byte == CTRL_C {
+                            return Ok(());
+                        }
+                        app.handle_key(now(), byte);
+                    }
+                }
+                Err(TryRecvError::Empty) => break,
+                // The terminal is gone.
+                Err(TryRecvError::Disconnected) => return Ok(()),
+            }
+        }
+        if app.next_deadline().is_some_and(|t| t <= now()) {
+            app.handle_timeout(now());
+        }
+        while let Some(t) = app.poll_transmit() {
+            send(bus, t)?;
+        }
+        let screen = app.take_screen();
+        if !screen.is_empty() {
+            stdout.write_all(&screen)?;
+            stdout.flush()?;
+        }
+        let wait = app
+            .next_deadline()
+            .map_or(SLICE, |t| Duration::from_nanos(t.saturating_sub(now())))
+            .min(SLICE);
+        let mut timeout = wait;
+        while let Some(message) = bus.recv(Some(timeout)).context("receiving from the bus")? {
+            app.handle_frame(now(), &message.frame);
+            // Take what already arrived, then look at keys and timers again.
+            timeout = Duration::ZERO;
+        }
+    }
+    Ok(())
+}
+
+/// Sends MoniCAN's frames. A single-shot frame (calibration) on a buslab bus is followed by a
+/// flush; if nobody acknowledges it within [`SINGLE_SHOT_WAIT`] it is aborted
+/// (`< buslab_abort >`, the seed's CMR.AT), so an unacknowledged frame never holds up the
+/// next ones. Other backends just send: their adapters retry until a SLIO acknowledges.
+fn send(bus: &mut DynBus, t: Transmit) -> anyhow::Result<()> {
+    bus.send(&t.frame)
+        .with_context(|| format!("cannot send {}", t.frame))?;
+    if !t.single_shot {
+        return Ok(());
+    }
+    let Some(admin) = bus.admin() else {
+        return Ok(());
+    };
+    match admin.flush(SINGLE_SHOT_WAIT) {
+        Ok(_) => Ok(()),
+        Err(BusError::Timeout { .. }) => {
+            tracing::debug!(
+                "calibration frame not acknowledged within {}: aborted",
+                Human(SINGLE_SHOT_WAIT)
+            );
+            admin
+                .abort()
+                .context("aborting an unacknowledged calibration frame")
+        }
+        Err(e) => Err(e).context("waiting for a calibration frame to be sent"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mail_ids_parse_in_hex_or_decimal() {
+        assert_eq!(parse_id("0x700"), Ok(0x700));
+        assert_eq!(parse_id("1792"), Ok(0x700));
+        assert!(parse_id("0x800").is_err());
+        assert!(parse_id("mail").is_err());
+    }
+}

@@ -1,0 +1,190 @@
+//! `buslab slcan serve`: an SLCAN (Lawicel) USB adapter model on a pseudo-terminal, plugged
+//! into any bus buslab can open. python-can's `interface='slcan'` and Linux's `slcand` use
+//! the PTY as if an adapter were plugged in.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+
+use anyhow::Context;
+use buslab_backends::{BusUrl, Pump, PumpEvent, PumpSender, TrySendError, resolve};
+use buslab_canbus::{BitTiming, BusEvent, CanBus};
+use buslab_link::Pty;
+use buslab_slcan::{Adapter, AdapterEvent, BTR_CLOCK_HZ, Identity, Input, Timing};
+
+use super::busopt::open;
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub command: SlcanCommand,
+}
+
+#[derive(clap::Subcommand)]
+pub enum SlcanCommand {
+    /// Serve an SLCAN adapter on a pseudo-terminal, plugged into a bus: python-can
+    /// (`interface='slcan'`, channel = the PTY) and slcand use it as a USB adapter.
+    Serve(ServeArgs),
+}
+
+#[derive(clap::Args)]
+pub struct ServeArgs {
+    /// The bus the adapter is plugged into: vcan0 (buslab's bus on this machine), an
+    /// interface (can0), a device path or a bus URL.
+    #[arg(long, value_name = "BUS", default_value = "vcan0", value_parser = resolve)]
+    pub bus: BusUrl,
+    /// Also make this path a symlink to the pseudo-terminal (e.g. /tmp/ttyACM0); removed on
+    /// exit.
+    #[arg(long, value_name = "PATH")]
+    pub link: Option<PathBuf>,
+    /// The serial number the adapter reports (`N`): 4 letters or digits.
+    #[arg(long, default_value = "BL01", value_parser = four_alphanumerics)]
+    pub serial: [u8; 4],
+}
+
+fn four_alphanumerics(text: &str) -> Result<[u8; 4], String> {
+    <[u8; 4]>::try_from(text.as_bytes())
+        .ok()
+        .filter(|b| b.iter().all(u8::is_ascii_alphanumeric))
+        .ok_or_else(|| format!("serial number {text:?} must be 4 letters or digits"))
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.command {
+        SlcanCommand::Serve(a) => serve(a),
+    }
+}
+
+fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    let url = args.bus.clone();
+    let bus = open(&url)?;
+    let mut pty = Pty::open().context("opening a pseudo-terminal")?;
+    if let Some(link) = &args.link {
+        pty.link_at(link)
+            .with_context(|| format!("linking {}", link.display()))?;
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    let (feed, inputs) = mpsc::sync_channel(buslab_slcan::INPUT_QUEUE);
+    let pump = {
+        let feed = feed.clone();
+        let stop = stop.clone();
+        Pump::spawn("slcan-bus", bus, move |event| match event {
+            PumpEvent::Received(BusEvent::Frame(m)) => feed.send(Input::Frame(m.frame)).is_ok(),
+            PumpEvent::Received(BusEvent::Error(_)) => true,
+            PumpEvent::SendFailed { frame, error } => {
+                tracing::warn!("the bus refused {frame}: {error}");
+                true
+            }
+            PumpEvent::Failed(error) => {
+                tracing::error!("the bus failed: {error}");
+                stop.store(true, Ordering::SeqCst);
+                false
+            }
+        })?
+    };
+    let shown = args.link.as_deref().unwrap_or(pty.path());
+    // The first line on stdout: what clients open (scripts and tests read it).
+    println!("{}", shown.display());
+    tracing::info!(
+        "slcan serve: an SLCAN adapter on {} (PTY {}), plugged into {url}",
+        shown.display(),
+        pty.path().display()
+    );
+    let mut adapter = Adapter::new(Identity {
+        serial: args.serial,
+        ..Identity::default()
+    });
+    let to_bus = pump.sender();
+    let mut garbage = 0u64;
+    let result = buslab_slcan::serve(
+        std::os::fd::AsFd::as_fd(&pty),
+        &mut adapter,
+        feed,
+        inputs,
+        |event| on_adapter_event(event, &to_bus, &mut garbage),
+        &stop,
+    );
+    drop(pump);
+    tracing::info!(
+        "slcan serve: stopped ({garbage} bad lines answered with BEL, {} frames the host did not read in time)",
+        adapter.dropped()
+    );
+    Ok(result?)
+}
+
+/// What the host asked of the adapter, carried out on the bus.
+fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
+    match event {
+        // Never blocks: the pump may be waiting for this loop to take what it received.
+        AdapterEvent::Transmit(frame) => match bus.try_send(frame) {
+            Ok(()) => {}
+            Err(TrySendError::Full) => {
+                tracing::warn!("{frame} dropped: the host sends faster than the bus takes frames")
+            }
+            Err(TrySendError::Stopped(_)) => tracing::warn!("{frame} not sent: the bus is gone"),
+        },
+        AdapterEvent::Opened {
+            listen_only,
+            timing,
+        } => {
+            tracing::info!(
+                "the host opened the adapter{}{}",
+                if listen_only { " listen-only" } else { "" },
+                timing.map_or(String::new(), |t| format!(" ({})", describe(t)))
+            );
+            if let Some(regs) = timing.and_then(registers) {
+                // On buslab's bus the adapter's node takes the host's timing: a bit rate that
+                // does not match the bus cannot communicate, as with a real adapter.
+                let _ = bus.run(Box::new(move |bus: &mut dyn CanBus| {
+                    if let Some(admin) = bus.admin()
+                        && let Err(e) = admin.set_btr(regs.0, regs.1)
+                    {
+                        tracing::warn!("cannot give the adapter's node the host's timing: {e}");
+                    }
+                }));
+            }
+        }
+        AdapterEvent::Closed => tracing::info!("the host closed the adapter"),
+        AdapterEvent::FilterNotModelled { code, mask } => tracing::warn!(
+            "acceptance filter M{code:08X} m{mask:08X} is not modelled: the adapter delivers every frame"
+        ),
+        AdapterEvent::Garbage(e) => {
+            *garbage += 1;
+            if *garbage == 1 {
+                tracing::warn!("answered BEL to a bad line from the host: {e} (more at -v)");
+            } else {
+                tracing::debug!("answered BEL: {e}");
+            }
+        }
+        AdapterEvent::Overrun => {
+            tracing::warn!("the host does not read: frames are dropped (F reports a data overrun)")
+        }
+    }
+}
+
+fn describe(timing: Timing) -> String {
+    match timing {
+        Timing::Bitrate(rate) => format!("{rate} bit/s"),
+        Timing::Btr { btr0, btr1 } => format!(
+            "BTR0={btr0:02X} BTR1={btr1:02X}, {} bit/s",
+            BitTiming::from_registers(btr0, btr1).bitrate(BTR_CLOCK_HZ)
+        ),
+        Timing::Cnf([a, b, c]) => format!("MCP2515 CNF {a:02X} {b:02X} {c:02X}"),
+    }
+}
+
+/// The SJA1000 registers for the host's timing (at the adapter's 8 MHz CAN clock).
+fn registers(timing: Timing) -> Option<(u8, u8)> {
+    match timing {
+        Timing::Bitrate(rate) => BitTiming::for_bitrate(BTR_CLOCK_HZ, rate, None)
+            .ok()
+            .map(|t| t.registers()),
+        Timing::Btr { btr0, btr1 } => Some((btr0, btr1)),
+        Timing::Cnf(_) => None,
+    }
+}

@@ -1,0 +1,455 @@
+//! Transports end to end: `buslab slcan serve` (an SLCAN adapter model on a PTY) with the
+//! `slcan:` backend, python-can's `slcan` interface and raw bytes; `buslab bridge` between two
+//! virtual buses; can-utils habits of `dump` and `send`.
+
+mod bus_common;
+
+use std::fs::OpenOptions;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdout, Command, Stdio};
+use std::sync::mpsc;
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+use bus_common::{Serve, frame};
+use buslab_canbus::CanBus;
+
+/// How long a test waits for something that normally comes within milliseconds: a deadline
+/// for an event, not a measure of speed (CI machines are loaded).
+const EVENT: Duration = Duration::from_secs(60);
+const WAIT: Option<Duration> = Some(EVENT);
+
+fn buslab() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_buslab"));
+    c.env_remove("RUST_LOG");
+    c
+}
+
+/// A child process killed when the test ends.
+struct Running {
+    child: Child,
+    stdout: Option<BufReader<ChildStdout>>,
+    stderr: Option<JoinHandle<String>>,
+}
+
+impl Running {
+    /// Starts `buslab ARGS` and waits until a line of its stderr contains `ready` (its log at
+    /// -v), or, with `ready` empty, until its first stdout line, which is returned.
+    fn start(args: &[&str], ready: &str) -> (Self, String) {
+        let mut child = buslab()
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let (tx, rx) = mpsc::channel();
+        let lines = BufReader::new(child.stderr.take().unwrap()).lines();
+        let want = ready.to_string();
+        let stderr = thread::spawn(move || {
+            let mut all = String::new();
+            for line in lines.map_while(Result::ok) {
+                if !want.is_empty() && line.contains(&want) {
+                    let _ = tx.send(());
+                }
+                all.push_str(&line);
+                all.push('\n');
+            }
+            all
+        });
+        let mut first = String::new();
+        let ok = if ready.is_empty() {
+            stdout.read_line(&mut first).is_ok_and(|n| n > 0)
+        } else {
+            rx.recv_timeout(EVENT).is_ok()
+        };
+        let mut running = Self {
+            child,
+            stdout: Some(stdout),
+            stderr: Some(stderr),
+        };
+        if !ok {
+            let err = running.stop();
+            panic!("buslab {args:?} did not get ready: {err}");
+        }
+        (running, first.trim().to_string())
+    }
+
+    /// Waits for the process to end by itself; its stdout and stderr.
+    fn finish(mut self) -> (String, String) {
+        let mut out = String::new();
+        self.stdout
+            .take()
+            .unwrap()
+            .read_to_string(&mut out)
+            .unwrap();
+        let status = self.child.wait().unwrap();
+        let err = self.stderr.take().unwrap().join().unwrap();
+        assert!(status.success(), "{err}");
+        (out, err)
+    }
+
+    /// Kills the process; its stderr so far.
+    fn stop(&mut self) -> String {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        self.stderr
+            .take()
+            .map(|t| t.join().unwrap())
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// `buslab slcan serve` plugged into `bus`, its PTY linked at DIR/ttySL0.
+fn slcan_serve(bus: &str, dir: &Path) -> (Running, PathBuf) {
+    let link = dir.join("ttySL0");
+    let (serve, first) = Running::start(
+        &[
+            "slcan",
+            "serve",
+            "--bus",
+            bus,
+            "--link",
+            link.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(first, link.to_str().unwrap());
+    (serve, link)
+}
+
+/// The venv's python with python-can, or `None` (allowed outside CI only).
+fn python_can() -> Option<(PathBuf, PathBuf)> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let python = root.join(".venv/bin/python");
+    let has_can = python.exists()
+        && Command::new(&python)
+            .args(["-c", "import can, serial"])
+            .status()
+            .is_ok_and(|s| s.success());
+    if !has_can {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "python-can is missing in CI ({})",
+            python.display()
+        );
+        eprintln!("SKIPPED: python-can is missing; run scripts/setup-test-deps.sh");
+        return None;
+    }
+    Some((root, python))
+}
+
+#[test]
+fn python_can_slcan_exchanges_frames_with_buslab_dump() {
+    let Some((root, python)) = python_can() else {
+        return;
+    };
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let (_adapter, pty) = slcan_serve(&serve.url, dir.path());
+    let (dump, _) = Running::start(
+        &["-v", "dump", "--bus", &serve.url, "-n", "3"],
+        "dump: listening",
+    );
+    let mut peer = Command::new(&python)
+        .arg(root.join("tests/interop/can_slcan_peer.py"))
+        .arg(&pty)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(peer.stdout.take().unwrap()).lines();
+    let mut next = || {
+        lines
+            .next()
+            .expect("python-can script ended early")
+            .unwrap()
+    };
+    // python-can reads the version as two decimal numbers, and the serial number.
+    assert_eq!(next(), "ready 10.13 BL01");
+    assert_eq!(next(), "sent");
+    // What python-can sent through the adapter is on the bus, as buslab dump shows it.
+    let (out, _) = dump.finish();
+    assert_eq!(
+        out,
+        "  vcan0  123   [3]  01 02 03\n\
+         \x20 vcan0  1ABCDEF0   [2]  DE AD\n\
+         \x20 vcan0       7FF   [2]  remote request\n"
+    );
+    // And what a node sends on the bus reaches python-can through the adapter.
+    let mut me = serve.client();
+    for f in ["321#AABBCC", "12345678#01", "0F0#R3"] {
+        me.send(&frame(f)).unwrap();
+    }
+    assert_eq!(next(), "rx 321 0 0 3 AABBCC");
+    assert_eq!(next(), "rx 12345678 1 0 1 01");
+    assert_eq!(next(), "rx F0 0 1 3 -");
+    assert!(peer.wait().unwrap().success(), "python-can script failed");
+}
+
+#[test]
+fn the_slcan_backend_sends_and_receives_through_the_served_adapter() {
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let (_adapter, pty) = slcan_serve(&serve.url, dir.path());
+    let url = format!("slcan:{}?bitrate=500000", pty.display());
+    let mut me = serve.client();
+    let out = buslab()
+        .args(["send", &url, "123#1122", "1ABCDEF0#", "7FF#R8"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got: Vec<String> = (0..3)
+        .map(|_| me.recv(WAIT).unwrap().unwrap().frame.to_string())
+        .collect();
+    assert_eq!(got, ["123#1122", "1ABCDEF0#", "7FF#R8"]);
+
+    // The other way, with a candump filter on the adapter's interface name: 0x100..0x1FF only.
+    let spec = format!("{},100:700", pty.display());
+    let (dump, _) = Running::start(&["-v", "dump", &spec, "-n", "2"], "dump: listening");
+    for f in ["100#01", "200#02", "1FF#03"] {
+        me.send(&frame(f)).unwrap();
+    }
+    let (out, _) = dump.finish();
+    assert_eq!(
+        out, "  ttySL0  100   [1]  01\n  ttySL0  1FF   [1]  03\n",
+        "the frame outside the filter is not shown"
+    );
+}
+
+/// The PTY's bytes as they come, read by a thread (a read cannot time out).
+fn reader(port: &std::fs::File) -> mpsc::Receiver<Vec<u8>> {
+    let mut port = port.try_clone().unwrap();
+    let (tx, rx) = mpsc::channel();
+    thread::spawn(move || {
+        let mut buf = [0u8; 256];
+        while let Ok(n) = port.read(&mut buf) {
+            if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// Reads until `want` was seen; everything read.
+fn read_until(bytes: &mpsc::Receiver<Vec<u8>>, want: &[u8]) -> Vec<u8> {
+    let deadline = Instant::now() + EVENT;
+    let mut got = Vec::new();
+    while !got.windows(want.len()).any(|w| w == want) {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match bytes.recv_timeout(left) {
+            Ok(chunk) => got.extend_from_slice(&chunk),
+            Err(_) => panic!("no {want:?} in {got:?}"),
+        }
+    }
+    got
+}
+
+#[test]
+fn garbage_gets_bel_and_the_adapter_keeps_serving() {
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let (mut adapter, pty) = slcan_serve(&serve.url, dir.path());
+    let mut port = OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&pty)
+        .unwrap();
+    // Unknown commands, a bad frame, a frame while closed, binary noise and an overlong line;
+    // then a version request.
+    let mut noise: Vec<u8> = b"hello\rt12\rt1230\r".to_vec();
+    noise.extend(
+        (0u8..=255)
+            .filter(|&b| b != b'\r' && b != 0x07)
+            .cycle()
+            .take(3000),
+    );
+    noise.extend_from_slice(b"\rV\r");
+    let bytes = reader(&port);
+    port.write_all(&noise).unwrap();
+    let got = read_until(&bytes, b"V1013\r");
+    assert_eq!(got, b"\x07\x07\x07\x07V1013\r", "one BEL per bad line");
+    // Still serving: open, send a frame, and it reaches the bus.
+    let mut me = serve.client();
+    port.write_all(b"O\rt1232CAFE\r").unwrap();
+    assert_eq!(read_until(&bytes, b"z\r"), b"\rz\r");
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("123#CAFE"));
+    let err = adapter.stop();
+    assert!(err.contains("answered BEL to a bad line"), "{err}");
+}
+
+#[test]
+fn bridge_copies_both_ways_without_duplicates_or_echoes() {
+    let one = Serve::start(500_000);
+    let two = Serve::start(500_000);
+    let (_bridge, _) = Running::start(&["-v", "bridge", &one.url, &two.url], "bridge: socketcand");
+    let (mut a, mut a_listener) = (one.client(), one.client());
+    let mut b = two.client();
+    a.send(&frame("123#01")).unwrap();
+    assert_eq!(b.recv(WAIT).unwrap().unwrap().frame, frame("123#01"));
+    assert_eq!(
+        a_listener.recv(WAIT).unwrap().unwrap().frame,
+        frame("123#01")
+    );
+    b.send(&frame("00000456#02")).unwrap();
+    // The next frame on bus one is B's: the first frame did not come back from bus two.
+    assert_eq!(
+        a_listener.recv(WAIT).unwrap().unwrap().frame,
+        frame("00000456#02")
+    );
+    assert_eq!(a.recv(WAIT).unwrap().unwrap().frame, frame("00000456#02"));
+    // And B's frame did not come back to bus two: B's next frame is a fresh one from A.
+    a.send(&frame("7FF#R1")).unwrap();
+    assert_eq!(b.recv(WAIT).unwrap().unwrap().frame, frame("7FF#R1"));
+}
+
+#[test]
+fn bridge_one_way_with_a_filter() {
+    let one = Serve::start(500_000);
+    let two = Serve::start(500_000);
+    let (_bridge, _) = Running::start(
+        &[
+            "-v",
+            "bridge",
+            &one.url,
+            &two.url,
+            "--one-way",
+            "--filter",
+            "~100:700",
+        ],
+        "bridge: socketcand",
+    );
+    let (mut a, mut a_listener) = (one.client(), one.client());
+    let mut b = two.client();
+    b.send(&frame("222#02")).unwrap();
+    a.send(&frame("123#01")).unwrap();
+    a.send(&frame("321#03")).unwrap();
+    // 0x123 is held back by the inverted filter.
+    assert_eq!(b.recv(WAIT).unwrap().unwrap().frame, frame("321#03"));
+    // B's frame, sent first, did not cross the other way: bus one carries only A's frames.
+    a.send(&frame("555#")).unwrap();
+    let on_one: Vec<String> = (0..3)
+        .map(|_| a_listener.recv(WAIT).unwrap().unwrap().frame.to_string())
+        .collect();
+    assert_eq!(on_one, ["123#01", "321#03", "555#"]);
+}
+
+#[test]
+fn bridging_a_bus_to_itself_is_refused() {
+    let out = buslab()
+        .args(["bridge", "vcan0", "vcan0"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("is bridged to itself"),
+        "{err}"
+    );
+}
+
+#[test]
+fn cansend_and_candump_habits() {
+    let serve = Serve::start(500_000);
+    let url = serve.url.as_str();
+    // The interface first, as cansend takes it; a URL works in its place.
+    let mut me = serve.client();
+    let out = buslab().args(["send", url, "123#1122"]).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("123#1122"));
+    let out = buslab()
+        .args(["send", url, "123#11", "--bus", url])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the bus is given twice"));
+    let out = buslab().args(["send", url]).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no frame to send"));
+
+    // candump -L: log lines on stdout, with -t z from zero; two filters OR-ed, one inverted.
+    let spec = format!("{url},100:700,~7F0:7F0");
+    let (dump, _) = Running::start(
+        &["-v", "dump", &spec, "-L", "-t", "z", "-n", "2"],
+        "dump: listening",
+    );
+    for f in ["1AA#01", "7F5#02", "300#03"] {
+        me.send(&frame(f)).unwrap();
+    }
+    let (out, _) = dump.finish();
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "{out}");
+    assert_eq!(lines[0], "(0000000000.000000) vcan0 1AA#01");
+    assert!(lines[1].ends_with(") vcan0 300#03"), "{out}");
+
+    // -t A: the date; -c: colour.
+    let (dump, _) = Running::start(
+        &["-v", "dump", url, "-t", "A", "-c", "-n", "1"],
+        "dump: listening",
+    );
+    me.send(&frame("042#")).unwrap();
+    let (out, _) = dump.finish();
+    assert!(out.starts_with("\x1b[31m (20"), "{out:?}");
+    assert!(out.ends_with(")  vcan0  042   [0] \x1b[0m\n"), "{out:?}");
+}
+
+/// Traffic both ways at full bus load: the bridge keeps copying afterwards. (Its hand-over
+/// never blocks, so two pumps cannot wait on each other's full queues; with socketcand on both
+/// sides TCP buffers absorb the backlog first, so this is a liveness check, and
+/// `pump::tests::a_full_queue_refuses_instead_of_blocking` pins the non-blocking hand-over.)
+#[test]
+fn a_bridge_flooded_both_ways_keeps_copying() {
+    let one = Serve::start(1_000_000);
+    let two = Serve::start(1_000_000);
+    let (_bridge, _) = Running::start(&["-v", "bridge", &one.url, &two.url], "bridge: socketcand");
+    let (mut a_watch, mut b_watch) = (one.client(), two.client());
+    let flood = |serve: &Serve, f: &'static str| {
+        let mut c = serve.client();
+        thread::spawn(move || {
+            for _ in 0..3000 {
+                c.send(&frame(f)).unwrap();
+            }
+            c.admin().unwrap().flush(EVENT).unwrap();
+        })
+    };
+    let floods = [
+        flood(&one, "100#0102030405060708"),
+        flood(&two, "200#0102030405060708"),
+    ];
+    floods.into_iter().for_each(|t| t.join().unwrap());
+    // After the floods, a frame each way still crosses (sent again until seen: one sent while
+    // a queue was full may be dropped).
+    for (from, to, f) in [
+        (&one, &mut b_watch, "7FF#A5"),
+        (&two, &mut a_watch, "7FE#5A"),
+    ] {
+        let mut sender = from.client();
+        let deadline = Instant::now() + EVENT;
+        'seen: loop {
+            assert!(Instant::now() < deadline, "{f} never crossed the bridge");
+            sender.send(&frame(f)).unwrap();
+            let resend = Instant::now() + Duration::from_millis(500);
+            while let Some(m) = to
+                .recv(Some(resend.saturating_duration_since(Instant::now())))
+                .unwrap()
+            {
+                if m.frame == frame(f) {
+                    break 'seen;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,541 @@
+//! Vector ASC logs (text), as CANoe/CANalyzer, log2asc and python-can write them:
+//!
+//! ```text
+//! date Tue Nov 14 22:13:20.123 2023
+//! base hex  timestamps absolute
+//! internal events logged
+//! // buslab start-time 1700000000.123456
+//! Begin Triggerblock Tue Nov 14 22:13:20.123 2023
+//!    0.000000 Start of measurement
+//!    0.000000 1  123             Rx   d 3 11 22 33
+//!    0.001000 2  12345678x       Tx   d 4 DE AD BE EF
+//!    0.002000 1  7FF             Rx   r 2
+//!    0.005000 1  ErrorFrame
+//! End TriggerBlock
+//! ```
+//!
+//! Times are seconds since the first entry with six decimals (microseconds); the header dates
+//! are local time with milliseconds, and the `// buslab start-time` comment (ignored by
+//! other readers) gives the first entry's time to the microsecond, so buslab reads its own
+//! files back exactly. Channels are numbers from 1 ([`ChannelMap`]); an error frame is just
+//! `ErrorFrame` (what went wrong is lost: it reads back as a bus error, as asc2log does).
+//!
+//! The reader takes `base hex|dec`, `timestamps absolute|relative`, the dates of log2asc,
+//! python-can and Vector (English or German, am/pm), classic frames in `CANFD` lines, and
+//! skips the events it does not know (statistics, status, J1939, comments).
+
+use std::io::{self, BufRead, Write};
+use std::time::Duration;
+
+use buslab_can::{Frame, Id};
+use buslab_canbus::ErrorFrame;
+use buslab_canbus::error_frame::CanError;
+
+use crate::channel::{ChannelMap, set_channel_name};
+use crate::error::{Problem, ReadError, excerpt};
+use crate::file::{Encoder, LogReader};
+use crate::text::{self, Lines, TooLong, field};
+use crate::time;
+use crate::{Direction, Entry, Location, Record};
+
+/// The comment buslab writes with the first entry's exact time.
+const START_COMMENT: &str = "// buslab start-time ";
+
+/// What an ASC error frame reads back as: a bus error (what asc2log makes of it).
+pub fn error_frame() -> ErrorFrame {
+    ErrorFrame {
+        errors: vec![CanError::BusError],
+        counters: None,
+    }
+}
+
+/// Reads an ASC log.
+pub struct Reader<R> {
+    lines: Lines<R>,
+    state: State,
+}
+
+/// What the header said, and the running time.
+struct State {
+    hex: bool,
+    relative: bool,
+    date: Option<Duration>,
+    trigger: Option<Duration>,
+    exact: Option<Duration>,
+    /// The running time of a `timestamps relative` log.
+    last: Duration,
+}
+
+impl<R: BufRead> Reader<R> {
+    pub fn new(input: R) -> Self {
+        Self {
+            lines: Lines::new(input),
+            state: State {
+                hex: true,
+                relative: false,
+                date: None,
+                trigger: None,
+                exact: None,
+                last: Duration::ZERO,
+            },
+        }
+    }
+
+    /// Reads the next entry into `entry`; `Ok(false)` at the end.
+    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        let state = &mut self.state;
+        loop {
+            let step = self.lines.next(|number, line| {
+                let at = Location::Line(number);
+                let line = match line {
+                    Ok(line) => text::trim(line),
+                    Err(TooLong) => {
+                        return Some(Err(ReadError::expected(
+                            at,
+                            "a line shorter than 4096 bytes",
+                            b"...",
+                        )));
+                    }
+                };
+                match classify(line) {
+                    Kind::Header(h) => {
+                        state.header(h);
+                        None
+                    }
+                    Kind::Other => None,
+                    Kind::Event => match state.event(line, entry) {
+                        Ok(true) => Some(Ok(())),
+                        Ok(false) => None,
+                        Err(p) => Some(Err(ReadError::bad(at, p))),
+                    },
+                }
+            })?;
+            match step {
+                None => return Ok(false),
+                Some(None) => {}
+                Some(Some(result)) => return result.map(|()| true),
+            }
+        }
+    }
+}
+
+impl State {
+    /// The time the log's times count from.
+    fn start(&self) -> Duration {
+        self.exact
+            .or(self.trigger)
+            .or(self.date)
+            .unwrap_or_default()
+    }
+
+    fn header(&mut self, h: Header) {
+        match h {
+            Header::Date(d) => {
+                self.date = time::parse_asc_date(&d);
+                if self.date.is_none() {
+                    tracing::warn!("ASC date {d:?} not understood: times count from 0");
+                }
+            }
+            Header::Trigger(d) => self.trigger = time::parse_asc_date(&d).or(self.trigger),
+            Header::Base { hex, relative } => {
+                self.hex = hex;
+                self.relative = relative;
+            }
+            Header::Exact(t) => self.exact = Some(t),
+        }
+    }
+
+    /// One event line: `Ok(false)` for an event that is not a frame.
+    fn event(&mut self, line: &[u8], entry: &mut Entry) -> Result<bool, Problem> {
+        let (ts, rest) = field(line);
+        let offset =
+            text::decimal_duration(ts, 1_000_000_000).ok_or_else(|| Problem::Expected {
+                expected: "a time in seconds",
+                found: excerpt(ts),
+            })?;
+        let (channel, rest) = field(rest);
+        let (record, direction, channel) = if channel == b"CANFD" {
+            match self.fd_line(rest)? {
+                Some(x) => x,
+                None => return Ok(false),
+            }
+        } else {
+            let channel = channel_number(channel)?;
+            let (id, rest) = field(rest);
+            if id.eq_ignore_ascii_case(b"errorframe") {
+                (Record::Error(error_frame()), Some(Direction::Rx), channel)
+            } else {
+                let (dir, rest) = field(rest);
+                let direction = direction(dir)?;
+                let (kind, rest) = field(rest);
+                let (dlc, rest) = field(rest);
+                let id = self.id(id)?;
+                let dlc = self.number(dlc, "a DLC")?;
+                let record = match kind {
+                    b"r" | b"R" => Record::Frame(Frame::remote(id, dlc_u8(dlc)?)?),
+                    b"d" | b"D" => {
+                        let len = usize::from(dlc_u8(dlc)?);
+                        let data = self.bytes(rest, len)?;
+                        Record::Frame(Frame::data(id, &data[..len])?)
+                    }
+                    other => {
+                        return Err(Problem::Expected {
+                            expected: "d (data) or r (remote) after the direction",
+                            found: excerpt(other),
+                        });
+                    }
+                };
+                (record, Some(direction), channel)
+            }
+        };
+        entry.timestamp = if self.relative {
+            self.last = self.last.max(self.start()) + offset;
+            self.last
+        } else {
+            self.start() + offset
+        };
+        set_channel_name(&mut entry.interface, channel);
+        entry.record = record;
+        entry.direction = direction;
+        Ok(true)
+    }
+
+    /// `CANFD CH DIR ID [NAME] BRS ESI DLC LEN DATA… DURATION BITS FLAGS …`: a classic frame
+    /// when the flags lack EDL (0x1000), else CAN FD.
+    fn fd_line(&self, rest: &[u8]) -> Result<Option<(Record, Option<Direction>, u16)>, Problem> {
+        let (channel, rest) = field(rest);
+        let channel = channel_number(channel)?;
+        let (dir, rest) = field(rest);
+        let direction = direction(dir)?;
+        let (id, rest) = field(rest);
+        if id.eq_ignore_ascii_case(b"errorframe") {
+            return Ok(Some((
+                Record::Error(error_frame()),
+                Some(direction),
+                channel,
+            )));
+        }
+        let id = self.id(id)?;
+        let mut words: Vec<&[u8]> = Vec::with_capacity(24);
+        let mut rest = rest;
+        while !rest.is_empty() && words.len() < 96 {
+            let (w, r) = field(rest);
+            if w.is_empty() {
+                break;
+            }
+            words.push(w);
+            rest = r;
+        }
+        // A symbolic name may stand before BRS: BRS and ESI are single digits 0/1.
+        let is_bit = |w: &[u8]| w == b"0" || w == b"1";
+        let start = if words.len() >= 2 && is_bit(words[0]) && is_bit(words[1]) {
+            0
+        } else {
+            1
+        };
+        let get = |i: usize| {
+            words.get(start + i).copied().ok_or(Problem::Expected {
+                expected: "CANFD: BRS ESI DLC LENGTH DATA…",
+                found: String::new(),
+            })
+        };
+        let len = text::dec_u64(get(3)?).ok_or_else(|| Problem::Expected {
+            expected: "a data length",
+            found: excerpt(words.get(start + 3).copied().unwrap_or_default()),
+        })? as usize;
+        let flags = words
+            .get(start + 4 + len + 2)
+            .and_then(|w| text::hex_u32(w))
+            .unwrap_or(0x1000);
+        if flags & 0x1000 != 0 || len > 8 {
+            return Err(Problem::CanFd);
+        }
+        let data = (0..len)
+            .map(|i| {
+                let w = get(4 + i)?;
+                self.byte(w)
+            })
+            .collect::<Result<Vec<u8>, Problem>>()?;
+        let remote = flags & 0x10 != 0;
+        let record = if remote {
+            let dlc = self.number(get(2)?, "a DLC")?;
+            Record::Frame(Frame::remote(id, dlc_u8(dlc)?)?)
+        } else {
+            Record::Frame(Frame::data(id, &data)?)
+        };
+        Ok(Some((record, Some(direction), channel)))
+    }
+
+    fn id(&self, text: &[u8]) -> Result<Id, Problem> {
+        let (digits, extended) = match text.strip_suffix(b"x").or(text.strip_suffix(b"X")) {
+            Some(d) => (d, true),
+            None => (text, false),
+        };
+        let raw = self.number(digits, "a CAN ID (x after it for an extended one)")?;
+        let raw = u32::try_from(raw).map_err(|_| Problem::Expected {
+            expected: "a CAN ID up to 1FFFFFFF",
+            found: excerpt(text),
+        })?;
+        Ok(if extended {
+            Id::extended(raw)?
+        } else {
+            Id::standard(u16::try_from(raw).map_err(|_| Problem::Expected {
+                expected: "a standard CAN ID up to 7FF (x after it for an extended one)",
+                found: excerpt(text),
+            })?)?
+        })
+    }
+
+    fn number(&self, text: &[u8], what: &'static str) -> Result<u64, Problem> {
+        let v = if self.hex {
+            text::hex_u32(text).map(u64::from)
+        } else {
+            text::dec_u64(text)
+        };
+        v.ok_or_else(|| Problem::Expected {
+            expected: what,
+            found: excerpt(text),
+        })
+    }
+
+    fn byte(&self, text: &[u8]) -> Result<u8, Problem> {
+        let v = self.number(text, "a data byte")?;
+        u8::try_from(v).map_err(|_| Problem::Expected {
+            expected: "a data byte",
+            found: excerpt(text),
+        })
+    }
+
+    fn bytes(&self, mut rest: &[u8], len: usize) -> Result<[u8; 8], Problem> {
+        let mut data = [0u8; 8];
+        for slot in data.iter_mut().take(len) {
+            let (w, r) = field(rest);
+            if w.is_empty() {
+                return Err(Problem::Expected {
+                    expected: "as many data bytes as the DLC",
+                    found: String::new(),
+                });
+            }
+            *slot = self.byte(w)?;
+            rest = r;
+        }
+        Ok(data)
+    }
+}
+
+fn dlc_u8(dlc: u64) -> Result<u8, Problem> {
+    match dlc {
+        0..=8 => Ok(dlc as u8),
+        9..=15 => Err(Problem::CanFd),
+        _ => Err(Problem::Expected {
+            expected: "a DLC 0..8",
+            found: dlc.to_string(),
+        }),
+    }
+}
+
+fn channel_number(text: &[u8]) -> Result<u16, Problem> {
+    text::dec_u64(text)
+        .and_then(|c| u16::try_from(c).ok())
+        .ok_or_else(|| Problem::Expected {
+            expected: "a channel number",
+            found: excerpt(text),
+        })
+}
+
+fn direction(text: &[u8]) -> Result<Direction, Problem> {
+    match text {
+        b"Rx" | b"rx" | b"RX" => Ok(Direction::Rx),
+        b"Tx" | b"tx" | b"TX" | b"TxRq" => Ok(Direction::Tx),
+        _ => Err(Problem::Expected {
+            expected: "Rx or Tx",
+            found: excerpt(text),
+        }),
+    }
+}
+
+enum Header {
+    Date(String),
+    Trigger(String),
+    Base { hex: bool, relative: bool },
+    Exact(Duration),
+}
+
+enum Kind {
+    Header(Header),
+    /// Not a frame: a comment, a statistic, a status line.
+    Other,
+    /// A frame or error frame line.
+    Event,
+}
+
+fn lower_starts(line: &[u8], prefix: &[u8]) -> bool {
+    line.len() >= prefix.len() && line[..prefix.len()].eq_ignore_ascii_case(prefix)
+}
+
+fn classify(line: &[u8]) -> Kind {
+    let text = || String::from_utf8_lossy(line).into_owned();
+    if lower_starts(line, b"date ") {
+        let t = text();
+        let d = t[5..].trim().to_string();
+        return Kind::Header(Header::Date(d));
+    }
+    if lower_starts(line, b"base ") {
+        let t = text().to_ascii_lowercase();
+        return Kind::Header(Header::Base {
+            hex: !t.contains("base dec"),
+            relative: t.contains("timestamps relative"),
+        });
+    }
+    if lower_starts(line, b"begin triggerblock") {
+        let t = text();
+        return Kind::Header(Header::Trigger(t[18..].trim().to_string()));
+    }
+    if line.starts_with(START_COMMENT.as_bytes()) {
+        return match text::decimal_duration(text::trim(&line[START_COMMENT.len()..]), 1_000_000_000)
+        {
+            Some(t) => Kind::Header(Header::Exact(t)),
+            None => Kind::Other,
+        };
+    }
+    // TS then a channel number (or CANFD), then an ID with a direction, or ErrorFrame.
+    let (ts, rest) = field(line);
+    if ts.is_empty() || !ts.iter().all(|b| b.is_ascii_digit() || *b == b'.') {
+        return Kind::Other;
+    }
+    let (channel, rest) = field(rest);
+    if channel == b"CANFD" {
+        return Kind::Event;
+    }
+    if channel.is_empty() || !channel.iter().all(u8::is_ascii_digit) {
+        return Kind::Other;
+    }
+    let (id, rest) = field(rest);
+    if id.eq_ignore_ascii_case(b"errorframe") {
+        return Kind::Event;
+    }
+    let (dir, _) = field(rest);
+    match dir {
+        b"Rx" | b"Tx" | b"rx" | b"tx" | b"RX" | b"TX" | b"TxRq" => Kind::Event,
+        _ => Kind::Other,
+    }
+}
+
+impl<R: BufRead + Send> LogReader for Reader<R> {
+    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        Reader::read_into(self, entry)
+    }
+}
+
+/// Writes an ASC log (the header with the first entry, the footer at the end).
+pub struct Writer<W> {
+    out: W,
+    channels: ChannelMap,
+    /// The first entry's time, in whole microseconds.
+    start_us: Option<u64>,
+    line: Vec<u8>,
+}
+
+impl<W: Write> Writer<W> {
+    pub fn new(out: W) -> Self {
+        Self {
+            out,
+            channels: ChannelMap::new(),
+            start_us: None,
+            line: Vec::with_capacity(128),
+        }
+    }
+
+    fn header(&mut self, first: Duration) -> io::Result<u64> {
+        let start_us = first
+            .as_secs()
+            .saturating_mul(1_000_000)
+            .saturating_add(u64::from(first.subsec_micros()));
+        let start = Duration::from_micros(start_us);
+        let date = time::asc_date(start);
+        write!(
+            self.out,
+            "date {date}\nbase hex  timestamps absolute\ninternal events logged\n\
+             {START_COMMENT}{}.{:06}\nBegin Triggerblock {date}\n   0.000000 Start of measurement\n",
+            start_us / 1_000_000,
+            start_us % 1_000_000
+        )?;
+        self.start_us = Some(start_us);
+        Ok(start_us)
+    }
+
+    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        let start = match self.start_us {
+            Some(s) => s,
+            None => self.header(entry.timestamp)?,
+        };
+        let t = entry.timestamp;
+        let us = t
+            .as_secs()
+            .saturating_mul(1_000_000)
+            .saturating_add(u64::from(t.subsec_micros()));
+        let offset = us.saturating_sub(start);
+        let channel = self.channels.number(&entry.interface);
+        let line = &mut self.line;
+        line.clear();
+        text::push_u64_right(line, offset / 1_000_000, 4);
+        line.push(b'.');
+        text::push_u64_zeros(line, offset % 1_000_000, 6);
+        line.push(b' ');
+        text::push_u64(line, u64::from(channel));
+        line.extend_from_slice(b"  ");
+        match &entry.record {
+            Record::Error(_) => line.extend_from_slice(b"ErrorFrame"),
+            Record::Frame(f) => {
+                let col = line.len();
+                match f.id() {
+                    Id::Standard(id) => text::push_hex(line, u32::from(id.as_raw()), 1),
+                    Id::Extended(id) => {
+                        text::push_hex(line, id.as_raw(), 1);
+                        line.push(b'x');
+                    }
+                }
+                text::pad_to(line, col, 15);
+                line.extend_from_slice(match entry.direction {
+                    Some(Direction::Tx) => b" Tx   ",
+                    _ => b" Rx   ",
+                });
+                if f.is_remote() {
+                    line.extend_from_slice(b"r ");
+                    text::push_hex(line, u32::from(f.dlc()), 1);
+                } else {
+                    line.extend_from_slice(b"d ");
+                    text::push_hex(line, u32::from(f.dlc()), 1);
+                    text::push_spaced_hex(line, f.payload());
+                }
+            }
+        }
+        line.push(b'\n');
+        self.out.write_all(line)
+    }
+
+    /// Writes the footer (and the header, for a log without entries).
+    pub fn finish(mut self) -> io::Result<W> {
+        if self.start_us.is_none() {
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap_or_default();
+            self.header(now)?;
+        }
+        self.out.write_all(b"End TriggerBlock\n")?;
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+impl<W: Write + Send> Encoder<W> for Writer<W> {
+    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        Writer::write(self, entry)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+    fn finish(self) -> io::Result<W> {
+        Writer::finish(self)
+    }
+}

@@ -1,0 +1,701 @@
+//! Vector BLF (binary logging format), as CANoe and python-can write it.
+//!
+//! A 144-byte file header (`LOGG`; counts, sizes and the start and stop times as SYSTEMTIME),
+//! then `LOBJ` objects, mostly LOG_CONTAINERs (type 10) whose zlib-compressed data holds the
+//! CAN objects; an object may continue in the next container. Each object has a 16-byte base
+//! header (`LOBJ`, header size, header version, object size, type) and a version-1 or -2
+//! header with flags (1: 10 µs units, 2: ns) and the time since the file's start.
+//!
+//! Read: CAN_MESSAGE (1) and CAN_MESSAGE2 (86) as frames, CAN_ERROR_EXT (73) as error frames
+//! (the ID as the SocketCAN error class and the data bytes, as python-can writes them),
+//! CAN_ERROR (2) as a bus error, classic frames in CAN_FD_MESSAGE (100) and
+//! CAN_FD_MESSAGE_64 (101) objects; other objects are skipped. Written: CAN_MESSAGE and
+//! CAN_ERROR_EXT in zlib containers (level 1) of about 128 KiB (python-can's size), nanosecond times
+//! from the first entry's millisecond, the header completed by `finish` (a file cut short
+//! still reads up to its last whole object).
+
+use std::io::{self, Read, Seek, SeekFrom, Write};
+use std::time::Duration;
+
+use buslab_can::{Frame, Id};
+use buslab_canbus::ErrorFrame;
+use flate2::{Compress, Compression, Decompress, FlushCompress, FlushDecompress, Status};
+
+use crate::asc::error_frame as bus_error;
+use crate::channel::{ChannelMap, set_channel_name};
+use crate::error::{Problem, ReadError};
+use crate::file::{Encoder, LogReader};
+use crate::pcap::{read_full, truncated};
+use crate::time;
+use crate::{Direction, Entry, Location, Record};
+
+const FILE_SIGNATURE: &[u8; 4] = b"LOGG";
+const OBJ_SIGNATURE: &[u8; 4] = b"LOBJ";
+pub const FILE_HEADER_SIZE: usize = 144;
+const BASE_HEADER: usize = 16;
+const V1_HEADER: usize = 16;
+const V2_HEADER: usize = 24;
+
+const CAN_MESSAGE: u32 = 1;
+const CAN_ERROR: u32 = 2;
+const LOG_CONTAINER: u32 = 10;
+const CAN_ERROR_EXT: u32 = 73;
+const CAN_MESSAGE2: u32 = 86;
+const CAN_FD_MESSAGE: u32 = 100;
+const CAN_FD_MESSAGE_64: u32 = 101;
+
+const NO_COMPRESSION: u16 = 0;
+const ZLIB_DEFLATE: u16 = 2;
+const TIME_TEN_MICS: u32 = 1;
+const TIME_ONE_NANS: u32 = 2;
+
+const EXT_FLAG: u32 = 0x8000_0000;
+const REMOTE_FLAG: u8 = 0x80;
+const DIR_TX: u8 = 0x01;
+
+/// The largest container (compressed or not) and object the reader accepts.
+pub const MAX_OBJECT: u32 = 16 << 20;
+/// The uncompressed size at which the writer closes a container (python-can's).
+pub const CONTAINER_SIZE: usize = 128 * 1024;
+
+fn u16_at(b: &[u8], i: usize) -> u16 {
+    u16::from_le_bytes([b[i], b[i + 1]])
+}
+
+fn u32_at(b: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
+}
+
+fn u64_at(b: &[u8], i: usize) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[i..i + 8]);
+    u64::from_le_bytes(a)
+}
+
+/// Reads a BLF file's CAN objects.
+pub struct Reader<R> {
+    input: R,
+    started: bool,
+    start: Duration,
+    /// The file offset of the next top-level object.
+    offset: u64,
+    /// The file offset of the container `data` came from (for messages).
+    container_at: u64,
+    /// Uncompressed object bytes not yet parsed, from `pos` on.
+    data: Vec<u8>,
+    pos: usize,
+    object: Vec<u8>,
+    /// The error to give once the objects before a cut are read.
+    cut: Option<ReadError>,
+    done: bool,
+}
+
+impl<R: Read> Reader<R> {
+    pub fn new(input: R) -> Self {
+        Self {
+            input,
+            started: false,
+            start: Duration::ZERO,
+            offset: 0,
+            container_at: 0,
+            data: Vec::new(),
+            pos: 0,
+            object: Vec::new(),
+            cut: None,
+            done: false,
+        }
+    }
+
+    fn read_file_header(&mut self) -> Result<(), ReadError> {
+        let mut h = [0u8; FILE_HEADER_SIZE];
+        let got = read_full(&mut self.input, &mut h[..8])?;
+        self.offset += got as u64;
+        if got < 4 || &h[..4] != FILE_SIGNATURE {
+            return Err(ReadError::fatal(
+                Some(Location::Offset(0)),
+                Problem::NotFormat {
+                    format: "BLF",
+                    reason: "it does not start with LOGG".into(),
+                },
+            ));
+        }
+        if got < 8 {
+            return Err(truncated(0, "the file header", got, FILE_HEADER_SIZE));
+        }
+        let size = u32_at(&h, 4) as usize;
+        if !(72..=4096).contains(&size) {
+            return Err(ReadError::fatal(
+                Some(Location::Offset(4)),
+                Problem::Expected {
+                    expected: "a file header size of 72..4096 bytes",
+                    found: size.to_string(),
+                },
+            ));
+        }
+        let mut rest = vec![0u8; size - 8];
+        let got = read_full(&mut self.input, &mut rest)?;
+        self.offset += got as u64;
+        if got < rest.len() {
+            return Err(truncated(0, "the file header", 8 + got, size));
+        }
+        h[8..72].copy_from_slice(&rest[..64]);
+        let mut st = [0u16; 8];
+        for (k, v) in st.iter_mut().enumerate() {
+            *v = u16_at(&h, 40 + 2 * k);
+        }
+        self.start = time::from_systemtime(st);
+        Ok(())
+    }
+
+    /// Reads the next entry into `entry`; `Ok(false)` at the end.
+    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        if self.done {
+            return Ok(false);
+        }
+        let result = self.next_entry(entry);
+        match &result {
+            Ok(false) => self.done = true,
+            Err(e) if e.is_fatal() => self.done = true,
+            _ => {}
+        }
+        result
+    }
+
+    fn next_entry(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        if !self.started {
+            self.started = true;
+            self.read_file_header()?;
+        }
+        loop {
+            match self.next_object(entry)? {
+                Some(true) => return Ok(true),
+                Some(false) => continue,
+                None => {}
+            }
+            // More objects are needed.
+            if let Some(cut) = self.cut.take() {
+                return Err(cut);
+            }
+            if !self.next_container()? {
+                let left = &self.data[self.pos..];
+                if left.iter().any(|&b| b != 0) {
+                    return Err(ReadError::fatal(
+                        Some(Location::Offset(self.container_at)),
+                        Problem::Truncated {
+                            what: "an object (its container ends before it)",
+                            have: left.len() as u64,
+                            need: u64::from(if left.len() >= 12 { u32_at(left, 8) } else { 0 }),
+                        },
+                    ));
+                }
+                return Ok(false);
+            }
+        }
+    }
+
+    /// Parses the object at `pos`: `Some(true)` an entry, `Some(false)` another object,
+    /// `None` when the data ends before the next whole object.
+    fn next_object(&mut self, entry: &mut Entry) -> Result<Option<bool>, ReadError> {
+        let at = Location::Offset(self.container_at);
+        let avail = &self.data[self.pos..];
+        if avail.len() < BASE_HEADER {
+            return Ok(None);
+        }
+        // Objects are padded to 4 bytes; python-can looks for the signature that way.
+        let Some(skip) = (0..=4).find(|&k| avail[k..].starts_with(OBJ_SIGNATURE)) else {
+            // Lost: go to the next signature, if any.
+            let next = memchr::memmem::find(&avail[1..], OBJ_SIGNATURE);
+            self.pos += next.map_or(avail.len(), |n| n + 1);
+            return Err(ReadError::expected(
+                at,
+                "an object (LOBJ) after the previous one",
+                &avail[..avail.len().min(8)],
+            ));
+        };
+        let obj = &avail[skip..];
+        if obj.len() < BASE_HEADER {
+            return Ok(None);
+        }
+        let version = u16_at(obj, 6);
+        let size = u32_at(obj, 8);
+        let ty = u32_at(obj, 12);
+        let header = match version {
+            1 => BASE_HEADER + V1_HEADER,
+            2 => BASE_HEADER + V2_HEADER,
+            _ => 0,
+        };
+        if size > MAX_OBJECT || (size as usize) < header.max(BASE_HEADER) {
+            self.pos += skip + 4;
+            return Err(ReadError::bad(
+                at,
+                Problem::Expected {
+                    expected: "an object size that holds its header, up to 16 MiB",
+                    found: size.to_string(),
+                },
+            ));
+        }
+        let size = size as usize;
+        if obj.len() < size {
+            return Ok(None);
+        }
+        let object = &obj[..size];
+        self.pos += skip + size;
+        if header == 0 {
+            tracing::debug!("BLF object header version {version} skipped");
+            return Ok(Some(false));
+        }
+        let flags = u32_at(object, BASE_HEADER);
+        let ticks = u64_at(object, BASE_HEADER + 8);
+        let since_start = match flags {
+            TIME_TEN_MICS => Duration::from_micros(ticks.saturating_mul(10)),
+            _ => Duration::from_nanos(ticks),
+        };
+        let body = &object[header..];
+        let decoded = match ty {
+            CAN_MESSAGE | CAN_MESSAGE2 => can_message(body).map(Some),
+            CAN_ERROR_EXT => error_ext(body).map(Some),
+            CAN_ERROR if body.len() >= 2 => {
+                Ok(Some((u16_at(body, 0), Record::Error(bus_error()), None)))
+            }
+            CAN_FD_MESSAGE => fd_message(body).map(Some),
+            CAN_FD_MESSAGE_64 => fd_message_64(body).map(Some),
+            _ => Ok(None),
+        };
+        let Some((channel, record, direction)) = decoded.map_err(|p| ReadError::bad(at, p))? else {
+            return Ok(Some(false));
+        };
+        entry.timestamp = self.start + since_start;
+        set_channel_name(&mut entry.interface, channel);
+        entry.record = record;
+        entry.direction = direction;
+        Ok(Some(true))
+    }
+
+    /// Reads the next top-level object into `data`: `false` at the end of the file.
+    fn next_container(&mut self) -> Result<bool, ReadError> {
+        // Drop what was parsed.
+        self.data.drain(..self.pos);
+        self.pos = 0;
+        let start = self.offset;
+        let mut base = [0u8; BASE_HEADER];
+        let got = read_full(&mut self.input, &mut base)?;
+        self.offset += got as u64;
+        if got == 0 {
+            return Ok(false);
+        }
+        if got < 4 || &base[..4] != OBJ_SIGNATURE {
+            return Err(ReadError::fatal(
+                Some(Location::Offset(start)),
+                Problem::Expected {
+                    expected: "an object (LOBJ)",
+                    found: crate::error::excerpt(&base[..got.min(4)]),
+                },
+            ));
+        }
+        if got < BASE_HEADER {
+            return Err(truncated(start, "an object header", got, BASE_HEADER));
+        }
+        let size = u32_at(&base, 8);
+        let ty = u32_at(&base, 12);
+        if size > MAX_OBJECT || (size as usize) < BASE_HEADER {
+            return Err(ReadError::fatal(
+                Some(Location::Offset(start)),
+                Problem::TooBig {
+                    what: "an object",
+                    claimed: u64::from(size),
+                    limit: u64::from(MAX_OBJECT),
+                },
+            ));
+        }
+        self.container_at = start;
+        self.object.resize(size as usize - BASE_HEADER, 0);
+        let got = read_full(&mut self.input, &mut self.object)?;
+        self.offset += got as u64;
+        let whole = got == self.object.len();
+        if !whole {
+            self.object.truncate(got);
+            self.cut = Some(truncated(
+                start,
+                "an object",
+                BASE_HEADER + got,
+                size as usize,
+            ));
+        } else {
+            // python-can's padding rule.
+            let mut pad = [0u8; 4];
+            let n = read_full(&mut self.input, &mut pad[..size as usize % 4])?;
+            self.offset += n as u64;
+        }
+        if ty != LOG_CONTAINER {
+            // An object outside a container (older files): parse it as it is.
+            if whole {
+                self.data.extend_from_slice(&base);
+                self.data.extend_from_slice(&self.object);
+            }
+            return Ok(true);
+        }
+        if self.object.len() < 16 {
+            return Ok(true);
+        }
+        let method = u16_at(&self.object, 0);
+        let claimed = u32_at(&self.object, 8);
+        if claimed > MAX_OBJECT {
+            self.cut = None;
+            return Err(ReadError::fatal(
+                Some(Location::Offset(start)),
+                Problem::TooBig {
+                    what: "a container's uncompressed data",
+                    claimed: u64::from(claimed),
+                    limit: u64::from(MAX_OBJECT),
+                },
+            ));
+        }
+        let payload = &self.object[16..];
+        match method {
+            NO_COMPRESSION => self.data.extend_from_slice(payload),
+            ZLIB_DEFLATE => {
+                let before = self.data.len();
+                self.data.reserve(claimed as usize);
+                let mut z = Decompress::new(true);
+                let status = z.decompress_vec(payload, &mut self.data, FlushDecompress::Finish);
+                match status {
+                    Ok(Status::StreamEnd) => {}
+                    Ok(_) if !whole => {} // the cut: what inflated so far is kept
+                    Ok(_) => {
+                        if self.data.len() - before >= claimed as usize {
+                            // More data than it claims: the rest is lost, say so.
+                            return Err(ReadError::bad(
+                                Location::Offset(start),
+                                Problem::Inflate(format!(
+                                    "the container inflates to more than the {claimed} bytes it claims"
+                                )),
+                            ));
+                        }
+                    }
+                    Err(e) if whole => {
+                        return Err(ReadError::bad(
+                            Location::Offset(start),
+                            Problem::Inflate(e.to_string()),
+                        ));
+                    }
+                    Err(_) => {}
+                }
+            }
+            other => {
+                tracing::warn!(
+                    "BLF container at byte {start}: unknown compression {other}, skipped"
+                );
+            }
+        }
+        Ok(true)
+    }
+}
+
+type Decoded = (u16, Record, Option<Direction>);
+
+fn short(what: &'static str, body: &[u8]) -> Problem {
+    Problem::Expected {
+        expected: what,
+        found: format!("{} bytes", body.len()),
+    }
+}
+
+fn id_of(raw: u32) -> Result<Id, Problem> {
+    Ok(if raw & EXT_FLAG != 0 {
+        Id::extended(raw & 0x1FFF_FFFF)?
+    } else {
+        Id::standard(u16::try_from(raw).map_err(|_| Problem::Expected {
+            expected: "a standard CAN ID up to 0x7FF (or the extended flag)",
+            found: format!("0x{raw:X}"),
+        })?)?
+    })
+}
+
+/// CAN_MESSAGE: channel u16, flags u8, dlc u8, id u32, data\[8\].
+fn can_message(body: &[u8]) -> Result<Decoded, Problem> {
+    if body.len() < 16 {
+        return Err(short("a CAN message of 16 bytes", body));
+    }
+    let channel = u16_at(body, 0);
+    let flags = body[2];
+    let dlc = body[3];
+    let id = id_of(u32_at(body, 4))?;
+    let direction = Some(if flags & DIR_TX != 0 {
+        Direction::Tx
+    } else {
+        Direction::Rx
+    });
+    let frame = if flags & REMOTE_FLAG != 0 {
+        Frame::remote(id, dlc.min(8))?
+    } else {
+        Frame::data(id, &body[8..8 + usize::from(dlc.min(8))])?
+    };
+    Ok((channel, Record::Frame(frame), direction))
+}
+
+/// CAN_ERROR_EXT: channel u16, length u16, flags u32, ecc, position, dlc, reserved,
+/// frame length u32, id u32, flags ext u16, reserved u16, data\[8\].
+fn error_ext(body: &[u8]) -> Result<Decoded, Problem> {
+    if body.len() < 32 {
+        return Err(short("a CAN error object of 32 bytes", body));
+    }
+    let channel = u16_at(body, 0);
+    let dlc = usize::from(body[10]).min(8);
+    let id = u32_at(body, 16) & 0x1FFF_FFFF;
+    let error = ErrorFrame::decode(id, &body[24..24 + dlc])?;
+    Ok((channel, Record::Error(error), Some(Direction::Rx)))
+}
+
+/// CAN_FD_MESSAGE: channel u16, flags u8, dlc u8, id u32, frame length u32, bit count u8,
+/// FD flags u8 (EDL 1), valid bytes u8, 5 reserved, data\[64\].
+fn fd_message(body: &[u8]) -> Result<Decoded, Problem> {
+    if body.len() < 20 {
+        return Err(short("a CAN FD message of at least 20 bytes", body));
+    }
+    let fd_flags = body[13];
+    if fd_flags & 0x01 != 0 {
+        return Err(Problem::CanFd);
+    }
+    let channel = u16_at(body, 0);
+    let flags = body[2];
+    let dlc = body[3].min(8);
+    let valid = usize::from(body[14]).min(8).min(usize::from(dlc));
+    let id = id_of(u32_at(body, 4))?;
+    let data = body
+        .get(20..20 + valid)
+        .ok_or_else(|| short("its data bytes", body))?;
+    let frame = if flags & REMOTE_FLAG != 0 {
+        Frame::remote(id, dlc)?
+    } else {
+        Frame::data(id, data)?
+    };
+    let direction = Some(if flags & DIR_TX != 0 {
+        Direction::Tx
+    } else {
+        Direction::Rx
+    });
+    Ok((channel, Record::Frame(frame), direction))
+}
+
+/// CAN_FD_MESSAGE_64: channel u8, dlc u8, valid bytes u8, tx count u8, id u32, frame length
+/// u32, flags u32 (EDL 0x1000, remote 0x10), … direction u8 at 36, data from 40.
+fn fd_message_64(body: &[u8]) -> Result<Decoded, Problem> {
+    if body.len() < 40 {
+        return Err(short("a CAN FD 64 message of at least 40 bytes", body));
+    }
+    let flags = u32_at(body, 12);
+    if flags & 0x1000 != 0 {
+        return Err(Problem::CanFd);
+    }
+    let channel = u16::from(body[0]);
+    let dlc = body[1].min(8);
+    let valid = usize::from(body[2]).min(usize::from(dlc));
+    let id = id_of(u32_at(body, 4))?;
+    let direction = Some(if body[36] != 0 {
+        Direction::Tx
+    } else {
+        Direction::Rx
+    });
+    let mut data = [0u8; 8];
+    let avail = body.len().saturating_sub(40).min(valid);
+    data[..avail].copy_from_slice(&body[40..40 + avail]);
+    let frame = if flags & 0x10 != 0 {
+        Frame::remote(id, dlc)?
+    } else {
+        Frame::data(id, &data[..valid])?
+    };
+    Ok((channel, Record::Frame(frame), direction))
+}
+
+impl<R: Read + Send> LogReader for Reader<R> {
+    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        Reader::read_into(self, entry)
+    }
+}
+
+/// Writes a BLF file (the header is completed by [`Writer::finish`]).
+pub struct Writer<W: Write + Seek> {
+    out: W,
+    channels: ChannelMap,
+    /// Uncompressed objects of the open container.
+    buf: Vec<u8>,
+    compressed: Vec<u8>,
+    start: Option<Duration>,
+    stop: Duration,
+    objects: u32,
+    uncompressed: u64,
+}
+
+impl<W: Write + Seek> Writer<W> {
+    /// Writes a placeholder header (completed by `finish`).
+    pub fn new(mut out: W) -> io::Result<Self> {
+        out.write_all(&[0u8; FILE_HEADER_SIZE])?;
+        Ok(Self {
+            out,
+            channels: ChannelMap::new(),
+            buf: Vec::with_capacity(CONTAINER_SIZE + 256),
+            compressed: Vec::new(),
+            start: None,
+            stop: Duration::ZERO,
+            objects: 0,
+            uncompressed: FILE_HEADER_SIZE as u64,
+        })
+    }
+
+    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        let start =
+            *self.start.get_or_insert_with(|| {
+                // python-can's start: the first time cut to the millisecond, none before 1990.
+                if entry.timestamp.as_secs() < 631_152_000 {
+                    Duration::ZERO
+                } else {
+                    Duration::from_millis(
+                        (entry.timestamp.as_millis()).min(u128::from(u64::MAX)) as u64
+                    )
+                }
+            });
+        self.stop = self.stop.max(entry.timestamp);
+        let ticks = entry
+            .timestamp
+            .saturating_sub(start)
+            .as_nanos()
+            .min(u128::from(u64::MAX)) as u64;
+        let channel = self.channels.number(&entry.interface);
+        let mut body = [0u8; 32];
+        let (ty, len) = match &entry.record {
+            Record::Frame(f) => {
+                body[0..2].copy_from_slice(&channel.to_le_bytes());
+                let mut flags = if f.is_remote() { REMOTE_FLAG } else { 0 };
+                if entry.direction == Some(Direction::Tx) {
+                    flags |= DIR_TX;
+                }
+                body[2] = flags;
+                body[3] = f.dlc();
+                let id = match f.id() {
+                    Id::Standard(i) => u32::from(i.as_raw()),
+                    Id::Extended(i) => i.as_raw() | EXT_FLAG,
+                };
+                body[4..8].copy_from_slice(&id.to_le_bytes());
+                body[8..8 + f.payload().len()].copy_from_slice(f.payload());
+                (CAN_MESSAGE, 16)
+            }
+            Record::Error(e) => {
+                let (class, data) = e.encode();
+                body[0..2].copy_from_slice(&channel.to_le_bytes());
+                body[10] = 8; // dlc
+                body[16..20].copy_from_slice(&class.to_le_bytes());
+                body[24..32].copy_from_slice(&data);
+                (CAN_ERROR_EXT, 32)
+            }
+        };
+        let size = (BASE_HEADER + V1_HEADER + len) as u32;
+        let b = &mut self.buf;
+        b.extend_from_slice(OBJ_SIGNATURE);
+        b.extend_from_slice(&((BASE_HEADER + V1_HEADER) as u16).to_le_bytes());
+        b.extend_from_slice(&1u16.to_le_bytes());
+        b.extend_from_slice(&size.to_le_bytes());
+        b.extend_from_slice(&ty.to_le_bytes());
+        b.extend_from_slice(&TIME_ONE_NANS.to_le_bytes());
+        b.extend_from_slice(&0u16.to_le_bytes()); // client index
+        b.extend_from_slice(&0u16.to_le_bytes()); // object version
+        b.extend_from_slice(&ticks.to_le_bytes());
+        b.extend_from_slice(&body[..len]);
+        self.objects = self.objects.saturating_add(1);
+        if self.buf.len() >= CONTAINER_SIZE {
+            self.write_container()?;
+        }
+        Ok(())
+    }
+
+    /// Compresses the open container and writes it.
+    fn write_container(&mut self) -> io::Result<()> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        // Level 1: several times faster than zlib's default for a few per cent more bytes.
+        let mut z = Compress::new(Compression::fast(), true);
+        self.compressed.clear();
+        self.compressed.reserve(self.buf.len() + 1024);
+        loop {
+            let status = z
+                .compress_vec(
+                    &self.buf[z.total_in() as usize..],
+                    &mut self.compressed,
+                    FlushCompress::Finish,
+                )
+                .map_err(io::Error::other)?;
+            if status == Status::StreamEnd {
+                break;
+            }
+            self.compressed
+                .reserve(self.compressed.capacity().max(4096));
+        }
+        let size = (BASE_HEADER + 16 + self.compressed.len()) as u32;
+        let mut head = Vec::with_capacity(32);
+        head.extend_from_slice(OBJ_SIGNATURE);
+        head.extend_from_slice(&(BASE_HEADER as u16).to_le_bytes());
+        head.extend_from_slice(&1u16.to_le_bytes());
+        head.extend_from_slice(&size.to_le_bytes());
+        head.extend_from_slice(&LOG_CONTAINER.to_le_bytes());
+        head.extend_from_slice(&ZLIB_DEFLATE.to_le_bytes());
+        head.extend_from_slice(&[0u8; 6]);
+        head.extend_from_slice(&(self.buf.len() as u32).to_le_bytes());
+        head.extend_from_slice(&[0u8; 4]);
+        self.out.write_all(&head)?;
+        self.out.write_all(&self.compressed)?;
+        self.out.write_all(&[0u8; 4][..size as usize % 4])?;
+        self.uncompressed += (BASE_HEADER + 16 + self.buf.len()) as u64;
+        self.buf.clear();
+        Ok(())
+    }
+
+    /// Writes the open container (a small one) and flushes.
+    pub fn flush(&mut self) -> io::Result<()> {
+        self.write_container()?;
+        self.out.flush()
+    }
+
+    /// Writes the last container and the completed header.
+    pub fn finish(mut self) -> io::Result<W> {
+        self.write_container()?;
+        let file_size = self.out.stream_position()?;
+        let start = self.start.unwrap_or_default();
+        let mut h = Vec::with_capacity(FILE_HEADER_SIZE);
+        h.extend_from_slice(FILE_SIGNATURE);
+        h.extend_from_slice(&(FILE_HEADER_SIZE as u32).to_le_bytes());
+        h.extend_from_slice(&[5, 0, 0, 0, 2, 6, 8, 1]); // application and BL versions
+        h.extend_from_slice(&file_size.to_le_bytes());
+        h.extend_from_slice(&self.uncompressed.to_le_bytes());
+        h.extend_from_slice(&self.objects.to_le_bytes());
+        h.extend_from_slice(&0u32.to_le_bytes());
+        for v in time::systemtime(start) {
+            h.extend_from_slice(&v.to_le_bytes());
+        }
+        let stop = if self.start.is_some() && start > Duration::ZERO {
+            self.stop
+        } else {
+            Duration::ZERO
+        };
+        for v in time::systemtime(stop) {
+            h.extend_from_slice(&v.to_le_bytes());
+        }
+        h.resize(FILE_HEADER_SIZE, 0);
+        self.out.seek(SeekFrom::Start(0))?;
+        self.out.write_all(&h)?;
+        self.out.seek(SeekFrom::Start(file_size))?;
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+impl<W: Write + Seek + Send> Encoder<W> for Writer<W> {
+    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        Writer::write(self, entry)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Writer::flush(self)
+    }
+    fn finish(self) -> io::Result<W> {
+        Writer::finish(self)
+    }
+}

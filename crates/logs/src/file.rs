@@ -1,0 +1,518 @@
+//! Log files by format: open a reader, create a writer. Inputs are regular files only (a FIFO
+//! or a device would block or never end); reading is streamed through a fixed buffer.
+
+use std::fs::{self, File};
+use std::io::{self, BufRead, BufReader, BufWriter, Read};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Duration;
+
+use tempfile::TempPath;
+
+use crate::error::{LogError, ReadError};
+use crate::format::Format;
+use crate::{Entry, asc, blf, candump, csv, pcap, pcapng, sqlite, trc};
+
+/// The read buffer of a log file.
+const READ_BUFFER: usize = 256 * 1024;
+/// The write buffer of a log file.
+const WRITE_BUFFER: usize = 256 * 1024;
+
+/// A log being read, one entry at a time into the caller's [`Entry`] (the text formats then
+/// allocate nothing per entry).
+pub trait LogReader: Send {
+    /// Reads the next entry into `entry`; `Ok(false)` at the end. After an error that is not
+    /// [fatal](ReadError::is_fatal) the next call goes on with the next record; after a fatal
+    /// one it returns `Ok(false)`.
+    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError>;
+}
+
+impl<R: LogReader + ?Sized> LogReader for Box<R> {
+    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        (**self).read_into(entry)
+    }
+}
+
+/// A log being written.
+pub trait LogWriter {
+    fn write(&mut self, entry: &Entry) -> io::Result<()>;
+    /// Hands everything written so far to the operating system (the SQLite writer commits),
+    /// so it survives the process being killed.
+    fn flush(&mut self) -> io::Result<()>;
+    /// Completes the file (headers that need the totals, the last container or transaction),
+    /// syncs it to disk and, for an atomic writer, puts it in place.
+    fn finish(self: Box<Self>) -> io::Result<()>;
+    /// Entries the format cannot hold, left out so far (each kind warned about once).
+    fn left_out(&self) -> u64 {
+        0
+    }
+}
+
+/// A format's writer over some output (the file layer wraps it into a [`LogWriter`]).
+pub(crate) trait Encoder<W>: Send {
+    fn write(&mut self, entry: &Entry) -> io::Result<()>;
+    fn flush(&mut self) -> io::Result<()>;
+    /// Writes what is still pending and gives the output back.
+    fn finish(self) -> io::Result<W>;
+    fn left_out(&self) -> u64 {
+        0
+    }
+}
+
+/// The entries of a [`LogReader`] as an iterator (one allocation per entry for its interface
+/// name; [`LogReader::read_into`] avoids it).
+pub struct Entries<R> {
+    reader: R,
+    done: bool,
+}
+
+impl<R: LogReader> Entries<R> {
+    pub fn new(reader: R) -> Self {
+        Self {
+            reader,
+            done: false,
+        }
+    }
+}
+
+impl<R: LogReader> Iterator for Entries<R> {
+    type Item = Result<Entry, ReadError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let mut entry = Entry::default();
+        match self.reader.read_into(&mut entry) {
+            Ok(true) => Some(Ok(entry)),
+            Ok(false) => {
+                self.done = true;
+                None
+            }
+            Err(e) => {
+                self.done = e.is_fatal();
+                Some(Err(e))
+            }
+        }
+    }
+}
+
+/// How many bytes of a file were read so far (for a progress bar in another thread).
+#[derive(Clone, Debug, Default)]
+pub struct ByteCounter(Arc<AtomicU64>);
+
+impl ByteCounter {
+    pub fn get(&self) -> u64 {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+/// An opened log: its reader, the bytes read so far, the file's size when opened.
+pub struct LogSource {
+    pub reader: Box<dyn LogReader + Send>,
+    pub bytes_read: ByteCounter,
+    pub len: u64,
+}
+
+/// Called when a followed file has no more bytes for now (e.g. to flush what was written).
+pub type OnWait = Arc<dyn Fn() + Send + Sync>;
+
+/// How to open a log.
+#[derive(Clone, Default)]
+pub struct OpenOptions {
+    /// Follow a growing file (like `tail -f`): at its end, wait for more until this flag is
+    /// set, then end. Not for SQLite.
+    pub follow_until: Option<Arc<AtomicBool>>,
+    /// While following: called once each time the reader catches up with the file's end.
+    pub on_wait: Option<OnWait>,
+}
+
+/// Opens a log file for reading as `format`; errors name the file and, when reading, the line
+/// or byte offset.
+pub fn open_reader(
+    path: &Path,
+    format: Format,
+) -> Result<Box<dyn Iterator<Item = Result<Entry, ReadError>> + Send>, LogError> {
+    let source = open_source(path, format, &OpenOptions::default())?;
+    Ok(Box::new(Entries::new(source.reader)))
+}
+
+/// Opens a log file for reading as `format`, with a byte counter for progress.
+pub fn open_source(
+    path: &Path,
+    format: Format,
+    options: &OpenOptions,
+) -> Result<LogSource, LogError> {
+    let file = open_regular(path)?;
+    let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let bytes_read = ByteCounter::default();
+    if format == Format::Sqlite {
+        if options.follow_until.is_some() {
+            return Err(LogError::CannotFollow {
+                path: path.to_path_buf(),
+                format: "an SQLite database",
+            });
+        }
+        drop(file);
+        let reader = sqlite::Reader::open(path).map_err(|source| LogError::Sqlite {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        bytes_read.0.store(len, Ordering::Relaxed);
+        return Ok(LogSource {
+            reader: Box::new(Named::new(reader, path)),
+            bytes_read,
+            len,
+        });
+    }
+    let counted = Counted {
+        inner: file,
+        count: bytes_read.clone(),
+    };
+    let input: Box<dyn Read + Send> = match &options.follow_until {
+        Some(stop) => Box::new(Follow {
+            inner: counted,
+            stop: stop.clone(),
+            on_wait: options.on_wait.clone(),
+        }),
+        None => Box::new(counted),
+    };
+    let input = BufReader::with_capacity(READ_BUFFER, input);
+    let reader = reader(input, format).map_err(|e| LogError::Read {
+        source: e.in_file(path),
+    })?;
+    Ok(LogSource {
+        reader: Box::new(Named::new(reader, path)),
+        bytes_read,
+        len,
+    })
+}
+
+/// The reader for `format` over any buffered input (a file, bytes in memory, a fuzzer's
+/// input). The pcap formats tell pcap from pcapng by the first bytes, so either name reads
+/// both. SQLite is read from a file only ([`open_source`]).
+pub fn reader<R: BufRead + Send + 'static>(
+    mut input: R,
+    format: Format,
+) -> Result<Box<dyn LogReader + Send>, ReadError> {
+    Ok(match format {
+        Format::Candump => Box::new(candump::Reader::new(input)),
+        Format::Asc => Box::new(asc::Reader::new(input)),
+        Format::Blf => Box::new(blf::Reader::new(input)),
+        Format::Trc11 | Format::Trc21 => Box::new(trc::Reader::new(input)),
+        Format::Csv => Box::new(csv::Reader::new(input)),
+        Format::Pcap | Format::Pcapng => {
+            let head = input.fill_buf().map_err(ReadError::io)?;
+            if head.starts_with(&pcapng::BLOCK_SHB.to_le_bytes()) {
+                Box::new(pcapng::Reader::new(input))
+            } else {
+                Box::new(pcap::Reader::new(input))
+            }
+        }
+        Format::Sqlite => {
+            return Err(ReadError::fatal(
+                None,
+                crate::Problem::NotFormat {
+                    format: "stream",
+                    reason: "an SQLite database is read from a file".into(),
+                },
+            ));
+        }
+    })
+}
+
+/// A reader whose errors name its file.
+struct Named<R> {
+    inner: R,
+    path: PathBuf,
+}
+
+impl<R> Named<R> {
+    fn new(inner: R, path: &Path) -> Self {
+        Self {
+            inner,
+            path: path.to_path_buf(),
+        }
+    }
+}
+
+impl<R: LogReader> LogReader for Named<R> {
+    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        self.inner
+            .read_into(entry)
+            .map_err(|e| e.in_file(&self.path))
+    }
+}
+
+/// Counts the bytes read.
+struct Counted<R> {
+    inner: R,
+    count: ByteCounter,
+}
+
+impl<R: Read> Read for Counted<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.count.0.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+}
+
+/// At the end of the file, waits for more until told to stop.
+struct Follow<R> {
+    inner: R,
+    stop: Arc<AtomicBool>,
+    on_wait: Option<OnWait>,
+}
+
+/// How often a followed file is looked at for new bytes.
+const FOLLOW_POLL: Duration = Duration::from_millis(100);
+
+impl<R: Read> Read for Follow<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let mut waited = false;
+        loop {
+            let n = self.inner.read(buf)?;
+            if n > 0 || buf.is_empty() || self.stop.load(Ordering::SeqCst) {
+                return Ok(n);
+            }
+            if !waited {
+                waited = true;
+                if let Some(f) = &self.on_wait {
+                    f();
+                }
+            }
+            std::thread::sleep(FOLLOW_POLL);
+        }
+    }
+}
+
+/// Opens `path` for reading if it is a regular file.
+fn open_regular(path: &Path) -> Result<File, LogError> {
+    let meta = fs::metadata(path).map_err(|source| LogError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    check_regular(path, &meta)?;
+    File::open(path).map_err(|source| LogError::Open {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn check_regular(path: &Path, meta: &fs::Metadata) -> Result<(), LogError> {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    let what = if t.is_file() {
+        return Ok(());
+    } else if t.is_dir() {
+        "a directory"
+    } else if t.is_fifo() {
+        "a FIFO"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "something else"
+    };
+    Err(LogError::NotRegular {
+        path: path.to_path_buf(),
+        what,
+    })
+}
+
+/// Where a writer's file goes.
+enum Output {
+    /// Straight to its path (a live log: what was flushed is there if the process dies).
+    Direct,
+    /// To a temporary file beside it, renamed into place by `finish`.
+    Atomic { temp: TempPath, dest: PathBuf },
+}
+
+/// Creates (or truncates) a log file written as `format`, straight to `path`: what was
+/// flushed is in the file even if the process is killed (the choice for live logging).
+pub fn create_writer(path: &Path, format: Format) -> Result<Box<dyn LogWriter + Send>, LogError> {
+    create(path, format, false, WriteOptions::default())
+}
+
+/// Choices a format leaves to the writer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WriteOptions {
+    /// candump: ` R`/` T` after each frame that has a direction (candump `-x`); the other
+    /// formats record the direction wherever they have a field for it.
+    pub direction: bool,
+}
+
+/// [`create_writer`] with options.
+pub fn create_writer_with(
+    path: &Path,
+    format: Format,
+    options: WriteOptions,
+) -> Result<Box<dyn LogWriter + Send>, LogError> {
+    create(path, format, false, options)
+}
+
+/// Creates a log file written as `format` into a temporary file in the same directory, put in
+/// place (fsync, rename, fsync of the directory) by [`LogWriter::finish`]; dropped without
+/// `finish`, nothing replaces `path` (the choice for conversions).
+pub fn create_writer_atomic(
+    path: &Path,
+    format: Format,
+) -> Result<Box<dyn LogWriter + Send>, LogError> {
+    create(path, format, true, WriteOptions::default())
+}
+
+fn create(
+    path: &Path,
+    format: Format,
+    atomic: bool,
+    options: WriteOptions,
+) -> Result<Box<dyn LogWriter + Send>, LogError> {
+    let create_err = |source| LogError::Create {
+        path: path.to_path_buf(),
+        source,
+    };
+    if let Ok(meta) = fs::metadata(path) {
+        check_regular(path, &meta)?;
+    }
+    let (file, target_path, output) = if atomic {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        // As a plain create would: 0666 less the umask (not the temporary file's 0600).
+        let temp = tempfile::Builder::new()
+            .prefix(&format!(".{name}."))
+            .suffix(".part")
+            .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
+            .tempfile_in(dir)
+            .map_err(create_err)?;
+        let (file, temp) = temp.into_parts();
+        let temp_path = temp.to_path_buf();
+        (
+            file,
+            temp_path,
+            Output::Atomic {
+                temp,
+                dest: path.to_path_buf(),
+            },
+        )
+    } else {
+        if format == Format::Sqlite {
+            // A new database: an old file's table would be appended to otherwise.
+            match fs::remove_file(path) {
+                Ok(()) => {}
+                Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+                Err(e) => return Err(create_err(e)),
+            }
+        }
+        (
+            File::create(path).map_err(create_err)?,
+            path.to_path_buf(),
+            Output::Direct,
+        )
+    };
+    if format == Format::Sqlite {
+        drop(file);
+        let writer = sqlite::Writer::create(&target_path).map_err(|source| LogError::Sqlite {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        return Ok(Box::new(SqliteFile { writer, output }));
+    }
+    let out = BufWriter::with_capacity(WRITE_BUFFER, file);
+    Ok(match format {
+        Format::Candump => FileWriter::boxed(
+            candump::Writer::new(out).with_direction(options.direction),
+            output,
+        ),
+        Format::Asc => FileWriter::boxed(asc::Writer::new(out), output),
+        Format::Blf => FileWriter::boxed(blf::Writer::new(out).map_err(create_err)?, output),
+        Format::Trc11 => FileWriter::boxed(trc::Writer::new(out, trc::Version::V1_1), output),
+        Format::Trc21 => FileWriter::boxed(trc::Writer::new(out, trc::Version::V2_1), output),
+        Format::Csv => FileWriter::boxed(csv::Writer::new(out), output),
+        Format::Pcap => FileWriter::boxed(pcap::Writer::new(out).map_err(create_err)?, output),
+        Format::Pcapng => FileWriter::boxed(pcapng::Writer::new(out).map_err(create_err)?, output),
+        Format::Sqlite => unreachable!("created above"),
+    })
+}
+
+type Out = BufWriter<File>;
+
+/// A format's encoder writing a file.
+struct FileWriter<E> {
+    encoder: E,
+    output: Output,
+}
+
+impl<E: Encoder<Out> + 'static> FileWriter<E> {
+    fn boxed(encoder: E, output: Output) -> Box<dyn LogWriter + Send> {
+        Box::new(Self { encoder, output })
+    }
+}
+
+impl<E: Encoder<Out>> LogWriter for FileWriter<E> {
+    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        self.encoder.write(entry)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.encoder.flush()
+    }
+
+    fn finish(self: Box<Self>) -> io::Result<()> {
+        let this = *self;
+        let out = this.encoder.finish()?;
+        let file = out.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        put_in_place(this.output)
+    }
+
+    fn left_out(&self) -> u64 {
+        self.encoder.left_out()
+    }
+}
+
+/// The SQLite writer on its file.
+struct SqliteFile {
+    writer: sqlite::Writer,
+    output: Output,
+}
+
+impl LogWriter for SqliteFile {
+    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        self.writer.write(entry)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.writer.commit()
+    }
+
+    fn finish(self: Box<Self>) -> io::Result<()> {
+        let this = *self;
+        this.writer.finish()?;
+        put_in_place(this.output)
+    }
+}
+
+/// Renames an atomic writer's temporary file to its destination and syncs the directory.
+fn put_in_place(output: Output) -> io::Result<()> {
+    let Output::Atomic { temp, dest } = output else {
+        return Ok(());
+    };
+    temp.persist(&dest).map_err(|e| e.error)?;
+    let dir = match dest.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    File::open(dir)?.sync_all()
+}

@@ -1,0 +1,382 @@
+//! python-can's SQLite log: table `messages` with
+//! `ts REAL, arbitration_id INTEGER, extended INTEGER, remote INTEGER, error INTEGER,
+//! dlc INTEGER, data BLOB`.
+//!
+//! Seconds as a float (microseconds survive; a float cannot hold nanoseconds at today's
+//! epoch), no interface and no direction (entries read back on `can0`). An error frame is a
+//! row with `error` 1, the class as its ID and the 8 SocketCAN data bytes.
+//!
+//! The writer keeps one transaction open and commits it every half second (from a timer
+//! thread), on [`Writer::commit`] and on [`Writer::finish`]: a killed process loses at most
+//! the last half second, a stopped one nothing. The reader fetches rows in batches by rowid,
+//! so memory stays bounded whatever the table's size.
+
+use std::collections::VecDeque;
+use std::io;
+use std::path::Path;
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use buslab_can::{Frame, Id};
+use buslab_canbus::ErrorFrame;
+use rusqlite::types::Value;
+use rusqlite::{Connection, OpenFlags, params};
+
+use crate::error::{Problem, ReadError};
+use crate::file::LogReader;
+use crate::{Entry, Location, Record, seconds};
+
+pub const TABLE: &str = "messages";
+/// python-can's table, column for column.
+pub const CREATE_TABLE: &str = "CREATE TABLE IF NOT EXISTS messages (
+  ts REAL,
+  arbitration_id INTEGER,
+  extended INTEGER,
+  remote INTEGER,
+  error INTEGER,
+  dlc INTEGER,
+  data BLOB
+)";
+const INSERT: &str = "INSERT INTO messages VALUES (?, ?, ?, ?, ?, ?, ?)";
+/// The interface name entries of a database get.
+pub const INTERFACE: &str = "can0";
+/// How often the writer commits at least.
+pub const COMMIT_EVERY: Duration = Duration::from_millis(500);
+const BATCH: i64 = 1024;
+
+struct Row {
+    rowid: i64,
+    ts: Value,
+    id: Value,
+    extended: Value,
+    remote: Value,
+    error: Value,
+    dlc: Value,
+    data: Value,
+}
+
+/// Reads python-can's `messages` table in insertion (rowid) order.
+pub struct Reader {
+    conn: Connection,
+    last_rowid: i64,
+    batch: VecDeque<Row>,
+    row: u64,
+    done: bool,
+}
+
+impl Reader {
+    /// Opens a database read-only; errors if it is not one or has no `messages` table.
+    pub fn open(path: &Path) -> Result<Self, rusqlite::Error> {
+        let conn = Connection::open_with_flags(
+            path,
+            OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )?;
+        conn.busy_timeout(Duration::from_secs(10))?;
+        let tables: i64 = conn.query_row(
+            "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = ?1",
+            [TABLE],
+            |r| r.get(0),
+        )?;
+        if tables == 0 {
+            return Err(rusqlite::Error::InvalidParameterName(format!(
+                "no table {TABLE:?} (python-can's SqliteWriter writes one)"
+            )));
+        }
+        Ok(Self {
+            conn,
+            last_rowid: i64::MIN,
+            batch: VecDeque::new(),
+            row: 0,
+            done: false,
+        })
+    }
+
+    fn fetch(&mut self) -> Result<(), rusqlite::Error> {
+        let mut stmt = self.conn.prepare_cached(
+            "SELECT rowid, ts, arbitration_id, extended, remote, error, dlc, substr(data, 1, 72)
+             FROM messages WHERE rowid > ?1 ORDER BY rowid LIMIT ?2",
+        )?;
+        let rows = stmt.query_map(params![self.last_rowid, BATCH], |r| {
+            Ok(Row {
+                rowid: r.get(0)?,
+                ts: r.get(1)?,
+                id: r.get(2)?,
+                extended: r.get(3)?,
+                remote: r.get(4)?,
+                error: r.get(5)?,
+                dlc: r.get(6)?,
+                data: r.get(7)?,
+            })
+        })?;
+        for row in rows {
+            let row = row?;
+            self.last_rowid = row.rowid;
+            self.batch.push_back(row);
+        }
+        Ok(())
+    }
+
+    /// Reads the next entry into `entry`; `Ok(false)` at the end.
+    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        if self.done {
+            return Ok(false);
+        }
+        if self.batch.is_empty() {
+            if let Err(e) = self.fetch() {
+                self.done = true;
+                return Err(ReadError::fatal(Some(Location::Row(self.row + 1)), e));
+            }
+            if self.batch.is_empty() {
+                self.done = true;
+                return Ok(false);
+            }
+        }
+        let Some(row) = self.batch.pop_front() else {
+            return Ok(false);
+        };
+        self.row += 1;
+        let at = Location::Row(self.row);
+        decode_row(&row, entry).map_err(|p| ReadError::bad(at, p))?;
+        Ok(true)
+    }
+}
+
+fn int(v: &Value, what: &'static str) -> Result<i64, Problem> {
+    match v {
+        Value::Integer(i) => Ok(*i),
+        other => Err(Problem::Expected {
+            expected: what,
+            found: format!("{other:?}"),
+        }),
+    }
+}
+
+fn decode_row(row: &Row, entry: &mut Entry) -> Result<(), Problem> {
+    let ts = match row.ts {
+        Value::Real(f) => f,
+        Value::Integer(i) => i as f64,
+        ref other => {
+            return Err(Problem::Expected {
+                expected: "ts in seconds (REAL)",
+                found: format!("{other:?}"),
+            });
+        }
+    };
+    if !ts.is_finite() || ts < 0.0 {
+        return Err(Problem::Expected {
+            expected: "ts a time in seconds, 0 or more",
+            found: ts.to_string(),
+        });
+    }
+    let raw = int(&row.id, "an integer arbitration_id")?;
+    let raw = u32::try_from(raw).map_err(|_| Problem::Expected {
+        expected: "an arbitration_id 0..0x1FFFFFFF",
+        found: raw.to_string(),
+    })?;
+    let extended = int(&row.extended, "extended 0 or 1")? != 0;
+    let remote = int(&row.remote, "remote 0 or 1")? != 0;
+    let error = int(&row.error, "error 0 or 1")? != 0;
+    let dlc = int(&row.dlc, "an integer dlc")?;
+    let data: &[u8] = match &row.data {
+        Value::Blob(b) => b,
+        Value::Null => &[],
+        other => {
+            return Err(Problem::Expected {
+                expected: "data as a BLOB",
+                found: format!("{other:?}"),
+            });
+        }
+    };
+    let record = if error {
+        Record::Error(ErrorFrame::decode(
+            raw & 0x1FFF_FFFF,
+            &data[..data.len().min(8)],
+        )?)
+    } else {
+        if !(0..=8).contains(&dlc) || data.len() > 8 {
+            return Err(if (0..=64).contains(&dlc) {
+                Problem::CanFd
+            } else {
+                Problem::Expected {
+                    expected: "a dlc 0..8",
+                    found: dlc.to_string(),
+                }
+            });
+        }
+        let id = if extended {
+            Id::extended(raw)?
+        } else {
+            Id::standard(u16::try_from(raw).map_err(|_| Problem::Expected {
+                expected: "a standard arbitration_id 0..0x7FF",
+                found: raw.to_string(),
+            })?)?
+        };
+        if remote {
+            Record::Frame(Frame::remote(id, dlc as u8)?)
+        } else {
+            Record::Frame(Frame::data(id, data)?)
+        }
+    };
+    entry.timestamp = seconds(ts);
+    entry.interface.clear();
+    entry.interface.push_str(INTERFACE);
+    entry.record = record;
+    entry.direction = None;
+    Ok(())
+}
+
+impl LogReader for Reader {
+    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+        Reader::read_into(self, entry)
+    }
+}
+
+struct State {
+    conn: Option<Connection>,
+    pending: u64,
+    /// A commit of the timer thread that failed, reported by the next call.
+    failed: Option<rusqlite::Error>,
+}
+
+impl State {
+    fn commit(&mut self) -> Result<(), rusqlite::Error> {
+        if let Some(e) = self.failed.take() {
+            return Err(e);
+        }
+        if self.pending == 0 {
+            return Ok(());
+        }
+        if let Some(conn) = &self.conn {
+            conn.execute_batch("COMMIT; BEGIN")?;
+        }
+        self.pending = 0;
+        Ok(())
+    }
+}
+
+/// Writes python-can's `messages` table, committing at least every [`COMMIT_EVERY`].
+pub struct Writer {
+    state: Arc<Mutex<State>>,
+    stop: Option<mpsc::Sender<()>>,
+    timer: Option<JoinHandle<()>>,
+}
+
+fn sql_io(e: rusqlite::Error) -> io::Error {
+    io::Error::other(e)
+}
+
+impl Writer {
+    /// Creates the table in the database at `path` (a new or empty file).
+    pub fn create(path: &Path) -> Result<Self, rusqlite::Error> {
+        let conn = Connection::open(path)?;
+        conn.busy_timeout(Duration::from_secs(10))?;
+        conn.execute_batch(CREATE_TABLE)?;
+        conn.execute_batch("BEGIN")?;
+        let state = Arc::new(Mutex::new(State {
+            conn: Some(conn),
+            pending: 0,
+            failed: None,
+        }));
+        let (stop, stopped) = mpsc::channel::<()>();
+        let shared = state.clone();
+        let timer = std::thread::Builder::new()
+            .name("sqlite-commit".into())
+            .spawn(move || {
+                while let Err(RecvTimeoutError::Timeout) = stopped.recv_timeout(COMMIT_EVERY) {
+                    let mut state = lock(&shared);
+                    if state.failed.is_none()
+                        && let Err(e) = state.commit()
+                    {
+                        tracing::warn!("SQLite commit failed: {e}");
+                        state.failed = Some(e);
+                    }
+                }
+            })
+            .map_err(|e| rusqlite::Error::InvalidParameterName(e.to_string()))?;
+        Ok(Self {
+            state,
+            stop: Some(stop),
+            timer: Some(timer),
+        })
+    }
+
+    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        let mut state = lock(&self.state);
+        if let Some(e) = state.failed.take() {
+            return Err(sql_io(e));
+        }
+        let (raw, extended, remote, error, dlc, data): (u32, bool, bool, bool, u8, &[u8]);
+        let error_bytes;
+        match &entry.record {
+            Record::Frame(f) => {
+                (raw, extended, remote, error, dlc) = (
+                    f.id().as_raw(),
+                    f.is_extended(),
+                    f.is_remote(),
+                    false,
+                    f.dlc(),
+                );
+                data = f.payload();
+            }
+            Record::Error(e) => {
+                let (class, bytes) = e.encode();
+                error_bytes = bytes;
+                (raw, extended, remote, error, dlc) = (class, false, false, true, 8);
+                data = &error_bytes;
+            }
+        }
+        let ts = entry.timestamp.as_secs_f64();
+        let Some(conn) = &state.conn else {
+            return Err(io::Error::other("the SQLite writer is closed"));
+        };
+        conn.prepare_cached(INSERT)
+            .and_then(|mut stmt| stmt.execute(params![ts, raw, extended, remote, error, dlc, data]))
+            .map_err(sql_io)?;
+        state.pending += 1;
+        Ok(())
+    }
+
+    /// Commits what was written so far.
+    pub fn commit(&mut self) -> io::Result<()> {
+        lock(&self.state).commit().map_err(sql_io)
+    }
+
+    /// Stops the timer, commits and closes the database.
+    pub fn finish(mut self) -> io::Result<()> {
+        self.stop_timer();
+        let mut state = lock(&self.state);
+        state.commit().map_err(sql_io)?;
+        if let Some(conn) = state.conn.take() {
+            conn.execute_batch("COMMIT").map_err(sql_io)?;
+            conn.close().map_err(|(_, e)| sql_io(e))?;
+        }
+        Ok(())
+    }
+
+    fn stop_timer(&mut self) {
+        drop(self.stop.take());
+        if let Some(t) = self.timer.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Writer {
+    /// Dropped without `finish`: still commits what was written.
+    fn drop(&mut self) {
+        self.stop_timer();
+        let mut state = lock(&self.state);
+        if let Err(e) = state.commit() {
+            tracing::warn!("SQLite commit failed: {e}");
+        }
+        if let Some(conn) = state.conn.take() {
+            let _ = conn.execute_batch("COMMIT");
+        }
+    }
+}
+
+fn lock(state: &Mutex<State>) -> MutexGuard<'_, State> {
+    state.lock().unwrap_or_else(|p| p.into_inner())
+}

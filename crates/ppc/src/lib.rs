@@ -1,0 +1,18 @@
+//! The seed's PowerPC node (seed 002 §4): a PPC403 board with an SJA1000, running MoniCAN on
+//! a VT100 terminal at 19200 baud.
+//!
+//! [`PpcNode`] is a [`BusNode`](buslab_can::node::BusNode): it sits on the one bus engine like
+//! any node. Its SJA1000 ([`buslab_sja1000::Sja1000`]) is driven only through its registers by
+//! the host library's driver ([`buslab_canbus::Sja1000Driver`], PeliCAN as the seed's
+//! `sja_init_pelican`), and the CPU's program is [`buslab_monican::MoniCan`]. The serial port
+//! is sans-IO too: [`PpcNode::key`] takes a byte from the terminal, [`PpcNode::take_screen`]
+//! gives the VT100 bytes for it; whoever serves the port paces them (19200 baud, 8N1).
+#![forbid(unsafe_code)]
+
+pub mod node;
+
+pub use node::{CRYSTAL_HZ, GIVE_UP_BITS, MAX_KEYS, PpcError, PpcNode, chip_config, slio_timing};
+
+/// The PowerPC node's serial line: 19200 baud (seed §4.3.3.1), 8 data bits, no parity, 1 stop
+/// bit.
+pub const BAUD: u32 = 19_200;

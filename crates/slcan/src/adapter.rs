@@ -1,0 +1,437 @@
+//! An SLCAN adapter (Lawicel CANUSB style) as a sans-IO model: bytes from the host go in, the
+//! answers and received frames come out as bytes, and what the host asked of the bus comes out
+//! as [`AdapterEvent`]s. Time is the caller's (milliseconds, for `Z1` timestamps).
+//!
+//! Answers follow the Lawicel manual and what python-can and Linux's slcan/slcand expect:
+//! CR for OK, BEL for an unknown or malformed command or one in the wrong state (`S` while
+//! open, a frame while closed), `z`/`Z` CR for a queued frame. Output waiting for the host is
+//! bounded ([`MAX_OUTPUT`]): a host that does not read loses frames, and `F` reports the
+//! overrun, as a real adapter's receive FIFO overflows.
+
+use std::collections::VecDeque;
+
+use buslab_can::Frame;
+
+use crate::codec::{
+    CodecError, Command, Line, LineSplitter, Reply, STANDARD_BITRATES, StatusFlags,
+    TIMESTAMP_WRAP_MS, format_reply, parse_command,
+};
+
+/// Bytes waiting for the host at most (a USB adapter's buffers are smaller; a PTY holds 4 KiB
+/// more).
+pub const MAX_OUTPUT: usize = 64 * 1024;
+
+/// The longest reply: an extended frame with 8 bytes and a timestamp, with its CR.
+const MAX_REPLY: usize = 31;
+
+/// What the adapter says about itself (`V`, `v`, `N`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Identity {
+    /// `Vhhss`: hardware and software version, decimal digits (python-can reads them as
+    /// numbers).
+    pub version: [u8; 4],
+    /// `vmami`.
+    pub detailed_version: [u8; 4],
+    /// `Nxxxx`: 4 letters or digits.
+    pub serial: [u8; 4],
+}
+
+impl Default for Identity {
+    fn default() -> Self {
+        Self {
+            version: *b"1013",
+            detailed_version: *b"1014",
+            serial: *b"BL01",
+        }
+    }
+}
+
+/// The channel's state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Mode {
+    /// Reset mode: not on the bus (power-up).
+    Closed,
+    /// `O`: on the bus, transmitting and acknowledging.
+    Open,
+    /// `L`: receiving only.
+    ListenOnly,
+}
+
+/// The bit timing the host set before opening.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Timing {
+    /// `S0`..`S8`: a standard bit rate in bit/s.
+    Bitrate(u32),
+    /// `sxxyy`: SJA1000 BTR0/BTR1.
+    Btr { btr0: u8, btr1: u8 },
+    /// `sxxyyzz`: MCP2515 CNF1..3.
+    Cnf([u8; 3]),
+}
+
+/// What the host asked for, for the adapter's bus side.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum AdapterEvent {
+    /// `O` or `L`: the channel opened, with the timing set before (if any).
+    Opened {
+        listen_only: bool,
+        timing: Option<Timing>,
+    },
+    /// `C`: the channel closed.
+    Closed,
+    /// A frame to put on the bus.
+    Transmit(Frame),
+    /// The channel opened with an acceptance filter that is not "accept all": the model
+    /// delivers every frame anyway.
+    FilterNotModelled { code: u32, mask: u32 },
+    /// A line that is not a command; it was answered with BEL.
+    Garbage(CodecError),
+    /// Output for the host filled up: frames are being dropped (said once per episode).
+    Overrun,
+}
+
+/// The adapter model.
+#[derive(Clone, Debug)]
+pub struct Adapter {
+    identity: Identity,
+    splitter: LineSplitter,
+    mode: Mode,
+    timing: Option<Timing>,
+    timestamps: bool,
+    acceptance_code: u32,
+    acceptance_mask: u32,
+    output: Vec<u8>,
+    events: VecDeque<AdapterEvent>,
+    /// Flags `F` reports once and clears (overruns).
+    sticky: u8,
+    dropped: u64,
+}
+
+impl Default for Adapter {
+    fn default() -> Self {
+        Self::new(Identity::default())
+    }
+}
+
+impl Adapter {
+    /// A closed adapter, timestamps off, acceptance filter open (power-up defaults).
+    pub fn new(identity: Identity) -> Self {
+        Self {
+            identity,
+            splitter: LineSplitter::new(),
+            mode: Mode::Closed,
+            timing: None,
+            timestamps: false,
+            acceptance_code: 0,
+            acceptance_mask: 0xFFFF_FFFF,
+            output: Vec::new(),
+            events: VecDeque::new(),
+            sticky: 0,
+            dropped: 0,
+        }
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// Frames dropped so far because the host did not read.
+    pub fn dropped(&self) -> u64 {
+        self.dropped
+    }
+
+    /// Bytes from the host.
+    pub fn receive(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            let reply = match self.splitter.push(byte) {
+                None => continue,
+                Some(Line::TooLong) => Err(CodecError::TooLong),
+                Some(Line::Text(text) | Line::Bell(text)) => parse_command(text),
+            };
+            let reply = match reply {
+                Ok(command) => self.command(command),
+                Err(error) => {
+                    self.events.push_back(AdapterEvent::Garbage(error));
+                    Some(Reply::Error)
+                }
+            };
+            if let Some(reply) = reply {
+                self.reply(&reply);
+            }
+        }
+    }
+
+    /// A frame the adapter received from the bus at `now_ms` (any zero): sent to the host if
+    /// the channel is open.
+    pub fn deliver(&mut self, frame: &Frame, now_ms: u64) {
+        if self.mode == Mode::Closed {
+            return;
+        }
+        if self.output.len() + MAX_REPLY > MAX_OUTPUT {
+            self.dropped += 1;
+            if self.sticky & StatusFlags::DATA_OVERRUN == 0 {
+                self.events.push_back(AdapterEvent::Overrun);
+            }
+            self.sticky |= StatusFlags::DATA_OVERRUN | StatusFlags::RX_FIFO_FULL;
+            return;
+        }
+        let timestamp_ms = self
+            .timestamps
+            .then(|| (now_ms % u64::from(TIMESTAMP_WRAP_MS)) as u16);
+        self.reply(&Reply::Frame {
+            frame: *frame,
+            timestamp_ms,
+        });
+    }
+
+    /// The bytes waiting for the host.
+    pub fn output(&self) -> &[u8] {
+        &self.output
+    }
+
+    /// Drops the first `n` bytes of [`output`](Self::output) (the host took them).
+    pub fn consume(&mut self, n: usize) {
+        self.output.drain(..n.min(self.output.len()));
+    }
+
+    /// Everything waiting for the host, taken.
+    pub fn take_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.output)
+    }
+
+    pub fn poll_event(&mut self) -> Option<AdapterEvent> {
+        self.events.pop_front()
+    }
+
+    fn reply(&mut self, reply: &Reply) {
+        if self.output.len() + MAX_REPLY > MAX_OUTPUT {
+            // A host that writes without reading: its answers are lost too.
+            self.sticky |= StatusFlags::DATA_OVERRUN;
+            return;
+        }
+        format_reply(reply, &mut self.output);
+    }
+
+    /// Carries out one command; the answer, if any.
+    fn command(&mut self, command: Command) -> Option<Reply> {
+        let closed = self.mode == Mode::Closed;
+        let ok_if = |condition: bool| Some(if condition { Reply::Ok } else { Reply::Error });
+        match command {
+            // slcanpty skips empty lines; python-can sends one and ignores any answer.
+            Command::Empty => None,
+            Command::Bitrate(code) if closed => {
+                self.timing = Some(Timing::Bitrate(STANDARD_BITRATES[usize::from(code)]));
+                Some(Reply::Ok)
+            }
+            Command::Btr { btr0, btr1 } if closed => {
+                self.timing = Some(Timing::Btr { btr0, btr1 });
+                Some(Reply::Ok)
+            }
+            Command::Cnf(regs) if closed => {
+                self.timing = Some(Timing::Cnf(regs));
+                Some(Reply::Ok)
+            }
+            Command::Bitrate(_) | Command::Btr { .. } | Command::Cnf(_) => Some(Reply::Error),
+            Command::Open | Command::ListenOnly if closed => {
+                let listen_only = command == Command::ListenOnly;
+                self.mode = if listen_only {
+                    Mode::ListenOnly
+                } else {
+                    Mode::Open
+                };
+                self.events.push_back(AdapterEvent::Opened {
+                    listen_only,
+                    timing: self.timing,
+                });
+                if self.acceptance_mask != 0xFFFF_FFFF {
+                    self.events.push_back(AdapterEvent::FilterNotModelled {
+                        code: self.acceptance_code,
+                        mask: self.acceptance_mask,
+                    });
+                }
+                Some(Reply::Ok)
+            }
+            Command::Open | Command::ListenOnly => Some(Reply::Error),
+            // Closing a closed channel is harmless: python-can and slcand start with `C`.
+            Command::Close => {
+                if !closed {
+                    self.mode = Mode::Closed;
+                    self.events.push_back(AdapterEvent::Closed);
+                }
+                Some(Reply::Ok)
+            }
+            Command::Transmit(frame) if self.mode == Mode::Open => {
+                self.events.push_back(AdapterEvent::Transmit(frame));
+                Some(Reply::Queued {
+                    extended: frame.is_extended(),
+                })
+            }
+            Command::Transmit(_) => Some(Reply::Error),
+            Command::Status => {
+                let flags = StatusFlags(std::mem::take(&mut self.sticky));
+                Some(Reply::Status(flags))
+            }
+            Command::Version => Some(Reply::Version(self.identity.version)),
+            Command::DetailedVersion => {
+                Some(Reply::DetailedVersion(self.identity.detailed_version))
+            }
+            Command::SerialNumber => Some(Reply::SerialNumber(self.identity.serial)),
+            Command::Timestamps(on) => {
+                self.timestamps = on;
+                Some(Reply::Ok)
+            }
+            Command::AcceptanceCode(code) => {
+                if closed {
+                    self.acceptance_code = code;
+                }
+                ok_if(closed)
+            }
+            Command::AcceptanceMask(mask) => {
+                if closed {
+                    self.acceptance_mask = mask;
+                }
+                ok_if(closed)
+            }
+            // As slcanpty: auto-poll is always on (X1 fine, X0 and polling refused); UART rate,
+            // filter mode, auto-start and the FD data bit rate are accepted and have no effect.
+            Command::Other { letter, argument } => match (letter, argument.as_str()) {
+                (b'X', "1") | (b'U' | b'W' | b'Q' | b'Y', _) => Some(Reply::Ok),
+                _ => Some(Reply::Error),
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(text: &str) -> Frame {
+        text.parse().unwrap()
+    }
+
+    fn exchange(adapter: &mut Adapter, input: &str) -> String {
+        adapter.receive(input.as_bytes());
+        String::from_utf8(adapter.take_output()).unwrap()
+    }
+
+    fn events(adapter: &mut Adapter) -> Vec<AdapterEvent> {
+        std::iter::from_fn(|| adapter.poll_event()).collect()
+    }
+
+    #[test]
+    fn python_can_session() {
+        let mut a = Adapter::default();
+        // python-can 4.6.1 opening with bitrate=500000: C, S6, an empty line, O twice, V, N.
+        assert_eq!(
+            exchange(&mut a, "C\rS6\r\rO\rO\rV\rN\r"),
+            "\r\r\r\x07V1013\rNBL01\r"
+        );
+        assert_eq!(
+            events(&mut a),
+            [AdapterEvent::Opened {
+                listen_only: false,
+                timing: Some(Timing::Bitrate(500_000))
+            }]
+        );
+        assert_eq!(
+            exchange(&mut a, "t1233010203\rT1ABCDEF02DEAD\rr7FF2\r"),
+            "z\rZ\rz\r"
+        );
+        assert_eq!(
+            events(&mut a),
+            [
+                AdapterEvent::Transmit(frame("123#010203")),
+                AdapterEvent::Transmit(frame("1ABCDEF0#DEAD")),
+                AdapterEvent::Transmit(frame("7FF#R2")),
+            ]
+        );
+        a.deliver(&frame("321#AABB"), 5);
+        a.deliver(&frame("12345678#R3"), 6);
+        assert_eq!(
+            String::from_utf8(a.take_output()).unwrap(),
+            "t3212AABB\rR123456783\r"
+        );
+        assert_eq!(exchange(&mut a, "C\r"), "\r");
+        assert_eq!(events(&mut a), [AdapterEvent::Closed]);
+        a.deliver(&frame("321#AABB"), 7);
+        assert!(a.output().is_empty(), "a closed channel receives nothing");
+    }
+
+    #[test]
+    fn slcand_session_with_timestamps_and_listen_only() {
+        let mut a = Adapter::default();
+        // slcand -s5 -l: C, S5, then L; a host that wants timestamps sends Z1 first.
+        assert_eq!(exchange(&mut a, "C\rZ1\rS5\rL\r"), "\r\r\r\r");
+        assert_eq!(
+            events(&mut a),
+            [AdapterEvent::Opened {
+                listen_only: true,
+                timing: Some(Timing::Bitrate(250_000))
+            }]
+        );
+        assert_eq!(
+            exchange(&mut a, "t1230\r"),
+            "\x07",
+            "listen-only sends nothing"
+        );
+        assert!(events(&mut a).is_empty());
+        a.deliver(&frame("123#01"), 60_000 + 59_999);
+        assert_eq!(String::from_utf8(a.take_output()).unwrap(), "t123101EA5F\r");
+    }
+
+    #[test]
+    fn wrong_state_and_garbage_get_bel_and_nothing_else() {
+        let mut a = Adapter::default();
+        assert_eq!(exchange(&mut a, "t1230\r"), "\x07", "frame while closed");
+        assert_eq!(
+            exchange(&mut a, "s031C\rO\rS6\r"),
+            "\r\r\x07",
+            "S while open"
+        );
+        assert_eq!(exchange(&mut a, "M00000000\r"), "\x07", "filter while open");
+        assert_eq!(exchange(&mut a, "hello\r"), "\x07");
+        assert_eq!(exchange(&mut a, "t12\r"), "\x07");
+        assert_eq!(exchange(&mut a, &"x".repeat(5000)), "");
+        assert_eq!(
+            exchange(&mut a, "\r"),
+            "\x07",
+            "an overlong line is one error"
+        );
+        assert_eq!(exchange(&mut a, "F\rX0\rX1\rP\rU1\r"), "F00\r\x07\r\x07\r");
+        let garbage = events(&mut a)
+            .into_iter()
+            .filter(|e| matches!(e, AdapterEvent::Garbage(_)))
+            .count();
+        assert_eq!(garbage, 3);
+    }
+
+    #[test]
+    fn a_host_that_does_not_read_loses_frames_and_f_says_so() {
+        let mut a = Adapter::default();
+        exchange(&mut a, "O\r");
+        events(&mut a);
+        let f = frame("7FF#1122334455667788");
+        for t in 0..10_000 {
+            a.deliver(&f, t);
+        }
+        assert!(a.output().len() <= MAX_OUTPUT);
+        assert!(a.dropped() > 0);
+        assert_eq!(events(&mut a), [AdapterEvent::Overrun]);
+        a.take_output();
+        assert_eq!(exchange(&mut a, "F\r"), "F09\r");
+        assert_eq!(exchange(&mut a, "F\r"), "F00\r", "F clears the overrun");
+    }
+
+    #[test]
+    fn an_acceptance_filter_is_reported_as_not_modelled() {
+        let mut a = Adapter::default();
+        assert_eq!(exchange(&mut a, "M00000123\rm00000000\rO\r"), "\r\r\r");
+        assert_eq!(
+            events(&mut a)[1],
+            AdapterEvent::FilterNotModelled {
+                code: 0x123,
+                mask: 0
+            }
+        );
+    }
+}

@@ -1,0 +1,468 @@
+//! A [`CanBus`] over an SLCAN adapter on a serial port (a USB CDC adapter such as CANable or
+//! Lawicel CANUSB, or a pseudo-terminal served by `buslab slcan serve`).
+//!
+//! Opening closes the channel (`C`), sets the bit rate (`S0`..`S8` for the standard rates,
+//! `sxxyy` with SJA1000 registers at 8 MHz for others), turns timestamps on (`Z1`, optional:
+//! an adapter that refuses is used without), reads the version (`V`) and serial number (`N`),
+//! and opens (`O`, or `L` listen-only). Dropping the bus waits for the answers to the frames
+//! sent, then closes the channel. Frames are sent without waiting for the adapter's answer (as
+//! python-can does); a refused frame (BEL) is logged. Received frames carry the host time, refined by the adapter's timestamps.
+
+use std::collections::VecDeque;
+use std::io::{self, Read, Write};
+use std::os::fd::{AsRawFd, BorrowedFd};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use buslab_can::Frame;
+use buslab_canbus::bus::matches_any;
+use buslab_canbus::{BitTiming, BusError, BusState, CanBus, Filter, Message};
+use serialport::{FlowControl, SerialPort, TTYPort};
+
+use crate::clock::DeviceClock;
+use crate::codec::{
+    CodecError, Command, Line, LineSplitter, Reply, STANDARD_BITRATES, StatusFlags, format_command,
+    parse_reply,
+};
+
+/// The CAN clock `sxxyy` registers are computed for: an SJA1000 at 16 MHz (Lawicel CAN232,
+/// CANUSB) divides by 2; python-can requires the same for its `timing`.
+pub const BTR_CLOCK_HZ: u32 = 8_000_000;
+
+/// Received frames kept while nobody calls `recv`; beyond, the oldest are dropped.
+pub const MAX_INBOX: usize = 262_144;
+
+/// How to open an adapter.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SlcanOptions {
+    /// The serial line's baud rate (ignored by USB CDC adapters and PTYs).
+    pub baud: u32,
+    /// The CAN bit rate; `None` keeps what the adapter has.
+    pub bitrate: Option<u32>,
+    /// Open with `L`: receive only, never transmit or acknowledge.
+    pub listen_only: bool,
+    /// How long to wait for each answer while opening.
+    pub reply_timeout: Duration,
+}
+
+impl Default for SlcanOptions {
+    fn default() -> Self {
+        Self {
+            baud: 115_200,
+            bitrate: None,
+            listen_only: false,
+            reply_timeout: Duration::from_secs(2),
+        }
+    }
+}
+
+/// Why an adapter could not be opened or used.
+#[derive(Debug, thiserror::Error)]
+pub enum SlcanError {
+    #[error("cannot open serial port {device}: {source}")]
+    Open {
+        device: String,
+        source: serialport::Error,
+    },
+    #[error(
+        "bit rate {bitrate} bit/s cannot be set: not a standard rate ({}) and no SJA1000 timing at 8 MHz reaches it",
+        standard_rates()
+    )]
+    Bitrate { bitrate: u32 },
+    #[error("{device}: the adapter refused {command:?} (answered BEL)")]
+    Refused { device: String, command: String },
+    #[error("{device}: no answer to {command:?} within {timeout:?}: is it an SLCAN adapter?")]
+    NoAnswer {
+        device: String,
+        command: String,
+        timeout: Duration,
+    },
+    #[error("{device}: {source}")]
+    Io { device: String, source: io::Error },
+}
+
+fn standard_rates() -> String {
+    STANDARD_BITRATES
+        .iter()
+        .map(u32::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The command that sets `bitrate`: `Sn` for a standard rate, else `sxxyy`.
+pub fn bitrate_command(bitrate: u32) -> Result<Command, SlcanError> {
+    if let Some(code) = STANDARD_BITRATES.iter().position(|&r| r == bitrate) {
+        return Ok(Command::Bitrate(code as u8));
+    }
+    let timing = BitTiming::for_bitrate(BTR_CLOCK_HZ, bitrate, None)
+        .ok()
+        .filter(|t| t.bitrate(BTR_CLOCK_HZ) == bitrate)
+        .ok_or(SlcanError::Bitrate { bitrate })?;
+    let (btr0, btr1) = timing.registers();
+    Ok(Command::Btr { btr0, btr1 })
+}
+
+/// An open SLCAN adapter.
+pub struct SlcanBus {
+    port: TTYPort,
+    device: String,
+    channel: String,
+    splitter: LineSplitter,
+    inbox: VecDeque<Message>,
+    /// Answers owed to frames sent (python-can style: not waited for).
+    owed: usize,
+    filters: Vec<Filter>,
+    clock: DeviceClock,
+    version: Option<[u8; 4]>,
+    serial: Option<[u8; 4]>,
+    refused: u64,
+}
+
+impl SlcanBus {
+    /// Opens the adapter at `device` and its channel.
+    pub fn open(device: &str, options: &SlcanOptions) -> Result<Self, SlcanError> {
+        // A bit rate no command reaches is refused before anything is sent.
+        let bitrate = options.bitrate.map(bitrate_command).transpose()?;
+        let port = serialport::new(device, options.baud)
+            .flow_control(FlowControl::None)
+            .timeout(options.reply_timeout)
+            .open_native()
+            .map_err(|source| SlcanError::Open {
+                device: device.to_string(),
+                source,
+            })?;
+        set_cloexec(&port);
+        let channel = device.rsplit('/').next().unwrap_or(device).to_string();
+        let mut bus = Self {
+            port,
+            device: device.to_string(),
+            channel,
+            splitter: LineSplitter::new(),
+            inbox: VecDeque::new(),
+            owed: 0,
+            filters: Vec::new(),
+            clock: DeviceClock::new(),
+            version: None,
+            serial: None,
+            refused: 0,
+        };
+        let wait = options.reply_timeout;
+        // A channel left open by an earlier user answers C with CR, a closed one may say BEL:
+        // either is fine.
+        bus.request(&Command::Close, wait)?;
+        if let Some(command) = &bitrate {
+            bus.expect_ok(command, wait)?;
+        }
+        if let Ok(Reply::Error) = bus.request(&Command::Timestamps(true), wait) {
+            tracing::debug!("{device}: no timestamps (Z1 refused): frames get the host's time");
+        }
+        if let Ok(Reply::Version(v)) = bus.request(&Command::Version, wait) {
+            bus.version = Some(v);
+        }
+        if let Ok(Reply::SerialNumber(n)) = bus.request(&Command::SerialNumber, wait) {
+            bus.serial = Some(n);
+        }
+        let open = if options.listen_only {
+            Command::ListenOnly
+        } else {
+            Command::Open
+        };
+        bus.expect_ok(&open, wait)?;
+        tracing::info!(
+            "{device}: SLCAN adapter open{} (version {}, serial {})",
+            if options.listen_only {
+                " listen-only"
+            } else {
+                ""
+            },
+            bus.version().unwrap_or("?"),
+            bus.serial_number().unwrap_or("?"),
+        );
+        Ok(bus)
+    }
+
+    /// The adapter's `V` answer (`1013`), if it gave one.
+    pub fn version(&self) -> Option<&str> {
+        self.version
+            .as_ref()
+            .and_then(|v| std::str::from_utf8(v).ok())
+    }
+
+    /// The adapter's `N` answer, if it gave one.
+    pub fn serial_number(&self) -> Option<&str> {
+        self.serial
+            .as_ref()
+            .and_then(|v| std::str::from_utf8(v).ok())
+    }
+
+    /// Reads the status flags (`F`).
+    pub fn status_flags(&mut self, timeout: Duration) -> Result<StatusFlags, SlcanError> {
+        match self.request(&Command::Status, timeout)? {
+            Reply::Status(flags) => Ok(flags),
+            _ => Err(self.refused(&Command::Status)),
+        }
+    }
+
+    fn refused(&self, command: &Command) -> SlcanError {
+        SlcanError::Refused {
+            device: self.device.clone(),
+            command: shown(command),
+        }
+    }
+
+    fn io(&self, source: io::Error) -> SlcanError {
+        SlcanError::Io {
+            device: self.device.clone(),
+            source,
+        }
+    }
+
+    fn expect_ok(&mut self, command: &Command, timeout: Duration) -> Result<(), SlcanError> {
+        match self.request(command, timeout)? {
+            Reply::Error => Err(self.refused(command)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Sends a command and waits for its answer; frames received meanwhile are kept.
+    fn request(&mut self, command: &Command, timeout: Duration) -> Result<Reply, SlcanError> {
+        let mut bytes = Vec::with_capacity(32);
+        format_command(command, &mut bytes);
+        self.port.write_all(&bytes).map_err(|e| self.io(e))?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            let Some(replies) = self.read_some(Some(deadline)).map_err(|e| self.io(e))? else {
+                return Err(SlcanError::NoAnswer {
+                    device: self.device.clone(),
+                    command: shown(command),
+                    timeout,
+                });
+            };
+            let mut answer = None;
+            for reply in replies {
+                if answer.is_some() {
+                    self.later(reply);
+                    continue;
+                }
+                match (&reply, command) {
+                    (Reply::Status(_), Command::Status)
+                    | (Reply::Version(_), Command::Version)
+                    | (Reply::DetailedVersion(_), Command::DetailedVersion)
+                    | (Reply::SerialNumber(_), Command::SerialNumber) => answer = Some(reply),
+                    // Answers to frames sent earlier come first.
+                    (Reply::Ok | Reply::Error | Reply::Queued { .. }, _) if self.owed > 0 => {
+                        self.settle_owed(&reply)
+                    }
+                    (Reply::Ok | Reply::Error, _) => answer = Some(reply),
+                    _ => tracing::debug!("{}: unexpected answer {reply:?}", self.device),
+                }
+            }
+            if let Some(reply) = answer {
+                return Ok(reply);
+            }
+        }
+    }
+
+    /// An answer to a frame sent earlier.
+    fn settle_owed(&mut self, reply: &Reply) {
+        self.owed = self.owed.saturating_sub(1);
+        if *reply == Reply::Error {
+            self.refused += 1;
+            tracing::warn!(
+                "{}: the adapter refused a frame (BEL; {} so far): closed, listen-only or its queue full?",
+                self.device,
+                self.refused
+            );
+        }
+    }
+
+    /// Waits for bytes until `deadline` (`None`: as long as it takes) and reads what came:
+    /// received frames go to the inbox, the other replies are returned in order. `None` when
+    /// the deadline passed with nothing read.
+    fn read_some(&mut self, deadline: Option<Instant>) -> io::Result<Option<Vec<Reply>>> {
+        let mut buf = [0u8; 512];
+        let n = loop {
+            let now = Instant::now();
+            let wait = match deadline {
+                Some(d) if d <= now => return Ok(None),
+                Some(d) => d - now,
+                None => Duration::from_secs(3600),
+            };
+            self.port.set_timeout(wait)?;
+            match self.port.read(&mut buf) {
+                Ok(0) => {
+                    return Err(io::Error::new(
+                        io::ErrorKind::UnexpectedEof,
+                        "the adapter went away",
+                    ));
+                }
+                Ok(n) => break n,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::TimedOut | io::ErrorKind::Interrupted
+                    ) => {}
+                Err(e) => return Err(e),
+            }
+        };
+        let host_s = unix_now();
+        let mut replies = Vec::new();
+        for &byte in &buf[..n] {
+            let parsed = match self.splitter.push(byte) {
+                None => continue,
+                Some(Line::Text(t)) => parse_reply(t, false),
+                Some(Line::Bell(t)) => parse_reply(t, true),
+                Some(Line::TooLong) => Err(CodecError::TooLong),
+            };
+            match parsed {
+                Ok(Reply::Frame {
+                    frame,
+                    timestamp_ms,
+                }) => {
+                    let t = self.clock.stamp(host_s, timestamp_ms);
+                    self.keep(Message::rx(t, self.channel.clone(), frame));
+                }
+                Ok(reply) => replies.push(reply),
+                Err(e) => tracing::debug!("{}: ignored from the adapter: {e}", self.device),
+            }
+        }
+        Ok(Some(replies))
+    }
+
+    /// A reply nobody waits for: only answers to sent frames are expected.
+    fn later(&mut self, reply: Reply) {
+        match reply {
+            Reply::Ok | Reply::Error | Reply::Queued { .. } if self.owed > 0 => {
+                self.settle_owed(&reply)
+            }
+            other => tracing::debug!("{}: unexpected answer {other:?}", self.device),
+        }
+    }
+
+    fn keep(&mut self, m: Message) {
+        if !matches_any(&self.filters, &m.frame) {
+            return;
+        }
+        if self.inbox.len() == MAX_INBOX {
+            self.inbox.pop_front();
+            tracing::warn!(
+                "{}: {MAX_INBOX} received frames not read; dropping the oldest",
+                self.device
+            );
+        }
+        self.inbox.push_back(m);
+    }
+}
+
+/// `S6`, `t1230`: a command as written, for messages.
+fn shown(command: &Command) -> String {
+    let mut bytes = Vec::new();
+    format_command(command, &mut bytes);
+    bytes.pop();
+    String::from_utf8_lossy(&bytes).into_owned()
+}
+
+fn unix_now() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// serialport leaves the descriptor inheritable: a child started meanwhile would keep the port.
+fn set_cloexec(port: &TTYPort) {
+    // SAFETY: the descriptor is owned by `port`, which outlives this borrow.
+    let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
+    let _ = nix::fcntl::fcntl(
+        fd,
+        nix::fcntl::FcntlArg::F_SETFD(nix::fcntl::FdFlag::FD_CLOEXEC),
+    );
+}
+
+impl CanBus for SlcanBus {
+    fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
+        let mut bytes = Vec::with_capacity(32);
+        format_command(&Command::Transmit(*frame), &mut bytes);
+        self.port.write_all(&bytes)?;
+        self.owed += 1;
+        Ok(())
+    }
+
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+        let deadline = timeout.map(|t| Instant::now() + t);
+        loop {
+            if let Some(m) = self.inbox.pop_front() {
+                return Ok(Some(m));
+            }
+            match self.read_some(deadline)? {
+                Some(replies) => replies.into_iter().for_each(|r| self.later(r)),
+                None => return Ok(None),
+            }
+        }
+    }
+
+    fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError> {
+        self.filters = filters.to_vec();
+        self.inbox.retain(|m| matches_any(filters, &m.frame));
+        Ok(())
+    }
+
+    /// From the status flags (`F`): error-passive when the adapter says so, else active
+    /// (Lawicel's flags have no bus-off).
+    fn state(&mut self) -> Result<BusState, BusError> {
+        let flags = self
+            .status_flags(Duration::from_secs(2))
+            .map_err(|e| BusError::Protocol(e.to_string()))?;
+        Ok(if flags.contains(StatusFlags::ERROR_PASSIVE) {
+            BusState::Passive
+        } else {
+            BusState::Active
+        })
+    }
+
+    fn channel_info(&self) -> String {
+        format!("SLCAN adapter on {}", self.device)
+    }
+}
+
+impl Drop for SlcanBus {
+    /// Waits (up to 2 s) for the adapter to answer the frames sent, so closing does not cut
+    /// them off, then closes the channel.
+    fn drop(&mut self) {
+        let deadline = Instant::now() + Duration::from_secs(2);
+        while self.owed > 0 {
+            match self.read_some(Some(deadline)) {
+                Ok(Some(replies)) => replies.into_iter().for_each(|r| self.later(r)),
+                _ => break,
+            }
+        }
+        let mut bytes = Vec::new();
+        format_command(&Command::Close, &mut bytes);
+        let _ = self.port.write_all(&bytes);
+        let _ = self.port.flush();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bit_rates_become_s_codes_or_registers() {
+        assert_eq!(bitrate_command(500_000).unwrap(), Command::Bitrate(6));
+        assert_eq!(bitrate_command(10_000).unwrap(), Command::Bitrate(0));
+        // 33.333 kbit/s (GMLAN) is no S code: SJA1000 registers at 8 MHz.
+        let Command::Btr { btr0, btr1 } = bitrate_command(33_333).unwrap() else {
+            panic!("not registers");
+        };
+        assert_eq!(
+            BitTiming::from_registers(btr0, btr1).bitrate(BTR_CLOCK_HZ),
+            33_333
+        );
+        let err = bitrate_command(999_999).unwrap_err().to_string();
+        assert!(
+            err.starts_with(
+                "bit rate 999999 bit/s cannot be set: not a standard rate (10000, 20000"
+            ),
+            "{err}"
+        );
+    }
+}

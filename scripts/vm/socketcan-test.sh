@@ -1,0 +1,171 @@
+#!/bin/sh
+# The checks run inside the SocketCAN test VM (as /vmtest.sh; busybox sh). Each prints
+# `VMTEST PASS NAME` or `VMTEST FAIL NAME: WHY`, with what the tools printed indented by `  | `;
+# the last line is `VMTEST DONE passed=N failed=M`. crates/buslab/tests/vm_socketcan.rs reads
+# them from the serial console.
+#
+# Waits are for events (a line in a file), looked for every 0.1 s for at most 60 s: the VM is
+# emulated (TCG) and slow, never a fixed sleep.
+
+pass=0
+fail=0
+ok() {
+    echo "VMTEST PASS $1"
+    pass=$((pass + 1))
+}
+bad() {
+    echo "VMTEST FAIL $1: $2"
+    fail=$((fail + 1))
+}
+show() {
+    for f in "$@"; do
+        [ -s "$f" ] && sed "s#^#  | $(basename "$f"): #" "$f"
+    done
+}
+# wait_for FILE TEXT [COMMAND]: until FILE contains TEXT, running COMMAND between looks.
+wait_for() {
+    i=0
+    while ! grep -qF -- "$2" "$1" 2>/dev/null; do
+        [ -n "${3:-}" ] && eval "$3" >/dev/null 2>&1
+        i=$((i + 1))
+        [ "$i" -ge 600 ] && return 1
+        usleep 100000
+    done
+    return 0
+}
+# count FILE TEXT: lines of FILE containing TEXT.
+count() {
+    grep -cF -- "$2" "$1" 2>/dev/null || true
+}
+
+# 1. cansend on vcan0 -> buslab dump socketcan:vcan0
+buslab -v dump socketcan:vcan0 >/tmp/dump1 2>/tmp/dump1.err &
+dump1=$!
+if wait_for /tmp/dump1.err "dump: listening"; then
+    cansend vcan0 123#1122
+    cansend vcan0 12345678#DEAD
+    if wait_for /tmp/dump1 "DE AD" &&
+        grep -qxF "  vcan0  123   [2]  11 22" /tmp/dump1 &&
+        grep -qxF "  vcan0  12345678   [2]  DE AD" /tmp/dump1; then
+        ok cansend-to-buslab-dump
+    else
+        bad cansend-to-buslab-dump "buslab dump did not show both frames"
+    fi
+else
+    bad cansend-to-buslab-dump "buslab dump did not start"
+fi
+show /tmp/dump1 /tmp/dump1.err
+kill $dump1 2>/dev/null
+
+# 1b. An error frame (cansend can write one) decoded by buslab dump -e, in candump's words.
+buslab -v dump -e socketcan:vcan0 >/tmp/dump1e 2>/tmp/dump1e.err &
+dump1e=$!
+if wait_for /tmp/dump1e.err "dump: listening"; then
+    cansend vcan0 20000004#0004000000000000
+    if wait_for /tmp/dump1e "controller-problem{rx-error-warning}" &&
+        grep -qF "  vcan0  20000004   [8]  00 04 00 00 00 00 00 00   ERRORFRAME" /tmp/dump1e; then
+        ok error-frame-decoded
+    else
+        bad error-frame-decoded "buslab dump -e did not decode the error frame"
+    fi
+else
+    bad error-frame-decoded "buslab dump -e did not start"
+fi
+show /tmp/dump1e
+kill $dump1e 2>/dev/null
+
+# 2. buslab send socketcan:vcan0 -> candump
+candump -L vcan0 >/tmp/candump2 2>&1 &
+candump2=$!
+if wait_for /tmp/candump2 "7FF#" "cansend vcan0 7FF#"; then
+    buslab send socketcan:vcan0 321#AABB 00000456#DEAD 7FF#R3 2>/tmp/send2.err
+    if wait_for /tmp/candump2 "vcan0 7FF#R" &&
+        grep -qF "vcan0 321#AABB" /tmp/candump2 &&
+        grep -qF "vcan0 00000456#DEAD" /tmp/candump2; then
+        ok buslab-send-to-candump
+    else
+        bad buslab-send-to-candump "candump did not show buslab's frames"
+    fi
+else
+    bad buslab-send-to-candump "candump saw no probe frame"
+fi
+kill $candump2 2>/dev/null
+show /tmp/candump2 /tmp/send2.err
+
+# 3. buslab bridge between a virtual bus (buslab bus serve) and vcan0. A node on the
+#    virtual bus (buslab dump, -L) acknowledges frames there and shows what crossed.
+buslab bus serve >/tmp/serve3 2>/tmp/serve3.err &
+serve3=$!
+wait_for /tmp/serve3 "socketcand://" || bad bridge "bus serve did not start"
+buslab -v dump vcan0 -L >/tmp/vdump3 2>/tmp/vdump3.err &
+vdump3=$!
+wait_for /tmp/vdump3.err "dump: listening" || bad bridge "dump on the virtual bus did not start"
+buslab -v bridge vcan0 socketcan:vcan0 2>/tmp/bridge3.err &
+bridge3=$!
+candump -L vcan0 >/tmp/candump3 2>&1 &
+candump3=$!
+if wait_for /tmp/bridge3.err "bridge: socketcand://" &&
+    wait_for /tmp/candump3 "7FF#" "cansend vcan0 7FF#"; then
+    # virtual -> vcan0
+    buslab send vcan0 321#AB 2>/tmp/send3.err
+    wait_for /tmp/candump3 "vcan0 321#AB" && to_vcan=yes || to_vcan=no
+    # vcan0 -> virtual
+    cansend vcan0 654#CD
+    wait_for /tmp/vdump3 "vcan0 654#CD" && to_virtual=yes || to_virtual=no
+    # No echo: a sentinel from vcan0 arrives after anything the first frame could have
+    # caused, and each frame is on each bus once.
+    cansend vcan0 111#
+    wait_for /tmp/vdump3 "vcan0 111#"
+    if [ "$to_vcan" = yes ] && [ "$to_virtual" = yes ] &&
+        [ "$(count /tmp/vdump3 '321#AB')" = 1 ] && [ "$(count /tmp/candump3 '321#AB')" = 1 ] &&
+        [ "$(count /tmp/vdump3 '654#CD')" = 1 ] && [ "$(count /tmp/candump3 '654#CD')" = 1 ]; then
+        ok bridge-virtual-bus-and-vcan0
+    else
+        bad bridge-virtual-bus-and-vcan0 "to vcan0: $to_vcan, to the virtual bus: $to_virtual (or a frame twice)"
+    fi
+else
+    bad bridge-virtual-bus-and-vcan0 "the bridge did not start"
+fi
+kill $candump3 2>/dev/null
+show /tmp/candump3 /tmp/vdump3 /tmp/bridge3.err /tmp/send3.err
+
+# 4. An SLCAN adapter served by buslab on the virtual bus, attached with slcand as slcan0.
+buslab slcan serve --bus vcan0 --link /tmp/ttySL0 >/tmp/slcan4 2>/tmp/slcan4.err &
+slcan4=$!
+if wait_for /tmp/slcan4 "/tmp/ttySL0"; then
+    slcand -o -c -s6 -F "$(readlink /tmp/ttySL0)" slcan0 2>/tmp/slcand4.err &
+    slcand4=$!
+    i=0
+    while [ ! -e /sys/class/net/slcan0 ] && [ $i -lt 600 ]; do
+        i=$((i + 1))
+        usleep 100000
+    done
+    ip link set up slcan0 2>>/tmp/slcand4.err
+    candump -L slcan0 >/tmp/candump4 2>&1 &
+    candump4=$!
+    if wait_for /tmp/candump4 "slcan0 7FF#" "buslab send vcan0 7FF#"; then
+        buslab send vcan0 5A5#0102 12345678#R2 2>/tmp/send4.err
+        if wait_for /tmp/candump4 "slcan0 12345678#R" &&
+            grep -qF "slcan0 5A5#0102" /tmp/candump4; then
+            ok slcand-slcan0-candump
+        else
+            bad slcand-slcan0-candump "candump on slcan0 did not show the virtual bus's frames"
+        fi
+        cansend slcan0 3C3#AA
+        if wait_for /tmp/vdump3 "vcan0 3C3#AA"; then
+            ok cansend-slcan0-to-virtual-bus
+        else
+            bad cansend-slcan0-to-virtual-bus "the virtual bus did not get cansend's frame"
+        fi
+    else
+        bad slcand-slcan0-candump "no frame reached candump on slcan0"
+    fi
+    kill $candump4 $slcand4 2>/dev/null
+    show /tmp/candump4 /tmp/slcand4.err /tmp/send4.err
+else
+    bad slcand-slcan0-candump "buslab slcan serve did not start"
+fi
+show /tmp/slcan4.err
+kill $slcan4 $bridge3 $vdump3 $serve3 2>/dev/null
+
+echo "VMTEST DONE passed=$pass failed=$fail"
