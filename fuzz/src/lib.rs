@@ -124,3 +124,78 @@ pub fn drive_byte_device<D: buslab_device::ByteDevice>(
         check(device, now);
     }
 }
+
+/// Checks shared by the log-reader targets (`logs_*`).
+pub mod logs {
+    use std::io::Cursor;
+
+    use buslab_logs::{Entry, LogReader};
+
+    /// Reads every entry the way `buslab play`/`dump` do (going on after an error that is not
+    /// fatal, stopping after a fatal one) and gives the entries read. Fails if the reader does
+    /// not move on: more calls than `max_calls` (a bound derived from the input's size) means
+    /// it hands out the same error or entry forever.
+    pub fn read_all(mut reader: impl LogReader, max_calls: usize) -> Vec<Entry> {
+        let mut entries = Vec::new();
+        let mut errors = 0usize;
+        for _ in 0..max_calls {
+            let mut entry = Entry::default();
+            match reader.read_into(&mut entry) {
+                Ok(true) => entries.push(entry),
+                Ok(false) => return entries,
+                Err(e) if e.is_fatal() => {
+                    // A fatal error ends the log: the next read says so.
+                    let mut after = Entry::default();
+                    assert!(
+                        matches!(reader.read_into(&mut after), Ok(false)),
+                        "the reader went on after the fatal error {e}"
+                    );
+                    return entries;
+                }
+                Err(_) => errors += 1,
+            }
+        }
+        panic!(
+            "the reader does not end: {max_calls} calls gave {} entries and {errors} errors",
+            entries.len()
+        );
+    }
+
+    /// What a format's writer makes of entries, read back by the same format's reader, then
+    /// written again, is the same file: the writer writes what its reader reads, without an
+    /// error, and nothing drifts (after the first pass, which may round the timestamps or map
+    /// the interface names to the format's channels).
+    pub fn assert_writes_back<R: LogReader>(
+        entries: &[Entry],
+        write: impl Fn(&[Entry]) -> Vec<u8>,
+        read: impl Fn(Cursor<Vec<u8>>) -> R,
+    ) {
+        if entries.is_empty() {
+            // An empty log's header carries the time it was written: nothing to compare.
+            return;
+        }
+        let first = write(entries);
+        let again = read_strict(read(Cursor::new(first.clone())), first.len());
+        let second = write(&again);
+        assert!(
+            first == second,
+            "{entries:?}\nwritten as {:?}\nread back as {again:?}\nwritten again as {:?}",
+            String::from_utf8_lossy(&first),
+            String::from_utf8_lossy(&second),
+        );
+    }
+
+    /// Every entry of a file a writer made: any error is a failure.
+    fn read_strict(mut reader: impl LogReader, len: usize) -> Vec<Entry> {
+        let mut entries = Vec::new();
+        for _ in 0..len + 2 {
+            let mut entry = Entry::default();
+            match reader.read_into(&mut entry) {
+                Ok(true) => entries.push(entry),
+                Ok(false) => return entries,
+                Err(e) => panic!("the writer's own output does not read back: {e}"),
+            }
+        }
+        panic!("the writer's own output of {len} bytes does not end");
+    }
+}
