@@ -1,11 +1,12 @@
 //! candump log lines (`candump::parse_line`) and whole logs (`candump::Reader`, what `buslab
 //! play` reads): no panic, an accepted line prints as a line that parses to the same entry (to
-//! the microsecond, as candump logs it), and the reader never hands out more than the input
-//! holds.
+//! the microsecond, as candump logs it), the reader's fast path (`parse_line_into`) agrees with
+//! the full parser, and the reader never hands out more than the input holds.
 #![no_main]
 
 use buslab_fuzz::text;
-use buslab_logs::candump::{Reader, format_line, parse_line};
+use buslab_logs::Entry;
+use buslab_logs::candump::{Reader, format_line, parse_line, parse_line_into};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
@@ -18,6 +19,14 @@ fuzz_target!(|data: &[u8]| {
     }
     let Some(text) = text(data) else { return };
     for line in text.lines() {
+        // The reader's fast path gives what the full parser gives, on any line.
+        let mut fast = Entry::default();
+        let fast = parse_line_into(line.as_bytes(), &mut fast).map(|()| fast);
+        assert_eq!(
+            fast.as_ref().ok(),
+            parse_line(line).as_ref().ok(),
+            "fast and full parsers disagree on {line:?}"
+        );
         let Ok(entry) = parse_line(line) else {
             continue;
         };
