@@ -1,10 +1,12 @@
 //! `buslab`: the command-line front end. Each subcommand lives in `cmd/<name>.rs`.
 
+use std::ffi::OsString;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
 mod cmd;
+mod config;
 mod logging;
 mod units;
 
@@ -15,6 +17,8 @@ mod units;
 struct Cli {
     #[command(flatten)]
     verbosity: logging::Verbosity,
+    #[command(flatten)]
+    config: config::ConfigArgs,
     #[command(subcommand)]
     command: Command,
 }
@@ -56,10 +60,16 @@ enum Command {
     Log(cmd::log::Args),
     /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
     Play(cmd::play::Args),
+    /// The configuration file (buslab.toml): show the effective configuration and where each
+    /// value came from, or write one step by step.
+    Config(cmd::config::Args),
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    // The configuration first: options take their defaults from it.
+    let args: Vec<OsString> = std::env::args_os().collect();
+    config::init(&config::Lookup::scan(&args));
+    let cli = Cli::parse_from(args);
     let chatty = matches!(
         &cli.command,
         Command::Bus(cmd::bus::Args {
@@ -97,6 +107,13 @@ fn describe(err: &anyhow::Error) -> String {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     let quiet = cli.verbosity.quiet();
+    // A configuration that cannot be used stops every command but `config` (which shows the
+    // error, or writes a new file).
+    if let Some(Err(e)) = config::loaded()
+        && !matches!(cli.command, Command::Config(_))
+    {
+        anyhow::bail!("{e}");
+    }
     match cli.command {
         Command::Lab(args) => cmd::lab::run(args, quiet),
         Command::Wire(args) => cmd::wire::run(args),
@@ -115,6 +132,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Monican(args) => cmd::monican::run(args),
         Command::Log(args) => cmd::log::run(args, quiet),
         Command::Play(args) => cmd::play::run(args, quiet),
+        Command::Config(args) => cmd::config::run(args),
     }
 }
 

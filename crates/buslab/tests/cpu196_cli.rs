@@ -262,6 +262,64 @@ fn record_writes_the_configured_acquisition_to_csv() {
     assert!(rows >= 800, "{rows} rows");
 }
 
+/// `record --plot`: the recording as a figure, read back: one line per channel, in volts.
+#[test]
+fn record_plot_shows_each_channel_in_volts() {
+    let b = Board::serve(&["--input", "0=sine:2.5,2,2", "--input", "1=const:1"]);
+    let (csv, svg) = (b.path("rec.csv"), b.path("rec.svg"));
+    let out = b.ok(&[
+        "record",
+        "--config",
+        "1",
+        "--out",
+        s(&csv),
+        "--duration",
+        "1s",
+        "--plot",
+        s(&svg),
+    ]);
+    assert!(out.contains("recorded"), "{out}");
+    let svg = std::fs::read_to_string(&svg).unwrap();
+    let seen = buslab_plot::inspect::parse(&svg).unwrap();
+    let panel = seen.panel("A/D channels").unwrap();
+    assert_eq!(panel.legend(), ["c196 ch0", "c196 ch1"]);
+    assert_eq!(panel.value_title(), Some("voltage (V)"));
+    let span = |points: &[(f64, f64)]| {
+        points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+            (lo.min(p.1), hi.max(p.1))
+        })
+    };
+    // 2.5 V ± 2 V at 2 Hz over a second: both extremes drawn (read to a pixel: 5 V over
+    // ~200 px).
+    let (lo, hi) = span(&panel.series("c196 ch0").unwrap());
+    assert!(
+        (lo - 0.5).abs() < 0.1 && (hi - 4.5).abs() < 0.1,
+        "{lo}..{hi}"
+    );
+    let (lo, hi) = span(&panel.series("c196 ch1").unwrap());
+    assert!(
+        (lo - 1.0).abs() < 0.05 && (hi - 1.0).abs() < 0.05,
+        "{lo}..{hi}"
+    );
+    // A refused --plot name costs no recording: checked before the board is started.
+    let err = b.fails(&[
+        "record",
+        "--out",
+        s(&b.path("x.csv")),
+        "--plot",
+        s(&b.path("x.png")),
+    ]);
+    assert!(err.contains("ending in .svg"), "{err}");
+    let err = b.fails(&[
+        "record",
+        "--out",
+        "/dev/null",
+        "--plot",
+        s(&b.path("x.svg")),
+    ]);
+    assert!(err.contains("/dev/null is not a regular file"), "{err}");
+}
+
 #[test]
 fn flash_bank_write_reads_back_identical_and_survives_a_restart() {
     let b = Board::serve(&[]);

@@ -182,4 +182,9 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
     }
     seen.dedup();
     assert!(seen.len() > 1, "the potentiometer did not move: {seen:?}");
+    // Shown with `--no-capture`: the screen a user sees, for the record.
+    eprintln!(
+        "MoniCAN on the lab's terminal:\n{}\nADC2 of SLIO 3, a second apart: {seen:?}",
+        t.screen.screen().contents()
+    );
 }

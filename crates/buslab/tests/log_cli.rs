@@ -139,6 +139,71 @@ fn info_counts_interfaces_ids_span_and_load() {
     assert!(out.contains("load 0.1 % at 125 kbit/s"), "{out}");
 }
 
+/// `log info --plot`: the load over time per interface, read back from the SVG: a busy second,
+/// a silent one, a light one.
+#[test]
+fn info_plot_shows_the_load_over_time_per_interface() {
+    let dir = tempfile::tempdir().unwrap();
+    // can0: an 8-byte frame every ms for 1 s, nothing for 1 s, one every 10 ms for 1 s;
+    // can1: a 1-byte frame every 10 ms for 3 s.
+    let mut entries: Vec<(u64, &str, &str)> = (0..1000)
+        .map(|i| (i * 1000, "can0", "123#1122334455667788"))
+        .chain((0..100).map(|i| (2_000_000 + i * 10_000, "can0", "123#1122334455667788")))
+        .chain((0..300).map(|i| (i * 10_000, "can1", "7FF#00")))
+        .collect();
+    entries.sort();
+    let log: String = entries
+        .iter()
+        .map(|(us, name, frame)| {
+            format!(
+                "({}.{:06}) {name} {frame}\n",
+                100 + us / 1_000_000,
+                us % 1_000_000
+            )
+        })
+        .collect();
+    std::fs::write(dir.path().join("a.log"), log).unwrap();
+    let (ok, out, err) = run(&["log", "info", "a.log", "--plot", "load.svg"], dir.path());
+    assert!(ok, "{err}");
+    assert!(out.contains("can0        1100 frames"), "{out}");
+    let svg = std::fs::read_to_string(dir.path().join("load.svg")).unwrap();
+    let seen = buslab_plot::inspect::parse(&svg).unwrap();
+    let caption = seen
+        .texts()
+        .into_iter()
+        .find(|t| t.starts_with("bus load per "))
+        .unwrap_or_else(|| panic!("no load panel: {:?}", seen.texts()))
+        .to_owned();
+    let panel = seen.panel(&caption).unwrap();
+    assert_eq!(panel.legend(), ["can0", "can1"]);
+    assert_eq!(panel.value_title(), Some("load (%)"));
+    assert_eq!(panel.time_title(), Some("time (s)"));
+    // The 8-byte frame is 111 bits with its stuff bits and intermission (as `log info`
+    // counts them): every ms at 500 kbit/s that is 22.2 %; every 10 ms 2.2 %.
+    let can0 = panel.series("can0").unwrap();
+    let mean = |from: f64, to: f64| {
+        let inside: Vec<f64> = can0
+            .iter()
+            .filter(|p| from <= p.0 && p.0 < to)
+            .map(|p| p.1)
+            .collect();
+        assert!(inside.len() >= 5, "{from}..{to}: {can0:?}");
+        inside.iter().sum::<f64>() / inside.len() as f64
+    };
+    let (busy, silent, light) = (mean(0.1, 0.9), mean(1.1, 1.9), mean(2.1, 2.9));
+    assert!((busy - 22.2).abs() < 1.5, "busy second: {busy} %");
+    assert!(silent < 0.5, "silent second: {silent} %");
+    assert!((light - 2.2).abs() < 1.0, "light second: {light} %");
+    let can1 = panel.series("can1").unwrap();
+    assert!(can1.iter().all(|p| p.1 < 3.0), "{can1:?}");
+    assert!(can1.last().unwrap().0 > 2.9, "drawn to the end");
+
+    // The figure's name is checked before the log is read.
+    let (ok, out, err) = run(&["log", "info", "a.log", "--plot", "load.png"], dir.path());
+    assert!(!ok && out.is_empty(), "{out}");
+    assert!(err.contains("ending in .svg"), "{err}");
+}
+
 #[test]
 fn cat_prints_candump_lines_and_no_progress_when_piped() {
     let dir = tempfile::tempdir().unwrap();

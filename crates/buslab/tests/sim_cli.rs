@@ -388,3 +388,127 @@ fn a_slio_on_a_bus_it_cannot_follow_is_refused_by_name() {
         "{err}"
     );
 }
+
+/// The seed's experiment as a figure, read back as a person reads it: the sender's TEC climbs
+/// through the warning and error-passive regions to bus-off while the wire is cut, and is
+/// back at 0 once it is repaired; its state lane shows bus-off only during the cut.
+#[test]
+fn plot_of_the_seed_experiment_shows_the_tec_climb_and_the_states() {
+    use buslab_plot::inspect::parse;
+    let dir = tempfile::tempdir().unwrap();
+    let svg_path = dir.path().join("tec.svg");
+    let path = scenario("seed-cut-wire.toml");
+    let out = buslab()
+        .args(["-q", "sim", path.to_str().unwrap(), "--plot"])
+        .arg(&svg_path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let svg = std::fs::read_to_string(&svg_path).unwrap();
+    let seen = parse(&svg).unwrap();
+
+    let tec = seen.panel("transmit error counter").unwrap();
+    assert_eq!(tec.time_title(), Some("time (ms)"));
+    let legend = tec.legend();
+    for name in [
+        "sender",
+        "pc",
+        "slio",
+        "error-passive (≥ 128)",
+        "bus-off (≥ 256)",
+    ] {
+        assert!(legend.iter().any(|l| l == name), "{name} not in {legend:?}");
+    }
+    // The cut (100..290 ms) is shaded and named in the legend.
+    let fault = legend
+        .iter()
+        .find(|l| l.starts_with("fault 1: cut"))
+        .unwrap_or_else(|| panic!("no fault in {legend:?}"));
+    let cut = tec.areas(fault).unwrap();
+    assert!(
+        cut.iter()
+            .any(|a| (a.0 - 100.0).abs() < 3.0 && (a.1 - 290.0).abs() < 3.0),
+        "{cut:?}"
+    );
+
+    let sender = tec.series("sender").unwrap();
+    let at = |from: f64, to: f64| sender.iter().filter(move |p| from <= p.0 && p.0 < to);
+    assert!(
+        at(0.0, 99.0).all(|p| p.1.abs() < 3.0),
+        "TEC 0 before the cut"
+    );
+    // Up: first through the warning level, then error-passive, then bus-off, in that order.
+    let first = |level: f64| {
+        sender
+            .iter()
+            .find(|p| p.1 >= level)
+            .unwrap_or_else(|| panic!("TEC never reaches {level}: {sender:?}"))
+            .0
+    };
+    let (warning, passive, bus_off) = (first(96.0), first(128.0), first(250.0));
+    assert!(
+        100.0 <= warning && warning <= passive && passive <= bus_off && bus_off < 290.0,
+        "{warning} {passive} {bus_off}"
+    );
+    assert!(
+        at(warning, bus_off)
+            .filter(|p| 128.0 < p.1 && p.1 < 250.0)
+            .count()
+            >= 2,
+        "the climb is drawn, not a jump: {sender:?}"
+    );
+    // Down: after the repair the counter is back at 0 and stays there.
+    assert!(at(310.0, 1001.0).all(|p| p.1.abs() < 3.0), "{sender:?}");
+    assert!(at(990.0, 1001.0).count() > 0, "drawn to the end");
+    // The receivers' TEC never moves.
+    let pc = tec.series("pc").unwrap();
+    assert!(pc.iter().all(|p| p.1.abs() < 3.0), "{pc:?}");
+
+    let states = seen.panel("fault-confinement state").unwrap();
+    let off = states.lane_spans("sender", "bus-off").unwrap();
+    assert!(!off.is_empty(), "the sender's lane shows bus-off");
+    assert!(
+        off.iter().all(|s| s.0 >= 100.0 && s.1 <= 300.0),
+        "bus-off only while the wire is cut: {off:?}"
+    );
+    let passive_spans = states.lane_spans("sender", "error-passive").unwrap();
+    assert!(!passive_spans.is_empty(), "error-passive on the way up");
+    let active = states.lane_spans("sender", "error-active").unwrap();
+    assert!(
+        active.iter().any(|s| s.0 < 1.0) && active.iter().any(|s| s.1 > 999.0),
+        "error-active at the start and the end: {active:?}"
+    );
+    assert!(states.lane_spans("pc", "bus-off").unwrap().is_empty());
+}
+
+#[test]
+fn a_plot_file_that_cannot_be_written_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scenario("seed-cut-wire.toml");
+    let refused = |plot: &std::path::Path, says: &str| {
+        let out = buslab()
+            .args(["sim", path.to_str().unwrap(), "--plot"])
+            .arg(plot)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{plot:?} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{plot:?}: {err}");
+        // Refused before simulating: nothing on stdout.
+        assert!(out.stdout.is_empty(), "{plot:?} ran the scenario");
+    };
+    refused(&dir.path().join("tec.png"), "ending in .svg");
+    refused(&dir.path().join("missing/tec.svg"), "does not exist");
+    let folder = dir.path().join("a.svg");
+    std::fs::create_dir(&folder).unwrap();
+    refused(&folder, "is a folder");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "no file left behind"
+    );
+}

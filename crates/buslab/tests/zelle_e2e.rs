@@ -165,6 +165,89 @@ fn cli_measure_follows_the_sine_and_dump_peek_poke_agree() {
     assert_eq!(buslab(&s.pty, &["peek", "12288"]).trim(), "0xab");
 }
 
+/// `measure --plot FILE.svg` draws the channels in volts, read back from the SVG; `--plot`
+/// alone still draws in the terminal.
+#[test]
+fn measure_plot_draws_the_channels_in_volts_or_in_the_terminal() {
+    let s = Served::start(&["--analog", "1=sine:2Hz:2V:2.5V", "--analog", "2=1V"]);
+    let svg_path = s.dir.path().join("m.svg");
+    let csv_path = s.dir.path().join("m.csv");
+    buslab(&s.pty, &["reset"]);
+    let common = [
+        "measure",
+        "-c",
+        "1,2",
+        "--interval",
+        "10ms",
+        "--cycles",
+        "100",
+    ];
+    fn with<'a>(common: &[&'a str], extra: &[&'a str]) -> Vec<&'a str> {
+        [common, extra].concat()
+    }
+    buslab(
+        &s.pty,
+        &with(
+            &common,
+            &[
+                "-o",
+                csv_path.to_str().unwrap(),
+                "--plot",
+                svg_path.to_str().unwrap(),
+            ],
+        ),
+    );
+    let svg = std::fs::read_to_string(&svg_path).unwrap();
+    let seen = buslab_plot::inspect::parse(&svg).unwrap();
+    let panel = seen.panel("analog inputs").unwrap();
+    assert_eq!(panel.legend(), ["ch1", "ch2"], "named as in the CSV");
+    assert_eq!(panel.value_title(), Some("voltage (V)"));
+    let span = |points: &[(f64, f64)]| {
+        points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+            (lo.min(p.1), hi.max(p.1))
+        })
+    };
+    let ch1 = panel.series("ch1").unwrap();
+    let (lo, hi) = span(&ch1);
+    assert!(
+        (lo - 0.5).abs() < 0.2 && (hi - 4.5).abs() < 0.2,
+        "{lo}..{hi}"
+    );
+    // 100 cycles 10 ms apart: about a second.
+    let last = ch1.last().unwrap().0;
+    let seconds = if panel.time_title() == Some("time (ms)") {
+        last / 1000.0
+    } else {
+        last
+    };
+    assert!(
+        (seconds - 0.99).abs() < 0.03,
+        "{:?}: {last}",
+        panel.time_title()
+    );
+    let (lo, hi) = span(&panel.series("ch2").unwrap());
+    assert!(
+        (lo - 1.0).abs() < 0.05 && (hi - 1.0).abs() < 0.05,
+        "{lo}..{hi}"
+    );
+
+    // `--plot` alone: characters on stderr, the CSV on stdout as before.
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["zelle", "--timeout", "30s", "--port"])
+        .arg(&s.pty)
+        .args(with(&common, &["--plot"]))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).starts_with("time_s,ch1,ch2\n"));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains('*') && stderr.contains('+'), "{stderr}");
+}
+
 #[test]
 fn power_cycle_while_armed_resumes_measuring_and_survives_a_restart() {
     let mut s = Served::start(&["--analog", "2=2.5V"]);

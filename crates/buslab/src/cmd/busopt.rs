@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use buslab_backends::{BusUrl, DEFAULT_URL, DynBus, OpenOptions, resolve};
+use buslab_backends::{BusUrl, DynBus, OpenOptions, resolve};
 use buslab_canbus::{BusAdmin, BusError, NodeRef};
 
 use crate::units::Human;
@@ -15,7 +15,9 @@ pub struct BusOpt {
     /// The bus: vcan0 (buslab's bus on this machine), an interface (can0: SocketCAN), an
     /// SLCAN adapter's path (/dev/ttyACM0), or a URL: socketcand://HOST[:PORT][/CHANNEL],
     /// socketcan:IFACE, slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1] (docs/transports.md).
-    #[arg(long, value_name = "BUS", default_value = DEFAULT_URL, value_parser = resolve)]
+    /// Default: the configuration's `bus` (docs/config.md), else vcan0.
+    #[arg(long, value_name = "BUS", default_value = crate::config::get().bus_name.as_str(),
+          value_parser = resolve)]
     pub bus: BusUrl,
 }
 

@@ -18,11 +18,12 @@ use buslab_cpu196::host::{
 use buslab_cpu196::image::{BAUD_RATES, BootConfig, BootEdit};
 use buslab_cpu196::message::{Bridge, Message, Start};
 use buslab_cpu196::pic::Peer;
-use buslab_cpu196::source::{Inputs, Source};
+use buslab_cpu196::source::{FULL_SCALE_V, Inputs, Source};
 use buslab_cpu196::values::{self, ValueError};
 use buslab_cpu196::wire::{PIC_BLOCK, PIC_EEPROM};
 use buslab_link::fs::{read_limited, write_atomic};
 use buslab_link::{LineSettings, SerialLine};
+use buslab_plot::{Figure, Panel, Series};
 use buslab_served::cpu196::{BoardOptions, FileService, spawn_board};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -169,6 +170,10 @@ pub enum Cmd {
         /// How long to record, with a unit (`2s`, `500ms`).
         #[arg(long, default_value = "2s", value_parser = duration, value_name = "DURATION")]
         duration: Duration,
+        /// Also draw the recording as an SVG figure: volts over time, one line per channel
+        /// (virtual channels in a panel of their own).
+        #[arg(long, value_name = "FILE.svg")]
+        plot: Option<PathBuf>,
     },
     /// CPUFORMAT: boot configuration, serial number, PIC kernel, emergency erase.
     #[command(subcommand)]
@@ -516,7 +521,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             start,
             out,
             duration,
-        } => record(&mut c, start, &out, duration),
+            plot,
+        } => record(&mut c, start, &out, duration, plot.as_deref()),
         Cmd::Format(f) => format(&mut c, f, yes),
         Cmd::Powerdown(Confirm { yes: also }) => {
             confirm(yes || also, "power the board down (it cuts its own supply)")?;
@@ -701,7 +707,18 @@ fn record<P: Port>(
     s: StartArgs,
     out_path: &Path,
     duration: Duration,
+    plot: Option<&Path>,
 ) -> anyhow::Result<()> {
+    if let Some(path) = plot {
+        super::plot::check_target(path)?;
+        // The figure is drawn from the CSV read back: a device or FIFO cannot be read back.
+        if std::fs::metadata(out_path).is_ok_and(|m| !m.is_file()) {
+            bail!(
+                "--plot draws the recording from --out read back; {} is not a regular file",
+                out_path.display()
+            );
+        }
+    }
     let mut recorder = new_recorder(c, out_path)?;
     // log8 samples expand through the board's own table.
     recorder.set_log_table(c.log_table()?);
@@ -727,7 +744,60 @@ fn record<P: Port>(
         "recorded {samples} samples from {frames} frames into {}",
         out_path.display()
     );
+    if let Some(path) = plot {
+        super::plot::write(&recording_figure(out_path)?, path)?;
+    }
     Ok(())
+}
+
+/// The `--plot` figure of a recording, read back from its CSV (`t_s,source,channel,value,volts`,
+/// see the `Recorder`): a line per source and channel, in volts; virtual channels (no volts)
+/// in their own panel.
+fn recording_figure(csv: &Path) -> anyhow::Result<Figure> {
+    use std::collections::BTreeMap;
+    use std::io::BufRead;
+    let context = |line: usize| format!("reading back {} line {line}", csv.display());
+    let file = std::fs::File::open(csv).with_context(|| context(0))?;
+    let mut volts: BTreeMap<(String, u32), Series> = BTreeMap::new();
+    let mut virtual_values: BTreeMap<u32, Series> = BTreeMap::new();
+    for (i, line) in std::io::BufReader::new(file).lines().enumerate().skip(1) {
+        let line = line.with_context(|| context(i + 1))?;
+        let fields: Vec<&str> = line.split(',').collect();
+        let [t, source, channel, value, v] = fields[..] else {
+            bail!("{}: expected 5 fields: {line}", context(i + 1));
+        };
+        let number = |f: &str| f.parse::<f64>().with_context(|| context(i + 1));
+        let (t, channel) = (
+            number(t)?,
+            channel.parse::<u32>().with_context(|| context(i + 1))?,
+        );
+        if v.is_empty() {
+            virtual_values
+                .entry(channel)
+                .or_insert_with(|| Series::new(format!("{source} ch{channel}")))
+                .push(t, number(value)?);
+        } else {
+            volts
+                .entry((source.to_owned(), channel))
+                .or_insert_with(|| Series::new(format!("{source} ch{channel}")))
+                .push(t, number(v)?);
+        }
+    }
+    let mut analog = Panel::new("A/D channels", "voltage", Some("V"));
+    analog.covers = Some((0.0, FULL_SCALE_V));
+    analog.series = volts.into_values().collect();
+    let mut virtuals = Panel::new("virtual channels", "value", None);
+    virtuals.series = virtual_values.into_values().collect();
+    let mut figure = Figure::new(format!("CPU196 recording {}", csv.display()));
+    // A panel without a series says nothing; a figure with none is refused when drawn.
+    figure.panels = [analog, virtuals]
+        .into_iter()
+        .filter(|p| !p.series.is_empty())
+        .collect();
+    if figure.panels.is_empty() {
+        bail!("no samples were recorded: nothing to plot");
+    }
+    Ok(figure)
 }
 
 /// A file's bytes, at most `max`, padded with FFh to `max`.

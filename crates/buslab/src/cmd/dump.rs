@@ -22,7 +22,8 @@ pub struct Args {
     /// Buses with candump filters, as candump takes interfaces: `vcan0`,
     /// `can0,123:7FF,~200:700,#FFFFFFFF` (ID:MASK, ~ inverted, #ERRORMASK, j to AND them);
     /// several buses are printed together. A name is vcan0 (buslab's bus on this machine),
-    /// an interface (can0), an SLCAN adapter's path or a URL. Default: vcan0.
+    /// an interface (can0), an SLCAN adapter's path or a URL. Default: the configuration's
+    /// `bus` (docs/config.md), else vcan0.
     #[arg(value_name = "IFACE[,FILTER…]")]
     pub interfaces: Vec<BusSpec>,
     /// One more bus, without filters (the URL form of IFACE).
@@ -33,6 +34,10 @@ pub struct Args {
     /// (python-can's SQLite).
     #[arg(short = 'l', long = "log", value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// Write every frame to the configuration's `log_file` (JerryCAN's "write to the log
+    /// file"), as -l FILE does (docs/config.md).
+    #[arg(short = 'w', long = "write-log", conflicts_with = "log")]
+    pub write_log: bool,
     /// The log's format whatever FILE's extension: candump, asc, blf, trc, trc11, csv, pcap,
     /// pcapng or sqlite.
     #[arg(long, value_name = "FORMAT", requires = "log")]
@@ -117,7 +122,10 @@ fn sources(args: &Args) -> Vec<Source> {
         });
     }
     if specs.is_empty() {
-        specs.push("vcan0".parse().expect("the default bus name"));
+        specs.push(BusSpec {
+            url: crate::config::get().bus.clone(),
+            filters: FilterSet::default(),
+        });
     }
     let width = specs.iter().map(|s| s.url.channel().len()).max();
     let several = specs.len() > 1;
@@ -149,7 +157,14 @@ fn dump(args: Args) -> anyhow::Result<()> {
             "-L writes absolute times or, with -t z, times from zero: -t d and -t A do not apply"
         );
     }
-    let mut log = match &args.log {
+    let log_path = match (&args.log, args.write_log) {
+        (Some(path), _) => Some(path.clone()),
+        (None, true) => Some(crate::config::get().log_file.clone().context(
+            "-w writes to the configuration's log_file, and none is set (docs/config.md)",
+        )?),
+        (None, false) => None,
+    };
+    let mut log = match &log_path {
         Some(path) => Some(Log::create(path, args.to, args.extra)?),
         None => None,
     };

@@ -74,6 +74,9 @@ pub struct InfoArgs {
     /// The bit rate the load is estimated for, in bit/s.
     #[arg(long, value_name = "BIT/S", default_value_t = 500_000)]
     pub bitrate: u32,
+    /// Also draw the bus load over time, per interface, as an SVG figure.
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -329,6 +332,10 @@ struct Stats {
 const MAX_IDS: usize = 100_000;
 
 fn info(args: InfoArgs) -> anyhow::Result<()> {
+    if let Some(path) = &args.plot {
+        super::plot::check_target(path)?;
+    }
+    let mut load = args.plot.as_ref().map(|_| super::plot::LoadWindows::new());
     let format = input_format(&args.input)?;
     let path = &args.input.input;
     let mut source = open_source(path, format, &OpenOptions::default())?;
@@ -349,7 +356,11 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
                 s.remote += u64::from(f.is_remote());
                 s.extended += u64::from(f.is_extended());
                 // Wire bits with stuffing, plus the 3-bit intermission.
-                s.bits += buslab_can::wire::encode(f).on_bus().len() as u64 + 3;
+                let bits = buslab_can::wire::encode(f).on_bus().len() as u64 + 3;
+                s.bits += bits;
+                if let Some(load) = &mut load {
+                    load.add(&e.interface, e.timestamp, bits);
+                }
                 let key = (f.is_extended(), f.id().as_raw());
                 if let Some(n) = s.ids.get_mut(&key) {
                     *n += 1;
@@ -432,6 +443,14 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
         if !top.is_empty() {
             writeln!(out, "{:<11} busiest: {}", "", top.join(", "))?;
         }
+    }
+    if let (Some(load), Some(plot)) = (load, &args.plot) {
+        let title = format!(
+            "{}: bus load at {} kbit/s",
+            path.display(),
+            f64::from(args.bitrate) / 1000.0
+        );
+        super::plot::write(&load.figure(title, args.bitrate), plot)?;
     }
     Ok(())
 }

@@ -4,14 +4,15 @@
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use buslab_backends::{BusUrl, DEFAULT_URL, resolve};
+use buslab_backends::{BusUrl, resolve};
 use buslab_can::Frame;
 
 use super::busopt::{admin, confirm_sent, open, set_name};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The bus (default vcan0, buslab's bus on this machine): a name or URL as IFACE takes.
+    /// The bus (default: the configuration's `bus`, else vcan0, buslab's bus on this
+    /// machine): a name or URL as IFACE takes.
     #[arg(long, value_name = "BUS", value_parser = resolve)]
     pub bus: Option<BusUrl>,
     /// `[IFACE] FRAME…`: the interface as cansend takes it (vcan0, can0, /dev/ttyACM0 or a
@@ -58,7 +59,7 @@ fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
         ),
         (Some(name), None) => resolve(name)?,
         (None, Some(url)) => url.clone(),
-        (None, None) => DEFAULT_URL.parse()?,
+        (None, None) => crate::config::get().bus.clone(),
     };
     if frames.is_empty() {
         bail!("no frame to send: expected [IFACE] FRAME…, e.g. `buslab send vcan0 123#1122`");

@@ -10,6 +10,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
+use buslab_plot::{Band, Figure, Lane, Panel, Series, Shade, StateLanes};
 use buslab_sim::observe::signal_names;
 use buslab_sim::time::seconds_micros;
 use buslab_sim::{
@@ -39,6 +40,11 @@ pub struct Args {
     /// the scenario's `sample_every` (1 ms if it has none).
     #[arg(long, value_name = "FILE")]
     pub counters: Option<PathBuf>,
+    /// Draw every node's TEC and REC over time and its fault-confinement state as an SVG
+    /// figure, the scenario's faults shaded (samples as for --counters, plus every state
+    /// change).
+    #[arg(long, value_name = "FILE.svg")]
+    pub plot: Option<PathBuf>,
 }
 
 /// Bit-times simulated between two flushes of the output.
@@ -76,6 +82,9 @@ pub fn read_scenario(path: &std::path::Path) -> anyhow::Result<String> {
 }
 
 fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
+    if let Some(path) = &args.plot {
+        super::plot::check_target(path)?;
+    }
     let text = read_scenario(&args.scenario)?;
     let mut scenario = Scenario::from_toml(&text)
         .with_context(|| format!("bad scenario {}", args.scenario.display()))?;
@@ -85,7 +94,7 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let end = args
         .duration
         .map_or(scenario.duration, |d| d.to_bits(scenario.bitrate));
-    if args.counters.is_some() && scenario.sample_every.is_none() {
+    if (args.counters.is_some() || args.plot.is_some()) && scenario.sample_every.is_none() {
         scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
     }
     let mut sim = scenario.build();
@@ -111,6 +120,7 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
         None => None,
     };
 
+    let mut plot = args.plot.as_ref().map(|_| CounterPlot::new(&scenario));
     let stdout = io::stdout();
     let mut out = BufWriter::new(stdout.lock());
     let mut printer = Printer::new(&scenario, &args);
@@ -126,6 +136,9 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
                 writeln!(w, "{secs}.{us:06},{name},{},{},{state}", c.tec, c.rec)?;
             }
         }
+        if let Some(plot) = &mut plot {
+            plot.add(&records, &series);
+        }
         if !quiet {
             printer.print_merged(&mut out, &records, &series)?;
         }
@@ -139,9 +152,128 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     if let Some(mut w) = counters {
         w.flush()?;
     }
+    if let (Some(plot), Some(path)) = (plot, &args.plot) {
+        let title = format!("{}: error counters and states", args.scenario.display());
+        super::plot::write(&plot.figure(&scenario, title, sim.now()), path)?;
+    }
     summary(&mut out, &sim)?;
     out.flush()?;
     Ok(())
+}
+
+/// The `--plot` figure: each node's TEC and REC over time with the fault-confinement regions
+/// shaded, its state in a lane below, the scenario's faults shaded across.
+struct CounterPlot {
+    bitrate: u32,
+    tec: Vec<Series>,
+    rec: Vec<Series>,
+    lanes: Vec<Lane>,
+}
+
+/// The lanes' states, in the order of [`state_index`].
+const STATES: [(&str, Shade); 3] = [
+    ("error-active", Shade::Good),
+    ("error-passive", Shade::Warning),
+    ("bus-off", Shade::Danger),
+];
+
+fn state_index(state: ErrorState) -> usize {
+    match state {
+        ErrorState::Active => 0,
+        ErrorState::Passive => 1,
+        ErrorState::BusOff => 2,
+    }
+}
+
+impl CounterPlot {
+    /// Every node starts error-active with both counters at 0.
+    fn new(scenario: &Scenario) -> Self {
+        let names = || scenario.nodes.iter().map(|n| n.name.as_str());
+        let start = |name| Series::from_points(name, [(0.0, 0.0)]);
+        let lanes = names()
+            .map(|name| {
+                let mut lane = Lane::new(name);
+                lane.enter(0.0, state_index(ErrorState::Active));
+                lane
+            })
+            .collect();
+        CounterPlot {
+            bitrate: scenario.bitrate,
+            tec: names().map(start).collect(),
+            rec: names().map(start).collect(),
+            lanes,
+        }
+    }
+
+    /// The samples, and the state changes at the bit-time they happened, in time order.
+    fn add(&mut self, records: &[Record], series: &[CounterSample]) {
+        let changes = records.iter().filter_map(|r| match &r.what {
+            Happening::Node {
+                node,
+                event: Event::StateChanged { to, tec, rec, .. },
+            } => Some((r.time, *node, *tec, *rec, *to)),
+            _ => None,
+        });
+        let samples = series
+            .iter()
+            .map(|c| (c.time, c.node, c.tec, c.rec, c.state));
+        let mut points: Vec<_> = changes.chain(samples).collect();
+        points.sort_by_key(|p| p.0);
+        for (time, node, tec, rec, state) in points {
+            let t = time as f64 / f64::from(self.bitrate);
+            self.tec[node].push(t, f64::from(tec));
+            self.rec[node].push(t, f64::from(rec));
+            self.lanes[node].enter(t, state_index(state));
+        }
+    }
+
+    fn figure(mut self, scenario: &Scenario, title: String, end: BitTime) -> Figure {
+        let seconds = |t: BitTime| t as f64 / f64::from(scenario.bitrate);
+        for lane in &mut self.lanes {
+            lane.end(seconds(end));
+        }
+        let warning = || Band::new(96.0, 128.0, "error warning (≥ 96)", Shade::Caution);
+        let passive = |to| Band::new(128.0, to, "error-passive (≥ 128)", Shade::Warning);
+        let mut tec = Panel::new("transmit error counter", "TEC", None);
+        tec.series = self.tec;
+        tec.bands = vec![
+            warning(),
+            passive(256.0),
+            Band::new(256.0, f64::INFINITY, "bus-off (≥ 256)", Shade::Danger),
+        ];
+        tec.covers = Some((0.0, 270.0));
+        let mut rec = Panel::new("receive error counter", "REC", None);
+        rec.series = self.rec;
+        rec.bands = vec![warning(), passive(f64::INFINITY)];
+        rec.covers = Some((0.0, 140.0));
+        let mut figure = Figure::new(title);
+        figure.panels = vec![tec, rec];
+        figure.lanes = Some(StateLanes {
+            caption: "fault-confinement state".to_owned(),
+            states: STATES
+                .iter()
+                .map(|(name, shade)| (name.to_string(), *shade))
+                .collect(),
+            lanes: self.lanes,
+        });
+        figure.time_bands = scenario
+            .faults
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.start < end)
+            .map(|(i, f)| {
+                let label = format!("fault {}: {}", i + 1, scenario.describe_fault(i));
+                Band::new(
+                    seconds(f.start),
+                    seconds(f.end.min(end)),
+                    label,
+                    Shade::Event,
+                )
+            })
+            .collect();
+        figure.time_range = Some((0.0, seconds(end)));
+        figure
+    }
 }
 
 /// Formats trace records as candump log lines and `#` status lines.

@@ -32,7 +32,9 @@ pub enum SlcanCommand {
 pub struct ServeArgs {
     /// The bus the adapter is plugged into: vcan0 (buslab's bus on this machine), an
     /// interface (can0), a device path or a bus URL.
-    #[arg(long, value_name = "BUS", default_value = "vcan0", value_parser = resolve)]
+    /// Default: the configuration's `bus` (docs/config.md), else vcan0.
+    #[arg(long, value_name = "BUS", default_value = crate::config::get().bus_name.as_str(),
+          value_parser = resolve)]
     pub bus: BusUrl,
     /// Also make this path a symlink to the pseudo-terminal (e.g. /tmp/ttyACM0); removed on
     /// exit.

@@ -9,9 +9,12 @@ use std::time::Duration;
 use anyhow::Context;
 use buslab_link::fs::{read_limited, write_atomic};
 use buslab_link::{ControlSocket, SerialLine};
+use buslab_plot::{Figure, Panel, Series};
 use buslab_served::zelle::{CellOptions, ServedCell, analog_input};
-use buslab_zelle::analog::to_volts;
-use buslab_zelle::client::{Client, DEFAULT_TIMEOUT, Port, Progress, SeriesParams, Transfer};
+use buslab_zelle::analog::{FULL_SCALE_VOLTS, to_volts};
+use buslab_zelle::client::{
+    Client, DEFAULT_TIMEOUT, Measurement, Port, Progress, SeriesParams, Transfer,
+};
 use buslab_zelle::control::{self, parse_number_in};
 use buslab_zelle::timing::LINE;
 use buslab_zelle::{DATA_AREA, EXT_RAM_SIZE, PARAMS_LEN, hex_listing};
@@ -173,9 +176,10 @@ pub struct MeasureArgs {
     /// Write volts instead of raw readings 0..255.
     #[arg(long)]
     pub volts: bool,
-    /// Draw the series in the terminal (on stderr).
-    #[arg(long)]
-    pub plot: bool,
+    /// Draw the series: alone, as characters in the terminal (on stderr); with a file name,
+    /// as an SVG figure (volts over time, one line per channel).
+    #[arg(long, value_name = "FILE.svg", num_args = 0..=1)]
+    pub plot: Option<Option<PathBuf>>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -305,6 +309,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn measure<P: Port>(cell: &mut Client<P>, m: MeasureArgs) -> anyhow::Result<()> {
     let params = SeriesParams::with_interval(&m.channels, m.cycles, m.interval)?;
+    if let Some(Some(path)) = &m.plot {
+        super::plot::check_target(path)?;
+    }
     let bar = indicatif::ProgressBar::new(1000);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{msg:>10} [{bar:40}] {percent:>3}%")
@@ -340,10 +347,54 @@ fn measure<P: Port>(cell: &mut Client<P>, m: MeasureArgs) -> anyhow::Result<()> 
         }
         None => print_stdout(&csv)?,
     }
-    if m.plot {
-        eprint!("{}", series.plot(72, 16));
+    match &m.plot {
+        Some(None) => eprint!("{}", series.plot(72, 16)),
+        Some(Some(path)) => super::plot::write(&measurement_figure(&series), path)?,
+        None => {}
     }
     Ok(())
+}
+
+/// The `--plot FILE.svg` figure: every channel in volts over time (channel k of a cycle was
+/// converted k ms after the cycle's start), named as in the CSV header.
+fn measurement_figure(series: &Measurement) -> Figure {
+    let mut panel = Panel::new("analog inputs", "voltage", Some("V"));
+    panel.covers = Some((0.0, FULL_SCALE_VOLTS));
+    panel.series = csv_column_names(&series.channels)
+        .into_iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let points = series.rows.iter().filter_map(|row| {
+                let t = row.time_ns as f64 * 1e-9 + k as f64 * 1e-3;
+                Some((t, to_volts(*row.values.get(k)?)))
+            });
+            Series::from_points(name, points)
+        })
+        .collect();
+    let channels: Vec<String> = series.channels.iter().map(u8::to_string).collect();
+    Figure {
+        panels: vec![panel],
+        ..Figure::new(format!(
+            "ZELLE: {} cycles of channel(s) {} every {} ms",
+            series.rows.len(),
+            channels.join(", "),
+            series.params.interval_ms
+        ))
+    }
+}
+
+/// `ch1`, `ch2`, …; a channel measured twice per cycle: `ch1`, `ch1_2` (as the CSV's header).
+fn csv_column_names(channels: &[u8]) -> Vec<String> {
+    channels
+        .iter()
+        .enumerate()
+        .map(
+            |(i, ch)| match channels[..i].iter().filter(|&c| c == ch).count() {
+                0 => format!("ch{ch}"),
+                d => format!("ch{ch}_{}", d + 1),
+            },
+        )
+        .collect()
 }
 
 /// Writes to stdout; a reader that went away (`| head`) just ends the output.

@@ -1,0 +1,304 @@
+//! `buslab.toml`, the configuration file (JerryCAN's `jerrycan.properties`, seed 002 §5.4.1):
+//! the default bus, the log file, the loader's and the mail notifier's identifiers, the mail
+//! server, the manager's polling interval and the SJA1000 controller (docs/config.md).
+//!
+//! Every value comes from one of four places, each overriding the one before: the built-in
+//! default, the configuration file, an environment variable `BUSLAB_<KEY>` and `--set KEY=VALUE`
+//! on the command line. [`load`] reads them and says where each value came from; the binary
+//! loads once before it parses its arguments ([`init`]) so that options can take their
+//! defaults from [`get`]:
+//!
+//! ```ignore
+//! #[arg(long, default_value_t = crate::config::get().loader_id)]
+//! pub id: u16,
+//! ```
+
+mod keys;
+mod lookup;
+mod render;
+mod value;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::{LazyLock, OnceLock};
+use std::time::Duration;
+
+use buslab_backends::BusUrl;
+use buslab_canbus::{ManagerConfig, Sja1000Config};
+
+pub use keys::{FilterKind, KEYS, Key, MODE_NAMES, Settings};
+pub use lookup::{ConfigArgs, Found, Lookup, load};
+pub use render::{registers, render_file, render_show};
+pub use value::{Raw, integer_text};
+
+/// The largest configuration file read (a hand-written file is a few hundred bytes).
+pub const MAX_FILE_BYTES: u64 = 64 * 1024;
+/// The file's name in the current directory and in the user's configuration directory.
+pub const FILE_NAME: &str = "buslab.toml";
+/// The environment variable naming the configuration file.
+pub const ENV_FILE: &str = "BUSLAB_CONFIG";
+/// The environment variable holding the mailbox's password (never in the file or on the
+/// command line, where `ps` would show it).
+pub const ENV_MAIL_PASSWORD: &str = "BUSLAB_MAIL_PASSWORD";
+
+/// The effective configuration, every value checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Config {
+    /// The bus a command uses when none is given (`--bus`, IFACE).
+    pub bus: BusUrl,
+    /// The bus as written (`vcan0`, `can0`, a URL): what `--bus` shows as its default.
+    pub bus_name: String,
+    /// The log `buslab dump -w` writes (JerryCAN's `logfile`); `~/` is the home folder.
+    pub log_file: Option<PathBuf>,
+    /// The identifier of the loader handshake's remote frame (JerryCAN's `idloader`).
+    pub loader_id: u16,
+    /// The identifier the mail notifier announces mail on (JerryCAN's `idmail`).
+    pub mail_id: u16,
+    pub mail: MailSettings,
+    /// How long the host library's manager pauses between polls of the chip when no request
+    /// arrives (JerryCAN's `managersleepingtime`; zero polls without pause).
+    pub manager_poll_interval: Duration,
+    /// The SJA1000 configuration (JerryCAN's configuration assistant), validated.
+    pub controller: Sja1000Config,
+}
+
+/// The mail server the notifier polls.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MailSettings {
+    /// The IMAP server's host name (JerryCAN's `host`); none configured by default.
+    pub host: Option<String>,
+    /// The IMAP server's port. Default 143.
+    pub port: u16,
+    pub user: Option<String>,
+    /// From `$BUSLAB_MAIL_PASSWORD` only; [`MailSettings::password_or_prompt`] asks for it
+    /// otherwise. Never printed.
+    pub password: Option<Password>,
+    /// How often the mailbox is checked (JerryCAN's `mailsleepingtime`). Default 60 s.
+    pub interval: Duration,
+}
+
+/// A password: shown as `********` by `Debug`, read with [`Password::expose`].
+#[derive(Clone, PartialEq, Eq)]
+pub struct Password(String);
+
+impl Password {
+    pub fn new(text: impl Into<String>) -> Self {
+        Self(text.into())
+    }
+
+    // For the commands of issue 13 that read the configuration (load, mail).
+    #[allow(dead_code)]
+    /// The password itself, for the code that logs in.
+    pub fn expose(&self) -> &str {
+        &self.0
+    }
+}
+
+impl MailSettings {
+    // For the commands of issue 13 that read the configuration (load, mail).
+    #[allow(dead_code)]
+    /// The password from `$BUSLAB_MAIL_PASSWORD`, else asked for on the terminal (not echoed).
+    pub fn password_or_prompt(&self) -> Result<Password, PromptError> {
+        if let Some(p) = &self.password {
+            return Ok(p.clone());
+        }
+        if !std::io::IsTerminal::is_terminal(&std::io::stdin()) {
+            return Err(PromptError::NoTerminal(ENV_MAIL_PASSWORD));
+        }
+        let user = self.user.as_deref().unwrap_or("the mailbox");
+        let host = self.host.as_deref().unwrap_or("the mail server");
+        inquire::Password::new(&format!("Password of {user} on {host}:"))
+            .without_confirmation()
+            .with_display_mode(inquire::PasswordDisplayMode::Hidden)
+            .prompt()
+            .map(Password)
+            .map_err(|e| PromptError::Prompt(e.to_string()))
+    }
+}
+
+/// Why a password could not be had.
+#[allow(dead_code)] // Built by `password_or_prompt`, for `buslab mail`.
+#[derive(Debug, thiserror::Error)]
+pub enum PromptError {
+    #[error("no password: set ${0} or run on a terminal to be asked")]
+    NoTerminal(&'static str),
+    #[error("no password: {0}")]
+    Prompt(String),
+}
+
+impl fmt::Debug for Password {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("Password(********)")
+    }
+}
+
+impl Config {
+    // For the commands of issue 13 that read the configuration (load, mail).
+    #[allow(dead_code)]
+    /// The bit rate the controller configuration gives (its timing and crystal).
+    pub fn controller_bitrate(&self) -> u32 {
+        self.controller
+            .bit_timing()
+            .map_or(0, |t| t.bitrate(self.controller.can_clock_hz()))
+    }
+
+    // For the commands of issue 13 that read the configuration (load, mail).
+    #[allow(dead_code)]
+    /// The host library's manager as configured: `Manager::start(driver,
+    /// config.manager_config())`.
+    pub fn manager_config(&self) -> ManagerConfig {
+        ManagerConfig {
+            poll_interval: self.manager_poll_interval,
+            ..ManagerConfig::default()
+        }
+    }
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Settings::default()
+            .finish(&keys::Sources::defaults())
+            .expect("the defaults are valid")
+    }
+}
+
+/// Where a value came from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Source {
+    Default,
+    /// A line of a configuration file.
+    File {
+        path: PathBuf,
+        line: usize,
+    },
+    /// An environment variable.
+    Env(String),
+    /// `--set KEY=VALUE`.
+    CommandLine,
+}
+
+impl fmt::Display for Source {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Source::Default => f.write_str("default"),
+            Source::File { path, line } => write!(f, "{}:{line}", path.display()),
+            Source::Env(var) => write!(f, "environment {var}"),
+            Source::CommandLine => f.write_str("--set"),
+        }
+    }
+}
+
+/// The configuration, the file it was read from, and where each value came from.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    pub config: Config,
+    /// The typed values per key, as the wizard edits them.
+    pub settings: Settings,
+    /// The file read, and how it was found; `None` when there is none.
+    pub file: Option<(PathBuf, Found)>,
+    sources: keys::Sources,
+}
+
+impl Loaded {
+    /// Where `key` (`mail.host`) got its value.
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub fn source(&self, key: &str) -> Option<&Source> {
+        keys::index(key).map(|i| self.sources.get(i))
+    }
+}
+
+/// A configuration that cannot be used; the message names where the value came from (file
+/// and line, environment variable or command line), the key, the value and what is allowed.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{origin}: {key} = {value}: {allowed}")]
+    Value {
+        origin: Source,
+        key: &'static str,
+        value: String,
+        allowed: String,
+    },
+    #[error("{origin}: unknown key {key}{hint}")]
+    UnknownKey {
+        origin: Source,
+        key: String,
+        /// ` (did you mean mail.host?)`, or empty.
+        hint: String,
+    },
+    #[error("{}:{line}:{column}: {message}", path.display())]
+    Syntax {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error(
+        "{origin}: the mail password is never read from a file or the command line: set $BUSLAB_MAIL_PASSWORD, or let the command ask for it"
+    )]
+    PasswordNotHere { origin: Source },
+    #[error("--set {0:?}: expected KEY=VALUE, e.g. --set mail.interval=30s")]
+    SetSyntax(String),
+    #[error("configuration file {} ({found}): {source}", path.display())]
+    Read {
+        path: PathBuf,
+        found: Found,
+        #[source]
+        source: buslab_link::fs::ReadError,
+    },
+    /// Two keys that cannot be given together.
+    #[error("{first} ({first_source}) and {second} ({second_source}) {problem}")]
+    Conflict {
+        first: &'static str,
+        first_source: Source,
+        second: &'static str,
+        second_source: Source,
+        problem: &'static str,
+    },
+}
+
+static LOADED: OnceLock<Result<Loaded, ConfigError>> = OnceLock::new();
+static DEFAULT: LazyLock<Config> = LazyLock::new(Config::default);
+
+/// Loads the configuration for this process (once; later calls return the first result).
+pub fn init(lookup: &Lookup) -> &'static Result<Loaded, ConfigError> {
+    LOADED.get_or_init(|| {
+        let cwd = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
+        load(
+            lookup,
+            &|var| std::env::var(var).ok(),
+            &cwd,
+            user_file().as_deref(),
+        )
+    })
+}
+
+/// The configuration in effect: what [`init`] loaded, or the defaults if it was not called
+/// or failed (the binary then stops with the error before running a command).
+pub fn get() -> &'static Config {
+    match LOADED.get() {
+        Some(Ok(loaded)) => &loaded.config,
+        _ => &DEFAULT,
+    }
+}
+
+/// What [`init`] loaded, if it did.
+pub fn loaded() -> Option<&'static Result<Loaded, ConfigError>> {
+    LOADED.get()
+}
+
+/// `buslab.toml` in the user's configuration directory (`$XDG_CONFIG_HOME/buslab/` or
+/// `~/.config/buslab/` on Linux).
+pub fn user_file() -> Option<PathBuf> {
+    dirs::config_dir().map(|d| d.join("buslab").join(FILE_NAME))
+}
+
+/// `~/x` → the home folder's `x`; anything else as it is.
+fn expand_home(text: &str) -> PathBuf {
+    match (text.strip_prefix("~/"), dirs::home_dir()) {
+        (Some(rest), Some(home)) => home.join(rest),
+        _ => Path::new(text).to_path_buf(),
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,117 @@
+//! The configuration as text: `config show` (every value and where it came from) and the file
+//! the wizard writes. Both are valid TOML.
+
+use std::fmt::Write;
+
+use buslab_canbus::{CanMode, Sja1000Config};
+
+use super::keys::{KEYS, Settings, Sources};
+use super::{ENV_MAIL_PASSWORD, Loaded, Source};
+
+/// Where the `# source` comments start.
+const COMMENT_COLUMN: usize = 44;
+
+/// Every key with its effective value and, in a comment, where it came from; then the
+/// registers the controller configuration programs. Secrets are not shown.
+pub fn render_show(loaded: &Loaded) -> String {
+    let mut out = String::new();
+    match &loaded.file {
+        Some((path, found)) => {
+            let _ = writeln!(out, "# configuration file: {} ({found})", path.display());
+        }
+        None => out.push_str("# configuration file: none (defaults, environment, --set)\n"),
+    }
+    body(&mut out, &loaded.settings, Some(&loaded.sources));
+    let password = match &loaded.config.mail.password {
+        Some(_) => format!("from ${ENV_MAIL_PASSWORD} (not shown)"),
+        None => format!("not set: asked for when needed, or set ${ENV_MAIL_PASSWORD}"),
+    };
+    let _ = writeln!(out, "# mail password: {password}");
+    out.push('\n');
+    for line in registers(&loaded.config.controller).lines() {
+        let _ = writeln!(out, "# {line}");
+    }
+    out
+}
+
+/// The file `buslab config wizard` writes: every key that has a value, each after its help.
+pub fn render_file(settings: &Settings) -> String {
+    let mut out = String::from(
+        "# buslab configuration (docs/config.md), written by `buslab config wizard`.\n",
+    );
+    let mut section = None;
+    for key in KEYS.iter().filter(|k| settings.relevant(k.name)) {
+        let Some(value) = key.show(settings) else {
+            continue;
+        };
+        if key.section() != section {
+            section = key.section();
+            let _ = write!(out, "\n[{}]\n", section.unwrap_or_default());
+        }
+        let _ = write!(out, "\n# {}\n{} = {value}\n", key.help, key.leaf());
+    }
+    out
+}
+
+fn body(out: &mut String, settings: &Settings, sources: Option<&Sources>) {
+    let mut section = None;
+    for (i, key) in KEYS.iter().enumerate() {
+        if key.section() != section {
+            section = key.section();
+            let _ = write!(out, "\n[{}]\n", section.unwrap_or_default());
+        }
+        let source = sources.map_or(&Source::Default, |s| s.get(i));
+        let line = match key.show(settings) {
+            Some(value) if !settings.relevant(key.name) => {
+                format!("# {} = {value} (not used)", key.leaf())
+            }
+            Some(value) => format!("{} = {value}", key.leaf()),
+            None => format!("# {} (not set)", key.leaf()),
+        };
+        let pad = COMMENT_COLUMN.saturating_sub(line.chars().count()).max(1);
+        let _ = writeln!(out, "{line}{:pad$}# {source}", "");
+    }
+}
+
+/// What the controller configuration programs: MOD, CDR, OCR, BTR0/BTR1 with the bit rate
+/// and sample point they give, ACR/AMR.
+pub fn registers(chip: &Sja1000Config) -> String {
+    let mut out = String::new();
+    let (acr, amr) = chip.filter.registers();
+    let hex = |bytes: &[u8]| {
+        bytes
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let (acr, amr) = match chip.mode {
+        CanMode::Basic => (format!("{:02X}", acr[0]), format!("{:02X}", amr[0])),
+        CanMode::Peli => (hex(&acr), hex(&amr)),
+    };
+    // BasicCAN has no MOD register (its CR bits are the driver's business).
+    let mode = match chip.mode {
+        CanMode::Peli => format!("MOD=0x{:02X} ", chip.mod_bits()),
+        CanMode::Basic => String::new(),
+    };
+    let _ = writeln!(
+        out,
+        "registers: {mode}CDR=0x{:02X} OCR=0x{:02X} ACR={acr} AMR={amr}",
+        chip.cdr(),
+        chip.output_control
+    );
+    match chip.bit_timing() {
+        Ok(t) => {
+            let _ = writeln!(
+                out,
+                "bit timing: {} bit/s from a {} Hz crystal, {t}",
+                t.bitrate(chip.can_clock_hz()),
+                chip.crystal_hz
+            );
+        }
+        Err(e) => {
+            let _ = writeln!(out, "bit timing: {e}");
+        }
+    }
+    out
+}
