@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use buslab_can::Frame;
-use buslab_logs::{Entry, LogReader, Record, pcapng, sqlite};
+use buslab_logs::{Entry, LogReader, Record, pcapng, sqlite, trc};
 
 /// Every entry, or the errors, of a reader that must end within `max_calls` reads.
 fn read_all(mut reader: impl LogReader, max_calls: usize) -> (Vec<Entry>, Vec<String>) {
@@ -82,4 +82,30 @@ fn pcapng_interface_name_ends_at_its_first_nul() {
         Record::Frame("123#1122".parse::<Frame>().unwrap())
     );
     assert_eq!(entries[0].timestamp, Duration::from_millis(1));
+}
+
+/// `logs_trc`: an entry 1.56e16 s after the first one was written with a 20-digit millisecond
+/// offset that the TRC reader refused (it read at most 19 digits): the writer's own file did
+/// not read back.
+#[test]
+fn trc_offsets_of_twenty_digits_read_back() {
+    let frame: Frame = "123#11".parse().unwrap();
+    let at = |secs| Entry {
+        timestamp: Duration::from_secs(secs),
+        interface: "can0".into(),
+        record: Record::Frame(frame),
+        direction: None,
+    };
+    let entries = [at(0), at(15_633_973_094_558_642)];
+    for version in [trc::Version::V1_1, trc::Version::V2_1] {
+        let mut writer = trc::Writer::new(Vec::new(), version);
+        for entry in &entries {
+            writer.write(entry).unwrap();
+        }
+        let file = writer.finish().unwrap();
+        let (read, errors) = read_all(trc::Reader::new(&file[..]), 100);
+        assert!(errors.is_empty(), "{errors:?}");
+        let times: Vec<_> = read.iter().map(|e| e.timestamp).collect();
+        assert_eq!(times, [entries[0].timestamp, entries[1].timestamp]);
+    }
 }
