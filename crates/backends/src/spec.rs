@@ -148,7 +148,8 @@ fn digits(text: &str) -> &str {
 
 fn hex(text: &str) -> Option<u32> {
     let d = digits(text);
-    if d.is_empty() || d.len() > 8 {
+    // Hex digits only: `from_str_radix` would take a sign (`+7FF`).
+    if d.is_empty() || d.len() > 8 || !d.bytes().all(|b| b.is_ascii_hexdigit()) {
         return None;
     }
     u32::from_str_radix(d, 16).ok()
@@ -291,6 +292,8 @@ mod tests {
             "vcan0,#",
             "vcan0,~1~2",
             "vcan0,123:123456789",
+            "vcan0,+123:7FF",
+            "vcan0,123:+7FF",
         ] {
             let err = bad.parse::<BusSpec>().unwrap_err().to_string();
             assert!(err.starts_with("filter \""), "{bad}: {err}");

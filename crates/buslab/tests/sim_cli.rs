@@ -24,6 +24,11 @@ fn stdout_of(args: &[&str]) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
+/// Seed 002 §5.4.7: "on voit celui des erreurs en transmission augmenter très rapidement
+/// jusqu'à 256. D'autre part, le bit Error Status du registre STATUS est activé. Si on
+/// rebranche alors le bus, le compteur rediminue, mais plus lentement qu'il n'avait augmenté.
+/// Lorsqu'il atteint 96, le bit Error Status repasse à OK." On SJA1000 nodes with the host
+/// library's driver.
 #[test]
 fn seed_experiment_shows_bus_off_and_recovery() {
     let path = scenario("seed-cut-wire.toml");
@@ -35,27 +40,68 @@ fn seed_experiment_shows_bus_off_and_recovery() {
     let cut = pos("fault 1 started: cut");
     let warning = pos("sender: error warning: a counter reached 96");
     let passive = pos("sender: error-active -> error-passive");
-    let bus_off = pos("sender: error-passive -> bus-off");
+    let bus_off = pos("sender: error-passive -> bus-off (TEC 256");
     let repaired = pos("fault 1 ended");
     let recovered = out.rfind("sender: bus-off -> error-active").unwrap();
     assert!(cut < warning && warning < passive && passive < bus_off && bus_off < repaired);
     assert!(recovered > repaired);
-    // The sampled counters show the TEC on its way up between error-passive and bus-off.
-    let climbing = out[passive..bus_off]
-        .lines()
-        .filter_map(|l| l.split(" TEC/REC: sender ").nth(1))
-        .filter_map(|rest| rest.split('/').next()?.parse::<u16>().ok())
-        .filter(|tec| (129..256).contains(tec))
-        .count();
-    assert!(climbing >= 2, "{}", &out[passive..bus_off]);
+    // The sampled TXERR, with the time in seconds.
+    let txerr = |text: &str| -> Vec<(f64, u16)> {
+        text.lines()
+            .filter_map(|l| {
+                let time = l.strip_prefix("# (")?.split(')').next()?.parse().ok()?;
+                let rest = l.split(" TEC/REC: sender ").nth(1)?;
+                Some((time, rest.split('/').next()?.parse().ok()?))
+            })
+            .collect()
+    };
+    // Up fast: 8 per failed attempt, from error-active to bus-off.
+    let rising = txerr(&out[cut..bus_off]);
+    assert!(
+        rising.iter().any(|&(_, tec)| (129..256).contains(&tec)),
+        "{rising:?}"
+    );
+    // Bus-off: the chip shows 127 and counts down, and ES clears as it passes below 96, while
+    // still bus-off.
+    let first_back = bus_off
+        + out[bus_off..]
+            .find("sender: bus-off -> error-active")
+            .unwrap();
+    let recovery = &out[bus_off..first_back];
+    let falling = txerr(recovery);
+    assert!(falling[0].1 <= 127, "{falling:?}");
+    assert!(falling.windows(2).all(|w| w[1].1 < w[0].1), "{falling:?}");
+    assert!(
+        recovery.contains("sender: error warning cleared: both counters below 96 (TEC 95, REC 0)"),
+        "{recovery}"
+    );
+    // "Plus lentement qu'il n'avait augmenté": after the repair, TXERR falls to 0 steadily, at
+    // a fraction of the rate it rose.
+    let after = txerr(&out[repaired..recovered]);
+    assert!(after.windows(2).all(|w| w[1].1 < w[0].1), "{after:?}");
+    let rate = |s: &[(f64, u16)]| {
+        let (a, b) = (s[0], s[s.len() - 1]);
+        (f64::from(b.1) - f64::from(a.1)).abs() / (b.0 - a.0)
+    };
+    let up = rate(&rising[rising.len() - 4..]);
+    let down = rate(&after);
+    assert!(down < up, "down {down:.0}/s, up {up:.0}/s");
     // Frames are candump log lines with the transmitter as interface.
     assert!(
         out.lines()
             .any(|l| l.starts_with("(0000000000.") && l.ends_with(" sender 100#0001020304050607"))
     );
-    // The summary: the sender is back to error-active at the end.
+    // The summary: the sender is back to error-active at the end, the file went through but
+    // for the frames the bus-offs aborted.
     let summary = out.lines().find(|l| l.starts_with("# sender ")).unwrap();
     assert!(summary.ends_with("error-active"), "{summary}");
+    let bus_offs = out.matches("sender: error-passive -> bus-off").count();
+    let given_up = out.matches("sender: frame 100#").count();
+    assert_eq!(given_up, bus_offs, "one aborted frame per bus-off");
+    assert!(
+        out.contains("sender 100#\n"),
+        "the empty last frame ends the file"
+    );
 }
 
 #[test]
@@ -149,7 +195,15 @@ fn counters_csv_follows_the_tec_to_bus_off_and_back() {
     assert_eq!(sender.len(), 1000);
     let at = |t: f64| sender.iter().find(|s| s.0 >= t).unwrap();
     assert_eq!(at(0.05).1, 0);
-    assert!(sender.iter().any(|s| s.2 == "bus-off" && s.1 >= 256));
+    // Up to bus-off, then the chip's TXERR from 127 down while it recovers.
+    assert!(sender.iter().any(|s| s.2 == "error-passive" && s.1 >= 240));
+    let recovering: Vec<u16> = sender
+        .iter()
+        .filter(|s| s.2 == "bus-off")
+        .map(|s| s.1)
+        .collect();
+    assert!(recovering.iter().all(|&tec| tec <= 127), "{recovering:?}");
+    assert!(recovering.len() > 20, "{recovering:?}");
     assert_eq!(at(0.289).2, "bus-off");
     assert_eq!(*at(0.5), (0.5, 0, "error-active".to_owned()));
 }
@@ -385,6 +439,42 @@ fn a_slio_on_a_bus_it_cannot_follow_is_refused_by_name() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("SLIO id \"G\""),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_duration_beyond_an_hour_is_refused_not_run_for_hours() {
+    // `--duration 18446744073709551615` ran for hours.
+    let path = scenario("noise.toml");
+    let out = buslab()
+        .args([
+            "sim",
+            path.to_str().unwrap(),
+            "--duration",
+            "18446744073709551615bits",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains(
+            "--duration 18446744073709551615 bits is longer than a simulation may run: up to 3600 s"
+        ),
+        "{err}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let long = dir.path().join("long.toml");
+    std::fs::write(&long, "duration = \"7200s\"\n[[nodes]]\nname = \"a\"\n").unwrap();
+    let out = buslab()
+        .args(["sim", long.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("duration 7200s is out of range up to 1 h"),
         "{err}"
     );
 }

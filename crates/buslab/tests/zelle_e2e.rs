@@ -113,6 +113,10 @@ fn cli_measure_follows_the_sine_and_dump_peek_poke_agree() {
         "10ms",
         "--cycles",
         "100",
+        // The block lasts 1 s; the host may be that late again on a loaded machine before
+        // the stop cuts it short.
+        "--block-margin",
+        "1s",
         "-o",
         csv_arg,
     ];
@@ -388,7 +392,8 @@ fn cli_rejects_bad_arguments_with_the_value_named() {
     assert_eq!(buslab(&link, &["key"]).trim(), "released");
     for (args, needle) in [
         (vec!["peek", "0x10000"], "address `0x10000`"),
-        (vec!["reg", "128"], "register address `128`"),
+        (vec!["reg", "256"], "register address `256`"),
+        (vec!["reg", "128", "1"], "register address to write `128`"),
         (vec!["analog", "5"], "channel 5 is out of range 1..4"),
         // Each reading was a byte of one up-front allocation: 4 GB.
         (

@@ -41,4 +41,8 @@ pub enum ParseError {
     FdNotSupported { text: String },
     #[error("remote frame length {text:?} must be one digit 0..8 after R")]
     BadRemoteLength { text: String },
+    #[error(
+        "JerryCAN ID {text:?} must be 3 hex digits: ID10..ID0 and a don't-care bit (the ID shifted left by one, 000..FFF; 246 is 123)"
+    )]
+    JerryCanId { text: String },
 }

@@ -131,6 +131,10 @@ impl FromStr for Frame {
         if id.len() == 8 && u32::from_str_radix(id, 16).is_ok_and(|raw| raw & 0x2000_0000 != 0) {
             return Err(ParseError::ErrorFrameNotSupported { text: text.into() });
         }
+        // The digit count says standard or extended (`0x800` would be taken by value).
+        if !matches!(id.len(), 3 | 8) {
+            return Err(ParseError::IdLength { text: id.into() });
+        }
         let id: Id = id.parse()?;
         if rest.starts_with('#') {
             return Err(ParseError::FdNotSupported { text: text.into() });
@@ -170,6 +174,19 @@ impl FromStr for Frame {
             len += 1;
         }
         Frame::data(id, &data[..len])
+    }
+}
+
+impl Frame {
+    /// Parses a frame whose ID is spelled the JerryCAN way ([`Id::from_jerrycan`], e.g.
+    /// `246#1122` is `123#1122`); the rest is can-utils syntax.
+    pub fn from_jerrycan(text: &str) -> Result<Self, ParseError> {
+        let (id, rest) = text
+            .trim()
+            .split_once('#')
+            .ok_or_else(|| ParseError::MissingSeparator { text: text.into() })?;
+        let id = Id::from_jerrycan(id)?;
+        alloc::format!("{id}#{rest}").parse()
     }
 }
 
@@ -219,6 +236,10 @@ mod tests {
             ("123#010203040506070809", "9 data bytes"),
             ("123#R9", "DLC 9 is out of range 0..8"),
             ("123#R12", "one digit"),
+            // The 3-or-8-digit rule, not the value, says standard or extended.
+            ("0x800#", "3 hex digits"),
+            ("0x123#11", "3 hex digits"),
+            ("1234#", "3 hex digits"),
             ("123#ZZ", "not valid hexadecimal"),
             ("123#1 2", "allowed: 0-9, a-f, A-F"),
             // can-utils syntax that classic 0..8-byte frames cannot carry: named, not "bad hex".
@@ -233,6 +254,28 @@ mod tests {
             let err = input.parse::<Frame>().unwrap_err().to_string();
             assert!(err.contains(needle), "{input:?} -> {err:?}");
         }
+    }
+
+    /// Seed 002 §5.4.4.4: "Le format de l'ID est un nombre en hexadécimal sur trois chiffres
+    /// de la forme : Chiffre de gauche : ID10 ID9 ID8 ID7, Chiffre du milieu : ID6 ID5 ID4 ID3,
+    /// Chiffre de droite : ID2 ID1 ID0 X".
+    #[test]
+    fn jerrycan_ids_are_the_id_shifted_left_by_one() {
+        assert_eq!(
+            Frame::from_jerrycan("246#1122").unwrap().to_string(),
+            "123#1122"
+        );
+        assert_eq!(Frame::from_jerrycan("FFF#R").unwrap().to_string(), "7FF#R");
+        assert_eq!(Id::from_jerrycan("001").unwrap(), Id::standard(0).unwrap());
+        assert_eq!(
+            Id::standard(0x123).unwrap().to_jerrycan(),
+            Some("246".into())
+        );
+        for bad in ["", "12", "1000", "+1F", "0x2", "12G"] {
+            let err = Id::from_jerrycan(bad).unwrap_err().to_string();
+            assert!(err.contains("JerryCAN"), "{bad:?}: {err}");
+        }
+        assert!(Id::extended(1).unwrap().to_jerrycan().is_none());
     }
 
     #[test]

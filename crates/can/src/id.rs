@@ -165,6 +165,28 @@ impl FromStr for Id {
     }
 }
 
+impl Id {
+    /// JerryCAN's spelling of a standard ID (seed 002 §5.4.4.4): three hex digits holding ID10..7,
+    /// ID6..3 and ID2..0 followed by a don't-care bit, i.e. the ID shifted left by one: `246` is
+    /// 123h, `FFE` (or `FFF`) is 7FFh. can-utils writes the ID itself (`123`).
+    pub fn from_jerrycan(text: &str) -> Result<Id, ParseError> {
+        if text.len() != 3 || !text.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return Err(ParseError::JerryCanId { text: text.into() });
+        }
+        let raw = u16::from_str_radix(text, 16)
+            .map_err(|_| ParseError::JerryCanId { text: text.into() })?;
+        Id::standard(raw >> 1)
+    }
+
+    /// This ID in JerryCAN's spelling (don't-care bit 0); `None` for an extended ID.
+    pub fn to_jerrycan(&self) -> Option<alloc::string::String> {
+        match self {
+            Id::Standard(id) => Some(alloc::format!("{:03X}", id.0 << 1)),
+            Id::Extended(_) => None,
+        }
+    }
+}
+
 fn parse_hex_u32(hex: &str, whole: &str) -> Result<u32, ParseError> {
     if hex.is_empty() || hex.len() > 8 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(ParseError::BadHex { text: whole.into() });

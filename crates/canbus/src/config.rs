@@ -31,10 +31,28 @@ pub struct Sja1000Config {
     pub listen_only: bool,
     /// MOD.STM: a transmission needs no ACK (PeliCAN only). Default off.
     pub self_test: bool,
-    /// Which interrupt sources set IR bits. Default: all.
+    /// Which interrupt sources set IR bits. Default: all (the seed's init writes IER 00h
+    /// because its PC software polled: see [`Sja1000Config::seed_pelican`]).
     pub interrupts: InterruptEnables,
     /// EWLR: error warning limit (PeliCAN only; BasicCAN has a fixed 96). Default 96.
     pub error_warning_limit: u8,
+    /// How [`Sja1000Driver::recover`](crate::Sja1000Driver::recover) brings the chip back
+    /// after bus-off. Default: the seed's, the chip counting its way back.
+    pub bus_off_recovery: BusOffRecovery,
+}
+
+/// How the driver brings a chip back after bus-off.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BusOffRecovery {
+    /// The seed's (and the datasheet's): the CPU clears reset mode and the chip waits 128 × 11
+    /// recessive bits, TXERR counting down from 127 where the CPU can watch it, SR.ES clearing
+    /// as it passes below the warning limit, SR.BS at the end. Seed 002 §5.4.7: "le compteur
+    /// rediminue, mais plus lentement qu'il n'avait augmenté. Lorsqu'il atteint 96, le bit
+    /// Error Status repasse à OK."
+    #[default]
+    Counted,
+    /// Linux's `restart()`: TXERR := 0 in reset mode ends bus-off at once.
+    Fast,
 }
 
 impl Default for Sja1000Config {
@@ -53,6 +71,7 @@ impl Default for Sja1000Config {
             self_test: false,
             interrupts: InterruptEnables::all(),
             error_warning_limit: 96,
+            bus_off_recovery: BusOffRecovery::Counted,
         }
     }
 }
@@ -252,6 +271,18 @@ impl Sja1000Config {
     /// The defaults (PeliCAN).
     pub fn peli_can() -> Self {
         Self::default()
+    }
+
+    /// Exactly the seed's `sja_init_pelican` (002 §4.1.2.1): BTR0 07h, BTR1 4Dh, accept all
+    /// (AMR FFh), IER 00h ("Desactivation des interruptions"), OCR DBh, MOD 08h (single
+    /// filter). Its software polls the chip; a driver serviced on interrupts (the default)
+    /// needs IER.
+    pub fn seed_pelican() -> Self {
+        Self {
+            interrupts: InterruptEnables::none(),
+            output_control: 0xDB,
+            ..Self::default()
+        }
     }
 
     /// Checks every setting; the driver calls this before touching the chip.

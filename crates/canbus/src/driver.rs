@@ -582,6 +582,29 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
         Ok(())
     }
 
+    /// Back on the bus after bus-off, as the configuration says
+    /// ([`BusOffRecovery`](crate::BusOffRecovery)): `Counted`, the seed's way, only clears
+    /// reset mode (the chip set it) and lets the chip wait its 128 × 11 recessive bits, TXERR
+    /// falling and SR.ES clearing below the warning limit on the way; `poll` reports
+    /// `BusOff → Active` when it is back. `Fast` is [`restart`](Self::restart).
+    pub fn recover(&mut self) -> Result<(), DriverError> {
+        let config = self.config.clone().ok_or(DriverError::NotInitialized)?;
+        if config.bus_off_recovery == crate::BusOffRecovery::Fast {
+            return self.restart();
+        }
+        self.tx = None;
+        match config.mode {
+            CanMode::Peli => {
+                let mode = config.mod_bits();
+                self.wait_until("leave reset mode", "MOD", 0, mode, |v| v & MOD_RM == 0)
+            }
+            CanMode::Basic => {
+                let cr = config.interrupts.cr_bits();
+                self.wait_until("leave reset mode", "CR", 0, cr, |v| v & MOD_RM == 0)
+            }
+        }
+    }
+
     /// SR decoded (reading SR has no side effects).
     pub fn status(&mut self) -> Status {
         Status(self.regs.read(peli::SR as u8))

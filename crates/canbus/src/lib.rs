@@ -12,6 +12,8 @@
 //!   encoded, and in can-utils' words.
 //! - [`manager`]: the single owner of a driver: one thread, listeners and requests
 //!   ([`Manager`], [`ManagerHandle`]).
+//! - [`node`]: an SJA1000 with the CPU running this driver as a node of the bus engine
+//!   ([`node::Sja1000Node`]), for the virtual bus's clients and scenario files.
 //! - [`slio`]: SLIOs from any bus ([`slio::SlioHost`], CANAPI's `SlIo` class).
 //! - [`file`](mod@file): the file protocol for data longer than 8 bytes (SPEC N5).
 //!
@@ -51,6 +53,7 @@ pub mod driver;
 pub mod error_frame;
 pub mod file;
 pub mod manager;
+pub mod node;
 pub mod regs;
 pub mod slio;
 
@@ -60,7 +63,8 @@ pub use admin::{
 };
 pub use bus::{BusError, BusEvent, BusState, CanBus, ErrorMessage, Filter, Message};
 pub use config::{
-    AcceptanceFilter, ClockOut, ConfigError, InterruptEnables, Sja1000Config, Timing,
+    AcceptanceFilter, BusOffRecovery, ClockOut, ConfigError, InterruptEnables, Sja1000Config,
+    Timing,
 };
 pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 pub use driver::{ControllerState, DriverError, DriverEvent, Sja1000Driver, TxFailure, TxMode};

@@ -86,6 +86,19 @@ fn default_config_is_the_seed_init_in_the_seed_order() {
     assert!(recorder.writes[first(31)].1 & 0x80 != 0, "PeliCAN");
 }
 
+/// Seed 002 §4.1.2.1, `sja_init_pelican`: "wrsjai 0x00,INTERRUPT_ENABLE", OCR DBh, MOD 08h.
+#[test]
+fn seed_pelican_is_the_seeds_init_register_for_register() {
+    let mut chip = Sja1000::new();
+    let mut driver = Sja1000Driver::new(&mut chip);
+    driver.init(&Sja1000Config::seed_pelican()).unwrap();
+    assert_eq!(chip.peek(4), 0x00, "IER: the seed polls");
+    assert_eq!(chip.peek(8), 0xDB, "OCR");
+    assert_eq!((chip.peek(6), chip.peek(7)), (0x07, 0x4D));
+    assert_eq!(chip.peek(0), 0x08, "MOD");
+    assert_eq!(chip.peek(31) & 0x80, 0x80, "PeliCAN");
+}
+
 #[test]
 fn a_missing_or_dead_chip_is_reported_not_waited_for() {
     let mut driver = Sja1000Driver::new(NoChip);
@@ -384,6 +397,49 @@ fn bus_off_is_reported_and_restart_brings_the_node_back() {
     assert_eq!(received(&events), ["124#01"]);
     let errors = tx.error_registers().unwrap();
     assert_eq!((errors.txerr, errors.rxerr), (0, 0));
+}
+
+/// Seed 002 §5.4.7, the default recovery: reset mode cleared, the chip counts its way back;
+/// TXERR falls where the driver can read it, the state goes BusOff → Active at the end only.
+#[test]
+fn the_default_recovery_lets_the_chip_count_txerr_down() {
+    let mut bus = Bus::new(2);
+    let mut tx = bus.driver(0, &Sja1000Config::default());
+    let mut rx = bus.driver(1, &Sja1000Config::default());
+    bus.run(20);
+    jam_to_bus_off(&mut bus, &mut tx);
+    assert_eq!(tx.error_registers().unwrap().txerr, 127);
+    tx.recover().unwrap();
+    assert!(!tx.status().bus_off() || tx.state() == ControllerState::BusOff);
+    let events = run_until(&mut bus, &mut tx, 128 * 11 + 100, |e| {
+        e.iter()
+            .any(|e| matches!(e, DriverEvent::StateChanged { .. }))
+    });
+    assert_eq!(
+        states(&events),
+        [ControllerState::Active],
+        "back only at the end"
+    );
+    assert_eq!(tx.error_registers().unwrap().txerr, 0);
+    tx.send(&frame("124#01")).unwrap();
+    let events = run_until(&mut bus, &mut rx, 400, |e| !received(e).is_empty());
+    assert_eq!(received(&events), ["124#01"]);
+    // TXERR fell by one every 11 recessive bits on the way (the chip test watches each step).
+    let mut fast = bus.driver(
+        0,
+        &Sja1000Config {
+            bus_off_recovery: buslab_canbus::BusOffRecovery::Fast,
+            ..Sja1000Config::default()
+        },
+    );
+    bus.run(20);
+    jam_to_bus_off(&mut bus, &mut fast);
+    fast.recover().unwrap();
+    assert_eq!(
+        states(&fast.poll()),
+        [ControllerState::Active],
+        "the fast restart is back at once"
+    );
 }
 
 #[test]

@@ -139,7 +139,7 @@ fn main() {
                 cfg.time_base,
                 stats.fa_sent,
                 stats.fa_dropped,
-                c.frame_errors.len()
+                c.frame_errors.count()
             ),
             bytes,
             secs,

@@ -4,12 +4,12 @@
 
 use std::collections::VecDeque;
 
-use buslab_device::{ByteDevice, LineSettings, Persistent};
+use buslab_device::{ByteDevice, ChangeLog, Changes, LineSettings, Persistent, ReplayError};
 
 use crate::acquisition::Acquisition;
 use crate::adconfig::AdConfig;
 use crate::codes::{Alert, MsgCode};
-use crate::decoder::{Decoder, Event, FrameError};
+use crate::decoder::{Decoder, Event, FrameError, PIC_CHUNK};
 use crate::flash::FlashError;
 use crate::image::{BootConfig, Image, Protocol, encrypt_serial};
 use crate::message::*;
@@ -145,6 +145,10 @@ pub struct Board {
     pending_start: Option<(u64, Start)>,
     /// Whether a hook-requested START is being performed.
     starting: bool,
+    /// Changes of the image not yet taken by the host (for its journal).
+    changes: ChangeLog,
+    /// The PIC block write being received was refused at its first chunk.
+    pic_write_refused: bool,
     log: Vec<String>,
     stats: Stats,
     reset_at: u64,
@@ -186,6 +190,8 @@ impl Board {
             clean: 0,
             pending_start: None,
             starting: false,
+            changes: ChangeLog::default(),
+            pic_write_refused: false,
             log: Vec::new(),
             stats: Stats::default(),
             reset_at: now,
@@ -204,7 +210,7 @@ impl Board {
         self.image.boot.baud = baud;
         self.line = LineSettings::n81(baud);
         self.tx.byte_ns = self.line.byte_time_ns();
-        self.generation += 1;
+        self.changed(None);
     }
 
     pub fn image(&self) -> &Image {
@@ -329,6 +335,12 @@ impl Board {
     }
 
     fn on_message(&mut self, now: u64, m: Message) {
+        // The first 15 chunks of a PIC block write were written and acknowledged as they came
+        // (or the write was refused at the first one): the last chunk completes it.
+        if let Message::PicWrite { block, data } = &m {
+            let last = (PIC_BLOCK / PIC_CHUNK - 1) as u8;
+            return self.pic_chunk(now, *block, last, &data[PIC_BLOCK - PIC_CHUNK..]);
+        }
         let cmd = m.command();
         if matches!(self.mode, Mode::Lower { .. }) && INVALID_IN_LOWER_LOOP.contains(&cmd) {
             self.note(format!(
@@ -367,7 +379,7 @@ impl Board {
             Message::FlashWrite { bank, block, data } => {
                 match self.image.flash.write(bank, block, &data) {
                     Ok(()) => {
-                        self.generation += 1;
+                        self.changed(Some(ImageChange::flash_block(bank, block, &data)));
                         self.msg(now, MsgCode::COMPLETED);
                     }
                     Err(e) => self.flash_error(now, e),
@@ -375,7 +387,7 @@ impl Board {
             }
             Message::FlashErase { bank } => match self.image.flash.erase(bank) {
                 Ok(()) => {
-                    self.generation += 1;
+                    self.changed(Some(ImageChange::erase_bank(bank)));
                     self.msg(now, MsgCode::COMPLETED);
                 }
                 Err(e) => self.flash_error(now, e),
@@ -388,24 +400,14 @@ impl Board {
                 }
                 None => self.bad_param(now, format!("PIC block {block} is out of range 1..3")),
             },
-            Message::PicWrite { block, data } => match pic_range(block) {
-                Some(r) => {
-                    self.pic.program[r.clone()].copy_from_slice(&data[..]);
-                    self.image.pic_program[r].copy_from_slice(&data[..]);
-                    self.generation += 1;
-                    for _ in 0..PIC_BLOCK / 256 {
-                        self.msg(now, MsgCode::COMPLETED);
-                    }
-                }
-                None => self.bad_param(now, format!("PIC block {block} is out of range 1..3")),
-            },
+            Message::PicWrite { .. } => unreachable!("handled above"),
             Message::EepromReadRequest => {
                 self.send(now, &Message::EepromData(Box::new(self.pic.eeprom)));
             }
             Message::EepromWrite(data) => {
                 self.pic.eeprom = *data;
                 self.image.pic_eeprom = *data;
-                self.generation += 1;
+                self.changed(Some(ImageChange::eeprom(&data)));
                 self.msg(now, MsgCode::COMPLETED);
             }
             Message::Format(f) => self.format(now, f),
@@ -494,7 +496,7 @@ impl Board {
             }
             Format::WritePicKernel { data, .. } => {
                 self.image.pic_kernel.copy_from_slice(&data[..]);
-                self.generation += 1;
+                self.changed(None);
                 for _ in 0..PIC_BLOCK / 256 {
                     self.msg(now, MsgCode::COMPLETED);
                 }
@@ -508,7 +510,7 @@ impl Board {
                 self.image.pic_eeprom = [0xFF; 256];
                 self.pic.program.fill(0xFF);
                 self.pic.eeprom = [0xFF; 256];
-                self.generation += 1;
+                self.changed(None);
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::ReadBootBlock { block } => match block {
@@ -551,7 +553,7 @@ impl Board {
                     None => self
                         .note("boot block 5 written without AA55h: defaults stay in force".into()),
                 }
-                self.generation += 1;
+                self.changed(None);
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::EraseBoot => {
@@ -560,13 +562,13 @@ impl Board {
                     baud: self.image.boot.baud,
                     ..BootConfig::default()
                 };
-                self.generation += 1;
+                self.changed(None);
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::CompressionTable { table, comp } => {
                 self.image.log_table = crate::acquisition::LogTable::from_bytes(&table);
                 self.image.compression = comp;
-                self.generation += 1;
+                self.changed(None);
                 self.msg(now, MsgCode::COMPLETED);
             }
             Format::Emergency { xy } => {
@@ -604,7 +606,7 @@ impl Board {
                     self.pic.program.fill(0xFF);
                     self.pic.eeprom = [0xFF; 256];
                 }
-                self.generation += 1;
+                self.changed(None);
                 self.msg(now, MsgCode::COMPLETED);
                 if x == 0xA {
                     // PIC high-voltage programming, then standby.
@@ -616,6 +618,44 @@ impl Board {
                 self.note("CPUFORMAT 01/05 are board-to-PC replies".into());
                 self.msg(now, MsgCode::INVALID_COMMAND);
             }
+        }
+    }
+
+    /// 256 bytes of a PIC block write: written and acknowledged at once (flow control: the host
+    /// sends the next 256 when it has the acknowledgement). A write to a block out of range is
+    /// refused at its first chunk; the rest of its frame is swallowed without more replies.
+    fn pic_chunk(&mut self, now: u64, block: u8, index: u8, data: &[u8]) {
+        let last = usize::from(index) + 1 == PIC_BLOCK / PIC_CHUNK;
+        if index == 0 {
+            self.pic_write_refused = false;
+        }
+        if self.pic_write_refused {
+            self.pic_write_refused = !last;
+            return;
+        }
+        if matches!(self.mode, Mode::Lower { .. }) {
+            self.pic_write_refused = !last;
+            self.note("PRGPIC refused in the lower loop".into());
+            return self.msg(now, MsgCode::INVALID_COMMAND);
+        }
+        let Some(range) = pic_range(block) else {
+            self.pic_write_refused = !last;
+            return self.bad_param(now, format!("PIC block {block} is out of range 1..3"));
+        };
+        let at = range.start + usize::from(index) * PIC_CHUNK;
+        self.pic.program[at..at + PIC_CHUNK].copy_from_slice(data);
+        self.image.pic_program[at..at + PIC_CHUNK].copy_from_slice(data);
+        self.changed(Some(ImageChange::pic_program(at, data)));
+        self.msg(now, MsgCode::COMPLETED);
+    }
+
+    /// The image changed: `change` tells how as a journal record (`None`: a change no record
+    /// describes; the host saves the whole image).
+    fn changed(&mut self, change: Option<Vec<u8>>) {
+        self.generation += 1;
+        match change {
+            Some(record) => self.changes.record(record),
+            None => self.changes.need_snapshot(),
         }
     }
 
@@ -990,6 +1030,86 @@ impl Persistent for Board {
     fn file_bytes(image: &Image) -> Vec<u8> {
         image.to_toml().into_bytes()
     }
+
+    /// Flash block writes and bank erases, PIC program and EEPROM writes (see [`ImageChange`]);
+    /// other changes ask for a whole image.
+    fn take_changes(&mut self) -> Changes {
+        self.changes.take()
+    }
+
+    fn replay(image: &mut Image, record: &[u8]) -> Result<(), ReplayError> {
+        ImageChange::apply(image, record)
+    }
+}
+
+/// The image changes a journal records, each setting part of the image:
+/// - `F bank block data[256]`: a flash block written;
+/// - `E bank`: a flash bank erased;
+/// - `P offset[2] data`: PIC program memory from `offset` (0..12287);
+/// - `R data[256]`: the PIC EEPROM.
+pub struct ImageChange;
+
+impl ImageChange {
+    const FLASH: u8 = b'F';
+    const ERASE: u8 = b'E';
+    const PIC: u8 = b'P';
+    const EEPROM: u8 = b'R';
+
+    pub fn flash_block(bank: u8, block: u8, data: &[u8; 256]) -> Vec<u8> {
+        let mut r = vec![Self::FLASH, bank, block];
+        r.extend_from_slice(data);
+        r
+    }
+
+    pub fn erase_bank(bank: u8) -> Vec<u8> {
+        vec![Self::ERASE, bank]
+    }
+
+    pub fn pic_program(offset: usize, data: &[u8]) -> Vec<u8> {
+        let mut r = vec![Self::PIC];
+        r.extend_from_slice(&(offset as u16).to_be_bytes());
+        r.extend_from_slice(data);
+        r
+    }
+
+    pub fn eeprom(data: &[u8; 256]) -> Vec<u8> {
+        let mut r = vec![Self::EEPROM];
+        r.extend_from_slice(data);
+        r
+    }
+
+    /// Applies a record to an image.
+    pub fn apply(image: &mut Image, record: &[u8]) -> Result<(), ReplayError> {
+        let bad = |why| Err(ReplayError::new(record, why));
+        match record {
+            [Self::FLASH, bank, block, data @ ..] => {
+                let Ok(data) = <&[u8; 256]>::try_from(data) else {
+                    return bad("a flash block is 256 bytes");
+                };
+                if !image.flash.restore_block(*bank, *block, data) {
+                    return bad("no such flash bank");
+                }
+            }
+            [Self::ERASE, bank] => {
+                if image.flash.erase(*bank).is_err() {
+                    return bad("no such flash bank");
+                }
+            }
+            [Self::PIC, high, low, data @ ..] => {
+                let at = usize::from(u16::from_be_bytes([*high, *low]));
+                match image.pic_program.get_mut(at..at + data.len()) {
+                    Some(slot) if !data.is_empty() => slot.copy_from_slice(data),
+                    _ => return bad("outside PIC program memory"),
+                }
+            }
+            [Self::EEPROM, data @ ..] => match <[u8; 256]>::try_from(data) {
+                Ok(data) => image.pic_eeprom = data,
+                Err(_) => return bad("the EEPROM is 256 bytes"),
+            },
+            _ => return bad("unknown change"),
+        }
+        Ok(())
+    }
 }
 
 impl ByteDevice for Board {
@@ -1006,6 +1126,9 @@ impl ByteDevice for Board {
         match self.decoder.push(now_ns, byte) {
             Some(Event::Message(m)) => self.on_message(now_ns, m),
             Some(Event::Error(e)) => self.on_frame_error(now_ns, e),
+            Some(Event::PicChunk { block, index, data }) => {
+                self.pic_chunk(now_ns, block, index, &data[..]);
+            }
             None => {}
         }
     }

@@ -26,11 +26,23 @@ pub enum FrameError {
     Parse(#[from] ParseError),
 }
 
+/// Data bytes of a PIC block write (`F6 02`) acknowledged at a time.
+pub const PIC_CHUNK: usize = 256;
+
 /// What the decoder produced.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Event {
     Message(Message),
     Error(FrameError),
+    /// 256 more data bytes of a PIC block write (`F6 02 Bloc Data[0..4095]`) are in, before
+    /// the frame is complete: the kernel acknowledges each 256 as they arrive ("réponse d'un
+    /// message msg_completed tous les 256 octets (16 fois)"). Chunks 0..=14 come this way; the
+    /// last one completes the frame and comes as the [`Message::PicWrite`].
+    PicChunk {
+        block: u8,
+        index: u8,
+        data: Box<[u8; PIC_CHUNK]>,
+    },
 }
 
 #[derive(Clone, Debug)]
@@ -155,7 +167,10 @@ impl Decoder {
             }
             State::Params { cmd, mut buf, need } => {
                 buf.push(byte);
-                self.advance(cmd, buf, need)
+                let chunk = pic_chunk(cmd, &buf);
+                let event = self.advance(cmd, buf, need);
+                debug_assert!(chunk.is_none() || event.is_none());
+                chunk.or(event)
             }
         };
         debug_assert!(timed_out.is_none() || event.is_none());
@@ -194,6 +209,24 @@ impl Decoder {
             Err(e) => Event::Error(e.into()),
         }
     }
+}
+
+/// The chunk a PIC block write's parameters `buf` just completed, if the frame goes on.
+fn pic_chunk(cmd: u8, buf: &[u8]) -> Option<Event> {
+    const HEAD: usize = 2;
+    let data = buf.len().checked_sub(HEAD)?;
+    if cmd != wire::PRGPIC || buf[0] != 0x02 || data == 0 || data % PIC_CHUNK != 0 {
+        return None;
+    }
+    if data >= wire::PIC_BLOCK {
+        return None;
+    }
+    let chunk = <[u8; PIC_CHUNK]>::try_from(&buf[buf.len() - PIC_CHUNK..]).ok()?;
+    Some(Event::PicChunk {
+        block: buf[1],
+        index: (data / PIC_CHUNK - 1) as u8,
+        data: Box::new(chunk),
+    })
 }
 
 #[cfg(test)]
@@ -273,6 +306,26 @@ mod tests {
         let ev = feed(&mut d, 0, &[0xF5, 0x0A, 0x07]);
         assert!(matches!(ev[..], [Event::Error(FrameError::Params(_))]));
         assert!(!d.in_frame());
+    }
+
+    #[test]
+    fn a_pic_block_write_reports_each_256_bytes_as_they_arrive() {
+        let data: Box<[u8; wire::PIC_BLOCK]> = Box::new(core::array::from_fn(|i| (i / 256) as u8));
+        let bytes = Message::PicWrite { block: 2, data }.to_bytes().unwrap();
+        let mut d = Decoder::new();
+        let events = feed(&mut d, 0, &bytes);
+        assert_eq!(events.len(), 16);
+        for (i, e) in events[..15].iter().enumerate() {
+            let Event::PicChunk { block, index, data } = e else {
+                panic!("chunk {i}: {e:?}");
+            };
+            assert_eq!((*block, *index as usize), (2, i));
+            assert!(data.iter().all(|&b| b as usize == i));
+        }
+        assert!(matches!(
+            events[15],
+            Event::Message(Message::PicWrite { block: 2, .. })
+        ));
     }
 
     #[test]

@@ -95,6 +95,17 @@ impl Flash {
         Ok(())
     }
 
+    /// Sets a block's contents as written, whatever the table said (replaying a journal).
+    /// `false` if there is no such bank.
+    pub fn restore_block(&mut self, bank: u8, block: u8, data: &[u8; FLASH_BLOCK]) -> bool {
+        if bank as usize >= FLASH_BANKS {
+            return false;
+        }
+        self.data[Self::range(bank, block)].copy_from_slice(data);
+        self.set_blank(bank, block, false);
+        true
+    }
+
     /// Erases a whole bank.
     pub fn erase(&mut self, bank: u8) -> Result<(), FlashError> {
         if bank as usize >= FLASH_BANKS {

@@ -404,6 +404,10 @@ fn unhex(s: &str, want: usize, what: &str) -> Result<Vec<u8>, String> {
             s.len()
         ));
     }
+    // Hex digits only: `from_str_radix` would take a sign (`+f`).
+    if !s.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(format!("{what} is not hex"));
+    }
     (0..want)
         .map(|i| {
             u8::from_str_radix(&s[2 * i..2 * i + 2], 16).map_err(|_| format!("{what} is not hex"))
@@ -455,6 +459,10 @@ impl Image {
         for (key, data) in &f.flash {
             let (bank, block) = key
                 .split_once('.')
+                .filter(|(a, b)| {
+                    a.bytes().all(|c| c.is_ascii_digit())
+                        && b.bytes().all(|c| c.is_ascii_hexdigit())
+                })
                 .and_then(|(a, b)| Some((a.parse::<u8>().ok()?, u8::from_str_radix(b, 16).ok()?)))
                 .filter(|(bank, _)| *bank < 8)
                 .ok_or_else(|| {

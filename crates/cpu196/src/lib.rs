@@ -27,8 +27,8 @@ pub mod source;
 pub mod values;
 pub mod wire;
 
-pub use board::{Board, Mode, Stats};
-pub use buslab_device::{ByteDevice, Persistent, Port, SimPort};
+pub use board::{Board, ImageChange, Mode, Stats};
+pub use buslab_device::{ByteDevice, Changes, Persistent, Port, SimPort};
 pub use codes::{Alert, MsgCode};
 pub use decoder::{Decoder, Event, FrameError};
 pub use image::Image;

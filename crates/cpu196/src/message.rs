@@ -46,10 +46,11 @@ impl DisplayFormat {
         matches!(self, Self::Hex16 | Self::Unsigned16 | Self::Signed16)
     }
 
-    /// Renders the items as the PC monitor shows them.
+    /// Renders the items as the PC monitor shows them (text with its control characters made
+    /// visible: see [`printable`]).
     pub fn render(self, data: &[u8]) -> String {
         if self == Self::Text {
-            return String::from_utf8_lossy(data).into_owned();
+            return printable(data);
         }
         let words = data
             .chunks_exact(2)
@@ -65,6 +66,24 @@ impl DisplayFormat {
         };
         items.join(" ")
     }
+}
+
+/// Text from a board as it may be shown on a terminal: UTF-8 (invalid bytes as U+FFFD), every
+/// control character written out (`\x1B`, `\x0A`, `\u{9B}`), so an escape sequence in a
+/// board's text cannot drive the user's terminal.
+pub fn printable(bytes: &[u8]) -> String {
+    use core::fmt::Write as _;
+    let mut out = String::with_capacity(bytes.len());
+    for c in String::from_utf8_lossy(bytes).chars() {
+        if (c as u32) < 0x20 || c == '\x7F' {
+            let _ = write!(out, "\\x{:02X}", c as u32);
+        } else if c.is_control() {
+            let _ = write!(out, "\\u{{{:X}}}", c as u32);
+        } else {
+            out.push(c);
+        }
+    }
+    out
 }
 
 /// File open mode.
@@ -124,11 +143,7 @@ impl core::fmt::Display for CpuInfo {
             .map(|b| format!("{b:02X}"))
             .collect();
         writeln!(f, "CPU196 board")?;
-        writeln!(
-            f,
-            "  serial number   {}",
-            String::from_utf8_lossy(&self.serial)
-        )?;
+        writeln!(f, "  serial number   {}", printable(&self.serial))?;
         writeln!(f, "  quartz          {} MHz", self.quartz)?;
         writeln!(f, "  kernel 80C196   {}", self.version_196)?;
         writeln!(
@@ -867,6 +882,14 @@ pub fn describe(m: &Message) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn board_text_shows_control_characters_visibly() {
+        // A board's THREAD text reached the terminal raw: `\x1B[2J` cleared the user's screen.
+        let text = DisplayFormat::Text.render(b"ok\x1B[2J\r\n\x7F\xC2\x9B\xFF!");
+        assert_eq!(text, "ok\\x1B[2J\\x0D\\x0A\\x7F\\u{9B}\u{FFFD}!");
+        assert!(!text.chars().any(char::is_control));
+    }
 
     #[test]
     fn parse_refuses_wrong_lengths_instead_of_panicking() {

@@ -239,11 +239,14 @@ impl core::str::FromStr for Peer {
         let mut table = std::collections::BTreeMap::new();
         for pair in body.split(',') {
             let (k, v) = pair.split_once('=').ok_or_else(err)?;
-            let key = u8::from_str_radix(k.trim(), 16).map_err(|_| err())?;
+            let k = k.trim();
             let v = v.trim();
-            if v.len() % 2 != 0 || v.is_empty() || !v.is_ascii() {
+            // Hex digits only: `from_str_radix` would take a sign (`+f`).
+            let hex = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_hexdigit());
+            if !hex(k) || !hex(v) || v.len() % 2 != 0 {
                 return Err(err());
             }
+            let key = u8::from_str_radix(k, 16).map_err(|_| err())?;
             let reply = (0..v.len() / 2)
                 .map(|i| u8::from_str_radix(&v[2 * i..2 * i + 2], 16))
                 .collect::<Result<Vec<_>, _>>()

@@ -56,7 +56,10 @@ pub enum ValueError {
 /// `42`, `0x2A` or `2Ah`.
 pub fn parse_byte(text: &str) -> Result<u8, ValueError> {
     let t = text.trim();
-    let parsed = if let Some(h) = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+    // Digits only: `from_str_radix` and `parse` would take a sign (`+f`, `+5`).
+    let parsed = if !t.bytes().all(|b| b.is_ascii_alphanumeric()) {
+        "-".parse::<u8>()
+    } else if let Some(h) = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
         u8::from_str_radix(h, 16)
     } else if let Some(h) = t.strip_suffix(['h', 'H']) {
         u8::from_str_radix(h, 16)
@@ -213,6 +216,16 @@ pub fn flash_blocks_to_write(data: &[u8]) -> Result<Vec<u8>, ValueError> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_sign_is_not_a_digit() {
+        for bad in ["+5", "0x+f", "+fh", "-1"] {
+            assert!(super::parse_byte(bad).is_err(), "{bad}");
+        }
+        assert_eq!(super::parse_byte("0x2A").unwrap(), 42);
+        assert!("script:+f=01".parse::<crate::pic::Peer>().is_err());
+        assert!("script:41=+f".parse::<crate::pic::Peer>().is_err());
+    }
+
     use super::*;
 
     #[test]

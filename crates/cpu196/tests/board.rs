@@ -91,6 +91,7 @@ impl Bench {
             .map(|(_, e)| match e {
                 Event::Message(m) => m,
                 Event::Error(e) => panic!("host saw a frame error: {e}"),
+                other => panic!("the board sent {other:?}"),
             })
             .filter(|m| *m != Message::Watchdog)
             .collect()
@@ -185,6 +186,65 @@ fn pic_program_blocks_and_eeprom() {
         b.ask(&Message::EepromReadRequest, 50),
         vec![Message::EepromData(ee)]
     );
+}
+
+/// Seed 000, F6 `02`: "écriture du N° bloc de 1k, réponse d'un message msg_completed tous les
+/// 256 octets (16 fois)". The acknowledgements are flow control: each comes as its 256 bytes
+/// are in, and a host that waits for it before sending more gets it.
+#[test]
+fn a_pic_block_write_is_acknowledged_every_256_bytes_as_the_data_arrives() {
+    let mut b = Bench::new();
+    let data: Box<[u8; 4096]> = Box::new(core::array::from_fn(|i| (i * 7) as u8));
+    let bytes = Message::PicWrite {
+        block: 3,
+        data: data.clone(),
+    }
+    .to_bytes()
+    .unwrap();
+    // Command, complement, sub-code, block, then 16 × 256 data bytes.
+    let (head, body) = bytes.split_at(4);
+    b.write(head);
+    for (i, chunk) in body.chunks(256).enumerate() {
+        b.write(chunk);
+        // The host waits for the acknowledgement (3 bytes) before the next chunk.
+        b.run_for(4 * b.byte_ns());
+        assert_eq!(b.take(), vec![msg(MsgCode::COMPLETED)], "chunk {i}");
+        // Written already: a kill now keeps what was acknowledged.
+        let at = 2 * 4096 + i * 256;
+        assert_eq!(
+            b.board.pic().program[at..at + 256],
+            data[i * 256..(i + 1) * 256]
+        );
+    }
+    b.run_for(300 * MS);
+    assert_eq!(
+        b.take(),
+        vec![],
+        "nothing more: no time-out, no reception error"
+    );
+    assert_eq!(
+        b.ask(&Message::PicReadRequest { block: 3 }, 500),
+        vec![Message::PicData(data.clone())]
+    );
+    // A block out of range is refused at once, and only once.
+    let bad = Message::PicWrite { block: 4, data };
+    assert_eq!(
+        b.ask(&bad, 500),
+        vec![msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+    // In the lower loop, PRGPIC is refused once, not 16 times.
+    b.ask(&Message::Start(Start::run(0, 0, false)), 5);
+    let write = Message::PicWrite {
+        block: 1,
+        data: Box::new([0; 4096]),
+    };
+    let replies: Vec<_> = b
+        .ask(&write, 500)
+        .into_iter()
+        .filter(|m| matches!(m, Message::Msg(_)))
+        .collect();
+    assert!(matches!(b.board.mode(), Mode::Lower { .. }));
+    assert_eq!(replies, vec![msg(MsgCode::INVALID_COMMAND)]);
 }
 
 #[test]
@@ -824,7 +884,7 @@ mod garbage {
             .drain(..)
             .filter_map(|(_, e)| match e {
                 Event::Message(m) => Some(m),
-                Event::Error(_) => None,
+                _ => None,
             })
             .collect()
     }
@@ -865,4 +925,45 @@ mod garbage {
             }
         }
     }
+}
+
+#[test]
+fn image_changes_replayed_over_the_old_image_give_the_new_one() {
+    use buslab_cpu196::{Changes, Persistent};
+    let before = Image::default();
+    let mut b = Bench::with(before.clone(), Inputs::default());
+    b.board.take_changes();
+    let data: Box<[u8; 256]> = Box::new(core::array::from_fn(|i| i as u8));
+    for block in [0x60, 0x61] {
+        b.ask(
+            &Message::FlashWrite {
+                bank: 3,
+                block,
+                data: data.clone(),
+            },
+            50,
+        );
+    }
+    b.ask(&Message::FlashErase { bank: 4 }, 50);
+    b.ask(
+        &Message::PicWrite {
+            block: 1,
+            data: Box::new([0x5A; 4096]),
+        },
+        500,
+    );
+    b.ask(&Message::EepromWrite(Box::new([7; 256])), 50);
+    let Changes::Records(records) = b.board.take_changes() else {
+        panic!("these changes are records");
+    };
+    assert_eq!(records.len(), 2 + 1 + 16 + 1);
+    let mut replayed = before;
+    for r in &records {
+        Board::replay(&mut replayed, r).unwrap();
+    }
+    assert_eq!(&replayed, b.board.image());
+    // A change no record describes asks for the whole image.
+    b.ask(&Message::Format(Format::EraseBoot), 50);
+    assert_eq!(b.board.take_changes(), Changes::Snapshot);
+    assert!(Board::replay(&mut replayed, b"Z").is_err());
 }

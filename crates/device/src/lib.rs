@@ -4,7 +4,8 @@
 //! - [`ByteDevice`]: a device model that talks over one UART, driven in virtual nanoseconds
 //!   (the ZELLE cell, the CPU196 board). Adapters pace it to the wall clock behind a
 //!   pseudo-terminal (`buslab-link`), or [`SimPort`] runs it in virtual time.
-//! - [`Persistent`]: the part of a device's state that outlives a power cycle, as file bytes.
+//! - [`Persistent`]: the part of a device's state that outlives a power cycle, as file bytes,
+//!   and its changes as journal records ([`ChangeLog`]).
 //! - [`LineSettings`]: how bytes are framed on the line, and how long one takes.
 //! - [`Port`]: what a host client needs from its line to the device, time included: a real
 //!   serial port (`buslab_link::SerialLine`) or [`SimPort`]. Clients read the port's clock and
@@ -18,7 +19,7 @@ mod line;
 mod port;
 mod sim_port;
 
-pub use device::{ByteDevice, Persistent};
+pub use device::{ByteDevice, ChangeLog, Changes, Persistent, ReplayError};
 pub use human::Human;
 pub use line::{LineSettings, Parity};
 pub use port::Port;

@@ -86,19 +86,7 @@ pub fn read_limited(path: &Path, max_bytes: u64) -> Result<Vec<u8>, ReadError> {
         .open(path)
         .map_err(io_error)?;
     let meta = file.metadata().map_err(io_error)?;
-    let kind = meta.file_type();
-    if !kind.is_file() {
-        let kind = if kind.is_dir() {
-            "a folder"
-        } else if kind.is_fifo() {
-            "a FIFO"
-        } else if kind.is_socket() {
-            "a socket"
-        } else if kind.is_char_device() || kind.is_block_device() {
-            "a device"
-        } else {
-            "not a file"
-        };
+    if let Some(kind) = not_regular(&meta) {
         return Err(ReadError::NotRegular {
             path: path.to_path_buf(),
             kind,
@@ -120,6 +108,54 @@ pub fn read_limited(path: &Path, max_bytes: u64) -> Result<Vec<u8>, ReadError> {
         return Err(too_large());
     }
     Ok(bytes)
+}
+
+/// What a file that is not a regular one is, for messages; `None` for a regular file.
+fn not_regular(meta: &fs::Metadata) -> Option<&'static str> {
+    let kind = meta.file_type();
+    Some(if kind.is_file() {
+        return None;
+    } else if kind.is_dir() {
+        "a folder"
+    } else if kind.is_fifo() {
+        "a FIFO"
+    } else if kind.is_socket() {
+        "a socket"
+    } else if kind.is_char_device() || kind.is_block_device() {
+        "a device"
+    } else {
+        "not a file"
+    })
+}
+
+/// Opens a regular file for reading, or for writing (created if missing, emptied), and
+/// never blocks: a FIFO or a device is refused (opening a FIFO would wait for its other end,
+/// a device may never end). The error names the path.
+pub fn open_regular(path: &Path, write: bool) -> io::Result<File> {
+    let refuse = |kind: &str| {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{} is {kind}, not a regular file", path.display()),
+        )
+    };
+    // Looked at first, so nothing is opened (or truncated) that is not a plain file.
+    if let Ok(meta) = fs::metadata(path)
+        && let Some(kind) = not_regular(&meta)
+    {
+        return Err(refuse(kind));
+    }
+    let file = OpenOptions::new()
+        .read(!write)
+        .write(write)
+        .create(write)
+        .truncate(write)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)?;
+    // It may have been replaced between the look and the open.
+    if let Some(kind) = not_regular(&file.metadata()?) {
+        return Err(refuse(kind));
+    }
+    Ok(file)
 }
 
 /// [`read_limited`], as UTF-8 text.
@@ -210,5 +246,23 @@ mod tests {
             read_text_limited(&file, 10),
             Err(ReadError::NotText { .. })
         ));
+        // Opening never blocks either, for reading or writing.
+        for write in [false, true] {
+            let err = open_regular(&fifo, write).unwrap_err();
+            assert_eq!(
+                err.to_string(),
+                format!("{} is a FIFO, not a regular file", fifo.display())
+            );
+        }
+        let err = open_regular(Path::new("/dev/zero"), false).unwrap_err();
+        assert!(err.to_string().contains("is a device"), "{err}");
+        let new = dir.path().join("new.txt");
+        open_regular(&new, true).unwrap().write_all(b"x").unwrap();
+        let mut text = String::new();
+        open_regular(&new, false)
+            .unwrap()
+            .read_to_string(&mut text)
+            .unwrap();
+        assert_eq!(text, "x");
     }
 }

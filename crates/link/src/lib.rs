@@ -10,9 +10,12 @@
 //!   [`open_serial`] opens one as a plain `serialport` port.
 //! - [`fs`]: every file buslab writes is written atomically; files it reads are read with a
 //!   size limit.
+//! - [`journal`]: a served device's changes between two state files, synced before the
+//!   device's next byte leaves, replayed after a crash.
 
 mod control;
 pub mod fs;
+pub mod journal;
 mod pty;
 mod serial;
 mod serve;

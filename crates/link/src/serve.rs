@@ -48,19 +48,20 @@ pub fn serve<D: ByteDevice>(
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
 ) -> io::Result<()> {
-    serve_with(device, pty, line, control, stop, &mut |_, _| {})
+    serve_with(device, pty, line, control, stop, &mut |_, _, _| {})
 }
 
-/// [`serve`], calling `after_poll(device, now)` each time the device has been polled, before
-/// the bytes it produced go to the client (where an adapter takes snapshots to persist, or
-/// would sync a journal before an acknowledgement leaves).
+/// [`serve`], calling `after_poll(device, now, output)` each time the device has been polled,
+/// before the bytes it produced go to the client; `output` says whether it produced any (where
+/// an adapter takes snapshots to persist, and syncs its journal before an acknowledgement
+/// leaves).
 pub(crate) fn serve_with<D: ByteDevice>(
     device: &mut D,
     pty: &Pty,
     line: LineSettings,
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
-    after_poll: &mut dyn FnMut(&mut D, u64),
+    after_poll: &mut dyn FnMut(&mut D, u64, bool),
 ) -> io::Result<()> {
     let mut losses = Losses::default();
     let result = serve_loop(device, pty, line, control, stop, after_poll, &mut losses);
@@ -123,7 +124,7 @@ fn serve_loop<D: ByteDevice>(
     line: LineSettings,
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
-    after_poll: &mut dyn FnMut(&mut D, u64),
+    after_poll: &mut dyn FnMut(&mut D, u64, bool),
     losses: &mut Losses,
 ) -> io::Result<()> {
     let epoch = Instant::now();
@@ -156,7 +157,7 @@ fn serve_loop<D: ByteDevice>(
             }
         }
         device.poll(now, &mut produced);
-        after_poll(device, now);
+        after_poll(device, now, !produced.is_empty());
         let room = MAX_OUTBOUND.saturating_sub(outbound.len());
         if produced.len() > room {
             losses.overflowed(produced.len() - room);

@@ -9,6 +9,12 @@
 //! through one saver thread in the order the snapshots were taken, each with
 //! [`write_atomic`](crate::fs::write_atomic). Dropping the handle stops the device.
 //!
+//! Between two state files the device's changes go to a [`journal`](crate::journal), synced
+//! before any byte the device sends after them reaches the client: whatever the device
+//! acknowledged survives a `kill -9`. The caller replays the journals into the state it builds
+//! the device from ([`journal::replay`](crate::journal::replay)); the state file written at
+//! start holds them, and they are deleted.
+//!
 //! [`serve`]: crate::serve()
 
 use std::io;
@@ -19,10 +25,11 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use buslab_device::{ByteDevice, LineSettings, Persistent};
+use buslab_device::{ByteDevice, Changes, LineSettings, Persistent};
 
 use crate::Pty;
 use crate::fs::write_atomic;
+use crate::journal;
 use crate::serve::{Control, serve_with};
 
 /// Why a served device failed.
@@ -66,6 +73,7 @@ struct Persistence<D> {
     every: Duration,
     generation: fn(&D) -> u64,
     snapshot: fn(&D) -> Snapshot,
+    take_changes: fn(&mut D) -> Changes,
 }
 
 /// What to serve, and how: `Serve::new(device, line).link(..).persist(..).spawn()`.
@@ -118,18 +126,35 @@ impl<D: ByteDevice + Send + 'static> Serve<D> {
             })?;
         }
         let path = pty.path().to_path_buf();
+        let mut device = device;
         let saver = match persistence {
             Some(p) => {
+                // The device was built from the state file with its journals replayed: what
+                // it holds now is everything, and older changes are not journaled again.
+                let _ = (p.take_changes)(&mut device);
                 // Written once now: a file that cannot be written is an error at start.
                 write_atomic(&p.path, &(p.snapshot)(&device)()).map_err(|e| ServedError::Save {
                     what: p.what,
                     path: e.path,
                     source: e.source,
                 })?;
+                let journal_error = |source| ServedError::Save {
+                    what: "journal",
+                    path: journal::journal_path(&p.path, 0),
+                    source,
+                };
+                let old = journal::existing(&p.path).map_err(journal_error)?;
+                let next = old.last().map_or(1, |(seq, _)| seq + 1);
+                journal::retire(&p.path, old.first().map_or(next, |(seq, _)| *seq), next);
+                let writer = journal::Writer::create(&p.path, next).map_err(journal_error)?;
                 let saved = (p.generation)(&device);
-                Some(Saver::spawn(&name, p, saved)?)
+                Some((Saver::spawn(&name, p, saved, next)?, writer))
             }
             None => None,
+        };
+        let (saver, writer) = match saver {
+            Some((saver, writer)) => (Some(saver), Some(writer)),
+            None => (None, None),
         };
         let (control, control_rx) = channel::<Control<D>>();
         let stop = Arc::new(AtomicBool::new(false));
@@ -138,7 +163,7 @@ impl<D: ByteDevice + Send + 'static> Serve<D> {
             let saver = saver.clone();
             std::thread::Builder::new()
                 .name(format!("{name}-serve"))
-                .spawn(move || run(device, pty, line, &control_rx, &stop, saver))
+                .spawn(move || run(device, pty, line, &control_rx, &stop, saver, writer))
                 .map_err(ServedError::Serve)?
         };
         tracing::info!(device = %name, pty = %path.display(), "serving at {line}");
@@ -162,13 +187,14 @@ impl<D: ByteDevice + Persistent + Send + 'static> Serve<D> {
             every,
             generation: D::state_generation,
             snapshot: take_snapshot::<D>,
+            take_changes: D::take_changes,
         });
         self
     }
 }
 
-/// The serve thread: paces the device, takes snapshots when its state changed, saves it at
-/// the end.
+/// The serve thread: paces the device, journals its changes, takes snapshots when its state
+/// changed, saves it at the end.
 fn run<D: ByteDevice>(
     mut device: D,
     pty: Pty,
@@ -176,31 +202,128 @@ fn run<D: ByteDevice>(
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
     saver: Option<Saver<D>>,
+    writer: Option<journal::Writer>,
 ) -> Result<(), ServedError> {
-    let mut next_look = 0u64;
+    let mut keeper = saver.map(|saver| Keeper {
+        saver,
+        writer,
+        next_look: 0,
+        must_save: false,
+        failing: false,
+    });
     let result = serve_with(
         &mut device,
         &pty,
         line,
         control,
         stop,
-        &mut |device, now| {
-            if let Some(saver) = &saver
-                && now >= next_look
-            {
-                next_look = now.saturating_add(saver.every_ns);
-                saver.save_if_changed(device);
+        &mut |device, now, output| {
+            if let Some(keeper) = &mut keeper {
+                keeper.after_poll(device, now, output);
             }
         },
     );
     // The link goes before the final save: a new server may take the name meanwhile.
     drop(pty);
-    let saved = match &saver {
-        Some(saver) => saver.save_and_wait(&device),
+    let saved = match &mut keeper {
+        Some(keeper) => keeper.finish(&mut device),
         None => Ok(()),
     };
     result.map_err(ServedError::Serve)?;
     saved
+}
+
+/// Keeps a device's state on disk from the serve thread: its changes in the journal, synced
+/// before the device's output leaves, and a snapshot whenever the state moved.
+struct Keeper<D> {
+    saver: Saver<D>,
+    /// `None` once the journal could not be continued.
+    writer: Option<journal::Writer>,
+    next_look: u64,
+    /// Changes are not all in the journal: a snapshot must be written before output leaves.
+    must_save: bool,
+    /// The journal failed (warned once).
+    failing: bool,
+}
+
+impl<D> Keeper<D> {
+    fn after_poll(&mut self, device: &mut D, now: u64, output: bool) {
+        match (self.saver.take_changes)(device) {
+            Changes::Records(records) if records.is_empty() => {}
+            Changes::Records(records) => {
+                let appended = match &mut self.writer {
+                    Some(w) => w.append(&records),
+                    None => Err(std::io::Error::other("no journal")),
+                };
+                if let Err(e) = appended {
+                    self.journal_failed(&e);
+                }
+            }
+            Changes::Snapshot => self.must_save = true,
+        }
+        if output {
+            // An acknowledgement follows the change it acknowledges: both reach the disk first.
+            if !self.must_save
+                && let Some(w) = &mut self.writer
+                && let Err(e) = w.sync()
+            {
+                self.journal_failed(&e);
+            }
+            if self.must_save {
+                self.must_save = false;
+                self.next_look = now.saturating_add(self.saver.every_ns);
+                let retire = self.rotate();
+                if let Err(e) = self.saver.save_and_wait(device, retire) {
+                    tracing::warn!("{e}");
+                }
+                return;
+            }
+        }
+        if now >= self.next_look {
+            self.next_look = now.saturating_add(self.saver.every_ns);
+            if self.saver.changed(device) {
+                let retire = self.rotate();
+                self.saver.save(device, retire);
+            }
+        }
+    }
+
+    /// Starts the next journal for the changes after a snapshot about to be taken; the number
+    /// below which journals go once that snapshot is written.
+    fn rotate(&mut self) -> Option<u64> {
+        let writer = self.writer.as_mut()?;
+        match writer.rotate() {
+            Ok(()) => Some(writer.seq()),
+            Err(e) => {
+                self.journal_failed(&e);
+                None
+            }
+        }
+    }
+
+    fn journal_failed(&mut self, e: &std::io::Error) {
+        if !self.failing {
+            tracing::warn!(
+                "the journal of {} failed ({e}); the whole state is saved before the device \
+                 answers instead",
+                self.saver.path.display()
+            );
+        }
+        self.failing = true;
+        self.must_save = true;
+    }
+
+    /// At the end: the last changes journaled, the state saved, the journals deleted.
+    fn finish(&mut self, device: &mut D) -> Result<(), ServedError> {
+        if let Changes::Records(records) = (self.saver.take_changes)(device)
+            && let Some(w) = &mut self.writer
+            && w.append(&records).and_then(|()| w.sync()).is_err()
+        {
+            self.writer = None;
+        }
+        let retire = self.writer.as_ref().map(|w| w.seq() + 1);
+        self.saver.save_and_wait(device, retire)
+    }
 }
 
 /// A device served on a PTY. Dropping it stops the device (and saves its state).
@@ -304,16 +427,18 @@ impl<D: 'static> Handle<D> {
             return Ok(None);
         };
         let path = saver.path.clone();
-        self.with(move |device, _| saver.save_and_wait_later(device))?
+        self.with(move |device, _| saver.save_and_wait_later(device, None))?
             .recv()
             .map_err(|_| ServedError::Stopped)??;
         Ok(Some(path))
     }
 }
 
-/// A snapshot on its way to the file; `done` hears how writing it went.
+/// A snapshot on its way to the file; `done` hears how writing it went. Once it is written,
+/// the journals numbered below `retire` are redundant.
 struct SaveJob {
     snapshot: Snapshot,
+    retire: Option<u64>,
     done: Option<Sender<Result<(), ServedError>>>,
 }
 
@@ -325,6 +450,7 @@ struct Saver<D> {
     every_ns: u64,
     generation: fn(&D) -> u64,
     snapshot: fn(&D) -> Snapshot,
+    take_changes: fn(&mut D) -> Changes,
     /// The generation last handed to the saver thread (`u64::MAX` after a failed write, so
     /// the next look saves again).
     enqueued: Arc<AtomicU64>,
@@ -338,13 +464,19 @@ impl<D> Clone for Saver<D> {
             every_ns: self.every_ns,
             generation: self.generation,
             snapshot: self.snapshot,
+            take_changes: self.take_changes,
             enqueued: self.enqueued.clone(),
         }
     }
 }
 
 impl<D> Saver<D> {
-    fn spawn(name: &str, p: Persistence<D>, saved: u64) -> Result<Self, ServedError> {
+    fn spawn(
+        name: &str,
+        p: Persistence<D>,
+        saved: u64,
+        first_journal: u64,
+    ) -> Result<Self, ServedError> {
         let (jobs, rx) = channel();
         let enqueued = Arc::new(AtomicU64::new(saved));
         {
@@ -353,7 +485,7 @@ impl<D> Saver<D> {
             let enqueued = enqueued.clone();
             std::thread::Builder::new()
                 .name(format!("{name}-save"))
-                .spawn(move || save_jobs(&rx, &path, what, &enqueued))
+                .spawn(move || save_jobs(&rx, &path, what, &enqueued, first_journal))
                 .map_err(ServedError::Serve)?;
         }
         Ok(Self {
@@ -362,28 +494,39 @@ impl<D> Saver<D> {
             every_ns: p.every.as_nanos().min(u128::from(u64::MAX)) as u64,
             generation: p.generation,
             snapshot: p.snapshot,
+            take_changes: p.take_changes,
             enqueued,
         })
     }
 
-    /// In the serve thread: hands a snapshot to the saver thread if the state moved.
-    fn save_if_changed(&self, device: &D) {
-        let generation = (self.generation)(device);
-        if self.enqueued.swap(generation, Ordering::SeqCst) != generation {
-            let _ = self.jobs.send(SaveJob {
-                snapshot: (self.snapshot)(device),
-                done: None,
-            });
-        }
+    /// Whether the state moved since the last snapshot handed over.
+    fn changed(&self, device: &D) -> bool {
+        self.enqueued.load(Ordering::SeqCst) != (self.generation)(device)
+    }
+
+    /// In the serve thread: hands a snapshot to the saver thread.
+    fn save(&self, device: &D, retire: Option<u64>) {
+        self.enqueued
+            .store((self.generation)(device), Ordering::SeqCst);
+        let _ = self.jobs.send(SaveJob {
+            snapshot: (self.snapshot)(device),
+            retire,
+            done: None,
+        });
     }
 
     /// In the serve thread: hands a snapshot over; the receiver hears when it is written.
-    fn save_and_wait_later(&self, device: &D) -> Receiver<Result<(), ServedError>> {
+    fn save_and_wait_later(
+        &self,
+        device: &D,
+        retire: Option<u64>,
+    ) -> Receiver<Result<(), ServedError>> {
         let (tx, rx) = channel();
         self.enqueued
             .store((self.generation)(device), Ordering::SeqCst);
         let job = SaveJob {
             snapshot: (self.snapshot)(device),
+            retire,
             done: Some(tx),
         };
         if let Err(unsent) = self.jobs.send(job)
@@ -394,26 +537,42 @@ impl<D> Saver<D> {
         rx
     }
 
-    fn save_and_wait(&self, device: &D) -> Result<(), ServedError> {
-        self.save_and_wait_later(device)
+    fn save_and_wait(&self, device: &D, retire: Option<u64>) -> Result<(), ServedError> {
+        self.save_and_wait_later(device, retire)
             .recv()
             .map_err(|_| ServedError::Stopped)?
     }
 }
 
-/// The saver thread: writes the newest snapshot waiting, tells whoever waits for it; one
-/// warning when periodic saving starts failing, one line when it works again.
-fn save_jobs(jobs: &Receiver<SaveJob>, path: &Path, what: &'static str, enqueued: &AtomicU64) {
+/// The saver thread: writes the newest snapshot waiting, deletes the journals it makes
+/// redundant, tells whoever waits for it; one warning when periodic saving starts failing, one
+/// line when it works again.
+fn save_jobs(
+    jobs: &Receiver<SaveJob>,
+    path: &Path,
+    what: &'static str,
+    enqueued: &AtomicU64,
+    first_journal: u64,
+) {
     let mut failing = false;
+    let mut oldest_journal = first_journal;
     while let Ok(first) = jobs.recv() {
         // Snapshots queue in the order they were taken: only the newest needs writing.
         let mut latest = first.snapshot;
+        let mut retire = first.retire;
         let mut waiting: Vec<_> = first.done.into_iter().collect();
         while let Ok(next) = jobs.try_recv() {
             latest = next.snapshot;
+            retire = retire.max(next.retire);
             waiting.extend(next.done);
         }
         let result = write_atomic(path, &latest());
+        if let (Ok(()), Some(below)) = (&result, retire)
+            && below > oldest_journal
+        {
+            journal::retire(path, oldest_journal, below);
+            oldest_journal = below;
+        }
         match &result {
             Err(e) => {
                 enqueued.store(u64::MAX, Ordering::SeqCst);

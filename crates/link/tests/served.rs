@@ -7,8 +7,10 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use buslab_device::{ChangeLog, Changes, ReplayError};
 use buslab_link::{
     ByteDevice, ControlSocket, LineSettings, Persistent, Port, SerialLine, Serve, ServedError,
+    journal,
 };
 
 /// Far above any scheduling delay on a loaded machine; waits end as soon as things happen.
@@ -16,15 +18,23 @@ const ALLOWANCE: Duration = Duration::from_secs(30);
 
 const LINE: LineSettings = LineSettings::n81(115_200);
 
-/// Keeps every byte it receives: that is its persistent state. Echoes nothing.
+/// Keeps every byte it receives: that is its persistent state. Echoes nothing, or each byte
+/// once it is kept (an acknowledgement).
 #[derive(Default)]
 struct Recorder {
     state: Vec<u8>,
     generation: u64,
+    changes: ChangeLog,
+    echo: bool,
+    acks: Vec<u8>,
 }
 
 impl Recorder {
     fn push(&mut self, bytes: &[u8]) {
+        // A record sets bytes at an offset: `[offset (u32 BE), bytes…]`.
+        let mut record = (self.state.len() as u32).to_be_bytes().to_vec();
+        record.extend_from_slice(bytes);
+        self.changes.record(record);
         self.state.extend_from_slice(bytes);
         self.generation += 1;
     }
@@ -33,8 +43,13 @@ impl Recorder {
 impl ByteDevice for Recorder {
     fn receive(&mut self, _now_ns: u64, byte: u8) {
         self.push(&[byte]);
+        if self.echo {
+            self.acks.push(byte);
+        }
     }
-    fn poll(&mut self, _now_ns: u64, _out: &mut Vec<u8>) {}
+    fn poll(&mut self, _now_ns: u64, out: &mut Vec<u8>) {
+        out.append(&mut self.acks);
+    }
     fn next_deadline(&self) -> Option<u64> {
         None
     }
@@ -50,6 +65,20 @@ impl Persistent for Recorder {
     }
     fn file_bytes(snapshot: &Vec<u8>) -> Vec<u8> {
         snapshot.clone()
+    }
+    fn take_changes(&mut self) -> Changes {
+        self.changes.take()
+    }
+    fn replay(snapshot: &mut Vec<u8>, record: &[u8]) -> Result<(), ReplayError> {
+        let Some((offset, bytes)) = record.split_first_chunk::<4>() else {
+            return Err(ReplayError::new(record, "no offset"));
+        };
+        let at = u32::from_be_bytes(*offset) as usize;
+        if snapshot.len() < at + bytes.len() {
+            snapshot.resize(at + bytes.len(), 0);
+        }
+        snapshot[at..at + bytes.len()].copy_from_slice(bytes);
+        Ok(())
     }
 }
 
@@ -175,6 +204,93 @@ fn saves_from_many_threads_at_once_write_whole_snapshots_in_order() {
     served.stop().unwrap();
     assert_eq!(last.len(), 100 * 1000);
     assert_eq!(std::fs::read(&path).unwrap(), last);
+    assert_eq!(files_in(dir.path()), ["state.bin"]);
+}
+
+#[test]
+fn what_the_device_acknowledged_is_in_the_journal_before_the_client_sees_it() {
+    // No periodic snapshot: only the journal holds the changes while serving.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("state.bin");
+    std::fs::write(&path, b"old;").unwrap();
+    let mut state = std::fs::read(&path).unwrap();
+    journal::replay::<Recorder>(&path, &mut state).unwrap();
+    let device = Recorder {
+        state,
+        echo: true,
+        ..Recorder::default()
+    };
+    let served = Serve::new(device, LINE)
+        .persist(Some(path.clone()), "state", Duration::from_secs(3600))
+        .spawn()
+        .unwrap();
+    let mut port = SerialLine::open(served.path(), LINE).unwrap();
+    for (i, byte) in (b'a'..=b'z').enumerate() {
+        port.send(&[byte]).unwrap();
+        let mut ack = [0u8];
+        let n = port.recv(&mut ack, ALLOWANCE).unwrap();
+        assert_eq!((n, ack[0]), (1, byte));
+        // Acknowledged: the state file and its journal hold it (a kill now would keep it).
+        let mut recovered = std::fs::read(&path).unwrap();
+        let replayed = journal::replay::<Recorder>(&path, &mut recovered).unwrap();
+        assert_eq!(replayed.torn_bytes, 0);
+        let mut want = b"old;".to_vec();
+        want.extend(b'a'..=byte);
+        assert_eq!(recovered, want, "after {} acknowledgements", i + 1);
+    }
+    served.stop().unwrap();
+    // Stopped: everything is in the state file, the journals are gone.
+    assert_eq!(files_in(dir.path()), ["state.bin"]);
+    let mut want = b"old;".to_vec();
+    want.extend(b'a'..=b'z');
+    assert_eq!(std::fs::read(&path).unwrap(), want);
+}
+
+#[test]
+fn journals_left_by_a_crash_are_replayed_then_folded_into_the_state_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("state.bin");
+    std::fs::write(&path, b"0123").unwrap();
+    // What a killed server left: two journals, the second cut in the middle of a record.
+    let frame = |record: &[u8]| {
+        let mut f = (record.len() as u32).to_le_bytes().to_vec();
+        f.extend(crc32fast::hash(record).to_le_bytes());
+        f.extend(record);
+        f
+    };
+    std::fs::write(
+        journal::journal_path(&path, 4),
+        frame(&[0, 0, 0, 4, b'x', b'y']),
+    )
+    .unwrap();
+    let mut second = frame(&[0, 0, 0, 1, b'A']);
+    second.extend(&frame(&[0, 0, 0, 6, b'z'])[..7]);
+    std::fs::write(journal::journal_path(&path, 5), second).unwrap();
+    let mut state = std::fs::read(&path).unwrap();
+    let replayed = journal::replay::<Recorder>(&path, &mut state).unwrap();
+    assert_eq!(
+        replayed,
+        journal::Replayed {
+            journals: 2,
+            records: 2,
+            torn_bytes: 7
+        }
+    );
+    assert_eq!(state, b"0A23xy");
+    let served = Serve::new(
+        Recorder {
+            state,
+            ..Recorder::default()
+        },
+        LINE,
+    )
+    .persist(Some(path.clone()), "state", Duration::from_secs(3600))
+    .spawn()
+    .unwrap();
+    // Folded into the state file at start; the old journals are gone, a new one is open.
+    assert_eq!(std::fs::read(&path).unwrap(), b"0A23xy");
+    assert_eq!(files_in(dir.path()), ["state.bin", "state.bin.journal.6"]);
+    served.stop().unwrap();
     assert_eq!(files_in(dir.path()), ["state.bin"]);
 }
 

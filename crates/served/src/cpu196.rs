@@ -13,7 +13,7 @@ use buslab_cpu196::message::{FileMode, Message, Thread};
 use buslab_cpu196::pic::Peer;
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, Image};
-use buslab_link::fs::read_text_limited;
+use buslab_link::fs::{open_regular, read_text_limited};
 use buslab_link::{Serve, Served};
 
 use crate::ServeError;
@@ -43,7 +43,11 @@ pub struct BoardOptions {
 /// a new PTY.
 pub fn spawn_board(options: BoardOptions) -> Result<Served<Board>, ServeError> {
     let image = match &options.image {
-        Some(path) => load_image(path)?.unwrap_or_default(),
+        Some(path) => {
+            let mut image = load_image(path)?.unwrap_or_default();
+            crate::replay_journals::<Board>(path, &mut image)?;
+            image
+        }
         None => Image::default(),
     };
     let mut board = Board::new(image, options.inputs, 0);
@@ -107,8 +111,10 @@ impl FileService {
     pub fn resolve(&self, name: &[u8]) -> Result<PathBuf, FileNameError> {
         let text = std::str::from_utf8(name).map_err(|_| FileNameError::NotText(name.to_vec()))?;
         let rel = Path::new(text);
+        // Names in messages are shown with their control characters written out.
+        let shown = || buslab_cpu196::message::printable(name);
         if text.is_empty() || !rel.components().all(|c| matches!(c, Component::Normal(_))) {
-            return Err(FileNameError::Escapes(text.to_string()));
+            return Err(FileNameError::Escapes(shown()));
         }
         let path = self.root.join(rel);
         // Follow symlinks as far as the path exists: it must stay under the root. A link counts
@@ -123,7 +129,7 @@ impl FileService {
         }
         match probe.canonicalize() {
             Ok(real) if real.starts_with(&self.root) => Ok(path),
-            _ => Err(FileNameError::Symlink(text.to_string())),
+            _ => Err(FileNameError::Symlink(shown())),
         }
     }
 }
@@ -133,21 +139,25 @@ impl FileRequests for FileService {
     fn handle(&mut self, t: &Thread) -> (Vec<Message>, Option<String>) {
         match t {
             Thread::Open { mode, name, file } => {
-                let shown = String::from_utf8_lossy(name).into_owned();
+                let shown = buslab_cpu196::message::printable(name);
                 let opened = self
                     .resolve(name)
                     .map_err(|e| e.to_string())
                     .and_then(|path| {
-                        match mode {
-                            FileMode::Read => File::open(&path),
-                            FileMode::Write => {
-                                if let Some(dir) = path.parent() {
-                                    std::fs::create_dir_all(dir).ok();
-                                }
-                                File::create(&path)
-                            }
+                        // A FIFO or a device in the folder is refused without blocking: the
+                        // monitor must keep sending its watchdogs.
+                        if *mode == FileMode::Write
+                            && let Some(dir) = path.parent()
+                        {
+                            std::fs::create_dir_all(dir).ok();
                         }
-                        .map_err(|e| format!("{}: {e}", path.display()))
+                        open_regular(&path, *mode == FileMode::Write).map_err(|e| {
+                            if e.kind() == io::ErrorKind::InvalidInput {
+                                e.to_string()
+                            } else {
+                                format!("{}: {e}", path.display())
+                            }
+                        })
                     });
                 match opened {
                     Ok(f) => {
@@ -294,5 +304,30 @@ mod tests {
         });
         assert_eq!(r, vec![Message::Msg(MsgCode::FILE_ERROR)]);
         assert!(!dir.path().parent().unwrap().join("evil").exists());
+    }
+
+    #[test]
+    fn file_service_refuses_a_fifo_at_once_for_reading_and_writing() {
+        // A FIFO in the served folder blocked the monitor, which stopped sending watchdogs.
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        assert!(
+            std::process::Command::new("mkfifo")
+                .arg(&fifo)
+                .status()
+                .unwrap()
+                .success()
+        );
+        let mut fs = FileService::new(dir.path()).unwrap();
+        for mode in [FileMode::Read, FileMode::Write] {
+            let (r, log) = fs.handle(&Thread::Open {
+                mode,
+                name: b"pipe".to_vec(),
+                file: 1,
+            });
+            assert_eq!(r, vec![Message::Msg(MsgCode::FILE_ERROR)]);
+            let log = log.unwrap();
+            assert!(log.contains("is a FIFO, not a regular file"), "{log}");
+        }
     }
 }

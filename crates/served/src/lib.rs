@@ -9,7 +9,9 @@
 //!   virtual bus server.
 //!
 //! Both use the one served-device adapter, [`buslab_link::Serve`]; files are read with a size
-//! limit and written atomically ([`buslab_link::fs`]).
+//! limit and written atomically ([`buslab_link::fs`]); the changes between two saves are
+//! journaled and replayed after a crash ([`buslab_link::journal`]), so nothing the device
+//! acknowledged is lost.
 
 pub mod cpu196;
 pub mod ppc;
@@ -17,8 +19,11 @@ pub mod zelle;
 
 use std::path::PathBuf;
 
-use buslab_link::ServedError;
+use std::path::Path;
+
 use buslab_link::fs::ReadError;
+use buslab_link::journal::{self, JournalError};
+use buslab_link::{Persistent, ServedError};
 
 /// Why a device could not be served.
 #[derive(Debug, thiserror::Error)]
@@ -27,6 +32,8 @@ pub enum ServeError {
     Served(#[from] ServedError),
     #[error(transparent)]
     Read(#[from] ReadError),
+    #[error(transparent)]
+    Journal(#[from] JournalError),
     #[error("state file {}: {source}", path.display())]
     State {
         path: PathBuf,
@@ -39,4 +46,18 @@ pub enum ServeError {
     Source(#[from] buslab_zelle::analog::SourceError),
     #[error(transparent)]
     Input(#[from] buslab_zelle::InputError),
+}
+
+/// Applies the journals a killed server left beside `path` to the state read from it.
+fn replay_journals<D: Persistent>(path: &Path, state: &mut D::Snapshot) -> Result<(), ServeError> {
+    let replayed = journal::replay::<D>(path, state)?;
+    if replayed.records > 0 {
+        tracing::info!(
+            "{}: {} changes recovered from {} journal(s) (the last server did not stop cleanly)",
+            path.display(),
+            replayed.records,
+            replayed.journals
+        );
+    }
+    Ok(())
 }

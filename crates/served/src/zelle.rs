@@ -43,7 +43,11 @@ impl ServedCell {
     /// Reads the state file, feeds the inputs, and serves the cell on a new PTY.
     pub fn spawn(options: CellOptions) -> Result<Self, ServeError> {
         let ram = match &options.state {
-            Some(path) => load_state(path)?,
+            Some(path) => {
+                let mut ram = load_state(path)?;
+                crate::replay_journals::<Cell>(path, &mut ram)?;
+                ram
+            }
             None => BatteryRam::default(),
         };
         let mut cell = Cell::new(ram);

@@ -65,6 +65,8 @@ pub enum ScenarioError {
     },
     #[error("scenario has no nodes; add at least one [[nodes]] table")]
     NoNodes,
+    #[error("node {node:?}: {why}")]
+    Host { node: String, why: String },
 }
 
 impl From<toml::de::Error> for ScenarioError {

@@ -24,7 +24,7 @@ pub mod vcd;
 pub use error::{DurationError, ScenarioError};
 pub use fault::{Fault, FaultKind};
 pub use observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats, Record};
-pub use scenario::Scenario;
+pub use scenario::{EngineOnly, NodeFactory, Scenario, Sja1000Spec};
 pub use simulation::{Node, Simulation};
 pub use time::{BitTime, Span};
 pub use traffic::Traffic;

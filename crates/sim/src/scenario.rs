@@ -2,6 +2,7 @@
 //! faults with start and end. See `docs/sim.md` for the format.
 
 use buslab_can::controller::ControllerConfig;
+use buslab_can::node::BusNode;
 use buslab_can::{Frame, Id};
 use buslab_slio::{DemoBoard, SlioId};
 use serde::Deserialize;
@@ -11,6 +12,14 @@ use crate::fault::{Fault, FaultKind};
 use crate::simulation::Simulation;
 use crate::time::{BitTime, Span};
 use crate::traffic::Traffic;
+
+/// The longest a simulation may run, in virtual seconds (a `u64::MAX` duration ran for hours).
+pub const MAX_DURATION_S: u64 = 3600;
+
+/// [`MAX_DURATION_S`] in bit-times at `bitrate`.
+pub fn max_duration(bitrate: u32) -> BitTime {
+    MAX_DURATION_S * u64::from(bitrate)
+}
 
 /// Largest file a scenario may send (16 MiB).
 const MAX_FILE: usize = 16 << 20;
@@ -47,6 +56,39 @@ pub enum NodeKind {
         adc1: f64,
         potentiometer: f64,
     },
+    /// An SJA1000 operated by the host library's driver (the CPU that services it), at the
+    /// bus's bit rate. The engine cannot make it: the caller's [`NodeFactory`] does.
+    Sja1000(Sja1000Spec),
+}
+
+/// How a scenario's SJA1000 node is set up.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sja1000Spec {
+    /// Linux's fast restart after bus-off (`recovery = "fast"`) instead of the seed's
+    /// (`"counted"`, the default): reset mode cleared, the chip counting TXERR down.
+    pub fast_restart: bool,
+}
+
+/// Makes the nodes a scenario names that run host code (an SJA1000 with the CPU running the
+/// host library's driver). The engine stays free of host code: the binary passes the host
+/// library's factory (`buslab_canbus::node::ScenarioNodes`).
+pub trait NodeFactory {
+    /// An SJA1000 node on a bus at `bitrate`.
+    fn sja1000(&self, spec: &Sja1000Spec, bitrate: u32) -> Result<Box<dyn BusNode>, String>;
+}
+
+/// A factory for engine-only callers: it makes no host nodes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct EngineOnly;
+
+impl NodeFactory for EngineOnly {
+    fn sja1000(&self, _: &Sja1000Spec, _: u32) -> Result<Box<dyn BusNode>, String> {
+        Err(
+            "an SJA1000 node runs the host library's driver; this program cannot make one \
+             (buslab sim and buslab bus serve --nodes can)"
+                .into(),
+        )
+    }
 }
 
 impl Scenario {
@@ -56,11 +98,27 @@ impl Scenario {
         raw.resolve()
     }
 
-    /// A simulation set up as described, at time 0.
-    pub fn build(&self) -> Simulation {
+    /// A simulation set up as described, at time 0; only nodes the engine makes itself
+    /// (controllers, SLIOs). See [`build_with`](Self::build_with).
+    pub fn build(&self) -> Result<Simulation, ScenarioError> {
+        self.build_with(&EngineOnly)
+    }
+
+    /// A simulation set up as described, at time 0; `hosts` makes the SJA1000 nodes.
+    pub fn build_with(&self, hosts: &dyn NodeFactory) -> Result<Simulation, ScenarioError> {
         let mut sim = Simulation::new(self.bitrate, self.seed);
         for node in &self.nodes {
             let index = match &node.kind {
+                NodeKind::Sja1000(spec) => {
+                    let device =
+                        hosts
+                            .sja1000(spec, self.bitrate)
+                            .map_err(|why| ScenarioError::Host {
+                                node: node.name.clone(),
+                                why,
+                            })?;
+                    sim.add_device(&node.name, device)
+                }
                 NodeKind::Controller(config) => sim.add_node(&node.name, *config),
                 NodeKind::Slio {
                     id,
@@ -88,7 +146,7 @@ impl Scenario {
         if let Some(every) = self.sample_every {
             sim.sample_counters_every(every);
         }
-        sim
+        Ok(sim)
     }
 
     /// A one-line description of fault `index`, e.g. `cut [sender] error_rate 0.05`.
@@ -163,8 +221,10 @@ struct RawScenario {
 #[serde(deny_unknown_fields)]
 struct RawNode {
     name: String,
-    /// `controller` (the default) or `slio`.
+    /// `controller` (the default), `slio` or `sja1000`.
     kind: Option<String>,
+    /// An SJA1000's bus-off recovery: `counted` (the seed's, default) or `fast`.
+    recovery: Option<String>,
     /// A SLIO's number, 0..F.
     id: Option<String>,
     /// A SLIO board's ADC1 and potentiometer voltages.
@@ -355,6 +415,18 @@ impl RawScenario {
             names: &names,
         };
         let duration = r.opt_span("duration", &self.duration, bitrate as BitTime)?;
+        if duration > max_duration(bitrate) {
+            return Err(ScenarioError::OutOfRange {
+                context: "duration".to_owned(),
+                what: "duration",
+                value: self
+                    .duration
+                    .as_ref()
+                    .map(|d| d.0.clone())
+                    .unwrap_or_default(),
+                range: "up to 1 h of virtual time",
+            });
+        }
         let sample_every = match &self.sample_every {
             Some(raw) => match r.span("sample_every", raw)? {
                 0 => {
@@ -421,7 +493,47 @@ impl RawNode {
             .enumerate()
             .map(|(i, t)| t.resolve(r, &format!("{context}, traffic {}", i + 1)))
             .collect::<Result<_, _>>()?;
+        if self.recovery.is_some() && self.kind.as_deref() != Some("sja1000") {
+            return Err(ScenarioError::OutOfRange {
+                context,
+                what: "recovery",
+                value: format!("{:?}", self.recovery.unwrap_or_default()),
+                range: "only for kind = \"sja1000\"",
+            });
+        }
         let kind = match self.kind.as_deref() {
+            Some("sja1000") => {
+                let fast_restart = match self.recovery.as_deref() {
+                    None | Some("counted") => false,
+                    Some("fast") => true,
+                    Some(other) => {
+                        return Err(ScenarioError::OutOfRange {
+                            context,
+                            what: "recovery",
+                            value: format!("{other:?}"),
+                            range: "\"counted\" (the seed's) or \"fast\"",
+                        });
+                    }
+                };
+                let controller_only = self.listen_only
+                    || self.self_test
+                    || self.single_shot
+                    || self.self_reception
+                    || self.auto_recover.is_some()
+                    || self.tx_queue.is_some()
+                    || self.id.is_some()
+                    || self.adc1.is_some()
+                    || self.potentiometer.is_some();
+                if controller_only {
+                    return Err(ScenarioError::OutOfRange {
+                        context,
+                        what: "option",
+                        value: "of another kind".into(),
+                        range: "an sja1000 node takes recovery and traffic only",
+                    });
+                }
+                NodeKind::Sja1000(Sja1000Spec { fast_restart })
+            }
             None | Some("controller") => {
                 if let Some(id) = &self.id {
                     return Err(ScenarioError::OutOfRange {
@@ -482,7 +594,7 @@ impl RawNode {
                     context,
                     what: "kind",
                     value: format!("{other:?}"),
-                    range: "\"controller\" or \"slio\"",
+                    range: "\"controller\", \"slio\" or \"sja1000\"",
                 });
             }
         };
@@ -510,6 +622,15 @@ impl RawTraffic {
                         what: "period",
                         value: period.0,
                         range: "at least 1 bit-time",
+                    });
+                }
+                // `count = 0` sent one frame: a count says how many, at least one.
+                if count == Some(0) {
+                    return Err(ScenarioError::OutOfRange {
+                        context: context.to_owned(),
+                        what: "count",
+                        value: "0".into(),
+                        range: "1 or more (leave it out for no end)",
                     });
                 }
                 Traffic::Periodic {
@@ -662,7 +783,8 @@ impl RawFault {
 
 fn parse_hex(text: &str) -> Option<Vec<u8>> {
     let digits: Vec<u8> = text.bytes().filter(|b| !b.is_ascii_whitespace()).collect();
-    if !digits.len().is_multiple_of(2) {
+    // Hex digits only: `from_str_radix` would take a sign (`+f`).
+    if !digits.len().is_multiple_of(2) || !digits.iter().all(u8::is_ascii_hexdigit) {
         return None;
     }
     digits
@@ -736,7 +858,7 @@ mod tests {
                 end: 5001
             }
         );
-        assert_eq!(s.build().nodes().len(), 2);
+        assert_eq!(s.build().unwrap().nodes().len(), 2);
     }
 
     fn err(text: &str) -> String {
@@ -759,6 +881,24 @@ mod tests {
             (
                 format!("{NODE}[[nodes.traffic]]\nkind = \"once\"\nframe = \"12#00\"\nat = 0"),
                 "bad frame \"12#00\"",
+            ),
+            (
+                format!(
+                    "{NODE}[[nodes.traffic]]\nkind = \"periodic\"\nframe = \"123#\"\nperiod = \"1ms\"\ncount = 0"
+                ),
+                "count 0 is out of range 1 or more",
+            ),
+            (
+                format!("{NODE}[[nodes.traffic]]\nkind = \"burst\"\nframe = \"123#+f\"\ncount = 1"),
+                "bad frame \"123#+f\"",
+            ),
+            (
+                format!("{NODE}kind = \"sja1000\"\nrecovery = \"slow\""),
+                "recovery \"slow\" is out of range \"counted\"",
+            ),
+            (
+                format!("{NODE}recovery = \"fast\""),
+                "only for kind = \"sja1000\"",
             ),
             (
                 format!(

@@ -11,8 +11,8 @@ use buslab_sim::{Scenario, Simulation, VcdWriter};
 const NOISE: &str = include_str!("../../../scenarios/noise.toml");
 const SCENARIOS: [(&str, &str); 4] = [
     (
-        "seed-cut-wire",
-        include_str!("../../../scenarios/seed-cut-wire.toml"),
+        "cut-wire-controllers",
+        include_str!("../../../scenarios/cut-wire-controllers.toml"),
     ),
     (
         "arbitration",
@@ -30,7 +30,7 @@ fn run(text: &str, seed: Option<u64>, bits: u64) -> Simulation {
     if let Some(seed) = seed {
         scenario.seed = seed;
     }
-    let mut sim = scenario.build();
+    let mut sim = scenario.build().unwrap();
     sim.trace_levels();
     sim.run_for(bits);
     sim
@@ -54,7 +54,7 @@ fn same_seed_same_trace_other_seed_other_trace() {
 fn shipped_scenarios_parse_and_run() {
     for (name, text) in SCENARIOS {
         let scenario = Scenario::from_toml(text).unwrap_or_else(|e| panic!("{name}: {e}"));
-        let mut sim = scenario.build();
+        let mut sim = scenario.build().unwrap();
         sim.run_until(scenario.duration.min(50_000));
         assert!(sim.bus_stats().frames > 0, "{name}: no frames");
     }
@@ -110,7 +110,7 @@ fn parse_vcd(text: &str) -> HashMap<String, Vec<(u64, char)>> {
 fn vcd_is_well_formed_and_matches_the_bus() {
     let text = include_str!("../../../scenarios/arbitration.toml");
     let scenario = Scenario::from_toml(text).unwrap();
-    let mut sim = scenario.build();
+    let mut sim = scenario.build().unwrap();
     sim.trace_levels();
     let names = signal_names(sim.nodes().iter().map(|n| n.name()));
     let mut vcd = VcdWriter::new(Vec::new(), sim.bitrate(), &names).unwrap();
@@ -159,8 +159,8 @@ fn fast_forward_changes_nothing() {
         for traced in [false, true] {
             let scenario = Scenario::from_toml(text).unwrap();
             let bits = scenario.duration.min(120_000);
-            let mut fast = scenario.build();
-            let mut slow = scenario.build();
+            let mut fast = scenario.build().unwrap();
+            let mut slow = scenario.build().unwrap();
             slow.set_fast_forward(false);
             if traced {
                 fast.trace_levels();
@@ -170,7 +170,7 @@ fn fast_forward_changes_nothing() {
             slow.run_until(bits);
             // These have idle stretches without faults (the arbitration demo keeps the bus
             // saturated, the noise demo has noise all the time).
-            if ["seed-cut-wire", "listen-only"].contains(&name) {
+            if ["cut-wire-controllers", "listen-only"].contains(&name) {
                 assert!(fast.fast_forwarded() > bits / 10, "{name}: no fast-forward");
             }
             assert_eq!(slow.fast_forwarded(), 0);

@@ -420,8 +420,9 @@ impl Sja1000 {
         self.bs = true;
         self.txerr = 127;
         self.rxerr = 0;
-        self.es = true;
+        // EI on bus-off entry whether or not ES changes.
         self.raise(IR_EI);
+        self.set_error_status(true);
     }
 
     fn command(&mut self, cmd: u8) {
@@ -457,7 +458,8 @@ impl Sja1000 {
             return;
         }
         let frame = layout::decode_tx(self.mode, &self.tx_buf);
-        if self.mac.enqueue(frame, single_shot) {
+        let dlc = layout::raw_dlc(self.mode, &self.tx_buf);
+        if self.mac.enqueue(frame, dlc, single_shot) {
             self.tbs = false;
             self.tcs = false;
             self.pending = Some(Pending { self_reception });
@@ -512,13 +514,43 @@ impl Sja1000 {
         }
         self.mac.sample(bus);
         while let Some(event) = self.mac.poll_event() {
-            if self.bus_events.len() == BUS_EVENTS_KEPT {
-                self.bus_events.pop_front();
+            // The chip's own warning is SR.ES (against EWLR, and during the bus-off recovery
+            // against TXERR counting down): it is reported in place of the controller's.
+            if !matches!(event, Event::Warning { .. }) {
+                self.report(event.clone());
             }
-            self.bus_events.push_back(event.clone());
             self.on_event(event);
         }
         self.update_error_status();
+    }
+
+    /// Keeps an event for [`poll_bus_event`](Self::poll_bus_event) (the last 64).
+    fn report(&mut self, event: Event) {
+        if self.bus_events.len() == BUS_EVENTS_KEPT {
+            self.bus_events.pop_front();
+        }
+        self.bus_events.push_back(event);
+    }
+
+    /// SR.ES changed: EI, and the change reported as the chip's error warning.
+    fn set_error_status(&mut self, es: bool) {
+        if es != self.es {
+            self.es = es;
+            self.raise(IR_EI);
+            self.report(Event::Warning {
+                above: es,
+                tec: self.txerr.into(),
+                rec: self.rxerr.into(),
+            });
+        }
+    }
+
+    /// The error warning limit ES is computed against.
+    fn warning_limit(&self) -> u8 {
+        match self.mode {
+            CanMode::Peli => self.ewlr,
+            CanMode::Basic => 96,
+        }
     }
 
     /// The next event of the chip's protocol controller (frames on the wire, errors, state
@@ -627,7 +659,9 @@ impl Sja1000 {
         }
     }
 
-    /// Bus-off recovery progress: TXERR counts down from 127 once per 11 recessive bits.
+    /// Bus-off recovery progress: TXERR counts down from 127 once per 11 recessive bits, and
+    /// ES clears as it passes below the warning limit (the seed watched it: "Lorsqu'il atteint
+    /// 96, le bit Error Status repasse à OK"); BS clears at the end.
     fn count_recovery_bit(&mut self, bus: Level) {
         if bus == Level::Dominant {
             self.recovery_run = 0;
@@ -637,6 +671,9 @@ impl Sja1000 {
         if self.recovery_run == 11 {
             self.recovery_run = 0;
             self.txerr = self.txerr.saturating_sub(1);
+            if self.txerr < self.warning_limit() && self.rxerr < self.warning_limit() {
+                self.set_error_status(false);
+            }
         }
     }
 
@@ -647,15 +684,8 @@ impl Sja1000 {
         }
         self.txerr = self.mac.tec().min(255) as u8;
         self.rxerr = self.mac.rec().min(255) as u8;
-        let limit = match self.mode {
-            CanMode::Peli => self.ewlr,
-            CanMode::Basic => 96,
-        };
-        let es = self.txerr >= limit || self.rxerr >= limit;
-        if es != self.es {
-            self.es = es;
-            self.raise(IR_EI);
-        }
+        let limit = self.warning_limit();
+        self.set_error_status(self.txerr >= limit || self.rxerr >= limit);
     }
 }
 
@@ -677,7 +707,7 @@ impl buslab_can::node::BusNode for Sja1000 {
     fn poll_event(&mut self) -> Option<Event> {
         self.poll_bus_event()
     }
-    /// TXERR as the CPU reads it (255 on entering bus-off, then counting down during the
+    /// TXERR as the CPU reads it (127 on entering bus-off, then counting down during the
     /// recovery, as the seed watched it fall).
     fn tec(&self) -> u16 {
         self.txerr as u16

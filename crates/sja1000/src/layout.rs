@@ -60,9 +60,18 @@ pub fn stored_len(mode: CanMode, first: u8, second: u8) -> usize {
     header + if remote { 0 } else { dlc.min(8) as usize }
 }
 
+/// The DLC a program wrote into the TX buffer's frame info (descriptor), 0..15: the chip sends
+/// it as coded ([`decode_tx`] gives the frame, with at most 8 bytes).
+pub fn raw_dlc(mode: CanMode, buf: &[u8; 13]) -> u8 {
+    match mode {
+        CanMode::Basic => buf[1] & 0x0F,
+        CanMode::Peli => buf[0] & 0x0F,
+    }
+}
+
 /// Reads the frame a program wrote into the TX buffer. The RTR copies in the ID bytes are
-/// ignored (the frame-info/descriptor bit decides); DLC 9..15 is sent as 8 bytes (buslab's
-/// `Frame` carries DLC 0..8; see docs/decisions.md).
+/// ignored (the frame-info/descriptor bit decides); DLC 9..15 means 8 data bytes (buslab's
+/// `Frame` carries DLC 0..8; the chip puts the coded DLC on the wire, see [`raw_dlc`]).
 pub fn decode_tx(mode: CanMode, buf: &[u8; 13]) -> Frame {
     let (id, remote, dlc, data): (Id, bool, u8, &[u8]) = match mode {
         CanMode::Basic => {

@@ -48,10 +48,11 @@ impl Mac {
         self.controller.config().self_test
     }
 
-    /// Queues the TX buffer's frame; `single_shot` = no retransmission (CMR.AT with TR).
-    pub fn enqueue(&mut self, frame: Frame, single_shot: bool) -> bool {
+    /// Queues the TX buffer's frame with the DLC as coded (9..15 go on the wire as they are);
+    /// `single_shot` = no retransmission (CMR.AT with TR).
+    pub fn enqueue(&mut self, frame: Frame, dlc: u8, single_shot: bool) -> bool {
         self.controller.set_single_shot(single_shot);
-        self.controller.enqueue(frame).is_ok()
+        self.controller.enqueue_with_dlc(frame, dlc).is_ok()
     }
 
     /// Withdraws the pending frame if it has not started (`true`); a frame already on the bus

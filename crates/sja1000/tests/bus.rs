@@ -260,6 +260,91 @@ fn repeated_bit_errors_drive_the_transmitter_to_bus_off_and_it_recovers() {
     );
 }
 
+/// Seed 002 §5.4.7: "Si on rebranche alors le bus, le compteur rediminue, mais plus lentement
+/// qu'il n'avait augmenté. Lorsqu'il atteint 96, le bit Error Status repasse à OK." Reset mode
+/// cleared, the chip counts TXERR down once per 11 recessive bits; ES clears as TXERR passes
+/// below the warning limit, BS only at the end.
+#[test]
+fn during_the_bus_off_recovery_txerr_falls_and_es_clears_below_the_warning_limit() {
+    let mut bus = peli_bus(2, 0x04); // EIE
+    load_tx(&mut bus.chips[0], "123#FF");
+    bus.chips[0].write(CMR, 0x01);
+    let (mut was_transmitting, mut sof, mut rising) = (false, 0, Vec::new());
+    while bus.chips[0].peek(SR) & SR_BS == 0 {
+        let transmitting = bus.chips[0].peek(SR) & 0x20 != 0;
+        if transmitting && !was_transmitting {
+            sof = bus.time - 1;
+            rising.push((bus.time, bus.chips[0].peek(TXERR)));
+        }
+        was_transmitting = transmitting;
+        bus.step_with(|t, level| {
+            if transmitting && t == sof + 20 {
+                Level::Dominant
+            } else {
+                level
+            }
+        });
+    }
+    let tx = &mut bus.chips[0];
+    assert_eq!((tx.read(TXERR), tx.read(SR) & SR_ES), (127, SR_ES));
+    tx.read(IR);
+    tx.write(MOD, 0x08);
+    let mut falling = Vec::new();
+    let mut es_cleared_at = None;
+    while bus.chips[0].peek(SR) & SR_BS != 0 {
+        bus.run(1);
+        let tx = &bus.chips[0];
+        let txerr = tx.peek(TXERR);
+        if falling.last().is_none_or(|&(_, last)| last != txerr) {
+            falling.push((bus.time, txerr));
+        }
+        if es_cleared_at.is_none() && tx.peek(SR) & SR_ES == 0 {
+            es_cleared_at = Some(txerr);
+            assert_eq!(tx.peek(IR) & 0x04, 0x04, "EI when ES clears");
+            assert_eq!(tx.peek(SR) & SR_BS, SR_BS, "still bus-off when ES clears");
+        }
+    }
+    // TXERR falls one by one, visibly: 127, 126, ... down to 0.
+    let values: Vec<u8> = falling.iter().map(|&(_, v)| v).collect();
+    assert_eq!(values, (0..=127).rev().collect::<Vec<u8>>());
+    // ES clears as TXERR passes below EWLR (96): the first value under it.
+    assert_eq!(es_cleared_at, Some(95));
+    // "Plus lentement qu'il n'avait augmenté": 8 per failed attempt up, 1 per 11 bits down.
+    let up_per_bit = 248.0 / (rising.last().unwrap().0 - rising[0].0) as f64;
+    let down_per_bit = 127.0 / (falling.last().unwrap().0 - falling[0].0) as f64;
+    assert!(down_per_bit < up_per_bit, "{down_per_bit} vs {up_per_bit}");
+    assert_eq!(bus.chips[0].peek(SR) & (SR_BS | SR_ES), 0);
+}
+
+/// Facts sheet §6.1: "DLC > 8 is transmitted as coded, but at most 8 data bytes are sent".
+#[test]
+fn a_dlc_of_9_to_15_in_the_tx_buffer_goes_on_the_wire_as_coded() {
+    let mut bus = peli_bus(2, 0);
+    load_tx(&mut bus.chips[0], "123#0102030405060708");
+    bus.chips[0].write(16, 0x0C); // frame info: standard data frame, DLC 12
+    bus.chips[0].write(CMR, 0x01);
+    // The wire: the wired-AND of what the chips drive, bit-time by bit-time.
+    let mut bits = Vec::new();
+    for _ in 0..200 {
+        let wire = bus
+            .chips
+            .iter()
+            .fold(Level::Recessive, |wire, chip| wire.and(chip.output()));
+        bits.push(wire.bit());
+        bus.run(1);
+    }
+    let sof = bits.iter().position(|&b| !b).expect("a frame was sent");
+    let decoded = buslab_can::wire::decode(bits[sof..].iter().copied()).unwrap();
+    assert_eq!(decoded.dlc, 12);
+    assert_eq!(decoded.frame.to_string(), "123#0102030405060708");
+    // The receiver takes 8 bytes (its RX buffer shows DLC 8: buslab's frames carry 0..8).
+    assert_eq!(bus.chips[0].read(SR) & SR_TCS, SR_TCS);
+    assert_eq!(
+        take_rx(&mut bus.chips[1]),
+        [0x08, 0x24, 0x60, 1, 2, 3, 4, 5, 6, 7, 8]
+    );
+}
+
 #[test]
 fn listen_only_chip_receives_but_never_drives_the_bus() {
     let mut chips: Vec<Sja1000> = (0..3).map(|_| Sja1000::new()).collect();

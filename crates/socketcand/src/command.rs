@@ -175,7 +175,8 @@ fn hex_byte(text: &str, what: &'static str) -> Result<u8, ProtocolError> {
         .strip_prefix("0x")
         .or_else(|| text.strip_prefix("0X"))
         .unwrap_or(text);
-    if digits.is_empty() || digits.len() > 2 {
+    // Hex digits only: `from_str_radix` would take a sign (`+f`).
+    if digits.is_empty() || digits.len() > 2 || !digits.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(ProtocolError::BadHex {
             what,
             text: text.to_string(),

@@ -18,11 +18,39 @@ pub enum ElementError {
     NotText,
 }
 
+/// What the bytes at the front of the buffer are, once known.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Skip {
+    /// Nothing to skip: an element, whitespace or junk not reported yet.
+    #[default]
+    Nothing,
+    /// The rest of a run of junk already reported: dropped up to the next `<`.
+    Junk,
+    /// The rest of an element already reported as too long: dropped up to its `>`.
+    Overlong,
+}
+
 /// Collects bytes and hands out complete elements (the text between `<` and `>`).
+///
+/// Linear in its input: every byte is looked at once (a position remembers how far the search
+/// for the end of the element or junk at the front went), consumed bytes are dropped in bulk,
+/// and a run of junk gives one error however long it is (a megabyte of `>` is one error).
 #[derive(Debug, Default)]
 pub struct Deframer {
     buf: Vec<u8>,
+    /// Bytes before this are consumed.
+    start: usize,
+    /// Bytes from `start` up to this were searched for the end of what starts at `start`.
+    scanned: usize,
+    skip: Skip,
+    /// The byte at `start` is known not to be whitespace.
+    front_known: bool,
+    /// Bytes looked at in all (the work done, for tests that it stays linear).
+    examined: u64,
 }
+
+/// Junk shorter than this waits for its end (a `<`, a `>` or a newline) to be reported whole.
+const JUNK_WAIT: usize = 41;
 
 impl Deframer {
     pub fn new() -> Self {
@@ -36,70 +64,140 @@ impl Deframer {
 
     /// Bytes buffered.
     pub fn len(&self) -> usize {
-        self.buf.len()
+        self.buf.len() - self.start
     }
 
     /// Whether an unfinished element is buffered.
     pub fn is_empty(&self) -> bool {
-        self.buf.iter().all(|b| b.is_ascii_whitespace())
+        self.buf[self.start..]
+            .iter()
+            .all(|b| b.is_ascii_whitespace())
+    }
+
+    /// Bytes looked at since the start: about one per byte received, whatever the input.
+    pub fn bytes_examined(&self) -> u64 {
+        self.examined
+    }
+
+    /// Where `want` is in the unscanned bytes, looking at each once.
+    fn find(&mut self, from: usize, want: impl Fn(u8) -> bool) -> Option<usize> {
+        let found = self.buf[from..].iter().position(|&b| want(b));
+        self.examined += found.map_or(self.buf.len() - from, |p| p + 1) as u64;
+        found.map(|p| from + p)
+    }
+
+    /// Drops consumed bytes when they are most of the buffer (amortised: each byte moves at
+    /// most once).
+    fn compact(&mut self) {
+        if self.start == self.buf.len() {
+            self.buf.clear();
+        } else if self.start >= 4096 && self.start * 2 >= self.buf.len() {
+            self.buf.drain(..self.start);
+        } else {
+            return;
+        }
+        self.scanned -= self.start;
+        self.start = 0;
+    }
+
+    /// Consumes up to `end`.
+    fn consume_to(&mut self, end: usize) {
+        self.start = end;
+        self.scanned = end;
+        self.front_known = false;
+        self.compact();
     }
 
     /// The next complete element's inside (without `<` and `>`), an error for bytes that are
     /// not part of one, or `None` if more bytes are needed.
     pub fn next_element(&mut self) -> Option<Result<String, ElementError>> {
-        let start = self.buf.iter().position(|&b| b == b'<');
-        let junk_end = start.unwrap_or(self.buf.len());
-        // Whitespace between elements (python-can and socketcand send none, telnet users a
-        // newline) is fine; anything else before a `<` is garbage.
-        if self.buf[..junk_end]
-            .iter()
-            .any(|b| !b.is_ascii_whitespace())
-        {
-            // Wait for the `<` that ends the junk, unless it is already long.
-            if start.is_none() && self.buf.len() < MAX_ELEMENT && !self.buf.contains(&b'>') {
-                return None;
-            }
-            let end = start.unwrap_or_else(|| {
-                self.buf
-                    .iter()
-                    .position(|&b| b == b'>')
-                    .map_or(self.buf.len(), |p| p + 1)
-            });
-            let junk: Vec<u8> = self.buf.drain(..end).collect();
-            return Some(Err(ElementError::Outside(excerpt(&junk))));
+        let len = self.buf.len();
+        match self.skip {
+            Skip::Nothing => {}
+            Skip::Junk => match self.find(self.start, |b| b == b'<') {
+                Some(p) => {
+                    self.skip = Skip::Nothing;
+                    self.consume_to(p);
+                }
+                None => {
+                    self.consume_to(len);
+                    return None;
+                }
+            },
+            Skip::Overlong => match self.find(self.start, |b| b == b'>') {
+                Some(p) => {
+                    self.skip = Skip::Nothing;
+                    self.consume_to(p + 1);
+                }
+                None => {
+                    self.consume_to(len);
+                    return None;
+                }
+            },
         }
-        let start = match start {
-            Some(s) => s,
-            None => {
-                self.buf.clear();
+        // Whitespace between elements (python-can and socketcand send none, telnet users a
+        // newline) is fine. (Once the search at the front has begun, the front is known.)
+        if !self.front_known {
+            let Some(first) = self.find(self.start, |b| !b.is_ascii_whitespace()) else {
+                self.consume_to(len);
                 return None;
+            };
+            self.consume_to(first);
+            self.front_known = true;
+        }
+        let (start, len) = (self.start, self.buf.len());
+        if self.buf[start] == b'<' {
+            let from = self.scanned.max(start + 1);
+            let Some(end) = self.find(from, |b| b == b'>') else {
+                self.scanned = len;
+                if len - start > MAX_ELEMENT + 1 {
+                    self.skip = Skip::Overlong;
+                    self.consume_to(len);
+                    return Some(Err(ElementError::TooLong));
+                }
+                return None;
+            };
+            let inner = &self.buf[start + 1..end];
+            let result = if inner.len() > MAX_ELEMENT {
+                Err(ElementError::TooLong)
+            } else {
+                match std::str::from_utf8(inner) {
+                    // `<` inside an element: the earlier `<` started garbage.
+                    Ok(s) if s.contains('<') => Err(ElementError::Outside(excerpt(inner))),
+                    Ok(s) => Ok(s.to_string()),
+                    Err(_) => Err(ElementError::NotText),
+                }
+            };
+            self.consume_to(end + 1);
+            return Some(result);
+        }
+        // Junk: it runs to the next `<`. Reported once, when it ends or is clearly junk (a `>`,
+        // a line end, or long); what follows up to the next `<` is dropped without more errors.
+        let from = self.scanned.max(start);
+        let stop = self.find(from, |b| b == b'<' || b == b'>' || b == b'\n');
+        let report_to = match stop {
+            Some(p) if self.buf[p] == b'<' => Some(p),
+            // Clearly junk: it runs to the next `<` if that is here already.
+            Some(p) => match self.find(p + 1, |b| b == b'<') {
+                Some(next) => Some(next),
+                None => {
+                    self.skip = Skip::Junk;
+                    Some(len)
+                }
+            },
+            None if len - start >= JUNK_WAIT => {
+                self.skip = Skip::Junk;
+                Some(len)
             }
+            None => None,
         };
-        self.buf.drain(..start);
-        let Some(end) = self.buf.iter().position(|&b| b == b'>') else {
-            if self.buf.len() > MAX_ELEMENT {
-                self.buf.clear();
-                return Some(Err(ElementError::TooLong));
-            }
+        let Some(to) = report_to else {
+            self.scanned = len;
             return None;
         };
-        let element: Vec<u8> = self.buf.drain(..=end).collect();
-        let inner = &element[1..element.len() - 1];
-        if inner.len() > MAX_ELEMENT {
-            return Some(Err(ElementError::TooLong));
-        }
-        Some(
-            String::from_utf8(inner.to_vec())
-                .map_err(|_| ElementError::NotText)
-                .and_then(|s| {
-                    if s.contains('<') {
-                        // `<` inside an element: the earlier `<` started garbage.
-                        Err(ElementError::Outside(excerpt(s.as_bytes())))
-                    } else {
-                        Ok(s)
-                    }
-                }),
-        )
+        let error = ElementError::Outside(excerpt(&self.buf[start..to]));
+        self.consume_to(to);
+        Some(Err(error))
     }
 }
 
@@ -112,5 +210,73 @@ fn excerpt(bytes: &[u8]) -> String {
         format!("{}…", text.chars().take(KEEP).collect::<String>())
     } else {
         text.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn drain(d: &mut Deframer) -> usize {
+        std::iter::from_fn(|| d.next_element()).count()
+    }
+
+    /// Feeds `bytes` in reads of `chunk`, taking elements after each; the events and the work.
+    fn work(bytes: &[u8], chunk: usize) -> (usize, u64) {
+        let mut d = Deframer::new();
+        let mut events = 0;
+        for c in bytes.chunks(chunk) {
+            d.push(c);
+            events += drain(&mut d);
+        }
+        (events, d.bytes_examined())
+    }
+
+    #[test]
+    fn a_megabyte_of_closing_brackets_is_one_error_in_linear_work() {
+        // It was 32 MB of error replies and 15.5 s of CPU: one error per `>`, and the buffer
+        // rescanned for every byte.
+        let (events, small) = work(&vec![b'>'; 100_000], 16 * 1024);
+        assert_eq!(events, 1);
+        let (events, large) = work(&vec![b'>'; 1_000_000], 16 * 1024);
+        assert_eq!(events, 1);
+        assert!(large <= 1_000_000 + 100, "{large} bytes examined");
+        // About one look per byte: ten times the input, ten times the work.
+        assert!(
+            small <= 100_100 && large <= 11 * small,
+            "100 KB: {small}, 1 MB: {large}"
+        );
+    }
+
+    #[test]
+    fn an_element_arriving_byte_by_byte_is_scanned_once() {
+        let mut text = b"< send 123 8 ".to_vec();
+        text.extend(std::iter::repeat_n(b'a', 8000));
+        text.push(b'>');
+        let (events, examined) = work(&text, 1);
+        assert_eq!(events, 1);
+        assert!(examined <= text.len() as u64 + 2, "{examined}");
+        // Many small elements, and junk between them, in big reads: linear too.
+        let many = b"< echo >x< send 1 0 >\n".repeat(50_000);
+        let (events, examined) = work(&many, 16 * 1024);
+        assert_eq!(events, 3 * 50_000);
+        assert!(
+            examined <= 2 * many.len() as u64,
+            "{examined} for {}",
+            many.len()
+        );
+    }
+
+    #[test]
+    fn overlong_elements_are_one_error_and_the_stream_goes_on() {
+        let mut d = Deframer::new();
+        d.push(b"<");
+        d.push(&vec![b'a'; 20_000]);
+        assert_eq!(d.next_element(), Some(Err(ElementError::TooLong)));
+        d.push(&vec![b'a'; 20_000]);
+        assert_eq!(d.next_element(), None);
+        d.push(b"aaa>< echo >");
+        assert_eq!(d.next_element(), Some(Ok(" echo ".into())));
+        assert!(d.len() < 1024, "{}", d.len());
     }
 }

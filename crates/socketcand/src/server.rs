@@ -93,6 +93,7 @@ pub struct Session {
     open_deadline: Option<u64>,
     closing: bool,
     dropped: u64,
+    errors_dropped: u64,
 }
 
 impl Session {
@@ -112,6 +113,7 @@ impl Session {
             open_deadline,
             closing: false,
             dropped: 0,
+            errors_dropped: 0,
         };
         s.send(&ServerMessage::Hi);
         s
@@ -128,9 +130,19 @@ impl Session {
     }
 
     /// Whether the session wants more bytes from the client now. While it waits for the host,
-    /// or is closing, the host should leave them in the socket (TCP pushes back).
+    /// is closing, or has [`SessionConfig::max_output`] bytes of replies the client has not
+    /// read, the host should leave them in the socket (TCP pushes back), so a client that
+    /// sends without reading cannot make the server hold its replies without end.
     pub fn wants_input(&self) -> bool {
-        !self.closing && self.waiting == Waiting::Nothing && self.deframer_len() < 64 * 1024
+        !self.closing
+            && self.waiting == Waiting::Nothing
+            && self.deframer_len() < 64 * 1024
+            && self.out.len() < self.config.max_output
+    }
+
+    /// Error replies dropped because the client did not read the earlier ones.
+    pub fn errors_dropped(&self) -> u64 {
+        self.errors_dropped
     }
 
     fn deframer_len(&self) -> usize {
@@ -154,14 +166,14 @@ impl Session {
             let element = match self.deframer.next_element()? {
                 Ok(e) => e,
                 Err(e) => {
-                    self.send(&ServerMessage::Error(e.to_string()));
+                    self.protocol_error(e.to_string());
                     continue;
                 }
             };
             let command = match Command::parse(&element) {
                 Ok(c) => c,
                 Err(e) => {
-                    self.send(&ServerMessage::Error(e.to_string()));
+                    self.protocol_error(e.to_string());
                     continue;
                 }
             };
@@ -369,6 +381,16 @@ impl Session {
     fn send(&mut self, message: &ServerMessage) {
         self.out.extend(message.to_string().as_bytes());
     }
+
+    /// One error per malformed element, while the client reads them: beyond
+    /// [`SessionConfig::max_output`] bytes waiting they are counted, not queued.
+    fn protocol_error(&mut self, text: String) {
+        if self.out.len() >= self.config.max_output {
+            self.errors_dropped += 1;
+        } else {
+            self.send(&ServerMessage::Error(text));
+        }
+    }
 }
 
 #[cfg(test)]
@@ -498,6 +520,37 @@ mod tests {
         }
         assert!(delivered > 0 && delivered < 10);
         assert_eq!(s.dropped(), 10 - delivered as u64);
+    }
+
+    #[test]
+    fn garbage_from_a_client_that_does_not_read_is_answered_within_the_output_limit() {
+        let mut config = SessionConfig::new("vcan0");
+        config.max_output = 4096;
+        let mut s = Session::new(config, 0);
+        // A megabyte of malformed elements, read as fast as the host can: one error each
+        // until 4 KiB of replies wait, then none; input stops being wanted.
+        let garbage = b"<x>".repeat(350_000);
+        let mut fed = 0;
+        while s.wants_input() && fed < garbage.len() {
+            let end = (fed + 16 * 1024).min(garbage.len());
+            s.receive(&garbage[fed..end]);
+            fed = end;
+            assert_eq!(s.poll_action(), None);
+        }
+        assert!(s.out.len() < 4096 + 100, "{} bytes of replies", s.out.len());
+        assert!(!s.wants_input());
+        assert!(s.errors_dropped() > 0);
+        // Once the client reads, it is served again.
+        output(&mut s, 0);
+        assert!(s.wants_input());
+        // A run of junk is one error, however long: a megabyte of `>`.
+        let mut s = raw_session();
+        s.receive(&vec![b'>'; 1 << 20]);
+        s.receive(b"< echo >");
+        assert_eq!(s.poll_action(), None);
+        let text = output(&mut s, 0);
+        assert_eq!(text.matches("< error").count(), 1, "{text}");
+        assert!(text.ends_with("< echo >"), "{text}");
     }
 
     #[test]

@@ -396,3 +396,17 @@ fn server_error_text_with_control_characters_is_sanitized() {
     let inside = printed.trim_start_matches("< ").trim_end_matches(" >");
     assert_eq!(ServerMessage::parse(inside).unwrap(), message);
 }
+
+#[test]
+fn a_sign_is_not_a_hex_digit() {
+    // `from_str_radix` takes `+f`; socketcand's hex does not.
+    for text in [
+        " buslab_btr +f 4D ",
+        " buslab_btr 07 +4 ",
+        " send 123 1 +f ",
+        " send +23 0 ",
+    ] {
+        assert!(Command::parse(text).is_err(), "{text:?} parsed");
+    }
+    assert!(Command::parse(" buslab_btr 07 4D ").is_ok());
+}

@@ -10,8 +10,8 @@ use std::fmt;
 use buslab_can::controller::ErrorState;
 use buslab_can::node::BusNode;
 use buslab_canbus::{
-    BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef, NodeRegisters,
-    NodeStatus, NodeTiming,
+    BusOffRecovery, BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef,
+    NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
 };
 use buslab_sim::{BusStats, Simulation};
 use buslab_sja1000::BitTiming;
@@ -97,7 +97,12 @@ impl BusEvent {
                 ..
             } => !within_tolerance(*bitrate, *bus_bitrate),
             BusEvent::Node { notice, .. } => {
-                matches!(notice, NodeNotice::Overrun | NodeNotice::Restarted(Err(_)))
+                matches!(
+                    notice,
+                    NodeNotice::Overrun
+                        | NodeNotice::Restarted(Err(_))
+                        | NodeNotice::Recovering(Err(_))
+                )
             }
             BusEvent::Slio { notice, .. } => matches!(notice, SlioNotice::BusModeChange(_)),
             _ => false,
@@ -199,6 +204,13 @@ impl fmt::Display for BusEvent {
                     } => write!(f, "{from} -> {to} (TXERR {txerr}, RXERR {rxerr})"),
                     NodeNotice::Restarted(Ok(())) => f.write_str("restarted after bus-off"),
                     NodeNotice::Restarted(Err(e)) => write!(f, "restart failed: {e}"),
+                    NodeNotice::Recovering(Ok(())) => f.write_str(
+                        "bus-off: reset mode cleared, the chip counts 128 × 11 recessive bits \
+                         (TXERR falling) before it is back",
+                    ),
+                    NodeNotice::Recovering(Err(e)) => {
+                        write!(f, "bus-off: reset mode could not be cleared: {e}")
+                    }
                 }
             }
         }
@@ -222,6 +234,8 @@ pub struct VirtualBus {
     last_second: BusStats,
     next_window: u64,
     error_frames: bool,
+    /// How client chips come back after bus-off (the seed's counted recovery by default).
+    bus_off_recovery: BusOffRecovery,
     events: Vec<(u64, BusEvent)>,
 }
 
@@ -253,6 +267,7 @@ impl VirtualBus {
             next_window: now + bitrate,
             sim,
             error_frames: false,
+            bus_off_recovery: BusOffRecovery::default(),
             events: Vec::new(),
         }
     }
@@ -269,6 +284,7 @@ impl VirtualBus {
         sim.set_record_events(false);
         Self {
             error_frames: self.error_frames,
+            bus_off_recovery: self.bus_off_recovery,
             ..Self::around(sim)
         }
     }
@@ -276,6 +292,11 @@ impl VirtualBus {
     /// Whether nodes that join from now on collect error frames for their clients.
     pub fn set_error_frames(&mut self, on: bool) {
         self.error_frames = on;
+    }
+
+    /// How the chips of clients that join from now on come back after bus-off.
+    pub fn set_bus_off_recovery(&mut self, recovery: BusOffRecovery) {
+        self.bus_off_recovery = recovery;
     }
 
     pub fn bitrate(&self) -> u32 {
@@ -359,7 +380,12 @@ impl VirtualBus {
         if self.sim.nodes().len() >= MAX_NODES {
             return Err(VbusError::Full(MAX_NODES));
         }
-        let node = ClientNode::new(self.bitrate(), self.error_frames).map_err(VbusError::Driver)?;
+        let config = Sja1000Config {
+            bus_off_recovery: self.bus_off_recovery,
+            ..node_config(self.bitrate())
+        };
+        let node = ClientNode::with_config(config, self.bitrate(), self.error_frames)
+            .map_err(VbusError::Driver)?;
         let (btr0, btr1) = node.btr();
         let number = self.next_number;
         let mut name = format!("node{number}");

@@ -54,6 +54,9 @@ pub struct ServerConfig {
     /// Send socketcand's discovery beacon (UDP, every 3 s) to this address, so python-can's
     /// `detect_beacon()` finds the bus (socketcand broadcasts to port 42000).
     pub beacon: Option<SocketAddr>,
+    /// How client chips come back after bus-off: the seed's (the chip counts 128 × 11 recessive
+    /// bits, TXERR falling; the default) or Linux's fast restart after 100 ms.
+    pub bus_off_recovery: buslab_canbus::BusOffRecovery,
 }
 
 impl ServerConfig {
@@ -70,6 +73,7 @@ impl ServerConfig {
             devices: Vec::new(),
             error_frames: false,
             beacon: None,
+            bus_off_recovery: buslab_canbus::BusOffRecovery::default(),
         }
     }
 }
@@ -219,6 +223,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     }
     let mut bus = VirtualBus::new(config.bitrate)?;
     bus.set_error_frames(config.error_frames);
+    bus.set_bus_off_recovery(config.bus_off_recovery);
     if let Some(sim) = config.scenario.take() {
         if sim.bitrate() != config.bitrate {
             return Err(ServerError::ScenarioBitrate {
@@ -287,6 +292,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         poll,
         listener,
         clients: Vec::new(),
+        next_client: 0,
         open: 0,
         bus,
         session_config,
@@ -361,8 +367,8 @@ struct Beacon {
 const SEND_BUFFER: usize = 32 * 1024;
 /// While frames are on the wire, the loop wakes at least this often (wall clock).
 pub const BUSY_SLICE: Duration = Duration::from_micros(100);
-/// The longest wall time spent simulating before the loop looks at the clients again (it
-/// matters when the host cannot keep up).
+/// The longest wall time spent simulating before the loop looks at the clients again, and
+/// serving clients before the bus runs again (it matters when the host cannot keep up).
 const MAX_RUN: Duration = Duration::from_millis(2);
 /// Elements handled per client per loop turn, so one client cannot starve the others or the
 /// bus.
@@ -379,6 +385,8 @@ struct Client {
     stream: TcpStream,
     peer: SocketAddr,
     session: Session,
+    /// When it connected (ns since the server started).
+    accepted: u64,
     /// Readiness not used up yet (mio is edge-triggered).
     readable: bool,
     writable: bool,
@@ -404,6 +412,8 @@ struct Server {
     poll: Poll,
     listener: TcpListener,
     clients: Vec<Option<Client>>,
+    /// The client slot the next turn starts with.
+    next_client: usize,
     open: usize,
     bus: VirtualBus,
     session_config: SessionConfig,
@@ -597,7 +607,7 @@ impl Server {
                     return;
                 }
             };
-            if self.open >= self.max_connections {
+            if self.open >= self.max_connections && !self.evict_idle() {
                 let refusal = ServerMessage::Error(format!(
                     "too many connections ({} open); try again later",
                     self.max_connections
@@ -627,11 +637,13 @@ impl Server {
                 debug!("cannot watch {peer}: {e}");
                 continue;
             }
-            let session = Session::new(self.session_config.clone(), self.now_ns());
+            let now_ns = self.now_ns();
+            let session = Session::new(self.session_config.clone(), now_ns);
             self.clients[slot] = Some(Client {
                 stream,
                 peer,
                 session,
+                accepted: now_ns,
                 readable: true,
                 writable: true,
                 gone: false,
@@ -644,12 +656,49 @@ impl Server {
         }
     }
 
+    /// Makes room for a new connection when all places are taken: the oldest connection that
+    /// has not opened the bus is told why and closed (it may be one of many an attacker holds
+    /// open; a real client opens the bus right after the greeting). `false` if every
+    /// connection has opened the bus.
+    fn evict_idle(&mut self) -> bool {
+        let oldest = self
+            .clients
+            .iter()
+            .enumerate()
+            .filter_map(|(slot, c)| c.as_ref().map(|c| (slot, c)))
+            .filter(|(_, c)| c.session.node().is_none() && !c.session.is_closing())
+            .min_by_key(|(_, c)| c.accepted)
+            .map(|(slot, _)| slot);
+        let Some(mut c) = oldest.and_then(|slot| self.clients[slot].take()) else {
+            return false;
+        };
+        let notice = ServerMessage::Error(format!(
+            "closed: all {} places are taken and this connection had not opened the bus",
+            self.max_connections
+        ));
+        let _ = c.stream.write(notice.to_string().as_bytes());
+        let _ = self.poll.registry().deregister(&mut c.stream);
+        let _ = c.stream.shutdown(std::net::Shutdown::Both);
+        self.open -= 1;
+        debug!("closed {} to make room: it had not opened the bus", c.peer);
+        true
+    }
+
     /// Reads what clients sent and carries out their sessions' actions. Returns whether some
     /// client still has work ready (its turn's budget ran out).
     fn serve_clients(&mut self) -> bool {
         let mut more = false;
         let now_ns = self.now_ns();
-        for slot in 0..self.clients.len() {
+        let started = Instant::now();
+        let count = self.clients.len();
+        // Round robin from where the last turn stopped: when the turn's time runs out, the
+        // clients not served yet go first next time.
+        for k in 0..count {
+            let slot = (self.next_client + k) % count;
+            if k > 0 && started.elapsed() >= MAX_RUN {
+                self.next_client = slot;
+                return true;
+            }
             let Some(mut c) = self.clients[slot].take() else {
                 continue;
             };
@@ -659,6 +708,7 @@ impl Server {
             more |= self.serve(&mut c);
             self.clients[slot] = Some(c);
         }
+        self.next_client = 0;
         more
     }
 

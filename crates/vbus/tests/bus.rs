@@ -155,7 +155,7 @@ fn scenario_nodes_and_chips_share_the_wire_without_errors() {
     .unwrap();
     let mut bus = VirtualBus::new(RATE)
         .unwrap()
-        .with_scenario(scenario.build());
+        .with_scenario(scenario.build().unwrap());
     let a = bus.join().unwrap();
     let b = bus.join().unwrap();
     // The chip's frame loses arbitration to nothing and interleaves with the ECU's.
@@ -185,7 +185,7 @@ fn bus_wide_scenario_faults_reach_the_chips() {
     .unwrap();
     let mut bus = VirtualBus::new(RATE)
         .unwrap()
-        .with_scenario(scenario.build());
+        .with_scenario(scenario.build().unwrap());
     let a = bus.join().unwrap();
     let b = bus.join().unwrap();
     bus.run_until(RATE as u64 / 1000 + 100);
@@ -195,4 +195,73 @@ fn bus_wide_scenario_faults_reach_the_chips() {
     assert_ne!(status(&mut bus, a).counters.bus_errors, 0);
     assert_ne!(status(&mut bus, b).counters.bus_errors, 0);
     assert_eq!(received(&mut bus, b), ["123#01"]);
+}
+
+/// Drives client `a` to bus-off with noise at its connector while it sends.
+fn jam_to_bus_off(bus: &mut VirtualBus, a: u32) {
+    let index = bus.index(&NodeRef::Number(a)).unwrap();
+    let start = bus.now();
+    bus.sim_mut().add_fault(buslab_sim::Fault {
+        kind: buslab_sim::FaultKind::Noise {
+            nodes: vec![index],
+            rate: 0.2,
+        },
+        start,
+        end: start + 5_000,
+    });
+    send(bus, a, "123#0102030405060708");
+    while !status(bus, a).sr.unwrap().bus_off() {
+        assert!(bus.now() < start + 5_000, "never bus-off");
+        let now = bus.now();
+        bus.run_until(now + 10);
+    }
+}
+
+/// Seed 002 §5.4.7 in `bus serve`: a client chip that went bus-off comes back the seed's way,
+/// TXERR falling where `buslab status` shows it, SR.ES clearing below 96 before SR.BS.
+#[test]
+fn a_client_chip_counts_its_way_back_from_bus_off() {
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let a = bus.join().unwrap();
+    let _b = bus.join().unwrap();
+    jam_to_bus_off(&mut bus, a);
+    // The chip counts down (slowly while the noise lasts); no reading is higher than the last.
+    let mut readings = Vec::new();
+    loop {
+        let st = status(&mut bus, a);
+        let sr = st.sr.unwrap();
+        readings.push((st.errors.unwrap().txerr, sr.error_status(), sr.bus_off()));
+        if !sr.bus_off() {
+            break;
+        }
+        let now = bus.now();
+        bus.run_until(now + 11);
+    }
+    let txerr: Vec<u8> = readings.iter().map(|r| r.0).collect();
+    assert!(txerr.len() > 50, "{txerr:?}");
+    assert!(txerr.windows(2).all(|w| w[1] <= w[0]), "{txerr:?}");
+    // ES follows TXERR against the warning limit while BS is still set.
+    for &(tx, es, bs) in &readings[..readings.len() - 1] {
+        assert!(bs);
+        assert_eq!(es, tx >= 96, "TXERR {tx}");
+    }
+    // And the frame the client sends next goes out.
+    send(&mut bus, a, "124#01");
+    let now = bus.now();
+    bus.run_until(now + RATE as u64 / 100);
+    assert_eq!(received(&mut bus, 2), ["124#01"]);
+
+    // The fast restart, as an option: TXERR := 0 at once, 100 ms after bus-off.
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    bus.set_bus_off_recovery(buslab_canbus::BusOffRecovery::Fast);
+    let a = bus.join().unwrap();
+    let _b = bus.join().unwrap();
+    jam_to_bus_off(&mut bus, a);
+    let off = bus.now();
+    bus.run_until(off + RATE as u64 / 10 - 50);
+    assert_eq!(status(&mut bus, a).errors.unwrap().txerr, 127);
+    bus.run_until(off + RATE as u64 / 10 + 50);
+    let st = status(&mut bus, a);
+    assert!(!st.sr.unwrap().bus_off());
+    assert_eq!(st.errors.unwrap().txerr, 0);
 }

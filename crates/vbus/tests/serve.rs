@@ -456,7 +456,10 @@ fn a_flood_of_connections_is_bounded_and_the_server_recovers() {
     let mut held: Vec<TcpStream> = (0..3).map(|_| raw(&s)).collect();
     for t in &mut held {
         read_until(t, "< hi >");
+        t.write_all(b"< open vcan0 >").unwrap();
+        read_until(t, "< ok >");
     }
+    // Every place holds a node: one more is refused.
     let mut extra = raw(&s);
     let mut got = String::new();
     extra.read_to_string(&mut got).unwrap();
@@ -481,6 +484,192 @@ fn a_flood_of_connections_is_bounded_and_the_server_recovers() {
     assert!(
         greeted,
         "a place freed by a closed connection is never reused"
+    );
+    s.shutdown();
+}
+
+/// The process's resident memory in KiB.
+fn rss_kib() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let line = status.lines().find(|l| l.starts_with("VmRSS:")).unwrap();
+    line.split_whitespace().nth(1).unwrap().parse().unwrap()
+}
+
+#[test]
+fn idle_connections_cannot_lock_a_real_client_out() {
+    // 256 connections that never opened the bus locked everyone out (no idle timeout), and
+    // with `--client-queue 1048576` took 12.6 GB (each queue was allocated on accept).
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
+    config.client_queue = 1_048_576;
+    let s = spawn(config).unwrap();
+    let before = rss_kib();
+    let mut idle: Vec<TcpStream> = (0..256).map(|_| raw(&s)).collect();
+    for t in &mut idle {
+        read_until(t, "< hi >");
+    }
+    let grown_mib = rss_kib().saturating_sub(before) / 1024;
+    // Real clients still get in (each takes the place of the oldest idle connection) and talk.
+    let mut a = client(&s);
+    let mut b = client(&s);
+    a.send(&frame("123#42")).unwrap();
+    assert_eq!(recv(&mut b), "123#42");
+    // The two oldest idle connections were told why and closed.
+    for t in &mut idle[..2] {
+        let mut got = String::new();
+        t.read_to_string(&mut got).unwrap();
+        assert!(got.contains("had not opened the bus"), "{got:?}");
+    }
+    assert!(grown_mib < 256, "256 idle connections took {grown_mib} MiB");
+    eprintln!("256 idle connections: {grown_mib} MiB; real clients served");
+    s.shutdown();
+}
+
+#[test]
+fn a_megabyte_of_closing_brackets_gets_one_error() {
+    // It got 32 MB of error replies and 15.5 s of CPU.
+    let s = server(500_000, 1024);
+    let mut t = raw(&s);
+    read_until(&mut t, "< hi >");
+    let garbage = vec![b'>'; 1 << 20];
+    let writer = {
+        let mut t = t.try_clone().unwrap();
+        std::thread::spawn(move || {
+            t.write_all(&garbage).unwrap();
+            t.write_all(b"< echo >").unwrap();
+        })
+    };
+    let started = std::time::Instant::now();
+    let got = read_until(&mut t, "< echo >");
+    writer.join().unwrap();
+    assert_eq!(got.matches("< error").count(), 1, "{got}");
+    assert!(got.len() < 200, "{} bytes of replies", got.len());
+    eprintln!(
+        "1 MiB of `>`: {} bytes of replies, echo after {:?}",
+        got.len(),
+        started.elapsed()
+    );
+    s.shutdown();
+}
+
+#[test]
+fn clients_pipelining_requests_do_not_put_the_bus_behind() {
+    // Ten clients pipelining buslab_regs/status/nodes put virtual time 4.5 s behind.
+    let s = server(500_000, 1024);
+    let mut pipeliners: Vec<TcpStream> = (0..10).map(|_| raw(&s)).collect();
+    for t in &mut pipeliners {
+        t.write_all(b"< open vcan0 >< rawmode >< buslab_ext >")
+            .unwrap();
+        read_until(t, "< ok >< ok >< ok >");
+    }
+    let mut a = client(&s);
+    let mut b = client(&s);
+    const REQUESTS: usize = 2000;
+    let workers: Vec<_> = pipeliners
+        .into_iter()
+        .map(|mut t| {
+            std::thread::spawn(move || {
+                let mut w = t.try_clone().unwrap();
+                let sender = std::thread::spawn(move || {
+                    let batch = b"< buslab_regs >< buslab_status >< buslab_nodes >".repeat(50);
+                    for _ in 0..REQUESTS / 150 {
+                        w.write_all(&batch).unwrap();
+                    }
+                    w.write_all(b"< echo >").unwrap();
+                });
+                read_until(&mut t, "< echo >");
+                sender.join().unwrap();
+            })
+        })
+        .collect();
+    // Frames keep flowing meanwhile.
+    for i in 0..100u8 {
+        a.send(&Frame::data(buslab_can::Id::standard(0x100).unwrap(), &[i]).unwrap())
+            .unwrap();
+        assert_eq!(recv(&mut b), format!("100#{i:02X}"));
+    }
+    for w in workers {
+        w.join().unwrap();
+    }
+    let lag = s.lag();
+    eprintln!(
+        "10 clients × {REQUESTS} pipelined requests: worst lag {:?}",
+        lag.worst
+    );
+    assert!(
+        lag.worst < Duration::from_secs(1),
+        "virtual time fell {:?} behind",
+        lag.worst
+    );
+    s.shutdown();
+}
+
+#[test]
+fn a_zombie_client_leaves_the_bus_at_once_with_its_queued_frames() {
+    // A client with the wrong bit timing and megabytes of queued sends disconnected; its node
+    // stayed for hours (bus-off every 110 ms), and a node joining later got stale frames: its
+    // session thread was stuck handing frames to the full queue and never saw the end.
+    let s = server(500_000, 8192);
+    let mut watcher = client(&s);
+    let mut zombie = raw(&s);
+    zombie
+        .write_all(
+            b"< open vcan0 >< rawmode >< buslab_name zombie >< buslab_btr 07 4D >< buslab_errors 1 >",
+        )
+        .unwrap();
+    read_until(&mut zombie, "< ok >< ok >< ok >< ok >< ok >");
+    // 4 MB of sends: far more than its queues take; the rest waits in the sockets.
+    zombie.set_nonblocking(true).unwrap();
+    let sends = b"< send 123 8 01 02 03 04 05 06 07 08 >".repeat(4 << 20 >> 5);
+    let mut written = 0;
+    while written < sends.len() {
+        match zombie.write(&sends[written..]) {
+            Ok(n) => written += n,
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+            Err(e) => panic!("{e}"),
+        }
+    }
+    // It is on the bus and failing, and the server has sent it error frames it never reads.
+    let started = std::time::Instant::now();
+    while watcher
+        .node_status(Some(&NodeRef::Name("zombie".into())))
+        .unwrap()
+        .counters
+        .bus_errors
+        == 0
+    {
+        assert!(
+            started.elapsed() < EVENT,
+            "the zombie never disturbed the bus"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // The client goes away as a killed process does (unread data: the kernel resets the
+    // connection).
+    drop(zombie);
+    let closed = std::time::Instant::now();
+    let on_bus =
+        |watcher: &mut SocketcandBus| watcher.nodes().unwrap().iter().any(|n| n.name == "zombie");
+    while on_bus(&mut watcher) {
+        assert!(closed.elapsed() < EVENT, "the zombie's node stayed");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let gone_after = closed.elapsed();
+    // A node joining later gets nothing stale, and the bus is quiet.
+    let mut late = client(&s);
+    assert!(
+        late.recv(Some(Duration::from_millis(300)))
+            .unwrap()
+            .is_none()
+    );
+    let errors = watcher.node_status(None).unwrap().counters.bus_errors;
+    std::thread::sleep(Duration::from_millis(100));
+    assert_eq!(
+        watcher.node_status(None).unwrap().counters.bus_errors,
+        errors
+    );
+    eprintln!(
+        "the zombie ({written} bytes of sends queued) left the bus {gone_after:?} after its \
+         connection closed"
     );
     s.shutdown();
 }

@@ -13,11 +13,14 @@
 
 use std::collections::VecDeque;
 
+use buslab_device::{ChangeLog, Changes, ReplayError};
+
 use crate::analog::Source;
 use crate::command::Command;
 use crate::memory::{
     BatteryRam, DATA_AREA, INTERNAL_RAM_SIZE, OPEN_BUS, PARAMS_LEN, PROGRAM_AREA, START_BYTE,
 };
+use crate::sfr;
 use crate::timing::{
     BYTE_NS, CONVERSION_NS, KEY_HOLD_MEASURE_NS, KEY_HOLD_PROGRAM_NS, KEY_HOLD_READY_NS, MS,
     SETUP_NS,
@@ -133,12 +136,6 @@ impl Series {
     }
 }
 
-#[derive(Clone, Copy, Debug)]
-enum AfterReply {
-    Ready,
-    AnalogLoop,
-}
-
 /// The OS's program counter, so to speak.
 #[derive(Clone, Debug)]
 enum Os {
@@ -172,11 +169,6 @@ enum Os {
         ptr: u16,
     },
     AnalogLoop,
-    /// A conversion is running until `busy_until`; then `byte` is sent.
-    Reply {
-        byte: u8,
-        then: AfterReply,
-    },
     MeasureWait {
         series: Series,
     },
@@ -197,6 +189,10 @@ pub struct Cell {
     powered: bool,
     ram: BatteryRam,
     ram_generation: u64,
+    /// Writes to the battery-backed RAM not yet taken by the host (for its journal).
+    changes: ChangeLog,
+    /// The last external RAM address the OS used (the data pointer; command 16 reads it).
+    dptr: u16,
     iram: [u8; INTERNAL_RAM_SIZE],
     p1_latch: u8,
     p1_pulled_low: u8,
@@ -229,6 +225,8 @@ impl Cell {
             powered: false,
             ram,
             ram_generation: 0,
+            changes: ChangeLog::default(),
+            dptr: 0,
             iram: [0; INTERNAL_RAM_SIZE],
             p1_latch: 0xFF,
             p1_pulled_low: 0,
@@ -464,9 +462,45 @@ impl Cell {
     /// serial line).
     pub fn write_ram(&mut self, addr: u16, bytes: &[u8]) {
         for (i, &b) in bytes.iter().enumerate() {
-            self.ram.write(addr.wrapping_add(i as u16), b);
+            self.ram_changed(addr.wrapping_add(i as u16), b);
         }
+    }
+
+    /// The RAM writes since the last call, as journal records: `[address high, address low,
+    /// bytes…]`, contiguous writes in one record.
+    pub fn take_ram_changes(&mut self) -> Changes {
+        self.changes.take()
+    }
+
+    /// Applies a record from [`take_ram_changes`](Self::take_ram_changes) to a RAM image.
+    pub fn replay_ram_change(ram: &mut BatteryRam, record: &[u8]) -> Result<(), ReplayError> {
+        let [high, low, data @ ..] = record else {
+            return Err(ReplayError::new(record, "shorter than an address"));
+        };
+        let addr = u16::from_be_bytes([*high, *low]);
+        if data.is_empty() || usize::from(addr) + data.len() > 0x1_0000 {
+            return Err(ReplayError::new(record, "no bytes, or beyond FFFFh"));
+        }
+        for (i, &b) in data.iter().enumerate() {
+            ram.write(addr + i as u16, b);
+        }
+        Ok(())
+    }
+
+    /// Writes one byte of battery-backed RAM and notes it for the state file and its journal.
+    fn ram_changed(&mut self, addr: u16, value: u8) {
+        self.ram.write(addr, value);
         self.ram_generation += 1;
+        if let Some(last) = self.changes.last_mut()
+            && let [high, low, data @ ..] = &last[..]
+            && u32::from(u16::from_be_bytes([*high, *low])) + data.len() as u32 == u32::from(addr)
+        {
+            last.push(value);
+            self.changes.extended(1);
+            return;
+        }
+        let [high, low] = addr.to_be_bytes();
+        self.changes.record(vec![high, low, value]);
     }
 
     /// Internal RAM 0..127.
@@ -590,6 +624,7 @@ impl Cell {
 
     /// Branches on the start byte.
     fn resume(&mut self) {
+        self.dptr = START_BYTE;
         match self.mode() {
             Mode::Ready => self.os = Os::Ready,
             Mode::Measure => self.start_series(),
@@ -606,15 +641,31 @@ impl Cell {
     }
 
     fn set_start_byte(&mut self, value: u8) {
+        self.dptr = START_BYTE;
         if self.ram.read(START_BYTE) != value {
-            self.ram.write(START_BYTE, value);
-            self.ram_generation += 1;
+            self.ram_changed(START_BYTE, value);
         }
     }
 
     fn store(&mut self, addr: u16, value: u8) {
-        self.ram.write(addr, value);
-        self.ram_generation += 1;
+        self.dptr = addr;
+        self.ram_changed(addr, value);
+    }
+
+    /// The OS reads external RAM (through the data pointer).
+    fn load(&mut self, addr: u16) -> u8 {
+        self.dptr = addr;
+        self.ram.read(addr)
+    }
+
+    /// What the special function registers reflect now.
+    fn sfr_pins(&self) -> sfr::Pins {
+        sfr::Pins {
+            p1: self.port1_pins(),
+            p26: self.p26_pin(),
+            key_down: self.key_down,
+            dptr: self.dptr,
+        }
     }
 
     /// Lets the OS run at `now` until it waits for input or is busy past `now`.
@@ -671,9 +722,8 @@ impl Cell {
                     self.os = Os::Params { buf, len: len + 1 };
                 } else {
                     for (i, &b) in buf.iter().enumerate() {
-                        self.ram.write(DATA_AREA + i as u16, b);
+                        self.store(DATA_AREA + i as u16, b);
                     }
-                    self.ram_generation += 1;
                     self.start_series();
                 }
                 true
@@ -689,7 +739,7 @@ impl Cell {
                 }
                 // The OS only tests for zero: any other byte asks for the next one.
                 Some(_) => {
-                    let byte = self.ram.read(ptr);
+                    let byte = self.load(ptr);
                     self.os = Os::Dump {
                         ptr: ptr.wrapping_add(1),
                     };
@@ -746,18 +796,11 @@ impl Cell {
                     true
                 }
                 Some(channel) => {
-                    self.convert_then_reply(now, channel, AfterReply::AnalogLoop);
+                    self.os = Os::AnalogLoop;
+                    self.convert_and_reply(now, channel);
                     true
                 }
             },
-            Os::Reply { byte, then } => {
-                self.os = match then {
-                    AfterReply::Ready => Os::Ready,
-                    AfterReply::AnalogLoop => Os::AnalogLoop,
-                };
-                self.send(now, byte);
-                true
-            }
             Os::MeasureWait { series } => match self.rx.take() {
                 None => {
                     self.os = Os::MeasureWait { series };
@@ -852,7 +895,7 @@ impl Cell {
         match cmd {
             // Channel 0 ends the command without a reading, as it ends command 4's loop.
             Command::Analog if args[0] == 0 => {}
-            Command::Analog => self.convert_then_reply(now, args[0], AfterReply::Ready),
+            Command::Analog => self.convert_and_reply(now, args[0]),
             Command::Bus if args[0] & 0x80 != 0 => {
                 self.send(now, self.bus[usize::from(args[0] & 0x7F)]);
             }
@@ -861,9 +904,11 @@ impl Cell {
             // The OS moves bit 0 of the byte to the pin.
             Command::WriteP26 => self.p26_latch = args[0] & 1 != 0,
             Command::ReadRegister => {
-                // 128..255 would be special function registers, which the model does not map.
-                let value = self.iram.get(usize::from(args[0])).copied();
-                self.send(now, value.unwrap_or(OPEN_BUS));
+                let value = match self.iram.get(usize::from(args[0])) {
+                    Some(&value) => value,
+                    None => sfr::read(args[0], self.sfr_pins()),
+                };
+                self.send(now, value);
             }
             Command::WriteRegister => {
                 if let Some(r) = self.iram.get_mut(usize::from(args[0])) {
@@ -871,7 +916,7 @@ impl Cell {
                 }
             }
             Command::Peek => {
-                let value = self.ram.read(u16::from_be_bytes([args[0], args[1]]));
+                let value = self.load(u16::from_be_bytes([args[0], args[1]]));
                 self.send(now, value);
             }
             Command::Poke => self.store(u16::from_be_bytes([args[0], args[1]]), args[2]),
@@ -889,12 +934,14 @@ impl Cell {
         self.busy_until = done;
     }
 
-    /// One A/D conversion started at `now` for channel byte `channel`; the reply goes out when
-    /// it ends.
-    fn convert_then_reply(&mut self, now: u64, channel: u8, then: AfterReply) {
+    /// A direct reading (commands 4 and 7) for channel byte `channel`, which arrived at `now`.
+    /// The seed lets every command but 1, 2, 3 and 5 run at full line speed because "its
+    /// function ends within the time of two stop bits": the conversion happens while the
+    /// channel byte's stop bits pass, so the reply starts as soon as the byte is in, and a host
+    /// may send command 4's channel bytes back to back.
+    fn convert_and_reply(&mut self, now: u64, channel: u8) {
         let byte = self.sample(channel.wrapping_sub(1) & 3, now);
-        self.busy_until = now + CONVERSION_NS;
-        self.os = Os::Reply { byte, then };
+        self.send(now, byte);
     }
 
     /// Reads converter input `input` (0..3) sampled at `at`. The converter's lines are P1.0..3;
@@ -909,7 +956,7 @@ impl Cell {
     fn start_series(&mut self) {
         let mut params = [0; 8];
         for (i, p) in params.iter_mut().enumerate() {
-            *p = self.ram.read(DATA_AREA + i as u16);
+            *p = self.load(DATA_AREA + i as u16);
         }
         self.set_start_byte(START_MEASURE);
         self.set_value_count(0);

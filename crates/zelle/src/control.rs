@@ -200,6 +200,10 @@ pub fn status(cell: &Cell) -> String {
 /// `12`, `0x1F`, `1Fh`.
 pub fn parse_number(s: &str) -> Option<u32> {
     let s = s.trim();
+    // Digits only: `from_str_radix` and `parse` would take a sign (`+f`, `+5`).
+    if !s.bytes().all(|b| b.is_ascii_alphanumeric()) {
+        return None;
+    }
     if let Some(hex) = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
         u32::from_str_radix(hex, 16).ok()
     } else if let Some(hex) = s.strip_suffix(['h', 'H']) {
@@ -294,6 +298,15 @@ mod tests {
                 .to_string(),
             "address `0x10000` is not a number in 0..65535 (decimal, 0x1F or 1Fh)"
         );
+    }
+
+    #[test]
+    fn a_sign_is_not_a_digit() {
+        for bad in ["+5", "+0x1F", "0x+1F", "+1Fh", "-1"] {
+            assert_eq!(parse_number(bad), None, "{bad}");
+        }
+        assert_eq!(parse_number("0x1F"), Some(31));
+        assert_eq!(parse_number("1Fh"), Some(31));
     }
 
     #[test]

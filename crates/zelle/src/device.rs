@@ -1,7 +1,7 @@
 //! The cell as a [`ByteDevice`] the link crate paces to the wall clock, and as a
 //! [`Persistent`] device whose battery-backed RAM is kept in its state file.
 
-use buslab_device::{ByteDevice, LineSettings, Persistent, SimPort};
+use buslab_device::{ByteDevice, Changes, LineSettings, Persistent, ReplayError, SimPort};
 
 use crate::Cell;
 use crate::timing::LINE;
@@ -34,6 +34,15 @@ impl Persistent for Cell {
     /// The state file (TOML).
     fn file_bytes(ram: &crate::BatteryRam) -> Vec<u8> {
         ram.to_state_file().into_bytes()
+    }
+
+    /// RAM writes: `[address high, address low, bytes…]`.
+    fn take_changes(&mut self) -> Changes {
+        self.take_ram_changes()
+    }
+
+    fn replay(ram: &mut crate::BatteryRam, record: &[u8]) -> Result<(), ReplayError> {
+        Cell::replay_ram_change(ram, record)
     }
 }
 

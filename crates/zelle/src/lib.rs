@@ -21,9 +21,10 @@ pub mod control;
 mod device;
 mod memory;
 pub mod program;
+pub mod sfr;
 pub mod timing;
 
-pub use buslab_device::{ByteDevice, Persistent, Port, SimPort};
+pub use buslab_device::{ByteDevice, Changes, Persistent, Port, SimPort};
 pub use cell::{Activity, COUNT_HIGH_REGISTER, COUNT_LOW_REGISTER, Cell, InputError, Mode, Stats};
 pub use command::Command;
 pub use memory::{BatteryRam, StateFileError, hex_listing};

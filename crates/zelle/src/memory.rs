@@ -98,7 +98,8 @@ impl BatteryRam {
         let mut bytes = Vec::with_capacity(EXT_RAM_SIZE);
         for (n, line) in file.ram.iter().enumerate() {
             let digits = line.as_bytes();
-            if digits.len() % 2 != 0 {
+            // Hex digits only: `from_str_radix` would take a sign (`+f`).
+            if digits.len() % 2 != 0 || !digits.iter().all(u8::is_ascii_hexdigit) {
                 return Err(StateFileError::Hex { line: n });
             }
             for pair in digits.chunks(2) {

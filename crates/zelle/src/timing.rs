@@ -15,8 +15,10 @@ pub const MS: u64 = 1_000_000;
 /// host to pause this long before sending more.
 pub const SETUP_NS: u64 = MS;
 
-/// One A/D conversion. The seed's "interval minus number of channels" means each conversion
-/// takes about a millisecond of the interval.
+/// One A/D conversion of a measurement series. The seed's "interval minus number of channels"
+/// means each conversion takes about a millisecond of the interval. Direct readings (commands 4
+/// and 7) take no time of their own: the seed says their function ends within the two stop
+/// bits of the request.
 pub const CONVERSION_NS: u64 = MS;
 
 /// The gap the seed asks for between the ten reset zeros.

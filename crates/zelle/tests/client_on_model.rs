@@ -70,7 +70,12 @@ fn p26_key_registers_bus_and_ram() {
 
     c.write_register(0x30, 0xA5).unwrap();
     assert_eq!(c.read_register(0x30).unwrap(), 0xA5);
-    assert!(matches!(c.read_register(128), Err(Error::Register(128))));
+    assert!(matches!(
+        c.write_register(128, 0),
+        Err(Error::Register(128))
+    ));
+    // 80h..FFh read as special function registers: SP inside a command.
+    assert_eq!(c.read_register(0x81).unwrap(), 0x09);
 
     c.bus_write(5, 0x42).unwrap();
     assert_eq!(c.port().device().bus(5), Some(0x42));
@@ -257,4 +262,64 @@ fn the_longest_series_times_the_most_blocks_does_not_overflow() {
     });
     let err = c.measure(&params, u32::MAX, |_| {}).unwrap_err();
     assert!(matches!(err, Error::Io(_)), "{err}");
+}
+
+/// A host whose START reaches the cell `late` (a busy PTY server or USB adapter) while its
+/// later bytes are on time: the cell's block starts and ends `late` after the host thinks.
+struct LateStart<P> {
+    inner: P,
+    late: Duration,
+    owed: Duration,
+}
+
+impl<P: Port> Port for LateStart<P> {
+    fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        if bytes == [9] {
+            self.inner.pause(self.late);
+            self.owed += self.late;
+        }
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> std::io::Result<usize> {
+        self.inner.recv(buf, timeout)
+    }
+    fn now(&self) -> Duration {
+        self.inner.now()
+    }
+    fn pause(&mut self, duration: Duration) {
+        let cut = self.owed.min(duration);
+        self.owed -= cut;
+        self.inner.pause(duration - cut);
+    }
+    fn drain(&mut self) -> std::io::Result<()> {
+        self.inner.drain()
+    }
+    fn discard_input(&mut self) -> std::io::Result<()> {
+        self.inner.discard_input()
+    }
+}
+
+#[test]
+fn a_block_cut_short_by_a_late_start_is_counted_not_hidden() {
+    let params = SeriesParams::new(&[1], 50, 2).unwrap();
+    let late = Duration::from_millis(30);
+    let run = |margin: Duration| {
+        let mut cell = Cell::default().into_sim_port();
+        Client::new(&mut cell).reset().unwrap();
+        let mut c = Client::new(LateStart {
+            inner: cell,
+            late,
+            owed: Duration::ZERO,
+        });
+        c.set_block_margin(margin);
+        c.measure(&params, 2, |_| {}).unwrap()
+    };
+    // The stop comes 10 ms after the block's planned end, 20 ms before its real end.
+    let cut = run(Duration::from_millis(10));
+    assert!(cut.missing_values() > 0, "{} rows", cut.rows.len());
+    assert_eq!(cut.expected_values, 100);
+    // A margin longer than the lateness keeps every reading.
+    let whole = run(Duration::from_millis(50));
+    assert_eq!(whole.missing_values(), 0);
+    assert_eq!(whole.rows.len(), 100);
 }

@@ -42,15 +42,6 @@ impl Line {
     fn take(&mut self) -> Vec<u8> {
         std::mem::take(&mut self.out)
     }
-
-    fn reset(&mut self) {
-        for _ in 0..10 {
-            self.wait(2 * MS);
-            self.send(&[0]);
-        }
-        self.wait(5 * MS);
-        self.take();
-    }
 }
 
 fn ramp_ms() -> Source {
@@ -82,28 +73,46 @@ fn setup_pause_after_commands_1_2_3_5_is_enforced() {
     assert_eq!(l.cell.stats().lost_in_setup, 1);
 }
 
+/// Seed 003: "Fast alle Kommandos dürfen mit der maximal möglichen Geschwindigkeit zusammen
+/// mit den erforderlichen Daten gesendet werden, da die zugehörigen Funktionen innerhalb der
+/// Zeit für zwei Stoppbits beendet sind." Command 4 is not among the exceptions (1, 2, 3, 5).
 #[test]
-fn pipelining_command_4_overruns_the_receive_buffer() {
+fn command_4_takes_its_channel_bytes_at_full_line_speed() {
     let mut l = Line::new(Cell::default());
-    l.cell.set_analog(1, Source::Constant(5.0)).unwrap();
-    // Conversion (1 ms) plus reply (1.15 ms) is longer than the next request on the line.
-    l.send(&[4, 1, 1, 1, 1, 1, 1, 0]);
-    l.wait(30 * MS);
-    let answered = l.take().len();
-    let lost = l.cell.stats().lost_overrun;
-    assert!(lost > 0 && answered < 6, "answered {answered}, lost {lost}");
-    // Waiting for each reply loses nothing.
-    l.reset();
-    let before = l.cell.stats().lost_overrun;
-    l.send(&[4]);
-    for _ in 0..6 {
-        l.send(&[1]);
-        l.wait(3 * MS);
+    for (channel, volts) in [(1, 1.0), (2, 2.0), (3, 3.0), (4, 4.0)] {
+        l.cell.set_analog(channel, Source::Constant(volts)).unwrap();
     }
-    l.send(&[0]);
-    l.wait(3 * MS);
-    assert_eq!(l.take(), [255; 6]);
-    assert_eq!(l.cell.stats().lost_overrun, before);
+    let code = |v: f64| (v / 5.0 * 255.0).round() as u8;
+    // Back to back: one answer per channel byte, nothing lost.
+    l.send(&[4, 1, 2, 3, 4, 0]);
+    l.wait(10 * MS);
+    assert_eq!(l.take(), [code(1.0), code(2.0), code(3.0), code(4.0)]);
+    assert_eq!(l.cell.stats().lost_overrun, 0);
+    // The closing 0 is taken too: the next command is a command, not a channel number.
+    l.send(&[4, 1, 2, 3, 0, 13]);
+    l.wait(10 * MS);
+    assert_eq!(
+        l.take(),
+        [code(1.0), code(2.0), code(3.0), 1],
+        "13: key not pressed"
+    );
+    assert_eq!(l.cell.activity(), Activity::Ready);
+    assert_eq!(l.cell.stats().lost_overrun, 0);
+}
+
+#[test]
+fn a_byte_arriving_while_the_previous_one_is_unread_is_lost() {
+    // The 8051 has one receive buffer: while a block is measured the OS reads nothing, so a
+    // START (9) waits in the buffer and the next byte behind it is an overrun.
+    let mut l = Line::new(Cell::default());
+    l.send(&[1]);
+    l.wait(MS);
+    // 100 cycles of channel 1, every 11 ms: the block lasts 1.1 s.
+    l.send(&[0, 100, 1, 0, 0, 0, 0, 10]);
+    l.send(&[9]);
+    assert_eq!(l.cell.activity(), Activity::Measuring);
+    l.send(&[9, 9]);
+    assert_eq!(l.cell.stats().lost_overrun, 1);
 }
 
 #[test]
@@ -114,12 +123,10 @@ fn replies_take_the_documented_time() {
     l.send(&[0xFF]);
     // The reply's stop bits end one character after the last address byte arrived.
     assert_eq!(l.cell.next_deadline(), Some(t_last + BYTE_NS));
-    // Command 7: conversion first.
+    // Command 7: the conversion hides in the channel byte's stop bits; the reply follows.
     l.wait(5 * MS);
     l.take();
     l.send(&[7, 2]);
-    assert_eq!(l.cell.next_deadline(), Some(l.t + MS));
-    l.wait(MS);
     assert_eq!(l.cell.next_deadline(), Some(l.t + BYTE_NS));
 }
 
@@ -352,4 +359,87 @@ fn internal_ram_is_cleared_by_power_on_but_kept_by_reset() {
     l.cell.power_off(t);
     l.cell.power_on(t + MS);
     assert_eq!(l.cell.internal_ram()[0x20], 0);
+}
+
+/// Seed 003, command 16: "Die Zelle erwartet die gewünschte Adresse und antwortet mit dem
+/// Inhalt der Adresse" (any address; command 17 alone is limited to 0..127). 80h..FFh are the
+/// 8051's special function registers.
+#[test]
+fn command_16_reads_the_special_function_registers() {
+    use buslab_zelle::sfr;
+    let mut l = Line::new(Cell::default());
+    let read = |l: &mut Line, addr: u8| {
+        l.send(&[16, addr]);
+        l.wait(5 * MS);
+        let got = l.take();
+        assert_eq!(got.len(), 1, "one answer for {addr:#04x}");
+        got[0]
+    };
+    // Port 1 with the LED on (P1.0 low) and P1.7 pulled low from outside.
+    l.send(&[11, 0xFE]);
+    l.wait(5 * MS);
+    l.cell.set_port1_pulled_low(0x80);
+    assert_eq!(read(&mut l, sfr::P1), 0x7E);
+    // Port 3: lines idle high; the START key on INT1 (P3.3) reads low while pressed.
+    assert_eq!(read(&mut l, sfr::P3), 0xFF);
+    l.cell.key_down(l.t);
+    assert_eq!(read(&mut l, sfr::P3), 0xF7);
+    l.cell.key_up(l.t);
+    // P2.6 cleared by command 14.
+    l.send(&[14, 0]);
+    l.wait(5 * MS);
+    assert_eq!(read(&mut l, sfr::P2), 0xBF);
+    // The data pointer is the last RAM address the OS used (command 18 reads 1234h).
+    l.send(&[18, 0x12, 0x34]);
+    l.wait(5 * MS);
+    l.take();
+    assert_eq!(read(&mut l, sfr::DPH), 0x12);
+    assert_eq!(read(&mut l, sfr::DPL), 0x34);
+    // The accumulator holds the address just received; PSW its parity; SP one call deep.
+    assert_eq!(read(&mut l, sfr::ACC), 0xE0);
+    assert_eq!(read(&mut l, sfr::PSW), 0x01);
+    assert_eq!(read(&mut l, sfr::SP), 0x09);
+    assert_eq!(read(&mut l, sfr::B), 0x00);
+    // The UART: mode 3 for 8N2, timer 1 reloading FDh for 9600 baud.
+    assert_eq!(read(&mut l, sfr::SCON), 0xDC);
+    assert_eq!(read(&mut l, sfr::TH1), 0xFD);
+    assert_eq!(read(&mut l, sfr::TMOD), 0x20);
+    // Internal RAM below 80h as before.
+    l.send(&[17, 0x30, 0x5A]);
+    l.wait(5 * MS);
+    assert_eq!(read(&mut l, 0x30), 0x5A);
+}
+
+#[test]
+fn ram_changes_replayed_over_the_old_ram_give_the_new_one() {
+    use buslab_zelle::{Changes, Persistent};
+    let before = BatteryRam::default();
+    let mut l = Line::new(Cell::new(before.clone()));
+    l.cell.set_analog(1, ramp_ms()).unwrap();
+    // Pokes, an upload, a series and its values, a stop (start byte).
+    l.send(&[19, 0x10, 0x00, 0xAB, 19, 0x10, 0x01, 0xCD]);
+    l.send(&[3]);
+    l.wait(2 * MS);
+    for b in [1u8, 0x11, 1, 0x22] {
+        l.send(&[b]);
+        l.wait(3 * MS);
+    }
+    l.send(&[0, 1]);
+    l.wait(2 * MS);
+    l.send(&[0, 5, 1, 0, 0, 0, 0, 2, 9]);
+    l.wait(100 * MS);
+    l.send(&[0]);
+    l.wait(5 * MS);
+    let Changes::Records(records) = l.cell.take_changes() else {
+        panic!("a few changes fit in records");
+    };
+    assert!(!records.is_empty());
+    let mut replayed = before;
+    for r in &records {
+        Cell::replay(&mut replayed, r).unwrap();
+    }
+    assert_eq!(&replayed, l.cell.ram());
+    // Contiguous writes share a record: far fewer records than bytes written.
+    assert!(records.len() < 12, "{} records", records.len());
+    assert!(Cell::replay(&mut replayed, &[0x10]).is_err());
 }

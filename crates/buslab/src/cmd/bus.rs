@@ -71,6 +71,10 @@ pub struct ServeArgs {
     /// address 255.255.255.255:42000.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "auto")]
     pub beacon: Option<String>,
+    /// After bus-off, restart client chips 100 ms later with TXERR := 0 (Linux's restart)
+    /// instead of the seed's recovery (the chip counts 128 × 11 recessive bits, TXERR falling).
+    #[arg(long)]
+    pub fast_restart: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -85,6 +89,9 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     config.speed = args.speed;
     config.client_queue = args.client_queue;
     config.error_frames = args.error_frames;
+    if args.fast_restart {
+        config.bus_off_recovery = buslab_canbus::BusOffRecovery::Fast;
+    }
     config.beacon = match args.beacon.as_deref() {
         None => None,
         Some("auto") if args.listen.ip().is_loopback() => Some(([127, 0, 0, 1], 42000).into()),
@@ -119,7 +126,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 args.bitrate
             );
         }
-        let mut sim = scenario.build();
+        let mut sim = scenario.build_with(&buslab_canbus::node::ScenarioNodes)?;
         sim.set_record_events(false);
         config.scenario = Some(sim);
     }

@@ -61,7 +61,7 @@ pub fn node_ref(text: &str) -> NodeRef {
 
 /// Bits a classic frame takes on the wire at most: 8 data bytes, extended ID, worst-case
 /// stuffing, intermission.
-const WORST_FRAME_BITS: u64 = 160;
+pub const WORST_FRAME_BITS: u64 = 160;
 
 /// Waits until the `count` frames this client sent were transmitted or given up, for
 /// `timeout` beyond the time the frames still queued need on the bus (a socketcand `send`

@@ -16,7 +16,7 @@ use buslab_cpu196::host::{
     Client, ClientError, DEFAULT_TIMEOUT, FileRequests, Monitor, Port, Recorder,
 };
 use buslab_cpu196::image::{BAUD_RATES, BootConfig, BootEdit};
-use buslab_cpu196::message::{Bridge, Message, Start};
+use buslab_cpu196::message::{Bridge, Message, Start, printable};
 use buslab_cpu196::pic::Peer;
 use buslab_cpu196::source::{FULL_SCALE_V, Inputs, Source};
 use buslab_cpu196::values::{self, ValueError};
@@ -589,6 +589,8 @@ fn bar(len: u64, what: &str) -> ProgressBar {
 }
 
 fn serve(s: &ServeArgs) -> anyhow::Result<()> {
+    // Before the PTY and its link exist (see `zelle serve`).
+    let stopped = super::zelle::ctrl_c()?;
     let mut inputs = Inputs::default();
     for &(ch, source) in &s.input {
         inputs.c196[ch] = source;
@@ -612,7 +614,6 @@ fn serve(s: &ServeArgs) -> anyhow::Result<()> {
         s.baud
     );
     std::io::stdout().flush().ok();
-    let stopped = super::zelle::ctrl_c()?;
     // The kernel's log (what it refused and why), as it comes. A serve thread that ended (an
     // error on the PTY) ends the wait too; `stop` then reports why.
     while stopped.recv_timeout(Duration::from_millis(100)).is_err() {
@@ -688,7 +689,18 @@ fn monitor<P: Port>(
     if let Some((_, frames, samples)) = session.finish()? {
         say!("recorded {samples} samples from {frames} frames");
     }
+    report_frame_errors(c);
     Ok(())
+}
+
+/// Tells how many damaged frames the client skipped (a noisy line, a wrong baud rate).
+fn report_frame_errors<P: Port>(c: &Client<P>) {
+    if let Some(first) = c.frame_errors.first() {
+        tracing::warn!(
+            "{} damaged frames skipped (first: {first})",
+            c.frame_errors.count()
+        );
+    }
 }
 
 /// A CSV recorder on a new file. (Written as the samples come, so a run cut short keeps what
@@ -732,13 +744,7 @@ fn record<P: Port>(
     }
     session.stop(c, &mut out)?;
     show(&mut out);
-    if !c.frame_errors.is_empty() {
-        tracing::warn!(
-            "{} damaged frames skipped (first: {})",
-            c.frame_errors.len(),
-            c.frame_errors[0]
-        );
-    }
+    report_frame_errors(c);
     let (_, frames, samples) = session.finish()?.expect("a recorder was given");
     say!(
         "recorded {samples} samples from {frames} frames into {}",
@@ -956,14 +962,14 @@ fn format<P: Port>(c: &mut Client<P>, f: FormatCmd, yes: bool) -> anyhow::Result
                 yes,
                 &format!(
                     "change the serial number {} to {} and ERASE all flash banks and the PIC",
-                    String::from_utf8_lossy(&current),
-                    String::from_utf8_lossy(&new)
+                    printable(&current),
+                    printable(&new)
                 ),
             )?;
             c.set_serial(&current, &new)?;
             say!(
                 "serial number is now {}; flash and PIC erased",
-                String::from_utf8_lossy(&new)
+                printable(&new)
             );
         }
         FormatCmd::PicKernelRead { out } => {

@@ -9,7 +9,7 @@ use anyhow::bail;
 use buslab_can::{Frame, Id};
 use buslab_canbus::Filter;
 
-use super::busopt::{BusOpt, confirm_sent, open, set_name};
+use super::busopt::{BusOpt, WORST_FRAME_BITS, confirm_sent, open, set_name};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -77,6 +77,7 @@ impl FromStr for Mode<u32> {
             u32::from_str_radix(t, 16)
                 .ok()
                 .filter(|&v| v <= 0x1FFF_FFFF && t.len() <= 8)
+                .filter(|_| t.bytes().all(|b| b.is_ascii_hexdigit()))
                 .ok_or_else(|| format!("ID {t:?} must be hex 0..1FFFFFFF, r or i"))
         })
     }
@@ -99,7 +100,8 @@ impl FromStr for Mode<Vec<u8>> {
     fn from_str(s: &str) -> Result<Self, String> {
         mode(s, |t| {
             let bad = || format!("data {t:?} must be 0..8 bytes of hex (or r, i)");
-            if t.len() % 2 != 0 || t.len() > 16 {
+            // Hex digits only: `from_str_radix` would take a sign (`+f`).
+            if t.len() % 2 != 0 || t.len() > 16 || !t.bytes().all(|b| b.is_ascii_hexdigit()) {
                 return Err(bad());
             }
             (0..t.len())
@@ -201,12 +203,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let stop = stop.clone();
         let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
     }
+    // As fast as the bus takes them, the client must not run far ahead of the bus: every frame
+    // written but not sent waits in the sockets, and so does any request behind it (the last
+    // `< buslab_status >` waited behind 20000 sends and timed out). So every half a lead the
+    // frames so far are flushed, keeping at most about a second of bus time in flight.
+    let lead = if args.gap.is_zero() {
+        bus.admin()
+            .map(|admin| admin.node_status(None))
+            .transpose()?
+            .map(|st| (u64::from(st.bus.bitrate) / WORST_FRAME_BITS).max(2))
+    } else {
+        None
+    };
     // Paced against the start so the rate does not drift.
     let mut due = Instant::now();
     let mut sent = 0u64;
     while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| sent < n) {
         bus.send(&generator.next_frame())?;
         sent += 1;
+        if let Some(lead) = lead
+            && sent.is_multiple_of(lead / 2)
+            && let Some(admin) = bus.admin()
+        {
+            let wait = args.timeout + Duration::from_secs(1);
+            if let Err(e) = admin.flush(wait) {
+                tracing::debug!("flush after {sent} frames: {e}");
+                break;
+            }
+        }
         if !args.gap.is_zero() {
             let Some(next) = due.checked_add(args.gap) else {
                 bail!("gap {:?} is too long for this clock", args.gap);

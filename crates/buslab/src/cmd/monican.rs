@@ -44,12 +44,16 @@ pub struct Args {
 
 fn parse_id(text: &str) -> Result<u16, String> {
     let t = text.trim();
+    // Digits only: `from_str_radix` and `parse` would take a sign (`0x+f`, `+5`).
     let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
-        Some(hex) => u16::from_str_radix(hex, 16),
-        None => t.parse(),
+        Some(hex) if hex.bytes().all(|b| b.is_ascii_hexdigit()) => {
+            u16::from_str_radix(hex, 16).ok()
+        }
+        Some(_) => None,
+        None if t.bytes().all(|b| b.is_ascii_digit()) => t.parse().ok(),
+        None => None,
     };
     parsed
-        .ok()
         .filter(|&id| id <= 0x7FF)
         .ok_or_else(|| format!("{text:?} is not an 11-bit identifier (0x001..0x7FF)"))
 }

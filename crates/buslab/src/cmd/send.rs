@@ -17,8 +17,12 @@ pub struct Args {
     pub bus: Option<BusUrl>,
     /// `[IFACE] FRAME…`: the interface as cansend takes it (vcan0, can0, /dev/ttyACM0 or a
     /// URL), then frames in can-utils syntax: 123#DEADBEEF, 1F334455#, 123#R, 00000123#R3.
-    #[arg(required = true, value_name = "[IFACE] FRAME")]
+    #[arg(required_unless_present = "jerrycan", value_name = "[IFACE] FRAME")]
     pub words: Vec<String>,
+    /// A frame whose ID is spelled the JerryCAN way (3 hex digits: the ID shifted left by
+    /// one, e.g. 246#1122 is 123#1122); repeatable, sent after the others.
+    #[arg(long, value_name = "FRAME", value_parser = Frame::from_jerrycan)]
+    pub jerrycan: Vec<Frame>,
     /// Program this client's SJA1000 with BTR0:BTR1 (hex) first, e.g. 07:4D; a bit rate that
     /// does not match the bus cannot communicate (an induced error). Needs a buslab bus.
     #[arg(long, value_name = "BTR0:BTR1", value_parser = parse_btr)]
@@ -37,8 +41,7 @@ pub fn parse_btr(text: &str) -> Result<(u8, u8), String> {
     let bad = || format!("bit timing {text:?} must be BTR0:BTR1 in hex, e.g. 07:4D");
     let (a, b) = text.split_once(':').ok_or_else(bad)?;
     let byte = |t: &str| {
-        (1..=2)
-            .contains(&t.len())
+        ((1..=2).contains(&t.len()) && t.bytes().all(|b| b.is_ascii_hexdigit()))
             .then(|| u8::from_str_radix(t, 16).ok())
             .flatten()
     };
@@ -61,16 +64,17 @@ fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
         (None, Some(url)) => url.clone(),
         (None, None) => crate::config::get().bus.clone(),
     };
-    if frames.is_empty() {
+    if frames.is_empty() && args.jerrycan.is_empty() {
         bail!("no frame to send: expected [IFACE] FRAME…, e.g. `buslab send vcan0 123#1122`");
     }
-    let frames = frames
+    let mut frames = frames
         .iter()
         .map(|f| {
             f.parse::<Frame>()
                 .with_context(|| format!("invalid value '{f}' for '[IFACE] FRAME'"))
         })
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    frames.extend(args.jerrycan.iter().cloned());
     Ok((url, frames))
 }
 

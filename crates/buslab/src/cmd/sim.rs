@@ -68,17 +68,11 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
 /// fits, and `/dev/zero` or a wrong path is not read until memory runs out.
 const MAX_SCENARIO_BYTES: u64 = 64 << 20;
 
-/// Reads a scenario file, refusing one larger than [`MAX_SCENARIO_BYTES`].
+/// Reads a scenario file, refusing one larger than [`MAX_SCENARIO_BYTES`] and what is not a
+/// regular file (a FIFO would block, a device never end).
 pub fn read_scenario(path: &std::path::Path) -> anyhow::Result<String> {
-    use std::io::Read;
-    let mut text = String::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_SCENARIO_BYTES + 1).read_to_string(&mut text))
-        .with_context(|| format!("cannot read scenario {}", path.display()))?;
-    if text.len() as u64 > MAX_SCENARIO_BYTES {
-        anyhow::bail!("scenario {} is larger than 64 MiB", path.display());
-    }
-    Ok(text)
+    buslab_link::fs::read_text_limited(path, MAX_SCENARIO_BYTES)
+        .with_context(|| format!("cannot read scenario {}", path.display()))
 }
 
 fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
@@ -94,10 +88,17 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let end = args
         .duration
         .map_or(scenario.duration, |d| d.to_bits(scenario.bitrate));
+    if end > buslab_sim::scenario::max_duration(scenario.bitrate) {
+        anyhow::bail!(
+            "--duration {} is longer than a simulation may run: up to {} s of virtual time",
+            args.duration.map(|d| d.to_string()).unwrap_or_default(),
+            buslab_sim::scenario::MAX_DURATION_S
+        );
+    }
     if (args.counters.is_some() || args.plot.is_some()) && scenario.sample_every.is_none() {
         scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
     }
-    let mut sim = scenario.build();
+    let mut sim = scenario.build_with(&buslab_canbus::node::ScenarioNodes)?;
     let mut counters = match &args.counters {
         Some(path) => {
             let file = File::create(path)
@@ -392,7 +393,8 @@ impl<'a> Printer<'a> {
                 )
             }
             Event::Dropped(frame) => {
-                writeln!(out, "# {ts} {node}: single-shot frame {frame} dropped")
+                // A single-shot attempt that failed, or what a chip's bus-off aborted.
+                writeln!(out, "# {ts} {node}: frame {frame} given up")
             }
             _ => Ok(()),
         }

@@ -98,7 +98,10 @@ pub enum SlioCommand {
 /// `0x2000`, `2000h`, `8192`.
 fn parse_u16(text: &str) -> Result<u16, String> {
     let t = text.trim();
-    let parsed = if let Some(hex) = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+    // Digits only: `from_str_radix` and `parse` would take a sign (`+f`, `+5`).
+    let parsed = if !t.bytes().all(|b| b.is_ascii_alphanumeric()) {
+        "-".parse::<u16>()
+    } else if let Some(hex) = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
         u16::from_str_radix(hex, 16)
     } else if let Some(hex) = t.strip_suffix(['h', 'H']) {
         u16::from_str_radix(hex, 16)

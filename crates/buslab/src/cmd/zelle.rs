@@ -108,7 +108,8 @@ pub enum ZelleCommand {
     Key,
     /// Read an internal RAM register (command 16), or write it (command 17).
     Reg {
-        /// Register address 0..127.
+        /// Register address: 0..127 internal RAM, 128..255 (80h..FFh) special function
+        /// registers (read only).
         addr: String,
         /// Byte to write (0..255); none: read it.
         value: Option<String>,
@@ -170,6 +171,10 @@ pub struct MeasureArgs {
     /// Blocks to run, each started by the host (command 9).
     #[arg(long, default_value_t = 1)]
     pub blocks: u32,
+    /// Waited beyond each block's length before the next START or the stop (the cell sends
+    /// no "block done"): how late the host and the line may be without cutting a block short.
+    #[arg(long, default_value = "250ms", value_parser = duration, value_name = "DURATION")]
+    pub block_margin: Duration,
     /// Write the CSV here instead of stdout.
     #[arg(long, short, value_name = "FILE")]
     pub output: Option<PathBuf>,
@@ -272,13 +277,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "released"
             }
         ),
-        ZelleCommand::Reg { addr, value } => {
-            let addr = parse_number_in(&addr, "register address", 127)? as u8;
-            match value {
-                None => say!("{:#04x}", cell.read_register(addr)?),
-                Some(v) => cell.write_register(addr, parse_number_in(&v, "value", 0xFF)? as u8)?,
+        ZelleCommand::Reg { addr, value } => match value {
+            None => {
+                let addr = parse_number_in(&addr, "register address", 0xFF)? as u8;
+                say!("{:#04x}", cell.read_register(addr)?)
             }
-        }
+            Some(v) => {
+                // Command 17 writes internal RAM only.
+                let addr = parse_number_in(&addr, "register address to write", 127)? as u8;
+                cell.write_register(addr, parse_number_in(&v, "value", 0xFF)? as u8)?
+            }
+        },
         ZelleCommand::Bus { addr, value } => {
             let addr = parse_number_in(&addr, "bus address", 127)? as u8;
             match value {
@@ -317,6 +326,7 @@ fn measure<P: Port>(cell: &mut Client<P>, m: MeasureArgs) -> anyhow::Result<()> 
         indicatif::ProgressStyle::with_template("{msg:>10} [{bar:40}] {percent:>3}%")
             .expect("a valid template"),
     );
+    cell.set_block_margin(m.block_margin);
     let result = cell.measure(&params, m.blocks, |p| match p {
         Progress::Measuring {
             block,
@@ -351,6 +361,18 @@ fn measure<P: Port>(cell: &mut Client<P>, m: MeasureArgs) -> anyhow::Result<()> 
         Some(None) => eprint!("{}", series.plot(72, 16)),
         Some(Some(path)) => super::plot::write(&measurement_figure(&series), path)?,
         None => {}
+    }
+    let missing = series.missing_values();
+    if missing > 0 {
+        anyhow::bail!(
+            "the cell measured {} of {} readings: a block was cut short (the stop or the next \
+             START reached the cell before the block ended: the host or the line was late by \
+             more than --block-margin {}), or the data area filled up; what was measured is \
+             above",
+            series.expected_values - missing,
+            series.expected_values,
+            buslab_device::Human(m.block_margin)
+        );
     }
     Ok(())
 }
@@ -409,6 +431,9 @@ fn print_stdout(text: &str) -> anyhow::Result<()> {
 // ----- serving the model --------------------------------------------------------------------
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    // Before the PTY and its link exist: a signal that finds them must find the handler too
+    // (an early SIGTERM killed the process and left the link behind).
+    let stopped = ctrl_c()?;
     let analog = args
         .analog
         .iter()
@@ -430,7 +455,6 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             .unwrap_or_default(),
         control::HELP
     );
-    let stopped = ctrl_c()?;
     let control = served.control();
     {
         let control = control.clone();
@@ -461,7 +485,7 @@ fn control_socket(
         .with_context(|| format!("binding control socket {}", path.display()))
 }
 
-/// A channel that hears Ctrl-C (SIGINT).
+/// A channel that hears Ctrl-C (SIGINT), SIGTERM and SIGHUP.
 pub fn ctrl_c() -> anyhow::Result<std::sync::mpsc::Receiver<()>> {
     let (tx, rx) = std::sync::mpsc::channel();
     ctrlc::set_handler(move || {

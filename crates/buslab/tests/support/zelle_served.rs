@@ -133,6 +133,29 @@ impl Served {
     }
 }
 
+impl Served {
+    /// Kills the child with SIGKILL (`kill -9`: no saving, no clean-up) and gives the
+    /// directory back.
+    pub fn kill_9(mut self) -> tempfile::TempDir {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let dir = tempfile::tempdir().unwrap();
+        std::mem::replace(&mut self.dir, dir)
+    }
+
+    /// Sends `signal` (`TERM`, `HUP`, `INT`) and waits for the child; its exit status.
+    pub fn signal(mut self, signal: &str) -> (std::process::ExitStatus, tempfile::TempDir) {
+        let sent = Command::new("kill")
+            .args([&format!("-{signal}"), &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let status = self.child.wait().unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        (status, std::mem::replace(&mut self.dir, dir))
+    }
+}
+
 impl Drop for Served {
     fn drop(&mut self) {
         let _ = self.child.kill();

@@ -229,12 +229,24 @@ impl Controller {
     /// The frame in flight counts against the capacity. A listen-only controller accepts frames
     /// but never sends them.
     pub fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
+        self.enqueue_with_dlc(frame, frame.dlc())
+    }
+
+    /// [`enqueue`](Self::enqueue) with the DLC to put on the wire: for an 8-byte data frame (or
+    /// a remote frame of DLC 8) it may be 9..15, which ISO 11898-1 lets a classic transmitter
+    /// send (receivers take 8 bytes). Any other DLC than the frame's own is ignored.
+    pub fn enqueue_with_dlc(&mut self, frame: Frame, dlc: u8) -> Result<(), QueueFull> {
         if self.pending() >= self.config.tx_queue_capacity {
             return Err(QueueFull {
                 capacity: self.config.tx_queue_capacity,
             });
         }
-        self.queue.push(frame);
+        let dlc = if frame.dlc() == 8 && (8..=15).contains(&dlc) {
+            dlc
+        } else {
+            frame.dlc()
+        };
+        self.queue.push(frame, dlc);
         if self.phase == Phase::Idle {
             self.drive = self.next_drive();
         }
@@ -475,10 +487,12 @@ impl Controller {
             (Some(tx), Some(next)) => next < tx.frame(),
         };
         if better
-            && let Some(next) = self.queue.pop()
-            && let Some(old) = self.tx.replace(wire::encode(&next))
+            && let Some((next, dlc)) = self.queue.pop()
+            && let Some(old) = self
+                .tx
+                .replace(wire::encode_with_dlc(&next, dlc).unwrap_or_else(|| wire::encode(&next)))
         {
-            self.queue.push(*old.frame());
+            self.queue.push(*old.frame(), old.dlc());
         }
         self.tx.is_some()
     }

@@ -8,8 +8,9 @@ use crate::Frame;
 pub(super) struct TxQueue {
     /// Sorted from least to most important (arbitration field only: what follows it cannot
     /// change who wins), so the next frame to send is `last()`. Frames with equal arbitration
-    /// fields keep their enqueue order, as a controller's FIFO does.
-    frames: Vec<Frame>,
+    /// fields keep their enqueue order, as a controller's FIFO does. Each with the DLC to send
+    /// (9..15 for some 8-byte frames).
+    frames: Vec<(Frame, u8)>,
 }
 
 impl TxQueue {
@@ -23,20 +24,20 @@ impl TxQueue {
         self.frames.len()
     }
 
-    pub(super) fn push(&mut self, frame: Frame) {
+    pub(super) fn push(&mut self, frame: Frame, dlc: u8) {
         // Before any equal ones: those were queued earlier and go first.
         let key = frame.arbitration_key();
         let at = self
             .frames
-            .partition_point(|queued| queued.arbitration_key() > key);
-        self.frames.insert(at, frame);
+            .partition_point(|(queued, _)| queued.arbitration_key() > key);
+        self.frames.insert(at, (frame, dlc));
     }
 
     pub(super) fn peek(&self) -> Option<&Frame> {
-        self.frames.last()
+        self.frames.last().map(|(frame, _)| frame)
     }
 
-    pub(super) fn pop(&mut self) -> Option<Frame> {
+    pub(super) fn pop(&mut self) -> Option<(Frame, u8)> {
         self.frames.pop()
     }
 
@@ -46,7 +47,7 @@ impl TxQueue {
 
     /// Most important first.
     pub(super) fn iter(&self) -> impl Iterator<Item = &Frame> {
-        self.frames.iter().rev()
+        self.frames.iter().rev().map(|(frame, _)| frame)
     }
 }
 
@@ -64,9 +65,12 @@ mod tests {
         let mut q = TxQueue::with_capacity(8);
         // A SLIO answering two requests: DATA_OUTPUT first, then DATA_INPUT, same ID.
         for text in ["29D#232000", "300#", "29D#206001", "100#"] {
-            q.push(f(text));
+            let frame = f(text);
+            let dlc = frame.dlc();
+            q.push(frame, dlc);
         }
-        let order: Vec<String> = core::iter::from_fn(|| q.pop().map(|f| f.to_string())).collect();
+        let order: Vec<String> =
+            core::iter::from_fn(|| q.pop().map(|(f, _)| f.to_string())).collect();
         assert_eq!(order, ["100#", "29D#232000", "29D#206001", "300#"]);
     }
 }

@@ -18,7 +18,7 @@ pub use recorder::Recorder;
 use crate::acquisition::LogTable;
 use crate::adconfig::{AdConfig, AdRefusal};
 use crate::codes::MsgCode;
-use crate::decoder::{Decoder, Event};
+use crate::decoder::{Decoder, Event, PIC_CHUNK};
 use crate::image::{BootConfig, encrypt_serial};
 use crate::message::*;
 use crate::wire::{FLASH_BLOCK, PIC_BLOCK, PIC_EEPROM};
@@ -54,6 +54,50 @@ pub enum ClientError {
     Encode(#[from] EncodeError),
 }
 
+/// Frame errors on the board's stream: how many, the first, and the last
+/// [`FrameErrors::KEPT`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FrameErrors {
+    count: u64,
+    first: Option<String>,
+    recent: VecDeque<String>,
+}
+
+impl FrameErrors {
+    /// How many of the latest errors are kept.
+    pub const KEPT: usize = 8;
+
+    pub fn push(&mut self, error: String) {
+        self.count += 1;
+        if self.first.is_none() {
+            self.first = Some(error.clone());
+        }
+        if self.recent.len() == Self::KEPT {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(error);
+    }
+
+    /// Errors seen in all.
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// The first error seen.
+    pub fn first(&self) -> Option<&str> {
+        self.first.as_deref()
+    }
+
+    /// The latest errors, oldest first (at most [`KEPT`](Self::KEPT)).
+    pub fn recent(&self) -> impl Iterator<Item = &str> {
+        self.recent.iter().map(String::as_str)
+    }
+}
+
 /// Messages the board sends on its own (THREAD, alerts, samples, watchdog, ...), kept while
 /// the client waits for a reply.
 pub type Backlog = VecDeque<Message>;
@@ -69,8 +113,9 @@ pub struct Client<P: Port> {
     backlog: Backlog,
     /// Decoded, not yet looked at.
     inbox: Backlog,
-    /// Frame errors seen on the board's stream (reported, not fatal).
-    pub frame_errors: Vec<String>,
+    /// Frame errors seen on the board's stream (reported, not fatal): counted, the first and
+    /// the last few kept, so a noisy line does not grow the client.
+    pub frame_errors: FrameErrors,
     /// The decoder's clock: the silence this client has seen on the line, in nanoseconds. It
     /// moves only while a `recv` waits and gets nothing, never while the client is busy or
     /// descheduled: a client that reads late (a loaded machine) finds a frame's bytes in two
@@ -92,7 +137,7 @@ impl<P: Port> Client<P> {
             timeout: DEFAULT_TIMEOUT,
             backlog: Backlog::new(),
             inbox: Backlog::new(),
-            frame_errors: Vec::new(),
+            frame_errors: FrameErrors::default(),
             silence_ns: 0,
         }
     }
@@ -176,7 +221,8 @@ impl<P: Port> Client<P> {
                 match self.decoder.push(self.silence_ns, b) {
                     Some(Event::Message(m)) => self.inbox.push_back(m),
                     Some(Event::Error(e)) => self.frame_errors.push(e.to_string()),
-                    None => {}
+                    // Only a PC sends PIC block writes.
+                    Some(Event::PicChunk { .. }) | None => {}
                 }
             }
         }
@@ -370,25 +416,30 @@ impl<P: Port> Client<P> {
         )
     }
 
-    /// Writes a PIC block (16 × `msg_completed`, one per 256 bytes; `progress` sees each) and
-    /// reads it back.
+    /// Writes a PIC block and reads it back. The board acknowledges every 256 bytes
+    /// (`msg_completed`, 16 times) as they arrive; the next 256 go when the acknowledgement is
+    /// in (flow control). `progress` sees the bytes acknowledged.
     pub fn pic_write(
         &mut self,
         block: u8,
         data: &[u8; PIC_BLOCK],
         progress: &mut dyn FnMut(usize),
     ) -> Result<(), ClientError> {
-        let m = Message::PicWrite {
+        let bytes = Message::PicWrite {
             block,
             data: Box::new(*data),
-        };
-        self.send(&m)?;
-        let budget = self.budget(PIC_BLOCK + 64);
-        for i in 0..PIC_BLOCK / 256 {
+        }
+        .to_bytes()?;
+        // Command, complement, sub-code and block go with the first chunk.
+        let (head, body) = bytes.split_at(bytes.len() - PIC_BLOCK);
+        self.send_raw(head)?;
+        let budget = self.budget(PIC_CHUNK + 64);
+        for (i, chunk) in body.chunks(PIC_CHUNK).enumerate() {
+            self.send_raw(chunk)?;
             self.wait_for(budget, &mut |r| {
                 (*r == Message::Msg(MsgCode::COMPLETED)).then_some(())
             })?;
-            progress((i + 1) * 256);
+            progress((i + 1) * PIC_CHUNK);
         }
         let back = self.pic_read(block)?;
         if *back != *data {
@@ -659,12 +710,67 @@ mod tests {
             115_200,
         );
         assert_eq!(c.next(Duration::from_millis(300)).unwrap(), None);
-        assert_eq!(c.frame_errors.len(), 1, "{:?}", c.frame_errors);
+        assert_eq!(c.frame_errors.count(), 1, "{:?}", c.frame_errors);
         c.port().chunks.push_back((Duration::ZERO, reply.clone()));
         assert_eq!(
             c.next(Duration::from_millis(300)).unwrap(),
             Some(Message::FlashData(Box::new(data)))
         );
+    }
+
+    /// A line that delivers only garbage.
+    struct Noise {
+        now: Duration,
+        seed: u32,
+    }
+
+    impl Port for Noise {
+        fn send(&mut self, _bytes: &[u8]) -> io::Result<()> {
+            Ok(())
+        }
+        fn recv(&mut self, buf: &mut [u8], _timeout: Duration) -> io::Result<usize> {
+            self.now += Duration::from_millis(1);
+            for b in buf.iter_mut() {
+                self.seed = self.seed.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                *b = (self.seed >> 16) as u8;
+            }
+            Ok(buf.len())
+        }
+        fn now(&self) -> Duration {
+            self.now
+        }
+        fn pause(&mut self, d: Duration) {
+            self.now += d;
+        }
+        fn drain(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+        fn discard_input(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn frame_errors_on_a_noisy_line_are_counted_not_kept() {
+        // `cpu196 monitor` on a noisy line grew ~1.1 MB/s: every error string was kept.
+        let mut c = Client::new(
+            Noise {
+                now: Duration::ZERO,
+                seed: 1,
+            },
+            115_200,
+        );
+        // A megabyte of noise.
+        for _ in 0..2048 {
+            let _ = c.read_one(c.port.now() + Duration::from_millis(1));
+        }
+        assert!(
+            c.frame_errors.count() > 10_000,
+            "{}",
+            c.frame_errors.count()
+        );
+        assert_eq!(c.frame_errors.recent().count(), FrameErrors::KEPT);
+        assert!(c.frame_errors.first().is_some());
     }
 
     #[test]

@@ -32,9 +32,9 @@ pub const SETUP_PAUSE: Duration = Duration::from_millis(50);
 /// 9600 baud line busy; more absorbs scheduling jitter on the host.
 pub const WINDOW: usize = 16;
 
-/// Added to each block's length before the next START or the stop in
-/// [`Client::measure`].
-pub const BLOCK_MARGIN_NS: u64 = 50 * crate::timing::MS;
+/// Added by default to each block's length before the next START or the stop in
+/// [`Client::measure`] ([`Client::set_block_margin`] changes it).
+pub const BLOCK_MARGIN: Duration = Duration::from_millis(250);
 
 /// How RAM transfers pace themselves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -106,6 +106,7 @@ pub enum Progress {
 pub struct Client<P: Port> {
     port: P,
     timeout: Duration,
+    block_margin: Duration,
 }
 
 /// The default allowance for an answer, beyond its bytes' time on the line.
@@ -120,7 +121,18 @@ impl<P: Port> Client<P> {
     /// A client that waits for each answer its bytes' time on the line (and that of the
     /// requests it answers) plus `timeout`.
     pub fn with_timeout(port: P, timeout: Duration) -> Self {
-        Client { port, timeout }
+        Client {
+            port,
+            timeout,
+            block_margin: BLOCK_MARGIN,
+        }
+    }
+
+    /// How long [`measure`](Self::measure) waits beyond each block's length before the next
+    /// START or the stop (the cell sends no "block done"): the time the host and the line may
+    /// be late without cutting a block short.
+    pub fn set_block_margin(&mut self, margin: Duration) {
+        self.block_margin = margin;
     }
 
     /// The port.
@@ -257,17 +269,23 @@ impl<P: Port> Client<P> {
         self.read_byte("reading an analog channel")
     }
 
-    /// Command 4: one reading per entry of `channels`, each waited for before the next is
-    /// asked for, then `0` to end.
+    /// Command 4: one reading per entry of `channels`, then `0` to end. The seed lets the
+    /// channel bytes go at full line speed (the cell converts within their stop bits), so they
+    /// are sent back to back, a batch at a time (the cell waits for the next channel byte as
+    /// long as it takes), and the readings read back.
     pub fn analog_repeat(&mut self, channels: &[u8]) -> Result<Vec<u8>> {
+        /// Channel bytes in flight at once: well inside any port's buffers.
+        const BATCH: usize = 64;
         for &c in channels {
             check_channel(c)?;
         }
         self.send(&[Command::AnalogRepeat as u8])?;
         let mut values = Vec::with_capacity(channels.len());
-        for &c in channels {
-            self.send(&[c])?;
-            values.push(self.read_byte("reading analog channels repeatedly")?);
+        for batch in channels.chunks(BATCH) {
+            self.send(batch)?;
+            for _ in batch {
+                values.push(self.read_byte("reading analog channels repeatedly")?);
+            }
         }
         self.send(&[0])?;
         Ok(values)
@@ -341,9 +359,9 @@ impl<P: Port> Client<P> {
         }
     }
 
-    /// Command 16: internal RAM at `addr` (0..127).
+    /// Command 16: internal RAM at `addr` (0..127), or a special function register (80h..FFh,
+    /// see [`crate::sfr`]).
     pub fn read_register(&mut self, addr: u8) -> Result<u8> {
-        check_register(addr)?;
         self.send(&[Command::ReadRegister as u8, addr])?;
         self.read_byte("reading a register")
     }
@@ -514,7 +532,8 @@ impl<P: Port> Client<P> {
         // The cell has no "block done" signal: wait the block's length plus a margin for the
         // START byte's way to the cell.
         let block_ns = params.block_ns();
-        let spacing = block_ns + BLOCK_MARGIN_NS;
+        let margin_ns = u64::try_from(self.block_margin.as_nanos()).unwrap_or(u64::MAX);
+        let spacing = block_ns.saturating_add(margin_ns);
         // Saturating: 65535 cycles of 65 s times u32::MAX blocks is past u64 nanoseconds.
         let total_ns = spacing.saturating_mul(u64::from(blocks));
         let step = Duration::from_millis(100);

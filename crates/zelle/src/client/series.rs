@@ -130,6 +130,10 @@ pub struct Measurement {
     /// The channel of each column.
     pub channels: Vec<u8>,
     pub rows: Vec<Row>,
+    /// Readings the started blocks should have given: more than the rows hold when a block
+    /// was cut short (the stop or the next START reached the cell before it ended) or the
+    /// data area filled up.
+    pub expected_values: usize,
 }
 
 /// One scan cycle.
@@ -171,7 +175,14 @@ impl Measurement {
             params,
             channels,
             rows,
+            expected_values: block_starts.len() * per_block * per_row,
         }
+    }
+
+    /// Readings missing from the started blocks (0 for a whole series).
+    pub fn missing_values(&self) -> usize {
+        let got: usize = self.rows.iter().map(|r| r.values.len()).sum();
+        self.expected_values.saturating_sub(got)
     }
 
     /// CSV: `time_s,ch1,ch2,...` with raw readings 0..255, or volts if `volts`.
@@ -309,6 +320,8 @@ mod tests {
         let p = SeriesParams::new(&[2, 1], 2, 10).unwrap();
         let m = Measurement::split(p, &[1, 2, 3, 4, 5, 6, 7], &[0, 1_000_000_000]);
         assert_eq!(m.rows.len(), 4);
+        // Two blocks of 2 cycles of 2 channels: the last reading is missing.
+        assert_eq!(m.missing_values(), 1);
         assert_eq!(m.rows[1].time_ns, 10_000_000);
         assert_eq!(m.rows[2].time_ns, 1_000_000_000);
         assert_eq!(

@@ -1,0 +1,457 @@
+//! An SJA1000 with the CPU that services it through the host library's driver, as a
+//! [`BusNode`] on the one bus engine: every client of `buslab bus serve` gets one, and scenario
+//! files put them on the wire with `kind = "sja1000"` ([`ScenarioNodes`]).
+//!
+//! The CPU keeps a software queue of frames ahead of the chip's single TX buffer, takes received
+//! frames and error frames out for its host, and brings the chip back after bus-off as the
+//! configuration says: the seed's way by default (reset mode cleared at once, the chip counting
+//! its 128 × 11 recessive bits with TXERR falling), or Linux's fast restart 100 ms later.
+
+use std::any::Any;
+use std::collections::VecDeque;
+
+use buslab_can::controller::{ErrorState, Event, QueueFull};
+use buslab_can::node::BusNode;
+use buslab_can::{Frame, Level};
+use buslab_sja1000::Sja1000;
+
+use crate::{
+    BusOffRecovery, ControllerState, DriverEvent, ErrorFrame, NodeCounters, Sja1000Config,
+    Sja1000Driver, Timing, TxFailure,
+};
+
+/// Crystal of every client's SJA1000 (the seed's boards: 16 MHz, CAN clock 8 MHz).
+pub const CRYSTAL_HZ: u32 = 16_000_000;
+/// A node whose bit rate differs from the bus by more than this (per mille) cannot follow it.
+/// CAN's oscillator tolerance is at most 1.58 %; 1 % is a round figure inside it.
+pub const TOLERANCE_PERMILLE: u64 = 10;
+/// With the fast restart, how long a bus-off node waits before its driver restarts it (Linux's
+/// `restart-ms`).
+pub const RESTART_AFTER_MS: u64 = 100;
+/// Per-node transmit queue length (frames waiting for the chip's single TX buffer).
+pub const TX_QUEUE: usize = 64;
+
+/// A frame for a client and the bit-time at which its chip had it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Delivery {
+    pub frame: Frame,
+    pub time: u64,
+}
+
+/// An error frame for a client (SocketCAN's layout, as Linux's SJA1000 driver fills it) and
+/// the bit-time.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TimedErrorFrame {
+    pub frame: ErrorFrame,
+    pub time: u64,
+}
+
+/// Something a client node's driver noticed that its operator should hear about.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum NodeNotice {
+    /// A frame was given up (not by an abort).
+    NotSent { frame: Frame, reason: TxFailure },
+    /// The chip refused a frame handed to it (bus-off, reset mode).
+    Refused { frame: Frame },
+    /// The receive FIFO overflowed: frames were lost in the chip.
+    Overrun,
+    /// The error state changed; TXERR and RXERR as the chip shows them.
+    StateChanged {
+        from: ControllerState,
+        to: ControllerState,
+        txerr: u8,
+        rxerr: u8,
+    },
+    /// The driver restarted the chip after bus-off (`Err`: the chip did not come back).
+    Restarted(Result<(), String>),
+    /// The driver cleared reset mode after bus-off: the chip counts its way back (128 × 11
+    /// recessive bits, TXERR falling); `Err`: it did not leave reset mode.
+    Recovering(Result<(), String>),
+}
+
+/// An SJA1000 and the CPU running its driver, with the host's queues.
+#[derive(Debug)]
+pub struct Sja1000Node {
+    driver: Sja1000Driver<Sja1000>,
+    config: Sja1000Config,
+    bus_bitrate: u32,
+    /// The node's own bit rate when it differs from the bus's.
+    mismatch: Option<u32>,
+    rng: u64,
+    /// Frames the client sent, not yet handed to the chip.
+    tx: VecDeque<Frame>,
+    /// Frames for the client.
+    rx: Vec<Delivery>,
+    /// Error frames for the client (collected only when `error_frames` is on).
+    errors: Vec<TimedErrorFrame>,
+    /// Also deliver the node's own frames once sent.
+    pub receive_own: bool,
+    pub error_frames: bool,
+    pub counters: NodeCounters,
+    /// Frames the client handed over since it joined (sent + failed reach it when all are done).
+    submitted: u64,
+    restart_at: Option<u64>,
+    /// Bus-off was seen: the counted recovery starts after this service.
+    recovering: bool,
+    /// Events for the bus engine besides the chip's own.
+    engine_events: VecDeque<Event>,
+    notices: Vec<(u64, NodeNotice)>,
+    /// The bit-time of the last sample (for what happens between samples).
+    now: u64,
+}
+
+impl Sja1000Node {
+    /// A fresh SJA1000 initialised by the driver: PeliCAN, accept all, the bus's bit rate.
+    pub fn new(bus_bitrate: u32, error_frames: bool) -> Result<Self, String> {
+        Self::with_config(node_config(bus_bitrate), bus_bitrate, error_frames)
+    }
+
+    /// A fresh SJA1000 initialised by the driver with `config`, on a bus at `bus_bitrate`.
+    pub fn with_config(
+        config: Sja1000Config,
+        bus_bitrate: u32,
+        error_frames: bool,
+    ) -> Result<Self, String> {
+        let mut driver = Sja1000Driver::new(Sja1000::new());
+        driver.init(&config).map_err(|e| e.to_string())?;
+        Ok(Self {
+            driver,
+            config,
+            bus_bitrate,
+            mismatch: None,
+            rng: 0x9E37_79B9_7F4A_7C15,
+            tx: VecDeque::new(),
+            rx: Vec::new(),
+            errors: Vec::new(),
+            receive_own: false,
+            error_frames,
+            counters: NodeCounters::default(),
+            submitted: 0,
+            restart_at: None,
+            recovering: false,
+            engine_events: VecDeque::new(),
+            notices: Vec::new(),
+            now: 0,
+        })
+    }
+
+    /// Hands a client's frame to the node; `Err` when its queue is full (the client waits).
+    pub fn submit(&mut self, frame: Frame) -> Result<(), Frame> {
+        if self.tx.len() >= TX_QUEUE {
+            return Err(frame);
+        }
+        self.tx.push_back(frame);
+        self.submitted += 1;
+        self.feed();
+        Ok(())
+    }
+
+    /// Gives up the frame in the chip's buffer (CMR.AT: one on the wire finishes this attempt
+    /// and is not retried) and every frame queued behind it; they count as failed.
+    pub fn abort(&mut self) {
+        self.counters.tx_failed += self.tx.len() as u64;
+        self.tx.clear();
+        self.driver.abort();
+    }
+
+    /// Room in the transmit queue.
+    pub fn tx_room(&self) -> usize {
+        TX_QUEUE - self.tx.len()
+    }
+
+    /// Frames handed over since joining, and how many of them were sent or given up.
+    pub fn submitted(&self) -> u64 {
+        self.submitted
+    }
+    pub fn done(&self) -> u64 {
+        self.counters.sent + self.counters.tx_failed
+    }
+
+    /// Frames for the client since the last call.
+    pub fn take_deliveries(&mut self) -> std::vec::Drain<'_, Delivery> {
+        self.rx.drain(..)
+    }
+
+    /// Error frames for the client since the last call.
+    pub fn take_error_frames(&mut self) -> std::vec::Drain<'_, TimedErrorFrame> {
+        self.errors.drain(..)
+    }
+
+    /// What the driver noticed since the last call, with the bit-time.
+    pub fn take_notices(&mut self) -> Vec<(u64, NodeNotice)> {
+        std::mem::take(&mut self.notices)
+    }
+
+    pub fn set_error_frames(&mut self, on: bool) {
+        self.error_frames = on;
+        if !on {
+            self.errors.clear();
+        }
+    }
+
+    /// The node's bit rate from its BTR0/BTR1 and crystal.
+    pub fn bitrate(&self) -> u32 {
+        self.chip().bit_timing().bitrate(CRYSTAL_HZ / 2)
+    }
+
+    /// BTR0 and BTR1.
+    pub fn btr(&self) -> (u8, u8) {
+        self.chip().bit_timing().registers()
+    }
+
+    /// The node's bit rate when it cannot follow the bus.
+    pub fn mismatch(&self) -> Option<u32> {
+        self.mismatch
+    }
+
+    pub fn state(&self) -> ControllerState {
+        self.driver.state()
+    }
+
+    pub fn driver(&mut self) -> &mut Sja1000Driver<Sja1000> {
+        &mut self.driver
+    }
+
+    fn chip(&self) -> &Sja1000 {
+        self.driver.chip()
+    }
+
+    /// Frames waiting: the client's queue and the chip's buffer.
+    pub fn tx_queued(&self) -> usize {
+        self.tx.len() + self.driver.tx_pending() as usize
+    }
+
+    /// Reprograms the bit timing through the driver. A timing that does not give the bus's bit
+    /// rate (within [`TOLERANCE_PERMILLE`]) leaves the node unable to communicate: it samples
+    /// the bus at the wrong instants and reads noise (see docs/bus.md).
+    pub fn set_btr(&mut self, btr0: u8, btr1: u8) -> Result<(), String> {
+        let mut config = self.config.clone();
+        config.timing = Timing::Registers { btr0, btr1 };
+        self.driver.init(&config).map_err(|e| e.to_string())?;
+        self.config = config;
+        self.restart_at = None;
+        let rate = self.bitrate();
+        let bus = self.bus_bitrate;
+        let diff = (rate as i64 - bus as i64).unsigned_abs();
+        self.mismatch = (diff * 1000 > bus as u64 * TOLERANCE_PERMILLE).then_some(rate);
+        self.feed();
+        Ok(())
+    }
+
+    /// The interrupt handler: the driver's poll, then the next frame into the TX buffer.
+    #[inline(never)]
+    fn service(&mut self, now: u64) {
+        for event in self.driver.poll() {
+            if self.error_frames {
+                let registers = self.driver.error_registers();
+                if let Some(frame) = ErrorFrame::from_driver_event(&event, registers) {
+                    self.errors.push(TimedErrorFrame { frame, time: now });
+                }
+            }
+            match event {
+                DriverEvent::Received(frame) => {
+                    self.counters.received += 1;
+                    self.rx.push(Delivery { frame, time: now });
+                }
+                DriverEvent::TxDone(frame) => {
+                    self.counters.sent += 1;
+                    if self.receive_own {
+                        self.rx.push(Delivery { frame, time: now });
+                    }
+                }
+                DriverEvent::TxFailed { frame, reason } => {
+                    self.counters.tx_failed += 1;
+                    // The chip's controller drops what bus-off aborted without a word: the
+                    // engine (and a scenario's file sender waiting for the frame) hears it here.
+                    if reason == TxFailure::BusOff {
+                        self.engine_events.push_back(Event::Dropped(frame));
+                    }
+                    if reason != TxFailure::Aborted {
+                        self.notices
+                            .push((now, NodeNotice::NotSent { frame, reason }));
+                    }
+                }
+                DriverEvent::DataOverrun => {
+                    self.counters.overruns += 1;
+                    self.notices.push((now, NodeNotice::Overrun));
+                }
+                DriverEvent::StateChanged { from, to } => {
+                    if to == ControllerState::BusOff {
+                        self.counters.bus_off += 1;
+                        match self.config.bus_off_recovery {
+                            BusOffRecovery::Fast => {
+                                self.restart_at =
+                                    Some(now + self.bus_bitrate as u64 * RESTART_AFTER_MS / 1000);
+                            }
+                            BusOffRecovery::Counted => self.recovering = true,
+                        }
+                    } else if from == ControllerState::BusOff
+                        && self.config.bus_off_recovery == BusOffRecovery::Counted
+                        && self.error_frames
+                    {
+                        // Back on the bus (SocketCAN's "restarted").
+                        self.errors.push(TimedErrorFrame {
+                            frame: ErrorFrame::restarted(),
+                            time: now,
+                        });
+                    }
+                    let chip = self.driver.chip();
+                    let (txerr, rxerr) = (chip.peek(15), chip.peek(14));
+                    self.notices.push((
+                        now,
+                        NodeNotice::StateChanged {
+                            from,
+                            to,
+                            txerr,
+                            rxerr,
+                        },
+                    ));
+                }
+                DriverEvent::BusError(_) => self.counters.bus_errors += 1,
+                DriverEvent::ArbitrationLost(_) => self.counters.arbitration_lost += 1,
+                DriverEvent::WakeUp => {}
+            }
+        }
+        // The seed's recovery starts at once: the chip itself waits for the bus to be free.
+        if std::mem::take(&mut self.recovering) {
+            let result = self.driver.recover().map_err(|e| e.to_string());
+            self.notices.push((now, NodeNotice::Recovering(result)));
+        }
+        self.feed();
+    }
+
+    /// Hands the next waiting frame to a free TX buffer; frames wait while the chip is
+    /// bus-off. A refused frame (reset mode) cannot be fixed by retrying now: it is counted as
+    /// failed.
+    fn feed(&mut self) {
+        if self.driver.tx_pending()
+            || self.restart_at.is_some()
+            || self.driver.state() == ControllerState::BusOff
+        {
+            return;
+        }
+        if let Some(frame) = self.tx.pop_front()
+            && self.driver.send(&frame).is_err()
+        {
+            self.counters.tx_failed += 1;
+            self.notices.push((self.now, NodeNotice::Refused { frame }));
+        }
+    }
+
+    /// Restarts the chip after bus-off once [`RESTART_AFTER_MS`] have passed.
+    fn restart(&mut self, now: u64) {
+        self.restart_at = None;
+        let result = self.driver.restart().map_err(|e| e.to_string());
+        if self.error_frames {
+            self.errors.push(TimedErrorFrame {
+                frame: ErrorFrame::restarted(),
+                time: now,
+            });
+        }
+        self.notices.push((now, NodeNotice::Restarted(result)));
+        // The driver's state follows at the next poll.
+        self.service(now);
+    }
+}
+
+impl BusNode for Sja1000Node {
+    fn output(&self) -> Level {
+        self.chip().output()
+    }
+
+    fn sample(&mut self, now: u64, bus: Level) {
+        self.now = now;
+        let seen = if self.mismatch.is_some() {
+            // Sampling at the wrong instants: what it reads has nothing to do with the bus.
+            self.rng ^= self.rng << 13;
+            self.rng ^= self.rng >> 7;
+            self.rng ^= self.rng << 17;
+            Level::from_bit(self.rng & 1 == 1)
+        } else {
+            bus
+        };
+        let chip = self.driver.registers();
+        chip.sample(seen);
+        if chip.interrupt() {
+            self.service(now);
+        }
+        if self.restart_at.is_some_and(|t| now >= t) {
+            self.restart(now);
+        }
+    }
+
+    fn poll_event(&mut self) -> Option<Event> {
+        self.driver
+            .registers()
+            .poll_bus_event()
+            .or_else(|| self.engine_events.pop_front())
+    }
+
+    fn tec(&self) -> u16 {
+        BusNode::tec(self.chip())
+    }
+    fn rec(&self) -> u16 {
+        BusNode::rec(self.chip())
+    }
+    fn state(&self) -> ErrorState {
+        self.chip().error_state()
+    }
+
+    fn quiet_until(&self) -> Option<u64> {
+        let quiet = self.mismatch.is_none()
+            && self.tx.is_empty()
+            && !self.driver.tx_pending()
+            && self.chip().is_quiescent();
+        // A restart after bus-off is the driver's timer.
+        quiet.then_some(self.restart_at.unwrap_or(u64::MAX))
+    }
+
+    fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
+        self.submit(frame)
+            .map_err(|_| QueueFull { capacity: TX_QUEUE })
+    }
+
+    fn pending(&self) -> usize {
+        self.tx_queued()
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}
+
+/// The configuration every client's chip gets: PeliCAN, accept all, the bus's bit rate, all
+/// interrupts (the CPU services the chip on its interrupt line), the seed's bus-off recovery.
+pub fn node_config(bitrate: u32) -> Sja1000Config {
+    Sja1000Config {
+        timing: Timing::Bitrate {
+            bitrate,
+            sample_point_permille: None,
+        },
+        crystal_hz: CRYSTAL_HZ,
+        ..Sja1000Config::default()
+    }
+}
+
+/// Makes the SJA1000 nodes of scenario files (`kind = "sja1000"`): a chip at the bus's bit rate
+/// operated by this library's driver, with the seed's bus-off recovery unless the scenario asks
+/// for the fast restart. Pass it to `Scenario::build_with`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ScenarioNodes;
+
+impl buslab_sim::scenario::NodeFactory for ScenarioNodes {
+    fn sja1000(
+        &self,
+        spec: &buslab_sim::Sja1000Spec,
+        bitrate: u32,
+    ) -> Result<Box<dyn BusNode>, String> {
+        let mut config = node_config(bitrate);
+        if spec.fast_restart {
+            config.bus_off_recovery = BusOffRecovery::Fast;
+        }
+        Ok(Box::new(Sja1000Node::with_config(config, bitrate, false)?))
+    }
+}
