@@ -1,5 +1,5 @@
 //! Scenario files (`Scenario::from_toml`, what `buslab sim` loads): no panic reading one, and a
-//! small accepted scenario builds and runs for a while without panicking.
+//! small accepted scenario builds (or says why not) and runs for a while without panicking.
 #![no_main]
 
 use buslab_fuzz::text;
@@ -17,8 +17,11 @@ fuzz_target!(|data: &[u8]| {
     for i in 0..scenario.faults.len() {
         let _ = scenario.describe_fault(i);
     }
-    if scenario.nodes.len() <= 8 {
-        let mut sim = scenario.build();
+    // Nodes that need a host model (SJA1000 nodes run by `buslab sim`) do not build on the
+    // bare engine: an error, not a panic.
+    if scenario.nodes.len() <= 8
+        && let Ok(mut sim) = scenario.build()
+    {
         sim.run_for(RUN_BITS.min(scenario.duration));
     }
 });
