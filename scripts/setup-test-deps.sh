@@ -2,7 +2,8 @@
 # Installs what the test suite uses besides the Rust toolchain (idempotent, quick when done):
 # - crates.io: cargo-nextest, the test runner of scripts/test.sh (the machine image has it in
 #   /usr/local/bin; elsewhere it is built once with `cargo install --locked`, a few minutes);
-# - Debian: sigrok-cli (decodes our VCD waveforms independently); can-utils (log2asc/asc2log,
+# - Debian: dovecot-imapd (the real IMAP server of `buslab mail`'s test, started per test on a
+#   loopback port with a throwaway configuration); sigrok-cli (decodes our VCD waveforms independently); can-utils (log2asc/asc2log,
 #   the log-format interop tests) and tshark/editcap (decode buslab's pcap and pcapng); for the
 #   SocketCAN test VM (scripts/vm/, crates/buslab/tests/vm_socketcan.rs): qemu-system-x86,
 #   busybox-static, cpio, can-utils, binutils, and Debian's kernel package downloaded (not
@@ -41,6 +42,21 @@ if ! command -v sigrok-cli >/dev/null 2>&1; then
     apt_install sigrok-cli
     command -v sigrok-cli >/dev/null 2>&1 || fail "sigrok-cli is still missing after installing it"
 fi
+
+# The mail notifier's IMAP server (crates/buslab/tests/mail_dovecot.rs runs /usr/sbin/dovecot).
+if [ ! -x /usr/sbin/dovecot ]; then
+    apt_install dovecot-imapd
+    [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"
+fi
+
+# The web dashboard's browser test (crates/buslab/tests/web_browser.rs): headless Chromium
+# driven over WebDriver.
+for tool in chromium:chromium chromedriver:chromium-driver; do
+    if ! command -v "${tool%%:*}" >/dev/null 2>&1; then
+        apt_install "${tool#*:}"
+        command -v "${tool%%:*}" >/dev/null 2>&1 || fail "${tool%%:*} is still missing after installing ${tool#*:}"
+    fi
+done
 
 # The SocketCAN test VM: QEMU (software emulation), a busybox initramfs with can-utils.
 for tool in qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio \

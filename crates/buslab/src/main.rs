@@ -58,8 +58,22 @@ enum Command {
     Monican(cmd::monican::Args),
     /// CAN log files (candump, ASC, BLF, TRC, CSV, pcap, pcapng, SQLite): convert, info, cat.
     Log(cmd::log::Args),
+    /// Send a program (an S-record file) to the PowerPC node's CAN loader, like JerryCAN.
+    Load(cmd::load::Args),
+    /// The mail notifier: new mail in an IMAP mailbox announced on the bus and sent to
+    /// MoniCAN when its user asks (Ctrl R).
+    Mail(cmd::mail::Args),
+    /// Send a file with the file protocol (8 bytes a frame on one ID, the last shorter).
+    Sendfile(cmd::sendfile::Args),
+    /// Receive one file sent with the file protocol and write it atomically.
+    Recvfile(cmd::recvfile::Args),
     /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
     Play(cmd::play::Args),
+    /// The bus as web pages (the seed's CAN WebServer) and a live dashboard.
+    Web(cmd::web::Args),
+    /// The bus in this terminal: per-ID table with changed bytes, frame log, load, node
+    /// error state and registers.
+    Monitor(cmd::monitor::Args),
     /// The configuration file (buslab.toml): show the effective configuration and where each
     /// value came from, or write one step by step.
     Config(cmd::config::Args),
@@ -132,6 +146,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Monican(args) => cmd::monican::run(args),
         Command::Log(args) => cmd::log::run(args, quiet),
         Command::Play(args) => cmd::play::run(args, quiet),
+        Command::Load(args) => cmd::load::run(args),
+        Command::Sendfile(args) => cmd::sendfile::run(args),
+        Command::Mail(args) => cmd::mail::run(args),
+        Command::Recvfile(args) => cmd::recvfile::run(args),
+        Command::Web(args) => cmd::web::run(args),
+        Command::Monitor(args) => cmd::monitor::run(args),
         Command::Config(args) => cmd::config::run(args),
     }
 }

@@ -243,9 +243,9 @@ fn lab_shows_a_status_line_and_no_frames_by_default() {
         .lines()
         .find(|l| l.starts_with("bus: "))
         .unwrap_or_else(|| panic!("no status line:\n{err}"));
-    // Nine nodes (four simulated, three SLIO boards, the PowerPC node, the counter) and
-    // frames from them.
-    assert!(status.contains("9 nodes (9 active)"), "{status}");
+    // Ten nodes (four simulated, three SLIO boards, the PowerPC node, the counter, the web
+    // pages' client) and frames from them.
+    assert!(status.contains("10 nodes (10 active)"), "{status}");
     let frames: u64 = status
         .split("; ")
         .last()

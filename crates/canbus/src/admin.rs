@@ -184,6 +184,73 @@ pub struct TxReport {
     pub failed: u64,
 }
 
+/// A probability per bit, 0..=1: never NaN, so it compares like a plain number.
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+pub struct Probability(f64);
+
+impl Eq for Probability {}
+
+/// A probability outside 0..=1.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("probability {0} is out of range 0..=1 (per bit)")]
+pub struct BadProbability(pub f64);
+
+impl Probability {
+    pub fn new(p: f64) -> Result<Self, BadProbability> {
+        if (0.0..=1.0).contains(&p) {
+            Ok(Self(p))
+        } else {
+            Err(BadProbability(p))
+        }
+    }
+
+    pub fn get(self) -> f64 {
+        self.0
+    }
+}
+
+impl fmt::Display for Probability {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+
+/// A fault to put on the wire of a buslab virtual bus (its engine's faults, nodes named as
+/// the server names them).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum WireFault {
+    /// The wire is cut: `far_side` is left on its own unterminated piece of wire, where each
+    /// bit read is wrong with probability `error_rate` (the seed's cut-wire experiment).
+    Cut {
+        far_side: Vec<NodeRef>,
+        error_rate: Probability,
+    },
+    /// A node's connector is pulled.
+    Disconnect { node: NodeRef },
+    /// Every bit read by `node` (every node if `None`) is inverted.
+    Flip { node: Option<NodeRef> },
+    /// Random bit errors at `rate` per bit: on the bus (`nodes` empty) or at each listed node.
+    Noise {
+        nodes: Vec<NodeRef>,
+        rate: Probability,
+    },
+    /// The bus is held dominant.
+    StuckDominant,
+}
+
+impl WireFault {
+    /// The short name, as in scenario files and the socketcand extension.
+    pub fn name(&self) -> &'static str {
+        match self {
+            WireFault::Cut { .. } => "cut",
+            WireFault::Disconnect { .. } => "disconnect",
+            WireFault::Flip { .. } => "flip",
+            WireFault::Noise { .. } => "noise",
+            WireFault::StuckDominant => "stuck",
+        }
+    }
+}
+
 /// The administration side of a bus: nodes, status, registers, and settings of this client's
 /// own node. Backends that have none of it return `None` from
 /// [`CanBus::admin`](crate::CanBus::admin).
@@ -204,6 +271,26 @@ pub trait BusAdmin {
     /// Gives up the frame this client's controller is trying (as CMR.AT: a frame already on
     /// the wire finishes its attempt but is not retried) and the frames queued behind it.
     fn abort(&mut self) -> Result<(), BusError>;
+    /// Puts a fault on the wire from now on, for `lasting` (until [`BusAdmin::repair`] if
+    /// `None`). Only a virtual bus has a wire to break.
+    fn inject_fault(
+        &mut self,
+        fault: &WireFault,
+        lasting: Option<std::time::Duration>,
+    ) -> Result<(), BusError> {
+        let _ = (fault, lasting);
+        Err(BusError::Unsupported {
+            what: "fault injection",
+            backend: "this bus".into(),
+        })
+    }
+    /// Ends every fault on the wire now (injected or from a scenario).
+    fn repair(&mut self) -> Result<(), BusError> {
+        Err(BusError::Unsupported {
+            what: "fault injection",
+            backend: "this bus".into(),
+        })
+    }
 }
 
 #[cfg(test)]

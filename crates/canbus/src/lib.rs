@@ -58,8 +58,8 @@ pub mod regs;
 pub mod slio;
 
 pub use admin::{
-    BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming,
-    TxReport,
+    BadProbability, BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters,
+    NodeStatus, NodeTiming, Probability, TxReport, WireFault,
 };
 pub use bus::{BusError, BusEvent, BusState, CanBus, ErrorMessage, Filter, Message};
 pub use config::{

@@ -29,8 +29,11 @@ pub const OUTPUT_ENABLE: u16 = buslab_slio::board::OUTPUT_ENABLE;
 pub const INITIAL_OUTPUTS: u16 = 1 << buslab_slio::board::SELECT_PIN;
 
 pub const MAIL_NOTICE: &str = "you've got mail ! (press Ctrl R to read it)";
-pub const LOADER_NOTICE: &str =
-    "loader requested by the supervisor (not available in this version)";
+/// What MoniCAN says when it is asked for the loader but has none to hand over to (in the
+/// user's terminal, `buslab monican`); on the PowerPC node the loader takes over at once.
+pub const LOADER_NOTICE: &str = "loader requested by the supervisor (no loader on this host)";
+/// The hint at the bottom of a page shown over the SLIO screen.
+pub const PAGE_HINT: &str = "press any key to return to the SLIO screen";
 
 /// Keys MoniCAN reacts to besides the command fields.
 pub const CTRL_L: u8 = 0x0C;
@@ -115,7 +118,8 @@ pub enum Event {
     CommandSent(Command),
     /// A SLIO did not answer a request in time.
     NoAnswer(SlioId),
-    /// The supervisor sent a remote frame with ID 0: it wants the loader (a later issue).
+    /// The supervisor sent a remote frame with ID 0 and DLC 0: it wants the loader (the
+    /// PowerPC node hands over to it, `buslab-loader`).
     LoaderRequested,
     /// The user asked for the supervisor's message; MoniCAN answered the notifier.
     MailRequested,
@@ -168,6 +172,11 @@ enum Keys {
 enum Page {
     Slios,
     Mail(MailReader),
+    /// A page of text from the program's host (the loader's report), until a key.
+    Text {
+        title: String,
+        lines: Vec<String>,
+    },
 }
 
 /// The MoniCAN application.
@@ -255,6 +264,22 @@ impl MoniCan {
         matches!(self.page, Page::Mail(_))
     }
 
+    /// Shows a page of text over the SLIO screen (rows 3..22, 80 columns each, the rest cut)
+    /// until a key is pressed; MoniCAN goes on meanwhile.
+    pub fn show_page(&mut self, title: impl Into<String>, lines: Vec<String>) {
+        self.page = Page::Text {
+            title: title.into(),
+            lines,
+        };
+        self.screen.redraw();
+        self.dirty = true;
+    }
+
+    /// Whether a page of text is shown.
+    pub fn showing_page(&self) -> bool {
+        matches!(self.page, Page::Text { .. })
+    }
+
     /// The notice line (row 20), if any.
     pub fn notice(&self) -> Option<&str> {
         if self.mail_waiting {
@@ -320,7 +345,7 @@ impl MoniCan {
             // swallowed.
             self.keys = Keys::Escape;
         }
-        if let Page::Mail(_) = self.page {
+        if matches!(self.page, Page::Mail(_) | Page::Text { .. }) {
             // Any key goes back to the SLIO screen, redrawn from what is known.
             self.page = Page::Slios;
             self.screen.redraw();
@@ -352,7 +377,10 @@ impl MoniCan {
             return;
         }
         if id == standard(self.config.mail_id) {
-            if !frame.is_remote() {
+            if frame.is_remote() {
+                // The notifier announces a mail (seed §5.4.5: a remote frame on `idmail`).
+                self.mail_waiting = true;
+            } else {
                 self.mail_frame(frame.payload());
             }
             return;
@@ -683,9 +711,16 @@ impl MoniCan {
         }
         self.dirty = false;
         let screen = &mut self.screen;
-        if let Page::Mail(reader) = &self.page {
-            reader.draw(screen);
-            return;
+        match &self.page {
+            Page::Mail(reader) => {
+                reader.draw(screen);
+                return;
+            }
+            Page::Text { title, lines } => {
+                draw_text_page(screen, title, lines);
+                return;
+            }
+            Page::Slios => {}
         }
         screen.blank();
         screen.put_line(TITLE_ROW, TITLE);
@@ -726,6 +761,17 @@ impl MoniCan {
         screen.put(COMMAND_ROW, VALUE_FIELD.1, &value);
         screen.set_cursor(COMMAND_ROW, self.line.cursor_col());
     }
+}
+
+/// A page of text: the title on row 1, the lines from row 3 to row 22, the hint on row 24.
+fn draw_text_page(screen: &mut Screen, title: &str, lines: &[String]) {
+    screen.blank();
+    screen.put_line(1, title);
+    for (row, line) in (3u8..=22).zip(lines) {
+        screen.put_line(row, line);
+    }
+    screen.put_line(24, PAGE_HINT);
+    screen.set_cursor(24, PAGE_HINT.len() as u8 + 1);
 }
 
 /// A DPM value typed as 00..FF, as the 10-bit register holds it (its top 8 bits).

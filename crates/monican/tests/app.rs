@@ -2,7 +2,7 @@
 //! an independent VT100 emulator (the `vt100` crate) at the cells of the seed's Fig. 4.2.
 
 use buslab_can::Frame;
-use buslab_monican::app::{LOADER_NOTICE, MAIL_NOTICE};
+use buslab_monican::app::{LOADER_NOTICE, MAIL_NOTICE, PAGE_HINT};
 use buslab_monican::layout::*;
 use buslab_monican::mail::{END, HINT, PAGE_TITLE};
 use buslab_monican::{Config, Event, MoniCan};
@@ -379,6 +379,49 @@ fn mail_is_announced_read_with_ctrl_r_and_any_key_goes_back() {
         "the key was not a command"
     );
     assert!(std::iter::from_fn(|| app.poll_event()).any(|e| e == Event::MailRequested));
+}
+
+#[test]
+fn a_remote_frame_on_the_mail_identifier_announces_mail() {
+    // Seed §5.4.5: the notifier sends a remote frame with `idmail`; MoniCAN answers with the
+    // same remote frame once Ctrl R is pressed.
+    let (mut app, mut term) = started();
+    app.handle_frame(3 * MS, &frame("700#R"));
+    term.update(&mut app);
+    assert_eq!(term.row(NOTICE_ROW), MAIL_NOTICE);
+    app.handle_key(4 * MS, 0x12);
+    assert_eq!(sent(&mut app), ["700#R"]);
+    // A new announcement while the page is open: the notice comes back once it is left.
+    app.handle_frame(5 * MS, &frame("700#R"));
+    app.handle_key(6 * MS, b' ');
+    term.update(&mut app);
+    assert_eq!(term.row(NOTICE_ROW), MAIL_NOTICE);
+}
+
+#[test]
+fn a_page_of_text_stays_until_a_key() {
+    let (mut app, mut term) = started();
+    term.update(&mut app);
+    let lines: Vec<String> = (1..=25).map(|i| format!("line {i}")).collect();
+    app.show_page("*** report ***", lines);
+    assert!(app.showing_page());
+    let page = term.update(&mut app);
+    assert!(page.windows(4).any(|w| w == b"\x1b[2J"));
+    assert_eq!(term.row(1), "*** report ***");
+    assert_eq!(term.row(3), "line 1");
+    assert_eq!(term.row(22), "line 20", "what does not fit is cut");
+    assert_eq!(term.row(24), PAGE_HINT);
+    // MoniCAN goes on underneath: a SLIO's frame is taken in.
+    app.handle_frame(MS, &frame("29D#232080"));
+    app.handle_key(2 * MS, b'3');
+    term.update(&mut app);
+    assert!(!app.showing_page());
+    assert_eq!(term.row(1), TITLE);
+    assert_eq!(
+        term.row(COMMAND_ROW),
+        blank_command_line(),
+        "the key only left the page"
+    );
 }
 
 #[test]

@@ -11,7 +11,10 @@
 
 pub mod node;
 
-pub use node::{CRYSTAL_HZ, GIVE_UP_BITS, MAX_KEYS, PpcError, PpcNode, chip_config, slio_timing};
+pub use node::{
+    Activity, CRYSTAL_HZ, GIVE_UP_BITS, IMAGE_HEADER, LoadRecord, MAX_KEYS, PpcError, PpcNode,
+    chip_config, slio_timing,
+};
 
 /// The PowerPC node's serial line: 19200 baud (seed §4.3.3.1), 8 data bits, no parity, 1 stop
 /// bit.

@@ -1,6 +1,14 @@
 //! The PowerPC node as a [`BusNode`]: its SJA1000 on the wire, MoniCAN as the CPU's program
 //! driving the chip through its registers (the host library's driver, PeliCAN as the seed's
 //! `sja_init_pelican`), and a serial port that is bytes in, bytes out.
+//!
+//! A remote frame with ID 0 and DLC 0 hands the CPU over to the CAN loader (seed §4.3.3.3,
+//! [`buslab_loader::Loader`]): it answers, takes the S-record file, and the node writes the
+//! program into its memory image ([`PpcNode::memory`], kept by the host in a state file through
+//! [`Persistent`]). With a host that keeps it ([`PpcNode::set_durable`]) the loader's report
+//! waits until the image is saved ([`PpcNode::persisted`]): what the terminal says was loaded
+//! survives a kill. Then MoniCAN starts again, as the loaded program would, with the report on
+//! its screen until a key. PowerPC code is not executed (docs/loader.md).
 
 use std::any::Any;
 use std::collections::VecDeque;
@@ -11,9 +19,13 @@ use buslab_can::{Frame, Level};
 use buslab_canbus::{
     ControllerState, DriverError, DriverEvent, Sja1000Config, Sja1000Driver, Timing, TxFailure,
 };
+use buslab_device::{Changes, Persistent, ReplayError};
+use buslab_loader::report::report;
+use buslab_loader::{Loader, MemoryImage, MemoryMap, Outcome};
+use buslab_monican::screen::Screen;
 use buslab_monican::{Config, ConfigError, MoniCan, Transmit};
 use buslab_sja1000::{BitTiming, Sja1000, TimingError};
-use tracing::{debug, warn};
+use tracing::{debug, info, warn};
 
 /// The PowerPC board's SJA1000 crystal (the seed: "Xtal de 16MHz"); the CAN clock is half.
 pub const CRYSTAL_HZ: u32 = 16_000_000;
@@ -82,10 +94,77 @@ struct InFlight {
     since: u64,
 }
 
+/// The header of the memory image's S-record file.
+pub const IMAGE_HEADER: &str = "buslab PowerPC node memory";
+/// The title of the loader's screen and report page.
+pub const LOADER_TITLE: &str = "*** CAN loader (loadcan) ***";
+/// The report's last line: what "runs" means here.
+pub const NOT_EXECUTED: &str =
+    "PowerPC code is not executed in this model: MoniCAN started again in its place.";
+/// The report's line when the image was saved before the report was shown.
+pub const SAVED: &str = "Saved in the node's memory image (its state file) before this report.";
+
+/// What the CPU runs.
+#[derive(Debug)]
+enum Program {
+    MoniCan,
+    /// The loader, with its own screen.
+    Loader {
+        loader: Loader,
+        screen: Screen,
+    },
+    /// A program was loaded; its report waits until the memory image is saved.
+    Saving {
+        outcome: Outcome,
+        generation: u64,
+        screen: Screen,
+    },
+}
+
+/// What the node is doing, for its host (the control socket).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Activity {
+    MoniCan,
+    /// The loader receives a file: bytes so far.
+    Loading {
+        received: usize,
+    },
+    /// A program was loaded and the memory image is being saved.
+    Saving,
+}
+
+/// A finished transfer, for the host.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LoadRecord {
+    /// Transfers finished since the node started (1 for the first).
+    pub number: u64,
+    /// Whether the program was loaded (else nothing was written).
+    pub loaded: bool,
+    /// The report's lines as the terminal shows them.
+    pub report: Vec<String>,
+    /// The ranges this program wrote.
+    pub ranges: Vec<(u32, u32)>,
+    pub entry: Option<u32>,
+}
+
 /// The PowerPC node running MoniCAN.
 pub struct PpcNode {
     driver: Sja1000Driver<Sja1000>,
     app: MoniCan,
+    config: Config,
+    program: Program,
+    map: MemoryMap,
+    memory: MemoryImage,
+    /// Bumped at each load that wrote memory.
+    generation: u64,
+    /// The generation the host reported saved.
+    saved: u64,
+    /// The generation the last [`Persistent::take_changes`] reported.
+    changes_taken: u64,
+    /// A host saves the memory image: reports wait for it.
+    durable: bool,
+    last_load: Option<LoadRecord>,
+    loads: u64,
     bitrate: u32,
     keys: VecDeque<u8>,
     keys_dropped: u64,
@@ -114,12 +193,22 @@ impl PpcNode {
     /// (§4.3.2.1).
     pub fn new(config: Config) -> Result<Self, PpcError> {
         let bitrate = config.bitrate;
-        let app = MoniCan::new(config, 0)?;
+        let app = MoniCan::new(config.clone(), 0)?;
         let mut driver = Sja1000Driver::new(Sja1000::new());
         driver.init(&chip_config(bitrate)?)?;
         Ok(Self {
             driver,
             app,
+            config,
+            program: Program::MoniCan,
+            map: MemoryMap::ppc403(),
+            memory: MemoryImage::new(),
+            generation: 0,
+            saved: 0,
+            changes_taken: 0,
+            durable: false,
+            last_load: None,
+            loads: 0,
             bitrate,
             keys: VecDeque::new(),
             keys_dropped: 0,
@@ -149,16 +238,89 @@ impl PpcNode {
         self.keys_dropped
     }
 
-    /// The VT100 bytes MoniCAN produced for the terminal since the last call (the screen is
-    /// diffed now: call it when the serial line has room, not at every bit-time).
+    /// The VT100 bytes the running program produced for the terminal since the last call
+    /// (the screen is diffed now: call it when the serial line has room, not at every
+    /// bit-time).
     pub fn take_screen(&mut self) -> Vec<u8> {
-        self.app.take_screen()
+        let mut out = Vec::new();
+        match &mut self.program {
+            Program::MoniCan => return self.app.take_screen(),
+            Program::Loader { loader, screen } => {
+                draw_loader(screen, loader.received(), false);
+                screen.render(&mut out);
+            }
+            Program::Saving {
+                outcome, screen, ..
+            } => {
+                draw_loader(screen, outcome.text_bytes(), true);
+                screen.render(&mut out);
+            }
+        }
+        out
     }
 
     /// The next [`take_screen`](Self::take_screen) redraws the whole screen (a terminal that
     /// connected late).
     pub fn redraw(&mut self) {
-        self.app.redraw();
+        match &mut self.program {
+            Program::MoniCan => self.app.redraw(),
+            Program::Loader { screen, .. } | Program::Saving { screen, .. } => screen.redraw(),
+        }
+    }
+
+    /// What the CPU is doing.
+    pub fn activity(&self) -> Activity {
+        match &self.program {
+            Program::MoniCan => Activity::MoniCan,
+            Program::Loader { loader, .. } => Activity::Loading {
+                received: loader.received(),
+            },
+            Program::Saving { .. } => Activity::Saving,
+        }
+    }
+
+    /// The node's memory (what loads wrote).
+    pub fn memory(&self) -> &MemoryImage {
+        &self.memory
+    }
+
+    /// The memory map loads are checked against.
+    pub fn memory_map(&self) -> &MemoryMap {
+        &self.map
+    }
+
+    /// Replaces the memory with what the host's state file holds (at start).
+    pub fn restore_memory(&mut self, image: MemoryImage) {
+        self.memory = image;
+    }
+
+    /// A host keeps the memory image in a file: the loader's report waits for
+    /// [`persisted`](Self::persisted).
+    pub fn set_durable(&mut self, durable: bool) {
+        self.durable = durable;
+    }
+
+    /// The host saved the memory image of `generation` ([`Persistent::state_generation`]).
+    pub fn persisted(&mut self, generation: u64) {
+        self.saved = self.saved.max(generation);
+        if let Program::Saving {
+            generation: waits, ..
+        } = self.program
+            && self.saved >= waits
+        {
+            let Program::Saving { outcome, .. } =
+                std::mem::replace(&mut self.program, Program::MoniCan)
+            else {
+                return;
+            };
+            let ns = self.ns(self.now);
+            self.resume(ns, outcome, true);
+        }
+    }
+
+    /// The last transfer the loader finished.
+    pub fn last_load(&self) -> Option<&LoadRecord> {
+        self.last_load.as_ref()
     }
 
     /// MoniCAN, to look at (what the screen shows of each SLIO, the inventory).
@@ -199,7 +361,7 @@ impl PpcNode {
         let ns = self.ns(now);
         for event in self.driver.poll() {
             match event {
-                DriverEvent::Received(frame) => self.app.handle_frame(ns, &frame),
+                DriverEvent::Received(frame) => self.received(ns, &frame),
                 DriverEvent::TxDone(frame) => {
                     debug!("PowerPC sent {frame}");
                     self.in_flight = None;
@@ -268,7 +430,7 @@ impl PpcNode {
         if self.in_flight.is_some() || self.restart_at.is_some() || self.driver.tx_pending() {
             return;
         }
-        let Some(t) = self.next.take().or_else(|| self.app.poll_transmit()) else {
+        let Some(t) = self.next.take().or_else(|| self.poll_program()) else {
             return;
         };
         if t.single_shot && self.driver.status().transmitting() {
@@ -291,6 +453,189 @@ impl PpcNode {
     }
 }
 
+/// The program's side: frames, timers, the hand-over to the loader and back.
+impl PpcNode {
+    /// A frame for the CPU at `ns`.
+    fn received(&mut self, ns: u64, frame: &Frame) {
+        match &mut self.program {
+            Program::MoniCan => {
+                if buslab_loader::loader::is_request(frame) {
+                    self.enter_loader(ns);
+                } else {
+                    self.app.handle_frame(ns, frame);
+                }
+            }
+            Program::Loader { loader, .. } => {
+                loader.handle_frame(ns, frame);
+                self.check_outcome(ns);
+            }
+            // Nothing runs but the save: the frame is lost to the CPU.
+            Program::Saving { .. } => {}
+        }
+    }
+
+    /// MoniCAN branches to the loader (§4.3.3.3): what MoniCAN still had to send is dropped.
+    fn enter_loader(&mut self, ns: u64) {
+        info!("the PowerPC node hands over to the CAN loader");
+        self.next = None;
+        self.program = Program::Loader {
+            loader: Loader::new(self.map.clone(), ns),
+            screen: Screen::new(),
+        };
+    }
+
+    fn check_outcome(&mut self, ns: u64) {
+        let Program::Loader { loader, .. } = &mut self.program else {
+            return;
+        };
+        let Some(outcome) = loader.take_outcome() else {
+            return;
+        };
+        if let Outcome::Loaded { program, .. } = &outcome {
+            self.memory.load(program);
+            self.generation += 1;
+            if self.durable && self.saved < self.generation {
+                let screen = match std::mem::replace(&mut self.program, Program::MoniCan) {
+                    Program::Loader { screen, .. } => screen,
+                    _ => Screen::new(),
+                };
+                self.program = Program::Saving {
+                    outcome,
+                    generation: self.generation,
+                    screen,
+                };
+                return;
+            }
+        }
+        self.program = Program::MoniCan;
+        self.resume(ns, outcome, false);
+    }
+
+    /// The transfer is over: MoniCAN starts again (as the loaded program would) with the
+    /// report on its screen.
+    fn resume(&mut self, ns: u64, outcome: Outcome, saved: bool) {
+        let mut lines = report(&outcome);
+        if outcome.is_loaded() {
+            if saved {
+                lines.push(SAVED.to_string());
+            }
+            lines.push(NOT_EXECUTED.to_string());
+        }
+        self.loads += 1;
+        let (ranges, entry) = match &outcome {
+            Outcome::Loaded { program, .. } => (program.ranges(), program.start),
+            _ => (Vec::new(), None),
+        };
+        info!(
+            "the CAN loader finished: {}",
+            lines.first().map_or("", String::as_str)
+        );
+        self.last_load = Some(LoadRecord {
+            number: self.loads,
+            loaded: outcome.is_loaded(),
+            report: lines.clone(),
+            ranges,
+            entry,
+        });
+        match MoniCan::new(self.config.clone(), ns) {
+            Ok(app) => self.app = app,
+            Err(e) => warn!("MoniCAN cannot start again: {e}"),
+        }
+        self.app.show_page(LOADER_TITLE, lines);
+    }
+
+    fn poll_program(&mut self) -> Option<Transmit> {
+        match &mut self.program {
+            Program::MoniCan => self.app.poll_transmit(),
+            Program::Loader { loader, .. } => loader.poll_transmit().map(|frame| Transmit {
+                frame,
+                single_shot: false,
+            }),
+            Program::Saving { .. } => None,
+        }
+    }
+
+    fn program_queued(&self) -> usize {
+        match &self.program {
+            Program::MoniCan => self.app.queued(),
+            // The answer, when it waits: the loader keeps at most one frame.
+            Program::Loader { .. } | Program::Saving { .. } => 0,
+        }
+    }
+
+    fn program_deadline(&self) -> Option<u64> {
+        match &self.program {
+            Program::MoniCan => self.app.next_deadline(),
+            Program::Loader { loader, .. } => loader.next_deadline(),
+            Program::Saving { .. } => None,
+        }
+    }
+
+    fn program_timeout(&mut self, ns: u64) {
+        match &mut self.program {
+            Program::MoniCan => self.app.handle_timeout(ns),
+            Program::Loader { loader, .. } => {
+                loader.handle_timeout(ns);
+                self.check_outcome(ns);
+            }
+            Program::Saving { .. } => {}
+        }
+    }
+}
+
+/// The loader's screen: what it waits for and how much arrived.
+fn draw_loader(screen: &mut Screen, received: usize, saving: bool) {
+    screen.blank();
+    screen.put_line(1, LOADER_TITLE);
+    screen.put_line(
+        3,
+        "MoniCAN handed over to the loader (remote frame, ID 000).",
+    );
+    screen.put_line(
+        4,
+        "Receiving the S-record file on ID 000, 8 bytes a frame; a shorter frame ends it.",
+    );
+    screen.put_line(6, &format!("received: {received} bytes"));
+    if saving {
+        screen.put_line(8, "Program loaded; saving the memory image...");
+    }
+    screen.put_line(24, "(the loader does not read the keyboard)");
+    screen.set_cursor(24, 1);
+}
+
+/// The memory image is what outlives the node (its state file: an S-record file).
+impl Persistent for PpcNode {
+    type Snapshot = MemoryImage;
+
+    fn state_generation(&self) -> u64 {
+        self.generation
+    }
+
+    fn snapshot(&self) -> MemoryImage {
+        self.memory.clone()
+    }
+
+    fn file_bytes(snapshot: &MemoryImage) -> Vec<u8> {
+        snapshot.to_srec(IMAGE_HEADER)
+    }
+
+    /// A load changes up to megabytes at once: the image is saved whole, never journalled.
+    fn take_changes(&mut self) -> Changes {
+        if self.generation == self.changes_taken {
+            return Changes::Records(Vec::new());
+        }
+        self.changes_taken = self.generation;
+        Changes::Snapshot
+    }
+
+    fn replay(_: &mut MemoryImage, record: &[u8]) -> Result<(), ReplayError> {
+        Err(ReplayError::new(
+            record,
+            "the PowerPC node writes no journal records (its memory image is saved whole)",
+        ))
+    }
+}
+
 impl BusNode for PpcNode {
     fn output(&self) -> Level {
         self.driver.chip().output()
@@ -303,14 +648,17 @@ impl BusNode for PpcNode {
         let interrupt = chip.interrupt();
         let ns = self.ns(now);
         while let Some(key) = self.keys.pop_front() {
-            self.app.handle_key(ns, key);
+            // The loader does not read the keyboard.
+            if let Program::MoniCan = self.program {
+                self.app.handle_key(ns, key);
+            }
         }
         if interrupt {
             self.service(now);
         }
         self.watch_transmission(now);
-        if self.app.next_deadline().is_some_and(|t| t <= ns) {
-            self.app.handle_timeout(ns);
+        if self.program_deadline().is_some_and(|t| t <= ns) {
+            self.program_timeout(ns);
         }
         if self.restart_at.is_some_and(|t| now >= t) {
             self.restart_at = None;
@@ -349,13 +697,13 @@ impl BusNode for PpcNode {
         if let Some(t) = self.restart_at {
             return Some(t);
         }
-        if self.app.queued() > 0 || !self.driver.chip().is_quiescent() {
+        if self.program_queued() > 0 || !self.driver.chip().is_quiescent() {
             return None;
         }
-        // MoniCAN's own timers (the periodic calibration, answers it waits for) wake it.
+        // The program's own timers (MoniCAN's periodic calibration and the answers it waits
+        // for, the loader's patience) wake it.
         Some(
-            self.app
-                .next_deadline()
+            self.program_deadline()
                 .map_or(u64::MAX, |t| self.bits_at(t)),
         )
     }
@@ -367,7 +715,9 @@ impl BusNode for PpcNode {
     }
 
     fn pending(&self) -> usize {
-        self.app.queued() + usize::from(self.next.is_some()) + usize::from(self.driver.tx_pending())
+        self.program_queued()
+            + usize::from(self.next.is_some())
+            + usize::from(self.driver.tx_pending())
     }
 
     fn as_any(&self) -> &dyn Any {

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use buslab_can::controller::{ControllerConfig, ErrorKind, Event};
 use buslab_can::{Frame, Id};
-use buslab_monican::app::{LOADER_NOTICE, MAIL_NOTICE};
+use buslab_monican::app::MAIL_NOTICE;
 use buslab_monican::layout::*;
 use buslab_monican::{Config, MoniCan};
 use buslab_ppc::PpcNode;
@@ -337,7 +337,7 @@ fn a_supervisor_sends_mail_and_asks_for_the_loader() {
         .add_node("supervisor", ControllerConfig::default());
     bench
         .sim
-        .enqueue(supervisor, "700#01".parse().unwrap())
+        .enqueue(supervisor, "700#R".parse().unwrap())
         .unwrap();
     bench.run_until(50, "the mail notice", |b| b.row(NOTICE_ROW) == MAIL_NOTICE);
     bench.type_keys("\x12");
@@ -368,21 +368,122 @@ fn a_supervisor_sends_mail_and_asks_for_the_loader() {
     });
     assert!(bench.marked(3));
     assert_eq!(bench.slio_cell(3, OUTPUTS_COL, 4), "2000");
-    bench
-        .sim
-        .enqueue(
-            supervisor,
-            Frame::remote(Id::standard(0).unwrap(), 0).unwrap(),
-        )
-        .unwrap();
-    bench.run_until(50, "the loader notice", |b| {
-        b.row(NOTICE_ROW) == LOADER_NOTICE
+}
+
+/// The supervisor's side of the loader: a remote frame with ID 0, the answer, then the file
+/// one frame at a time (each sent before the next is queued: the file protocol has no sequence
+/// numbers). Returns the answer frame seen.
+fn load(bench: &mut Bench, supervisor: usize, text: &[u8]) -> Frame {
+    bench.records.clear();
+    let request = Frame::remote(Id::standard(0).unwrap(), 0).unwrap();
+    bench.sim.enqueue(supervisor, request).unwrap();
+    let mut answer = None;
+    bench.run_until(10, "the loader's answer", |b| {
+        answer = b.records.iter().find_map(|(_, h)| match h {
+            Happening::Node {
+                node,
+                event: Event::Received(f),
+            } if *node == supervisor && f.id() == Id::standard(0).unwrap() => Some(*f),
+            _ => None,
+        });
+        answer.is_some()
     });
-    // MoniCAN goes on.
+    for f in buslab_can::file::frames(Id::standard(0).unwrap(), text) {
+        bench.records.clear();
+        bench.sim.enqueue(supervisor, f).unwrap();
+        bench.run_until(10, "a file frame", |b| {
+            b.records.iter().any(|(_, h)| {
+                matches!(h, Happening::Node { node, event: Event::Transmitted(sent) } if *node == supervisor && *sent == f)
+            })
+        });
+    }
+    answer.unwrap()
+}
+
+#[test]
+fn the_loader_takes_a_program_reports_it_and_monican_starts_again() {
+    let mut bench = started(&[(0x3, 0)]);
+    let supervisor = bench
+        .sim
+        .add_node("supervisor", ControllerConfig::default());
+    let program = buslab_loader::srec::write(
+        b"monican2",
+        [(0x30000, &[0x11u8; 64][..]), (0x32000, &[0x22u8; 300][..])],
+        Some(0x32000),
+    );
+    let answer = load(&mut bench, supervisor, &program);
+    // §4.4.1.1: a data frame with ID 0 and no data.
+    assert_eq!(answer.to_string(), "000#");
+    bench.run_until(50, "the report", |b| {
+        b.row(1) == buslab_ppc::node::LOADER_TITLE
+    });
+    let screen = bench.screen();
+    assert!(screen.contains("Program loaded: 364 bytes"), "{screen}");
+    assert!(
+        screen.contains("00030000-0003003F        64 bytes"),
+        "{screen}"
+    );
+    assert!(
+        screen.contains("00032000-0003212B       300 bytes"),
+        "{screen}"
+    );
+    assert!(screen.contains("Entry point: 00032000"), "{screen}");
+    let ppc = bench.ppc();
+    assert_eq!(ppc.memory().read(0x3212B, 2), [0x22, 0]);
+    assert_eq!(ppc.memory().entry(), Some(0x32000));
+    assert!(ppc.last_load().unwrap().loaded);
+    // MoniCAN started again underneath: it calibrates and finds the board anew.
+    bench.type_keys(" ");
+    bench.run_until(100, "the board again", |b| initialised(b, [3]));
     bench.type_keys("3O901");
     bench.run_until(50, "the LED on P9", |b| {
         b.slio_cell(3, OUTPUTS_COL, 4) == "2200"
     });
+
+    // A corrupted record: refused with its line number, nothing written.
+    let mut bad = buslab_loader::srec::write(b"x", [(0x40000, &[0x33u8; 8][..])], None);
+    let second = bad.iter().position(|&b| b == b'\n').unwrap() + 1;
+    bad[second + 10] = if bad[second + 10] == b'0' { b'1' } else { b'0' };
+    load(&mut bench, supervisor, &bad);
+    bench.run_until(50, "the refusal", |b| b.screen().contains("File refused"));
+    assert!(
+        bench.screen().contains("line 2: checksum"),
+        "{}",
+        bench.screen()
+    );
+    assert_eq!(bench.ppc().memory().read(0x40000, 1), [0]);
+    assert!(!bench.ppc().last_load().unwrap().loaded);
+}
+
+#[test]
+fn a_durable_node_reports_only_once_the_image_is_saved() {
+    use buslab_device::Persistent;
+    let mut bench = started(&[]);
+    bench.ppc().set_durable(true);
+    let supervisor = bench
+        .sim
+        .add_node("supervisor", ControllerConfig::default());
+    let program = buslab_loader::srec::write(b"p", [(0x30000, &[1u8; 16][..])], None);
+    load(&mut bench, supervisor, &program);
+    bench.run(2_000);
+    assert_eq!(bench.ppc().activity(), buslab_ppc::Activity::Saving);
+    assert!(
+        bench.screen().contains("saving the memory image"),
+        "{}",
+        bench.screen()
+    );
+    assert_eq!(bench.ppc().state_generation(), 1);
+    let image = PpcNode::file_bytes(&bench.ppc().snapshot());
+    let saved = buslab_loader::srec::parse(&image).unwrap();
+    assert_eq!(saved.ranges(), [(0x30000, 0x3000F)]);
+    bench.ppc().persisted(1);
+    bench.run_until(50, "the report", |b| b.screen().contains("Loaded ranges"));
+    assert!(
+        bench.screen().contains(buslab_ppc::node::SAVED),
+        "{}",
+        bench.screen()
+    );
+    assert_eq!(bench.ppc().activity(), buslab_ppc::Activity::MoniCan);
 }
 
 #[test]

@@ -1,21 +1,32 @@
-//! The PowerPC node's serial port: its VT100 terminal on a pseudo-terminal at 19200 8N1, while
-//! the node itself runs on a virtual bus server's thread.
+//! The PowerPC node's host side, while the node itself runs on a virtual bus server's thread:
+//! its VT100 terminal on a pseudo-terminal at 19200 8N1, its memory image in a state file, and a
+//! control socket that reads its memory back ([`serve`] starts what the options ask for).
 //!
 //! The PTY side is a [`ByteDevice`] paced by `buslab_link`: keys the terminal sends are posted
 //! to the bus thread ([`PpcNode::key`]); screen updates are pulled from the node only when the
 //! line has room ([`PpcNode::take_screen`] diffs the screen when it is called), so a busy bus
 //! never piles up stale updates behind a 19200-baud line.
+//!
+//! The memory image ([`MemoryStore`]) is an S-record file, read at start and written atomically
+//! whenever a load changed it; the node is told once the file is on disk
+//! ([`PpcNode::persisted`]) and only then shows the loader's report: a load the terminal
+//! reported survives `kill -9`.
 
 use std::collections::VecDeque;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
+use std::thread::JoinHandle;
+use std::time::Duration;
 
-use buslab_device::{ByteDevice, LineSettings};
+use buslab_device::{ByteDevice, LineSettings, Persistent};
+use buslab_link::ControlSocket;
+use buslab_link::fs::{read_limited, write_atomic};
 use buslab_link::{Serve, Served, ServedError};
-use buslab_ppc::{BAUD, PpcNode};
-use buslab_vbus::Poster;
+use buslab_loader::MemoryImage;
+use buslab_ppc::{Activity, BAUD, PpcNode};
+use buslab_vbus::{Poster, VirtualBus};
 
 /// 19200 8N1: 10 bit-times per byte.
 const BYTE_NS: u64 = 1_000_000_000 * 10 / BAUD as u64;
@@ -129,4 +140,432 @@ pub fn serve_terminal(
         .name("monican")
         .link(link)
         .spawn()
+}
+
+/// The largest memory image file read (the node's program RAM as S-records is ~4.5 MiB).
+pub const MAX_IMAGE_FILE: u64 = 16 * 1024 * 1024;
+/// How often the store looks whether a load changed the memory.
+const STORE_POLL: Duration = Duration::from_millis(20);
+/// How long a request to the bus thread may take before the server is taken for stopped.
+const BUS_ANSWER: Duration = Duration::from_secs(10);
+/// Bytes one `read` control command returns at most.
+pub const MAX_READ: usize = 4096;
+
+/// Why the PowerPC node's host side could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum PpcServeError {
+    #[error(transparent)]
+    Served(#[from] ServedError),
+    #[error(transparent)]
+    Read(#[from] buslab_link::fs::ReadError),
+    #[error(transparent)]
+    Write(#[from] buslab_link::fs::WriteError),
+    #[error("memory image {}: {errors}", path.display())]
+    Image {
+        path: PathBuf,
+        errors: buslab_loader::SrecErrors,
+    },
+    #[error("cannot listen on the control socket {}: {source}", path.display())]
+    Control {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("the bus server has stopped (no node {0} to serve)")]
+    NoNode(String),
+}
+
+/// Runs `job` on node `node` in the bus thread and waits for its result (`None`: no such node,
+/// or the server stopped).
+fn on_node<R: Send + 'static>(
+    bus: &Poster,
+    node: &str,
+    job: impl FnOnce(&mut PpcNode) -> R + Send + 'static,
+) -> Option<R> {
+    let (tx, rx) = mpsc::channel();
+    let name = node.to_string();
+    let posted = bus.post(move |bus: &mut VirtualBus| {
+        let result = bus.device_mut::<PpcNode>(&name).map(job);
+        let _ = tx.send(result);
+    });
+    if !posted {
+        return None;
+    }
+    rx.recv_timeout(BUS_ANSWER).ok().flatten()
+}
+
+/// Reads a memory image file: an S-record file whose data lies in the node's program RAM.
+pub fn read_image(path: &Path) -> Result<Option<MemoryImage>, PpcServeError> {
+    let bytes = match read_limited(path, MAX_IMAGE_FILE) {
+        Ok(b) => b,
+        Err(e) if e.is_not_found() => return Ok(None),
+        Err(e) => return Err(e.into()),
+    };
+    let image_error = |errors| PpcServeError::Image {
+        path: path.to_path_buf(),
+        errors,
+    };
+    let program = buslab_loader::srec::parse(&bytes).map_err(image_error)?;
+    let errors = buslab_loader::MemoryMap::ppc403().check_program(&program);
+    if !errors.is_empty() {
+        return Err(image_error(errors));
+    }
+    Ok(Some(MemoryImage::from_program(&program)))
+}
+
+/// Keeps the node's memory image in a file: read at start, written whenever a load changed
+/// it (the node waits for that before it reports), and once more when dropped.
+pub struct MemoryStore {
+    path: PathBuf,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+/// One look at the node: its image if it changed since `saved`, written, and the node told.
+fn save_if_changed(bus: &Poster, node: &str, path: &Path, saved: &mut u64) -> bool {
+    let known = *saved;
+    let Some(changed) = on_node(bus, node, move |ppc| {
+        let generation = ppc.state_generation();
+        (generation > known).then(|| (generation, ppc.snapshot()))
+    }) else {
+        return false;
+    };
+    if let Some((generation, image)) = changed {
+        match write_atomic(path, &PpcNode::file_bytes(&image)) {
+            Ok(()) => {
+                *saved = generation;
+                let name = node.to_string();
+                bus.post(move |bus: &mut VirtualBus| {
+                    if let Some(ppc) = bus.device_mut::<PpcNode>(&name) {
+                        ppc.persisted(generation);
+                    }
+                });
+                tracing::debug!(
+                    "memory image {} saved (generation {generation})",
+                    path.display()
+                );
+            }
+            Err(e) => tracing::warn!("{e}; the loader's report waits until it can be written"),
+        }
+    }
+    true
+}
+
+impl MemoryStore {
+    /// Restores node `node`'s memory from `path` if the file exists, writes it once (a file
+    /// that cannot be written is an error now, not a lost load later), then keeps it.
+    pub fn spawn(node: &str, bus: Poster, path: PathBuf) -> Result<Self, PpcServeError> {
+        let image = read_image(&path)?;
+        let restored = image.is_some();
+        let snapshot = on_node(&bus, node, move |ppc| {
+            if let Some(image) = image {
+                ppc.restore_memory(image);
+            }
+            ppc.set_durable(true);
+            (ppc.state_generation(), ppc.snapshot())
+        })
+        .ok_or_else(|| PpcServeError::NoNode(node.to_string()))?;
+        let (generation, image) = snapshot;
+        write_atomic(&path, &PpcNode::file_bytes(&image))?;
+        on_node(&bus, node, move |ppc| ppc.persisted(generation));
+        if restored {
+            tracing::info!(
+                "PowerPC memory restored from {}: {} bytes in {} ranges",
+                path.display(),
+                image.len(),
+                image.ranges().len()
+            );
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let stop = stop.clone();
+            let node = node.to_string();
+            let path = path.clone();
+            std::thread::Builder::new()
+                .name("ppc-memory".into())
+                .spawn(move || {
+                    let mut saved = generation;
+                    while !stop.load(Ordering::SeqCst) {
+                        if !save_if_changed(&bus, &node, &path, &mut saved) {
+                            break;
+                        }
+                        std::thread::sleep(STORE_POLL);
+                    }
+                    // A load that finished meanwhile is not lost.
+                    save_if_changed(&bus, &node, &path, &mut saved);
+                })
+                .map_err(|e| PpcServeError::Served(ServedError::Serve(e)))?
+        };
+        Ok(Self {
+            path,
+            stop,
+            thread: Some(thread),
+        })
+    }
+
+    /// The image file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl Drop for MemoryStore {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// A control line, parsed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ControlCommand {
+    Help,
+    /// What the CPU runs.
+    State,
+    /// The last transfer the loader finished.
+    Load,
+    /// The ranges the memory holds.
+    Ranges,
+    Entry,
+    Read {
+        address: u32,
+        len: usize,
+    },
+}
+
+/// What the control socket understands.
+pub const CONTROL_HELP: &str =
+    "commands: state | load | ranges | entry | read ADDR LEN (hex address, LEN 1..=4096) | help";
+
+fn hex_u32(text: &str) -> Option<u32> {
+    let t = text
+        .strip_prefix("0x")
+        .or_else(|| text.strip_prefix("0X"))
+        .unwrap_or(text);
+    u32::from_str_radix(t, 16).ok()
+}
+
+impl ControlCommand {
+    pub fn parse(line: &str) -> Result<Self, String> {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["help"] => Ok(Self::Help),
+            ["state"] => Ok(Self::State),
+            ["load"] => Ok(Self::Load),
+            ["ranges"] => Ok(Self::Ranges),
+            ["entry"] => Ok(Self::Entry),
+            ["read", address, len] => {
+                let address = hex_u32(address)
+                    .ok_or_else(|| format!("address {address:?} is not a 32-bit hex number"))?;
+                let len = len
+                    .parse::<usize>()
+                    .ok()
+                    .filter(|l| (1..=MAX_READ).contains(l))
+                    .ok_or_else(|| format!("length {len:?} is out of range 1..={MAX_READ}"))?;
+                if u64::from(address) + len as u64 > 1 << 32 {
+                    return Err(format!(
+                        "0x{address:08X} + {len} runs past the end of the address space"
+                    ));
+                }
+                Ok(Self::Read { address, len })
+            }
+            _ => Err(format!("unknown command {line:?}; {CONTROL_HELP}")),
+        }
+    }
+}
+
+fn ranges_text(ranges: &[(u32, u32)]) -> String {
+    if ranges.is_empty() {
+        return "none".to_string();
+    }
+    ranges
+        .iter()
+        .map(|(a, b)| format!("{a:08X}-{b:08X}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The reply to `command` from `node` (one line).
+pub fn answer(node: &PpcNode, command: &ControlCommand) -> String {
+    match command {
+        ControlCommand::Help => CONTROL_HELP.to_string(),
+        ControlCommand::State => match node.activity() {
+            Activity::MoniCan => "monican".to_string(),
+            Activity::Loading { received } => format!("loading {received}"),
+            Activity::Saving => "saving".to_string(),
+        },
+        ControlCommand::Load => match node.last_load() {
+            None => "none".to_string(),
+            Some(l) if l.loaded => format!(
+                "load {} ok ranges={} entry={}",
+                l.number,
+                ranges_text(&l.ranges).replace(' ', ","),
+                l.entry.map_or("none".to_string(), |e| format!("{e:08X}"))
+            ),
+            Some(l) => {
+                let (headline, details) = l
+                    .report
+                    .split_first()
+                    .map_or(("", &[][..]), |(h, d)| (h.as_str(), d));
+                let details: String = details
+                    .iter()
+                    .map(|s| s.trim())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+                    .chars()
+                    .take(1000)
+                    .collect();
+                format!("load {} refused ({}): {details}", l.number, headline.trim())
+            }
+        },
+        ControlCommand::Ranges => ranges_text(&node.memory().ranges()),
+        ControlCommand::Entry => node
+            .memory()
+            .entry()
+            .map_or("none".to_string(), |e| format!("{e:08X}")),
+        ControlCommand::Read { address, len } => node
+            .memory()
+            .read(*address, *len)
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect(),
+    }
+}
+
+/// Serves node `node`'s control socket at `path`: one command a line, one reply line each
+/// (`error: …` for what it cannot do).
+pub fn serve_control(node: &str, bus: Poster, path: &Path) -> Result<ControlSocket, PpcServeError> {
+    let node = node.to_string();
+    let handler = move |line: &str| -> Option<String> {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            return None;
+        }
+        Some(match ControlCommand::parse(line) {
+            Err(e) => format!("error: {e}"),
+            Ok(command) => on_node(&bus, &node, move |ppc| answer(ppc, &command))
+                .unwrap_or_else(|| "error: the bus server does not answer".to_string()),
+        })
+    };
+    ControlSocket::bind(path, Arc::new(handler)).map_err(|source| PpcServeError::Control {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// What to serve besides the node.
+#[derive(Clone, Debug, Default)]
+pub struct PpcOptions {
+    /// A link to the terminal's PTY.
+    pub link: Option<PathBuf>,
+    /// The memory image file (S-records).
+    pub memory: Option<PathBuf>,
+    /// The control socket.
+    pub control: Option<PathBuf>,
+}
+
+/// The node's terminal, memory image and control socket while served.
+pub struct ServedPpc {
+    terminal: Served<PpcTerminal>,
+    // Dropped after the terminal: the last save still reaches the node.
+    store: Option<MemoryStore>,
+    control: Option<ControlSocket>,
+}
+
+impl ServedPpc {
+    /// The terminal's PTY.
+    pub fn path(&self) -> &Path {
+        self.terminal.path()
+    }
+
+    pub fn memory_file(&self) -> Option<&Path> {
+        self.store.as_ref().map(MemoryStore::path)
+    }
+
+    pub fn control_socket(&self) -> Option<&Path> {
+        self.control.as_ref().map(ControlSocket::path)
+    }
+}
+
+/// Serves PowerPC node `node` on the server behind `bus`: its terminal, and what `options`
+/// ask for.
+pub fn serve(node: &str, bus: Poster, options: PpcOptions) -> Result<ServedPpc, PpcServeError> {
+    let store = match options.memory {
+        Some(path) => Some(MemoryStore::spawn(node, bus.clone(), path)?),
+        None => None,
+    };
+    let control = match &options.control {
+        Some(path) => Some(serve_control(node, bus.clone(), path)?),
+        None => None,
+    };
+    let terminal = serve_terminal(node, bus, options.link)?;
+    Ok(ServedPpc {
+        terminal,
+        store,
+        control,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn control_lines_are_parsed_and_answered() {
+        assert_eq!(
+            ControlCommand::parse("read 0x32000 16"),
+            Ok(ControlCommand::Read {
+                address: 0x32000,
+                len: 16
+            })
+        );
+        assert!(
+            ControlCommand::parse("read 32000 5000")
+                .unwrap_err()
+                .contains("1..=4096")
+        );
+        assert!(
+            ControlCommand::parse("read FFFFFFFF 2")
+                .unwrap_err()
+                .contains("past the end")
+        );
+        assert!(
+            ControlCommand::parse("peek")
+                .unwrap_err()
+                .starts_with("unknown command")
+        );
+        let mut node = PpcNode::new(buslab_monican::Config::default()).unwrap();
+        assert_eq!(answer(&node, &ControlCommand::State), "monican");
+        assert_eq!(answer(&node, &ControlCommand::Load), "none");
+        assert_eq!(answer(&node, &ControlCommand::Ranges), "none");
+        let mut image = MemoryImage::new();
+        image.write(0x32000, &[0xAB, 0xCD]);
+        node.restore_memory(image);
+        assert_eq!(answer(&node, &ControlCommand::Ranges), "00032000-00032001");
+        assert_eq!(
+            answer(
+                &node,
+                &ControlCommand::Read {
+                    address: 0x31FFF,
+                    len: 4
+                }
+            ),
+            "00ABCD00"
+        );
+    }
+
+    #[test]
+    fn a_bad_image_file_names_its_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ppc.s37");
+        assert!(read_image(&path).unwrap().is_none());
+        std::fs::write(&path, "S00600004844521B\nS1030000FD\n").unwrap();
+        let e = read_image(&path).unwrap_err().to_string();
+        assert!(e.contains("line 2: checksum"), "{e}");
+        let flash = buslab_loader::srec::write(b"", [(0xFFFE_0000, &[1u8][..])], None);
+        std::fs::write(&path, flash).unwrap();
+        assert!(read_image(&path).unwrap_err().to_string().contains("flash"));
+    }
 }

@@ -325,6 +325,22 @@ impl Simulation {
         self.faults.len() - 1
     }
 
+    /// Ends every fault now: those active stop, those not started yet never start. Returns how
+    /// many were ended.
+    pub fn end_faults(&mut self) -> usize {
+        let now = self.now;
+        let mut ended = 0;
+        for fault in &mut self.faults {
+            if fault.end > now {
+                fault.end = now;
+                fault.start = fault.start.min(now);
+                ended += 1;
+            }
+        }
+        self.next_fault_change = now;
+        ended
+    }
+
     /// Jump over idle bus time (on by default; see [`Self::run_until`]). Turning it off
     /// changes nothing but the speed.
     pub fn set_fast_forward(&mut self, on: bool) {

@@ -10,7 +10,7 @@ use buslab_can::Frame;
 use buslab_canbus::bus::{Human, matches_any};
 use buslab_canbus::{
     BusAdmin, BusError, BusEvent, BusState, CanBus, ErrorFrame, ErrorMessage, Filter, Message,
-    NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport,
+    NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
 
 use crate::command::Command;
@@ -240,6 +240,34 @@ impl SocketcandBus {
             self.options.reply_timeout,
         )
         .map(drop)
+    }
+
+    /// Puts a fault on the virtual bus's wire for `lasting` (until repaired if `None`;
+    /// buslab servers).
+    pub fn inject_fault(
+        &mut self,
+        fault: &WireFault,
+        lasting: Option<Duration>,
+    ) -> Result<(), ClientError> {
+        self.need_extensions("fault injection")?;
+        // 0 means "until repaired": a lasting fault is at least 1 ms.
+        let lasting_ms = lasting.map_or(0, |d| d.as_millis().clamp(1, u64::MAX as u128) as u64);
+        self.request(
+            &Command::Fault {
+                fault: fault.clone(),
+                lasting_ms,
+            },
+            None,
+            self.options.reply_timeout,
+        )
+        .map(drop)
+    }
+
+    /// Ends every fault on the virtual bus's wire (buslab servers).
+    pub fn repair(&mut self) -> Result<(), ClientError> {
+        self.need_extensions("fault injection")?;
+        self.request(&Command::Repair, None, self.options.reply_timeout)
+            .map(drop)
     }
 
     /// The nodes on the bus.
@@ -654,5 +682,17 @@ impl BusAdmin for SocketcandBus {
 
     fn abort(&mut self) -> Result<(), BusError> {
         Ok(SocketcandBus::abort(self)?)
+    }
+
+    fn inject_fault(
+        &mut self,
+        fault: &WireFault,
+        lasting: Option<Duration>,
+    ) -> Result<(), BusError> {
+        Ok(SocketcandBus::inject_fault(self, fault, lasting)?)
+    }
+
+    fn repair(&mut self) -> Result<(), BusError> {
+        Ok(SocketcandBus::repair(self)?)
     }
 }

@@ -7,6 +7,7 @@ use buslab_can::{Frame, Id};
 use crate::{ProtocolError, tokens};
 
 pub use buslab_canbus::NodeRef;
+use buslab_canbus::{Probability, WireFault};
 
 /// One client command.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -55,6 +56,12 @@ pub enum Command {
     /// `< buslab_btr BTR0 BTR1 >`: reprogram this client's chip with these bit timing
     /// registers (hex).
     Btr { btr0: u8, btr1: u8 },
+    /// `< buslab_fault MS KIND ARGS… >`: puts a fault on the virtual bus's wire for MS
+    /// milliseconds (0: until repaired). KIND ARGS: `cut NODE[,NODE…] RATE`,
+    /// `disconnect NODE`, `flip NODE|*`, `noise NODE[,NODE…]|* RATE`, `stuck`.
+    Fault { fault: WireFault, lasting_ms: u64 },
+    /// `< buslab_repair >`: ends every fault on the wire now (`< ok >`).
+    Repair,
 }
 
 /// socketcand's commands that buslab does not implement.
@@ -139,6 +146,8 @@ impl Command {
                 }),
                 _ => Err(arguments("buslab_btr", "BTR0 BTR1 in hex", args)),
             },
+            "buslab_fault" => parse_fault(args),
+            "buslab_repair" => no_args(Command::Repair, "buslab_repair"),
             n if UNSUPPORTED.contains(&n) => Ok(Command::Unsupported {
                 name: n.to_string(),
                 args: args.iter().map(|s| s.to_string()).collect(),
@@ -151,6 +160,73 @@ impl Command {
             _ => Err(ProtocolError::UnknownCommand(name.to_string())),
         }
     }
+}
+
+const FAULT_ARGS: &str = "MS then cut NODE[,NODE…] RATE, disconnect NODE, flip NODE|*, noise NODE[,NODE…]|* RATE, or stuck";
+
+fn parse_fault(args: &[&str]) -> Result<Command, ProtocolError> {
+    let bad = || arguments("buslab_fault", FAULT_ARGS, args);
+    let [ms, kind, rest @ ..] = args else {
+        return Err(bad());
+    };
+    let lasting_ms: u64 = ms
+        .parse()
+        .ok()
+        .filter(|_| ms.bytes().all(|b| b.is_ascii_digit()))
+        .ok_or_else(bad)?;
+    let nodes = |list: &str| -> Result<Vec<NodeRef>, ProtocolError> {
+        if list == "*" {
+            return Ok(Vec::new());
+        }
+        list.split(',')
+            .map(|n| {
+                if n.is_empty() {
+                    Err(bad())
+                } else {
+                    Ok(NodeRef::parse(n))
+                }
+            })
+            .collect()
+    };
+    let rate = |text: &str| -> Result<Probability, ProtocolError> {
+        let p: f64 = text.parse().map_err(|_| bad())?;
+        Probability::new(p).map_err(|e| ProtocolError::Arguments {
+            command: "buslab_fault",
+            expected: "a rate per bit 0..=1",
+            got: e.to_string(),
+        })
+    };
+    let fault = match (*kind, rest) {
+        ("cut", [list, r]) if *list != "*" => WireFault::Cut {
+            far_side: nodes(list)?,
+            error_rate: rate(r)?,
+        },
+        ("disconnect", [node]) if *node != "*" => WireFault::Disconnect {
+            node: NodeRef::parse(node),
+        },
+        ("flip", [node]) => WireFault::Flip {
+            node: (*node != "*").then(|| NodeRef::parse(node)),
+        },
+        ("noise", [list, r]) => WireFault::Noise {
+            nodes: nodes(list)?,
+            rate: rate(r)?,
+        },
+        ("stuck", []) => WireFault::StuckDominant,
+        _ => return Err(bad()),
+    };
+    Ok(Command::Fault { fault, lasting_ms })
+}
+
+/// A node list as `buslab_fault` writes it: `a,b`, or `*` for none (every node).
+fn node_list(nodes: &[NodeRef]) -> String {
+    if nodes.is_empty() {
+        return "*".into();
+    }
+    nodes
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 /// A node name: 1..32 of `A-Z a-z 0-9 _ - .`, not all digits (those are node numbers).
@@ -319,6 +395,22 @@ impl fmt::Display for Command {
             Command::Regs(None) => f.write_str("< buslab_regs >"),
             Command::Regs(Some(n)) => write!(f, "< buslab_regs {n} >"),
             Command::Btr { btr0, btr1 } => write!(f, "< buslab_btr {btr0:02X} {btr1:02X} >"),
+            Command::Fault { fault, lasting_ms } => {
+                write!(f, "< buslab_fault {lasting_ms} {}", fault.name())?;
+                match fault {
+                    WireFault::Cut {
+                        far_side,
+                        error_rate,
+                    } => write!(f, " {} {error_rate}", node_list(far_side))?,
+                    WireFault::Disconnect { node } => write!(f, " {node}")?,
+                    WireFault::Flip { node: Some(node) } => write!(f, " {node}")?,
+                    WireFault::Flip { node: None } => f.write_str(" *")?,
+                    WireFault::Noise { nodes, rate } => write!(f, " {} {rate}", node_list(nodes))?,
+                    WireFault::StuckDominant => {}
+                }
+                f.write_str(" >")
+            }
+            Command::Repair => f.write_str("< buslab_repair >"),
         }
     }
 }

@@ -2,6 +2,7 @@
 //! garbage.
 
 use buslab_can::{Frame, Id};
+use buslab_canbus::{Probability, WireFault};
 use buslab_socketcand::{Command, Deframer, ElementError, NodeRef, ServerMessage, Timestamp};
 use proptest::prelude::*;
 
@@ -78,6 +79,35 @@ fn commands_round_trip_through_their_text() {
             btr0: 0x07,
             btr1: 0x4D,
         },
+        Command::Fault {
+            fault: WireFault::Cut {
+                far_side: vec![NodeRef::Name("engine".into()), NodeRef::Number(2)],
+                error_rate: Probability::new(0.05).unwrap(),
+            },
+            lasting_ms: 3000,
+        },
+        Command::Fault {
+            fault: WireFault::Noise {
+                nodes: Vec::new(),
+                rate: Probability::new(0.001).unwrap(),
+            },
+            lasting_ms: 0,
+        },
+        Command::Fault {
+            fault: WireFault::Flip { node: None },
+            lasting_ms: 10,
+        },
+        Command::Fault {
+            fault: WireFault::Disconnect {
+                node: NodeRef::Name("pc".into()),
+            },
+            lasting_ms: 1,
+        },
+        Command::Fault {
+            fault: WireFault::StuckDominant,
+            lasting_ms: 5,
+        },
+        Command::Repair,
     ];
     for c in all {
         let text = c.to_string();
@@ -129,6 +159,23 @@ fn garbage_commands_name_what_is_wrong() {
         ("buslab_name a/b", "buslab_name: expected one name"),
         ("buslab_own 2", "buslab_own: expected 0 or 1"),
         ("buslab_errors yes", "buslab_errors: expected 0 or 1"),
+        ("buslab_fault", "buslab_fault: expected MS then cut"),
+        (
+            "buslab_fault 10 melt x",
+            "buslab_fault: expected MS then cut",
+        ),
+        ("buslab_fault -1 stuck", "buslab_fault: expected MS"),
+        ("buslab_fault 10 cut * 0.1", "buslab_fault: expected MS"),
+        ("buslab_fault 10 cut a,,b 0.1", "buslab_fault: expected MS"),
+        (
+            "buslab_fault 10 noise * 1.5",
+            "probability 1.5 is out of range 0..=1",
+        ),
+        (
+            "buslab_fault 10 noise * NaN",
+            "probability NaN is out of range",
+        ),
+        ("buslab_repair now", "buslab_repair: expected no arguments"),
     ];
     for (text, want) in cases {
         let err = Command::parse(text).unwrap_err().to_string();

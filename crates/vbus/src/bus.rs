@@ -9,11 +9,12 @@ use std::fmt;
 
 use buslab_can::controller::ErrorState;
 use buslab_can::node::BusNode;
+use buslab_canbus::WireFault;
 use buslab_canbus::{
     BusOffRecovery, BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef,
     NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
 };
-use buslab_sim::{BusStats, Simulation};
+use buslab_sim::{BusStats, Fault, FaultKind, Simulation};
 use buslab_sja1000::BitTiming;
 
 use buslab_slio::{Calibration, DemoBoard, ModeChangeCause, SlioNotice};
@@ -40,7 +41,12 @@ pub enum VbusError {
     BadName(String),
     #[error("the chip refused the configuration: {0}")]
     Driver(String),
+    #[error("{0} faults were put on this bus already (repair ends them; at most {MAX_FAULTS})")]
+    TooManyFaults(usize),
 }
+
+/// Most faults one bus keeps (scenario and injected, ended ones included).
+pub const MAX_FAULTS: usize = 1024;
 
 /// Most nodes on one bus (an ISO 11898 segment allows far fewer real ones).
 pub const MAX_NODES: usize = 64;
@@ -79,6 +85,13 @@ pub enum BusEvent {
         name: String,
         notice: NodeNotice,
     },
+    /// A client put a fault on the wire.
+    Fault {
+        description: String,
+        lasting: Option<std::time::Duration>,
+    },
+    /// A client ended the faults on the wire.
+    Repaired { faults: usize },
     /// A SLIO board's calibration changed, or it changed its bus mode.
     Slio {
         number: u32,
@@ -105,6 +118,7 @@ impl BusEvent {
                 )
             }
             BusEvent::Slio { notice, .. } => matches!(notice, SlioNotice::BusModeChange(_)),
+            BusEvent::Fault { .. } => true,
             _ => false,
         }
     }
@@ -131,6 +145,17 @@ impl fmt::Display for BusEvent {
                 "node {number} ({name}) left: sent {}, received {}, lost {}",
                 c.sent, c.received, c.rx_lost
             ),
+            BusEvent::Fault {
+                description,
+                lasting,
+            } => {
+                write!(f, "fault injected: {description}")?;
+                match lasting {
+                    Some(d) => write!(f, " for {}", buslab_canbus::bus::Human(*d)),
+                    None => f.write_str(" until repaired"),
+                }
+            }
+            BusEvent::Repaired { faults } => write!(f, "wire repaired: {faults} fault(s) ended"),
             BusEvent::Renamed { number, old, new } => {
                 write!(f, "node {number} ({old}) is now called {new}")
             }
@@ -214,6 +239,29 @@ impl fmt::Display for BusEvent {
                 }
             }
         }
+    }
+}
+
+/// `cut, far side [engine], error rate 0.05`, naming nodes by their names.
+fn describe_fault(kind: &FaultKind, nodes: &[NodeInfo]) -> String {
+    let name = |i: usize| nodes.get(i).map_or("?", |n| n.name.as_str());
+    let names = |list: &[usize]| list.iter().map(|&i| name(i)).collect::<Vec<_>>().join(", ");
+    match kind {
+        FaultKind::Disconnect { node } => format!("disconnect {}", name(*node)),
+        FaultKind::Cut {
+            far_side,
+            error_rate,
+        } => format!(
+            "cut, far side [{}], error rate {error_rate}",
+            names(far_side)
+        ),
+        FaultKind::Flip { node: Some(n) } => format!("flip at {}", name(*n)),
+        FaultKind::Flip { node: None } => "flip at every node".into(),
+        FaultKind::StuckDominant => "stuck dominant".into(),
+        FaultKind::Noise { nodes, rate } if nodes.is_empty() => {
+            format!("noise on the bus, rate {rate}")
+        }
+        FaultKind::Noise { nodes, rate } => format!("noise at [{}], rate {rate}", names(nodes)),
     }
 }
 
@@ -492,6 +540,60 @@ impl VirtualBus {
             bus_bitrate,
         });
         Ok(())
+    }
+
+    /// Puts a fault on the wire from now on, for `lasting` (until [`Self::repair`] if `None`).
+    pub fn inject_fault(
+        &mut self,
+        fault: &WireFault,
+        lasting: Option<std::time::Duration>,
+    ) -> Result<(), VbusError> {
+        if self.sim.faults().len() >= MAX_FAULTS {
+            return Err(VbusError::TooManyFaults(self.sim.faults().len()));
+        }
+        let indices = |bus: &Self, nodes: &[NodeRef]| -> Result<Vec<usize>, VbusError> {
+            nodes.iter().map(|n| bus.index_of(n)).collect()
+        };
+        let kind = match fault {
+            WireFault::Cut {
+                far_side,
+                error_rate,
+            } => FaultKind::Cut {
+                far_side: indices(self, far_side)?,
+                error_rate: error_rate.get(),
+            },
+            WireFault::Disconnect { node } => FaultKind::Disconnect {
+                node: self.index_of(node)?,
+            },
+            WireFault::Flip { node } => FaultKind::Flip {
+                node: node.as_ref().map(|n| self.index_of(n)).transpose()?,
+            },
+            WireFault::Noise { nodes, rate } => FaultKind::Noise {
+                nodes: indices(self, nodes)?,
+                rate: rate.get(),
+            },
+            WireFault::StuckDominant => FaultKind::StuckDominant,
+        };
+        let start = self.now();
+        let end = lasting.map_or(u64::MAX, |d| {
+            let bits = d.as_nanos() * u128::from(self.bitrate()) / 1_000_000_000;
+            start.saturating_add(bits.clamp(1, u64::MAX as u128) as u64)
+        });
+        self.say(BusEvent::Fault {
+            description: describe_fault(&kind, &self.nodes()),
+            lasting,
+        });
+        self.sim.add_fault(Fault { kind, start, end });
+        Ok(())
+    }
+
+    /// Ends every fault on the wire now; returns how many were ended.
+    pub fn repair(&mut self) -> usize {
+        let ended = self.sim.end_faults();
+        if ended > 0 {
+            self.say(BusEvent::Repaired { faults: ended });
+        }
+        ended
     }
 
     /// Simulates up to (not including) bit-time `end`.

@@ -975,6 +975,15 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
             n.abort();
             ServerMessage::Ok
         }),
+        Command::Fault { fault, lasting_ms } => {
+            let lasting = (lasting_ms > 0).then(|| Duration::from_millis(lasting_ms));
+            bus.inject_fault(&fault, lasting)
+                .map(|()| ServerMessage::Ok)
+        }
+        Command::Repair => {
+            bus.repair();
+            Ok(ServerMessage::Ok)
+        }
         Command::Nodes => Ok(nodes_reply(&bus.nodes())),
         Command::Status(node) => bus
             .status(node.as_ref().unwrap_or(&own))

@@ -265,3 +265,55 @@ fn a_client_chip_counts_its_way_back_from_bus_off() {
     assert!(!st.sr.unwrap().bus_off());
     assert_eq!(st.errors.unwrap().txerr, 0);
 }
+
+/// The seed's cut-wire experiment, injected by a client: the sender on the cut piece of
+/// unterminated wire climbs to error-passive (and beyond), and once the wire is repaired its
+/// TEC falls with each frame it gets through.
+#[test]
+fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
+    use buslab_canbus::{BusState, Probability, WireFault};
+    let scenario = buslab_sim::Scenario::from_toml(
+        "bitrate = 500000\n[[nodes]]\nname = \"engine\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0C0#0FA0\"\n  period = \"1ms\"\n  start = \"100us\"\n[[nodes]]\nname = \"dash\"\n",
+    )
+    .unwrap();
+    let mut bus = VirtualBus::new(RATE)
+        .unwrap()
+        .with_scenario(scenario.build().unwrap());
+    bus.run_until(RATE as u64 / 100);
+    let engine = || NodeRef::Name("engine".into());
+    assert_eq!(bus.status(&engine()).unwrap().state, BusState::Active);
+    let cut = WireFault::Cut {
+        far_side: vec![engine()],
+        error_rate: Probability::new(0.05).unwrap(),
+    };
+    bus.inject_fault(&cut, None).unwrap();
+    let mut worst = 0;
+    let mut passive = false;
+    for _ in 0..100 {
+        bus.run_until(bus.now() + RATE as u64 / 1000);
+        let st = bus.status(&engine()).unwrap();
+        worst = worst.max(st.errors.unwrap().txerr);
+        passive |= st.state != BusState::Active;
+    }
+    assert!(
+        passive,
+        "the cut sender never left error-active (worst TEC {worst})"
+    );
+    assert_eq!(bus.repair(), 1);
+    // Bus-off recovery (128 x 11 bits), then each frame through takes 1 off the TEC.
+    bus.run_until(bus.now() + RATE as u64 / 2);
+    let st = bus.status(&engine()).unwrap();
+    assert_eq!(st.state, BusState::Active, "{st}");
+    assert!(st.errors.unwrap().txerr < 128, "{st}");
+    assert_eq!(bus.repair(), 0, "nothing left to repair");
+    // Unknown nodes are named in the refusal.
+    let err = bus
+        .inject_fault(
+            &WireFault::Disconnect {
+                node: NodeRef::Name("nobody".into()),
+            },
+            None,
+        )
+        .unwrap_err();
+    assert!(err.to_string().contains("no node nobody"), "{err}");
+}

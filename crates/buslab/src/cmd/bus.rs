@@ -66,6 +66,14 @@ pub struct ServeArgs {
     /// with `screen PATH 19200`, `picocom -b 19200 PATH` or minicom.
     #[arg(long, value_name = "PATH")]
     pub ppc: Option<PathBuf>,
+    /// With --ppc: keep the PowerPC node's memory (what `buslab load` put there) in this
+    /// S-record file, read at start and saved after each load before the node reports it.
+    #[arg(long, value_name = "FILE", requires = "ppc")]
+    pub ppc_memory: Option<PathBuf>,
+    /// With --ppc: answer control lines on this Unix socket (`state`, `load`, `ranges`,
+    /// `entry`, `read ADDR LEN`); `buslab load --verify SOCKET` reads the memory back here.
+    #[arg(long, value_name = "SOCKET", requires = "ppc")]
+    pub ppc_control: Option<PathBuf>,
     /// Send socketcand's discovery beacon every 3 s (python-can's `detect_beacon()`), to
     /// ADDR, by default 127.0.0.1:42000 when listening on loopback, else the broadcast
     /// address 255.255.255.255:42000.
@@ -139,8 +147,16 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let server = buslab_vbus::spawn(config)?;
     let terminal = match &args.ppc {
         Some(path) => Some(
-            buslab_served::ppc::serve_terminal(PPC_NODE, server.poster(), Some(path.clone()))
-                .context("cannot serve the PowerPC node's terminal")?,
+            buslab_served::ppc::serve(
+                PPC_NODE,
+                server.poster(),
+                buslab_served::ppc::PpcOptions {
+                    link: Some(path.clone()),
+                    memory: args.ppc_memory.clone(),
+                    control: args.ppc_control.clone(),
+                },
+            )
+            .context("cannot serve the PowerPC node")?,
         ),
         None => None,
     };
@@ -153,6 +169,9 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             t.path().display(),
             path.display()
         );
+        if let Some(control) = t.control_socket() {
+            tracing::info!("PowerPC control socket on {}", control.display());
+        }
     }
     tracing::info!("Ctrl-C to stop");
     while !stop.load(Ordering::SeqCst) {

@@ -5,7 +5,8 @@
 //! (python-can, `buslab dump`) can join it. The lab itself joins with a node sending a counter
 //! and, with `--frames`, a monitor whose receptions are printed the way `candump` prints them.
 //! By default a compact status line tells how the bench is doing. Next to the bus, a ZELLE cell
-//! and a CPU196 board are served on pseudo-terminals ([`Devices`]).
+//! and a CPU196 board are served on pseudo-terminals ([`Devices`]), and the bus is shown as web
+//! pages with a live dashboard (`buslab web`, docs/web.md).
 
 use std::io::{self, IsTerminal, Write};
 use std::net::SocketAddr;
@@ -23,6 +24,7 @@ use buslab_canbus::CanBus;
 use buslab_sim::{BitTime, Simulation, Traffic};
 use buslab_socketcand::SocketcandBus;
 use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
+use buslab_web::{WebConfig, WebError, WebServer};
 
 use buslab_logs::Entry;
 use buslab_logs::candump::{Terminal, TimestampMode, View};
@@ -50,14 +52,29 @@ pub struct Args {
     /// used. The URL is printed at start.
     #[arg(long, value_name = "ADDR")]
     pub listen: Option<SocketAddr>,
-    /// Keep the devices' state here (zelle.toml, cpu196.toml) and link their ports as
+    /// Keep the devices' state here (zelle.toml, cpu196.toml, the PowerPC memory ppc.s37 with its
+    /// control socket ppc.sock) and link their ports as
     /// DIR/zelle, DIR/cpu196 and DIR/monican; default: in memory, ports printed at start.
     #[arg(long, value_name = "DIR")]
     pub dir: Option<PathBuf>,
     /// Only the CAN bus: no ZELLE cell or CPU196 board.
     #[arg(long)]
     pub no_devices: bool,
+    /// Where the web pages and the live dashboard listen (`buslab web`, docs/web.md); by
+    /// default 127.0.0.1:8080, or a free port if that one is taken. Writes need the token
+    /// printed at start.
+    #[arg(long, value_name = "ADDR", conflicts_with = "no_web")]
+    pub web: Option<SocketAddr>,
+    /// No web pages or dashboard.
+    #[arg(long)]
+    pub no_web: bool,
 }
+
+/// Where the lab's web pages listen unless told otherwise.
+const WEB_DEFAULT: SocketAddr = SocketAddr::V4(std::net::SocketAddrV4::new(
+    std::net::Ipv4Addr::LOCALHOST,
+    8080,
+));
 
 /// The bus name clients open.
 const CHANNEL: &str = "vcan0";
@@ -117,6 +134,16 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     if let Some(devices) = &devices {
         devices.describe();
     }
+    let web = if args.no_web {
+        None
+    } else {
+        let web = start_web(addr, args.web)?;
+        eprintln!("  web pages:  {} (no JavaScript needed)", web.url());
+        if let Some(token) = web.token() {
+            eprintln!("  dashboard:  {}dashboard#token={token}", web.url());
+        }
+        Some(web)
+    };
     eprintln!("Ctrl-C to stop");
 
     let counter = spawn_counter(addr, stop.clone())?;
@@ -127,6 +154,9 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
         status_lines(&server, end, &stop, quiet)
     };
     stop.store(true, Ordering::SeqCst);
+    if let Some(web) = web {
+        web.stop();
+    }
     let counted = counter.join();
     drop(terminal);
     server.shutdown();
@@ -135,6 +165,31 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     }
     result?;
     counted.map_err(|_| anyhow::anyhow!("the counter node panicked"))?
+}
+
+/// The web pages on the lab's bus, with a fresh write token (the dashboard injects faults).
+fn start_web(bus: SocketAddr, listen: Option<SocketAddr>) -> anyhow::Result<WebServer> {
+    let url = format!("socketcand://{bus}/{CHANNEL}");
+    let token = buslab_web::generate_token()?;
+    let start = |listen: SocketAddr| -> anyhow::Result<Result<WebServer, WebError>> {
+        let bus = buslab_backends::open(&url)
+            .with_context(|| format!("the web pages cannot join the lab's bus {url}"))?;
+        let config = WebConfig {
+            listen,
+            token: Some(token.clone()),
+            ..WebConfig::default()
+        };
+        Ok(WebServer::start(bus, config))
+    };
+    match start(listen.unwrap_or(WEB_DEFAULT))? {
+        Ok(web) => Ok(web),
+        // The usual port is taken (another lab?): any free one will do.
+        Err(WebError::Listen { .. }) if listen.is_none() => Ok(start(SocketAddr::from((
+            std::net::Ipv4Addr::LOCALHOST,
+            0,
+        )))??),
+        Err(e) => Err(e.into()),
+    }
 }
 
 /// How often the status line is refreshed on a terminal, and written as a new line otherwise.
@@ -411,23 +466,28 @@ impl SlioBench {
         &self,
         server: &ServerHandle,
         dir: Option<&Path>,
-    ) -> anyhow::Result<Option<buslab_link::Served<buslab_served::ppc::PpcTerminal>>> {
+    ) -> anyhow::Result<Option<buslab_served::ppc::ServedPpc>> {
         if self.ids.is_empty() {
             return Ok(None);
         }
-        let link = dir.map(|d| d.join("monican"));
-        Ok(Some(buslab_served::ppc::serve_terminal(
+        if let Some(dir) = dir {
+            // `--no-devices` leaves the folder to the PowerPC node.
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the lab folder {}", dir.display()))?;
+        }
+        let options = buslab_served::ppc::PpcOptions {
+            link: dir.map(|d| d.join("monican")),
+            memory: dir.map(|d| d.join("ppc.s37")),
+            control: dir.map(|d| d.join("ppc.sock")),
+        };
+        Ok(Some(buslab_served::ppc::serve(
             super::bus::PPC_NODE,
             server.poster(),
-            link,
+            options,
         )?))
     }
 
-    fn describe(
-        &self,
-        terminal: Option<&buslab_link::Served<buslab_served::ppc::PpcTerminal>>,
-        dir: Option<&Path>,
-    ) {
+    fn describe(&self, terminal: Option<&buslab_served::ppc::ServedPpc>, dir: Option<&Path>) {
         let Some(terminal) = terminal else {
             eprintln!(
                 "  no SLIO boards: they follow 20000..125000 bit/s (the lab's default is 125000)"
@@ -447,6 +507,14 @@ impl SlioBench {
         eprintln!(
             "  MoniCAN      on {pty}  (19200 8N1, VT100; open it: screen {path} 19200, or picocom -b 19200 {path}; Ctrl-L redraws)"
         );
+        if let (Some(memory), Some(control)) = (terminal.memory_file(), terminal.control_socket()) {
+            eprintln!(
+                "  PowerPC      memory in {}, control socket {} (load a program: buslab load PROG.s37 --bus URL --verify {})",
+                memory.display(),
+                control.display(),
+                control.display()
+            );
+        }
     }
 }
 

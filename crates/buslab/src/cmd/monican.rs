@@ -42,7 +42,8 @@ pub struct Args {
     pub mail_id: u16,
 }
 
-fn parse_id(text: &str) -> Result<u16, String> {
+/// An 11-bit identifier: hex with 0x, or decimal, 0x001..0x7FF.
+pub fn parse_id(text: &str) -> Result<u16, String> {
     let t = text.trim();
     // Digits only: `from_str_radix` and `parse` would take a sign (`0x+f`, `+5`).
     let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {

@@ -1,0 +1,440 @@
+//! `buslab monitor --bus URL`: the bus in the terminal (ratatui): the per-ID table with the
+//! bytes that changed highlighted (cansniffer, SavvyCAN), a frame log, a load sparkline, and
+//! the nodes' error state with the STATUS, ALC and ECC registers of one in words (JerryCAN's
+//! viewers). The model is `buslab_view::BusView`, as for `buslab web`; this adapter owns the
+//! terminal (raw mode and the alternate screen, restored on every way out), the keys and the
+//! bus.
+
+use std::io::{IsTerminal, Read, Stdout};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, TryRecvError};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use buslab_backends::DynBus;
+use buslab_can::Frame;
+use buslab_canbus::{NodeRef, NodeStatus};
+use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
+use ratatui::Terminal;
+use ratatui::backend::CrosstermBackend;
+use ratatui::layout::{Constraint, Layout};
+use ratatui::style::{Modifier, Style};
+use ratatui::text::{Line, Span};
+use ratatui::widgets::{Block, Paragraph, Row, Sparkline, Table};
+
+use super::busopt::{BusOpt, open};
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub bus: BusOpt,
+    /// The bus's bit rate, to estimate the load on buses that do not report it.
+    #[arg(long, value_name = "BIT/S", value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
+    pub bitrate: Option<u32>,
+}
+
+const CTRL_C: u8 = 3;
+const ESC: u8 = 0x1B;
+/// The screen is drawn this often at most.
+const REDRAW: Duration = Duration::from_millis(100);
+/// Node statuses are asked for this often.
+const STATUS_EVERY: Duration = Duration::from_millis(250);
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if !std::io::stdin().is_terminal() || !std::io::stdout().is_terminal() {
+        bail!(
+            "buslab monitor needs a terminal (its keys and its screen); buslab dump prints frames anywhere"
+        );
+    }
+    let url = args.bus.bus.to_string();
+    let mut bus = open(&args.bus.bus)?;
+    let own = bus.admin().and_then(|a| {
+        let _ = a.set_name("monitor");
+        a.node_status(None).ok().map(|s| s.number)
+    });
+    let quit = Arc::new(AtomicBool::new(false));
+    for signal in [
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGINT,
+        signal_hook::consts::SIGHUP,
+    ] {
+        signal_hook::flag::register(signal, quit.clone())
+            .context("cannot watch for termination signals")?;
+    }
+    let guard = Screen::enter()?;
+    let mut terminal = Terminal::new(CrosstermBackend::new(std::io::stdout()))
+        .context("cannot draw on this terminal")?;
+    let keys = read_keys();
+    let mut monitor = Monitor::new(url, own, args.bitrate);
+    let result = monitor.run(&mut bus, &mut terminal, &keys, &quit);
+    drop(terminal);
+    drop(guard);
+    result
+}
+
+/// Raw mode on the alternate screen until dropped.
+struct Screen;
+
+impl Screen {
+    fn enter() -> anyhow::Result<Self> {
+        crossterm::terminal::enable_raw_mode().context("cannot put the terminal in raw mode")?;
+        let screen = Screen;
+        crossterm::execute!(
+            std::io::stdout(),
+            crossterm::terminal::EnterAlternateScreen,
+            crossterm::cursor::Hide
+        )
+        .context("cannot switch to the alternate screen")?;
+        Ok(screen)
+    }
+}
+
+impl Drop for Screen {
+    fn drop(&mut self) {
+        let _ = crossterm::execute!(
+            std::io::stdout(),
+            crossterm::cursor::Show,
+            crossterm::terminal::LeaveAlternateScreen
+        );
+        let _ = crossterm::terminal::disable_raw_mode();
+    }
+}
+
+/// Bytes from the terminal as they come (a thread blocked in `read`).
+fn read_keys() -> Receiver<Vec<u8>> {
+    let (tx, rx) = mpsc::sync_channel(64);
+    std::thread::spawn(move || {
+        let mut stdin = std::io::stdin();
+        let mut buf = [0u8; 256];
+        while let Ok(n) = stdin.read(&mut buf) {
+            if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// What a typed line is for.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Entry {
+    Filter,
+    Send,
+}
+
+struct Monitor {
+    url: String,
+    own: Option<u32>,
+    view: BusView,
+    epoch: Instant,
+    filter: LogFilter,
+    paused: bool,
+    /// The log as shown (frozen while paused).
+    shown_log: Vec<String>,
+    entry: Option<(Entry, String)>,
+    message: String,
+    selected: usize,
+}
+
+impl Monitor {
+    fn new(url: String, own: Option<u32>, bitrate: Option<u32>) -> Self {
+        Self {
+            url,
+            own,
+            view: BusView::new(ViewConfig {
+                bitrate,
+                ..ViewConfig::default()
+            }),
+            epoch: Instant::now(),
+            filter: LogFilter::all(),
+            paused: false,
+            shown_log: Vec::new(),
+            entry: None,
+            message: String::new(),
+            selected: 0,
+        }
+    }
+
+    fn run(
+        &mut self,
+        bus: &mut DynBus,
+        terminal: &mut Terminal<CrosstermBackend<Stdout>>,
+        keys: &Receiver<Vec<u8>>,
+        quit: &AtomicBool,
+    ) -> anyhow::Result<()> {
+        let mut next_status = Instant::now();
+        let mut next_draw = Instant::now();
+        while !quit.load(Ordering::Relaxed) {
+            loop {
+                match keys.try_recv() {
+                    Ok(bytes) => {
+                        for b in bytes {
+                            if !self.key(b, bus) {
+                                return Ok(());
+                            }
+                        }
+                    }
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => return Ok(()),
+                }
+            }
+            if Instant::now() >= next_status {
+                let statuses = statuses(bus, self.own);
+                let now = self.epoch.elapsed();
+                match statuses {
+                    Some(list) => self.view.nodes(now, list),
+                    None => self.view.tick(now),
+                }
+                next_status = Instant::now() + STATUS_EVERY;
+            }
+            if Instant::now() >= next_draw {
+                let now = self.epoch.elapsed();
+                if !self.paused {
+                    self.shown_log = self
+                        .view
+                        .log_tail(&self.filter, 200)
+                        .into_iter()
+                        .map(|e| format!("{:>17.6}  {}", e.time, e.frame))
+                        .collect();
+                }
+                terminal
+                    .draw(|f| self.draw(f, now))
+                    .context("cannot draw on the terminal")?;
+                next_draw = Instant::now() + REDRAW;
+            }
+            let mut timeout = next_draw
+                .min(next_status)
+                .saturating_duration_since(Instant::now());
+            while let Some(m) = bus.recv(Some(timeout)).context("receiving from the bus")? {
+                self.view.frame(self.epoch.elapsed(), &m);
+                timeout = Duration::ZERO;
+            }
+        }
+        Ok(())
+    }
+
+    /// A key; `false` to quit.
+    fn key(&mut self, b: u8, bus: &mut DynBus) -> bool {
+        if let Some((kind, text)) = &mut self.entry {
+            match b {
+                b'\r' | b'\n' => {
+                    let (kind, text) = (*kind, text.clone());
+                    self.entry = None;
+                    self.apply(kind, &text, bus);
+                }
+                ESC => self.entry = None,
+                0x7F | 0x08 => {
+                    text.pop();
+                }
+                CTRL_C => return false,
+                b if (0x20..0x7F).contains(&b) && text.len() < 64 => text.push(char::from(b)),
+                _ => {}
+            }
+            return true;
+        }
+        match b {
+            b'q' | CTRL_C => return false,
+            b'p' | b' ' => {
+                self.paused = !self.paused;
+                self.message = if self.paused { "paused" } else { "running" }.into();
+            }
+            b'c' => {
+                self.view.clear();
+                self.shown_log.clear();
+                self.message = "cleared".into();
+            }
+            b'f' => self.entry = Some((Entry::Filter, String::new())),
+            b's' => self.entry = Some((Entry::Send, String::new())),
+            b'n' => self.selected += 1,
+            _ => {}
+        }
+        true
+    }
+
+    fn apply(&mut self, kind: Entry, text: &str, bus: &mut DynBus) {
+        match kind {
+            Entry::Filter => match text.parse::<LogFilter>() {
+                Ok(f) => {
+                    self.message = if f.is_all() {
+                        "no filter".into()
+                    } else {
+                        format!("filter {text}")
+                    };
+                    self.filter = f;
+                }
+                Err(e) => self.message = e.to_string(),
+            },
+            Entry::Send => match text.parse::<Frame>() {
+                Ok(frame) => {
+                    self.message = match bus.send(&frame) {
+                        Ok(()) => format!("sent {frame}"),
+                        Err(e) => format!("cannot send {frame}: {e}"),
+                    }
+                }
+                Err(e) => self.message = format!("frame {text:?}: {e}"),
+            },
+        }
+    }
+
+    fn draw(&self, f: &mut ratatui::Frame, now: Duration) {
+        let d = self.view.delta(&Cursor::start(), now, &LogFilter::all(), 0);
+        let [top, middle, log, bottom] = Layout::vertical([
+            Constraint::Length(1),
+            Constraint::Min(6),
+            Constraint::Percentage(30),
+            Constraint::Length(1),
+        ])
+        .areas(f.area());
+        let [summary, spark] =
+            Layout::horizontal([Constraint::Min(40), Constraint::Length(30)]).areas(top);
+        let load = d
+            .load
+            .last()
+            .and_then(|l| l.percent)
+            .map_or("load ?".to_string(), |p| format!("load {p:.1} %"));
+        f.render_widget(
+            Paragraph::new(format!(
+                "{}  {} frames  {}/s  {load}{}",
+                self.url,
+                d.frames,
+                d.frames_per_s,
+                if self.paused { "  PAUSED" } else { "" }
+            )),
+            summary,
+        );
+        let points: Vec<u64> = d
+            .load
+            .iter()
+            .map(|l| l.percent.map_or(l.frames, |p| p.round() as u64))
+            .collect();
+        let start = points.len().saturating_sub(usize::from(spark.width));
+        f.render_widget(Sparkline::default().data(&points[start..]), spark);
+
+        let [ids, nodes] =
+            Layout::horizontal([Constraint::Percentage(58), Constraint::Percentage(42)])
+                .areas(middle);
+        let highlight = Style::default().add_modifier(Modifier::REVERSED);
+        let rows = d.ids.iter().map(|r| {
+            let mut data = Vec::new();
+            for (i, pair) in r.data.as_bytes().chunks(2).enumerate() {
+                let byte = String::from_utf8_lossy(pair).to_string();
+                if r.changed & (1 << i) != 0 {
+                    data.push(Span::styled(byte, highlight));
+                } else {
+                    data.push(Span::raw(byte));
+                }
+                data.push(Span::raw(" "));
+            }
+            Row::new(vec![
+                Line::from(r.id.clone()),
+                Line::from(r.count.to_string()),
+                Line::from(r.period_ms.map_or("-".into(), |p| format!("{p:.1}"))),
+                Line::from(r.dlc.to_string()),
+                Line::from(data),
+            ])
+        });
+        f.render_widget(
+            Table::new(
+                rows,
+                [
+                    Constraint::Length(8),
+                    Constraint::Length(8),
+                    Constraint::Length(8),
+                    Constraint::Length(3),
+                    Constraint::Min(24),
+                ],
+            )
+            .header(Row::new(["ID", "count", "ms", "DLC", "data"]))
+            .block(Block::bordered().title(" per ID ")),
+            ids,
+        );
+        let mut lines = Vec::new();
+        let selected = if d.nodes.is_empty() {
+            None
+        } else {
+            Some(self.selected % d.nodes.len())
+        };
+        for (i, n) in d.nodes.iter().enumerate() {
+            let text = format!(
+                "{:>2} {:<10} {:<13} TEC {:>3} REC {:>3}",
+                n.number,
+                n.name,
+                n.state,
+                n.tec.map_or("-".into(), |v| v.to_string()),
+                n.rec.map_or("-".into(), |v| v.to_string())
+            );
+            lines.push(if Some(i) == selected {
+                Line::styled(text, highlight)
+            } else {
+                Line::raw(text)
+            });
+        }
+        if let Some(n) = selected.map(|i| &d.nodes[i]) {
+            lines.push(Line::raw(""));
+            lines.push(Line::raw(format!(
+                "STATUS {}",
+                n.status.as_deref().unwrap_or("-")
+            )));
+            lines.push(Line::raw(format!(
+                "ALC {}",
+                n.alc.as_deref().unwrap_or("-")
+            )));
+            lines.push(Line::raw(format!(
+                "ECC {}",
+                n.ecc.as_deref().unwrap_or("-")
+            )));
+            lines.push(Line::raw(format!(
+                "sent {} received {} bus errors {} bus-off {}",
+                n.sent, n.received, n.bus_errors, n.bus_off
+            )));
+        } else {
+            lines.push(Line::raw("no node status (only a buslab bus tells)"));
+        }
+        f.render_widget(
+            Paragraph::new(lines)
+                .wrap(ratatui::widgets::Wrap { trim: false })
+                .block(Block::bordered().title(" nodes (n: next) ")),
+            nodes,
+        );
+        let height = usize::from(log.height.saturating_sub(2));
+        let from = self.shown_log.len().saturating_sub(height);
+        let title = if self.filter.is_all() {
+            " frames ".to_string()
+        } else {
+            " frames (filtered) ".to_string()
+        };
+        f.render_widget(
+            Paragraph::new(
+                self.shown_log[from..]
+                    .iter()
+                    .map(|l| Line::raw(l.as_str()))
+                    .collect::<Vec<_>>(),
+            )
+            .block(Block::bordered().title(title)),
+            log,
+        );
+        let help = match &self.entry {
+            Some((Entry::Filter, t)) => format!("filter (123, 120:7F0, 300~700; empty: all): {t}_"),
+            Some((Entry::Send, t)) => format!("send (123#1122): {t}_"),
+            None => format!(
+                "q quit  p pause  f filter  c clear  s send  n next node   {}",
+                self.message
+            ),
+        };
+        f.render_widget(Paragraph::new(help), bottom);
+    }
+}
+
+/// Every node's status but this monitor's own; `None` if the bus has none to tell.
+fn statuses(bus: &mut DynBus, own: Option<u32>) -> Option<Vec<NodeStatus>> {
+    let admin = bus.admin()?;
+    let nodes = admin.nodes().ok()?;
+    Some(
+        nodes
+            .into_iter()
+            .filter(|n| Some(n.number) != own)
+            .filter_map(|n| admin.node_status(Some(&NodeRef::Number(n.number))).ok())
+            .collect(),
+    )
+}

@@ -1,0 +1,73 @@
+//! `buslab web --bus URL [--listen ADDR] [--token [TOKEN]]`: the bus as web pages (the seed's
+//! CAN WebServer) and a live dashboard (docs/web.md).
+
+use std::net::SocketAddr;
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+use anyhow::Context;
+use buslab_web::{WebConfig, WebServer, generate_token};
+
+use super::busopt::{BusOpt, open};
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub bus: BusOpt,
+    /// Where to listen. Loopback by default: another address lets other machines read the
+    /// bus (and write, with the token).
+    #[arg(long, value_name = "ADDR", default_value = "127.0.0.1:8080")]
+    pub listen: SocketAddr,
+    /// Allow writes (send frames, inject faults) to requests carrying this token in the
+    /// X-Buslab-Token header; `--token` alone makes a random one and prints it. Read-only
+    /// without it.
+    #[arg(long, value_name = "TOKEN", num_args = 0..=1, default_missing_value = "")]
+    pub token: Option<String>,
+    /// The bus's bit rate, to estimate the load on buses that do not report it (a buslab
+    /// bus does).
+    #[arg(long, value_name = "BIT/S", value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
+    pub bitrate: Option<u32>,
+    /// Connections served at once; further ones get 503.
+    #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub max_connections: u32,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let token = match args.token.as_deref() {
+        None => None,
+        Some("") => Some(generate_token()?),
+        Some(t) => Some(t.to_string()),
+    };
+    let url = &args.bus.bus;
+    let bus = open(url)?;
+    let server = WebServer::start(
+        bus,
+        WebConfig {
+            listen: args.listen,
+            token,
+            max_connections: args.max_connections as usize,
+            bitrate: args.bitrate,
+            ..WebConfig::default()
+        },
+    )
+    .with_context(|| format!("buslab web on {url}"))?;
+    // The URL on stdout alone (scripts and tests read it), the rest for people on stderr.
+    println!("{}", server.url());
+    eprintln!("buslab web: {url} at {}", server.url());
+    eprintln!("  live dashboard: {}dashboard", server.url());
+    match server.token() {
+        Some(token) => eprintln!("  writes allowed with the header X-Buslab-Token: {token}"),
+        None => eprintln!("  read-only (start with --token to allow sending and faults)"),
+    }
+    eprintln!("Ctrl-C to stop");
+    let stop = super::interrupted()?;
+    while !stop.load(Ordering::SeqCst) {
+        if let Some(why) = server.bus_failure() {
+            server.stop();
+            anyhow::bail!("{url}: the bus failed: {why}");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    server.stop();
+    Ok(())
+}

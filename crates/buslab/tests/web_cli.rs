@@ -1,0 +1,215 @@
+//! `buslab web` on a running virtual bus: the pages show its nodes and frames, the token rule
+//! holds, and the seed's cut-wire experiment started through the API makes the cut sender
+//! error-passive, then repair brings it back.
+
+mod bus_common;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::process::{Child, Stdio};
+use std::time::{Duration, Instant};
+
+use bus_common::Serve;
+
+/// Only a guard against a hang: every wait ends on what it waits for first.
+const HANG: Duration = Duration::from_secs(120);
+const TOKEN: &str = "cli-test-token";
+
+struct Web(Child);
+
+impl Drop for Web {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn exchange(addr: SocketAddr, raw: &str) -> (u16, String) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(HANG)).unwrap();
+    s.write_all(raw.as_bytes()).unwrap();
+    let mut text = String::new();
+    let _ = s.read_to_string(&mut text);
+    let status = text
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let body = text.split_once("\r\n\r\n").map_or("", |p| p.1).to_string();
+    (status, body)
+}
+
+fn get(addr: SocketAddr, path: &str) -> (u16, String) {
+    exchange(
+        addr,
+        &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"),
+    )
+}
+
+fn post(addr: SocketAddr, path: &str, token: Option<&str>, body: &str) -> (u16, String) {
+    let header = token.map_or(String::new(), |t| format!("X-Buslab-Token: {t}\r\n"));
+    exchange(
+        addr,
+        &format!(
+            "POST {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{header}\
+             Content-Length: {}\r\n\r\n{body}",
+            body.len()
+        ),
+    )
+}
+
+/// The engine node's entry in `/api/state`, once `done` holds for it.
+fn engine_until(addr: SocketAddr, what: &str, done: impl Fn(&serde_json::Value) -> bool) {
+    let deadline = Instant::now() + HANG;
+    loop {
+        let (status, body) = get(addr, "/api/state?n=10");
+        assert_eq!(status, 200, "{body}");
+        let state: serde_json::Value = serde_json::from_str(&body).unwrap();
+        let engine = state["delta"]["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|n| n["name"] == "engine")
+            .cloned();
+        if engine.as_ref().is_some_and(&done) {
+            return;
+        }
+        assert!(Instant::now() < deadline, "never {what}: {body}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn the_cut_wire_experiment_from_the_web_api() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("engine.toml");
+    std::fs::write(
+        &scenario,
+        "bitrate = 500000\n[[nodes]]\nname = \"engine\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0C0#0FA0\"\n  period = \"2ms\"\n  start = \"1ms\"\n[[nodes]]\nname = \"dash\"\n",
+    )
+    .unwrap();
+    let serve = Serve::start_with(500_000, &["--nodes", scenario.to_str().unwrap()]);
+    let mut child = serve
+        .buslab()
+        .args([
+            "web",
+            "--bus",
+            &serve.url,
+            "--listen",
+            "127.0.0.1:0",
+            "--token",
+            TOKEN,
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let _web = Web(child);
+    let addr: SocketAddr = line
+        .trim()
+        .strip_prefix("http://")
+        .and_then(|r| r.strip_suffix('/'))
+        .unwrap_or_else(|| panic!("no URL from buslab web: {line:?}"))
+        .parse()
+        .unwrap();
+
+    engine_until(addr, "error-active with frames sent", |e| {
+        e["state"] == "error-active" && e["sent"].as_u64() > Some(0)
+    });
+    // The frames reach the pages through the server's own client, maybe a little later.
+    let deadline = Instant::now() + HANG;
+    loop {
+        let (_, page) = get(addr, "/?refresh=0");
+        if page.contains("engine") && page.contains("0C0#0FA0") {
+            break;
+        }
+        assert!(Instant::now() < deadline, "no frames on the page: {page}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+
+    let cut = r#"{"kind":"cut","nodes":["engine"],"rate":0.05}"#;
+    let (status, body) = post(addr, "/api/fault", None, cut);
+    assert_eq!(status, 401, "{body}");
+    let (status, body) = post(addr, "/api/fault", Some(TOKEN), cut);
+    assert_eq!(status, 200, "{body}");
+    engine_until(addr, "error-passive after the cut", |e| {
+        e["state"] != "error-active" && e["tec"].as_u64() >= Some(128)
+    });
+    let (status, body) = post(addr, "/api/repair", Some(TOKEN), "");
+    assert_eq!(status, 200, "{body}");
+    engine_until(addr, "error-active again after the repair", |e| {
+        e["state"] == "error-active" && e["tec"].as_u64() < Some(128)
+    });
+    // An unknown node is refused with the server's reason.
+    let (status, body) = post(
+        addr,
+        "/api/fault",
+        Some(TOKEN),
+        r#"{"kind":"disconnect","nodes":["nobody"]}"#,
+    );
+    assert_eq!(status, 400, "{body}");
+    assert!(body.contains("nobody"), "{body}");
+}
+
+#[test]
+fn the_lab_starts_the_web_pages_and_prints_the_dashboard_with_its_token() {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args([
+            "lab",
+            "--no-devices",
+            "--listen",
+            "127.0.0.1:0",
+            "--web",
+            "127.0.0.1:0",
+        ])
+        .env_remove("BUSLAB_BUS")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let _lab = Web(child);
+    let mut lines = BufReader::new(stderr).lines();
+    let dashboard = loop {
+        let line = lines.next().expect("the banner ended").unwrap();
+        if let Some(url) = line.trim().strip_prefix("dashboard:") {
+            break url.trim().to_string();
+        }
+    };
+    // Keep reading the status lines so the lab never blocks on a full pipe.
+    std::thread::spawn(move || lines.for_each(drop));
+    let (base, token) = dashboard
+        .split_once("dashboard#token=")
+        .unwrap_or_else(|| panic!("{dashboard}"));
+    let addr: SocketAddr = base
+        .strip_prefix("http://")
+        .and_then(|r| r.strip_suffix('/'))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let deadline = Instant::now() + HANG;
+    loop {
+        let (status, body) = get(addr, "/api/state?n=1");
+        assert_eq!(status, 200, "{body}");
+        let state: serde_json::Value = serde_json::from_str(&body).unwrap();
+        if state["delta"]["frames"].as_u64() > Some(0)
+            && !state["delta"]["nodes"].as_array().unwrap().is_empty()
+        {
+            assert_eq!(state["writable"], true);
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the lab's pages never showed its bus: {body}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let frame = r#"{"frame":"7AB#01"}"#;
+    assert_eq!(post(addr, "/api/send", None, frame).0, 401);
+    let (status, body) = post(addr, "/api/send", Some(token), frame);
+    assert_eq!(status, 202, "{body}");
+}

@@ -1,0 +1,28 @@
+//! What a person watching a CAN bus wants to see, as one sans-IO model shared by the web
+//! dashboard (`buslab web`) and the terminal monitor (`buslab monitor`):
+//!
+//! - a per-ID table (count, period, DLC, data, the bytes that changed lately: cansniffer's and
+//!   SavvyCAN's view), bounded in size;
+//! - a frame log: a bounded ring with sequence numbers, read through a [`LogFilter`];
+//! - the bus load over time (from the bus's own figure when it has one, else estimated from
+//!   the frames' lengths on the wire at a known bit rate);
+//! - every node's error state over time (TEC, REC, error-active/passive/bus-off) with its
+//!   latest typed status (STATUS bits, ALC and ECC).
+//!
+//! Frames and node statuses go in with the instant they were seen ([`BusView::frame`],
+//! [`BusView::nodes`], [`BusView::tick`]); what changed since a [`Cursor`] comes out
+//! ([`BusView::delta`]). A consumer keeps one cursor and advances it only when it actually
+//! delivered the delta, so a viewer that missed updates simply gets a larger one next time.
+//! Time is explicit: a [`Duration`] since the view started, given by the adapter.
+
+mod filter;
+mod load;
+mod model;
+
+pub use filter::{FilterError, LogFilter};
+pub use load::frame_bits;
+pub use model::{
+    BusView, Cursor, Delta, ErrorSample, IdRow, LoadSample, LogEntry, NodeView, ViewConfig,
+};
+
+pub use std::time::Duration;

@@ -1,0 +1,554 @@
+//! The model: state, inputs, and deltas since a cursor.
+
+use std::collections::{BTreeMap, VecDeque};
+use std::time::Duration;
+
+use buslab_can::{Frame, Id};
+use buslab_canbus::{BusState, Message, NodeStatus};
+use serde::Serialize;
+
+use crate::filter::LogFilter;
+use crate::load::frame_bits;
+
+/// Sizes and times of a view.
+#[derive(Clone, Debug)]
+pub struct ViewConfig {
+    /// Frames kept in the log ring.
+    pub log_capacity: usize,
+    /// Rows of the per-ID table; frames of further IDs are counted in
+    /// [`Delta::ids_dropped`] only.
+    pub max_ids: usize,
+    /// How long a changed byte stays highlighted.
+    pub highlight: Duration,
+    /// Load samples kept (one per second).
+    pub load_points: usize,
+    /// TEC/REC samples kept per node.
+    pub history_points: usize,
+    /// The bus's bit rate when the bus cannot tell, for estimating the load from frames.
+    pub bitrate: Option<u32>,
+}
+
+impl Default for ViewConfig {
+    fn default() -> Self {
+        Self {
+            log_capacity: 4096,
+            max_ids: 4096,
+            highlight: Duration::from_secs(1),
+            load_points: 120,
+            history_points: 1200,
+            bitrate: None,
+        }
+    }
+}
+
+/// Where a consumer is: everything with a larger sequence number is new to it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Cursor {
+    seq: u64,
+    at: Duration,
+    fresh: bool,
+}
+
+impl Cursor {
+    /// A consumer that has seen nothing: its first delta is the whole view.
+    pub fn start() -> Self {
+        Self::default()
+    }
+}
+
+/// One row of the per-ID table.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IdRow {
+    /// `0C0` or `18FF0010`, as candump writes it.
+    pub id: String,
+    pub extended: bool,
+    pub count: u64,
+    /// Time between the last two frames (by their timestamps), in milliseconds.
+    pub period_ms: Option<f64>,
+    pub dlc: u8,
+    pub remote: bool,
+    /// The data bytes in hex, two digits each, no spaces.
+    pub data: String,
+    /// Bit i set: byte i changed within the highlight time.
+    pub changed: u8,
+    /// Milliseconds since the last frame of this ID.
+    pub age_ms: u64,
+    #[serde(skip)]
+    key: Id,
+}
+
+impl IdRow {
+    pub fn key(&self) -> Id {
+        self.key
+    }
+}
+
+/// A frame in the log.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LogEntry {
+    pub seq: u64,
+    /// The frame's own timestamp (seconds).
+    pub time: f64,
+    /// can-utils' compact form, `123#1122`.
+    pub frame: String,
+    #[serde(skip)]
+    pub raw: Frame,
+}
+
+/// The bus load over one second.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct LoadSample {
+    /// Seconds since the view started, at the end of the second measured.
+    pub t: f64,
+    /// Per cent of the bit-times the bus was busy, when known.
+    pub percent: Option<f64>,
+    pub frames: u64,
+    #[serde(skip)]
+    seq: u64,
+}
+
+/// A node's counters at one instant.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ErrorSample {
+    /// Seconds since the view started.
+    pub t: f64,
+    pub tec: u8,
+    pub rec: u8,
+    /// `active`, `passive` or `bus-off`.
+    pub state: &'static str,
+    #[serde(skip)]
+    seq: u64,
+}
+
+/// A node: its latest status in words, and the new part of its TEC/REC history.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NodeView {
+    pub number: u32,
+    pub name: String,
+    /// `error-active`, `error-passive`, `bus-off`.
+    pub state: String,
+    pub tec: Option<u8>,
+    pub rec: Option<u8>,
+    /// `SR=0x0C: …` every STATUS bit in words, for SJA1000 nodes.
+    pub status: Option<String>,
+    pub sr: Option<u8>,
+    /// The last captured arbitration-lost and error-code registers, in words.
+    pub alc: Option<String>,
+    pub ecc: Option<String>,
+    pub sent: u64,
+    pub received: u64,
+    pub bus_errors: u64,
+    pub bus_off: u64,
+    pub arbitration_lost: u64,
+    /// Samples newer than the cursor (the whole kept history for a new consumer).
+    pub history: Vec<ErrorSample>,
+}
+
+/// What changed since a cursor.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Delta {
+    /// `true`: this is the whole view (replace, do not merge).
+    pub full: bool,
+    /// Seconds since the view started.
+    pub t: f64,
+    /// Rows that changed (their count, data, or highlight), sorted by ID.
+    pub ids: Vec<IdRow>,
+    /// Frames of IDs beyond the table's size, counted only.
+    pub ids_dropped: u64,
+    /// New log frames that pass the consumer's filter, oldest first (at most the asked
+    /// number, the newest ones).
+    pub log: Vec<LogEntry>,
+    /// New frames that passed the filter but were left out of `log` for its size limit.
+    pub log_skipped: u64,
+    pub load: Vec<LoadSample>,
+    pub nodes: Vec<NodeView>,
+    /// Frames seen since the view started.
+    pub frames: u64,
+    /// Frames per second over the last complete second.
+    pub frames_per_s: u64,
+    pub bitrate: Option<u32>,
+}
+
+#[derive(Clone, Debug)]
+struct Row {
+    frame: Frame,
+    count: u64,
+    last_time: f64,
+    period: Option<f64>,
+    seen_at: Duration,
+    changed_at: [Option<Duration>; 8],
+    seq: u64,
+}
+
+#[derive(Clone, Debug)]
+struct Node {
+    status: NodeStatus,
+    history: VecDeque<ErrorSample>,
+    seq: u64,
+}
+
+/// The bus as a person watches it (see the crate docs).
+#[derive(Clone, Debug)]
+pub struct BusView {
+    config: ViewConfig,
+    seq: u64,
+    rows: BTreeMap<Id, Row>,
+    ids_dropped: u64,
+    log: VecDeque<LogEntry>,
+    load: VecDeque<LoadSample>,
+    nodes: BTreeMap<u32, Node>,
+    frames: u64,
+    /// The current second: its start, frames and estimated bits.
+    window_start: Duration,
+    window_frames: u64,
+    window_bits: u64,
+    last_frames_per_s: u64,
+    /// The bus's own load figure (a buslab bus reports it with every status).
+    reported: Option<(f64, u32)>,
+    /// The sequence number of the last [`BusView::clear`].
+    cleared_at: u64,
+}
+
+impl BusView {
+    pub fn new(config: ViewConfig) -> Self {
+        Self {
+            config,
+            seq: 0,
+            rows: BTreeMap::new(),
+            ids_dropped: 0,
+            log: VecDeque::new(),
+            load: VecDeque::new(),
+            nodes: BTreeMap::new(),
+            frames: 0,
+            window_start: Duration::ZERO,
+            window_frames: 0,
+            window_bits: 0,
+            last_frames_per_s: 0,
+            reported: None,
+            cleared_at: 0,
+        }
+    }
+
+    pub fn config(&self) -> &ViewConfig {
+        &self.config
+    }
+
+    fn next_seq(&mut self) -> u64 {
+        self.seq += 1;
+        self.seq
+    }
+
+    /// A frame seen at `now`.
+    pub fn frame(&mut self, now: Duration, message: &Message) {
+        self.tick(now);
+        let seq = self.next_seq();
+        let frame = message.frame;
+        self.frames += 1;
+        self.window_frames += 1;
+        if self.config.bitrate.is_some() && self.reported.is_none() {
+            self.window_bits += frame_bits(&frame);
+        }
+        let id = frame.id();
+        let limit = self.config.max_ids;
+        let rows_len = self.rows.len();
+        match self.rows.get_mut(&id) {
+            Some(row) => {
+                let old = row.frame.payload();
+                let new = frame.payload();
+                for i in 0..8 {
+                    if old.get(i) != new.get(i) && i < new.len().max(old.len()) {
+                        row.changed_at[i] = Some(now);
+                    }
+                }
+                let dt = message.timestamp - row.last_time;
+                row.period = (dt >= 0.0 && dt.is_finite()).then_some(dt);
+                row.last_time = message.timestamp;
+                row.frame = frame;
+                row.count += 1;
+                row.seen_at = now;
+                row.seq = seq;
+            }
+            None if rows_len < limit => {
+                self.rows.insert(
+                    id,
+                    Row {
+                        frame,
+                        count: 1,
+                        last_time: message.timestamp,
+                        period: None,
+                        seen_at: now,
+                        changed_at: [None; 8],
+                        seq,
+                    },
+                );
+            }
+            None => self.ids_dropped += 1,
+        }
+        if self.log.len() >= self.config.log_capacity.max(1) {
+            self.log.pop_front();
+        }
+        self.log.push_back(LogEntry {
+            seq,
+            time: message.timestamp,
+            frame: frame.to_string(),
+            raw: frame,
+        });
+    }
+
+    /// Every node's status at `now` (nodes missing from the list have left).
+    pub fn nodes(&mut self, now: Duration, statuses: Vec<NodeStatus>) {
+        self.tick(now);
+        let seq = self.next_seq();
+        if let Some(first) = statuses.first() {
+            self.reported = Some((first.bus.load_percent, first.bus.bitrate));
+        }
+        let present: Vec<u32> = statuses.iter().map(|s| s.number).collect();
+        self.nodes.retain(|n, _| present.contains(n));
+        let t = now.as_secs_f64();
+        let cap = self.config.history_points.max(1);
+        for status in statuses {
+            let node = self.nodes.entry(status.number).or_insert_with(|| Node {
+                status: status.clone(),
+                history: VecDeque::new(),
+                seq,
+            });
+            if let Some(e) = status.errors {
+                if node.history.len() >= cap {
+                    node.history.pop_front();
+                }
+                node.history.push_back(ErrorSample {
+                    t,
+                    tec: e.txerr,
+                    rec: e.rxerr,
+                    state: state_word(status.state),
+                    seq,
+                });
+            }
+            node.status = status;
+            node.seq = seq;
+        }
+    }
+
+    /// Time passes: the load window closes every second.
+    pub fn tick(&mut self, now: Duration) {
+        let second = Duration::from_secs(1);
+        if now < self.window_start + second {
+            return;
+        }
+        let elapsed = (now - self.window_start).as_secs_f64();
+        let percent = match (self.reported, self.config.bitrate) {
+            (Some((load, _)), _) => Some(load),
+            (None, Some(rate)) if rate > 0 => {
+                Some(100.0 * self.window_bits as f64 / (f64::from(rate) * elapsed))
+            }
+            _ => None,
+        };
+        // A frames-per-second figure over the window actually measured.
+        let frames_per_s = (self.window_frames as f64 / elapsed).round() as u64;
+        self.last_frames_per_s = frames_per_s;
+        let seq = self.next_seq();
+        if self.load.len() >= self.config.load_points.max(1) {
+            self.load.pop_front();
+        }
+        self.load.push_back(LoadSample {
+            t: now.as_secs_f64(),
+            percent: percent.map(|p| p.min(100.0)),
+            frames: frames_per_s,
+            seq,
+        });
+        self.window_start = now;
+        self.window_frames = 0;
+        self.window_bits = 0;
+    }
+
+    /// Frames seen since the view started.
+    pub fn frame_count(&self) -> u64 {
+        self.frames
+    }
+
+    /// Clears the table, the log and the load (the nodes stay): every consumer gets a whole
+    /// view next.
+    pub fn clear(&mut self) {
+        self.rows.clear();
+        self.log.clear();
+        self.load.clear();
+        self.ids_dropped = 0;
+        self.frames = 0;
+        self.next_seq();
+        self.cleared_at = self.seq;
+    }
+
+    /// What changed since `cursor`, at `now`: rows, log frames passing `filter` (the newest
+    /// `max_log`), load samples, nodes. Call [`Cursor`] advancing through
+    /// [`BusView::advance`] once the delta was delivered.
+    pub fn delta(
+        &self,
+        cursor: &Cursor,
+        now: Duration,
+        filter: &LogFilter,
+        max_log: usize,
+    ) -> Delta {
+        let full = !cursor.fresh || cursor.seq < self.cleared_at;
+        let since = if full { 0 } else { cursor.seq };
+        let highlight = self.config.highlight;
+        // A highlight that ran out since the last delta changes the row too.
+        let expired = |row: &Row| {
+            !full
+                && row.changed_at.iter().flatten().any(|&c| {
+                    let end = c + highlight;
+                    end > cursor.at && end <= now
+                })
+        };
+        let ids = self
+            .rows
+            .iter()
+            .filter(|(_, r)| r.seq > since || expired(r))
+            .map(|(&key, r)| self.row(key, r, now))
+            .collect();
+        let mut log = Vec::new();
+        let mut passed = 0u64;
+        for e in self.log.iter().rev().take_while(|e| e.seq > since) {
+            if filter.matches(&e.raw) {
+                passed += 1;
+                if log.len() < max_log {
+                    log.push(e.clone());
+                }
+            }
+        }
+        log.reverse();
+        let nodes = self.nodes.values().map(|n| node_view(n, since)).collect();
+        Delta {
+            full,
+            t: now.as_secs_f64(),
+            ids,
+            ids_dropped: self.ids_dropped,
+            log_skipped: passed - log.len() as u64,
+            log,
+            load: self
+                .load
+                .iter()
+                .filter(|s| s.seq > since)
+                .copied()
+                .collect(),
+            nodes,
+            frames: self.frames,
+            frames_per_s: self.last_frames_per_s,
+            bitrate: self.reported.map(|(_, b)| b).or(self.config.bitrate),
+        }
+    }
+
+    /// The cursor after a delta taken at `now` was delivered.
+    pub fn advance(&self, now: Duration) -> Cursor {
+        Cursor {
+            seq: self.seq,
+            at: now,
+            fresh: true,
+        }
+    }
+
+    /// The whole table at `now`, sorted by ID (for a terminal that redraws everything).
+    pub fn rows(&self, now: Duration) -> Vec<IdRow> {
+        self.rows
+            .iter()
+            .map(|(&key, r)| self.row(key, r, now))
+            .collect()
+    }
+
+    /// The newest `n` log frames passing `filter`, oldest first.
+    pub fn log_tail(&self, filter: &LogFilter, n: usize) -> Vec<LogEntry> {
+        let mut tail: Vec<LogEntry> = self
+            .log
+            .iter()
+            .rev()
+            .filter(|e| filter.matches(&e.raw))
+            .take(n)
+            .cloned()
+            .collect();
+        tail.reverse();
+        tail
+    }
+
+    /// The load samples kept, oldest first.
+    pub fn load(&self) -> impl Iterator<Item = &LoadSample> {
+        self.load.iter()
+    }
+
+    /// Every node's latest status.
+    pub fn node_statuses(&self) -> impl Iterator<Item = &NodeStatus> {
+        self.nodes.values().map(|n| &n.status)
+    }
+
+    /// A node's kept TEC/REC history.
+    pub fn history(&self, number: u32) -> impl Iterator<Item = &ErrorSample> {
+        self.nodes
+            .get(&number)
+            .into_iter()
+            .flat_map(|n| n.history.iter())
+    }
+
+    fn row(&self, key: Id, r: &Row, now: Duration) -> IdRow {
+        let mut changed = 0u8;
+        for (i, c) in r.changed_at.iter().enumerate() {
+            if c.is_some_and(|c| now < c + self.config.highlight) {
+                changed |= 1 << i;
+            }
+        }
+        let id = match key {
+            Id::Standard(s) => format!("{:03X}", s.as_raw()),
+            Id::Extended(e) => format!("{:08X}", e.as_raw()),
+        };
+        let data = r
+            .frame
+            .payload()
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect();
+        IdRow {
+            id,
+            extended: key.is_extended(),
+            count: r.count,
+            period_ms: r.period.map(|p| p * 1000.0),
+            dlc: r.frame.dlc(),
+            remote: r.frame.is_remote(),
+            data,
+            changed,
+            age_ms: now.saturating_sub(r.seen_at).as_millis() as u64,
+            key,
+        }
+    }
+}
+
+fn state_word(state: BusState) -> &'static str {
+    match state {
+        BusState::Active => "active",
+        BusState::Passive => "passive",
+        BusState::BusOff => "bus-off",
+    }
+}
+
+fn node_view(n: &Node, since: u64) -> NodeView {
+    let s = &n.status;
+    let e = s.errors;
+    NodeView {
+        number: s.number,
+        name: s.name.clone(),
+        state: s.state.to_string(),
+        tec: e.map(|e| e.txerr),
+        rec: e.map(|e| e.rxerr),
+        status: s.sr.map(|sr| sr.to_string()),
+        sr: s.sr.map(|sr| sr.bits()),
+        alc: e.and_then(|e| e.alc).map(|a| format!("0x{:02X} {a}", a.0)),
+        ecc: e.and_then(|e| e.ecc).map(|c| format!("0x{:02X} {c}", c.0)),
+        sent: s.counters.sent,
+        received: s.counters.received,
+        bus_errors: s.counters.bus_errors,
+        bus_off: s.counters.bus_off,
+        arbitration_lost: s.counters.arbitration_lost,
+        history: n
+            .history
+            .iter()
+            .filter(|h| h.seq > since)
+            .copied()
+            .collect(),
+    }
+}

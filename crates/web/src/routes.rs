@@ -1,0 +1,118 @@
+//! The routes, the shared application state, the token rule and errors with reasons.
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use buslab_backends::PumpSender;
+
+use crate::hub::Hub;
+use crate::{TOKEN_HEADER, api, pages};
+
+/// The largest request body (a frame, a fault): anything larger is refused with 413.
+pub const MAX_BODY: usize = 4096;
+
+#[derive(Clone)]
+pub struct App {
+    pub hub: Arc<Hub>,
+    pub sender: PumpSender,
+    pub token: Option<Arc<str>>,
+}
+
+pub fn router(app: App) -> Router {
+    Router::new()
+        .route("/", get(pages::overview))
+        .route("/ids", get(pages::ids))
+        .route("/frames", get(pages::frames))
+        .route("/nodes/{number}", get(pages::node))
+        .route("/dashboard", get(pages::dashboard))
+        .route("/assets/{name}", get(pages::asset))
+        .route("/api/state", get(api::state))
+        .route("/api/events", get(api::events))
+        .route("/api/send", post(api::send))
+        .route("/api/fault", post(api::fault))
+        .route("/api/repair", post(api::repair))
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(DefaultBodyLimit::max(MAX_BODY))
+        .with_state(app)
+}
+
+async fn not_found() -> ApiError {
+    ApiError::new(
+        StatusCode::NOT_FOUND,
+        "no such page: see / for the pages and docs/web.md for the API",
+    )
+}
+
+async fn method_not_allowed() -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        "method not allowed here: pages are GET, writes are POST to /api/send, /api/fault, \
+         /api/repair",
+    )
+}
+
+/// A refusal with its reason, as plain text.
+#[derive(Debug)]
+pub struct ApiError {
+    pub status: StatusCode,
+    pub reason: String,
+}
+
+impl ApiError {
+    pub fn new(status: StatusCode, reason: impl Into<String>) -> Self {
+        Self {
+            status,
+            reason: reason.into(),
+        }
+    }
+
+    pub fn bad_request(reason: impl Into<String>) -> Self {
+        Self::new(StatusCode::BAD_REQUEST, reason)
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let mut response = (self.status, format!("{}\n", self.reason)).into_response();
+        response.headers_mut().insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("text/plain; charset=utf-8"),
+        );
+        response
+    }
+}
+
+/// Writes need the server's token in the `X-Buslab-Token` header. A header (not a cookie) is
+/// what a page of another site cannot make a browser send, so no cross-site request writes.
+pub fn authorize(app: &App, headers: &HeaderMap) -> Result<(), ApiError> {
+    let Some(token) = &app.token else {
+        return Err(ApiError::new(
+            StatusCode::FORBIDDEN,
+            "this server is read-only: start it with --token to allow writes",
+        ));
+    };
+    let Some(given) = headers.get(TOKEN_HEADER) else {
+        return Err(ApiError::new(
+            StatusCode::UNAUTHORIZED,
+            "a write needs the server's token in the X-Buslab-Token header",
+        ));
+    };
+    if same(given.as_bytes(), token.as_bytes()) {
+        Ok(())
+    } else {
+        Err(ApiError::new(
+            StatusCode::FORBIDDEN,
+            "wrong token in the X-Buslab-Token header",
+        ))
+    }
+}
+
+/// Compares in time independent of where the first difference is.
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}

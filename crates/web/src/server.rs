@@ -1,0 +1,203 @@
+//! The listener: a bounded number of connections, each served by hyper with limits on how
+//! long and how large a request head may be.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use buslab_backends::DynBus;
+use hyper_util::rt::{TokioIo, TokioTimer};
+use hyper_util::service::TowerToHyperService;
+use tokio::sync::{Semaphore, oneshot};
+
+use crate::hub::BusSide;
+use crate::routes::{App, router};
+use crate::{WebConfig, WebError, check_token};
+
+/// A request head must arrive within this time (a client that opens a connection and says
+/// nothing holds it no longer).
+const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
+/// The largest request head read (hyper's smallest allowed buffer is 8 KiB).
+const MAX_HEAD: usize = 16 * 1024;
+
+/// How long a refused connection gets to take its 503.
+const REFUSAL_TIME: Duration = Duration::from_secs(2);
+
+const BUSY: &[u8] = b"HTTP/1.1 503 Service Unavailable\r\ncontent-type: text/plain\r\n\
+connection: close\r\ncontent-length: 37\r\n\r\ntoo many connections: try again later\n";
+
+/// A running web server. Dropping it (or [`WebServer::stop`]) closes every connection and
+/// leaves the bus.
+pub struct WebServer {
+    addr: SocketAddr,
+    token: Option<String>,
+    bus: Option<BusSide>,
+    shutdown: Option<oneshot::Sender<()>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl WebServer {
+    /// Listens on `config.listen` and serves `bus` until stopped.
+    pub fn start(bus: DynBus, config: WebConfig) -> Result<Self, WebError> {
+        if let Some(token) = &config.token {
+            check_token(token)?;
+        }
+        if config.max_connections == 0 {
+            return Err(WebError::NoConnections);
+        }
+        let listener =
+            std::net::TcpListener::bind(config.listen).map_err(|source| WebError::Listen {
+                addr: config.listen,
+                source,
+            })?;
+        let addr = listener.local_addr().map_err(|source| WebError::Listen {
+            addr: config.listen,
+            source,
+        })?;
+        listener
+            .set_nonblocking(true)
+            .map_err(|source| WebError::Listen { addr, source })?;
+        let side =
+            BusSide::start(bus, config.bitrate, config.status_every).map_err(WebError::Threads)?;
+        let app = App {
+            hub: side.hub.clone(),
+            sender: side.sender.clone(),
+            token: config.token.clone().map(Arc::from),
+        };
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .thread_name("web")
+            .enable_all()
+            .build()
+            .map_err(WebError::Threads)?;
+        let (shutdown, stopped) = oneshot::channel();
+        let max = config.max_connections;
+        let thread = std::thread::Builder::new()
+            .name("web-accept".into())
+            .spawn(move || {
+                runtime.block_on(async move {
+                    match tokio::net::TcpListener::from_std(listener) {
+                        Ok(listener) => accept(listener, app, max, stopped).await,
+                        Err(e) => tracing::warn!("cannot listen on {addr}: {e}"),
+                    }
+                });
+                // Open connections (live dashboards) end with the runtime.
+                runtime.shutdown_background();
+            })
+            .map_err(WebError::Threads)?;
+        Ok(Self {
+            addr,
+            token: config.token,
+            bus: Some(side),
+            shutdown: Some(shutdown),
+            thread: Some(thread),
+        })
+    }
+
+    /// Where it listens (the port chosen when asked for port 0).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// `http://ADDR/`.
+    pub fn url(&self) -> String {
+        format!("http://{}/", self.addr)
+    }
+
+    /// The write token, if writes are allowed.
+    pub fn token(&self) -> Option<&str> {
+        self.token.as_deref()
+    }
+
+    /// Why the bus stopped, once it did (the pages keep showing the last state).
+    pub fn bus_failure(&self) -> Option<String> {
+        self.bus.as_ref().and_then(|b| b.hub.failure())
+    }
+
+    /// Stops serving and leaves the bus.
+    pub fn stop(mut self) {
+        self.shut();
+    }
+
+    fn shut(&mut self) {
+        if let Some(s) = self.shutdown.take() {
+            let _ = s.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        drop(self.bus.take());
+    }
+}
+
+impl Drop for WebServer {
+    fn drop(&mut self) {
+        self.shut();
+    }
+}
+
+async fn accept(
+    listener: tokio::net::TcpListener,
+    app: App,
+    max: usize,
+    mut stopped: oneshot::Receiver<()>,
+) {
+    let limit = Arc::new(Semaphore::new(max));
+    let refusals = Arc::new(Semaphore::new(max));
+    let hub = app.hub.clone();
+    let router = router(app);
+    loop {
+        let (stream, peer) = tokio::select! {
+            _ = &mut stopped => return,
+            accepted = listener.accept() => match accepted {
+                Ok(pair) => pair,
+                Err(e) => {
+                    // Out of file descriptors, most likely: let connections finish.
+                    tracing::warn!("cannot accept a connection: {e}");
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                    continue;
+                }
+            },
+        };
+        let Ok(permit) = limit.clone().try_acquire_owned() else {
+            hub.refused.fetch_add(1, Ordering::Relaxed);
+            // Said politely while there is room for that; dropped (closed) otherwise.
+            if let Ok(slot) = refusals.clone().try_acquire_owned() {
+                tokio::spawn(async move {
+                    refuse(stream).await;
+                    drop(slot);
+                });
+            }
+            continue;
+        };
+        let service = TowerToHyperService::new(router.clone());
+        tokio::spawn(async move {
+            let served = hyper::server::conn::http1::Builder::new()
+                .timer(TokioTimer::new())
+                .header_read_timeout(HEAD_TIMEOUT)
+                .max_buf_size(MAX_HEAD)
+                .serve_connection(TokioIo::new(stream), service)
+                .await;
+            if let Err(e) = served {
+                tracing::debug!("connection from {peer}: {e}");
+            }
+            drop(permit);
+        });
+    }
+}
+
+/// Answers 503 and closes; what the client sent is read first so the close does not reset the
+/// connection before the answer is read.
+async fn refuse(mut stream: tokio::net::TcpStream) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let _ = tokio::time::timeout(REFUSAL_TIME, async {
+        stream.write_all(BUSY).await?;
+        stream.shutdown().await?;
+        let mut sink = [0u8; 4096];
+        while stream.read(&mut sink).await? > 0 {}
+        Ok::<(), std::io::Error>(())
+    })
+    .await;
+}
