@@ -49,6 +49,10 @@ pub enum UrlProblem {
     Syntax { expected: &'static str },
     #[error("has no host")]
     NoHost,
+    #[error(
+        "host {0:?} must be a host name or an IP address (letters, digits, '.', '-', '_'; IPv6 in brackets, '%' before a zone)"
+    )]
+    Host(String),
     #[error("unclosed [ in the host")]
     UnclosedBracket,
     #[error("expected :PORT or nothing after ], got {0:?}")]
@@ -198,6 +202,13 @@ pub(crate) fn parse_socketcand(url: &str) -> Result<BusUrl, UrlError> {
     };
     if host.is_empty() {
         return Err(err(UrlProblem::NoHost));
+    }
+    // Anything else (brackets, spaces, control characters) would not print back as this URL.
+    if !host
+        .bytes()
+        .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'-' | b'_' | b':' | b'%'))
+    {
+        return Err(err(UrlProblem::Host(host.to_string())));
     }
     Ok(BusUrl::Socketcand {
         host: host.to_string(),
@@ -381,6 +392,33 @@ mod tests {
             assert_eq!(url(full), url(text), "{full}");
         }
         assert_eq!(url("socketcand://h/can1").channel(), "can1");
+    }
+
+    /// Found by fuzzing (`backends_spec`): a host with a bracket inside and a control
+    /// character was taken as an IPv6 address on the default port, and printed as a URL that
+    /// does not parse.
+    #[test]
+    fn socketcand_host_is_a_name_or_an_address() {
+        for text in [
+            "socketcand://\u{5}[::1]:295jjj36/can1",
+            "socketcand://a[b/x",
+            "socketcand://bad host:5/x",
+            "socketcand://[a]b]:5/x",
+        ] {
+            let e = text.parse::<BusUrl>().unwrap_err();
+            assert!(
+                matches!(e.problem, UrlProblem::Host(_) | UrlProblem::AfterBracket(_)),
+                "{text}: {e}"
+            );
+        }
+        assert_eq!(
+            url("socketcand://[fe80::1%eth0]:5/x").to_string(),
+            "socketcand://[fe80::1%eth0]:5/x"
+        );
+        assert_eq!(
+            url("socketcand://bench-2.lab_x:5/x").to_string(),
+            "socketcand://bench-2.lab_x:5/x"
+        );
     }
 
     #[test]

@@ -239,8 +239,10 @@ impl<R: Read> Reader<R> {
         for (code, value) in self.options(&body[8..]) {
             match code {
                 IF_NAME => {
-                    let name = String::from_utf8_lossy(value);
-                    let name = name.trim_end_matches('\0').trim();
+                    // A C string: the name ends at the first NUL, whatever padding follows.
+                    let name = value.split(|&b| b == 0).next().unwrap_or_default();
+                    let name = String::from_utf8_lossy(name);
+                    let name = name.trim();
                     if !name.is_empty() && !name.contains(char::is_whitespace) {
                         iface.name = name.to_string();
                     }

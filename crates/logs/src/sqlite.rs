@@ -93,7 +93,7 @@ impl Reader {
         })
     }
 
-    fn fetch(&mut self) -> Result<(), rusqlite::Error> {
+    fn fetch(&mut self) -> Result<(), Problem> {
         let mut stmt = self.conn.prepare_cached(
             "SELECT rowid, ts, arbitration_id, extended, remote, error, dlc, substr(data, 1, 72)
              FROM messages WHERE rowid > ?1 ORDER BY rowid LIMIT ?2",
@@ -112,6 +112,13 @@ impl Reader {
         })?;
         for row in rows {
             let row = row?;
+            // A corrupt database can hand out the same rows again: stop rather than loop.
+            if row.rowid <= self.last_rowid {
+                return Err(Problem::Expected {
+                    expected: "rowids in increasing order (the database is corrupt)",
+                    found: row.rowid.to_string(),
+                });
+            }
             self.last_rowid = row.rowid;
             self.batch.push_back(row);
         }

@@ -165,9 +165,9 @@ pub fn hex_u32(text: &[u8]) -> Option<u32> {
     (bad <= 15).then_some(v)
 }
 
-/// 1..=19 decimal digits as a number.
+/// 1..=20 decimal digits as a number, `None` beyond `u64::MAX` (the writers print any u64).
 pub fn dec_u64(text: &[u8]) -> Option<u64> {
-    if text.is_empty() || text.len() > 19 {
+    if text.is_empty() || text.len() > 20 {
         return None;
     }
     let mut v = 0u64;
@@ -175,7 +175,7 @@ pub fn dec_u64(text: &[u8]) -> Option<u64> {
         if !b.is_ascii_digit() {
             return None;
         }
-        v = v * 10 + u64::from(b - b'0');
+        v = v.checked_mul(10)?.checked_add(u64::from(b - b'0'))?;
     }
     Some(v)
 }

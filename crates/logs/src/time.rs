@@ -128,11 +128,16 @@ pub fn from_systemtime(st: [u16; 8]) -> Duration {
                 u32::from(st[7]),
             )
         });
+    // Seconds and nanoseconds apart: nanoseconds in an i64 end in 2262, a SYSTEMTIME in 65535.
     naive
         .map(|n: NaiveDateTime| n.and_utc())
-        .and_then(|dt| dt.timestamp_nanos_opt())
-        .and_then(|ns| u64::try_from(ns).ok())
-        .map_or(Duration::ZERO, Duration::from_nanos)
+        .and_then(|dt| {
+            Some(Duration::new(
+                u64::try_from(dt.timestamp()).ok()?,
+                dt.timestamp_subsec_nanos(),
+            ))
+        })
+        .unwrap_or(Duration::ZERO)
 }
 
 /// Days from 1899-12-30 (the OLE date zero) to the Unix epoch.
@@ -205,6 +210,15 @@ mod tests {
         assert_eq!(from_systemtime(systemtime(t)), t);
         assert_eq!(systemtime(Duration::from_secs(5)), [0; 8]);
         assert_eq!(from_systemtime([0; 8]), Duration::ZERO);
+    }
+
+    /// Found by fuzzing (`logs_blf`): a BLF written with a start after 2262 read back with no
+    /// start time at all (its times began at 0).
+    #[test]
+    fn systemtime_after_2262_comes_back() {
+        let t = Duration::new(17_670_240_701, 815_000_000);
+        assert_eq!(systemtime(t)[0], 2529);
+        assert_eq!(from_systemtime(systemtime(t)), t);
     }
 
     #[test]

@@ -129,7 +129,7 @@ impl ServerMessage {
                     data: parse_data(data)?,
                 })
             }
-            ("error", _) => Ok(ServerMessage::Error(args.join(" "))),
+            ("error", _) => Ok(ServerMessage::Error(error_text(args))),
             ("stat", [a, b, c, d]) => {
                 let mut v = [0u64; 4];
                 for (slot, text) in v.iter_mut().zip([a, b, c, d]) {
@@ -147,6 +147,14 @@ impl ServerMessage {
             }),
         }
     }
+}
+
+/// A server's error text as the user will see it: control characters (a terminal escape sent
+/// by a hostile server) and what an element cannot carry replaced, spaces collapsed, so it
+/// also prints as it was read.
+fn error_text(args: &[&str]) -> String {
+    let text = crate::sanitize(&args.join(" "));
+    text.split_ascii_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 /// Data as packed hex (`1A2203`) or one byte per token (`1A 22 03`).

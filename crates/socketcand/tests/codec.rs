@@ -431,6 +431,19 @@ fn error_replies_are_ascii_as_python_can_decodes_them() {
     assert!(reply.ends_with("xxx...\" >"), "{reply:?}");
 }
 
+/// Found by fuzzing (fuzz/corpus/socketcand_message/regression-error-text-control-characters):
+/// a server's `< error … >` text reached the user with its control characters, so a hostile
+/// server could send terminal escapes, and it did not print as it was read.
+#[test]
+fn server_error_text_with_control_characters_is_sanitized() {
+    let message = ServerMessage::parse("error bad\u{1b}[2J\u{10} bus  name").unwrap();
+    assert_eq!(message, ServerMessage::Error("bad [2J bus name".into()));
+    let printed = message.to_string();
+    assert_eq!(printed, "< error bad [2J bus name >");
+    let inside = printed.trim_start_matches("< ").trim_end_matches(" >");
+    assert_eq!(ServerMessage::parse(inside).unwrap(), message);
+}
+
 #[test]
 fn a_sign_is_not_a_hex_digit() {
     // `from_str_radix` takes `+f`; socketcand's hex does not.

@@ -1,0 +1,111 @@
+//! Inputs the fuzz targets (`fuzz/`, docs/fuzzing.md) found that a reader got wrong; each
+//! input is also kept under `fuzz/corpus/TARGET/regression-…` so every fuzz run replays it.
+
+use std::path::Path;
+use std::time::Duration;
+
+use buslab_can::Frame;
+use buslab_logs::{Entry, LogReader, Record, pcapng, sqlite, trc};
+
+/// Every entry, or the errors, of a reader that must end within `max_calls` reads.
+fn read_all(mut reader: impl LogReader, max_calls: usize) -> (Vec<Entry>, Vec<String>) {
+    let (mut entries, mut errors) = (Vec::new(), Vec::new());
+    for _ in 0..max_calls {
+        let mut entry = Entry::default();
+        match reader.read_into(&mut entry) {
+            Ok(true) => entries.push(entry),
+            Ok(false) => return (entries, errors),
+            Err(e) => errors.push(e.to_string()),
+        }
+    }
+    panic!("the reader did not end within {max_calls} reads: {errors:?}");
+}
+
+/// `logs_sqlite`: a corrupt database whose rows all have rowid 0 was read again and again
+/// (`buslab play` never ended); the reader now stops with an error naming the corruption.
+#[test]
+fn sqlite_with_repeating_rowids_ends_with_an_error() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/sqlite-rowids-repeat.db");
+    let reader = sqlite::Reader::open(&path).expect("the file opens as a database");
+    let (entries, errors) = read_all(reader, 1_000);
+    assert!(entries.is_empty(), "{entries:?}");
+    assert!(
+        errors
+            .last()
+            .is_some_and(|e| e.contains("rowids in increasing order")),
+        "{errors:?}"
+    );
+}
+
+fn block(kind: u32, body: &[u8]) -> Vec<u8> {
+    let mut body = body.to_vec();
+    body.resize(body.len().next_multiple_of(4), 0);
+    let len = (12 + body.len()) as u32;
+    let mut out = kind.to_le_bytes().to_vec();
+    out.extend(len.to_le_bytes());
+    out.extend(body);
+    out.extend(len.to_le_bytes());
+    out
+}
+
+/// `logs_pcapng`: an interface name padded with NULs and then a space (`"can1\0\0 "`) was read
+/// as `"can1\0\0"`, a name with NULs in it that a written file no longer gave back. A name
+/// ends at its first NUL.
+#[test]
+fn pcapng_interface_name_ends_at_its_first_nul() {
+    let mut file = block(
+        0x0A0D_0D0A,
+        &[
+            0x4D, 0x3C, 0x2B, 0x1A, 1, 0, 0, 0, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+        ],
+    );
+    let name = b"can1\0\0 ";
+    let mut idb = vec![227, 0, 0, 0, 0, 0, 0, 0, 2, 0, name.len() as u8, 0];
+    idb.extend(name);
+    idb.resize(idb.len().next_multiple_of(4), 0);
+    idb.extend([0, 0, 0, 0]);
+    file.extend(block(1, &idb));
+    let mut epb = vec![0u8; 4];
+    epb.extend(0u32.to_le_bytes());
+    epb.extend(1_000u32.to_le_bytes());
+    epb.extend(16u32.to_le_bytes());
+    epb.extend(16u32.to_le_bytes());
+    epb.extend([0, 0, 0x01, 0x23, 2, 0, 0, 0, 0x11, 0x22, 0, 0, 0, 0, 0, 0]);
+    file.extend(block(6, &epb));
+
+    let (entries, errors) = read_all(pcapng::Reader::new(&file[..]), 10);
+    assert!(errors.is_empty(), "{errors:?}");
+    assert_eq!(entries.len(), 1);
+    assert_eq!(entries[0].interface, "can1");
+    assert_eq!(
+        entries[0].record,
+        Record::Frame("123#1122".parse::<Frame>().unwrap())
+    );
+    assert_eq!(entries[0].timestamp, Duration::from_millis(1));
+}
+
+/// `logs_trc`: an entry 1.56e16 s after the first one was written with a 20-digit millisecond
+/// offset that the TRC reader refused (it read at most 19 digits): the writer's own file did
+/// not read back.
+#[test]
+fn trc_offsets_of_twenty_digits_read_back() {
+    let frame: Frame = "123#11".parse().unwrap();
+    let at = |secs| Entry {
+        timestamp: Duration::from_secs(secs),
+        interface: "can0".into(),
+        record: Record::Frame(frame),
+        direction: None,
+    };
+    let entries = [at(0), at(15_633_973_094_558_642)];
+    for version in [trc::Version::V1_1, trc::Version::V2_1] {
+        let mut writer = trc::Writer::new(Vec::new(), version);
+        for entry in &entries {
+            writer.write(entry).unwrap();
+        }
+        let file = writer.finish().unwrap();
+        let (read, errors) = read_all(trc::Reader::new(&file[..]), 100);
+        assert!(errors.is_empty(), "{errors:?}");
+        let times: Vec<_> = read.iter().map(|e| e.timestamp).collect();
+        assert_eq!(times, [entries[0].timestamp, entries[1].timestamp]);
+    }
+}

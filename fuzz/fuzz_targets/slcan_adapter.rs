@@ -1,0 +1,55 @@
+//! The SLCAN adapter model (`buslab_slcan::Adapter`, `buslab slcan serve`): bytes from the host,
+//! frames from the bus and a host that reads slowly or not at all. No panic, and nothing grows
+//! without bound: the output for the host stays within `MAX_OUTPUT`, the events are drained.
+//!
+//! Input: data bytes go to the adapter; `FF` then an op byte (see `buslab_fuzz::items`):
+//! `00..7F` delivers a frame from the bus (ID and data from the op, extended above 3F),
+//! `80..FE` lets the host read `(op & 7F) * 16` bytes.
+#![no_main]
+
+use buslab_can::{Frame, Id};
+use buslab_fuzz::{Item, items};
+use buslab_slcan::{Adapter, AdapterEvent, MAX_OUTPUT};
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    let mut adapter = Adapter::default();
+    let mut now_ms = 0u64;
+    let mut transmitted = 0usize;
+    let mut lines = 0usize;
+    for item in items(data) {
+        match item {
+            Item::Data(byte) => {
+                lines += usize::from(byte == b'\r' || byte == 0x07);
+                adapter.receive(&[byte]);
+            }
+            Item::Op(op @ 0x00..=0x7F) => {
+                let id = if op > 0x3F {
+                    Id::extended(u32::from(op) * 0x0123_4567 & 0x1FFF_FFFF)
+                } else {
+                    Id::standard(u16::from(op) * 0x21 & 0x7FF)
+                }
+                .expect("an ID in range");
+                let payload = [op; 8];
+                let frame = Frame::data(id, &payload[..usize::from(op % 9)]).expect("0..8 bytes");
+                for _ in 0..64 {
+                    adapter.deliver(&frame, now_ms);
+                }
+            }
+            Item::Op(op) => adapter.consume(usize::from(op & 0x7F) * 16),
+        }
+        now_ms += 1;
+        assert!(
+            adapter.output().len() <= MAX_OUTPUT,
+            "{} bytes",
+            adapter.output().len()
+        );
+        while let Some(event) = adapter.poll_event() {
+            if let AdapterEvent::Transmit(_) = event {
+                transmitted += 1;
+            }
+        }
+        // A frame to send is one command line.
+        assert!(transmitted <= lines);
+    }
+});
