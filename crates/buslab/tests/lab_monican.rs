@@ -159,15 +159,20 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
     t.wait_for("the LED's confirmation", |t| {
         t.row(slio_row_of(3))[OUTPUTS_COL as usize - 1..].starts_with("2800")
     });
-    // The ADC2 column follows the potentiometer (a 0..5 V sine, 10 s a turn): three
-    // conversions a second apart cannot all read the same.
+    // The ADC2 column follows the potentiometer (a 0..5 V sine, 10 s a turn): conversions a
+    // second apart do not all read the same.
     let adc2_line = |t: &Terminal| {
         let row = t.row(INPUT_LOG_ROW);
         let value = row.trim_end().strip_prefix("ID_slio:3 ADC2:")?.to_string();
         (value.len() == 4 && value.bytes().all(|b| b.is_ascii_hexdigit())).then_some(value)
     };
-    let mut seen = Vec::new();
-    for _ in 0..3 {
+    // (A reading may be the previous one again: other traffic also changes the last-frame
+    // row. Fresh ones differ within a turn of the potentiometer: up to 10 readings 1 s apart.)
+    let mut seen: Vec<String> = Vec::new();
+    for _ in 0..10 {
+        if seen.iter().any(|v| Some(v) != seen.first()) {
+            break;
+        }
         t.drain();
         let previous_frame = t.row(LAST_FRAME_ROW);
         t.type_keys(b"3I6");

@@ -34,6 +34,11 @@ const BYTE_NS: u64 = 1_000_000_000 * 10 / BAUD as u64;
 const LOW_WATER: usize = 256;
 /// How often the terminal side looks for screen updates while idle.
 const POLL_NS: u64 = 20_000_000;
+/// Bytes handed to the pseudo-terminal at once when that many are waiting: the line's pace
+/// holds over each batch, and a screen that changes with every frame on a saturated bus wakes
+/// the thread (and asks the bus thread for more) a few hundred times a second, not at every
+/// byte.
+const BATCH: u64 = 8;
 
 /// The terminal side of the PowerPC node.
 pub struct PpcTerminal {
@@ -118,7 +123,8 @@ impl ByteDevice for PpcTerminal {
         if self.out.is_empty() {
             Some(self.now + POLL_NS)
         } else {
-            Some(self.next_at + BYTE_NS)
+            let batch = BATCH.min(self.out.len() as u64);
+            Some(self.next_at + batch * BYTE_NS)
         }
     }
 }

@@ -432,6 +432,11 @@ struct Server {
 
 impl Server {
     fn run(mut self) {
+        // While a frame is on the wire the loop sleeps BUSY_SLICE at a time: the kernel's
+        // default 50 µs of timer slack would add half of it to every wake-up.
+        if let Err(e) = nix::sys::prctl::set_timerslack(1_000) {
+            debug!("cannot shorten the timer slack: {e}");
+        }
         let mut events = Events::with_capacity(256);
         while !self.stop.load(Ordering::SeqCst) {
             while let Ok(job) = self.jobs.try_recv() {
@@ -450,7 +455,7 @@ impl Server {
             } else {
                 self.sleep_for()
             };
-            if let Err(e) = self.poll.poll(&mut events, timeout)
+            if let Err(e) = self.wait(&mut events, timeout)
                 && e.kind() != io::ErrorKind::Interrupted
             {
                 warn!("the server's event loop failed: {e}");
@@ -488,6 +493,29 @@ impl Server {
                 lag.worst.as_millis(),
                 lag.behind_for.as_secs_f64()
             );
+        }
+    }
+
+    /// Waits for socket events or `timeout`. epoll counts whole milliseconds (mio rounds a
+    /// timeout up), so a frame on the wire would be delivered up to a millisecond late: a
+    /// wait under a millisecond is a look at the sockets, a sleep, and another look; a longer
+    /// one waits its whole milliseconds on epoll and leaves the rest to the next turn.
+    fn wait(&mut self, events: &mut Events, timeout: Option<Duration>) -> io::Result<()> {
+        const GRAIN: Duration = Duration::from_millis(1);
+        match timeout {
+            Some(t) if !t.is_zero() && t < GRAIN => {
+                self.poll.poll(events, Some(Duration::ZERO))?;
+                if events.is_empty() {
+                    thread::sleep(t);
+                    self.poll.poll(events, Some(Duration::ZERO))?;
+                }
+                Ok(())
+            }
+            Some(t) if t > GRAIN => {
+                let whole = Duration::from_millis(t.as_millis() as u64);
+                self.poll.poll(events, Some(whole))
+            }
+            _ => self.poll.poll(events, timeout),
         }
     }
 
