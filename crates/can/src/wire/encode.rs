@@ -1,8 +1,8 @@
 //! Frame → wire bits, table-driven.
 //!
 //! The bits SOF..CRC (at most 118) are laid out as one `u128`; the CRC is computed a byte at a
-//! time from a table; stuffing takes a few word operations per stuff bit
-//! rather than a step per bit. Field spans are derived from the frame and the stuff bits only when asked
+//! time from a table; stuffing goes a byte at a time through a table of
+//! the stuffed forms of each byte. Field spans are derived from the frame and the stuff bits only when asked
 //! ([`Encoded::fields`], [`Encoded::wire_fields`]), so the simulator's per-frame cost is the
 //! encoding alone.
 
@@ -82,75 +82,125 @@ fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
     }
 }
 
-/// Alternating bits: put above the region, they never make a run of 5 of their own, so runs
-/// are looked for without masking the region off.
-const SENTINEL: u128 = u128::MAX / 3;
-
 /// The stuffed bits of `region` (`len` ≤ 118 bits, first bit lowest) followed by the
 /// recessive tail, and the mask of the stuff bits.
 ///
-/// Each step finds the end of the next run of 5 with word operations, puts the stuff bit in
-/// front of the rest (it begins a new run) and writes that rest over the output from the stuff
-/// bit on; so the work is per stuff bit, not per bit.
+/// A byte of the region at a time: [`STUFF_TABLE`] gives, for the run the byte starts in and
+/// its 8 bits, the bits to send (stuff bits inserted), where the stuff bits are and the run it
+/// ends in. The last, partial byte goes bit by bit.
 #[inline]
 fn stuff(region: u128, len: u32) -> (Bits, Bits) {
-    // The region then the sentinel; after each step the top fills with zeros, but always more
-    // than 4 sentinel bits lie between them and the region, so a run found there is past the end.
-    let mut seg = region | SENTINEL << len;
-    let mut seg_len = len;
-    let mut out = Wide { low: seg, high: 0 };
-    let mut mask = Wide { low: 0, high: 0 };
-    // Output index of the first bit of `seg`.
-    let mut at = 0;
-    loop {
-        let same = !(seg ^ seg << 1) & !1;
-        let run_end = (same & same << 1 & same << 2 & same << 3).trailing_zeros();
-        if run_end >= seg_len {
-            break;
-        }
-        let stuff_bit = !(seg >> run_end) & 1;
-        // run_end ≤ 117, so the shifts stay in range.
-        seg = (seg >> (run_end + 1)) << 1 | stuff_bit;
-        seg_len -= run_end;
-        at += run_end + 1;
-        out.write_from(at, seg);
-        mask.set(at);
+    let bytes = region.to_le_bytes();
+    let mut out = Writer::default();
+    let mut state = 0;
+    for &byte in &bytes[..(len / 8) as usize] {
+        let entry = STUFF_TABLE[state][byte as usize];
+        out.append(
+            (entry & 0x3FF) as u64,
+            (entry >> 10 & 0x3FF) as u64,
+            8 + (entry >> 20 & 3),
+        );
+        state = (entry >> 24) as usize & 0xF;
     }
-    out.write_from(at + seg_len, TAIL);
-    let len = at + seg_len + TAIL_LEN;
-    (
-        bits_from(out.low, out.high, len),
-        bits_from(mask.low, mask.high, len),
-    )
-}
-
-/// A 192-bit string being built, first bit lowest.
-struct Wide {
-    low: u128,
-    high: u64,
-}
-
-impl Wide {
-    /// Replace the bits from `at` (1..192) on with `bits` (cut at 192).
-    #[inline]
-    fn write_from(&mut self, at: u32, bits: u128) {
-        if at < 128 {
-            self.low = self.low & u128::MAX >> (128 - at) | bits << at;
-            self.high = (bits >> (128 - at)) as u64;
-        } else {
-            let at = at - 128;
-            self.high = self.high & !(u64::MAX << at) | (bits as u64) << at;
+    let last = bytes[(len / 8) as usize & 15];
+    let (mut run_bit, mut run_len) = (state as u8 & 1, state as u32 >> 1);
+    for i in 0..len % 8 {
+        let bit = last >> i & 1;
+        out.append(bit as u64, 0, 1);
+        run_len = if bit == run_bit { run_len + 1 } else { 1 };
+        run_bit = bit;
+        if run_len == 5 {
+            out.append((bit ^ 1) as u64, 1, 1);
+            (run_bit, run_len) = (bit ^ 1, 1);
         }
     }
+    out.append(TAIL as u64, 0, TAIL_LEN);
+    out.finish()
+}
 
-    /// Set bit `at` (< 192).
-    #[inline]
-    fn set(&mut self, at: u32) {
-        if at < 128 {
-            self.low |= 1 << at;
-        } else {
-            self.high |= 1 << (at - 128);
+/// Run states: `2 × run length (0..=4) + run bit`; 0 before the first bit.
+const RUN_STATES: usize = 10;
+
+/// For each run state and byte (first wire bit lowest): the bits sent, stuff bits included
+/// (bits 0..10), the stuff-bit mask (bits 10..20), the number of stuff bits (20..22, at most 2
+/// per byte) and the run state after the byte (24..28). Built at compile time.
+static STUFF_TABLE: [[u32; 256]; RUN_STATES] = {
+    let mut table = [[0; 256]; RUN_STATES];
+    let mut state = 0;
+    while state < RUN_STATES {
+        let mut byte = 0;
+        while byte < 256 {
+            table[state][byte] = stuff_byte(state as u32, byte as u32);
+            byte += 1;
         }
+        state += 1;
+    }
+    table
+};
+
+/// One [`STUFF_TABLE`] entry, computed bit by bit.
+const fn stuff_byte(state: u32, byte: u32) -> u32 {
+    let (mut run_bit, mut run_len) = (state & 1, state >> 1);
+    let (mut bits, mut mask, mut len) = (0, 0, 0);
+    let mut i = 0;
+    while i < 8 {
+        let bit = byte >> i & 1;
+        bits |= bit << len;
+        len += 1;
+        run_len = if bit == run_bit { run_len + 1 } else { 1 };
+        run_bit = bit;
+        if run_len == 5 {
+            mask |= 1 << len;
+            bits |= (bit ^ 1) << len;
+            len += 1;
+            (run_bit, run_len) = (bit ^ 1, 1);
+        }
+        i += 1;
+    }
+    bits | mask << 10 | (len - 8) << 20 | (2 * run_len + run_bit) << 24
+}
+
+/// Appends bits and their stuff mask to 64-bit words (up to 192 bits: a frame has ≤ 157).
+#[derive(Default)]
+struct Writer {
+    bits: [u64; 4],
+    mask: [u64; 4],
+    word_bits: u64,
+    word_mask: u64,
+    /// Bits in the current word (< 64) and words completed.
+    filled: u32,
+    words: usize,
+}
+
+impl Writer {
+    /// Append `len` (1..=10) bits and the matching mask bits.
+    #[inline(always)]
+    fn append(&mut self, bits: u64, mask: u64, len: u32) {
+        self.word_bits |= bits << self.filled;
+        self.word_mask |= mask << self.filled;
+        self.filled += len;
+        if self.filled >= 64 {
+            self.filled -= 64;
+            self.bits[self.words & 3] = self.word_bits;
+            self.mask[self.words & 3] = self.word_mask;
+            self.words += 1;
+            // The bits that did not fit; none if the word ended exactly with them.
+            let written = len - self.filled;
+            self.word_bits = bits >> written;
+            self.word_mask = mask >> written;
+        }
+    }
+
+    fn finish(mut self) -> (Bits, Bits) {
+        self.bits[self.words & 3] = self.word_bits;
+        self.mask[self.words & 3] = self.word_mask;
+        let len = (64 * self.words as u32 + self.filled) as u16;
+        let [b0, b1, b2, _] = self.bits;
+        let [m0, m1, m2, _] = self.mask;
+        (
+            Bits::from_words([b0, b1, b2], len),
+            Bits::from_words([m0, m1, m2], len),
+        )
     }
 }
 
