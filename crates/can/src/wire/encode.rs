@@ -324,8 +324,11 @@ impl Encoded {
         // De-stuffed index of the bit that caused each stuff bit, in order.
         let mut causes = [0u16; 32];
         let mut count = 0;
-        for wire in 0..self.stuff_mask.len() {
-            if self.stuff_mask.bit(wire) && count < causes.len() {
+        for base in [0, 128] {
+            let mut stuff = self.stuff_mask.window(base);
+            while stuff != 0 && count < causes.len() {
+                let wire = base + stuff.trailing_zeros() as usize;
+                stuff &= stuff - 1;
                 causes[count] = (wire - 1 - count) as u16;
                 count += 1;
             }
