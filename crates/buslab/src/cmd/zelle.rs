@@ -439,7 +439,7 @@ fn print_stdout(text: &str) -> anyhow::Result<()> {
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
     // Before the PTY and its link exist: a signal that finds them must find the handler too
     // (an early SIGTERM killed the process and left the link behind).
-    let stopped = ctrl_c()?;
+    let stopped = super::stop_requests()?;
     let analog = args
         .analog
         .iter()
@@ -497,14 +497,4 @@ fn control_socket(
 ) -> anyhow::Result<ControlSocket> {
     ControlSocket::bind(path, control.handler())
         .with_context(|| format!("binding control socket {}", path.display()))
-}
-
-/// A channel that hears Ctrl-C (SIGINT), SIGTERM and SIGHUP.
-pub fn ctrl_c() -> anyhow::Result<std::sync::mpsc::Receiver<()>> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    ctrlc::set_handler(move || {
-        let _ = tx.send(());
-    })
-    .context("installing the Ctrl-C handler")?;
-    Ok(rx)
 }
