@@ -26,7 +26,10 @@ pub(super) struct WholeFrames {
     refused_at: Option<BitTime>,
     applied: u64,
     roles: Vec<FrameRole>,
-    cuts: Vec<u32>,
+    /// Where each node is to be moved on to, in order: (wire bit, node).
+    stops: Vec<(u32, usize)>,
+    /// How far each node has been moved on.
+    done: Vec<u32>,
     /// Recently seen frames on the wire, most recent last.
     cache: Vec<(Frame, u8, WireFrame)>,
 }
@@ -38,7 +41,8 @@ impl Default for WholeFrames {
             refused_at: None,
             applied: 0,
             roles: Vec::new(),
-            cuts: Vec::new(),
+            stops: Vec::new(),
+            done: Vec::new(),
             cache: Vec::new(),
         }
     }
@@ -165,45 +169,71 @@ impl Simulation {
             return false;
         }
 
-        // Cut the frame after every bit at which a node may report something, so each event
-        // gets its own bit-time.
-        let cuts = &mut self.whole.cuts;
-        cuts.clear();
-        cuts.extend(wire.event_bits().iter().map(|b| b + 1));
-        cuts.extend(self.whole.roles.iter().filter_map(|r| match r {
-            FrameRole::LostArbitration { wire_bit, .. } => Some(wire_bit + 1),
-            _ => None,
-        }));
-        cuts.push(total);
-        cuts.sort_unstable();
-        cuts.dedup();
+        // Each node is moved on only up to the bits at which it reports something (its lost
+        // bit, its ACK, reception at EOF 6, transmission at EOF 7) and to the end, in time
+        // order and, within a bit-time, in node order: every event gets its exact bit-time.
+        let stops = &mut self.whole.stops;
+        stops.clear();
+        stops.extend(
+            self.whole
+                .roles
+                .iter()
+                .enumerate()
+                .filter_map(|(i, r)| match r {
+                    FrameRole::LostArbitration { wire_bit, .. } => Some((wire_bit + 1, i)),
+                    _ => None,
+                }),
+        );
+        stops.sort_unstable();
+        let [ack, eof6, eof7] = wire.event_bits();
+        for (i, role) in self.whole.roles.iter().enumerate() {
+            if *role != FrameRole::Transmitter {
+                stops.push((ack + 1, i));
+            }
+        }
+        for (i, role) in self.whole.roles.iter().enumerate() {
+            if *role != FrameRole::Transmitter {
+                stops.push((eof6 + 1, i));
+            }
+        }
+        stops.push((eof7 + 1, w));
+        stops.extend((0..self.nodes.len()).map(|i| (total, i)));
+        let done = &mut self.whole.done;
+        done.clear();
+        done.resize(self.nodes.len(), 0);
 
-        let mut from = 0u32;
-        for c in 0..self.whole.cuts.len() {
-            let cut = self.whole.cuts[c];
-            while from < cut {
-                // Generators and counter samples due inside the frame act at their own
-                // bit-time, between the bits before and after it, as on the bit-level path.
-                let due = self.schedule.next.min(self.next_sample);
-                let to = if due > t0 + from as BitTime && due < t0 + cut as BitTime {
-                    (due - t0) as u32
+        let mut at = 0u32;
+        let mut k = 0;
+        while k < self.whole.stops.len() {
+            let stop = self.whole.stops[k].0;
+            // Generators and counter samples due inside the frame act at their own bit-time,
+            // with the nodes they look at moved on to just before it.
+            let due = self.schedule.next.min(self.next_sample);
+            if due >= t0 + at as BitTime && due < t0 + stop as BitTime {
+                at = (due - t0) as u32;
+                if self.next_sample <= due {
+                    for i in 0..self.nodes.len() {
+                        self.advance_node(&wire, i, at, t0);
+                    }
                 } else {
-                    cut
-                };
-                let time = t0 + to as BitTime - 1;
-                for (i, node) in self.nodes.iter_mut().enumerate() {
-                    node.device
-                        .advance_frame(&wire, self.whole.roles[i], from..to);
-                    while let Some(event) = node.device.poll_event() {
-                        handle_event(&mut self.obs, &mut self.schedule, i, node, time, event);
+                    for g in 0..self.schedule.generators.len() {
+                        let generator = &self.schedule.generators[g];
+                        if generator.next().is_some_and(|t| t <= due) {
+                            self.advance_node(&wire, generator.node, at, t0);
+                        }
                     }
                 }
-                from = to;
-                self.now = t0 + from as BitTime;
-                if from < total {
-                    self.handle_due();
-                }
+                self.now = due;
+                self.handle_due();
+                continue;
             }
+            while k < self.whole.stops.len() && self.whole.stops[k].0 == stop {
+                let i = self.whole.stops[k].1;
+                self.advance_node(&wire, i, stop, t0);
+                k += 1;
+            }
+            at = stop;
+            self.now = t0 + at as BitTime;
         }
         for i in 0..wire.len() as usize {
             self.obs.bus.bit(wire.bus().level(i));
@@ -213,5 +243,23 @@ impl Simulation {
         }
         self.whole.applied += 1;
         true
+    }
+
+    /// Moves node `i` on through the frame's bits up to `to` (exclusive) and handles its
+    /// events, which happen at bit `to - 1`.
+    #[inline]
+    fn advance_node(&mut self, wire: &WireFrame, i: usize, to: u32, t0: BitTime) {
+        let from = self.whole.done[i];
+        if from >= to {
+            return;
+        }
+        self.whole.done[i] = to;
+        let node = &mut self.nodes[i];
+        node.device
+            .advance_frame(wire, self.whole.roles[i], from..to);
+        let time = t0 + to as BitTime - 1;
+        while let Some(event) = node.device.poll_event() {
+            handle_event(&mut self.obs, &mut self.schedule, i, node, time, event);
+        }
     }
 }
