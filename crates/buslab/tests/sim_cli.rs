@@ -602,3 +602,24 @@ fn a_plot_file_that_cannot_be_written_is_refused_before_the_run() {
         "no file left behind"
     );
 }
+
+/// `--bit-level` steps every node at every bit-time (no whole frames, no jump over idle bus):
+/// every shipped scenario prints exactly the same with it, receptions and errors included.
+#[test]
+fn bit_level_prints_the_same_as_the_fast_path_for_every_shipped_scenario() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenarios");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 6, "{files:?}");
+    for file in files {
+        let path = file.to_str().unwrap();
+        let fast = stdout_of(&["sim", path, "--rx", "--errors"]);
+        let slow = stdout_of(&["sim", path, "--rx", "--errors", "--bit-level"]);
+        assert!(fast.contains("# bus:"), "{path}: {fast}");
+        assert!(fast == slow, "{path}: the outputs differ");
+    }
+}

@@ -7,10 +7,13 @@
 //! which the engine counts and records for every node alike.
 
 use core::any::Any;
+use core::ops::Range;
 
 use crate::Frame;
 use crate::Level;
-use crate::controller::{Controller, ErrorState, Event, QueueFull};
+use crate::controller::{
+    Controller, ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame,
+};
 
 /// A bit-level node on a CAN wire, driven once per bit-time: read [`output`](Self::output),
 /// then [`sample`](Self::sample) the bus, then drain [`poll_event`](Self::poll_event).
@@ -44,6 +47,22 @@ pub trait BusNode: Any + Send {
 
     /// Frames waiting to be sent, including the one being attempted.
     fn pending(&self) -> usize;
+
+    /// Whether the node is lined up at a frame start (waiting for SOF on an idle bus,
+    /// error-active) so the engine may apply the next frame whole, and what it sends with
+    /// that SOF. The default, [`FrameStart::NotReady`], keeps the engine on the bit-by-bit
+    /// path whenever such a node is on the bus.
+    fn frame_start(&self) -> FrameStart<'_> {
+        FrameStart::NotReady
+    }
+
+    /// Wire bits `bits` of `frame` (SOF = 0) have passed with this node as `role`: advance as
+    /// stepping those bits would, with the same events. Called with consecutive ranges up to
+    /// [`WireFrame::total`], only after [`Self::frame_start`] said `Ready`; see
+    /// [`Controller::advance_frame`].
+    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        let _ = (frame, role, bits);
+    }
 
     /// The node as [`Any`], so its owner can reach its own type.
     fn as_any(&self) -> &dyn Any;
@@ -81,6 +100,12 @@ impl BusNode for Controller {
     }
     fn pending(&self) -> usize {
         Controller::pending(self)
+    }
+    fn frame_start(&self) -> FrameStart<'_> {
+        Controller::frame_start(self)
+    }
+    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        Controller::advance_frame(self, frame, role, bits)
     }
     fn as_any(&self) -> &dyn Any {
         self

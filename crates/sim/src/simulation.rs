@@ -1,6 +1,8 @@
 //! The bus: nodes on one wire, stepped together once per bit-time.
 
-use buslab_can::controller::{Controller, ControllerConfig, ErrorState, Event, QueueFull};
+use buslab_can::controller::{
+    Controller, ControllerConfig, ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame,
+};
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 
@@ -9,6 +11,8 @@ use crate::observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats,
 use crate::rng::SplitMix64;
 use crate::time::BitTime;
 use crate::traffic::{Generator, Traffic};
+
+mod whole_frame;
 
 /// One node on the wire (any [`BusNode`]: a protocol controller, a chip, a device) with its
 /// name and counters.
@@ -62,6 +66,20 @@ impl Device {
         match self {
             Device::Controller(c) => c.poll_event(),
             Device::Other(n) => n.poll_event(),
+        }
+    }
+    #[inline(always)]
+    fn frame_start(&self) -> FrameStart<'_> {
+        match self {
+            Device::Controller(c) => c.frame_start(),
+            Device::Other(n) => n.frame_start(),
+        }
+    }
+    #[inline(always)]
+    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: core::ops::Range<u32>) {
+        match self {
+            Device::Controller(c) => c.advance_frame(frame, role, bits),
+            Device::Other(n) => n.advance_frame(frame, role, bits),
         }
     }
     fn node(&self) -> &dyn BusNode {
@@ -205,6 +223,7 @@ pub struct Simulation {
     levels: Option<LevelTrace>,
     fast_forward: bool,
     skipped: BitTime,
+    whole: whole_frame::WholeFrames,
 }
 
 /// While the bus is recessive, how often (in bit-times) the clean loop checks whether every
@@ -247,6 +266,7 @@ impl Simulation {
             levels: None,
             fast_forward: true,
             skipped: 0,
+            whole: whole_frame::WholeFrames::default(),
         }
     }
 
@@ -483,6 +503,9 @@ impl Simulation {
                 .min(self.next_fault_change)
                 .min(self.next_sample);
             debug_assert!(horizon > self.now);
+            if self.try_whole_frame(end) {
+                continue;
+            }
             let quiet = if self.fast_forward && !self.faulty {
                 self.quiet_until()
             } else {
@@ -605,6 +628,7 @@ impl Simulation {
     /// [`Self::run_until`] can fast-forward.
     fn run_clean(&mut self, horizon: BitTime) {
         let fast_forward = self.fast_forward;
+        let whole_from = self.whole.check_from();
         let Self {
             nodes,
             obs,
@@ -625,6 +649,10 @@ impl Simulation {
                     .iter()
                     .all(|n| n.device().quiet_until().is_some_and(|t| t > *now))
             {
+                return;
+            }
+            // After a frame's 11 recessive bits: lined up for the next one to be applied whole?
+            if run == 11 && *now >= whole_from && whole_frame::lined_up(nodes) {
                 return;
             }
             let mut next_recessive = true;

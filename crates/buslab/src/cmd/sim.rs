@@ -45,6 +45,10 @@ pub struct Args {
     /// change).
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
+    /// Step every node at every bit-time: no whole frames applied at once, no jump over idle
+    /// bus (the reference path; the output is the same, only slower).
+    #[arg(long)]
+    pub bit_level: bool,
 }
 
 /// Bit-times simulated between two flushes of the output.
@@ -99,6 +103,10 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
         scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
     }
     let mut sim = scenario.build_with(&buslab_canbus::node::ScenarioNodes)?;
+    if args.bit_level {
+        sim.set_whole_frames(false);
+        sim.set_fast_forward(false);
+    }
     let mut counters = match &args.counters {
         Some(path) => {
             let file = File::create(path)

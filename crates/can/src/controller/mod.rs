@@ -12,6 +12,7 @@
 
 mod fault;
 mod queue;
+mod whole_frame;
 
 use alloc::collections::VecDeque;
 
@@ -19,6 +20,8 @@ use crate::wire::{self, Encoded, Field, Receiver, Step, WireErrorKind};
 use crate::{Frame, Level};
 use fault::Counters;
 use queue::TxQueue;
+
+pub use whole_frame::{FrameRole, FrameStart, WireFrame};
 
 /// Options that change how the controller behaves on the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -612,6 +615,12 @@ impl Controller {
             self.phase = Phase::Eof { n: n + 1 };
             return;
         }
+        self.last_eof_bit();
+    }
+
+    /// EOF bit 7 sampled recessive: the transmitter's frame is sent (facts §3), everybody
+    /// enters intermission.
+    fn last_eof_bit(&mut self) {
         if self.transmitting
             && let Some(tx) = self.tx.take()
         {

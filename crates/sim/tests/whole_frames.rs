@@ -1,0 +1,319 @@
+//! The frame-level fast path changes nothing but the speed: over random buses (faults that
+//! start and end mid-frame, error-passive nodes, identical IDs, overload, bus-off, listen-only
+//! and single-shot nodes, small queues, files, counter samples) the trace, every counter, the
+//! bus statistics, the TEC/REC series and every controller's final state are the same with
+//! whole frames on and off.
+
+mod common;
+
+use buslab_can::controller::{Controller, ControllerConfig};
+use buslab_can::{Frame, Id};
+use buslab_sim::{Fault, FaultKind, Simulation, Traffic};
+use common::*;
+use proptest::prelude::*;
+
+#[derive(Clone, Debug)]
+struct NodeSpec {
+    listen_only: bool,
+    single_shot: bool,
+    self_reception: bool,
+    auto_recover: bool,
+    capacity: usize,
+    /// TEC and REC set before the run (≥ 128: error-passive; > 255 TEC: bus-off).
+    counters: (u16, u16),
+}
+
+#[derive(Clone, Debug)]
+enum TrafficSpec {
+    Periodic {
+        frame: Frame,
+        period: u64,
+        start: u64,
+    },
+    Burst {
+        frame: Frame,
+        count: u32,
+        period: u64,
+        start: u64,
+    },
+    Once {
+        frame: Frame,
+        at: u64,
+    },
+    File {
+        id: Id,
+        len: usize,
+        start: u64,
+    },
+}
+
+#[derive(Clone, Debug)]
+struct Bus {
+    nodes: Vec<NodeSpec>,
+    traffic: Vec<(usize, TrafficSpec)>,
+    faults: Vec<(u8, usize, u64, u64)>,
+    sample_every: Option<u64>,
+    /// The run is cut into these pieces (a run may end in the middle of a frame).
+    steps: Vec<u64>,
+}
+
+fn node_spec() -> impl Strategy<Value = NodeSpec> {
+    (
+        prop::bool::weighted(0.1),
+        prop::bool::weighted(0.15),
+        prop::bool::weighted(0.15),
+        prop::bool::weighted(0.8),
+        1usize..6,
+        prop_oneof![
+            6 => Just((0u16, 0u16)),
+            2 => (0u16..140, 0u16..140),
+            1 => (120u16..200, 0u16..256),
+            1 => Just((256u16, 0u16)),
+        ],
+    )
+        .prop_map(
+            |(listen_only, single_shot, self_reception, auto_recover, capacity, counters)| {
+                NodeSpec {
+                    listen_only,
+                    single_shot,
+                    self_reception,
+                    auto_recover,
+                    capacity,
+                    counters,
+                }
+            },
+        )
+}
+
+/// A small ID space, so equal IDs on two nodes happen often.
+fn any_frame() -> impl Strategy<Value = Frame> {
+    (
+        any::<bool>(),
+        0u32..12,
+        prop::bool::weighted(0.1),
+        prop::collection::vec(any::<u8>(), 0..=8),
+    )
+        .prop_map(|(extended, n, remote, data)| {
+            let id = if extended {
+                Id::extended(0x0123_4567 ^ (n * 0x0101_0101)).unwrap()
+            } else {
+                Id::standard(0x100 + n as u16 * 0x31).unwrap()
+            };
+            if remote {
+                Frame::remote(id, data.len() as u8).unwrap()
+            } else {
+                Frame::data(id, &data).unwrap()
+            }
+        })
+}
+
+fn traffic() -> impl Strategy<Value = TrafficSpec> {
+    prop_oneof![
+        (any_frame(), 60u64..600, 0u64..2_000).prop_map(|(frame, period, start)| {
+            TrafficSpec::Periodic {
+                frame,
+                period,
+                start,
+            }
+        }),
+        (
+            any_frame(),
+            1u32..5,
+            prop_oneof![Just(0u64), 300u64..3_000],
+            0u64..3_000
+        )
+            .prop_map(|(frame, count, period, start)| TrafficSpec::Burst {
+                frame,
+                count,
+                period,
+                start
+            }),
+        (any_frame(), 0u64..6_000).prop_map(|(frame, at)| TrafficSpec::Once { frame, at }),
+        (0u16..0x7FF, 0usize..40, 0u64..3_000).prop_map(|(id, len, start)| TrafficSpec::File {
+            id: Id::standard(id).unwrap(),
+            len,
+            start
+        }),
+    ]
+}
+
+fn bus() -> impl Strategy<Value = Bus> {
+    (2usize..7).prop_flat_map(|n| {
+        (
+            prop::collection::vec(node_spec(), n),
+            prop::collection::vec((0..n, traffic()), 1..10),
+            prop::collection::vec((0u8..6, 0..n, 0u64..8_000, 1u64..600), 0..4),
+            prop::option::weighted(0.3, 50u64..700),
+            prop::collection::vec(1u64..3_000, 1..6),
+        )
+            .prop_map(|(nodes, traffic, faults, sample_every, steps)| Bus {
+                nodes,
+                traffic,
+                faults,
+                sample_every,
+                steps,
+            })
+    })
+}
+
+fn build(bus: &Bus, whole: bool) -> Simulation {
+    let mut sim = Simulation::new(1_000_000, 11);
+    sim.set_whole_frames(whole);
+    for (i, n) in bus.nodes.iter().enumerate() {
+        let node = sim.add_node(
+            format!("n{i}"),
+            ControllerConfig {
+                listen_only: n.listen_only,
+                single_shot: n.single_shot,
+                self_reception: n.self_reception,
+                auto_recover: n.auto_recover,
+                tx_queue_capacity: n.capacity,
+                ..Default::default()
+            },
+        );
+        let (tec, rec) = n.counters;
+        sim.controller_mut(node).unwrap().set_counters(tec, rec);
+    }
+    for (node, t) in &bus.traffic {
+        let traffic = match t {
+            TrafficSpec::Periodic {
+                frame,
+                period,
+                start,
+            } => Traffic::Periodic {
+                frame: *frame,
+                period: *period,
+                start: *start,
+                count: None,
+            },
+            TrafficSpec::Burst {
+                frame,
+                count,
+                period,
+                start,
+            } => Traffic::Burst {
+                frame: *frame,
+                count: *count,
+                period: *period,
+                start: *start,
+            },
+            TrafficSpec::Once { frame, at } => Traffic::Once {
+                frame: *frame,
+                at: *at,
+            },
+            TrafficSpec::File { id, len, start } => Traffic::File {
+                id: *id,
+                data: (0..*len as u8).collect(),
+                start: *start,
+            },
+        };
+        sim.add_traffic(*node, traffic);
+    }
+    for &(kind, node, start, len) in &bus.faults {
+        let kind = match kind {
+            0 => FaultKind::Disconnect { node },
+            1 => FaultKind::Cut {
+                far_side: vec![node],
+                error_rate: 0.05,
+            },
+            2 => FaultKind::Flip { node: Some(node) },
+            3 => FaultKind::StuckDominant,
+            4 => FaultKind::Noise {
+                nodes: vec![],
+                rate: 0.02,
+            },
+            _ => FaultKind::Noise {
+                nodes: vec![node],
+                rate: 0.05,
+            },
+        };
+        sim.add_fault(Fault {
+            kind,
+            start,
+            end: start + len,
+        });
+    }
+    if let Some(every) = bus.sample_every {
+        sim.sample_counters_every(every);
+    }
+    sim
+}
+
+/// Everything a user of the simulation can see, as text.
+fn observed(sim: &Simulation) -> (String, String) {
+    let nodes: Vec<String> = sim
+        .nodes()
+        .iter()
+        .map(|n| format!("{:?}\n{:?}", n, n.get::<Controller>().unwrap()))
+        .collect();
+    let files: Vec<_> = (0..sim.nodes().len())
+        .map(|i| sim.files_finished(i))
+        .collect();
+    let state = format!(
+        "now {}\n{:#?}\n{:?}\n{:?}\n{:?}",
+        sim.now(),
+        nodes,
+        sim.bus_stats(),
+        sim.series(),
+        files
+    );
+    (format!("{:#?}", sim.records()), state)
+}
+
+fn run(bus: &Bus, whole: bool) -> (Simulation, (String, String)) {
+    let mut sim = build(bus, whole);
+    for step in &bus.steps {
+        sim.run_for(*step);
+        // A frame queued by hand in the middle of the run, as a scenario's one-shot would.
+        let _ = sim.enqueue(0, frame("7FF#EE"));
+    }
+    let seen = observed(&sim);
+    (sim, seen)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(160))]
+
+    #[test]
+    fn whole_frames_change_nothing_but_the_speed(bus in bus()) {
+        let (_, fast_seen) = run(&bus, true);
+        let (slow, slow_seen) = run(&bus, false);
+        prop_assert_eq!(slow.whole_frames(), 0);
+        prop_assert_eq!(&fast_seen.0, &slow_seen.0, "trace differs");
+        prop_assert_eq!(&fast_seen.1, &slow_seen.1, "state differs");
+    }
+}
+
+/// The fast path does engage on a busy clean bus, and the property above therefore compares
+/// two different paths.
+#[test]
+fn a_busy_clean_bus_is_mostly_applied_whole() {
+    let bus = |whole| {
+        let mut sim = Simulation::new(1_000_000, 1);
+        sim.set_whole_frames(whole);
+        for i in 0..8u16 {
+            let n = sim.add_node(format!("n{i}"), ControllerConfig::default());
+            sim.add_traffic(
+                n,
+                Traffic::Periodic {
+                    frame: Frame::data(Id::standard(0x100 + i).unwrap(), &[i as u8; 8]).unwrap(),
+                    period: 500,
+                    start: i as u64 * 7,
+                    count: None,
+                },
+            );
+        }
+        sim.run_for(200_000);
+        sim
+    };
+    let fast = bus(true);
+    let slow = bus(false);
+    assert!(
+        fast.whole_frames() * 10 >= fast.bus_stats().frames * 9,
+        "{} of {} frames applied whole",
+        fast.whole_frames(),
+        fast.bus_stats().frames
+    );
+    assert_eq!(fast.records(), slow.records());
+    assert_eq!(observed(&fast), observed(&slow));
+}
