@@ -17,12 +17,14 @@
 mod api;
 mod hub;
 mod pages;
+pub mod request;
 mod routes;
 mod server;
 
 use std::net::SocketAddr;
 use std::time::Duration;
 
+pub use routes::ApiError;
 pub use server::WebServer;
 
 /// The header that carries the write token.
