@@ -178,4 +178,24 @@ mod tests {
                 .contains("(no subject)")
         );
     }
+
+    #[test]
+    fn garbage_from_the_server_still_gives_a_text_within_the_limit() {
+        let folded_forever = [b"Subject: a".as_slice(), &b"\r\n x".repeat(10_000)].concat();
+        for message in [
+            &b""[..],
+            b"\xff\xfe\x00\x01\r\n\r\n\xc3",
+            b"\r\n\r\n\r\n",
+            b"From:\r\nSubject:\r\n",
+            b": no name\n\n",
+            b"From: \xc3\xa4\xc3\xa4\xc3\xa4\n\nbody",
+            &folded_forever,
+        ] {
+            for limit in [64, 65, 100, 2048, 65536] {
+                let text = mail_text(message, limit);
+                assert!(text.len() <= limit, "{} > {limit}", text.len());
+                assert!(text.starts_with(b"From: "));
+            }
+        }
+    }
 }
