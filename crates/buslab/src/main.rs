@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod cmd;
 mod config;
 mod logging;
+mod terminal;
 mod units;
 
 /// CAN, CPU196 and ZELLE devices as faithful software models, and the host tools that talk to

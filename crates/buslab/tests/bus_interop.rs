@@ -1,44 +1,26 @@
 //! python-can 4.6.1 (`interface='socketcand'`) and buslab's client on one `buslab bus serve`.
 
+#[path = "support/outside_tools.rs"]
+mod outside_tools;
+
 mod bus_common;
 
+use outside_tools::{python_can, root};
 use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use bus_common::{Serve, frame};
 use buslab_canbus::CanBus;
 
-/// The venv's python with python-can, or `None` (allowed outside CI only).
-fn python_can() -> Option<(PathBuf, PathBuf)> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let python = root.join(".venv/bin/python");
-    let has_can = python.exists()
-        && Command::new(&python)
-            .args(["-c", "import can"])
-            .status()
-            .is_ok_and(|s| s.success());
-    if !has_can {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "python-can is missing in CI ({})",
-            python.display()
-        );
-        eprintln!("SKIPPED: python-can is missing; run scripts/setup-test-deps.sh");
-        return None;
-    }
-    Some((root, python))
-}
-
 #[test]
 fn python_can_detects_the_beacon() {
-    let Some((root, python)) = python_can() else {
+    let Some(python) = python_can() else {
         return;
     };
     let serve = Serve::start_with(500_000, &["--beacon"]);
     let out = Command::new(&python)
-        .arg(root.join("tests/interop/can_detect_beacon.py"))
+        .arg(root().join("tests/interop/can_detect_beacon.py"))
         .output()
         .unwrap();
     assert!(
@@ -54,12 +36,12 @@ fn python_can_detects_the_beacon() {
 
 #[test]
 fn python_can_exchanges_frames_and_sees_priority_order() {
-    let Some((root, python)) = python_can() else {
+    let Some(python) = python_can() else {
         return;
     };
     let serve = Serve::start(1_000_000);
     let mut child = Command::new(&python)
-        .arg(root.join("tests/interop/can_socketcand_peer.py"))
+        .arg(root().join("tests/interop/can_socketcand_peer.py"))
         .arg(serve.addr.ip().to_string())
         .arg(serve.addr.port().to_string())
         .stdout(Stdio::piped())

@@ -2,18 +2,15 @@
 //! refused without reading, `config show`, the file's bus as the default, and the wizard on a
 //! pseudo-terminal.
 
-use std::fs::{self, File};
-use std::io::{Read, Write};
+#[path = "support/pty_program.rs"]
+mod pty_program;
+
+use std::fs;
 use std::path::Path;
-use std::process::{Child, Command, Output, Stdio};
-use std::sync::mpsc::{self, Receiver};
-use std::time::{Duration, Instant};
+use std::process::{Command, Output, Stdio};
 
 use assert_cmd::cargo::CommandCargoExt;
-use nix::pty::{Winsize, openpty};
-
-/// Bounds only a failure: the tests wait for output or an exit.
-const CEILING: Duration = Duration::from_secs(60);
+use pty_program::{PtyProgram, Stderr};
 
 /// `buslab ARGS` with no configuration from the environment or the user's folder, in `dir`.
 fn buslab(dir: &Path, args: &[&str]) -> Command {
@@ -181,86 +178,16 @@ fn commands_take_the_bus_from_the_file_when_none_is_given() {
 }
 
 /// `buslab config wizard` on a pseudo-terminal.
-struct Wizard {
-    child: Child,
-    keys: File,
-    output: Receiver<Vec<u8>>,
-    screen: vt100::Parser,
+fn wizard(dir: &Path, out: &Path) -> PtyProgram {
+    let mut command = buslab(dir, &["config", "wizard", "--out", out.to_str().unwrap()]);
+    command.env("TERM", "xterm");
+    PtyProgram::spawn(command, 100, 120, Stderr::Terminal)
 }
 
-impl Wizard {
-    fn start(dir: &Path, out: &Path) -> Self {
-        let size = Winsize {
-            ws_row: 100,
-            ws_col: 120,
-            ws_xpixel: 0,
-            ws_ypixel: 0,
-        };
-        let pty = openpty(Some(&size), None).unwrap();
-        let child = buslab(dir, &["config", "wizard", "--out", out.to_str().unwrap()])
-            .env("TERM", "xterm")
-            .stdin(Stdio::from(pty.slave.try_clone().unwrap()))
-            .stdout(Stdio::from(pty.slave.try_clone().unwrap()))
-            .stderr(Stdio::from(pty.slave))
-            .spawn()
-            .unwrap();
-        let mut reader = File::from(pty.master.try_clone().unwrap());
-        let (tx, output) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut buf = [0u8; 4096];
-            while let Ok(n) = reader.read(&mut buf) {
-                if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
-                    break;
-                }
-            }
-        });
-        Self {
-            child,
-            keys: File::from(pty.master),
-            output,
-            screen: vt100::Parser::new(100, 120, 0),
-        }
-    }
-
-    fn contents(&self) -> String {
-        self.screen.screen().contents()
-    }
-
-    /// Waits until the screen shows `text` (a question, an error), then types `keys`.
-    fn answer(&mut self, text: &str, keys: &str) {
-        let start = Instant::now();
-        while !self.contents().contains(text) {
-            let left = CEILING.saturating_sub(start.elapsed());
-            match self.output.recv_timeout(left) {
-                Ok(bytes) => self.screen.process(&bytes),
-                Err(_) => panic!("{text:?} not on the screen:\n{}", self.contents()),
-            }
-        }
-        self.keys.write_all(keys.as_bytes()).unwrap();
-    }
-
-    fn wait_exit(&mut self) -> std::process::ExitStatus {
-        let start = Instant::now();
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                // Its last words may still be in the pseudo-terminal: read until the reader
-                // meets the end (no process holds the terminal any more).
-                let left = CEILING.saturating_sub(start.elapsed());
-                while let Ok(bytes) = self.output.recv_timeout(left) {
-                    self.screen.process(&bytes);
-                }
-                return status;
-            }
-            assert!(
-                start.elapsed() < CEILING,
-                "the wizard did not exit:\n{}",
-                self.contents()
-            );
-            if let Ok(bytes) = self.output.recv_timeout(Duration::from_millis(100)) {
-                self.screen.process(&bytes);
-            }
-        }
-    }
+/// Waits until the screen shows `text` (a question, an error), then types `keys`.
+fn answer(w: &mut PtyProgram, text: &str, keys: &str) {
+    w.wait_for_text(text);
+    w.type_keys(keys);
 }
 
 const ENTER: &str = "\r";
@@ -270,32 +197,49 @@ const ERASE: &str = "\x7f\x7f\x7f\x7f\x7f\x7f\x7f\x7f";
 fn the_wizard_asks_checks_each_answer_and_writes_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("etc").join("buslab.toml");
-    let mut w = Wizard::start(dir.path(), &out);
-    w.answer("Controller mode", &format!("Basic{ENTER}"));
-    w.answer("Acceptance filter", &format!("basic{ENTER}"));
-    w.answer("Acceptance code", &format!("0x1E0{ENTER}"));
-    w.answer("must be at most 0xFF here", &format!("{ERASE}0xE0{ENTER}"));
-    w.answer("Acceptance mask", &format!("0x0F{ENTER}"));
-    w.answer("Crystal frequency", ENTER);
-    w.answer("Bus timing from", ENTER);
-    w.answer("Bit rate in bit/s", &format!("125000{ENTER}"));
-    w.answer("Sample point", ENTER);
-    w.answer("Output control register", &format!("{ERASE}0xD9{ENTER}"));
-    w.answer(
+    let mut w = wizard(dir.path(), &out);
+    answer(&mut w, "Controller mode", &format!("Basic{ENTER}"));
+    answer(&mut w, "Acceptance filter", &format!("basic{ENTER}"));
+    answer(&mut w, "Acceptance code", &format!("0x1E0{ENTER}"));
+    answer(
+        &mut w,
+        "must be at most 0xFF here",
+        &format!("{ERASE}0xE0{ENTER}"),
+    );
+    answer(&mut w, "Acceptance mask", &format!("0x0F{ENTER}"));
+    answer(&mut w, "Crystal frequency", ENTER);
+    answer(&mut w, "Bus timing from", ENTER);
+    answer(&mut w, "Bit rate in bit/s", &format!("125000{ENTER}"));
+    answer(&mut w, "Sample point", ENTER);
+    answer(
+        &mut w,
+        "Output control register",
+        &format!("{ERASE}0xD9{ENTER}"),
+    );
+    answer(
+        &mut w,
         "whose OCMODE (bits 1..0) is not 01",
         &format!("{ERASE}0x1A{ENTER}"),
     );
-    w.answer("Clock output", &format!("n{ENTER}"));
-    w.answer("Bus CAN commands use", &format!("can0{ENTER}"));
-    w.answer("Identifier of the loader", ENTER);
-    w.answer("Identifier of the mail notifier", &format!("0x701{ENTER}"));
-    w.answer("IMAP server", &format!("imap.example.org{ENTER}"));
-    w.answer("Its port", ENTER);
-    w.answer("Mailbox user", &format!("jerry{ENTER}"));
-    w.answer("How often the mailbox", &format!("30s{ENTER}"));
-    w.answer("Manager's pause", ENTER);
-    w.answer("Log file of received frames", &format!("frames.log{ENTER}"));
-    w.answer("Write ", ENTER);
+    answer(&mut w, "Clock output", &format!("n{ENTER}"));
+    answer(&mut w, "Bus CAN commands use", &format!("can0{ENTER}"));
+    answer(&mut w, "Identifier of the loader", ENTER);
+    answer(
+        &mut w,
+        "Identifier of the mail notifier",
+        &format!("0x701{ENTER}"),
+    );
+    answer(&mut w, "IMAP server", &format!("imap.example.org{ENTER}"));
+    answer(&mut w, "Its port", ENTER);
+    answer(&mut w, "Mailbox user", &format!("jerry{ENTER}"));
+    answer(&mut w, "How often the mailbox", &format!("30s{ENTER}"));
+    answer(&mut w, "Manager's pause", ENTER);
+    answer(
+        &mut w,
+        "Log file of received frames",
+        &format!("frames.log{ENTER}"),
+    );
+    answer(&mut w, "Write ", ENTER);
     let status = w.wait_exit();
     let transcript = w.contents();
     assert!(status.success(), "{status}\n{transcript}");
@@ -371,9 +315,9 @@ fn a_subcommand_s_own_config_option_is_not_the_file() {
 fn escape_in_the_wizard_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("buslab.toml");
-    let mut w = Wizard::start(dir.path(), &out);
-    w.answer("Controller mode", ENTER);
-    w.answer("Acceptance filter", "\x1b");
+    let mut w = wizard(dir.path(), &out);
+    answer(&mut w, "Controller mode", ENTER);
+    answer(&mut w, "Acceptance filter", "\x1b");
     let status = w.wait_exit();
     assert_eq!(status.code(), Some(1), "{}", w.contents());
     assert!(

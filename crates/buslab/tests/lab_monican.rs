@@ -3,20 +3,15 @@
 //! terminal: it opens the link at 19200 8N1 and reads the screen back with an independent
 //! VT100 emulator (the `vt100` crate).
 
-use std::fs::{File, OpenOptions};
-use std::io::{Read, Write};
-use std::os::fd::AsFd;
-use std::path::Path;
+#[path = "support/vt100_terminal.rs"]
+mod vt100_terminal;
+
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{self, Receiver};
 use std::time::{Duration, Instant};
 
 use buslab_monican::layout::*;
 use buslab_slio::SlioId;
-use nix::sys::termios::{BaudRate, SetArg, cfmakeraw, cfsetspeed, tcgetattr, tcsetattr};
-
-/// The ceiling for what the test waits for (it returns as soon as the screen shows it).
-const CEILING: Duration = Duration::from_secs(60);
+use vt100_terminal::{CEILING, Terminal};
 
 /// The lab, stopped (SIGTERM) when the test ends.
 struct Lab(Child);
@@ -27,75 +22,6 @@ impl Drop for Lab {
             .args(["-TERM", &self.0.id().to_string()])
             .status();
         let _ = self.0.wait();
-    }
-}
-
-/// A terminal on the PowerPC node's serial port.
-struct Terminal {
-    keys: File,
-    output: Receiver<Vec<u8>>,
-    screen: vt100::Parser,
-}
-
-impl Terminal {
-    fn open(path: &Path) -> Self {
-        let file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(path)
-            .unwrap();
-        let mut t = tcgetattr(file.as_fd()).unwrap();
-        cfmakeraw(&mut t);
-        cfsetspeed(&mut t, BaudRate::B19200).unwrap();
-        tcsetattr(file.as_fd(), SetArg::TCSANOW, &t).unwrap();
-        let mut reader = file.try_clone().unwrap();
-        let (tx, output) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut buf = [0u8; 4096];
-            while let Ok(n) = reader.read(&mut buf) {
-                if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
-                    break;
-                }
-            }
-        });
-        Self {
-            keys: file,
-            output,
-            screen: vt100::Parser::new(24, 80, 0),
-        }
-    }
-
-    /// Takes in what already arrived.
-    fn drain(&mut self) {
-        while let Ok(bytes) = self.output.try_recv() {
-            self.screen.process(&bytes);
-        }
-    }
-
-    fn type_keys(&mut self, keys: &[u8]) {
-        self.keys.write_all(keys).unwrap();
-    }
-
-    /// The text of row `row` (1-based, as the layout numbers them).
-    fn row(&self, row: u8) -> String {
-        self.screen
-            .screen()
-            .contents_between(row as u16 - 1, 0, row as u16 - 1, 80)
-    }
-
-    /// Reads until `done` holds for the screen; panics with the screen after the ceiling.
-    fn wait_for(&mut self, what: &str, done: impl Fn(&Self) -> bool) {
-        let start = Instant::now();
-        while !done(self) {
-            let left = CEILING.saturating_sub(start.elapsed());
-            match self.output.recv_timeout(left) {
-                Ok(bytes) => self.screen.process(&bytes),
-                Err(_) => panic!(
-                    "{what} never showed within {CEILING:?}; the screen:\n{}",
-                    self.screen.screen().contents()
-                ),
-            }
-        }
     }
 }
 
@@ -140,7 +66,7 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
     let mut t = Terminal::open(&link);
     // Ctrl-L redraws the whole screen for a terminal that connects late.
     t.type_keys(b"\x0c");
-    t.wait_for("the title and the three boards", |t| {
+    t.wait_until("the title and the three boards", |t| {
         t.row(TITLE_ROW).contains(TITLE)
             && [0, 3, 10]
                 .iter()
@@ -156,7 +82,7 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
     // A command lights SLIO 3's LED on P11 (PIN B): DATA_OUTPUT shows 2800 once the SLIO
     // confirmed it (MoniCAN initialised it to 2000, the input switches selected).
     t.type_keys(b"3OB01");
-    t.wait_for("the LED's confirmation", |t| {
+    t.wait_until("the LED's confirmation", |t| {
         t.row(slio_row_of(3))[OUTPUTS_COL as usize - 1..].starts_with("2800")
     });
     // The ADC2 column follows the potentiometer (a 0..5 V sine, 10 s a turn): conversions a
@@ -177,7 +103,7 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
         let previous_frame = t.row(LAST_FRAME_ROW);
         t.type_keys(b"3I6");
         // The answer is a new frame from SLIO 3, then the log line with its value.
-        t.wait_for("an ADC2 conversion", |t| {
+        t.wait_until("an ADC2 conversion", |t| {
             t.row(LAST_FRAME_ROW) != previous_frame
                 && adc2_line(t).is_some()
                 && adc2(t, 3).is_some()
@@ -190,6 +116,6 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
     // Shown with `--no-capture`: the screen a user sees, for the record.
     eprintln!(
         "MoniCAN on the lab's terminal:\n{}\nADC2 of SLIO 3, a second apart: {seen:?}",
-        t.screen.screen().contents()
+        t.contents()
     );
 }

@@ -2,20 +2,13 @@
 //! nothing is sent; a good program is loaded, reported on the node's VT100 terminal (read by an
 //! independent emulator, the `vt100` crate), saved in the memory file and read back.
 
+#[path = "support/vt100_terminal.rs"]
+mod vt100_terminal;
+
 mod bus_common;
 
-use std::fs::{File, OpenOptions};
-use std::io::Read;
-use std::os::fd::AsFd;
-use std::path::Path;
-use std::sync::mpsc::{self, Receiver};
-use std::time::{Duration, Instant};
-
 use bus_common::Serve;
-use nix::sys::termios::{BaudRate, SetArg, cfmakeraw, cfsetspeed, tcgetattr, tcsetattr};
-
-/// The ceiling for what the test waits for (it returns as soon as the screen shows it).
-const CEILING: Duration = Duration::from_secs(60);
+use vt100_terminal::Terminal;
 
 /// One S-record with `kind`, an address of `address_len` bytes and `data`.
 fn record(kind: u8, address: u32, data: &[u8], address_len: usize) -> String {
@@ -36,55 +29,6 @@ fn program() -> Vec<String> {
     }
     lines.push(record(7, 0x32000, &[], 4));
     lines
-}
-
-struct Terminal {
-    _file: File,
-    output: Receiver<Vec<u8>>,
-    screen: vt100::Parser,
-}
-
-impl Terminal {
-    fn open(path: &Path) -> Self {
-        let file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(path)
-            .unwrap();
-        let mut t = tcgetattr(file.as_fd()).unwrap();
-        cfmakeraw(&mut t);
-        cfsetspeed(&mut t, BaudRate::B19200).unwrap();
-        tcsetattr(file.as_fd(), SetArg::TCSANOW, &t).unwrap();
-        let mut reader = file.try_clone().unwrap();
-        let (tx, output) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut buf = [0u8; 4096];
-            while let Ok(n) = reader.read(&mut buf) {
-                if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
-                    break;
-                }
-            }
-        });
-        Self {
-            _file: file,
-            output,
-            screen: vt100::Parser::new(24, 80, 0),
-        }
-    }
-
-    fn wait_for(&mut self, text: &str) {
-        let start = Instant::now();
-        while !self.screen.screen().contents().contains(text) {
-            let left = CEILING.saturating_sub(start.elapsed());
-            match self.output.recv_timeout(left) {
-                Ok(bytes) => self.screen.process(&bytes),
-                Err(_) => panic!(
-                    "{text:?} never showed within {CEILING:?}; the screen:\n{}",
-                    self.screen.screen().contents()
-                ),
-            }
-        }
-    }
 }
 
 #[test]
@@ -135,9 +79,9 @@ fn a_program_is_checked_loaded_reported_saved_and_read_back() {
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("verified"), "{stderr}");
     assert!(stderr.contains("00032000-000327FF"), "{stderr}");
-    terminal.wait_for("Program loaded: 2048 bytes");
-    terminal.wait_for("00032000");
-    terminal.wait_for("Entry point: 00032000");
+    terminal.wait_for_text("Program loaded: 2048 bytes");
+    terminal.wait_for_text("00032000");
+    terminal.wait_for_text("Entry point: 00032000");
 
     // The node's memory file holds the program (it was saved before the node reported).
     let saved = buslab_loader::srec::parse(&std::fs::read(&memory).unwrap()).unwrap();

@@ -4,6 +4,10 @@
 //! and editcap's conversions of them read back. Installed by scripts/setup-test-deps.sh; under
 //! CI=1 a missing tool fails the test.
 
+#[path = "support/outside_tools.rs"]
+mod outside_tools;
+
+use outside_tools::{python_can, root, tool};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
@@ -17,42 +21,6 @@ const REFERENCE: &str = "\
 (1700000000.004000) can0 20000088#0000020A00000000
 (1700000000.005000) can1 1FFFFFFF#0102030405060708 R
 ";
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// The venv's python with python-can, or `None` (allowed outside CI only).
-fn python_can() -> Option<PathBuf> {
-    let python = root().join(".venv/bin/python");
-    let has_can = python.exists()
-        && Command::new(&python)
-            .args(["-c", "import can"])
-            .status()
-            .is_ok_and(|s| s.success());
-    present(has_can, "python-can").then_some(python)
-}
-
-/// A program on PATH, or `false` (allowed outside CI only).
-fn tool(name: &str) -> bool {
-    let found = Command::new("sh")
-        .args(["-c", &format!("command -v {name}")])
-        .stdout(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    present(found, name)
-}
-
-fn present(found: bool, what: &str) -> bool {
-    if !found {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "{what} is missing in CI (scripts/setup-test-deps.sh installs it)"
-        );
-        eprintln!("SKIPPED: {what} is missing; run scripts/setup-test-deps.sh");
-    }
-    found
-}
 
 fn run(cmd: &mut Command) -> String {
     let out: Output = cmd.output().unwrap();

@@ -3,21 +3,19 @@
 //! A mail dropped into the mailbox must appear on the PowerPC node's MoniCAN screen after
 //! Ctrl R, read through its pseudo-terminal by an independent VT100 emulator (`vt100`).
 
+#[path = "support/vt100_terminal.rs"]
+mod vt100_terminal;
+
 mod bus_common;
 
-use std::fs::{File, OpenOptions};
-use std::io::{BufRead, BufReader, Read, Write};
-use std::os::fd::AsFd;
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{self, Receiver};
 use std::time::{Duration, Instant};
 
 use bus_common::Serve;
-use nix::sys::termios::{BaudRate, SetArg, cfmakeraw, cfsetspeed, tcgetattr, tcsetattr};
+use vt100_terminal::{CEILING, Terminal};
 
-/// The ceiling for what the test waits for (it returns as soon as the screen shows it).
-const CEILING: Duration = Duration::from_secs(60);
 const DOVECOT: &str = "/usr/sbin/dovecot";
 
 /// A Dovecot with its own configuration under a temporary folder; stopped when dropped.
@@ -137,55 +135,6 @@ impl Drop for Killed {
     }
 }
 
-struct Terminal {
-    keys: File,
-    output: Receiver<Vec<u8>>,
-    screen: vt100::Parser,
-}
-
-impl Terminal {
-    fn open(path: &Path) -> Self {
-        let file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(path)
-            .unwrap();
-        let mut t = tcgetattr(file.as_fd()).unwrap();
-        cfmakeraw(&mut t);
-        cfsetspeed(&mut t, BaudRate::B19200).unwrap();
-        tcsetattr(file.as_fd(), SetArg::TCSANOW, &t).unwrap();
-        let mut reader = file.try_clone().unwrap();
-        let (tx, output) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut buf = [0u8; 4096];
-            while let Ok(n) = reader.read(&mut buf) {
-                if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
-                    break;
-                }
-            }
-        });
-        Self {
-            keys: file,
-            output,
-            screen: vt100::Parser::new(24, 80, 0),
-        }
-    }
-
-    fn wait_for(&mut self, text: &str) {
-        let start = Instant::now();
-        while !self.screen.screen().contents().contains(text) {
-            let left = CEILING.saturating_sub(start.elapsed());
-            match self.output.recv_timeout(left) {
-                Ok(bytes) => self.screen.process(&bytes),
-                Err(_) => panic!(
-                    "{text:?} never showed within {CEILING:?}; the screen:\n{}",
-                    self.screen.screen().contents()
-                ),
-            }
-        }
-    }
-}
-
 #[test]
 fn a_mail_in_the_dovecot_mailbox_shows_on_monicans_screen_after_ctrl_r() {
     if !Path::new(DOVECOT).exists() {
@@ -201,7 +150,7 @@ fn a_mail_in_the_dovecot_mailbox_shows_on_monicans_screen_after_ctrl_r() {
     let link = dir.path().join("monican");
     let serve = Serve::start_with(125_000, &["--ppc", link.to_str().unwrap()]);
     let mut terminal = Terminal::open(&link);
-    terminal.wait_for("MoniCAN");
+    terminal.wait_for_text("MoniCAN");
 
     let mut notifier = serve
         .buslab()
@@ -229,11 +178,11 @@ fn a_mail_in_the_dovecot_mailbox_shows_on_monicans_screen_after_ctrl_r() {
         "1700000000.M1P1.buslab",
         "From: Alice <alice@example.org>\nTo: testuser@localhost\nSubject: Dinner at eight\n\nThe table is booked.\nBring the CAN analyser.\n",
     );
-    terminal.wait_for("you've got mail ! (press Ctrl R to read it)");
-    terminal.keys.write_all(&[0x12]).unwrap();
-    terminal.wait_for("Subject: Dinner at eight");
-    terminal.wait_for("From: Alice <alice@example.org>");
-    terminal.wait_for("Bring the CAN analyser.");
+    terminal.wait_for_text("you've got mail ! (press Ctrl R to read it)");
+    terminal.type_keys(&[0x12]);
+    terminal.wait_for_text("Subject: Dinner at eight");
+    terminal.wait_for_text("From: Alice <alice@example.org>");
+    terminal.wait_for_text("Bring the CAN analyser.");
     let mut rest = String::new();
     let mut notifier = notifier;
     let start = Instant::now();

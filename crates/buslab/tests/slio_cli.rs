@@ -1,10 +1,13 @@
 //! `buslab slio` against `buslab bus serve --slio`: the SLIO demo boards answer the host
 //! library's requests, calibrated by `buslab slio` itself or by python-can.
 
+#[path = "support/outside_tools.rs"]
+mod outside_tools;
+
 mod bus_common;
 
+use outside_tools::{python_can, root};
 use std::io::{BufRead, BufReader};
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 
 use bus_common::Serve;
@@ -104,36 +107,15 @@ fn a_bus_too_fast_for_slios_is_refused() {
     );
 }
 
-/// The venv's python with python-can, or `None` (allowed outside CI only).
-fn python_can() -> Option<(PathBuf, PathBuf)> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let python = root.join(".venv/bin/python");
-    let has_can = python.exists()
-        && Command::new(&python)
-            .args(["-c", "import can"])
-            .status()
-            .is_ok_and(|s| s.success());
-    if !has_can {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "python-can is missing in CI ({})",
-            python.display()
-        );
-        eprintln!("SKIPPED: python-can is missing; run scripts/setup-test-deps.sh");
-        return None;
-    }
-    Some((root, python))
-}
-
 #[test]
 fn python_can_calibrates_and_buslab_slio_drives_them() {
-    let Some((root, python)) = python_can() else {
+    let Some(python) = python_can() else {
         return;
     };
     let serve = Serve::start_with(RATE, &["--slio", "0,3,A"]);
     // python-can sends the calibration frame every 3000 bit-times (150 ms at 20 kbit/s).
     let mut calibrator = Command::new(&python)
-        .arg(root.join("tests/interop/slio_calibrator.py"))
+        .arg(root().join("tests/interop/slio_calibrator.py"))
         .args(["127.0.0.1", &serve.addr.port().to_string(), "0.15"])
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())

@@ -2,8 +2,12 @@
 //! `slcan:` backend, python-can's `slcan` interface and raw bytes; `buslab bridge` between two
 //! virtual buses; can-utils habits of `dump` and `send`.
 
+#[path = "support/outside_tools.rs"]
+mod outside_tools;
+
 mod bus_common;
 
+use outside_tools::{python_can, root};
 use std::fs::OpenOptions;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
@@ -125,30 +129,9 @@ fn slcan_serve(bus: &str, dir: &Path) -> (Running, PathBuf) {
     (serve, link)
 }
 
-/// The venv's python with python-can, or `None` (allowed outside CI only).
-fn python_can() -> Option<(PathBuf, PathBuf)> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let python = root.join(".venv/bin/python");
-    let has_can = python.exists()
-        && Command::new(&python)
-            .args(["-c", "import can, serial"])
-            .status()
-            .is_ok_and(|s| s.success());
-    if !has_can {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "python-can is missing in CI ({})",
-            python.display()
-        );
-        eprintln!("SKIPPED: python-can is missing; run scripts/setup-test-deps.sh");
-        return None;
-    }
-    Some((root, python))
-}
-
 #[test]
 fn python_can_slcan_exchanges_frames_with_buslab_dump() {
-    let Some((root, python)) = python_can() else {
+    let Some(python) = python_can() else {
         return;
     };
     let serve = Serve::start(500_000);
@@ -159,7 +142,7 @@ fn python_can_slcan_exchanges_frames_with_buslab_dump() {
         "dump: listening",
     );
     let mut peer = Command::new(&python)
-        .arg(root.join("tests/interop/can_slcan_peer.py"))
+        .arg(root().join("tests/interop/can_slcan_peer.py"))
         .arg(&pty)
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())

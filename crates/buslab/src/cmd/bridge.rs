@@ -7,8 +7,7 @@
 //! it sent, an SLCAN adapter does not echo), so a frame from A sent to B is never seen on B's
 //! side of the bridge. Bridging a bus to itself is refused.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -62,11 +61,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--filter: error frames are not copied (#ERRORMASK does not apply)");
     }
     let filters = filter_set(args.filter.iter().copied());
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
+    let stop = super::interrupted()?;
     let a = open(&args.a)?;
     let mut b = open(&args.b)?;
     if args.one_way {

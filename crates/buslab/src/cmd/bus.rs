@@ -3,8 +3,7 @@
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
@@ -138,12 +137,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         sim.set_record_events(false);
         config.scenario = Some(sim);
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
-            .context("cannot install the Ctrl-C handler")?;
-    }
+    let stop = super::interrupted()?;
     let server = buslab_vbus::spawn(config)?;
     let terminal = match &args.ppc {
         Some(path) => Some(

@@ -4,7 +4,6 @@
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant, UNIX_EPOCH};
@@ -178,11 +177,7 @@ fn dump(args: Args) -> anyhow::Result<()> {
         }
         buses.push(bus);
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
+    let stop = super::interrupted()?;
     let (tx, events) = mpsc::sync_channel(4096);
     let readers: Vec<_> = buses
         .into_iter()

@@ -1,8 +1,7 @@
 //! `buslab gen`: generate traffic like can-utils' cangen (gap, ID/DLC/data modes, count).
 
 use std::str::FromStr;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
@@ -198,11 +197,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     set_name(&mut bus, url, args.name.as_deref())?;
     // Only this client's own frames matter; what the bus carries is read and let go.
     bus.set_filters(&[Filter::NONE])?;
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
+    let stop = super::interrupted()?;
     // As fast as the bus takes them, the client must not run far ahead of the bus: every frame
     // written but not sent waits in the sockets, and so does any request behind it (the last
     // `< buslab_status >` waited behind 20000 sends and timed out). So every half a lead the

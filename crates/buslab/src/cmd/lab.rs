@@ -97,12 +97,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
 }
 
 fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
-            .context("cannot install the Ctrl-C handler")?;
-    }
+    let stop = super::interrupted()?;
     let devices = if args.no_devices {
         None
     } else {

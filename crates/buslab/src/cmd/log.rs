@@ -109,21 +109,6 @@ fn is_broken_pipe(e: &anyhow::Error) -> bool {
         .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe)
 }
 
-/// A flag set by Ctrl-C, SIGTERM or SIGHUP, so a command stops cleanly: writers finish,
-/// nothing read is lost.
-pub fn stop_on_signals() -> anyhow::Result<Arc<AtomicBool>> {
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [
-        signal_hook::consts::SIGINT,
-        signal_hook::consts::SIGTERM,
-        signal_hook::consts::SIGHUP,
-    ] {
-        signal_hook::flag::register(signal, stop.clone())
-            .with_context(|| format!("cannot handle signal {signal}"))?;
-    }
-    Ok(stop)
-}
-
 /// The input's format: `--from`, else its extension.
 fn input_format(input: &Input) -> anyhow::Result<Format> {
     Ok(match input.from {
@@ -207,7 +192,7 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
     if same_file(input, output) {
         bail!("{} is both input and output", input.display());
     }
-    let stop = stop_on_signals()?;
+    let stop = super::interrupted()?;
     let writer = if args.follow {
         create_writer(output, to)?
     } else {
@@ -339,7 +324,7 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
     let format = input_format(&args.input)?;
     let path = &args.input.input;
     let mut source = open_source(path, format, &OpenOptions::default())?;
-    let stop = stop_on_signals()?;
+    let stop = super::interrupted()?;
     let mut per: BTreeMap<String, Stats> = BTreeMap::new();
     let mut tally = Tally::default();
     let read = read_all(&mut source, args.input.skip_bad, &stop, &mut tally, |e| {
@@ -462,7 +447,7 @@ fn seconds(t: Duration) -> String {
 fn cat(args: CatArgs) -> anyhow::Result<()> {
     let format = input_format(&args.input)?;
     let mut source = open_source(&args.input.input, format, &OpenOptions::default())?;
-    let stop = stop_on_signals()?;
+    let stop = super::interrupted()?;
     let stdout = io::stdout();
     let mut out = io::BufWriter::with_capacity(64 * 1024, stdout.lock());
     let mut line = Vec::with_capacity(128);

@@ -1,7 +1,7 @@
 //! One module per subcommand.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
 
@@ -34,11 +34,17 @@ pub mod wire;
 pub mod zelle;
 
 /// A flag set by Ctrl-C, SIGTERM or SIGHUP, so a long-running command stops as cleanly for
-/// each of them.
+/// each of them: writers finish, nothing read or acknowledged is lost. Safe to call more than
+/// once (each call registers one more flag).
 pub fn interrupted() -> anyhow::Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
-        .context("cannot install the Ctrl-C handler")?;
+    for signal in [
+        signal_hook::consts::SIGINT,
+        signal_hook::consts::SIGTERM,
+        signal_hook::consts::SIGHUP,
+    ] {
+        signal_hook::flag::register(signal, stop.clone())
+            .with_context(|| format!("cannot handle signal {signal}"))?;
+    }
     Ok(stop)
 }

@@ -5,10 +5,9 @@
 //! the bus, and the wall clock. Keys go to MoniCAN as the bytes the terminal sends; Ctrl-Q or
 //! Ctrl-C quit (SIGTERM, SIGINT and SIGHUP too).
 
-use std::io::{IsTerminal, Read, Write};
-use std::sync::Arc;
+use std::io::{IsTerminal, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, TryRecvError};
+use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -17,6 +16,7 @@ use buslab_canbus::BusError;
 use buslab_monican::{Config, MoniCan, Transmit};
 
 use super::busopt::{self, BusOpt};
+use crate::terminal::{Cursor, RawScreen, read_keys};
 use crate::units::Human;
 
 /// Keys that leave `buslab monican` (MoniCAN itself gives them no meaning).
@@ -77,65 +77,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Config::default()
     };
     config.validate()?;
-    let quit = Arc::new(AtomicBool::new(false));
-    for signal in [
-        signal_hook::consts::SIGTERM,
-        signal_hook::consts::SIGINT,
-        signal_hook::consts::SIGHUP,
-    ] {
-        signal_hook::flag::register(signal, quit.clone())
-            .context("cannot watch for termination signals")?;
-    }
-    let terminal = Terminal::enter()?;
+    let quit = super::interrupted()?;
+    let terminal = RawScreen::enter(Cursor::Shown)?;
     let keys = read_keys();
     let result = session(&mut bus, config, &keys, &quit);
     drop(terminal);
     result
-}
-
-/// The terminal in raw mode on the alternate screen, until dropped.
-struct Terminal;
-
-impl Terminal {
-    fn enter() -> anyhow::Result<Self> {
-        crossterm::terminal::enable_raw_mode().context("cannot put the terminal in raw mode")?;
-        let terminal = Terminal;
-        crossterm::execute!(std::io::stdout(), crossterm::terminal::EnterAlternateScreen)
-            .context("cannot switch to the alternate screen")?;
-        Ok(terminal)
-    }
-}
-
-impl Drop for Terminal {
-    fn drop(&mut self) {
-        let _ = crossterm::execute!(
-            std::io::stdout(),
-            crossterm::cursor::Show,
-            crossterm::terminal::LeaveAlternateScreen
-        );
-        let _ = crossterm::terminal::disable_raw_mode();
-    }
-}
-
-/// Bytes from the terminal, as they come (a thread blocked in `read`; it ends with the
-/// process).
-fn read_keys() -> Receiver<Vec<u8>> {
-    let (tx, rx) = mpsc::sync_channel(64);
-    std::thread::spawn(move || {
-        let mut stdin = std::io::stdin();
-        let mut buf = [0u8; 256];
-        loop {
-            match stdin.read(&mut buf) {
-                Ok(0) | Err(_) => break,
-                Ok(n) => {
-                    if tx.send(buf[..n].to_vec()).is_err() {
-                        break;
-                    }
-                }
-            }
-        }
-    });
-    rx
 }
 
 fn session(

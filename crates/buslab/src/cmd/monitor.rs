@@ -5,10 +5,9 @@
 //! terminal (raw mode and the alternate screen, restored on every way out), the keys and the
 //! bus.
 
-use std::io::{IsTerminal, Read, Stdout};
-use std::sync::Arc;
+use std::io::{IsTerminal, Stdout};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, TryRecvError};
+use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -24,6 +23,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Paragraph, Row, Sparkline, Table};
 
 use super::busopt::{BusOpt, open};
+use crate::terminal::{self, RawScreen, read_keys};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -53,16 +53,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let _ = a.set_name("monitor");
         a.node_status(None).ok().map(|s| s.number)
     });
-    let quit = Arc::new(AtomicBool::new(false));
-    for signal in [
-        signal_hook::consts::SIGTERM,
-        signal_hook::consts::SIGINT,
-        signal_hook::consts::SIGHUP,
-    ] {
-        signal_hook::flag::register(signal, quit.clone())
-            .context("cannot watch for termination signals")?;
-    }
-    let guard = Screen::enter()?;
+    let quit = super::interrupted()?;
+    let guard = RawScreen::enter(terminal::Cursor::Hidden)?;
     let mut terminal = Terminal::new(CrosstermBackend::new(std::io::stdout()))
         .context("cannot draw on this terminal")?;
     let keys = read_keys();
@@ -71,49 +63,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     drop(terminal);
     drop(guard);
     result
-}
-
-/// Raw mode on the alternate screen until dropped.
-struct Screen;
-
-impl Screen {
-    fn enter() -> anyhow::Result<Self> {
-        crossterm::terminal::enable_raw_mode().context("cannot put the terminal in raw mode")?;
-        let screen = Screen;
-        crossterm::execute!(
-            std::io::stdout(),
-            crossterm::terminal::EnterAlternateScreen,
-            crossterm::cursor::Hide
-        )
-        .context("cannot switch to the alternate screen")?;
-        Ok(screen)
-    }
-}
-
-impl Drop for Screen {
-    fn drop(&mut self) {
-        let _ = crossterm::execute!(
-            std::io::stdout(),
-            crossterm::cursor::Show,
-            crossterm::terminal::LeaveAlternateScreen
-        );
-        let _ = crossterm::terminal::disable_raw_mode();
-    }
-}
-
-/// Bytes from the terminal as they come (a thread blocked in `read`).
-fn read_keys() -> Receiver<Vec<u8>> {
-    let (tx, rx) = mpsc::sync_channel(64);
-    std::thread::spawn(move || {
-        let mut stdin = std::io::stdin();
-        let mut buf = [0u8; 256];
-        while let Ok(n) = stdin.read(&mut buf) {
-            if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
-                break;
-            }
-        }
-    });
-    rx
 }
 
 /// What a typed line is for.

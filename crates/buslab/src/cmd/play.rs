@@ -13,7 +13,6 @@ use buslab_canbus::Filter;
 use buslab_logs::{Entry, Format, OpenOptions, Record, open_source};
 
 use super::busopt::{BusOpt, confirm_sent, open};
-use super::log::stop_on_signals;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -162,7 +161,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
         Some(f) => f,
         None => Format::from_path(&args.input)?,
     };
-    let stop = stop_on_signals()?;
+    let stop = super::interrupted()?;
     // Targets: one per distinct WRITE (or --bus alone), and which log interface goes where.
     let mut targets: Vec<Target> = Vec::new();
     let mut routes: Vec<(String, usize)> = Vec::new();

@@ -3,8 +3,7 @@
 //! the PTY as if an adapter were plugged in.
 
 use std::path::PathBuf;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::mpsc;
 
 use anyhow::Context;
@@ -66,11 +65,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         pty.link_at(link)
             .with_context(|| format!("linking {}", link.display()))?;
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
-    }
+    let stop = super::interrupted()?;
     let (feed, inputs) = mpsc::sync_channel(buslab_slcan::INPUT_QUEUE);
     let pump = {
         let feed = feed.clone();
