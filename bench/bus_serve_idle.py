@@ -2,17 +2,21 @@
 """CPU of an idle `buslab bus serve` and the latency of a single frame through it, for one or
 more buslab binaries side by side (e.g. the one before a change and the one after).
 
-Usage: python3 bench/bus_serve_idle.py [--seconds 10] [--frames 400] NAME=PATH [NAME=PATH ...]
+Usage: python3 bench/bus_serve_idle.py [--seconds 10] [--frames 400] [--runs 1] NAME=PATH [NAME=PATH ...]
        (default: `current=target/release/buslab`, built with `cargo build --release -p buslab`)
 
 Rows:
 - idle CPU: the server at 10x real time (and at 100x with no client), 8 raw socketcand clients
   connected in raw mode and silent; CPU time of the server process (utime + stime from
   /proc) over the wall time, in per cent of one core;
-- latency: at real time (500 kbit/s), client A sends `123#` (DLC 0, 47 bits plus stuffing:
-  about 0.1 ms on the wire), client B waits for it; one frame at a time, from A's send call to
-  B's receive call; p50 and p99 over `--frames` frames, and the frame's own wire time for
-  reference.
+- latency: at real time (500 kbit/s), client A sends `123#` (DLC 0: 44 bits from start to
+  end of frame and 1 stuff bit, 0.09 ms on the wire), client B waits for it; one frame at a
+  time, from A's send call to B's receive call; p50 and p99 over `--frames` frames, and the
+  frame's own wire time for reference.
+
+With `--runs N` every binary is measured N times, the binaries taking turns, and each column
+is the median of its N values (the machine's load comes and goes; the load average is printed
+before and after).
 
 Plain sockets, no python-can: the client's own overhead stays small and the same for every
 binary. The machine is shared: compare rows of the same run, not runs of different days.
@@ -112,10 +116,17 @@ def latency(binary, frames):
     return samples[len(samples) // 2], samples[int(len(samples) * 0.99)]
 
 
+def median(values):
+    values = sorted(values)
+    middle = len(values) // 2
+    return values[middle] if len(values) % 2 else (values[middle - 1] + values[middle]) / 2
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--frames", type=int, default=400)
+    p.add_argument("--runs", type=int, default=1, help="measure each binary this often (medians)")
     p.add_argument("binaries", nargs="*", help="NAME=PATH of a buslab binary")
     args = p.parse_args()
     binaries = [b.split("=", 1) for b in args.binaries]
@@ -124,16 +135,30 @@ def main():
             ["cargo", "build", "--release", "--quiet", "-p", "buslab"], cwd=ROOT, check=True
         )
         binaries = [("current", os.path.join(ROOT, "target/release/buslab"))]
-    rows = []
-    for name, path in binaries:
-        idle10 = idle_cpu(path, 10, 8, args.seconds)
-        idle100 = idle_cpu(path, 100, 0, args.seconds)
-        p50, p99 = latency(path, args.frames)
-        rows.append((name, idle10, idle100, p50, p99))
-    wire_ms = 55 / 500_000 * 1e3
+    load_before = os.getloadavg()
+    runs = {name: [] for name, _ in binaries}
+    for run in range(args.runs):
+        # Taking turns, and in the other order every other run, so a change of load over
+        # the measurement falls on every binary alike.
+        order = binaries if run % 2 == 0 else binaries[::-1]
+        for name, path in order:
+            idle10 = idle_cpu(path, 10, 8, args.seconds)
+            idle100 = idle_cpu(path, 100, 0, args.seconds)
+            p50, p99 = latency(path, args.frames)
+            runs[name].append((idle10, idle100, p50, p99))
+    rows = [(name, *map(median, zip(*runs[name]))) for name, _ in binaries]
+    load_after = os.getloadavg()
+    wire_ms = 45 / 500_000 * 1e3
     print()
-    print(f"bus serve, idle CPU over {args.seconds:.0f} s and single-frame latency at 500 kbit/s")
-    print(f"(123# is about 55 bits: {wire_ms:.2f} ms on the wire, which any latency includes)")
+    medians = f", medians of {args.runs} runs" if args.runs > 1 else ""
+    print(f"bus serve, idle CPU over {args.seconds:.0f} s and single-frame latency at 500 kbit/s{medians}")
+    print(
+        "load average (1, 5, 15 min): before "
+        + ", ".join(f"{x:.2f}" for x in load_before)
+        + "; after "
+        + ", ".join(f"{x:.2f}" for x in load_after)
+    )
+    print(f"(123# is 45 bits: {wire_ms:.2f} ms on the wire, which any latency includes)")
     print()
     print(f"{'binary':<12} {'idle 10x, 8 clients':>20} {'idle 100x, none':>16} {'p50 latency':>12} {'p99 latency':>12}")
     for name, idle10, idle100, p50, p99 in rows:

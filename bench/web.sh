@@ -30,17 +30,29 @@ cleanup() {
 }
 trap cleanup EXIT
 
-"$buslab" -q bus serve --listen 127.0.0.1:0 --bitrate 1000000 >"$work/serve.out" 2>/dev/null &
-pids+=($!)
-until [ -s "$work/serve.out" ]; do sleep 0.1; done
-bus=$(head -1 "$work/serve.out")
+# Waits for a process's first line of output, failing (never hanging) if it died first or
+# said nothing for a minute.
+first_line() { # FILE PID WHAT
+    local tries=0
+    until [ -s "$1" ]; do
+        kill -0 "$2" 2>/dev/null || { echo "bench/web.sh: $3 exited: $(cat "$1.err" 2>/dev/null)" >&2; exit 1; }
+        tries=$((tries + 1))
+        [ "$tries" -lt 600 ] || { echo "bench/web.sh: $3 said nothing for 60 s" >&2; exit 1; }
+        sleep 0.1
+    done
+    head -1 "$1"
+}
+
+"$buslab" -q bus serve --listen 127.0.0.1:0 --bitrate 1000000 >"$work/serve.out" 2>"$work/serve.out.err" &
+serve_pid=$!
+pids+=($serve_pid)
+bus=$(first_line "$work/serve.out" "$serve_pid" "buslab bus serve")
 "$buslab" -q gen --bus "$bus" --gap 0s -L 8 >/dev/null 2>&1 &
 pids+=($!)
-"$buslab" -q web --bus "$bus" --listen 127.0.0.1:0 >"$work/web.out" 2>/dev/null &
+"$buslab" -q web --bus "$bus" --listen 127.0.0.1:0 >"$work/web.out" 2>"$work/web.out.err" &
 web_pid=$!
 pids+=($web_pid)
-until [ -s "$work/web.out" ]; do sleep 0.1; done
-url=$(head -1 "$work/web.out")
+url=$(first_line "$work/web.out" "$web_pid" "buslab web")
 for i in $(seq 1 "$VIEWERS"); do
     curl -sN "${url}api/events" >"$work/viewer$i" &
     pids+=($!)
@@ -54,7 +66,7 @@ lines_before=$(cat "$work"/viewer* | grep -c '^event: update' || true)
 sleep "$SECONDS_MEASURED"
 after=$(ticks)
 lines_after=$(cat "$work"/viewer* | grep -c '^event: update' || true)
-state=$(curl -s "${url}api/state?n=0")
+state=$(curl -s --max-time 30 "${url}api/state?n=0")
 fps=$(printf '%s' "$state" | sed -n 's/.*"frames_per_s":\([0-9]*\).*/\1/p')
 load=$(printf '%s' "$state" | grep -o '"percent":[0-9.]*' | tail -1 | cut -d: -f2)
 cpu=$(awk -v a="$after" -v b="$before" -v hz="$hz" -v s="$SECONDS_MEASURED" \

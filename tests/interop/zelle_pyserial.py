@@ -39,7 +39,7 @@ def main(path):
     # 3: write two bytes to 0800h, waiting for each timing byte as the seed describes.
     port.write(bytes([3]))
     port.flush()
-    time.sleep(0.05)  # the 1 ms set-up pause, with the client's margin (a PTY server reads late)
+    time.sleep(0.001)  # the seed's 1 ms set-up pause, after the command has left
     for value in (0xC0, 0xDE):
         ask([], 1)  # timing byte
         port.write(bytes([1, value]))
@@ -48,7 +48,7 @@ def main(path):
     # 2: read them back, one "1" per byte, "0" ends.
     port.write(bytes([2]))
     port.flush()
-    time.sleep(0.05)
+    time.sleep(0.001)
     assert ask([1, 1], 2) == bytes([0xC0, 0xDE])
     port.write(bytes([0]))
     # 12: port 1 is all high after power-on.

@@ -83,7 +83,10 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
     // confirmed it (MoniCAN initialised it to 2000, the input switches selected).
     t.type_keys(b"3OB01");
     t.wait_until("the LED's confirmation", |t| {
-        t.row(slio_row_of(3))[OUTPUTS_COL as usize - 1..].starts_with("2800")
+        // (`get`: a row being redrawn may be shorter for a moment.)
+        t.row(slio_row_of(3))
+            .get(OUTPUTS_COL as usize - 1..)
+            .is_some_and(|cell| cell.starts_with("2800"))
     });
     // The ADC2 column follows the potentiometer (a 0..5 V sine, 10 s a turn): conversions a
     // second apart do not all read the same.

@@ -169,18 +169,23 @@ impl Browser {
         )
     }
 
-    fn click(&self, css: &str) {
+    /// The element `css` finds first.
+    fn find(&self, css: &str) -> String {
         let found = self.call(
             "POST",
             "/element",
             json!({ "using": "css selector", "value": css }),
         );
         // The W3C key, or whichever single key this chromedriver uses.
-        let id = found[ELEMENT]
+        found[ELEMENT]
             .as_str()
             .or_else(|| found.as_object()?.values().next()?.as_str())
             .unwrap_or_else(|| panic!("no element {css}: {found}"))
-            .to_string();
+            .to_string()
+    }
+
+    fn click(&self, css: &str) {
+        let id = self.find(css);
         self.call("POST", &format!("/element/{id}/click"), json!({}));
     }
 
@@ -289,4 +294,186 @@ fn the_dashboard_in_chromium_updates_live_and_a_click_cuts_the_wire() {
     assert!(png.starts_with(b"\x89PNG"));
     let shot = Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-dashboard.png");
     std::fs::write(&shot, png).unwrap();
+}
+
+/// Starts `buslab lab` with its devices; returns it and the dashboard's address with the
+/// token in its fragment.
+fn start_lab() -> (Kill, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["lab", "--listen", "127.0.0.1:0", "--web", "127.0.0.1:0"])
+        .env_remove("BUSLAB_BUS")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let lab = Kill(child);
+    let mut lines = BufReader::new(stderr).lines();
+    let dashboard = loop {
+        let line = lines.next().expect("the banner ended").unwrap();
+        if let Some(url) = line.trim().strip_prefix("dashboard:") {
+            break url.trim().to_string();
+        }
+    };
+    // Keep reading the status lines so the lab never blocks on a full pipe.
+    std::thread::spawn(move || lines.for_each(drop));
+    (lab, dashboard)
+}
+
+/// SLIO `n`'s LED on pin `pin`: [on, pending] as the page shows it.
+fn led(slio: &str, pin: u8) -> String {
+    format!(
+        "const b = document.querySelector('#slio-{slio} button.led[data-pin=\"{pin}\"]'); \
+         return b ? [b.dataset.on === '1', b.dataset.pending === '1'] : null;"
+    )
+}
+
+fn cell(slio: &str, key: &str) -> String {
+    format!(
+        "const t = document.querySelector('#slio-{slio} td[data-key=\"{key}\"]'); \
+         return t ? t.textContent : null;"
+    )
+}
+
+fn screenshot(browser: &Browser, path: &str, name: &str) {
+    let png = browser.call("GET", path, Value::Null);
+    let png = base64::engine::general_purpose::STANDARD
+        .decode(png.as_str().unwrap())
+        .unwrap();
+    assert!(png.starts_with(b"\x89PNG"));
+    let shot = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::write(&shot, png).unwrap();
+}
+
+#[test]
+fn the_lab_dashboard_shows_its_devices_and_an_led_follows_the_slio() {
+    if !tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (_lab, dashboard) = start_lab();
+    let (base, token) = dashboard.split_once("dashboard#token=").unwrap();
+    let addr: SocketAddr = base
+        .strip_prefix("http://")
+        .and_then(|r| r.strip_suffix('/'))
+        .unwrap()
+        .parse()
+        .unwrap();
+    let browser = Browser::start(&dir.path().join("profile"));
+    browser.open(&dashboard);
+
+    // The panels: three SLIO boards whose outputs the server learned by asking them, the
+    // ZELLE cell, the CPU196 board with its identity.
+    for slio in ["0", "3", "A"] {
+        browser.until(
+            &format!("SLIO {slio}'s outputs"),
+            &cell(slio, "outputs"),
+            |v| v.as_str().is_some_and(|s| s.len() == 4),
+        );
+    }
+    browser.until(
+        "the ZELLE panel",
+        "return !!document.getElementById('zelle')",
+        |v| v == true,
+    );
+    browser.until(
+        "the CPU196 identity",
+        "return document.querySelector('#cpu196 pre.identity')?.textContent",
+        |v| v.as_str().is_some_and(|s| s.contains("serial")),
+    );
+    let before = browser.until("SLIO 3's LED P7", &led("3", 7), |v| !v.is_null());
+    assert_eq!(
+        before,
+        json!([false, false]),
+        "P7 starts off (MoniCAN's sign-on)"
+    );
+
+    // SLIO 3 off the wire: the click is sent and shows pending, and the LED stays off. The
+    // proof that it had its chance to answer: SLIO 0, asked after it through the same queue,
+    // answered.
+    let header = format!("X-Buslab-Token: {token}\r\n");
+    let (status, body) = http(
+        addr,
+        "POST",
+        "/api/fault",
+        &header,
+        r#"{"kind":"disconnect","nodes":["slio3"]}"#,
+    );
+    assert_eq!(status, 200, "{body}");
+    browser.click("#slio-3 button.led[data-pin=\"7\"]");
+    browser.until("the click pending", &led("3", 7), |v| {
+        *v == json!([false, true])
+    });
+    let replies = |slio: &str| {
+        browser
+            .script(&cell(slio, "replies"))
+            .as_str()
+            .unwrap()
+            .parse::<u64>()
+            .unwrap()
+    };
+    let answered = replies("0");
+    browser.click("#slio-0 button.read");
+    browser.until("SLIO 0's answer", &cell("0", "replies"), |v| {
+        v.as_str().and_then(|s| s.parse::<u64>().ok()) > Some(answered)
+    });
+    assert_eq!(
+        browser.script(&led("3", 7)),
+        json!([false, true]),
+        "the LED changed without the SLIO's confirmation"
+    );
+
+    // Back on the wire, MoniCAN calibrates SLIO 3 again and initialises it (every LED off):
+    // its DATA_OUTPUT answer ends the pending mark. A click now is confirmed and the LED
+    // turns on, with the SLIO's answer on the bus.
+    let (status, body) = http(addr, "POST", "/api/repair", &header, "{}");
+    assert_eq!(status, 200, "{body}");
+    browser.until("SLIO 3 initialised again", &led("3", 7), |v| {
+        *v == json!([false, false])
+    });
+    browser.click("#slio-3 button.led[data-pin=\"7\"]");
+    browser.until("the LED on", &led("3", 7), |v| *v == json!([true, false]));
+    let (status, body) = http(addr, "GET", "/api/state?filter=29D&n=1000", "", "");
+    assert_eq!(status, 200);
+    let state: Value = serde_json::from_str(&body).unwrap();
+    let confirmed = state["delta"]["log"].as_array().unwrap().iter().any(|e| {
+        let f = e["frame"].as_str().unwrap();
+        // The SLIO's DATA_OUTPUT (register 3) with P7 high.
+        f.len() == 10 && &f[5..6] == "3" && u16::from_str_radix(&f[6..10], 16).unwrap() & 0x80 != 0
+    });
+    assert!(confirmed, "no confirmation from SLIO 3 on the bus: {body}");
+
+    // A conversion: the potentiometer of SLIO A, as the SLIO answers it.
+    browser.click("#slio-A button.adc2");
+    browser.until("SLIO A's ADC2", &cell("A", "adc2"), |v| {
+        v.as_str().is_some_and(|s| s.ends_with(" V)"))
+    });
+
+    // Live plots: a ZELLE measurement and the CPU196 A/D stream, started by clicks.
+    browser.click("#zelle button.measure");
+    browser.click("#cpu196 button.start");
+    browser.until(
+        "the ZELLE plot",
+        "return document.querySelector('#zelle polyline.ch2')?.getAttribute('points').split(' ').length",
+        |v| v.as_u64() > Some(40),
+    );
+    browser.until(
+        "the CPU196 plot",
+        "return document.querySelector('#cpu196 polyline.ch1')?.getAttribute('points').split(' ').length",
+        |v| v.as_u64() > Some(40),
+    );
+    screenshot(&browser, "/screenshot", "lab-dashboard.png");
+    let id = browser.find("#devices");
+    screenshot(
+        &browser,
+        &format!("/element/{id}/screenshot"),
+        "web-devices.png",
+    );
+    browser.click("#cpu196 button.stop");
+    browser.click("#zelle button.stop");
+    browser.until(
+        "the CPU196 stopped",
+        "return document.querySelector('#cpu196 .state').textContent",
+        |v| v.as_str().is_some_and(|s| s.contains("idle")),
+    );
 }

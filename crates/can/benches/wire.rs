@@ -1,52 +1,113 @@
 //! Wire codec and controller throughput.
 //!
 //! `cargo bench -p buslab-can --bench wire`
+//!
+//! The `wire-encode` and `wire-decode` groups put the original bit-by-bit code (the encoder
+//! kept in `tests/reference/`, the bit-by-bit `Receiver`) and the table-driven code side by
+//! side on the same frames, so one run gives the before/after comparison in frames/s.
 
 use std::hint::black_box;
 
 use buslab_can::controller::{Controller, ControllerConfig, Event};
-use buslab_can::wire::{Receiver, Step, encode};
-use buslab_can::{Frame, Level};
+use buslab_can::wire::{Bits, EncodeCache, Receiver, Step, decode_bits, encode};
+use buslab_can::{Frame, Id, Level};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 
+#[path = "../tests/reference/mod.rs"]
+mod reference;
+
+/// A fixed mix of frames: standard and extended, data and remote, every length, bytes biased
+/// to 0x00 and 0xFF (stuffing), from a fixed-seed generator so every run measures the same.
 fn frames() -> Vec<Frame> {
-    [
-        "123#1122",
-        "7FF#0102030405060708",
-        "12345678#DEADBEEFCAFEF00D",
-        "000#",
-        "1ABCDEF0#R8",
-    ]
-    .iter()
-    .map(|s| s.parse().unwrap())
-    .collect()
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    (0..1024)
+        .map(|_| {
+            let r = next();
+            let id = if r & 1 == 0 {
+                Id::standard((r >> 8) as u16 & 0x7FF).unwrap()
+            } else {
+                Id::extended((r >> 8) as u32 & 0x1FFF_FFFF).unwrap()
+            };
+            let len = (r >> 40) as usize % 9;
+            if r >> 50 & 7 == 0 {
+                return Frame::remote(id, len as u8).unwrap();
+            }
+            let bytes: Vec<u8> = (0..len)
+                .map(|_| match next() % 4 {
+                    0 => 0x00,
+                    1 => 0xFF,
+                    r => (r >> 8) as u8,
+                })
+                .collect();
+            Frame::data(id, &bytes).unwrap()
+        })
+        .collect()
 }
 
 fn bench_encode(c: &mut Criterion) {
     let frames = frames();
-    let mut group = c.benchmark_group("wire");
+    let mut group = c.benchmark_group("wire-encode");
     group.throughput(Throughput::Elements(frames.len() as u64));
-    group.bench_function("encode (frames)", |b| {
+    group.bench_function("reference bit by bit (frames)", |b| {
+        b.iter(|| {
+            for f in &frames {
+                black_box(reference::encode(black_box(f)));
+            }
+        })
+    });
+    group.bench_function("table-driven (frames)", |b| {
         b.iter(|| {
             for f in &frames {
                 black_box(encode(black_box(f)));
             }
         })
     });
-    let wires: Vec<Vec<bool>> = frames
-        .iter()
-        .map(|f| encode(f).on_bus().iter().collect())
-        .collect();
-    group.bench_function("decode bit by bit (frames)", |b| {
+    group.bench_function("table-driven with spans (frames)", |b| {
+        b.iter(|| {
+            for f in &frames {
+                let enc = encode(black_box(f));
+                black_box((enc.fields(), enc.wire_fields()));
+            }
+        })
+    });
+    group.bench_function("cache hit (frames)", |b| {
+        let mut caches: Vec<EncodeCache> = frames.iter().map(|_| EncodeCache::new()).collect();
+        b.iter(|| {
+            for (f, cache) in frames.iter().zip(&mut caches) {
+                black_box(cache.encode(black_box(f)));
+            }
+        })
+    });
+    group.finish();
+}
+
+fn bench_decode(c: &mut Criterion) {
+    let wires: Vec<Bits> = frames().iter().map(|f| encode(f).on_bus()).collect();
+    let mut group = c.benchmark_group("wire-decode");
+    group.throughput(Throughput::Elements(wires.len() as u64));
+    group.bench_function("Receiver bit by bit (frames)", |b| {
         b.iter(|| {
             let mut rx = Receiver::new();
             for bits in &wires {
                 rx.reset();
-                for &bit in bits {
+                for bit in bits.iter() {
                     if let Step::Frame(d) = rx.push(black_box(bit)) {
                         black_box(d);
                     }
                 }
+            }
+        })
+    });
+    group.bench_function("decode_bits whole frame (frames)", |b| {
+        b.iter(|| {
+            for bits in &wires {
+                let _ = black_box(decode_bits(black_box(bits)));
             }
         })
     });
@@ -103,5 +164,5 @@ fn bench_controller(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_encode, bench_controller);
+criterion_group!(benches, bench_encode, bench_decode, bench_controller);
 criterion_main!(benches);

@@ -26,6 +26,12 @@ const MAX_IDLE: Duration = Duration::from_millis(20);
 /// bytes up in memory.
 const MAX_INBOUND: usize = 4096;
 
+/// What Linux's pseudo-terminal hands over in one read at most (its line discipline's buffer,
+/// `N_TTY_BUF_SIZE` 4096, keeps one byte free). A read this long found that buffer full: the
+/// client wrote more at once, held in the kernel until a kernel worker moves it on after the
+/// read, which a loaded host may do hundreds of milliseconds later.
+const PTY_READ_MAX: usize = 4095;
+
 /// Bytes for the client that the PTY did not take yet. A client that does not read loses what
 /// comes beyond this, as a real port's receive buffer overflows.
 const MAX_OUTBOUND: usize = 64 * 1024;
@@ -248,6 +254,9 @@ impl Inbound {
                     // Bytes sent at other settings occupy the line too (a writer cannot
                     // outrun it), but the device never gets them.
                     let stamps = self.arrivals.stamp(clock(), n);
+                    // The kernel's buffer was full: what it still holds follows these bytes
+                    // without a gap, however late it comes.
+                    self.arrivals.kernel_held_back = n >= PTY_READ_MAX;
                     for (&byte, at) in self.buf[..n].iter().zip(stamps) {
                         self.queue.push_back((at, understood.then_some(byte)));
                     }
@@ -275,12 +284,14 @@ impl Inbound {
 /// Bytes that waited in the PTY because the server held the client back (its queue was full)
 /// were on the line already: they follow the previous ones without a gap, however late the
 /// server got to read them (a gap would be a pause inside a frame, which a device may time
-/// out).
+/// out). The same holds for bytes the kernel held back: a read that found its buffer full
+/// ([`PTY_READ_MAX`]) is followed without a gap by the next bytes read.
 #[derive(Debug)]
 struct Arrivals {
     byte_ns: u64,
     last: u64,
     held_back: bool,
+    kernel_held_back: bool,
 }
 
 impl Arrivals {
@@ -289,12 +300,13 @@ impl Arrivals {
             byte_ns,
             last: 0,
             held_back: false,
+            kernel_held_back: false,
         }
     }
 
     /// Arrival times of `n` bytes read at `read_at`.
     fn stamp(&mut self, read_at: u64, n: usize) -> impl Iterator<Item = u64> + use<> {
-        let start = if self.held_back {
+        let start = if self.held_back || self.kernel_held_back {
             self.last
         } else {
             read_at.max(self.last)
@@ -345,5 +357,16 @@ mod tests {
         // Once nothing waits any more, read times count again.
         a.held_back = false;
         assert_eq!(a.stamp(500_000_000, 1).collect::<Vec<_>>(), [500_000_010]);
+    }
+
+    #[test]
+    fn bytes_the_kernel_held_back_follow_without_a_gap_however_late_they_come() {
+        let mut a = Arrivals::new(10);
+        assert_eq!(a.stamp(0, 2).collect::<Vec<_>>(), [10, 20]);
+        // The read found the kernel's buffer full; the rest came much later.
+        a.kernel_held_back = true;
+        assert_eq!(a.stamp(400_000_000, 2).collect::<Vec<_>>(), [30, 40]);
+        a.kernel_held_back = false;
+        assert_eq!(a.stamp(400_000_000, 1).collect::<Vec<_>>(), [400_000_010]);
     }
 }

@@ -9,7 +9,7 @@ use buslab_link::{Handle, LineHandler, Serve, Served, ServedError};
 use buslab_zelle::analog::{Source, SourceSpec};
 use buslab_zelle::control::{self, ControlCommand};
 use buslab_zelle::timing::LINE;
-use buslab_zelle::{BatteryRam, Cell};
+use buslab_zelle::{BatteryRam, Cell, SetupRule};
 
 use crate::ServeError;
 
@@ -39,9 +39,27 @@ pub struct ServedCell {
     served: Served<Cell>,
 }
 
+/// What a served cell does with a byte sent within the 1 ms set-up after commands 1, 2, 3 and
+/// 5 unless told otherwise: it keeps it (and counts it). A pseudo-terminal does not carry the
+/// line's timing: a client's drain returns before its byte has crossed the emulated line, and
+/// a server late on a loaded host reads a command and the byte sent after the pause together,
+/// so the cell's rule would lose bytes of clients that keep the pause.
+pub const SERVED_SETUP_RULE: SetupRule = SetupRule::Keep;
+
 impl ServedCell {
-    /// Reads the state file, feeds the inputs, and serves the cell on a new PTY.
+    /// Reads the state file, feeds the inputs, and serves the cell on a new PTY, keeping bytes
+    /// sent within a set-up ([`SERVED_SETUP_RULE`]).
     pub fn spawn(options: CellOptions) -> Result<Self, ServeError> {
+        Self::spawn_with_setup_rule(options, SERVED_SETUP_RULE)
+    }
+
+    /// [`spawn`](Self::spawn), with `rule` for bytes sent within a set-up
+    /// ([`SetupRule::Lose`]: as the cell does, for clients that pause far beyond 1 ms after
+    /// their drain on a host that reads the PTY promptly).
+    pub fn spawn_with_setup_rule(
+        options: CellOptions,
+        rule: SetupRule,
+    ) -> Result<Self, ServeError> {
         let ram = match &options.state {
             Some(path) => {
                 let mut ram = load_state(path)?;
@@ -51,6 +69,7 @@ impl ServedCell {
             None => BatteryRam::default(),
         };
         let mut cell = Cell::new(ram);
+        cell.set_setup_rule(rule);
         for (channel, source) in &options.analog {
             cell.set_analog(*channel, source.clone())?;
         }

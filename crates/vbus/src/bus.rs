@@ -7,8 +7,10 @@
 
 use std::fmt;
 
+use buslab_can::Frame;
 use buslab_can::controller::ErrorState;
 use buslab_can::node::BusNode;
+use buslab_can::wire::encode;
 use buslab_canbus::WireFault;
 use buslab_canbus::{
     BusOffRecovery, BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef,
@@ -285,6 +287,9 @@ pub struct VirtualBus {
     /// How client chips come back after bus-off (the seed's counted recovery by default).
     bus_off_recovery: BusOffRecovery,
     events: Vec<(u64, BusEvent)>,
+    /// The bit-time by which a client's frame put on an idle bus has reached every node (see
+    /// [`VirtualBus::frame_end`]).
+    frame_end: Option<u64>,
 }
 
 impl VirtualBus {
@@ -317,6 +322,7 @@ impl VirtualBus {
             error_frames: false,
             bus_off_recovery: BusOffRecovery::default(),
             events: Vec::new(),
+            frame_end: None,
         }
     }
 
@@ -412,6 +418,34 @@ impl VirtualBus {
             .node_mut(i)
             .get_mut::<ClientNode>()
             .ok_or_else(|| VbusError::NotAClient(number.to_string()))
+    }
+
+    /// Hands a client's frame to its node (`Ok(Err(frame))`: the node's queue is full, the
+    /// client waits). A frame put on an idle bus goes out at once and alone, so the bus knows
+    /// when it will have reached every node: [`Self::frame_end`].
+    pub fn submit(&mut self, number: u32, frame: Frame) -> Result<Result<(), Frame>, VbusError> {
+        let idle = self.sim.is_idle();
+        let now = self.now();
+        let submitted = self.client_mut(number)?.submit(frame);
+        if submitted.is_ok() && idle {
+            // Its start of frame is the next bit; receivers have it at the last but one bit
+            // of its end of frame, the sender at the last.
+            let end = now + encode(&frame).stuffed().len() as u64;
+            // Several at once: they contend, and the first to end is the shortest at best.
+            self.frame_end = Some(match self.frame_end {
+                Some(known) if known > now => known.min(end),
+                _ => end,
+            });
+        }
+        Ok(submitted)
+    }
+
+    /// While a client's frame put on an idle bus is on the wire: the bit-time at which it will
+    /// have reached every node and its sender (once the bus has run up to it, the deliveries
+    /// are there). `None` when the bus cannot tell: no such frame, or it has passed (traffic
+    /// of simulated nodes, frames queued behind others, errors).
+    pub fn frame_end(&self) -> Option<u64> {
+        self.frame_end.filter(|&end| end > self.now())
     }
 
     /// Every client node with its number.

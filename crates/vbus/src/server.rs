@@ -2,12 +2,16 @@
 //! sans-IO socketcand [`Session`] per TCP client, pacing the bus to the wall clock.
 //!
 //! The loop sleeps until the next thing that can happen: a client's bytes, the bus's next
-//! scheduled activity, a session's timer; while frames are on the wire it wakes every
-//! [`BUSY_SLICE`] so deliveries leave within a fraction of a millisecond.
+//! scheduled activity, a session's timer, the end of a client's frame on the wire
+//! ([`VirtualBus::frame_end`]); while other frames are on the wire it wakes every
+//! [`BUSY_SLICE`] so deliveries leave within a fraction of a millisecond. Waits end on a timer
+//! in the loop's epoll set (a timerfd counts nanoseconds, epoll's own timeout milliseconds), so
+//! a client's bytes wake the loop at once however short the wait.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, UdpSocket};
+use std::os::fd::{AsFd, AsRawFd};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
@@ -21,7 +25,10 @@ use buslab_socketcand::{
     Command, ServerMessage, Timestamp, flushed_reply, nodes_reply, regs_reply, status_reply,
 };
 use mio::net::{TcpListener, TcpStream};
+use mio::unix::SourceFd;
 use mio::{Events, Interest, Poll, Token, Waker};
+use nix::sys::time::TimeSpec;
+use nix::sys::timerfd::{ClockId, Expiration, TimerFd, TimerFlags, TimerSetTimeFlags};
 use tracing::{debug, info, warn};
 
 use crate::bus::{BusEvent, VbusError, VirtualBus};
@@ -206,8 +213,9 @@ fn valid_channel(name: &str) -> bool {
 
 const LISTENER: Token = Token(0);
 const WAKER: Token = Token(1);
+const TIMER: Token = Token(2);
 /// Client tokens start here.
-const FIRST_CLIENT: usize = 2;
+const FIRST_CLIENT: usize = 3;
 
 /// Starts the server: binds, then runs the bus and serves clients in a background thread.
 pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
@@ -251,6 +259,18 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         .register(&mut listener, LISTENER, Interest::READABLE)
         .map_err(ServerError::Io)?;
     let waker = Arc::new(Waker::new(poll.registry(), WAKER).map_err(ServerError::Io)?);
+    let timer = TimerFd::new(
+        ClockId::CLOCK_MONOTONIC,
+        TimerFlags::TFD_NONBLOCK | TimerFlags::TFD_CLOEXEC,
+    )
+    .map_err(|e| ServerError::Io(e.into()))?;
+    poll.registry()
+        .register(
+            &mut SourceFd(&timer.as_fd().as_raw_fd()),
+            TIMER,
+            Interest::READABLE,
+        )
+        .map_err(ServerError::Io)?;
     let beacon = match config.beacon {
         None => None,
         Some(target) => {
@@ -290,6 +310,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     session_config.open_timeout_ns = config.open_timeout.as_nanos().min(u64::MAX as u128) as u64;
     let server = Server {
         poll,
+        timer,
         listener,
         clients: Vec::new(),
         next_client: 0,
@@ -365,7 +386,8 @@ struct Beacon {
 /// Kernel send buffer per client (the kernel doubles it): a few thousand frames, so the
 /// per-client queue is what decides when its frames are dropped.
 const SEND_BUFFER: usize = 32 * 1024;
-/// While frames are on the wire, the loop wakes at least this often (wall clock).
+/// While frames are on the wire and the bus cannot tell when they end, the loop wakes at least
+/// this often (wall clock).
 pub const BUSY_SLICE: Duration = Duration::from_micros(100);
 /// The longest wall time spent simulating before the loop looks at the clients again, and
 /// serving clients before the bus runs again (it matters when the host cannot keep up).
@@ -410,6 +432,8 @@ struct LagState {
 
 struct Server {
     poll: Poll,
+    /// Ends the loop's waits (see [`Server::wait`]).
+    timer: TimerFd,
     listener: TcpListener,
     clients: Vec<Option<Client>>,
     /// The client slot the next turn starts with.
@@ -432,11 +456,6 @@ struct Server {
 
 impl Server {
     fn run(mut self) {
-        // While a frame is on the wire the loop sleeps BUSY_SLICE at a time: the kernel's
-        // default 50 µs of timer slack would add half of it to every wake-up.
-        if let Err(e) = nix::sys::prctl::set_timerslack(1_000) {
-            debug!("cannot shorten the timer slack: {e}");
-        }
         let mut events = Events::with_capacity(256);
         while !self.stop.load(Ordering::SeqCst) {
             while let Ok(job) = self.jobs.try_recv() {
@@ -464,7 +483,7 @@ impl Server {
             for event in events.iter() {
                 match event.token() {
                     LISTENER => self.accept(),
-                    WAKER => {}
+                    WAKER | TIMER => {}
                     Token(t) => {
                         if let Some(Some(c)) = self.clients.get_mut(t - FIRST_CLIENT) {
                             c.readable |= event.is_readable();
@@ -497,23 +516,20 @@ impl Server {
     }
 
     /// Waits for socket events or `timeout`. epoll counts whole milliseconds (mio rounds a
-    /// timeout up), so a frame on the wire would be delivered up to a millisecond late: a
-    /// wait under a millisecond is a look at the sockets, a sleep, and another look; a longer
-    /// one waits its whole milliseconds on epoll and leaves the rest to the next turn.
+    /// timeout up), so a frame on the wire would be delivered up to a millisecond late: the
+    /// wait ends on the timerfd in the same epoll set instead (nanoseconds, and no timer slack,
+    /// unlike a sleep), and a client's bytes still end it at once.
     fn wait(&mut self, events: &mut Events, timeout: Option<Duration>) -> io::Result<()> {
-        const GRAIN: Duration = Duration::from_millis(1);
         match timeout {
-            Some(t) if !t.is_zero() && t < GRAIN => {
-                self.poll.poll(events, Some(Duration::ZERO))?;
-                if events.is_empty() {
-                    thread::sleep(t);
-                    self.poll.poll(events, Some(Duration::ZERO))?;
-                }
-                Ok(())
-            }
-            Some(t) if t > GRAIN => {
-                let whole = Duration::from_millis(t.as_millis() as u64);
-                self.poll.poll(events, Some(whole))
+            Some(t) if !t.is_zero() => {
+                // Setting the timer also clears an expiry nobody waited for.
+                self.timer
+                    .set(
+                        Expiration::OneShot(TimeSpec::from_duration(t)),
+                        TimerSetTimeFlags::empty(),
+                    )
+                    .map_err(io::Error::from)?;
+                self.poll.poll(events, None)
             }
             _ => self.poll.poll(events, timeout),
         }
@@ -594,13 +610,16 @@ impl Server {
     }
 
     /// How long the loop may sleep: until the bus has something to do, a session's timer, the
-    /// beacon, or (frames on the wire) one [`BUSY_SLICE`].
+    /// beacon, or (frames on the wire) the end of a client's frame, else one [`BUSY_SLICE`].
     fn sleep_for(&self) -> Option<Duration> {
         let mut wait = if self.bus.is_idle() {
             let next = self.bus.next_activity();
             let wall_of_next = self.bits_to_wall(next.saturating_sub(self.bus.now()));
             // The bus is at the wall clock: sleep until its next activity.
             Some(wall_of_next)
+        } else if let Some(end) = self.bus.frame_end() {
+            // The frame's deliveries leave the moment the bus has run up to its end.
+            Some(self.bits_to_wall(end).saturating_sub(self.epoch.elapsed()))
         } else {
             Some(BUSY_SLICE)
         };
@@ -610,7 +629,8 @@ impl Server {
                 let d = Duration::from_nanos(d.saturating_sub(now_ns));
                 wait = Some(wait.map_or(d, |w| w.min(d)));
             }
-            if c.backlog.is_some() || !c.flushes.is_empty() {
+            // Room in the node's queue and finished frames come with frames ending on the wire.
+            if (c.backlog.is_some() || !c.flushes.is_empty()) && self.bus.frame_end().is_none() {
                 wait = Some(wait.map_or(BUSY_SLICE, |w| w.min(BUSY_SLICE)));
             }
         }
@@ -790,7 +810,7 @@ impl Server {
         let Some(number) = c.session.node() else {
             return true;
         };
-        match self.bus.client_mut(number).map(|n| n.submit(frame)) {
+        match self.bus.submit(number, frame) {
             Ok(Ok(())) | Err(_) => true,
             Ok(Err(frame)) => {
                 c.backlog = Some(frame);

@@ -317,3 +317,59 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
         .unwrap_err();
     assert!(err.to_string().contains("no node nobody"), "{err}");
 }
+
+/// The server sleeps until `frame_end` while a client's frame is on the wire: its deliveries
+/// must be there once the bus has run up to it (a late prediction costs every frame a wake-up
+/// slice), and not long before (an early one delays them by the length of the frame).
+#[test]
+fn a_frame_on_an_idle_bus_is_done_exactly_when_the_bus_says() {
+    for text in [
+        "123#",
+        "7FF#R",
+        "123#1122",
+        "00000000#R",
+        "1ABCDEF0#DEADBEEF",
+        "000#0000000000000000",
+    ] {
+        let mut bus = VirtualBus::new(RATE).unwrap();
+        let a = bus.join().unwrap();
+        let b = bus.join().unwrap();
+        bus.run_until(1000);
+        assert_eq!(bus.frame_end(), None, "{text}: nothing on the wire yet");
+        bus.submit(a, frame(text)).unwrap().unwrap();
+        let end = bus.frame_end().expect("a client's frame on an idle bus");
+        bus.run_until(end - 2);
+        assert!(
+            received(&mut bus, b).is_empty(),
+            "{text}: received before its end"
+        );
+        bus.run_until(end);
+        assert_eq!(
+            received(&mut bus, b),
+            [text],
+            "{text}: not received by its end"
+        );
+        assert_eq!(
+            bus.client_mut(a).unwrap().done(),
+            1,
+            "{text}: not sent by its end"
+        );
+        assert_eq!(bus.frame_end(), None, "{text}: the frame has passed");
+    }
+}
+
+#[test]
+fn the_bus_does_not_guess_the_end_of_frames_behind_others() {
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let a = bus.join().unwrap();
+    let b = bus.join().unwrap();
+    bus.run_until(1000);
+    bus.submit(a, frame("100#01")).unwrap().unwrap();
+    let first = bus.frame_end().unwrap();
+    // Queued while the first is on the wire: it ends later than the bus says.
+    bus.submit(b, frame("200#")).unwrap().unwrap();
+    assert_eq!(bus.frame_end(), Some(first));
+    bus.run_until(first);
+    assert_eq!(bus.frame_end(), None);
+    assert!(!bus.is_idle());
+}

@@ -47,6 +47,8 @@ pub struct Cursor {
     seq: u64,
     at: Duration,
     fresh: bool,
+    /// Frames logged when the cursor was taken.
+    logged: u64,
 }
 
 impl Cursor {
@@ -158,7 +160,9 @@ pub struct Delta {
     /// New log frames that pass the consumer's filter, oldest first (at most the asked
     /// number, the newest ones).
     pub log: Vec<LogEntry>,
-    /// New frames that passed the filter but were left out of `log` for its size limit.
+    /// New frames that passed the filter but were left out of `log` for its size limit, and
+    /// new frames that left the view's log (its capacity) before the consumer asked, whatever
+    /// the filter: what the consumer missed.
     pub log_skipped: u64,
     pub load: Vec<LoadSample>,
     pub nodes: Vec<NodeView>,
@@ -207,6 +211,8 @@ pub struct BusView {
     reported: Option<(f64, u32)>,
     /// The sequence number of the last [`BusView::clear`].
     cleared_at: u64,
+    /// Frames ever put in the log (those that left it included).
+    logged: u64,
 }
 
 impl BusView {
@@ -226,6 +232,7 @@ impl BusView {
             last_frames_per_s: 0,
             reported: None,
             cleared_at: 0,
+            logged: 0,
         }
     }
 
@@ -287,6 +294,7 @@ impl BusView {
         if self.log.len() >= self.config.log_capacity.max(1) {
             self.log.pop_front();
         }
+        self.logged += 1;
         self.log.push_back(LogEntry {
             seq,
             time: message.timestamp,
@@ -407,7 +415,9 @@ impl BusView {
             .collect();
         let mut log = Vec::new();
         let mut passed = 0u64;
+        let mut in_log = 0u64;
         for e in self.log.iter().rev().take_while(|e| e.seq > since) {
+            in_log += 1;
             if filter.matches(&e.raw) {
                 passed += 1;
                 if log.len() < max_log {
@@ -416,13 +426,22 @@ impl BusView {
             }
         }
         log.reverse();
+        // Frames that left the log (its capacity) before this consumer got them: missed too,
+        // whatever its filter (they can no longer be looked at).
+        let overrun = if full {
+            0
+        } else {
+            self.logged
+                .saturating_sub(cursor.logged)
+                .saturating_sub(in_log)
+        };
         let nodes = self.nodes.values().map(|n| node_view(n, since)).collect();
         Delta {
             full,
             t: now.as_secs_f64(),
             ids,
             ids_dropped: self.ids_dropped,
-            log_skipped: passed - log.len() as u64,
+            log_skipped: passed - log.len() as u64 + overrun,
             log,
             load: self
                 .load
@@ -443,6 +462,7 @@ impl BusView {
             seq: self.seq,
             at: now,
             fresh: true,
+            logged: self.logged,
         }
     }
 

@@ -121,6 +121,32 @@ fn the_log_is_bounded_filtered_and_limited_to_the_newest() {
 }
 
 #[test]
+fn a_consumer_behind_the_log_counts_every_frame_it_missed() {
+    let mut view = BusView::new(ViewConfig {
+        log_capacity: 10,
+        ..ViewConfig::default()
+    });
+    view.frame(ms(0), &msg(0.0, "080#00"));
+    let all = LogFilter::all();
+    let first = view.delta(&Cursor::start(), ms(1), &all, 5);
+    assert!(first.full);
+    let cursor = view.advance(ms(1));
+    // 25 frames while the consumer looked away: 10 still in the log, 3 given, 22 missed.
+    for i in 1..=25u64 {
+        view.frame(ms(1 + i), &msg(i as f64 / 1000.0, &format!("080#{i:02X}")));
+    }
+    let d = view.delta(&cursor, ms(30), &all, 3);
+    assert!(!d.full);
+    assert_eq!(d.log.len(), 3);
+    assert_eq!(d.log_skipped, 22);
+    // Caught up: nothing missed any more.
+    let cursor = view.advance(ms(30));
+    view.frame(ms(31), &msg(0.031, "080#FF"));
+    let d = view.delta(&cursor, ms(32), &all, 3);
+    assert_eq!((d.log.len(), d.log_skipped), (1, 0));
+}
+
+#[test]
 fn load_is_estimated_from_frame_lengths_at_a_known_bit_rate() {
     let mut view = BusView::new(ViewConfig {
         bitrate: Some(125_000),

@@ -37,6 +37,9 @@ struct Update<'a> {
     bus_failure: Option<String>,
     /// Connections refused for the connection limit, since the server started.
     refused: u64,
+    /// The device panels, when they changed since this viewer's last update.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    devices: Option<crate::devices::DevicesView>,
 }
 
 /// `GET /api/state?filter=F&n=N`: the whole view now.
@@ -61,6 +64,8 @@ struct Viewer {
     filter: LogFilter,
     lost: u64,
     ticker: tokio::time::Interval,
+    /// The device panels' version this viewer has (`None`: none sent yet).
+    devices_seen: Option<u64>,
 }
 
 /// `GET /api/events?filter=F`: server-sent events, one `update` at most every 100 ms. The
@@ -79,6 +84,7 @@ pub async fn events(
         filter,
         lost: 0,
         ticker,
+        devices_seen: None,
     };
     let stream = futures_util::stream::unfold(viewer, |mut v| async move {
         v.ticker.tick().await;
@@ -94,11 +100,20 @@ pub async fn events(
         if !delta.full {
             v.lost += delta.log_skipped;
         }
+        let devices = &v.app.hub.devices;
+        let devices = if devices.is_empty() || v.devices_seen == Some(devices.version()) {
+            None
+        } else {
+            let view = devices.view();
+            v.devices_seen = Some(view.version);
+            Some(view)
+        };
         let update = Update {
             delta: &delta,
             lost: v.lost,
             bus_failure: v.app.hub.failure(),
             refused: v.app.hub.refused.load(std::sync::atomic::Ordering::Relaxed),
+            devices,
         };
         let event = match serde_json::to_string(&update) {
             Ok(json) => Event::default().event("update").data(json),

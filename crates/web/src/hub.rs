@@ -11,6 +11,8 @@ use buslab_backends::{DynBus, Pump, PumpEvent, PumpSender};
 use buslab_canbus::{BusEvent, CanBus, NodeRef, NodeStatus};
 use buslab_view::{BusView, ViewConfig};
 
+use crate::devices::{DeviceConfig, Devices};
+
 /// What the request handlers share.
 pub struct Hub {
     view: Mutex<BusView>,
@@ -25,6 +27,8 @@ pub struct Hub {
     pub refused: AtomicU64,
     /// Whether the bus has an administration side (nodes, faults).
     pub has_admin: bool,
+    /// The bench's device panels (none outside `buslab lab`).
+    pub devices: Devices,
 }
 
 impl Hub {
@@ -65,6 +69,7 @@ impl BusSide {
         mut bus: DynBus,
         bitrate: Option<u32>,
         status_every: Duration,
+        devices: &DeviceConfig,
     ) -> std::io::Result<Self> {
         let channel = bus.channel_info();
         // This server's own node is not one the user watches.
@@ -86,6 +91,7 @@ impl BusSide {
             send_failures: AtomicU64::new(0),
             refused: AtomicU64::new(0),
             has_admin,
+            devices: Devices::start(devices)?,
         });
         let pump = Pump::spawn("web-bus", bus, {
             let hub = hub.clone();
@@ -93,6 +99,7 @@ impl BusSide {
                 PumpEvent::Received(BusEvent::Frame(message)) => {
                     let now = hub.now();
                     hub.view().frame(now, &message);
+                    hub.devices.frame(&message.frame);
                     true
                 }
                 PumpEvent::Received(BusEvent::Error(_)) => true,
@@ -140,6 +147,7 @@ impl Drop for BusSide {
 /// Asks for every node's status every `every` (through the pump, which owns the bus) and
 /// closes the view's load windows meanwhile.
 fn poll(hub: &Hub, sender: &PumpSender, own: Option<u32>, every: Duration, stopped: &Receiver<()>) {
+    let mut slio_asked: Option<Instant> = None;
     loop {
         let (tx, rx) = mpsc::sync_channel(1);
         let job = Box::new(move |bus: &mut dyn CanBus| {
@@ -155,9 +163,32 @@ fn poll(hub: &Hub, sender: &PumpSender, own: Option<u32>, every: Duration, stopp
             Some(list) => hub.view().nodes(now, list),
             None => hub.view().tick(now),
         }
+        ask_slios(hub, sender, &mut slio_asked);
         match stopped.recv_timeout(every) {
             Err(RecvTimeoutError::Timeout) => {}
             Ok(()) | Err(RecvTimeoutError::Disconnected) => return,
+        }
+    }
+}
+
+/// How often the server asks the SLIO boards for the registers it has not heard yet.
+const SLIO_ASK_EVERY: Duration = Duration::from_secs(2);
+
+/// Fills the SLIO panels without anyone clicking: reads (which change nothing on a board) of
+/// the registers not heard yet, every 2 s until every one was.
+fn ask_slios(hub: &Hub, sender: &PumpSender, asked: &mut Option<Instant>) {
+    if asked.is_some_and(|t| t.elapsed() < SLIO_ASK_EVERY) {
+        return;
+    }
+    let frames = hub.devices.slio().read_requests(false);
+    if frames.is_empty() {
+        return;
+    }
+    *asked = Some(Instant::now());
+    for frame in frames {
+        // A full queue (a saturated bus): asked again next time.
+        if sender.try_send(frame).is_err() {
+            break;
         }
     }
 }

@@ -7,6 +7,9 @@
 //!   each viewer pulls what changed since its own cursor in [`buslab_view::BusView`], so a
 //!   slow viewer gets fewer, larger updates and the log lines it had no room for are counted,
 //!   never queued without bound.
+//! - **Device panels** ([`devices`]) in the lab: the SLIO boards (an LED changes when the
+//!   SLIO confirms it), the ZELLE cell (measurements plotted as they come, its RAM), the
+//!   CPU196 board (identity, THREAD text, the A/D stream plotted live).
 //! - **Writes** (send a frame, inject or repair a fault on a virtual bus) only with the
 //!   server's token in the `X-Buslab-Token` header; without a token the server is read-only.
 //!
@@ -15,6 +18,8 @@
 //! (thread-based) command-line tool can start it next to anything else.
 
 mod api;
+mod device_api;
+pub mod devices;
 mod hub;
 mod pages;
 pub mod request;
@@ -24,6 +29,7 @@ mod server;
 use std::net::SocketAddr;
 use std::time::Duration;
 
+pub use devices::DeviceConfig;
 pub use routes::ApiError;
 pub use server::WebServer;
 
@@ -43,6 +49,8 @@ pub struct WebConfig {
     pub status_every: Duration,
     /// The bus's bit rate when the bus cannot tell, to estimate the load.
     pub bitrate: Option<u32>,
+    /// The bench's devices to show as panels (`buslab lab`); none by default.
+    pub devices: DeviceConfig,
 }
 
 impl Default for WebConfig {
@@ -53,6 +61,7 @@ impl Default for WebConfig {
             max_connections: 64,
             status_every: Duration::from_millis(250),
             bitrate: None,
+            devices: DeviceConfig::default(),
         }
     }
 }

@@ -14,6 +14,7 @@ use crate::routes::{ApiError, App};
 const STYLE: &str = include_str!("assets/style.css");
 const DASHBOARD: &str = include_str!("assets/dashboard.html");
 const DASHBOARD_JS: &str = include_str!("assets/dashboard.js");
+const DEVICES_JS: &str = include_str!("assets/devices.js");
 
 /// Frames on the overview.
 const OVERVIEW_FRAMES: usize = 20;
@@ -141,10 +142,11 @@ pub async fn asset(Path(name): Path<String>) -> Result<Response, ApiError> {
     let (body, kind) = match name.as_str() {
         "style.css" => (STYLE, "text/css; charset=utf-8"),
         "dashboard.js" => (DASHBOARD_JS, "text/javascript; charset=utf-8"),
+        "devices.js" => (DEVICES_JS, "text/javascript; charset=utf-8"),
         _ => {
             return Err(ApiError::new(
                 StatusCode::NOT_FOUND,
-                format!("no asset {name:?}: there are style.css and dashboard.js"),
+                format!("no asset {name:?}: there are style.css, dashboard.js and devices.js"),
             ));
         }
     };
@@ -168,7 +170,7 @@ fn layout(title: &str, refresh: u32, body: &str) -> Html<String> {
     Html(format!(
         "<!doctype html><html lang=en><head><meta charset=utf-8>{reload}\
          <title>buslab: {}</title><link rel=stylesheet href=/assets/style.css></head><body>\
-         <nav><b>buslab</b> <a href=/>bus</a> <a href=/ids>per ID</a> <a href=/frames>frames</a> <a href=/dashboard>live dashboard</a> <span class=right>{toggle}</span></nav>\
+         <nav><b>buslab</b> <a href=/>bus</a> <a href=/ids>per ID</a> <a href=/frames>frames</a> <a href=/devices>devices</a> <a href=/dashboard>live dashboard</a> <span class=right>{toggle}</span></nav>\
          <main>{body}</main></body></html>",
         esc(title)
     ))
@@ -404,4 +406,110 @@ pub fn esc(text: &str) -> String {
         }
     }
     out
+}
+
+/// `/devices`: the bench's device panels without JavaScript (read-only: a write needs the
+/// token in a header, which only the dashboard's script sends).
+pub async fn devices(State(app): State<App>, Query(q): Query<PageQuery>) -> Html<String> {
+    let v = app.hub.devices.view();
+    let mut b = String::new();
+    b.push_str("<h2>Devices</h2>");
+    if v.slio.is_empty() && v.zelle.is_none() && v.cpu196.is_none() {
+        b.push_str("<p>This server shows the bus only (`buslab lab` adds its devices).</p>");
+    }
+    if !v.slio.is_empty() {
+        b.push_str(
+            "<h3>SLIO boards</h3><p>What each SLIO confirmed; set the LEDs from the \
+             <a href=/dashboard>live dashboard</a>.</p><table class=slio><tr><th>SLIO</th>\
+             <th>IDs</th><th>LEDs P7 P8 P9 P11 P12</th><th>switches P0..P3</th><th>ADC1</th>\
+             <th>ADC2</th><th>DPM1</th><th>DPM2</th><th>status</th></tr>",
+        );
+        for s in &v.slio {
+            let leds: String = s
+                .leds
+                .iter()
+                .map(|l| match l.on {
+                    Some(true) => "<span class=\"led on\">●</span>",
+                    Some(false) => "<span class=led>○</span>",
+                    None => "<span class=led>?</span>",
+                })
+                .collect();
+            let switches = s.switches.map_or("-".to_string(), |sw| {
+                sw.iter().map(|&on| if on { '1' } else { '0' }).collect()
+            });
+            let analog = |a: &Option<crate::devices::slio::Analog>| {
+                a.map_or("-".to_string(), |a| {
+                    format!("{} ({:.3} V)", a.code, a.volts)
+                })
+            };
+            let _ = write!(
+                b,
+                "<tr><td>{}</td><td>{}/{}</td><td>{leds}</td><td><code>{switches}</code></td>\
+                 <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                esc(&s.slio),
+                s.command_id,
+                s.reply_id,
+                analog(&s.adc[0]),
+                analog(&s.adc[1]),
+                analog(&s.dpm[0]),
+                analog(&s.dpm[1]),
+                esc(s
+                    .status
+                    .as_deref()
+                    .unwrap_or(if s.heard { "-" } else { "not heard yet" }))
+            );
+        }
+        b.push_str("</table>");
+    }
+    if let Some(z) = &v.zelle {
+        let _ = write!(
+            b,
+            "<h3>ZELLE cell</h3><p>on <code>{}</code>: {}</p>",
+            esc(&z.port),
+            esc(z.busy.as_deref().unwrap_or("idle"))
+        );
+        if let Some(e) = &z.error {
+            let _ = write!(b, "<p class=warn>{}</p>", esc(e));
+        }
+        if z.series.iter().any(|s| s.len() > 1) {
+            let named: Vec<(String, &[(f64, f64)])> = z
+                .series
+                .iter()
+                .enumerate()
+                .map(|(k, s)| (format!("ch{}", k % 4 + 1), s.as_slice()))
+                .collect();
+            let series: Vec<(&str, &[(f64, f64)])> =
+                named.iter().map(|(n, s)| (n.as_str(), *s)).collect();
+            line_chart(&mut b, &series, 5.0, "volts over time", &[]);
+        }
+        if let Some(ram) = &z.ram {
+            let _ = write!(b, "<h4>RAM from 0800h</h4><pre>{}</pre>", esc(ram));
+        }
+    }
+    if let Some(c) = &v.cpu196 {
+        let _ = write!(
+            b,
+            "<h3>CPU196 board</h3><p>on <code>{}</code>: {}</p><pre>{}</pre>",
+            esc(&c.port),
+            esc(c.running.as_deref().unwrap_or("not streaming")),
+            esc(c.identity.as_deref().unwrap_or("identity not read yet"))
+        );
+        if let Some(e) = &c.error {
+            let _ = write!(b, "<p class=warn>{}</p>", esc(e));
+        }
+        let series: Vec<(&str, &[(f64, f64)])> = c
+            .series
+            .iter()
+            .take(4)
+            .enumerate()
+            .map(|(k, (_, s))| (["ch1", "ch2", "ch3", "ch4"][k], s.as_slice()))
+            .collect();
+        if series.iter().any(|s| s.1.len() > 1) {
+            line_chart(&mut b, &series, 5.0, "A/D stream, volts", &[]);
+        }
+        if !c.text.is_empty() {
+            let _ = write!(b, "<h4>THREAD text</h4><pre>{}</pre>", esc(&c.text));
+        }
+    }
+    layout("devices", q.refresh.unwrap_or(2), &b)
 }

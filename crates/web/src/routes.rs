@@ -10,7 +10,7 @@ use axum::routing::{get, post};
 use buslab_backends::PumpSender;
 
 use crate::hub::Hub;
-use crate::{TOKEN_HEADER, api, pages};
+use crate::{TOKEN_HEADER, api, device_api, pages};
 
 /// The largest request body (a frame, a fault): anything larger is refused with 413.
 pub const MAX_BODY: usize = 4096;
@@ -35,6 +35,11 @@ pub fn router(app: App) -> Router {
         .route("/api/send", post(api::send))
         .route("/api/fault", post(api::fault))
         .route("/api/repair", post(api::repair))
+        .route("/devices", get(pages::devices))
+        .route("/api/devices", get(device_api::devices))
+        .route("/api/slio", post(device_api::slio))
+        .route("/api/zelle", post(device_api::zelle))
+        .route("/api/cpu196", post(device_api::cpu196))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(MAX_BODY))
@@ -52,7 +57,7 @@ async fn method_not_allowed() -> ApiError {
     ApiError::new(
         StatusCode::METHOD_NOT_ALLOWED,
         "method not allowed here: pages are GET, writes are POST to /api/send, /api/fault, \
-         /api/repair",
+         /api/repair, /api/slio, /api/zelle, /api/cpu196",
     )
 }
 

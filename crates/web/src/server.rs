@@ -22,6 +22,11 @@ const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
 /// The largest request head read (hyper's smallest allowed buffer is 8 KiB).
 const MAX_HEAD: usize = 16 * 1024;
 
+/// The kernel's send buffer of each connection (it doubles it for its bookkeeping): what a
+/// viewer that stops reading can hold besides hyper's buffer and one update. Left to
+/// itself the kernel grows it to `tcp_wmem`'s maximum (4 MiB here) per connection.
+const SEND_BUFFER: usize = 64 * 1024;
+
 /// How long a refused connection gets to take its 503.
 const REFUSAL_TIME: Duration = Duration::from_secs(2);
 
@@ -59,8 +64,8 @@ impl WebServer {
         listener
             .set_nonblocking(true)
             .map_err(|source| WebError::Listen { addr, source })?;
-        let side =
-            BusSide::start(bus, config.bitrate, config.status_every).map_err(WebError::Threads)?;
+        let side = BusSide::start(bus, config.bitrate, config.status_every, &config.devices)
+            .map_err(WebError::Threads)?;
         let app = App {
             hub: side.hub.clone(),
             sender: side.sender.clone(),
@@ -172,6 +177,9 @@ async fn accept(
             }
             continue;
         };
+        if let Err(e) = socket2::SockRef::from(&stream).set_send_buffer_size(SEND_BUFFER) {
+            tracing::debug!("connection from {peer}: cannot bound its send buffer: {e}");
+        }
         let service = TowerToHyperService::new(router.clone());
         tokio::spawn(async move {
             let served = hyper::server::conn::http1::Builder::new()

@@ -140,6 +140,14 @@ struct Bench {
 }
 
 fn bench(token: Option<&str>, max_connections: usize) -> Bench {
+    bench_with(token, max_connections, buslab_web::DeviceConfig::default())
+}
+
+fn bench_with(
+    token: Option<&str>,
+    max_connections: usize,
+    devices: buslab_web::DeviceConfig,
+) -> Bench {
     let (frames, frames_rx) = mpsc::channel();
     let (sent_tx, sent) = mpsc::channel();
     let wire = Arc::new(Mutex::new(Wire::default()));
@@ -154,6 +162,7 @@ fn bench(token: Option<&str>, max_connections: usize) -> Bench {
             listen: "127.0.0.1:0".parse().unwrap(),
             token: token.map(str::to_string),
             max_connections,
+            devices,
             ..WebConfig::default()
         },
     )
@@ -268,6 +277,12 @@ fn without_a_token_every_write_is_refused() {
         ("/api/send", r#"{"frame":"123#11"}"#),
         ("/api/fault", r#"{"kind":"cut","nodes":["2"]}"#),
         ("/api/repair", ""),
+        (
+            "/api/slio",
+            r#"{"action":"output","slio":"3","pin":7,"on":true}"#,
+        ),
+        ("/api/zelle", r#"{"action":"stop"}"#),
+        ("/api/cpu196", r#"{"action":"identify"}"#),
     ] {
         let (status, text) = post(addr, path, Some(TOKEN), body);
         assert_eq!(status, 403, "{path}: {text}");
@@ -494,4 +509,77 @@ fn the_dashboard_and_its_files_are_served_from_the_binary() {
     assert!(css.contains("text/css"));
     let (status, text) = get(addr, "/assets/../Cargo.toml");
     assert!(status == 404 || status == 400, "{status}: {text}");
+}
+
+#[test]
+fn a_slio_led_set_over_the_api_shows_only_once_the_slio_answers() {
+    let slio3 = buslab_slio::SlioId::new(3).unwrap();
+    let b = bench_with(
+        Some(TOKEN),
+        64,
+        buslab_web::DeviceConfig {
+            slios: vec![slio3],
+            ..Default::default()
+        },
+    );
+    let addr = b.server.addr();
+    let led = r#"{"action":"output","slio":"3","pin":7,"on":true}"#;
+    let (status, text) = post(addr, "/api/slio", None, led);
+    assert_eq!(status, 401, "{text}");
+    // The SLIO has not told its outputs yet: nothing to build the write on.
+    let (status, text) = post(addr, "/api/slio", Some(TOKEN), led);
+    assert_eq!(status, 409, "{text}");
+    for (body, why) in [
+        (
+            r#"{"action":"output","slio":"3","pin":13,"on":true}"#,
+            "not an LED",
+        ),
+        (
+            r#"{"action":"output","slio":"G","pin":7,"on":true}"#,
+            "0..F",
+        ),
+        (
+            r#"{"action":"dpm","slio":"3","output":1,"duty":4000}"#,
+            "0..1023",
+        ),
+        (r#"{"action":"blink","slio":"3"}"#, "unknown variant"),
+    ] {
+        let (status, text) = post(addr, "/api/slio", Some(TOKEN), body);
+        assert_eq!(status, 400, "{body}: {text}");
+        assert!(text.contains(why), "{body}: {text}");
+    }
+    // No ZELLE cell or CPU196 board on this server.
+    let (status, _) = post(addr, "/api/zelle", Some(TOKEN), r#"{"action":"stop"}"#);
+    assert_eq!(status, 404);
+    let (status, _) = post(addr, "/api/cpu196", Some(TOKEN), r#"{"action":"identify"}"#);
+    assert_eq!(status, 404);
+
+    // The SLIO answers (DATA_OUTPUT 0x2000): the click is sent, the LED stays off until the
+    // SLIO confirms the new value.
+    b.frames.send("29D#232000".parse().unwrap()).unwrap();
+    until(addr, "/api/devices", |t| t.contains("\"outputs\":8192"));
+    let (status, text) = post(addr, "/api/slio", Some(TOKEN), led);
+    assert_eq!(status, 202, "{text}");
+    let write: Frame = "29C#032080".parse().unwrap();
+    while b.sent.recv_timeout(HANG).unwrap() != write {}
+    let p7 = |t: &str| -> serde_json::Value {
+        let v: serde_json::Value = serde_json::from_str(t).unwrap();
+        v["slio"][0]["leds"][0].clone()
+    };
+    let (_, text) = get(addr, "/api/devices");
+    let body = text.split("\r\n\r\n").nth(1).unwrap();
+    assert_eq!(
+        p7(body),
+        serde_json::json!({"pin":7,"on":false,"pending":true})
+    );
+    b.frames.send("29D#232080".parse().unwrap()).unwrap();
+    let text = until(addr, "/api/devices", |t| t.contains("\"outputs\":8320"));
+    let body = text.split("\r\n\r\n").nth(1).unwrap();
+    assert_eq!(
+        p7(body),
+        serde_json::json!({"pin":7,"on":true,"pending":false})
+    );
+    // The page without JavaScript shows it too.
+    let page = until(addr, "/devices", |t| t.contains("SLIO boards"));
+    assert!(page.contains("class=\"led on\""), "{page}");
 }

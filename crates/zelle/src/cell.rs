@@ -7,7 +7,8 @@
 //!
 //! - a byte that completes while the previous one is still unread is lost (overrun);
 //! - a byte whose start bit begins during the 1 ms set-up after commands 1, 2, 3 and 5 is lost
-//!   (the set-up re-arms the receiver; this is why the seed demands the pause);
+//!   (the set-up re-arms the receiver; this is why the seed demands the pause), unless the host
+//!   cannot see the line's timing and asks to keep it ([`SetupRule::Keep`]);
 //! - the OS's send routine waits until the byte has left (it polls TI), so the OS is busy for
 //!   a whole character time per byte it sends.
 
@@ -77,11 +78,27 @@ pub enum Activity {
     ProgramRunning,
 }
 
+/// What the cell does with a byte whose start bit begins during the 1 ms set-up after commands
+/// 1, 2, 3 and 5.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SetupRule {
+    /// Loses it, as the cell does (the set-up re-arms the receiver).
+    #[default]
+    Lose,
+    /// Counts it ([`Stats::kept_in_setup`]) and takes it as if the client had paused: for a
+    /// host that cannot tell when a byte was sent. A pseudo-terminal carries no line timing
+    /// (the client's drain returns before its byte has crossed the emulated line) and a loaded
+    /// server reads a command and the byte sent after the pause in one go.
+    Keep,
+}
+
 /// Counters of bytes the cell did not take, by reason.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
     /// Started during the set-up after commands 1, 2, 3 or 5.
     pub lost_in_setup: u64,
+    /// Started during the set-up but taken, under [`SetupRule::Keep`].
+    pub kept_in_setup: u64,
     /// Arrived while the previous byte was still unread.
     pub lost_overrun: u64,
     /// Arrived while the cell was switched off or timing the START key.
@@ -204,6 +221,7 @@ pub struct Cell {
     analog: [Source; 4],
     rx: Option<u8>,
     rx_deaf_until: u64,
+    setup_rule: SetupRule,
     tx_free_at: u64,
     tx: VecDeque<(u64, u8)>,
     os: Os,
@@ -238,6 +256,7 @@ impl Cell {
             analog: Default::default(),
             rx: None,
             rx_deaf_until: 0,
+            setup_rule: SetupRule::Lose,
             tx_free_at: 0,
             tx: VecDeque::new(),
             os: Os::Off,
@@ -271,11 +290,15 @@ impl Cell {
             }
             _ => {}
         }
-        if now.saturating_sub(BYTE_NS) < self.rx_deaf_until {
+        let in_setup = now.saturating_sub(BYTE_NS) < self.rx_deaf_until;
+        if in_setup && self.setup_rule == SetupRule::Lose {
             self.stats.lost_in_setup += 1;
         } else if self.rx.is_some() {
             self.stats.lost_overrun += 1;
         } else {
+            if in_setup {
+                self.stats.kept_in_setup += 1;
+            }
             self.rx = Some(byte);
             self.run_os(now);
         }
@@ -544,6 +567,17 @@ impl Cell {
     /// Bytes the cell did not take.
     pub fn stats(&self) -> Stats {
         self.stats
+    }
+
+    /// What happens to a byte sent within the set-up after commands 1, 2, 3 and 5 (a new cell
+    /// loses it, as the real one does).
+    pub fn set_setup_rule(&mut self, rule: SetupRule) {
+        self.setup_rule = rule;
+    }
+
+    /// See [`set_setup_rule`](Self::set_setup_rule).
+    pub fn setup_rule(&self) -> SetupRule {
+        self.setup_rule
     }
 
     // ----- the OS ---------------------------------------------------------------------------

@@ -186,7 +186,8 @@ pub fn status(cell: &Cell) -> String {
     };
     let s = cell.stats();
     format!(
-        "mode {:?}, {activity}, {} values, key {}, lost {} (set-up {}, overrun {}, off {})",
+        "mode {:?}, {activity}, {} values, key {}, lost {} (set-up {}, overrun {}, off {}), \
+         kept in set-up {}",
         cell.mode(),
         cell.value_count(),
         if cell.key_is_down() { "down" } else { "up" },
@@ -194,6 +195,7 @@ pub fn status(cell: &Cell) -> String {
         s.lost_in_setup,
         s.lost_overrun,
         s.lost_off,
+        s.kept_in_setup,
     )
 }
 

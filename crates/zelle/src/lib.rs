@@ -25,7 +25,9 @@ pub mod sfr;
 pub mod timing;
 
 pub use buslab_device::{ByteDevice, Changes, Persistent, Port, SimPort};
-pub use cell::{Activity, COUNT_HIGH_REGISTER, COUNT_LOW_REGISTER, Cell, InputError, Mode, Stats};
+pub use cell::{
+    Activity, COUNT_HIGH_REGISTER, COUNT_LOW_REGISTER, Cell, InputError, Mode, SetupRule, Stats,
+};
 pub use command::Command;
 pub use memory::{BatteryRam, StateFileError, hex_listing};
 pub use memory::{

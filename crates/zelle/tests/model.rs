@@ -2,7 +2,7 @@
 
 use buslab_zelle::analog::Source;
 use buslab_zelle::timing::{BYTE_NS, MS};
-use buslab_zelle::{Activity, BatteryRam, Cell, Mode, START_BYTE};
+use buslab_zelle::{Activity, BatteryRam, Cell, Mode, START_BYTE, SetupRule};
 
 /// Drives a cell like a line would: bytes back to back unless told to wait.
 struct Line {
@@ -71,6 +71,28 @@ fn setup_pause_after_commands_1_2_3_5_is_enforced() {
     l.wait(5 * MS);
     assert_eq!(l.take(), [0x77]);
     assert_eq!(l.cell.stats().lost_in_setup, 1);
+}
+
+/// A host that cannot see the line's timing (a pseudo-terminal) keeps a byte sent within the
+/// set-up and counts it; every command with a set-up works without the pause.
+#[test]
+fn a_cell_keeping_bytes_in_the_setup_counts_them_and_answers() {
+    let mut cell = Cell::default();
+    cell.set_setup_rule(SetupRule::Keep);
+    let mut l = Line::new(cell);
+    l.send(&[19, 0x08, 0x00, 0x5A]);
+    // Command 2 and two requests back to back: the first request started in the set-up.
+    l.send(&[2, 1, 1, 0]);
+    l.wait(10 * MS);
+    assert_eq!(l.take(), [0x5A, 0]);
+    let stats = l.cell.stats();
+    assert_eq!((stats.kept_in_setup, stats.lost_in_setup), (1, 0));
+    // Command 1 and its eight parameters back to back: all of them arrive (10 cycles, ch 1).
+    l.send(&[1, 0, 10, 1, 0, 0, 0, 0, 5]);
+    l.wait(MS);
+    assert_eq!(l.cell.activity(), Activity::MeasureWaiting);
+    assert_eq!(l.cell.stats().kept_in_setup, 2);
+    assert_eq!(l.cell.stats().lost_in_setup, 0);
 }
 
 /// Seed 003: "Fast alle Kommandos dürfen mit der maximal möglichen Geschwindigkeit zusammen

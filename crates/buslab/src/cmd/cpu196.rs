@@ -5,8 +5,7 @@
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
@@ -590,7 +589,7 @@ fn bar(len: u64, what: &str) -> ProgressBar {
 
 fn serve(s: &ServeArgs) -> anyhow::Result<()> {
     // Before the PTY and its link exist (see `zelle serve`).
-    let stopped = super::zelle::ctrl_c()?;
+    let stopped = super::stop_requests()?;
     let mut inputs = Inputs::default();
     for &(ch, source) in &s.input {
         inputs.c196[ch] = source;
@@ -671,11 +670,7 @@ fn monitor<P: Port>(
             s.config
         );
     }
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::Relaxed));
-    }
+    let stop = super::interrupted()?;
     let end = duration.map(|d| c.now() + d);
     while !stop.load(Ordering::Relaxed) && end.is_none_or(|e| c.now() < e) {
         session.turn(c, TURN, &mut out)?;

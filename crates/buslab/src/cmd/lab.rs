@@ -132,8 +132,19 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     let web = if args.no_web {
         None
     } else {
-        let web = start_web(addr, args.web)?;
-        eprintln!("  web pages:  {} (no JavaScript needed)", web.url());
+        let panels = buslab_web::DeviceConfig {
+            slios: slio_bench.ids.clone(),
+            zelle: devices.as_ref().map(|d| d.zelle.path().to_path_buf()),
+            cpu196: devices
+                .as_ref()
+                .map(|d| (d.cpu196.path().to_path_buf(), super::cpu196::DEFAULT_BAUD)),
+        };
+        let web = start_web(addr, args.web, &panels)?;
+        eprintln!(
+            "  web pages:  {} (no JavaScript needed; devices: {}devices)",
+            web.url(),
+            web.url()
+        );
         if let Some(token) = web.token() {
             eprintln!("  dashboard:  {}dashboard#token={token}", web.url());
         }
@@ -163,7 +174,11 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
 }
 
 /// The web pages on the lab's bus, with a fresh write token (the dashboard injects faults).
-fn start_web(bus: SocketAddr, listen: Option<SocketAddr>) -> anyhow::Result<WebServer> {
+fn start_web(
+    bus: SocketAddr,
+    listen: Option<SocketAddr>,
+    devices: &buslab_web::DeviceConfig,
+) -> anyhow::Result<WebServer> {
     let url = format!("socketcand://{bus}/{CHANNEL}");
     let token = buslab_web::generate_token()?;
     let start = |listen: SocketAddr| -> anyhow::Result<Result<WebServer, WebError>> {
@@ -172,6 +187,7 @@ fn start_web(bus: SocketAddr, listen: Option<SocketAddr>) -> anyhow::Result<WebS
         let config = WebConfig {
             listen,
             token: Some(token.clone()),
+            devices: devices.clone(),
             ..WebConfig::default()
         };
         Ok(WebServer::start(bus, config))

@@ -134,7 +134,7 @@ fn annotate(enc: &Encoded, view: View) -> String {
             "as sent"
         },
     );
-    for span in spans {
+    for span in spans.iter() {
         let positions = if span.len == 1 {
             format!("{}", span.start)
         } else {

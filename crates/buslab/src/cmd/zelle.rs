@@ -17,7 +17,7 @@ use buslab_zelle::client::{
 };
 use buslab_zelle::control::{self, parse_number_in};
 use buslab_zelle::timing::LINE;
-use buslab_zelle::{DATA_AREA, EXT_RAM_SIZE, PARAMS_LEN, hex_listing};
+use buslab_zelle::{DATA_AREA, EXT_RAM_SIZE, PARAMS_LEN, SetupRule, hex_listing};
 
 use crate::units::duration;
 
@@ -154,6 +154,12 @@ pub struct ServeArgs {
     /// Accept control lines on this unix socket too (as on stdin).
     #[arg(long, value_name = "PATH")]
     pub control: Option<PathBuf>,
+    /// Lose a byte whose start bit falls within the 1 ms set-up after commands 1, 2, 3 and 5,
+    /// as the cell does. Without it such a byte is kept and counted (`status`: kept in
+    /// set-up): a pseudo-terminal does not carry the line's timing, so a client must then pause
+    /// far beyond 1 ms after its drain, and a loaded host may still lose its byte.
+    #[arg(long)]
+    pub strict_setup: bool,
 }
 
 #[derive(clap::Args)]
@@ -433,17 +439,25 @@ fn print_stdout(text: &str) -> anyhow::Result<()> {
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
     // Before the PTY and its link exist: a signal that finds them must find the handler too
     // (an early SIGTERM killed the process and left the link behind).
-    let stopped = ctrl_c()?;
+    let stopped = super::stop_requests()?;
     let analog = args
         .analog
         .iter()
         .map(|a| analog_input(a).with_context(|| format!("--analog {a}")))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let served = ServedCell::spawn(CellOptions {
-        state: args.state.clone(),
-        link: args.link.clone(),
-        analog,
-    })?;
+    let rule = if args.strict_setup {
+        SetupRule::Lose
+    } else {
+        buslab_served::zelle::SERVED_SETUP_RULE
+    };
+    let served = ServedCell::spawn_with_setup_rule(
+        CellOptions {
+            state: args.state.clone(),
+            link: args.link.clone(),
+            analog,
+        },
+        rule,
+    )?;
     // The path alone on the first line, for scripts.
     say!("{}", served.path().display());
     eprintln!(
@@ -483,14 +497,4 @@ fn control_socket(
 ) -> anyhow::Result<ControlSocket> {
     ControlSocket::bind(path, control.handler())
         .with_context(|| format!("binding control socket {}", path.display()))
-}
-
-/// A channel that hears Ctrl-C (SIGINT), SIGTERM and SIGHUP.
-pub fn ctrl_c() -> anyhow::Result<std::sync::mpsc::Receiver<()>> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    ctrlc::set_handler(move || {
-        let _ = tx.send(());
-    })
-    .context("installing the Ctrl-C handler")?;
-    Ok(rx)
 }

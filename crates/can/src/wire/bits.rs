@@ -58,10 +58,24 @@ impl Bits {
         self.len += len as u16;
     }
 
-    /// Grow to `len` bits with zeros (never shrinks).
-    pub(crate) fn set_len(&mut self, len: usize) {
-        assert!(len <= Self::CAPACITY, "Bits capacity exceeded");
-        self.len = self.len.max(len as u16);
+    /// From storage words (first bit lowest); bits at `len` and above must be zero so that
+    /// equality and hashing see only the bits.
+    pub(crate) const fn from_words(words: [u64; 3], len: u16) -> Self {
+        debug_assert!(len as usize <= Self::CAPACITY);
+        Self { words, len }
+    }
+
+    /// Up to 128 bits from bit `at` on, first bit lowest; zeros past the end.
+    #[inline]
+    pub(crate) const fn window(&self, at: usize) -> u128 {
+        let [w0, w1, w2] = self.words;
+        let low = w0 as u128 | (w1 as u128) << 64;
+        match at {
+            0 => low,
+            1..=127 => low >> at | (w2 as u128) << (128 - at),
+            128..=191 => (w2 >> (at - 128)) as u128,
+            _ => 0,
+        }
     }
 
     /// Bit `i`.

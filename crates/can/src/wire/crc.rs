@@ -1,4 +1,5 @@
-//! CRC-15/CAN, computed bit-serially as the protocol defines it.
+//! CRC-15/CAN: bit-serially as the protocol defines it, or a byte at a time from a 256-entry
+//! table built at compile time (same result).
 
 /// The generator polynomial x^15 + x^14 + x^10 + x^8 + x^7 + x^4 + x^3 + 1 (x^15 implicit).
 pub const CRC15_POLY: u16 = 0x4599;
@@ -52,6 +53,20 @@ impl Crc15 {
     }
 }
 
+/// The CRC-15 of the `len` low bits of `value`, most significant first, a byte at a time.
+/// Bits of `value` above `len` must be zero: they act as leading 0 bits, which do not change
+/// the result, so the bits need not be byte-aligned.
+#[inline]
+pub(crate) fn crc15_of(value: u128, len: u32) -> u16 {
+    let bytes = value.to_be_bytes();
+    let skip = 16 - (len.min(128) as usize).div_ceil(8);
+    let mut crc = Crc15::new();
+    for &byte in &bytes[skip..] {
+        crc.push_byte(byte);
+    }
+    crc.value()
+}
+
 /// CRC of each byte value for the left-aligned register (polynomial << 1).
 const BYTE_TABLE: [u16; 256] = {
     let mut table = [0u16; 256];
@@ -93,6 +108,23 @@ mod tests {
                 b.push_bits(byte as u32, 8);
                 assert_eq!(a, b, "start {start:#x} byte {byte:#x}");
             }
+        }
+    }
+
+    #[test]
+    fn whole_value_crc_equals_bit_serial() {
+        let value: u128 = 0x0123_4567_89AB_CDEF_FEDC_BA98_7654_3210;
+        for len in [0u32, 1, 7, 8, 19, 39, 83, 103, 127, 128] {
+            let masked = if len == 128 {
+                value
+            } else {
+                value & ((1 << len) - 1)
+            };
+            let mut serial = Crc15::new();
+            for n in (0..len).rev() {
+                serial.push(masked >> n & 1 == 1);
+            }
+            assert_eq!(crc15_of(masked, len), serial.value(), "len {len}");
         }
     }
 

@@ -1,6 +1,6 @@
 //! Names and positions of the fields of a frame on the wire.
 
-use core::fmt;
+use core::{fmt, ops::Deref};
 
 /// A field (or single bit) of a data or remote frame, SOF to EOF.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -71,7 +71,8 @@ impl Span {
     }
 }
 
-/// The field spans of one frame, in wire order (at most 15 fields).
+/// The field spans of one frame, in wire order (at most 15 fields). Reads as a slice of
+/// [`Span`]s.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Spans {
     items: [Span; 15],
@@ -110,5 +111,31 @@ impl Spans {
             .iter()
             .find(|s| (s.start as usize..s.end()).contains(&i))
             .map(|s| s.field)
+    }
+}
+
+impl Deref for Spans {
+    type Target = [Span];
+
+    fn deref(&self) -> &[Span] {
+        self.as_slice()
+    }
+}
+
+impl IntoIterator for Spans {
+    type Item = Span;
+    type IntoIter = core::iter::Take<core::array::IntoIter<Span, 15>>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.items.into_iter().take(self.len as usize)
+    }
+}
+
+impl<'a> IntoIterator for &'a Spans {
+    type Item = &'a Span;
+    type IntoIter = core::slice::Iter<'a, Span>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.as_slice().iter()
     }
 }

@@ -1,16 +1,25 @@
 //! The bit-level wire codec: frame → bits (unstuffed and stuffed, CRC-15) and a bit-by-bit
 //! receiver that rebuilds frames and reports stuff, CRC and form errors with their position.
 //!
+//! For the simulator's frame-level fast path: the encoder is table-driven ([`encode`]), an
+//! [`EncodeCache`] keeps a node's last encoding, and [`decode_bits`] decodes a whole frame in
+//! one pass with the same results as the [`Receiver`].
+//!
 //! Bits are `bool`s: `false` = 0 = dominant, `true` = 1 = recessive, first on the wire first.
 
 mod bits;
+mod cache;
 mod crc;
+mod decode_bits;
 mod encode;
 mod field;
 mod receive;
+mod stuffing;
 
 pub use bits::Bits;
+pub use cache::EncodeCache;
 pub use crc::{CRC15_POLY, Crc15};
+pub use decode_bits::decode_bits;
 pub use encode::{Encoded, encode, encode_with_dlc};
 pub use field::{Field, Span, Spans};
 pub use receive::{DecodeError, Decoded, Receiver, Step, WireError, WireErrorKind, decode};

@@ -63,6 +63,7 @@ function apply(d) {
   drawLoad();
   applyNodes(d.nodes);
   appendLog(d.log, d.log_skipped);
+  if (d.devices) applyDevices(d.devices);
 }
 
 function applyRow(r) {
@@ -161,8 +162,9 @@ function chart(el, series, top, unit, rules) {
   }
   parts.push(svg("text", { x: -38, y: 10 }, top.toFixed(0)), svg("text", { x: -38, y: H }, "0"));
   if (xs.length) {
-    parts.push(svg("text", { x: 0, y: H + 16 }, x0.toFixed(0) + " s"));
-    parts.push(svg("text", { x: W - 40, y: H + 16 }, x1.toFixed(0) + " s"));
+    const digits = span < 10 ? 1 : 0;
+    parts.push(svg("text", { x: 0, y: H + 16 }, x0.toFixed(digits) + " s"));
+    parts.push(svg("text", { x: W - 40, y: H + 16 }, x1.toFixed(digits) + " s"));
   }
   parts.push(svg("text", { x: 200, y: H + 16 }, unit));
   for (const s of series) {
