@@ -19,9 +19,8 @@
 # a missing one is installed from Debian (g++) or the script stops. `cargo fuzz run TARGET`
 # works on the same layout for anyone with a nightly toolchain.
 #
-# A parser still to come (the HTTP request parser) gets a target when it lands: add
-# fuzz/fuzz_targets/NAME.rs, its [[bin]] in fuzz/Cargo.toml and seeds in fuzz/corpus/NAME/;
-# this script finds it by itself.
+# A parser still to come gets a target when it lands: add fuzz/fuzz_targets/NAME.rs, its
+# [[bin]] in fuzz/Cargo.toml and seeds in fuzz/corpus/NAME/; this script finds it by itself.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)

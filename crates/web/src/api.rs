@@ -11,35 +11,19 @@ use axum::http::{HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use buslab_backends::TrySendError;
-use buslab_can::Frame;
-use buslab_canbus::{BusAdmin, BusError, CanBus, NodeRef, Probability, WireFault};
+use buslab_canbus::{BusAdmin, BusError, CanBus};
 use buslab_view::{Cursor, Delta, LogFilter};
 use futures_util::Stream;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use tokio::time::MissedTickBehavior;
 
+use crate::request::{FaultOrder, ViewQuery, ViewRequest, fault_request, send_request};
 use crate::routes::{ApiError, App, authorize};
 
 /// Updates per second a viewer gets at most (the issue allows 20).
 const UPDATE_EVERY: Duration = Duration::from_millis(100);
 /// Log frames in one update at most; further ones are counted as lost for that viewer.
 const MAX_LOG: usize = 200;
-/// Frames `/api/state` gives at most.
-const MAX_STATE_LOG: usize = 1000;
-/// A fault lasts an hour at most (longer: leave `for_ms` out and repair it).
-const MAX_FAULT_MS: u64 = 3_600_000;
-
-#[derive(Debug, Deserialize)]
-pub struct ViewQuery {
-    filter: Option<String>,
-    n: Option<usize>,
-}
-
-fn parse_filter(text: Option<&str>) -> Result<LogFilter, ApiError> {
-    text.unwrap_or("")
-        .parse()
-        .map_err(|e: buslab_view::FilterError| ApiError::bad_request(e.to_string()))
-}
 
 /// One live update: what changed since the viewer's last one.
 #[derive(Serialize)]
@@ -63,13 +47,7 @@ pub async fn state(
     State(app): State<App>,
     Query(q): Query<ViewQuery>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let filter = parse_filter(q.filter.as_deref())?;
-    let n = q.n.unwrap_or(100);
-    if n > MAX_STATE_LOG {
-        return Err(ApiError::bad_request(format!(
-            "n={n}: at most {MAX_STATE_LOG} frames"
-        )));
-    }
+    let ViewRequest { filter, frames: n } = q.checked()?;
     let now = app.hub.now();
     let delta = app.hub.view().delta(&Cursor::start(), now, &filter, n);
     Ok(Json(serde_json::json!({
@@ -97,7 +75,7 @@ pub async fn events(
     State(app): State<App>,
     Query(q): Query<ViewQuery>,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let filter = parse_filter(q.filter.as_deref())?;
+    let filter = q.checked()?.filter;
     let mut ticker = tokio::time::interval(UPDATE_EVERY);
     ticker.set_missed_tick_behavior(MissedTickBehavior::Delay);
     let viewer = Viewer {
@@ -146,18 +124,6 @@ pub async fn events(
     Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SendRequest {
-    /// cansend syntax: `123#1122`, `18FF0010#`, `123#R`.
-    frame: String,
-}
-
-fn json_body<T: for<'de> Deserialize<'de>>(body: &Bytes, example: &str) -> Result<T, ApiError> {
-    serde_json::from_slice(body)
-        .map_err(|e| ApiError::bad_request(format!("body: {e} (expected JSON like {example})")))
-}
-
 /// `POST /api/send {"frame":"123#1122"}`: queues a frame for the bus.
 pub async fn send(
     State(app): State<App>,
@@ -165,11 +131,7 @@ pub async fn send(
     body: Bytes,
 ) -> Result<impl IntoResponse, ApiError> {
     authorize(&app, &headers)?;
-    let req: SendRequest = json_body(&body, r#"{"frame":"123#1122"}"#)?;
-    let frame: Frame = req
-        .frame
-        .parse()
-        .map_err(|e| ApiError::bad_request(format!("frame {:?}: {e}", req.frame)))?;
+    let frame = send_request(&body)?;
     match app.sender.try_send(frame) {
         Ok(()) => Ok((
             StatusCode::ACCEPTED,
@@ -183,77 +145,6 @@ pub async fn send(
     }
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FaultRequest {
-    /// cut, noise, flip, disconnect, stuck.
-    kind: String,
-    /// Node numbers or names: the far side of a cut, the nodes hit by noise, the node a flip
-    /// or a disconnect hits.
-    #[serde(default)]
-    nodes: Vec<String>,
-    /// Per-bit error probability: a cut's far side (default 0.05, the seed's experiment),
-    /// noise (required).
-    rate: Option<f64>,
-    /// How long the fault lasts; until repaired if absent.
-    for_ms: Option<u64>,
-}
-
-fn probability(rate: f64) -> Result<Probability, ApiError> {
-    Probability::new(rate).map_err(|e| ApiError::bad_request(format!("rate: {e}")))
-}
-
-fn fault_of(req: &FaultRequest) -> Result<WireFault, ApiError> {
-    let nodes: Vec<NodeRef> = req.nodes.iter().map(|n| NodeRef::parse(n)).collect();
-    if nodes.len() > 64 {
-        return Err(ApiError::bad_request("nodes: at most 64"));
-    }
-    let at_most_one = |what: &str| -> Result<Option<NodeRef>, ApiError> {
-        match nodes.as_slice() {
-            [] => Ok(None),
-            [one] => Ok(Some(one.clone())),
-            _ => Err(ApiError::bad_request(format!("{what}: one node at most"))),
-        }
-    };
-    Ok(match req.kind.as_str() {
-        "cut" => {
-            if nodes.is_empty() {
-                return Err(ApiError::bad_request(
-                    "cut: name the nodes left on the far side of the cut, e.g. \"nodes\":[\"sender\"]",
-                ));
-            }
-            WireFault::Cut {
-                far_side: nodes,
-                error_rate: probability(req.rate.unwrap_or(0.05))?,
-            }
-        }
-        "noise" => {
-            let Some(rate) = req.rate else {
-                return Err(ApiError::bad_request(
-                    "noise: give \"rate\", the probability that a bit is read wrong (e.g. 0.01)",
-                ));
-            };
-            WireFault::Noise {
-                nodes,
-                rate: probability(rate)?,
-            }
-        }
-        "flip" => WireFault::Flip {
-            node: at_most_one("flip")?,
-        },
-        "disconnect" => match at_most_one("disconnect")? {
-            Some(node) => WireFault::Disconnect { node },
-            None => return Err(ApiError::bad_request("disconnect: name the node")),
-        },
-        "stuck" => WireFault::StuckDominant,
-        other => {
-            return Err(ApiError::bad_request(format!(
-                "kind {other:?}: expected cut, noise, flip, disconnect or stuck"
-            )));
-        }
-    })
-}
-
 /// `POST /api/fault {"kind":"cut","nodes":["sender"],"rate":0.05,"for_ms":2000}`.
 pub async fn fault(
     State(app): State<App>,
@@ -261,22 +152,12 @@ pub async fn fault(
     body: Bytes,
 ) -> Result<impl IntoResponse, ApiError> {
     authorize(&app, &headers)?;
-    let req: FaultRequest = json_body(&body, r#"{"kind":"cut","nodes":["sender"]}"#)?;
-    let fault = fault_of(&req)?;
-    let lasting = match req.for_ms {
-        None => None,
-        Some(ms) if (1..=MAX_FAULT_MS).contains(&ms) => Some(Duration::from_millis(ms)),
-        Some(ms) => {
-            return Err(ApiError::bad_request(format!(
-                "for_ms {ms}: from 1 to {MAX_FAULT_MS}, or leave it out for a fault that lasts \
-                 until repaired"
-            )));
-        }
-    };
+    let FaultOrder { fault, lasting } = fault_request(&body)?;
+    let for_ms = lasting.map(|d| d.as_millis() as u64);
     let name = fault.name();
     on_bus(&app, move |admin| admin.inject_fault(&fault, lasting)).await?;
     Ok(Json(
-        serde_json::json!({ "injected": name, "for_ms": req.for_ms }),
+        serde_json::json!({ "injected": name, "for_ms": for_ms }),
     ))
 }
 

@@ -22,6 +22,7 @@ mod device_api;
 pub mod devices;
 mod hub;
 mod pages;
+pub mod request;
 mod routes;
 mod server;
 
@@ -29,6 +30,7 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 pub use devices::DeviceConfig;
+pub use routes::ApiError;
 pub use server::WebServer;
 
 /// The header that carries the write token.

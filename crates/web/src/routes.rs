@@ -92,32 +92,11 @@ impl IntoResponse for ApiError {
     }
 }
 
-/// Writes need the server's token in the `X-Buslab-Token` header. A header (not a cookie) is
-/// what a page of another site cannot make a browser send, so no cross-site request writes.
+/// Writes need the server's token in the `X-Buslab-Token` header
+/// ([`crate::request::check_token`]).
 pub fn authorize(app: &App, headers: &HeaderMap) -> Result<(), ApiError> {
-    let Some(token) = &app.token else {
-        return Err(ApiError::new(
-            StatusCode::FORBIDDEN,
-            "this server is read-only: start it with --token to allow writes",
-        ));
-    };
-    let Some(given) = headers.get(TOKEN_HEADER) else {
-        return Err(ApiError::new(
-            StatusCode::UNAUTHORIZED,
-            "a write needs the server's token in the X-Buslab-Token header",
-        ));
-    };
-    if same(given.as_bytes(), token.as_bytes()) {
-        Ok(())
-    } else {
-        Err(ApiError::new(
-            StatusCode::FORBIDDEN,
-            "wrong token in the X-Buslab-Token header",
-        ))
-    }
-}
-
-/// Compares in time independent of where the first difference is.
-fn same(a: &[u8], b: &[u8]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+    crate::request::check_token(
+        app.token.as_deref(),
+        headers.get(TOKEN_HEADER).map(HeaderValue::as_bytes),
+    )
 }

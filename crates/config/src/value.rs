@@ -112,7 +112,7 @@ pub fn duration(
 ) -> Result<Duration, String> {
     match raw {
         Raw::Str(t) | Raw::Text(t) => {
-            let d = crate::units::duration(t).map_err(|e| format!("{allowed} ({e})"))?;
+            let d = crate::duration::duration(t).map_err(|e| format!("{allowed} ({e})"))?;
             if (min..=max).contains(&d) {
                 Ok(d)
             } else {

@@ -436,3 +436,26 @@ fn what_show_prints_and_the_wizard_writes_reads_back_the_same() {
     );
     assert!(shown.contains("125000 bit/s"), "{shown}");
 }
+
+#[test]
+fn garbage_files_are_errors_not_panics() {
+    let deep = format!("a = {}{}", "[".repeat(5000), "]".repeat(5000));
+    for text in [
+        "\u{0}\u{1}\u{7f}",
+        "[mail\nhost = 1",
+        "mail_id = 0x7FFFFFFFFFFFFFFFFFFFFFFF",
+        "mail_id = -0",
+        "controller.sample_point = nan",
+        "[controller]\nsample_point = inf",
+        "[[mail]]\nhost = \"x\"",
+        "bus = \"\"",
+        "[mail]\ninterval = \"99999999999999999999999h\"",
+        &deep,
+    ] {
+        let path = Path::new("buslab.toml");
+        match load_text(Some((path, Found::CommandLine, text)), &|_| None, &[]) {
+            Ok(loaded) => panic!("{text:?} accepted: {:?}", loaded.settings),
+            Err(e) => assert!(!e.to_string().is_empty()),
+        }
+    }
+}

@@ -4,15 +4,12 @@
 //!
 //! Every value comes from one of four places, each overriding the one before: the built-in
 //! default, the configuration file, an environment variable `BUSLAB_<KEY>` and `--set KEY=VALUE`
-//! on the command line. [`load`] reads them and says where each value came from; the binary
-//! loads once before it parses its arguments ([`init`]) so that options can take their
-//! defaults from [`get`]:
-//!
-//! ```ignore
-//! #[arg(long, default_value_t = crate::config::get().loader_id)]
-//! pub id: u16,
-//! ```
+//! on the command line. [`load`] reads them and says where each value came from;
+//! [`load_text`] does the same from a file's text already read (what the fuzz target feeds).
+//! The binary keeps what needs a process or a terminal: the configuration loaded once for the
+//! whole run, the password prompt, the wizard and `config show`'s printing.
 
+pub mod duration;
 mod keys;
 mod lookup;
 mod render;
@@ -20,14 +17,13 @@ mod value;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
-use std::sync::{LazyLock, OnceLock};
 use std::time::Duration;
 
 use buslab_backends::BusUrl;
 use buslab_canbus::{ManagerConfig, Sja1000Config};
 
 pub use keys::{FilterKind, KEYS, Key, MODE_NAMES, Settings};
-pub use lookup::{ConfigArgs, Found, Lookup, load};
+pub use lookup::{Found, Lookup, load, load_text};
 pub use render::{registers, render_file, render_show};
 pub use value::{Raw, integer_text};
 
@@ -86,44 +82,10 @@ impl Password {
         Self(text.into())
     }
 
-    // For the commands of issue 13 that read the configuration (load, mail).
-    #[allow(dead_code)]
     /// The password itself, for the code that logs in.
     pub fn expose(&self) -> &str {
         &self.0
     }
-}
-
-impl MailSettings {
-    // For the commands of issue 13 that read the configuration (load, mail).
-    #[allow(dead_code)]
-    /// The password from `$BUSLAB_MAIL_PASSWORD`, else asked for on the terminal (not echoed).
-    pub fn password_or_prompt(&self) -> Result<Password, PromptError> {
-        if let Some(p) = &self.password {
-            return Ok(p.clone());
-        }
-        if !std::io::IsTerminal::is_terminal(&std::io::stdin()) {
-            return Err(PromptError::NoTerminal(ENV_MAIL_PASSWORD));
-        }
-        let user = self.user.as_deref().unwrap_or("the mailbox");
-        let host = self.host.as_deref().unwrap_or("the mail server");
-        inquire::Password::new(&format!("Password of {user} on {host}:"))
-            .without_confirmation()
-            .with_display_mode(inquire::PasswordDisplayMode::Hidden)
-            .prompt()
-            .map(Password)
-            .map_err(|e| PromptError::Prompt(e.to_string()))
-    }
-}
-
-/// Why a password could not be had.
-#[allow(dead_code)] // Built by `password_or_prompt`, for `buslab mail`.
-#[derive(Debug, thiserror::Error)]
-pub enum PromptError {
-    #[error("no password: set ${0} or run on a terminal to be asked")]
-    NoTerminal(&'static str),
-    #[error("no password: {0}")]
-    Prompt(String),
 }
 
 impl fmt::Debug for Password {
@@ -133,8 +95,6 @@ impl fmt::Debug for Password {
 }
 
 impl Config {
-    // For the commands of issue 13 that read the configuration (load, mail).
-    #[allow(dead_code)]
     /// The bit rate the controller configuration gives (its timing and crystal).
     pub fn controller_bitrate(&self) -> u32 {
         self.controller
@@ -142,8 +102,6 @@ impl Config {
             .map_or(0, |t| t.bitrate(self.controller.can_clock_hz()))
     }
 
-    // For the commands of issue 13 that read the configuration (load, mail).
-    #[allow(dead_code)]
     /// The host library's manager as configured: `Manager::start(driver,
     /// config.manager_config())`.
     pub fn manager_config(&self) -> ManagerConfig {
@@ -201,7 +159,6 @@ pub struct Loaded {
 
 impl Loaded {
     /// Where `key` (`mail.host`) got its value.
-    #[cfg_attr(not(test), allow(dead_code))]
     pub fn source(&self, key: &str) -> Option<&Source> {
         keys::index(key).map(|i| self.sources.get(i))
     }
@@ -254,42 +211,6 @@ pub enum ConfigError {
         second_source: Source,
         problem: &'static str,
     },
-}
-
-static LOADED: OnceLock<Result<Loaded, ConfigError>> = OnceLock::new();
-static DEFAULT: LazyLock<Config> = LazyLock::new(Config::default);
-
-/// Loads the configuration for this process (once; later calls return the first result).
-pub fn init(lookup: &Lookup) -> &'static Result<Loaded, ConfigError> {
-    LOADED.get_or_init(|| {
-        let cwd = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
-        load(
-            lookup,
-            &|var| std::env::var(var).ok(),
-            &cwd,
-            user_file().as_deref(),
-        )
-    })
-}
-
-/// The configuration in effect: what [`init`] loaded, or the defaults if it was not called
-/// or failed (the binary then stops with the error before running a command).
-pub fn get() -> &'static Config {
-    match LOADED.get() {
-        Some(Ok(loaded)) => &loaded.config,
-        _ => &DEFAULT,
-    }
-}
-
-/// What [`init`] loaded, if it did.
-pub fn loaded() -> Option<&'static Result<Loaded, ConfigError>> {
-    LOADED.get()
-}
-
-/// `buslab.toml` in the user's configuration directory (`$XDG_CONFIG_HOME/buslab/` or
-/// `~/.config/buslab/` on Linux).
-pub fn user_file() -> Option<PathBuf> {
-    dirs::config_dir().map(|d| d.join("buslab").join(FILE_NAME))
 }
 
 /// `~/x` → the home folder's `x`; anything else as it is.

@@ -12,23 +12,6 @@ use super::{
     ConfigError, ENV_FILE, ENV_MAIL_PASSWORD, FILE_NAME, Loaded, MAX_FILE_BYTES, Password, Source,
 };
 
-/// The options that choose the configuration. They come before the subcommand
-/// (`buslab --config lab.toml status`): `cpu196 start --config N` is another option.
-#[derive(clap::Args, Clone, Debug, Default)]
-pub struct ConfigArgs {
-    /// Read the configuration from this file (default: $BUSLAB_CONFIG, ./buslab.toml, then
-    /// ~/.config/buslab/buslab.toml; docs/config.md). Before the subcommand.
-    #[arg(long, value_name = "FILE")]
-    pub config: Option<PathBuf>,
-    /// Read no configuration file: the defaults, the environment and --set only.
-    #[arg(long, conflicts_with = "config")]
-    pub no_config: bool,
-    /// Set a configuration key for this run, over the file and the environment
-    /// (e.g. --set controller.bitrate=125000); repeatable; before the subcommand.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
-}
-
 /// What the command line says about the configuration.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Lookup {
@@ -69,16 +52,6 @@ impl Lookup {
     }
 }
 
-impl From<&ConfigArgs> for Lookup {
-    fn from(args: &ConfigArgs) -> Self {
-        Self {
-            file: args.config.clone(),
-            no_file: args.no_config,
-            sets: args.set.clone(),
-        }
-    }
-}
-
 /// How the configuration file was found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Found {
@@ -112,18 +85,40 @@ pub fn load(
     cwd: &Path,
     user_file: Option<&Path>,
 ) -> Result<Loaded, ConfigError> {
+    let file = find(lookup, env, cwd, user_file);
+    let text = match &file {
+        Some((path, found)) => Some(
+            buslab_link::fs::read_text_limited(path, MAX_FILE_BYTES).map_err(|source| {
+                ConfigError::Read {
+                    path: path.clone(),
+                    found: *found,
+                    source,
+                }
+            })?,
+        ),
+        None => None,
+    };
+    let file = file.zip(text);
+    load_text(
+        file.as_ref()
+            .map(|((path, found), text)| (path.as_path(), *found, text.as_str())),
+        env,
+        &lookup.sets,
+    )
+}
+
+/// What [`load`] does once the file is read: `file` (its path, how it was found, its text;
+/// `None`: no file) over the defaults, then the environment (`env`), then `sets`
+/// (`KEY=VALUE`). Touches no file: the path only names where a value came from.
+pub fn load_text(
+    file: Option<(&Path, Found, &str)>,
+    env: &dyn Fn(&str) -> Option<String>,
+    sets: &[String],
+) -> Result<Loaded, ConfigError> {
     let mut settings = Settings::default();
     let mut sources = Sources::defaults();
-    let file = find(lookup, env, cwd, user_file);
-    if let Some((path, found)) = &file {
-        let text = buslab_link::fs::read_text_limited(path, MAX_FILE_BYTES).map_err(|source| {
-            ConfigError::Read {
-                path: path.clone(),
-                found: *found,
-                source,
-            }
-        })?;
-        read_file(path, &text, &mut settings, &mut sources)?;
+    if let Some((path, _, text)) = file {
+        read_file(path, text, &mut settings, &mut sources)?;
     }
     for (i, key) in KEYS.iter().enumerate() {
         let var = key.env();
@@ -133,7 +128,7 @@ pub fn load(
             apply(i, &raw, text, source, &mut settings, &mut sources)?;
         }
     }
-    for set in &lookup.sets {
+    for set in sets {
         let (name, text) = set
             .split_once('=')
             .ok_or_else(|| ConfigError::SetSyntax(set.clone()))?;
@@ -156,7 +151,7 @@ pub fn load(
     Ok(Loaded {
         config,
         settings,
-        file,
+        file: file.map(|(path, found, _)| (path.to_path_buf(), found)),
         sources,
     })
 }
