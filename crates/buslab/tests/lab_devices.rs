@@ -100,7 +100,8 @@ fn lab_devices_answer_the_host_tools_and_keep_their_state() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success() && text.contains("serial number"),
-        "{text}"
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
     );
 
     // Any socketcand client joins the lab's bus and sees its nodes' traffic: the engine's

@@ -290,3 +290,68 @@ fn the_monitor_serves_the_loggers_file_and_shows_its_text() {
         "{out}"
     );
 }
+
+/// The board's port, with the host away (descheduled on a loaded machine) for `stall` just
+/// before its `stall_at`-th write.
+struct StallBeforeSend {
+    inner: SimPort<Board>,
+    sends: usize,
+    stall_at: usize,
+    stall: Duration,
+}
+
+impl buslab_device::Port for StallBeforeSend {
+    fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.sends += 1;
+        if self.sends == self.stall_at {
+            self.inner.pause(self.stall);
+        }
+        self.inner.send(bytes)
+    }
+    fn recv(&mut self, buf: &mut [u8], timeout: Duration) -> std::io::Result<usize> {
+        self.inner.recv(buf, timeout)
+    }
+    fn now(&self) -> Duration {
+        self.inner.now()
+    }
+    fn pause(&mut self, d: Duration) {
+        self.inner.pause(d)
+    }
+    fn drain(&mut self) -> std::io::Result<()> {
+        self.inner.drain()
+    }
+    fn discard_input(&mut self) -> std::io::Result<()> {
+        self.inner.discard_input()
+    }
+}
+
+#[test]
+fn a_host_stall_inside_a_pic_block_write_times_out_and_the_block_is_written_again() {
+    // The stress run's failure: the host was away for more than the board's 200 ms between
+    // two chunks of a PIC block (after the first acknowledgement), the board answered
+    // msg_time_out, and the rest of the block arrived as garbage.
+    let b = board();
+    let line = b.line();
+    let port = StallBeforeSend {
+        inner: SimPort::new(b, line, 0),
+        sends: 0,
+        // The head, the first chunk, then the second chunk: the host stalls before it.
+        stall_at: 3,
+        stall: ms(300),
+    };
+    let mut c = Client::new(port, line.baud);
+    assert_eq!(
+        c.next(ms(10)).unwrap(),
+        Some(Message::Power(Power::WasReset))
+    );
+    let data: [u8; 4096] = core::array::from_fn(|i| (i * 7 / 5) as u8);
+    let mut acks = Vec::new();
+    c.pic_write(2, &data, &mut |n| acks.push(n)).unwrap();
+    assert_eq!(acks, (1..=16).map(|k| k * 256).collect::<Vec<_>>());
+    assert_eq!(*c.pic_read(2).unwrap(), data);
+    assert!(
+        c.port().sends > 20,
+        "written once only: {} writes",
+        c.port().sends
+    );
+}

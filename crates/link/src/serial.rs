@@ -5,7 +5,7 @@ use std::os::fd::{AsRawFd, BorrowedFd};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use buslab_device::{LineSettings, Parity, Port};
+use buslab_device::{Human, LineSettings, Parity, Port};
 use nix::fcntl::{FcntlArg, FdFlag, fcntl};
 use serialport::{ClearBuffer, DataBits, FlowControl, SerialPort, StopBits};
 
@@ -21,7 +21,16 @@ pub enum SerialError {
     DataBits { data_bits: u8 },
     #[error("{stop_bits} stop bits are not supported; use 1 or 2")]
     StopBits { stop_bits: u8 },
+    #[error(
+        "serial port {path} stayed in use by another program for {} (one client at a time: \
+         stop the other one, or give a longer --timeout)",
+        Human(*waited)
+    )]
+    Busy { path: String, waited: Duration },
 }
+
+/// How often a client waiting for a port held by another client tries again.
+const BUSY_RETRY: Duration = Duration::from_millis(50);
 
 /// Opens `path` with the given line settings, no flow control, and `timeout` for reads.
 pub fn open_serial(
@@ -83,6 +92,41 @@ impl SerialLine {
             line,
             epoch: Instant::now(),
         })
+    }
+
+    /// Opens `path` as [`open`](Self::open) does; while another client holds the port (its
+    /// exclusive lock: a dashboard reading the device, a second terminal), waits up to
+    /// `patience` for it to let go.
+    pub fn open_when_free(
+        path: &Path,
+        line: LineSettings,
+        patience: Duration,
+    ) -> Result<Self, SerialError> {
+        let start = Instant::now();
+        let mut said = false;
+        loop {
+            match Self::open(path, line) {
+                // serialport reports the lock (EBUSY) as "no device"; the path being there
+                // tells it from a device that is gone.
+                Err(SerialError::Open { source, .. })
+                    if source.kind() == serialport::ErrorKind::NoDevice && path.exists() =>
+                {
+                    let waited = start.elapsed();
+                    if waited >= patience {
+                        return Err(SerialError::Busy {
+                            path: path.display().to_string(),
+                            waited,
+                        });
+                    }
+                    if !said {
+                        tracing::info!("{} is in use; waiting for it", path.display());
+                        said = true;
+                    }
+                    std::thread::sleep(BUSY_RETRY);
+                }
+                other => return other,
+            }
+        }
     }
 
     /// The settings the port was opened with.

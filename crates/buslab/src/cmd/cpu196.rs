@@ -446,9 +446,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .port
         .clone()
         .context("this command needs --port PATH (the board's serial port or PTY)")?;
-    let port = SerialLine::open(&path, LineSettings::n81(baud))?;
+    let timeout = args.timeout.unwrap_or(DEFAULT_TIMEOUT);
+    let port = SerialLine::open_when_free(&path, LineSettings::n81(baud), timeout)?;
     let mut c = Client::new(port, baud);
-    c.timeout = args.timeout.unwrap_or(DEFAULT_TIMEOUT);
+    c.timeout = timeout;
     // Whatever the board said before we came (e.g. its boot report) is not an answer. (Bounded:
     // a running acquisition never falls silent.)
     let drain_until = c.now() + Duration::from_millis(100);

@@ -208,9 +208,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--port PATH is required: the cell's serial port, or the PTY `buslab zelle serve` printed",
         )?,
     };
-    let serial = SerialLine::open(&port_path, LINE)
+    let timeout = args.timeout.unwrap_or(DEFAULT_TIMEOUT);
+    let serial = SerialLine::open_when_free(&port_path, LINE, timeout)
         .with_context(|| format!("opening the cell at {}", port_path.display()))?;
-    let mut cell = Client::with_timeout(serial, args.timeout.unwrap_or(DEFAULT_TIMEOUT));
+    let mut cell = Client::with_timeout(serial, timeout);
     let mode = |saw: bool| {
         if saw {
             Transfer::StopAndWait

@@ -23,6 +23,9 @@ use crate::image::{BootConfig, encrypt_serial};
 use crate::message::*;
 use crate::wire::{FLASH_BLOCK, PIC_BLOCK, PIC_EEPROM};
 
+/// How many times [`Client::pic_write`] writes a block the board timed out on.
+pub const PIC_WRITE_ATTEMPTS: u32 = 3;
+
 /// What went wrong talking to a board.
 #[derive(Debug, thiserror::Error)]
 pub enum ClientError {
@@ -418,7 +421,13 @@ impl<P: Port> Client<P> {
 
     /// Writes a PIC block and reads it back. The board acknowledges every 256 bytes
     /// (`msg_completed`, 16 times) as they arrive; the next 256 go when the acknowledgement is
-    /// in (flow control). `progress` sees the bytes acknowledged.
+    /// in (flow control). `progress` sees the bytes acknowledged, never going back.
+    ///
+    /// The board drops a message whose next byte is more than 200 ms late (`msg_time_out`).
+    /// Only this message waits for the board between its own bytes, so a host that stalls
+    /// while an acknowledgement travels (a loaded machine) can cause one; the block is then
+    /// written again from its start, up to [`PIC_WRITE_ATTEMPTS`] times (writing a block twice
+    /// leaves the same block).
     pub fn pic_write(
         &mut self,
         block: u8,
@@ -430,6 +439,54 @@ impl<P: Port> Client<P> {
             data: Box::new(*data),
         }
         .to_bytes()?;
+        let mut acknowledged = 0;
+        let mut attempt = 1;
+        loop {
+            match self.pic_write_once(&bytes, &mut |n| {
+                if n > acknowledged {
+                    acknowledged = n;
+                    progress(n);
+                }
+            }) {
+                Err(ClientError::Board(MsgCode::TIME_OUT)) if attempt < PIC_WRITE_ATTEMPTS => {
+                    tracing::warn!(
+                        block,
+                        attempt,
+                        "the board timed out inside a PIC block write; writing it again"
+                    );
+                    attempt += 1;
+                    self.resync_after_time_out()?;
+                }
+                result => break result?,
+            }
+        }
+        let back = self.pic_read(block)?;
+        if *back != *data {
+            return Err(ClientError::Verify(format!(
+                "PIC block {block} does not read back as written"
+            )));
+        }
+        Ok(())
+    }
+
+    /// After `msg_time_out` inside a message, the bytes the host sent after its stall are a
+    /// frame of garbage to the board, dropped after its own inter-byte time-out: let that
+    /// pass, forget what came back meanwhile, and see the board answer a watchdog.
+    fn resync_after_time_out(&mut self) -> Result<(), ClientError> {
+        let garbage = self.budget(PIC_CHUNK);
+        self.port
+            .pause(Duration::from_nanos(crate::decoder::DEFAULT_TIMEOUT_NS) + garbage);
+        self.port.discard_input()?;
+        self.decoder = Decoder::new();
+        self.sync()
+    }
+
+    /// One pass of a PIC block write: the message's head, then 256 bytes per acknowledgement.
+    fn pic_write_once(
+        &mut self,
+        bytes: &[u8],
+        progress: &mut dyn FnMut(usize),
+    ) -> Result<(), ClientError> {
         // Command, complement, sub-code and block go with the first chunk.
         let (head, body) = bytes.split_at(bytes.len() - PIC_BLOCK);
         self.send_raw(head)?;
@@ -440,12 +497,6 @@ impl<P: Port> Client<P> {
                 (*r == Message::Msg(MsgCode::COMPLETED)).then_some(())
             })?;
             progress((i + 1) * PIC_CHUNK);
-        }
-        let back = self.pic_read(block)?;
-        if *back != *data {
-            return Err(ClientError::Verify(format!(
-                "PIC block {block} does not read back as written"
-            )));
         }
         Ok(())
     }
