@@ -185,6 +185,9 @@ fn measure_plot_draws_the_channels_in_volts_or_in_the_terminal() {
         "10ms",
         "--cycles",
         "100",
+        // As above: the block lasts 1 s, and the host may be that late on a loaded machine.
+        "--block-margin",
+        "1s",
     ];
     fn with<'a>(common: &[&'a str], extra: &[&'a str]) -> Vec<&'a str> {
         [common, extra].concat()
