@@ -102,8 +102,8 @@ max_len() {
     case "$1" in
     ppc_node | monican_app | cpu196_board | zelle_cell | slio_node | slcan_adapter) echo 512 ;;
     served_file_names) echo 256 ;;
-    logs_candump | can_wire_receiver | cpu196_decoder | web_requests | web_device_api) echo 1024 ;;
-    logs_csv | logs_blf | mail_text | config_file | sim_scenario) echo 2048 ;;
+    logs_candump | can_wire_receiver | cpu196_decoder) echo 1024 ;;
+    logs_csv) echo 2048 ;;
     *) ;;
     esac
 }
