@@ -93,6 +93,21 @@ for t in $targets; do bins+=(--bin "$t"); done
     fail "building the fuzz targets failed"
 $build_only && exit 0
 
+# The longest input worth trying, per target (libFuzzer's default is the longest seed or 4096
+# bytes): a model driven step by step, a stream or a log costs time in proportion to its
+# input, and beyond these lengths an input only repeats what shorter ones reach (more frames,
+# lines or steps of the same kinds from the same state). Without an entry, libFuzzer's
+# default. See docs/fuzzing.md ("Speed").
+max_len() {
+    case "$1" in
+    ppc_node | monican_app | cpu196_board | zelle_cell | slio_node | slcan_adapter) echo 512 ;;
+    served_file_names) echo 256 ;;
+    logs_candump | can_wire_receiver | cpu196_decoder) echo 1024 ;;
+    logs_csv) echo 2048 ;;
+    *) ;;
+    esac
+}
+
 bindir=$root/fuzz/target/$host/release
 rows=()
 crashed=()
@@ -107,9 +122,12 @@ for t in $targets; do
     start=$(date +%s.%N)
     status=0
     # The first folder collects what the run finds; the seeds are only read.
+    options=()
+    len=$(max_len "$t")
+    [ -z "$len" ] || options+=(-max_len="$len")
     "$bindir/$t" -max_total_time="$seconds" -runs="$([ "$runs" = 0 ] && echo -1 || echo "$runs")" \
         -timeout="$timeout" -rss_limit_mb=2048 -malloc_limit_mb=2048 -print_final_stats=1 \
-        -artifact_prefix="$artifacts/" "$work" "$seeds" >"$log" 2>&1 || status=$?
+        "${options[@]}" -artifact_prefix="$artifacts/" "$work" "$seeds" >"$log" 2>&1 || status=$?
     elapsed=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
     execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
     execs=${execs:-0}

@@ -15,6 +15,10 @@ use libfuzzer_sys::fuzz_target;
 
 /// One full redraw of a 24 × 80 VT100 screen with attributes is a few kB.
 const MAX_SCREEN: usize = 64 * 1024;
+/// Bit-times an input runs at most. Every bit is a step of the SJA1000 and MoniCAN models, so
+/// a long input of idle runs took a second of CPU; the longest time-out the node keeps (a
+/// SLIO's answer, `buslab_slio::master::ANSWER_WITHIN_BITS`, 4000 bit-times) fits 12 times.
+const MAX_BITS: u64 = 12 * buslab_slio::master::ANSWER_WITHIN_BITS;
 
 struct Wire {
     node: PpcNode,
@@ -54,7 +58,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
         node: PpcNode::new(config).unwrap(),
         now: 0,
     };
-    while !u.is_empty() {
+    while !u.is_empty() && wire.now < MAX_BITS {
         match u.int_in_range(0..=5u8)? {
             0 | 1 => {
                 let raw = match u.int_in_range(0..=2u8)? {

@@ -1,5 +1,7 @@
 //! The 8 flash banks of 256 blocks × 256 bytes and the kernel's table of blank blocks.
 
+use std::sync::{Arc, OnceLock};
+
 use crate::wire::{FLASH_BANKS, FLASH_BLOCK, FLASH_BLOCKS};
 
 /// Why a flash operation was refused (mapped to `FE` messages by the kernel).
@@ -23,16 +25,22 @@ pub fn is_user_block(block: u8) -> bool {
 }
 
 /// Flash contents plus the blank-block bitmap (`_bloc_[256]` at 300h: one bit per block).
+///
+/// The 512 KiB of contents are shared between clones until one of them is written (copy on
+/// write): an image is cloned for every board, and most boards never write their flash.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Flash {
-    data: Vec<u8>,
+    data: Arc<Vec<u8>>,
     blank: [u8; 256],
 }
 
 impl Default for Flash {
     fn default() -> Self {
+        static ERASED: OnceLock<Arc<Vec<u8>>> = OnceLock::new();
         Self {
-            data: vec![0xFF; FLASH_BANKS * FLASH_BLOCKS * FLASH_BLOCK],
+            data: ERASED
+                .get_or_init(|| Arc::new(vec![0xFF; FLASH_BANKS * FLASH_BLOCKS * FLASH_BLOCK]))
+                .clone(),
             blank: [0xFF; 256],
         }
     }
@@ -90,7 +98,7 @@ impl Flash {
         if !self.is_blank(bank, block) {
             return Err(FlashError::NotBlank { bank, block });
         }
-        self.data[Self::range(bank, block)].copy_from_slice(data);
+        Arc::make_mut(&mut self.data)[Self::range(bank, block)].copy_from_slice(data);
         self.set_blank(bank, block, false);
         Ok(())
     }
@@ -101,7 +109,7 @@ impl Flash {
         if bank as usize >= FLASH_BANKS {
             return false;
         }
-        self.data[Self::range(bank, block)].copy_from_slice(data);
+        Arc::make_mut(&mut self.data)[Self::range(bank, block)].copy_from_slice(data);
         self.set_blank(bank, block, false);
         true
     }
@@ -112,7 +120,7 @@ impl Flash {
             return Err(FlashError::Forbidden { bank, block: 0 });
         }
         let start = bank as usize * FLASH_BLOCKS * FLASH_BLOCK;
-        self.data[start..start + FLASH_BLOCKS * FLASH_BLOCK].fill(0xFF);
+        Arc::make_mut(&mut self.data)[start..start + FLASH_BLOCKS * FLASH_BLOCK].fill(0xFF);
         for block in 0..=255 {
             self.set_blank(bank, block, true);
         }
@@ -133,7 +141,7 @@ impl Flash {
         let mut f = Self::default();
         for (bank, block, data) in blocks {
             if (bank as usize) < FLASH_BANKS {
-                f.data[Self::range(bank, block)].copy_from_slice(&data);
+                Arc::make_mut(&mut f.data)[Self::range(bank, block)].copy_from_slice(&data);
             }
         }
         f.blank = blank;
@@ -145,7 +153,7 @@ impl Flash {
         (0..FLASH_BANKS as u8).flat_map(move |bank| {
             (0..=255u8).filter_map(move |block| {
                 let d = &self.data[Self::range(bank, block)];
-                (!self.is_blank(bank, block) || d.iter().any(|&b| b != 0xFF))
+                (!self.is_blank(bank, block) || *d != [0xFF; FLASH_BLOCK])
                     .then_some((bank, block, d))
             })
         })
@@ -155,6 +163,24 @@ impl Flash {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_clone_keeps_its_contents_when_the_other_is_written_or_erased() {
+        let mut original = Flash::default();
+        original.write(0, 0x60, &[1; 256]).unwrap();
+        let copy = original.clone();
+        let mut other = original.clone();
+        original.write(0, 0x61, &[2; 256]).unwrap();
+        other.erase(0).unwrap();
+        assert_eq!(copy.read(0, 0x60).unwrap(), &[1; 256][..]);
+        assert_eq!(copy.read(0, 0x61).unwrap(), &[0xFF; 256][..]);
+        assert!(copy.is_blank(0, 0x61));
+        assert_eq!(original.read(0, 0x60).unwrap(), &[1; 256][..]);
+        assert_eq!(original.read(0, 0x61).unwrap(), &[2; 256][..]);
+        assert_eq!(other.read(0, 0x60).unwrap(), &[0xFF; 256][..]);
+        assert_eq!(Flash::default(), Flash::default());
+        assert_ne!(copy, original);
+    }
 
     #[test]
     fn write_only_blank_user_blocks() {

@@ -19,6 +19,7 @@
 
 mod api;
 mod device_api;
+pub mod device_request;
 pub mod devices;
 mod hub;
 mod pages;
