@@ -138,6 +138,17 @@ impl BusStats {
         self.recessive_run += bits;
     }
 
+    /// A frame whose bits, taken one by one from an idle bus, gave `frame`. A frame starts with
+    /// a dominant SOF, so what came before it changes nothing but where its recessive run
+    /// starts: the result is the same as taking its bits here.
+    pub(crate) fn add_frame(&mut self, frame: &BusStats) {
+        debug_assert!(frame.dominant_bits > 0);
+        self.bits += frame.bits;
+        self.busy_bits += frame.busy_bits;
+        self.dominant_bits += frame.dominant_bits;
+        self.recessive_run = frame.recessive_run;
+    }
+
     #[inline(always)]
     pub(crate) fn bit(&mut self, bus: Level) {
         self.bits += 1;

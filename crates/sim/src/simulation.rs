@@ -1,7 +1,7 @@
 //! The bus: nodes on one wire, stepped together once per bit-time.
 
 use buslab_can::controller::{
-    Controller, ControllerConfig, ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame,
+    Controller, ControllerConfig, ErrorState, Event, FrameStart, QueueFull,
 };
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
@@ -73,13 +73,6 @@ impl Device {
         match self {
             Device::Controller(c) => c.frame_start(),
             Device::Other(n) => n.frame_start(),
-        }
-    }
-    #[inline(always)]
-    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: core::ops::Range<u32>) {
-        match self {
-            Device::Controller(c) => c.advance_frame(frame, role, bits),
-            Device::Other(n) => n.advance_frame(frame, role, bits),
         }
     }
     fn node(&self) -> &dyn BusNode {
@@ -564,6 +557,8 @@ impl Simulation {
             self.update_faults();
         }
         if self.schedule.next <= now {
+            // Firing one generator changes no other's time: the next one is found on the way.
+            let mut next = BitTime::MAX;
             for g in &mut self.schedule.generators {
                 if g.next().is_some_and(|t| t <= now) {
                     let node = &mut self.nodes[g.node];
@@ -571,8 +566,11 @@ impl Simulation {
                     node.stats.queued += q.queued;
                     node.stats.queue_overflows += q.overflows;
                 }
+                if let Some(t) = g.next() {
+                    next = next.min(t);
+                }
             }
-            self.schedule.recompute();
+            self.schedule.next = next;
         }
         if self.next_sample <= now {
             for (i, n) in self.nodes.iter().enumerate() {
