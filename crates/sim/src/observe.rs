@@ -48,6 +48,7 @@ pub struct NodeStats {
 }
 
 impl NodeStats {
+    #[inline]
     pub(crate) fn count(&mut self, event: &Event) {
         match event {
             Event::Received(_) => self.received += 1,

@@ -217,6 +217,8 @@ pub struct Simulation {
     fast_forward: bool,
     skipped: BitTime,
     whole: whole_frame::WholeFrames,
+    /// Nodes that are not bare controllers.
+    others: usize,
 }
 
 /// While the bus is recessive, how often (in bit-times) the clean loop checks whether every
@@ -260,6 +262,7 @@ impl Simulation {
             fast_forward: true,
             skipped: 0,
             whole: whole_frame::WholeFrames::default(),
+            others: 0,
         }
     }
 
@@ -274,6 +277,7 @@ impl Simulation {
     }
 
     fn push_node(&mut self, name: String, device: Device) -> usize {
+        self.others += matches!(device, Device::Other(_)) as usize;
         self.nodes.push(Node {
             name,
             device,
@@ -295,6 +299,7 @@ impl Simulation {
     /// faults forget it (a fault that named only this node never becomes active again).
     pub fn remove_node(&mut self, index: usize) -> Node {
         let node = self.nodes.remove(index);
+        self.others -= matches!(node.device, Device::Other(_)) as usize;
         self.outputs.remove(index);
         self.schedule.generators.retain(|g| g.node != index);
         for g in &mut self.schedule.generators {
@@ -427,7 +432,9 @@ impl Simulation {
     }
     /// Takes the trace recorded so far, leaving it empty (for streaming output).
     pub fn take_records(&mut self) -> Vec<Record> {
-        core::mem::take(&mut self.obs.records)
+        // Room for as many again: a streaming caller takes about as many each time.
+        let room = Vec::with_capacity(self.obs.records.len());
+        core::mem::replace(&mut self.obs.records, room)
     }
     /// The TEC/REC series (see [`Self::sample_counters_every`]).
     pub fn series(&self) -> &[CounterSample] {

@@ -21,7 +21,7 @@ use crate::{Frame, Level};
 use fault::Counters;
 use queue::TxQueue;
 
-pub use whole_frame::{FrameRole, FrameStart, WireFrame};
+pub use whole_frame::{ArbitrationBits, FrameRole, FrameStart, WireFrame};
 
 /// Options that change how the controller behaves on the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -487,11 +487,18 @@ impl Controller {
     }
 
     /// Make `tx` the most important waiting frame; false if there is none.
+    #[inline]
     fn load_tx(&mut self) -> bool {
         let better = match (&self.tx, self.queue.peek()) {
             (_, None) => false,
             (None, Some(_)) => true,
-            (Some(tx), Some(next)) => next < tx.frame(),
+            // The arbitration key decides first (as `Frame`'s order does), cheaply.
+            (Some(tx), Some(next)) => {
+                match next.arbitration_key().cmp(&tx.frame().arbitration_key()) {
+                    core::cmp::Ordering::Equal => next != tx.frame() && next < tx.frame(),
+                    order => order.is_lt(),
+                }
+            }
         };
         if better && let Some((next, dlc)) = self.queue.pop() {
             // The same frame and raw DLC encode the same: an encoding made with a DLC that did
@@ -645,6 +652,7 @@ impl Controller {
     }
 
     /// Into intermission after EOF or a delimiter.
+    #[inline]
     fn end_of_frame(&mut self) {
         self.was_transmitter = self.transmitting;
         self.transmitting = false;

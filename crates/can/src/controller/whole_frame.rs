@@ -122,34 +122,56 @@ impl WireFrame {
     /// de-stuffed index. `None` unless it loses on a recessive data bit of its arbitration
     /// field, as distinct arbitration fields always do.
     pub fn lost_bit(loser: &Encoded, winner: &Encoded) -> Option<FrameRole> {
-        let (lb, wb) = (loser.stuffed(), winner.stuffed());
-        let len = lb.len().min(wb.len());
-        // The first differing wire bit after SOF, from the first 128 bits at once. Any
-        // arbitration field ends well inside them (at most 32 data bits and their stuff bits),
-        // so a later difference cannot be a lost arbitration.
-        let diff = (lb.window(0) ^ wb.window(0)) & !1;
-        let i = diff.trailing_zeros() as usize;
-        if diff == 0 || i >= len {
+        ArbitrationBits::of(loser).lost_to(ArbitrationBits::of(winner))
+    }
+}
+
+/// What deciding arbitration needs of a frame on the wire: its first 64 wire bits. Any
+/// arbitration field ends inside them (at most 32 de-stuffed bits and their stuff bits), so a
+/// difference after them is never a lost arbitration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ArbitrationBits {
+    /// Wire bits 0..64, first bit lowest; zero past the frame's end.
+    bits: u64,
+    /// Which of them are stuff bits.
+    stuff: u64,
+    len: u32,
+    extended: bool,
+}
+
+impl ArbitrationBits {
+    #[inline]
+    pub fn of(frame: &Encoded) -> Self {
+        Self {
+            bits: frame.stuffed().window(0) as u64,
+            stuff: frame.stuff_mask().window(0) as u64,
+            len: frame.stuffed().len() as u32,
+            extended: frame.frame().is_extended(),
+        }
+    }
+
+    /// [`WireFrame::lost_bit`] of a loser with these bits against `winner`.
+    #[inline]
+    pub fn lost_to(self, winner: Self) -> Option<FrameRole> {
+        let diff = (self.bits ^ winner.bits) & !1;
+        let i = diff.trailing_zeros();
+        if diff == 0 || i >= self.len.min(winner.len) {
             return None;
         }
-        let below = (1u128 << i) - 1;
-        let stuff = (loser.stuff_mask().window(0) & below).count_ones() as usize;
-        let arbitration_end = if loser.frame().is_extended() { 32 } else { 12 };
-        let index = (i - stuff) as u32;
-        let ok = lb.bit(i)
-            && !loser.is_stuff_bit(i)
-            && !winner.is_stuff_bit(i)
+        let bit = 1u64 << i;
+        let index = i - (self.stuff & (bit - 1)).count_ones();
+        let arbitration_end = if self.extended { 32 } else { 12 };
+        let ok = self.bits & bit != 0
+            && (self.stuff | winner.stuff) & bit == 0
             && (1..=arbitration_end).contains(&index);
-        ok.then_some(FrameRole::LostArbitration {
-            wire_bit: i as u32,
-            index,
-        })
+        ok.then_some(FrameRole::LostArbitration { wire_bit: i, index })
     }
 }
 
 impl Controller {
     /// Whether this controller is lined up at a frame start (bus idle, waiting for SOF,
     /// error-active) and what it sends with the next SOF.
+    #[inline]
     pub fn frame_start(&self) -> FrameStart<'_> {
         if self.phase != Phase::Idle || self.state() != ErrorState::Active {
             return FrameStart::NotReady;
@@ -182,7 +204,7 @@ impl Controller {
         if let FrameRole::LostArbitration { wire_bit, index } = role
             && bits.contains(&wire_bit)
         {
-            self.frame_lost(index);
+            self.lose_arbitration(index);
         }
         if bits.contains(&frame.ack_slot) {
             self.frame_ack();
@@ -208,10 +230,18 @@ impl Controller {
         self.drive = Level::Recessive;
     }
 
-    /// The lost bit (de-stuffed `index`) of a whole frame: arbitration lost there.
+    /// The lost bit (de-stuffed `index`) of a whole frame: arbitration lost there. Returns
+    /// the [`Event::ArbitrationLost`] to hand on (not queued, unlike a [`Event::Dropped`]
+    /// that may follow it: handle the returned event first, then poll).
     #[inline]
-    pub fn frame_lost(&mut self, index: u32) {
-        self.lose_arbitration(index);
+    pub fn frame_lost(&mut self, index: u32) -> Option<Event> {
+        // `lose_arbitration`, with its first event handed back.
+        self.transmitting = false;
+        let frame = *self.tx.as_ref()?.frame();
+        if self.config.single_shot || self.abort_in_flight {
+            self.drop_tx();
+        }
+        Some(Event::ArbitrationLost { frame, bit: index })
     }
 
     /// The ACK slot of a whole frame.
@@ -238,7 +268,12 @@ impl Controller {
     /// EOF bit 7 of a whole frame: the transmitter's frame is sent.
     #[inline]
     pub fn frame_eof7(&mut self) {
-        self.last_eof_bit();
+        if self.transmitting {
+            self.last_eof_bit();
+        } else {
+            // What `last_eof_bit` does for a receiver.
+            self.end_of_frame();
+        }
     }
 
     /// The last (3rd) intermission bit of a whole frame: waiting for SOF again, or suspended.

@@ -22,11 +22,11 @@
 use std::sync::Arc;
 
 use buslab_can::Frame;
-use buslab_can::controller::{FrameRole, FrameStart, WireFrame};
+use buslab_can::controller::{ArbitrationBits, Event, FrameRole, FrameStart, WireFrame};
 use buslab_can::wire::Encoded;
 
-use super::{Device, Simulation, handle_event};
-use crate::observe::BusStats;
+use super::{Device, Node, Observers, Schedule, Simulation, handle_event};
+use crate::observe::{BusStats, Happening, Record};
 use crate::time::BitTime;
 
 /// Frames kept decoded: a saturated bus repeats a few frames over and over.
@@ -67,10 +67,11 @@ pub(super) struct WholeFrames {
     refused_at: Option<BitTime>,
     applied: u64,
     roles: Vec<FrameRole>,
-    /// Nodes that send SOF.
-    senders: Vec<usize>,
+    /// Nodes that send SOF, with the start of their frames.
+    senders: Vec<(usize, ArbitrationBits)>,
     /// The losers in the order they lose: `wire_bit << 32 | node`, sorted.
     losers: Vec<u64>,
+    sorted: Vec<u64>,
     /// How far each node of another kind than a bare controller has been moved on.
     done: Vec<u32>,
     /// Recently seen frames on the wire, most recent last.
@@ -86,6 +87,7 @@ impl Default for WholeFrames {
             roles: Vec::new(),
             senders: Vec::new(),
             losers: Vec::new(),
+            sorted: Vec::new(),
             done: Vec::new(),
             cache: Vec::new(),
         }
@@ -174,7 +176,7 @@ impl Simulation {
             };
             ackers += acks as usize;
             if let Some(e) = sends {
-                senders.push(i);
+                senders.push((i, ArbitrationBits::of(e)));
                 let key = e.frame().arbitration_key();
                 match winner {
                     Some((_, best)) if key > best => {}
@@ -217,15 +219,12 @@ impl Simulation {
         whole.roles.resize(n, FrameRole::Receiver);
         whole.roles[w] = FrameRole::Transmitter;
         whole.losers.clear();
-        for &i in &whole.senders {
+        let winner_bits = ArbitrationBits::of(&winning);
+        for &(i, bits) in &whole.senders {
             if i == w {
                 continue;
             }
-            let FrameStart::Ready { sends: Some(e), .. } = self.nodes[i].device.frame_start()
-            else {
-                return false;
-            };
-            match WireFrame::lost_bit(e, &winning) {
+            match bits.lost_to(winner_bits) {
                 Some(role @ FrameRole::LostArbitration { wire_bit, .. }) => {
                     whole.roles[i] = role;
                     whole.losers.push(u64::from(wire_bit) << 32 | i as u64);
@@ -233,7 +232,7 @@ impl Simulation {
                 _ => return false,
             }
         }
-        whole.losers.sort_unstable();
+        order_losers(&mut whole.losers, &mut whole.sorted);
         whole.done.clear();
         whole.done.resize(n, 0);
 
@@ -248,21 +247,47 @@ impl Simulation {
             let key = self.whole.losers[k];
             let (bit, i) = ((key >> 32) as u32, key as u32 as usize);
             self.handle_due_inside(wire, t0, &mut at, bit);
-            if let (Device::Controller(c), FrameRole::LostArbitration { index, .. }) =
-                (&mut self.nodes[i].device, self.whole.roles[i])
-            {
-                c.frame_lost(index);
+            let Self {
+                nodes,
+                obs,
+                schedule,
+                whole,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            match (&mut node.device, whole.roles[i]) {
+                (Device::Controller(c), FrameRole::LostArbitration { index, .. }) => {
+                    let time = t0 + bit as BitTime;
+                    if let Some(event) = c.frame_lost(index) {
+                        record(obs, i, node, time, event);
+                    }
+                    if matches!(&node.device, Device::Controller(c) if c.has_events()) {
+                        drain_node(obs, schedule, i, node, time);
+                    }
+                }
+                _ => self.advance_other(wire, i, bit + 1, t0),
             }
-            self.stage_done(wire, t0, i, bit);
         }
         let [ack, eof6, eof7] = wire.event_bits();
         self.handle_due_inside(wire, t0, &mut at, ack);
         for i in 0..n {
-            if i != w {
-                if let Device::Controller(c) = &mut self.nodes[i].device {
-                    c.frame_ack();
+            if i == w {
+                continue;
+            }
+            let Self {
+                nodes,
+                obs,
+                schedule,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            if let Device::Controller(c) = &mut node.device {
+                c.frame_ack();
+                if c.has_events() {
+                    drain_node(obs, schedule, i, node, t0 + ack as BitTime);
                 }
-                self.stage_done(wire, t0, i, ack);
+            } else {
+                self.advance_other(wire, i, ack + 1, t0);
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof6);
@@ -270,15 +295,22 @@ impl Simulation {
             if i == w {
                 continue;
             }
-            let node = &mut self.nodes[i];
+            let Self {
+                nodes,
+                obs,
+                schedule: _,
+                ..
+            } = self;
+            let node = &mut nodes[i];
             if let Device::Controller(c) = &mut node.device {
                 // Handed on at once rather than queued in the controller and polled.
                 if let Some(event) = c.frame_received(wire) {
                     let time = t0 + eof6 as BitTime;
-                    handle_event(&mut self.obs, &mut self.schedule, i, node, time, event);
+                    record(obs, i, node, time, event);
                 }
+            } else {
+                self.advance_other(wire, i, eof6 + 1, t0);
             }
-            self.stage_done(wire, t0, i, eof6);
         }
         self.handle_due_inside(wire, t0, &mut at, eof7);
         if let Device::Controller(c) = &mut self.nodes[w].device {
@@ -288,14 +320,25 @@ impl Simulation {
         let last = total - 1;
         self.handle_due_inside(wire, t0, &mut at, last);
         for i in 0..n {
-            if let Device::Controller(c) = &mut self.nodes[i].device {
+            let Self {
+                nodes,
+                obs,
+                schedule,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            if let Device::Controller(c) = &mut node.device {
                 // The others' EOF bit 7 changes nothing anybody looks at before now.
                 if i != w {
                     c.frame_eof7();
                 }
                 c.frame_end(wire);
+                if c.has_events() {
+                    drain_node(obs, schedule, i, node, t0 + last as BitTime);
+                }
+            } else {
+                self.advance_other(wire, i, total, t0);
             }
-            self.stage_done(wire, t0, i, last);
         }
         self.obs.bus.add_frame(&cached.stats);
         self.now = done;
@@ -306,8 +349,15 @@ impl Simulation {
     /// Generators and counter samples due before wire bit `bit` is sampled (and not before
     /// `at`, where the frame has got to) act at their own bit-time, with the nodes they look
     /// at moved on to just before it.
-    #[inline]
+    #[inline(always)]
     fn handle_due_inside(&mut self, wire: &WireFrame, t0: BitTime, at: &mut u32, bit: u32) {
+        if self.schedule.next.min(self.next_sample) <= t0 + bit as BitTime {
+            self.handle_due_inside_slow(wire, t0, at, bit);
+        }
+    }
+
+    #[inline(never)]
+    fn handle_due_inside_slow(&mut self, wire: &WireFrame, t0: BitTime, at: &mut u32, bit: u32) {
         loop {
             let due = self.schedule.next.min(self.next_sample);
             if due < t0 + *at as BitTime || due > t0 + bit as BitTime {
@@ -315,11 +365,11 @@ impl Simulation {
             }
             *at = (due - t0) as u32;
             // Controllers are up to date at every stage; other nodes are moved on here.
-            if self.next_sample <= due {
+            if self.others > 0 && self.next_sample <= due {
                 for i in 0..self.nodes.len() {
                     self.advance_other(wire, i, *at, t0);
                 }
-            } else {
+            } else if self.others > 0 {
                 for g in 0..self.schedule.generators.len() {
                     let generator = &self.schedule.generators[g];
                     if generator.next().is_some_and(|t| t <= due) {
@@ -334,7 +384,7 @@ impl Simulation {
 
     /// Node `i` has taken wire bit `bit` of the frame: a node of another kind is moved on
     /// through it; the events are handled at that bit-time.
-    #[inline]
+    #[inline(always)]
     fn stage_done(&mut self, wire: &WireFrame, t0: BitTime, i: usize, bit: u32) {
         let node = &mut self.nodes[i];
         match &mut node.device {
@@ -367,7 +417,66 @@ impl Simulation {
 /// Handles every event node `i` has, at `time`.
 fn drain(sim: &mut Simulation, i: usize, time: BitTime) {
     let node = &mut sim.nodes[i];
+    drain_node(&mut sim.obs, &mut sim.schedule, i, node, time);
+}
+
+/// Handles every event `node` (index `i`) has, at `time`.
+#[inline(never)]
+fn drain_node(
+    obs: &mut Observers,
+    schedule: &mut Schedule,
+    i: usize,
+    node: &mut Node,
+    time: BitTime,
+) {
     while let Some(event) = node.device.poll_event() {
-        handle_event(&mut sim.obs, &mut sim.schedule, i, node, time, event);
+        handle_event(obs, schedule, i, node, time, event);
     }
+}
+
+/// What [`handle_event`] does with an event that only counts (a received frame, a lost
+/// arbitration): count it, record it.
+#[inline(always)]
+fn record(obs: &mut Observers, i: usize, node: &mut Node, time: BitTime, event: Event) {
+    debug_assert!(matches!(
+        event,
+        Event::Received(_) | Event::ArbitrationLost { .. }
+    ));
+    node.stats.count(&event);
+    if obs.record_events {
+        obs.records.push(Record {
+            time,
+            what: Happening::Node { node: i, event },
+        });
+    }
+}
+
+/// Sorts `losers` (`wire_bit << 32 | node`, pushed in node order) by wire bit, then node: a
+/// counting sort, as lost bits are few and small; `sorted` is scratch space.
+fn order_losers(losers: &mut Vec<u64>, sorted: &mut Vec<u64>) {
+    const BITS: usize = 64;
+    let bit = |key: u64| (key >> 32) as usize;
+    let Some(last) = losers.iter().map(|&key| bit(key)).max() else {
+        return;
+    };
+    if last >= BITS {
+        losers.sort_unstable();
+        return;
+    }
+    // start[b]: where the losers at bit b go.
+    let mut start = [0u16; BITS + 1];
+    for &key in losers.iter() {
+        start[bit(key) + 1] += 1;
+    }
+    for b in 0..=last {
+        start[b + 1] += start[b];
+    }
+    sorted.clear();
+    sorted.resize(losers.len(), 0);
+    for &key in losers.iter() {
+        let at = &mut start[bit(key)];
+        sorted[*at as usize] = key;
+        *at += 1;
+    }
+    core::mem::swap(losers, sorted);
 }
