@@ -190,13 +190,13 @@ fn crowded_bus() -> impl Strategy<Value = Bus> {
             prop::collection::vec(
                 (
                     0..n,
-                    (any_frame(), 100u64..3_000, 0u64..1_000).prop_map(
-                        |(frame, period, start)| TrafficSpec::Periodic {
+                    (any_frame(), 100u64..3_000, 0u64..1_000).prop_map(|(frame, period, start)| {
+                        TrafficSpec::Periodic {
                             frame,
                             period,
                             start,
-                        },
-                    ),
+                        }
+                    }),
                 ),
                 n / 2..2 * n,
             ),

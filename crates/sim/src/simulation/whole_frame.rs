@@ -233,8 +233,10 @@ impl Simulation {
             }
         }
         order_losers(&mut whole.losers, &mut whole.sorted);
-        whole.done.clear();
-        whole.done.resize(n, 0);
+        if self.others > 0 {
+            whole.done.clear();
+            whole.done.resize(n, 0);
+        }
 
         // SOF: every controller takes part in the frame (nothing to report).
         for (node, role) in self.nodes.iter_mut().zip(&self.whole.roles) {
