@@ -8,12 +8,16 @@
 # Per wall second and per second of CPU time (user + system; the machine is shared). FAST_S
 # and BIT_S set the simulated seconds of each run; NODES the sizes. Machines are noisy: compare
 # the ratios of one run, and read the load average printed with the table.
+#
+# BASELINE=path/to/an/older/buslab adds, in the same run, that binary's fast path (CPU time)
+# and how many times faster this one is: e.g. one built from main before a change.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 FAST_S=${FAST_S:-30}
 BIT_S=${BIT_S:-2}
 NODES=${NODES:-"2 16 32 64"}
+BASELINE=${BASELINE:-}
 
 [ -x /usr/bin/time ] || {
     echo "bench/sim_speed.sh: /usr/bin/time is missing (apt-get install time)" >&2
@@ -39,12 +43,12 @@ scenario() {
     } >"$2"
 }
 
-# run FILE SECONDS OUT [ARGS...]: prints "wall cpu" in seconds.
+# run FILE SECONDS OUT [ARGS...]: prints "wall cpu" in seconds (binary: $bin, else $buslab).
 run() {
     local file=$1 secs=$2 out=$3
     shift 3
     /usr/bin/time -f "%e %U %S" -o "$work/time" \
-        "$buslab" sim "$file" --quiet --duration "${secs}s" "$@" >"$out"
+        "${bin:-$buslab}" sim "$file" --quiet --duration "${secs}s" "$@" >"$out"
     awk '{ printf "%s %.3f", $1, $2 + $3 }' "$work/time"
 }
 
@@ -52,8 +56,10 @@ factor() { awk -v s="$1" -v t="$2" 'BEGIN { printf (t > 0 ? "%.1f" : "inf"), s /
 
 echo "# buslab sim, saturated 1 Mbit/s bus, 8-byte frames; real-time factor = simulated s / s"
 echo "# fast path: ${FAST_S} s simulated per run; --bit-level: ${BIT_S} s; load average: $(cut -d' ' -f1-3 /proc/loadavg)"
-printf '%-6s %14s %14s %14s %14s %10s %10s %s\n' nodes "fast (wall)" "fast (CPU)" \
+[ -z "$BASELINE" ] || echo "# baseline: $BASELINE (fast path, CPU time, same scenario and duration)"
+printf '%-6s %14s %14s %14s %14s %10s %10s %-11s' nodes "fast (wall)" "fast (CPU)" \
     "bit (wall)" "bit (CPU)" "wall ratio" "CPU ratio" "same output"
+[ -z "$BASELINE" ] && echo || printf ' %14s %9s\n' "baseline (CPU)" "speed-up"
 for n in $NODES; do
     file=$work/sat$n.toml
     scenario "$n" "$file"
@@ -67,7 +73,14 @@ for n in $NODES; do
     ffc=$(factor "$FAST_S" "$fc")
     fbw=$(factor "$BIT_S" "$bw")
     fbc=$(factor "$BIT_S" "$bc")
-    printf '%-6s %13s× %13s× %13s× %13s× %9s× %9s× %s\n' "$n" "$ffw" "$ffc" "$fbw" "$fbc" \
+    printf '%-6s %13s× %13s× %13s× %13s× %9s× %9s× %-11s' "$n" "$ffw" "$ffc" "$fbw" "$fbc" \
         "$(factor "$ffw" "$fbw")" "$(factor "$ffc" "$fbc")" "$same"
+    if [ -n "$BASELINE" ]; then
+        read -r _ oc <<<"$(bin=$BASELINE run "$file" "$FAST_S" "$work/base.out")"
+        fo=$(factor "$FAST_S" "$oc")
+        printf ' %13s× %8s×\n' "$fo" "$(factor "$ffc" "$fo")"
+    else
+        echo
+    fi
 done
 echo "# load average after: $(cut -d' ' -f1-3 /proc/loadavg)"

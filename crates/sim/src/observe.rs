@@ -48,6 +48,7 @@ pub struct NodeStats {
 }
 
 impl NodeStats {
+    #[inline]
     pub(crate) fn count(&mut self, event: &Event) {
         match event {
             Event::Received(_) => self.received += 1,
@@ -136,6 +137,17 @@ impl BusStats {
         self.bits += bits;
         self.busy_bits += 11u64.saturating_sub(self.recessive_run).min(bits);
         self.recessive_run += bits;
+    }
+
+    /// A frame whose bits, taken one by one from an idle bus, gave `frame`. A frame starts with
+    /// a dominant SOF, so what came before it changes nothing but where its recessive run
+    /// starts: the result is the same as taking its bits here.
+    pub(crate) fn add_frame(&mut self, frame: &BusStats) {
+        debug_assert!(frame.dominant_bits > 0);
+        self.bits += frame.bits;
+        self.busy_bits += frame.busy_bits;
+        self.dominant_bits += frame.dominant_bits;
+        self.recessive_run = frame.recessive_run;
     }
 
     #[inline(always)]

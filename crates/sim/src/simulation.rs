@@ -1,7 +1,7 @@
 //! The bus: nodes on one wire, stepped together once per bit-time.
 
 use buslab_can::controller::{
-    Controller, ControllerConfig, ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame,
+    Controller, ControllerConfig, ErrorState, Event, FrameStart, QueueFull,
 };
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
@@ -73,13 +73,6 @@ impl Device {
         match self {
             Device::Controller(c) => c.frame_start(),
             Device::Other(n) => n.frame_start(),
-        }
-    }
-    #[inline(always)]
-    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: core::ops::Range<u32>) {
-        match self {
-            Device::Controller(c) => c.advance_frame(frame, role, bits),
-            Device::Other(n) => n.advance_frame(frame, role, bits),
         }
     }
     fn node(&self) -> &dyn BusNode {
@@ -224,6 +217,8 @@ pub struct Simulation {
     fast_forward: bool,
     skipped: BitTime,
     whole: whole_frame::WholeFrames,
+    /// Nodes that are not bare controllers.
+    others: usize,
 }
 
 /// While the bus is recessive, how often (in bit-times) the clean loop checks whether every
@@ -267,6 +262,7 @@ impl Simulation {
             fast_forward: true,
             skipped: 0,
             whole: whole_frame::WholeFrames::default(),
+            others: 0,
         }
     }
 
@@ -281,6 +277,7 @@ impl Simulation {
     }
 
     fn push_node(&mut self, name: String, device: Device) -> usize {
+        self.others += matches!(device, Device::Other(_)) as usize;
         self.nodes.push(Node {
             name,
             device,
@@ -302,6 +299,7 @@ impl Simulation {
     /// faults forget it (a fault that named only this node never becomes active again).
     pub fn remove_node(&mut self, index: usize) -> Node {
         let node = self.nodes.remove(index);
+        self.others -= matches!(node.device, Device::Other(_)) as usize;
         self.outputs.remove(index);
         self.schedule.generators.retain(|g| g.node != index);
         for g in &mut self.schedule.generators {
@@ -434,7 +432,9 @@ impl Simulation {
     }
     /// Takes the trace recorded so far, leaving it empty (for streaming output).
     pub fn take_records(&mut self) -> Vec<Record> {
-        core::mem::take(&mut self.obs.records)
+        // Room for as many again: a streaming caller takes about as many each time.
+        let room = Vec::with_capacity(self.obs.records.len());
+        core::mem::replace(&mut self.obs.records, room)
     }
     /// The TEC/REC series (see [`Self::sample_counters_every`]).
     pub fn series(&self) -> &[CounterSample] {
@@ -564,6 +564,8 @@ impl Simulation {
             self.update_faults();
         }
         if self.schedule.next <= now {
+            // Firing one generator changes no other's time: the next one is found on the way.
+            let mut next = BitTime::MAX;
             for g in &mut self.schedule.generators {
                 if g.next().is_some_and(|t| t <= now) {
                     let node = &mut self.nodes[g.node];
@@ -571,8 +573,11 @@ impl Simulation {
                     node.stats.queued += q.queued;
                     node.stats.queue_overflows += q.overflows;
                 }
+                if let Some(t) = g.next() {
+                    next = next.min(t);
+                }
             }
-            self.schedule.recompute();
+            self.schedule.next = next;
         }
         if self.next_sample <= now {
             for (i, n) in self.nodes.iter().enumerate() {

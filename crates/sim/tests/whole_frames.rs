@@ -156,6 +156,64 @@ fn bus() -> impl Strategy<Value = Bus> {
     })
 }
 
+/// Many nodes on a busy bus, most of them error-active with counters of every size (a
+/// receiver's REC going down at the ACK slot, crossing the warning limit), a few error-passive
+/// or bus-off, and few faults: the frames applied whole have many receivers in different
+/// states and many losers.
+fn crowded_bus() -> impl Strategy<Value = Bus> {
+    let crowd_node = (
+        prop::bool::weighted(0.05),
+        prop::bool::weighted(0.1),
+        prop::bool::weighted(0.1),
+        1usize..8,
+        prop_oneof![
+            3 => Just((0u16, 0u16)),
+            4 => (0u16..128, 0u16..128),
+            2 => (80u16..128, 90u16..128),
+            1 => (0u16..200, 120u16..256),
+            1 => Just((256u16, 0u16)),
+        ],
+    )
+        .prop_map(
+            |(listen_only, single_shot, self_reception, capacity, counters)| NodeSpec {
+                listen_only,
+                single_shot,
+                self_reception,
+                auto_recover: true,
+                capacity,
+                counters,
+            },
+        );
+    (8usize..40).prop_flat_map(move |n| {
+        (
+            prop::collection::vec(crowd_node.clone(), n),
+            prop::collection::vec(
+                (
+                    0..n,
+                    (any_frame(), 100u64..3_000, 0u64..1_000).prop_map(|(frame, period, start)| {
+                        TrafficSpec::Periodic {
+                            frame,
+                            period,
+                            start,
+                        }
+                    }),
+                ),
+                n / 2..2 * n,
+            ),
+            prop::collection::vec((0u8..6, 0..n, 0u64..8_000, 1u64..300), 0..2),
+            prop::option::weighted(0.3, 50u64..700),
+            prop::collection::vec(1u64..3_000, 1..4),
+        )
+            .prop_map(|(nodes, traffic, faults, sample_every, steps)| Bus {
+                nodes,
+                traffic,
+                faults,
+                sample_every,
+                steps,
+            })
+    })
+}
+
 fn build(bus: &Bus, whole: bool) -> Simulation {
     let mut sim = Simulation::new(1_000_000, 11);
     sim.set_whole_frames(whole);
@@ -284,6 +342,18 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn whole_frames_change_nothing_with_many_nodes_in_different_states(bus in crowded_bus()) {
+        let (_, fast_seen) = run(&bus, true);
+        let (_, slow_seen) = run(&bus, false);
+        prop_assert_eq!(&fast_seen.0, &slow_seen.0, "trace differs");
+        prop_assert_eq!(&fast_seen.1, &slow_seen.1, "state differs");
+    }
+}
+
 /// The fast path does engage on a busy clean bus, and the property above therefore compares
 /// two different paths.
 #[test]
@@ -313,6 +383,57 @@ fn a_busy_clean_bus_is_mostly_applied_whole() {
         "{} of {} frames applied whole",
         fast.whole_frames(),
         fast.bus_stats().frames
+    );
+    assert_eq!(fast.records(), slow.records());
+    assert_eq!(observed(&fast), observed(&slow));
+}
+
+/// A crowded bus whose receivers sit at every REC (so the ACK slot moves each one's counter
+/// differently, across the warning limit) is applied whole too, and the same.
+#[test]
+fn receivers_in_different_states_are_applied_whole_and_the_same() {
+    let bus = |whole| {
+        let mut sim = Simulation::new(1_000_000, 1);
+        sim.set_whole_frames(whole);
+        for i in 0..32u16 {
+            let n = sim.add_node(format!("n{i}"), ControllerConfig::default());
+            sim.controller_mut(n)
+                .unwrap()
+                .set_counters(i * 3, (i * 37) % 128);
+            if i % 4 == 0 {
+                sim.add_traffic(
+                    n,
+                    Traffic::Periodic {
+                        frame: Frame::data(Id::standard(0x700 - i).unwrap(), &[i as u8; 3])
+                            .unwrap(),
+                        period: 700,
+                        start: i as u64,
+                        count: None,
+                    },
+                );
+            }
+        }
+        sim.sample_counters_every(333);
+        sim.run_for(60_000);
+        sim
+    };
+    let fast = bus(true);
+    let slow = bus(false);
+    assert!(
+        fast.whole_frames() * 10 >= fast.bus_stats().frames * 9,
+        "{} of {} frames applied whole",
+        fast.whole_frames(),
+        fast.bus_stats().frames
+    );
+    assert!(
+        fast.records().iter().any(|r| matches!(
+            r.what,
+            buslab_sim::Happening::Node {
+                event: buslab_can::controller::Event::Warning { above: false, .. },
+                ..
+            }
+        )),
+        "some receiver's REC crossed the warning limit downwards"
     );
     assert_eq!(fast.records(), slow.records());
     assert_eq!(observed(&fast), observed(&slow));

@@ -21,7 +21,7 @@ use crate::{Frame, Level};
 use fault::Counters;
 use queue::TxQueue;
 
-pub use whole_frame::{FrameRole, FrameStart, WireFrame};
+pub use whole_frame::{ArbitrationBits, FrameRole, FrameStart, WireFrame};
 
 /// Options that change how the controller behaves on the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -181,6 +181,9 @@ pub struct Controller {
     /// The frame being (or next to be) attempted, already encoded.
     tx: Option<Encoded>,
     queue: TxQueue,
+    /// The encoding of the last frame sent, kept because periodic traffic queues the same
+    /// frame again: [`Self::load_tx`] reuses it instead of encoding anew.
+    last_sent: Option<Encoded>,
     /// We are the transmitter of the current frame (from SOF to the end of its error frame or
     /// EOF; cleared when arbitration is lost).
     transmitting: bool,
@@ -209,6 +212,7 @@ impl Controller {
             rx: Receiver::new(),
             tx: None,
             queue: TxQueue::with_capacity(config.tx_queue_capacity),
+            last_sent: None,
             transmitting: false,
             was_transmitter: false,
             counters: Counters::new(),
@@ -483,19 +487,29 @@ impl Controller {
     }
 
     /// Make `tx` the most important waiting frame; false if there is none.
+    #[inline]
     fn load_tx(&mut self) -> bool {
         let better = match (&self.tx, self.queue.peek()) {
             (_, None) => false,
             (None, Some(_)) => true,
-            (Some(tx), Some(next)) => next < tx.frame(),
+            // The arbitration key decides first (as `Frame`'s order does), cheaply.
+            (Some(tx), Some(next)) => {
+                match next.arbitration_key().cmp(&tx.frame().arbitration_key()) {
+                    core::cmp::Ordering::Equal => next != tx.frame() && next < tx.frame(),
+                    order => order.is_lt(),
+                }
+            }
         };
-        if better
-            && let Some((next, dlc)) = self.queue.pop()
-            && let Some(old) = self
-                .tx
-                .replace(wire::encode_with_dlc(&next, dlc).unwrap_or_else(|| wire::encode(&next)))
-        {
-            self.queue.push(*old.frame(), old.dlc());
+        if better && let Some((next, dlc)) = self.queue.pop() {
+            // The same frame and raw DLC encode the same: an encoding made with a DLC that did
+            // not fit carries the frame's own, so `dlc` matches it only if it fits.
+            let encoded = match self.last_sent {
+                Some(sent) if sent.dlc() == dlc && *sent.frame() == next => sent,
+                _ => wire::encode_with_dlc(&next, dlc).unwrap_or_else(|| wire::encode(&next)),
+            };
+            if let Some(old) = self.tx.replace(encoded) {
+                self.queue.push(*old.frame(), old.dlc());
+            }
         }
         self.tx.is_some()
     }
@@ -625,6 +639,7 @@ impl Controller {
             && let Some(tx) = self.tx.take()
         {
             let frame = *tx.frame();
+            self.last_sent = Some(tx);
             self.abort_in_flight = false;
             self.counters.transmit_ok();
             self.events.push_back(Event::Transmitted(frame));
@@ -637,6 +652,7 @@ impl Controller {
     }
 
     /// Into intermission after EOF or a delimiter.
+    #[inline]
     fn end_of_frame(&mut self) {
         self.was_transmitter = self.transmitting;
         self.transmitting = false;

@@ -122,31 +122,56 @@ impl WireFrame {
     /// de-stuffed index. `None` unless it loses on a recessive data bit of its arbitration
     /// field, as distinct arbitration fields always do.
     pub fn lost_bit(loser: &Encoded, winner: &Encoded) -> Option<FrameRole> {
-        let (lb, wb) = (loser.stuffed(), winner.stuffed());
-        let arbitration_end = if loser.frame().is_extended() { 32 } else { 12 };
-        let mut stuff = 0;
-        for i in 1..lb.len().min(wb.len()) {
-            let is_stuff = loser.is_stuff_bit(i);
-            if lb.bit(i) != wb.bit(i) {
-                let index = (i - stuff) as u32;
-                let ok = lb.bit(i)
-                    && !is_stuff
-                    && !winner.is_stuff_bit(i)
-                    && (1..=arbitration_end).contains(&index);
-                return ok.then_some(FrameRole::LostArbitration {
-                    wire_bit: i as u32,
-                    index,
-                });
-            }
-            stuff += is_stuff as usize;
+        ArbitrationBits::of(loser).lost_to(ArbitrationBits::of(winner))
+    }
+}
+
+/// What deciding arbitration needs of a frame on the wire: its first 64 wire bits. Any
+/// arbitration field ends inside them (at most 32 de-stuffed bits and their stuff bits), so a
+/// difference after them is never a lost arbitration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ArbitrationBits {
+    /// Wire bits 0..64, first bit lowest; zero past the frame's end.
+    bits: u64,
+    /// Which of them are stuff bits.
+    stuff: u64,
+    len: u32,
+    extended: bool,
+}
+
+impl ArbitrationBits {
+    #[inline]
+    pub fn of(frame: &Encoded) -> Self {
+        Self {
+            bits: frame.stuffed().window(0) as u64,
+            stuff: frame.stuff_mask().window(0) as u64,
+            len: frame.stuffed().len() as u32,
+            extended: frame.frame().is_extended(),
         }
-        None
+    }
+
+    /// [`WireFrame::lost_bit`] of a loser with these bits against `winner`.
+    #[inline]
+    pub fn lost_to(self, winner: Self) -> Option<FrameRole> {
+        let diff = (self.bits ^ winner.bits) & !1;
+        let i = diff.trailing_zeros();
+        if diff == 0 || i >= self.len.min(winner.len) {
+            return None;
+        }
+        let bit = 1u64 << i;
+        let index = i - (self.stuff & (bit - 1)).count_ones();
+        let arbitration_end = if self.extended { 32 } else { 12 };
+        let ok = self.bits & bit != 0
+            && (self.stuff | winner.stuff) & bit == 0
+            && (1..=arbitration_end).contains(&index);
+        ok.then_some(FrameRole::LostArbitration { wire_bit: i, index })
     }
 }
 
 impl Controller {
     /// Whether this controller is lined up at a frame start (bus idle, waiting for SOF,
     /// error-active) and what it sends with the next SOF.
+    #[inline]
     pub fn frame_start(&self) -> FrameStart<'_> {
         if self.phase != Phase::Idle || self.state() != ErrorState::Active {
             return FrameStart::NotReady;
@@ -167,39 +192,164 @@ impl Controller {
     /// same events. Call it with consecutive ranges from 0, after [`Self::frame_start`] said
     /// `Ready`. Between two calls only the queue and the counters are meant to be looked at;
     /// after the last range the controller is exactly where stepping every bit leaves it.
+    ///
+    /// The engine may instead call the steps it is made of at their bits, in this order:
+    /// [`Self::frame_begin`] (bit 0), [`Self::frame_lost`] (a loser's lost bit),
+    /// [`Self::frame_ack`] (ACK slot), [`Self::frame_received`] (EOF 6),
+    /// [`Self::frame_eof7`] (EOF 7), [`Self::frame_end`] (last intermission bit).
     pub fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
         if bits.contains(&0) {
-            self.phase = Phase::Frame;
-            self.transmitting = role != FrameRole::Receiver;
-            self.drive = Level::Recessive;
+            self.frame_begin(role);
         }
         if let FrameRole::LostArbitration { wire_bit, index } = role
             && bits.contains(&wire_bit)
         {
             self.lose_arbitration(index);
         }
-        if bits.contains(&frame.ack_slot) && !self.transmitting && !self.config.listen_only {
-            // Our dominant ACK: a successful reception (rule 8).
+        if bits.contains(&frame.ack_slot) {
+            self.frame_ack();
+        }
+        if bits.contains(&frame.eof_bit(6))
+            && let Some(event) = self.frame_received(frame)
+        {
+            self.events.push_back(event);
+        }
+        if bits.contains(&frame.eof_bit(7)) {
+            self.frame_eof7();
+        }
+        if bits.contains(&(frame.total() - 1)) {
+            self.frame_end(frame);
+        }
+    }
+
+    /// Wire bit 0 (SOF) of a whole frame, taking part as `role`.
+    #[inline]
+    pub fn frame_begin(&mut self, role: FrameRole) {
+        self.phase = Phase::Frame;
+        self.transmitting = role != FrameRole::Receiver;
+        self.drive = Level::Recessive;
+    }
+
+    /// The lost bit (de-stuffed `index`) of a whole frame: arbitration lost there. Returns
+    /// the [`Event::ArbitrationLost`] to hand on (not queued, unlike a [`Event::Dropped`]
+    /// that may follow it: handle the returned event first, then poll).
+    #[inline]
+    pub fn frame_lost(&mut self, index: u32) -> Option<Event> {
+        // `lose_arbitration`, with its first event handed back.
+        self.transmitting = false;
+        let frame = *self.tx.as_ref()?.frame();
+        if self.config.single_shot || self.abort_in_flight {
+            self.drop_tx();
+        }
+        Some(Event::ArbitrationLost { frame, bit: index })
+    }
+
+    /// The ACK slot of a whole frame.
+    #[inline]
+    pub fn frame_ack(&mut self) {
+        if self.transmitting || self.config.listen_only {
+            return;
+        }
+        // Our dominant ACK: a successful reception (rule 8). With REC at 0 it stays 0 and the
+        // counters' state, already derived from them, stays the same: nothing to do.
+        if self.counters.rec != 0 {
             self.counters.receive_ok();
             self.update_state();
         }
-        if bits.contains(&frame.eof_bit(6)) && !self.transmitting {
-            self.events.push_back(Event::Received(frame.frame));
-        }
-        if bits.contains(&frame.eof_bit(7)) {
+    }
+
+    /// EOF bit 6 of a whole frame: the event a receiver delivers there, which the caller hands
+    /// on (it is not queued in the controller).
+    #[inline]
+    pub fn frame_received(&self, frame: &WireFrame) -> Option<Event> {
+        (!self.transmitting).then_some(Event::Received(frame.frame))
+    }
+
+    /// EOF bit 7 of a whole frame: the transmitter's frame is sent.
+    #[inline]
+    pub fn frame_eof7(&mut self) {
+        if self.transmitting {
             self.last_eof_bit();
+        } else {
+            // What `last_eof_bit` does for a receiver.
+            self.end_of_frame();
         }
-        let last = frame.total() - 1;
-        if bits.contains(&last) {
-            // The 3rd intermission bit, as `intermission_bit` ends it.
-            self.phase = if self.suspended() {
-                Phase::Suspend { n: 1 }
-            } else {
-                Phase::Idle
-            };
-            self.rx.clone_from(&frame.receiver);
-            self.frame_bit = frame.total();
-            self.drive = self.next_drive();
+    }
+
+    /// The last (3rd) intermission bit of a whole frame: waiting for SOF again, or suspended.
+    #[inline]
+    pub fn frame_end(&mut self, frame: &WireFrame) {
+        self.phase = if self.suspended() {
+            Phase::Suspend { n: 1 }
+        } else {
+            Phase::Idle
+        };
+        self.rx.clone_from(&frame.receiver);
+        self.frame_bit = frame.total();
+        self.drive = self.next_drive();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Id;
+    use crate::wire::encode;
+    use proptest::prelude::*;
+
+    /// [`WireFrame::lost_bit`] the plain way, bit by bit.
+    fn lost_bit_stepwise(loser: &Encoded, winner: &Encoded) -> Option<FrameRole> {
+        let (lb, wb) = (loser.stuffed(), winner.stuffed());
+        let arbitration_end = if loser.frame().is_extended() { 32 } else { 12 };
+        let mut stuff = 0;
+        for i in 1..lb.len().min(wb.len()) {
+            let is_stuff = loser.is_stuff_bit(i);
+            if lb.bit(i) != wb.bit(i) {
+                let index = (i - stuff) as u32;
+                let ok = lb.bit(i)
+                    && !is_stuff
+                    && !winner.is_stuff_bit(i)
+                    && (1..=arbitration_end).contains(&index);
+                return ok.then_some(FrameRole::LostArbitration {
+                    wire_bit: i as u32,
+                    index,
+                });
+            }
+            stuff += is_stuff as usize;
+        }
+        None
+    }
+
+    /// IDs close together and full of runs (stuff bits), both formats, data and remote.
+    fn any_frame() -> impl Strategy<Value = Frame> {
+        (
+            any::<bool>(),
+            prop_oneof![Just(0u32), Just(u32::MAX), any::<u32>(), 0u32..64],
+            any::<bool>(),
+            prop::collection::vec(prop_oneof![Just(0u8), Just(0xFF), any::<u8>()], 0..=8),
+        )
+            .prop_map(|(extended, raw, remote, data)| {
+                let id = if extended {
+                    Id::extended(raw & 0x1FFF_FFFF).unwrap()
+                } else {
+                    Id::standard((raw & 0x7FF) as u16).unwrap()
+                };
+                if remote {
+                    Frame::remote(id, data.len() as u8).unwrap()
+                } else {
+                    Frame::data(id, &data).unwrap()
+                }
+            })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+
+        #[test]
+        fn lost_bit_is_the_first_differing_wire_bit(a in any_frame(), b in any_frame()) {
+            let (a, b) = (encode(&a), encode(&b));
+            prop_assert_eq!(WireFrame::lost_bit(&a, &b), lost_bit_stepwise(&a, &b));
+            prop_assert_eq!(WireFrame::lost_bit(&b, &a), lost_bit_stepwise(&b, &a));
         }
     }
 }

@@ -260,6 +260,11 @@ impl Encoded {
         i < self.stuff_mask.len() && self.stuff_mask.bit(i)
     }
 
+    /// Which wire bits are stuff bits (1 = stuff bit), as long as [`Self::stuffed`].
+    pub(crate) const fn stuff_mask(&self) -> &Bits {
+        &self.stuff_mask
+    }
+
     /// Number of stuff bits.
     pub const fn stuff_bits(&self) -> usize {
         self.stuffed.len() - self.unstuffed.len()

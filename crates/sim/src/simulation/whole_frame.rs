@@ -7,16 +7,57 @@
 //! kind that supports it), at least one sending, the senders' arbitration fields distinct,
 //! some node other than the winner acknowledging, and the whole frame with its intermission
 //! before the end of the run.
+//!
+//! The frame is applied in stages, at the only bits where a node can report something or
+//! change what others can see of it (its queue, its counters): each loser's lost bit (in time
+//! order), the ACK slot, EOF bit 6, EOF bit 7 and the last intermission bit. Bare protocol
+//! controllers take each stage as one call
+//! ([`Controller::frame_ack`](buslab_can::controller::Controller::frame_ack) and friends), so between
+//! stages every controller is where the bit-by-bit path has it as far as anything can look
+//! (generators queueing frames, counter samples); other node kinds are moved on through the
+//! frame's bits with [`BusNode::advance_frame`](buslab_can::node::BusNode::advance_frame) up to
+//! each stage and each time something looks at them. Within a stage nodes go in index order,
+//! as the bit-by-bit path steps them, so the trace comes out in the same order.
 
-use buslab_can::controller::{FrameRole, FrameStart, WireFrame};
+use std::sync::Arc;
+
+use buslab_can::Frame;
+use buslab_can::controller::{ArbitrationBits, Event, FrameRole, FrameStart, WireFrame};
 use buslab_can::wire::Encoded;
-use buslab_can::{Frame, Level};
 
-use super::{Node, Simulation, handle_event};
+use super::{Device, Node, Observers, Schedule, Simulation, handle_event};
+use crate::observe::{BusStats, Happening, Record};
 use crate::time::BitTime;
 
 /// Frames kept decoded: a saturated bus repeats a few frames over and over.
 const CACHE_FRAMES: usize = 64;
+
+/// A frame seen on the wire, decoded once, with what it adds to the bus statistics.
+#[derive(Debug)]
+struct CachedFrame {
+    frame: Frame,
+    dlc: u8,
+    wire: WireFrame,
+    /// The frame with its intermission on a bus that was idle (it starts with a dominant SOF,
+    /// so what came before changes nothing but the recessive run it ends).
+    stats: BusStats,
+}
+
+impl CachedFrame {
+    fn new(wire: WireFrame, dlc: u8) -> Self {
+        let mut stats = BusStats::default();
+        for i in 0..wire.len() as usize {
+            stats.bit(wire.bus().level(i));
+        }
+        stats.idle(u64::from(wire.total() - wire.len()));
+        Self {
+            frame: *wire.frame(),
+            dlc,
+            wire,
+            stats,
+        }
+    }
+}
 
 /// State of the fast path.
 #[derive(Debug)]
@@ -26,12 +67,15 @@ pub(super) struct WholeFrames {
     refused_at: Option<BitTime>,
     applied: u64,
     roles: Vec<FrameRole>,
-    /// Where each node is to be moved on to, in order: (wire bit, node).
-    stops: Vec<(u32, usize)>,
-    /// How far each node has been moved on.
+    /// Nodes that send SOF, with the start of their frames.
+    senders: Vec<(usize, ArbitrationBits)>,
+    /// The losers in the order they lose: `wire_bit << 32 | node`, sorted.
+    losers: Vec<u64>,
+    sorted: Vec<u64>,
+    /// How far each node of another kind than a bare controller has been moved on.
     done: Vec<u32>,
     /// Recently seen frames on the wire, most recent last.
-    cache: Vec<(Frame, u8, WireFrame)>,
+    cache: Vec<Arc<CachedFrame>>,
 }
 
 impl Default for WholeFrames {
@@ -41,7 +85,9 @@ impl Default for WholeFrames {
             refused_at: None,
             applied: 0,
             roles: Vec::new(),
-            stops: Vec::new(),
+            senders: Vec::new(),
+            losers: Vec::new(),
+            sorted: Vec::new(),
             done: Vec::new(),
             cache: Vec::new(),
         }
@@ -58,22 +104,27 @@ impl WholeFrames {
         }
     }
 
-    fn wire_frame(&mut self, winner: &Encoded) -> Option<WireFrame> {
-        let key = (*winner.frame(), winner.dlc());
-        if let Some(at) = self.cache.iter().rposition(|(f, dlc, _)| (*f, *dlc) == key) {
-            return Some(self.cache[at].2.clone());
+    fn wire_frame(&mut self, winner: &Encoded) -> Option<Arc<CachedFrame>> {
+        let (frame, dlc) = (winner.frame(), winner.dlc());
+        if let Some(hit) = self
+            .cache
+            .iter()
+            .rev()
+            .find(|c| c.dlc == dlc && c.frame == *frame)
+        {
+            return Some(hit.clone());
         }
-        let wire = WireFrame::new(winner)?;
+        let cached = Arc::new(CachedFrame::new(WireFrame::new(winner)?, dlc));
         if self.cache.len() == CACHE_FRAMES {
             self.cache.remove(0);
         }
-        self.cache.push((key.0, key.1, wire.clone()));
-        Some(wire)
+        self.cache.push(cached.clone());
+        Some(cached)
     }
 }
 
 /// Every node waits for SOF, error-active, and one of them sends: worth trying a whole frame.
-pub(super) fn lined_up(nodes: &[Node]) -> bool {
+pub(super) fn lined_up(nodes: &[super::Node]) -> bool {
     let mut sending = false;
     for node in nodes {
         match node.device.frame_start() {
@@ -110,17 +161,22 @@ impl Simulation {
         applied
     }
 
-    fn whole_frame(&mut self, end: BitTime) -> bool {
-        // Who sends, who wins (the lowest arbitration key), who acknowledges.
+    /// Who sends, who wins (the lowest arbitration key) and whether someone else acknowledges;
+    /// fills `whole.senders`. The winner and its frame; `None` if the frame cannot be applied
+    /// whole.
+    fn arbitration(&mut self) -> Option<(usize, Encoded)> {
+        let senders = &mut self.whole.senders;
+        senders.clear();
         let mut winner: Option<(usize, u32)> = None;
         let mut tie = false;
         let mut ackers = 0usize;
         for (i, node) in self.nodes.iter().enumerate() {
             let FrameStart::Ready { sends, acks } = node.device.frame_start() else {
-                return false;
+                return None;
             };
             ackers += acks as usize;
             if let Some(e) = sends {
+                senders.push((i, ArbitrationBits::of(e)));
                 let key = e.frame().arbitration_key();
                 match winner {
                     Some((_, best)) if key > best => {}
@@ -132,134 +188,297 @@ impl Simulation {
                 }
             }
         }
-        let Some((w, _)) = winner else { return false };
+        let (w, _) = winner?;
         let FrameStart::Ready {
             sends: Some(winning),
             acks: winner_acks,
         } = self.nodes[w].device.frame_start()
         else {
+            return None;
+        };
+        (!tie && ackers > winner_acks as usize).then_some((w, *winning))
+    }
+
+    fn whole_frame(&mut self, end: BitTime) -> bool {
+        let Some((w, winning)) = self.arbitration() else {
             return false;
         };
-        if tie || ackers <= winner_acks as usize {
-            return false;
-        }
-        let winning = *winning;
-        let roles = &mut self.whole.roles;
-        roles.clear();
-        for (i, node) in self.nodes.iter().enumerate() {
-            let role = match node.device.frame_start() {
-                FrameStart::Ready { sends: Some(_), .. } if i == w => FrameRole::Transmitter,
-                FrameStart::Ready { sends: Some(e), .. } => {
-                    match WireFrame::lost_bit(e, &winning) {
-                        Some(role) => role,
-                        None => return false,
-                    }
-                }
-                _ => FrameRole::Receiver,
-            };
-            roles.push(role);
-        }
-        let Some(wire) = self.whole.wire_frame(&winning) else {
+        let Some(cached) = self.whole.wire_frame(&winning) else {
             return false;
         };
+        let wire = &cached.wire;
         let t0 = self.now;
         let total = wire.total();
         let done = t0 + total as BitTime;
         if done > end || self.next_fault_change < done {
             return false;
         }
-
-        // Each node is moved on only up to the bits at which it reports something (its lost
-        // bit, its ACK, reception at EOF 6, transmission at EOF 7) and to the end, in time
-        // order and, within a bit-time, in node order: every event gets its exact bit-time.
-        let stops = &mut self.whole.stops;
-        stops.clear();
-        stops.extend(
-            self.whole
-                .roles
-                .iter()
-                .enumerate()
-                .filter_map(|(i, r)| match r {
-                    FrameRole::LostArbitration { wire_bit, .. } => Some((wire_bit + 1, i)),
-                    _ => None,
-                }),
-        );
-        stops.sort_unstable();
-        let [ack, eof6, eof7] = wire.event_bits();
-        for (i, role) in self.whole.roles.iter().enumerate() {
-            if *role != FrameRole::Transmitter {
-                stops.push((ack + 1, i));
-            }
-        }
-        for (i, role) in self.whole.roles.iter().enumerate() {
-            if *role != FrameRole::Transmitter {
-                stops.push((eof6 + 1, i));
-            }
-        }
-        stops.push((eof7 + 1, w));
-        stops.extend((0..self.nodes.len()).map(|i| (total, i)));
-        let done = &mut self.whole.done;
-        done.clear();
-        done.resize(self.nodes.len(), 0);
-
-        let mut at = 0u32;
-        let mut k = 0;
-        while k < self.whole.stops.len() {
-            let stop = self.whole.stops[k].0;
-            // Generators and counter samples due inside the frame act at their own bit-time,
-            // with the nodes they look at moved on to just before it.
-            let due = self.schedule.next.min(self.next_sample);
-            if due >= t0 + at as BitTime && due < t0 + stop as BitTime {
-                at = (due - t0) as u32;
-                if self.next_sample <= due {
-                    for i in 0..self.nodes.len() {
-                        self.advance_node(&wire, i, at, t0);
-                    }
-                } else {
-                    for g in 0..self.schedule.generators.len() {
-                        let generator = &self.schedule.generators[g];
-                        if generator.next().is_some_and(|t| t <= due) {
-                            self.advance_node(&wire, generator.node, at, t0);
-                        }
-                    }
-                }
-                self.now = due;
-                self.handle_due();
+        let n = self.nodes.len();
+        let whole = &mut self.whole;
+        whole.roles.clear();
+        whole.roles.resize(n, FrameRole::Receiver);
+        whole.roles[w] = FrameRole::Transmitter;
+        whole.losers.clear();
+        let winner_bits = ArbitrationBits::of(&winning);
+        for &(i, bits) in &whole.senders {
+            if i == w {
                 continue;
             }
-            while k < self.whole.stops.len() && self.whole.stops[k].0 == stop {
-                let i = self.whole.stops[k].1;
-                self.advance_node(&wire, i, stop, t0);
-                k += 1;
+            match bits.lost_to(winner_bits) {
+                Some(role @ FrameRole::LostArbitration { wire_bit, .. }) => {
+                    whole.roles[i] = role;
+                    whole.losers.push(u64::from(wire_bit) << 32 | i as u64);
+                }
+                _ => return false,
             }
-            at = stop;
-            self.now = t0 + at as BitTime;
         }
-        for i in 0..wire.len() as usize {
-            self.obs.bus.bit(wire.bus().level(i));
+        order_losers(&mut whole.losers, &mut whole.sorted);
+        if self.others > 0 {
+            whole.done.clear();
+            whole.done.resize(n, 0);
         }
-        for _ in wire.len()..total {
-            self.obs.bus.bit(Level::Recessive);
+
+        // SOF: every controller takes part in the frame (nothing to report).
+        for (node, role) in self.nodes.iter_mut().zip(&self.whole.roles) {
+            if let Device::Controller(c) = &mut node.device {
+                c.frame_begin(*role);
+            }
         }
+        let mut at = 0u32;
+        for k in 0..self.whole.losers.len() {
+            let key = self.whole.losers[k];
+            let (bit, i) = ((key >> 32) as u32, key as u32 as usize);
+            self.handle_due_inside(wire, t0, &mut at, bit);
+            let Self {
+                nodes,
+                obs,
+                schedule,
+                whole,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            match (&mut node.device, whole.roles[i]) {
+                (Device::Controller(c), FrameRole::LostArbitration { index, .. }) => {
+                    let time = t0 + bit as BitTime;
+                    if let Some(event) = c.frame_lost(index) {
+                        record(obs, i, node, time, event);
+                    }
+                    if matches!(&node.device, Device::Controller(c) if c.has_events()) {
+                        drain_node(obs, schedule, i, node, time);
+                    }
+                }
+                _ => self.advance_other(wire, i, bit + 1, t0),
+            }
+        }
+        let [ack, eof6, eof7] = wire.event_bits();
+        self.handle_due_inside(wire, t0, &mut at, ack);
+        for i in 0..n {
+            if i == w {
+                continue;
+            }
+            let Self {
+                nodes,
+                obs,
+                schedule,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            if let Device::Controller(c) = &mut node.device {
+                c.frame_ack();
+                if c.has_events() {
+                    drain_node(obs, schedule, i, node, t0 + ack as BitTime);
+                }
+            } else {
+                self.advance_other(wire, i, ack + 1, t0);
+            }
+        }
+        self.handle_due_inside(wire, t0, &mut at, eof6);
+        for i in 0..n {
+            if i == w {
+                continue;
+            }
+            let Self {
+                nodes,
+                obs,
+                schedule: _,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            if let Device::Controller(c) = &mut node.device {
+                // Handed on at once rather than queued in the controller and polled.
+                if let Some(event) = c.frame_received(wire) {
+                    let time = t0 + eof6 as BitTime;
+                    record(obs, i, node, time, event);
+                }
+            } else {
+                self.advance_other(wire, i, eof6 + 1, t0);
+            }
+        }
+        self.handle_due_inside(wire, t0, &mut at, eof7);
+        if let Device::Controller(c) = &mut self.nodes[w].device {
+            c.frame_eof7();
+        }
+        self.stage_done(wire, t0, w, eof7);
+        let last = total - 1;
+        self.handle_due_inside(wire, t0, &mut at, last);
+        for i in 0..n {
+            let Self {
+                nodes,
+                obs,
+                schedule,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            if let Device::Controller(c) = &mut node.device {
+                // The others' EOF bit 7 changes nothing anybody looks at before now.
+                if i != w {
+                    c.frame_eof7();
+                }
+                c.frame_end(wire);
+                if c.has_events() {
+                    drain_node(obs, schedule, i, node, t0 + last as BitTime);
+                }
+            } else {
+                self.advance_other(wire, i, total, t0);
+            }
+        }
+        self.obs.bus.add_frame(&cached.stats);
+        self.now = done;
         self.whole.applied += 1;
         true
     }
 
-    /// Moves node `i` on through the frame's bits up to `to` (exclusive) and handles its
-    /// events, which happen at bit `to - 1`.
-    #[inline]
-    fn advance_node(&mut self, wire: &WireFrame, i: usize, to: u32, t0: BitTime) {
+    /// Generators and counter samples due before wire bit `bit` is sampled (and not before
+    /// `at`, where the frame has got to) act at their own bit-time, with the nodes they look
+    /// at moved on to just before it.
+    #[inline(always)]
+    fn handle_due_inside(&mut self, wire: &WireFrame, t0: BitTime, at: &mut u32, bit: u32) {
+        if self.schedule.next.min(self.next_sample) <= t0 + bit as BitTime {
+            self.handle_due_inside_slow(wire, t0, at, bit);
+        }
+    }
+
+    #[inline(never)]
+    fn handle_due_inside_slow(&mut self, wire: &WireFrame, t0: BitTime, at: &mut u32, bit: u32) {
+        loop {
+            let due = self.schedule.next.min(self.next_sample);
+            if due < t0 + *at as BitTime || due > t0 + bit as BitTime {
+                return;
+            }
+            *at = (due - t0) as u32;
+            // Controllers are up to date at every stage; other nodes are moved on here.
+            if self.others > 0 && self.next_sample <= due {
+                for i in 0..self.nodes.len() {
+                    self.advance_other(wire, i, *at, t0);
+                }
+            } else if self.others > 0 {
+                for g in 0..self.schedule.generators.len() {
+                    let generator = &self.schedule.generators[g];
+                    if generator.next().is_some_and(|t| t <= due) {
+                        self.advance_other(wire, generator.node, *at, t0);
+                    }
+                }
+            }
+            self.now = due;
+            self.handle_due();
+        }
+    }
+
+    /// Node `i` has taken wire bit `bit` of the frame: a node of another kind is moved on
+    /// through it; the events are handled at that bit-time.
+    #[inline(always)]
+    fn stage_done(&mut self, wire: &WireFrame, t0: BitTime, i: usize, bit: u32) {
+        let node = &mut self.nodes[i];
+        match &mut node.device {
+            Device::Controller(c) => {
+                if c.has_events() {
+                    drain(self, i, t0 + bit as BitTime);
+                }
+            }
+            Device::Other(_) => self.advance_other(wire, i, bit + 1, t0),
+        }
+    }
+
+    /// Moves node `i`, if it is not a bare controller, on through the frame's bits up to `to`
+    /// (exclusive) and handles its events, which happen at bit `to - 1`.
+    fn advance_other(&mut self, wire: &WireFrame, i: usize, to: u32, t0: BitTime) {
+        let node = &mut self.nodes[i];
+        let Device::Other(device) = &mut node.device else {
+            return;
+        };
         let from = self.whole.done[i];
         if from >= to {
             return;
         }
         self.whole.done[i] = to;
-        let node = &mut self.nodes[i];
-        node.device
-            .advance_frame(wire, self.whole.roles[i], from..to);
-        let time = t0 + to as BitTime - 1;
-        while let Some(event) = node.device.poll_event() {
-            handle_event(&mut self.obs, &mut self.schedule, i, node, time, event);
-        }
+        device.advance_frame(wire, self.whole.roles[i], from..to);
+        drain(self, i, t0 + to as BitTime - 1);
     }
+}
+
+/// Handles every event node `i` has, at `time`.
+fn drain(sim: &mut Simulation, i: usize, time: BitTime) {
+    let node = &mut sim.nodes[i];
+    drain_node(&mut sim.obs, &mut sim.schedule, i, node, time);
+}
+
+/// Handles every event `node` (index `i`) has, at `time`.
+#[inline(never)]
+fn drain_node(
+    obs: &mut Observers,
+    schedule: &mut Schedule,
+    i: usize,
+    node: &mut Node,
+    time: BitTime,
+) {
+    while let Some(event) = node.device.poll_event() {
+        handle_event(obs, schedule, i, node, time, event);
+    }
+}
+
+/// What [`handle_event`] does with an event that only counts (a received frame, a lost
+/// arbitration): count it, record it.
+#[inline(always)]
+fn record(obs: &mut Observers, i: usize, node: &mut Node, time: BitTime, event: Event) {
+    debug_assert!(matches!(
+        event,
+        Event::Received(_) | Event::ArbitrationLost { .. }
+    ));
+    node.stats.count(&event);
+    if obs.record_events {
+        obs.records.push(Record {
+            time,
+            what: Happening::Node { node: i, event },
+        });
+    }
+}
+
+/// Sorts `losers` (`wire_bit << 32 | node`, pushed in node order) by wire bit, then node: a
+/// counting sort, as lost bits are few and small; `sorted` is scratch space.
+fn order_losers(losers: &mut Vec<u64>, sorted: &mut Vec<u64>) {
+    const BITS: usize = 64;
+    let bit = |key: u64| (key >> 32) as usize;
+    let Some(last) = losers.iter().map(|&key| bit(key)).max() else {
+        return;
+    };
+    if last >= BITS {
+        losers.sort_unstable();
+        return;
+    }
+    // start[b]: where the losers at bit b go.
+    let mut start = [0u16; BITS + 1];
+    for &key in losers.iter() {
+        start[bit(key) + 1] += 1;
+    }
+    for b in 0..=last {
+        start[b + 1] += start[b];
+    }
+    sorted.clear();
+    sorted.resize(losers.len(), 0);
+    for &key in losers.iter() {
+        let at = &mut start[bit(key)];
+        sorted[*at as usize] = key;
+        *at += 1;
+    }
+    core::mem::swap(losers, sorted);
 }
