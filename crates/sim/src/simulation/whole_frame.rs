@@ -111,6 +111,12 @@ impl Simulation {
     }
 
     fn whole_frame(&mut self, end: BitTime) -> bool {
+        // Nodes with a clock of their own (timestamps, timers) learn when the frame starts.
+        for node in &mut self.nodes {
+            if let super::Device::Other(n) = &mut node.device {
+                n.frame_starts_at(self.now);
+            }
+        }
         // Who sends, who wins (the lowest arbitration key), who acknowledges.
         let mut winner: Option<(usize, u32)> = None;
         let mut tie = false;
