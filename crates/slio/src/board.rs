@@ -218,6 +218,9 @@ impl BusNode for DemoBoard {
     }
 
     fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        if bits.is_empty() {
+            return;
+        }
         if bits.start == 0 {
             self.frame_by_bits = self.slio.listens();
         }
