@@ -454,13 +454,17 @@ fn the_lab_dashboard_shows_its_devices_and_an_led_follows_the_slio() {
     browser.click("#cpu196 button.start");
     browser.until(
         "the ZELLE plot",
-        "return document.querySelector('#zelle polyline.ch2')?.getAttribute('points').split(' ').length",
-        |v| v.as_u64() > Some(40),
+        // With the panel's state line, which names an error if the run failed.
+        "return [document.querySelector('#zelle polyline.ch2')?.getAttribute('points').split(' ').length, \
+         document.querySelector('#zelle .state').textContent]",
+        |v| v[0].as_u64() > Some(40),
     );
     browser.until(
         "the CPU196 plot",
-        "return document.querySelector('#cpu196 polyline.ch1')?.getAttribute('points').split(' ').length",
-        |v| v.as_u64() > Some(40),
+        // With the panel's state line, which names an error if the run failed.
+        "return [document.querySelector('#cpu196 polyline.ch1')?.getAttribute('points').split(' ').length, \
+         document.querySelector('#cpu196 .state').textContent]",
+        |v| v[0].as_u64() > Some(40),
     );
     screenshot(&browser, "/screenshot", "lab-dashboard.png");
     let id = browser.find("#devices");

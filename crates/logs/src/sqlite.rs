@@ -21,7 +21,7 @@ use std::time::Duration;
 
 use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
-use rusqlite::types::Value;
+use rusqlite::types::{Value, ValueRef};
 use rusqlite::{Connection, OpenFlags, params};
 
 use crate::error::{Problem, ReadError};
@@ -101,13 +101,13 @@ impl Reader {
         let rows = stmt.query_map(params![self.last_rowid, BATCH], |r| {
             Ok(Row {
                 rowid: r.get(0)?,
-                ts: r.get(1)?,
-                id: r.get(2)?,
-                extended: r.get(3)?,
-                remote: r.get(4)?,
-                error: r.get(5)?,
-                dlc: r.get(6)?,
-                data: r.get(7)?,
+                ts: value(r, 1)?,
+                id: value(r, 2)?,
+                extended: value(r, 3)?,
+                remote: value(r, 4)?,
+                error: value(r, 5)?,
+                dlc: value(r, 6)?,
+                data: value(r, 7)?,
             })
         })?;
         for row in rows {
@@ -148,6 +148,16 @@ impl Reader {
         decode_row(&row, entry).map_err(|p| ReadError::bad(at, p))?;
         Ok(true)
     }
+}
+
+/// Column `i` as a value. rusqlite's own conversion panics on TEXT that is not UTF-8 (a
+/// damaged or hostile file has such text); here it becomes text with replacement characters,
+/// which no column accepts, so the row is refused with what was found.
+fn value(r: &rusqlite::Row<'_>, i: usize) -> rusqlite::Result<Value> {
+    Ok(match r.get_ref(i)? {
+        ValueRef::Text(bytes) => Value::Text(String::from_utf8_lossy(bytes).into_owned()),
+        other => Value::from(other),
+    })
 }
 
 fn int(v: &Value, what: &'static str) -> Result<i64, Problem> {

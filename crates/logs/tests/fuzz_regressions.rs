@@ -109,3 +109,29 @@ fn trc_offsets_of_twenty_digits_read_back() {
         assert_eq!(times, [entries[0].timestamp, entries[1].timestamp]);
     }
 }
+
+/// `round_trip::readers_survive_bytes_that_look_like_their_format` (a stress run): a damaged
+/// database with TEXT that is not UTF-8 made rusqlite panic while the reader took the row. The
+/// row is now refused, naming the column, and the reader goes on.
+#[test]
+fn sqlite_text_that_is_not_utf8_is_a_bad_row_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad-text.db");
+    {
+        let conn = rusqlite::Connection::open(&path).unwrap();
+        conn.execute_batch(sqlite::CREATE_TABLE).unwrap();
+        conn.execute_batch(
+            "INSERT INTO messages VALUES (CAST(x'41ff42' AS TEXT), 291, 0, 0, 0, 1, x'01');
+             INSERT INTO messages VALUES (1.5, 291, 0, 0, 0, 1, CAST(x'c3' AS TEXT));
+             INSERT INTO messages VALUES (2.0, 291, 0, 0, 0, 1, x'02');",
+        )
+        .unwrap();
+    }
+    let reader = sqlite::Reader::open(&path).expect("the file opens as a database");
+    let (entries, errors) = read_all(reader, 100);
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert!(errors[0].contains("ts in seconds"), "{errors:?}");
+    assert!(errors[1].contains("data as a BLOB"), "{errors:?}");
+    assert_eq!(entries.len(), 1, "{entries:?}");
+    assert_eq!(entries[0].record, Record::Frame("123#02".parse().unwrap()));
+}

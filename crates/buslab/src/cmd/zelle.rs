@@ -459,6 +459,13 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         },
         rule,
     )?;
+    let control = served.control();
+    // Bound before the path is printed: a script that reads the path may use the socket at once.
+    let _socket = args
+        .control
+        .as_deref()
+        .map(|path| control_socket(path, &control))
+        .transpose()?;
     // The path alone on the first line, for scripts.
     say!("{}", served.path().display());
     eprintln!(
@@ -470,7 +477,6 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             .unwrap_or_default(),
         control::HELP
     );
-    let control = served.control();
     {
         let control = control.clone();
         std::thread::spawn(move || {
@@ -483,11 +489,6 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             }
         });
     }
-    let _socket = args
-        .control
-        .as_deref()
-        .map(|path| control_socket(path, &control))
-        .transpose()?;
     let _ = stopped.recv();
     Ok(served.stop()?)
 }

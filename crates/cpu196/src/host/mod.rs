@@ -448,14 +448,16 @@ impl<P: Port> Client<P> {
                     progress(n);
                 }
             }) {
-                Err(ClientError::Board(MsgCode::TIME_OUT)) if attempt < PIC_WRITE_ATTEMPTS => {
+                Err(ClientError::Board(code @ (MsgCode::TIME_OUT | MsgCode::RECEPTION_ERROR)))
+                    if attempt < PIC_WRITE_ATTEMPTS =>
+                {
                     tracing::warn!(
                         block,
                         attempt,
-                        "the board timed out inside a PIC block write; writing it again"
+                        "the board answered {code} inside a PIC block write; writing it again"
                     );
                     attempt += 1;
-                    self.resync_after_time_out()?;
+                    self.resync_after_broken_message()?;
                 }
                 result => break result?,
             }
@@ -469,30 +471,58 @@ impl<P: Port> Client<P> {
         Ok(())
     }
 
-    /// After `msg_time_out` inside a message, the bytes the host sent after its stall are a
-    /// frame of garbage to the board, dropped after its own inter-byte time-out: let that
-    /// pass, forget what came back meanwhile, and see the board answer a watchdog.
-    fn resync_after_time_out(&mut self) -> Result<(), ClientError> {
+    /// After `msg_time_out` or `msg_reception_error` inside a message, the bytes the host sent
+    /// after its stall are a frame of garbage to the board, dropped after its own inter-byte
+    /// time-out: let that pass, forget what came back meanwhile, and see the board answer a
+    /// watchdog. Error messages before that answer are the garbage's (a loaded machine may
+    /// deliver them after the pause), not the watchdog's; a watchdog swallowed by a garbage
+    /// frame still in progress is sent again after the board's time-out.
+    fn resync_after_broken_message(&mut self) -> Result<(), ClientError> {
         let garbage = self.budget(PIC_CHUNK);
-        self.port
-            .pause(Duration::from_nanos(crate::decoder::DEFAULT_TIMEOUT_NS) + garbage);
-        self.port.discard_input()?;
-        self.decoder = Decoder::new();
-        self.sync()
+        let board_time_out = Duration::from_nanos(crate::decoder::DEFAULT_TIMEOUT_NS);
+        let mut attempt = 1;
+        loop {
+            self.port.pause(board_time_out + garbage);
+            self.port.discard_input()?;
+            self.decoder = Decoder::new();
+            self.send(&Message::Watchdog)?;
+            let deadline = self.port.now() + self.budget(8);
+            let answered = loop {
+                match self.read_one(deadline)? {
+                    Some(Message::Watchdog) => break true,
+                    Some(Message::Msg(code)) if code != MsgCode::COMPLETED => {
+                        tracing::debug!("{code} left over from the broken message");
+                    }
+                    Some(other) => self.backlog.push_back(other),
+                    None => break false,
+                }
+            };
+            if answered {
+                return Ok(());
+            }
+            if attempt == PIC_WRITE_ATTEMPTS {
+                return Err(ClientError::Lost {
+                    waited: self.budget(8),
+                    line: self.line,
+                });
+            }
+            attempt += 1;
+        }
     }
 
-    /// One pass of a PIC block write: the message's head, then 256 bytes per acknowledgement.
+    /// One pass of a PIC block write: 256 bytes per acknowledgement, the message's head first.
     fn pic_write_once(
         &mut self,
         bytes: &[u8],
         progress: &mut dyn FnMut(usize),
     ) -> Result<(), ClientError> {
-        // Command, complement, sub-code and block go with the first chunk.
-        let (head, body) = bytes.split_at(bytes.len() - PIC_BLOCK);
-        self.send_raw(head)?;
+        // Command, complement, sub-code and block go in one write with the first chunk: a
+        // stall between them would break the message before any data.
+        let head = bytes.len() - PIC_BLOCK;
         let budget = self.budget(PIC_CHUNK + 64);
-        for (i, chunk) in body.chunks(PIC_CHUNK).enumerate() {
-            self.send_raw(chunk)?;
+        for i in 0..PIC_BLOCK / PIC_CHUNK {
+            let start = if i == 0 { 0 } else { head + i * PIC_CHUNK };
+            self.send_raw(&bytes[start..head + (i + 1) * PIC_CHUNK])?;
             self.wait_for(budget, &mut |r| {
                 (*r == Message::Msg(MsgCode::COMPLETED)).then_some(())
             })?;

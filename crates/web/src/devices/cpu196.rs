@@ -16,7 +16,7 @@ use buslab_link::{LineSettings, SerialLine};
 use serde::Serialize;
 
 use super::zelle::JobRefused;
-use super::{Version, lock};
+use super::{PANEL_PATIENCE, Version, lock};
 
 /// Points kept per series (source and channel).
 const MAX_POINTS: usize = 600;
@@ -199,9 +199,10 @@ fn work(
 }
 
 fn open(port: &Path, baud: u32) -> Result<Client<SerialLine>, String> {
-    let line = SerialLine::open(port, LineSettings::n81(baud))
+    let line = SerialLine::open_when_free(port, LineSettings::n81(baud), PANEL_PATIENCE)
         .map_err(|e| format!("opening {}: {e}", port.display()))?;
     let mut c = Client::new(line, baud);
+    c.timeout = PANEL_PATIENCE;
     // Whatever the board said before we came is not an answer (bounded: a running
     // acquisition never falls silent).
     let until = c.now() + Duration::from_millis(100);

@@ -14,6 +14,7 @@ pub mod zelle;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
 
 use buslab_slio::SlioId;
 use serde::Serialize;
@@ -50,6 +51,11 @@ impl Version {
 }
 
 /// Locks, going on with the state a panicked thread left (each state is whole between calls).
+/// How long a panel waits for a port another client holds (a `buslab zelle` in a terminal),
+/// and for a device's answer beyond its time on the line. A dashboard shares its machine with
+/// everything else; a late answer is better than a failed measurement.
+pub(crate) const PANEL_PATIENCE: Duration = Duration::from_secs(5);
+
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }

@@ -16,7 +16,7 @@ use buslab_zelle::timing::LINE;
 use buslab_zelle::{DATA_AREA, PARAMS_LEN, hex_listing};
 use serde::Serialize;
 
-use super::{Version, lock};
+use super::{PANEL_PATIENCE, Version, lock};
 
 /// Points kept per channel (the oldest go first).
 const MAX_POINTS: usize = 1500;
@@ -175,10 +175,10 @@ fn work(
             s.busy = Some("opening the port".into());
             s.error = None;
         });
-        let result = SerialLine::open(port, LINE)
+        let result = SerialLine::open_when_free(port, LINE, PANEL_PATIENCE)
             .map_err(|e| format!("opening {}: {e}", port.display()))
             .and_then(|line| {
-                let mut cell = Client::new(line);
+                let mut cell = Client::with_timeout(line, PANEL_PATIENCE);
                 match &job {
                     ZelleJob::Measure { params, chunks } => {
                         measure(&mut cell, params, *chunks, stop, &set)?;

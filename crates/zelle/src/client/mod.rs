@@ -112,6 +112,10 @@ pub struct Client<P: Port> {
 /// The default allowance for an answer, beyond its bytes' time on the line.
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_millis(500);
 
+/// Bytes a reset may find still coming from before it (a series' block is at most this) before
+/// it gives up on the line falling quiet.
+const MAX_STALE_AFTER_RESET: usize = 64 * 1024;
+
 impl<P: Port> Client<P> {
     /// A client on `port` with [`DEFAULT_TIMEOUT`].
     pub fn new(port: P) -> Self {
@@ -240,19 +244,51 @@ impl<P: Port> Client<P> {
 
     // ----- commands -------------------------------------------------------------------------
 
-    /// Brings the cell to the ready state from any state: ten `0` bytes, 2 ms apart. Replies
-    /// still on their way are thrown away.
+    /// Brings the cell to the ready state from any state: ten `0` bytes, 2 ms apart, then
+    /// confirms it with command 13. Replies still on their way are thrown away.
     pub fn reset(&mut self) -> Result<()> {
+        const DURING: &str = "confirming a reset (command 13 after ten zeros)";
         let gap = Duration::from_nanos(RESET_GAP_NS);
         for _ in 0..10 {
             self.port.pause(gap);
             self.send(&[0])?;
             self.port.drain()?;
         }
-        // Long enough for a reply that was already being sent to arrive, then drop it.
         self.port.pause(gap + Duration::from_nanos(BYTE_NS));
         self.port.discard_input()?;
-        Ok(())
+        // Replies to what came before the zeros (or to a zero taken as a command's data) may
+        // still come, later still from a cell behind a loaded machine. The cell answers command
+        // 13 only once it is ready, after everything it sent before: its answer is the last
+        // byte on a line that then stays quiet.
+        self.send(&[Command::ReadKey as u8])?;
+        let quiet = (self.timeout / 4).max(Duration::from_nanos(20 * BYTE_NS));
+        let mut last = self.read_byte(DURING)?;
+        let mut stale = 0usize;
+        let mut buf = [0u8; 64];
+        loop {
+            match self.port.recv(&mut buf, quiet)? {
+                0 => break,
+                n => {
+                    last = buf[n - 1];
+                    stale += n;
+                }
+            }
+            if stale > MAX_STALE_AFTER_RESET {
+                return Err(Error::UnexpectedReply {
+                    during: DURING,
+                    byte: last,
+                    expected: "the line to fall quiet after the reset",
+                });
+            }
+        }
+        match last {
+            0 | 1 => Ok(()),
+            byte => Err(Error::UnexpectedReply {
+                during: DURING,
+                byte,
+                expected: "0 or 1, the START key",
+            }),
+        }
     }
 
     /// Sends one `0`: stops a running series or program (start byte becomes 0).
