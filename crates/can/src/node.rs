@@ -56,6 +56,16 @@ pub trait BusNode: Any + Send {
         FrameStart::NotReady
     }
 
+    /// The engine considers applying a whole frame whose SOF is at bit-time `now`: called
+    /// before it asks [`Self::frame_start`] for that frame and before the
+    /// [`Self::advance_frame`] calls that apply it. Since the node's last
+    /// [`sample`](Self::sample) the bus was recessive (the engine may have skipped those
+    /// bit-times, as [`Self::quiet_until`] allowed). A node that keeps time of its own
+    /// (timestamps, timers) takes the time here; the default ignores it.
+    fn frame_starts_at(&mut self, now: u64) {
+        let _ = now;
+    }
+
     /// Wire bits `bits` of `frame` (SOF = 0) have passed with this node as `role`: advance as
     /// stepping those bits would, with the same events. Called with consecutive ranges up to
     /// [`WireFrame::total`], only after [`Self::frame_start`] said `Ready`; see

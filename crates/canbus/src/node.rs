@@ -9,8 +9,9 @@
 
 use std::any::Any;
 use std::collections::VecDeque;
+use std::ops::Range;
 
-use buslab_can::controller::{ErrorState, Event, QueueFull};
+use buslab_can::controller::{ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame};
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 use buslab_sja1000::Sja1000;
@@ -98,6 +99,8 @@ pub struct Sja1000Node {
     notices: Vec<(u64, NodeNotice)>,
     /// The bit-time of the last sample (for what happens between samples).
     now: u64,
+    /// The bit-time of the SOF of the frame the engine applies whole.
+    frame_sof: u64,
 }
 
 impl Sja1000Node {
@@ -132,6 +135,7 @@ impl Sja1000Node {
             engine_events: VecDeque::new(),
             notices: Vec::new(),
             now: 0,
+            frame_sof: 0,
         })
     }
 
@@ -354,6 +358,27 @@ impl Sja1000Node {
     }
 }
 
+impl Sja1000Node {
+    /// What the CPU does after the chip saw the bus up to bit-time `now`: it services the
+    /// interrupt, and restarts the chip when the time has come.
+    fn after_bits(&mut self, now: u64) {
+        if self.driver.chip().interrupt() {
+            self.service(now);
+        }
+        if self.restart_at.is_some_and(|t| now >= t) {
+            self.restart(now);
+        }
+    }
+
+    /// Wire bits `bits` of a whole frame through the chip, then the CPU at the last of them.
+    fn advance_chip(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        let now = self.frame_sof + u64::from(bits.end) - 1;
+        self.now = now;
+        self.driver.registers().advance_frame(frame, role, bits);
+        self.after_bits(now);
+    }
+}
+
 impl BusNode for Sja1000Node {
     fn output(&self) -> Level {
         self.chip().output()
@@ -370,13 +395,36 @@ impl BusNode for Sja1000Node {
         } else {
             bus
         };
-        let chip = self.driver.registers();
-        chip.sample(seen);
-        if chip.interrupt() {
-            self.service(now);
+        self.driver.registers().sample(seen);
+        self.after_bits(now);
+    }
+
+    fn frame_starts_at(&mut self, now: u64) {
+        self.frame_sof = now;
+    }
+
+    /// Ready when the chip is (see [`Sja1000::frame_start`]) and the CPU has nothing of its
+    /// own to do during the frame: the node follows the bus (no bit-rate mismatch), no restart
+    /// is due, and the interrupt line is quiet.
+    fn frame_start(&self) -> FrameStart<'_> {
+        if self.mismatch.is_some() || self.restart_at.is_some() || self.chip().interrupt() {
+            return FrameStart::NotReady;
         }
-        if self.restart_at.is_some_and(|t| now >= t) {
-            self.restart(now);
+        self.chip().frame_start()
+    }
+
+    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, mut bits: Range<u32>) {
+        // Events (and so interrupts) come at the last bit of a range. An interrupt the CPU left
+        // asserted (a FIFO with more messages than one service reads) is serviced again at
+        // every bit, as sampling would: those bits go one at a time.
+        while !bits.is_empty() {
+            let end = if self.chip().interrupt() {
+                bits.start + 1
+            } else {
+                bits.end
+            };
+            self.advance_chip(frame, role, bits.start..end);
+            bits.start = end;
         }
     }
 

@@ -1,8 +1,9 @@
 //! The chip: register file, command logic and interrupts around one protocol controller.
 
 use std::collections::VecDeque;
+use std::ops::Range;
 
-use buslab_can::controller::{ErrorKind, ErrorState, Event};
+use buslab_can::controller::{ErrorKind, ErrorState, Event, FrameRole, FrameStart, WireFrame};
 use buslab_can::{Frame, Level};
 
 use crate::fifo::RxFifo;
@@ -513,6 +514,34 @@ impl Sja1000 {
             self.count_recovery_bit(bus);
         }
         self.mac.sample(bus);
+        self.after_bits();
+    }
+
+    /// Whether the chip may take the next frame whole (see [`FrameStart`]): taking part in bus
+    /// traffic (not in reset mode, asleep or bus-off) and its controller lined up at a frame
+    /// start, error-active. Otherwise the engine steps it bit by bit.
+    pub fn frame_start(&self) -> FrameStart<'_> {
+        if self.reset || self.sleeping || self.bs {
+            return FrameStart::NotReady;
+        }
+        self.mac.frame_start()
+    }
+
+    /// Wire bits `bits` of a whole frame have passed with this chip as `role`, after
+    /// [`Self::frame_start`] said `Ready`: the registers, FIFO, status and interrupts end as
+    /// sampling each bit leaves them (events act at the last bit of the range; the engine ends
+    /// a range at each bit where one happens).
+    pub fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        if self.reset {
+            return; // as `sample`: a chip put in reset mode ignores the bus
+        }
+        self.mac.advance_frame(frame, role, bits);
+        self.after_bits();
+    }
+
+    /// What the register logic does after the controller moved on: its events, then the
+    /// counters and SR.ES.
+    fn after_bits(&mut self) {
         while let Some(event) = self.mac.poll_event() {
             // The chip's own warning is SR.ES (against EWLR, and during the bus-off recovery
             // against TXERR counting down): it is reported in place of the controller's.
@@ -726,6 +755,12 @@ impl buslab_can::node::BusNode for Sja1000 {
     }
     fn pending(&self) -> usize {
         self.pending.is_some() as usize
+    }
+    fn frame_start(&self) -> FrameStart<'_> {
+        Sja1000::frame_start(self)
+    }
+    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        Sja1000::advance_frame(self, frame, role, bits)
     }
     fn as_any(&self) -> &dyn core::any::Any {
         self

@@ -1,7 +1,12 @@
 //! The chip's bit-stream processor: buslab's protocol controller, seen the way the register
 //! logic needs it. Everything the chip asks of the controller goes through here.
 
-use buslab_can::controller::{Controller, ControllerConfig, ErrorLocation, ErrorState, Event};
+use core::ops::Range;
+
+use buslab_can::controller::{
+    Controller, ControllerConfig, ErrorLocation, ErrorState, Event, FrameRole, FrameStart,
+    WireFrame,
+};
 use buslab_can::wire::Field;
 use buslab_can::{Frame, Level};
 
@@ -75,6 +80,16 @@ impl Mac {
 
     pub fn sample(&mut self, bus: Level) {
         self.controller.sample(bus);
+    }
+
+    /// Lined up at a frame start (see [`Controller::frame_start`]).
+    pub fn frame_start(&self) -> FrameStart<'_> {
+        self.controller.frame_start()
+    }
+
+    /// Wire bits `bits` of a whole frame have passed (see [`Controller::advance_frame`]).
+    pub fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        self.controller.advance_frame(frame, role, bits);
     }
 
     pub fn poll_event(&mut self) -> Option<Event> {

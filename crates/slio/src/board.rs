@@ -15,14 +15,15 @@
 //! [`DemoBoard::dpm_volts`]).
 
 use std::any::Any;
+use std::ops::Range;
 
-use buslab_can::controller::{ErrorState, Event, QueueFull};
+use buslab_can::controller::{ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame};
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 
 use crate::ids::SlioId;
 use crate::registers::Register;
-use crate::slio::{AnalogInputs, Slio, SlioError, SlioNotice};
+use crate::slio::{AnalogInputs, Slio, SlioError, SlioNotice, frame_level};
 
 /// The demo board's OUTPUT_ENABLE: LEDs, DPM outputs, the input select.
 pub const OUTPUT_ENABLE: u16 = 0x3F90;
@@ -89,6 +90,9 @@ pub struct DemoBoard {
     id_switches: u8,
     input_switches: u8,
     notices: Vec<(u64, SlioNotice)>,
+    /// The frame applied whole goes through [`BusNode::sample`] bit by bit (the SLIO only
+    /// listened at its SOF).
+    frame_by_bits: bool,
 }
 
 impl core::fmt::Debug for DemoBoard {
@@ -118,6 +122,7 @@ impl DemoBoard {
             id_switches: id.number(),
             input_switches: 0,
             notices: Vec::new(),
+            frame_by_bits: false,
         };
         board.update_pins(0);
         Ok(board)
@@ -157,6 +162,30 @@ impl DemoBoard {
         [Register::Dpm1, Register::Dpm2].map(|r| self.slio.dpm_fraction(r).map(|f| f * VDD))
     }
 
+    /// What the board does after its SLIO saw the bus up to bit-time `now`: it keeps the
+    /// SLIO's news and follows its outputs on the pins.
+    fn after_slio(&mut self, now: u64) {
+        let before = self.notices.len();
+        // Bounded: a board nobody asks keeps the latest news only.
+        if before > 4096 {
+            self.notices.drain(..before - 1024);
+        }
+        let start = self.notices.len();
+        self.notices.extend(self.slio.take_notices());
+        let outputs_changed = self.notices[start..].iter().any(|(_, n)| {
+            matches!(
+                n,
+                SlioNotice::Register {
+                    register: Register::DataOutput | Register::OutputEnable,
+                    ..
+                } | SlioNotice::BusModeChange(_)
+            )
+        });
+        if outputs_changed {
+            self.update_pins(now);
+        }
+    }
+
     /// The levels on P0..P3 follow the multiplexer: the input switches while P13 is driven
     /// high, the ID switches otherwise.
     fn update_pins(&mut self, now: u64) {
@@ -177,25 +206,34 @@ impl BusNode for DemoBoard {
 
     fn sample(&mut self, now: u64, bus: Level) {
         self.slio.sample(now, bus);
-        let before = self.notices.len();
-        // Bounded: a board nobody asks keeps the latest news only.
-        if before > 4096 {
-            self.notices.drain(..before - 1024);
+        self.after_slio(now);
+    }
+
+    fn frame_starts_at(&mut self, now: u64) {
+        self.slio.frame_starts_at(now);
+    }
+
+    fn frame_start(&self) -> FrameStart<'_> {
+        self.slio.frame_start()
+    }
+
+    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        if bits.is_empty() {
+            return;
         }
-        let start = self.notices.len();
-        self.notices.extend(self.slio.take_notices());
-        let outputs_changed = self.notices[start..].iter().any(|(_, n)| {
-            matches!(
-                n,
-                SlioNotice::Register {
-                    register: Register::DataOutput | Register::OutputEnable,
-                    ..
-                } | SlioNotice::BusModeChange(_)
-            )
-        });
-        if outputs_changed {
-            self.update_pins(now);
+        if bits.start == 0 {
+            self.frame_by_bits = self.slio.listens();
         }
+        let sof = self.slio.frame_sof();
+        if self.frame_by_bits {
+            for bit in bits {
+                self.sample(sof + u64::from(bit), frame_level(frame, bit));
+            }
+            return;
+        }
+        let now = sof + u64::from(bits.end) - 1;
+        self.slio.advance_frame(frame, role, bits);
+        self.after_slio(now);
     }
 
     fn poll_event(&mut self) -> Option<Event> {

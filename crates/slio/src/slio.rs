@@ -19,8 +19,11 @@
 
 use std::any::Any;
 use std::collections::VecDeque;
+use std::ops::Range;
 
-use buslab_can::controller::{Controller, ControllerConfig, ErrorState, Event, QueueFull};
+use buslab_can::controller::{
+    Controller, ControllerConfig, ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame,
+};
 use buslab_can::node::BusNode;
 use buslab_can::wire::{Receiver, Step};
 use buslab_can::{Frame, Level};
@@ -35,6 +38,19 @@ pub const MAX_BITRATE: u32 = 125_000;
 pub const WATCHDOG_BITS: u64 = 8192;
 /// Recessive bits that tell a listener the bus is idle.
 const IDLE_BITS: u8 = 11;
+/// The most bit-times a frame applied whole takes, intermission included: an extended data
+/// frame of 8 bytes with every possible stuff bit (118 stuffed bits, 29 stuff bits, 10 fixed
+/// bits to the end of EOF, 3 of intermission).
+const LONGEST_FRAME_BITS: u64 = 160;
+
+/// The bus level at wire bit `bit` of a whole frame (recessive in its intermission).
+pub(crate) fn frame_level(frame: &WireFrame, bit: u32) -> Level {
+    if bit < frame.len() {
+        frame.bus().level(bit as usize)
+    } else {
+        Level::Recessive
+    }
+}
 
 /// Why a SLIO cannot be put on a bus.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -140,6 +156,11 @@ pub struct Slio {
     analog: Box<dyn AnalogInputs>,
     last_calibration: u64,
     now: u64,
+    /// The bit-time of the SOF of the frame the engine applies whole.
+    frame_sof: u64,
+    /// That frame goes through [`BusNode::sample`] bit by bit: the SLIO was not calibrated at
+    /// its SOF (it only listens, and may calibrate in the middle of the frame).
+    frame_by_bits: bool,
     events: VecDeque<Event>,
     notices: VecDeque<(u64, SlioNotice)>,
 }
@@ -179,6 +200,8 @@ impl Slio {
             analog: Box::new(Unconnected),
             last_calibration: 0,
             now: 0,
+            frame_sof: 0,
+            frame_by_bits: false,
             events: VecDeque::new(),
             notices: VecDeque::new(),
         })
@@ -204,6 +227,11 @@ impl Slio {
 
     pub fn status(&self) -> Status {
         self.status
+    }
+
+    /// The protocol controller, present while calibrated (for viewers and tests).
+    pub fn controller(&self) -> Option<&Controller> {
+        self.controller.as_ref()
     }
 
     pub fn register(&self, register: Register) -> u16 {
@@ -487,20 +515,13 @@ impl Slio {
     }
 }
 
-impl BusNode for Slio {
-    fn output(&self) -> Level {
-        self.controller
-            .as_ref()
-            .map_or(Level::Recessive, Controller::output)
-    }
-
-    fn sample(&mut self, now: u64, bus: Level) {
-        self.now = now;
+impl Slio {
+    /// What the SLIO does after its controller moved on to bit-time `now`: the frames it
+    /// received, bus-off, the watchdog.
+    fn after_controller(&mut self, now: u64) {
         let Some(controller) = &mut self.controller else {
-            self.listen(now, bus);
             return;
         };
-        controller.sample(bus);
         let mut received = Vec::new();
         let mut bus_off = false;
         while let Some(event) = controller.poll_event() {
@@ -522,6 +543,78 @@ impl BusNode for Slio {
         } else if now >= self.last_calibration + WATCHDOG_BITS {
             self.change_bus_mode(ModeChangeCause::Watchdog);
         }
+    }
+
+    /// The bit-time of the SOF of the frame being applied whole.
+    pub(crate) fn frame_sof(&self) -> u64 {
+        self.frame_sof
+    }
+
+    /// Whether a frame starting now goes through bit by bit (see `frame_by_bits`).
+    pub(crate) fn listens(&self) -> bool {
+        self.controller.is_none()
+    }
+}
+
+impl BusNode for Slio {
+    fn output(&self) -> Level {
+        self.controller
+            .as_ref()
+            .map_or(Level::Recessive, Controller::output)
+    }
+
+    fn sample(&mut self, now: u64, bus: Level) {
+        self.now = now;
+        let Some(controller) = &mut self.controller else {
+            self.listen(now, bus);
+            return;
+        };
+        controller.sample(bus);
+        self.after_controller(now);
+    }
+
+    fn frame_starts_at(&mut self, now: u64) {
+        self.frame_sof = now;
+    }
+
+    /// A SLIO that only listens (not calibrated) drives nothing: it takes any frame, bit by
+    /// bit through its listener. A calibrated one takes a frame whole when its controller is
+    /// lined up at a frame start and its watchdog cannot run out before the frame ends.
+    fn frame_start(&self) -> FrameStart<'_> {
+        match &self.controller {
+            None => FrameStart::Ready {
+                sends: None,
+                acks: false,
+            },
+            Some(_)
+                if self.frame_sof + LONGEST_FRAME_BITS > self.last_calibration + WATCHDOG_BITS =>
+            {
+                FrameStart::NotReady
+            }
+            Some(c) => c.frame_start(),
+        }
+    }
+
+    fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
+        if bits.is_empty() {
+            return;
+        }
+        if bits.start == 0 {
+            self.frame_by_bits = self.listens();
+        }
+        if self.frame_by_bits {
+            for bit in bits {
+                self.sample(self.frame_sof + u64::from(bit), frame_level(frame, bit));
+            }
+            return;
+        }
+        let Some(controller) = &mut self.controller else {
+            return;
+        };
+        let now = self.frame_sof + u64::from(bits.end) - 1;
+        self.now = now;
+        controller.advance_frame(frame, role, bits);
+        self.after_controller(now);
     }
 
     fn poll_event(&mut self) -> Option<Event> {

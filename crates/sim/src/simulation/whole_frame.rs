@@ -200,6 +200,12 @@ impl Simulation {
     }
 
     fn whole_frame(&mut self, end: BitTime) -> bool {
+        // Nodes with a clock of their own (timestamps, timers) learn when the frame starts.
+        for node in &mut self.nodes {
+            if let super::Device::Other(n) = &mut node.device {
+                n.frame_starts_at(self.now);
+            }
+        }
         let Some((w, winning)) = self.arbitration() else {
             return false;
         };
