@@ -318,6 +318,47 @@ fn a_scenario_at_another_bit_rate_is_refused() {
 }
 
 #[test]
+fn serve_at_max_speed_delivers_every_frame_in_order() {
+    let serve = Serve::start_with(1_000_000, &["--speed", "max"]);
+    let mut rx = serve.client();
+    let mut tx = serve.client();
+    let frames: Vec<_> = (0..500u32)
+        .map(|i| frame(&format!("123#{:08X}", i)))
+        .collect();
+    for f in &frames {
+        tx.send(f).unwrap();
+    }
+    let report = tx.flush(EVENT).unwrap();
+    assert_eq!((report.sent, report.failed), (500, 0));
+    for want in &frames {
+        let got = rx.recv(WAIT).unwrap().expect("every frame arrives");
+        assert_eq!(&got.frame, want);
+    }
+}
+
+#[test]
+fn serve_names_a_bad_speed_and_what_is_allowed() {
+    for bad in ["fast", "0", "-2", "2000000", "nan"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["bus", "serve", "--listen", "127.0.0.1:0"])
+            .arg(format!("--speed={bad}"))
+            .stdout(Stdio::null())
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "--speed {bad} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!("speed {bad}")) || err.contains(&format!("speed \"{bad}\"")),
+            "{bad}: {err}"
+        );
+        assert!(
+            err.contains("\"max\"") && err.contains("0.001..=1000000"),
+            "{bad}: {err}"
+        );
+    }
+}
+
+#[test]
 fn serve_refuses_a_busy_address() {
     let serve = Serve::start(500_000);
     let out = Command::new(env!("CARGO_BIN_EXE_buslab"))

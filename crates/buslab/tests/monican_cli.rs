@@ -33,7 +33,7 @@ fn bus() -> ServerHandle {
     // 5000 bit-times of real time), the SLIOs' watchdog on bus time (8192 bit-times); on a
     // loaded machine the host may stall longer than the difference at full speed, and the
     // SLIOs then rightly lose their calibration. At a quarter the margin is 262 ms.
-    config.speed = 0.25;
+    config.speed = buslab_vbus::Speed::Times(0.25);
     spawn(config).unwrap()
 }
 

@@ -22,7 +22,7 @@ pub mod server;
 pub use client::{ClientError, ClientOptions, SocketcandBus};
 pub use command::{Command, NodeRef};
 pub use element::{Deframer, ElementError, MAX_ELEMENT};
-pub use message::{ServerMessage, Timestamp};
+pub use message::{FormattedFrame, ServerMessage, Timestamp};
 pub use reply::{
     ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_regs, parse_status,
     regs_reply, status_fields, status_reply,

@@ -37,8 +37,8 @@ impl Timestamp {
             return Err(bad());
         }
         let secs = s.parse().map_err(|_| bad())?;
-        // "1.5" means 1.500000 s.
-        let micros = format!("{us:0<6}").parse().map_err(|_| bad())?;
+        // "1.5" means 1.500000 s (at most 6 digits, checked above).
+        let micros = us.parse::<u32>().map_err(|_| bad())? * 10u32.pow(6 - us.len() as u32);
         Ok(Self { secs, micros })
     }
 }
@@ -157,9 +157,19 @@ fn error_text(args: &[&str]) -> String {
     text.split_ascii_whitespace().collect::<Vec<_>>().join(" ")
 }
 
+/// The value of a hex digit (checked by the caller).
+fn hex_digit(b: u8) -> u8 {
+    match b {
+        b'0'..=b'9' => b - b'0',
+        b'a'..=b'f' => b - b'a' + 10,
+        b'A'..=b'F' => b - b'A' + 10,
+        _ => 0,
+    }
+}
+
 /// Data as packed hex (`1A2203`) or one byte per token (`1A 22 03`).
 fn parse_data(tokens: &[&str]) -> Result<Vec<u8>, ProtocolError> {
-    let mut out = Vec::new();
+    let mut out = Vec::with_capacity(8);
     for t in tokens {
         if t.len() % 2 != 0 && tokens.len() == 1 {
             return Err(ProtocolError::BadHex {
@@ -179,14 +189,9 @@ fn parse_data(tokens: &[&str]) -> Result<Vec<u8>, ProtocolError> {
             });
         }
         if tokens.len() == 1 {
-            for pair in t.as_bytes().chunks(2) {
-                let s = core::str::from_utf8(pair).unwrap_or("");
-                out.push(
-                    u8::from_str_radix(s, 16).map_err(|_| ProtocolError::BadHex {
-                        what: "data",
-                        text: t.to_string(),
-                    })?,
-                );
+            // Pairs of hex digits (both checked above): every frame a client receives.
+            for pair in t.as_bytes().chunks_exact(2) {
+                out.push((hex_digit(pair[0]) << 4) | hex_digit(pair[1]));
             }
         } else {
             out.push(
@@ -222,12 +227,48 @@ pub fn format_frame(
             write!(out, "R{}", frame.dlc())?;
         }
     } else {
-        for b in frame.payload() {
-            write!(out, "{b:02X}")?;
+        // By table: a frame line is formatted for every frame a client gets.
+        const HEX: &[u8; 16] = b"0123456789ABCDEF";
+        for &b in frame.payload() {
+            out.push(HEX[usize::from(b >> 4)] as char);
+            out.push(HEX[usize::from(b & 15)] as char);
         }
     }
     out.push_str(" >");
     Ok(())
+}
+
+/// A frame from the bus formatted once in raw-mode layout, for every session that delivers it
+/// ([`crate::server::Session::deliver_formatted`]): a bus with many clients formats each frame
+/// once rather than once per client.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FormattedFrame {
+    /// As every client gets it (a remote frame without data).
+    plain: String,
+    /// A remote frame as `R<dlc>` for clients with buslab's extensions.
+    remote_as_r: Option<String>,
+}
+
+impl FormattedFrame {
+    pub fn new(frame: &Frame, timestamp: Timestamp) -> Self {
+        let format = |remote_as_r| {
+            let mut text = String::with_capacity(48);
+            let _ = format_frame(&mut text, frame, timestamp, remote_as_r);
+            text
+        };
+        Self {
+            plain: format(false),
+            remote_as_r: frame.is_remote().then(|| format(true)),
+        }
+    }
+
+    /// The text for a client that asked for remote frames as `R<dlc>`, or not.
+    pub fn text(&self, remote_as_r: bool) -> &str {
+        match (&self.remote_as_r, remote_as_r) {
+            (Some(r), true) => r,
+            _ => &self.plain,
+        }
+    }
 }
 
 /// The element as a server sends it (raw layout; remote frames in buslab's `R<dlc>` form).

@@ -16,7 +16,7 @@ use buslab_can::Frame;
 
 use crate::command::Command;
 use crate::element::Deframer;
-use crate::message::{ServerMessage, Timestamp, format_frame};
+use crate::message::{FormattedFrame, ServerMessage, Timestamp};
 
 /// SocketCAN's "error counters in data[6..7]" class bit.
 const CAN_ERR_CNT: u32 = 0x200;
@@ -264,10 +264,26 @@ impl Session {
         if self.mode != Mode::Raw || self.closing {
             return true;
         }
-        let remote_as_r = self.remote_as_r;
-        self.deliver(now, |text| {
-            let _ = format_frame(text, frame, timestamp, remote_as_r);
-        })
+        self.deliver_formatted(&FormattedFrame::new(frame, timestamp), now)
+    }
+
+    /// [`Self::deliver_frame`] with the frame formatted already (once for every session).
+    pub fn deliver_formatted(&mut self, frame: &FormattedFrame, now: u64) -> bool {
+        if self.mode != Mode::Raw || self.closing {
+            return true;
+        }
+        self.release_held(now);
+        if self.out.len() + self.held.len() >= self.config.max_output {
+            self.dropped += 1;
+            return false;
+        }
+        let text = frame.text(self.remote_as_r);
+        if self.hold_until.is_some() {
+            self.held.push_str(text);
+        } else {
+            self.out.extend(text.as_bytes());
+        }
+        true
     }
 
     /// An error frame from the bus (SocketCAN's CAN ID with the class bits, and its 8 data
@@ -441,6 +457,33 @@ mod tests {
         assert_eq!(output(&mut s, 50_000_000), "< frame 321 1.000000 AA >");
         assert!(s.deliver_frame(&frame("1ABCDEF0#R2"), ts(2), 60_000_000));
         assert_eq!(output(&mut s, 60_000_000), "< frame 1ABCDEF0 2.000000  >");
+    }
+
+    #[test]
+    fn a_frame_formatted_once_reads_as_each_session_formats_it() {
+        let mut plain = raw_session();
+        let mut ext = raw_session();
+        ext.receive(b"< buslab_ext >");
+        assert_eq!(ext.poll_action(), None);
+        assert_eq!(output(&mut ext, 0), "< ok >");
+        for text in ["123#0102030405060708", "1ABCDEF0#R2", "7FF#"] {
+            let f = frame(text);
+            for s in [&mut plain, &mut ext] {
+                assert!(s.deliver_frame(&f, ts(1), 60_000_000));
+                let direct = output(s, 60_000_000);
+                let once = FormattedFrame::new(&f, ts(1));
+                assert!(s.deliver_formatted(&once, 60_000_000));
+                assert_eq!(output(s, 60_000_000), direct, "{text}");
+            }
+        }
+        ext.deliver_formatted(
+            &FormattedFrame::new(&frame("1ABCDEF0#R2"), ts(2)),
+            60_000_000,
+        );
+        assert_eq!(
+            output(&mut ext, 60_000_000),
+            "< frame 1ABCDEF0 2.000000 R2 >"
+        );
     }
 
     #[test]

@@ -22,7 +22,8 @@ use buslab_canbus::{NodeRef, TxReport};
 use buslab_sim::Simulation;
 use buslab_socketcand::server::{Action, Session, SessionConfig};
 use buslab_socketcand::{
-    Command, ServerMessage, Timestamp, flushed_reply, nodes_reply, regs_reply, status_reply,
+    Command, FormattedFrame, ServerMessage, Timestamp, flushed_reply, nodes_reply, regs_reply,
+    status_reply,
 };
 use mio::net::{TcpListener, TcpStream};
 use mio::unix::SourceFd;
@@ -33,6 +34,7 @@ use tracing::{debug, info, warn};
 
 use crate::bus::{BusEvent, VbusError, VirtualBus};
 use crate::node::TimedErrorFrame;
+use crate::speed::{Speed, SpeedError};
 
 /// Everything `buslab bus serve` can set.
 pub struct ServerConfig {
@@ -40,9 +42,10 @@ pub struct ServerConfig {
     pub bitrate: u32,
     /// The one bus name clients may open.
     pub channel: String,
-    /// Virtual seconds per wall-clock second: 1.0 is real time; more runs the bus faster
-    /// than a real one could (for benchmarks, clearly not real time).
-    pub speed: f64,
+    /// Virtual seconds per wall-clock second ([`Speed::Times`]; 1.0 is real time, more runs
+    /// the bus faster than a real one could), or [`Speed::Max`]: as fast as the CPU allows
+    /// (benchmarks; clearly not real time).
+    pub speed: Speed,
     /// Frames waiting for one client before newer ones are dropped (counted per node).
     pub client_queue: usize,
     /// TCP connections served at once, joined or not; more are answered
@@ -72,7 +75,7 @@ impl ServerConfig {
             listen,
             bitrate,
             channel: "vcan0".to_string(),
-            speed: 1.0,
+            speed: Speed::default(),
             client_queue: 8192,
             max_connections: 256,
             open_timeout: Duration::from_secs(30),
@@ -92,8 +95,8 @@ pub enum ServerError {
     Listen { addr: SocketAddr, source: io::Error },
     #[error("{0}")]
     Bus(#[from] VbusError),
-    #[error("speed {0} must be a positive number 0.001..=1000000 (times real time)")]
-    Speed(f64),
+    #[error("{0}")]
+    Speed(#[from] SpeedError),
     #[error("client queue {0} must be 16..=1048576 frames")]
     ClientQueue(usize),
     #[error("bus name {0:?} must be 1..=64 of A-Z a-z 0-9 _ - . : (one token clients can open)")]
@@ -219,10 +222,7 @@ const FIRST_CLIENT: usize = 3;
 
 /// Starts the server: binds, then runs the bus and serves clients in a background thread.
 pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
-    // Outside this range the pacing arithmetic overflows `Duration`.
-    if !(0.001..=1_000_000.0).contains(&config.speed) {
-        return Err(ServerError::Speed(config.speed));
-    }
+    config.speed.check()?;
     if !(16..=1_048_576).contains(&config.client_queue) {
         return Err(ServerError::ClientQueue(config.client_queue));
     }
@@ -295,10 +295,10 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         "{} at {} bit/s on {addr}{}",
         config.channel,
         config.bitrate,
-        if config.speed == 1.0 {
-            String::new()
-        } else {
-            format!(", {}x FASTER THAN REAL TIME", config.speed)
+        match config.speed {
+            s if s.is_real_time() => String::new(),
+            Speed::Max => ", AS FAST AS THE CPU ALLOWS (virtual time, not the wall clock)".into(),
+            Speed::Times(f) => format!(", {f}x FASTER THAN REAL TIME"),
         }
     );
     let stop = Arc::new(AtomicBool::new(false));
@@ -392,8 +392,17 @@ pub const BUSY_SLICE: Duration = Duration::from_micros(100);
 /// The longest wall time spent simulating before the loop looks at the clients again, and
 /// serving clients before the bus runs again (it matters when the host cannot keep up).
 const MAX_RUN: Duration = Duration::from_millis(2);
-/// Elements handled per client per loop turn, so one client cannot starve the others or the
-/// bus.
+/// The longest classic frame on the wire with its worst stuffing, error-free, and the
+/// intermission after it (extended ID, 8 data bytes: 160 bits; rounded up).
+const LONGEST_FRAME_BITS: u64 = 168;
+/// At `max`: a receiver that has not read for this long no longer holds the bus (its frames
+/// are dropped as at any speed).
+const STALLED_AFTER: Duration = Duration::from_secs(1);
+/// At `max`: rounds of feeding the bus from the clients per loop turn (see
+/// [`Server::feed_flat_out`]).
+const FEED_ROUNDS: usize = 8;
+/// Elements handled per client per round of serving, so one client cannot starve the others
+/// or the bus.
 const ACTIONS_PER_TURN: usize = 256;
 /// Virtual time this far behind the wall clock, after catching up, means clients see frames
 /// late: worth a warning.
@@ -419,6 +428,9 @@ struct Client {
     /// `< buslab_flush >`es: each answered once the node has done this many frames.
     flushes: VecDeque<u64>,
     dropped_reported: u64,
+    /// When its output was last empty or a write made progress: a receiver that reads holds
+    /// the bus at `max` when its output piles up (see [`Server::receiver_behind`]).
+    drained_at: Instant,
 }
 
 #[derive(Default)]
@@ -442,7 +454,7 @@ struct Server {
     bus: VirtualBus,
     session_config: SessionConfig,
     max_connections: usize,
-    speed: f64,
+    speed: Speed,
     jobs: Receiver<Job>,
     stop: Arc<AtomicBool>,
     lag: Arc<Mutex<Lag>>,
@@ -464,13 +476,24 @@ impl Server {
             // The bus first catches up with the wall clock, so what clients send now enters
             // the bus now (not at the instant the loop last ran it, maybe long ago).
             self.advance_bus();
-            let busy_io = self.serve_clients();
+            let busy_io = match self.speed {
+                Speed::Times(_) => self.serve_clients(),
+                // A receiver behind: its frames would be dropped, so nobody is read until it
+                // catches up (or is seen not to read at all).
+                Speed::Max if self.receiver_behind() => false,
+                Speed::Max => {
+                    let busy_io = self.serve_clients();
+                    self.feed_flat_out(busy_io)
+                }
+            };
             self.deliver();
             self.flush_all();
             self.reap();
             self.housekeeping();
             let timeout = if busy_io {
                 Some(Duration::ZERO)
+            } else if self.speed == Speed::Max {
+                self.sleep_for_flat_out()
             } else {
                 self.sleep_for()
             };
@@ -540,19 +563,64 @@ impl Server {
         self.epoch.elapsed().as_nanos() as u64
     }
 
+    /// Virtual seconds per wall-clock second while paced (`max` is never paced).
+    fn factor(&self) -> f64 {
+        match self.speed {
+            Speed::Times(f) => f,
+            Speed::Max => *crate::speed::PACED.end(),
+        }
+    }
+
     /// The bit-time the bus should have reached by now.
     fn target_bits(&self) -> u64 {
-        let bits = self.epoch.elapsed().as_secs_f64() * self.speed * self.bus.bitrate() as f64;
+        let bits = self.epoch.elapsed().as_secs_f64() * self.factor() * self.bus.bitrate() as f64;
         bits as u64
     }
 
     fn bits_to_wall(&self, bits: u64) -> Duration {
-        Duration::from_secs_f64(bits as f64 / self.bus.bitrate() as f64 / self.speed)
+        Duration::from_secs_f64(bits as f64 / self.bus.bitrate() as f64 / self.factor())
+    }
+
+    /// Runs the bus: up to the wall clock when paced, as far as it has work at `max`.
+    fn advance_bus(&mut self) {
+        match self.speed {
+            Speed::Times(_) => self.advance_paced(),
+            Speed::Max => self.advance_flat_out(),
+        }
+    }
+
+    /// At `max`: runs the bus while it has work, at most [`MAX_RUN`] of wall time at once so
+    /// clients keep being served. An idle bus skips to its next activity (scenario traffic, a
+    /// node's timer) at once, or stays where it is when nothing is scheduled.
+    fn advance_flat_out(&mut self) {
+        let started = Instant::now();
+        while started.elapsed() < MAX_RUN {
+            let now = self.bus.now();
+            if self.bus.is_idle() {
+                let next = self.bus.next_activity();
+                if next == u64::MAX {
+                    break;
+                }
+                self.bus.run_until(next.max(now + 1));
+                continue;
+            }
+            // Far enough that the queued client frames end inside the stretch (a frame split
+            // by its end would be simulated bit by bit, the whole-frame path needs it whole);
+            // if they end sooner, the idle rest is skipped at once.
+            let queued: u64 = self
+                .bus
+                .clients_mut()
+                .map(|(_, c)| c.tx_queued() as u64)
+                .sum();
+            let stretch = (queued + 1) * LONGEST_FRAME_BITS;
+            self.bus
+                .run_until(now + stretch.max(self.bus.bitrate() as u64 / 100));
+        }
     }
 
     /// Runs the bus up to the wall clock, at most [`MAX_RUN`] of wall time's worth at once so
     /// clients keep being served when the host is slow; records the lag.
-    fn advance_bus(&mut self) {
+    fn advance_paced(&mut self) {
         let started = Instant::now();
         // Busy bus time is simulated in chunks of this many bit-times, so the wall time spent
         // is checked often enough; idle bus time is skipped in one go.
@@ -643,6 +711,58 @@ impl Server {
         wait.map(|w| w.min(second).min(SUMMARY_EVERY))
     }
 
+    /// At `max`: while a client's node queue is full and more of its frames wait, runs the
+    /// bus and serves the clients again (each round fair as ever), up to [`FEED_ROUNDS`] or
+    /// [`MAX_RUN`], before frames are delivered: fewer, larger writes to the receivers, each of
+    /// which wakes a receiver. Returns whether some client still has work ready.
+    fn feed_flat_out(&mut self, mut busy_io: bool) -> bool {
+        let started = Instant::now();
+        for _ in 1..FEED_ROUNDS {
+            let waiting = self.clients.iter().flatten().any(|c| c.backlog.is_some());
+            if !(waiting || busy_io) || started.elapsed() >= MAX_RUN {
+                break;
+            }
+            self.advance_bus();
+            busy_io = self.serve_clients();
+        }
+        busy_io
+    }
+
+    /// At `max`: whether a receiver has half its output limit waiting and has read within
+    /// [`STALLED_AFTER`]. The bus would run ahead of it and drop its frames; a client that does
+    /// not read at all holds nobody up for longer than that.
+    fn receiver_behind(&self) -> bool {
+        let limit = self.session_config.max_output / 2;
+        self.clients.iter().flatten().any(|c| {
+            let (a, b) = c.session.output();
+            a.len() + b.len() >= limit && c.drained_at.elapsed() < STALLED_AFTER && !c.gone
+        })
+    }
+
+    /// At `max`: no sleep while the bus has work (or a scheduled activity to skip to);
+    /// otherwise until a session's timer, the beacon or the summary.
+    fn sleep_for_flat_out(&self) -> Option<Duration> {
+        if !self.bus.is_idle() || self.bus.next_activity() != u64::MAX {
+            return Some(Duration::ZERO);
+        }
+        // Held by a receiver: until it reads (a write event) or is seen stalled.
+        let mut wait = if self.receiver_behind() {
+            STALLED_AFTER
+        } else {
+            SUMMARY_EVERY
+        };
+        let now_ns = self.now_ns();
+        for c in self.clients.iter().flatten() {
+            if let Some(d) = c.session.next_deadline() {
+                wait = wait.min(Duration::from_nanos(d.saturating_sub(now_ns)));
+            }
+        }
+        if let Some(b) = &self.beacon {
+            wait = wait.min(b.next.saturating_duration_since(Instant::now()));
+        }
+        Some(wait)
+    }
+
     fn accept(&mut self) {
         loop {
             let (mut stream, peer) = match self.listener.accept() {
@@ -698,6 +818,7 @@ impl Server {
                 backlog: None,
                 flushes: VecDeque::new(),
                 dropped_reported: 0,
+                drained_at: Instant::now(),
             });
             self.open += 1;
             debug!("{peer} connected");
@@ -863,6 +984,8 @@ impl Server {
         let stamp =
             |time: u64| Timestamp::from_nanos(unix0 + time as u128 * 1_000_000_000 / bitrate);
         let now_ns = self.now_ns();
+        // Every receiver gets the same frames in the same order: each is formatted once.
+        let mut formatted = FormattedFrames::default();
         for c in self.clients.iter_mut().flatten() {
             let Some(number) = c.session.node() else {
                 continue;
@@ -874,11 +997,13 @@ impl Server {
             let errors: Vec<_> = node.take_error_frames().collect();
             let mut errors = errors.into_iter().peekable();
             let mut lost = 0;
+            formatted.rewind();
             for d in node.take_deliveries() {
                 while let Some(e) = errors.next_if(|e| e.time <= d.time) {
                     lost += !deliver_error(&mut c.session, &e, stamp(e.time), now_ns) as u64;
                 }
-                lost += !c.session.deliver_frame(&d.frame, stamp(d.time), now_ns) as u64;
+                let text = formatted.get(d.time, &d.frame, &stamp);
+                lost += !c.session.deliver_formatted(text, now_ns) as u64;
             }
             for e in errors {
                 lost += !deliver_error(&mut c.session, &e, stamp(e.time), now_ns) as u64;
@@ -911,12 +1036,18 @@ impl Server {
     fn flush_all(&mut self) {
         let now_ns = self.now_ns();
         for c in self.clients.iter_mut().flatten() {
+            if !c.session.has_output() {
+                c.drained_at = Instant::now();
+            }
             while c.writable && c.session.has_output() && !c.gone {
                 let (a, b) = c.session.output();
                 let first = if a.is_empty() { b } else { a };
                 match c.stream.write(first) {
                     Ok(0) => c.gone = true,
-                    Ok(n) => c.session.consumed(n, now_ns),
+                    Ok(n) => {
+                        c.session.consumed(n, now_ns);
+                        c.drained_at = Instant::now();
+                    }
                     Err(e) if e.kind() == io::ErrorKind::WouldBlock => c.writable = false,
                     Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                     Err(_) => c.gone = true,
@@ -990,6 +1121,50 @@ impl Server {
                 info!("({t:.6}) {event}");
             }
         }
+    }
+}
+
+/// The frames of one delivery round, formatted once: receivers look them up in the order they
+/// got them (a receiver misses its own frames, so a few places ahead are looked at; what is
+/// not found is formatted and added).
+#[derive(Default)]
+struct FormattedFrames {
+    frames: Vec<(u64, buslab_can::Frame, FormattedFrame)>,
+    cursor: usize,
+}
+
+/// How far ahead of the expected place a receiver's frame is looked for.
+const LOOK_AHEAD: usize = 4;
+
+impl FormattedFrames {
+    /// The next receiver starts at the first frame.
+    fn rewind(&mut self) {
+        self.cursor = 0;
+    }
+
+    fn get(
+        &mut self,
+        time: u64,
+        frame: &buslab_can::Frame,
+        stamp: &impl Fn(u64) -> Timestamp,
+    ) -> &FormattedFrame {
+        let end = self.frames.len().min(self.cursor + LOOK_AHEAD);
+        let found = self.frames[self.cursor.min(end)..end]
+            .iter()
+            .position(|(t, f, _)| *t == time && f == frame)
+            .map(|k| self.cursor + k);
+        let at = match found {
+            Some(at) => {
+                self.cursor = at + 1;
+                at
+            }
+            None => {
+                let text = FormattedFrame::new(frame, stamp(time));
+                self.frames.push((time, *frame, text));
+                self.frames.len() - 1
+            }
+        };
+        &self.frames[at].2
     }
 }
 

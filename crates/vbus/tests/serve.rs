@@ -7,7 +7,7 @@ use std::time::Duration;
 use buslab_can::Frame;
 use buslab_canbus::{BusEvent, BusState, CanBus};
 use buslab_socketcand::{NodeRef, SocketcandBus};
-use buslab_vbus::{ServerConfig, ServerHandle, spawn};
+use buslab_vbus::{ServerConfig, ServerHandle, Speed, spawn};
 
 /// The longest wait for an event that must come (it returns as soon as it does); generous,
 /// because CI machines are shared and slow at times.
@@ -289,7 +289,7 @@ fn a_host_that_cannot_keep_up_is_reported() {
     // each longer than that): no host simulates a terabit per second. Frames from a client
     // would not do: the whole-frame path empties any queue a client can fill before the lag
     // reaches the warning.
-    config.speed = 1_000_000.0;
+    config.speed = Speed::Times(1_000_000.0);
     config.scenario = Some(
         buslab_sim::Scenario::from_toml(
             "bitrate = 1000000\n[[nodes]]\nname = \"ecu\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0AA#0102030405060708\"\n  period = \"50us\"\n[[nodes]]\nname = \"gateway\"\n",
@@ -310,9 +310,9 @@ fn a_host_that_cannot_keep_up_is_reported() {
 #[test]
 fn speed_must_be_positive() {
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
-    config.speed = 0.0;
+    config.speed = Speed::Times(0.0);
     let err = spawn(config).err().expect("refused").to_string();
-    assert!(err.contains("speed 0 must be a positive number"), "{err}");
+    assert!(err.contains("speed 0 must be \"max\" or a number"), "{err}");
 }
 
 #[test]
@@ -415,7 +415,7 @@ fn speed_beyond_the_clock_arithmetic_is_refused() {
     // no bus at all.
     for speed in [1e-300, 1e-7, 1e300, 1e7] {
         let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
-        config.speed = speed;
+        config.speed = Speed::Times(speed);
         let err = spawn(config).err().expect("refused").to_string();
         assert!(
             err.contains(&format!("speed {speed} must be")) && err.contains("0.001..=1000000"),
@@ -424,7 +424,7 @@ fn speed_beyond_the_clock_arithmetic_is_refused() {
     }
     for speed in [0.001, 1_000_000.0] {
         let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
-        config.speed = speed;
+        config.speed = Speed::Times(speed);
         spawn(config).expect("accepted").shutdown();
     }
 }

@@ -36,10 +36,11 @@ pub struct ServeArgs {
     /// same wire; its bit rate must be the bus's.
     #[arg(long, value_name = "SCENARIO")]
     pub nodes: Option<PathBuf>,
-    /// Run the bus this many times faster than real time (benchmarks only: frame times are
+    /// Run the bus this many times faster than real time (0.001..=1000000), or `max`: as fast
+    /// as the CPU allows, never waiting for the wall clock (benchmarks only: frame times are
     /// then virtual, not the wall clock).
-    #[arg(long, default_value_t = 1.0)]
-    pub speed: f64,
+    #[arg(long, default_value = "1", value_name = "N|max")]
+    pub speed: buslab_vbus::Speed,
     /// Frames queued for one client before newer ones are dropped for it (16..=1048576).
     #[arg(long, default_value_t = 8192)]
     pub client_queue: usize,
