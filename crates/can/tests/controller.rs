@@ -247,6 +247,32 @@ fn transmit_queue_is_in_priority_order() {
     assert_eq!(node.pending(), 0);
 }
 
+/// A more important frame queued while a less important one is in flight (losing arbitration)
+/// is the one tried next.
+#[test]
+fn a_more_important_frame_queued_while_another_loses_goes_next() {
+    let mut bus = Bus::with_nodes(2);
+    bus.nodes[1].enqueue(frame("100#01")).unwrap();
+    bus.nodes[1].enqueue(frame("100#02")).unwrap();
+    bus.nodes[0].enqueue(frame("300#")).unwrap();
+    let lost = |bus: &Bus| {
+        bus.events[0]
+            .iter()
+            .any(|(_, e)| matches!(e, Event::ArbitrationLost { .. }))
+    };
+    for _ in 0..1000 {
+        if lost(&bus) {
+            break;
+        }
+        bus.step();
+    }
+    assert!(lost(&bus), "300# loses to 100#01 first");
+    bus.nodes[0].enqueue(frame("200#")).unwrap();
+    bus.settle(1000);
+    let sent: Vec<String> = bus.transmitted(0).iter().map(|f| f.to_string()).collect();
+    assert_eq!(sent, ["200#", "300#"]);
+}
+
 #[test]
 fn alone_on_the_bus_tec_stops_at_128() {
     let mut bus = Bus::with_nodes(1);

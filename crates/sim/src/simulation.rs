@@ -158,6 +158,8 @@ struct Observers {
 struct Schedule {
     generators: Vec<Generator>,
     next: BitTime,
+    /// Some generator sends a file: only those act when a node's frame leaves the bus.
+    files: bool,
 }
 
 impl Schedule {
@@ -237,6 +239,7 @@ impl Simulation {
             schedule: Schedule {
                 generators: Vec::new(),
                 next: BitTime::MAX,
+                files: false,
             },
             faults: Vec::new(),
             fault_active: Vec::new(),
@@ -325,7 +328,9 @@ impl Simulation {
     /// Attaches a traffic generator to `node`.
     pub fn add_traffic(&mut self, node: usize, traffic: Traffic) {
         assert!(node < self.nodes.len(), "no node {node}");
-        self.schedule.generators.push(Generator::new(node, traffic));
+        let generator = Generator::new(node, traffic);
+        self.schedule.files |= generator.is_file();
+        self.schedule.generators.push(generator);
         self.schedule.recompute();
     }
 
@@ -791,7 +796,8 @@ fn handle_event(
     match &event {
         Event::Transmitted(frame) | Event::Dropped(frame) => {
             obs.bus.frames += matches!(event, Event::Transmitted(_)) as u64;
-            for g in schedule.generators.iter_mut().filter(|g| g.node == i) {
+            let files = schedule.files.then_some(&mut schedule.generators);
+            for g in files.into_iter().flatten().filter(|g| g.node == i) {
                 let q = g.on_done(frame, now, node.device.node_mut());
                 node.stats.queued += q.queued;
                 node.stats.queue_overflows += q.overflows;

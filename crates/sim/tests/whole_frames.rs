@@ -438,3 +438,83 @@ fn receivers_in_different_states_are_applied_whole_and_the_same() {
     assert_eq!(fast.records(), slow.records());
     assert_eq!(observed(&fast), observed(&slow));
 }
+
+/// As [`run`] on the fast path with no trace recorded (`buslab sim --quiet`): the fast path
+/// then takes the losers of a frame in node order where only the trace could tell.
+fn run_untraced(bus: &Bus) -> (Simulation, (String, String)) {
+    let mut sim = build(bus, true);
+    sim.set_record_events(false);
+    for step in &bus.steps {
+        sim.run_for(*step);
+        let _ = sim.enqueue(0, frame("7FF#EE"));
+    }
+    let seen = observed(&sim);
+    (sim, seen)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    #[test]
+    fn whole_frames_without_a_trace_change_no_counter_or_state(
+        bus in prop_oneof![bus(), crowded_bus()]
+    ) {
+        let (fast, fast_seen) = run_untraced(&bus);
+        let (_, slow_seen) = run(&bus, false);
+        prop_assert!(
+            fast.records().iter().all(|r| !matches!(r.what, buslab_sim::Happening::Node { .. })),
+            "node events recorded although switched off"
+        );
+        prop_assert_eq!(&fast_seen.1, &slow_seen.1, "state differs");
+    }
+}
+
+/// A saturated bus (every node always has a frame waiting, most lose every arbitration, some
+/// single-shot, some sending files) without a trace ends in the same state as stepping every
+/// bit with the trace on.
+#[test]
+fn a_saturated_bus_without_a_trace_ends_the_same() {
+    let bus = |whole: bool| {
+        let mut sim = Simulation::new(1_000_000, 1);
+        sim.set_whole_frames(whole);
+        sim.set_record_events(!whole);
+        for i in 0..16u16 {
+            let n = sim.add_node(
+                format!("n{i}"),
+                ControllerConfig {
+                    single_shot: i % 5 == 4,
+                    tx_queue_capacity: 4 + i as usize % 3,
+                    ..Default::default()
+                },
+            );
+            let id = Id::standard(0x100 + i).unwrap();
+            let traffic = if i % 7 == 6 {
+                Traffic::File {
+                    id,
+                    data: (0..200u8).collect(),
+                    start: i as u64 * 3,
+                }
+            } else {
+                Traffic::Periodic {
+                    frame: Frame::data(id, &[i as u8; 8]).unwrap(),
+                    period: 50 * 16,
+                    start: 0,
+                    count: None,
+                }
+            };
+            sim.add_traffic(n, traffic);
+        }
+        sim.run_for(300_000);
+        sim
+    };
+    let fast = bus(true);
+    let slow = bus(false);
+    assert!(
+        fast.whole_frames() * 10 >= fast.bus_stats().frames * 9,
+        "{} of {} frames applied whole",
+        fast.whole_frames(),
+        fast.bus_stats().frames
+    );
+    assert!(fast.records().is_empty());
+    assert_eq!(observed(&fast).1, observed(&slow).1);
+}

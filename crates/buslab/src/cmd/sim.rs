@@ -107,6 +107,11 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
         sim.set_whole_frames(false);
         sim.set_fast_forward(false);
     }
+    // Only the trace printer and the plot read the trace; the summary's counters are kept
+    // either way.
+    if quiet && args.plot.is_none() {
+        sim.set_record_events(false);
+    }
     let mut counters = match &args.counters {
         Some(path) => {
             let file = File::create(path)

@@ -180,6 +180,10 @@ pub struct Controller {
     rx: Receiver,
     /// The frame being (or next to be) attempted, already encoded.
     tx: Option<Encoded>,
+    /// `tx` is at least as important as every queued frame: nothing was queued since
+    /// [`Self::load_tx`] compared them (always false without `tx`). Saves the comparison for a
+    /// node that keeps losing arbitration with a full queue.
+    tx_is_best: bool,
     queue: TxQueue,
     /// The encoding of the last frame sent, kept because periodic traffic queues the same
     /// frame again: [`Self::load_tx`] reuses it instead of encoding anew.
@@ -211,6 +215,7 @@ impl Controller {
             drive: Level::Recessive,
             rx: Receiver::new(),
             tx: None,
+            tx_is_best: false,
             queue: TxQueue::with_capacity(config.tx_queue_capacity),
             last_sent: None,
             transmitting: false,
@@ -254,6 +259,7 @@ impl Controller {
             frame.dlc()
         };
         self.queue.push(frame, dlc);
+        self.tx_is_best = false;
         if self.phase == Phase::Idle {
             self.drive = self.next_drive();
         }
@@ -281,6 +287,7 @@ impl Controller {
             self.abort_in_flight = true;
         } else {
             self.tx = None;
+            self.tx_is_best = false;
         }
     }
 
@@ -489,6 +496,9 @@ impl Controller {
     /// Make `tx` the most important waiting frame; false if there is none.
     #[inline]
     fn load_tx(&mut self) -> bool {
+        if self.tx_is_best {
+            return true;
+        }
         let better = match (&self.tx, self.queue.peek()) {
             (_, None) => false,
             (None, Some(_)) => true,
@@ -511,7 +521,9 @@ impl Controller {
                 self.queue.push(*old.frame(), old.dlc());
             }
         }
-        self.tx.is_some()
+        // The best queued frame replaced a worse one, or was not better.
+        self.tx_is_best = self.tx.is_some();
+        self.tx_is_best
     }
 
     /// SOF sampled. `transmit`: we take part as a transmitter (sent SOF, or have a frame ready
@@ -605,6 +617,7 @@ impl Controller {
 
     fn drop_tx(&mut self) {
         self.abort_in_flight = false;
+        self.tx_is_best = false;
         if let Some(tx) = self.tx.take() {
             self.events.push_back(Event::Dropped(*tx.frame()));
         }
@@ -638,6 +651,7 @@ impl Controller {
         if self.transmitting
             && let Some(tx) = self.tx.take()
         {
+            self.tx_is_best = false;
             let frame = *tx.frame();
             self.last_sent = Some(tx);
             self.abort_in_flight = false;

@@ -201,9 +201,11 @@ impl Simulation {
 
     fn whole_frame(&mut self, end: BitTime) -> bool {
         // Nodes with a clock of their own (timestamps, timers) learn when the frame starts.
-        for node in &mut self.nodes {
-            if let super::Device::Other(n) = &mut node.device {
-                n.frame_starts_at(self.now);
+        if self.others > 0 {
+            for node in &mut self.nodes {
+                if let super::Device::Other(n) = &mut node.device {
+                    n.frame_starts_at(self.now);
+                }
             }
         }
         let Some((w, winning)) = self.arbitration() else {
@@ -221,10 +223,15 @@ impl Simulation {
         }
         let n = self.nodes.len();
         let whole = &mut self.whole;
-        whole.roles.clear();
-        whole.roles.resize(n, FrameRole::Receiver);
+        if whole.roles.len() == n {
+            whole.roles.fill(FrameRole::Receiver);
+        } else {
+            whole.roles.clear();
+            whole.roles.resize(n, FrameRole::Receiver);
+        }
         whole.roles[w] = FrameRole::Transmitter;
         whole.losers.clear();
+        let mut last_lost = 0;
         let winner_bits = ArbitrationBits::of(&winning);
         for &(i, bits) in &whole.senders {
             if i == w {
@@ -234,11 +241,21 @@ impl Simulation {
                 Some(role @ FrameRole::LostArbitration { wire_bit, .. }) => {
                     whole.roles[i] = role;
                     whole.losers.push(u64::from(wire_bit) << 32 | i as u64);
+                    last_lost = last_lost.max(wire_bit);
                 }
                 _ => return false,
             }
         }
-        order_losers(&mut whole.losers, &mut whole.sorted);
+        // In which order the losers lose shows only in the trace and to generators and samples
+        // due in between; a loser's own events (a single-shot frame dropped) touch only it
+        // and its own generators. With no trace, nothing due before the last lost bit and
+        // only bare controllers (no node moved on bit by bit), node order does as well.
+        let in_order = self.obs.record_events
+            || self.others > 0
+            || self.schedule.next.min(self.next_sample) <= t0 + BitTime::from(last_lost);
+        if in_order {
+            order_losers(&mut whole.losers, &mut whole.sorted, last_lost);
+        }
         if self.others > 0 {
             whole.done.clear();
             whole.done.resize(n, 0);
@@ -254,7 +271,9 @@ impl Simulation {
         for k in 0..self.whole.losers.len() {
             let key = self.whole.losers[k];
             let (bit, i) = ((key >> 32) as u32, key as u32 as usize);
-            self.handle_due_inside(wire, t0, &mut at, bit);
+            if in_order {
+                self.handle_due_inside(wire, t0, &mut at, bit);
+            }
             let Self {
                 nodes,
                 obs,
@@ -460,15 +479,13 @@ fn record(obs: &mut Observers, i: usize, node: &mut Node, time: BitTime, event: 
 }
 
 /// Sorts `losers` (`wire_bit << 32 | node`, pushed in node order) by wire bit, then node: a
-/// counting sort, as lost bits are few and small; `sorted` is scratch space.
-fn order_losers(losers: &mut Vec<u64>, sorted: &mut Vec<u64>) {
+/// counting sort, as lost bits are few and small (below 64: arbitration is decided in the
+/// first 64 wire bits, see [`ArbitrationBits`]); `last` is the latest of them and `sorted`
+/// scratch space.
+fn order_losers(losers: &mut Vec<u64>, sorted: &mut Vec<u64>, last: u32) {
     const BITS: usize = 64;
-    let bit = |key: u64| (key >> 32) as usize;
-    let Some(last) = losers.iter().map(|&key| bit(key)).max() else {
-        return;
-    };
-    if last >= BITS {
-        losers.sort_unstable();
+    let bit = |key: u64| (key >> 32) as usize % BITS;
+    if losers.len() < 2 {
         return;
     }
     // start[b]: where the losers at bit b go.
@@ -476,7 +493,7 @@ fn order_losers(losers: &mut Vec<u64>, sorted: &mut Vec<u64>) {
     for &key in losers.iter() {
         start[bit(key) + 1] += 1;
     }
-    for b in 0..=last {
+    for b in 0..(last as usize % BITS) {
         start[b + 1] += start[b];
     }
     sorted.clear();
