@@ -20,6 +20,12 @@ use crate::error_frame::ErrorFrame;
 pub trait CanBus {
     /// Queues `frame` for transmission (does not wait for it to reach the bus).
     fn send(&mut self, frame: &Frame) -> Result<(), BusError>;
+    /// Queues `frames` in order, as [`CanBus::send`] on each would; a backend may hand them
+    /// over at once (socketcand: one write for all, so a fast sender is not one system call
+    /// and one wake-up of the server per frame).
+    fn send_all(&mut self, frames: &[Frame]) -> Result<(), BusError> {
+        frames.iter().try_for_each(|f| self.send(f))
+    }
     /// The next message that passes the filters, or `None` after `timeout`.
     fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError>;
     /// The next frame that passes the filters or error frame, in the order they happened, or

@@ -604,6 +604,20 @@ impl CanBus for SocketcandBus {
         Ok(())
     }
 
+    /// One write for all the frames.
+    fn send_all(&mut self, frames: &[Frame]) -> Result<(), BusError> {
+        use std::fmt::Write as _;
+        let mut text = String::with_capacity(frames.len() * 40);
+        for frame in frames {
+            let _ = write!(text, "{}", Command::Send(*frame));
+        }
+        self.stream
+            .write_all(text.as_bytes())
+            .map_err(ClientError::from)?;
+        self.sent += frames.len() as u64;
+        Ok(())
+    }
+
     fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         Ok(match self.next_event(timeout, false)? {
             Some(BusEvent::Frame(m)) => Some(m),

@@ -755,3 +755,25 @@ fn a_frame_sent_after_a_quiet_spell_enters_the_bus_at_the_wall_clock_time() {
     assert!(m.timestamp >= before - 0.001, "{} < {before}", m.timestamp);
     s.shutdown();
 }
+
+#[test]
+fn at_max_speed_frames_sent_at_once_all_arrive_in_order() {
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 1_000_000);
+    config.speed = Speed::Max;
+    let s = spawn(config).unwrap();
+    let mut rx = client(&s);
+    let mut tx = client(&s);
+    let frames: Vec<Frame> = (0..2000u32)
+        .map(|i| Frame::data(buslab_can::Id::standard(0x123).unwrap(), &i.to_le_bytes()).unwrap())
+        .collect();
+    for batch in frames.chunks(64) {
+        tx.send_all(batch).unwrap();
+    }
+    let report = tx.flush(EVENT).unwrap();
+    assert_eq!((report.sent, report.failed), (2000, 0));
+    for want in &frames {
+        let got = rx.recv(WAIT).unwrap().expect("every frame arrives");
+        assert_eq!(&got.frame, want);
+    }
+    s.shutdown();
+}
