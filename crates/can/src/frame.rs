@@ -73,6 +73,18 @@ impl Frame {
         }
     }
 
+    /// The payload as a number, first byte most significant (0 for a remote frame): the wire
+    /// encoder's input, without a copy of a slice of variable length.
+    #[inline]
+    pub(crate) fn payload_bits(&self) -> u64 {
+        let len = self.payload().len() as u32;
+        if len == 0 {
+            0
+        } else {
+            u64::from_be_bytes(self.data) >> (64 - 8 * len)
+        }
+    }
+
     /// The arbitration field as a comparable key; see [`Id::arbitration_key`].
     pub const fn arbitration_key(&self) -> u32 {
         self.id.arbitration_key(self.remote)

@@ -53,19 +53,35 @@ impl Crc15 {
     }
 }
 
-/// The CRC-15 of the `len` low bits of `value`, most significant first, a byte at a time.
+/// The CRC-15 of the `len` low bits of `value`, most significant first, two bytes at a time.
 /// Bits of `value` above `len` must be zero: they act as leading 0 bits, which do not change
-/// the result, so the bits need not be byte-aligned.
+/// the result, so the bits need not be aligned to bytes or byte pairs.
 #[inline]
 pub(crate) fn crc15_of(value: u128, len: u32) -> u16 {
-    let bytes = value.to_be_bytes();
-    let skip = 16 - (len.min(128) as usize).div_ceil(8);
-    let mut crc = Crc15::new();
-    for &byte in &bytes[skip..] {
-        crc.push_byte(byte);
+    let pairs = (len.min(128) as usize).div_ceil(16);
+    // The register, left-aligned in 16 bits, is replaced whole by each pair: XORed with the
+    // pair, its high byte goes through two bytes' worth of steps and its low byte through one,
+    // two lookups that do not wait for each other (the CRC is linear).
+    let mut reg = 0u16;
+    for pair in (0..pairs).rev() {
+        let x = reg ^ (value >> (16 * pair)) as u16;
+        reg = PAIR_HIGH_TABLE[(x >> 8) as usize] ^ BYTE_TABLE[(x & 0xFF) as usize];
     }
-    crc.value()
+    reg >> 1
 }
+
+/// For the high byte of a pair: the byte step's table entry followed by a step over a zero
+/// byte (`T[h] << 8 ^ T[T[h] >> 8]`).
+const PAIR_HIGH_TABLE: [u16; 256] = {
+    let mut table = [0u16; 256];
+    let mut i = 0;
+    while i < 256 {
+        let once = BYTE_TABLE[i];
+        table[i] = once << 8 ^ BYTE_TABLE[(once >> 8) as usize];
+        i += 1;
+    }
+    table
+};
 
 /// CRC of each byte value for the left-aligned register (polynomial << 1).
 const BYTE_TABLE: [u16; 256] = {

@@ -59,11 +59,8 @@ fn header(frame: &Frame, dlc: u8) -> (u128, u32) {
 
 fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
     let (head, head_len) = header(frame, dlc);
-    let payload = frame.payload();
-    let data_len = 8 * payload.len() as u32;
-    let mut bytes = [0u8; 16];
-    bytes[16 - payload.len()..].copy_from_slice(payload);
-    let covered = head << data_len | u128::from_be_bytes(bytes);
+    let data_len = 8 * frame.payload().len() as u32;
+    let covered = head << data_len | u128::from(frame.payload_bits());
     let covered_len = head_len + data_len;
     let crc = crc15_of(covered, covered_len);
     // SOF..CRC in wire order (first bit lowest), at most 118 bits.
