@@ -16,6 +16,21 @@ pub trait RegisterAccess {
         let _ = addr;
         None
     }
+    /// Reads `buf.len()` consecutive registers from `addr` on (the receive window), each with
+    /// the side effects of [`read`](Self::read). The default reads them one by one; a model
+    /// can copy them at once.
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        for (k, byte) in buf.iter_mut().enumerate() {
+            *byte = self.read(addr.wrapping_add(k as u8));
+        }
+    }
+    /// Writes `bytes` to consecutive registers from `addr` on (the transmit buffer), each
+    /// with the side effects of [`write`](Self::write). The default writes them one by one.
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        for (k, &byte) in bytes.iter().enumerate() {
+            self.write(addr.wrapping_add(k as u8), byte);
+        }
+    }
 }
 
 impl RegisterAccess for Sja1000 {
@@ -27,6 +42,12 @@ impl RegisterAccess for Sja1000 {
     }
     fn peek(&mut self, addr: u8) -> Option<u8> {
         Some(Sja1000::peek(self, addr))
+    }
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        Sja1000::read_block(self, addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        Sja1000::write_block(self, addr, bytes)
     }
 }
 
@@ -40,6 +61,12 @@ impl<T: RegisterAccess + ?Sized> RegisterAccess for &mut T {
     fn peek(&mut self, addr: u8) -> Option<u8> {
         (**self).peek(addr)
     }
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        (**self).read_block(addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        (**self).write_block(addr, bytes)
+    }
 }
 
 impl<T: RegisterAccess + ?Sized> RegisterAccess for Box<T> {
@@ -51,6 +78,12 @@ impl<T: RegisterAccess + ?Sized> RegisterAccess for Box<T> {
     }
     fn peek(&mut self, addr: u8) -> Option<u8> {
         (**self).peek(addr)
+    }
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        (**self).read_block(addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        (**self).write_block(addr, bytes)
     }
 }
 
@@ -80,6 +113,13 @@ impl<T: RegisterAccess> RegisterAccess for Arc<Mutex<T>> {
     }
     fn peek(&mut self, addr: u8) -> Option<u8> {
         lock(self).peek(addr)
+    }
+    // A block takes the lock once, as one burst of bus cycles.
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        lock(self).read_block(addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        lock(self).write_block(addr, bytes)
     }
 }
 

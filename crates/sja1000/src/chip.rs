@@ -175,6 +175,59 @@ impl Sja1000 {
         }
     }
 
+    /// Reads `buf.len()` consecutive registers from `addr` on, as that many [`Self::read`]s
+    /// would; a block inside the receive window is copied at once.
+    pub fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        let from = addr as usize;
+        match self.rx_window() {
+            Some(window) if window.start <= from && from + buf.len() <= window.end => {
+                self.fifo.copy_window(from - window.start, buf);
+            }
+            _ => {
+                for (k, byte) in buf.iter_mut().enumerate() {
+                    *byte = self.read(addr.wrapping_add(k as u8));
+                }
+            }
+        }
+    }
+
+    /// Writes `bytes` to consecutive registers from `addr` on, as that many [`Self::write`]s
+    /// would; a block inside a writable transmit buffer is copied at once.
+    pub fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        let from = addr as usize;
+        match self.tx_window() {
+            Some(window) if window.start <= from && from + bytes.len() <= window.end => {
+                let at = from - window.start;
+                self.tx_buf[at..at + bytes.len()].copy_from_slice(bytes);
+            }
+            _ => {
+                for (k, &byte) in bytes.iter().enumerate() {
+                    self.write(addr.wrapping_add(k as u8), byte);
+                }
+            }
+        }
+    }
+
+    /// The addresses that read the receive window (without side effects), if any do now.
+    fn rx_window(&self) -> Option<Range<usize>> {
+        match self.mode {
+            CanMode::Peli if self.reset => None, // acceptance code and mask
+            CanMode::Peli => Some(peli::WINDOW..peli::WINDOW + 13),
+            CanMode::Basic => Some(basic::RX..basic::RX + 10),
+        }
+    }
+
+    /// The addresses that write the transmit buffer, if any do now (TBS, operating mode).
+    fn tx_window(&self) -> Option<Range<usize>> {
+        if self.reset || !self.tbs {
+            return None;
+        }
+        Some(match self.mode {
+            CanMode::Peli => peli::WINDOW..peli::WINDOW + 13,
+            CanMode::Basic => basic::TX..basic::TX + 10,
+        })
+    }
+
     fn read_peli(&mut self, addr: usize) -> u8 {
         match addr {
             peli::IR => {
