@@ -519,12 +519,9 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
                 CanMode::Peli => peli::WINDOW,
                 CanMode::Basic => basic::RX,
             } as u8;
-            let mut buf = [0u8; 13];
-            self.regs.read_block(base, &mut buf[..2]);
-            let len = layout::stored_len(mode, buf[0], buf[1]);
-            self.regs.read_block(base + 2, &mut buf[2..len]);
+            let frame = self.regs.read_received_frame(mode, base);
             self.regs.write(peli::CMR as u8, CMR_RRB);
-            events.push(DriverEvent::Received(layout::decode_tx(mode, &buf)));
+            events.push(DriverEvent::Received(frame));
         }
     }
 

@@ -42,7 +42,9 @@ impl RxFifo {
         let before_wrap = message.len().min(FIFO_SIZE - first);
         let (head, tail) = message.split_at(before_wrap);
         self.ram[first..first + before_wrap].copy_from_slice(head);
-        self.ram[..tail.len()].copy_from_slice(tail);
+        if !tail.is_empty() {
+            self.ram[..tail.len()].copy_from_slice(tail);
+        }
         self.used += message.len();
         self.count += 1;
         Ok(())
@@ -71,7 +73,9 @@ impl RxFifo {
         let before_wrap = out.len().min(FIFO_SIZE - first);
         let (head, tail) = out.split_at_mut(before_wrap);
         head.copy_from_slice(&self.ram[first..first + before_wrap]);
-        tail.copy_from_slice(&self.ram[..tail.len()]);
+        if !tail.is_empty() {
+            tail.copy_from_slice(&self.ram[..tail.len()]);
+        }
     }
 
     /// RMC.
