@@ -349,6 +349,8 @@ impl Sja1000Node {
     }
 
     /// Restarts the chip after bus-off once [`RESTART_AFTER_MS`] have passed.
+    #[cold]
+    #[inline(never)]
     fn restart(&mut self, now: u64) {
         self.restart_at = None;
         let result = self.driver.restart().map_err(|e| e.to_string());
@@ -367,6 +369,7 @@ impl Sja1000Node {
 impl Sja1000Node {
     /// What the CPU does after the chip saw the bus up to bit-time `now`: it services the
     /// interrupt, and restarts the chip when the time has come.
+    #[inline]
     fn after_bits(&mut self, now: u64) {
         if self.driver.chip().interrupt() {
             self.service(now);
