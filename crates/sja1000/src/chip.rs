@@ -249,6 +249,7 @@ impl Sja1000 {
         })
     }
 
+    #[inline]
     fn read_peli(&mut self, addr: usize) -> u8 {
         match addr {
             peli::IR => {
