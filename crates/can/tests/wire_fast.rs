@@ -4,7 +4,10 @@
 
 mod reference;
 
-use buslab_can::wire::{Bits, EncodeCache, Encoded, decode, decode_bits, encode, encode_with_dlc};
+use buslab_can::controller::WireFrame;
+use buslab_can::wire::{
+    Bits, EncodeCache, Encoded, Receiver, Step, decode, decode_bits, encode, encode_with_dlc,
+};
 use buslab_can::{Frame, Id};
 use proptest::prelude::*;
 
@@ -112,6 +115,19 @@ proptest! {
     #[test]
     fn encoder_equals_the_bit_by_bit_reference((frame, dlc) in any_frame_and_dlc()) {
         assert_matches_reference(&frame, dlc);
+    }
+
+    #[test]
+    fn whole_frame_receiver_is_the_bit_by_bit_one((frame, dlc) in any_frame_and_dlc()) {
+        let enc = encoded(&frame, dlc);
+        let bus = enc.on_bus();
+        let mut stepped = Receiver::new();
+        for i in 0..=enc.ack_slot() + 1 {
+            prop_assert_eq!(stepped.push(bus.bit(i)), Step::Pending);
+        }
+        let whole = WireFrame::new(&enc).unwrap();
+        prop_assert_eq!(whole.receiver(), &stepped);
+        prop_assert_eq!(whole.frame(), &frame);
     }
 
     #[test]

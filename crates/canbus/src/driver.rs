@@ -437,9 +437,7 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
             CanMode::Peli => peli::WINDOW,
             CanMode::Basic => basic::TX,
         } as u8;
-        for (k, &byte) in buf[..len].iter().enumerate() {
-            self.regs.write(base + k as u8, byte);
-        }
+        self.regs.write_block(base, &buf[..len]);
         self.regs.write(peli::CMR as u8, mode.command());
         self.tx = Some(InFlight {
             frame: *frame,
@@ -463,8 +461,14 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
     /// with CDO), error-state changes, bus errors (ECC) and lost arbitration (ALC).
     pub fn poll(&mut self) -> Vec<DriverEvent> {
         let mut events = Vec::new();
+        self.poll_into(&mut events);
+        events
+    }
+
+    /// [`poll`](Self::poll), appending to `events` (a caller polling often keeps one buffer).
+    pub fn poll_into(&mut self, events: &mut Vec<DriverEvent>) {
         let Some(mode) = self.config.as_ref().map(|c| c.mode) else {
-            return events;
+            return;
         };
         let ir = self.regs.read(peli::IR as u8);
         if mode == CanMode::Peli {
@@ -486,7 +490,7 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
         if status.data_overrun() {
             events.push(DriverEvent::DataOverrun);
         }
-        self.drain_rx(mode, &mut events);
+        self.drain_rx(mode, events);
         if status.data_overrun() {
             self.regs.write(peli::CMR as u8, CMR_CDO);
         }
@@ -504,7 +508,6 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
             self.tx = None;
             events.push(tx.outcome(status));
         }
-        events
     }
 
     fn drain_rx(&mut self, mode: CanMode, events: &mut Vec<DriverEvent>) {
@@ -516,17 +519,9 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
                 CanMode::Peli => peli::WINDOW,
                 CanMode::Basic => basic::RX,
             } as u8;
-            let first = self.regs.read(base);
-            let second = self.regs.read(base + 1);
-            let len = layout::stored_len(mode, first, second);
-            let mut buf = [0u8; 13];
-            buf[0] = first;
-            buf[1] = second;
-            for (k, byte) in buf.iter_mut().enumerate().take(len).skip(2) {
-                *byte = self.regs.read(base + k as u8);
-            }
+            let frame = self.regs.read_received_frame(mode, base);
             self.regs.write(peli::CMR as u8, CMR_RRB);
-            events.push(DriverEvent::Received(layout::decode_tx(mode, &buf)));
+            events.push(DriverEvent::Received(frame));
         }
     }
 

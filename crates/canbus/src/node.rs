@@ -96,6 +96,8 @@ pub struct Sja1000Node {
     recovering: bool,
     /// Events for the bus engine besides the chip's own.
     engine_events: VecDeque<Event>,
+    /// The driver's events while the interrupt is serviced (kept to spare an allocation).
+    driver_events: Vec<DriverEvent>,
     notices: Vec<(u64, NodeNotice)>,
     /// The bit-time of the last sample (for what happens between samples).
     now: u64,
@@ -133,6 +135,7 @@ impl Sja1000Node {
             restart_at: None,
             recovering: false,
             engine_events: VecDeque::new(),
+            driver_events: Vec::new(),
             notices: Vec::new(),
             now: 0,
             frame_sof: 0,
@@ -245,7 +248,9 @@ impl Sja1000Node {
     /// The interrupt handler: the driver's poll, then the next frame into the TX buffer.
     #[inline(never)]
     fn service(&mut self, now: u64) {
-        for event in self.driver.poll() {
+        let mut events = std::mem::take(&mut self.driver_events);
+        self.driver.poll_into(&mut events);
+        for event in events.drain(..) {
             if self.error_frames {
                 let registers = self.driver.error_registers();
                 if let Some(frame) = ErrorFrame::from_driver_event(&event, registers) {
@@ -316,6 +321,7 @@ impl Sja1000Node {
                 DriverEvent::WakeUp => {}
             }
         }
+        self.driver_events = events;
         // The seed's recovery starts at once: the chip itself waits for the bus to be free.
         if std::mem::take(&mut self.recovering) {
             let result = self.driver.recover().map_err(|e| e.to_string());
@@ -343,6 +349,8 @@ impl Sja1000Node {
     }
 
     /// Restarts the chip after bus-off once [`RESTART_AFTER_MS`] have passed.
+    #[cold]
+    #[inline(never)]
     fn restart(&mut self, now: u64) {
         self.restart_at = None;
         let result = self.driver.restart().map_err(|e| e.to_string());
@@ -361,6 +369,7 @@ impl Sja1000Node {
 impl Sja1000Node {
     /// What the CPU does after the chip saw the bus up to bit-time `now`: it services the
     /// interrupt, and restarts the chip when the time has come.
+    #[inline]
     fn after_bits(&mut self, now: u64) {
         if self.driver.chip().interrupt() {
             self.service(now);

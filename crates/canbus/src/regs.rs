@@ -2,7 +2,8 @@
 
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use buslab_sja1000::Sja1000;
+use buslab_can::Frame;
+use buslab_sja1000::{CanMode, Sja1000, layout};
 
 /// Byte-wide registers at 8-bit addresses, as a CPU sees a memory-mapped SJA1000.
 pub trait RegisterAccess {
@@ -16,6 +17,27 @@ pub trait RegisterAccess {
         let _ = addr;
         None
     }
+    /// Reads `buf.len()` consecutive registers from `addr` on (the receive window), each with
+    /// the side effects of [`read`](Self::read). The default reads them one by one; a model
+    /// can copy them at once.
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        for (k, byte) in buf.iter_mut().enumerate() {
+            *byte = self.read(addr.wrapping_add(k as u8));
+        }
+    }
+    /// The frame in the receive window at `base` in `mode`'s layout: its first two bytes, then
+    /// the rest of the message as its length says, read with [`read_block`](Self::read_block)
+    /// and decoded. A model that kept the frames it stored hands the frame over instead.
+    fn read_received_frame(&mut self, mode: CanMode, base: u8) -> Frame {
+        read_frame_bytes(self, mode, base)
+    }
+    /// Writes `bytes` to consecutive registers from `addr` on (the transmit buffer), each
+    /// with the side effects of [`write`](Self::write). The default writes them one by one.
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        for (k, &byte) in bytes.iter().enumerate() {
+            self.write(addr.wrapping_add(k as u8), byte);
+        }
+    }
 }
 
 impl RegisterAccess for Sja1000 {
@@ -28,6 +50,27 @@ impl RegisterAccess for Sja1000 {
     fn peek(&mut self, addr: u8) -> Option<u8> {
         Some(Sja1000::peek(self, addr))
     }
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        Sja1000::read_block(self, addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        Sja1000::write_block(self, addr, bytes)
+    }
+    fn read_received_frame(&mut self, mode: CanMode, base: u8) -> Frame {
+        match self.received_frame(mode, base) {
+            Some(frame) => frame,
+            None => read_frame_bytes(self, mode, base),
+        }
+    }
+}
+
+/// [`RegisterAccess::read_received_frame`] from the window's bytes.
+fn read_frame_bytes<R: RegisterAccess + ?Sized>(regs: &mut R, mode: CanMode, base: u8) -> Frame {
+    let mut buf = [0u8; 13];
+    regs.read_block(base, &mut buf[..2]);
+    let len = layout::stored_len(mode, buf[0], buf[1]);
+    regs.read_block(base.wrapping_add(2), &mut buf[2..len]);
+    layout::decode_tx(mode, &buf)
 }
 
 impl<T: RegisterAccess + ?Sized> RegisterAccess for &mut T {
@@ -40,6 +83,15 @@ impl<T: RegisterAccess + ?Sized> RegisterAccess for &mut T {
     fn peek(&mut self, addr: u8) -> Option<u8> {
         (**self).peek(addr)
     }
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        (**self).read_block(addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        (**self).write_block(addr, bytes)
+    }
+    fn read_received_frame(&mut self, mode: CanMode, base: u8) -> Frame {
+        (**self).read_received_frame(mode, base)
+    }
 }
 
 impl<T: RegisterAccess + ?Sized> RegisterAccess for Box<T> {
@@ -51,6 +103,15 @@ impl<T: RegisterAccess + ?Sized> RegisterAccess for Box<T> {
     }
     fn peek(&mut self, addr: u8) -> Option<u8> {
         (**self).peek(addr)
+    }
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        (**self).read_block(addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        (**self).write_block(addr, bytes)
+    }
+    fn read_received_frame(&mut self, mode: CanMode, base: u8) -> Frame {
+        (**self).read_received_frame(mode, base)
     }
 }
 
@@ -80,6 +141,16 @@ impl<T: RegisterAccess> RegisterAccess for Arc<Mutex<T>> {
     }
     fn peek(&mut self, addr: u8) -> Option<u8> {
         lock(self).peek(addr)
+    }
+    // A block takes the lock once, as one burst of bus cycles.
+    fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        lock(self).read_block(addr, buf)
+    }
+    fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        lock(self).write_block(addr, bytes)
+    }
+    fn read_received_frame(&mut self, mode: CanMode, base: u8) -> Frame {
+        lock(self).read_received_frame(mode, base)
     }
 }
 

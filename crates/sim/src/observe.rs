@@ -3,6 +3,7 @@
 
 use buslab_can::Level;
 use buslab_can::controller::{ErrorState, Event};
+use buslab_can::wire::Bits;
 
 use crate::time::BitTime;
 
@@ -148,6 +149,32 @@ impl BusStats {
         self.busy_bits += frame.busy_bits;
         self.dominant_bits += frame.dominant_bits;
         self.recessive_run = frame.recessive_run;
+    }
+
+    /// A clean frame's bits `bus` (SOF..end of EOF) taken from an idle bus, then intermission
+    /// up to `total` bit-times: the same as taking them one by one with [`Self::bit`] and
+    /// [`Self::idle`], counted at once. Inside a frame no recessive run is longer than 8 bits
+    /// (ACK delimiter and EOF), so every bit-time up to the end of intermission is busy.
+    pub(crate) fn of_frame(bus: &Bits, total: u32) -> BusStats {
+        let len = bus.len() as u64;
+        let recessive_run = bus.trailing_ones() as u64 + u64::from(total) - len;
+        let stats = BusStats {
+            bits: u64::from(total),
+            busy_bits: u64::from(total),
+            dominant_bits: len - bus.count_ones() as u64,
+            frames: 0,
+            errors: 0,
+            recessive_run,
+        };
+        debug_assert_eq!(stats, {
+            let mut stepped = BusStats::default();
+            for i in 0..bus.len() {
+                stepped.bit(bus.level(i));
+            }
+            stepped.idle(u64::from(total) - len);
+            stepped
+        });
+        stats
     }
 
     #[inline(always)]

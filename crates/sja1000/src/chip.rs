@@ -48,6 +48,8 @@ pub struct Sja1000 {
     tx_buf: [u8; 13],
     free_ram: [u8; 3],
     fifo: RxFifo,
+    /// The frames of the messages in the FIFO, oldest first, for [`Self::received_frame`].
+    rx_frames: VecDeque<Frame>,
     mac: Mac,
     /// The transmission requested by TR/SRR, until it ends.
     pending: Option<Pending>,
@@ -104,6 +106,7 @@ impl Sja1000 {
             tx_buf: [0; 13],
             free_ram: [0; 3],
             fifo: RxFifo::default(),
+            rx_frames: VecDeque::new(),
             mac: Mac::new(false, false, 0, 0),
             pending: None,
             sleeping: false,
@@ -126,6 +129,7 @@ impl Sja1000 {
     }
 
     /// The INT pin (active low on the chip; `true` here means asserted).
+    #[inline]
     pub fn interrupt(&self) -> bool {
         match self.mode {
             CanMode::Peli => self.ir_value() != 0,
@@ -134,6 +138,7 @@ impl Sja1000 {
     }
 
     /// Error state of the protocol controller as the registers show it.
+    #[inline]
     pub fn error_state(&self) -> ErrorState {
         if self.bs {
             ErrorState::BusOff
@@ -147,6 +152,7 @@ impl Sja1000 {
     // ---------------------------------------------------------------- CPU side
 
     /// A CPU read. Reading IR, ALC and ECC has side effects, as on the chip.
+    #[inline]
     pub fn read(&mut self, addr: u8) -> u8 {
         let addr = addr as usize;
         match self.mode {
@@ -167,6 +173,7 @@ impl Sja1000 {
     }
 
     /// A CPU write.
+    #[inline]
     pub fn write(&mut self, addr: u8, value: u8) {
         let addr = addr as usize;
         match self.mode {
@@ -175,6 +182,74 @@ impl Sja1000 {
         }
     }
 
+    /// Reads `buf.len()` consecutive registers from `addr` on, as that many [`Self::read`]s
+    /// would; a block inside the receive window is copied at once.
+    pub fn read_block(&mut self, addr: u8, buf: &mut [u8]) {
+        let from = addr as usize;
+        match self.rx_window() {
+            Some(window) if window.start <= from && from + buf.len() <= window.end => {
+                self.fifo.copy_window(from - window.start, buf);
+            }
+            _ => {
+                for (k, byte) in buf.iter_mut().enumerate() {
+                    *byte = self.read(addr.wrapping_add(k as u8));
+                }
+            }
+        }
+    }
+
+    /// Writes `bytes` to consecutive registers from `addr` on, as that many [`Self::write`]s
+    /// would; a block inside a writable transmit buffer is copied at once.
+    pub fn write_block(&mut self, addr: u8, bytes: &[u8]) {
+        let from = addr as usize;
+        match self.tx_window() {
+            Some(window) if window.start <= from && from + bytes.len() <= window.end => {
+                let at = from - window.start;
+                self.tx_buf[at..at + bytes.len()].copy_from_slice(bytes);
+            }
+            _ => {
+                for (k, &byte) in bytes.iter().enumerate() {
+                    self.write(addr.wrapping_add(k as u8), byte);
+                }
+            }
+        }
+    }
+
+    /// The frame that decoding the receive window's bytes from `addr` on in `mode` gives, when
+    /// the chip still has it (the message was stored in `mode`'s layout and the window starts
+    /// at `addr`); `None` otherwise. Reading the window has no side effects, so a driver may
+    /// take this in place of the bytes: every stored message is its frame encoded, and FIFO
+    /// RAM is written only in reset mode, which empties the FIFO.
+    pub fn received_frame(&self, mode: CanMode, addr: u8) -> Option<Frame> {
+        let window = self.rx_window()?;
+        let in_step = self.rx_frames.len() == self.fifo.count() as usize;
+        if mode != self.mode || addr as usize != window.start || !in_step {
+            return None;
+        }
+        self.rx_frames.front().copied()
+    }
+
+    /// The addresses that read the receive window (without side effects), if any do now.
+    fn rx_window(&self) -> Option<Range<usize>> {
+        match self.mode {
+            CanMode::Peli if self.reset => None, // acceptance code and mask
+            CanMode::Peli => Some(peli::WINDOW..peli::WINDOW + 13),
+            CanMode::Basic => Some(basic::RX..basic::RX + 10),
+        }
+    }
+
+    /// The addresses that write the transmit buffer, if any do now (TBS, operating mode).
+    fn tx_window(&self) -> Option<Range<usize>> {
+        if self.reset || !self.tbs {
+            return None;
+        }
+        Some(match self.mode {
+            CanMode::Peli => peli::WINDOW..peli::WINDOW + 13,
+            CanMode::Basic => basic::TX..basic::TX + 10,
+        })
+    }
+
+    #[inline]
     fn read_peli(&mut self, addr: usize) -> u8 {
         match addr {
             peli::IR => {
@@ -344,12 +419,14 @@ impl Sja1000 {
         sr
     }
 
+    #[inline]
     fn ir_value(&self) -> u8 {
         let ri = self.mode == CanMode::Peli && self.enabled(IR_RI) && self.fifo.count() > 0;
         self.ir | flag(ri, IR_RI)
     }
 
     /// Whether interrupt source `bit` is enabled (IER in PeliCAN, CR in BasicCAN).
+    #[inline]
     fn enabled(&self, bit: u8) -> bool {
         match self.mode {
             CanMode::Peli => self.ier & bit != 0,
@@ -384,6 +461,7 @@ impl Sja1000 {
         self.mod_bits &= !MOD_SM;
         self.sleeping = false;
         self.fifo.clear();
+        self.rx_frames.clear();
         self.dos = false;
         self.tbs = true;
         self.pending = None;
@@ -431,6 +509,9 @@ impl Sja1000 {
             self.dos = false;
         }
         if cmd & CMR_RRB != 0 {
+            if self.fifo.count() > 0 {
+                self.rx_frames.pop_front();
+            }
             self.fifo.release(self.mode);
             if self.mode == CanMode::Basic && self.fifo.count() > 0 {
                 self.raise(IR_RI);
@@ -491,6 +572,7 @@ impl Sja1000 {
     // ---------------------------------------------------------------- bus side
 
     /// The level this chip drives during the current bit-time.
+    #[inline]
     pub fn output(&self) -> Level {
         if self.reset || self.sleeping {
             Level::Recessive
@@ -520,6 +602,7 @@ impl Sja1000 {
     /// Whether the chip may take the next frame whole (see [`FrameStart`]): taking part in bus
     /// traffic (not in reset mode, asleep or bus-off) and its controller lined up at a frame
     /// start, error-active. Otherwise the engine steps it bit by bit.
+    #[inline]
     pub fn frame_start(&self) -> FrameStart<'_> {
         if self.reset || self.sleeping || self.bs {
             return FrameStart::NotReady;
@@ -542,6 +625,15 @@ impl Sja1000 {
     /// What the register logic does after the controller moved on: its events, then the
     /// counters and SR.ES.
     fn after_bits(&mut self) {
+        if self.mac.has_events() {
+            self.take_controller_events();
+        }
+        self.update_error_status();
+    }
+
+    /// The controller's events: kept for the bus engine and acted on by the register logic.
+    #[inline(never)]
+    fn take_controller_events(&mut self) {
         while let Some(event) = self.mac.poll_event() {
             // The chip's own warning is SR.ES (against EWLR, and during the bus-off recovery
             // against TXERR counting down): it is reported in place of the controller's.
@@ -550,7 +642,6 @@ impl Sja1000 {
             }
             self.on_event(event);
         }
-        self.update_error_status();
     }
 
     /// Keeps an event for [`poll_bus_event`](Self::poll_bus_event) (the last 64).
@@ -564,14 +655,20 @@ impl Sja1000 {
     /// SR.ES changed: EI, and the change reported as the chip's error warning.
     fn set_error_status(&mut self, es: bool) {
         if es != self.es {
-            self.es = es;
-            self.raise(IR_EI);
-            self.report(Event::Warning {
-                above: es,
-                tec: self.txerr.into(),
-                rec: self.rxerr.into(),
-            });
+            self.error_status_changed(es);
         }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn error_status_changed(&mut self, es: bool) {
+        self.es = es;
+        self.raise(IR_EI);
+        self.report(Event::Warning {
+            above: es,
+            tec: self.txerr.into(),
+            rec: self.rxerr.into(),
+        });
     }
 
     /// The error warning limit ES is computed against.
@@ -585,6 +682,7 @@ impl Sja1000 {
     /// The next event of the chip's protocol controller (frames on the wire, errors, state
     /// changes), as the bus engine's observers see every node's; the register side is not
     /// affected by reading them. The last 64 are kept.
+    #[inline]
     pub fn poll_bus_event(&mut self) -> Option<Event> {
         self.bus_events.pop_front()
     }
@@ -675,6 +773,7 @@ impl Sja1000 {
         let len = layout::encode(self.mode, frame, &mut message);
         match self.fifo.store(&message[..len]) {
             Ok(()) => {
+                self.rx_frames.push_back(*frame);
                 if self.mode == CanMode::Basic {
                     self.raise(IR_RI);
                 }

@@ -38,8 +38,12 @@ impl RxFifo {
         if self.used + message.len() > FIFO_SIZE {
             return Err(Overrun);
         }
-        for (k, &byte) in message.iter().enumerate() {
-            self.ram[(self.start as usize + self.used + k) % FIFO_SIZE] = byte;
+        let first = (self.start as usize + self.used) % FIFO_SIZE;
+        let before_wrap = message.len().min(FIFO_SIZE - first);
+        let (head, tail) = message.split_at(before_wrap);
+        self.ram[first..first + before_wrap].copy_from_slice(head);
+        if !tail.is_empty() {
+            self.ram[..tail.len()].copy_from_slice(tail);
         }
         self.used += message.len();
         self.count += 1;
@@ -60,6 +64,18 @@ impl RxFifo {
     /// Byte `k` of the receive window (may run into the next message).
     pub fn window(&self, k: usize) -> u8 {
         self.ram[(self.start as usize + k) % FIFO_SIZE]
+    }
+
+    /// Bytes `from..from + out.len()` of the receive window, as [`Self::window`] gives them
+    /// (`out` no longer than the RAM: the chip copies at most the 13-byte window).
+    pub(crate) fn copy_window(&self, from: usize, out: &mut [u8]) {
+        let first = (self.start as usize + from) % FIFO_SIZE;
+        let before_wrap = out.len().min(FIFO_SIZE - first);
+        let (head, tail) = out.split_at_mut(before_wrap);
+        head.copy_from_slice(&self.ram[first..first + before_wrap]);
+        if !tail.is_empty() {
+            tail.copy_from_slice(&self.ram[..tail.len()]);
+        }
     }
 
     /// RMC.
@@ -121,6 +137,21 @@ mod tests {
         assert_eq!(fifo.count(), 0);
         fifo.release(CanMode::Peli);
         assert_eq!((fifo.count(), fifo.start()), (0, 4));
+    }
+
+    #[test]
+    fn the_window_copies_across_the_end_of_the_ram() {
+        let mut fifo = RxFifo::default();
+        fifo.set_start(60);
+        fifo.store(&[0x08, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10]).unwrap();
+        let mut window = [0u8; 13];
+        fifo.copy_window(0, &mut window);
+        let one_by_one: Vec<u8> = (0..13).map(|k| fifo.window(k)).collect();
+        assert_eq!(window.to_vec(), one_by_one);
+        assert_eq!(&window[..11], &[0x08, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+        let mut tail = [0u8; 5];
+        fifo.copy_window(8, &mut tail);
+        assert_eq!(tail.to_vec(), one_by_one[8..]);
     }
 
     #[test]

@@ -19,6 +19,9 @@ pub enum FilterMode {
 /// Whether `frame` passes a filter with acceptance code `code` and mask `mask` (ACR0..3,
 /// AMR0..3; BasicCAN uses only index 0).
 pub fn accepts(mode: FilterMode, code: [u8; 4], mask: [u8; 4], frame: &Frame) -> bool {
+    if mask == [0xFF; 4] {
+        return true; // no bit compared (the drivers' "accept all")
+    }
     let rtr = frame.is_remote() as u8;
     let data = frame.payload();
     let byte = |i: usize| data.get(i).copied();

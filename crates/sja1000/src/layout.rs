@@ -49,6 +49,7 @@ pub fn encode(mode: CanMode, frame: &Frame, out: &mut [u8; 13]) -> usize {
 
 /// Length of the message whose first bytes are `first` and `second` (enough to see the format,
 /// RTR and DLC). DLC 9..15 stores 8 data bytes.
+#[inline]
 pub fn stored_len(mode: CanMode, first: u8, second: u8) -> usize {
     let (header, remote, dlc) = match mode {
         CanMode::Basic => (2, second & 0x10 != 0, second & 0x0F),

@@ -92,6 +92,10 @@ impl Mac {
         self.controller.advance_frame(frame, role, bits);
     }
 
+    pub fn has_events(&self) -> bool {
+        self.controller.has_events()
+    }
+
     pub fn poll_event(&mut self) -> Option<Event> {
         self.controller.poll_event()
     }

@@ -10,7 +10,7 @@
 use core::ops::Range;
 
 use super::{Controller, ErrorState, Event, Phase};
-use crate::wire::{Bits, Encoded, Receiver, Step};
+use crate::wire::{Bits, Encoded, Receiver};
 use crate::{Frame, Level};
 
 /// Bits of intermission after EOF, applied with the frame.
@@ -58,20 +58,19 @@ impl WireFrame {
     /// decode to a frame (never for what [`crate::wire::encode`] makes).
     pub fn new(winner: &Encoded) -> Option<Self> {
         let bus = winner.on_bus();
-        let ack_slot = winner.ack_slot() as u32;
-        let mut receiver = Receiver::new();
-        for i in 0..=ack_slot as usize + 1 {
-            if let Step::Error(_) = receiver.push(bus.bit(i)) {
-                return None;
-            }
-        }
+        let receiver = Receiver::after_ack_delimiter(winner);
         let frame = receiver.decoded()?.frame;
         Some(Self {
             frame,
             bus,
-            ack_slot,
+            ack_slot: winner.ack_slot() as u32,
             receiver,
         })
+    }
+
+    /// The receive path every node ends with: a [`Receiver`] that took SOF..ACK delimiter.
+    pub fn receiver(&self) -> &Receiver {
+        &self.receiver
     }
 
     /// The frame as receivers deliver it.

@@ -113,6 +113,23 @@ impl Bits {
         self.len == 0
     }
 
+    /// How many bits are 1 (recessive).
+    pub fn count_ones(&self) -> u32 {
+        self.words.iter().map(|w| w.count_ones()).sum()
+    }
+
+    /// How many bits at the end are 1 (recessive), e.g. a frame's ACK delimiter and EOF.
+    pub fn trailing_ones(&self) -> u32 {
+        let mut n = 0;
+        for i in (0..self.len()).rev() {
+            if !self.bit(i) {
+                break;
+            }
+            n += 1;
+        }
+        n
+    }
+
     pub fn iter(&self) -> impl ExactSizeIterator<Item = bool> + '_ {
         (0..self.len()).map(|i| self.bit(i))
     }

@@ -47,6 +47,11 @@ impl Crc15 {
         }
     }
 
+    /// A register holding `value` (15 bits), e.g. a CRC computed another way.
+    pub(crate) const fn from_value(value: u16) -> Self {
+        Self(value & 0x7FFF)
+    }
+
     /// The 15-bit register; transmitted MSB (bit 14) first.
     pub const fn value(self) -> u16 {
         self.0

@@ -2,7 +2,7 @@
 
 use core::fmt;
 
-use super::{Crc15, Field};
+use super::{Crc15, Encoded, Field};
 use crate::{ExtendedId, Frame, Id, StandardId};
 
 /// A frame rebuilt from the wire.
@@ -131,7 +131,7 @@ pub enum Step {
 /// value of the reserved bits and SRR. It is strict about EOF: a dominant 7th EOF bit is a form
 /// error here, while a protocol controller treats it as an overload condition (that policy
 /// lives in [`crate::controller`]).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Receiver {
     stage: Stage,
     /// The stage before `Failed`, for [`Receiver::field`] after an error.
@@ -196,6 +196,59 @@ impl Receiver {
 
     pub fn reset(&mut self) {
         *self = Self::new();
+    }
+
+    /// The receiver that has taken `encoded`'s bits SOF..ACK delimiter on a bus where the ACK
+    /// slot was dominant, built without taking them one by one: exactly the state
+    /// [`Receiver::push`] leaves (the whole-frame path needs it for every frame).
+    pub(crate) fn after_ack_delimiter(encoded: &Encoded) -> Self {
+        let frame = encoded.frame();
+        let (stuffed, mask) = (encoded.stuffed(), encoded.stuff_mask());
+        // The stuffed region ends just before the CRC delimiter, with a stuff bit if the CRC
+        // ended with five equal bits. Runs of equal wire bits are the receiver's runs: a stuff
+        // bit differs from the bit before it, so it starts a run as the receiver counts.
+        let last = encoded.ack_slot() - 2;
+        let run_bit = stuffed.bit(last);
+        let run_len = if mask.bit(last) {
+            1
+        } else {
+            1 + (0..last)
+                .rev()
+                .take_while(|&i| stuffed.bit(i) == run_bit)
+                .count() as u8
+        };
+        let (id, ide) = match frame.id() {
+            Id::Standard(id) => (u32::from(id.as_raw()), false),
+            Id::Extended(id) => (id.as_raw(), true),
+        };
+        let rtr = frame.is_remote();
+        let data_len = if rtr { 0 } else { frame.payload().len() as u8 };
+        let mut data = [0; 8];
+        data[..data_len as usize].copy_from_slice(frame.payload());
+        let crc = encoded.crc();
+        Self {
+            stage: Stage::Eof,
+            failed_in: Stage::Sof,
+            left: 7,
+            // The CRC field was the last one shifted in (from 0).
+            shift: u32::from(crc),
+            pos: encoded.ack_slot() as u32 + 2,
+            stuff_count: encoded.stuff_bits() as u32,
+            run_bit,
+            run_len,
+            stuffing: false,
+            crc: Crc15::from_value(crc),
+            crc_computed: crc,
+            crc_rx: crc,
+            id,
+            ide,
+            rtr,
+            dlc: encoded.dlc(),
+            data_len,
+            bytes: data_len,
+            data,
+            acked: true,
+        }
     }
 
     /// Wire index of the next bit (= wire bits taken since SOF).

@@ -21,9 +21,9 @@
 
 use std::sync::Arc;
 
-use buslab_can::Frame;
 use buslab_can::controller::{ArbitrationBits, Event, FrameRole, FrameStart, WireFrame};
 use buslab_can::wire::Encoded;
+use buslab_can::{Frame, Id};
 
 use super::{Device, Node, Observers, Schedule, Simulation, handle_event};
 use crate::observe::{BusStats, Happening, Record};
@@ -35,8 +35,6 @@ const CACHE_FRAMES: usize = 64;
 /// A frame seen on the wire, decoded once, with what it adds to the bus statistics.
 #[derive(Debug)]
 struct CachedFrame {
-    frame: Frame,
-    dlc: u8,
     wire: WireFrame,
     /// The frame with its intermission on a bus that was idle (it starts with a dominant SOF,
     /// so what came before changes nothing but the recessive run it ends).
@@ -44,19 +42,29 @@ struct CachedFrame {
 }
 
 impl CachedFrame {
-    fn new(wire: WireFrame, dlc: u8) -> Self {
-        let mut stats = BusStats::default();
-        for i in 0..wire.len() as usize {
-            stats.bit(wire.bus().level(i));
-        }
-        stats.idle(u64::from(wire.total() - wire.len()));
+    fn new(wire: WireFrame) -> Self {
         Self {
-            frame: *wire.frame(),
-            dlc,
+            stats: BusStats::of_frame(wire.bus(), wire.total()),
             wire,
-            stats,
         }
     }
+}
+
+/// The frame and DLC packed in one number, so the cache compares keys kept side by side
+/// instead of following a pointer per entry: identifier (29 bits), IDE, RTR, raw DLC and
+/// the data bytes (zero-padded; their number follows from RTR and the DLC).
+fn cache_key(frame: &Frame, dlc: u8) -> u128 {
+    let (raw, extended) = match frame.id() {
+        Id::Standard(id) => (u32::from(id.as_raw()), false),
+        Id::Extended(id) => (id.as_raw(), true),
+    };
+    let mut data = [0u8; 8];
+    data[..frame.payload().len()].copy_from_slice(frame.payload());
+    u128::from(raw)
+        | u128::from(extended) << 29
+        | u128::from(frame.is_remote()) << 30
+        | u128::from(dlc) << 32
+        | u128::from(u64::from_le_bytes(data)) << 64
 }
 
 /// State of the fast path.
@@ -74,8 +82,11 @@ pub(super) struct WholeFrames {
     sorted: Vec<u64>,
     /// How far each node of another kind than a bare controller has been moved on.
     done: Vec<u32>,
-    /// Recently seen frames on the wire, most recent last.
+    /// Recently seen frames on the wire ([`cache_key`] of each beside it); when full, the
+    /// oldest entry (at `cache_next`) makes room.
+    cache_keys: Vec<u128>,
     cache: Vec<Arc<CachedFrame>>,
+    cache_next: usize,
 }
 
 impl Default for WholeFrames {
@@ -89,7 +100,9 @@ impl Default for WholeFrames {
             losers: Vec::new(),
             sorted: Vec::new(),
             done: Vec::new(),
+            cache_keys: Vec::new(),
             cache: Vec::new(),
+            cache_next: 0,
         }
     }
 }
@@ -105,21 +118,26 @@ impl WholeFrames {
     }
 
     fn wire_frame(&mut self, winner: &Encoded) -> Option<Arc<CachedFrame>> {
-        let (frame, dlc) = (winner.frame(), winner.dlc());
-        if let Some(hit) = self
-            .cache
-            .iter()
-            .rev()
-            .find(|c| c.dlc == dlc && c.frame == *frame)
-        {
-            return Some(hit.clone());
+        let key = cache_key(winner.frame(), winner.dlc());
+        if let Some(hit) = self.cache_keys.iter().position(|&k| k == key) {
+            return Some(self.cache[hit].clone());
         }
-        let cached = Arc::new(CachedFrame::new(WireFrame::new(winner)?, dlc));
-        if self.cache.len() == CACHE_FRAMES {
-            self.cache.remove(0);
+        let fresh = CachedFrame::new(WireFrame::new(winner)?);
+        if self.cache.len() < CACHE_FRAMES {
+            self.cache_keys.push(key);
+            self.cache.push(Arc::new(fresh));
+            return self.cache.last().cloned();
         }
-        self.cache.push(cached.clone());
-        Some(cached)
+        let slot = self.cache_next;
+        self.cache_next = (slot + 1) % CACHE_FRAMES;
+        self.cache_keys[slot] = key;
+        // A saturated bus of ever-new frames (sequence numbers) replaces an entry per frame:
+        // reuse its allocation when nobody holds it any more.
+        match Arc::get_mut(&mut self.cache[slot]) {
+            Some(entry) => *entry = fresh,
+            None => self.cache[slot] = Arc::new(fresh),
+        }
+        Some(self.cache[slot].clone())
     }
 }
 
