@@ -1,0 +1,139 @@
+//! The client's receive path, sans-IO: bytes from the server in; frames and error frames kept
+//! for `recv`, every other message handed out. [`crate::SocketcandBus`] owns the socket around
+//! it; a benchmark or a test drives it with bytes alone.
+
+use std::collections::VecDeque;
+
+use buslab_canbus::bus::matches_any;
+use buslab_canbus::{BusEvent, ErrorFrame, ErrorMessage, Filter, Message};
+
+use crate::ProtocolError;
+use crate::client::ClientError;
+use crate::element::Deframer;
+use crate::message::ServerMessage;
+
+/// Received frames and error frames kept for `recv` at most; beyond, the oldest are dropped
+/// (with a warning). A client busy in a long request on a busy bus must not grow without end.
+pub const MAX_INBOX: usize = 1 << 18;
+
+/// What a client received and has not handed out yet.
+#[derive(Debug)]
+pub struct Inbound {
+    deframer: Deframer,
+    inbox: VecDeque<BusEvent>,
+    /// Events dropped because the inbox was full, and the count last warned about.
+    dropped: u64,
+    dropped_warned: u64,
+    channel: String,
+    filters: Vec<Filter>,
+    error_frames: bool,
+    /// Frames and error frames taken in so far, kept or not.
+    received: u64,
+}
+
+impl Inbound {
+    /// Received frames are stamped with `channel`.
+    pub fn new(channel: &str) -> Self {
+        Self {
+            deframer: Deframer::new(),
+            inbox: VecDeque::new(),
+            dropped: 0,
+            dropped_warned: 0,
+            channel: channel.to_string(),
+            filters: Vec::new(),
+            error_frames: false,
+            received: 0,
+        }
+    }
+
+    /// Bytes received from the server.
+    pub fn push(&mut self, bytes: &[u8]) {
+        self.deframer.push(bytes);
+    }
+
+    /// Only frames that pass one of `filters` are kept (all if empty).
+    pub fn set_filters(&mut self, filters: &[Filter]) {
+        self.filters = filters.to_vec();
+    }
+
+    /// Whether error frames are kept (a plain socketcand started with -e sends them unasked).
+    pub fn set_error_frames(&mut self, on: bool) {
+        self.error_frames = on;
+    }
+
+    /// Frames and error frames taken in so far, kept or not.
+    pub fn received(&self) -> u64 {
+        self.received
+    }
+
+    /// Handles the buffered elements: frames and error frames go to the inbox; the first other
+    /// message is returned. `None`: everything buffered was handled.
+    pub fn next_message(&mut self) -> Result<Option<ServerMessage>, ClientError> {
+        while let Some(element) = self.deframer.next_element() {
+            let msg = ServerMessage::parse(&element?)?;
+            match msg {
+                ServerMessage::Frame { frame, timestamp } => {
+                    self.received += 1;
+                    let m = Message::rx(timestamp.as_secs_f64(), self.channel.clone(), frame);
+                    // Filtered on arrival too, so unwanted traffic does not pile up.
+                    if matches_any(&self.filters, &m.frame) {
+                        self.keep(BusEvent::Frame(m));
+                    }
+                }
+                ServerMessage::ErrorFrame {
+                    class,
+                    timestamp,
+                    data,
+                } => {
+                    self.received += 1;
+                    if self.error_frames {
+                        let error = ErrorFrame::decode(class, &data).map_err(|e| {
+                            ProtocolError::Arguments {
+                                command: "error",
+                                expected: "an error frame",
+                                got: e.to_string(),
+                            }
+                        })?;
+                        self.keep(BusEvent::Error(ErrorMessage {
+                            timestamp: timestamp.as_secs_f64(),
+                            channel: self.channel.clone(),
+                            error,
+                        }));
+                    }
+                }
+                other => return Ok(Some(other)),
+            }
+        }
+        Ok(None)
+    }
+
+    /// Keeps an event for `recv`, dropping the oldest when the inbox is full.
+    fn keep(&mut self, event: BusEvent) {
+        if self.inbox.len() >= MAX_INBOX {
+            self.inbox.pop_front();
+            self.dropped += 1;
+            if self.dropped >= self.dropped_warned.max(1) * 2 || self.dropped_warned == 0 {
+                tracing::warn!(
+                    "{}: {} received frames dropped so far: the program does not read them (at most {MAX_INBOX} are kept)",
+                    self.channel,
+                    self.dropped
+                );
+                self.dropped_warned = self.dropped;
+            }
+        }
+        self.inbox.push_back(event);
+    }
+
+    /// The next kept event: error frames only if `with_errors` (else dropped), frames that
+    /// pass the filters.
+    pub fn pop(&mut self, with_errors: bool) -> Option<BusEvent> {
+        while let Some(event) = self.inbox.pop_front() {
+            match &event {
+                BusEvent::Frame(m) if matches_any(&self.filters, &m.frame) => return Some(event),
+                BusEvent::Error(_) if with_errors => return Some(event),
+                _ => {}
+            }
+        }
+        None
+    }
+}
