@@ -9,8 +9,8 @@ use buslab_canbus::{BusEvent, ErrorFrame, ErrorMessage, Filter, Message};
 
 use crate::ProtocolError;
 use crate::client::ClientError;
-use crate::element::Deframer;
-use crate::message::ServerMessage;
+use crate::element::{Deframer, element_text};
+use crate::message::{ServerMessage, parse_frame_fast};
 
 /// Received frames and error frames kept for `recv` at most; beyond, the oldest are dropped
 /// (with a warning). A client busy in a long request on a busy bus must not grow without end.
@@ -69,8 +69,14 @@ impl Inbound {
     /// Handles the buffered elements: frames and error frames go to the inbox; the first other
     /// message is returned. `None`: everything buffered was handled.
     pub fn next_message(&mut self) -> Result<Option<ServerMessage>, ClientError> {
-        while let Some(element) = self.deframer.next_element() {
-            let msg = ServerMessage::parse(&element?)?;
+        while let Some(inside) = self.deframer.next_inside() {
+            let inside = inside?;
+            // Frames straight from the buffer; the rest checked and parsed as text (the same
+            // result as `next_element` and `ServerMessage::parse`).
+            let msg = match parse_frame_fast(inside) {
+                Some((frame, timestamp)) => ServerMessage::Frame { frame, timestamp },
+                None => ServerMessage::parse(element_text(inside)?)?,
+            };
             match msg {
                 ServerMessage::Frame { frame, timestamp } => {
                     self.received += 1;
@@ -135,5 +141,115 @@ impl Inbound {
             }
         }
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    /// What a client makes of `bytes` read in pieces of `piece` bytes, in order: frames kept,
+    /// other messages, errors.
+    fn through_inbound(bytes: &[u8], piece: usize) -> Vec<String> {
+        let mut inbound = Inbound::new("vcan0");
+        let mut seen = Vec::new();
+        for read in bytes.chunks(piece) {
+            inbound.push(read);
+            loop {
+                let next = inbound.next_message();
+                while let Some(event) = inbound.pop(true) {
+                    let BusEvent::Frame(m) = event else {
+                        panic!("error frames are not kept")
+                    };
+                    seen.push(format!("{:?} {}", m.frame, m.timestamp));
+                }
+                match next {
+                    Ok(None) => break,
+                    Ok(Some(m)) => seen.push(format!("{m:?}")),
+                    Err(e) => seen.push(e.to_string()),
+                }
+            }
+        }
+        seen
+    }
+
+    /// The same through the text API: `Deframer::next_element`, then `ServerMessage::parse`.
+    fn through_text(bytes: &[u8], piece: usize) -> Vec<String> {
+        let mut deframer = Deframer::new();
+        let mut seen = Vec::new();
+        for read in bytes.chunks(piece) {
+            deframer.push(read);
+            text_elements(&mut deframer, &mut seen);
+        }
+        seen
+    }
+
+    fn text_elements(deframer: &mut Deframer, seen: &mut Vec<String>) {
+        while let Some(element) = deframer.next_element() {
+            let message = element
+                .map_err(ClientError::from)
+                .and_then(|e| ServerMessage::parse(&e).map_err(ClientError::from));
+            match message {
+                Ok(ServerMessage::Frame { frame, timestamp }) => {
+                    seen.push(format!("{frame:?} {}", timestamp.as_secs_f64()));
+                }
+                Ok(ServerMessage::ErrorFrame { .. }) => {}
+                Ok(m) => seen.push(format!("{m:?}")),
+                Err(e) => seen.push(e.to_string()),
+            }
+        }
+    }
+
+    fn piece() -> impl Strategy<Value = Vec<u8>> {
+        prop_oneof![
+            Just(b"< frame 123 1.000001 0102030405060708 >".to_vec()),
+            Just(b"< frame 1FFFFFFF 23.5 >".to_vec()),
+            Just(b"< frame 123 1.0 R3 >".to_vec()),
+            Just(b"< ok >".to_vec()),
+            Just(b"< error 004 1.0 00 08 >".to_vec()),
+            "< frame [0-9A-Fa-g+]{0,9} [0-9.]{0,9} [0-9A-FRr <]{0,18} >"
+                .prop_map(String::into_bytes),
+            prop::collection::vec(
+                prop_oneof![
+                    Just(b'<'),
+                    Just(b'>'),
+                    Just(b' '),
+                    Just(b'\n'),
+                    Just(0xff),
+                    Just(b'1'),
+                    any::<u8>()
+                ],
+                0..12,
+            ),
+        ]
+    }
+
+    proptest! {
+        /// Frames read from the buffer, and garbage, come out as the text API reads them.
+        #[test]
+        fn the_receive_path_reads_as_the_text_api(
+            pieces in prop::collection::vec(piece(), 0..20),
+            read in 1usize..64,
+        ) {
+            let bytes = pieces.concat();
+            prop_assert_eq!(through_inbound(&bytes, read), through_text(&bytes, read));
+        }
+    }
+
+    #[test]
+    fn frames_are_kept_for_recv_and_other_messages_handed_out() {
+        let text = b"< frame 123 1.000001 0102 >< ok >< frame 7FF 2.5 >\xff< frame 1 1.0 >";
+        assert_eq!(
+            through_inbound(text, 7),
+            [
+                "Frame(123#0102) 1.000001",
+                "Ok",
+                "Frame(7FF#) 2.5",
+                "bad data from the server: text outside < >: \"\u{fffd}\"",
+                "Frame(001#) 1",
+            ]
+        );
     }
 }
