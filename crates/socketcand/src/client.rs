@@ -462,11 +462,13 @@ impl SocketcandBus {
         timeout: Option<Duration>,
         with_errors: bool,
     ) -> Result<Option<BusEvent>, BusError> {
-        let deadline = timeout.map(|t| Instant::now() + t);
+        // Read the clock only when waiting: most calls on a busy bus find an event kept.
+        let mut deadline = None;
         loop {
             if let Some(event) = self.inbound.pop(with_errors) {
                 return Ok(Some(event));
             }
+            let deadline = *deadline.get_or_insert_with(|| timeout.map(|t| Instant::now() + t));
             match self.pump(deadline)? {
                 Pumped::Deadline => return Ok(None),
                 // An error sent without a request (e.g. for a refused command): report it.
