@@ -10,7 +10,8 @@ udp_multicast row is left out. Builds buslab and the Rust client with --release 
 1 sender and 8 receivers, 8-byte frames carrying a sequence number and the sender's monotonic
 clock (µs). "Rust client" rows use buslab's own client library (`buslab_backends::open`, the
 example `crates/vbus/examples/vbus_speed_client.rs`), one process per node; "python" rows use
-bench/can_bus_serve.py's raw socketcand client (bus serve) or python-can (udp_multicast).
+bench/can_bus_serve.py's raw socketcand client (bus serve), python-can's socketcand interface
+(bus serve, python-can receivers) or python-can (udp_multicast).
 `--speed max` runs the bus as fast as the CPU allows (no pacing to the wall clock; frame
 times are virtual). frames/s is what the
 slowest receiver got per second from the first frame sent to its last frame; loss counts
@@ -113,6 +114,15 @@ def main():
         import can  # noqa: F401
         import msgpack  # noqa: F401
 
+        server, addr = cbs.start_server(binary, args.bitrate, MAX_SPEED)
+        try:
+            r = cbs.run("serve-python-can", n // 4, args.receivers, 0, addr)
+            r["in_order"] = None
+            rows.append(("bus serve --speed max, python-can receivers (interface socketcand)",
+                         r))
+        finally:
+            server.terminate()
+            server.wait()
         r = cbs.run("multicast", n // 4, args.receivers, 0)
         r["in_order"] = None
         rows.append(("python-can udp_multicast, python-can sender and receivers", r))

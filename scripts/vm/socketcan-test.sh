@@ -24,13 +24,18 @@ show() {
     done
 }
 # wait_for FILE TEXT [COMMAND]: until FILE contains TEXT, running COMMAND between looks.
+# Looks 0.1 s apart at first, then further apart (up to 0.8 s): each look forks, which costs
+# the emulated guest CPU time, and on a starved host a wait lasts long in wall time, so a
+# fixed pace would make the VM's work grow with the host's load (the test bounds that work).
 wait_for() {
-    i=0
+    waited=0
+    pause=100000
     while ! grep -qF -- "$2" "$1" 2>/dev/null; do
         [ -n "${3:-}" ] && eval "$3" >/dev/null 2>&1
-        i=$((i + 1))
-        [ "$i" -ge 6000 ] && return 1
-        usleep 100000
+        [ "$waited" -ge 600000000 ] && return 1
+        usleep "$pause"
+        waited=$((waited + pause))
+        [ "$pause" -lt 800000 ] && pause=$((pause * 2))
     done
     return 0
 }
