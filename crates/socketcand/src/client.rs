@@ -1,27 +1,24 @@
 //! A [`CanBus`] over a socketcand TCP connection in raw mode (the IO adapter around the codec),
 //! with buslab's extensions as a [`BusAdmin`] when the server has them.
 
-use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
 use buslab_can::Frame;
-use buslab_canbus::bus::{Human, matches_any};
+use buslab_canbus::bus::Human;
 use buslab_canbus::{
-    BusAdmin, BusError, BusEvent, BusState, CanBus, ErrorFrame, ErrorMessage, Filter, Message,
-    NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
+    BusAdmin, BusError, BusEvent, BusState, CanBus, Filter, Message, NodeInfo, NodeRef,
+    NodeRegisters, NodeStatus, TxReport, WireFault,
 };
 
 use crate::command::Command;
-use crate::element::{Deframer, ElementError};
+use crate::element::ElementError;
+use crate::inbound::Inbound;
+pub use crate::inbound::MAX_INBOX;
 use crate::message::ServerMessage;
 use crate::reply::{self, ReplyError};
 use crate::{ProtocolError, sanitize};
-
-/// Received frames and error frames kept for `recv` at most; beyond, the oldest are dropped
-/// (with a warning). A client busy in a long request on a busy bus must not grow without end.
-pub const MAX_INBOX: usize = 1 << 18;
 
 /// Deadlines of a client.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,15 +93,10 @@ enum FlushMode {
 #[derive(Debug)]
 pub struct SocketcandBus {
     stream: TcpStream,
-    deframer: Deframer,
-    inbox: VecDeque<BusEvent>,
-    /// Events dropped because the inbox was full, and the count last warned about.
-    dropped: u64,
-    dropped_warned: u64,
+    /// What was received and not handed out yet.
+    inbound: Inbound,
     channel: String,
-    filters: Vec<Filter>,
     extensions: bool,
-    error_frames: bool,
     flush: FlushMode,
     /// Frames written since the connection opened (the node's counters start there too).
     sent: u64,
@@ -132,14 +124,9 @@ impl SocketcandBus {
         stream.set_nodelay(true)?;
         let mut bus = Self {
             stream,
-            deframer: Deframer::new(),
-            inbox: VecDeque::new(),
-            dropped: 0,
-            dropped_warned: 0,
+            inbound: Inbound::new(channel),
             channel: channel.to_string(),
-            filters: Vec::new(),
             extensions: false,
-            error_frames: false,
             flush: FlushMode::Unknown,
             sent: 0,
             late: Vec::new(),
@@ -419,77 +406,22 @@ impl SocketcandBus {
     /// frames arrived (now in the inbox), or the deadline.
     fn pump(&mut self, deadline: Option<Instant>) -> Result<Pumped, ClientError> {
         loop {
-            let mut frames = false;
-            while let Some(element) = self.deframer.next_element() {
-                let msg = ServerMessage::parse(&element?)?;
-                match msg {
-                    ServerMessage::Frame { frame, timestamp } => {
-                        frames = true;
-                        let m = Message::rx(timestamp.as_secs_f64(), self.channel.clone(), frame);
-                        // Filtered on arrival too, so unwanted traffic does not pile up.
-                        if matches_any(&self.filters, &m.frame) {
-                            self.keep(BusEvent::Frame(m));
-                        }
-                    }
-                    ServerMessage::ErrorFrame {
-                        class,
-                        timestamp,
-                        data,
-                    } => {
-                        frames = true;
-                        // A plain socketcand started with -e sends them unasked.
-                        if self.error_frames {
-                            let error = ErrorFrame::decode(class, &data).map_err(|e| {
-                                ProtocolError::Arguments {
-                                    command: "error",
-                                    expected: "an error frame",
-                                    got: e.to_string(),
-                                }
-                            })?;
-                            self.keep(BusEvent::Error(ErrorMessage {
-                                timestamp: timestamp.as_secs_f64(),
-                                channel: self.channel.clone(),
-                                error,
-                            }));
-                        }
-                    }
-                    other => {
-                        if let Some(i) = self.late.iter().position(|&r| owed(r, &other)) {
-                            self.late.remove(i);
-                            tracing::debug!(
-                                "a late reply dropped: {}",
-                                sanitize(&other.to_string())
-                            );
-                            continue;
-                        }
-                        return Ok(Pumped::Message(other));
-                    }
+            let received = self.inbound.received();
+            while let Some(other) = self.inbound.next_message()? {
+                if let Some(i) = self.late.iter().position(|&r| owed(r, &other)) {
+                    self.late.remove(i);
+                    tracing::debug!("a late reply dropped: {}", sanitize(&other.to_string()));
+                    continue;
                 }
+                return Ok(Pumped::Message(other));
             }
-            if frames {
+            if self.inbound.received() != received {
                 return Ok(Pumped::Frames);
             }
             if !self.fill(deadline)? {
                 return Ok(Pumped::Deadline);
             }
         }
-    }
-
-    /// Keeps an event for `recv`, dropping the oldest when the inbox is full.
-    fn keep(&mut self, event: BusEvent) {
-        if self.inbox.len() >= MAX_INBOX {
-            self.inbox.pop_front();
-            self.dropped += 1;
-            if self.dropped >= self.dropped_warned.max(1) * 2 || self.dropped_warned == 0 {
-                tracing::warn!(
-                    "{}: {} received frames dropped so far: the program does not read them (at most {MAX_INBOX} are kept)",
-                    self.channel,
-                    self.dropped
-                );
-                self.dropped_warned = self.dropped;
-            }
-        }
-        self.inbox.push_back(event);
     }
 
     /// Reads more bytes; `false` at the deadline.
@@ -508,7 +440,7 @@ impl SocketcandBus {
         match self.stream.read(&mut self.buf) {
             Ok(0) => Err(ClientError::Closed),
             Ok(n) => {
-                self.deframer.push(&self.buf[..n]);
+                self.inbound.push(&self.buf[..n]);
                 Ok(true)
             }
             Err(e)
@@ -524,30 +456,19 @@ impl SocketcandBus {
         }
     }
 
-    /// The next kept event: error frames only if `with_errors` (else dropped), frames that
-    /// pass the filters.
-    fn pop(&mut self, with_errors: bool) -> Option<BusEvent> {
-        while let Some(event) = self.inbox.pop_front() {
-            match &event {
-                BusEvent::Frame(m) if matches_any(&self.filters, &m.frame) => return Some(event),
-                BusEvent::Error(_) if with_errors => return Some(event),
-                _ => {}
-            }
-        }
-        None
-    }
-
-    /// The next event (see [`Self::pop`]) or `None` after `timeout`.
+    /// The next event (see [`Inbound::pop`]) or `None` after `timeout`.
     fn next_event(
         &mut self,
         timeout: Option<Duration>,
         with_errors: bool,
     ) -> Result<Option<BusEvent>, BusError> {
-        let deadline = timeout.map(|t| Instant::now() + t);
+        // Read the clock only when waiting: most calls on a busy bus find an event kept.
+        let mut deadline = None;
         loop {
-            if let Some(event) = self.pop(with_errors) {
+            if let Some(event) = self.inbound.pop(with_errors) {
                 return Ok(Some(event));
             }
+            let deadline = *deadline.get_or_insert_with(|| timeout.map(|t| Instant::now() + t));
             match self.pump(deadline)? {
                 Pumped::Deadline => return Ok(None),
                 // An error sent without a request (e.g. for a refused command): report it.
@@ -640,12 +561,12 @@ impl CanBus for SocketcandBus {
                 self.channel_info()
             );
         }
-        self.error_frames = on;
+        self.inbound.set_error_frames(on);
         Ok(())
     }
 
     fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError> {
-        self.filters = filters.to_vec();
+        self.inbound.set_filters(filters);
         Ok(())
     }
 

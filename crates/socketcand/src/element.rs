@@ -59,6 +59,7 @@ impl Deframer {
 
     /// Appends received bytes.
     pub fn push(&mut self, bytes: &[u8]) {
+        self.compact();
         self.buf.extend_from_slice(bytes);
     }
 
@@ -82,12 +83,24 @@ impl Deframer {
     /// Where `want` is in the unscanned bytes, looking at each once.
     fn find(&mut self, from: usize, want: impl Fn(u8) -> bool) -> Option<usize> {
         let found = self.buf[from..].iter().position(|&b| want(b));
+        self.found(from, found)
+    }
+
+    /// [`Self::find`] for one byte (memchr: many bytes a step).
+    fn find_byte(&mut self, from: usize, want: u8) -> Option<usize> {
+        let found = memchr::memchr(want, &self.buf[from..]);
+        self.found(from, found)
+    }
+
+    /// Counts the bytes a search from `from` looked at; where it found, in the buffer.
+    fn found(&mut self, from: usize, found: Option<usize>) -> Option<usize> {
         self.examined += found.map_or(self.buf.len() - from, |p| p + 1) as u64;
         found.map(|p| from + p)
     }
 
     /// Drops consumed bytes when they are most of the buffer (amortised: each byte moves at
-    /// most once).
+    /// most once). Done before taking bytes in, when what is left of the last read is at most
+    /// the start of one element (moved, rather than half a read's elements).
     fn compact(&mut self) {
         if self.start == self.buf.len() {
             self.buf.clear();
@@ -105,16 +118,25 @@ impl Deframer {
         self.start = end;
         self.scanned = end;
         self.front_known = false;
-        self.compact();
     }
 
     /// The next complete element's inside (without `<` and `>`), an error for bytes that are
     /// not part of one, or `None` if more bytes are needed.
     pub fn next_element(&mut self) -> Option<Result<String, ElementError>> {
+        Some(
+            self.next_inside()?
+                .and_then(|inside| element_text(inside).map(str::to_string)),
+        )
+    }
+
+    /// [`Self::next_element`] without copying and before the checks of [`element_text`]: the
+    /// inside as it is in the buffer, for a reader that accepts only some ASCII bytes and
+    /// hands the rest to `element_text`.
+    pub(crate) fn next_inside(&mut self) -> Option<Result<&[u8], ElementError>> {
         let len = self.buf.len();
         match self.skip {
             Skip::Nothing => {}
-            Skip::Junk => match self.find(self.start, |b| b == b'<') {
+            Skip::Junk => match self.find_byte(self.start, b'<') {
                 Some(p) => {
                     self.skip = Skip::Nothing;
                     self.consume_to(p);
@@ -124,7 +146,7 @@ impl Deframer {
                     return None;
                 }
             },
-            Skip::Overlong => match self.find(self.start, |b| b == b'>') {
+            Skip::Overlong => match self.find_byte(self.start, b'>') {
                 Some(p) => {
                     self.skip = Skip::Nothing;
                     self.consume_to(p + 1);
@@ -148,7 +170,7 @@ impl Deframer {
         let (start, len) = (self.start, self.buf.len());
         if self.buf[start] == b'<' {
             let from = self.scanned.max(start + 1);
-            let Some(end) = self.find(from, |b| b == b'>') else {
+            let Some(end) = self.find_byte(from, b'>') else {
                 self.scanned = len;
                 if len - start > MAX_ELEMENT + 1 {
                     self.skip = Skip::Overlong;
@@ -157,28 +179,21 @@ impl Deframer {
                 }
                 return None;
             };
-            let inner = &self.buf[start + 1..end];
-            let result = if inner.len() > MAX_ELEMENT {
-                Err(ElementError::TooLong)
-            } else {
-                match std::str::from_utf8(inner) {
-                    // `<` inside an element: the earlier `<` started garbage.
-                    Ok(s) if s.contains('<') => Err(ElementError::Outside(excerpt(inner))),
-                    Ok(s) => Ok(s.to_string()),
-                    Err(_) => Err(ElementError::NotText),
-                }
-            };
             self.consume_to(end + 1);
-            return Some(result);
+            if end - (start + 1) > MAX_ELEMENT {
+                return Some(Err(ElementError::TooLong));
+            }
+            return Some(Ok(&self.buf[start + 1..end]));
         }
         // Junk: it runs to the next `<`. Reported once, when it ends or is clearly junk (a `>`,
         // a line end, or long); what follows up to the next `<` is dropped without more errors.
         let from = self.scanned.max(start);
-        let stop = self.find(from, |b| b == b'<' || b == b'>' || b == b'\n');
+        let stop = memchr::memchr3(b'<', b'>', b'\n', &self.buf[from..]);
+        let stop = self.found(from, stop);
         let report_to = match stop {
             Some(p) if self.buf[p] == b'<' => Some(p),
             // Clearly junk: it runs to the next `<` if that is here already.
-            Some(p) => match self.find(p + 1, |b| b == b'<') {
+            Some(p) => match self.find_byte(p + 1, b'<') {
                 Some(next) => Some(next),
                 None => {
                     self.skip = Skip::Junk;
@@ -198,6 +213,18 @@ impl Deframer {
         let error = ElementError::Outside(excerpt(&self.buf[start..to]));
         self.consume_to(to);
         Some(Err(error))
+    }
+}
+
+/// An element's inside as text: UTF-8 without `<` (a `<` inside means the earlier `<` started
+/// junk).
+pub(crate) fn element_text(inside: &[u8]) -> Result<&str, ElementError> {
+    match std::str::from_utf8(inside) {
+        Ok(_) if memchr::memchr(b'<', inside).is_some() => {
+            Err(ElementError::Outside(excerpt(inside)))
+        }
+        Ok(text) => Ok(text),
+        Err(_) => Err(ElementError::NotText),
     }
 }
 
@@ -265,6 +292,22 @@ mod tests {
             "{examined} for {}",
             many.len()
         );
+    }
+
+    #[test]
+    fn the_end_of_an_overlong_element_alone_in_a_read_is_dropped() {
+        // The `>` that ends an overlong element as the last byte of a read: the stream goes
+        // on with the next read (this once left the deframer pointing past its buffer).
+        let mut d = Deframer::new();
+        d.push(b"<");
+        d.push(&vec![b'a'; 20_000]);
+        assert_eq!(d.next_element(), Some(Err(ElementError::TooLong)));
+        d.push(b"aaa>");
+        assert_eq!(d.next_element(), None);
+        assert_eq!(d.len(), 0);
+        d.push(b"< echo >");
+        assert_eq!(d.next_element(), Some(Ok(" echo ".into())));
+        assert_eq!(d.next_element(), None);
     }
 
     #[test]

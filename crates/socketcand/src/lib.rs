@@ -5,6 +5,7 @@
 //! - [`message`]: what a server sends ([`ServerMessage`]), parsed and formatted.
 //! - [`server`]: one client connection of a server, sans-IO ([`server::Session`]).
 //! - [`reply`]: buslab's extension replies (status, registers, nodes, flush) typed both ways.
+//! - [`inbound`]: the client's receive path, sans-IO ([`Inbound`]).
 //! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over a TCP connection ([`SocketcandBus`]),
 //!   and a [`BusAdmin`](buslab_canbus::BusAdmin) when the server has buslab's extensions.
 //!
@@ -15,6 +16,7 @@
 pub mod client;
 pub mod command;
 pub mod element;
+pub mod inbound;
 pub mod message;
 pub mod reply;
 pub mod server;
@@ -22,6 +24,7 @@ pub mod server;
 pub use client::{ClientError, ClientOptions, SocketcandBus};
 pub use command::{Command, NodeRef};
 pub use element::{Deframer, ElementError, MAX_ELEMENT};
+pub use inbound::Inbound;
 pub use message::{FormattedFrame, ServerMessage, Timestamp};
 pub use reply::{
     ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_regs, parse_status,

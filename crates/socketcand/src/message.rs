@@ -2,7 +2,7 @@
 
 use core::fmt;
 
-use buslab_can::Frame;
+use buslab_can::{Frame, Id};
 
 use crate::command::{IdText, parse_id};
 use crate::{ProtocolError, tokens};
@@ -85,6 +85,15 @@ impl ServerMessage {
 
     /// Parses an element's inside.
     pub fn parse(inner: &str) -> Result<Self, ProtocolError> {
+        // Every frame a client receives, without allocating; the rest token by token.
+        match parse_frame_fast(inner.as_bytes()) {
+            Some((frame, timestamp)) => Ok(ServerMessage::Frame { frame, timestamp }),
+            None => Self::parse_tokens(inner),
+        }
+    }
+
+    /// [`Self::parse`] for any message, from its tokens.
+    fn parse_tokens(inner: &str) -> Result<Self, ProtocolError> {
         let t = tokens(inner);
         let (&name, args) = t.split_first().ok_or(ProtocolError::Empty)?;
         match (name, args) {
@@ -147,6 +156,114 @@ impl ServerMessage {
             }),
         }
     }
+}
+
+/// A frame element's inside exactly as servers write every frame (` frame ID SECS.USECS DATA `:
+/// one space around each field, data packed hex of at most 8 bytes, or none), read from the
+/// bytes without allocating. `None` for anything else, even a frame in another layout or a bad
+/// one: [`ServerMessage::parse`] reads those (and names what is wrong). What this accepts,
+/// `parse` reads the same (tests compare them).
+pub(crate) fn parse_frame_fast(inner: &[u8]) -> Option<(Frame, Timestamp)> {
+    let fields = inner.strip_prefix(b" frame ")?.strip_suffix(b" ")?;
+    let (id, fields) = split_at_space(fields)?;
+    let (time, data) = split_at_space(fields)?;
+    let id = fast_id(id)?;
+    let timestamp = fast_timestamp(time)?;
+    let mut bytes = [0u8; 8];
+    let len = fast_data(data, &mut bytes)?;
+    Some((Frame::data(id, &bytes[..len]).ok()?, timestamp))
+}
+
+/// What comes before the first space and what after it.
+fn split_at_space(text: &[u8]) -> Option<(&[u8], &[u8])> {
+    let space = text.iter().position(|&b| b == b' ')?;
+    Some((&text[..space], &text[space + 1..]))
+}
+
+/// Each byte's value as a hex digit; `NOT_HEX` for the others.
+static HEX: [u8; 256] = {
+    let mut table = [NOT_HEX; 256];
+    let mut i = 0;
+    while i < 10 {
+        table[b'0' as usize + i] = i as u8;
+        i += 1;
+    }
+    let mut i = 0;
+    while i < 6 {
+        table[b'a' as usize + i] = 10 + i as u8;
+        table[b'A' as usize + i] = 10 + i as u8;
+        i += 1;
+    }
+    table
+};
+const NOT_HEX: u8 = 0x10;
+
+/// 1..8 hex digits as [`parse_id`] reads them (8: extended, fewer: standard).
+fn fast_id(text: &[u8]) -> Option<Id> {
+    if text.is_empty() || text.len() > 8 {
+        return None;
+    }
+    let (raw, bad) = text.iter().fold((0u32, 0u8), |(raw, bad), &b| {
+        let digit = HEX[usize::from(b)];
+        ((raw << 4) | u32::from(digit & 15), bad | digit)
+    });
+    if bad & NOT_HEX != 0 {
+        return None;
+    }
+    if text.len() == 8 {
+        Id::extended(raw).ok()
+    } else {
+        Id::standard(u16::try_from(raw).ok()?).ok()
+    }
+}
+
+/// Decimal digits as a u64 (`None` for anything else, or beyond u64).
+fn decimal(text: &[u8]) -> Option<u64> {
+    if text.is_empty() {
+        return None;
+    }
+    if text.len() > 19 {
+        // Might not fit: checked digit by digit.
+        return text.iter().try_fold(0u64, |value, &b| {
+            let digit = b.is_ascii_digit().then(|| u64::from(b - b'0'))?;
+            value.checked_mul(10)?.checked_add(digit)
+        });
+    }
+    // 19 digits always fit.
+    let (value, bad) = text.iter().fold((0u64, false), |(value, bad), &b| {
+        let digit = b.wrapping_sub(b'0');
+        // (Wrapping: a value with a bad digit is dropped anyway.)
+        let value = value.wrapping_mul(10).wrapping_add(u64::from(digit));
+        (value, bad | (digit > 9))
+    });
+    (!bad).then_some(value)
+}
+
+/// `SECS.USECS` as [`Timestamp::parse`] reads it (1..6 digits of microseconds).
+fn fast_timestamp(text: &[u8]) -> Option<Timestamp> {
+    let dot = text.iter().position(|&b| b == b'.')?;
+    let (secs, micros) = (&text[..dot], &text[dot + 1..]);
+    if micros.len() > 6 {
+        return None;
+    }
+    let secs = decimal(secs)?;
+    // At most 6 digits: fits, and "1.5" means 1.500000 s.
+    let micros = decimal(micros)? as u32 * 10u32.pow(6 - micros.len() as u32);
+    Some(Timestamp { secs, micros })
+}
+
+/// Packed hex data (pairs of digits, at most 8 bytes, or none) into `out`; the bytes written.
+fn fast_data(text: &[u8], out: &mut [u8; 8]) -> Option<usize> {
+    if !text.len().is_multiple_of(2) || text.len() > 16 {
+        return None;
+    }
+    let mut bad = 0;
+    for (slot, pair) in out.iter_mut().zip(text.chunks_exact(2)) {
+        let (high, low) = (HEX[usize::from(pair[0])], HEX[usize::from(pair[1])]);
+        *slot = (high << 4) | (low & 15);
+        bad |= high | low;
+    }
+    (bad & NOT_HEX == 0).then_some(text.len() / 2)
 }
 
 /// A server's error text as the user will see it: control characters (a terminal escape sent
@@ -303,6 +420,116 @@ impl fmt::Display for ServerMessage {
                 }
                 f.write_str(" >")
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    /// Element insides near the frame layout: names, IDs, times and data slightly off.
+    fn frame_like() -> impl Strategy<Value = String> {
+        let name = prop_oneof!["frame", "fram", "frames", "Frame", "error"];
+        let space = "[ \t\n\r\x0b\x0c]{1,2}";
+        let id = "[0-9a-fA-F+gR -]{0,10}";
+        let time = "[0-9.+-]{0,24}";
+        let data = "[0-9a-fA-FRrxé <]{0,20}";
+        (
+            space,
+            name,
+            "[ \t]{1,2}",
+            id,
+            " {1,2}",
+            time,
+            " {0,2}",
+            data,
+            space,
+        )
+            .prop_map(|(a, name, b, id, c, time, d, data, e)| {
+                format!("{a}{name}{b}{id}{c}{time}{d}{data}{e}")
+            })
+    }
+
+    proptest! {
+        /// What the fast path reads, the general parser reads the same; it never refuses
+        /// for the general parser.
+        #[test]
+        fn the_fast_frame_path_reads_as_the_tokens_do(inner in frame_like()) {
+            if let Some((frame, timestamp)) = parse_frame_fast(inner.as_bytes()) {
+                prop_assert_eq!(
+                    ServerMessage::parse_tokens(&inner),
+                    Ok(ServerMessage::Frame { frame, timestamp })
+                );
+            }
+            prop_assert_eq!(ServerMessage::parse(&inner), ServerMessage::parse_tokens(&inner));
+        }
+
+        #[test]
+        fn any_text_parses_as_the_tokens_do(inner in "\\PC{0,40}") {
+            prop_assert_eq!(ServerMessage::parse(&inner), ServerMessage::parse_tokens(&inner));
+        }
+
+        /// Every data frame a server writes takes the fast path.
+        #[test]
+        fn served_data_frames_take_the_fast_path(
+            raw in 0u32..0x2000_0000,
+            extended: bool,
+            data in prop::collection::vec(any::<u8>(), 0..=8),
+            secs: u64,
+            micros in 0u32..1_000_000,
+        ) {
+            let id = if extended {
+                Id::extended(raw).unwrap()
+            } else {
+                Id::standard((raw & 0x7FF) as u16).unwrap()
+            };
+            let frame = Frame::data(id, &data).unwrap();
+            let timestamp = Timestamp { secs, micros };
+            let text = FormattedFrame::new(&frame, timestamp).text(true).to_string();
+            let inner = &text[1..text.len() - 1];
+            prop_assert_eq!(parse_frame_fast(inner.as_bytes()), Some((frame, timestamp)));
+        }
+    }
+
+    #[test]
+    fn frames_just_off_the_fast_layout_are_read_or_refused_as_before() {
+        for inner in [
+            " frame 123 1.000001 R8 ",
+            " frame 123 1.000001 r2 ",
+            " frame 123 1.000001 01 02 03 ",
+            " frame 123 1.000001 ",
+            " frame 12345678 1.000001 01 ",
+            " frame 123 18446744073709551615.5 01 ",
+            " frame 123 18446744073709551616.5 01 ",
+            " frame 123 1.1234567 01 ",
+            " frame 123 1. 01 ",
+            " frame 123 .5 01 ",
+            " frame 123 1.5.5 01 ",
+            " frame +12 1.5 01 ",
+            " frame 800 1.5 01 ",
+            " frame 20000000 1.5 01 ",
+            " frame 123456789 1.5 01 ",
+            " frame 123 1.5 0102030405060708 ",
+            " frame 123 1.5 010203040506070809 ",
+            " frame 123 1.5 010 ",
+            " frame 123 1.5 0g ",
+            " frame 123 1.5 01 extra ",
+            " frame 123 ++++++++++++++++++++.5 01 ",
+            " frame 123 1234567890123456789.5 01 ",
+            " frame 123 00000000000000000000001.5 01 ",
+            "\x0bframe 123 1.5 01 ",
+            " frame\x0b123 1.5 01 ",
+        ] {
+            let fast = parse_frame_fast(inner.as_bytes())
+                .map(|(frame, timestamp)| ServerMessage::Frame { frame, timestamp });
+            let general = ServerMessage::parse_tokens(inner);
+            if let Some(fast) = fast {
+                assert_eq!(Ok(fast), general, "{inner:?}");
+            }
+            assert_eq!(ServerMessage::parse(inner), general, "{inner:?}");
         }
     }
 }
