@@ -148,6 +148,11 @@ def pc_receiver(host, port, ready, results, idle):
     # python-can warns each time a read ends inside an element, which is routine here.
     logging.getLogger("can.interfaces.socketcand").setLevel(logging.ERROR)
     bus = can.Bus(interface="socketcand", channel="vcan0", host=host, port=port)
+    python_can_receive(bus, ready, results, idle)
+
+
+def python_can_receive(bus, ready, results, idle):
+    """Counts what a python-can `bus` receives until `idle` s pass without a frame."""
     ready.put(1)
     count, lat, last = 0, [], 0
     while True:
@@ -170,21 +175,7 @@ def pc_receiver(host, port, ready, results, idle):
 def mc_receiver(ready, results, idle):
     import can
 
-    bus = can.Bus(interface="udp_multicast", channel=GROUP)
-    ready.put(1)
-    count, lat, last = 0, [], 0
-    while True:
-        m = bus.recv(idle)
-        if m is None:
-            break
-        t = now_us()
-        if len(m.data) == 8:
-            _, sent = struct.unpack("<II", bytes(m.data))
-            lat.append((t - sent) & 0xFFFFFFFF)
-            count += 1
-            last = t
-    bus.shutdown()
-    results.put((count, lat, last))
+    python_can_receive(can.Bus(interface="udp_multicast", channel=GROUP), ready, results, idle)
 
 
 def mc_sender(frames, rate, results):
