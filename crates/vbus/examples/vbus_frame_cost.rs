@@ -15,10 +15,10 @@ use buslab_vbus::VirtualBus;
 const BITRATE: u32 = 1_000_000;
 const RECEIVERS: usize = 8;
 const DEFAULT_BITS: u64 = 2_000_000;
-/// Bit-times run between refills of the sender's queue: fewer than its 64 frames take, so the
-/// bus never idles, and long stretches as the server's `--speed max` loop runs (a frame that
-/// does not fit in a stretch is stepped bit by bit).
-const STRETCH: u64 = 5_000;
+/// The longest classic frame with its stuff bits and intermission: as the server's
+/// `--speed max` loop, each stretch runs long enough for the queued frames to end inside it
+/// (a frame cut by a stretch's end would be stepped bit by bit).
+const LONGEST_FRAME_BITS: u64 = 168;
 
 fn main() {
     let bits = std::env::args()
@@ -41,7 +41,11 @@ fn main() {
             node.submit(frame).expect("room checked");
             sequence += 1;
         }
-        bus.run_until((bus.now() + STRETCH).min(end));
+        let queued = bus
+            .client_mut(sender)
+            .expect("the sender joined")
+            .tx_queued() as u64;
+        bus.run_until((bus.now() + (queued + 1) * LONGEST_FRAME_BITS).min(end));
         for (_, node) in bus.clients_mut() {
             delivered += node.take_deliveries().count();
         }

@@ -16,7 +16,8 @@
 //! stages every controller is where the bit-by-bit path has it as far as anything can look
 //! (generators queueing frames, counter samples); other node kinds are moved on through the
 //! frame's bits with [`BusNode::advance_frame`](buslab_can::node::BusNode::advance_frame) up to
-//! each stage and each time something looks at them. Within a stage nodes go in index order,
+//! each stage and each time something looks at them (a receiver whose REC is 0 has nothing to
+//! report at the ACK slot: its ACK stage goes with the next one). Within a stage nodes go in index order,
 //! as the bit-by-bit path steps them, so the trace comes out in the same order.
 
 use std::sync::Arc;
@@ -326,13 +327,18 @@ impl Simulation {
                 ..
             } = self;
             let node = &mut nodes[i];
-            if let Device::Controller(c) = &mut node.device {
-                c.frame_ack();
-                if c.has_events() {
-                    drain_node(obs, schedule, i, node, t0 + ack as BitTime);
+            match &mut node.device {
+                Device::Controller(c) => {
+                    c.frame_ack();
+                    if c.has_events() {
+                        drain_node(obs, schedule, i, node, t0 + ack as BitTime);
+                    }
                 }
-            } else {
-                self.advance_other(wire, i, ack + 1, t0);
+                // With REC at 0 the ACK slot changes nothing a node could report (a successful
+                // reception only lowers a REC above 0, rule 8): the slot goes with the next
+                // stage's bits, one call fewer per receiver and frame.
+                Device::Other(other) if other.rec() == 0 => {}
+                Device::Other(_) => self.advance_other(wire, i, ack + 1, t0),
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof6);
