@@ -542,7 +542,27 @@ impl<W: Write + Seek> Writer<W> {
         })
     }
 
+    /// Writes one entry; an entry whose time the file cannot hold (after the year 65535, the
+    /// last a SYSTEMTIME names, or more than 584 years after the file's start, the most its
+    /// nanosecond offsets count) is refused with [`io::ErrorKind::InvalidInput`] and nothing
+    /// is written.
     pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        if !time::fits_systemtime(entry.timestamp) {
+            return Err(time::out_of_range(
+                entry.timestamp,
+                "a BLF file",
+                "times up to the year 65535 (its SYSTEMTIME)",
+            ));
+        }
+        if let Some(start) = self.start
+            && u64::try_from(entry.timestamp.saturating_sub(start).as_nanos()).is_err()
+        {
+            return Err(time::out_of_range(
+                entry.timestamp,
+                "a BLF file",
+                "times up to 584 years after its first entry (nanoseconds in 64 bits)",
+            ));
+        }
         let start =
             *self.start.get_or_insert_with(|| {
                 // python-can's start: the first time cut to the millisecond, none before 1990.
@@ -555,6 +575,7 @@ impl<W: Write + Seek> Writer<W> {
                 }
             });
         self.stop = self.stop.max(entry.timestamp);
+        // Checked above (the first entry's offset is below a millisecond).
         let ticks = entry
             .timestamp
             .saturating_sub(start)

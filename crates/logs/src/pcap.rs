@@ -239,13 +239,20 @@ impl<W: Write> Writer<W> {
         })
     }
 
+    /// Writes one entry; an entry after 2106-02-07 06:28:15 UTC (pcap's seconds are 32 bits)
+    /// is refused with [`io::ErrorKind::InvalidInput`] and nothing is written.
     pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
         let t = entry.timestamp;
+        let Ok(secs) = u32::try_from(t.as_secs()) else {
+            return Err(crate::time::out_of_range(
+                t,
+                "a pcap file",
+                "times up to 4294967295 s (2106-02-07 06:28:15 UTC, 32-bit seconds)",
+            ));
+        };
         let record = socketcan::encode(&entry.record);
         self.buf.clear();
-        // pcap's seconds are 32 bits (until 2106).
-        self.buf
-            .extend_from_slice(&(t.as_secs().min(u64::from(u32::MAX)) as u32).to_le_bytes());
+        self.buf.extend_from_slice(&secs.to_le_bytes());
         self.buf.extend_from_slice(&t.subsec_micros().to_le_bytes());
         self.buf
             .extend_from_slice(&(record.len() as u32).to_le_bytes());

@@ -472,9 +472,17 @@ impl<W: Write> Writer<W> {
         Ok(self.last as u32)
     }
 
+    /// Writes one entry; an entry after 2554-07-21 23:34:33 UTC (nanoseconds in 64 bits) is
+    /// refused with [`io::ErrorKind::InvalidInput`] and nothing is written.
     pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+        let Ok(ns) = u64::try_from(entry.timestamp.as_nanos()) else {
+            return Err(crate::time::out_of_range(
+                entry.timestamp,
+                "a pcapng file",
+                "times up to 18446744073.709551615 s (2554-07-21 23:34:33 UTC, 64-bit nanoseconds)",
+            ));
+        };
         let iface = self.interface(&entry.interface)?;
-        let ns = entry.timestamp.as_nanos().min(u128::from(u64::MAX)) as u64;
         let record = socketcan::encode(&entry.record);
         let buf = &mut self.buf;
         buf.clear();

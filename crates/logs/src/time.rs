@@ -117,6 +117,28 @@ pub fn systemtime(t: Duration) -> [u16; 8] {
     ]
 }
 
+/// Whether a SYSTEMTIME holds `t`: its year is 16 bits, so the last time it names is in
+/// 65535.
+pub fn fits_systemtime(t: Duration) -> bool {
+    i64::try_from(t.as_secs())
+        .ok()
+        .and_then(|secs| DateTime::<Utc>::from_timestamp(secs, 0))
+        .is_some_and(|dt| dt.year() <= i32::from(u16::MAX))
+}
+
+/// The error a log writer gives for an entry whose time its format cannot hold (rather than
+/// writing another time in its place).
+pub fn out_of_range(t: Duration, format: &str, holds: &str) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        format!(
+            "timestamp {}.{:09} s cannot be written to {format}: it holds {holds}",
+            t.as_secs(),
+            t.subsec_nanos()
+        ),
+    )
+}
+
 /// The time a SYSTEMTIME names (UTC), or zero when it names none (all zero, or invalid).
 pub fn from_systemtime(st: [u16; 8]) -> Duration {
     let naive = NaiveDate::from_ymd_opt(i32::from(st[0]), u32::from(st[1]), u32::from(st[3]))

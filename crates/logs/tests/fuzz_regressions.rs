@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use buslab_can::Frame;
-use buslab_logs::{Entry, LogReader, Record, pcapng, sqlite, trc};
+use buslab_logs::{Entry, LogReader, Record, blf, pcap, pcapng, sqlite, trc};
 
 /// Every entry, or the errors, of a reader that must end within `max_calls` reads.
 fn read_all(mut reader: impl LogReader, max_calls: usize) -> (Vec<Entry>, Vec<String>) {
@@ -134,4 +134,94 @@ fn sqlite_text_that_is_not_utf8_is_a_bad_row_not_a_panic() {
     assert!(errors[1].contains("data as a BLOB"), "{errors:?}");
     assert_eq!(entries.len(), 1, "{entries:?}");
     assert_eq!(entries[0].record, Record::Frame("123#02".parse().unwrap()));
+}
+
+/// A BLF writer, a pcap writer and a pcapng writer in memory.
+fn blf_writer() -> blf::Writer<std::io::Cursor<Vec<u8>>> {
+    blf::Writer::new(std::io::Cursor::new(Vec::new())).expect("memory")
+}
+
+fn frame_at(timestamp: Duration) -> Entry {
+    Entry {
+        timestamp,
+        interface: "can0".into(),
+        record: Record::Frame("123#1122".parse::<Frame>().unwrap()),
+        direction: None,
+    }
+}
+
+/// `logs_blf`: a BLF file whose header starts in the year 65534 and whose entry lies 169 days
+/// and then years later read back as an entry after the year 65535; written back, its year was
+/// cut to 65535 (a SYSTEMTIME's year is 16 bits) and the file named another time. A writer now
+/// refuses a time its format cannot hold, naming it, and writes nothing for it.
+#[test]
+fn blf_entry_after_the_year_65535_is_refused_not_moved() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/blf-start-in-65534.blf");
+    let bytes = std::fs::read(path).unwrap();
+    let (entries, _) = read_all(blf::Reader::new(&bytes[..]), 1_000);
+    assert!(!entries.is_empty());
+    let mut writer = blf_writer();
+    let late = entries
+        .iter()
+        .find(|e| e.timestamp.as_secs() > 2_006_000_000_000);
+    let late = late.expect("the input has an entry after the year 65535");
+    let err = writer.write(late).expect_err("after the year 65535");
+    assert_eq!(err.kind(), std::io::ErrorKind::InvalidInput);
+    let text = err.to_string();
+    assert!(
+        text.contains(&late.timestamp.as_secs().to_string()) && text.contains("65535"),
+        "{text}"
+    );
+
+    // The last second of 65535 is written and reads back as itself, to the millisecond.
+    let last = Duration::from_secs(2_005_949_145_599) + Duration::from_millis(250);
+    let mut writer = blf_writer();
+    writer.write(&frame_at(last)).unwrap();
+    assert!(
+        writer
+            .write(&frame_at(last + Duration::from_secs(1)))
+            .is_err()
+    );
+    let bytes = writer.finish().unwrap().into_inner();
+    let (back, errors) = read_all(blf::Reader::new(&bytes[..]), 10);
+    assert!(errors.is_empty(), "{errors:?}");
+    assert_eq!(back.iter().map(|e| e.timestamp).collect::<Vec<_>>(), [last]);
+
+    // Offsets are nanoseconds in 64 bits: 584 years after the first entry is the most.
+    let mut writer = blf_writer();
+    writer.write(&frame_at(Duration::from_secs(1))).unwrap();
+    let err = writer
+        .write(&frame_at(Duration::from_secs(18_446_744_074)))
+        .expect_err("585 years after the start");
+    assert!(err.to_string().contains("584 years"), "{err}");
+}
+
+/// pcap's seconds are 32 bits and pcapng's nanoseconds 64: a later time is refused, naming
+/// it, instead of being written as the last time the format holds.
+#[test]
+fn pcap_and_pcapng_refuse_times_they_cannot_hold() {
+    let mut pcap = pcap::Writer::new(Vec::new()).unwrap();
+    pcap.write(&frame_at(Duration::from_secs(u64::from(u32::MAX))))
+        .unwrap();
+    let err = pcap
+        .write(&frame_at(Duration::from_secs(u64::from(u32::MAX) + 1)))
+        .expect_err("after 2106");
+    assert_eq!(err.kind(), std::io::ErrorKind::InvalidInput);
+    assert!(err.to_string().contains("4294967296.000000000 s"), "{err}");
+    let bytes = pcap.finish().unwrap();
+    let (back, errors) = read_all(pcap::Reader::new(&bytes[..]), 10);
+    assert!(errors.is_empty(), "{errors:?}");
+    assert_eq!(back.len(), 1);
+
+    let mut pcapng = pcapng::Writer::new(Vec::new()).unwrap();
+    let last = Duration::from_nanos(u64::MAX);
+    pcapng.write(&frame_at(last)).unwrap();
+    let err = pcapng
+        .write(&frame_at(last + Duration::from_nanos(1)))
+        .expect_err("after 2554");
+    assert!(err.to_string().contains("18446744073.709551616 s"), "{err}");
+    let bytes = pcapng.finish().unwrap();
+    let (back, errors) = read_all(pcapng::Reader::new(&bytes[..]), 10);
+    assert!(errors.is_empty(), "{errors:?}");
+    assert_eq!(back.iter().map(|e| e.timestamp).collect::<Vec<_>>(), [last]);
 }
