@@ -27,17 +27,37 @@ show() {
 # Looks 0.1 s apart at first, then further apart (up to 0.8 s): each look forks, which costs
 # the emulated guest CPU time, and on a starved host a wait lasts long in wall time, so a
 # fixed pace would make the VM's work grow with the host's load (the test bounds that work).
+# A wait past 30 s (and every minute after) prints the guest's busiest processes, so the
+# console says what the guest was doing if the host gives up on it.
 wait_for() {
     waited=0
     pause=100000
+    report=30000000
     while ! grep -qF -- "$2" "$1" 2>/dev/null; do
         [ -n "${3:-}" ] && eval "$3" >/dev/null 2>&1
         [ "$waited" -ge 600000000 ] && return 1
         usleep "$pause"
         waited=$((waited + pause))
         [ "$pause" -lt 800000 ] && pause=$((pause * 2))
+        if [ "$waited" -ge "$report" ]; then
+            report=$((report + 60000000))
+            echo "  ! still waiting for '$2' in $1 after $((waited / 1000000)) s; busiest (CPU ticks, pid, name):"
+            busiest | sed 's/^/  !   /'
+        fi
     done
     return 0
+}
+# busiest: the five processes that used the most CPU time so far (utime + stime in ticks).
+busiest() {
+    for stat in /proc/[0-9]*/stat; do
+        read -r line <"$stat" 2>/dev/null || continue
+        name=${line#*(}
+        name=${name%%)*}
+        # After the name: state ppid pgrp session tty tpgid flags minflt cminflt majflt
+        # cmajflt utime stime ...
+        set -- ${line##*) }
+        echo "$((${12} + ${13})) ${line%% *} $name"
+    done | sort -rn | head -5
 }
 # count FILE TEXT: lines of FILE containing TEXT.
 count() {
