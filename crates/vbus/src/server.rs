@@ -384,8 +384,15 @@ struct Beacon {
 }
 
 /// Kernel send buffer per client (the kernel doubles it): a few thousand frames, so the
-/// per-client queue is what decides when its frames are dropped.
-const SEND_BUFFER: usize = 32 * 1024;
+/// per-client queue is what decides when its frames are dropped. Not less: on loopback a
+/// segment can be 64 KiB, and a client's kernel acknowledges at once only when more than one
+/// segment's worth is unacknowledged. A buffer of about one segment (32 KiB was) waits for
+/// its delayed acknowledgement, 40 ms each time it fills, which at `--speed max` made some
+/// runs four times slower than others (docs/bus.md).
+const SEND_BUFFER: usize = 128 * 1024;
+const _: () = assert!(2 * SEND_BUFFER >= 4 * LOOPBACK_SEGMENT);
+/// The largest TCP segment on Linux's loopback (its MTU is 64 KiB).
+const LOOPBACK_SEGMENT: usize = 64 * 1024;
 /// While frames are on the wire and the bus cannot tell when they end, the loop wakes at least
 /// this often (wall clock).
 pub const BUSY_SLICE: Duration = Duration::from_micros(100);
