@@ -459,3 +459,29 @@ fn garbage_files_are_errors_not_panics() {
         }
     }
 }
+
+/// Found by the `config_file` fuzz target (fuzz/corpus/config_file/regression-sample-point-
+/// no-split-fits): 210 kbit/s sampled at 57.5 % chose a bit no split of which samples that
+/// early, with phase segments of 0 quanta, and `config show` overflowed turning it into
+/// registers (in a release build: wrong registers).
+#[test]
+fn a_sample_point_only_some_bit_lengths_reach_gets_a_timing_that_reaches_it() {
+    let sets = ["controller.bitrate=210000", "controller.sample_point=57.5%"]
+        .map(str::to_string)
+        .to_vec();
+    let loaded = load_text(None, &|_| None, &sets).unwrap();
+    let shown = render_show(&loaded);
+    let line = shown
+        .lines()
+        .find(|l| l.contains("bit timing:"))
+        .expect(&shown);
+    // No bit of 8 MHz / 210 kbit/s ≈ 38 quanta samples as early as 57.5 % (phase segment 2 is
+    // at most 8 quanta): a shorter bit within 5 % of the rate is chosen.
+    let number_before = |end: &str| -> f64 {
+        let head = &line[..line.find(end).expect(line)];
+        head.rsplit(' ').next().unwrap().parse().expect(line)
+    };
+    let bitrate = number_before(" bit/s");
+    assert!((199_500.0..=220_500.0).contains(&bitrate), "{line}");
+    assert!(number_before(" %)") <= 57.5, "{line}");
+}

@@ -43,6 +43,16 @@ pub enum TimingError {
     Unreachable { bitrate: u32, clock: u32 },
     #[error("sample point {permille} ‰ is out of range 500..=950")]
     SamplePoint { permille: u32 },
+    #[error(
+        "bit rate {bitrate} bit/s from a {clock} Hz CAN clock cannot sample as early as \
+         {permille} ‰ (phase segment 2 is at most 8 quanta, phase segment 1 at least 1): \
+         ask for a later sample point"
+    )]
+    SamplePointUnreachable {
+        bitrate: u32,
+        clock: u32,
+        permille: u32,
+    },
 }
 
 impl BitTiming {
@@ -130,6 +140,7 @@ impl BitTiming {
         let clock = can_clock_hz as u64;
         let rate = bitrate as u64;
         let mut best: Option<(u64, u32, Self)> = None; // (rate error, sp error, timing)
+        let mut no_split = false;
         let t_max = 2 * (TSEG1.1 + TSEG2.1) + 1;
         let t_min = 2 * (TSEG1.0 + TSEG2.0);
         for t in (t_min..=t_max).rev() {
@@ -145,7 +156,13 @@ impl BitTiming {
             {
                 continue;
             }
-            let (tseg1, tseg2, sp_err) = split(t / 2, sp_ref);
+            // No split of this length samples at or before the reference (phase segment 2
+            // is at most 8 quanta, so a long bit cannot sample early; phase segment 1 at
+            // least 1, so a short one cannot either): Linux skips it too.
+            let Some((tseg1, tseg2, sp_err)) = split(t / 2, sp_ref) else {
+                no_split |= rate_err * 1000 / rate <= MAX_ERROR_PERMILLE;
+                continue;
+            };
             if let Some((best_rate_err, best_sp_err, _)) = best
                 && rate_err == best_rate_err
                 && sp_err >= best_sp_err
@@ -168,15 +185,21 @@ impl BitTiming {
             Some((rate_err, _, timing)) if rate_err * 1000 / rate <= MAX_ERROR_PERMILLE => {
                 Ok(timing)
             }
+            _ if no_split => Err(TimingError::SamplePointUnreachable {
+                bitrate,
+                clock: can_clock_hz,
+                permille: sp_ref,
+            }),
             _ => Err(unreachable),
         }
     }
 }
 
 /// Splits `tseg` (= tseg1 + tseg2) so the sample point is as close to `sp_ref` as possible
-/// without exceeding it. Returns (tseg1, tseg2, sample-point error in ‰).
-fn split(tseg: u32, sp_ref: u32) -> (u32, u32, u32) {
-    let mut best = (0, 0, u32::MAX);
+/// without exceeding it. Returns (tseg1, tseg2, sample-point error in ‰), or `None` when every
+/// split within the register limits samples after `sp_ref`.
+fn split(tseg: u32, sp_ref: u32) -> Option<(u32, u32, u32)> {
+    let mut best: Option<(u32, u32, u32)> = None;
     for i in 0..=1 {
         let mut tseg2 = (tseg + 1 - sp_ref * (tseg + 1) / 1000)
             .saturating_sub(i)
@@ -187,8 +210,10 @@ fn split(tseg: u32, sp_ref: u32) -> (u32, u32, u32) {
             tseg2 = tseg - tseg1;
         }
         let sp = 1000 * (tseg + 1 - tseg2) / (tseg + 1);
-        if sp <= sp_ref && sp_ref - sp < best.2 {
-            best = (tseg1, tseg2, sp_ref - sp);
+        // Linux does not check tseg1's minimum here (a 3-quantum bit sampled at 50 % gets
+        // tseg1 = 0, which its driver writes as 16): such a split is left out.
+        if tseg1 >= TSEG1.0 && sp <= sp_ref && best.is_none_or(|(_, _, err)| sp_ref - sp < err) {
+            best = Some((tseg1, tseg2, sp_ref - sp));
         }
     }
     best
@@ -248,6 +273,51 @@ mod tests {
             );
             assert_eq!(t.bitrate(clock), bitrate);
         }
+    }
+
+    /// Found by the `config_file` fuzz target: 210 kbit/s sampled at 57.5 % from an 8 MHz
+    /// clock chose a bit whose phase segments were 0 quanta (no split of its length samples
+    /// that early), and turning it into registers overflowed.
+    #[test]
+    fn every_timing_chosen_fits_the_registers_and_samples_no_later_than_asked() {
+        let t = BitTiming::for_bitrate(8_000_000, 210_000, Some(575)).unwrap();
+        assert_eq!(
+            BitTiming::from_registers(t.registers().0, t.registers().1),
+            t
+        );
+        assert!(t.sample_point_permille() <= 575, "{t}");
+        for clock in [8_000_000, 7_372_800, 12_000_000] {
+            for bitrate in (10_000..=1_000_000).step_by(10_000) {
+                for sp in [None, Some(500), Some(575), Some(700), Some(875), Some(950)] {
+                    let Ok(t) = BitTiming::for_bitrate(clock, bitrate, sp) else {
+                        continue;
+                    };
+                    let checked = BitTiming::new(t.brp, t.tseg1, t.tseg2, t.sjw, false);
+                    assert_eq!(checked, Ok(t), "{bitrate} bit/s, {sp:?} ‰ from {clock} Hz");
+                    if let Some(sp) = sp {
+                        assert!(t.sample_point_permille() <= sp, "{t} for {sp} ‰");
+                    }
+                }
+            }
+        }
+        // Only 17 quanta reach 470 kbit/s within 5 %, and 17 cannot sample at 50 %: the
+        // error says which of the two to change.
+        assert_eq!(
+            BitTiming::for_bitrate(8_000_000, 470_000, Some(500)),
+            Err(TimingError::SamplePointUnreachable {
+                bitrate: 470_000,
+                clock: 8_000_000,
+                permille: 500
+            })
+        );
+        assert!(BitTiming::for_bitrate(8_000_000, 470_000, Some(529)).is_ok());
+        assert_eq!(
+            BitTiming::for_bitrate(8_000_000, 950_000, Some(500)),
+            Err(TimingError::Unreachable {
+                bitrate: 950_000,
+                clock: 8_000_000
+            })
+        );
     }
 
     #[test]
