@@ -3,7 +3,7 @@
 its client nodes (SJA1000 chips operated by buslab's driver) on the simulator's frame-level
 fast path; and python-can's udp_multicast measured the same way in the same run, as the peer.
 
-Usage: .venv/bin/python bench/vbus_speed.py [--frames N] [--receivers 8] [--before BINARY]
+Usage: .venv/bin/python bench/vbus_speed.py [--frames N] [--receivers 8] [--repeat 3] [--before BINARY]
 (python-can and msgpack in .venv come from scripts/setup-test-deps.sh; without them the
 udp_multicast row is left out. Builds buslab and the Rust client with --release first.)
 
@@ -79,6 +79,8 @@ def main():
     ap.add_argument("--receivers", type=int, default=8)
     ap.add_argument("--bitrate", type=int, default=1_000_000)
     ap.add_argument("--before", help="another buslab binary to measure the same way")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="runs per row, in rounds (the median run is shown)")
     args = ap.parse_args()
     target = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
     subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "buslab", "--bin", "buslab"],
@@ -92,55 +94,66 @@ def main():
     binaries = [("bus serve", binary)]
     if args.before:
         binaries.append(("bus serve (BEFORE)", args.before))
-    rows = []
-    for name, bin_ in binaries:
+
+    def served(bin_, measure):
+        """One measurement on a fresh bus serve."""
         server, (host, port) = cbs.start_server(bin_, args.bitrate, MAX_SPEED)
         try:
-            url = f"socketcand://{host}:{port}/vcan0"
-            rows.append((f"{name} --speed max, Rust client (buslab_backends)",
-                         rust_run(client, url, n, args.receivers)))
+            return measure(host, port)
         finally:
             server.terminate()
             server.wait()
-        server, addr = cbs.start_server(bin_, args.bitrate, MAX_SPEED)
-        try:
-            r = cbs.run("serve", n // 4, args.receivers, 0, addr)
-            r["in_order"] = None
-            rows.append((f"{name} --speed max, python raw socketcand client", r))
-        finally:
-            server.terminate()
-            server.wait()
+
+    def rust(bin_):
+        return served(bin_, lambda host, port: rust_run(
+            client, f"socketcand://{host}:{port}/vcan0", n, args.receivers))
+
+    def python_raw(bin_):
+        return served(bin_, lambda host, port: cbs.run(
+            "serve", n // 4, args.receivers, 0, (host, port)))
+
+    def python_can(bin_):
+        return served(bin_, lambda host, port: cbs.run(
+            "serve-python-can", n // 4, args.receivers, 0, (host, port)))
+
+    measures = []
+    for name, bin_ in binaries:
+        measures.append((f"{name} --speed max, Rust client (buslab_backends)", True,
+                         lambda b=bin_: rust(b)))
+        measures.append((f"{name} --speed max, python raw socketcand client", None,
+                         lambda b=bin_: python_raw(b)))
     try:
         import can  # noqa: F401
         import msgpack  # noqa: F401
 
-        server, addr = cbs.start_server(binary, args.bitrate, MAX_SPEED)
-        try:
-            r = cbs.run("serve-python-can", n // 4, args.receivers, 0, addr)
-            r["in_order"] = None
-            rows.append(("bus serve --speed max, python-can receivers (interface socketcand)",
-                         r))
-        finally:
-            server.terminate()
-            server.wait()
-        r = cbs.run("multicast", n // 4, args.receivers, 0)
-        r["in_order"] = None
-        rows.append(("python-can udp_multicast, python-can sender and receivers", r))
+        measures.append(("bus serve --speed max, python-can receivers (interface socketcand)",
+                         None, lambda: python_can(binary)))
+        measures.append(("python-can udp_multicast, python-can sender and receivers", None,
+                         lambda: cbs.run("multicast", n // 4, args.receivers, 0)))
     except ImportError:
         print("udp_multicast left out: python-can or msgpack is not installed", file=sys.stderr)
 
-    print(f"1 sender, {args.receivers} receivers, 8-byte frames; {args.bitrate} bit/s bus; "
-          f"Rust rows {n} frames, python rows {n // 4}; "
-          f"load average {open('/proc/loadavg').read().split()[0]}")
-    print()
-    print("| transport | frames/s (slowest receiver) | loss | in order | latency p50 | "
-          "latency p99 |")
-    print("|---|---|---|---|---|---|")
-    for label, r in rows:
-        order = {True: "yes", False: "NO", None: "-"}[r["in_order"]]
-        print(f"| {label} | {r['frames_s']:.0f} | {r['loss']:.2f} % | {order} | "
-              f"{r['p50']:.2f} ms | {r['p99']:.2f} ms |")
+    # Rows in turn, `--repeat` rounds: each row's runs see the same changes of load.
+    runs = {label: [] for label, _, _ in measures}
+    for _ in range(args.repeat):
+        for label, _, measure in measures:
+            runs[label].append(measure())
 
+    print(f"1 sender, {args.receivers} receivers, 8-byte frames; {args.bitrate} bit/s bus; "
+          f"Rust rows {n} frames, python rows {n // 4}; {args.repeat} runs per row, the median "
+          f"run shown; load average {open('/proc/loadavg').read().split()[0]}")
+    print()
+    print("| transport | frames/s (slowest receiver), median run | all runs | loss (worst run) "
+          "| in order | latency p50 | latency p99 |")
+    print("|---|---|---|---|---|---|---|")
+    for label, ordered, _ in measures:
+        rs = sorted(runs[label], key=lambda r: r["frames_s"])
+        r = rs[len(rs) // 2]
+        worst_loss = max(x["loss"] for x in rs)
+        every = " / ".join(f"{x['frames_s']:.0f}" for x in runs[label])
+        order = "-" if ordered is None else ("yes" if all(x["in_order"] for x in rs) else "NO")
+        print(f"| {label} | {r['frames_s']:.0f} | {every} | {worst_loss:.2f} % | {order} | "
+              f"{r['p50']:.2f} ms | {r['p99']:.2f} ms |")
 
 if __name__ == "__main__":
     main()

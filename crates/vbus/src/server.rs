@@ -749,25 +749,33 @@ impl Server {
     /// At `max`: no sleep while the bus has work (or a scheduled activity to skip to);
     /// otherwise until a session's timer, the beacon or the summary.
     fn sleep_for_flat_out(&self) -> Option<Duration> {
-        if !self.bus.is_idle() || self.bus.next_activity() != u64::MAX {
-            return Some(Duration::ZERO);
-        }
-        // Held by a receiver: until it reads (a write event) or is seen stalled.
-        let mut wait = if self.receiver_behind() {
-            STALLED_AFTER
-        } else {
-            SUMMARY_EVERY
-        };
+        let bus_has_work = !self.bus.is_idle() || self.bus.next_activity() != u64::MAX;
+        // Readiness is edge-triggered: a client that was readable when a receiver held the
+        // turn (it was not read) gets no second event, and the flush may since have released
+        // the hold.
+        let input_ready = self
+            .clients
+            .iter()
+            .flatten()
+            .any(|c| c.readable && !c.gone && c.session.wants_input());
         let now_ns = self.now_ns();
-        for c in self.clients.iter().flatten() {
-            if let Some(d) = c.session.next_deadline() {
-                wait = wait.min(Duration::from_nanos(d.saturating_sub(now_ns)));
-            }
-        }
+        let mut next = self
+            .clients
+            .iter()
+            .flatten()
+            .filter_map(|c| c.session.next_deadline())
+            .map(|d| Duration::from_nanos(d.saturating_sub(now_ns)))
+            .min();
         if let Some(b) = &self.beacon {
-            wait = wait.min(b.next.saturating_duration_since(Instant::now()));
+            let d = b.next.saturating_duration_since(Instant::now());
+            next = Some(next.map_or(d, |n| n.min(d)));
         }
-        Some(wait)
+        Some(flat_out_wait(
+            bus_has_work,
+            self.receiver_behind(),
+            input_ready,
+            next,
+        ))
     }
 
     fn accept(&mut self) {
@@ -1187,6 +1195,27 @@ fn deliver_error(
     session.deliver_error_frame(class, &data, timestamp, now_ns)
 }
 
+/// At `max`: how long the loop may wait for an event. No wait while the bus has work (or a
+/// scheduled activity to skip to), nor while a client's input is there to be read and no
+/// receiver holds the bus; held by a receiver, until it reads (a write event) or is seen
+/// stalled; otherwise until the next deadline (a session's timer, the beacon) or the summary.
+fn flat_out_wait(
+    bus_has_work: bool,
+    receiver_behind: bool,
+    input_ready: bool,
+    next_deadline: Option<Duration>,
+) -> Duration {
+    if bus_has_work || (input_ready && !receiver_behind) {
+        return Duration::ZERO;
+    }
+    let wait = if receiver_behind {
+        STALLED_AFTER
+    } else {
+        SUMMARY_EVERY
+    };
+    next_deadline.map_or(wait, |d| wait.min(d))
+}
+
 /// The reply to an extension command from node `me`.
 fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
     let own = NodeRef::Number(me);
@@ -1226,4 +1255,26 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
         ))),
     };
     result.unwrap_or_else(|e| ServerMessage::Error(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sender's input seen while a receiver held the turn is read as soon as the hold ends:
+    /// the event that reported it will not come again. (Before, the loop slept until the
+    /// 5 s summary with the sender's frames unread, and python-can receivers waiting with a
+    /// 2 s timeout gave up: bench/vbus_speed.py.)
+    #[test]
+    fn at_max_input_already_reported_is_read_without_waiting() {
+        assert_eq!(flat_out_wait(false, false, true, None), Duration::ZERO);
+        // Held: the receiver's write event ends the wait, or it is seen stalled.
+        assert_eq!(flat_out_wait(false, true, true, None), STALLED_AFTER);
+        assert_eq!(flat_out_wait(true, true, true, None), Duration::ZERO);
+        // Nothing to do: until the next deadline or the summary.
+        assert_eq!(flat_out_wait(false, false, false, None), SUMMARY_EVERY);
+        let soon = Duration::from_millis(3);
+        assert_eq!(flat_out_wait(false, false, false, Some(soon)), soon);
+        assert_eq!(flat_out_wait(false, true, false, Some(soon)), soon);
+    }
 }
