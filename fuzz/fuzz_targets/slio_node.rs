@@ -10,6 +10,11 @@ use buslab_slio::{Slio, SlioId, calibration_frame};
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 
+/// Bit-times an input may run: the SLIO's longest time-out (`WATCHDOG_BITS`, 8192 bit-times
+/// without a frame for it) fits four times. Every bit is a step of the model, and a long input
+/// of idle runs took milliseconds to reach nothing new.
+const MAX_BITS: u64 = 4 * buslab_slio::slio::WATCHDOG_BITS;
+
 struct Wire {
     slio: Slio,
     now: u64,
@@ -51,7 +56,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
         slio: Slio::new(id, bitrate).unwrap(),
         now: 0,
     };
-    while !u.is_empty() {
+    while !u.is_empty() && wire.now < MAX_BITS {
         match u.int_in_range(0..=5u8)? {
             0 | 1 => wire.frame(&calibration_frame()),
             2 => {
