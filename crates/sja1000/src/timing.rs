@@ -210,8 +210,10 @@ fn split(tseg: u32, sp_ref: u32) -> Option<(u32, u32, u32)> {
             tseg2 = tseg - tseg1;
         }
         let sp = 1000 * (tseg + 1 - tseg2) / (tseg + 1);
-        // Linux does not check tseg1's minimum here (a 3-quantum bit sampled at 50 % gets
-        // tseg1 = 0, which its driver writes as 16): such a split is left out.
+        // Linux does not check tseg1's minimum here: a 3-quantum bit sampled below 2/3 gets
+        // tseg1 = 0, which kernels before 6.3 wrote to BTR1 as 16 and later ones refuse
+        // (SJW above phase segment 1). Such a split is left out, so a valid timing of
+        // another length is chosen where Linux fails.
         if tseg1 >= TSEG1.0 && sp <= sp_ref && best.is_none_or(|(_, _, err)| sp_ref - sp < err) {
             best = Some((tseg1, tseg2, sp_ref - sp));
         }

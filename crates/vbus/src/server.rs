@@ -331,6 +331,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         lag_state: LagState::default(),
         last_summary: Instant::now(),
         summarised: (0, 0),
+        send_buffer_warned: false,
     };
     let thread = thread::Builder::new()
         .name("vbus".into())
@@ -471,6 +472,8 @@ struct Server {
     lag_state: LagState,
     last_summary: Instant,
     summarised: (u64, u64),
+    /// The kernel gave a client less send buffer than asked (said once).
+    send_buffer_warned: bool,
 }
 
 impl Server {
@@ -487,7 +490,12 @@ impl Server {
                 Speed::Times(_) => self.serve_clients(),
                 // A receiver behind: its frames would be dropped, so nobody is read until it
                 // catches up (or is seen not to read at all).
-                Speed::Max if self.receiver_behind() => false,
+                Speed::Max if self.receiver_behind() => {
+                    // Timers still run: a deadline left in the past would end every wait at
+                    // once while the receiver is waited for.
+                    self.handle_timeouts();
+                    false
+                }
                 Speed::Max => {
                     let busy_io = self.serve_clients();
                     self.feed_flat_out(busy_io)
@@ -687,6 +695,10 @@ impl Server {
     /// How long the loop may sleep: until the bus has something to do, a session's timer, the
     /// beacon, or (frames on the wire) the end of a client's frame, else one [`BUSY_SLICE`].
     fn sleep_for(&self) -> Option<Duration> {
+        // Input its full output kept unread: the flush just emptied the output.
+        if self.input_ready() {
+            return Some(Duration::ZERO);
+        }
         let mut wait = if self.bus.is_idle() {
             let next = self.bus.next_activity();
             let wall_of_next = self.bits_to_wall(next.saturating_sub(self.bus.now()));
@@ -750,14 +762,9 @@ impl Server {
     /// otherwise until a session's timer, the beacon or the summary.
     fn sleep_for_flat_out(&self) -> Option<Duration> {
         let bus_has_work = !self.bus.is_idle() || self.bus.next_activity() != u64::MAX;
-        // Readiness is edge-triggered: a client that was readable when a receiver held the
-        // turn (it was not read) gets no second event, and the flush may since have released
-        // the hold.
-        let input_ready = self
-            .clients
-            .iter()
-            .flatten()
-            .any(|c| c.readable && !c.gone && c.session.wants_input());
+        // A client not read because a receiver held the turn: the flush may since have
+        // released the hold.
+        let input_ready = self.input_ready();
         let now_ns = self.now_ns();
         let mut next = self
             .clients
@@ -800,11 +807,7 @@ impl Server {
                 continue;
             }
             let _ = stream.set_nodelay(true);
-            let _ = nix::sys::socket::setsockopt(
-                &stream,
-                nix::sys::socket::sockopt::SndBuf,
-                &SEND_BUFFER,
-            );
+            self.set_send_buffer(&stream);
             let slot = match self.clients.iter().position(Option::is_none) {
                 Some(i) => i,
                 None => {
@@ -894,6 +897,52 @@ impl Server {
         }
         self.next_client = 0;
         more
+    }
+
+    /// Gives a client [`SEND_BUFFER`]; says once if the kernel caps it lower
+    /// (`net.core.wmem_max`), which brings back waits for delayed acknowledgements.
+    fn set_send_buffer(&mut self, stream: &TcpStream) {
+        use nix::sys::socket::{getsockopt, setsockopt, sockopt::SndBuf};
+        let result =
+            setsockopt(stream, SndBuf, &SEND_BUFFER).and_then(|()| getsockopt(stream, SndBuf));
+        // Linux reports twice what was set (its bookkeeping overhead included).
+        let got = match result {
+            Ok(doubled) if doubled >= 2 * SEND_BUFFER => return,
+            Ok(doubled) => format!("{} bytes", doubled / 2),
+            Err(e) => e.to_string(),
+        };
+        if !std::mem::replace(&mut self.send_buffer_warned, true) {
+            warn!(
+                "a client's send buffer is {got}, not {SEND_BUFFER} bytes (net.core.wmem_max?): \
+                 frames to fast readers may wait for delayed acknowledgements"
+            );
+        }
+    }
+
+    /// Sessions' timers only (an unopened connection's time-out, the end of a hold on
+    /// frames), for turns in which the clients are not read.
+    fn handle_timeouts(&mut self) {
+        let now_ns = self.now_ns();
+        for slot in 0..self.clients.len() {
+            let Some(mut c) = self.clients[slot].take() else {
+                continue;
+            };
+            if let Some(action) = c.session.handle_timeout(now_ns) {
+                self.act(&mut c, action);
+            }
+            self.clients[slot] = Some(c);
+        }
+    }
+
+    /// Whether a client has input that [`Server::serve`] would read now. Readiness is
+    /// edge-triggered: a client left readable (a turn that did not read it, or whose output
+    /// was full until the flush after it) gets no second event, so the loop must not wait
+    /// for one. A frame waiting for room in its node's queue waits for the bus instead.
+    fn input_ready(&self) -> bool {
+        self.clients
+            .iter()
+            .flatten()
+            .any(|c| c.readable && !c.gone && c.backlog.is_none() && c.session.wants_input())
     }
 
     fn serve(&mut self, c: &mut Client) -> bool {
