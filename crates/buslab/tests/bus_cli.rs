@@ -618,3 +618,74 @@ fn dump_refuses_an_unknown_log_extension() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("\"mf4\"") && err.contains(".blf"), "{err}");
 }
+
+/// The lowest file descriptor number `pid` does not have open (the one its next `accept` gets).
+fn lowest_free_fd(pid: u32, skip: &[u32]) -> u32 {
+    let open: Vec<u32> = std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_str().unwrap().parse().unwrap())
+        .collect();
+    (0..)
+        .find(|n| !open.contains(n) && !skip.contains(n))
+        .unwrap()
+}
+
+fn read_element(stream: &mut std::net::TcpStream) -> String {
+    let mut text = Vec::new();
+    let mut byte = [0u8; 1];
+    while text.last() != Some(&b'>') {
+        stream.read_exact(&mut byte).unwrap();
+        text.push(byte[0]);
+    }
+    String::from_utf8(text).unwrap()
+}
+
+/// A connection that comes while the server has no file descriptor left waits in the listen
+/// queue, and the listener reports it once: the server must try again by itself, and let it
+/// in as soon as a descriptor is free (here: when another client leaves).
+#[test]
+fn a_connection_the_server_had_no_descriptor_for_gets_in_when_one_is_free() {
+    let log = tempfile::NamedTempFile::new().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["bus", "serve", "--listen", "127.0.0.1:0", "--bitrate", "125000"])
+        .stdout(Stdio::piped())
+        .stderr(log.reopen().unwrap())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line
+        .trim()
+        .strip_prefix("socketcand://")
+        .and_then(|r| r.split('/').next())
+        .unwrap()
+        .to_string();
+    let pid = child.id();
+    // Room for exactly one more descriptor: the first client's.
+    let first_fd = lowest_free_fd(pid, &[]);
+    let limit = lowest_free_fd(pid, &[first_fd]);
+    let status = Command::new("prlimit")
+        .arg(format!("--pid={pid}"))
+        .arg(format!("--nofile={limit}:{limit}"))
+        .status()
+        .unwrap();
+    assert!(status.success(), "prlimit failed");
+
+    let mut first = std::net::TcpStream::connect(&addr).unwrap();
+    first.set_read_timeout(WAIT).unwrap();
+    assert_eq!(read_element(&mut first), "< hi >");
+    let mut second = std::net::TcpStream::connect(&addr).unwrap();
+    second.set_read_timeout(WAIT).unwrap();
+    // The server saw the second connection and could not take it.
+    let warned = || std::fs::read_to_string(log.path()).unwrap();
+    while !warned().contains("cannot accept a connection") {
+        assert!(child.try_wait().unwrap().is_none(), "bus serve ended: {}", warned());
+        thread::sleep(Duration::from_millis(10));
+    }
+    drop(first);
+    assert_eq!(read_element(&mut second), "< hi >", "{}", warned());
+    let _ = child.kill();
+    let _ = child.wait();
+}

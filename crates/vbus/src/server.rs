@@ -332,6 +332,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         last_summary: Instant::now(),
         summarised: (0, 0),
         send_buffer_warned: false,
+        accept_failed: false,
     };
     let thread = thread::Builder::new()
         .name("vbus".into())
@@ -406,6 +407,8 @@ const LONGEST_FRAME_BITS: u64 = 168;
 /// At `max`: a receiver that has not read for this long no longer holds the bus (its frames
 /// are dropped as at any speed).
 const STALLED_AFTER: Duration = Duration::from_secs(1);
+/// How often a failed accept is tried again (the connection waits in the listen queue).
+const ACCEPT_RETRY: Duration = Duration::from_millis(100);
 /// At `max`: rounds of feeding the bus from the clients per loop turn (see
 /// [`Server::feed_flat_out`]).
 const FEED_ROUNDS: usize = 8;
@@ -474,6 +477,9 @@ struct Server {
     summarised: (u64, u64),
     /// The kernel gave a client less send buffer than asked (said once).
     send_buffer_warned: bool,
+    /// The last accept failed (e.g. out of file descriptors): tried again every
+    /// [`ACCEPT_RETRY`].
+    accept_failed: bool,
 }
 
 impl Server {
@@ -534,6 +540,9 @@ impl Server {
                     }
                 }
             }
+            if self.accept_failed {
+                self.accept();
+            }
         }
         for slot in self.clients.iter_mut() {
             if let Some(c) = slot.take()
@@ -558,6 +567,11 @@ impl Server {
     /// wait ends on the timerfd in the same epoll set instead (nanoseconds, and no timer slack,
     /// unlike a sleep), and a client's bytes still end it at once.
     fn wait(&mut self, events: &mut Events, timeout: Option<Duration>) -> io::Result<()> {
+        let timeout = match timeout {
+            _ if !self.accept_failed => timeout,
+            Some(t) => Some(t.min(ACCEPT_RETRY)),
+            None => Some(ACCEPT_RETRY),
+        };
         match timeout {
             Some(t) if !t.is_zero() => {
                 // Setting the timer also clears an expiry nobody waited for.
@@ -792,11 +806,17 @@ impl Server {
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => return,
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(e) => {
-                    // Out of file descriptors and the like: try again at the next event.
-                    debug!("accept failed: {e}");
+                    // Out of file descriptors and the like. The listener's readiness is
+                    // edge-triggered: the connection waiting now brings no second event, so
+                    // the loop tries again every ACCEPT_RETRY until it gets through.
+                    if !self.accept_failed {
+                        warn!("cannot accept a connection: {e}; trying again");
+                    }
+                    self.accept_failed = true;
                     return;
                 }
             };
+            self.accept_failed = false;
             if self.open >= self.max_connections && !self.evict_idle() {
                 let refusal = ServerMessage::Error(format!(
                     "too many connections ({} open); try again later",
