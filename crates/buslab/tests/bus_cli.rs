@@ -647,7 +647,14 @@ fn read_element(stream: &mut std::net::TcpStream) -> String {
 fn a_connection_the_server_had_no_descriptor_for_gets_in_when_one_is_free() {
     let log = tempfile::NamedTempFile::new().unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
-        .args(["bus", "serve", "--listen", "127.0.0.1:0", "--bitrate", "125000"])
+        .args([
+            "bus",
+            "serve",
+            "--listen",
+            "127.0.0.1:0",
+            "--bitrate",
+            "125000",
+        ])
         .stdout(Stdio::piped())
         .stderr(log.reopen().unwrap())
         .spawn()
@@ -681,7 +688,11 @@ fn a_connection_the_server_had_no_descriptor_for_gets_in_when_one_is_free() {
     // The server saw the second connection and could not take it.
     let warned = || std::fs::read_to_string(log.path()).unwrap();
     while !warned().contains("cannot accept a connection") {
-        assert!(child.try_wait().unwrap().is_none(), "bus serve ended: {}", warned());
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "bus serve ended: {}",
+            warned()
+        );
         thread::sleep(Duration::from_millis(10));
     }
     drop(first);
