@@ -646,30 +646,8 @@ fn read_element(stream: &mut std::net::TcpStream) -> String {
 #[test]
 fn a_connection_the_server_had_no_descriptor_for_gets_in_when_one_is_free() {
     let log = tempfile::NamedTempFile::new().unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
-        .args([
-            "bus",
-            "serve",
-            "--listen",
-            "127.0.0.1:0",
-            "--bitrate",
-            "125000",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(log.reopen().unwrap())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let addr = line
-        .trim()
-        .strip_prefix("socketcand://")
-        .and_then(|r| r.split('/').next())
-        .unwrap()
-        .to_string();
-    let pid = child.id();
+    let mut serve = Serve::start_logging(125_000, &[], log.reopen().unwrap().into());
+    let (addr, pid) = (serve.addr, serve.pid());
     // Room for exactly one more descriptor: the first client's.
     let first_fd = lowest_free_fd(pid, &[]);
     let limit = lowest_free_fd(pid, &[first_fd]);
@@ -680,23 +658,17 @@ fn a_connection_the_server_had_no_descriptor_for_gets_in_when_one_is_free() {
         .unwrap();
     assert!(status.success(), "prlimit failed");
 
-    let mut first = std::net::TcpStream::connect(&addr).unwrap();
+    let mut first = std::net::TcpStream::connect(addr).unwrap();
     first.set_read_timeout(WAIT).unwrap();
     assert_eq!(read_element(&mut first), "< hi >");
-    let mut second = std::net::TcpStream::connect(&addr).unwrap();
+    let mut second = std::net::TcpStream::connect(addr).unwrap();
     second.set_read_timeout(WAIT).unwrap();
     // The server saw the second connection and could not take it.
     let warned = || std::fs::read_to_string(log.path()).unwrap();
     while !warned().contains("cannot accept a connection") {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "bus serve ended: {}",
-            warned()
-        );
+        assert!(!serve.has_ended(), "bus serve ended: {}", warned());
         thread::sleep(Duration::from_millis(10));
     }
     drop(first);
     assert_eq!(read_element(&mut second), "< hi >", "{}", warned());
-    let _ = child.kill();
-    let _ = child.wait();
 }

@@ -21,12 +21,17 @@ impl Serve {
     }
 
     pub fn start_with(bitrate: u32, extra: &[&str]) -> Self {
+        Self::start_logging(bitrate, extra, Stdio::null())
+    }
+
+    /// As [`Serve::start_with`], its log (stderr) going to `stderr`.
+    pub fn start_logging(bitrate: u32, extra: &[&str], stderr: Stdio) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
             .args(["bus", "serve", "--listen", "127.0.0.1:0", "--bitrate"])
             .arg(bitrate.to_string())
             .args(extra)
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(stderr)
             .spawn()
             .unwrap();
         let mut line = String::new();
@@ -41,6 +46,15 @@ impl Serve {
             .parse()
             .unwrap();
         Self { child, addr, url }
+    }
+
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Whether the server has ended.
+    pub fn has_ended(&mut self) -> bool {
+        self.child.try_wait().unwrap().is_some()
     }
 
     pub fn client(&self) -> SocketcandBus {
