@@ -13,6 +13,10 @@ back through TCP: the sender waits for the bus); "paced" sends at a fixed rate s
 is not queueing. A real-time 1 Mbit/s CAN bus carries at most about 7.7 k frames/s of 8 data
 bytes (about 130 bits each with stuffing), so bus serve's frames/s is the bus, not the
 software; the `--speed` rows run the simulated bus faster than real time and are labelled so.
+The last column is the server's CPU time (user + system, all its threads) during the row over
+the time from the first frame sent to the last one received (the receivers' joining and their
+final idle time-out count as CPU but not as time: if anything, an overestimate); what is left
+of a core is what it has to spare.
 """
 
 import argparse
@@ -242,7 +246,16 @@ def run(kind, frames, receivers, rate, addr=None):
         "min_rx": min(got),
         "p50": percentile(lats, 50) / 1000,
         "p99": percentile(lats, 99) / 1000,
+        "elapsed": elapsed,
     }
+
+
+def cpu_seconds(pid):
+    """User + system CPU time of process `pid` so far (Linux /proc)."""
+    with open(f"/proc/{pid}/stat") as f:
+        # The command name may hold spaces: the fields after it start past its ")".
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def start_server(binary, bitrate, speed):
@@ -277,7 +290,10 @@ def main():
     ]:
         server, addr = start_server(binary, args.bitrate, speed)
         try:
-            rows.append((label, run("serve", frames, args.receivers, rate, addr)))
+            cpu0 = cpu_seconds(server.pid)
+            r = run("serve", frames, args.receivers, rate, addr)
+            r["server_cpu"] = 100 * (cpu_seconds(server.pid) - cpu0) / r["elapsed"]
+            rows.append((label, r))
         finally:
             server.terminate()
             server.wait()
@@ -294,11 +310,13 @@ def main():
 
     print(f"1 sender, {args.receivers} receivers, {n} frames of 8 bytes (paced runs: {n // 2})")
     print()
-    print("| transport | frames/s (slowest receiver) | loss | latency p50 | latency p99 |")
-    print("|---|---|---|---|---|")
+    print("| transport | frames/s (slowest receiver) | loss | latency p50 | latency p99 "
+          "| bus serve CPU (% of a core) |")
+    print("|---|---|---|---|---|---|")
     for label, r in rows:
+        cpu = f"{r['server_cpu']:.0f} %" if "server_cpu" in r else "-"
         print(f"| {label} | {r['frames_s']:.0f} | {r['loss']:.2f} % | "
-              f"{r['p50']:.2f} ms | {r['p99']:.2f} ms |")
+              f"{r['p50']:.2f} ms | {r['p99']:.2f} ms | {cpu} |")
 
 
 if __name__ == "__main__":
