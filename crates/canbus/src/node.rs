@@ -223,6 +223,11 @@ impl Sja1000Node {
         self.driver.chip()
     }
 
+    /// Frames and error frames received for the client and not taken yet.
+    pub fn deliveries_waiting(&self) -> usize {
+        self.rx.len() + self.errors.len()
+    }
+
     /// Frames waiting: the client's queue and the chip's buffer.
     pub fn tx_queued(&self) -> usize {
         self.tx.len() + self.driver.tx_pending() as usize

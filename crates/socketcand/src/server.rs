@@ -369,6 +369,23 @@ impl Session {
         self.out.as_slices()
     }
 
+    /// How many more frame lines of at most `line` bytes this session takes before it drops
+    /// frames ([`Self::deliver_formatted`] takes one while fewer than
+    /// [`SessionConfig::max_output`] bytes wait); `None` when it is not handed frames (not in
+    /// raw mode, or closing).
+    pub fn frame_room(&self, line: usize) -> Option<usize> {
+        if self.mode != Mode::Raw || self.closing {
+            return None;
+        }
+        let waiting = self.out.len() + self.held.len();
+        Some(
+            self.config
+                .max_output
+                .saturating_sub(waiting)
+                .div_ceil(line.max(1)),
+        )
+    }
+
     /// Whether bytes wait for the client.
     pub fn has_output(&self) -> bool {
         !self.out.is_empty()

@@ -412,6 +412,15 @@ impl VirtualBus {
     }
 
     /// A client's node.
+    pub fn client(&self, number: u32) -> Result<&ClientNode, VbusError> {
+        let i = self.index_of(&NodeRef::Number(number))?;
+        self.sim
+            .node(i)
+            .get::<ClientNode>()
+            .ok_or_else(|| VbusError::NotAClient(number.to_string()))
+    }
+
+    /// A client's node, to change.
     pub fn client_mut(&mut self, number: u32) -> Result<&mut ClientNode, VbusError> {
         let i = self.index_of(&NodeRef::Number(number))?;
         self.sim

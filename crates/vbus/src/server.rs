@@ -305,7 +305,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     let lag = Arc::new(Mutex::new(Lag::default()));
     let (jobs_tx, jobs) = mpsc::channel();
     let mut session_config = SessionConfig::new(config.channel.clone());
-    // A raw-mode frame line is at most ~45 bytes.
+    // A raw-mode frame line is typically 40 to 50 bytes.
     session_config.max_output = config.client_queue * 48;
     session_config.open_timeout_ns = config.open_timeout.as_nanos().min(u64::MAX as u128) as u64;
     let server = Server {
@@ -407,6 +407,12 @@ const LONGEST_FRAME_BITS: u64 = 168;
 /// At `max`: a receiver that has not read for this long no longer holds the bus (its frames
 /// are dropped as at any speed).
 const STALLED_AFTER: Duration = Duration::from_secs(1);
+/// The fewest bit-times between two things a receiver is handed (frames, error frames): an
+/// error flag and its delimiter. `k` times as many bit-times hand it at most `k + 1`.
+const FEWEST_BITS_PER_DELIVERY: u64 = 6 + 8;
+/// The longest line a frame or an error frame takes in a client's output (a raw-mode frame
+/// with an extended ID, 8 data bytes and a ten-digit timestamp is 53 bytes).
+const LONGEST_LINE: usize = 64;
 /// How often a failed accept is tried again (the connection waits in the listen queue).
 const ACCEPT_RETRY: Duration = Duration::from_millis(100);
 /// At `max`: rounds of feeding the bus from the clients per loop turn (see
@@ -641,10 +647,35 @@ impl Server {
                 .clients_mut()
                 .map(|(_, c)| c.tx_queued() as u64)
                 .sum();
-            let stretch = (queued + 1) * LONGEST_FRAME_BITS;
+            let stretch = ((queued + 1) * LONGEST_FRAME_BITS).max(self.bus.bitrate() as u64 / 100);
+            // No further than what every receiver that reads can take before the next flush:
+            // a burst larger than its output would drop frames for it, hold or not.
+            let room = self.delivery_room();
+            if room == 0 {
+                break;
+            }
             self.bus
-                .run_until(now + stretch.max(self.bus.bitrate() as u64 / 100));
+                .run_until(now + stretch.min(room.saturating_mul(FEWEST_BITS_PER_DELIVERY)));
         }
+    }
+
+    /// At `max`: how many more frames the bus may hand each receiver before the loop next
+    /// empties their outputs into their sockets, so that none is dropped for a receiver that
+    /// reads (one that has not read for [`STALLED_AFTER`] holds nobody up): the least room
+    /// left in such a receiver's output, less what its node holds for it already.
+    /// [`u64::MAX`] with no such receiver.
+    fn delivery_room(&self) -> u64 {
+        self.clients
+            .iter()
+            .flatten()
+            .filter(|c| !c.gone && c.drained_at.elapsed() < STALLED_AFTER)
+            .filter_map(|c| {
+                let room = c.session.frame_room(LONGEST_LINE)?;
+                let node = self.bus.client(c.session.node()?).ok()?;
+                Some(room.saturating_sub(node.deliveries_waiting()) as u64)
+            })
+            .min()
+            .unwrap_or(u64::MAX)
     }
 
     /// Runs the bus up to the wall clock, at most [`MAX_RUN`] of wall time's worth at once so
@@ -775,10 +806,14 @@ impl Server {
     /// At `max`: no sleep while the bus has work (or a scheduled activity to skip to);
     /// otherwise until a session's timer, the beacon or the summary.
     fn sleep_for_flat_out(&self) -> Option<Duration> {
-        let bus_has_work = !self.bus.is_idle() || self.bus.next_activity() != u64::MAX;
+        // Work the bus may do now: none while a receiver must read first (see
+        // `advance_flat_out`); its write event or its stall ends the wait.
+        let bus_has_work = (!self.bus.is_idle() || self.bus.next_activity() != u64::MAX)
+            && self.delivery_room() > 0;
         // A client not read because a receiver held the turn: the flush may since have
-        // released the hold.
-        let input_ready = self.input_ready();
+        // released the hold. Likewise a frame that waited for room in its node's queue: the
+        // bus may have emptied the queue during the hold, and no event comes for that.
+        let input_ready = self.input_ready() || self.backlog_fits();
         let now_ns = self.now_ns();
         let mut next = self
             .clients
@@ -963,6 +998,18 @@ impl Server {
             .iter()
             .flatten()
             .any(|c| c.readable && !c.gone && c.backlog.is_none() && c.session.wants_input())
+    }
+
+    /// Whether a client's frame that waited for room in its node's queue would go in now.
+    fn backlog_fits(&self) -> bool {
+        self.clients.iter().flatten().any(|c| {
+            c.backlog.is_some()
+                && !c.gone
+                && c.session
+                    .node()
+                    .and_then(|n| self.bus.client(n).ok())
+                    .is_some_and(|node| node.tx_room() > 0)
+        })
     }
 
     fn serve(&mut self, c: &mut Client) -> bool {
@@ -1265,8 +1312,9 @@ fn deliver_error(
 }
 
 /// At `max`: how long the loop may wait for an event. No wait while the bus has work (or a
-/// scheduled activity to skip to), nor while a client's input is there to be read and no
-/// receiver holds the bus; held by a receiver, until it reads (a write event) or is seen
+/// scheduled activity to skip to), nor while a client's input is there to be read (or its
+/// frame that waited for room in its node's queue would now go in) and no receiver holds the
+/// bus; held by a receiver, until it reads (a write event) or is seen
 /// stalled; otherwise until the next deadline (a session's timer, the beacon) or the summary.
 fn flat_out_wait(
     bus_has_work: bool,
