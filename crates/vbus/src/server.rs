@@ -407,9 +407,16 @@ const LONGEST_FRAME_BITS: u64 = 168;
 /// At `max`: a receiver that has not read for this long no longer holds the bus (its frames
 /// are dropped as at any speed).
 const STALLED_AFTER: Duration = Duration::from_secs(1);
-/// The fewest bit-times between two things a receiver is handed (frames, error frames): an
-/// error flag and its delimiter. `k` times as many bit-times hand it at most `k + 1`.
-const FEWEST_BITS_PER_DELIVERY: u64 = 6 + 8;
+/// The fewest bit-times between two frames a receiver is handed: the shortest frame (a
+/// standard data frame without data bytes, SOF to the end of EOF). `k` times as many
+/// bit-times hand it at most `k + 1`.
+const SHORTEST_FRAME_BITS: u64 = 44;
+/// With error frames on, a receiver may be handed several at one bit-time (an error, the
+/// state change it causes, a lost arbitration beside a frame): budgeted as at most this many
+/// items in any [`ERROR_WINDOW_BITS`] (an error flag and its delimiter), twice what the
+/// driver's events give on a bus stuck at dominant.
+const ERROR_ITEMS_PER_WINDOW: u64 = 8;
+const ERROR_WINDOW_BITS: u64 = 6 + 8;
 /// The longest line a frame or an error frame takes in a client's output (a raw-mode frame
 /// with an extended ID, 8 data bytes and a ten-digit timestamp is 53 bytes).
 const LONGEST_LINE: usize = 64;
@@ -495,6 +502,7 @@ impl Server {
             while let Ok(job) = self.jobs.try_recv() {
                 job(&mut self.bus);
             }
+            self.note_empty_outputs();
             // The bus first catches up with the wall clock, so what clients send now enters
             // the bus now (not at the instant the loop last ran it, maybe long ago).
             self.advance_bus();
@@ -620,7 +628,12 @@ impl Server {
     fn advance_bus(&mut self) {
         match self.speed {
             Speed::Times(_) => self.advance_paced(),
-            Speed::Max => self.advance_flat_out(),
+            Speed::Max => {
+                self.advance_flat_out();
+                // Into the outputs before the clients are served: their replies then count
+                // against the room the next stretch of the bus is given, not these frames.
+                self.deliver();
+            }
         }
     }
 
@@ -630,13 +643,19 @@ impl Server {
     fn advance_flat_out(&mut self) {
         let started = Instant::now();
         while started.elapsed() < MAX_RUN {
+            // No further than what every receiver that reads can take before the next
+            // delivery: a burst larger than its output would drop frames for it, hold or not.
+            let budget = self.delivery_budget();
+            if budget == 0 {
+                break;
+            }
             let now = self.bus.now();
             if self.bus.is_idle() {
                 let next = self.bus.next_activity();
                 if next == u64::MAX {
                     break;
                 }
-                self.bus.run_until(next.max(now + 1));
+                self.bus.run_until(next.max(now + 1).min(now + budget));
                 continue;
             }
             // Far enough that the queued client frames end inside the stretch (a frame split
@@ -648,34 +667,54 @@ impl Server {
                 .map(|(_, c)| c.tx_queued() as u64)
                 .sum();
             let stretch = ((queued + 1) * LONGEST_FRAME_BITS).max(self.bus.bitrate() as u64 / 100);
-            // No further than what every receiver that reads can take before the next flush:
-            // a burst larger than its output would drop frames for it, hold or not.
-            let room = self.delivery_room();
-            if room == 0 {
-                break;
-            }
-            self.bus
-                .run_until(now + stretch.min(room.saturating_mul(FEWEST_BITS_PER_DELIVERY)));
+            self.bus.run_until(now + stretch.min(budget));
         }
     }
 
-    /// At `max`: how many more frames the bus may hand each receiver before the loop next
-    /// empties their outputs into their sockets, so that none is dropped for a receiver that
-    /// reads (one that has not read for [`STALLED_AFTER`] holds nobody up): the least room
-    /// left in such a receiver's output, less what its node holds for it already.
-    /// [`u64::MAX`] with no such receiver.
-    fn delivery_room(&self) -> u64 {
+    /// At `max`: how many bit-times the bus may run before the loop next delivers, so that no
+    /// receiver that reads (see [`reads`]) is handed more than its output takes: the least
+    /// over such receivers of the room left in its output, less what its node holds for it
+    /// already, in bit-times (see [`SHORTEST_FRAME_BITS`], [`ERROR_ITEMS_PER_WINDOW`]). A
+    /// receiver with nothing waiting at all lets the bus run at least one shortest frame,
+    /// however small its queue. 0: a receiver must read first; [`u64::MAX`]: nobody limits.
+    fn delivery_budget(&self) -> u64 {
+        let all_room = self.session_config.max_output.div_ceil(LONGEST_LINE) as u64;
         self.clients
             .iter()
             .flatten()
-            .filter(|c| !c.gone && c.drained_at.elapsed() < STALLED_AFTER)
+            .filter(|c| !c.gone && reads(c))
             .filter_map(|c| {
-                let room = c.session.frame_room(LONGEST_LINE)?;
+                let room = c.session.frame_room(LONGEST_LINE)? as u64;
                 let node = self.bus.client(c.session.node()?).ok()?;
-                Some(room.saturating_sub(node.deliveries_waiting()) as u64)
+                let waiting = node.deliveries_waiting() as u64;
+                // Nothing waiting for it anywhere (frames held after `rawmode` count too).
+                let empty = waiting == 0 && room == all_room;
+                let room = room.saturating_sub(waiting);
+                let budget = if node.error_frames {
+                    room.saturating_sub(ERROR_ITEMS_PER_WINDOW) / ERROR_ITEMS_PER_WINDOW
+                        * ERROR_WINDOW_BITS
+                } else {
+                    room.saturating_sub(1) * SHORTEST_FRAME_BITS
+                };
+                Some(if empty {
+                    budget.max(SHORTEST_FRAME_BITS)
+                } else {
+                    budget
+                })
             })
             .min()
             .unwrap_or(u64::MAX)
+    }
+
+    /// Clients with nothing to write now have not fallen behind, however long the loop slept:
+    /// [`Client::drained_at`] is now for them (before this turn's deliveries fill outputs).
+    fn note_empty_outputs(&mut self) {
+        let now = Instant::now();
+        for c in self.clients.iter_mut().flatten() {
+            if !c.session.has_output() {
+                c.drained_at = now;
+            }
+        }
     }
 
     /// Runs the bus up to the wall clock, at most [`MAX_RUN`] of wall time's worth at once so
@@ -799,7 +838,7 @@ impl Server {
         let limit = self.session_config.max_output / 2;
         self.clients.iter().flatten().any(|c| {
             let (a, b) = c.session.output();
-            a.len() + b.len() >= limit && c.drained_at.elapsed() < STALLED_AFTER && !c.gone
+            a.len() + b.len() >= limit && reads(c) && !c.gone
         })
     }
 
@@ -807,9 +846,11 @@ impl Server {
     /// otherwise until a session's timer, the beacon or the summary.
     fn sleep_for_flat_out(&self) -> Option<Duration> {
         // Work the bus may do now: none while a receiver must read first (see
-        // `advance_flat_out`); its write event or its stall ends the wait.
-        let bus_has_work = (!self.bus.is_idle() || self.bus.next_activity() != u64::MAX)
-            && self.delivery_room() > 0;
+        // `advance_flat_out`), which holds the bus as a receiver behind does: its write event,
+        // or its stall, ends the wait.
+        let must_read = self.delivery_budget() == 0;
+        let bus_has_work =
+            (!self.bus.is_idle() || self.bus.next_activity() != u64::MAX) && !must_read;
         // A client not read because a receiver held the turn: the flush may since have
         // released the hold. Likewise a frame that waited for room in its node's queue: the
         // bus may have emptied the queue during the hold, and no event comes for that.
@@ -828,7 +869,7 @@ impl Server {
         }
         Some(flat_out_wait(
             bus_has_work,
-            self.receiver_behind(),
+            self.receiver_behind() || must_read,
             input_ready,
             next,
         ))
@@ -1309,6 +1350,13 @@ fn deliver_error(
 ) -> bool {
     let (class, data) = e.frame.encode();
     session.deliver_error_frame(class, &data, timestamp, now_ns)
+}
+
+/// Whether a client reads what it is sent: its output is empty, or a write of it made
+/// progress within [`STALLED_AFTER`]. One that does not holds nobody up at `max` (its frames
+/// are dropped and counted, as at any speed).
+fn reads(c: &Client) -> bool {
+    !c.session.has_output() || c.drained_at.elapsed() < STALLED_AFTER
 }
 
 /// At `max`: how long the loop may wait for an event. No wait while the bus has work (or a
