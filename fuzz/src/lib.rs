@@ -75,6 +75,7 @@ pub fn drive_byte_device<D: buslab_device::ByteDevice>(
     // A device may catch up on a long pause one step per poll (a watchdog a poll), as long as
     // a few polls at the same time bring its deadline past it.
     const CATCH_UP_POLLS: usize = 1_000;
+    // Polls at `now` and gives the device's next deadline, which is then after `now`.
     let mut check = |device: &mut D, now: u64| {
         for _ in 0..CATCH_UP_POLLS {
             device.poll(now, &mut out);
@@ -84,8 +85,9 @@ pub fn drive_byte_device<D: buslab_device::ByteDevice>(
                 sent <= now / byte_ns + 1,
                 "{sent} bytes sent by {now} ns, faster than the line ({byte_ns} ns a byte)"
             );
-            if device.next_deadline().is_none_or(|t| t > now) {
-                return;
+            match device.next_deadline() {
+                Some(t) if t <= now => {}
+                later => return later,
             }
         }
         panic!(
@@ -93,7 +95,7 @@ pub fn drive_byte_device<D: buslab_device::ByteDevice>(
             device.next_deadline()
         );
     };
-    let next = |device: &D, now: u64| device.next_deadline().filter(|&t| t > now);
+    let mut upcoming = device.next_deadline().filter(|&t| t > now);
     for item in items(data) {
         match item {
             Item::Data(byte) => {
@@ -104,8 +106,7 @@ pub fn drive_byte_device<D: buslab_device::ByteDevice>(
             Item::Op(op @ 0x00..=0x3F) => now += u64::from(op) * u64::from(op) * MS,
             Item::Op(op @ 0x40..=0x7F) => {
                 for _ in 0..op - 0x3F {
-                    check(device, now);
-                    match next(device, now) {
+                    match check(device, now) {
                         Some(t) => now = t,
                         None => break,
                     }
@@ -113,15 +114,15 @@ pub fn drive_byte_device<D: buslab_device::ByteDevice>(
             }
             Item::Op(op) => extra(device, now, op & 0x3F),
         }
-        check(device, now);
+        upcoming = check(device, now);
     }
     let end = now + 3_000 * MS;
     for _ in 0..10_000 {
-        match next(device, now) {
+        match upcoming {
             Some(t) if t <= end => now = t,
             _ => break,
         }
-        check(device, now);
+        upcoming = check(device, now);
     }
 }
 

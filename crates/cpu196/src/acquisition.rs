@@ -151,7 +151,11 @@ pub fn decode_frame(cfg: &AdConfig, data: &[u8], table: &LogTable) -> Vec<Vec<(u
 /// A running acquisition.
 #[derive(Clone, Debug)]
 pub struct Acquisition {
-    pub config: AdConfig,
+    config: AdConfig,
+    /// `config`'s scans per `FA` frame and scan period: asked at every step of the board
+    /// (`Board::next_deadline`), so worked out once.
+    scans_per_frame: u64,
+    period_ns: u64,
     filters: Vec<FilterState>,
     next_scan_at: u64,
     /// Latest filtered value of each channel on the 16-bit scale (`ad_voie[n].donnee`).
@@ -166,11 +170,13 @@ impl Acquisition {
             .iter()
             .map(|c| FilterState::new(c.filter))
             .collect();
-        let next_scan_at = start_ns + config.period_ns();
+        let period_ns = config.period_ns();
         Self {
+            scans_per_frame: config.scans_per_frame() as u64,
+            period_ns,
+            next_scan_at: start_ns + period_ns,
             config,
             filters,
-            next_scan_at,
             values: [0; 8],
             scans: 0,
         }
@@ -178,9 +184,9 @@ impl Acquisition {
 
     /// When the scan completing the next interrupt happens.
     pub fn next_interrupt_at(&self) -> u64 {
-        let spf = self.config.scans_per_frame() as u64;
+        let spf = self.scans_per_frame;
         let done = self.scans % spf;
-        self.next_scan_at + (spf - 1 - done) * self.config.period_ns()
+        self.next_scan_at + (spf - 1 - done) * self.period_ns
     }
 
     fn scan(&mut self, inputs: &[Source; 8], table: &LogTable, frame: &mut Vec<u8>) {
@@ -193,7 +199,7 @@ impl Acquisition {
             format_value(setup.format, self.values[ch as usize], table, frame);
         }
         self.scans += 1;
-        self.next_scan_at += self.config.period_ns();
+        self.next_scan_at += self.period_ns;
     }
 
     /// Runs the scans of one interrupt (the caller checks [`next_interrupt_at`] first);
@@ -201,7 +207,7 @@ impl Acquisition {
     ///
     /// [`next_interrupt_at`]: Self::next_interrupt_at
     pub fn run_interrupt(&mut self, inputs: &[Source; 8], table: &LogTable) -> Vec<u8> {
-        let spf = self.config.scans_per_frame() as u64;
+        let spf = self.scans_per_frame;
         let mut frame = Vec::with_capacity(self.config.frame_data_len().unwrap_or(0));
         loop {
             self.scan(inputs, table, &mut frame);

@@ -915,10 +915,16 @@ impl Board {
     /// The next lower-loop event: (time, 0 = A/D interrupt, 1/2 = software timer).
     fn next_run_event(&self) -> Option<(u64, u8)> {
         let run = self.run.as_ref()?;
-        let ad = run.acq.as_ref().map(|a| (a.next_interrupt_at(), 0));
-        let t1 = run.timers[0].map(|(_, at)| (at, 1));
-        let t2 = run.timers[1].map(|(_, at)| (at, 2));
-        [ad, t1, t2].into_iter().flatten().min()
+        // Asked at every step of the board: a plain scan, the A/D first on a tie.
+        let mut first = run.acq.as_ref().map(|a| (a.next_interrupt_at(), 0));
+        for (which, timer) in (1..).zip(run.timers) {
+            if let Some((_, at)) = timer
+                && first.is_none_or(|(t, _)| at < t)
+            {
+                first = Some((at, which));
+            }
+        }
+        first
     }
 
     fn run_event(&mut self, at: u64, which: u8) {

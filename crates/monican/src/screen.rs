@@ -138,6 +138,10 @@ impl Screen {
             self.shown_cursor = Some((1, 1));
         }
         for r in 0..ROWS {
+            // Most renders change a row or two: whole rows compare at once.
+            if self.want[r] == self.shown[r] {
+                continue;
+            }
             let mut c = 0;
             while c < COLS {
                 if self.want[r][c] == self.shown[r][c] {

@@ -89,6 +89,9 @@ pub struct Master {
     events: VecDeque<MasterEvent>,
     known: [Option<Known>; 16],
     pending: Vec<Pending>,
+    /// The earliest of `pending`'s deadlines: [`Self::next_deadline`] is asked at every bit by
+    /// a node stepped bit by bit, so it is kept rather than searched for.
+    first_answer_deadline: Option<u64>,
     next_request: u64,
     next_calibration: Option<u64>,
 }
@@ -105,6 +108,7 @@ impl Master {
             events: VecDeque::new(),
             known: [None; 16],
             pending: Vec::new(),
+            first_answer_deadline: None,
             next_request: 0,
             next_calibration: None,
         };
@@ -184,6 +188,7 @@ impl Master {
             register,
             deadline: now + self.answer_within_ns,
         });
+        self.pending_changed();
         id
     }
 
@@ -222,6 +227,7 @@ impl Master {
             .position(|p| p.slio == slio && p.register == reply.register)
         {
             let p = self.pending.remove(i);
+            self.pending_changed();
             self.events.push_back(MasterEvent::Confirmed {
                 request: p.id,
                 slio,
@@ -256,6 +262,7 @@ impl Master {
             }
             !expired
         });
+        self.pending_changed();
         for (request, slio) in late {
             self.events
                 .push_back(MasterEvent::NoAnswer { request, slio });
@@ -264,8 +271,14 @@ impl Master {
 
     /// When [`Self::handle_timeout`] must be called.
     pub fn next_deadline(&self) -> Option<u64> {
-        let request = self.pending.iter().map(|p| p.deadline).min();
-        [self.next_calibration, request].into_iter().flatten().min()
+        match (self.next_calibration, self.first_answer_deadline) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    fn pending_changed(&mut self) {
+        self.first_answer_deadline = self.pending.iter().map(|p| p.deadline).min();
     }
 
     /// The next frame to send.
