@@ -13,7 +13,11 @@ use buslab_fuzz::text;
 use libfuzzer_sys::fuzz_target;
 
 fn from_file(text: &str) -> Result<buslab_config::Loaded, buslab_config::ConfigError> {
-    load_text(Some((Path::new("buslab.toml"), Found::CommandLine, text)), &|_| None, &[])
+    load_text(
+        Some((Path::new("buslab.toml"), Found::CommandLine, text)),
+        &|_| None,
+        &[],
+    )
 }
 
 fuzz_target!(|data: &[u8]| {
@@ -32,8 +36,15 @@ fuzz_target!(|data: &[u8]| {
     let written = render_file(&loaded.settings);
     match from_file(&written) {
         Ok(again) => {
-            assert!(again.config == loaded.config, "{written}\nloads differently");
-            assert_eq!(render_file(&again.settings), written, "written again differently");
+            assert!(
+                again.config == loaded.config,
+                "{written}\nloads differently"
+            );
+            assert_eq!(
+                render_file(&again.settings),
+                written,
+                "written again differently"
+            );
         }
         Err(e) => panic!("the written file does not load: {e}\n{written}"),
     }

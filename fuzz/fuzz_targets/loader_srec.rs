@@ -14,7 +14,10 @@ fuzz_target!(|data: &[u8]| {
     };
     let written = srec::write(
         program.header.as_deref().unwrap_or_default(),
-        program.segments.iter().map(|s| (s.address, s.data.as_slice())),
+        program
+            .segments
+            .iter()
+            .map(|s| (s.address, s.data.as_slice())),
         program.start,
     );
     let again = srec::parse(&written).expect("buslab's own S-records read back");

@@ -17,8 +17,16 @@ fuzz_target!(|data: &[u8]| {
     };
     let limit = 64 + usize::from(u16::from_le_bytes(*limit));
     let text = mail_text(message, limit);
-    assert!(text.len() <= limit, "{} bytes for a limit of {limit}", text.len());
-    assert!(text.starts_with(b"From: "), "{:?}", String::from_utf8_lossy(&text));
+    assert!(
+        text.len() <= limit,
+        "{} bytes for a limit of {limit}",
+        text.len()
+    );
+    assert!(
+        text.starts_with(b"From: "),
+        "{:?}",
+        String::from_utf8_lossy(&text)
+    );
 
     let id = Id::standard(0x700).expect("a standard ID");
     let mut announcer = Announcer::new(id);

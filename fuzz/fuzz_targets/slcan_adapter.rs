@@ -14,10 +14,10 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let mut adapter = Adapter::default();
-    let mut now_ms = 0u64;
     let mut transmitted = 0usize;
     let mut lines = 0usize;
-    for item in items(data) {
+    // One item a millisecond.
+    for (now_ms, item) in (0u64..).zip(items(data)) {
         match item {
             Item::Data(byte) => {
                 lines += usize::from(byte == b'\r' || byte == 0x07);
@@ -25,9 +25,9 @@ fuzz_target!(|data: &[u8]| {
             }
             Item::Op(op @ 0x00..=0x7F) => {
                 let id = if op > 0x3F {
-                    Id::extended(u32::from(op) * 0x0123_4567 & 0x1FFF_FFFF)
+                    Id::extended((u32::from(op) * 0x0123_4567) & 0x1FFF_FFFF)
                 } else {
-                    Id::standard(u16::from(op) * 0x21 & 0x7FF)
+                    Id::standard((u16::from(op) * 0x21) & 0x7FF)
                 }
                 .expect("an ID in range");
                 let payload = [op; 8];
@@ -38,7 +38,6 @@ fuzz_target!(|data: &[u8]| {
             }
             Item::Op(op) => adapter.consume(usize::from(op & 0x7F) * 16),
         }
-        now_ms += 1;
         assert!(
             adapter.output().len() <= MAX_OUTPUT,
             "{} bytes",

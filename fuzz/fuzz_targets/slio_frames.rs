@@ -10,20 +10,20 @@ fuzz_target!(|data: &[u8]| {
     let Some((&first, data)) = data.split_first() else {
         return;
     };
-    if let Ok(request) = Request::parse(first & 1 == 1, data) {
-        if first & 1 == 0 {
-            assert_eq!(Request::parse(false, &request.encode()), Ok(request));
-        }
+    if let Ok(request) = Request::parse(first & 1 == 1, data)
+        && first & 1 == 0
+    {
+        assert_eq!(Request::parse(false, &request.encode()), Ok(request));
     }
     if let Ok(reply) = Reply::parse(data) {
         assert_eq!(Reply::parse(&reply.encode()), Ok(reply));
     }
-    if let Ok(text) = std::str::from_utf8(data) {
-        if let Ok(register) = text.parse::<Register>() {
-            assert_eq!(
-                register.to_string().parse::<Register>().ok(),
-                Some(register)
-            );
-        }
+    if let Ok(text) = std::str::from_utf8(data)
+        && let Ok(register) = text.parse::<Register>()
+    {
+        assert_eq!(
+            register.to_string().parse::<Register>().ok(),
+            Some(register)
+        );
     }
 });

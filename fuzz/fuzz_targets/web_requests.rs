@@ -36,7 +36,11 @@ fuzz_target!(|data: &[u8]| {
             match query.checked() {
                 Ok(view) => {
                     assert!(view.frames <= MAX_STATE_LOG);
-                    assert_reparses(&view.filter, &view.filter.to_string(), str::parse::<LogFilter>);
+                    assert_reparses(
+                        &view.filter,
+                        &view.filter.to_string(),
+                        str::parse::<LogFilter>,
+                    );
                 }
                 Err(e) => refused(&e),
             }
@@ -49,7 +53,8 @@ fuzz_target!(|data: &[u8]| {
             Ok(order) => {
                 if let Some(d) = order.lasting {
                     assert!(
-                        (Duration::from_millis(1)..=Duration::from_millis(MAX_FAULT_MS)).contains(&d),
+                        (Duration::from_millis(1)..=Duration::from_millis(MAX_FAULT_MS))
+                            .contains(&d),
                         "{d:?}"
                     );
                 }
