@@ -10,8 +10,10 @@
 #   scripts/fuzz.sh --list         (the target names)
 #
 # --runs N stops a target after N executions if that comes before SECONDS (the long run uses
-# it: `scripts/fuzz.sh --runs 10000000 3600`). Each target starts from its committed seeds in
-# fuzz/corpus/TARGET/ plus the corpus earlier runs grew in fuzz/target/corpus/TARGET/.
+# it: `scripts/fuzz.sh --runs 10000000 3600`). SIGINT to a target's process stops it early
+# with its statistics (reported as interrupted, not as a crash). Each target starts from its
+# committed seeds in fuzz/corpus/TARGET/ plus the corpus earlier runs grew in
+# fuzz/target/corpus/TARGET/.
 #
 # Engine: libFuzzer through the libfuzzer-sys crate (crates.io), built by the stable toolchain
 # with the coverage flags cargo-fuzz passes (no nightly, no sanitizer: the code is safe Rust;
@@ -133,6 +135,12 @@ for t in $targets; do
     execs=${execs:-0}
     new=$(find "$artifacts" -type f | wc -l)
     crashes=$((new - before))
+    # SIGINT to the target (stopping a long run early) ends it with libFuzzer's interrupt
+    # code and its final statistics: a stop, not a crash.
+    if [ "$status" = 72 ] && [ "$crashes" = 0 ] && grep -q "libFuzzer: run interrupted" "$log"; then
+        echo "   interrupted (SIGINT): stopped after $execs executions"
+        status=0
+    fi
     if [ "$status" != 0 ] && [ "$crashes" = 0 ]; then
         crashes=1 # it died without writing an input (e.g. killed): show its log
     fi
