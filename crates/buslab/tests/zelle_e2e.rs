@@ -571,11 +571,6 @@ fn csv_replay_feeds_an_input_from_the_command_line_and_the_control_interface() {
     );
 }
 
-/// How long a test waits for something that normally comes within milliseconds (a server
-/// starting or stopping): a deadline for an event, not a measure of speed (CI machines are
-/// loaded).
-const EVENT: Duration = Duration::from_secs(60);
-
 /// A child process killed when dropped (also when an assertion fails first).
 struct Child(std::process::Child);
 
@@ -608,11 +603,12 @@ fn a_stopping_server_leaves_a_newer_servers_control_socket_alone() {
     };
     let inode = || std::fs::symlink_metadata(&sock).ok().map(|m| m.ino());
     let wait_for = |what: &dyn Fn() -> bool| {
-        let until = std::time::Instant::now() + EVENT;
+        let until = std::time::Instant::now() + served::ALLOWANCE;
         while !what() {
             assert!(
                 std::time::Instant::now() < until,
-                "no control socket change within {EVENT:?}"
+                "no control socket change within {:?}",
+                served::ALLOWANCE
             );
             std::thread::sleep(Duration::from_millis(20));
         }
@@ -646,7 +642,7 @@ fn serve_refuses_a_state_file_it_cannot_write() {
         .spawn()
         .unwrap();
     // It must stop at once with an error (before, it served on and lost every change).
-    let until = std::time::Instant::now() + EVENT;
+    let until = std::time::Instant::now() + served::ALLOWANCE;
     while child.try_wait().unwrap().is_none() {
         if std::time::Instant::now() > until {
             let _ = child.kill();
