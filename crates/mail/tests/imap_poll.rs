@@ -414,3 +414,44 @@ fn silence_is_a_timeout_and_a_trickle_too() {
         Err(PollError::Closed { step: Step::Login })
     );
 }
+
+/// A multipart BODYSTRUCTURE nested `depth` parentheses deep (the FETCH's own included).
+fn nested_bodystructure(depth: usize) -> Vec<u8> {
+    let mut line = b"* 1 FETCH (BODYSTRUCTURE ".to_vec();
+    line.extend(b"(".repeat(depth - 1));
+    line.extend(b"\"TEXT\" \"PLAIN\" NIL NIL NIL \"7BIT\" 1 1)");
+    line.extend(b" \"MIXED\")".repeat(depth - 2));
+    line.extend(b")\r\n");
+    line
+}
+
+#[test]
+fn nesting_up_to_the_cap_is_parsed_on_a_quarter_of_a_threads_stack() {
+    // `buslab mail` looks on a thread with Rust's default 2 MiB stack.
+    let cap = Limits::DEFAULT.depth as usize;
+    std::thread::Builder::new()
+        .stack_size(512 * 1024)
+        .spawn(move || {
+            let mut c = examined(None);
+            // Deeper than imap-codec's own limit (8 body levels): skipped, not a failure.
+            for depth in [3, 8, cap] {
+                c.hear(&nested_bodystructure(depth)).unwrap();
+            }
+            assert_eq!(
+                c.hear(b"* 3 EXISTS\r\n* OK [UIDNEXT 4] x\r\nb2 OK done\r\n")
+                    .unwrap(),
+                "b3 LOGOUT\r\n"
+            );
+            let mut c = examined(None);
+            assert_eq!(
+                c.hear(&nested_bodystructure(cap + 1)),
+                Err(PollError::Refused {
+                    step: Step::Examine,
+                    error: FrameError::TooDeep { limit: 32 }
+                })
+            );
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}

@@ -9,6 +9,24 @@ use std::process::{Command, Stdio};
 
 pub const OPENSSL: &str = "openssl";
 
+/// Whether the `openssl` command is there (in CI it must be).
+pub fn have_openssl() -> bool {
+    let there = Command::new(OPENSSL)
+        .arg("version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !there {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "openssl is missing in CI (scripts/setup-test-deps.sh installs dovecot-imapd, which brings it)"
+        );
+        eprintln!("SKIPPED: openssl is missing; run scripts/setup-test-deps.sh");
+    }
+    there
+}
+
 /// A CA and a certificate it signed for `127.0.0.1` and `localhost`, as PEM files.
 pub struct Certs {
     /// What the client is told to trust (`--ca-file`).

@@ -197,16 +197,16 @@ impl Server {
 
     /// The session's error with what the user can do about it.
     fn explain(&self, e: anyhow::Error) -> anyhow::Error {
-        match e.downcast_ref::<PollError>() {
-            Some(PollError::NoStartTls | PollError::PreauthInClear) => e.context(format!(
-                "{} did not let the login be protected: use --tls tls if it speaks TLS from the start (IMAPS, usually port 993), or --tls plain to log in without TLS (the password travels in clear text)",
-                self.host
-            )),
-            Some(PollError::Silent { .. } | PollError::Unfinished { .. }) => {
-                e.context("(--timeout sets how long each step may take)")
+        let hint = match e.downcast_ref::<PollError>() {
+            Some(PollError::NoStartTls | PollError::PreauthInClear) => {
+                "use --tls tls if it speaks TLS from the start (IMAPS, usually port 993), or --tls plain to log in without TLS (the password in clear text)"
             }
-            _ => e,
-        }
+            Some(PollError::Silent { .. } | PollError::Unfinished { .. }) => {
+                "--timeout sets how long each step may take"
+            }
+            _ => return e,
+        };
+        anyhow!("{e:#}; {hint}")
     }
 
     fn drive(&self, mut transport: Transport, mut poll: Poll) -> anyhow::Result<Outcome> {
