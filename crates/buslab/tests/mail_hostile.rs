@@ -87,6 +87,8 @@ struct Shared {
     /// LOGIN commands received on a connection without TLS while the server offered TLS.
     logins_in_clear: AtomicUsize,
     connections: AtomicUsize,
+    /// Bytes of mails sent in FETCH answers.
+    mail_bytes_sent: AtomicUsize,
 }
 
 /// The fake IMAP server: each connection behaves as `script` says for its number (the last
@@ -268,7 +270,14 @@ fn serve(
                     words.next()
                 };
                 let mails = shared.mails.lock().unwrap();
-                uid_command(&tag, &what, arg.unwrap_or(""), &mails)
+                // BODY.PEEK[]<0.N>: the first N bytes.
+                let part = line
+                    .split_once("<0.")
+                    .and_then(|(_, n)| n.split('>').next()?.parse().ok())
+                    .unwrap_or(usize::MAX);
+                let (reply, sent) = uid_command(&tag, &what, arg.unwrap_or(""), part, &mails);
+                shared.mail_bytes_sent.fetch_add(sent, Ordering::SeqCst);
+                reply
             }
             "LOGOUT" => {
                 conn.write_all(format!("* BYE bye\r\n{tag} OK done\r\n").as_bytes())?;
@@ -281,9 +290,17 @@ fn serve(
     Ok(())
 }
 
-/// UID SEARCH UID n:* and UID FETCH uid,… (… BODY.PEEK[]<0.N>) on `mails`.
-fn uid_command(tag: &str, what: &str, arg: &str, mails: &[Vec<u8>]) -> Vec<u8> {
+/// UID SEARCH UID n:* and UID FETCH uid,… (… BODY.PEEK[]<0.part>) on `mails`; the reply and
+/// the bytes of mails in it.
+fn uid_command(
+    tag: &str,
+    what: &str,
+    arg: &str,
+    part: usize,
+    mails: &[Vec<u8>],
+) -> (Vec<u8>, usize) {
     let mut reply = Vec::new();
+    let mut sent = 0;
     match what {
         "SEARCH" => {
             let from: usize = arg.split(':').next().unwrap().parse().unwrap();
@@ -298,22 +315,24 @@ fn uid_command(tag: &str, what: &str, arg: &str, mails: &[Vec<u8>]) -> Vec<u8> {
                 let Some(mail) = mails.get(uid - 1) else {
                     continue;
                 };
+                let body = &mail[..mail.len().min(part)];
                 reply.extend(
                     format!(
                         "* {uid} FETCH (UID {uid} RFC822.SIZE {} BODY[]<0> {{{}}}\r\n",
                         mail.len(),
-                        mail.len()
+                        body.len()
                     )
                     .as_bytes(),
                 );
-                reply.extend(mail);
+                reply.extend(body);
+                sent += body.len();
                 reply.extend(b")\r\n");
             }
         }
         _ => {}
     }
     reply.extend(format!("{tag} OK done\r\n").as_bytes());
-    reply
+    (reply, sent)
 }
 
 /// The attack, as the answer to EXAMINE.
@@ -626,4 +645,80 @@ fn imap_starttls_stripped_at_the_first_look_stops_with_the_reason_and_sends_no_l
         0,
         "no LOGIN, no password"
     );
+}
+
+#[test]
+fn a_20_mb_mail_is_fetched_in_part_and_goes_on_the_bus_within_the_limit() {
+    let serve = Serve::start(125_000);
+    let mut bus = serve.client();
+    let imap = FakeImap::start(vec![Conduct::Honest], None);
+    let mut notifier = Notifier::spawn(
+        &serve,
+        imap.port,
+        &["--tls", "plain", "--timeout", TIMEOUT, "--limit", "500"],
+    );
+    notifier.wait_for("watching INBOX of alice");
+    let body = "twenty megabytes of text\n".repeat(20 << 20 >> 5);
+    let mail = format!("From: Alice <alice@example.org>\nSubject: big\n\n{body}");
+    imap.deliver(&mail);
+    let size = mail.len() + mail.matches('\n').count();
+    wait_for_announcement(&mut bus);
+    // MoniCAN's Ctrl R: a remote frame on the mail ID; the text comes in 8-byte frames, the
+    // last one shorter.
+    let id = buslab_can::Id::standard(0x700).unwrap();
+    bus.send(&buslab_can::Frame::remote(id, 0).unwrap())
+        .unwrap();
+    let mut text = Vec::new();
+    let start = Instant::now();
+    loop {
+        assert!(
+            start.elapsed() < ALLOWANCE,
+            "the mail's frames did not come"
+        );
+        let Some(message) = bus.recv(Some(Duration::from_millis(200))).unwrap() else {
+            continue;
+        };
+        let frame = message.frame;
+        if frame.id() != id || frame.is_remote() {
+            continue;
+        }
+        text.extend_from_slice(frame.payload());
+        if frame.payload().len() < 8 {
+            break;
+        }
+    }
+    notifier.wait_for("mail 1 asked for and sent");
+    let text = String::from_utf8(text).unwrap();
+    assert!(text.len() <= 500, "{} bytes", text.len());
+    assert!(text.starts_with("From: Alice <alice@example.org>\nSubject: big\n\ntwenty megabytes"));
+    let left: usize = text
+        .rsplit_once("[... ")
+        .and_then(|(_, n)| n.strip_suffix(" more bytes not sent]"))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no note of what was left out: {text:?}"));
+    let shown = text
+        .split("\n\n")
+        .nth(1)
+        .unwrap()
+        .rsplit_once("\n[...")
+        .unwrap()
+        .0;
+    let header = "From: Alice <alice@example.org>\r\nSubject: big\r\n\r\n".len();
+    // Each shown line end was CRLF on the server.
+    assert_eq!(
+        left,
+        size - header - shown.len() - shown.matches('\n').count()
+    );
+    let fetched = imap.shared.mail_bytes_sent.load(Ordering::SeqCst);
+    assert!(
+        fetched <= buslab_mail::imap::fetch_bytes(500) as usize,
+        "{fetched} bytes of a {size}-byte mail fetched"
+    );
+    let peak = notifier.peak_memory();
+    eprintln!(
+        "20 MB mail: {fetched} bytes fetched, {} sent on the bus, peak RSS {:.1} MiB",
+        text.len(),
+        peak as f64 / (1 << 20) as f64
+    );
+    assert!(peak < memory_bound(), "peak memory {peak} bytes");
 }

@@ -22,7 +22,7 @@ use crate::units::Human;
 /// is not answering.
 pub const RESPONSE_LIMIT: usize = 16 << 20;
 
-/// New mails fetched in one look at most (the others at the next look).
+/// New mails fetched in one look at most (the others at the next looks).
 pub const FETCH_AT_MOST: usize = 16;
 
 /// After failures, the wait grows from one interval, doubling, to at most this many.
@@ -314,15 +314,17 @@ pub fn run(
                     reports.push(Polled::Recovered { failures });
                     failures = 0;
                 }
+                if outcome.more {
+                    tracing::info!(
+                        "more new mails than one look fetches ({fetch_at_most}): the others at the next looks"
+                    );
+                }
                 known = Some(outcome.watermark);
                 queued.fetch_add(outcome.mails.len(), Ordering::SeqCst);
                 reports.extend(outcome.mails.into_iter().map(Polled::Mail));
-                if outcome.more && fetch_at_most == FETCH_AT_MOST {
-                    // More new mails than one look takes: the next look at once.
-                    Duration::ZERO
-                } else {
-                    interval
-                }
+                // More new mails than one look takes wait for the next look: a reader takes
+                // one mail at a time, and a server that always has more gets no busy loop.
+                interval
             }
             Err(error) => {
                 failures += 1;
