@@ -48,6 +48,12 @@ if [ ! -x /usr/sbin/dovecot ]; then
     apt_install dovecot-imapd
     [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"
 fi
+# The mail tests make a throwaway certificate authority with it (Dovecot's TLS, the hostile
+# server's STARTTLS); dovecot-core depends on it, this is in case it did not come.
+if ! command -v openssl >/dev/null 2>&1; then
+    apt_install openssl
+    command -v openssl >/dev/null 2>&1 || fail "openssl is still missing after installing it"
+fi
 
 # The web dashboard's browser test (crates/buslab/tests/web_browser.rs): headless Chromium
 # driven over WebDriver.

@@ -6,18 +6,27 @@
 //!
 //! The password comes from `BUSLAB_MAIL_PASSWORD` or a prompt, never from the command line
 //! (the seed's `MailWatcher user password` shows it to `ps`).
+//!
+//! `poller` owns the IMAP connection (TCP, `tls`, the clock) around the sans-IO look of
+//! `buslab_mail::imap`; this module owns the bus.
 
-use std::sync::atomic::Ordering;
+mod poller;
+mod tls;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use buslab_can::Id;
 use buslab_canbus::Filter;
-use buslab_mail::{Announcer, mail_text};
+use buslab_mail::Announcer;
 
 use super::busopt::{BusOpt, open};
 use crate::units::Human;
+use poller::{Account, Polled, Server, TlsMode};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -30,10 +39,19 @@ pub struct Args {
     /// The IMAP user (default: `mail.user`; the password: $BUSLAB_MAIL_PASSWORD or a prompt).
     #[arg(long)]
     pub user: Option<String>,
-    /// auto: TLS on port 993, else STARTTLS when the server offers it, else plain; tls,
-    /// starttls: required; plain: never.
+    /// auto: TLS from the start on port 993, else STARTTLS, required (a server that does not
+    /// offer it is an error: nothing is sent); tls: TLS from the start; starttls: STARTTLS,
+    /// required; plain: no TLS, the password in clear text.
     #[arg(long, value_enum, default_value_t = TlsMode::Auto)]
     pub tls: TlsMode,
+    /// Trust only the certificates of this PEM file (the server's own CA, a self-signed
+    /// server); default: the system's ($SSL_CERT_FILE and $SSL_CERT_DIR are honoured).
+    #[arg(long, value_name = "PATH")]
+    pub ca_file: Option<PathBuf>,
+    /// Each step of a look (connecting, the TLS handshake, each IMAP command) must be done
+    /// within this; a server that takes longer is warned about and tried again later.
+    #[arg(long, value_name = "DURATION", default_value = "30s", value_parser = crate::units::duration)]
+    pub timeout: Duration,
     /// The mailbox watched.
     #[arg(long, default_value = "INBOX")]
     pub mailbox: String,
@@ -53,108 +71,6 @@ pub struct Args {
     /// Ctrl-C.
     #[arg(long, value_name = "N")]
     pub count: Option<usize>,
-}
-
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-pub enum TlsMode {
-    Auto,
-    Tls,
-    Starttls,
-    Plain,
-}
-
-/// What the IMAP thread reports.
-enum Polled {
-    /// The first look: the mails already there (not announced).
-    Watching {
-        existing: usize,
-    },
-    Mail(Vec<u8>),
-    Failed(String),
-}
-
-struct Imap {
-    host: String,
-    port: u16,
-    user: String,
-    password: String,
-    mode: TlsMode,
-    mailbox: String,
-    limit: usize,
-}
-
-impl Imap {
-    fn session(&self) -> anyhow::Result<imap::Session<imap::Connection>> {
-        let mode = match self.mode {
-            TlsMode::Auto => imap::ConnectionMode::Auto,
-            TlsMode::Tls => imap::ConnectionMode::Tls,
-            TlsMode::Starttls => imap::ConnectionMode::StartTls,
-            TlsMode::Plain => imap::ConnectionMode::Plaintext,
-        };
-        let client = imap::ClientBuilder::new(&self.host, self.port)
-            .mode(mode)
-            .connect()
-            .with_context(|| format!("cannot reach the IMAP server {}:{}", self.host, self.port))?;
-        let mut session = client
-            .login(&self.user, &self.password)
-            .map_err(|(e, _)| e)
-            .with_context(|| format!("IMAP login as {:?} refused", self.user))?;
-        session
-            .select(&self.mailbox)
-            .with_context(|| format!("cannot open the mailbox {:?}", self.mailbox))?;
-        Ok(session)
-    }
-
-    /// Mails with a UID above `after`, as MoniCAN texts (left unread: BODY.PEEK), the
-    /// highest UID seen and how many mails the mailbox holds.
-    fn poll(&self, after: Option<u32>) -> anyhow::Result<(Vec<Vec<u8>>, u32, usize)> {
-        let mut session = self.session()?;
-        let mut uids: Vec<u32> = session.uid_search("ALL")?.into_iter().collect();
-        uids.sort_unstable();
-        let highest = uids.last().copied().unwrap_or(0);
-        let count = uids.len();
-        let mut texts = Vec::new();
-        if let Some(after) = after {
-            for uid in uids.into_iter().filter(|&u| u > after) {
-                let fetches = session.uid_fetch(uid.to_string(), "BODY.PEEK[]")?;
-                for fetch in fetches.iter() {
-                    if let Some(body) = fetch.body() {
-                        texts.push(mail_text(body, self.limit));
-                    }
-                }
-            }
-            let _ = session.logout();
-            return Ok((texts, highest.max(after), count));
-        }
-        let _ = session.logout();
-        Ok((texts, highest, count))
-    }
-
-    /// Polls every `interval` until the receiver goes away.
-    fn run(self, interval: Duration, tx: Sender<Polled>) {
-        let mut after: Option<u32> = None;
-        loop {
-            match self.poll(after) {
-                Ok((texts, highest, existing)) => {
-                    if after.is_none() {
-                        let _ = tx.send(Polled::Watching { existing });
-                    }
-                    after = Some(highest);
-                    for text in texts {
-                        if tx.send(Polled::Mail(text)).is_err() {
-                            return;
-                        }
-                    }
-                }
-                Err(e) => {
-                    if tx.send(Polled::Failed(format!("{e:#}"))).is_err() {
-                        return;
-                    }
-                }
-            }
-            std::thread::sleep(interval);
-        }
-    }
 }
 
 /// The password: `$BUSLAB_MAIL_PASSWORD`, else a prompt on the terminal.
@@ -189,14 +105,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("no IMAP user: --user NAME, or mail.user in buslab.toml");
     };
     let interval = args.interval.unwrap_or(settings.interval);
-    let imap = Imap {
-        password: password(&host, &user)?,
+    if args.timeout.is_zero() {
+        bail!("--timeout 0: give a duration above zero (e.g. 30s)");
+    }
+    if args.tls == TlsMode::Plain && args.ca_file.is_some() {
+        bail!("--ca-file with --tls plain: there is no certificate to check without TLS");
+    }
+    let server = Server {
+        tls: match args.tls {
+            TlsMode::Plain => None,
+            _ => Some(tls::client_config(args.ca_file.as_deref())?),
+        },
         host: host.clone(),
         port,
-        user: user.clone(),
         mode: args.tls,
+        timeout: args.timeout,
+    };
+    if args.tls == TlsMode::Plain {
+        tracing::warn!(
+            "--tls plain: the password goes to {host}:{port} in clear text at every look"
+        );
+    }
+    let account = Account {
+        password: password(&host, &user)?,
+        user: user.clone(),
         mailbox: args.mailbox.clone(),
-        limit: args.limit as usize,
+        text_limit: args.limit as usize,
     };
     let stop = super::interrupted()?;
     let url = &args.bus.bus;
@@ -205,10 +139,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let id = Id::standard(args.id).context("the mail identifier")?;
     let mut announcer = Announcer::new(id);
     let (tx, polled): (Sender<Polled>, Receiver<Polled>) = mpsc::channel();
+    let queued = Arc::new(AtomicUsize::new(0));
+    let poller_queued = queued.clone();
     std::thread::Builder::new()
         .name("imap-poll".into())
-        .spawn(move || imap.run(interval, tx))?;
-    let mut watching = false;
+        .spawn(move || poller::run(server, account, interval, poller_queued, tx))?;
     let mut next_reminder = Instant::now() + interval;
     loop {
         if stop.load(Ordering::SeqCst) {
@@ -220,7 +155,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         while let Ok(event) = polled.try_recv() {
             match event {
                 Polled::Watching { existing } => {
-                    watching = true;
                     eprintln!(
                         "watching {} of {user} on {host}:{port} every {} ({existing} mails there; new ones are announced on ID {:03X})",
                         args.mailbox,
@@ -232,8 +166,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     tracing::info!("new mail ({} bytes): announced on the bus", text.len());
                     announcer.push_mail(text);
                 }
-                Polled::Failed(e) if !watching => bail!("{e}"),
-                Polled::Failed(e) => tracing::warn!("{e}; trying again in {}", Human(interval)),
+                Polled::Renumbered => tracing::warn!(
+                    "the server renumbered the mailbox {} (UIDVALIDITY changed): its mails are taken as seen, new ones from now on are announced",
+                    args.mailbox
+                ),
+                Polled::Failed { error, first, .. } if first => {
+                    return Err(error.context(format!("IMAP server {host}:{port}")));
+                }
+                Polled::Failed {
+                    error, retry_in, ..
+                } => tracing::warn!(
+                    "IMAP server {host}:{port}: {error:#}; trying again in {}",
+                    Human(retry_in)
+                ),
+                Polled::Recovered { failures } => eprintln!(
+                    "the IMAP server {host}:{port} answers again (after {failures} failed looks)"
+                ),
             }
         }
         if Instant::now() >= next_reminder {
@@ -247,6 +195,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let before = announcer.delivered();
             announcer.handle_frame(&message.frame);
             if announcer.delivered() > before {
+                queued.fetch_sub(1, Ordering::SeqCst);
                 eprintln!(
                     "mail {} asked for and sent ({} waiting)",
                     announcer.delivered(),
