@@ -268,8 +268,17 @@ impl State {
         if self.pending == 0 {
             return Ok(());
         }
-        if let Some(conn) = &self.conn {
-            conn.execute_batch("COMMIT; BEGIN")?;
+        if let Some(conn) = &self.conn
+            && let Err(e) = conn.execute_batch("COMMIT; BEGIN")
+        {
+            // A failed COMMIT (a full disk) rolls the transaction back: its rows are gone,
+            // the database is as the last commit left it. Keep one transaction open, so the
+            // next commit (or `finish`) says what failed instead of "no transaction".
+            if conn.is_autocommit() {
+                let _ = conn.execute_batch("BEGIN");
+            }
+            self.pending = 0;
+            return Err(e);
         }
         self.pending = 0;
         self.last_commit = Instant::now();
