@@ -424,7 +424,7 @@ fn dump(args: Args) -> anyhow::Result<()> {
     let mut last_heard = Instant::now();
     let stdout = io::stdout();
     let mut out = io::BufWriter::with_capacity(64 * 1024, stdout.lock());
-    let result: anyhow::Result<()> = 'dump: loop {
+    let result: anyhow::Result<()> = loop {
         if stop.load(Ordering::SeqCst) || printer.done() {
             break Ok(());
         }
@@ -448,6 +448,8 @@ fn dump(args: Args) -> anyhow::Result<()> {
         // Then what is waiting, and (BLF, SQLite) what comes within the linger.
         let until = Instant::now() + linger;
         let mut item = Some(first);
+        // A bus or log that failed: what came before it is still logged and printed.
+        let mut failed = None;
         while let Some(next) = item.take() {
             match printer.take(next, log.as_mut()) {
                 Ok(heard) => {
@@ -455,7 +457,10 @@ fn dump(args: Args) -> anyhow::Result<()> {
                         last_heard = Instant::now();
                     }
                 }
-                Err(e) => break 'dump Err(e),
+                Err(e) => {
+                    failed = Some(e);
+                    break;
+                }
             }
             if printer.pending() >= BATCH || printer.done() || stop.load(Ordering::SeqCst) {
                 break;
@@ -469,12 +474,15 @@ fn dump(args: Args) -> anyhow::Result<()> {
             };
         }
         // The log first: nothing is printed that is not in the file.
-        if let Some(log) = &mut log
-            && let Err(e) = log.flush()
-        {
+        let flushed = log.as_mut().map_or(Ok(()), Log::flush);
+        let printed = match flushed {
+            Ok(()) => printer.print(&mut out),
+            Err(e) => break Err(failed.unwrap_or(e)),
+        };
+        if let Some(e) = failed {
             break Err(e);
         }
-        match printer.print(&mut out) {
+        match printed {
             Ok(()) => {}
             // The reader of our output left (`| head`): the end, not an error.
             Err(e) if e.kind() == io::ErrorKind::BrokenPipe => break Ok(()),
