@@ -11,8 +11,9 @@
 //! CAN_ERROR (2) as a bus error, classic frames in CAN_FD_MESSAGE (100) and
 //! CAN_FD_MESSAGE_64 (101) objects; other objects are skipped. Written: CAN_MESSAGE and
 //! CAN_ERROR_EXT in zlib containers (level 1) of about 128 KiB (python-can's size), nanosecond times
-//! from the first entry's millisecond, the header completed by `finish` (a file cut short
-//! still reads up to its last whole object).
+//! from the first entry's millisecond. The header is written at creation and rewritten at each
+//! flush, so a writer killed at any moment leaves a file that reads up to its last whole object
+//! (python-can reads objects to the end of the file and uses none of the header's counts).
 
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::time::Duration;
@@ -513,7 +514,9 @@ impl<R: Read + Send> LogReader for Reader<R> {
     }
 }
 
-/// Writes a BLF file (the header is completed by [`Writer::finish`]).
+/// Writes a BLF file whose every state on disk reads: the header is valid from creation and
+/// rewritten at each [`flush`](Writer::flush) (counts, sizes, start and stop times), and the
+/// start time is in the header before the first object that counts from it.
 pub struct Writer<W: Write + Seek> {
     out: W,
     channels: ChannelMap,
@@ -521,25 +524,34 @@ pub struct Writer<W: Write + Seek> {
     buf: Vec<u8>,
     compressed: Vec<u8>,
     start: Option<Duration>,
+    /// Whether the header in the output carries `start` (objects count from it).
+    start_written: bool,
     stop: Duration,
     objects: u32,
     uncompressed: u64,
+    /// The bytes written so far: the header and every container.
+    size: u64,
 }
 
 impl<W: Write + Seek> Writer<W> {
-    /// Writes a placeholder header (completed by `finish`).
-    pub fn new(mut out: W) -> io::Result<Self> {
-        out.write_all(&[0u8; FILE_HEADER_SIZE])?;
-        Ok(Self {
+    /// Writes the header of an empty file (python-can and buslab read it as a file with no
+    /// objects).
+    pub fn new(out: W) -> io::Result<Self> {
+        let mut w = Self {
             out,
             channels: ChannelMap::new(),
             buf: Vec::with_capacity(CONTAINER_SIZE + 256),
             compressed: Vec::new(),
             start: None,
+            start_written: false,
             stop: Duration::ZERO,
             objects: 0,
             uncompressed: FILE_HEADER_SIZE as u64,
-        })
+            size: FILE_HEADER_SIZE as u64,
+        };
+        let header = w.header();
+        w.out.write_all(&header)?;
+        Ok(w)
     }
 
     /// Writes one entry; an entry whose time the file cannot hold (after the year 65535, the
@@ -628,10 +640,15 @@ impl<W: Write + Seek> Writer<W> {
         Ok(())
     }
 
-    /// Compresses the open container and writes it.
+    /// Compresses the open container and writes it (after the header's start time, the first
+    /// time).
     fn write_container(&mut self) -> io::Result<()> {
         if self.buf.is_empty() {
             return Ok(());
+        }
+        if !self.start_written {
+            self.rewrite_header()?;
+            self.start_written = true;
         }
         // Level 1: several times faster than zlib's default for a few per cent more bytes.
         let mut z = Compress::new(Compression::fast(), true);
@@ -662,30 +679,24 @@ impl<W: Write + Seek> Writer<W> {
         head.extend_from_slice(&[0u8; 6]);
         head.extend_from_slice(&(self.buf.len() as u32).to_le_bytes());
         head.extend_from_slice(&[0u8; 4]);
+        let pad = size as usize % 4;
         self.out.write_all(&head)?;
         self.out.write_all(&self.compressed)?;
-        self.out.write_all(&[0u8; 4][..size as usize % 4])?;
+        self.out.write_all(&[0u8; 4][..pad])?;
+        self.size += u64::from(size) + pad as u64;
         self.uncompressed += (BASE_HEADER + 16 + self.buf.len()) as u64;
         self.buf.clear();
         Ok(())
     }
 
-    /// Writes the open container (a small one) and flushes.
-    pub fn flush(&mut self) -> io::Result<()> {
-        self.write_container()?;
-        self.out.flush()
-    }
-
-    /// Writes the last container and the completed header.
-    pub fn finish(mut self) -> io::Result<W> {
-        self.write_container()?;
-        let file_size = self.out.stream_position()?;
+    /// The file header for what was written so far.
+    fn header(&self) -> [u8; FILE_HEADER_SIZE] {
         let start = self.start.unwrap_or_default();
         let mut h = Vec::with_capacity(FILE_HEADER_SIZE);
         h.extend_from_slice(FILE_SIGNATURE);
         h.extend_from_slice(&(FILE_HEADER_SIZE as u32).to_le_bytes());
         h.extend_from_slice(&[5, 0, 0, 0, 2, 6, 8, 1]); // application and BL versions
-        h.extend_from_slice(&file_size.to_le_bytes());
+        h.extend_from_slice(&self.size.to_le_bytes());
         h.extend_from_slice(&self.uncompressed.to_le_bytes());
         h.extend_from_slice(&self.objects.to_le_bytes());
         h.extend_from_slice(&0u32.to_le_bytes());
@@ -700,10 +711,35 @@ impl<W: Write + Seek> Writer<W> {
         for v in time::systemtime(stop) {
             h.extend_from_slice(&v.to_le_bytes());
         }
-        h.resize(FILE_HEADER_SIZE, 0);
+        let mut header = [0u8; FILE_HEADER_SIZE];
+        header[..h.len()].copy_from_slice(&h);
+        header
+    }
+
+    /// Writes the header over the first bytes and goes back to the end. One write of 144
+    /// bytes at offset 0: a kill cannot leave half of it.
+    fn rewrite_header(&mut self) -> io::Result<()> {
+        let header = self.header();
         self.out.seek(SeekFrom::Start(0))?;
-        self.out.write_all(&h)?;
-        self.out.seek(SeekFrom::Start(file_size))?;
+        self.out.write_all(&header)?;
+        self.out.seek(SeekFrom::Start(self.size))?;
+        Ok(())
+    }
+
+    /// Writes the open container and the header that counts it, and flushes: what was
+    /// written so far reads back, and the header says so.
+    pub fn flush(&mut self) -> io::Result<()> {
+        if !self.buf.is_empty() {
+            self.write_container()?;
+            self.rewrite_header()?;
+        }
+        self.out.flush()
+    }
+
+    /// Writes the last container and the completed header.
+    pub fn finish(mut self) -> io::Result<W> {
+        self.write_container()?;
+        self.rewrite_header()?;
         self.out.flush()?;
         Ok(self.out)
     }

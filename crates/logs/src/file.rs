@@ -2,20 +2,20 @@
 //! or a device would block or never end); reading is streamed through a fixed buffer.
 
 use std::fs::{self, File};
-use std::io::{self, BufRead, BufReader, BufWriter, Read};
+use std::io::{self, BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::time::Duration;
 
 use tempfile::TempPath;
 
 use crate::error::{LogError, ReadError};
+use crate::follow::{Following, Watch};
 use crate::format::Format;
 use crate::{Entry, asc, blf, candump, csv, pcap, pcapng, sqlite, trc};
 
 /// The read buffer of a log file.
-const READ_BUFFER: usize = 256 * 1024;
+pub(crate) const READ_BUFFER: usize = 256 * 1024;
 /// The write buffer of a log file.
 const WRITE_BUFFER: usize = 256 * 1024;
 
@@ -106,6 +106,10 @@ impl ByteCounter {
     pub fn get(&self) -> u64 {
         self.0.load(Ordering::Relaxed)
     }
+
+    pub(crate) fn add(&self, n: u64) {
+        self.0.fetch_add(n, Ordering::Relaxed);
+    }
 }
 
 /// An opened log: its reader, the bytes read so far, the file's size when opened.
@@ -121,8 +125,9 @@ pub type OnWait = Arc<dyn Fn() + Send + Sync>;
 /// How to open a log.
 #[derive(Clone, Default)]
 pub struct OpenOptions {
-    /// Follow a growing file (like `tail -f`): at its end, wait for more until this flag is
-    /// set, then end. Not for SQLite.
+    /// Follow a growing file (like `tail -F`): at its end, wait for more until this flag is
+    /// set, then end; when the file is truncated, rewritten or replaced (rotated), warn and
+    /// read its new content from the start. Not for SQLite.
     pub follow_until: Option<Arc<AtomicBool>>,
     /// While following: called once each time the reader catches up with the file's end.
     pub on_wait: Option<OnWait>,
@@ -166,19 +171,25 @@ pub fn open_source(
             len,
         });
     }
+    if let Some(stop) = &options.follow_until {
+        drop(file);
+        let watch = Watch {
+            stop: stop.clone(),
+            on_wait: options.on_wait.clone(),
+            count: bytes_read.clone(),
+        };
+        let reader = Following::open(path, format, watch)?;
+        return Ok(LogSource {
+            reader: Box::new(Named::new(reader, path)),
+            bytes_read,
+            len,
+        });
+    }
     let counted = Counted {
         inner: file,
         count: bytes_read.clone(),
     };
-    let input: Box<dyn Read + Send> = match &options.follow_until {
-        Some(stop) => Box::new(Follow {
-            inner: counted,
-            stop: stop.clone(),
-            on_wait: options.on_wait.clone(),
-        }),
-        None => Box::new(counted),
-    };
-    let input = BufReader::with_capacity(READ_BUFFER, input);
+    let input = BufReader::with_capacity(READ_BUFFER, counted);
     let reader = reader(input, format).map_err(|e| LogError::Read {
         source: e.in_file(path),
     })?;
@@ -254,42 +265,13 @@ struct Counted<R> {
 impl<R: Read> Read for Counted<R> {
     fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
         let n = self.inner.read(buf)?;
-        self.count.0.fetch_add(n as u64, Ordering::Relaxed);
+        self.count.add(n as u64);
         Ok(n)
     }
 }
 
-/// At the end of the file, waits for more until told to stop.
-struct Follow<R> {
-    inner: R,
-    stop: Arc<AtomicBool>,
-    on_wait: Option<OnWait>,
-}
-
-/// How often a followed file is looked at for new bytes.
-const FOLLOW_POLL: Duration = Duration::from_millis(100);
-
-impl<R: Read> Read for Follow<R> {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        let mut waited = false;
-        loop {
-            let n = self.inner.read(buf)?;
-            if n > 0 || buf.is_empty() || self.stop.load(Ordering::SeqCst) {
-                return Ok(n);
-            }
-            if !waited {
-                waited = true;
-                if let Some(f) = &self.on_wait {
-                    f();
-                }
-            }
-            std::thread::sleep(FOLLOW_POLL);
-        }
-    }
-}
-
 /// Opens `path` for reading if it is a regular file.
-fn open_regular(path: &Path) -> Result<File, LogError> {
+pub(crate) fn open_regular(path: &Path) -> Result<File, LogError> {
     let meta = fs::metadata(path).map_err(|source| LogError::Open {
         path: path.to_path_buf(),
         source,
@@ -428,8 +410,8 @@ fn create(
         })?;
         return Ok(Box::new(SqliteFile { writer, output }));
     }
-    let out = BufWriter::with_capacity(WRITE_BUFFER, file);
-    Ok(match format {
+    let out = BufWriter::with_capacity(WRITE_BUFFER, CutBack::new(file));
+    let mut writer = match format {
         Format::Candump => FileWriter::boxed(
             candump::Writer::new(out).with_direction(options.direction),
             output,
@@ -442,10 +424,89 @@ fn create(
         Format::Pcap => FileWriter::boxed(pcap::Writer::new(out).map_err(create_err)?, output),
         Format::Pcapng => FileWriter::boxed(pcapng::Writer::new(out).map_err(create_err)?, output),
         Format::Sqlite => unreachable!("created above"),
-    })
+    };
+    // The headers a format writes before any entry (BLF, pcap, pcapng) are in the file at
+    // once: a log killed before its first entry is still a valid, empty log.
+    writer.flush().map_err(create_err)?;
+    Ok(writer)
 }
 
-type Out = BufWriter<File>;
+/// The file under a writer's buffer. After a failed write (a full disk, `EFBIG` past a
+/// file-size limit, an I/O error) it cuts the file back to the length the last successful
+/// flush left, so no half record follows what was flushed, and refuses every later write
+/// (the buffer's leftovers included).
+struct CutBack {
+    file: File,
+    /// Where the next write goes, and the end of what was written.
+    pos: u64,
+    end: u64,
+    /// The file's length at the last successful flush.
+    flushed: u64,
+    failed: bool,
+}
+
+impl CutBack {
+    fn new(file: File) -> Self {
+        Self {
+            file,
+            pos: 0,
+            end: 0,
+            flushed: 0,
+            failed: false,
+        }
+    }
+
+    fn refused() -> io::Error {
+        io::Error::other("the log was cut back to its last flush after a write error")
+    }
+
+    fn fail(&mut self) {
+        self.failed = true;
+        if let Err(e) = self.file.set_len(self.flushed) {
+            tracing::warn!("cannot cut the log back to its last flush: {e}");
+        }
+    }
+}
+
+impl Write for CutBack {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        if self.failed {
+            return Err(Self::refused());
+        }
+        match self.file.write(buf) {
+            Ok(n) => {
+                self.pos += n as u64;
+                self.end = self.end.max(self.pos);
+                Ok(n)
+            }
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => Err(e),
+            Err(e) => {
+                self.fail();
+                Err(e)
+            }
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        if self.failed {
+            return Err(Self::refused());
+        }
+        self.flushed = self.end;
+        Ok(())
+    }
+}
+
+impl Seek for CutBack {
+    fn seek(&mut self, to: SeekFrom) -> io::Result<u64> {
+        if self.failed {
+            return Err(Self::refused());
+        }
+        self.pos = self.file.seek(to)?;
+        Ok(self.pos)
+    }
+}
+
+type Out = BufWriter<CutBack>;
 
 /// A format's encoder writing a file.
 struct FileWriter<E> {
@@ -471,7 +532,15 @@ impl<E: Encoder<Out>> LogWriter for FileWriter<E> {
     fn finish(self: Box<Self>) -> io::Result<()> {
         let this = *self;
         let out = this.encoder.finish()?;
-        let file = out.into_inner().map_err(|e| e.into_error())?;
+        let file = match out.into_inner() {
+            Ok(inner) => inner.file,
+            Err(e) => {
+                // What the last flush left is kept: synced, never written over.
+                let (inner, _) = e.into_inner().into_parts();
+                inner.file.sync_all()?;
+                return Err(CutBack::refused());
+            }
+        };
         file.sync_all()?;
         drop(file);
         put_in_place(this.output)

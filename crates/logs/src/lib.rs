@@ -28,6 +28,7 @@ mod channel;
 pub mod csv;
 mod error;
 mod file;
+mod follow;
 mod format;
 pub mod pcap;
 pub mod pcapng;

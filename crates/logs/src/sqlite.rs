@@ -6,9 +6,11 @@
 //! epoch), no interface and no direction (entries read back on `can0`). An error frame is a
 //! row with `error` 1, the class as its ID and the 8 SocketCAN data bytes.
 //!
-//! The writer keeps one transaction open and commits it every half second (from a timer
-//! thread), on [`Writer::commit`] and on [`Writer::finish`]: a killed process loses at most
-//! the last half second, a stopped one nothing. The reader fetches rows in batches by rowid,
+//! The writer keeps one transaction open and commits it at least every half second (from a
+//! timer thread when idle, from `write` when busy), on [`Writer::commit`] and on
+//! [`Writer::finish`]: a killed process loses at most what came after the last commit, a
+//! stopped one nothing. A caller that must never lose what it showed commits before showing
+//! it (`buslab dump` does). The reader fetches rows in batches by rowid,
 //! so memory stays bounded whatever the table's size.
 
 use std::collections::VecDeque;
@@ -17,7 +19,7 @@ use std::path::Path;
 use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
@@ -253,6 +255,7 @@ impl LogReader for Reader {
 struct State {
     conn: Option<Connection>,
     pending: u64,
+    last_commit: Instant,
     /// A commit of the timer thread that failed, reported by the next call.
     failed: Option<rusqlite::Error>,
 }
@@ -265,10 +268,20 @@ impl State {
         if self.pending == 0 {
             return Ok(());
         }
-        if let Some(conn) = &self.conn {
-            conn.execute_batch("COMMIT; BEGIN")?;
+        if let Some(conn) = &self.conn
+            && let Err(e) = conn.execute_batch("COMMIT; BEGIN")
+        {
+            // A failed COMMIT (a full disk) rolls the transaction back: its rows are gone,
+            // the database is as the last commit left it. Keep one transaction open, so the
+            // next commit (or `finish`) says what failed instead of "no transaction".
+            if conn.is_autocommit() {
+                let _ = conn.execute_batch("BEGIN");
+            }
+            self.pending = 0;
+            return Err(e);
         }
         self.pending = 0;
+        self.last_commit = Instant::now();
         Ok(())
     }
 }
@@ -294,6 +307,7 @@ impl Writer {
         let state = Arc::new(Mutex::new(State {
             conn: Some(conn),
             pending: 0,
+            last_commit: Instant::now(),
             failed: None,
         }));
         let (stop, stopped) = mpsc::channel::<()>();
@@ -352,6 +366,11 @@ impl Writer {
             .and_then(|mut stmt| stmt.execute(params![ts, raw, extended, remote, error, dlc, data]))
             .map_err(sql_io)?;
         state.pending += 1;
+        // The timer thread may not get the lock while entries stream in (a mutex is not
+        // fair): the writer commits on time itself then.
+        if state.last_commit.elapsed() >= COMMIT_EVERY {
+            state.commit().map_err(sql_io)?;
+        }
         Ok(())
     }
 

@@ -1,6 +1,12 @@
 //! `buslab dump [IFACE[,FILTER…]]…`: print every frame on one or more buses like candump;
 //! `-l FILE` also writes a log in any format `buslab_logs` writes, `-L` prints candump log
-//! lines instead; interface arguments and filters are `buslab_backends::BusSpec`.
+//! lines instead; interface arguments and filters are `buslab_backends::BusSpec`, `any` every
+//! bus this machine names.
+//!
+//! Nothing is printed before it is in the log: frames are taken in batches (what is waiting,
+//! and for BLF and SQLite what comes within [`Log::LINGER`]), written, flushed (a BLF
+//! container and header, an SQLite commit), and only then printed. A `kill -9` at any moment
+//! leaves a log that holds every frame printed.
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -70,6 +76,58 @@ pub struct Args {
     /// in words as candump -e (an interface's `#ERRORMASK` chooses classes).
     #[arg(short = 'e', long)]
     pub errors: bool,
+    /// Log to FILE as -l FILE does (newer candump's -f); `-f -` prints log lines on stdout,
+    /// as -L.
+    #[arg(short = 'f', value_name = "FILE", conflicts_with_all = ["log", "write_log"])]
+    pub log_file: Option<PathBuf>,
+    /// End after this long without a frame, as candump -T MSECS: a duration (500ms, 2s); a
+    /// bare number is taken as milliseconds, as candump does, with a warning.
+    #[arg(short = 'T', long = "idle-timeout", value_name = "DURATION", value_parser = parse_idle)]
+    pub idle_timeout: Option<Idle>,
+    /// Report frames lost before they reached this dump, as candump -d (`DROPCOUNT: …`
+    /// lines): a buslab bus counts them per node (its chip's receive FIFO overruns, and the
+    /// frames the server dropped because this client did not keep up).
+    #[arg(short = 'd', long = "drops")]
+    pub drops: bool,
+    /// Keep going when a bus goes away (its server stops, its adapter is unplugged): warn
+    /// and reopen it every second, as candump -D keeps reading an interface that went down.
+    #[arg(short = 'D', long = "keep-going")]
+    pub keep_going: bool,
+    /// As candump -s: 0 prints every frame (the default, also with -l), 1 turns a spinner
+    /// instead, 2 prints nothing.
+    #[arg(short = 's', long = "silent", value_name = "LEVEL",
+          value_parser = clap::value_parser!(u8).range(0..=2))]
+    pub silent: Option<u8>,
+    /// candump -H (hardware timestamps): refused, with the reason.
+    #[arg(short = 'H', hide = true)]
+    pub hardware_timestamps: bool,
+    /// candump -u USECS (its old bridge mode's delay): refused, with the reason.
+    #[arg(short = 'u', hide = true, value_name = "USECS")]
+    pub bridge_delay: Option<String>,
+    /// candump -r SIZE (the socket's receive buffer): refused, with the reason.
+    #[arg(short = 'r', hide = true, value_name = "SIZE")]
+    pub receive_buffer: Option<String>,
+}
+
+/// `-T`: how long without a frame, and whether it was written as candump's bare milliseconds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Idle {
+    pub after: Duration,
+    pub bare: bool,
+}
+
+/// A duration, or a bare number of milliseconds (candump's unit).
+fn parse_idle(text: &str) -> Result<Idle, String> {
+    if !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit()) {
+        let ms: u64 = text
+            .parse()
+            .map_err(|_| format!("-T {text:?}: too many milliseconds"))?;
+        return Ok(Idle {
+            after: Duration::from_millis(ms),
+            bare: true,
+        });
+    }
+    crate::units::duration(text).map(|after| Idle { after, bare: false })
 }
 
 /// `-t`'s modes: candump's, and `A` (absolute with the date).
@@ -93,16 +151,66 @@ fn parse_mode(text: &str) -> Result<Stamp, String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    match dump(args) {
-        Err(e)
-            if e.downcast_ref::<io::Error>()
-                .is_some_and(|e| e.kind() == io::ErrorKind::BrokenPipe) =>
-        {
-            Ok(())
-        }
-        other => other,
-    }
+    let args = candump_habits(args)?;
+    dump(args)
 }
+
+/// candump's options that mean something else here, or nothing: taken as what they mean, or
+/// refused saying why.
+fn candump_habits(mut args: Args) -> anyhow::Result<Args> {
+    if args.hardware_timestamps {
+        bail!(
+            "-H (candump: read the interface's hardware timestamps) does not apply: the times \
+             buslab prints come from the bus side where there is one (a buslab or socketcand \
+             server stamps each frame; an SLCAN adapter's millisecond counter refines the \
+             host's time), and its SocketCAN backend reads the kernel's receive times only"
+        );
+    }
+    if let Some(usecs) = &args.bridge_delay {
+        bail!(
+            "-u {usecs} (candump: the delay of its old bridge mode -b/-B) has nothing to delay \
+             here: buslab copies frames between buses with `buslab bridge A B`"
+        );
+    }
+    if let Some(size) = &args.receive_buffer {
+        bail!(
+            "-r {size} (candump: a SocketCAN socket's kernel receive buffer) does not apply: \
+             buslab's backends read into their own queue, and dump holds up to {QUEUE} frames \
+             between the buses and the printer without dropping any (a slow terminal slows \
+             the reading; what the bus side drops meanwhile, -d reports)"
+        );
+    }
+    if let Some(idle) = args.idle_timeout
+        && idle.bare
+    {
+        tracing::warn!(
+            "-T {} taken as milliseconds, as candump does: write -T {}ms",
+            idle.after.as_millis(),
+            idle.after.as_millis()
+        );
+    }
+    if let Some(file) = args.log_file.take() {
+        if file.as_os_str() == "-" {
+            // candump: `-f -` is -L.
+            args.log_format = true;
+        } else {
+            args.log = Some(file);
+        }
+    }
+    Ok(args)
+}
+
+/// Events waiting between the bus readers and the printer.
+const QUEUE: usize = 4096;
+/// The most entries printed at once (a bound on the batch held while the log is flushed).
+const BATCH: usize = 4096;
+/// How long the printer waits for an event before it looks at Ctrl-C, -T and the log.
+const TICK: Duration = Duration::from_millis(100);
+/// How often a lost bus is tried again (-D) and drop counts are asked for (-d).
+const RETRY: Duration = Duration::from_secs(1);
+
+/// The name `any` takes, as candump's.
+const ANY: &str = "any";
 
 /// One bus being dumped.
 struct Source {
@@ -110,27 +218,80 @@ struct Source {
     filters: FilterSet,
     /// The name printed (right-aligned to the longest, as candump does with several).
     name: String,
+    /// Found by `any`: left out with a warning if it cannot be opened.
+    optional: bool,
+}
+
+/// `any`: every bus this machine names — the configuration's bus (vcan0, buslab's bus, unless
+/// configured otherwise) and every SocketCAN interface the kernel lists. SLCAN adapters are
+/// not probed (opening a serial device that is something else could disturb it): name them.
+fn any_buses() -> Vec<BusUrl> {
+    let mut urls = vec![crate::config::get().bus.clone()];
+    let mut kernel: Vec<String> = std::fs::read_dir("/sys/class/net")
+        .map(|dir| {
+            dir.filter_map(Result::ok)
+                .filter(|e| {
+                    // ARPHRD_CAN
+                    std::fs::read_to_string(e.path().join("type")).is_ok_and(|t| t.trim() == "280")
+                })
+                .filter_map(|e| e.file_name().into_string().ok())
+                .collect()
+        })
+        .unwrap_or_default();
+    kernel.sort();
+    for name in kernel {
+        let url = BusUrl::SocketCan { interface: name };
+        if !urls.contains(&url) {
+            urls.push(url);
+        }
+    }
+    urls
+}
+
+fn is_any(url: &BusUrl) -> bool {
+    matches!(url, BusUrl::SocketCan { interface } if interface == ANY)
 }
 
 fn sources(args: &Args) -> Vec<Source> {
-    let mut specs = args.interfaces.clone();
+    let mut specs: Vec<(BusSpec, bool)> = Vec::new();
+    for spec in &args.interfaces {
+        if is_any(&spec.url) {
+            for url in any_buses() {
+                specs.push((
+                    BusSpec {
+                        url,
+                        filters: spec.filters.clone(),
+                    },
+                    true,
+                ));
+            }
+        } else {
+            specs.push((spec.clone(), false));
+        }
+    }
     if let Some(url) = &args.bus {
-        specs.push(BusSpec {
-            url: url.clone(),
-            filters: FilterSet::default(),
-        });
+        specs.push((
+            BusSpec {
+                url: url.clone(),
+                filters: FilterSet::default(),
+            },
+            false,
+        ));
     }
     if specs.is_empty() {
-        specs.push(BusSpec {
-            url: crate::config::get().bus.clone(),
-            filters: FilterSet::default(),
-        });
+        specs.push((
+            BusSpec {
+                url: crate::config::get().bus.clone(),
+                filters: FilterSet::default(),
+            },
+            false,
+        ));
     }
-    let width = specs.iter().map(|s| s.url.channel().len()).max();
+    let width = specs.iter().map(|(s, _)| s.url.channel().len()).max();
     let several = specs.len() > 1;
     specs
         .into_iter()
-        .map(|s| {
+        .map(|(s, optional)| {
             let channel = s.url.channel();
             let name = match width {
                 Some(w) if several => format!("{channel:>w$}"),
@@ -140,9 +301,41 @@ fn sources(args: &Args) -> Vec<Source> {
                 url: s.url,
                 filters: s.filters,
                 name,
+                optional,
             }
         })
         .collect()
+}
+
+/// Opens a source's bus as dump uses it: named, with error frames if asked for.
+fn open_source(source: &Source, args: &Args) -> anyhow::Result<DynBus> {
+    let mut bus = open(&source.url)?;
+    set_name(&mut bus, &source.url, args.name.as_deref())?;
+    if args.errors || source.filters.error_mask.is_some() {
+        bus.set_error_frames(true)?;
+    }
+    if args.drops && bus.admin().is_none() {
+        bail!(
+            "{}: -d needs a bus that counts the frames it lost for this client, and this one \
+             keeps no count (a buslab bus does; a plain socketcand, a SocketCAN interface as \
+             buslab's backend reads it, and an SLCAN adapter report none)",
+            source.url
+        );
+    }
+    Ok(bus)
+}
+
+/// What a bus reader hands the printer.
+enum Item {
+    Event(usize, BusEvent),
+    /// Frames the bus lost for this client since the last report (-d), and the total.
+    Dropped {
+        index: usize,
+        frames: u64,
+        total: u64,
+    },
+    /// The bus failed (without -D: the end).
+    Failed(usize, anyhow::Error),
 }
 
 fn dump(args: Args) -> anyhow::Result<()> {
@@ -167,25 +360,49 @@ fn dump(args: Args) -> anyhow::Result<()> {
         Some(path) => Some(Log::create(path, args.to, args.extra)?),
         None => None,
     };
-    let sources = sources(&args);
+    let mut sources = sources(&args);
     let mut buses = Vec::with_capacity(sources.len());
-    for source in &sources {
-        let mut bus = open(&source.url)?;
-        set_name(&mut bus, &source.url, args.name.as_deref())?;
-        if args.errors || source.filters.error_mask.is_some() {
-            bus.set_error_frames(true)?;
+    let mut skipped = Vec::new();
+    sources.retain(|source| match open_source(source, &args) {
+        Ok(bus) => {
+            buses.push(Ok(bus));
+            true
         }
-        buses.push(bus);
+        Err(e) if source.optional => {
+            tracing::warn!("{ANY}: leaving out {}: {e:#}", source.url);
+            skipped.push(format!("{}: {e:#}", source.url));
+            false
+        }
+        Err(e) => {
+            buses.push(Err(e));
+            true
+        }
+    });
+    let buses = buses.into_iter().collect::<anyhow::Result<Vec<_>>>()?;
+    if buses.is_empty() {
+        bail!(
+            "{ANY}: no bus to dump on this machine (the configuration's bus and the kernel's \
+             CAN interfaces were tried: {})",
+            skipped.join("; ")
+        );
     }
     let stop = super::interrupted()?;
-    let (tx, events) = mpsc::sync_channel(4096);
+    let (tx, events) = mpsc::sync_channel(QUEUE);
     let readers: Vec<_> = buses
         .into_iter()
         .enumerate()
         .map(|(index, bus)| {
-            let tx = tx.clone();
-            let stop = stop.clone();
-            std::thread::spawn(move || read(bus, index, &tx, &stop))
+            let reader = Reader {
+                index,
+                url: sources[index].url.clone(),
+                name: args.name.clone(),
+                error_frames: args.errors || sources[index].filters.error_mask.is_some(),
+                drops: args.drops,
+                keep_going: args.keep_going,
+                tx: tx.clone(),
+                stop: stop.clone(),
+            };
+            std::thread::spawn(move || reader.run(bus))
         })
         .collect();
     drop(tx);
@@ -201,72 +418,75 @@ fn dump(args: Args) -> anyhow::Result<()> {
             }
         );
     }
-    let (timestamps, dated) = match args.timestamps {
-        Some(Stamp::Plain(mode)) => (Some(mode), false),
-        Some(Stamp::Date) => (None, true),
-        None => (None, false),
-    };
-    let mut terminal = Terminal::new(View {
-        timestamps,
-        ascii: args.ascii,
-        extra: args.extra,
-        error_words: true,
-    });
+    let mut printer = Printer::new(&args, &sources);
+    let linger = log.as_ref().map_or(Duration::ZERO, |l| l.linger);
+    let idle = args.idle_timeout.map(|i| i.after);
+    let mut last_heard = Instant::now();
     let stdout = io::stdout();
-    let mut out = stdout.lock();
-    let mut seen = 0u64;
-    let mut zero = None;
-    let result = loop {
-        if stop.load(Ordering::SeqCst) || args.count.is_some_and(|n| seen >= n) {
+    let mut out = io::BufWriter::with_capacity(64 * 1024, stdout.lock());
+    let result: anyhow::Result<()> = loop {
+        if stop.load(Ordering::SeqCst) || printer.done() {
             break Ok(());
         }
-        let (index, event) = match events.recv_timeout(Duration::from_millis(100)) {
-            Ok((index, Ok(event))) => (index, event),
-            Ok((_, Err(e))) => break Err(e),
+        // The first event of a batch.
+        let wait = idle.map_or(TICK, |i| {
+            i.saturating_sub(last_heard.elapsed())
+                .min(TICK)
+                .max(Duration::from_millis(1))
+        });
+        let first = match events.recv_timeout(wait) {
+            Ok(item) => item,
             Err(mpsc::RecvTimeoutError::Timeout) => {
-                if let Some(log) = &mut log {
-                    log.idle()?;
+                if idle.is_some_and(|i| last_heard.elapsed() >= i) {
+                    // candump -T: the end, not an error.
+                    break Ok(());
                 }
                 continue;
             }
             Err(mpsc::RecvTimeoutError::Disconnected) => break Ok(()),
         };
-        let source = &sources[index];
-        let passes = match &event {
-            BusEvent::Frame(m) => source.filters.passes(&m.frame),
-            BusEvent::Error(e) => source
-                .filters
-                .passes_error(&e.error, if args.errors { u32::MAX } else { 0 }),
-        };
-        if !passes {
-            continue;
-        }
-        if let BusEvent::Frame(_) = event {
-            seen += 1;
-        }
-        let mut entry = Entry::from_event(&event);
-        entry.interface.clone_from(&source.name);
-        let line = if args.log_format {
-            let mut shown = entry.clone();
-            if timestamps == Some(TimestampMode::Zero) {
-                let first = *zero.get_or_insert(entry.timestamp);
-                shown.timestamp = entry.timestamp.saturating_sub(first);
+        // Then what is waiting, and (BLF, SQLite) what comes within the linger.
+        let until = Instant::now() + linger;
+        let mut item = Some(first);
+        // A bus or log that failed: what came before it is still logged and printed.
+        let mut failed = None;
+        while let Some(next) = item.take() {
+            match printer.take(next, log.as_mut()) {
+                Ok(heard) => {
+                    if heard {
+                        last_heard = Instant::now();
+                    }
+                }
+                Err(e) => {
+                    failed = Some(e);
+                    break;
+                }
             }
-            format_line(&shown, args.extra)
-        } else if dated {
-            let line = terminal.line(&entry);
-            format!(" ({}) {}", date(entry.timestamp), &line[1..])
-        } else {
-            terminal.line(&entry)
-        };
-        if args.color {
-            writeln!(out, "\x1b[{}m{line}\x1b[0m", 31 + index % 6)?;
-        } else {
-            writeln!(out, "{line}")?;
+            if printer.pending() >= BATCH || printer.done() || stop.load(Ordering::SeqCst) {
+                break;
+            }
+            item = if linger.is_zero() {
+                events.try_recv().ok()
+            } else {
+                events
+                    .recv_timeout(until.saturating_duration_since(Instant::now()))
+                    .ok()
+            };
         }
-        out.flush()?;
-        if let Some(log) = &mut log {
-            log.write(&entry)?;
+        // The log first: nothing is printed that is not in the file.
+        let flushed = log.as_mut().map_or(Ok(()), Log::flush);
+        let printed = match flushed {
+            Ok(()) => printer.print(&mut out),
+            Err(e) => break Err(failed.unwrap_or(e)),
+        };
+        if let Some(e) = failed {
+            break Err(e);
+        }
+        match printed {
+            Ok(()) => {}
+            // The reader of our output left (`| head`): the end, not an error.
+            Err(e) if e.kind() == io::ErrorKind::BrokenPipe => break Ok(()),
+            Err(e) => break Err(anyhow::Error::new(e).context("cannot print")),
         }
     };
     stop.store(true, Ordering::SeqCst);
@@ -274,8 +494,9 @@ fn dump(args: Args) -> anyhow::Result<()> {
     for r in readers {
         let _ = r.join();
     }
-    // Finished on every way out (Ctrl-C, SIGTERM, SIGHUP, -n, an error): BLF's last container,
-    // ASC's end line and SQLite's last rows are in the file.
+    // Finished on every way out (Ctrl-C, SIGTERM, SIGHUP, -n, -T, a closed stdout, an error):
+    // BLF's last container and header, ASC's end line and SQLite's last rows are in the file.
+    // After a write error the log is left as its last flush made it.
     let finished = match log {
         Some(log) => log.finish(),
         None => Ok(()),
@@ -283,21 +504,161 @@ fn dump(args: Args) -> anyhow::Result<()> {
     result.and(finished)
 }
 
-/// The `-l` log and when it reaches the file.
+/// Turns events into output lines, held until the log has them.
+struct Printer<'a> {
+    args: &'a Args,
+    sources: &'a [Source],
+    terminal: Terminal,
+    timestamps: Option<TimestampMode>,
+    dated: bool,
+    zero: Option<Duration>,
+    seen: u64,
+    /// Lines (or spinner turns) to print once the log is flushed.
+    lines: Vec<String>,
+    spin: usize,
+}
+
+impl<'a> Printer<'a> {
+    fn new(args: &'a Args, sources: &'a [Source]) -> Self {
+        let (timestamps, dated) = match args.timestamps {
+            Some(Stamp::Plain(mode)) => (Some(mode), false),
+            Some(Stamp::Date) => (None, true),
+            None => (None, false),
+        };
+        Self {
+            args,
+            sources,
+            terminal: Terminal::new(View {
+                timestamps,
+                ascii: args.ascii,
+                extra: args.extra,
+                error_words: true,
+            }),
+            timestamps,
+            dated,
+            zero: None,
+            seen: 0,
+            lines: Vec::new(),
+            spin: 0,
+        }
+    }
+
+    /// `-n` frames were taken.
+    fn done(&self) -> bool {
+        self.args.count.is_some_and(|n| self.seen >= n)
+    }
+
+    fn pending(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// Takes one item: an entry goes to the log and its line is held. `Ok(true)` when
+    /// something was received (for -T).
+    fn take(&mut self, item: Item, log: Option<&mut Log>) -> anyhow::Result<bool> {
+        let (index, event) = match item {
+            Item::Event(index, event) => (index, event),
+            Item::Dropped {
+                index,
+                frames,
+                total,
+            } => {
+                // candump -d's line (not in the log: no format has a record for it).
+                if self.args.silent != Some(2) {
+                    let name = self.sources[index].name.trim_start();
+                    let s = if frames > 1 { "s" } else { "" };
+                    self.lines.push(format!(
+                        "DROPCOUNT: dropped {frames} CAN frame{s} on '{name}' (total drops {total})"
+                    ));
+                }
+                return Ok(false);
+            }
+            Item::Failed(index, e) => {
+                return Err(e.context(format!("{}", self.sources[index].url)));
+            }
+        };
+        let source = &self.sources[index];
+        let passes = match &event {
+            BusEvent::Frame(m) => source.filters.passes(&m.frame),
+            BusEvent::Error(e) => source
+                .filters
+                .passes_error(&e.error, if self.args.errors { u32::MAX } else { 0 }),
+        };
+        if !passes {
+            return Ok(false);
+        }
+        if let BusEvent::Frame(_) = event {
+            self.seen += 1;
+        }
+        let mut entry = Entry::from_event(&event);
+        entry.interface.clone_from(&source.name);
+        if let Some(log) = log {
+            log.write(&entry)?;
+        }
+        match self.args.silent {
+            Some(2) => {}
+            Some(1) => {
+                const SPINNER: [char; 4] = ['|', '/', '-', '\\'];
+                self.lines
+                    .push(format!("{}\x08", SPINNER[self.spin % SPINNER.len()]));
+                self.spin += 1;
+            }
+            _ => {
+                let line = self.line(&entry);
+                let line = if self.args.color {
+                    format!("\x1b[{}m{line}\x1b[0m\n", 31 + index % 6)
+                } else {
+                    line + "\n"
+                };
+                self.lines.push(line);
+            }
+        }
+        Ok(true)
+    }
+
+    fn line(&mut self, entry: &Entry) -> String {
+        if self.args.log_format {
+            let mut shown = entry.clone();
+            if self.timestamps == Some(TimestampMode::Zero) {
+                let first = *self.zero.get_or_insert(entry.timestamp);
+                shown.timestamp = entry.timestamp.saturating_sub(first);
+            }
+            format_line(&shown, self.args.extra)
+        } else if self.dated {
+            let line = self.terminal.line(entry);
+            format!(" ({}) {}", date(entry.timestamp), &line[1..])
+        } else {
+            self.terminal.line(entry)
+        }
+    }
+
+    /// Prints the held lines (DROPCOUNT lines end without a newline: added here).
+    fn print(&mut self, out: &mut impl Write) -> io::Result<()> {
+        for line in self.lines.drain(..) {
+            out.write_all(line.as_bytes())?;
+            if line.starts_with("DROPCOUNT") {
+                out.write_all(b"\n")?;
+            }
+        }
+        out.flush()
+    }
+}
+
+/// The `-l` log: written entry by entry, flushed once per batch before the batch is printed.
 struct Log {
-    writer: Box<dyn LogWriter + Send>,
+    writer: Option<Box<dyn LogWriter + Send>>,
     path: PathBuf,
-    /// Flushed after every entry (a text line or a pcap record costs one write), or only when
-    /// the bus is idle and at least once a second (a BLF flush closes a compressed container,
-    /// an SQLite flush is a commit).
-    every_entry: bool,
-    unflushed: bool,
-    last_flush: Instant,
+    /// How long a batch may wait for more entries: a BLF flush closes a compressed container
+    /// and rewrites the header, an SQLite flush commits (with its syncs), so these gather a
+    /// tenth of a second; the other formats flush whatever is waiting at once.
+    linger: Duration,
+    /// Entries written, and entries in the file (flushed, so printed or about to be).
+    written: u64,
+    flushed: u64,
 }
 
 impl Log {
-    /// The most a BLF or SQLite log keeps in memory while the bus is busy.
-    const FLUSH_INTERVAL: Duration = Duration::from_secs(1);
+    /// How long a BLF or SQLite log gathers a batch (the most its lines are late).
+    const LINGER: Duration = Duration::from_millis(100);
 
     fn create(path: &Path, to: Option<Format>, direction: bool) -> anyhow::Result<Self> {
         let format = match to {
@@ -306,44 +667,67 @@ impl Log {
             None if path.extension().is_none() => Format::Candump,
             None => Format::from_path(path)?,
         };
+        // A file-size limit (ulimit -f) makes writes fail with EFBIG, reported as any full
+        // disk, instead of killing the process with SIGXFSZ and its log unfinished.
+        super::file_size_limit_as_error()?;
         let writer = create_writer_with(path, format, WriteOptions { direction })?;
         Ok(Self {
-            writer,
+            writer: Some(writer),
             path: path.to_owned(),
-            every_entry: !matches!(format, Format::Blf | Format::Sqlite),
-            unflushed: false,
-            last_flush: Instant::now(),
+            linger: if matches!(format, Format::Blf | Format::Sqlite) {
+                Self::LINGER
+            } else {
+                Duration::ZERO
+            },
+            written: 0,
+            flushed: 0,
         })
     }
 
-    fn write(&mut self, entry: &Entry) -> anyhow::Result<()> {
-        self.writer.write(entry).with_context(|| self.failed())?;
-        self.unflushed = true;
-        if self.every_entry || self.last_flush.elapsed() >= Self::FLUSH_INTERVAL {
-            self.flush()?;
+    fn writer(&mut self) -> anyhow::Result<&mut (dyn LogWriter + Send)> {
+        match &mut self.writer {
+            Some(w) => Ok(w.as_mut()),
+            None => bail!("the log {} failed earlier", self.path.display()),
         }
-        Ok(())
     }
 
-    /// The bus has been quiet for a moment: what was logged goes to the file.
-    fn idle(&mut self) -> anyhow::Result<()> {
-        if self.unflushed {
-            self.flush()?;
-        }
+    fn write(&mut self, entry: &Entry) -> anyhow::Result<()> {
+        let result = self.writer()?.write(entry);
+        self.check(result)?;
+        self.written += 1;
         Ok(())
     }
 
     fn flush(&mut self) -> anyhow::Result<()> {
-        self.writer.flush().with_context(|| self.failed())?;
-        self.unflushed = false;
-        self.last_flush = Instant::now();
+        if self.flushed == self.written {
+            return Ok(());
+        }
+        let result = self.writer()?.flush();
+        self.check(result)?;
+        self.flushed = self.written;
         Ok(())
     }
 
-    fn finish(self) -> anyhow::Result<()> {
-        let failed = self.failed();
-        let left_out = self.writer.left_out();
-        self.writer.finish().context(failed)?;
+    /// A write error (a full disk, a file-size limit): the log stays as its last flush left
+    /// it, which the message says.
+    fn check(&mut self, result: io::Result<()>) -> anyhow::Result<()> {
+        result.with_context(|| {
+            let n = self.flushed;
+            format!(
+                "cannot write the log {}; it keeps the {n} {} written before (every one printed)",
+                self.path.display(),
+                if n == 1 { "entry" } else { "entries" },
+            )
+        })
+    }
+
+    fn finish(mut self) -> anyhow::Result<()> {
+        let Some(writer) = self.writer.take() else {
+            return Ok(());
+        };
+        let failed = format!("cannot finish the log {}", self.path.display());
+        let left_out = writer.left_out();
+        writer.finish().context(failed)?;
         if left_out > 0 {
             tracing::warn!(
                 "{}: {left_out} entries the format cannot hold were left out",
@@ -352,33 +736,125 @@ impl Log {
         }
         Ok(())
     }
+}
 
-    fn failed(&self) -> String {
-        format!("cannot write the log {}", self.path.display())
+/// Reads one bus until `stop`, handing every event to the printer; with -d also the drops the
+/// bus counts for this client, with -D it reopens a bus that went away.
+struct Reader {
+    index: usize,
+    url: BusUrl,
+    name: Option<String>,
+    error_frames: bool,
+    drops: bool,
+    keep_going: bool,
+    tx: mpsc::SyncSender<Item>,
+    stop: std::sync::Arc<AtomicBool>,
+}
+
+impl Reader {
+    fn run(self, mut bus: DynBus) {
+        let mut drops = Drops::default();
+        loop {
+            let err = match self.read(&mut bus, &mut drops) {
+                Ok(()) => return,
+                Err(e) => e,
+            };
+            if !self.keep_going {
+                let _ = self.tx.send(Item::Failed(self.index, err));
+                return;
+            }
+            tracing::warn!(
+                "{}: {err:#}; -D: trying it again every {}",
+                self.url,
+                crate::units::Human(RETRY)
+            );
+            match self.reopen() {
+                Some(b) => {
+                    tracing::warn!("{}: back", self.url);
+                    bus = b;
+                    // A new node: its counters start again.
+                    drops = Drops::default();
+                }
+                None => return,
+            }
+        }
+    }
+
+    /// Until `stop` (`Ok`) or the bus fails.
+    fn read(&self, bus: &mut DynBus, drops: &mut Drops) -> anyhow::Result<()> {
+        while !self.stop.load(Ordering::SeqCst) {
+            if self.drops && drops.due() {
+                let status = match bus.admin() {
+                    Some(admin) => admin.node_status(None)?,
+                    None => bail!("{}: no drop counts", self.url),
+                };
+                let total = status.counters.overruns + status.counters.rx_lost;
+                if let Some(frames) = drops.update(total)
+                    && self
+                        .tx
+                        .send(Item::Dropped {
+                            index: self.index,
+                            frames,
+                            total,
+                        })
+                        .is_err()
+                {
+                    return Ok(());
+                }
+            }
+            // Short waits, so Ctrl-C is noticed.
+            if let Some(event) = bus.recv_event(Some(TICK))?
+                && self.tx.send(Item::Event(self.index, event)).is_err()
+            {
+                return Ok(());
+            }
+        }
+        Ok(())
+    }
+
+    /// Opens the bus again, every [`RETRY`], until it opens or `stop`.
+    fn reopen(&self) -> Option<DynBus> {
+        while !self.stop.load(Ordering::SeqCst) {
+            let deadline = Instant::now() + RETRY;
+            while Instant::now() < deadline {
+                if self.stop.load(Ordering::SeqCst) {
+                    return None;
+                }
+                std::thread::sleep(TICK);
+            }
+            let opened = open(&self.url).and_then(|mut bus| {
+                set_name(&mut bus, &self.url, self.name.as_deref())?;
+                if self.error_frames {
+                    bus.set_error_frames(true)?;
+                }
+                Ok(bus)
+            });
+            match opened {
+                Ok(bus) => return Some(bus),
+                Err(e) => tracing::debug!("{}: still away: {e:#}", self.url),
+            }
+        }
+        None
     }
 }
 
-/// Reads one bus until `stop`, handing every event to the printer.
-fn read(
-    mut bus: DynBus,
-    index: usize,
-    tx: &mpsc::SyncSender<(usize, anyhow::Result<BusEvent>)>,
-    stop: &AtomicBool,
-) {
-    while !stop.load(Ordering::SeqCst) {
-        // Short waits, so Ctrl-C is noticed.
-        match bus.recv_event(Some(Duration::from_millis(100))) {
-            Ok(Some(event)) => {
-                if tx.send((index, Ok(event))).is_err() {
-                    return;
-                }
-            }
-            Ok(None) => {}
-            Err(e) => {
-                let _ = tx.send((index, Err(e.into())));
-                return;
-            }
-        }
+/// The frames a bus lost for this client (-d), asked for every [`RETRY`].
+#[derive(Default)]
+struct Drops {
+    last_total: Option<u64>,
+    asked: Option<Instant>,
+}
+
+impl Drops {
+    fn due(&self) -> bool {
+        self.asked.is_none_or(|t| t.elapsed() >= RETRY)
+    }
+
+    /// The new total: the frames lost since the last report, if any.
+    fn update(&mut self, total: u64) -> Option<u64> {
+        self.asked = Some(Instant::now());
+        let last = self.last_total.replace(total).unwrap_or(0);
+        (total > last).then(|| total - last)
     }
 }
 
@@ -401,6 +877,26 @@ mod tests {
             date(Duration::from_micros(1_700_000_000_123_456)),
             "2023-11-14 22:13:20.123456"
         );
+    }
+
+    #[test]
+    fn t_takes_a_duration_or_candumps_bare_milliseconds() {
+        let bare = parse_idle("300").unwrap();
+        assert_eq!((bare.after, bare.bare), (Duration::from_millis(300), true));
+        let unit = parse_idle("2s").unwrap();
+        assert_eq!((unit.after, unit.bare), (Duration::from_secs(2), false));
+        assert!(parse_idle("soon").unwrap_err().contains("\"soon\""));
+    }
+
+    #[test]
+    fn drops_are_reported_once_each_as_candump_d() {
+        let mut d = Drops::default();
+        assert!(d.due());
+        assert_eq!(d.update(0), None);
+        assert!(!d.due(), "asked again only after RETRY");
+        assert_eq!(d.update(5), Some(5));
+        assert_eq!(d.update(5), None);
+        assert_eq!(d.update(12), Some(7));
     }
 
     #[test]

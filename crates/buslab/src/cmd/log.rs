@@ -4,7 +4,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::io::{self, IsTerminal, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -61,8 +61,10 @@ pub struct ConvertArgs {
     /// trc11, trc21, csv, pcap, pcapng, sqlite.
     #[arg(long, value_name = "FORMAT")]
     pub to: Option<Format>,
-    /// Keep reading IN as it grows (like `tail -f`, e.g. a `candump -l` log) until Ctrl-C,
-    /// SIGTERM or SIGHUP; OUT is written in place and flushed whenever IN has nothing new.
+    /// Keep reading IN as it grows (like `tail -F`, e.g. a `candump -l` log) until Ctrl-C,
+    /// SIGTERM or SIGHUP; OUT is written in place and flushed whenever IN has nothing new and
+    /// at least every second (-v logs each flush). When IN is truncated, rewritten or
+    /// replaced (rotated), a warning says which and its new content is read from the start.
     #[arg(short, long)]
     pub follow: bool,
 }
@@ -193,6 +195,7 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
         bail!("{} is both input and output", input.display());
     }
     let stop = super::interrupted()?;
+    super::file_size_limit_as_error()?;
     let writer = if args.follow {
         create_writer(output, to)?
     } else {
@@ -200,15 +203,27 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
     };
     // Shared with the follower, which flushes it whenever the input has nothing new.
     let writer: Arc<Mutex<Box<dyn LogWriter + Send>>> = Arc::new(Mutex::new(writer));
+    // Entries written, and in the file (-v logs each flush, so a script knows what a kill
+    // cannot take back).
+    let written = Arc::new(AtomicU64::new(0));
+    let flush = {
+        let (writer, written, output) = (writer.clone(), written.clone(), output.clone());
+        let reported = Arc::new(AtomicU64::new(0));
+        move || {
+            let n = written.load(Ordering::SeqCst);
+            match lock(&writer).flush() {
+                Ok(()) if reported.swap(n, Ordering::SeqCst) != n => {
+                    tracing::info!("{}: {n} entries flushed", output.display());
+                }
+                Ok(()) => {}
+                Err(e) => tracing::warn!("flushing {}: {e}", output.display()),
+            }
+        }
+    };
     let mut options = OpenOptions::default();
     if args.follow {
         options.follow_until = Some(stop.clone());
-        let w = writer.clone();
-        options.on_wait = Some(Arc::new(move || {
-            if let Err(e) = lock(&w).flush() {
-                tracing::warn!("flushing the output: {e}");
-            }
-        }));
+        options.on_wait = Some(Arc::new(flush.clone()));
     }
     let mut source = open_source(input, from, &options)?;
     drop(options); // its hook holds the writer too
@@ -216,7 +231,7 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
     let started = Instant::now();
     let mut tally = Tally::default();
     let bytes = source.bytes_read.clone();
-    let mut written = 0u64;
+    let mut last_flush = Instant::now();
     let read = read_all(
         &mut source,
         args.input.skip_bad,
@@ -226,31 +241,39 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
             lock(&writer)
                 .write(entry)
                 .with_context(|| format!("writing {}", output.display()))?;
-            written += 1;
+            let n = written.fetch_add(1, Ordering::SeqCst) + 1;
+            // A followed input that never pauses still reaches the output every second.
+            if args.follow && last_flush.elapsed() >= FOLLOW_FLUSH {
+                flush();
+                last_flush = Instant::now();
+            }
             // Every 16384th entry: cheaper than moving the bar each time.
-            if written.is_multiple_of(16_384) && !bar.is_hidden() {
+            if n.is_multiple_of(16_384) && !bar.is_hidden() {
                 bar.set_position(bytes.get());
-                let rate = written as f64 / started.elapsed().as_secs_f64().max(1e-9);
+                let rate = n as f64 / started.elapsed().as_secs_f64().max(1e-9);
                 bar.set_message(format!("{rate:.0} frames/s"));
             }
             Ok(())
         },
     );
     drop(source); // the follower's hook holds the writer
+    drop(flush); // and so does this
     bar.finish_and_clear();
     let writer = match Arc::try_unwrap(writer) {
         Ok(m) => m.into_inner().unwrap_or_else(|p| p.into_inner()),
         Err(_) => bail!("internal: the output is still shared"),
     };
     let left_out = writer.left_out();
-    // Whatever happened, what was read is written.
-    writer
+    // Whatever happened, what was read is written (after a write error, what was flushed
+    // stays, and the write error is the one reported).
+    let finished = writer
         .finish()
-        .with_context(|| format!("finishing {}", output.display()))?;
+        .with_context(|| format!("finishing {}", output.display()));
     let counted = count_line(&tally, entries_word(tally.entries, from));
     if let Err(failure) = read {
         return Err(failure.into_error(&tally, &format!("{} holds", output.display())));
     }
+    finished?;
     if !quiet {
         let mut line = format!(
             "{} ({from}) → {} ({to}): {counted} in {}",
@@ -268,6 +291,9 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// How often a followed conversion flushes its output while the input keeps growing.
+const FOLLOW_FLUSH: Duration = Duration::from_secs(1);
 
 fn entries_word(n: u64, _format: Format) -> String {
     format!("{n} {}", if n == 1 { "entry" } else { "entries" })

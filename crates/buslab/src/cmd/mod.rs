@@ -64,3 +64,14 @@ pub fn stop_requests() -> anyhow::Result<std::sync::mpsc::Receiver<()>> {
     });
     Ok(rx)
 }
+
+/// Makes a file-size limit (`ulimit -f`, RLIMIT_FSIZE) fail the write that crosses it with
+/// EFBIG, which a log writer reports like a full disk, instead of letting SIGXFSZ kill the
+/// process (its default) with the file unfinished.
+pub fn file_size_limit_as_error() -> anyhow::Result<()> {
+    // A handler that only sets a flag nobody reads: the signal no longer kills.
+    let ignored = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGXFSZ, ignored)
+        .context("cannot handle SIGXFSZ")?;
+    Ok(())
+}
