@@ -124,10 +124,19 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    eprintln!("  watch it:   buslab dump --bus socketcand://{addr}/{CHANNEL}");
-    slio_bench.describe(terminal.as_ref(), args.dir.as_deref());
+    let url = format!("socketcand://{addr}/{CHANNEL}");
+    let hints = Hints::new(&url);
+    if addr.port() != buslab_backends::SOCKETCAND_PORT && args.listen.is_none() {
+        eprintln!(
+            "  port {} is taken (another lab, a socketcand?): this bus is on port {}; the commands below name it",
+            buslab_backends::SOCKETCAND_PORT,
+            addr.port()
+        );
+    }
+    eprintln!("  watch it:   {}", hints.command("dump", "", true));
+    slio_bench.describe(terminal.as_ref(), args.dir.as_deref(), &hints);
     if let Some(devices) = &devices {
-        devices.describe();
+        devices.describe(&hints);
     }
     let web = if args.no_web {
         None
@@ -150,7 +159,16 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
         }
         Some(web)
     };
-    eprintln!("Ctrl-C to stop");
+    // The lab's bus for scripts (`export BUSLAB_BUS=$(cat DIR/bus)`): written last, so that
+    // it is there once everything else is.
+    let bus_file = args.dir.as_deref().map(|dir| dir.join("bus"));
+    if let Some(path) = &bus_file {
+        buslab_link::fs::write_atomic(path, format!("{url}\n").as_bytes())
+            .with_context(|| format!("cannot write the lab's bus URL to {}", path.display()))?;
+    }
+    if !quiet {
+        eprintln!("Ctrl-C to stop");
+    }
 
     let counter = spawn_counter(addr, stop.clone())?;
     let end = args.duration.map(|d| Instant::now() + d);
@@ -164,6 +182,10 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
         web.stop();
     }
     let counted = counter.join();
+    if let Some(path) = &bus_file {
+        // A stopped lab's URL would send the next script to whatever takes the port.
+        let _ = std::fs::remove_file(path);
+    }
     drop(terminal);
     server.shutdown();
     if let Some(devices) = devices {
@@ -171,6 +193,80 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     }
     result?;
     counted.map_err(|_| anyhow::anyhow!("the counter node panicked"))?
+}
+
+/// The banner's commands, written so that they work when pasted: the program as the shell
+/// finds it, and the lab's bus named unless it is already the tools' default.
+struct Hints {
+    /// `buslab` when the shell finds this very program under that name, else its path (after
+    /// `cargo run`, before `cargo install`).
+    program: String,
+    url: String,
+    /// The tools' default bus (`bus` in buslab.toml or $BUSLAB_BUS, else vcan0) is this one.
+    is_default: bool,
+}
+
+impl Hints {
+    fn new(url: &str) -> Self {
+        let default = buslab_backends::resolve(&crate::config::get().bus_name)
+            .map(|u| u.to_string())
+            .ok();
+        Self {
+            program: program_name(),
+            url: url.to_string(),
+            is_default: default.as_deref() == Some(url),
+        }
+    }
+
+    /// ` --bus URL`, or nothing when the default is this bus and `always` is not asked.
+    fn bus_option(&self, always: bool) -> String {
+        if self.is_default && !always {
+            String::new()
+        } else {
+            format!(" --bus {}", self.url)
+        }
+    }
+
+    /// `buslab GROUP --bus URL REST` (`slio` takes `--bus` before its subcommand).
+    fn command(&self, group: &str, rest: &str, always_bus: bool) -> String {
+        let rest = if rest.is_empty() {
+            String::new()
+        } else {
+            format!(" {rest}")
+        };
+        format!(
+            "{} {group}{}{rest}",
+            self.program,
+            self.bus_option(always_bus)
+        )
+    }
+}
+
+/// How a shell reaches this program: `buslab` if that name on the PATH is this executable,
+/// else its path (relative to the current folder when inside it).
+fn program_name() -> String {
+    let Ok(exe) = std::env::current_exe().and_then(std::fs::canonicalize) else {
+        return "buslab".to_string();
+    };
+    let on_path = std::env::var_os("PATH").is_some_and(|paths| {
+        std::env::split_paths(&paths)
+            .filter_map(|dir| std::fs::canonicalize(dir.join("buslab")).ok())
+            .next()
+            .is_some_and(|found| found == exe)
+    });
+    if on_path {
+        return "buslab".to_string();
+    }
+    let shown = std::env::current_dir()
+        .ok()
+        .and_then(|cwd| exe.strip_prefix(cwd).ok().map(Path::to_path_buf))
+        .unwrap_or_else(|| exe.clone());
+    let text = shown.display().to_string();
+    if text.contains(char::is_whitespace) {
+        format!("'{text}'")
+    } else {
+        text
+    }
 }
 
 /// The web pages on the lab's bus, with a fresh write token (the dashboard injects faults).
@@ -238,9 +334,10 @@ fn status_lines(
             continue;
         }
         next += every;
-        let Some(line) = server.with_bus(status_line) else {
+        let Some(fields) = server.with_bus(status_fields) else {
             break;
         };
+        let line = fit(&fields, status_width(terminal));
         let mut err = io::stderr().lock();
         if terminal {
             write!(err, "\r\x1b[2K{line}")?;
@@ -250,7 +347,8 @@ fn status_lines(
         err.flush()?;
     }
     // The last word, on its own line.
-    if let Some(line) = server.with_bus(status_line) {
+    if let Some(fields) = server.with_bus(status_fields) {
+        let line = fit(&fields, status_width(terminal));
         let mut err = io::stderr().lock();
         if terminal {
             write!(err, "\r\x1b[2K")?;
@@ -260,31 +358,69 @@ fn status_lines(
     Ok(())
 }
 
-/// `bus: 23.4 % load, 812 frames/s, 5 nodes active, 0 errors; 12034 frames`.
-fn status_line(bus: &mut buslab_vbus::VirtualBus) -> String {
+/// The status line's parts, most telling first; [`fit`] leaves out the last ones that do not
+/// fit the terminal. Nodes are the bench's own and the clients that joined (the lab's counter,
+/// its web pages, every `dump` or python-can script).
+fn status_fields(bus: &mut buslab_vbus::VirtualBus) -> Vec<String> {
     let last = bus.last_second();
     let total = *bus.stats();
+    let numbers: Vec<u32> = bus.nodes().iter().map(|n| n.number).collect();
+    let clients = numbers.iter().filter(|&&n| bus.client(n).is_ok()).count();
     let nodes = bus.sim().nodes();
     let count = |state| nodes.iter().filter(|n| n.state() == state).count();
-    let mut states = format!("{} active", count(ErrorState::Active));
+    let mut states = Vec::new();
     for (state, word) in [
-        (ErrorState::Passive, "error-passive"),
+        (ErrorState::Active, "active"),
+        (ErrorState::Passive, "passive"),
         (ErrorState::BusOff, "bus-off"),
     ] {
         let n = count(state);
-        if n > 0 {
-            states.push_str(&format!(", {n} {word}"));
+        if n > 0 || state == ErrorState::Active {
+            states.push(format!("{n} {word}"));
         }
     }
-    format!(
-        "bus: {:.1} % load, {} frames/s, {} errors/s; {} nodes ({states}); {} frames, {} errors in all",
-        100.0 * last.load(),
-        last.frames,
-        last.errors,
-        nodes.len(),
-        total.frames,
-        total.errors
-    )
+    vec![
+        format!("load {:.1} %", 100.0 * last.load()),
+        format!("{} frames/s", last.frames),
+        format!("{} errors/s", last.errors),
+        format!(
+            "{} nodes + {clients} client{}: {}",
+            nodes.len() - clients,
+            if clients == 1 { "" } else { "s" },
+            states.join(", ")
+        ),
+        format!("{} frames, {} errors in all", total.frames, total.errors),
+    ]
+}
+
+/// The status line in at most `width` columns (a terminal wraps a longer one, and an update
+/// in place then becomes a new line): whole parts in order while they fit, then nothing.
+fn fit(fields: &[String], width: usize) -> String {
+    let mut line = String::new();
+    for field in fields {
+        let gap = if line.is_empty() { 0 } else { 2 };
+        if line.chars().count() + gap + field.chars().count() > width {
+            break;
+        }
+        if gap > 0 {
+            line.push_str("  ");
+        }
+        line.push_str(field);
+    }
+    line
+}
+
+/// Columns the status line may take: the width of the terminal stderr is on, less one (a line
+/// that fills the last column wraps on some terminals), 80 when it cannot be known; a log file
+/// takes whole lines.
+fn status_width(terminal: bool) -> usize {
+    if !terminal {
+        return usize::MAX;
+    }
+    let columns = console::Term::stderr()
+        .size_checked()
+        .map_or(80, |(_, columns)| usize::from(columns));
+    columns.saturating_sub(1).max(20)
 }
 
 /// Prints what the monitor's node receives until `stop` or `end`.
@@ -498,7 +634,12 @@ impl SlioBench {
         )?))
     }
 
-    fn describe(&self, terminal: Option<&buslab_served::ppc::ServedPpc>, dir: Option<&Path>) {
+    fn describe(
+        &self,
+        terminal: Option<&buslab_served::ppc::ServedPpc>,
+        dir: Option<&Path>,
+        hints: &Hints,
+    ) {
         let Some(terminal) = terminal else {
             eprintln!(
                 "  no SLIO boards: they follow 20000..125000 bit/s (the lab's default is 125000)"
@@ -507,8 +648,9 @@ impl SlioBench {
         };
         let ids: Vec<String> = self.ids.iter().map(ToString::to_string).collect();
         eprintln!(
-            "  SLIO boards  {} (demo boards; MoniCAN calibrates and drives them; try: buslab slio list)",
-            ids.join(", ")
+            "  SLIO boards  {} (demo boards; MoniCAN calibrates and drives them; try: {})",
+            ids.join(", "),
+            hints.command("slio", "list", false)
         );
         let pty = terminal.path().display();
         let link = dir.map(|d| d.join("monican"));
@@ -520,10 +662,14 @@ impl SlioBench {
         );
         if let (Some(memory), Some(control)) = (terminal.memory_file(), terminal.control_socket()) {
             eprintln!(
-                "  PowerPC      memory in {}, control socket {} (load a program: buslab load PROG.s37 --bus URL --verify {})",
+                "  PowerPC      memory in {}, control socket {} (load a program: {})",
                 memory.display(),
                 control.display(),
-                control.display()
+                hints.command(
+                    "load",
+                    &format!("PROG.s37 --verify {}", control.display()),
+                    false
+                ),
             );
         }
     }
@@ -576,16 +722,18 @@ impl Devices {
         })
     }
 
-    fn describe(&self) {
+    fn describe(&self, hints: &Hints) {
         eprintln!(
-            "  ZELLE cell   on {}  (9600 8N2; try: buslab zelle --port {} analog 1)",
+            "  ZELLE cell   on {}  (9600 8N2; try: {} zelle --port {} analog 1)",
             self.zelle.path().display(),
+            hints.program,
             self.zelle_port.display()
         );
         eprintln!(
-            "  CPU196 board on {}  ({} 8N1; try: buslab cpu196 --port {} info)",
+            "  CPU196 board on {}  ({} 8N1; try: {} cpu196 --port {} info)",
             self.cpu196.path().display(),
             super::cpu196::DEFAULT_BAUD,
+            hints.program,
             self.cpu196_port.display()
         );
     }
@@ -594,5 +742,36 @@ impl Devices {
         self.zelle.stop().context("stopping the ZELLE cell")?;
         self.cpu196.stop().context("stopping the CPU196 board")?;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fit;
+
+    fn fields() -> Vec<String> {
+        [
+            "load 100.0 %",
+            "8120 frames/s",
+            "16466 errors/s",
+            "8 nodes + 2 clients: 7 active, 2 passive, 1 bus-off",
+            "123456789 frames, 1234567 errors in all",
+        ]
+        .map(String::from)
+        .to_vec()
+    }
+
+    #[test]
+    fn the_status_line_keeps_whole_parts_within_the_width() {
+        let all = fit(&fields(), usize::MAX);
+        assert_eq!(
+            all,
+            "load 100.0 %  8120 frames/s  16466 errors/s  8 nodes + 2 clients: 7 active, 2 passive, 1 bus-off  123456789 frames, 1234567 errors in all"
+        );
+        let line = fit(&fields(), 79);
+        assert_eq!(line, "load 100.0 %  8120 frames/s  16466 errors/s");
+        for width in 20..200 {
+            assert!(fit(&fields(), width).chars().count() <= width, "{width}");
+        }
     }
 }

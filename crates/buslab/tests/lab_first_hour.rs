@@ -1,0 +1,120 @@
+//! `buslab lab` as a new user meets it (issue 26): a status line that stays on one row of an
+//! 80-column terminal, and a banner whose commands reach this lab's bus when pasted, even when
+//! another server holds socketcand's port.
+
+#[path = "support/pty_program.rs"]
+mod pty_program;
+
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+
+use assert_cmd::cargo::CommandCargoExt;
+use pty_program::{CEILING, PtyProgram, Stderr};
+
+fn buslab() -> Command {
+    Command::cargo_bin("buslab").unwrap()
+}
+
+/// socketcand's port, the lab's first choice.
+const SOCKETCAND_PORT: u16 = 29536;
+
+/// What the lab writes to refresh its status line in place.
+const REFRESH: &str = "\r\x1b[2K";
+
+#[test]
+fn lab_status_line_stays_on_one_row_of_an_80_column_terminal() {
+    let mut command = buslab();
+    command.args(["lab", "--no-devices", "--no-web", "--listen", "127.0.0.1:0"]);
+    let mut lab = PtyProgram::spawn(command, 24, 80, Stderr::Terminal);
+    // Three refreshes in place: a line wider than the terminal would have wrapped, and each
+    // refresh would have left its first part on the row above.
+    lab.wait_until("three status refreshes", |p| {
+        String::from_utf8_lossy(&p.raw).matches(REFRESH).count() >= 3
+    });
+    let raw = String::from_utf8_lossy(&lab.raw).to_string();
+    for status in raw.split(REFRESH).skip(1) {
+        let line = status.split(['\r', '\n']).next().unwrap();
+        assert!(
+            line.chars().count() < 80,
+            "{} columns: {line:?}",
+            line.chars().count()
+        );
+    }
+    let rows = lab.contents();
+    let status_rows: Vec<&str> = rows.lines().filter(|r| r.contains("frames/s")).collect();
+    assert_eq!(status_rows.len(), 1, "the screen:\n{rows}");
+    assert!(status_rows[0].starts_with("load "), "{}", status_rows[0]);
+    assert!(status_rows[0].contains(" client"), "{}", status_rows[0]);
+}
+
+#[test]
+fn lab_hints_name_its_bus_when_the_usual_port_is_taken() {
+    // Another server on socketcand's port (if a test beside this one already holds it, the
+    // port is just as taken).
+    let other = TcpListener::bind(("127.0.0.1", SOCKETCAND_PORT)).ok();
+    let dir = tempfile::tempdir().unwrap();
+    let mut lab = buslab()
+        .args(["lab", "--no-devices", "--no-web", "--dir"])
+        .arg(dir.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = lab.stderr.take().unwrap();
+    let (tx, lines) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut banner = Vec::new();
+    while banner.last().is_none_or(|l: &String| l != "Ctrl-C to stop") {
+        let line = lines
+            .recv_timeout(CEILING)
+            .unwrap_or_else(|_| panic!("the banner did not end: {banner:#?}"));
+        banner.push(line);
+    }
+    let text = banner.join("\n");
+    let url = text
+        .split_whitespace()
+        .find(|w| w.starts_with("socketcand://"))
+        .unwrap()
+        .to_string();
+    assert!(!url.contains(":29536/"), "{text}");
+    if other.is_some() {
+        assert!(text.contains("port 29536 is taken"), "{text}");
+    }
+    // The lab's bus for scripts, once the lab is up.
+    let written = std::fs::read_to_string(dir.path().join("bus")).unwrap();
+    assert_eq!(written.trim_end(), url);
+
+    // The SLIO hint, run as printed, lists the lab's boards.
+    let hint = banner
+        .iter()
+        .find_map(|l| l.split_once("try: ").filter(|_| l.contains("SLIO boards")))
+        .map(|(_, hint)| hint.trim_end_matches(')').to_string())
+        .unwrap_or_else(|| panic!("no SLIO hint:\n{text}"));
+    assert!(hint.contains(&format!("--bus {url}")), "{hint}");
+    let words: Vec<&str> = hint.split_whitespace().collect();
+    let out = Command::new(words[0]).args(&words[1..]).output().unwrap();
+    let listed = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && listed.contains("SLIO 3:") && listed.contains("SLIO A:"),
+        "{hint}: {listed}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    // A stopped lab takes its URL away (the next script must not reach whatever takes the port).
+    let killed = Command::new("kill")
+        .args(["-TERM", &lab.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    assert!(lab.wait().unwrap().success());
+    assert!(!dir.path().join("bus").exists());
+    drop(other);
+}
