@@ -16,6 +16,7 @@ use buslab_can::Id;
 use buslab_canbus::BusError;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::status::shown;
 use crate::units::Human;
 
 /// Frames handed to the node before waiting for them to be sent.
@@ -81,7 +82,7 @@ fn wait_sent(
         }
         match admin.flush(LOOK) {
             Ok(report) if report.failed > 0 => {
-                let st = admin.node_status(None)?;
+                let st = shown(admin.node_status(None)?);
                 bail!(
                     "{} frame(s) were given up by this node on {url}; its status:\n{st}",
                     report.failed
@@ -94,7 +95,7 @@ fn wait_sent(
                 return Ok(());
             }
             Err(BusError::Timeout { .. }) => {
-                let st = admin.node_status(None)?;
+                let st = shown(admin.node_status(None)?);
                 if st.counters.sent > sent_before {
                     sent_before = st.counters.sent;
                     progress_at = Instant::now();
