@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use buslab_backends::{BusUrl, DynBus};
-use buslab_can::Id;
-use buslab_canbus::BusError;
+use buslab_can::{Frame, Id};
+use buslab_canbus::{BusError, FileReadError};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::status::shown;
@@ -50,16 +50,36 @@ pub fn send_data(
     stall: Option<Duration>,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
-    let frames: Vec<_> = buslab_can::file::frames(id, data).collect();
-    for batch in frames.chunks(BATCH) {
-        for frame in batch {
+    let frames = buslab_can::file::frames(id, data).map(Ok::<_, FileReadError>);
+    send_frames(bus, url, frames, bar, stall, stop)
+}
+
+/// [`send_data`] for frames made as they are taken ([`buslab_canbus::FileFrames`] reads a
+/// file as it goes): at most one batch of frames is held at a time.
+pub fn send_frames(
+    bus: &mut DynBus,
+    url: &BusUrl,
+    mut frames: impl Iterator<Item = Result<Frame, FileReadError>>,
+    bar: &ProgressBar,
+    stall: Option<Duration>,
+    stop: &AtomicBool,
+) -> anyhow::Result<()> {
+    let mut batch = Vec::with_capacity(BATCH);
+    loop {
+        batch.clear();
+        for frame in frames.by_ref().take(BATCH) {
+            batch.push(frame?);
+        }
+        if batch.is_empty() {
+            return Ok(());
+        }
+        for frame in &batch {
             bus.send(frame)?;
         }
         wait_sent(bus, url, stall, stop)?;
         let bytes: usize = batch.iter().map(|f| f.payload().len()).sum();
         bar.inc(bytes as u64);
     }
-    Ok(())
 }
 
 /// Waits until the frames handed to this client's node are on the wire (a bus without
