@@ -374,6 +374,10 @@ fn stalled_bodies_and_idle_connections_cannot_lock_everyone_out() {
         a.status,
         a.body
     );
+    if a.status == 503 {
+        assert!(a.body.contains("too many connections"), "{}", a.body);
+        assert_secured(&a, "503");
+    }
 
     // Each is cut by the server once the timeout has passed, never before; a stalled body
     // is told why.
