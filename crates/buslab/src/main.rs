@@ -97,7 +97,13 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {}", describe(&err));
+            // Errors may quote a server or a file: their control characters are written out
+            // (the message's own line breaks kept), so they cannot drive the terminal.
+            let text: Vec<String> = describe(&err)
+                .split('\n')
+                .map(|line| buslab_device::printable(line.as_bytes()))
+                .collect();
+            eprintln!("error: {}", text.join("\n"));
             ExitCode::FAILURE
         }
     }

@@ -145,4 +145,42 @@ fn a_receiver_that_gets_nothing_writes_nothing() {
         "{stderr}"
     );
     assert!(!output.exists());
+    // Its temporary file, made before the first frame, went with it.
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn recvfile_refuses_an_output_it_cannot_write_before_any_frame() {
+    // Regression: recvfile checked OUT only once the whole transfer was in, then failed and
+    // the file was lost. Now it says so at once (here without --timeout: it would otherwise
+    // wait for a file for ever).
+    let serve = Serve::start(BITRATE);
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("fifo");
+    nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
+    for (output, why) in [
+        (dir.path().to_path_buf(), "a folder, not a regular file"),
+        (fifo.clone(), "a FIFO, not a regular file"),
+        (dir.path().join("missing/out.bin"), "missing/out.bin"),
+    ] {
+        let child = serve
+            .buslab()
+            .args(["recvfile", "--id", "0x123"])
+            .arg(&output)
+            .args(["--bus", &serve.url])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let out = finish(child, deadline_for(0), "recvfile");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{stderr}");
+        assert!(stderr.contains(why), "{}: {stderr}", output.display());
+        assert!(!stderr.contains("waiting for a file"), "{stderr}");
+    }
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["fifo"], "nothing was made or left");
 }

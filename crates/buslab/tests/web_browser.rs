@@ -126,6 +126,7 @@ impl Browser {
             std::thread::sleep(Duration::from_millis(20));
         }
         let caps = json!({"capabilities": {"alwaysMatch": {"browserName": "chrome",
+            "goog:loggingPrefs": {"browser": "ALL"},
             "goog:chromeOptions": {"binary": "/usr/bin/chromium", "args": [
                 "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
                 "--disable-component-update", "--disable-sync", "--no-first-run",
@@ -187,6 +188,47 @@ impl Browser {
     fn click(&self, css: &str) {
         let id = self.find(css);
         self.call("POST", &format!("/element/{id}/click"), json!({}));
+    }
+
+    /// The browser's console messages since the last call that report a
+    /// Content-Security-Policy violation.
+    fn csp_violations(&self) -> Vec<String> {
+        let log = self.call("POST", "/se/log", json!({ "type": "browser" }));
+        log.as_array()
+            .unwrap_or_else(|| panic!("no browser log: {log}"))
+            .iter()
+            .filter_map(|e| e["message"].as_str())
+            .filter(|m| m.contains("Content Security Policy"))
+            .map(str::to_string)
+            .collect()
+    }
+
+    /// Opens each of the server's pages without JavaScript: the stylesheet applies and the
+    /// browser reports no Content-Security-Policy violation; then checks that it would
+    /// report one (an inline script put in by hand is refused).
+    fn pages_work_under_the_policy(&self, base: &str, pages: &[&str]) {
+        assert_eq!(self.csp_violations(), Vec::<String>::new(), "before");
+        for page in pages {
+            self.open(&format!("{base}{page}"));
+            let nav = self
+                .script("return getComputedStyle(document.querySelector('nav')).backgroundColor");
+            assert_eq!(
+                nav, "rgb(34, 51, 68)",
+                "{page}: the stylesheet did not apply"
+            );
+            assert_eq!(self.csp_violations(), Vec::<String>::new(), "{page}");
+        }
+        let ran = self.script(
+            "window.inlineRan = false; const s = document.createElement('script'); \
+             s.textContent = 'window.inlineRan = true'; document.body.appendChild(s); \
+             return window.inlineRan",
+        );
+        assert_eq!(ran, false, "an inline script ran");
+        let refused = self.csp_violations();
+        assert!(
+            refused.iter().any(|m| m.contains("inline script")),
+            "the violation was not reported: {refused:?}"
+        );
     }
 
     /// Runs `script` until `done` holds for its value.
@@ -294,6 +336,19 @@ fn the_dashboard_in_chromium_updates_live_and_a_click_cuts_the_wire() {
     assert!(png.starts_with(b"\x89PNG"));
     let shot = Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-dashboard.png");
     std::fs::write(&shot, png).unwrap();
+    // Everything above ran under the server's Content-Security-Policy (its own files only,
+    // nothing inline), and so do the pages without JavaScript.
+    browser.pages_work_under_the_policy(
+        &base,
+        &[
+            "dashboard",
+            "",
+            "ids",
+            "frames?filter=0C0",
+            "nodes/1",
+            "devices",
+        ],
+    );
 }
 
 /// Starts `buslab lab` with its devices; returns it and the dashboard's address with the
@@ -480,4 +535,5 @@ fn the_lab_dashboard_shows_its_devices_and_an_led_follows_the_slio() {
         "return document.querySelector('#cpu196 .state').textContent",
         |v| v.as_str().is_some_and(|s| s.contains("idle")),
     );
+    browser.pages_work_under_the_policy(base, &["devices", "dashboard"]);
 }

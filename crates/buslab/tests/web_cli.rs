@@ -40,10 +40,40 @@ fn exchange(addr: SocketAddr, raw: &str) -> (u16, String) {
 }
 
 fn get(addr: SocketAddr, path: &str) -> (u16, String) {
+    get_as(addr, "localhost", path)
+}
+
+/// A GET naming `host` in its Host header.
+fn get_as(addr: SocketAddr, host: &str, path: &str) -> (u16, String) {
     exchange(
         addr,
-        &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"),
+        &format!("GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"),
     )
+}
+
+/// Starts `buslab web` with `args` on `serve`'s bus; its address.
+fn start_web(serve: &Serve, args: &[&str]) -> (Web, SocketAddr) {
+    let mut child = serve
+        .buslab()
+        .args(["web", "--bus", &serve.url, "--listen", "127.0.0.1:0"])
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let web = Web(child);
+    let addr = line
+        .trim()
+        .strip_prefix("http://")
+        .and_then(|r| r.strip_suffix('/'))
+        .unwrap_or_else(|| panic!("no URL from buslab web: {line:?}"))
+        .parse()
+        .unwrap();
+    (web, addr)
 }
 
 fn post(addr: SocketAddr, path: &str, token: Option<&str>, body: &str) -> (u16, String) {
@@ -51,7 +81,7 @@ fn post(addr: SocketAddr, path: &str, token: Option<&str>, body: &str) -> (u16, 
     exchange(
         addr,
         &format!(
-            "POST {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{header}\
+            "POST {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n{header}\
              Content-Length: {}\r\n\r\n{body}",
             body.len()
         ),
@@ -89,33 +119,7 @@ fn the_cut_wire_experiment_from_the_web_api() {
     )
     .unwrap();
     let serve = Serve::start_with(500_000, &["--nodes", scenario.to_str().unwrap()]);
-    let mut child = serve
-        .buslab()
-        .args([
-            "web",
-            "--bus",
-            &serve.url,
-            "--listen",
-            "127.0.0.1:0",
-            "--token",
-            TOKEN,
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let _web = Web(child);
-    let addr: SocketAddr = line
-        .trim()
-        .strip_prefix("http://")
-        .and_then(|r| r.strip_suffix('/'))
-        .unwrap_or_else(|| panic!("no URL from buslab web: {line:?}"))
-        .parse()
-        .unwrap();
+    let (_web, addr) = start_web(&serve, &["--token", TOKEN]);
 
     engine_until(addr, "error-active with frames sent", |e| {
         e["state"] == "error-active" && e["sent"].as_u64() > Some(0)
@@ -165,6 +169,8 @@ fn the_lab_starts_the_web_pages_and_prints_the_dashboard_with_its_token() {
             "127.0.0.1:0",
             "--web",
             "127.0.0.1:0",
+            "--allow-host",
+            "bench.lab",
         ])
         .env_remove("BUSLAB_BUS")
         .stdout(Stdio::null())
@@ -212,4 +218,65 @@ fn the_lab_starts_the_web_pages_and_prints_the_dashboard_with_its_token() {
     assert_eq!(post(addr, "/api/send", None, frame).0, 401);
     let (status, body) = post(addr, "/api/send", Some(token), frame);
     assert_eq!(status, 202, "{body}");
+    // The lab's pages answer to the name given with --allow-host, not to others.
+    assert_eq!(get_as(addr, "bench.lab:8080", "/").0, 200);
+    let (status, body) = get_as(addr, "evil.example", "/api/state");
+    assert_eq!(status, 403, "{body}");
+}
+
+#[test]
+fn buslab_web_refuses_foreign_hosts_and_frees_places_held_by_stalled_requests() {
+    let serve = Serve::start(500_000);
+    // One place only, and a short request timeout (a hidden option, for tests).
+    let (_web, addr) = start_web(
+        &serve,
+        &[
+            "--max-connections",
+            "1",
+            "--request-timeout",
+            "1s",
+            "--allow-host",
+            "bench.lab",
+        ],
+    );
+    let (status, body) = get_as(addr, "evil.example:8080", "/");
+    assert_eq!(status, 403, "{body}");
+    assert!(body.contains("--allow-host"), "{body}");
+    // (A connection that comes before the last one let go of the only place gets 503.)
+    let served = |host: &str| {
+        let deadline = Instant::now() + HANG;
+        loop {
+            match get_as(addr, host, "/") {
+                (200, _) => return Instant::now(),
+                (503 | 0, _) => assert!(Instant::now() < deadline, "never served"),
+                (status, body) => panic!("{status}: {body}"),
+            }
+        }
+    };
+    served("bench.lab");
+    // The place held by a write whose body never comes is freed after the timeout: the
+    // server answers 408, and serves the next client.
+    let started = loop {
+        let mut stalled = TcpStream::connect(addr).unwrap();
+        stalled.set_read_timeout(Some(HANG)).unwrap();
+        let started = Instant::now();
+        write!(
+            stalled,
+            "POST /api/send HTTP/1.1\r\nHost: localhost\r\nContent-Length: 50\r\n\r\n"
+        )
+        .unwrap();
+        let mut said = String::new();
+        let _ = stalled.read_to_string(&mut said);
+        if said.starts_with("HTTP/1.1 408") {
+            assert!(said.contains("did not arrive within 1000 ms"), "{said}");
+            break started;
+        }
+        // The last client had not let go of the place yet.
+        assert!(
+            said.is_empty() || said.starts_with("HTTP/1.1 503"),
+            "{said}"
+        );
+    };
+    assert!(started.elapsed() >= Duration::from_secs(1));
+    served("localhost");
 }

@@ -72,7 +72,7 @@ pub use error_frame::{
     CanError, ControllerProblems, ErrorCounters, ErrorFrame, ErrorFrameError, ProtocolLocation,
     ProtocolViolation, TransceiverStatus,
 };
-pub use file::{FileAssembler, FileError};
+pub use file::{FileAssembler, FileError, FileFrames, FileReadError, FileReceiver, Received};
 pub use manager::{
     Confirmation, Manager, ManagerBus, ManagerConfig, ManagerError, ManagerHandle, SendError,
     Snapshot,

@@ -68,23 +68,9 @@ impl DisplayFormat {
     }
 }
 
-/// Text from a board as it may be shown on a terminal: UTF-8 (invalid bytes as U+FFFD), every
-/// control character written out (`\x1B`, `\x0A`, `\u{9B}`), so an escape sequence in a
-/// board's text cannot drive the user's terminal.
-pub fn printable(bytes: &[u8]) -> String {
-    use core::fmt::Write as _;
-    let mut out = String::with_capacity(bytes.len());
-    for c in String::from_utf8_lossy(bytes).chars() {
-        if (c as u32) < 0x20 || c == '\x7F' {
-            let _ = write!(out, "\\x{:02X}", c as u32);
-        } else if c.is_control() {
-            let _ = write!(out, "\\u{{{:X}}}", c as u32);
-        } else {
-            out.push(c);
-        }
-    }
-    out
-}
+/// Text from a board as it may be shown on a terminal (one helper for every text from
+/// outside: `buslab_device::printable`).
+pub use buslab_device::printable;
 
 /// File open mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -12,15 +12,18 @@
 //!   pause through it, so the same client code runs against a board or against the model in
 //!   virtual time, deterministically.
 //! - [`Human`]: a duration as people read it (`2.06 s`), for messages.
+//! - [`printable`]: text from a device or a server made safe to print on a terminal.
 
 mod device;
 mod human;
 mod line;
 mod port;
+mod printable;
 mod sim_port;
 
 pub use device::{ByteDevice, ChangeLog, Changes, Persistent, ReplayError};
 pub use human::Human;
 pub use line::{LineSettings, Parity};
 pub use port::Port;
+pub use printable::printable;
 pub use sim_port::SimPort;

@@ -43,32 +43,87 @@ impl ReadError {
 /// `path`, then the folder synced. An existing file keeps its permissions; a new one gets
 /// `rw-r--r--`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
-    let error = |source| WriteError {
-        path: path.to_path_buf(),
-        source,
-    };
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| error(io::Error::other("the path names no file")))?;
-    let mut tmp = tempfile::Builder::new()
-        .prefix(&format!(".{}.", name.to_string_lossy()))
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(error)?;
-    tmp.write_all(bytes).map_err(error)?;
-    // A temporary file is private (0600); the file it becomes is an ordinary one.
-    let permissions = fs::metadata(path)
-        .map(|m| m.permissions())
-        .unwrap_or_else(|_| fs::Permissions::from_mode(0o644));
-    tmp.as_file().set_permissions(permissions).map_err(error)?;
-    tmp.as_file().sync_all().map_err(error)?;
-    tmp.persist(path).map_err(|e| error(e.error))?;
-    // The rename is durable once the folder is.
-    File::open(dir).and_then(|d| d.sync_all()).map_err(error)
+    let mut file = AtomicFile::create(path)?;
+    file.write_all(bytes)?;
+    file.commit()
+}
+
+/// A file written atomically as it comes ([`write_atomic`] for data that does not fit in
+/// memory, or arrives slowly): [`create`](Self::create) checks the target and makes the
+/// temporary file beside it at once, so a target that cannot be written is refused before
+/// the first byte; [`commit`](Self::commit) syncs it and renames it over the target. Dropped
+/// without a commit, the temporary file is removed and the target left as it was.
+pub struct AtomicFile {
+    path: PathBuf,
+    dir: PathBuf,
+    tmp: io::BufWriter<tempfile::NamedTempFile>,
+}
+
+impl AtomicFile {
+    /// Refuses a target that exists and is not a regular file (a folder, a FIFO, a device),
+    /// and a folder where no file can be made.
+    pub fn create(path: &Path) -> Result<Self, WriteError> {
+        let error = |source| WriteError {
+            path: path.to_path_buf(),
+            source,
+        };
+        if let Ok(meta) = fs::metadata(path)
+            && let Some(kind) = not_regular(&meta)
+        {
+            return Err(error(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("it is {kind}, not a regular file; give the path of a file"),
+            )));
+        }
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let name = path
+            .file_name()
+            .ok_or_else(|| error(io::Error::other("the path names no file")))?;
+        let tmp = tempfile::Builder::new()
+            .prefix(&format!(".{}.", name.to_string_lossy()))
+            .suffix(".tmp")
+            .tempfile_in(dir)
+            .map_err(error)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            dir: dir.to_path_buf(),
+            tmp: io::BufWriter::new(tmp),
+        })
+    }
+
+    /// The target's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn write_all(&mut self, bytes: &[u8]) -> Result<(), WriteError> {
+        self.tmp.write_all(bytes).map_err(|source| WriteError {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
+    /// Makes the target the written bytes, durably.
+    pub fn commit(self) -> Result<(), WriteError> {
+        let Self { path, dir, tmp } = self;
+        let error = |source| WriteError {
+            path: path.clone(),
+            source,
+        };
+        let tmp = tmp.into_inner().map_err(|e| error(e.into_error()))?;
+        // A temporary file is private (0600); the file it becomes is an ordinary one.
+        let permissions = fs::metadata(&path)
+            .map(|m| m.permissions())
+            .unwrap_or_else(|_| fs::Permissions::from_mode(0o644));
+        tmp.as_file().set_permissions(permissions).map_err(error)?;
+        tmp.as_file().sync_all().map_err(error)?;
+        tmp.persist(&path).map_err(|e| error(e.error))?;
+        // The rename is durable once the folder is.
+        File::open(&dir).and_then(|d| d.sync_all()).map_err(error)
+    }
 }
 
 /// Reads the whole of `path`, refusing what is not a regular file (a FIFO would block, a
@@ -189,6 +244,46 @@ mod tests {
         assert_eq!(names, ["state.toml"]);
         let err = write_atomic(&dir.path().join("missing/x.toml"), b"x").unwrap_err();
         assert!(err.to_string().contains("missing/x.toml"), "{err}");
+    }
+
+    #[test]
+    fn a_file_written_as_it_comes_is_checked_first_and_appears_whole_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let names = || -> Vec<_> {
+            let mut n: Vec<_> = fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().into_string().unwrap())
+                .collect();
+            n.sort();
+            n
+        };
+        let path = dir.path().join("out.bin");
+        let mut file = AtomicFile::create(&path).unwrap();
+        file.write_all(b"part one, ").unwrap();
+        assert!(!path.exists(), "nothing before the commit");
+        file.write_all(b"part two").unwrap();
+        file.commit().unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"part one, part two");
+        // Dropped without a commit: the old contents stay, no temporary file is left.
+        let mut file = AtomicFile::create(&path).unwrap();
+        file.write_all(b"never").unwrap();
+        drop(file);
+        assert_eq!(fs::read(&path).unwrap(), b"part one, part two");
+        assert_eq!(names(), ["out.bin"]);
+        // Refused before anything is written: a folder, a FIFO, a missing folder.
+        let e = AtomicFile::create(dir.path()).err().unwrap();
+        assert!(
+            e.to_string().contains("a folder, not a regular file"),
+            "{e}"
+        );
+        let fifo = dir.path().join("fifo");
+        nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
+        let e = AtomicFile::create(&fifo).err().unwrap();
+        assert!(e.to_string().contains("a FIFO"), "{e}");
+        let e = AtomicFile::create(&dir.path().join("missing/out.bin"))
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("missing/out.bin"), "{e}");
     }
 
     #[test]

@@ -22,7 +22,7 @@ mod serve;
 mod served;
 
 pub use buslab_device::{ByteDevice, LineSettings, Parity, Persistent, Port};
-pub use control::{ControlSocket, LineHandler};
+pub use control::{ControlLimits, ControlSocket, LineHandler};
 pub use pty::Pty;
 pub use serial::{SerialError, SerialLine, open_serial};
 pub use serve::{Control, serve};

@@ -12,6 +12,10 @@
 //!   CPU196 board (identity, THREAD text, the A/D stream plotted live).
 //! - **Writes** (send a frame, inject or repair a fault on a virtual bus) only with the
 //!   server's token in the `X-Buslab-Token` header; without a token the server is read-only.
+//! - **Guarded** ([`guard`]): only requests naming a host it answers to (no DNS rebinding),
+//!   a Content-Security-Policy and no framing on every answer; and **bounded** in time
+//!   ([`Timeouts`]): a client that stalls a request or stops reading its answer loses its
+//!   connection, so stalled connections cannot keep others out.
 //!
 //! The bus is owned by a [`buslab_backends::Pump`] thread; the view is the sans-IO model, fed
 //! with the time since the server started. [`WebServer::start`] is synchronous so the
@@ -21,7 +25,9 @@ mod api;
 mod device_api;
 pub mod device_request;
 pub mod devices;
+pub mod guard;
 mod hub;
+mod limits;
 mod pages;
 pub mod request;
 mod routes;
@@ -31,6 +37,8 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 pub use devices::DeviceConfig;
+pub use guard::BadHostName;
+pub use limits::Timeouts;
 pub use routes::ApiError;
 pub use server::WebServer;
 
@@ -52,6 +60,11 @@ pub struct WebConfig {
     pub bitrate: Option<u32>,
     /// The bench's devices to show as panels (`buslab lab`); none by default.
     pub devices: DeviceConfig,
+    /// Host names the server answers to besides IP addresses and `localhost`
+    /// (`--allow-host`): a request naming another host is refused (DNS rebinding).
+    pub allowed_hosts: Vec<String>,
+    /// How long a client may take to send a request, or stall while it is answered.
+    pub timeouts: Timeouts,
 }
 
 impl Default for WebConfig {
@@ -63,6 +76,8 @@ impl Default for WebConfig {
             status_every: Duration::from_millis(250),
             bitrate: None,
             devices: DeviceConfig::default(),
+            allowed_hosts: Vec::new(),
+            timeouts: Timeouts::default(),
         }
     }
 }
@@ -83,6 +98,10 @@ pub enum WebError {
     Random(String),
     #[error("--max-connections 0: at least one connection must be allowed")]
     NoConnections,
+    #[error(transparent)]
+    BadHost(#[from] BadHostName),
+    #[error("a request timeout of 0 would refuse every request: give at least 1 ms")]
+    NoTime,
 }
 
 /// A fresh random token (128 bits, hex).

@@ -3,13 +3,17 @@
 use std::sync::Arc;
 
 use axum::Router;
-use axum::extract::DefaultBodyLimit;
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::body::Body;
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Version, header};
+use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use buslab_backends::PumpSender;
 
+use crate::guard::{HostGuard, add_security_headers};
 use crate::hub::Hub;
+use crate::limits::{Timeouts, read_body};
 use crate::{TOKEN_HEADER, api, device_api, pages};
 
 /// The largest request body (a frame, a fault): anything larger is refused with 413.
@@ -20,6 +24,9 @@ pub struct App {
     pub hub: Arc<Hub>,
     pub sender: PumpSender,
     pub token: Option<Arc<str>>,
+    /// The hosts this server answers to.
+    pub hosts: Arc<HostGuard>,
+    pub timeouts: Timeouts,
 }
 
 pub fn router(app: App) -> Router {
@@ -43,7 +50,56 @@ pub fn router(app: App) -> Router {
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(MAX_BODY))
+        .layer(middleware::from_fn_with_state(app.clone(), admit))
+        .layer(middleware::map_response(secure))
         .with_state(app)
+}
+
+/// Every answer, refusals included, says what a browser may do with it.
+async fn secure(mut response: Response) -> Response {
+    add_security_headers(response.headers_mut());
+    response
+}
+
+/// Before any route: the request names a host this server answers to, a write comes from
+/// one of its pages (when it comes from a page at all), and the body arrives whole, in time
+/// and within [`MAX_BODY`].
+async fn admit(State(app): State<App>, request: Request, next: Next) -> Response {
+    let (parts, body) = request.into_parts();
+    let host = parts.headers.get(header::HOST).map(HeaderValue::as_bytes);
+    let http11 = parts.version >= Version::HTTP_11;
+    if let Err(e) = app.hosts.check_host(host, http11) {
+        return e.into_response();
+    }
+    // An absolute-form target (`GET http://name/ HTTP/1.1`) names its host too.
+    if let Some(authority) = parts.uri.authority()
+        && let Err(e) = app
+            .hosts
+            .check_host(Some(authority.as_str().as_bytes()), http11)
+    {
+        return e.into_response();
+    }
+    let write = !matches!(parts.method, Method::GET | Method::HEAD);
+    if write
+        && let Some(origin) = parts.headers.get(header::ORIGIN)
+        && let Err(e) = app.hosts.check_origin(origin.as_bytes())
+    {
+        return e.into_response();
+    }
+    match read_body(body, MAX_BODY, app.timeouts.request).await {
+        Ok(bytes) => {
+            next.run(Request::from_parts(parts, Body::from(bytes)))
+                .await
+        }
+        Err(e) => {
+            let mut response = e.into_response();
+            // What is left of the body may never come: the connection cannot be reused.
+            response
+                .headers_mut()
+                .insert(header::CONNECTION, HeaderValue::from_static("close"));
+            response
+        }
+    }
 }
 
 async fn not_found() -> ApiError {

@@ -1,5 +1,5 @@
 //! The listener: a bounded number of connections, each served by hyper with limits on how
-//! long and how large a request head may be.
+//! large a request head may be and how long a client may take (crate::limits).
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -12,13 +12,12 @@ use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
 use tokio::sync::{Semaphore, oneshot};
 
+use crate::guard::{HostGuard, SECURITY_HEADERS};
 use crate::hub::BusSide;
+use crate::limits::{StallGuard, Timeouts};
 use crate::routes::{App, router};
 use crate::{WebConfig, WebError, check_token};
 
-/// A request head must arrive within this time (a client that opens a connection and says
-/// nothing holds it no longer).
-const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
 /// The largest request head read (hyper's smallest allowed buffer is 8 KiB).
 const MAX_HEAD: usize = 16 * 1024;
 
@@ -30,8 +29,19 @@ const SEND_BUFFER: usize = 64 * 1024;
 /// How long a refused connection gets to take its 503.
 const REFUSAL_TIME: Duration = Duration::from_secs(2);
 
-const BUSY: &[u8] = b"HTTP/1.1 503 Service Unavailable\r\ncontent-type: text/plain\r\n\
-connection: close\r\ncontent-length: 37\r\n\r\ntoo many connections: try again later\n";
+/// The answer to a connection over the limit, with the headers every answer carries.
+fn busy() -> Vec<u8> {
+    const REASON: &str = "too many connections: try again later\n";
+    let mut head = String::from(
+        "HTTP/1.1 503 Service Unavailable\r\ncontent-type: text/plain; charset=utf-8\r\n\
+         connection: close\r\n",
+    );
+    for (name, value) in SECURITY_HEADERS {
+        head.push_str(&format!("{name}: {value}\r\n"));
+    }
+    head.push_str(&format!("content-length: {}\r\n\r\n{REASON}", REASON.len()));
+    head.into_bytes()
+}
 
 /// A running web server. Dropping it (or [`WebServer::stop`]) closes every connection and
 /// leaves the bus.
@@ -52,6 +62,10 @@ impl WebServer {
         if config.max_connections == 0 {
             return Err(WebError::NoConnections);
         }
+        let hosts = Arc::new(HostGuard::new(&config.allowed_hosts)?);
+        if config.timeouts.request.is_zero() || config.timeouts.stalled_write.is_zero() {
+            return Err(WebError::NoTime);
+        }
         let listener =
             std::net::TcpListener::bind(config.listen).map_err(|source| WebError::Listen {
                 addr: config.listen,
@@ -70,6 +84,8 @@ impl WebServer {
             hub: side.hub.clone(),
             sender: side.sender.clone(),
             token: config.token.clone().map(Arc::from),
+            hosts,
+            timeouts: config.timeouts,
         };
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
@@ -152,6 +168,10 @@ async fn accept(
     let limit = Arc::new(Semaphore::new(max));
     let refusals = Arc::new(Semaphore::new(max));
     let hub = app.hub.clone();
+    let Timeouts {
+        request,
+        stalled_write,
+    } = app.timeouts;
     let router = router(app);
     loop {
         let (stream, peer) = tokio::select! {
@@ -182,11 +202,16 @@ async fn accept(
         }
         let service = TowerToHyperService::new(router.clone());
         tokio::spawn(async move {
+            // The header timer also runs while a kept-alive connection waits for its next
+            // request: an idle connection is closed after it too.
             let served = hyper::server::conn::http1::Builder::new()
                 .timer(TokioTimer::new())
-                .header_read_timeout(HEAD_TIMEOUT)
+                .header_read_timeout(request)
                 .max_buf_size(MAX_HEAD)
-                .serve_connection(TokioIo::new(stream), service)
+                .serve_connection(
+                    TokioIo::new(StallGuard::new(stream, stalled_write)),
+                    service,
+                )
                 .await;
             if let Err(e) = served {
                 tracing::debug!("connection from {peer}: {e}");
@@ -201,7 +226,7 @@ async fn accept(
 async fn refuse(mut stream: tokio::net::TcpStream) {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
     let _ = tokio::time::timeout(REFUSAL_TIME, async {
-        stream.write_all(BUSY).await?;
+        stream.write_all(&busy()).await?;
         stream.shutdown().await?;
         let mut sink = [0u8; 4096];
         while stream.read(&mut sink).await? > 0 {}

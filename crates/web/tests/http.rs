@@ -148,6 +148,16 @@ fn bench_with(
     max_connections: usize,
     devices: buslab_web::DeviceConfig,
 ) -> Bench {
+    bench_config(WebConfig {
+        token: token.map(str::to_string),
+        max_connections,
+        devices,
+        ..WebConfig::default()
+    })
+}
+
+/// A server on a free loopback port with `config` otherwise.
+fn bench_config(config: WebConfig) -> Bench {
     let (frames, frames_rx) = mpsc::channel();
     let (sent_tx, sent) = mpsc::channel();
     let wire = Arc::new(Mutex::new(Wire::default()));
@@ -160,10 +170,7 @@ fn bench_with(
         Box::new(bus),
         WebConfig {
             listen: "127.0.0.1:0".parse().unwrap(),
-            token: token.map(str::to_string),
-            max_connections,
-            devices,
-            ..WebConfig::default()
+            ..config
         },
     )
     .unwrap();
@@ -195,7 +202,7 @@ fn exchange(addr: SocketAddr, raw: &[u8]) -> (u16, String) {
 fn get(addr: SocketAddr, path: &str) -> (u16, String) {
     exchange(
         addr,
-        format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").as_bytes(),
+        format!("GET {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n").as_bytes(),
     )
 }
 
@@ -204,7 +211,7 @@ fn post(addr: SocketAddr, path: &str, token: Option<&str>, body: &str) -> (u16, 
     exchange(
         addr,
         format!(
-            "POST {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{header}\
+            "POST {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n{header}\
              Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
             body.len()
         )
@@ -305,7 +312,7 @@ fn writes_need_the_right_token_in_the_header() {
     let (status, _) = exchange(
         addr,
         format!(
-            "POST /api/send HTTP/1.1\r\nHost: x\r\nConnection: close\r\nCookie: \
+            "POST /api/send HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nCookie: \
              x-buslab-token={TOKEN}\r\nContent-Length: {}\r\n\r\n{frame}",
             frame.len()
         )
@@ -364,7 +371,7 @@ fn live_updates_carry_new_frames_and_node_states() {
     let addr = b.server.addr();
     let mut s = TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(HANG)).unwrap();
-    s.write_all(b"GET /api/events?filter=321 HTTP/1.1\r\nHost: x\r\n\r\n")
+    s.write_all(b"GET /api/events?filter=321 HTTP/1.1\r\nHost: localhost\r\n\r\n")
         .unwrap();
     let mut lines = BufReader::new(s).lines();
     let first = lines.next().unwrap().unwrap();
@@ -400,39 +407,39 @@ fn ten_thousand_bad_requests_then_a_good_one() {
     let b = bench(Some(TOKEN), 64);
     let addr = b.server.addr();
     let big_header = format!(
-        "GET / HTTP/1.1\r\nHost: x\r\nX-Big: {}\r\n\r\n",
+        "GET / HTTP/1.1\r\nHost: localhost\r\nX-Big: {}\r\n\r\n",
         "a".repeat(20_000)
     );
     let big_body = format!(
-        "POST /api/send HTTP/1.1\r\nHost: x\r\nX-Buslab-Token: {TOKEN}\r\nConnection: close\r\n\
+        "POST /api/send HTTP/1.1\r\nHost: localhost\r\nX-Buslab-Token: {TOKEN}\r\nConnection: close\r\n\
          Content-Length: 5000\r\n\r\n{}",
         "x".repeat(5000)
     );
     let kinds: Vec<(Vec<u8>, u16)> = vec![
         (b"\x00\x01\x02 garbage\r\n\r\n".to_vec(), 400),
         (
-            b"GET /no/such/page HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n".to_vec(),
+            b"GET /no/such/page HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n".to_vec(),
             404,
         ),
         (
-            b"DELETE /api/send HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n".to_vec(),
+            b"DELETE /api/send HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n".to_vec(),
             405,
         ),
         (
-            b"POST /api/send HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 2\r\n\r\n{}"
+            b"POST /api/send HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nContent-Length: 2\r\n\r\n{}"
                 .to_vec(),
             401,
         ),
         (
             format!(
-                "POST /api/send HTTP/1.1\r\nHost: x\r\nConnection: close\r\nX-Buslab-Token: \
+                "POST /api/send HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\nX-Buslab-Token: \
                  {TOKEN}\r\nContent-Length: 3\r\n\r\n{{x}}"
             )
             .into_bytes(),
             400,
         ),
         (
-            b"GET /frames?n=-1 HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n".to_vec(),
+            b"GET /frames?n=-1 HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n".to_vec(),
             400,
         ),
         (big_header.into_bytes(), 431),

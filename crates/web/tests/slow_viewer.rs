@@ -76,7 +76,7 @@ fn stalled_viewer(addr: SocketAddr) -> TcpStream {
     stream.set_nonblocking(false).unwrap();
     stream.set_read_timeout(Some(HANG)).unwrap();
     let mut s = stream;
-    s.write_all(b"GET /api/events HTTP/1.1\r\nHost: x\r\n\r\n")
+    s.write_all(b"GET /api/events HTTP/1.1\r\nHost: localhost\r\n\r\n")
         .unwrap();
     s
 }
@@ -110,7 +110,7 @@ fn a_viewer_that_does_not_read_loses_only_its_own_updates() {
     let fast = TcpStream::connect(addr).unwrap();
     fast.set_read_timeout(Some(HANG)).unwrap();
     (&fast)
-        .write_all(b"GET /api/events HTTP/1.1\r\nHost: x\r\n\r\n")
+        .write_all(b"GET /api/events HTTP/1.1\r\nHost: localhost\r\n\r\n")
         .unwrap();
     let mut fast_lines = BufReader::new(fast).lines();
     let (first, _) = next_update(&mut fast_lines);

@@ -68,6 +68,8 @@ pub struct Args {
     /// No web pages or dashboard.
     #[arg(long)]
     pub no_web: bool,
+    #[command(flatten)]
+    pub web_hosts: super::web::AllowHost,
 }
 
 /// Where the lab's web pages listen unless told otherwise.
@@ -148,7 +150,7 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
                 .as_ref()
                 .map(|d| (d.cpu196.path().to_path_buf(), super::cpu196::DEFAULT_BAUD)),
         };
-        let web = start_web(addr, args.web, &panels)?;
+        let web = start_web(addr, args.web, &panels, &args.web_hosts.allow_host)?;
         eprintln!(
             "  web pages:  {} (no JavaScript needed; devices: {}devices)",
             web.url(),
@@ -274,6 +276,7 @@ fn start_web(
     bus: SocketAddr,
     listen: Option<SocketAddr>,
     devices: &buslab_web::DeviceConfig,
+    allowed_hosts: &[String],
 ) -> anyhow::Result<WebServer> {
     let url = format!("socketcand://{bus}/{CHANNEL}");
     let token = buslab_web::generate_token()?;
@@ -284,6 +287,7 @@ fn start_web(
             listen,
             token: Some(token.clone()),
             devices: devices.clone(),
+            allowed_hosts: allowed_hosts.to_vec(),
             ..WebConfig::default()
         };
         Ok(WebServer::start(bus, config))

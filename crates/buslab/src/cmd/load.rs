@@ -120,6 +120,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Human(started.elapsed())
     );
     if let Some(control) = &mut control {
+        // The transfer may have outlasted the control socket's idle time (it closes clients
+        // that say nothing): a fresh connection.
+        *control = Control::connect(&control.path)?;
         // The loader checks the records once the last frame is in: a few ms of node time.
         let verdict = control.wait_load(loads_before, Duration::from_secs(30))?;
         if !verdict.contains(" ok ") {

@@ -384,6 +384,8 @@ fn statuses(bus: &mut DynBus, own: Option<u32>) -> Option<Vec<NodeStatus>> {
             .into_iter()
             .filter(|n| Some(n.number) != own)
             .filter_map(|n| admin.node_status(Some(&NodeRef::Number(n.number))).ok())
+            // Names from the server, shown with their control characters written out.
+            .map(super::status::shown)
             .collect(),
     )
 }

@@ -1,6 +1,8 @@
 //! `buslab recvfile --id ID OUT`: receives one file sent with the file protocol (SPEC N5) on
 //! `ID` (`buslab sendfile`, JerryCAN, a scenario's `file` traffic) and writes it atomically:
-//! OUT appears whole once the frame shorter than 8 bytes arrived, or not at all.
+//! OUT appears whole once the frame shorter than 8 bytes arrived, or not at all. OUT is
+//! checked (its temporary file made beside it) before the bus is joined, and the bytes go to
+//! that file as they come, not to memory.
 
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -8,7 +10,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use buslab_can::Id;
-use buslab_canbus::{FileAssembler, FileError, Filter};
+use buslab_canbus::{FileError, FileReceiver, Filter};
+use buslab_link::fs::AtomicFile;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::busopt::{BusOpt, open};
@@ -19,7 +22,8 @@ pub struct Args {
     /// The 11-bit identifier the file arrives on (hex with 0x, or decimal).
     #[arg(long, value_name = "ID", value_parser = super::monican::parse_id)]
     pub id: u16,
-    /// Where to write the file (replaced atomically once the whole file is in).
+    /// Where to write the file (replaced atomically once the whole file is in; checked
+    /// before the first frame).
     pub out: PathBuf,
     #[command(flatten)]
     pub bus: BusOpt,
@@ -37,12 +41,15 @@ const LOOK: Duration = Duration::from_millis(200);
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let id = Id::standard(args.id).context("the file's identifier")?;
+    // Before anything arrives: a target that cannot be written is refused now, not after
+    // the whole transfer.
+    let mut out = AtomicFile::create(&args.out)?;
     let stop = super::interrupted()?;
     let url = &args.bus.bus;
     let mut bus = open(url)?;
     bus.set_filters(&[Filter::standard(args.id)])?;
     eprintln!("waiting for a file on ID {:03X} of {url}", args.id);
-    let mut file = FileAssembler::with_limit(id, args.max_size);
+    let mut file = FileReceiver::with_limit(id, args.max_size);
     let bar = ProgressBar::new_spinner();
     bar.set_style(
         ProgressStyle::with_template("{spinner} receiving {bytes} {bytes_per_sec}")
@@ -50,12 +57,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let waiting_since = Instant::now();
     let mut first_frame: Option<Instant> = None;
-    let data = loop {
+    // Dropping `out` on the way out of an error removes its temporary file.
+    loop {
         if stop.load(Ordering::SeqCst) {
             bar.finish_and_clear();
             bail!(
                 "interrupted after {} bytes; {} was not written",
-                file.received().len(),
+                file.len(),
                 args.out.display()
             );
         }
@@ -78,8 +86,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         first_frame.get_or_insert_with(Instant::now);
         match file.push(&message.frame) {
-            Ok(Some(data)) => break data,
-            Ok(None) => bar.set_position(file.received().len() as u64),
+            Ok(received) => {
+                out.write_all(received.bytes)?;
+                if received.complete {
+                    break;
+                }
+                bar.set_position(file.len() as u64);
+            }
             Err(FileError::RemoteFrame { frame }) => {
                 tracing::warn!("ignored remote frame {frame} (the file protocol uses data frames)")
             }
@@ -88,16 +101,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 bail!("{e}; {} was not written", args.out.display());
             }
         }
-    };
+    }
     bar.finish_and_clear();
     let elapsed = first_frame.map_or(Duration::ZERO, |t| t.elapsed());
-    buslab_link::fs::write_atomic(&args.out, &data)?;
+    out.commit()?;
+    let len = file.len();
     eprintln!(
         "received {} bytes on ID {:03X} in {} ({:.0} bytes/s), written to {}",
-        data.len(),
+        len,
         args.id,
         Human(elapsed),
-        data.len() as f64 / elapsed.as_secs_f64().max(1e-9),
+        len as f64 / elapsed.as_secs_f64().max(1e-9),
         args.out.display()
     );
     Ok(())

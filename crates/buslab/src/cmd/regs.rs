@@ -1,6 +1,8 @@
 //! `buslab regs --node N`: a node's SJA1000 registers with names and values (the seed's
 //! regb/regp), read without side effects.
 
+use buslab_device::printable;
+
 use super::busopt::{BusOpt, admin, node_ref, open};
 
 #[derive(clap::Args)]
@@ -17,7 +19,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut bus = open(url)?;
     let regs =
         admin(&mut bus, url, "register access")?.register_dump(Some(&node_ref(&args.node)))?;
-    println!("node {} ({})", regs.number, regs.name);
+    // The name comes from the server: printed with its control characters written out.
+    println!("node {} ({})", regs.number, printable(regs.name.as_bytes()));
     print!("{}", regs.dump);
     Ok(())
 }

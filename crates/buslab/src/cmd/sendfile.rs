@@ -5,12 +5,16 @@
 //! A frame that loses arbitration or meets errors is retransmitted by the controller: the
 //! sender waits, says why, and goes on once the bus carries frames again (a wire cut and
 //! repaired), unless `--stall` passes first.
+//!
+//! The file is read as it is sent (a batch of frames at a time), so its size costs no memory.
 
+use std::io::BufReader;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::Context;
+use anyhow::{Context, bail};
 use buslab_can::Id;
+use buslab_canbus::FileFrames;
 
 use super::busopt::{BusOpt, open};
 use super::transfer;
@@ -31,29 +35,44 @@ pub struct Args {
     pub stall: Option<Duration>,
 }
 
-/// The largest file sent (the receiver keeps a file in memory until it is complete).
+/// The largest file sent (also `recvfile`'s default limit; 256 MiB take well over an hour
+/// at 1 Mbit/s).
 pub const MAX_FILE: u64 = 256 * 1024 * 1024;
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let data = buslab_link::fs::read_limited(&args.file, MAX_FILE)
-        .with_context(|| format!("files up to {MAX_FILE} bytes are sent"))?;
+    let path = &args.file;
+    let file = buslab_link::fs::open_regular(path, false)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let len = file
+        .metadata()
+        .with_context(|| format!("cannot read {}", path.display()))?
+        .len();
+    if len > MAX_FILE {
+        bail!(
+            "{} is larger than {MAX_FILE} bytes, the most sent",
+            path.display()
+        );
+    }
     let id = Id::standard(args.id).context("the file's identifier")?;
     let stop = super::interrupted()?;
     let url = &args.bus.bus;
     let mut bus = open(url)?;
     let started = Instant::now();
-    let bar = transfer::bar(data.len() as u64, "sending");
-    let sent = transfer::send_data(&mut bus, url, id, &data, &bar, args.stall, &stop);
+    let bar = transfer::bar(len, "sending");
+    // The length read now is what is sent: bytes written to the file meanwhile are not, and a
+    // file cut short meanwhile is an error (never a shorter file at the other end).
+    let frames = FileFrames::new(id, BufReader::new(file), len);
+    let sent = transfer::send_frames(&mut bus, url, frames, &bar, args.stall, &stop);
     bar.finish_and_clear();
-    sent?;
+    sent.with_context(|| format!("sending {}", path.display()))?;
     let elapsed = started.elapsed();
     eprintln!(
         "sent {} ({} bytes) on ID {:03X} in {} ({:.0} bytes/s)",
-        args.file.display(),
-        data.len(),
+        path.display(),
+        len,
         args.id,
         Human(elapsed),
-        data.len() as f64 / elapsed.as_secs_f64().max(1e-9)
+        len as f64 / elapsed.as_secs_f64().max(1e-9)
     );
     Ok(())
 }

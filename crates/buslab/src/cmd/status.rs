@@ -1,6 +1,7 @@
 //! `buslab status [--node N]`: error state, STATUS bits, error counters, ALC and ECC in words.
 
-use buslab_canbus::NodeRef;
+use buslab_canbus::{NodeRef, NodeStatus};
+use buslab_device::printable;
 
 use super::busopt::{BusOpt, admin, node_ref, open};
 
@@ -35,7 +36,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if i > 0 {
             println!();
         }
-        print!("{}", admin.node_status(Some(node))?);
+        print!("{}", shown(admin.node_status(Some(node))?));
     }
     Ok(())
+}
+
+/// A node's status as it may be printed: its name comes from the server, and a name with
+/// an escape sequence in it must not drive the user's terminal (`\x1B[2J` is shown as that).
+pub fn shown(mut status: NodeStatus) -> NodeStatus {
+    status.name = printable(status.name.as_bytes());
+    status
 }

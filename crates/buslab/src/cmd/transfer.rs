@@ -12,10 +12,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use buslab_backends::{BusUrl, DynBus};
-use buslab_can::Id;
-use buslab_canbus::BusError;
+use buslab_can::{Frame, Id};
+use buslab_canbus::{BusError, FileReadError};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use super::status::shown;
 use crate::units::Human;
 
 /// Frames handed to the node before waiting for them to be sent.
@@ -49,16 +50,36 @@ pub fn send_data(
     stall: Option<Duration>,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
-    let frames: Vec<_> = buslab_can::file::frames(id, data).collect();
-    for batch in frames.chunks(BATCH) {
-        for frame in batch {
+    let frames = buslab_can::file::frames(id, data).map(Ok::<_, FileReadError>);
+    send_frames(bus, url, frames, bar, stall, stop)
+}
+
+/// [`send_data`] for frames made as they are taken ([`buslab_canbus::FileFrames`] reads a
+/// file as it goes): at most one batch of frames is held at a time.
+pub fn send_frames(
+    bus: &mut DynBus,
+    url: &BusUrl,
+    mut frames: impl Iterator<Item = Result<Frame, FileReadError>>,
+    bar: &ProgressBar,
+    stall: Option<Duration>,
+    stop: &AtomicBool,
+) -> anyhow::Result<()> {
+    let mut batch = Vec::with_capacity(BATCH);
+    loop {
+        batch.clear();
+        for frame in frames.by_ref().take(BATCH) {
+            batch.push(frame?);
+        }
+        if batch.is_empty() {
+            return Ok(());
+        }
+        for frame in &batch {
             bus.send(frame)?;
         }
         wait_sent(bus, url, stall, stop)?;
         let bytes: usize = batch.iter().map(|f| f.payload().len()).sum();
         bar.inc(bytes as u64);
     }
-    Ok(())
 }
 
 /// Waits until the frames handed to this client's node are on the wire (a bus without
@@ -81,7 +102,7 @@ fn wait_sent(
         }
         match admin.flush(LOOK) {
             Ok(report) if report.failed > 0 => {
-                let st = admin.node_status(None)?;
+                let st = shown(admin.node_status(None)?);
                 bail!(
                     "{} frame(s) were given up by this node on {url}; its status:\n{st}",
                     report.failed
@@ -94,7 +115,7 @@ fn wait_sent(
                 return Ok(());
             }
             Err(BusError::Timeout { .. }) => {
-                let st = admin.node_status(None)?;
+                let st = shown(admin.node_status(None)?);
                 if st.counters.sent > sent_before {
                     sent_before = st.counters.sent;
                     progress_at = Instant::now();

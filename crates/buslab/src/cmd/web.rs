@@ -6,7 +6,7 @@ use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::Context;
-use buslab_web::{WebConfig, WebServer, generate_token};
+use buslab_web::{Timeouts, WebConfig, WebServer, generate_token};
 
 use super::busopt::{BusOpt, open};
 
@@ -30,6 +30,22 @@ pub struct Args {
     /// Connections served at once; further ones get 503.
     #[arg(long, value_name = "N", default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub max_connections: u32,
+    #[command(flatten)]
+    pub hosts: AllowHost,
+    /// How long a client may take to send a request's head, then its body, and may leave a
+    /// kept-alive connection idle (for tests; docs/web.md).
+    #[arg(long, value_name = "DURATION", value_parser = crate::units::duration, hide = true)]
+    pub request_timeout: Option<Duration>,
+}
+
+/// `--allow-host`, shared with `buslab lab`.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct AllowHost {
+    /// A host name the pages answer to besides IP addresses and localhost (repeatable):
+    /// requests naming any other host are refused with 403, so that a page of another site
+    /// cannot read the bus by pointing its name at this machine (DNS rebinding).
+    #[arg(long = "allow-host", value_name = "NAME")]
+    pub allow_host: Vec<String>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -47,6 +63,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             token,
             max_connections: args.max_connections as usize,
             bitrate: args.bitrate,
+            allowed_hosts: args.hosts.allow_host,
+            timeouts: Timeouts {
+                request: args.request_timeout.unwrap_or(Timeouts::default().request),
+                ..Timeouts::default()
+            },
             ..WebConfig::default()
         },
     )
