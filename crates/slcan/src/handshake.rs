@@ -185,9 +185,13 @@ impl Handshake {
     }
 
     /// One reply from the adapter. Frames received once the channel is being opened are given
-    /// back to keep; everything before is a leftover and dropped.
+    /// back to keep; everything before is a leftover and dropped, and so is everything after a
+    /// failure.
     pub fn handle(&mut self, reply: Reply) -> Option<Reply> {
-        if self.open || self.failed.is_some() {
+        if self.failed.is_some() {
+            return None;
+        }
+        if self.open {
             return Some(reply).filter(|r| matches!(r, Reply::Frame { .. }));
         }
         let purpose = self.current.as_ref().map(|s| s.purpose);

@@ -37,6 +37,7 @@ fn a_reply_left_from_the_last_session_does_not_shift_the_answers() {
     const OPENS: usize = 20;
     for kind in ALL {
         let fake = FakeAdapter::start(kind);
+        fake.hold_close_answers();
         for n in 0..OPENS {
             fake.pace_answers(n % 2 == 1);
             let mut bus = SlcanBus::open(fake.path(), &options(Some(500_000), false))
@@ -51,7 +52,6 @@ fn a_reply_left_from_the_last_session_does_not_shift_the_answers() {
                 Kind::Canable2Fork => assert_eq!(version.as_deref(), Some(FORK_VERSION)),
             }
             assert_eq!(bus.acknowledges(), kind != Kind::Canable, "{kind:?}");
-            fake.hold_answer_to_next_close();
             drop(bus);
         }
         // Every frame went out once, the channel at 500 kbit/s (S6 on each of them), and it is

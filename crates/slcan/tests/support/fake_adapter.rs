@@ -9,9 +9,9 @@
 //! | `Canable2Fork` | Nakakiyo092/canable2-fw: Lawicel-like, `V` answered `VL2K0 <describe> <repository>`, CR to an empty line, `N1A2B` |
 //! | `Model` | buslab's own `buslab_slcan::Adapter` |
 //!
-//! A fake can hold its answer to the next `C` (and a frame queued before it) until
-//! the host writes again, as an adapter whose output was still queued when the session closed
-//! the port: the next session reads them first.
+//! A fake can hold its answer to `C` (and a frame queued before it) until the host writes
+//! again, as an adapter whose output was still queued when the session closed the port: the
+//! next session reads them first.
 
 use std::os::fd::{AsFd, OwnedFd};
 use std::path::PathBuf;
@@ -67,7 +67,7 @@ struct Firmware {
     seen: Seen,
     /// Output held back until the host writes again.
     held: Vec<u8>,
-    /// Hold the answer to the next `C` until the host writes again.
+    /// Hold the answer to every `C` until the host writes again.
     hold_close: bool,
     /// Write each answer on its own, a little apart, as a USB adapter sends them in separate
     /// packets (the host then reads them one by one).
@@ -149,7 +149,6 @@ impl Firmware {
         if self.hold_close && line == b"C" {
             // A frame received before the close, queued before the answer to C; the next
             // session reads them.
-            self.hold_close = false;
             self.held.extend_from_slice(b"t1232AABB\r");
             self.held.extend(answer);
         } else {
@@ -333,9 +332,9 @@ impl FakeAdapter {
         self.path.to_str().unwrap()
     }
 
-    /// Holds the answer to the next `C` (and a frame before it) until the host
-    /// writes again: call it before the session ends.
-    pub fn hold_answer_to_next_close(&self) {
+    /// Holds the answer to every `C` (and a frame before it) until the host writes again:
+    /// the session that closes the channel leaves them for the next one.
+    pub fn hold_close_answers(&self) {
         self.firmware.lock().unwrap().hold_close = true;
     }
 
