@@ -155,10 +155,10 @@ fn gen_refuses_bad_modes_by_name() {
             &["gen", "-D", "1122", "-L", "3"][..],
             "data has 2 bytes but -L says 3",
         ),
-        // cangen's gap is milliseconds, buslab's durations carry their unit.
+        // A bare gap is cangen's milliseconds (can_utils_habits.rs); not a number is refused.
         (
-            &["gen", "-g", "10"][..],
-            "duration \"10\" has no unit: write e.g. 10s or 10ms",
+            &["gen", "-g", "1.2.3"][..],
+            "duration \"1.2.3\" is not a number",
         ),
         (
             &["dump", "-t", "q"][..],

@@ -1,12 +1,15 @@
 //! A [`CanBus`] over an SLCAN adapter on a serial port (a USB CDC adapter such as CANable or
 //! Lawicel CANUSB, or a pseudo-terminal served by `buslab slcan serve`).
 //!
-//! Opening closes the channel (`C`), sets the bit rate (`S0`..`S8` for the standard rates,
-//! `sxxyy` with SJA1000 registers at 8 MHz for others), turns timestamps on (`Z1`, optional:
-//! an adapter that refuses is used without), reads the version (`V`) and serial number (`N`),
-//! and opens (`O`, or `L` listen-only). Dropping the bus waits for the answers to the frames
-//! sent, then closes the channel. Frames are sent without waiting for the adapter's answer (as
-//! python-can does); a refused frame (BEL) is logged. Received frames carry the host time, refined by the adapter's timestamps.
+//! Opening discards what the port had queued, then runs the [`Handshake`]: `C` (which also
+//! ends a line left half-typed), `Z1` (timestamps, optional), `N` (serial number), the bit rate
+//! (`S0`..`S8` for the standard rates, `sxxyy` with SJA1000 registers at 8 MHz for others) and
+//! `O` (or `L`), each followed by `V`, whose answer closes the exchange: a reply left over from
+//! an earlier session cannot be taken for an answer. Adapters that answer nothing but `V`
+//! (CANable's firmware) work too. Dropping the bus waits for the answers to the frames sent,
+//! then closes the channel. Frames are sent without waiting for the adapter's answer (as
+//! python-can does); a refused frame (BEL) is logged. Received frames carry the host time,
+//! refined by the adapter's timestamps.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
@@ -16,13 +19,14 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use buslab_can::Frame;
 use buslab_canbus::bus::matches_any;
 use buslab_canbus::{BitTiming, BusError, BusState, CanBus, Filter, Message};
-use serialport::{FlowControl, SerialPort, TTYPort};
+use serialport::{ClearBuffer, FlowControl, SerialPort, TTYPort};
 
 use crate::clock::DeviceClock;
 use crate::codec::{
-    CodecError, Command, Line, LineSplitter, Reply, STANDARD_BITRATES, StatusFlags, format_command,
-    parse_reply,
+    CodecError, Command, Line, LineSplitter, MAX_REPLY_LINE, Reply, STANDARD_BITRATES, StatusFlags,
+    format_command, parse_reply,
 };
+use crate::handshake::{CANABLE_BITRATES, Firmware, Handshake, HandshakeError, Plan, Status};
 
 /// The CAN clock `sxxyy` registers are computed for: an SJA1000 at 16 MHz (Lawicel CAN232,
 /// CANUSB) divides by 2; python-can requires the same for its `timing`.
@@ -43,6 +47,14 @@ pub struct SlcanOptions {
     /// How long to wait for each answer while opening.
     pub reply_timeout: Duration,
 }
+
+/// After the first version line, the line must stay quiet this long (or [`SETTLE_CHARS`]
+/// characters at its rate, if longer) before the leftovers count as read: USB adapters send
+/// every millisecond, FTDI ones (CANUSB) every 16 ms.
+pub const SETTLE: Duration = Duration::from_millis(50);
+
+/// See [`SETTLE`].
+pub const SETTLE_CHARS: u32 = 32;
 
 impl Default for SlcanOptions {
     fn default() -> Self {
@@ -70,7 +82,18 @@ pub enum SlcanError {
     Bitrate { bitrate: u32 },
     #[error("{device}: the adapter refused {command:?} (answered BEL)")]
     Refused { device: String, command: String },
-    #[error("{device}: no answer to {command:?} within {timeout:?}: is it an SLCAN adapter?")]
+    #[error("{device}: {source}")]
+    Handshake {
+        device: String,
+        source: HandshakeError,
+    },
+    #[error(
+        "{device}: the adapter does not answer F (CANable's slcan firmware answers only V): no status to read"
+    )]
+    NoStatus { device: String },
+    #[error(
+        "{device}: no answer to {command:?} within {timeout:?}: is it an SLCAN adapter? (every exchange ends with V, which they all answer)"
+    )]
     NoAnswer {
         device: String,
         command: String,
@@ -110,9 +133,13 @@ pub struct SlcanBus {
     inbox: VecDeque<Message>,
     /// Answers owed to frames sent (python-can style: not waited for).
     owed: usize,
+    /// The adapter answers commands and frames (CANable's firmware does not).
+    acknowledges: bool,
+    /// CRs on their way that answer nothing of ours (a CANable variant's after `V`).
+    stray_acks: usize,
     filters: Vec<Filter>,
     clock: DeviceClock,
-    version: Option<[u8; 4]>,
+    firmware: Option<Firmware>,
     serial: Option<[u8; 4]>,
     refused: u64,
 }
@@ -120,8 +147,16 @@ pub struct SlcanBus {
 impl SlcanBus {
     /// Opens the adapter at `device` and its channel.
     pub fn open(device: &str, options: &SlcanOptions) -> Result<Self, SlcanError> {
-        // A bit rate no command reaches is refused before anything is sent.
-        let bitrate = options.bitrate.map(bitrate_command).transpose()?;
+        // A bit rate no command reaches is refused before anything is sent; 750 kbit/s only
+        // CANable's S7 reaches.
+        let bitrate = match options.bitrate {
+            None => None,
+            Some(rate) => match bitrate_command(rate) {
+                Ok(command) => Some((rate, Some(command))),
+                Err(_) if CANABLE_BITRATES.contains(&rate) => Some((rate, None)),
+                Err(e) => return Err(e),
+            },
+        };
         let port = serialport::new(device, options.baud)
             .flow_control(FlowControl::None)
             .timeout(options.reply_timeout)
@@ -131,44 +166,51 @@ impl SlcanBus {
                 source,
             })?;
         set_cloexec(&port);
+        // Whatever arrived before anyone read it belongs to an earlier session.
+        if let Err(e) = port.clear(ClearBuffer::Input) {
+            tracing::debug!("{device}: cannot discard its input queue: {e}");
+        }
         let channel = device.rsplit('/').next().unwrap_or(device).to_string();
         let mut bus = Self {
             port,
             device: device.to_string(),
             channel,
-            splitter: LineSplitter::new(),
+            splitter: LineSplitter::with_limit(MAX_REPLY_LINE),
             inbox: VecDeque::new(),
             owed: 0,
+            acknowledges: true,
+            stray_acks: 0,
             filters: Vec::new(),
             clock: DeviceClock::new(),
-            version: None,
+            firmware: None,
             serial: None,
             refused: 0,
         };
-        let wait = options.reply_timeout;
-        // A channel left open by an earlier user answers C with CR, a closed one may say BEL:
-        // either is fine.
-        bus.request(&Command::Close, wait)?;
-        if let Some(command) = &bitrate {
-            bus.expect_ok(command, wait)?;
+        let plan = Plan {
+            bitrate,
+            listen_only: options.listen_only,
+        };
+        let (hs, after) = bus.handshake(plan, options)?;
+        bus.acknowledges = hs.acknowledges();
+        bus.stray_acks = usize::from(hs.trailing_ack());
+        bus.firmware = hs.firmware().cloned();
+        bus.serial = hs.serial();
+        // What came in the same read after the last answer is the open channel's.
+        for parsed in after {
+            match parsed {
+                Ok(Reply::Frame {
+                    frame,
+                    timestamp_ms,
+                }) => bus.keep_frame(frame, timestamp_ms),
+                Ok(reply) => bus.later(reply),
+                Err(e) => tracing::debug!("{device}: ignored from the adapter: {e}"),
+            }
         }
-        if let Ok(Reply::Error) = bus.request(&Command::Timestamps(true), wait) {
+        if hs.timestamps() == Some(false) {
             tracing::debug!("{device}: no timestamps (Z1 refused): frames get the host's time");
         }
-        if let Ok(Reply::Version(v)) = bus.request(&Command::Version, wait) {
-            bus.version = Some(v);
-        }
-        if let Ok(Reply::SerialNumber(n)) = bus.request(&Command::SerialNumber, wait) {
-            bus.serial = Some(n);
-        }
-        let open = if options.listen_only {
-            Command::ListenOnly
-        } else {
-            Command::Open
-        };
-        bus.expect_ok(&open, wait)?;
         tracing::info!(
-            "{device}: SLCAN adapter open{} (version {}, serial {})",
+            "{device}: SLCAN adapter open{} (version {}, serial {}{}{})",
             if options.listen_only {
                 " listen-only"
             } else {
@@ -176,15 +218,104 @@ impl SlcanBus {
             },
             bus.version().unwrap_or("?"),
             bus.serial_number().unwrap_or("?"),
+            if bus.acknowledges {
+                ""
+            } else {
+                "; it answers no command"
+            },
+            match hs.leftovers() {
+                0 => String::new(),
+                n => format!("; {n} line(s) left from before ignored"),
+            },
         );
         Ok(bus)
     }
 
-    /// The adapter's `V` answer (`1013`), if it gave one.
+    /// Runs the opening exchange to the end; what was read after its last answer.
+    fn handshake(
+        &mut self,
+        plan: Plan,
+        options: &SlcanOptions,
+    ) -> Result<(Handshake, Vec<Result<Reply, CodecError>>), SlcanError> {
+        let mut hs = Handshake::new(plan);
+        let char_time = Duration::from_secs_f64(10.0 / f64::from(options.baud.max(1)));
+        let settle = SETTLE.max(char_time * SETTLE_CHARS);
+        let mut deadline = Instant::now() + options.reply_timeout;
+        // A line that never stops talking does not hold the opening forever.
+        let mut settle_end = None;
+        loop {
+            if let Some(bytes) = hs.poll_transmit() {
+                self.port.write_all(&bytes).map_err(|e| self.io(e))?;
+                deadline = Instant::now() + options.reply_timeout;
+            }
+            let wait = match hs.status() {
+                Status::Open => return Ok((hs, Vec::new())),
+                Status::Failed(source) => {
+                    return Err(SlcanError::Handshake {
+                        device: self.device.clone(),
+                        source,
+                    });
+                }
+                Status::Settling => {
+                    let end = *settle_end.get_or_insert(Instant::now() + options.reply_timeout);
+                    (Instant::now() + settle).min(end)
+                }
+                Status::Waiting { .. } => deadline,
+            };
+            let Some(replies) = self.read_replies(wait).map_err(|e| self.io(e))? else {
+                match hs.status() {
+                    Status::Settling => hs.settled(),
+                    Status::Waiting { command } => {
+                        return Err(SlcanError::NoAnswer {
+                            device: self.device.clone(),
+                            command,
+                            timeout: options.reply_timeout,
+                        });
+                    }
+                    Status::Open | Status::Failed(_) => {}
+                }
+                continue;
+            };
+            let mut replies = replies.into_iter();
+            for parsed in replies.by_ref() {
+                let kept = match parsed {
+                    Ok(reply) => hs.handle(reply),
+                    Err(e) => {
+                        tracing::debug!("{}: ignored while opening: {e}", self.device);
+                        hs.handle_garbage();
+                        None
+                    }
+                };
+                if let Some(Reply::Frame {
+                    frame,
+                    timestamp_ms,
+                }) = kept
+                {
+                    self.keep_frame(frame, timestamp_ms);
+                }
+                if matches!(hs.status(), Status::Open | Status::Failed(_)) {
+                    break;
+                }
+            }
+            if hs.status() == Status::Open {
+                return Ok((hs, replies.collect()));
+            }
+        }
+    }
+
+    /// The adapter's `V` answer (`1013`, or CANable's text), if it gave one.
     pub fn version(&self) -> Option<&str> {
-        self.version
-            .as_ref()
-            .and_then(|v| std::str::from_utf8(v).ok())
+        self.firmware.as_ref().map(Firmware::as_str)
+    }
+
+    /// What the adapter said it is.
+    pub fn firmware(&self) -> Option<&Firmware> {
+        self.firmware.as_ref()
+    }
+
+    /// Whether the adapter answers commands and frames (CANable's firmware does not).
+    pub fn acknowledges(&self) -> bool {
+        self.acknowledges
     }
 
     /// The adapter's `N` answer, if it gave one.
@@ -196,6 +327,11 @@ impl SlcanBus {
 
     /// Reads the status flags (`F`).
     pub fn status_flags(&mut self, timeout: Duration) -> Result<StatusFlags, SlcanError> {
+        if !self.acknowledges {
+            return Err(SlcanError::NoStatus {
+                device: self.device.clone(),
+            });
+        }
         match self.request(&Command::Status, timeout)? {
             Reply::Status(flags) => Ok(flags),
             _ => Err(self.refused(&Command::Status)),
@@ -213,13 +349,6 @@ impl SlcanBus {
         SlcanError::Io {
             device: self.device.clone(),
             source,
-        }
-    }
-
-    fn expect_ok(&mut self, command: &Command, timeout: Duration) -> Result<(), SlcanError> {
-        match self.request(command, timeout)? {
-            Reply::Error => Err(self.refused(command)),
-            _ => Ok(()),
         }
     }
 
@@ -249,6 +378,7 @@ impl SlcanBus {
                     | (Reply::DetailedVersion(_), Command::DetailedVersion)
                     | (Reply::SerialNumber(_), Command::SerialNumber) => answer = Some(reply),
                     // Answers to frames sent earlier come first.
+                    (Reply::Ok, _) if self.stray_acks > 0 => self.stray_acks -= 1,
                     (Reply::Ok | Reply::Error | Reply::Queued { .. }, _) if self.owed > 0 => {
                         self.settle_owed(&reply)
                     }
@@ -279,6 +409,36 @@ impl SlcanBus {
     /// received frames go to the inbox, the other replies are returned in order. `None` when
     /// the deadline passed with nothing read.
     fn read_some(&mut self, deadline: Option<Instant>) -> io::Result<Option<Vec<Reply>>> {
+        let Some(lines) = self.read_lines(deadline)? else {
+            return Ok(None);
+        };
+        let mut replies = Vec::new();
+        for parsed in lines {
+            match parsed {
+                Ok(Reply::Frame {
+                    frame,
+                    timestamp_ms,
+                }) => self.keep_frame(frame, timestamp_ms),
+                Ok(reply) => replies.push(reply),
+                Err(e) => tracing::debug!("{}: ignored from the adapter: {e}", self.device),
+            }
+        }
+        Ok(Some(replies))
+    }
+
+    /// [`read_some`](Self::read_some) for the handshake, which decides about every line.
+    fn read_replies(
+        &mut self,
+        deadline: Instant,
+    ) -> io::Result<Option<Vec<Result<Reply, CodecError>>>> {
+        self.read_lines(Some(deadline))
+    }
+
+    /// Waits for bytes until `deadline` and parses the lines they end.
+    fn read_lines(
+        &mut self,
+        deadline: Option<Instant>,
+    ) -> io::Result<Option<Vec<Result<Reply, CodecError>>>> {
         let mut buf = [0u8; 512];
         let n = loop {
             let now = Instant::now();
@@ -304,33 +464,28 @@ impl SlcanBus {
                 Err(e) => return Err(e),
             }
         };
-        let host_s = unix_now();
-        let mut replies = Vec::new();
+        let mut lines = Vec::new();
         for &byte in &buf[..n] {
-            let parsed = match self.splitter.push(byte) {
+            lines.push(match self.splitter.push(byte) {
                 None => continue,
                 Some(Line::Text(t)) => parse_reply(t, false),
                 Some(Line::Bell(t)) => parse_reply(t, true),
                 Some(Line::TooLong) => Err(CodecError::TooLong),
-            };
-            match parsed {
-                Ok(Reply::Frame {
-                    frame,
-                    timestamp_ms,
-                }) => {
-                    let t = self.clock.stamp(host_s, timestamp_ms);
-                    self.keep(Message::rx(t, self.channel.clone(), frame));
-                }
-                Ok(reply) => replies.push(reply),
-                Err(e) => tracing::debug!("{}: ignored from the adapter: {e}", self.device),
-            }
+            });
         }
-        Ok(Some(replies))
+        Ok(Some(lines))
+    }
+
+    /// A received frame, stamped now (refined by the adapter's counter).
+    fn keep_frame(&mut self, frame: Frame, timestamp_ms: Option<u16>) {
+        let t = self.clock.stamp(unix_now(), timestamp_ms);
+        self.keep(Message::rx(t, self.channel.clone(), frame));
     }
 
     /// A reply nobody waits for: only answers to sent frames are expected.
     fn later(&mut self, reply: Reply) {
         match reply {
+            Reply::Ok if self.stray_acks > 0 => self.stray_acks -= 1,
             Reply::Ok | Reply::Error | Reply::Queued { .. } if self.owed > 0 => {
                 self.settle_owed(&reply)
             }
@@ -382,7 +537,9 @@ impl CanBus for SlcanBus {
         let mut bytes = Vec::with_capacity(32);
         format_command(&Command::Transmit(*frame), &mut bytes);
         self.port.write_all(&bytes)?;
-        self.owed += 1;
+        if self.acknowledges {
+            self.owed += 1;
+        }
         Ok(())
     }
 

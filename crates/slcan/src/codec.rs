@@ -15,6 +15,11 @@ use buslab_can::{Frame, Id};
 /// CR (`T1111222281122334455667788EA5F`); commands are shorter. Longer lines are garbage.
 pub const MAX_LINE: usize = 64;
 
+/// The longest reply line a host keeps ([`LineSplitter::with_limit`]): CANable's answer to `V`
+/// is its firmware's `git describe` and repository URL, 50 to 70 characters
+/// (`8ca5d39 https://github.com/normaldotcom/canable-fw.git`), longer for forks.
+pub const MAX_REPLY_LINE: usize = 128;
+
 /// The bit rates of `S0`..`S8`, in bit/s.
 pub const STANDARD_BITRATES: [u32; 9] = [
     10_000, 20_000, 50_000, 100_000, 125_000, 250_000, 500_000, 800_000, 1_000_000,
@@ -89,6 +94,10 @@ pub enum Reply {
     DetailedVersion([u8; 4]),
     /// `Nxxxx`: the serial number, 4 alphanumeric characters.
     SerialNumber([u8; 4]),
+    /// A line of printable text with a space in it, which no Lawicel reply has: how CANable's
+    /// slcan firmware answers `V` (`<git describe> <repository>`; the CANable 2 fork of
+    /// Nakakiyo092 puts `VL2K0 ` before it).
+    FirmwareText(String),
 }
 
 /// The status flags of the `F` command (Lawicel CAN232/CANUSB).
@@ -159,7 +168,7 @@ pub enum CodecError {
     },
     #[error("{line}: CAN FD frames (d, D, b, B) are not supported; buslab speaks classic CAN")]
     Fd { line: Shown },
-    #[error("a line longer than {MAX_LINE} bytes")]
+    #[error("a line longer than an SLCAN line can be (dropped)")]
     TooLong,
 }
 
@@ -294,6 +303,11 @@ pub fn parse_reply(line: &[u8], bell: bool) -> Result<Reply, CodecError> {
             _ => Err(field(what, "4 letters or digits")),
         }
     };
+    if line.contains(&b' ') && line.iter().all(|b| (b' '..=b'~').contains(b)) {
+        return Ok(Reply::FirmwareText(
+            String::from_utf8_lossy(line).into_owned(),
+        ));
+    }
     match line {
         [] => Ok(Reply::Ok),
         [b'z'] => Ok(Reply::Queued { extended: false }),
@@ -449,6 +463,7 @@ pub fn format_reply(reply: &Reply, out: &mut Vec<u8>) {
             out.push(b'N');
             out.extend_from_slice(text);
         }
+        Reply::FirmwareText(text) => out.extend_from_slice(text.as_bytes()),
     }
     out.push(CR);
 }
@@ -514,19 +529,36 @@ pub enum Line<'a> {
     TooLong,
 }
 
-/// Cuts a byte stream into lines at CR or BEL, keeping at most [`MAX_LINE`] bytes. A LF
-/// right after a terminator (a terminal's CR LF) is ignored.
-#[derive(Clone, Debug, Default)]
+/// Cuts a byte stream into lines at CR or BEL, keeping at most [`MAX_LINE`] bytes (or the
+/// limit given). A LF right after a terminator (a terminal's CR LF) is ignored.
+#[derive(Clone, Debug)]
 pub struct LineSplitter {
     buf: Vec<u8>,
+    limit: usize,
     too_long: bool,
     /// The previous call ended a line: its bytes are dropped on the next push.
     ended: bool,
 }
 
+impl Default for LineSplitter {
+    fn default() -> Self {
+        Self::with_limit(MAX_LINE)
+    }
+}
+
 impl LineSplitter {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A splitter that keeps lines of up to `limit` bytes ([`MAX_REPLY_LINE`] for replies).
+    pub fn with_limit(limit: usize) -> Self {
+        Self {
+            buf: Vec::new(),
+            limit,
+            too_long: false,
+            ended: false,
+        }
     }
 
     /// Takes one byte; gives the line it ends, if it ends one.
@@ -551,7 +583,7 @@ impl LineSplitter {
                 })
             }
             _ if self.too_long => None,
-            _ if self.buf.len() == MAX_LINE => {
+            _ if self.buf.len() >= self.limit => {
                 self.too_long = true;
                 self.buf.clear();
                 None
@@ -661,6 +693,19 @@ mod tests {
             ("F0C\r", Reply::Status(StatusFlags(0x0C))),
             ("V1013\r", Reply::Version(*b"1013")),
             ("NB001\r", Reply::SerialNumber(*b"B001")),
+            // CANable's answers to V: its firmware's git description and repository.
+            (
+                "8ca5d39 https://github.com/normaldotcom/canable-fw.git\r",
+                Reply::FirmwareText(
+                    "8ca5d39 https://github.com/normaldotcom/canable-fw.git".into(),
+                ),
+            ),
+            (
+                "VL2K0 v2.0.0-16-g1a2b3c4 github.com/Nakakiyo092/canable2-fw.git\r",
+                Reply::FirmwareText(
+                    "VL2K0 v2.0.0-16-g1a2b3c4 github.com/Nakakiyo092/canable2-fw.git".into(),
+                ),
+            ),
             (
                 "t12320102EA5F\r",
                 Reply::Frame {
@@ -719,6 +764,11 @@ mod tests {
         assert!(matches!(
             parse_reply(b"hello", false),
             Err(CodecError::UnknownReply { .. })
+        ));
+        // A space makes a version text only among printable characters.
+        assert!(matches!(
+            parse_reply(b"t123 \x1b[2J", false),
+            Err(CodecError::Field { .. })
         ));
     }
 

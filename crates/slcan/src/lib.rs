@@ -5,6 +5,9 @@
 //!   stream into lines, bounded. Any bytes give a value or an error, never a panic.
 //! - [`adapter`]: an adapter as a sans-IO model ([`Adapter`]): host bytes in, answers and
 //!   received frames out, [`AdapterEvent`]s for the bus side (`buslab slcan serve`).
+//! - [`handshake`]: opening an adapter, sans-IO ([`Handshake`]): every command closed by `V`,
+//!   so replies left from an earlier session cannot shift the answers; Lawicel, CANable and
+//!   buslab's own answers.
 //! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over an adapter on a serial port
 //!   ([`SlcanBus`]), the `slcan:` backend.
 //! - [`clock`]: the adapter's wrapping millisecond timestamps mapped onto the host clock.
@@ -27,13 +30,16 @@ pub mod adapter;
 pub mod client;
 pub mod clock;
 pub mod codec;
+pub mod handshake;
 pub mod serve;
 
 pub use adapter::{Adapter, AdapterEvent, Identity, MAX_OUTPUT, Mode, Timing};
 pub use client::{BTR_CLOCK_HZ, SlcanBus, SlcanError, SlcanOptions, bitrate_command};
 pub use clock::DeviceClock;
 pub use codec::{
-    BEL, CR, CodecError, Command, Line, LineSplitter, MAX_LINE, Reply, STANDARD_BITRATES,
-    StatusFlags, format_command, format_frame, format_reply, parse_command, parse_reply,
+    BEL, CR, CodecError, Command, Line, LineSplitter, MAX_LINE, MAX_REPLY_LINE, Reply,
+    STANDARD_BITRATES, StatusFlags, format_command, format_frame, format_reply, parse_command,
+    parse_reply,
 };
+pub use handshake::{Firmware, Handshake, HandshakeError, Plan};
 pub use serve::{INPUT_QUEUE, Input, serve};

@@ -1,5 +1,6 @@
 //! What the CAN client commands (`dump`, `send`, `gen`, `regs`, `status`) share: the `--bus`
-//! option, opening the bus through the backend registry, and waiting until frames were sent.
+//! option (or can-utils' interface first), opening the bus through the backend registry, and
+//! waiting until frames were sent.
 
 use std::time::Duration;
 
@@ -19,6 +20,16 @@ pub struct BusOpt {
     #[arg(long, value_name = "BUS", default_value = crate::config::get().bus_name.as_str(),
           value_parser = resolve)]
     pub bus: BusUrl,
+}
+
+/// The bus of a command that takes it as can-utils does (`IFACE` first) or as `--bus`: the
+/// one given, else the configuration's.
+pub fn one_bus(iface: Option<&BusUrl>, bus: Option<&BusUrl>) -> anyhow::Result<BusUrl> {
+    match (iface, bus) {
+        (Some(iface), Some(_)) => bail!("the bus is given twice: as IFACE ({iface}) and --bus"),
+        (Some(url), None) | (None, Some(url)) => Ok(url.clone()),
+        (None, None) => Ok(crate::config::get().bus.clone()),
+    }
 }
 
 /// Opens the bus behind `url` with the backend its scheme names.

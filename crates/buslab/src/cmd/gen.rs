@@ -1,23 +1,32 @@
-//! `buslab gen`: generate traffic like can-utils' cangen (gap, ID/DLC/data modes, count).
+//! `buslab gen [IFACE]`: generate traffic like can-utils' cangen (the interface first, gap,
+//! ID/DLC/data modes, count).
 
 use std::str::FromStr;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
+use buslab_backends::{BusUrl, resolve};
 use buslab_can::{Frame, Id};
 use buslab_canbus::Filter;
 
-use super::busopt::{BusOpt, WORST_FRAME_BITS, confirm_sent, open, set_name};
+use super::busopt::{WORST_FRAME_BITS, confirm_sent, one_bus, open, set_name};
+use crate::units::CanUtilsDuration;
 
 #[derive(clap::Args)]
 pub struct Args {
-    #[command(flatten)]
-    pub bus: BusOpt,
-    /// Gap between frames, with a unit (cangen's -g 10 is `-g 10ms`; `0s` = as fast as the
-    /// bus takes them).
-    #[arg(short = 'g', long, value_name = "DURATION", default_value = "200ms", value_parser = crate::units::duration)]
-    pub gap: Duration,
+    /// The bus, as cangen takes its interface: vcan0 (buslab's bus on this machine), an
+    /// interface (can0), an SLCAN adapter's path (/dev/ttyACM0) or a URL. Default: the
+    /// configuration's `bus` (docs/config.md), else vcan0.
+    #[arg(value_name = "IFACE", value_parser = resolve)]
+    pub iface: Option<BusUrl>,
+    /// The bus, as IFACE (one or the other).
+    #[arg(long, value_name = "BUS", value_parser = resolve)]
+    pub bus: Option<BusUrl>,
+    /// Gap between frames, with a unit (`10ms`; `0s` = as fast as the bus takes them); a bare
+    /// number is milliseconds, as cangen's -g (with a warning).
+    #[arg(short = 'g', long, value_name = "DURATION", default_value = "200ms", value_parser = crate::units::milliseconds_if_bare)]
+    pub gap: CanUtilsDuration,
     /// Stop after this many frames (default: until Ctrl-C).
     #[arg(short = 'n', long, value_name = "COUNT")]
     pub count: Option<u64>,
@@ -192,7 +201,9 @@ impl Generator {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut generator = Generator::new(&args)?;
-    let url = &args.bus.bus;
+    args.gap.warn_if_bare("-g", "cangen");
+    let gap = args.gap.duration;
+    let url = &one_bus(args.iface.as_ref(), args.bus.as_ref())?;
     let mut bus = open(url)?;
     set_name(&mut bus, url, args.name.as_deref())?;
     // Only this client's own frames matter; what the bus carries is read and let go.
@@ -202,7 +213,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // written but not sent waits in the sockets, and so does any request behind it (the last
     // `< buslab_status >` waited behind 20000 sends and timed out). So every half a lead the
     // frames so far are flushed, keeping at most about a second of bus time in flight.
-    let lead = if args.gap.is_zero() {
+    let lead = if gap.is_zero() {
         bus.admin()
             .map(|admin| admin.node_status(None))
             .transpose()?
@@ -226,9 +237,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 break;
             }
         }
-        if !args.gap.is_zero() {
-            let Some(next) = due.checked_add(args.gap) else {
-                bail!("gap {:?} is too long for this clock", args.gap);
+        if !gap.is_zero() {
+            let Some(next) = due.checked_add(gap) else {
+                bail!("gap {gap:?} is too long for this clock");
             };
             due = next;
             // Waiting = reading: the server need not hold the bus's frames back for us.
