@@ -186,7 +186,7 @@ impl Mcs51 {
     pub fn stall(&mut self, until: Clocks) -> Stop {
         loop {
             if self.powered_down {
-                self.now = self.now.max(round_up(until.0));
+                self.power_down_until(until.0);
                 return Stop::PowerDown;
             }
             self.catch_up(self.now);
@@ -732,13 +732,27 @@ impl Mcs51 {
         self.reschedule();
     }
 
+    /// Time passes to `until` with the oscillator stopped: pins still change, nothing counts
+    /// or samples them.
+    fn power_down_until(&mut self, until: u64) {
+        self.catch_up(self.now);
+        let to = self.now.max(round_up(until));
+        while let Some(input) = self.inputs.pop_due(to) {
+            self.apply_levels(input.port, input.mask, input.levels);
+        }
+        self.timers.skip_to(to);
+        self.uart.skip_to(to);
+        self.now = to;
+        self.reschedule();
+    }
+
     /// At an instruction boundary: peripherals, events, the limit, interrupts, IDLE. `None`
     /// when the next instruction may run, with `next_event` set for the next look.
     #[inline(never)]
     fn service(&mut self) -> Option<Stop> {
         loop {
             if self.powered_down {
-                self.now = self.now.max(round_up(self.limit));
+                self.power_down_until(self.limit);
                 return Some(Stop::PowerDown);
             }
             self.catch_up(self.now);

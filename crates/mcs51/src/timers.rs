@@ -205,6 +205,11 @@ impl Timers {
         }
     }
 
+    /// Moves on to `to` without counting (the oscillator stood still).
+    pub fn skip_to(&mut self, to: u64) {
+        self.synced = self.synced.max(to);
+    }
+
     /// A falling edge on T0 (`t = 0`) or T1 sampled in the cycle starting at `cycle`: a
     /// counter counts it, visible from the next cycle on.
     pub fn count_edge(&mut self, t: usize, cycle: u64, p3_pins: u8) {

@@ -152,6 +152,11 @@ impl Uart {
         self.synced = to;
     }
 
+    /// Moves on to `to` without counting (the oscillator stood still).
+    pub fn skip_to(&mut self, to: u64) {
+        self.synced = self.synced.max(to);
+    }
+
     /// SMOD changed (synced first).
     pub fn set_smod(&mut self, smod: bool) {
         self.smod = smod;
