@@ -8,8 +8,9 @@
 //! announced pin change) and the earliest instant an interrupt can be taken. A write to a
 //! peripheral's register sets `next_event` to 0, so the next boundary looks again.
 //!
-//! Peripherals are brought up to date lazily (`catch_up`) when the program reads or writes
-//! them and at each look. An instruction's reads and writes of special function registers
+//! Peripherals are brought up to date lazily: what is due is handled at each look
+//! (`catch_up`), and their counts are brought up to the instant only when the program reads or
+//! writes one of their registers (`catch_up_fully`). An instruction's reads and writes of special function registers
 //! happen at the start of its last machine cycle.
 
 use alloc::collections::VecDeque;
@@ -60,6 +61,8 @@ pub struct Mcs51 {
     pub(crate) sp: u8,
     pub(crate) dptr: u16,
     pub(crate) iram: [u8; IRAM_SIZE],
+    /// Instructions run since the core was made.
+    pub(crate) instructions: u64,
     /// The current instruction boundary (during an instruction: its end).
     pub(crate) now: u64,
     /// The hot loop looks around when `now` reaches this.
@@ -101,6 +104,7 @@ impl Mcs51 {
             sp: 0,
             dptr: 0,
             iram: [0; IRAM_SIZE],
+            instructions: 0,
             now: 0,
             next_event: 0,
             limit: 0,
@@ -209,6 +213,11 @@ impl Mcs51 {
     /// The time: the current instruction boundary.
     pub fn now(&self) -> Clocks {
         Clocks(self.now)
+    }
+
+    /// Instructions run since the core was made (resets do not clear it).
+    pub fn instructions(&self) -> u64 {
+        self.instructions
     }
 
     /// When the core next needs running: now while the CPU runs; in IDLE, the next instant a
@@ -469,7 +478,7 @@ impl Mcs51 {
                 }
             }
             sfr::TCON | sfr::TL0 | sfr::TL1 | sfr::TH0 | sfr::TH1 => {
-                self.catch_up(at);
+                self.catch_up_fully(at);
                 match addr {
                     sfr::TCON => self.timers.tcon,
                     sfr::TL0 => self.timers.tl[0],
@@ -506,7 +515,7 @@ impl Mcs51 {
 
     #[inline(never)]
     fn sfr_write_peripheral(&mut self, addr: u8, value: u8, at: u64) {
-        self.catch_up(at);
+        self.catch_up_fully(at);
         match addr {
             sfr::P0 => self.set_latch(Port::P0, value, at),
             sfr::P1 => self.set_latch(Port::P1, value, at),
@@ -655,7 +664,8 @@ impl Mcs51 {
         self.uart.sync(t, self.timers.t1_overflows);
     }
 
-    /// Brings the peripherals to `to`, handling everything due on the way in time order.
+    /// Handles everything due by `to`, in time order. Flags and events are then as they are at
+    /// `to`; counts (timer registers, baud ticks) only where something was due.
     pub(crate) fn catch_up(&mut self, to: u64) {
         while self.next_internal <= to {
             let t = self.next_internal;
@@ -671,6 +681,12 @@ impl Mcs51 {
             }
             self.reschedule();
         }
+    }
+
+    /// Brings the peripherals up to `to` entirely, counts included: before the program reads
+    /// or writes one of their registers.
+    fn catch_up_fully(&mut self, to: u64) {
+        self.catch_up(to);
         self.sync(to);
     }
 
@@ -735,7 +751,7 @@ impl Mcs51 {
     /// Time passes to `until` with the oscillator stopped: pins still change, nothing counts
     /// or samples them.
     fn power_down_until(&mut self, until: u64) {
-        self.catch_up(self.now);
+        self.catch_up_fully(self.now);
         let to = self.now.max(round_up(until));
         while let Some(input) = self.inputs.pop_due(to) {
             self.apply_levels(input.port, input.mask, input.levels);

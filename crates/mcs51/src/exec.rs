@@ -15,6 +15,7 @@ impl Mcs51 {
     pub(crate) fn execute<B: Bus>(&mut self, bus: &mut B) {
         let op = bus.code(self.pc);
         self.pc = self.pc.wrapping_add(1);
+        self.instructions += 1;
         self.now += u64::from(CYCLES[usize::from(op)]) * CLOCKS_PER_CYCLE;
         match op {
             0x00 => {}
