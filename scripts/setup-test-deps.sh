@@ -7,7 +7,7 @@
 #   the log-format interop tests) and tshark/editcap (decode buslab's pcap and pcapng); for the
 #   SocketCAN test VM (scripts/vm/, crates/buslab/tests/vm_socketcan.rs): qemu-system-x86,
 #   busybox-static, cpio, can-utils, binutils, and Debian's kernel package downloaded (not
-#   installed) into target/vm-cache/;
+#   installed) into target/vm-cache/; sdcc-ucsim (s51) and as31 for the MCS-51 core;
 # - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can).
 # Whatever cannot be installed stops the script with a message and a non-zero exit: the interop
 # tests must not pass by skipping (under CI=1 they fail when a tool is missing).
@@ -107,6 +107,16 @@ if ! command -v tshark >/dev/null 2>&1 || ! command -v editcap >/dev/null 2>&1; 
     command -v tshark >/dev/null 2>&1 && command -v editcap >/dev/null 2>&1 ||
         fail "tshark or editcap is still missing after installing tshark"
 fi
+
+# The MCS-51 core's differential check against SDCC's simulator s51 (Debian sdcc-ucsim;
+# scripts/mcs51-vs-s51.sh, run by .ci/run) and the assembler of its benchmark programs (as31;
+# crates/mcs51/tests/bench_program.rs, bench/mcs51_speed.sh).
+for tool in s51:sdcc-ucsim as31:as31; do
+    if ! command -v "${tool%%:*}" >/dev/null 2>&1; then
+        apt_install "${tool#*:}"
+        command -v "${tool%%:*}" >/dev/null 2>&1 || fail "${tool%%:*} is still missing after installing ${tool#*:}"
+    fi
+done
 
 requirements=scripts/test-requirements.txt
 stamp=.venv/.requirements

@@ -1,0 +1,143 @@
+//! The core's one unit of time: oscillator periods ("clocks"), and the crystal that turns them
+//! into nanoseconds.
+
+use core::fmt;
+use core::ops::{Add, Sub};
+
+/// Oscillator periods in one machine cycle.
+pub const CLOCKS_PER_CYCLE: u64 = 12;
+
+/// A point in the core's time or a span of it, in oscillator periods since the core was made.
+/// A machine cycle is 12 of them; every instruction takes 1, 2 or 4 machine cycles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Clocks(pub u64);
+
+impl Clocks {
+    /// The start.
+    pub const ZERO: Clocks = Clocks(0);
+    /// Later than anything the core will reach.
+    pub const NEVER: Clocks = Clocks(u64::MAX);
+
+    /// `n` machine cycles.
+    pub const fn from_cycles(n: u64) -> Clocks {
+        Clocks(n.saturating_mul(CLOCKS_PER_CYCLE))
+    }
+
+    /// Whole machine cycles in this span (rounded down).
+    pub const fn cycles(self) -> u64 {
+        self.0 / CLOCKS_PER_CYCLE
+    }
+}
+
+impl Add for Clocks {
+    type Output = Clocks;
+    fn add(self, rhs: Clocks) -> Clocks {
+        Clocks(self.0.saturating_add(rhs.0))
+    }
+}
+
+impl Sub for Clocks {
+    type Output = Clocks;
+    fn sub(self, rhs: Clocks) -> Clocks {
+        Clocks(self.0.saturating_sub(rhs.0))
+    }
+}
+
+impl fmt::Display for Clocks {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} clocks", self.0)
+    }
+}
+
+/// The crystal: how many clocks make a second.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Crystal {
+    hz: u32,
+}
+
+/// A crystal frequency the core cannot run at.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("crystal frequency {0} Hz is out of range 1..=100000000")]
+pub struct CrystalError(pub u32);
+
+impl Crystal {
+    /// 11.0592 MHz: divides into the standard baud rates exactly (9600 baud is 1152 clocks a
+    /// bit, timer 1 reloaded with FDh). The ZELLE cell's crystal (docs/decisions.md).
+    pub const MHZ_11_0592: Crystal = Crystal { hz: 11_059_200 };
+    /// 12 MHz: one machine cycle per microsecond.
+    pub const MHZ_12: Crystal = Crystal { hz: 12_000_000 };
+
+    /// A crystal of `hz` (1 Hz ..= 100 MHz).
+    pub const fn new(hz: u32) -> Result<Crystal, CrystalError> {
+        if hz == 0 || hz > 100_000_000 {
+            Err(CrystalError(hz))
+        } else {
+            Ok(Crystal { hz })
+        }
+    }
+
+    /// The frequency in Hz.
+    pub const fn hz(self) -> u32 {
+        self.hz
+    }
+
+    /// Nanoseconds from time 0 to `t` (rounded down).
+    pub const fn ns(self, t: Clocks) -> u64 {
+        let ns = t.0 as u128 * 1_000_000_000 / self.hz as u128;
+        if ns > u64::MAX as u128 {
+            u64::MAX
+        } else {
+            ns as u64
+        }
+    }
+
+    /// The first clock at or after `ns` nanoseconds.
+    pub const fn clocks_at_ns(self, ns: u64) -> Clocks {
+        let c = (ns as u128 * self.hz as u128).div_ceil(1_000_000_000);
+        if c > u64::MAX as u128 {
+            Clocks::NEVER
+        } else {
+            Clocks(c as u64)
+        }
+    }
+
+    /// The TH1 reload value that makes timer 1 (mode 2) clock the UART (modes 1 and 3) at
+    /// exactly `baud`, with or without SMOD; `None` if no reload gives the rate exactly.
+    pub const fn timer1_reload(self, baud: u32, smod: bool) -> Option<u8> {
+        // baud = 2^SMOD / 32 × hz / (12 × (256 − TH1))
+        let per_bit = if smod { 192 } else { 384 };
+        let denominator = per_bit as u64 * baud as u64;
+        if baud == 0 || !(self.hz as u64).is_multiple_of(denominator) {
+            return None;
+        }
+        let steps = self.hz as u64 / denominator;
+        if steps == 0 || steps > 256 {
+            None
+        } else {
+            Some((256 - steps) as u8)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cell_crystal_gives_9600_baud_exactly() {
+        let xtal = Crystal::MHZ_11_0592;
+        assert_eq!(xtal.timer1_reload(9600, false), Some(0xFD));
+        assert_eq!(xtal.timer1_reload(19200, true), Some(0xFD));
+        assert_eq!(xtal.timer1_reload(9600, true), Some(0xFA));
+        assert_eq!(Crystal::MHZ_12.timer1_reload(9600, false), None);
+        // One machine cycle is 1085.07 ns; a 9600-baud bit (1152 clocks) is 104166 ns.
+        assert_eq!(xtal.ns(Clocks::from_cycles(1)), 1085);
+        assert_eq!(xtal.ns(Clocks(1152)), 104_166);
+        assert_eq!(xtal.clocks_at_ns(104_167), Clocks(1153));
+        assert_eq!(
+            xtal.clocks_at_ns(xtal.ns(Clocks(1152 * 9600))),
+            Clocks(1152 * 9600)
+        );
+        assert_eq!(Crystal::new(0), Err(CrystalError(0)));
+    }
+}
