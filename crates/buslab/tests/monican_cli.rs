@@ -8,10 +8,11 @@ mod pty_program;
 use std::process::Command;
 
 use assert_cmd::cargo::CommandCargoExt;
+use buslab_can::controller::Event;
 use buslab_monican::layout::*;
-use buslab_sim::Simulation;
+use buslab_sim::{Happening, Simulation};
 use buslab_slio::board::volts_to_code;
-use buslab_slio::{DemoBoard, SlioId};
+use buslab_slio::{DemoBoard, Direction, SlioId};
 use buslab_vbus::server::{ServerConfig, ServerHandle, spawn};
 use pty_program::{PtyProgram, Stderr};
 
@@ -135,6 +136,66 @@ fn monican_in_a_terminal_finds_the_boards_lights_an_led_and_reads_the_potentiome
         raw.rfind("\x1b[?1049l") > raw.rfind("\x1b[?1049h"),
         "and left at the end"
     );
+    drop(s);
+    if let Ok(server) = std::sync::Arc::try_unwrap(server) {
+        server.shutdown();
+    }
+}
+
+/// Every frame the engine saw a node send to a SLIO identifier (transmitted or given up).
+fn frames_to_slios(server: &ServerHandle) -> Vec<String> {
+    server
+        .with_bus(|bus| {
+            bus.sim_mut()
+                .take_records()
+                .into_iter()
+                .filter_map(|r| match r.what {
+                    Happening::Node {
+                        event: Event::Transmitted(f) | Event::Dropped(f),
+                        ..
+                    } if matches!(SlioId::from_id(f.id()), Some((_, Direction::ToSlio))) => {
+                        Some(f.to_string())
+                    }
+                    _ => None,
+                })
+                .collect()
+        })
+        .unwrap()
+}
+
+/// Issue 25: MoniCAN's input command `3I0` and its start-up read of DATA_INPUT sent `29C#00`,
+/// which the model answered and a P82C150 need not: every frame MoniCAN sends a SLIO has 3
+/// bytes (seed §2.1.2.1: « toujours 3 octets »; `make_slio_ffi`: DLC = 3), and the SLIOs,
+/// which now ignore any other length, answer them.
+#[test]
+fn monicans_reads_are_three_byte_frames_and_answered() {
+    let server = std::sync::Arc::new(bus());
+    server
+        .with_bus(|bus| bus.sim_mut().set_record_events(true))
+        .unwrap();
+    let mut s = monican(&server);
+    let handle = server.clone();
+    s.diagnose = Box::new(move || diagnose(&handle));
+    // The start-up read of DATA_INPUT after each sign-on answered: the inputs column.
+    s.wait_until("the three boards, initialised", initialised);
+    let start_up = frames_to_slios(&server);
+    for id in ["284", "29C", "394"] {
+        assert!(
+            start_up.contains(&format!("{id}#000000")),
+            "{id}: {start_up:?}"
+        );
+    }
+    s.type_keys("3I0");
+    s.wait_until("SLIO 3's inputs", |s| {
+        s.row(INPUT_LOG_ROW) == "ID_slio:3 Data input:2005"
+    });
+    let command = frames_to_slios(&server);
+    assert!(command.contains(&"29C#000000".to_string()), "{command:?}");
+    for f in start_up.iter().chain(&command) {
+        assert_eq!(f.len(), "29C#000000".len(), "{f} is not a 3-byte frame");
+    }
+    s.type_keys("\x11");
+    assert!(s.wait_exit().success());
     drop(s);
     if let Ok(server) = std::sync::Arc::try_unwrap(server) {
         server.shutdown();

@@ -2,20 +2,23 @@
 //! a [`CanBus`] with the wall clock.
 //!
 //! Single-shot transmissions (the start-up calibration frames, which nobody acknowledges
-//! before the SLIOs are calibrated) are sent, waited for a little, and aborted when the bus
-//! can abort (a buslab bus, through [`BusAdmin::abort`]); on other backends they are simply
-//! sent and the adapter retries them until a SLIO calibrates on the repetitions and
-//! acknowledges.
+//! before the SLIOs are calibrated) are tried once, as the seed's `calibration_slio` does: on a
+//! buslab bus a frame is aborted once it has been on the wire without an acknowledgement
+//! ([`send_single_shot`]); on other backends it is simply sent and the adapter retries it
+//! until a SLIO calibrates on the repetitions and acknowledges.
+//!
+//! Every window this host listens in opens once the frames it waits for are out: a request's
+//! answer is awaited from the moment its frame is handed over ([`Master::poll_transmit`]), and
+//! the sign-ons after the start-up calibration from the moment the bus confirmed the last
+//! calibration frame ([`SlioHost::settle`]).
 
 use std::time::{Duration, Instant};
 
-use buslab_slio::{Master, MasterEvent, Register, RequestId, SlioId, Transmit};
+use buslab_can::Frame;
+use buslab_slio::slio::LONGEST_FRAME_BITS;
+use buslab_slio::{Master, MasterEvent, NotReadable, Register, RequestId, SlioId, Transmit};
 
 use crate::bus::{BusError, BusEvent, CanBus};
-
-/// How long a single-shot frame is given before it is aborted (many frames' time at 20
-/// kbit/s; a loaded machine may take that long to send it).
-const SINGLE_SHOT_WAIT: Duration = Duration::from_millis(50);
 
 /// Why a SLIO request failed.
 #[derive(Debug, thiserror::Error)]
@@ -27,14 +30,83 @@ pub enum SlioError {
         within: Duration,
     },
     #[error(transparent)]
+    NotReadable(#[from] NotReadable),
+    #[error(transparent)]
     Bus(#[from] BusError),
+}
+
+/// How a frame meant to be tried once ended ([`send_single_shot`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SingleShot {
+    /// Transmitted and acknowledged.
+    Sent,
+    /// On the wire without an acknowledgement, then given up (the seed's CMR.AT).
+    Aborted,
+    /// It never reached the wire within the allowance (a bus that never let it start): given
+    /// up unsent.
+    NotTried,
+    /// Handed to a bus that can neither confirm nor abort (its adapter retries it until
+    /// somebody acknowledges).
+    HandedOver,
+}
+
+/// How long one look at a single-shot frame lasts: its attempt, the error frame after it
+/// and a frame ahead of it, twice over.
+fn attempt_time(bitrate: u32) -> Duration {
+    Duration::from_secs_f64((4 * LONGEST_FRAME_BITS) as f64 / f64::from(bitrate.max(1)))
+}
+
+/// Sends `frame` to be tried once, as the seed's `calibration_slio` does (TR, wait until the
+/// chip transmits, AT). On a bus with an administration side (a buslab bus) it returns once
+/// the bus confirms it is done with the frame: acknowledged, or aborted after an attempt
+/// nobody acknowledged (the node reported a bus error since it was handed over), or aborted
+/// unsent after `within`. Other buses just take it.
+pub fn send_single_shot<B: CanBus + ?Sized>(
+    bus: &mut B,
+    frame: &Frame,
+    bitrate: u32,
+    within: Duration,
+) -> Result<SingleShot, BusError> {
+    let errors_before = match bus.admin() {
+        Some(admin) => admin.node_status(None)?.counters.bus_errors,
+        None => {
+            bus.send(frame)?;
+            return Ok(SingleShot::HandedOver);
+        }
+    };
+    bus.send(frame)?;
+    let Some(admin) = bus.admin() else {
+        return Ok(SingleShot::HandedOver);
+    };
+    let give_up = Instant::now() + within;
+    loop {
+        match admin.flush(attempt_time(bitrate)) {
+            Ok(_) => return Ok(SingleShot::Sent),
+            Err(BusError::Timeout { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        let tried = admin.node_status(None)?.counters.bus_errors > errors_before;
+        if tried || Instant::now() >= give_up {
+            admin.abort()?;
+            // An attempt on the wire finishes: done once the bus says so.
+            admin.flush(within)?;
+            return Ok(if tried {
+                SingleShot::Aborted
+            } else {
+                SingleShot::NotTried
+            });
+        }
+    }
 }
 
 /// SLIOs on a bus, seen from a host.
 pub struct SlioHost<'a> {
     bus: &'a mut (dyn CanBus + Send),
     master: Master,
+    bitrate: u32,
     epoch: Instant,
+    /// How long a request waits for its answer, and a frame for the bus's confirmations.
+    wait: Duration,
     /// Everything learned, in order.
     events: Vec<MasterEvent>,
 }
@@ -48,10 +120,15 @@ impl<'a> SlioHost<'a> {
         } else {
             Master::keeping(bitrate, 0)
         };
+        let wait = Duration::from_nanos(
+            buslab_slio::master::ANSWER_WITHIN_BITS * 1_000_000_000 / u64::from(bitrate.max(1)),
+        );
         Self {
             bus,
             master,
+            bitrate,
             epoch: Instant::now(),
+            wait,
             events: Vec::new(),
         }
     }
@@ -74,93 +151,184 @@ impl<'a> SlioHost<'a> {
     pub fn run(
         &mut self,
         until: Instant,
+        done: impl FnMut(&MasterEvent) -> bool,
+    ) -> Result<bool, BusError> {
+        let until = until.saturating_duration_since(self.epoch).as_nanos();
+        self.pump(Some(until.min(u128::from(u64::MAX)) as u64), done)
+    }
+
+    /// Moves frames both ways until `done` holds for an event, or until `until` (ns on the
+    /// host's clock) if given. At `until` it returns before the timers that fall due then
+    /// (the periodic calibration is left for the next call).
+    fn pump(
+        &mut self,
+        until: Option<u64>,
         mut done: impl FnMut(&MasterEvent) -> bool,
     ) -> Result<bool, BusError> {
         loop {
             let now = self.now();
-            self.master.handle_timeout(now);
-            while let Some(t) = self.master.poll_transmit() {
-                self.transmit(t)?;
-            }
-            let mut finished = false;
-            while let Some(e) = self.master.poll_event() {
-                finished |= done(&e);
-                self.events.push(e);
-            }
-            if finished {
-                return Ok(true);
-            }
-            let left = until.saturating_duration_since(Instant::now());
-            if left.is_zero() {
+            if until.is_some_and(|u| now >= u) {
                 return Ok(false);
             }
-            let next = self
-                .master
-                .next_deadline()
-                .map(|d| Duration::from_nanos(d.saturating_sub(self.now())));
-            let wait = next.map_or(left, |n| n.min(left));
-            match self
+            self.master.handle_timeout(now);
+            self.transmit_queued()?;
+            if self.take_master_events(&mut done) {
+                return Ok(true);
+            }
+            let now = self.now();
+            let wait = [self.master.next_deadline(), until]
+                .into_iter()
+                .flatten()
+                .min()
+                .map_or(self.wait, |t| Duration::from_nanos(t.saturating_sub(now)));
+            if let Some(event) = self
                 .bus
                 .recv_event(Some(wait.max(Duration::from_micros(100))))?
             {
-                Some(BusEvent::Frame(m)) => {
-                    self.master.handle_frame(self.now(), &m.frame);
-                }
-                Some(BusEvent::Error(_)) | None => {}
+                self.handle(event);
             }
         }
     }
 
-    fn transmit(&mut self, t: Transmit) -> Result<(), BusError> {
-        self.bus.send(&t.frame)?;
-        if t.single_shot
-            && let Some(admin) = self.bus.admin()
-        {
-            match admin.flush(SINGLE_SHOT_WAIT) {
-                Ok(_) => {}
-                Err(BusError::Timeout { .. }) => admin.abort()?,
-                Err(e) => return Err(e),
-            }
+    fn handle(&mut self, event: BusEvent) {
+        if let BusEvent::Frame(m) = event {
+            self.master.handle_frame(self.now(), &m.frame);
+        }
+    }
+
+    /// Moves the master's events into the record; whether `done` held for one.
+    fn take_master_events(&mut self, done: &mut impl FnMut(&MasterEvent) -> bool) -> bool {
+        let mut finished = false;
+        while let Some(e) = self.master.poll_event() {
+            finished |= done(&e);
+            self.events.push(e);
+        }
+        finished
+    }
+
+    /// Hands the master's frames to the bus, each at the time it goes. After single-shot
+    /// frames (the start-up calibration, each confirmed done before the next) the periodic
+    /// calibration restarts from the last of them.
+    fn transmit_queued(&mut self) -> Result<(), BusError> {
+        let mut start_up = false;
+        while let Some(t) = self.master.poll_transmit(self.now()) {
+            self.transmit(t)?;
+            start_up |= t.single_shot;
+        }
+        if start_up {
+            self.master.start_up_sent(self.now());
         }
         Ok(())
     }
 
-    /// How long a request waits for its answer.
+    fn transmit(&mut self, t: Transmit) -> Result<(), BusError> {
+        if t.single_shot {
+            send_single_shot(self.bus, &t.frame, self.bitrate, self.wait)?;
+            Ok(())
+        } else {
+            self.bus.send(&t.frame)
+        }
+    }
+
+    /// How long a request waits for its answer (and how long the bus may take to confirm a
+    /// frame); default [`ANSWER_WITHIN_BITS`](buslab_slio::master::ANSWER_WITHIN_BITS)
+    /// bit-times.
     pub fn set_answer_within(&mut self, wait: Duration) {
+        self.wait = wait;
         self.master
             .set_answer_within(wait.as_nanos().min(u64::MAX as u128) as u64);
     }
 
-    /// Sends the start-up calibration (if the host was made to calibrate) and listens until
-    /// the sign-ons are in: all 48 frames sent, then as long as 16 SLIOs take to sign on (a
-    /// few frames each at the bus's bit rate, generously), at least 100 ms.
-    pub fn settle(&mut self, bitrate: u32) -> Result<Vec<(SlioId, u16)>, BusError> {
-        let sign_ons = Duration::from_secs_f64(16.0 * 80.0 * 4.0 / f64::from(bitrate.max(1)));
-        self.listen(sign_ons.max(Duration::from_millis(100)))
+    /// The census after a start-up calibration: sends the calibration frames queued (the 48 if
+    /// the host was made to calibrate), each confirmed done by the bus, then listens from the
+    /// last of them on for one calibration period (5000 bit-times: 16 sign-ons take at most
+    /// 2560), and until the bus confirms it ran that far and delivered every frame before
+    /// (a flush, on a buslab bus). Returns the SLIOs that signed on or answered meanwhile.
+    pub fn settle(&mut self) -> Result<Vec<(SlioId, u16)>, BusError> {
+        self.transmit_queued()?;
+        // The periodic calibration is due one period after the last start-up frame: the
+        // window ends there, before it goes.
+        let end = self
+            .master
+            .next_calibration()
+            .unwrap_or_else(|| self.now() + self.master.calibration_period());
+        let mut heard = [false; 16];
+        for (slio, _) in self.present() {
+            heard[slio.number() as usize] = true;
+        }
+        self.pump(Some(end), |e| {
+            if let MasterEvent::Present { slio, .. } = e {
+                heard[slio.number() as usize] = true;
+            }
+            heard.iter().all(|&h| h)
+        })?;
+        self.sync()?;
+        Ok(self.present())
+    }
+
+    /// The SLIOs that signed on or answered so far, each once in the order they first did,
+    /// with the inputs of their last sign-on (a SLIO that lost its calibration in between
+    /// signs on again).
+    fn present(&self) -> Vec<(SlioId, u16)> {
+        let mut present: Vec<(SlioId, u16)> = Vec::new();
+        for e in &self.events {
+            let MasterEvent::Present { slio, inputs } = *e else {
+                continue;
+            };
+            match present.iter_mut().find(|(s, _)| *s == slio) {
+                Some(entry) => entry.1 = inputs,
+                None => present.push((slio, inputs)),
+            }
+        }
+        present
+    }
+
+    /// Waits until the bus confirms that every frame sent so far is done and every frame
+    /// before that moment was delivered (a buslab bus answers a flush after catching up with
+    /// the clock and delivering), then takes in what arrived. Other buses: what arrived.
+    fn sync(&mut self) -> Result<(), BusError> {
+        if let Some(admin) = self.bus.admin() {
+            match admin.flush(self.wait) {
+                Ok(_) => {}
+                // Nobody acknowledges a frame of ours (no SLIO, no other node): give it up, the
+                // bus then confirms.
+                Err(BusError::Timeout { .. }) => {
+                    admin.abort()?;
+                    admin.flush(self.wait)?;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        while let Some(event) = self.bus.recv_event(Some(Duration::ZERO))? {
+            self.handle(event);
+        }
+        self.take_master_events(&mut |_| false);
+        Ok(())
     }
 
     /// Runs for `wait` and returns the SLIOs that signed on or answered meanwhile.
     pub fn listen(&mut self, wait: Duration) -> Result<Vec<(SlioId, u16)>, BusError> {
-        self.run(Instant::now() + wait, |_| false)?;
-        Ok(self
-            .events
-            .iter()
-            .filter_map(|e| match e {
-                MasterEvent::Present { slio, inputs } => Some((*slio, *inputs)),
-                _ => None,
-            })
-            .collect())
+        self.transmit_queued()?;
+        let end = self.now() + wait.as_nanos().min(u128::from(u64::MAX)) as u64;
+        self.pump(Some(end), |_| false)?;
+        Ok(self.present())
     }
 
-    /// Asks every SLIO number for its inputs; those that answer within `wait` are on the bus.
+    /// Asks every SLIO number for its inputs; those that answer within `wait` of their
+    /// request's going out are on the bus.
     pub fn scan(&mut self, wait: Duration) -> Result<Vec<(SlioId, u16)>, BusError> {
-        let now = self.now();
-        let asked: Vec<RequestId> = SlioId::all()
-            .map(|s| self.master.read(now, s, Register::DataInput))
-            .collect();
+        self.set_answer_within(wait);
+        let mut asked = Vec::new();
+        for slio in SlioId::all() {
+            // DATA_INPUT is read-only: it always has a read.
+            if let Ok(request) = self.master.read(slio, Register::DataInput) {
+                asked.push(request);
+            }
+        }
         let mut answered = Vec::new();
         let mut outstanding = asked.len();
-        self.run(Instant::now() + wait, |e| {
+        // Every request ends in an answer or in NoAnswer `wait` after it went out.
+        self.pump(None, |e| {
             match e {
                 MasterEvent::Confirmed {
                     slio,
@@ -191,21 +359,26 @@ impl<'a> SlioHost<'a> {
         value: u16,
         wait: Duration,
     ) -> Result<u16, SlioError> {
-        let request = self.master.write(self.now(), slio, register, value);
+        self.set_answer_within(wait);
+        let request = self.master.write(slio, register, value);
         self.answer(slio, request, format!("{register} := 0x{value:04X}"), wait)
     }
 
-    /// Reads a register (ADC: converts again).
+    /// Reads a read-only register (DATA_INPUT; ADC: converts again); a writable one has no
+    /// read ([`NotReadable`]).
     pub fn read(
         &mut self,
         slio: SlioId,
         register: Register,
         wait: Duration,
     ) -> Result<u16, SlioError> {
-        let request = self.master.read(self.now(), slio, register);
+        self.set_answer_within(wait);
+        let request = self.master.read(slio, register)?;
         self.answer(slio, request, format!("reading {register}"), wait)
     }
 
+    /// Waits for the answer to `request`: the master gives it up `wait` after its frame went
+    /// out.
     fn answer(
         &mut self,
         slio: SlioId,
@@ -214,7 +387,7 @@ impl<'a> SlioHost<'a> {
         wait: Duration,
     ) -> Result<u16, SlioError> {
         let mut got = None;
-        self.run(Instant::now() + wait, |e| match e {
+        self.pump(None, |e| match e {
             MasterEvent::Confirmed {
                 request: r, value, ..
             } if *r == request => {

@@ -314,8 +314,9 @@ impl MoniCan {
 
     // ------------------------------------------------------------------ input
 
-    /// A byte the terminal sent at `now`.
-    pub fn handle_key(&mut self, now: u64, byte: u8) {
+    /// A byte the terminal sent at `now` (the time is not needed: a command's request is timed
+    /// from when its frame is handed over, [`Self::poll_transmit`]).
+    pub fn handle_key(&mut self, _now: u64, byte: u8) {
         self.dirty = true;
         match self.keys {
             Keys::Escape => {
@@ -360,7 +361,7 @@ impl MoniCan {
                 match self.line.key(key) {
                     KeyOutcome::Edited => {}
                     KeyOutcome::Refused => self.screen.bell(),
-                    KeyOutcome::Complete(command) => self.execute(now, command),
+                    KeyOutcome::Complete(command) => self.execute(command),
                 }
             }
         }
@@ -393,7 +394,7 @@ impl MoniCan {
         {
             self.master.handle_frame(now, frame);
             self.drain_master();
-            self.sign_on(now, slio);
+            self.sign_on(slio);
             return;
         }
         if self.master.handle_frame(now, frame) {
@@ -412,12 +413,19 @@ impl MoniCan {
         self.master.next_deadline()
     }
 
-    /// The next frame to send; `single_shot` frames are tried once (the calibration frames,
-    /// which nobody acknowledges before the SLIOs are calibrated).
-    pub fn poll_transmit(&mut self) -> Option<Transmit> {
+    /// The next frame to send, handed to the adapter at `now` (a request's answer is awaited
+    /// from then on); `single_shot` frames are tried once (the calibration frames, which
+    /// nobody acknowledges before the SLIOs are calibrated).
+    pub fn poll_transmit(&mut self, now: u64) -> Option<Transmit> {
         self.outbox
             .pop_front()
-            .or_else(|| self.master.poll_transmit())
+            .or_else(|| self.master.poll_transmit(now))
+    }
+
+    /// The last start-up calibration frame went out at `now`: the periodic calibration
+    /// follows one period after it ([`Master::start_up_sent`]).
+    pub fn start_up_sent(&mut self, now: u64) {
+        self.master.start_up_sent(now);
     }
 
     /// Frames waiting to be sent.
@@ -450,12 +458,12 @@ impl MoniCan {
 
     // -------------------------------------------------------------- behaviour
 
-    fn execute(&mut self, now: u64, command: Command) {
+    fn execute(&mut self, command: Command) {
         let slio = command.slio;
         let i = slio.number() as usize;
         match command.action {
             Action::ReadInputs { .. } => {
-                self.read(now, slio, Register::DataInput, "inputs");
+                self.read_inputs(slio, "inputs");
             }
             Action::Convert(adc) => {
                 let value = match adc {
@@ -464,7 +472,6 @@ impl MoniCan {
                 };
                 self.last_adc[i] = Some(adc);
                 self.write(
-                    now,
                     slio,
                     Register::AnalogConfig,
                     value,
@@ -481,21 +488,14 @@ impl MoniCan {
                 } else {
                     base & !(1 << pin)
                 };
-                self.write_outputs(now, slio, value);
+                self.write_outputs(slio, value);
             }
             Action::Dpm { output, value } => {
                 let register = match output {
                     Dpm::Dpm1 => Register::Dpm1,
                     Dpm::Dpm2 => Register::Dpm2,
                 };
-                self.write(
-                    now,
-                    slio,
-                    register,
-                    dpm_register(value),
-                    Purpose::Other,
-                    "DPM",
-                );
+                self.write(slio, register, dpm_register(value), Purpose::Other, "DPM");
             }
         }
         self.event(Event::CommandSent(command));
@@ -503,43 +503,27 @@ impl MoniCan {
 
     /// A sign-on (§4.3.2.1 step 5): mark the SLIO, initialise its outputs and DPMs, then
     /// read its inputs (now the input switches, P13 being high).
-    fn sign_on(&mut self, now: u64, slio: SlioId) {
+    fn sign_on(&mut self, slio: SlioId) {
         let i = slio.number() as usize;
         self.slios[i].present = true;
         self.intended[i] = None;
         self.write(
-            now,
             slio,
             Register::OutputEnable,
             OUTPUT_ENABLE,
             Purpose::Other,
             "initialisation",
         );
-        self.write(
-            now,
-            slio,
-            Register::Dpm1,
-            0,
-            Purpose::Other,
-            "initialisation",
-        );
-        self.write(
-            now,
-            slio,
-            Register::Dpm2,
-            0,
-            Purpose::Other,
-            "initialisation",
-        );
-        self.write_outputs(now, slio, INITIAL_OUTPUTS);
-        self.read(now, slio, Register::DataInput, "initialisation");
+        self.write(slio, Register::Dpm1, 0, Purpose::Other, "initialisation");
+        self.write(slio, Register::Dpm2, 0, Purpose::Other, "initialisation");
+        self.write_outputs(slio, INITIAL_OUTPUTS);
+        self.read_inputs(slio, "initialisation");
         self.event(Event::SignedOn(slio));
     }
 
-    fn write_outputs(&mut self, now: u64, slio: SlioId, value: u16) {
+    fn write_outputs(&mut self, slio: SlioId, value: u16) {
         self.intended[slio.number() as usize] = Some(value);
         self.write(
-            now,
             slio,
             Register::DataOutput,
             value,
@@ -550,14 +534,13 @@ impl MoniCan {
 
     fn write(
         &mut self,
-        now: u64,
         slio: SlioId,
         register: Register,
         value: u16,
         purpose: Purpose,
         what: &'static str,
     ) {
-        let request = self.master.write(now, slio, register, value);
+        let request = self.master.write(slio, register, value);
         self.sent.insert(
             request.0,
             Sent {
@@ -568,16 +551,22 @@ impl MoniCan {
         );
     }
 
-    fn read(&mut self, now: u64, slio: SlioId, register: Register, what: &'static str) {
-        let request = self.master.read(now, slio, register);
-        self.sent.insert(
-            request.0,
-            Sent {
-                slio,
-                purpose: Purpose::Other,
-                what,
-            },
-        );
+    /// A read of DATA_INPUT (the 3-byte frame `29C#000000` for SLIO 3: seed §2.1.2.1).
+    fn read_inputs(&mut self, slio: SlioId, what: &'static str) {
+        match self.master.read(slio, Register::DataInput) {
+            Ok(request) => {
+                self.sent.insert(
+                    request.0,
+                    Sent {
+                        slio,
+                        purpose: Purpose::Other,
+                        what,
+                    },
+                );
+            }
+            // DATA_INPUT is read-only: it always has a read.
+            Err(e) => self.notice = Some(e.to_string()),
+        }
     }
 
     fn drain_master(&mut self) {

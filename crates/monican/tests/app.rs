@@ -89,14 +89,15 @@ fn frame(text: &str) -> Frame {
 /// MoniCAN at 0 ns with its start-up calibration sent, and its terminal.
 fn started() -> (MoniCan, Term) {
     let mut app = MoniCan::new(Config::default(), 0).unwrap();
-    while app.poll_transmit().is_some() {}
+    while app.poll_transmit(0).is_some() {}
     let mut term = Term::new();
     term.update(&mut app);
     (app, term)
 }
 
-fn sent(app: &mut MoniCan) -> Vec<String> {
-    std::iter::from_fn(|| app.poll_transmit())
+/// The frames MoniCAN sends, handed over at `now`.
+fn sent(app: &mut MoniCan, now: u64) -> Vec<String> {
+    std::iter::from_fn(|| app.poll_transmit(now))
         .map(|t| t.frame.to_string())
         .collect()
 }
@@ -111,13 +112,13 @@ fn keys(app: &mut MoniCan, now: u64, text: &str) {
 fn signed_on_slio3(app: &mut MoniCan) {
     app.handle_frame(MS, &frame("29D#300003"));
     assert_eq!(
-        sent(app),
+        sent(app, MS),
         [
             "29C#043F90",
             "29C#060000",
             "29C#070000",
             "29C#032000",
-            "29C#00"
+            "29C#000000"
         ]
     );
     for answer in [
@@ -134,7 +135,7 @@ fn signed_on_slio3(app: &mut MoniCan) {
 #[test]
 fn start_up_draws_the_seed_screen_and_calibrates() {
     let mut app = MoniCan::new(Config::default(), 0).unwrap();
-    let calibration: Vec<_> = std::iter::from_fn(|| app.poll_transmit()).collect();
+    let calibration: Vec<_> = std::iter::from_fn(|| app.poll_transmit(0)).collect();
     assert_eq!(calibration.len(), 48);
     assert!(
         calibration
@@ -166,7 +167,7 @@ fn start_up_draws_the_seed_screen_and_calibrates() {
     // The periodic calibration every 5000 bit-times (40 ms at 125 kbit/s).
     assert_eq!(app.next_deadline(), Some(40 * MS));
     app.handle_timeout(40 * MS);
-    assert_eq!(sent(&mut app), ["0AA#AA04"]);
+    assert_eq!(sent(&mut app, MS), ["0AA#AA04"]);
 }
 
 #[test]
@@ -181,13 +182,13 @@ fn a_sign_on_marks_the_slio_and_its_initialisation_shows_once_confirmed() {
     assert_eq!(term.cells(row, OUTPUTS_COL, 4), "XXXX");
     assert_eq!(term.cells(row, DPM1_COL, 2), "XX");
     assert_eq!(
-        sent(&mut app),
+        sent(&mut app, MS),
         [
             "29C#043F90",
             "29C#060000",
             "29C#070000",
             "29C#032000",
-            "29C#00"
+            "29C#000000"
         ]
     );
     for answer in [
@@ -228,7 +229,7 @@ fn a_typed_command_changes_the_screen_only_when_the_slio_answers() {
     );
     assert_eq!(term.cursor(), (COMMAND_ROW, VALUE_FIELD.1));
     keys(&mut app, 3 * MS, "01");
-    assert_eq!(sent(&mut app), ["29C#032080"]);
+    assert_eq!(sent(&mut app, MS), ["29C#032080"]);
     term.update(&mut app);
     assert_eq!(
         term.row(COMMAND_ROW),
@@ -241,7 +242,7 @@ fn a_typed_command_changes_the_screen_only_when_the_slio_answers() {
     );
     // A second LED before the first is confirmed builds on it.
     keys(&mut app, 3 * MS, "3o801");
-    assert_eq!(sent(&mut app), ["29C#032180"]);
+    assert_eq!(sent(&mut app, MS), ["29C#032180"]);
     app.handle_frame(4 * MS, &frame("29D#232080"));
     let update = term.update(&mut app);
     assert_eq!(term.cells(row, OUTPUTS_COL, 4), "2080");
@@ -258,7 +259,7 @@ fn a_typed_command_changes_the_screen_only_when_the_slio_answers() {
     assert_eq!(term.cells(row, OUTPUTS_COL, 4), "2180");
     // Switching one off again starts from what the SLIO confirmed.
     keys(&mut app, 6 * MS, "3O700");
-    assert_eq!(sent(&mut app), ["29C#032100"]);
+    assert_eq!(sent(&mut app, MS), ["29C#032100"]);
 }
 
 #[test]
@@ -267,17 +268,17 @@ fn conversions_fill_their_adc_column_and_dpm_values_are_scaled() {
     signed_on_slio3(&mut app);
     let row = slio_row(slio(3));
     keys(&mut app, 3 * MS, "3I6");
-    assert_eq!(sent(&mut app), ["29C#0500C0"]);
+    assert_eq!(sent(&mut app, MS), ["29C#0500C0"]);
     app.handle_frame(4 * MS, &frame("29D#280200"));
     keys(&mut app, 5 * MS, "3I5");
-    assert_eq!(sent(&mut app), ["29C#0500E0"]);
+    assert_eq!(sent(&mut app, MS), ["29C#0500E0"]);
     term.update(&mut app);
     assert_eq!(term.cells(row, ADC2_COL, 2), "80");
     assert_eq!(term.cells(row, ADC1_COL, 2), "XX", "ADC1 not converted yet");
     app.handle_frame(6 * MS, &frame("29D#2803FF"));
     keys(&mut app, 7 * MS, "3OA80");
     keys(&mut app, 7 * MS, "3O4FF");
-    assert_eq!(sent(&mut app), ["29C#060200", "29C#0703FC"]);
+    assert_eq!(sent(&mut app, MS), ["29C#060200", "29C#0703FC"]);
     app.handle_frame(8 * MS, &frame("29D#260200"));
     app.handle_frame(8 * MS, &frame("29D#2703FC"));
     term.update(&mut app);
@@ -288,7 +289,7 @@ fn conversions_fill_their_adc_column_and_dpm_values_are_scaled() {
     assert_eq!(term.row(INPUT_LOG_ROW), "ID_slio:3 ADC1:03FF");
     assert_eq!(term.row(OUTPUT_LOG_ROW), "ID_slio:3 DPM2:03FC");
     keys(&mut app, 9 * MS, "3I2");
-    assert_eq!(sent(&mut app), ["29C#00"]);
+    assert_eq!(sent(&mut app, MS), ["29C#000000"]);
 }
 
 #[test]
@@ -317,20 +318,20 @@ fn keys_that_do_not_fit_ring_the_bell_and_leave_the_line() {
     keys(&mut app, MS, "\x12\r");
     term.update(&mut app);
     assert_eq!(term.bells(), 4);
-    assert!(sent(&mut app).is_empty());
+    assert!(sent(&mut app, MS).is_empty());
 }
 
 #[test]
 fn an_unanswered_request_is_said_on_the_notice_line() {
     let (mut app, mut term) = started();
     keys(&mut app, MS, "5I0");
-    assert_eq!(sent(&mut app), ["2AC#00"]);
+    assert_eq!(sent(&mut app, MS), ["2AC#000000"]);
     let deadline = app.next_deadline().unwrap();
     let mut now = MS;
     while now < 100 * MS {
         now = app.next_deadline().unwrap().max(now + 1);
         app.handle_timeout(now);
-        while app.poll_transmit().is_some() {}
+        while app.poll_transmit(now).is_some() {}
     }
     assert!(deadline > MS);
     term.update(&mut app);
@@ -347,7 +348,7 @@ fn mail_is_announced_read_with_ctrl_r_and_any_key_goes_back() {
     term.update(&mut app);
     assert_eq!(term.row(NOTICE_ROW), MAIL_NOTICE);
     app.handle_key(4 * MS, 0x12);
-    assert_eq!(sent(&mut app), ["700#R"]);
+    assert_eq!(sent(&mut app, MS), ["700#R"]);
     let page = term.update(&mut app);
     assert!(
         page.windows(4).any(|w| w == b"\x1b[2J"),
@@ -390,7 +391,7 @@ fn a_remote_frame_on_the_mail_identifier_announces_mail() {
     term.update(&mut app);
     assert_eq!(term.row(NOTICE_ROW), MAIL_NOTICE);
     app.handle_key(4 * MS, 0x12);
-    assert_eq!(sent(&mut app), ["700#R"]);
+    assert_eq!(sent(&mut app, MS), ["700#R"]);
     // A new announcement while the page is open: the notice comes back once it is left.
     app.handle_frame(5 * MS, &frame("700#R"));
     app.handle_key(6 * MS, b' ');
@@ -438,7 +439,7 @@ fn the_loader_request_is_announced_and_monican_goes_on() {
     assert_eq!(term.row(NOTICE_ROW), LOADER_NOTICE);
     assert_eq!(app.poll_event(), Some(Event::LoaderRequested));
     keys(&mut app, 2 * MS, "3I0");
-    assert_eq!(sent(&mut app), ["29C#00"]);
+    assert_eq!(sent(&mut app, MS), ["29C#000000"]);
 }
 
 #[test]
@@ -489,8 +490,10 @@ proptest! {
         term.update(&mut app);
         prop_assert!(term.row(COMMAND_ROW).starts_with("Next command > SLIO:"));
         prop_assert_eq!(term.row(HEADER_ROW), HEADER);
-        for t in std::iter::from_fn(|| app.poll_transmit()) {
+        for t in std::iter::from_fn(|| app.poll_transmit(1000 * MS)) {
             prop_assert!(SlioId::from_id(t.frame.id()).is_some(), "{}", t.frame);
+            // Every frame to a SLIO has 3 bytes (seed §2.1.2.1).
+            prop_assert!(!t.frame.is_remote() && t.frame.payload().len() == 3, "{}", t.frame);
         }
     }
 

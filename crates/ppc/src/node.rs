@@ -430,7 +430,8 @@ impl PpcNode {
         if self.in_flight.is_some() || self.restart_at.is_some() || self.driver.tx_pending() {
             return;
         }
-        let Some(t) = self.next.take().or_else(|| self.poll_program()) else {
+        let ns = self.ns(now);
+        let Some(t) = self.next.take().or_else(|| self.poll_program(ns)) else {
             return;
         };
         if t.single_shot && self.driver.status().transmitting() {
@@ -544,9 +545,10 @@ impl PpcNode {
         self.app.show_page(LOADER_TITLE, lines);
     }
 
-    fn poll_program(&mut self) -> Option<Transmit> {
+    /// The program's next frame, handed to the chip's driver at `ns`.
+    fn poll_program(&mut self, ns: u64) -> Option<Transmit> {
         match &mut self.program {
-            Program::MoniCan => self.app.poll_transmit(),
+            Program::MoniCan => self.app.poll_transmit(ns),
             Program::Loader { loader, .. } => loader.poll_transmit().map(|frame| Transmit {
                 frame,
                 single_shot: false,

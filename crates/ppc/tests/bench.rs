@@ -230,6 +230,39 @@ fn start_up_calibrates_with_single_shot_frames_and_finds_the_three_boards() {
     );
 }
 
+/// Issue 25: the PowerPC's MoniCAN read inputs with `29C#00`, a 1-byte frame a P82C150 need
+/// not answer (its frames « ont toujours 3 octets », seed §2.1.2.1). Its start-up reads and
+/// `3I0` are 3-byte frames now, and the SLIOs, which ignore other lengths, answer them.
+#[test]
+fn the_powerpcs_input_reads_are_three_byte_frames_and_answered() {
+    let mut bench = started(&[(0x0, 0x0), (0x3, 0x5), (0xA, 0xF)]);
+    bench.type_keys("3I0");
+    bench.run_until(100, "SLIO 3's inputs", |b| {
+        b.row(INPUT_LOG_ROW) == "ID_slio:3 Data input:2005"
+    });
+    let to_slios: Vec<String> = bench
+        .records
+        .iter()
+        .filter_map(|(_, what)| match what {
+            Happening::Node {
+                node: PPC,
+                event: Event::Transmitted(f),
+            } if f.id() != Id::standard(0x0AA).unwrap() => Some(f.to_string()),
+            _ => None,
+        })
+        .collect();
+    // The start-up reads of the three boards, then the command's.
+    let reads: Vec<&String> = to_slios.iter().filter(|f| f.ends_with("#000000")).collect();
+    assert_eq!(
+        reads,
+        ["284#000000", "29C#000000", "394#000000", "29C#000000"],
+        "{to_slios:?}"
+    );
+    for f in &to_slios {
+        assert_eq!(f.len(), "29C#000000".len(), "{f} in {to_slios:?}");
+    }
+}
+
 #[test]
 fn a_typed_command_lights_the_led_and_shows_it_only_once_the_slio_answered() {
     let mut bench = started(&[(0x0, 0), (0x3, 0), (0xA, 0)]);

@@ -18,5 +18,5 @@ pub mod slio;
 pub use board::DemoBoard;
 pub use ids::{CALIBRATION_ID, Direction, SlioId, calibration_frame};
 pub use master::{Master, MasterEvent, RequestId, Transmit};
-pub use registers::{Register, Reply, Request, Status};
+pub use registers::{NotReadable, Register, Reply, Request, Status};
 pub use slio::{Calibration, ModeChangeCause, Slio, SlioError, SlioNotice};

@@ -11,14 +11,17 @@
 //!   seed asks for, well before the 8192 of the SLIO's watchdog), retried like any frame: one
 //!   that lost arbitration to other traffic must still go out in time;
 //! - the inventory, from sign-ons and every frame a SLIO sends;
-//! - register writes and reads that complete only when the SLIO confirms them.
+//! - register writes and reads that complete only when the SLIO confirms them: every request is
+//!   a 3-byte data frame, as the seed's `make_slio_ffi` builds them (DLC = 3), and only the
+//!   read-only registers have a read ([`Request`]); a request's wait for its answer starts when
+//!   its frame is handed to the adapter, not when it is queued behind others.
 
 use std::collections::VecDeque;
 
 use buslab_can::Frame;
 
 use crate::ids::{Direction, SlioId, calibration_frame};
-use crate::registers::{Register, Reply, Request};
+use crate::registers::{NotReadable, Register, Reply, Request};
 
 /// Calibration frames sent at start (the seed's `calibration_slio` loops 48 times).
 pub const START_CALIBRATIONS: u32 = 48;
@@ -77,7 +80,8 @@ struct Pending {
     id: RequestId,
     slio: SlioId,
     register: Register,
-    deadline: u64,
+    /// When the answer is given up: set when the frame is handed to the adapter.
+    deadline: Option<u64>,
 }
 
 /// The host side of SLIOs on one bus.
@@ -85,7 +89,8 @@ struct Pending {
 pub struct Master {
     bit_ns: u64,
     answer_within_ns: u64,
-    outbox: VecDeque<Transmit>,
+    /// Frames to send, with the request each one carries.
+    outbox: VecDeque<(Transmit, Option<RequestId>)>,
     events: VecDeque<MasterEvent>,
     known: [Option<Known>; 16],
     pending: Vec<Pending>,
@@ -127,12 +132,34 @@ impl Master {
     /// Queues the start-up calibration (48 frames, each tried once) and restarts the period.
     pub fn calibrate(&mut self, now: u64) {
         for _ in 0..START_CALIBRATIONS {
-            self.outbox.push_back(Transmit {
-                frame: calibration_frame(),
-                single_shot: true,
-            });
+            self.outbox.push_back((
+                Transmit {
+                    frame: calibration_frame(),
+                    single_shot: true,
+                },
+                None,
+            ));
         }
-        self.next_calibration = Some(now + CALIBRATION_EVERY_BITS * self.bit_ns);
+        self.next_calibration = Some(now + self.calibration_period());
+    }
+
+    /// One calibration period ([`CALIBRATION_EVERY_BITS`]) in nanoseconds.
+    pub fn calibration_period(&self) -> u64 {
+        CALIBRATION_EVERY_BITS * self.bit_ns
+    }
+
+    /// The last start-up calibration frame went out at `now` (an adapter that waits for each
+    /// one may take long over the 48): the periodic ones follow one period after it, not
+    /// after the start. Nothing changes while the periodic calibration is stopped.
+    pub fn start_up_sent(&mut self, now: u64) {
+        if self.next_calibration.is_some() {
+            self.next_calibration = Some(now + self.calibration_period());
+        }
+    }
+
+    /// When the next periodic calibration frame is due (ns), unless it is stopped.
+    pub fn next_calibration(&self) -> Option<u64> {
+        self.next_calibration
     }
 
     /// How long requests wait for their answer before [`MasterEvent::NoAnswer`] (default
@@ -157,23 +184,29 @@ impl Master {
     }
 
     /// Writes `value` into a SLIO register; confirmed (or not) by a later event.
-    pub fn write(&mut self, now: u64, slio: SlioId, register: Register, value: u16) -> RequestId {
-        self.request(now, slio, Request::Write { register, value })
+    pub fn write(&mut self, slio: SlioId, register: Register, value: u16) -> RequestId {
+        self.request(slio, Request::Write { register, value })
+            .expect("a write always has its 3-byte frame")
     }
 
-    /// Asks a SLIO for a register's content (ADC: a conversion).
-    pub fn read(&mut self, now: u64, slio: SlioId, register: Register) -> RequestId {
-        self.request(now, slio, Request::Read { register })
+    /// Asks a SLIO for a read-only register's content (DATA_INPUT; ADC: a conversion). A
+    /// writable register has no read ([`NotReadable`]): its content is known from the SLIO's
+    /// answer to a write ([`Known::registers`]).
+    pub fn read(&mut self, slio: SlioId, register: Register) -> Result<RequestId, NotReadable> {
+        self.request(slio, Request::read(register)?)
     }
 
-    fn request(&mut self, now: u64, slio: SlioId, request: Request) -> RequestId {
+    fn request(&mut self, slio: SlioId, request: Request) -> Result<RequestId, NotReadable> {
+        let frame = request.frame(slio)?;
         let id = RequestId(self.next_request);
         self.next_request += 1;
-        let frame = Frame::data(slio.command_id(), &request.encode()).expect("1..3 bytes");
-        self.outbox.push_back(Transmit {
-            frame,
-            single_shot: false,
-        });
+        self.outbox.push_back((
+            Transmit {
+                frame,
+                single_shot: false,
+            },
+            Some(id),
+        ));
         // A conversion request is answered with the ADC register.
         let register = match request {
             Request::Write {
@@ -186,10 +219,9 @@ impl Master {
             id,
             slio,
             register,
-            deadline: now + self.answer_within_ns,
+            deadline: None,
         });
-        self.pending_changed();
-        id
+        Ok(id)
     }
 
     /// A frame from the bus. Returns whether it was a SLIO's.
@@ -246,17 +278,20 @@ impl Master {
             // Retried like any frame (the seed's `send_calibration` sends it plainly): calibrated
             // SLIOs acknowledge it, and one that lost arbitration must still go out before the
             // SLIOs' watchdog runs out.
-            self.outbox.push_back(Transmit {
-                frame: calibration_frame(),
-                single_shot: false,
-            });
+            self.outbox.push_back((
+                Transmit {
+                    frame: calibration_frame(),
+                    single_shot: false,
+                },
+                None,
+            ));
             // Keep the rhythm, but never queue a burst after a long pause.
             let period = CALIBRATION_EVERY_BITS * self.bit_ns;
             self.next_calibration = Some((t + period).max(now + period / 2));
         }
         let mut late = Vec::new();
         self.pending.retain(|p| {
-            let expired = now >= p.deadline;
+            let expired = p.deadline.is_some_and(|d| now >= d);
             if expired {
                 late.push((p.id, p.slio));
             }
@@ -278,12 +313,20 @@ impl Master {
     }
 
     fn pending_changed(&mut self) {
-        self.first_answer_deadline = self.pending.iter().map(|p| p.deadline).min();
+        self.first_answer_deadline = self.pending.iter().filter_map(|p| p.deadline).min();
     }
 
-    /// The next frame to send.
-    pub fn poll_transmit(&mut self) -> Option<Transmit> {
-        self.outbox.pop_front()
+    /// The next frame to send, handed to the adapter at `now`: a request's answer is awaited
+    /// from then on.
+    pub fn poll_transmit(&mut self, now: u64) -> Option<Transmit> {
+        let (transmit, request) = self.outbox.pop_front()?;
+        if let Some(request) = request
+            && let Some(p) = self.pending.iter_mut().find(|p| p.id == request)
+        {
+            p.deadline = Some(now + self.answer_within_ns);
+            self.pending_changed();
+        }
+        Some(transmit)
     }
 
     /// Frames waiting to be sent.
@@ -309,7 +352,7 @@ mod tests {
     fn start_up_calibration_then_every_5000_bit_times() {
         let mut m = Master::new(125_000, 0);
         let mut start = 0;
-        while let Some(t) = m.poll_transmit() {
+        while let Some(t) = m.poll_transmit(0) {
             assert!(t.single_shot);
             assert_eq!(t.frame, calibration_frame());
             start += 1;
@@ -318,13 +361,26 @@ mod tests {
         // 5000 bit-times at 125 kbit/s = 40 ms.
         assert_eq!(m.next_deadline(), Some(40_000_000));
         m.handle_timeout(39_999_999);
-        assert!(m.poll_transmit().is_none());
+        assert!(m.poll_transmit(39_999_999).is_none());
         m.handle_timeout(40_000_000);
         assert_eq!(
-            m.poll_transmit().map(|t| t.frame),
+            m.poll_transmit(40_000_000).map(|t| t.frame),
             Some(calibration_frame())
         );
         assert_eq!(m.next_deadline(), Some(80_000_000));
+    }
+
+    #[test]
+    fn the_period_restarts_from_the_last_start_up_frame() {
+        // An adapter that waited 100 ms for the 48 start-up frames: the next one is due one
+        // period after the last of them, not 60 ms before it went out.
+        let mut m = Master::new(125_000, 0);
+        while m.poll_transmit(0).is_some() {}
+        m.start_up_sent(100_000_000);
+        assert_eq!(m.next_deadline(), Some(140_000_000));
+        m.stop_calibrating();
+        m.start_up_sent(200_000_000);
+        assert_eq!(m.next_deadline(), None);
     }
 
     #[test]
@@ -340,8 +396,8 @@ mod tests {
             })
         );
         m.poll_event();
-        let r = m.write(20, slio(3), Register::DataOutput, 0x2000);
-        let sent = m.poll_transmit().unwrap();
+        let r = m.write(slio(3), Register::DataOutput, 0x2000);
+        let sent = m.poll_transmit(20).unwrap();
         assert!(!sent.single_shot);
         assert_eq!(sent.frame.to_string(), "29C#032000");
         // Another SLIO's frame does not confirm it.
@@ -366,9 +422,35 @@ mod tests {
     }
 
     #[test]
+    fn reads_are_three_byte_frames_and_writable_registers_have_none() {
+        let mut m = Master::keeping(125_000, 0);
+        m.read(slio(3), Register::DataInput).unwrap();
+        m.read(slio(3), Register::Adc).unwrap();
+        let sent: Vec<String> = std::iter::from_fn(|| m.poll_transmit(0))
+            .map(|t| t.frame.to_string())
+            .collect();
+        // Seed 002 §2.1.2.1 and `make_slio_ffi` (DLC = 3): never `29C#00`.
+        assert_eq!(sent, ["29C#000000", "29C#080000"]);
+        for register in [
+            Register::DataOutput,
+            Register::OutputEnable,
+            Register::Dpm1,
+            Register::AnalogConfig,
+        ] {
+            assert_eq!(
+                m.read(slio(3), register),
+                Err(NotReadable(register)),
+                "{register}"
+            );
+        }
+        assert!(m.poll_transmit(0).is_none(), "a refused read sends nothing");
+    }
+
+    #[test]
     fn an_unanswered_request_times_out_and_garbage_is_ignored() {
         let mut m = Master::keeping(125_000, 0);
-        let r = m.read(0, slio(5), Register::Adc);
+        let r = m.read(slio(5), Register::Adc).unwrap();
+        m.poll_transmit(0).unwrap();
         m.handle_frame(1, &Frame::data(slio(5).reply_id(), &[0x20]).unwrap());
         m.handle_frame(1, &Frame::remote(slio(5).reply_id(), 3).unwrap());
         assert!(!m.handle_frame(1, &"123#112233".parse().unwrap()));
@@ -379,5 +461,41 @@ mod tests {
             request: r,
             slio: slio(5)
         }));
+    }
+
+    /// The wait for an answer opened when the request was queued, so a request queued behind
+    /// the 48 start-up calibration frames (which an adapter confirms one by one, slowly on a
+    /// loaded machine) was given up before it was even sent.
+    #[test]
+    fn the_answer_is_awaited_from_the_hand_over_not_from_the_queueing() {
+        let mut m = Master::new(125_000, 0);
+        let r = m.read(slio(3), Register::DataInput).unwrap();
+        let within = ANSWER_WITHIN_BITS * 8000;
+        // Not handed over yet: no answer deadline, however late it is.
+        assert_eq!(m.next_deadline(), Some(CALIBRATION_EVERY_BITS * 8000));
+        m.stop_calibrating();
+        assert_eq!(m.next_deadline(), None);
+        m.handle_timeout(10 * within);
+        assert!(std::iter::from_fn(|| m.poll_event()).next().is_none());
+        // The 48 calibration frames, then the read, handed over at 10 × within.
+        let mut sent = 0;
+        while let Some(t) = m.poll_transmit(10 * within) {
+            sent += 1;
+            if !t.single_shot {
+                assert_eq!(t.frame.to_string(), "29C#000000");
+            }
+        }
+        assert_eq!(sent, 49);
+        assert_eq!(m.next_deadline(), Some(11 * within));
+        m.handle_timeout(11 * within - 1);
+        assert!(std::iter::from_fn(|| m.poll_event()).next().is_none());
+        m.handle_timeout(11 * within);
+        assert_eq!(
+            m.poll_event(),
+            Some(MasterEvent::NoAnswer {
+                request: r,
+                slio: slio(3)
+            })
+        );
     }
 }

@@ -1,9 +1,9 @@
 //! The nine 16-bit registers and the 3-byte frames that carry them.
 //!
-//! A frame to a SLIO carries the register number and, to write, its new 16-bit value
-//! (high byte first, the seed's `wr_reg_slio`); every frame from a SLIO carries four status
-//! bits and the register number in its first byte and the register's content in the next two
-//! (`DATA1:23 DATA2:20 DATA3:00` on the MoniCAN screen of the seed's Fig. 4.2: status 2,
+//! A frame to a SLIO carries the register number and a 16-bit value (high byte first, the
+//! seed's `wr_reg_slio`), always 3 bytes (a read fills the value with zeros, see [`Request`]);
+//! every frame from a SLIO carries four status bits and the register number in its first byte
+//! and the register's content in the next two (`DATA1:23 DATA2:20 DATA3:00` on the MoniCAN screen of the seed's Fig. 4.2: status 2,
 //! register 3 = DATA_OUTPUT, value 0x2000).
 //!
 //! The register numbers are not all known (the data sheet's section 7.2 was not reachable,
@@ -12,6 +12,10 @@
 //! and its MoniCAN screen, so the listed order is taken as the numbering (docs/decisions.md).
 
 use core::fmt;
+
+use buslab_can::Frame;
+
+use crate::ids::SlioId;
 
 /// One of the nine registers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -177,12 +181,19 @@ impl Status {
 }
 
 /// What a frame to a SLIO asks for.
+///
+/// Every frame a P82C150 carries out is a data frame of 3 bytes, the register number and 16
+/// bits ("Les trames envoyées ou reçues par le SLIO ont toujours 3 octets (sauf les remote
+/// frame bien sûr)", seed 002 §2.1.2.1), or a remote frame, which reads DATA_INPUT. So only
+/// the read-only registers can be read: a 3-byte frame addressed to DATA_INPUT or ADC stores
+/// nothing and is answered with the register's content (docs/decisions.md); a writable
+/// register is known from the SLIO's answer to a write.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Request {
-    /// Write `value` into the register (3 data bytes); the SLIO answers with its new content.
+    /// Write `value` into a writable register; the SLIO answers with its new content.
     Write { register: Register, value: u16 },
-    /// Read the register (1 data byte, the register number, or a remote frame for
-    /// DATA_INPUT).
+    /// Read a read-only register (DATA_INPUT, or ADC, which converts again): a 3-byte frame
+    /// addressed to it, or a remote frame for DATA_INPUT.
     Read { register: Register },
 }
 
@@ -191,39 +202,78 @@ pub enum Request {
 pub enum RequestError {
     #[error("no register {0} (0..8)")]
     NoRegister(u8),
-    #[error("{0} data bytes: a SLIO frame has 1 (read) or 3 (write)")]
+    #[error(
+        "{0} data bytes: a P82C150 takes 3 (the register number, then 16 bits) or a remote frame"
+    )]
     Length(u8),
 }
 
+/// A writable register cannot be read: the only frame that addresses it writes it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{0} cannot be read without writing it: a P82C150 takes 3-byte frames only (register and value) and answers with what it stored; readable are DATA_INPUT (output pins read back their levels) and ADC"
+)]
+pub struct NotReadable(pub Register);
+
+/// The value bytes of a read: a read-only register does not store them.
+const READ_FILLER: u16 = 0x0000;
+
 impl Request {
-    /// The request in a frame's data (a remote frame reads DATA_INPUT).
+    /// A read of `register`, if it has one (the read-only registers).
+    pub fn read(register: Register) -> Result<Self, NotReadable> {
+        match register.access() {
+            Access::ReadOnly => Ok(Request::Read { register }),
+            Access::ReadWrite => Err(NotReadable(register)),
+        }
+    }
+
+    /// The request in a frame's data as a P82C150 takes it: a remote frame reads DATA_INPUT;
+    /// a data frame must have 3 bytes, and addressed to a read-only register it reads it.
     pub fn parse(remote: bool, data: &[u8]) -> Result<Self, RequestError> {
         if remote {
             return Ok(Request::Read {
                 register: Register::DataInput,
             });
         }
-        let register = |b: u8| Register::from_number(b & 0x0F).ok_or(RequestError::NoRegister(b));
-        match *data {
-            [r] => Ok(Request::Read {
-                register: register(r)?,
-            }),
-            [r, hi, lo] => Ok(Request::Write {
-                register: register(r)?,
+        let [r, hi, lo] = *data else {
+            return Err(RequestError::Length(data.len() as u8));
+        };
+        let register = Register::from_number(r & 0x0F).ok_or(RequestError::NoRegister(r))?;
+        Ok(match register.access() {
+            Access::ReadOnly => Request::Read { register },
+            Access::ReadWrite => Request::Write {
+                register,
                 value: u16::from_be_bytes([hi, lo]),
-            }),
-            _ => Err(RequestError::Length(data.len() as u8)),
-        }
+            },
+        })
     }
 
-    /// The frame data for this request.
-    pub fn encode(self) -> Vec<u8> {
-        match self {
-            Request::Read { register } => vec![register.number()],
-            Request::Write { register, value } => {
-                let [hi, lo] = value.to_be_bytes();
-                vec![register.number(), hi, lo]
+    /// The 3 data bytes of this request, as the seed's `make_slio_ffi` (DLC = 3) and
+    /// `wr_reg_slio` build them; a read fills the value with zeros.
+    pub fn data(self) -> Result<[u8; 3], NotReadable> {
+        let (register, value) = match self {
+            Request::Write { register, value } => (register, value),
+            Request::Read { register } if register.access() == Access::ReadOnly => {
+                (register, READ_FILLER)
             }
+            Request::Read { register } => return Err(NotReadable(register)),
+        };
+        let [hi, lo] = value.to_be_bytes();
+        Ok([register.number(), hi, lo])
+    }
+
+    /// The frame that carries this request to `slio`.
+    pub fn frame(self, slio: SlioId) -> Result<Frame, NotReadable> {
+        Ok(Frame::data(slio.command_id(), &self.data()?).expect("3 bytes"))
+    }
+
+    /// The frame data for this request: [`Request::data`]'s 3 bytes. A read of a writable
+    /// register has no such frame: it gives its register number alone, which a P82C150
+    /// ignores (kept for callers not moved to [`Request::frame`] yet, which refuses it).
+    pub fn encode(self) -> Vec<u8> {
+        match self.data() {
+            Ok(data) => data.to_vec(),
+            Err(NotReadable(register)) => vec![register.number()],
         }
     }
 
@@ -329,14 +379,62 @@ mod tests {
                 register: Register::DataInput
             })
         );
-        assert_eq!(Request::parse(false, &[]), Err(RequestError::Length(0)));
-        assert_eq!(Request::parse(false, &[1, 2]), Err(RequestError::Length(2)));
+        // The one-byte read of the past is not a P82C150 frame (seed §2.1.2.1: always 3
+        // bytes), nor are other lengths.
+        for len in [0, 1, 2, 4, 8] {
+            let data = vec![Register::DataInput.number(); len];
+            assert_eq!(
+                Request::parse(false, &data),
+                Err(RequestError::Length(len as u8))
+            );
+        }
         assert_eq!(
             Request::parse(false, &[0x09, 0, 0]),
             Err(RequestError::NoRegister(9))
         );
         assert!(Reply::parse(&[0x0F, 0, 0]).is_err());
         assert!(Reply::parse(&[1, 2]).is_err());
+    }
+
+    #[test]
+    fn every_request_a_host_builds_has_three_bytes_and_writable_registers_have_no_read() {
+        let slio = SlioId::new(3).unwrap();
+        for register in Register::all() {
+            let write = Request::Write {
+                register,
+                value: 0x1234,
+            };
+            let frame = write.frame(slio).unwrap();
+            assert_eq!(
+                frame.to_string(),
+                format!("29C#{:02X}1234", register.number())
+            );
+            match Request::read(register) {
+                Ok(read) => {
+                    assert_eq!(register.access(), Access::ReadOnly);
+                    let frame = read.frame(slio).unwrap();
+                    assert_eq!(
+                        frame.to_string(),
+                        format!("29C#{:02X}0000", register.number())
+                    );
+                    // The SLIO reads it as a read of that register.
+                    assert_eq!(Request::parse(false, frame.payload()), Ok(read));
+                }
+                Err(e) => {
+                    assert_eq!(register.access(), Access::ReadWrite);
+                    assert_eq!(e, NotReadable(register));
+                    assert_eq!(Request::Read { register }.frame(slio), Err(e));
+                    assert!(e.to_string().contains(register.name()), "{e}");
+                }
+            }
+        }
+        // A "write" to a read-only register is its read: nothing is stored.
+        assert_eq!(
+            Request::parse(false, &[0x08, 0x12, 0x34]),
+            Ok(Request::Read {
+                register: Register::Adc
+            })
+        );
     }
 
     #[test]

@@ -10,8 +10,9 @@
 //!   seed's host aborts these unacknowledged calibration frames, and the SLIOs still
 //!   calibrate on them);
 //! - **calibrated** after one more valid frame and then a valid calibration frame: it sends its
-//!   sign-on (DATA_INPUT, with RSTD set), acknowledges, answers every data frame, and reports
-//!   input edges.
+//!   sign-on (DATA_INPUT, with RSTD set), acknowledges, answers every command (a 3-byte data
+//!   frame or a remote frame to its identifiers; a data frame of another length is ignored),
+//!   and reports input edges.
 //!
 //! A calibrated SLIO that sees no calibration frame for 8192 bit-times, or goes bus-off,
 //! changes its bus mode: registers cleared (outputs float), RSTD = 1, EW = 0, BM + 1, and it
@@ -41,7 +42,7 @@ const IDLE_BITS: u8 = 11;
 /// The most bit-times a frame applied whole takes, intermission included: an extended data
 /// frame of 8 bytes with every possible stuff bit (118 stuffed bits, 29 stuff bits, 10 fixed
 /// bits to the end of EOF, 3 of intermission).
-const LONGEST_FRAME_BITS: u64 = 160;
+pub const LONGEST_FRAME_BITS: u64 = 160;
 
 /// The bus level at wire bit `bit` of a whole frame (recessive in its intermission).
 pub(crate) fn frame_level(frame: &WireFrame, bit: u32) -> Level {
@@ -333,10 +334,12 @@ impl Slio {
             }
             Request::Write { register, value } => {
                 match register {
-                    Register::DataInput => {}
-                    Register::Adc => self.convert(),
                     Register::Dpm1 | Register::Dpm2 => {
                         self.set_register(register, value & TEN_BITS)
+                    }
+                    // Read-only: nothing stored ([`Request::parse`] makes these reads).
+                    Register::DataInput | Register::Adc => {
+                        return self.execute(Request::Read { register });
                     }
                     _ => self.set_register(register, value),
                 }
@@ -405,6 +408,9 @@ impl Slio {
             (Direction::FromSlio, true) => Request::parse(true, &[]),
             (Direction::FromSlio, false) => return,
         };
+        // A data frame of another length than 3 (or for no register) is no command: neither
+        // executed nor answered (docs/decisions.md, "SLIO frames have 3 bytes"). Its
+        // controller has acknowledged it all the same, as every CAN receiver does.
         let Ok(request) = request else { return };
         let answer = self.execute(request);
         if self.calibration == Calibration::Calibrated {

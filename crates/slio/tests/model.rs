@@ -212,18 +212,29 @@ fn reads_remote_frames_and_extended_frames() {
     let mut b = Bench::new(&[4]);
     b.calibrate();
     b.host_received();
-    // A one-byte frame reads a register.
+    // A 3-byte frame to DATA_INPUT reads it, its value bytes stored nowhere (the seed's
+    // `make_slio_ffi` builds every frame with DLC 3).
     b.write(4, Register::OutputEnable, 0x0100);
+    b.write(4, Register::DataOutput, 0x0100);
     b.host_received();
-    b.send(Frame::data(id(4).command_id(), &[Register::OutputEnable.number()]).unwrap());
-    let r = reply_of(&b.host_received(), 4);
-    assert_eq!(
-        (r[0].register, r[0].value),
-        (Register::OutputEnable, 0x0100)
+    b.send(
+        Frame::data(
+            id(4).command_id(),
+            &[Register::DataInput.number(), 0xFF, 0xFF],
+        )
+        .unwrap(),
     );
-    // A remote frame (to either of its identifiers) reads DATA_INPUT.
-    for to in [id(4).command_id(), id(4).reply_id()] {
-        b.send(Frame::remote(to, 3).unwrap());
+    let r = reply_of(&b.host_received(), 4);
+    assert_eq!(r.len(), 1);
+    // P8 drives high and reads back; P0..P3 show the ID switches (P13 low).
+    assert_eq!((r[0].register, r[0].value), (Register::DataInput, 0x0104));
+    // A remote frame (to either of its identifiers, any DLC) reads DATA_INPUT.
+    for (to, dlc) in [
+        (id(4).command_id(), 3),
+        (id(4).reply_id(), 3),
+        (id(4).command_id(), 0),
+    ] {
+        b.send(Frame::remote(to, dlc).unwrap());
         let r = reply_of(&b.host_received(), 4);
         assert_eq!(r.len(), 1);
         assert_eq!(r[0].register, Register::DataInput);
@@ -243,11 +254,67 @@ fn reads_remote_frames_and_extended_frames() {
             ..
         }
     )));
-    assert_eq!(b.board(0).slio().register(Register::DataOutput), 0);
+    assert_eq!(b.board(0).slio().register(Register::DataOutput), 0x0100);
     // Garbage (2 bytes, register 9) is ignored: no reply.
     b.send(Frame::data(id(4).command_id(), &[3, 1]).unwrap());
     b.send(Frame::data(id(4).command_id(), &[9, 1, 2]).unwrap());
     assert!(reply_of(&b.host_received(), 4).is_empty());
+}
+
+/// Issue 25: MoniCAN's `3I0`, its start-up read and `buslab slio read` sent `29C#00`, and the
+/// model answered it, so nothing on the bench showed that a P82C150, whose frames "ont
+/// toujours 3 octets (sauf les remote frame bien sûr)" (seed §2.1.2.1), may not. A data frame
+/// of any other length is no command: acknowledged (a correct CAN frame), neither executed
+/// nor answered.
+#[test]
+fn a_one_byte_read_frame_is_not_answered() {
+    let mut b = Bench::new(&[3]);
+    b.calibrate();
+    b.write(3, Register::OutputEnable, OUTPUT_ENABLE);
+    b.write(3, Register::DataOutput, 0x2080);
+    b.host_received();
+    b.sim.take_records();
+    for data in [
+        &[Register::DataInput.number()][..],
+        &[Register::OutputEnable.number()],
+        &[Register::Adc.number()],
+        &[],
+        &[Register::DataOutput.number(), 0x00],
+        &[Register::DataOutput.number(), 0x00, 0x00, 0x00],
+        &[Register::DataOutput.number(), 0, 0, 0, 0, 0, 0, 0],
+    ] {
+        b.send(Frame::data(id(3).command_id(), data).unwrap());
+        let records = b.sim.take_records();
+        // Acknowledged: the host's single-shot attempt succeeded.
+        assert!(
+            records.iter().any(|r| matches!(
+                r.what,
+                Happening::Node {
+                    node: 0,
+                    event: Event::Transmitted(_)
+                }
+            )),
+            "{data:02X?}: {records:?}"
+        );
+        let answers: Vec<_> = records
+            .iter()
+            .filter(|r| {
+                matches!(&r.what, Happening::Node { node: 0, event: Event::Received(f) } if f.id() == id(3).reply_id())
+            })
+            .collect();
+        assert!(answers.is_empty(), "{data:02X?} was answered: {answers:?}");
+    }
+    // Nothing was written either.
+    assert_eq!(b.board(0).slio().register(Register::DataOutput), 0x2080);
+    assert_eq!(
+        b.board(0).slio().register(Register::OutputEnable),
+        OUTPUT_ENABLE
+    );
+    // The 3-byte read that replaces it is answered.
+    b.send(Frame::data(id(3).command_id(), &[Register::DataInput.number(), 0, 0]).unwrap());
+    let r = reply_of(&b.host_received(), 3);
+    assert_eq!(r.len(), 1);
+    assert_eq!(r[0].register, Register::DataInput);
 }
 
 #[test]
@@ -263,8 +330,8 @@ fn adc_conversions_read_the_known_inputs() {
         assert_eq!(r[0].register, Register::Adc);
         assert_eq!(r[0].value, volts_to_code(volts));
     }
-    // Reading ADC converts again.
-    b.send(Frame::data(id(5).command_id(), &[Register::Adc.number()]).unwrap());
+    // Reading ADC (a 3-byte frame to it) converts again.
+    b.send(Frame::data(id(5).command_id(), &[Register::Adc.number(), 0, 0]).unwrap());
     let r = reply_of(&b.host_received(), 5);
     assert_eq!(r[0].value, volts_to_code(3.75));
 }

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use buslab_backends::DynBus;
-use buslab_canbus::BusError;
+use buslab_canbus::slio::{SingleShot, send_single_shot};
 use buslab_monican::{Config, MoniCan, Transmit};
 
 use super::busopt::{self, BusOpt};
@@ -25,9 +25,9 @@ const CTRL_Q: u8 = 0x11;
 
 /// The longest the loop waits for a frame before looking at keys and signals again.
 const SLICE: Duration = Duration::from_millis(20);
-/// How long a calibration frame may take to be acknowledged on a buslab bus before MoniCAN
-/// stops waiting for it (nobody acknowledges: no SLIO calibrated and no other node).
-const SINGLE_SHOT_WAIT: Duration = Duration::from_millis(250);
+/// How long a calibration frame may wait to reach the wire on a buslab bus before MoniCAN
+/// gives it up unsent (one on the wire without an acknowledgement is aborted at once).
+const SINGLE_SHOT_WITHIN: Duration = Duration::from_secs(2);
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -93,6 +93,7 @@ fn session(
 ) -> anyhow::Result<()> {
     let epoch = Instant::now();
     let now = || epoch.elapsed().as_nanos() as u64;
+    let bitrate = config.bitrate;
     let mut app = MoniCan::new(config, now())?;
     if let Ok((cols, rows)) = crossterm::terminal::size()
         && (cols < 80 || rows < 24)
@@ -121,8 +122,13 @@ fn session(
         if app.next_deadline().is_some_and(|t| t <= now()) {
             app.handle_timeout(now());
         }
-        while let Some(t) = app.poll_transmit() {
-            send(bus, t)?;
+        let mut start_up = false;
+        while let Some(t) = app.poll_transmit(now()) {
+            send(bus, t, bitrate)?;
+            start_up |= t.single_shot;
+        }
+        if start_up {
+            app.start_up_sent(now());
         }
         let screen = app.take_screen();
         if !screen.is_empty() {
@@ -143,32 +149,25 @@ fn session(
     Ok(())
 }
 
-/// Sends MoniCAN's frames. A single-shot frame (calibration) on a buslab bus is followed by a
-/// flush; if nobody acknowledges it within [`SINGLE_SHOT_WAIT`] it is aborted
-/// (`< buslab_abort >`, the seed's CMR.AT), so an unacknowledged frame never holds up the
-/// next ones. Other backends just send: their adapters retry until a SLIO acknowledges.
-fn send(bus: &mut DynBus, t: Transmit) -> anyhow::Result<()> {
-    bus.send(&t.frame)
-        .with_context(|| format!("cannot send {}", t.frame))?;
+/// Sends MoniCAN's frames. A single-shot frame (calibration) is tried once
+/// ([`send_single_shot`]: on a buslab bus, aborted once on the wire without an
+/// acknowledgement, the seed's CMR.AT), so an unacknowledged frame never holds up the next
+/// ones. Other backends just send: their adapters retry until a SLIO acknowledges.
+fn send(bus: &mut DynBus, t: Transmit, bitrate: u32) -> anyhow::Result<()> {
     if !t.single_shot {
-        return Ok(());
+        return bus
+            .send(&t.frame)
+            .with_context(|| format!("cannot send {}", t.frame));
     }
-    let Some(admin) = bus.admin() else {
-        return Ok(());
-    };
-    match admin.flush(SINGLE_SHOT_WAIT) {
-        Ok(_) => Ok(()),
-        Err(BusError::Timeout { .. }) => {
-            tracing::debug!(
-                "calibration frame not acknowledged within {}: aborted",
-                Human(SINGLE_SHOT_WAIT)
-            );
-            admin
-                .abort()
-                .context("aborting an unacknowledged calibration frame")
-        }
-        Err(e) => Err(e).context("waiting for a calibration frame to be sent"),
+    let outcome = send_single_shot(&mut **bus, &t.frame, bitrate, SINGLE_SHOT_WITHIN)
+        .with_context(|| format!("cannot send {}", t.frame))?;
+    if outcome == SingleShot::NotTried {
+        tracing::debug!(
+            "calibration frame not on the wire within {}: given up",
+            Human(SINGLE_SHOT_WITHIN)
+        );
     }
+    Ok(())
 }
 
 #[cfg(test)]

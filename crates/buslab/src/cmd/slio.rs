@@ -7,7 +7,7 @@ use anyhow::{Context, bail};
 use buslab_canbus::slio::SlioHost;
 use buslab_slio::board::{CONVERT_ADC1, CONVERT_ADC2, VDD};
 use buslab_slio::registers::TEN_BITS;
-use buslab_slio::{Register, SlioId};
+use buslab_slio::{Register, Request, SlioId};
 
 use super::busopt::{BusOpt, open};
 use crate::units::Human;
@@ -44,11 +44,13 @@ pub enum SlioCommand {
     },
     /// Ask all 16 SLIO numbers for their inputs and list those that answer.
     List,
-    /// Read a register of a SLIO (ADC: converts again).
+    /// Read a read-only register of a SLIO: DATA_INPUT (the 16 pin levels) or ADC (converts
+    /// again). A writable register has no read on a P82C150 (every frame to it has 3 bytes
+    /// and writes): `write` shows what it stored.
     Read {
         /// The SLIO: 0..F.
         slio: SlioId,
-        /// The register: a name (DATA_INPUT, DATA_OUTPUT, OUTPUT_ENABLE, ADC, …) or 0..8.
+        /// The register: DATA_INPUT, ADC (or 0, 8).
         register: Register,
     },
     /// Write a register of a SLIO and show what it confirmed.
@@ -61,8 +63,9 @@ pub enum SlioCommand {
         #[arg(value_parser = parse_u16)]
         value: u16,
     },
-    /// Drive one output pin high or low (DATA_OUTPUT, keeping the other pins; the pin must
-    /// be an output: OUTPUT_ENABLE, 0x3F90 on the demo board).
+    /// Drive one output pin high or low: DATA_OUTPUT takes the pin levels (DATA_INPUT) with
+    /// this one changed, so the other outputs keep theirs; the pin must then read the level
+    /// (it must be an output: OUTPUT_ENABLE, 0x3F90 on the demo board).
     Set {
         /// The SLIO: 0..F.
         slio: SlioId,
@@ -137,7 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     host.set_answer_within(wait);
     match args.command {
         SlioCommand::Calibrate { keep } => {
-            let signed = host.settle(bitrate)?;
+            let signed = host.settle()?;
             if signed.is_empty() {
                 println!(
                     "no SLIO signed on (already calibrated ones do not: try `buslab slio list`)"
@@ -156,7 +159,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         SlioCommand::List => {
             if calibrate {
-                host.settle(bitrate)?;
+                host.settle()?;
             }
             let found = host.scan(wait)?;
             if found.is_empty() {
@@ -174,7 +177,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
         SlioCommand::Read { slio, register } => {
-            prepare(&mut host, calibrate, bitrate)?;
+            if let Err(e) = Request::read(register) {
+                bail!(
+                    "SLIO {slio}: {e} (`buslab slio write {slio} {register} VALUE` sets it and shows what the SLIO stored)"
+                );
+            }
+            prepare(&mut host, calibrate)?;
             let value = host.read(slio, register, wait)?;
             println!("SLIO {slio} {register} = 0x{value:04X}");
         }
@@ -183,38 +191,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             register,
             value,
         } => {
-            prepare(&mut host, calibrate, bitrate)?;
+            prepare(&mut host, calibrate)?;
             let confirmed = host.write(slio, register, value, wait)?;
             println!("SLIO {slio} {register} = 0x{confirmed:04X}");
         }
         SlioCommand::Set { slio, pin, level } => {
-            prepare(&mut host, calibrate, bitrate)?;
-            let oe = host.read(slio, Register::OutputEnable, wait)?;
-            if oe & (1 << pin) == 0 {
-                bail!(
-                    "SLIO {slio}: P{pin} is not an output (OUTPUT_ENABLE = 0x{oe:04X}; the demo board uses 0x3F90: buslab slio write {slio} OUTPUT_ENABLE 0x3F90)"
-                );
-            }
-            let out = host.read(slio, Register::DataOutput, wait)?;
+            prepare(&mut host, calibrate)?;
+            // A P82C150 cannot be asked for DATA_OUTPUT or OUTPUT_ENABLE without writing them:
+            // the pin levels stand in for the outputs (an output reads back its level).
+            let levels = host.read(slio, Register::DataInput, wait)?;
             let new = if level {
-                out | 1 << pin
+                levels | 1 << pin
             } else {
-                out & !(1 << pin)
+                levels & !(1 << pin)
             };
             let confirmed = host
                 .write(slio, Register::DataOutput, new, wait)
                 .context("writing DATA_OUTPUT")?;
+            let after = host.read(slio, Register::DataInput, wait)?;
+            let word = |high: bool| if high { "high" } else { "low" };
+            if (after & 1 << pin != 0) != level {
+                bail!(
+                    "SLIO {slio}: P{pin} is not an output: it reads {} after DATA_OUTPUT drove it {} (DATA_INPUT = 0x{after:04X}); OUTPUT_ENABLE makes it one (the demo board uses 0x3F90: buslab slio write {slio} OUTPUT_ENABLE 0x3F90){}",
+                    word(!level),
+                    word(level),
+                    if pin == 10 || pin == 4 {
+                        ", unless it is a DPM output"
+                    } else {
+                        ""
+                    }
+                );
+            }
             println!(
                 "SLIO {slio} P{pin} {} (DATA_OUTPUT = 0x{confirmed:04X})",
-                if confirmed & (1 << pin) != 0 {
-                    "high"
-                } else {
-                    "low"
-                }
+                word(level)
             );
         }
         SlioCommand::Adc { slio, input } => {
-            prepare(&mut host, calibrate, bitrate)?;
+            prepare(&mut host, calibrate)?;
             let config = if input == 1 {
                 CONVERT_ADC1
             } else {
@@ -227,7 +241,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
         SlioCommand::Dpm { slio, output, duty } => {
-            prepare(&mut host, calibrate, bitrate)?;
+            prepare(&mut host, calibrate)?;
             let register = if output == 1 {
                 Register::Dpm1
             } else {
@@ -244,9 +258,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// With --calibrate, the start-up calibration before a request.
-fn prepare(host: &mut SlioHost<'_>, calibrate: bool, bitrate: u32) -> anyhow::Result<()> {
+fn prepare(host: &mut SlioHost<'_>, calibrate: bool) -> anyhow::Result<()> {
     if calibrate {
-        host.settle(bitrate)?;
+        host.settle()?;
     }
     Ok(())
 }
