@@ -136,7 +136,8 @@ fn buslab_reads_every_format_python_can_writes() {
     };
     let dir = tempfile::tempdir().unwrap();
     // What `buslab log cat -x` shows of python-can's files. python-can's candump writer drops
-    // the RTR DLC and writes an error frame as a bare bus error; its TRC writer leaves remote
+    // the RTR DLC and writes any error frame with the bus-error class (its data bytes kept,
+    // and read back byte for byte); its TRC writer leaves remote
     // and error frames out; CSV and SQLite keep no channel and no direction; ASC keeps only
     // "ErrorFrame" (read back as a bus error, as asc2log does).
     let expect = |ext: &str| -> String {
@@ -154,7 +155,7 @@ fn buslab_reads_every_format_python_can_writes() {
         match ext {
             "log" => {
                 lines[2] = "(1700000000.002000) can0 7FF#R R".into();
-                lines[4] = "(1700000000.004000) can0 20000080#0000000000000000".into();
+                lines[4] = "(1700000000.004000) can0 20000080#0000020A00000000".into();
             }
             "asc" => lines[4] = "(1700000000.004000) can0 20000080#0000000000000000 R".into(),
             "trc" => {
