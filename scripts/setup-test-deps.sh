@@ -8,7 +8,10 @@
 #   SocketCAN test VM (scripts/vm/, crates/buslab/tests/vm_socketcan.rs): qemu-system-x86,
 #   busybox-static, cpio, can-utils, binutils, and Debian's kernel package downloaded (not
 #   installed) into target/vm-cache/; sdcc-ucsim (s51) and as31 for the MCS-51 core;
-# - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can).
+# - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can);
+#   python-can's source distribution (pinned by hash) into target/python-can-sdist/, for the log
+#   files of its test/data that crates/buslab/tests/log_python_can_data.rs reads with python-can
+#   and buslab (downloaded, not committed: python-can is LGPL-3.0, see docs/decisions.md).
 # Whatever cannot be installed stops the script with a message and a non-zero exit: the interop
 # tests must not pass by skipping (under CI=1 they fail when a tool is missing).
 set -euo pipefail
@@ -137,3 +140,21 @@ if ! cmp -s "$requirements" "$stamp"; then
 fi
 .venv/bin/python -c "import serial, can" ||
     fail "the .venv lacks pyserial or python-can; delete .venv and run this script again"
+
+# python-can's own test logs (Vector ASC/BLF, PEAK TRC 1.0..2.1), from its sdist on PyPI.
+pycan_version=4.6.1
+pycan_sha256=290fea135d04b8504ebff33889cc6d301e2181a54099116609f940825ffe5005
+pycan_dir=target/python-can-sdist
+pycan_data=$pycan_dir/python_can-$pycan_version/test/data
+if [ ! -f "$pycan_data/logfile.asc" ]; then
+    echo "downloading python-can $pycan_version's source distribution (PyPI, for its test logs)"
+    mkdir -p "$pycan_dir"
+    printf 'python-can==%s --hash=sha256:%s\n' "$pycan_version" "$pycan_sha256" >"$pycan_dir/requirements.txt"
+    .venv/bin/pip download --quiet --disable-pip-version-check --no-deps --no-binary :all: \
+        --require-hashes -r "$pycan_dir/requirements.txt" -d "$pycan_dir" ||
+        fail "pip could not download python-can $pycan_version's sdist into $pycan_dir"
+    tar -xzf "$pycan_dir/python_can-$pycan_version.tar.gz" -C "$pycan_dir" \
+        "python_can-$pycan_version/test/data" "python_can-$pycan_version/LICENSE.txt" ||
+        fail "cannot unpack test/data from $pycan_dir/python_can-$pycan_version.tar.gz"
+    [ -f "$pycan_data/logfile.asc" ] || fail "python-can's sdist has no test/data/logfile.asc"
+fi

@@ -1,8 +1,11 @@
 //! Log files with tools nobody here wrote: python-can 4.6.1 reads every file buslab writes and
 //! buslab reads every file python-can writes (ASC, BLF, TRC, CSV, SQLite, candump log);
 //! can-utils' log2asc/asc2log against buslab's ASC; tshark decodes buslab's pcap and pcapng,
-//! and editcap's conversions of them read back. Installed by scripts/setup-test-deps.sh; under
-//! CI=1 a missing tool fails the test.
+//! and editcap's conversions of them read back; error frames byte for byte through every
+//! format (python-can reading the BLF, CSV and SQLite); Wireshark's exported PDUs
+//! (text2pcap -P) read, other link types refused. Installed by scripts/setup-test-deps.sh;
+//! under CI=1 a missing tool fails the test. python-can's own test logs:
+//! log_python_can_data.rs.
 
 #[path = "support/outside_tools.rs"]
 mod outside_tools;
@@ -136,7 +139,8 @@ fn buslab_reads_every_format_python_can_writes() {
     };
     let dir = tempfile::tempdir().unwrap();
     // What `buslab log cat -x` shows of python-can's files. python-can's candump writer drops
-    // the RTR DLC and writes an error frame as a bare bus error; its TRC writer leaves remote
+    // the RTR DLC and writes any error frame with the bus-error class (its data bytes kept,
+    // and read back byte for byte); its TRC writer leaves remote
     // and error frames out; CSV and SQLite keep no channel and no direction; ASC keeps only
     // "ErrorFrame" (read back as a bus error, as asc2log does).
     let expect = |ext: &str| -> String {
@@ -154,7 +158,7 @@ fn buslab_reads_every_format_python_can_writes() {
         match ext {
             "log" => {
                 lines[2] = "(1700000000.002000) can0 7FF#R R".into();
-                lines[4] = "(1700000000.004000) can0 20000080#0000000000000000".into();
+                lines[4] = "(1700000000.004000) can0 20000080#0000020A00000000".into();
             }
             "asc" => lines[4] = "(1700000000.004000) can0 20000080#0000000000000000 R".into(),
             "trc" => {
@@ -343,4 +347,134 @@ fn editcap_conversions_read_back() {
             &plain(interfaces),
         );
     }
+}
+
+/// Error frames as logs hold them: counters without their class, bytes no class explains,
+/// fewer than 8 bytes, unknown class bits.
+const ERROR_FRAMES: &str = "\
+(1700000000.000000) can0 20000088#0000020A00000102
+(1700000000.001000) can0 20000080#0000040200000001
+(1700000000.002000) can0 20000004#0004
+(1700000000.003000) can0 20000040#
+(1700000000.004000) can0 3FFFFFFF#0102030405060708
+(1700000000.005000) can0 20000204#0020000000008005
+";
+
+/// Issue 25: reading a candump log rewrote error frames (`20000088#…` became `20000288#…`,
+/// `20000080#0000040200000001` lost its protocol bytes). Converted through every format
+/// that holds error frames, one after the other, and back to candump, each comes back byte
+/// for byte; python-can reads the same class and bytes from the BLF, CSV and SQLite files.
+#[test]
+fn error_frames_survive_every_format_byte_for_byte() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("errors.log");
+    std::fs::write(&input, ERROR_FRAMES).unwrap();
+    let chain = ["asc", "blf", "pcap", "pcapng", "csv", "db", "log"];
+    let mut from = input.clone();
+    for ext in chain {
+        let to = dir.path().join(format!("chain.{ext}"));
+        run(buslab().args(["log", "convert"]).arg(&from).arg(&to));
+        let got = run(buslab().args(["log", "cat"]).arg(&to));
+        assert_eq!(got, ERROR_FRAMES, "{} → {ext}", from.display());
+        from = to;
+    }
+    let Some(python) = python_can() else {
+        return;
+    };
+    for ext in ["blf", "csv", "db"] {
+        let file = dir.path().join(format!("chain.{ext}"));
+        let out = run(Command::new(&python)
+            .arg(root().join("tests/interop/can_log_fields.py"))
+            .arg(&file));
+        // TIME CHANNEL KIND EXT ID DLC DATA DIR: the class as the ID, the bytes as the data.
+        let got: Vec<String> = out
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let f: Vec<&str> = l.split(' ').collect();
+                assert_eq!(f[2], "E", "{ext}: {l}");
+                let data = if f[6] == "-" { "" } else { f[6] };
+                format!(
+                    "{:08X}#{data}",
+                    0x2000_0000 | u32::from_str_radix(f[4], 16).unwrap()
+                )
+            })
+            .collect();
+        let want: Vec<&str> = ERROR_FRAMES
+            .lines()
+            .map(|l| l.split(' ').nth(2).unwrap())
+            .collect();
+        assert_eq!(got, want, "python-can reading buslab's {ext}");
+    }
+}
+
+/// Issue 25: a Wireshark pcapng of exported PDUs (link type 252) read as 0 entries, exit 0.
+/// Wireshark's text2pcap writes buslab's SocketCAN records as exported PDUs of its
+/// `can-bigendian` dissector: buslab reads the same frames; PDUs of another dissector and a
+/// capture of another link type are errors naming them.
+#[test]
+fn wireshark_exported_pdus_read_and_other_link_types_refused() {
+    if !tool("tshark") || !tool("text2pcap") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.log");
+    let frames = "(1700000000.000000) can0 123#1122\n(1700000000.001000) can0 12345678#DEADBEEF\n\
+                  (1700000000.002000) can0 7FF#R3\n(1700000000.003000) can0 20000088#0000020A00000102\n";
+    std::fs::write(&input, frames).unwrap();
+    let pcap = dir.path().join("in.pcap");
+    run(buslab().args(["log", "convert"]).arg(&input).arg(&pcap));
+    // The packets as hex, the way text2pcap takes them.
+    let hex = dir.path().join("hex.txt");
+    let dump = run(Command::new("tshark")
+        .arg("-r")
+        .arg(&pcap)
+        .arg("-x")
+        .stderr(Stdio::null()));
+    std::fs::write(&hex, dump).unwrap();
+    let records = |text: &str| -> Vec<String> {
+        text.lines()
+            .map(|l| l.split(' ').nth(2).unwrap().to_string())
+            .collect()
+    };
+    for (args, name) in [
+        (&["-P", "can-bigendian"][..], "upper.pcapng"),
+        (&["-F", "pcap", "-P", "can-bigendian"][..], "upper.pcap"),
+    ] {
+        let out = dir.path().join(name);
+        run(Command::new("text2pcap")
+            .args(["-q"])
+            .args(args)
+            .arg(&hex)
+            .arg(&out)
+            .stderr(Stdio::null()));
+        let got = run(buslab().args(["log", "cat"]).arg(&out));
+        assert_eq!(records(&got), records(frames), "{name}");
+    }
+    let refused = |args: &[&str], name: &str, want: &str| {
+        let out = dir.path().join(name);
+        run(Command::new("text2pcap")
+            .args(["-q"])
+            .args(args)
+            .arg(&hex)
+            .arg(&out)
+            .stderr(Stdio::null()));
+        let o = buslab().args(["log", "cat"]).arg(&out).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && o.stdout.is_empty() && err.contains(want),
+            "{name}: {err}"
+        );
+    };
+    refused(&["-P", "sip"], "sip.pcapng", "dissector sip");
+    refused(
+        &["-l", "1"],
+        "ethernet.pcapng",
+        "link type 1 (Ethernet) is not CAN",
+    );
+    refused(
+        &["-F", "pcap", "-l", "1"],
+        "ethernet.pcap",
+        "link type 1 (Ethernet) is not CAN",
+    );
 }

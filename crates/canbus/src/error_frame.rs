@@ -6,6 +6,12 @@
 //! [`CanError`]s plus the error counters. socketcand's raw mode sends the class alone
 //! (`< error 088 SEC.USEC >`): the details are then "unspecified" (zero bytes), as in a
 //! SocketCAN frame whose driver knows nothing more.
+//!
+//! A frame decoded from bytes encodes back to the same bytes, whatever they hold: the bytes no
+//! class gives a meaning (`data[5]`, details without their class bit), counters without the
+//! counters class (older kernels) and a data length other than 8 are kept beside the typed
+//! fields. A log converter must not rewrite what it read (`20000088#…` with counters stays
+//! `20000088#…`, not `20000288#…`).
 
 use std::fmt;
 
@@ -58,6 +64,42 @@ pub struct ErrorFrame {
     /// TXERR/RXERR in data\[6\]/data\[7\]: with the `COUNTERS` class, or (older kernels)
     /// whenever either byte is not zero.
     pub counters: Option<ErrorCounters>,
+    /// What the bytes it was decoded from held beyond `errors` and `counters`.
+    unexplained: Unexplained,
+}
+
+/// The parts of a decoded frame its typed fields do not carry, kept so that the frame encodes
+/// back to the bytes it came from. All zero (the default) for a frame built from its fields.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+struct Unexplained {
+    /// Data bytes at positions no class of the frame gives a meaning (always data\[5\];
+    /// data\[0\] without lost arbitration, data\[1\] without controller problems, …).
+    bytes: [u8; 8],
+    /// The counters were in data\[6..8\] without the `COUNTERS` class.
+    counters_without_class: bool,
+    /// The data length, when it was not 8 (Linux's `CAN_ERR_DLC`).
+    short: Option<u8>,
+}
+
+/// The data bytes a class gives a meaning, one bit per byte.
+fn claimed_bytes(class: u32, counters: bool) -> u8 {
+    let mut mask = 0u8;
+    if class & class::LOST_ARBITRATION != 0 {
+        mask |= 0b0000_0001;
+    }
+    if class & class::CONTROLLER != 0 {
+        mask |= 0b0000_0010;
+    }
+    if class & class::PROTOCOL != 0 {
+        mask |= 0b0000_1100;
+    }
+    if class & class::TRANSCEIVER != 0 {
+        mask |= 0b0001_0000;
+    }
+    if counters {
+        mask |= 0b1100_0000;
+    }
+    mask
 }
 
 /// TXERR and RXERR as an error frame carries them.
@@ -380,8 +422,19 @@ impl fmt::Display for TransceiverStatus {
 }
 
 impl ErrorFrame {
+    /// A frame from its typed parts (encoded with 8 data bytes, as Linux sends them).
+    pub fn new(errors: Vec<CanError>, counters: Option<ErrorCounters>) -> Self {
+        Self {
+            errors,
+            counters,
+            unexplained: Unexplained::default(),
+        }
+    }
+
     /// Decodes an error frame from its class (the CAN ID; the error flag and bits above 29
-    /// are ignored only if they are the flag) and up to 8 data bytes (missing bytes are 0).
+    /// are ignored only if they are the flag) and up to 8 data bytes (the details read missing
+    /// bytes as 0). [`encode`](Self::encode) and [`data_len`](Self::data_len) give back the
+    /// same class, bytes and length.
     pub fn decode(id: u32, data: &[u8]) -> Result<Self, ErrorFrameError> {
         let class = id & !ERROR_FLAG;
         if class > 0x1FFF_FFFF {
@@ -419,11 +472,29 @@ impl ErrorFrame {
         }
         let counters = (class & class::COUNTERS != 0 || d[6] != 0 || d[7] != 0)
             .then_some(ErrorCounters { tx: d[6], rx: d[7] });
-        Ok(Self { errors, counters })
+        let claimed = claimed_bytes(class, counters.is_some());
+        let mut bytes = [0u8; 8];
+        for (i, (out, b)) in bytes.iter_mut().zip(d).enumerate() {
+            if claimed & (1 << i) == 0 {
+                *out = b;
+            }
+        }
+        let unexplained = Unexplained {
+            bytes,
+            counters_without_class: counters.is_some() && class & class::COUNTERS == 0,
+            short: (data.len() < 8).then_some(data.len() as u8),
+        };
+        Ok(Self {
+            errors,
+            counters,
+            unexplained,
+        })
     }
 
-    /// The class (without the error flag) and the 8 data bytes. Counters set the `COUNTERS`
-    /// class; data\[5\] (reserved) is 0.
+    /// The class (without the error flag) and the 8 data bytes (the first
+    /// [`data_len`](Self::data_len) of them are the frame's). Counters set the `COUNTERS`
+    /// class, unless the frame was decoded from counters without it; the bytes no class
+    /// explains are the decoded frame's (0 for a frame built from its fields).
     pub fn encode(&self) -> (u32, [u8; 8]) {
         let mut class = 0;
         let mut d = [0u8; 8];
@@ -443,12 +514,31 @@ impl ErrorFrame {
                 _ => {}
             }
         }
+        let claimed = claimed_bytes(class, self.counters.is_some());
         if let Some(c) = self.counters {
-            class |= class::COUNTERS;
+            if !self.unexplained.counters_without_class {
+                class |= class::COUNTERS;
+            }
             d[6] = c.tx;
             d[7] = c.rx;
         }
+        for (i, (out, b)) in d.iter_mut().zip(self.unexplained.bytes).enumerate() {
+            if claimed & (1 << i) == 0 {
+                *out = b;
+            }
+        }
         (class & 0x1FFF_FFFF, d)
+    }
+
+    /// How many data bytes the frame has: 8 (`CAN_ERR_DLC`), or the number it was decoded
+    /// from (never fewer than its last non-zero byte needs).
+    pub fn data_len(&self) -> usize {
+        let Some(short) = self.unexplained.short else {
+            return 8;
+        };
+        let (_, d) = self.encode();
+        let needed = d.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+        usize::from(short).max(needed)
     }
 
     /// The SocketCAN CAN ID: the class with the error flag.
@@ -504,8 +594,8 @@ impl ErrorFrame {
         if ecc.during_transmission() {
             violation |= ProtocolViolation::TX;
         }
-        Self {
-            errors: vec![
+        Self::new(
+            vec![
                 CanError::Protocol {
                     violation: ProtocolViolation(violation),
                     location: ProtocolLocation::from_code(ecc.segment()),
@@ -513,15 +603,12 @@ impl ErrorFrame {
                 CanError::BusError,
             ],
             counters,
-        }
+        )
     }
 
     /// Linux's SJA1000 driver's frame for a lost arbitration (IR.ALI): the ALC bit.
     pub fn sja1000_arbitration_lost(alc: Alc, counters: Option<ErrorCounters>) -> Self {
-        Self {
-            errors: vec![CanError::LostArbitration { bit: alc.bit() }],
-            counters,
-        }
+        Self::new(vec![CanError::LostArbitration { bit: alc.bit() }], counters)
     }
 
     /// Linux's frame for an error-state change (`can_change_state`): bus-off, or a
@@ -531,10 +618,7 @@ impl ErrorFrame {
         let side = |tx: u8, rx: u8| (if tx_side { tx } else { 0 }) | (if rx_side { rx } else { 0 });
         let problems = match to {
             ControllerState::BusOff => {
-                return Self {
-                    errors: vec![CanError::BusOff],
-                    counters: Some(counters),
-                };
+                return Self::new(vec![CanError::BusOff], Some(counters));
             }
             ControllerState::Active => ControllerProblems::ACTIVE,
             ControllerState::Warning => side(
@@ -546,18 +630,15 @@ impl ErrorFrame {
                 ControllerProblems::RX_PASSIVE,
             ),
         };
-        Self {
-            errors: vec![CanError::Controller(ControllerProblems(problems))],
-            counters: Some(counters),
-        }
+        Self::new(
+            vec![CanError::Controller(ControllerProblems(problems))],
+            Some(counters),
+        )
     }
 
     /// The frame Linux sends when a controller restarted after bus-off.
     pub fn restarted() -> Self {
-        Self {
-            errors: vec![CanError::Restarted],
-            counters: None,
-        }
+        Self::new(vec![CanError::Restarted], None)
     }
 
     /// The error frame Linux's SJA1000 driver would send for a driver event, if any (frames
@@ -576,12 +657,12 @@ impl ErrorFrame {
             DriverEvent::StateChanged { to, .. } => {
                 Self::state_change(*to, counters.unwrap_or_default())
             }
-            DriverEvent::DataOverrun => Self {
-                errors: vec![CanError::Controller(ControllerProblems(
+            DriverEvent::DataOverrun => Self::new(
+                vec![CanError::Controller(ControllerProblems(
                     ControllerProblems::RX_OVERFLOW,
                 ))],
                 counters,
-            },
+            ),
             _ => return None,
         })
     }
@@ -726,21 +807,67 @@ mod tests {
         assert!(ErrorFrame::from_driver_event(&DriverEvent::WakeUp, None).is_none());
     }
 
+    #[test]
+    fn error_frames_from_logs_encode_back_byte_for_byte() {
+        // Issue 25: a candump log's `20000088#…` with counters became `20000288#…`, and
+        // `20000080#0000040200000001` lost its protocol bytes (no protocol class).
+        let with_counters = [0, 0, 0x02, 0x0A, 0, 0, 0x01, 0x02];
+        let e = ErrorFrame::decode(0x088, &with_counters).unwrap();
+        assert_eq!(e.counters, Some(ErrorCounters { tx: 1, rx: 2 }));
+        assert_eq!(e.encode(), (0x088, with_counters));
+        let stray = [0, 0, 0x04, 0x02, 0, 0, 0, 0x01];
+        let e = ErrorFrame::decode(0x080, &stray).unwrap();
+        assert_eq!(e.errors, [CanError::BusError]);
+        assert_eq!(e.encode(), (0x080, stray));
+        assert_eq!(e.data_len(), 8);
+        // data[5] (reserved) and a short frame.
+        let e = ErrorFrame::decode(0x004, &[0, 0x04, 0, 0, 0, 0x5A]).unwrap();
+        assert_eq!(
+            (e.encode(), e.data_len()),
+            ((0x004, [0, 4, 0, 0, 0, 0x5A, 0, 0]), 6)
+        );
+        let e = ErrorFrame::decode(0x040, &[]).unwrap();
+        assert_eq!(e.data_len(), 0);
+        // Built from its fields: 8 bytes, the counters with their class.
+        let built = ErrorFrame::new(vec![CanError::BusOff], Some(ErrorCounters { tx: 1, rx: 0 }));
+        assert_eq!(
+            (built.encode(), built.data_len()),
+            ((0x240, [0, 0, 0, 0, 0, 0, 1, 0]), 8)
+        );
+        // Fields changed after decoding win over what was decoded; a short frame grows to
+        // hold them.
+        let mut e = ErrorFrame::decode(0x040, &[]).unwrap();
+        e.counters = Some(ErrorCounters { tx: 3, rx: 4 });
+        assert_eq!(
+            (e.encode(), e.data_len()),
+            ((0x240, [0, 0, 0, 0, 0, 0, 3, 4]), 8)
+        );
+    }
+
     proptest! {
-        /// Every class and data combination decodes, prints, and encodes back to itself
-        /// (bytes no class uses are zero, and counters carry their class).
+        /// Any class and any 0..8 data bytes decode, print, and encode back to themselves.
         #[test]
-        fn decode_then_encode_is_identity(class in 0u32..0x1FFF_FFFF, data in any::<[u8; 8]>()) {
-            let mut data = data;
-            if class & class::LOST_ARBITRATION == 0 { data[0] = 0; }
-            if class & class::CONTROLLER == 0 { data[1] = 0; }
-            if class & class::PROTOCOL == 0 { data[2] = 0; data[3] = 0; }
-            if class & class::TRANSCEIVER == 0 { data[4] = 0; }
-            data[5] = 0;
-            let class = if data[6] != 0 || data[7] != 0 { class | class::COUNTERS } else { class };
+        fn decode_then_encode_is_identity(
+            class in 0u32..=0x1FFF_FFFF,
+            data in proptest::collection::vec(any::<u8>(), 0..=8),
+        ) {
             let e = ErrorFrame::decode(class, &data).unwrap();
             let _ = e.to_string();
-            prop_assert_eq!(e.encode(), (class, data));
+            let (got_class, got) = e.encode();
+            prop_assert_eq!(got_class, class);
+            prop_assert_eq!(&got[..e.data_len()], &data[..]);
+            prop_assert!(got[e.data_len()..].iter().all(|&b| b == 0));
+        }
+
+        /// A frame built from its fields decodes back to the same fields.
+        #[test]
+        fn built_frames_decode_to_themselves(class in 0u32..0x1FFF_FFFF, data in any::<[u8; 8]>()) {
+            let e = ErrorFrame::decode(class, &data).unwrap();
+            let built = ErrorFrame::new(e.errors.clone(), e.counters);
+            let (c, d) = built.encode();
+            let again = ErrorFrame::decode(c, &d).unwrap();
+            prop_assert_eq!(&again.errors, &built.errors);
+            prop_assert_eq!(again.counters, built.counters);
         }
 
         #[test]

@@ -10,6 +10,7 @@
 //!    0.000000 1  123             Rx   d 3 11 22 33
 //!    0.001000 2  12345678x       Tx   d 4 DE AD BE EF
 //!    0.002000 1  7FF             Rx   r 2
+//! // buslab error-frame 20000088#0000020A00000102
 //!    0.005000 1  ErrorFrame
 //! End TriggerBlock
 //! ```
@@ -17,12 +18,16 @@
 //! Times are seconds since the first entry with six decimals (microseconds); the header dates
 //! are local time with milliseconds, and the `// buslab start-time` comment (ignored by
 //! other readers) gives the first entry's time to the microsecond, so buslab reads its own
-//! files back exactly. Channels are numbers from 1 ([`ChannelMap`]); an error frame is just
-//! `ErrorFrame` (what went wrong is lost: it reads back as a bus error, as asc2log does).
+//! files back exactly. Channels are numbers from 1 ([`ChannelMap`]). An error frame is
+//! `ErrorFrame`, which says nothing of what went wrong; the `// buslab error-frame` comment
+//! before it carries the SocketCAN frame in candump's syntax, so buslab reads it back byte for
+//! byte. An `ErrorFrame` without that comment reads as a bus error, as asc2log reads it.
 //!
 //! The reader takes `base hex|dec`, `timestamps absolute|relative`, the dates of log2asc,
-//! python-can and Vector (English or German, am/pm), classic frames in `CANFD` lines, and
-//! skips the events it does not know (statistics, status, J1939, comments).
+//! python-can and Vector (English or German, am/pm), classic frames in `CANFD` lines, remote
+//! frames with or without a DLC, a classic DLC of 9..15 (8 data bytes, as CAN has it), the
+//! `Length = … BitCount = … ID = …` fields CANoe writes after a frame (their values are not
+//! kept), and skips the events it does not know (statistics, status, J1939, comments).
 
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
@@ -40,13 +45,12 @@ use crate::{Direction, Entry, Location, Record};
 
 /// The comment buslab writes with the first entry's exact time.
 const START_COMMENT: &str = "// buslab start-time ";
+/// The comment buslab writes before an `ErrorFrame` line: the SocketCAN error frame.
+const ERROR_COMMENT: &str = "// buslab error-frame ";
 
 /// What an ASC error frame reads back as: a bus error (what asc2log makes of it).
 pub fn error_frame() -> ErrorFrame {
-    ErrorFrame {
-        errors: vec![CanError::BusError],
-        counters: None,
-    }
+    ErrorFrame::new(vec![CanError::BusError], None)
 }
 
 /// Reads an ASC log.
@@ -64,6 +68,8 @@ struct State {
     exact: Option<Duration>,
     /// The running time of a `timestamps relative` log.
     last: Duration,
+    /// The error frame of a `// buslab error-frame` comment, for the `ErrorFrame` line after it.
+    error_frame: Option<ErrorFrame>,
 }
 
 impl<R: BufRead> Reader<R> {
@@ -77,6 +83,7 @@ impl<R: BufRead> Reader<R> {
                 trigger: None,
                 exact: None,
                 last: Duration::ZERO,
+                error_frame: None,
             },
         }
     }
@@ -102,6 +109,13 @@ impl<R: BufRead> Reader<R> {
                         state.header(h);
                         None
                     }
+                    Kind::ErrorComment(text) => match error_comment(text) {
+                        Ok(e) => {
+                            state.error_frame = Some(e);
+                            None
+                        }
+                        Err(p) => Some(Err(ReadError::bad(at, p))),
+                    },
                     Kind::Other => None,
                     Kind::Event => match state.event(line, entry) {
                         Ok(true) => Some(Ok(())),
@@ -147,6 +161,9 @@ impl State {
 
     /// One event line: `Ok(false)` for an event that is not a frame.
     fn event(&mut self, line: &[u8], entry: &mut Entry) -> Result<bool, Problem> {
+        // A comment's error frame belongs to the line right after it only.
+        let commented = self.error_frame.take();
+        let error_record = || Record::Error(commented.unwrap_or_else(error_frame));
         let (ts, rest) = field(line);
         let offset =
             text::decimal_duration(ts, 1_000_000_000).ok_or_else(|| Problem::Expected {
@@ -155,7 +172,7 @@ impl State {
             })?;
         let (channel, rest) = field(rest);
         let (record, direction, channel) = if channel == b"CANFD" {
-            match self.fd_line(rest)? {
+            match self.fd_line(rest, error_record)? {
                 Some(x) => x,
                 None => return Ok(false),
             }
@@ -163,18 +180,26 @@ impl State {
             let channel = channel_number(channel)?;
             let (id, rest) = field(rest);
             if id.eq_ignore_ascii_case(b"errorframe") {
-                (Record::Error(error_frame()), Some(Direction::Rx), channel)
+                (error_record(), Some(Direction::Rx), channel)
             } else {
                 let (dir, rest) = field(rest);
                 let direction = direction(dir)?;
                 let (kind, rest) = field(rest);
                 let (dlc, rest) = field(rest);
                 let id = self.id(id)?;
-                let dlc = self.number(dlc, "a DLC")?;
                 let record = match kind {
-                    b"r" | b"R" => Record::Frame(Frame::remote(id, dlc_u8(dlc)?)?),
+                    // CANoe leaves the DLC out of a remote frame of DLC 0; `Length = …` may
+                    // follow at once.
+                    b"r" | b"R" if dlc.is_empty() || dlc == b"Length" => {
+                        Record::Frame(Frame::remote(id, 0)?)
+                    }
+                    b"r" | b"R" => {
+                        let dlc = self.number(dlc, "a DLC")?;
+                        Record::Frame(Frame::remote(id, classic_dlc(dlc)?.0)?)
+                    }
                     b"d" | b"D" => {
-                        let len = usize::from(dlc_u8(dlc)?);
+                        let dlc = self.number(dlc, "a DLC")?;
+                        let len = usize::from(classic_dlc(dlc)?.1);
                         let data = self.bytes(rest, len)?;
                         Record::Frame(Frame::data(id, &data[..len])?)
                     }
@@ -202,18 +227,18 @@ impl State {
 
     /// `CANFD CH DIR ID [NAME] BRS ESI DLC LEN DATA… DURATION BITS FLAGS …`: a classic frame
     /// when the flags lack EDL (0x1000), else CAN FD.
-    fn fd_line(&self, rest: &[u8]) -> Result<Option<(Record, Option<Direction>, u16)>, Problem> {
+    fn fd_line(
+        &self,
+        rest: &[u8],
+        error_frame: impl FnOnce() -> Record,
+    ) -> Result<Option<(Record, Option<Direction>, u16)>, Problem> {
         let (channel, rest) = field(rest);
         let channel = channel_number(channel)?;
         let (dir, rest) = field(rest);
         let direction = direction(dir)?;
         let (id, rest) = field(rest);
         if id.eq_ignore_ascii_case(b"errorframe") {
-            return Ok(Some((
-                Record::Error(error_frame()),
-                Some(direction),
-                channel,
-            )));
+            return Ok(Some((error_frame(), Some(direction), channel)));
         }
         let id = self.id(id)?;
         let mut words: Vec<&[u8]> = Vec::with_capacity(24);
@@ -259,7 +284,7 @@ impl State {
         let remote = flags & 0x10 != 0;
         let record = if remote {
             let dlc = self.number(get(2)?, "a DLC")?;
-            Record::Frame(Frame::remote(id, dlc_u8(dlc)?)?)
+            Record::Frame(Frame::remote(id, classic_dlc(dlc)?.0)?)
         } else {
             Record::Frame(Frame::data(id, &data)?)
         };
@@ -323,14 +348,31 @@ impl State {
     }
 }
 
-fn dlc_u8(dlc: u64) -> Result<u8, Problem> {
+/// A classic frame's DLC field: (the DLC buslab's frames carry, the data bytes). Classical
+/// CAN's DLC 9..15 means 8 bytes (ISO 11898-1); a larger number is a CAN FD length.
+fn classic_dlc(dlc: u64) -> Result<(u8, u8), Problem> {
     match dlc {
-        0..=8 => Ok(dlc as u8),
-        9..=15 => Err(Problem::CanFd),
+        0..=8 => Ok((dlc as u8, dlc as u8)),
+        9..=15 => Ok((8, 8)),
+        16..=64 => Err(Problem::CanFd),
         _ => Err(Problem::Expected {
-            expected: "a DLC 0..8",
+            expected: "a DLC 0..15",
             found: dlc.to_string(),
         }),
+    }
+}
+
+/// The error frame of a `// buslab error-frame 20000088#…` comment.
+fn error_comment(text: &[u8]) -> Result<ErrorFrame, Problem> {
+    let bad = || Problem::Expected {
+        expected: "an error frame in candump's syntax after \"// buslab error-frame\"",
+        found: excerpt(text),
+    };
+    let text = std::str::from_utf8(text::trim(text)).map_err(|_| bad())?;
+    match crate::candump::parse_record(text) {
+        Ok(Record::Error(e)) => Ok(e),
+        Ok(Record::Frame(_)) => Err(bad()),
+        Err(e) => Err(e.into()),
     }
 }
 
@@ -361,8 +403,10 @@ enum Header {
     Exact(Duration),
 }
 
-enum Kind {
+enum Kind<'a> {
     Header(Header),
+    /// The SocketCAN error frame of the `ErrorFrame` line that follows.
+    ErrorComment(&'a [u8]),
     /// Not a frame: a comment, a statistic, a status line.
     Other,
     /// A frame or error frame line.
@@ -373,7 +417,7 @@ fn lower_starts(line: &[u8], prefix: &[u8]) -> bool {
     line.len() >= prefix.len() && line[..prefix.len()].eq_ignore_ascii_case(prefix)
 }
 
-fn classify(line: &[u8]) -> Kind {
+fn classify(line: &[u8]) -> Kind<'_> {
     let text = || String::from_utf8_lossy(line).into_owned();
     if lower_starts(line, b"date ") {
         let t = text();
@@ -390,6 +434,9 @@ fn classify(line: &[u8]) -> Kind {
     if lower_starts(line, b"begin triggerblock") {
         let t = text();
         return Kind::Header(Header::Trigger(t[18..].trim().to_string()));
+    }
+    if let Some(rest) = line.strip_prefix(ERROR_COMMENT.as_bytes()) {
+        return Kind::ErrorComment(rest);
     }
     if line.starts_with(START_COMMENT.as_bytes()) {
         return match text::decimal_duration(text::trim(&line[START_COMMENT.len()..]), 1_000_000_000)
@@ -478,6 +525,11 @@ impl<W: Write> Writer<W> {
         let channel = self.channels.number(&entry.interface);
         let line = &mut self.line;
         line.clear();
+        if let Record::Error(_) = &entry.record {
+            line.extend_from_slice(ERROR_COMMENT.as_bytes());
+            crate::candump::push_record(line, &entry.record);
+            line.push(b'\n');
+        }
         text::push_u64_right(line, offset / 1_000_000, 4);
         line.push(b'.');
         text::push_u64_zeros(line, offset % 1_000_000, 6);

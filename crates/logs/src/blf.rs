@@ -615,7 +615,7 @@ impl<W: Write + Seek> Writer<W> {
             Record::Error(e) => {
                 let (class, data) = e.encode();
                 body[0..2].copy_from_slice(&channel.to_le_bytes());
-                body[10] = 8; // dlc
+                body[10] = e.data_len() as u8; // dlc
                 body[16..20].copy_from_slice(&class.to_le_bytes());
                 body[24..32].copy_from_slice(&data);
                 (CAN_ERROR_EXT, 32)

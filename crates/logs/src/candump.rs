@@ -99,7 +99,7 @@ fn parse_timestamp(text: &str) -> Result<Duration, LineError> {
 }
 
 /// A frame in can-utils syntax, or an error frame (`20000088#…`: 8 digits with the error flag).
-fn parse_record(text: &str) -> Result<Record, LineError> {
+pub(crate) fn parse_record(text: &str) -> Result<Record, LineError> {
     if let Some((id, data)) = text.split_once('#')
         && id.len() == 8
         && let Ok(raw) = u32::from_str_radix(id, 16)
@@ -393,22 +393,29 @@ pub fn write_line(out: &mut Vec<u8>, entry: &Entry, direction: bool, nanos: bool
     out.extend_from_slice(b") ");
     out.extend_from_slice(entry.interface.as_bytes());
     out.push(b' ');
-    match &entry.record {
-        Record::Frame(f) => push_frame(out, f),
-        Record::Error(e) => {
-            let (class, data) = e.encode();
-            text::push_hex(out, ERROR_FLAG | class, 8);
-            out.push(b'#');
-            for b in data {
-                text::push_hex_byte(out, b);
-            }
-        }
-    }
+    push_record(out, &entry.record);
     if direction {
         match entry.direction {
             Some(Direction::Rx) => out.extend_from_slice(b" R"),
             Some(Direction::Tx) => out.extend_from_slice(b" T"),
             None => {}
+        }
+    }
+}
+
+/// A frame or error frame in can-utils syntax (`123#1122`, `12345678#R3`,
+/// `20000088#0000020A00000000`: an error frame's class with the error flag, and as many data
+/// bytes as it has).
+pub(crate) fn push_record(out: &mut Vec<u8>, record: &Record) {
+    match record {
+        Record::Frame(f) => push_frame(out, f),
+        Record::Error(e) => {
+            let (class, data) = e.encode();
+            text::push_hex(out, ERROR_FLAG | class, 8);
+            out.push(b'#');
+            for &b in &data[..e.data_len()] {
+                text::push_hex_byte(out, b);
+            }
         }
     }
 }
@@ -634,8 +641,9 @@ impl Terminal {
             Record::Frame(frame) => self.frame(&mut out, frame),
             Record::Error(e) => {
                 let (class, data) = e.encode();
-                let _ = write!(out, "{:08X}   [8] ", ERROR_FLAG | class);
-                for b in data {
+                let len = e.data_len();
+                let _ = write!(out, "{:08X}   [{len}] ", ERROR_FLAG | class);
+                for b in &data[..len] {
                     let _ = write!(out, " {b:02X}");
                 }
                 out.push_str("   ERRORFRAME");
@@ -813,7 +821,8 @@ mod tests {
         let e = Entry {
             timestamp: Duration::ZERO,
             interface: "vcan0".into(),
-            record: Record::Error(ErrorFrame::decode(0x088, &[]).unwrap()),
+            // Linux's frame for a bus error without details (CAN_ERR_DLC: 8 bytes).
+            record: Record::Error(ErrorFrame::decode(0x088, &[0; 8]).unwrap()),
             direction: None,
         };
         let mut term = Terminal::new(View {
@@ -833,6 +842,19 @@ mod tests {
         assert_eq!(
             format_line(&e, false),
             "(0000000000.000000) vcan0 20000088#0000000000000000"
+        );
+        // A frame of fewer bytes shows them, as candump shows a frame's length.
+        let short = Entry {
+            record: Record::Error(ErrorFrame::decode(0x004, &[0, 0x04]).unwrap()),
+            ..e
+        };
+        assert_eq!(
+            Terminal::default().line(&short),
+            "  vcan0  20000004   [2]  00 04   ERRORFRAME"
+        );
+        assert_eq!(
+            format_line(&short, false),
+            "(0000000000.000000) vcan0 20000004#0004"
         );
     }
 }

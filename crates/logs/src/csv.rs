@@ -6,8 +6,8 @@
 //! ```
 //!
 //! Seconds as a decimal number, the ID in hex with `0x`, three 0/1 flags, the DLC, the data in
-//! base64. An error frame is a row with `error` 1, the error class as its ID and the 8
-//! SocketCAN data bytes (as python-can logs SocketCAN error frames). No interface and no
+//! base64. An error frame is a row with `error` 1, the error class as its ID and its SocketCAN
+//! data bytes, as many as it has (as python-can logs SocketCAN error frames). No interface and no
 //! direction: entries read back on `can0`. The reader, like python-can's, takes the first line
 //! for the header whatever it says.
 
@@ -116,7 +116,7 @@ pub fn parse_row(line: &[u8], entry: &mut Entry) -> Result<(), Problem> {
         .map_err(|_| bad("data in base64 (at most 8 bytes)", data))?;
     let bytes = &bytes[..len];
     let record = if error {
-        Record::Error(ErrorFrame::decode(raw & 0x1FFF_FFFF, &bytes[..len.min(8)])?)
+        Record::Error(ErrorFrame::decode(raw & 0x1FFF_FFFF, bytes)?)
     } else {
         if dlc > 8 || len > 8 {
             return Err(Problem::CanFd);
@@ -194,7 +194,8 @@ impl<W: Write> Writer<W> {
             Record::Error(e) => {
                 let (class, bytes) = e.encode();
                 data = bytes;
-                (class, false, false, true, 8, 8)
+                let len = e.data_len();
+                (class, false, false, true, len as u8, len)
             }
         };
         push_lower_hex(line, raw);

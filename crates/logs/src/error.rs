@@ -57,6 +57,16 @@ pub enum Problem {
         have: u64,
         need: u64,
     },
+    #[error(
+        "link type {linktype} ({name}) is not CAN: buslab reads LINKTYPE_CAN_SOCKETCAN (227) and Wireshark's exported SocketCAN PDUs (252)"
+    )]
+    LinkType { linktype: u32, name: &'static str },
+    #[error("interface {index} ({name}): {problem}; its packets are left out")]
+    Interface {
+        index: usize,
+        name: String,
+        problem: Box<Problem>,
+    },
     #[error("not a {format} file: {reason}")]
     NotFormat {
         format: &'static str,
@@ -197,4 +207,6 @@ pub enum LogError {
     },
     #[error("{}: --follow needs a file that grows; {format} cannot be followed", path.display())]
     CannotFollow { path: PathBuf, format: &'static str },
+    #[error("{}: gzip-compressed: {what}", path.display())]
+    Gzip { path: PathBuf, what: &'static str },
 }

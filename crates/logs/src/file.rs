@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
+use flate2::read::MultiGzDecoder;
 use tempfile::TempPath;
 
 use crate::error::{LogError, ReadError};
@@ -143,16 +144,28 @@ pub fn open_reader(
     Ok(Box::new(Entries::new(source.reader)))
 }
 
-/// Opens a log file for reading as `format`, with a byte counter for progress.
+/// Opens a log file for reading as `format`, with a byte counter for progress. A
+/// gzip-compressed file (python-can's `.asc.gz`) is decompressed as it is read; the counter
+/// counts its compressed bytes.
 pub fn open_source(
     path: &Path,
     format: Format,
     options: &OpenOptions,
 ) -> Result<LogSource, LogError> {
-    let file = open_regular(path)?;
+    let mut file = open_regular(path)?;
     let len = file.metadata().map(|m| m.len()).unwrap_or(0);
     let bytes_read = ByteCounter::default();
+    let gzip = is_gzip(&mut file).map_err(|source| LogError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
     if format == Format::Sqlite {
+        if gzip {
+            return Err(LogError::Gzip {
+                path: path.to_path_buf(),
+                what: "an SQLite database is read uncompressed (gunzip it first)",
+            });
+        }
         if options.follow_until.is_some() {
             return Err(LogError::CannotFollow {
                 path: path.to_path_buf(),
@@ -160,9 +173,8 @@ pub fn open_source(
             });
         }
         drop(file);
-        let reader = sqlite::Reader::open(path).map_err(|source| LogError::Sqlite {
-            path: path.to_path_buf(),
-            source,
+        let reader = sqlite::Reader::open(path).map_err(|e| LogError::Read {
+            source: e.in_file(path),
         })?;
         bytes_read.0.store(len, Ordering::Relaxed);
         return Ok(LogSource {
@@ -172,6 +184,12 @@ pub fn open_source(
         });
     }
     if let Some(stop) = &options.follow_until {
+        if gzip {
+            return Err(LogError::Gzip {
+                path: path.to_path_buf(),
+                what: "a compressed log cannot be followed (gunzip it, or convert it without --follow)",
+            });
+        }
         drop(file);
         let watch = Watch {
             stop: stop.clone(),
@@ -189,7 +207,12 @@ pub fn open_source(
         inner: file,
         count: bytes_read.clone(),
     };
-    let input = BufReader::with_capacity(READ_BUFFER, counted);
+    let input: Box<dyn Read + Send> = if gzip {
+        Box::new(MultiGzDecoder::new(counted))
+    } else {
+        Box::new(counted)
+    };
+    let input = BufReader::with_capacity(READ_BUFFER, input);
     let reader = reader(input, format).map_err(|e| LogError::Read {
         source: e.in_file(path),
     })?;
@@ -268,6 +291,14 @@ impl<R: Read> Read for Counted<R> {
         self.count.add(n as u64);
         Ok(n)
     }
+}
+
+/// Whether the file starts with gzip's magic number (it is read from its start afterwards).
+fn is_gzip(file: &mut File) -> io::Result<bool> {
+    let mut magic = [0u8; 2];
+    let got = crate::pcap::read_full(file, &mut magic)?;
+    file.rewind()?;
+    Ok(got == 2 && magic == [0x1F, 0x8B])
 }
 
 /// Opens `path` for reading if it is a regular file.
@@ -358,6 +389,15 @@ fn create(
         path: path.to_path_buf(),
         source,
     };
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"))
+    {
+        return Err(LogError::Gzip {
+            path: path.to_path_buf(),
+            what: "buslab writes logs uncompressed (leave out .gz, compress the finished file)",
+        });
+    }
     if let Ok(meta) = fs::metadata(path) {
         check_regular(path, &meta)?;
     }

@@ -50,20 +50,31 @@ impl Format {
         Format::Pcapng,
         Format::Sqlite,
     ];
-    const EXTENSIONS: &'static str = ".log .asc .blf .trc .csv .pcap .pcapng .db .sqlite";
+    const EXTENSIONS: &'static str =
+        ".log .asc .blf .trc .csv .pcap .pcapng .db .sqlite (read also with .gz after them)";
     const NAMES: &'static str =
         "candump (log), asc, blf, trc (= trc21), trc11, trc21, csv, pcap, pcapng, sqlite (db)";
 
     /// The format a file's extension names (case-insensitive): `.log` candump, `.asc`,
     /// `.blf`, `.trc` (TRC 2.1 when written), `.csv`, `.pcap`, `.pcapng`, `.db`/`.sqlite`.
+    /// A `.gz` after one of them names the same format, gzip-compressed (as python-can
+    /// writes `.asc.gz`): readers decompress it, writers refuse it.
     pub fn from_path(path: &Path) -> Result<Format, FormatError> {
-        let ext = path
+        let no_extension = || FormatError::NoExtension {
+            path: path.to_path_buf(),
+        };
+        let mut ext = path
             .extension()
-            .ok_or_else(|| FormatError::NoExtension {
-                path: path.to_path_buf(),
-            })?
+            .ok_or_else(no_extension)?
             .to_string_lossy()
             .to_ascii_lowercase();
+        if ext == "gz" {
+            ext = Path::new(path.file_stem().ok_or_else(no_extension)?)
+                .extension()
+                .ok_or_else(no_extension)?
+                .to_string_lossy()
+                .to_ascii_lowercase();
+        }
         Ok(match ext.as_str() {
             "log" => Format::Candump,
             "asc" => Format::Asc,
@@ -157,6 +168,15 @@ mod tests {
         assert_eq!(Format::from_path(Path::new("a/b.LOG")), Ok(Format::Candump));
         assert_eq!(Format::from_path(Path::new("x.trc")), Ok(Format::Trc21));
         assert_eq!(Format::from_path(Path::new("x.db")), Ok(Format::Sqlite));
+        assert_eq!(Format::from_path(Path::new("x.ASC.gz")), Ok(Format::Asc));
+        assert!(matches!(
+            Format::from_path(Path::new("x.gz")),
+            Err(FormatError::NoExtension { .. })
+        ));
+        assert!(matches!(
+            Format::from_path(Path::new("x.tar.gz")),
+            Err(FormatError::UnknownExtension { ext, .. }) if ext == "tar"
+        ));
         let err = Format::from_path(Path::new("x.mf4"))
             .unwrap_err()
             .to_string();

@@ -5,13 +5,16 @@
 //!   python-can's `.log`), and candump's terminal layout with its `-t`/`-a`/`-x`/`-e` views;
 //! - [`asc`]: Vector ASC text logs; [`blf`]: Vector BLF binary logs (zlib containers);
 //! - [`trc`]: PEAK TRC 1.1 and 2.1 (reads 1.0 to 2.1); [`csv`]: python-can's CSV;
-//! - [`pcap`] and [`pcapng`]: captures with `LINKTYPE_CAN_SOCKETCAN` (227), for Wireshark;
-//! - [`sqlite`]: python-can's SQLite database (table `messages`).
+//! - [`pcap`] and [`pcapng`]: captures with `LINKTYPE_CAN_SOCKETCAN` (227), for Wireshark
+//!   (Wireshark's exported SocketCAN PDUs, link type 252, are read too);
+//! - [`sqlite`]: python-can's SQLite database (table `messages`, checked before any row).
 //!
 //! [`open_reader`] and [`create_writer`] pick the module by [`Format`] (from a file's
-//! extension or a name). Every reader is bounded in memory whatever the input size, names the
-//! line or byte offset of a bad record, and goes on after one that it can step over. Every
-//! reader's core works on any `BufRead`/`Read`, so a fuzz target can feed it bytes.
+//! extension or a name; a `.gz` log is read through gzip). Every reader is bounded in memory
+//! whatever the input size, names the line or byte offset of a bad record, and goes on after
+//! one that it can step over. Every reader's core works on any `BufRead`/`Read`, so a fuzz
+//! target can feed it bytes. Error frames go through every format that holds them byte for
+//! byte (class, bytes and length).
 //!
 //! Timestamps are [`Duration`]s since the Unix epoch (or since whatever zero the log uses),
 //! exact to the nanosecond a format carries.

@@ -1,5 +1,6 @@
 //! pcap captures with LINKTYPE_CAN_SOCKETCAN (227), as Wireshark, tcpdump and `candump`'s
-//! kernel capture write them.
+//! kernel capture write them, or with Wireshark's exported SocketCAN PDUs (252, see
+//! [`crate::socketcan`]); a file of any other link type is refused, naming it.
 //!
 //! A 24-byte file header (magic `a1b2c3d4` for microseconds or `a1b23c4d` for nanoseconds,
 //! in the writer's byte order; version 2.4; snap length; link type), then per packet a 16-byte
@@ -12,7 +13,7 @@ use std::time::Duration;
 
 use crate::error::{Problem, ReadError};
 use crate::file::{Encoder, LogReader};
-use crate::socketcan::{self, LINKTYPE_CAN_SOCKETCAN};
+use crate::socketcan;
 use crate::{Entry, Location};
 
 const MAGIC_MICROS: u32 = 0xA1B2_C3D4;
@@ -41,6 +42,7 @@ pub(crate) fn read_full(input: &mut impl Read, buf: &mut [u8]) -> io::Result<usi
 struct Header {
     swapped: bool,
     nanos: bool,
+    linktype: u32,
 }
 
 /// Reads a pcap file's CAN packets.
@@ -103,12 +105,21 @@ impl<R: Read> Reader<R> {
                 },
             ));
         }
-        let header = Header { swapped, nanos };
-        let linktype = header.u32(&h[20..24]) & 0xFFFF;
-        if linktype != u32::from(LINKTYPE_CAN_SOCKETCAN) {
-            return Err(not_pcap(format!(
-                "link type {linktype} is not LINKTYPE_CAN_SOCKETCAN ({LINKTYPE_CAN_SOCKETCAN})"
-            )));
+        let mut header = Header {
+            swapped,
+            nanos,
+            linktype: 0,
+        };
+        // The upper 16 bits hold FCS and reserved bits (pcap's LinkType and additional info).
+        header.linktype = header.u32(&h[20..24]) & 0xFFFF;
+        if !socketcan::is_can(header.linktype) {
+            return Err(ReadError::fatal(
+                Some(Location::Offset(20)),
+                Problem::LinkType {
+                    linktype: header.linktype,
+                    name: socketcan::linktype_name(header.linktype),
+                },
+            ));
         }
         Ok(header)
     }
@@ -168,7 +179,7 @@ impl<R: Read> Reader<R> {
         if got < caplen as usize {
             return Err(truncated(start, "a packet", 16 + got, 16 + caplen as usize));
         }
-        let record = socketcan::decode(&self.packet)
+        let record = socketcan::decode_packet(header.linktype, &self.packet)
             .map_err(|p| ReadError::bad(Location::Offset(start), p))?;
         let unit = if header.nanos { 1 } else { 1_000 };
         entry.timestamp =
@@ -231,7 +242,7 @@ impl<W: Write> Writer<W> {
         h.extend_from_slice(&0i32.to_le_bytes()); // thiszone
         h.extend_from_slice(&0u32.to_le_bytes()); // sigfigs
         h.extend_from_slice(&65_535u32.to_le_bytes()); // snaplen
-        h.extend_from_slice(&u32::from(LINKTYPE_CAN_SOCKETCAN).to_le_bytes());
+        h.extend_from_slice(&u32::from(socketcan::LINKTYPE_CAN_SOCKETCAN).to_le_bytes());
         out.write_all(&h)?;
         Ok(Self {
             out,

@@ -1,12 +1,15 @@
-//! pcapng captures with LINKTYPE_CAN_SOCKETCAN (227) interfaces.
+//! pcapng captures with LINKTYPE_CAN_SOCKETCAN (227) interfaces, or Wireshark's exported
+//! SocketCAN PDUs (252, see [`crate::socketcan`]).
 //!
 //! Blocks: a Section Header (byte order), an Interface Description per interface (link type,
 //! `if_name`, `if_tsresol`), then Enhanced Packet Blocks (interface, 64-bit timestamp, the
 //! SocketCAN record, `epb_flags` for the direction). The writer describes each interface
 //! when it first appears, with nanosecond timestamps, so names, directions and nanoseconds
 //! survive. The reader takes any byte order and resolution, several sections, Simple Packet
-//! Blocks, and skips the blocks that carry no packets. Packets of interfaces that are not
-//! CAN are left out (with one warning per interface).
+//! Blocks, and skips the blocks that carry no packets. The first packet of an interface of
+//! another link type is a bad record naming the link type (so a capture without CAN is an
+//! error, not an empty log); with the error stepped over, that interface's later packets are
+//! left out (a capture of CAN beside other interfaces reads with `--skip-bad`).
 
 use std::io::{self, Read, Write};
 use std::time::Duration;
@@ -42,7 +45,8 @@ struct Interface {
     resolution: u8,
     pow2: bool,
     offset_secs: i64,
-    warned: bool,
+    /// Not CAN, and said so: its packets are left out.
+    refused: bool,
 }
 
 impl Interface {
@@ -234,7 +238,7 @@ impl<R: Read> Reader<R> {
             resolution: 6,
             pow2: false,
             offset_secs: 0,
-            warned: false,
+            refused: false,
         };
         for (code, value) in self.options(&body[8..]) {
             match code {
@@ -363,19 +367,26 @@ impl<R: Read> Reader<R> {
                 },
             ));
         };
-        if interface.linktype != LINKTYPE_CAN_SOCKETCAN {
-            if !interface.warned {
-                interface.warned = true;
-                tracing::warn!(
-                    "pcapng interface {iface} ({}) has link type {}, not CAN ({LINKTYPE_CAN_SOCKETCAN}): its packets are left out",
-                    interface.name,
-                    interface.linktype
-                );
+        let linktype = u32::from(interface.linktype);
+        if !socketcan::is_can(linktype) {
+            if interface.refused {
+                return Ok(false);
             }
-            return Ok(false);
+            interface.refused = true;
+            return Err(ReadError::bad(
+                Location::Offset(start),
+                Problem::Interface {
+                    index: iface,
+                    name: interface.name.clone(),
+                    problem: Box::new(Problem::LinkType {
+                        linktype,
+                        name: socketcan::linktype_name(linktype),
+                    }),
+                },
+            ));
         }
-        let record =
-            socketcan::decode(data).map_err(|p| ReadError::bad(Location::Offset(start), p))?;
+        let record = socketcan::decode_packet(linktype, data)
+            .map_err(|p| ReadError::bad(Location::Offset(start), p))?;
         entry.timestamp = ticks.map_or(Duration::ZERO, |t| interface.timestamp(t));
         entry.interface.clear();
         entry.interface.push_str(&interface.name);

@@ -1,6 +1,12 @@
 //! The packet of LINKTYPE_CAN_SOCKETCAN (227), shared by pcap and pcapng: SocketCAN's
 //! `can_frame` with the CAN ID big-endian. Classic frames are 16 bytes: ID and flags (4),
 //! length (1), FD flags (1), two reserved bytes, 8 data bytes.
+//!
+//! Wireshark's "Export PDUs" and `text2pcap -P` write LINKTYPE_WIRESHARK_UPPER_PDU (252):
+//! each packet is a list of tags (type and length as big-endian u16, then the value; tag 0
+//! ends it) naming the dissector of the bytes after them. Those of Wireshark's dissector for
+//! LINKTYPE_CAN_SOCKETCAN (`can-bigendian`, or the old link-type tag saying 227) are read as
+//! above; any other is refused, naming the dissector.
 
 use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
@@ -9,6 +15,8 @@ use crate::Record;
 use crate::error::{Problem, excerpt};
 
 pub const LINKTYPE_CAN_SOCKETCAN: u16 = 227;
+/// Wireshark's exported PDUs.
+pub const LINKTYPE_WIRESHARK_UPPER_PDU: u16 = 252;
 /// A classic CAN record's size.
 pub const CLASSIC_LEN: usize = 16;
 
@@ -38,7 +46,7 @@ pub fn encode(record: &Record) -> [u8; CLASSIC_LEN] {
         Record::Error(e) => {
             let (class, data) = e.encode();
             out[8..16].copy_from_slice(&data);
-            (ERR_FLAG | class, 8)
+            (ERR_FLAG | class, e.data_len() as u8)
         }
     };
     out[..4].copy_from_slice(&can_id.to_be_bytes());
@@ -90,6 +98,96 @@ pub fn decode(data: &[u8]) -> Result<Record, Problem> {
         return Err(bad("as many data bytes as the record's length"));
     }
     Ok(Record::Frame(Frame::data(id, &payload[..len])?))
+}
+
+/// Whether buslab reads packets of `linktype`.
+pub fn is_can(linktype: u32) -> bool {
+    linktype == u32::from(LINKTYPE_CAN_SOCKETCAN)
+        || linktype == u32::from(LINKTYPE_WIRESHARK_UPPER_PDU)
+}
+
+/// A packet of a link type [`is_can`] accepts.
+pub fn decode_packet(linktype: u32, data: &[u8]) -> Result<Record, Problem> {
+    if linktype == u32::from(LINKTYPE_WIRESHARK_UPPER_PDU) {
+        decode(exported_can_pdu(data)?)
+    } else {
+        decode(data)
+    }
+}
+
+/// Exported-PDU tags (`wsutil/exported_pdu_tlvs.h`).
+const EXP_PDU_TAG_END_OF_OPT: u16 = 0;
+const EXP_PDU_TAG_LINKTYPE: u16 = 11;
+const EXP_PDU_TAG_DISSECTOR_NAME: u16 = 12;
+/// Wireshark's dissector for LINKTYPE_CAN_SOCKETCAN records.
+const CAN_DISSECTOR: &str = "can-bigendian";
+
+/// The SocketCAN record after an exported PDU's tags, if they name Wireshark's dissector for
+/// LINKTYPE_CAN_SOCKETCAN.
+fn exported_can_pdu(mut data: &[u8]) -> Result<&[u8], Problem> {
+    let mut dissector: Option<&[u8]> = None;
+    let mut linktype = None;
+    loop {
+        let [t0, t1, l0, l1, rest @ ..] = data else {
+            return Err(Problem::Expected {
+                expected: "exported-PDU tags ending with tag 0",
+                found: excerpt_hex(data),
+            });
+        };
+        let (tag, len) = (
+            u16::from_be_bytes([*t0, *t1]),
+            usize::from(u16::from_be_bytes([*l0, *l1])),
+        );
+        let Some(value) = rest.get(..len) else {
+            return Err(Problem::Expected {
+                expected: "an exported-PDU tag within the packet",
+                found: format!("tag {tag} of {len} bytes, {} left", rest.len()),
+            });
+        };
+        data = &rest[len..];
+        match tag {
+            EXP_PDU_TAG_END_OF_OPT => break,
+            // A string, maybe with NULs at its end.
+            EXP_PDU_TAG_DISSECTOR_NAME => {
+                dissector = Some(value.split(|&b| b == 0).next().unwrap_or_default());
+            }
+            EXP_PDU_TAG_LINKTYPE if len == 4 => {
+                linktype = Some(u32::from_be_bytes([value[0], value[1], value[2], value[3]]));
+            }
+            _ => {}
+        }
+    }
+    match (dissector, linktype) {
+        (Some(name), _) if name == CAN_DISSECTOR.as_bytes() => Ok(data),
+        (None, Some(l)) if l == u32::from(LINKTYPE_CAN_SOCKETCAN) => Ok(data),
+        (Some(b"canfd"), _) => Err(Problem::CanFd),
+        (Some(name), _) => Err(Problem::Expected {
+            expected: "exported PDUs of Wireshark's SocketCAN dissector (can-bigendian)",
+            found: format!("dissector {}", excerpt(name)),
+        }),
+        (None, Some(l)) => Err(Problem::LinkType {
+            linktype: l,
+            name: linktype_name(l),
+        }),
+        (None, None) => Err(Problem::Expected {
+            expected: "an exported PDU naming its dissector (tag 12)",
+            found: "none".into(),
+        }),
+    }
+}
+
+/// The name of a link type a CAN user may meet, for a message.
+pub fn linktype_name(linktype: u32) -> &'static str {
+    match linktype {
+        0 => "BSD loopback",
+        1 => "Ethernet",
+        101 => "raw IP",
+        113 => "Linux cooked capture (SLL)",
+        227 => "SocketCAN",
+        252 => "Wireshark's exported PDUs",
+        276 => "Linux cooked capture v2 (SLL2)",
+        _ => "not one buslab knows",
+    }
 }
 
 fn excerpt_hex(data: &[u8]) -> String {

@@ -4,27 +4,29 @@
 //!
 //! Seconds as a float (microseconds survive; a float cannot hold nanoseconds at today's
 //! epoch), no interface and no direction (entries read back on `can0`). An error frame is a
-//! row with `error` 1, the class as its ID and the 8 SocketCAN data bytes.
+//! row with `error` 1, the class as its ID and its SocketCAN data bytes (as many as it has).
 //!
 //! The writer keeps one transaction open and commits it at least every half second (from a
 //! timer thread when idle, from `write` when busy), on [`Writer::commit`] and on
 //! [`Writer::finish`]: a killed process loses at most what came after the last commit, a
 //! stopped one nothing. A caller that must never lose what it showed commits before showing
-//! it (`buslab dump` does). The reader fetches rows in batches by rowid,
-//! so memory stays bounded whatever the table's size.
+//! it (`buslab dump` does). The reader fetches rows in batches by rowid, so memory stays
+//! bounded whatever the table's size; it checks the schema first and never loads a value
+//! longer than [`MAX_VALUE`] (see [`Reader`]).
 
 use std::collections::VecDeque;
 use std::io;
 use std::path::Path;
 use std::sync::mpsc::{self, RecvTimeoutError};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, LazyLock, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
+use rusqlite::config::DbConfig;
 use rusqlite::types::{Value, ValueRef};
-use rusqlite::{Connection, OpenFlags, params};
+use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
 
 use crate::error::{Problem, ReadError};
 use crate::file::LogReader;
@@ -48,18 +50,41 @@ pub const INTERFACE: &str = "can0";
 pub const COMMIT_EVERY: Duration = Duration::from_millis(500);
 const BATCH: i64 = 1024;
 
+/// The most bytes a value of a row may hold: a CAN FD frame's 64 data bytes (python-can logs
+/// them; buslab refuses them as CAN FD). A longer blob or text is an error naming its row and
+/// size, found without reading the value.
+pub const MAX_VALUE: i64 = 64;
+
+/// python-can's columns, in its order, with how an error names each one's value.
+const COLUMNS: [(&str, &str); 7] = [
+    ("ts", "the ts value"),
+    ("arbitration_id", "the arbitration_id value"),
+    ("extended", "the extended value"),
+    ("remote", "the remote value"),
+    ("error", "the error value"),
+    ("dlc", "the dlc value"),
+    ("data", "the data value"),
+];
+
+/// A column as read: its size in bytes (`None` for NULL) and its value (NULL when larger than
+/// [`MAX_VALUE`]).
+struct Cell {
+    size: Option<i64>,
+    value: Value,
+}
+
 struct Row {
     rowid: i64,
-    ts: Value,
-    id: Value,
-    extended: Value,
-    remote: Value,
-    error: Value,
-    dlc: Value,
-    data: Value,
+    cells: [Cell; 7],
 }
 
 /// Reads python-can's `messages` table in insertion (rowid) order.
+///
+/// The database is checked before any row is read: `messages` must be an ordinary table with
+/// a rowid and python-can's columns, none of them generated (a generated column is computed at
+/// every read, and its expression can take any time and memory). SQLite's defensive mode is on
+/// and the schema untrusted. Each value's size is asked for before the value, so a hostile
+/// blob is never loaded.
 pub struct Reader {
     conn: Connection,
     last_rowid: i64,
@@ -68,24 +93,46 @@ pub struct Reader {
     done: bool,
 }
 
+/// The query of a batch: per column its size, then its value if it is small.
+static BATCH_QUERY: LazyLock<String> = LazyLock::new(|| {
+    let mut cols = String::new();
+    for (name, _) in COLUMNS {
+        cols.push_str(&format!(
+            ", octet_length(\"{name}\"), CASE WHEN octet_length(\"{name}\") <= {MAX_VALUE} THEN \"{name}\" END"
+        ));
+    }
+    format!("SELECT rowid{cols} FROM main.{TABLE} WHERE rowid > ?1 ORDER BY rowid LIMIT ?2")
+});
+
+fn not_a_log(reason: String) -> ReadError {
+    ReadError::fatal(
+        None,
+        Problem::NotFormat {
+            format: "python-can SQLite log",
+            reason,
+        },
+    )
+}
+
 impl Reader {
-    /// Opens a database read-only; errors if it is not one or has no `messages` table.
-    pub fn open(path: &Path) -> Result<Self, rusqlite::Error> {
+    /// Opens a database read-only and checks its `messages` table (see [`Reader`]); a file
+    /// that is not such a database is an error saying why.
+    pub fn open(path: &Path) -> Result<Self, ReadError> {
+        let sql = |e: rusqlite::Error| ReadError::fatal(None, e);
         let conn = Connection::open_with_flags(
             path,
             OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
-        )?;
-        conn.busy_timeout(Duration::from_secs(10))?;
-        let tables: i64 = conn.query_row(
-            "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = ?1",
-            [TABLE],
-            |r| r.get(0),
-        )?;
-        if tables == 0 {
-            return Err(rusqlite::Error::InvalidParameterName(format!(
-                "no table {TABLE:?} (python-can's SqliteWriter writes one)"
-            )));
-        }
+        )
+        .map_err(sql)?;
+        conn.busy_timeout(Duration::from_secs(10)).map_err(sql)?;
+        conn.set_db_config(DbConfig::SQLITE_DBCONFIG_DEFENSIVE, true)
+            .map_err(sql)?;
+        conn.set_db_config(DbConfig::SQLITE_DBCONFIG_TRUSTED_SCHEMA, false)
+            .map_err(sql)?;
+        check_schema(&conn).map_err(|e| match e {
+            Refused::Sql(e) => sql(e),
+            Refused::Reason(reason) => not_a_log(reason),
+        })?;
         Ok(Self {
             conn,
             last_rowid: i64::MIN,
@@ -96,20 +143,25 @@ impl Reader {
     }
 
     fn fetch(&mut self) -> Result<(), Problem> {
-        let mut stmt = self.conn.prepare_cached(
-            "SELECT rowid, ts, arbitration_id, extended, remote, error, dlc, substr(data, 1, 72)
-             FROM messages WHERE rowid > ?1 ORDER BY rowid LIMIT ?2",
-        )?;
+        let mut stmt = self.conn.prepare_cached(&BATCH_QUERY)?;
         let rows = stmt.query_map(params![self.last_rowid, BATCH], |r| {
+            let cell = |i: usize| -> rusqlite::Result<Cell> {
+                Ok(Cell {
+                    size: r.get(1 + 2 * i)?,
+                    value: value(r, 2 + 2 * i)?,
+                })
+            };
             Ok(Row {
                 rowid: r.get(0)?,
-                ts: value(r, 1)?,
-                id: value(r, 2)?,
-                extended: value(r, 3)?,
-                remote: value(r, 4)?,
-                error: value(r, 5)?,
-                dlc: value(r, 6)?,
-                data: value(r, 7)?,
+                cells: [
+                    cell(0)?,
+                    cell(1)?,
+                    cell(2)?,
+                    cell(3)?,
+                    cell(4)?,
+                    cell(5)?,
+                    cell(6)?,
+                ],
             })
         })?;
         for row in rows {
@@ -152,6 +204,78 @@ impl Reader {
     }
 }
 
+/// Why a database is not read.
+enum Refused {
+    Sql(rusqlite::Error),
+    Reason(String),
+}
+
+impl From<rusqlite::Error> for Refused {
+    fn from(e: rusqlite::Error) -> Self {
+        Refused::Sql(e)
+    }
+}
+
+/// `messages` is an ordinary table with a rowid and python-can's columns, none generated.
+fn check_schema(conn: &Connection) -> Result<(), Refused> {
+    let refuse = |reason: String| Err(Refused::Reason(reason));
+    let kind: Option<(String, bool)> = conn
+        .query_row(
+            "SELECT type, wr FROM pragma_table_list WHERE schema = 'main' AND name = ?1",
+            [TABLE],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )
+        .optional()?;
+    match kind {
+        None => {
+            return refuse(format!(
+                "no table {TABLE:?} (python-can's SqliteWriter writes one)"
+            ));
+        }
+        Some((kind, _)) if kind != "table" => {
+            return refuse(format!("{TABLE:?} is a {kind}, not a table of stored rows"));
+        }
+        Some((_, true)) => {
+            return refuse(format!(
+                "{TABLE:?} is a WITHOUT ROWID table (rows are read by rowid)"
+            ));
+        }
+        Some(_) => {}
+    }
+    let mut stmt = conn.prepare("SELECT name, hidden FROM pragma_table_xinfo(?1)")?;
+    let mut names = Vec::new();
+    let mut rows = stmt.query([TABLE])?;
+    while let Some(r) = rows.next()? {
+        let name: String = r.get(0)?;
+        let hidden: i64 = r.get(1)?;
+        if hidden != 0 {
+            let how = match hidden {
+                2 => "a generated (VIRTUAL) column",
+                3 => "a generated (STORED) column",
+                _ => "a hidden column",
+            };
+            return refuse(format!(
+                "column {name:?} is {how}: buslab reads stored columns only (a generated value is computed at every read, at any cost)"
+            ));
+        }
+        if ["rowid", "_rowid_", "oid"]
+            .iter()
+            .any(|r| name.eq_ignore_ascii_case(r))
+        {
+            return refuse(format!("column {name:?} hides the table's rowid"));
+        }
+        names.push(name);
+    }
+    for (want, _) in COLUMNS {
+        if !names.iter().any(|n| n.eq_ignore_ascii_case(want)) {
+            return refuse(format!(
+                "{TABLE:?} has no column {want:?} (python-can's columns: ts, arbitration_id, extended, remote, error, dlc, data)"
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Column `i` as a value. rusqlite's own conversion panics on TEXT that is not UTF-8 (a
 /// damaged or hostile file has such text); here it becomes text with replacement characters,
 /// which no column accepts, so the row is refused with what was found.
@@ -173,7 +297,19 @@ fn int(v: &Value, what: &'static str) -> Result<i64, Problem> {
 }
 
 fn decode_row(row: &Row, entry: &mut Entry) -> Result<(), Problem> {
-    let ts = match row.ts {
+    for (cell, (_, what)) in row.cells.iter().zip(COLUMNS) {
+        if let Some(size) = cell.size
+            && size > MAX_VALUE
+        {
+            return Err(Problem::TooBig {
+                what,
+                claimed: size as u64,
+                limit: MAX_VALUE as u64,
+            });
+        }
+    }
+    let [ts, id, extended, remote, error, dlc, data] = &row.cells;
+    let ts = match ts.value {
         Value::Real(f) => f,
         Value::Integer(i) => i as f64,
         ref other => {
@@ -183,22 +319,23 @@ fn decode_row(row: &Row, entry: &mut Entry) -> Result<(), Problem> {
             });
         }
     };
-    if !ts.is_finite() || ts < 0.0 {
+    // Microseconds in 64 bits: a later time would be clamped, not read.
+    if !ts.is_finite() || !(0.0..1.8e13).contains(&ts) {
         return Err(Problem::Expected {
-            expected: "ts a time in seconds, 0 or more",
+            expected: "ts a time in seconds, 0 up to 1.8e13",
             found: ts.to_string(),
         });
     }
-    let raw = int(&row.id, "an integer arbitration_id")?;
+    let raw = int(&id.value, "an integer arbitration_id")?;
     let raw = u32::try_from(raw).map_err(|_| Problem::Expected {
         expected: "an arbitration_id 0..0x1FFFFFFF",
         found: raw.to_string(),
     })?;
-    let extended = int(&row.extended, "extended 0 or 1")? != 0;
-    let remote = int(&row.remote, "remote 0 or 1")? != 0;
-    let error = int(&row.error, "error 0 or 1")? != 0;
-    let dlc = int(&row.dlc, "an integer dlc")?;
-    let data: &[u8] = match &row.data {
+    let extended = int(&extended.value, "extended 0 or 1")? != 0;
+    let remote = int(&remote.value, "remote 0 or 1")? != 0;
+    let error = int(&error.value, "error 0 or 1")? != 0;
+    let dlc = int(&dlc.value, "an integer dlc")?;
+    let data: &[u8] = match &data.value {
         Value::Blob(b) => b,
         Value::Null => &[],
         other => {
@@ -209,10 +346,7 @@ fn decode_row(row: &Row, entry: &mut Entry) -> Result<(), Problem> {
         }
     };
     let record = if error {
-        Record::Error(ErrorFrame::decode(
-            raw & 0x1FFF_FFFF,
-            &data[..data.len().min(8)],
-        )?)
+        Record::Error(ErrorFrame::decode(raw & 0x1FFF_FFFF, data)?)
     } else {
         if !(0..=8).contains(&dlc) || data.len() > 8 {
             return Err(if (0..=64).contains(&dlc) {
@@ -354,8 +488,9 @@ impl Writer {
             Record::Error(e) => {
                 let (class, bytes) = e.encode();
                 error_bytes = bytes;
-                (raw, extended, remote, error, dlc) = (class, false, false, true, 8);
-                data = &error_bytes;
+                let len = e.data_len();
+                (raw, extended, remote, error, dlc) = (class, false, false, true, len as u8);
+                data = &error_bytes[..len];
             }
         }
         let ts = entry.timestamp.as_secs_f64();

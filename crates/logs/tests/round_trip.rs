@@ -33,11 +33,18 @@ fn frame() -> impl Strategy<Value = Frame> {
         })
 }
 
+/// Error frames of any class and any bytes, of any length (every format that holds error
+/// frames keeps them byte for byte).
+fn error_frame() -> impl Strategy<Value = ErrorFrame> {
+    let class = prop_oneof![0u32..=0x3FF, 0u32..=0x1FFF_FFFF];
+    (class, prop::collection::vec(any::<u8>(), 0..=8))
+        .prop_map(|(class, data)| ErrorFrame::decode(class, &data).unwrap())
+}
+
 fn record() -> impl Strategy<Value = Record> {
     prop_oneof![
         4 => frame().prop_map(Record::Frame),
-        1 => (0u32..=0x3FF, any::<[u8; 8]>())
-            .prop_map(|(class, data)| Record::Error(ErrorFrame::decode(class, &data).unwrap())),
+        1 => error_frame().prop_map(Record::Error),
     ]
 }
 
@@ -93,7 +100,6 @@ fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
         !matches!(format, Format::Trc11 | Format::Trc21) || matches!(e.record, Record::Frame(_))
     });
     let first_t = first.map(|e| e.timestamp).unwrap_or_default();
-    let bus_error = ErrorFrame::decode(0x80, &[]).unwrap();
     entries
         .iter()
         .filter(|e| {
@@ -111,11 +117,11 @@ fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
                 Format::Asc => {
                     k.timestamp = floor(e.timestamp, 1000);
                     k.interface = numbered(e);
-                    k.direction = rx;
-                    if let Record::Error(_) = k.record {
-                        k.record = Record::Error(bus_error.clone());
-                        k.direction = Some(Direction::Rx);
-                    }
+                    k.direction = if let Record::Error(_) = k.record {
+                        Some(Direction::Rx)
+                    } else {
+                        rx
+                    };
                 }
                 Format::Blf => {
                     k.interface = numbered(e);

@@ -8,7 +8,7 @@ use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use buslab_canbus::{
-    BusEvent, BusState, CanBus, CanError, ErrorFrame, NodeCounters, NodeStatus, ProtocolLocation,
+    BusEvent, BusState, CanBus, CanError, NodeCounters, NodeStatus, ProtocolLocation,
     ProtocolViolation, TxReport,
 };
 use buslab_socketcand::{ClientError, Command, Deframer, SocketcandBus, status_fields};
@@ -244,17 +244,17 @@ fn error_frames_come_in_order_with_frames_when_asked_for() {
     assert_eq!(e.timestamp, 1.0001);
     assert_eq!(e.channel, "vcan0");
     assert_eq!(
-        e.error,
-        ErrorFrame {
-            errors: vec![
+        (&e.error.errors[..], e.error.counters),
+        (
+            &[
                 CanError::Protocol {
                     violation: ProtocolViolation(0),
                     location: ProtocolLocation::Unspecified
                 },
                 CanError::BusError
-            ],
-            counters: None
-        }
+            ][..],
+            None
+        )
     );
     assert!(matches!(&events[2], BusEvent::Frame(m) if m.frame == frame("124#22")));
     // `recv` stays frames-only: it passes over the error frame.
