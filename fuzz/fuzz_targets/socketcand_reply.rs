@@ -1,12 +1,12 @@
 //! buslab's extension replies as the client reads them (`parse_status`, `parse_regs`,
-//! `parse_nodes`, `parse_flushed` over a reply's tokens): no panic, and what was accepted
-//! prints as fields that read back to the same value.
+//! `parse_nodes`, `parse_flushed`, `parse_refused` over a reply's tokens): no panic, and what
+//! was accepted prints as fields that read back to the same value.
 #![no_main]
 
 use buslab_fuzz::text;
 use buslab_socketcand::reply::{
-    flushed_fields, nodes_fields, parse_flushed, parse_nodes, parse_regs, parse_status,
-    regs_fields, status_fields,
+    flushed_fields, nodes_fields, parse_flushed, parse_nodes, parse_refused, parse_regs,
+    parse_status, refused_fields, regs_fields, status_fields,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -26,6 +26,10 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(nodes) = parse_nodes(&tokens) {
         let fields = nodes_fields(&nodes);
         assert_eq!(parse_nodes(&fields).expect("printed nodes parse"), nodes);
+    }
+    if let Ok(limit) = parse_refused(&tokens) {
+        let fields = refused_fields(&limit);
+        assert_eq!(parse_refused(&fields).expect("printed refusal parses"), limit);
     }
     if let Ok(report) = parse_flushed(&tokens) {
         let fields = flushed_fields(&report);

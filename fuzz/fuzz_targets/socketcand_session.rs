@@ -1,9 +1,10 @@
 //! One socketcand server connection (the sans-IO `Session`) driven as the server drives it.
 //! Input: the client's bytes, with ops (see `buslab_fuzz::items`) for what else happens: a
 //! frame or an error frame from the bus, the host answering late or refusing the join, a
-//! client that reads slowly, time passing. It never panics, never asks for anything while it
-//! waits for the join, and what it buffers for the client stays bounded by what the client
-//! sent.
+//! client that reads slowly, time passing, the client leaving (its output closed, its input
+//! ended). It never panics, never asks for anything while it waits for the join, what it
+//! buffers for the client stays bounded by what the client sent (nothing once the client
+//! left), and once the input ended it hands out what is left and is drained.
 #![no_main]
 
 use buslab_can::{Frame, Id, StandardId};
@@ -30,12 +31,20 @@ struct Host {
     refuse_join: bool,
     /// The client reads everything at once (else only on the read op).
     reads: bool,
+    /// The client left: its output is closed.
+    left: bool,
+    /// Its input ended.
+    ended: bool,
 }
 
 impl Host {
     fn check_output(&self) {
         let (a, b) = self.session.output();
         let buffered = a.len() + b.len();
+        assert!(
+            !self.left || buffered == 0,
+            "{buffered} bytes buffered for a client that left"
+        );
         let bound = MAX_OUTPUT + OUTPUT_PER_INPUT_BYTE * self.received + OUTPUT_SLACK;
         assert!(
             buffered <= bound,
@@ -49,7 +58,10 @@ impl Host {
             if self.prompt {
                 self.answer();
             }
-            let Some(action) = self.session.poll_action() else {
+            let Some(action) = self.session.poll_action(self.now) else {
+                if self.ended && !self.waiting_join && !self.waiting_reply {
+                    assert!(self.session.is_drained(), "input ended, nothing handed out");
+                }
                 break;
             };
             assert!(
@@ -63,6 +75,10 @@ impl Host {
                 Action::Close => {
                     assert!(self.session.is_closing());
                     self.closed = true;
+                }
+                Action::Unfinished { bytes, .. } => {
+                    assert!(self.ended, "an unfinished element before the end");
+                    assert!(bytes > 0 && bytes <= self.received);
                 }
             }
         }
@@ -124,10 +140,22 @@ impl Host {
             4 => self.now += u64::from(op) * 1_000_000,
             5 => self.prompt = !self.prompt,
             6 => self.answer(),
-            _ => {
-                self.reads = !self.reads;
-                self.refuse_join = op & 0x80 != 0;
-            }
+            _ => match op >> 6 {
+                0 => {
+                    self.left = true;
+                    self.session.close_output();
+                }
+                1 => {
+                    self.left = true;
+                    self.ended = true;
+                    self.session.close_output();
+                    self.session.finish_input();
+                }
+                k => {
+                    self.reads = !self.reads;
+                    self.refuse_join = k == 3;
+                }
+            },
         }
         if self.session.handle_timeout(self.now) == Some(Action::Close) {
             self.closed = true;
@@ -151,6 +179,8 @@ fuzz_target!(|data: &[u8]| {
         prompt: true,
         refuse_join: false,
         reads: true,
+        left: false,
+        ended: false,
     };
     let mut chunk = Vec::new();
     for item in items(data) {

@@ -672,3 +672,67 @@ fn a_connection_the_server_had_no_descriptor_for_gets_in_when_one_is_free() {
     drop(first);
     assert_eq!(read_element(&mut second), "< hi >", "{}", warned());
 }
+
+/// What a departed client's node did with the frames it handed over is logged, with the
+/// reason for those it dropped (the log said `left: sent 1, received 0, lost 0` while frames
+/// were lost), and so is an element its close cut short.
+#[test]
+fn a_departed_clients_dropped_frames_are_logged_with_the_reason() {
+    let log = tempfile::NamedTempFile::new().unwrap();
+    let serve = Serve::start_logging(500_000, &[], log.reopen().unwrap().into());
+    let text = || std::fs::read_to_string(log.path()).unwrap();
+    let wait_for = |want: &str| {
+        let started = std::time::Instant::now();
+        while !text().contains(want) {
+            assert!(
+                started.elapsed() < EVENT,
+                "no {want:?} in the log:\n{}",
+                text()
+            );
+            thread::sleep(Duration::from_millis(10));
+        }
+    };
+    let mut watcher = serve.client();
+    // Its connector pulled: nobody hears it, so its frames can never go.
+    let mut zombie = std::net::TcpStream::connect(serve.addr).unwrap();
+    zombie.set_read_timeout(WAIT).unwrap();
+    zombie
+        .write_all(
+            b"< open vcan0 >< rawmode >< buslab_name zombie >< buslab_fault 0 disconnect zombie >",
+        )
+        .unwrap();
+    for _ in 0..5 {
+        read_element(&mut zombie);
+    }
+    zombie
+        .write_all(b"< send 123 1 01 >< send 123 1 02 >< send 123 1 03 >< send 1")
+        .unwrap();
+    drop(zombie);
+    wait_for("(zombie) left:");
+    let all = text();
+    assert!(
+        all.contains("(zombie) left: sent 0, dropped 3 (none sent for 1.00 s of bus time)"),
+        "{all}"
+    );
+    assert!(
+        all.contains("closed in the middle of an element: 8 bytes discarded (\"< send 1\")"),
+        "{all}"
+    );
+    // A client whose frame went: nothing dropped.
+    let mut sender = std::net::TcpStream::connect(serve.addr).unwrap();
+    sender.set_read_timeout(WAIT).unwrap();
+    sender
+        .write_all(b"< open vcan0 >< rawmode >< buslab_name sender >< send 321 1 AA >")
+        .unwrap();
+    for _ in 0..4 {
+        read_element(&mut sender);
+    }
+    drop(sender);
+    assert_eq!(watcher.recv(WAIT).unwrap().unwrap().frame, frame("321#AA"));
+    wait_for("(sender) left:");
+    assert!(
+        text().contains("(sender) left: sent 1, dropped 0, received 0"),
+        "{}",
+        text()
+    );
+}

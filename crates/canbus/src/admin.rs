@@ -5,8 +5,9 @@
 //! extension as `key=value` text) and turns them back into these types at its edge.
 
 use std::fmt;
+use std::time::Duration;
 
-use crate::bus::{BusError, BusState};
+use crate::bus::{BusError, BusState, Human};
 use crate::decode::{ErrorRegisters, RegisterDump, Status};
 
 /// A node on a buslab virtual bus: its number (given in joining order from 1) or its name.
@@ -251,6 +252,28 @@ impl WireFault {
     }
 }
 
+/// A limit that refused a fault ([`BusAdmin::inject_fault`]), with the value allowed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FaultLimit {
+    /// Faults on the bus at once (in force, or to start later); ended and repaired ones do
+    /// not count.
+    #[error(
+        "{max} faults are on the wire already (at most {max} at once; they end when their time is up or with repair)"
+    )]
+    Active { max: u32 },
+    /// Faults one client may put on the wire: at most `max` in any `per`.
+    #[error(
+        "too many faults from this client: at most {max} per {}; the next is allowed in {}",
+        Human(*per),
+        Human(*retry_after)
+    )]
+    Rate {
+        max: u32,
+        per: Duration,
+        retry_after: Duration,
+    },
+}
+
 /// The administration side of a bus: nodes, status, registers, and settings of this client's
 /// own node. Backends that have none of it return `None` from
 /// [`CanBus::admin`](crate::CanBus::admin).
@@ -297,6 +320,20 @@ pub trait BusAdmin {
 mod tests {
     use super::*;
     use crate::decode::{Alc, Ecc};
+
+    #[test]
+    fn a_refused_fault_names_the_limit_and_the_value_allowed() {
+        let active = FaultLimit::Active { max: 1024 }.to_string();
+        assert!(active.contains("at most 1024 at once"), "{active}");
+        let rate = FaultLimit::Rate {
+            max: 20,
+            per: Duration::from_secs(1),
+            retry_after: Duration::from_millis(50),
+        }
+        .to_string();
+        assert!(rate.contains("at most 20 per 1.00 s"), "{rate}");
+        assert!(rate.contains("allowed in 50.0 ms"), "{rate}");
+    }
 
     #[test]
     fn status_prints_in_the_layout_of_buslab_status() {

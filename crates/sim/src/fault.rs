@@ -158,3 +158,26 @@ fn combine(acc: &mut u64, rate: f64) {
     let a = *acc as f64 / u64::MAX as f64;
     *acc = threshold(1.0 - (1.0 - a) * (1.0 - rate.clamp(0.0, 1.0)));
 }
+
+/// Forgets the faults that have ended by `now` (their end reported), keeping the three
+/// lists index for index: a bus that lives for days gets faults injected all along, and only
+/// those not ended yet cost anything.
+pub(crate) fn forget_ended(
+    now: BitTime,
+    faults: &mut Vec<Fault>,
+    active: &mut Vec<bool>,
+    numbers: &mut Vec<usize>,
+) {
+    let mut keep = 0;
+    for at in 0..faults.len() {
+        if faults[at].end > now {
+            faults.swap(keep, at);
+            active.swap(keep, at);
+            numbers.swap(keep, at);
+            keep += 1;
+        }
+    }
+    faults.truncate(keep);
+    active.truncate(keep);
+    numbers.truncate(keep);
+}

@@ -203,8 +203,12 @@ pub struct Simulation {
     now: BitTime,
     nodes: Vec<Node>,
     schedule: Schedule,
+    /// The faults not ended yet (ended ones are forgotten: a long-lived bus gets many), with
+    /// whether each is in force and the number [`Self::add_fault`] gave it.
     faults: Vec<Fault>,
     fault_active: Vec<bool>,
+    fault_numbers: Vec<usize>,
+    faults_added: usize,
     next_fault_change: BitTime,
     wiring: Wiring,
     faulty: bool,
@@ -243,6 +247,8 @@ impl Simulation {
             },
             faults: Vec::new(),
             fault_active: Vec::new(),
+            fault_numbers: Vec::new(),
+            faults_added: 0,
             next_fault_change: BitTime::MAX,
             wiring: Wiring::build(0, core::iter::empty()),
             faulty: false,
@@ -311,9 +317,19 @@ impl Simulation {
             }
         }
         self.schedule.recompute();
-        for fault in &mut self.faults {
+        for at in 0..self.faults.len() {
+            let fault = &mut self.faults[at];
             if !fault.kind.forget_node(index) {
                 fault.end = fault.start.min(self.now);
+                // Its node is gone: it ends now (it still names that node, so the wiring must
+                // not see it in force).
+                if std::mem::take(&mut self.fault_active[at]) {
+                    let index = self.fault_numbers[at];
+                    self.obs.records.push(Record {
+                        time: self.now,
+                        what: Happening::FaultEnded { index },
+                    });
+                }
             }
         }
         if let Some(levels) = &mut self.levels {
@@ -334,7 +350,8 @@ impl Simulation {
         self.schedule.recompute();
     }
 
-    /// Adds a fault; returns its index (as used in [`Happening::FaultStarted`]).
+    /// Adds a fault; returns its number: 0, 1, ... in the order added (as used in
+    /// [`Happening::FaultStarted`]).
     pub fn add_fault(&mut self, fault: Fault) -> usize {
         assert!(
             fault.kind.nodes().all(|n| n < self.nodes.len()),
@@ -342,10 +359,13 @@ impl Simulation {
         );
         self.faults.push(fault);
         self.fault_active.push(false);
+        let number = self.faults_added;
+        self.fault_numbers.push(number);
+        self.faults_added += 1;
         self.seg_levels
             .resize(self.nodes.len() + self.faults.len() + 1, Level::Recessive);
         self.next_fault_change = self.now;
-        self.faults.len() - 1
+        number
     }
 
     /// Ends every fault now: those active stop, those not started yet never start. Returns how
@@ -425,6 +445,8 @@ impl Simulation {
     pub fn controller_mut(&mut self, node: usize) -> Option<&mut Controller> {
         self.nodes[node].get_mut()
     }
+    /// The faults not ended yet: in force, or to start later. An ended fault is forgotten
+    /// once the simulation has run up to its end.
     pub fn faults(&self) -> &[Fault] {
         &self.faults
     }
@@ -603,10 +625,11 @@ impl Simulation {
     fn update_faults(&mut self) {
         let now = self.now;
         let mut next = BitTime::MAX;
-        for (index, fault) in self.faults.iter().enumerate() {
+        for (at, fault) in self.faults.iter().enumerate() {
             let active = fault.start <= now && now < fault.end;
-            if active != self.fault_active[index] {
-                self.fault_active[index] = active;
+            if active != self.fault_active[at] {
+                self.fault_active[at] = active;
+                let index = self.fault_numbers[at];
                 let what = if active {
                     Happening::FaultStarted { index }
                 } else {
@@ -620,6 +643,12 @@ impl Simulation {
                 }
             }
         }
+        crate::fault::forget_ended(
+            now,
+            &mut self.faults,
+            &mut self.fault_active,
+            &mut self.fault_numbers,
+        );
         self.next_fault_change = next;
         self.faulty = self.fault_active.iter().any(|&a| a);
         self.wiring = Wiring::build(self.nodes.len(), self.active_faults());

@@ -341,3 +341,82 @@ fn a_bit_flipped_at_every_node_is_one_error_frame() {
     assert!(sim.nodes().iter().all(|n| n.stats().errors >= 1));
     assert_eq!(sim.node(0).tec(), 7);
 }
+
+/// A bus that lives long gets many faults: the ended ones are forgotten (a bus server counted
+/// every fault it ever had against its limit), and the trace still names each by the number
+/// `add_fault` gave it.
+#[test]
+fn ended_faults_are_forgotten_and_the_trace_keeps_their_numbers() {
+    use buslab_sim::Happening;
+    let mut sim = bus_with(&[("a", &[]), ("b", &[])]);
+    let flip = |start, end| Fault {
+        kind: FaultKind::Flip { node: Some(1) },
+        start,
+        end,
+    };
+    assert_eq!(sim.add_fault(flip(100, 200)), 0);
+    assert_eq!(sim.add_fault(flip(150, 10_000)), 1);
+    sim.run_for(300);
+    // The first ended and is forgotten; the second is in force.
+    assert_eq!(sim.faults(), [flip(150, 10_000)]);
+    assert_eq!(sim.add_fault(flip(400, 500)), 2);
+    sim.run_for(10_000);
+    assert!(sim.faults().is_empty());
+    let faults: Vec<_> = sim
+        .records()
+        .iter()
+        .filter_map(|r| match r.what {
+            Happening::FaultStarted { index } => Some((r.time, "started", index)),
+            Happening::FaultEnded { index } => Some((r.time, "ended", index)),
+            Happening::Node { .. } => None,
+        })
+        .collect();
+    assert_eq!(
+        faults,
+        [
+            (100, "started", 0),
+            (150, "started", 1),
+            (200, "ended", 0),
+            (400, "started", 2),
+            (500, "ended", 2),
+            (10_000, "ended", 1),
+        ]
+    );
+}
+
+/// A node taken off the bus while a fault in force names it alone (a bus server's client with
+/// its connector pulled leaves): the fault ends with it. The wiring was rebuilt with the fault
+/// still in force and the removed node's index, out of bounds: the server's thread panicked.
+#[test]
+fn removing_the_only_node_a_fault_in_force_names_ends_the_fault() {
+    use buslab_sim::Happening;
+    for kind in [
+        FaultKind::Disconnect { node: 1 },
+        FaultKind::Cut {
+            far_side: vec![1],
+            error_rate: 0.0,
+        },
+        FaultKind::Noise {
+            nodes: vec![1],
+            rate: 0.5,
+        },
+        FaultKind::Flip { node: Some(1) },
+    ] {
+        let mut sim = bus_with(&[("a", &["123#01"]), ("gone", &["124#02"])]);
+        sim.add_fault(Fault {
+            kind: kind.clone(),
+            start: 0,
+            end: u64::MAX,
+        });
+        sim.run_for(100);
+        sim.remove_node(1);
+        sim.run_for(20_000);
+        assert!(sim.faults().is_empty(), "{kind:?}");
+        assert!(
+            sim.records()
+                .iter()
+                .any(|r| r.what == Happening::FaultEnded { index: 0 }),
+            "{kind:?}"
+        );
+    }
+}

@@ -6,6 +6,7 @@ use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
 use buslab_can::Frame;
+use buslab_canbus::admin::FaultLimit;
 use buslab_canbus::bus::Human;
 use buslab_canbus::{
     BusAdmin, BusError, BusEvent, BusState, CanBus, Filter, Message, NodeInfo, NodeRef,
@@ -59,6 +60,9 @@ pub enum ClientError {
     Reply(#[from] ReplyError),
     #[error("{0} needs a buslab server (this one has no buslab extensions)")]
     NoExtensions(&'static str),
+    /// A limit of the server refused the request (`< buslab_refused … >`).
+    #[error("the server refused: {0}")]
+    Refused(FaultLimit),
 }
 
 impl From<ClientError> for BusError {
@@ -73,6 +77,7 @@ impl From<ClientError> for BusError {
             ClientError::Protocol(_) | ClientError::Element(_) | ClientError::Reply(_) => {
                 BusError::Protocol(e.to_string())
             }
+            ClientError::Refused(limit) => BusError::Rejected(limit.to_string()),
             other => BusError::Other(other.to_string()),
         }
     }
@@ -369,6 +374,9 @@ impl SocketcandBus {
                     return Ok(args);
                 }
                 ServerMessage::Error(text) => return Err(ClientError::Server(text)),
+                ServerMessage::Other { name, args } if name == reply::REFUSED => {
+                    return Err(ClientError::Refused(reply::parse_refused(&args)?));
+                }
                 other => self.unsolicited(other),
             }
         }

@@ -75,6 +75,22 @@ impl Deframer {
             .all(|b| b.is_ascii_whitespace())
     }
 
+    /// At the end of the stream: what is left that no more bytes will complete (an unfinished
+    /// element, or junk shorter than a report waits for), as an excerpt and its length in
+    /// bytes; `None` if nothing is (whitespace, or the rest of what was reported already).
+    /// The deframer is empty afterwards.
+    pub fn take_unfinished(&mut self) -> Option<(String, usize)> {
+        let rest = &self.buf[self.start..];
+        let unfinished = (self.skip == Skip::Nothing
+            && !rest.iter().all(|b| b.is_ascii_whitespace()))
+        .then(|| (excerpt(rest), rest.len()));
+        *self = Self {
+            examined: self.examined,
+            ..Self::default()
+        };
+        unfinished
+    }
+
     /// Bytes looked at since the start: about one per byte received, whatever the input.
     pub fn bytes_examined(&self) -> u64 {
         self.examined
@@ -308,6 +324,37 @@ mod tests {
         d.push(b"< echo >");
         assert_eq!(d.next_element(), Some(Ok(" echo ".into())));
         assert_eq!(d.next_element(), None);
+    }
+
+    #[test]
+    fn what_the_end_of_the_stream_leaves_unfinished_is_told_once() {
+        let mut d = Deframer::new();
+        d.push(b"< send 123 1 11 >< send 123 2 11");
+        assert_eq!(d.next_element(), Some(Ok(" send 123 1 11 ".into())));
+        assert_eq!(d.next_element(), None);
+        assert_eq!(
+            d.take_unfinished(),
+            Some(("< send 123 2 11".to_string(), 15))
+        );
+        assert_eq!(d.len(), 0);
+        assert_eq!(d.take_unfinished(), None);
+        // Whitespace, or the rest of junk already reported, is nothing unfinished.
+        d.push(b"< echo >\n  ");
+        assert_eq!(d.next_element(), Some(Ok(" echo ".into())));
+        assert_eq!(d.next_element(), None);
+        assert_eq!(d.take_unfinished(), None);
+        d.push(b"> and then more junk without end");
+        assert!(matches!(
+            d.next_element(),
+            Some(Err(ElementError::Outside(_)))
+        ));
+        d.push(b" still junk");
+        assert_eq!(d.next_element(), None);
+        assert_eq!(d.take_unfinished(), None);
+        // Short junk waits for its end: at the end of the stream it is told.
+        d.push(b"hello");
+        assert_eq!(d.next_element(), None);
+        assert_eq!(d.take_unfinished(), Some(("hello".to_string(), 5)));
     }
 
     #[test]

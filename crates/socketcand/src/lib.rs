@@ -4,7 +4,8 @@
 //! - [`command`]: what a client sends ([`Command`]), parsed and formatted.
 //! - [`message`]: what a server sends ([`ServerMessage`]), parsed and formatted.
 //! - [`server`]: one client connection of a server, sans-IO ([`server::Session`]).
-//! - [`reply`]: buslab's extension replies (status, registers, nodes, flush) typed both ways.
+//! - [`reply`]: buslab's extension replies (status, registers, nodes, flush, refusals) typed
+//!   both ways.
 //! - [`inbound`]: the client's receive path, sans-IO ([`Inbound`]).
 //! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over a TCP connection ([`SocketcandBus`]),
 //!   and a [`BusAdmin`](buslab_canbus::BusAdmin) when the server has buslab's extensions.
@@ -27,8 +28,8 @@ pub use element::{Deframer, ElementError, MAX_ELEMENT};
 pub use inbound::Inbound;
 pub use message::{FormattedFrame, ServerMessage, Timestamp};
 pub use reply::{
-    ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_regs, parse_status,
-    regs_reply, status_fields, status_reply,
+    ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_refused, parse_regs,
+    parse_status, refused_reply, regs_reply, status_fields, status_reply,
 };
 
 /// The error from parsing one element.

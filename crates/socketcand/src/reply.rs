@@ -10,6 +10,10 @@ use buslab_canbus::{
     NodeStatus, NodeTiming, RegisterDump, Status, TxReport,
 };
 
+use std::time::Duration;
+
+use buslab_canbus::admin::FaultLimit;
+
 use crate::message::ServerMessage;
 
 /// The reply names.
@@ -17,6 +21,8 @@ pub const STATUS: &str = "buslab_status";
 pub const REGS: &str = "buslab_regs";
 pub const NODES: &str = "buslab_nodes";
 pub const FLUSHED: &str = "buslab_flushed";
+/// A request a limit refused (`< buslab_refused fault rate max=20 … >`).
+pub const REFUSED: &str = "buslab_refused";
 
 /// Why a reply's tokens are not what its name promises.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -446,6 +452,78 @@ pub fn parse_flushed(args: &[impl AsRef<str>]) -> Result<TxReport, ReplyError> {
         sent: decimal(sent.as_ref()).ok_or_else(shape)?,
         failed: decimal(failed.as_ref()).ok_or_else(shape)?,
     })
+}
+
+// ----------------------------------------------------------------------------- refused
+
+/// `[fault, active, max=N]` or `[fault, rate, max=N, per_ms=MS, retry_ms=MS]`: a fault a limit
+/// refused, as `< buslab_refused … >` carries it (the retry rounded up to whole milliseconds,
+/// so a client that waits that long is let through).
+pub fn refused_fields(limit: &FaultLimit) -> Vec<String> {
+    let ms = |d: Duration| d.as_nanos().div_ceil(1_000_000).to_string();
+    let mut out = vec!["fault".to_string()];
+    match limit {
+        FaultLimit::Active { max } => {
+            out.push("active".into());
+            out.push(format!("max={max}"));
+        }
+        FaultLimit::Rate {
+            max,
+            per,
+            retry_after,
+        } => {
+            out.push("rate".into());
+            out.push(format!("max={max}"));
+            out.push(format!("per_ms={}", ms(*per)));
+            out.push(format!("retry_ms={}", ms(*retry_after)));
+        }
+    }
+    out
+}
+
+pub fn refused_reply(limit: &FaultLimit) -> ServerMessage {
+    ServerMessage::Other {
+        name: REFUSED.into(),
+        args: refused_fields(limit),
+    }
+}
+
+pub fn parse_refused(args: &[impl AsRef<str>]) -> Result<FaultLimit, ReplyError> {
+    let shape = || ReplyError::Shape {
+        reply: REFUSED,
+        expected: "fault active max=N, or fault rate max=N per_ms=MS retry_ms=MS",
+        got: join(args),
+    };
+    let args: Vec<&str> = args.iter().map(|a| a.as_ref()).collect();
+    let value = |token: &str, key: &'static str| -> Result<u64, ReplyError> {
+        let text = token
+            .strip_prefix(key)
+            .and_then(|t| t.strip_prefix('='))
+            .ok_or_else(shape)?;
+        decimal(text).ok_or_else(|| ReplyError::Value {
+            reply: REFUSED,
+            key: key.to_string(),
+            value: text.to_string(),
+            expected: "a decimal count",
+        })
+    };
+    let max = |token: &str| -> Result<u32, ReplyError> {
+        u32::try_from(value(token, "max")?).map_err(|_| ReplyError::Value {
+            reply: REFUSED,
+            key: "max".into(),
+            value: token.to_string(),
+            expected: "a count up to 4294967295",
+        })
+    };
+    match args.as_slice() {
+        ["fault", "active", m] => Ok(FaultLimit::Active { max: max(m)? }),
+        ["fault", "rate", m, per, retry] => Ok(FaultLimit::Rate {
+            max: max(m)?,
+            per: Duration::from_millis(value(per, "per_ms")?),
+            retry_after: Duration::from_millis(value(retry, "retry_ms")?),
+        }),
+        _ => Err(shape()),
+    }
 }
 
 /// The tokens for an error message (the first few: garbage can be long).

@@ -8,15 +8,27 @@
 //! [`Session::reply`]; until then the session hands out nothing more, so replies keep the order
 //! of the requests (except `buslab_flush`, answered when the frames are done, which lets
 //! later commands through). Frames from the bus go in with [`Session::deliver_frame`].
+//!
+//! When the client leaves, the host says so: [`Session::close_output`] as soon as it knows
+//! nothing reaches the client any more, [`Session::finish_input`] once it has read the last
+//! byte. The session still hands out everything the client sent before, in order (its frames
+//! are the bus's once handed over), tells what the end cut short ([`Action::Unfinished`]),
+//! and is [`Session::is_drained`] after that.
+//!
+//! A client may put at most [`SessionConfig::fault_rate`] faults on the wire; one more is
+//! answered `< buslab_refused fault rate … >` by the session itself.
 
 use std::collections::VecDeque;
 use std::fmt::Write as _;
+use std::time::Duration;
 
 use buslab_can::Frame;
+use buslab_canbus::admin::FaultLimit;
 
 use crate::command::Command;
 use crate::element::Deframer;
 use crate::message::{FormattedFrame, ServerMessage, Timestamp};
+use crate::reply::refused_reply;
 
 /// SocketCAN's "error counters in data[6..7]" class bit.
 const CAN_ERR_CNT: u32 = 0x200;
@@ -32,7 +44,35 @@ pub enum Action {
     Request(Command),
     /// Close the connection once the pending output is written.
     Close,
+    /// The client's input ended in the middle of an element (or in a short run of text
+    /// outside `< >`): `bytes` bytes, starting with `excerpt`, are discarded. For the log.
+    Unfinished { excerpt: String, bytes: usize },
 }
+
+/// At most `max` in any `per` (and so a burst of `max` at once).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RateLimit {
+    pub max: u32,
+    pub per: Duration,
+}
+
+impl RateLimit {
+    /// The nanoseconds between two once the burst is used up.
+    fn interval_ns(&self) -> u64 {
+        (self.per.as_nanos() / u128::from(self.max.max(1))).min(u64::MAX as u128) as u64
+    }
+
+    fn per_ns(&self) -> u64 {
+        self.per.as_nanos().min(u64::MAX as u128) as u64
+    }
+}
+
+/// Faults one client may put on the wire: a person at the dashboard or a test script never
+/// needs more, and a client that loops on `< buslab_fault … >` cannot flood the bus's log.
+pub const FAULT_RATE: RateLimit = RateLimit {
+    max: 20,
+    per: Duration::from_secs(1),
+};
 
 /// Limits and behaviour of a session.
 #[derive(Clone, Debug)]
@@ -47,6 +87,8 @@ pub struct SessionConfig {
     /// A client that has not opened the bus this long (ns) after connecting is told so and
     /// closed, so idle connections cannot lock others out.
     pub open_timeout_ns: u64,
+    /// Faults this client may put on the wire.
+    pub fault_rate: RateLimit,
 }
 
 impl SessionConfig {
@@ -56,6 +98,7 @@ impl SessionConfig {
             max_output: 256 * 1024,
             raw_hold_ns: 50_000_000,
             open_timeout_ns: 30_000_000_000,
+            fault_rate: FAULT_RATE,
         }
     }
 }
@@ -92,6 +135,13 @@ pub struct Session {
     hold_until: Option<u64>,
     open_deadline: Option<u64>,
     closing: bool,
+    /// The client will send nothing more (the host read its last byte).
+    input_finished: bool,
+    /// Nothing reaches the client any more: replies and frames are not queued.
+    output_closed: bool,
+    /// When the next fault is due by the client's rate, spread evenly (the generic cell rate
+    /// algorithm: a request more than the rate's period ahead of this is refused).
+    fault_due: u64,
     dropped: u64,
     errors_dropped: u64,
 }
@@ -112,6 +162,9 @@ impl Session {
             hold_until: None,
             open_deadline,
             closing: false,
+            input_finished: false,
+            output_closed: false,
+            fault_due: 0,
             dropped: 0,
             errors_dropped: 0,
         };
@@ -135,9 +188,40 @@ impl Session {
     /// sends without reading cannot make the server hold its replies without end.
     pub fn wants_input(&self) -> bool {
         !self.closing
+            && !self.input_finished
             && self.waiting == Waiting::Nothing
             && self.deframer_len() < 64 * 1024
             && self.out.len() < self.config.max_output
+    }
+
+    /// The client will send nothing more: the host has read its last byte (end of stream,
+    /// or the connection failed after it). What it sent is still handed out by
+    /// [`Self::poll_action`], then what the end cut short ([`Action::Unfinished`]).
+    pub fn finish_input(&mut self) {
+        self.input_finished = true;
+    }
+
+    /// Nothing reaches the client any more (it closed or reset the connection): what waits
+    /// for it is dropped, and replies and frames are no longer queued. Its input is still
+    /// taken (what it sent before it left).
+    pub fn close_output(&mut self) {
+        self.output_closed = true;
+        self.out.clear();
+        self.held.clear();
+        self.hold_until = None;
+        self.open_deadline = None;
+    }
+
+    /// Whether the client's output is closed ([`Self::close_output`]).
+    pub fn is_output_closed(&self) -> bool {
+        self.output_closed
+    }
+
+    /// Whether everything the client sent has been handed out: its input finished and
+    /// nothing of it is left (or the session closed itself).
+    pub fn is_drained(&self) -> bool {
+        self.closing
+            || (self.input_finished && self.waiting == Waiting::Nothing && self.deframer.is_empty())
     }
 
     /// Error replies dropped because the client did not read the earlier ones.
@@ -151,19 +235,26 @@ impl Session {
 
     /// Bytes received from the client.
     pub fn receive(&mut self, bytes: &[u8]) {
-        if !self.closing {
+        if !self.closing && !self.input_finished {
             self.deframer.push(bytes);
         }
     }
 
-    /// The next thing the host must do, after handling every element that needs nothing from
-    /// it. `None`: nothing until more bytes arrive (or the host answers).
-    pub fn poll_action(&mut self) -> Option<Action> {
+    /// The next thing the host must do at `now` (ns), after handling every element that needs
+    /// nothing from it. `None`: nothing until more bytes arrive (or the host answers).
+    pub fn poll_action(&mut self, now: u64) -> Option<Action> {
         if self.closing {
             return None;
         }
         while self.waiting == Waiting::Nothing {
-            let element = match self.deframer.next_element()? {
+            let Some(element) = self.deframer.next_element() else {
+                if !self.input_finished {
+                    return None;
+                }
+                let (excerpt, bytes) = self.deframer.take_unfinished()?;
+                return Some(Action::Unfinished { excerpt, bytes });
+            };
+            let element = match element {
                 Ok(e) => e,
                 Err(e) => {
                     self.protocol_error(e.to_string());
@@ -177,14 +268,32 @@ impl Session {
                     continue;
                 }
             };
-            if let Some(action) = self.handle(command) {
+            if let Some(action) = self.handle(command, now) {
                 return Some(action);
             }
         }
         None
     }
 
-    fn handle(&mut self, command: Command) -> Option<Action> {
+    /// Whether the client may put one more fault on the wire at `now`; if so it is counted.
+    fn fault_allowed(&mut self, now: u64) -> Result<(), FaultLimit> {
+        let rate = self.config.fault_rate;
+        let due = self.fault_due.max(now);
+        // The burst: up to `max` ahead of the even spread.
+        let tolerance = rate.per_ns().saturating_sub(rate.interval_ns());
+        let ahead = due - now;
+        if ahead > tolerance {
+            return Err(FaultLimit::Rate {
+                max: rate.max,
+                per: rate.per,
+                retry_after: Duration::from_nanos(ahead - tolerance),
+            });
+        }
+        self.fault_due = due.saturating_add(rate.interval_ns());
+        Ok(())
+    }
+
+    fn handle(&mut self, command: Command, now: u64) -> Option<Action> {
         match (self.mode, command) {
             (_, Command::Echo) => self.send(&ServerMessage::Echo),
             (Mode::NoBus, Command::Open(bus)) => {
@@ -224,6 +333,13 @@ impl Session {
             // Answered whenever the node's frames are done, which may be never (no ACK): the
             // client must still be able to ask for its status meanwhile.
             (_, Command::Flush) => return Some(Action::Request(Command::Flush)),
+            (_, command @ Command::Fault { .. }) => match self.fault_allowed(now) {
+                Ok(()) => {
+                    self.waiting = Waiting::Reply;
+                    return Some(Action::Request(command));
+                }
+                Err(limit) => self.send(&refused_reply(&limit)),
+            },
             (_, command) => {
                 self.waiting = Waiting::Reply;
                 return Some(Action::Request(command));
@@ -261,7 +377,7 @@ impl Session {
     /// A frame from the bus at `timestamp`; `false` if it was dropped because the client does
     /// not read fast enough. Frames are delivered only in raw mode.
     pub fn deliver_frame(&mut self, frame: &Frame, timestamp: Timestamp, now: u64) -> bool {
-        if self.mode != Mode::Raw || self.closing {
+        if self.mode != Mode::Raw || self.closing || self.output_closed {
             return true;
         }
         self.deliver_formatted(&FormattedFrame::new(frame, timestamp), now)
@@ -269,7 +385,7 @@ impl Session {
 
     /// [`Self::deliver_frame`] with the frame formatted already (once for every session).
     pub fn deliver_formatted(&mut self, frame: &FormattedFrame, now: u64) -> bool {
-        if self.mode != Mode::Raw || self.closing {
+        if self.mode != Mode::Raw || self.closing || self.output_closed {
             return true;
         }
         self.release_held(now);
@@ -296,7 +412,7 @@ impl Session {
         timestamp: Timestamp,
         now: u64,
     ) -> bool {
-        if self.mode != Mode::Raw || self.closing {
+        if self.mode != Mode::Raw || self.closing || self.output_closed {
             return true;
         }
         let with_data = self.remote_as_r;
@@ -374,7 +490,7 @@ impl Session {
     /// [`SessionConfig::max_output`] bytes wait); `None` when it is not handed frames (not in
     /// raw mode, or closing).
     pub fn frame_room(&self, line: usize) -> Option<usize> {
-        if self.mode != Mode::Raw || self.closing {
+        if self.mode != Mode::Raw || self.closing || self.output_closed {
             return None;
         }
         let waiting = self.out.len() + self.held.len();
@@ -412,7 +528,9 @@ impl Session {
     }
 
     fn send(&mut self, message: &ServerMessage) {
-        self.out.extend(message.to_string().as_bytes());
+        if !self.output_closed {
+            self.out.extend(message.to_string().as_bytes());
+        }
     }
 
     /// One error per malformed element, while the client reads them: beyond
@@ -450,11 +568,11 @@ mod tests {
         let mut s = Session::new(SessionConfig::new("vcan0"), 0);
         assert_eq!(output(&mut s, 0), "< hi >");
         s.receive(b"< open vcan0 >");
-        assert_eq!(s.poll_action(), Some(Action::Join));
+        assert_eq!(s.poll_action(0), Some(Action::Join));
         assert_eq!(s.joined(Ok(7)), None);
         assert_eq!(output(&mut s, 0), "< ok >");
         s.receive(b"< rawmode >");
-        assert_eq!(s.poll_action(), None);
+        assert_eq!(s.poll_action(0), None);
         assert_eq!(output(&mut s, 0), "< ok >");
         s
     }
@@ -463,9 +581,9 @@ mod tests {
     fn handshake_then_frames_both_ways() {
         let mut s = raw_session();
         s.receive(b"< send 123 2 11 22 >< send 7ff 0 >");
-        assert_eq!(s.poll_action(), Some(Action::Send(frame("123#1122"))));
-        assert_eq!(s.poll_action(), Some(Action::Send(frame("7FF#"))));
-        assert_eq!(s.poll_action(), None);
+        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#1122"))));
+        assert_eq!(s.poll_action(0), Some(Action::Send(frame("7FF#"))));
+        assert_eq!(s.poll_action(0), None);
         // Frames wait 50 ms after the rawmode reply left, then go out.
         assert!(s.deliver_frame(&frame("321#AA"), ts(1), 1_000));
         assert!(!s.has_output());
@@ -481,7 +599,7 @@ mod tests {
         let mut plain = raw_session();
         let mut ext = raw_session();
         ext.receive(b"< buslab_ext >");
-        assert_eq!(ext.poll_action(), None);
+        assert_eq!(ext.poll_action(0), None);
         assert_eq!(output(&mut ext, 0), "< ok >");
         for text in ["123#0102030405060708", "1ABCDEF0#R2", "7FF#"] {
             let f = frame(text);
@@ -508,16 +626,16 @@ mod tests {
         let mut s = raw_session();
         s.receive(b"< buslab_status >< send 123 0 >");
         assert_eq!(
-            s.poll_action(),
+            s.poll_action(0),
             Some(Action::Request(Command::Status(None)))
         );
         assert!(!s.wants_input());
-        assert_eq!(s.poll_action(), None, "waits for the reply");
+        assert_eq!(s.poll_action(0), None, "waits for the reply");
         s.reply(&ServerMessage::Other {
             name: "buslab_status".into(),
             args: vec!["7".into()],
         });
-        assert_eq!(s.poll_action(), Some(Action::Send(frame("123#"))));
+        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#"))));
         assert_eq!(output(&mut s, 0), "< buslab_status 7 >");
     }
 
@@ -525,9 +643,9 @@ mod tests {
     fn a_flush_does_not_hold_up_the_commands_after_it() {
         let mut s = raw_session();
         s.receive(b"< buslab_flush >< buslab_status >");
-        assert_eq!(s.poll_action(), Some(Action::Request(Command::Flush)));
+        assert_eq!(s.poll_action(0), Some(Action::Request(Command::Flush)));
         assert_eq!(
-            s.poll_action(),
+            s.poll_action(0),
             Some(Action::Request(Command::Status(None)))
         );
     }
@@ -536,7 +654,7 @@ mod tests {
     fn garbage_gets_one_error_per_element_and_the_session_goes_on() {
         let mut s = raw_session();
         s.receive(b"junk< nonsense >< send 123 9 >< echo >");
-        assert_eq!(s.poll_action(), None);
+        assert_eq!(s.poll_action(0), None);
         let text = output(&mut s, 0);
         assert_eq!(text.matches("< error").count(), 3, "{text}");
         assert!(text.ends_with("< echo >"), "{text}");
@@ -546,12 +664,12 @@ mod tests {
     fn the_wrong_bus_and_a_failed_join_close_the_connection() {
         let mut s = Session::new(SessionConfig::new("vcan0"), 0);
         s.receive(b"< open can9 >");
-        assert_eq!(s.poll_action(), Some(Action::Close));
+        assert_eq!(s.poll_action(0), Some(Action::Close));
         assert!(output(&mut s, 0).ends_with("< error could not open bus >"));
         assert!(s.is_closing());
         let mut s = Session::new(SessionConfig::new("vcan0"), 0);
         s.receive(b"< open vcan0 >");
-        assert_eq!(s.poll_action(), Some(Action::Join));
+        assert_eq!(s.poll_action(0), Some(Action::Join));
         assert_eq!(s.joined(Err("the bus is full".into())), Some(Action::Close));
         assert!(output(&mut s, 0).ends_with("< error the bus is full >"));
     }
@@ -595,7 +713,7 @@ mod tests {
             let end = (fed + 16 * 1024).min(garbage.len());
             s.receive(&garbage[fed..end]);
             fed = end;
-            assert_eq!(s.poll_action(), None);
+            assert_eq!(s.poll_action(0), None);
         }
         assert!(s.out.len() < 4096 + 100, "{} bytes of replies", s.out.len());
         assert!(!s.wants_input());
@@ -607,10 +725,102 @@ mod tests {
         let mut s = raw_session();
         s.receive(&vec![b'>'; 1 << 20]);
         s.receive(b"< echo >");
-        assert_eq!(s.poll_action(), None);
+        assert_eq!(s.poll_action(0), None);
         let text = output(&mut s, 0);
         assert_eq!(text.matches("< error").count(), 1, "{text}");
         assert!(text.ends_with("< echo >"), "{text}");
+    }
+
+    #[test]
+    fn what_a_client_sent_before_it_left_is_all_handed_out_then_what_the_end_cut_short() {
+        // python-can's `with can.Bus(…) as bus: bus.send(…)`: the frame and the close come
+        // together. The host learns of the close first (no more output), reads the rest.
+        let mut s = raw_session();
+        s.deliver_frame(&frame("321#AA"), ts(1), 0);
+        s.close_output();
+        assert!(!s.has_output(), "nothing waits for a client that left");
+        assert!(s.deliver_frame(&frame("321#BB"), ts(1), 0));
+        assert!(!s.has_output());
+        assert!(s.wants_input(), "what it sent before it left is still read");
+        s.receive(b"< send 123 1 01 >< buslab_status >< send 124 0 >< send 125 2 0");
+        s.finish_input();
+        assert!(!s.wants_input());
+        assert!(!s.is_drained());
+        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#01"))));
+        assert_eq!(
+            s.poll_action(0),
+            Some(Action::Request(Command::Status(None)))
+        );
+        s.reply(&ServerMessage::Ok);
+        assert!(
+            !s.has_output(),
+            "replies to a client that left are not queued"
+        );
+        assert_eq!(s.poll_action(0), Some(Action::Send(frame("124#"))));
+        assert_eq!(
+            s.poll_action(0),
+            Some(Action::Unfinished {
+                excerpt: "< send 125 2 0".into(),
+                bytes: 14
+            })
+        );
+        assert!(s.is_drained());
+        assert_eq!(s.poll_action(0), None);
+        // Bytes after the end are not taken.
+        s.receive(b"< send 126 0 >");
+        assert_eq!(s.poll_action(0), None);
+    }
+
+    #[test]
+    fn a_client_that_closes_after_whole_elements_leaves_nothing_unfinished() {
+        let mut s = raw_session();
+        s.receive(b"< send 123 0 >\n");
+        s.finish_input();
+        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#"))));
+        assert_eq!(s.poll_action(0), None);
+        assert!(s.is_drained());
+    }
+
+    #[test]
+    fn faults_beyond_the_clients_rate_are_refused_with_the_limit_and_the_wait() {
+        let mut s = raw_session();
+        let fault = b"< buslab_fault 10 stuck >";
+        let mut refused = Vec::new();
+        // The whole burst at once, then one more every 50 ms (20 per second).
+        for k in 0..FAULT_RATE.max + 1 {
+            s.receive(fault);
+            match s.poll_action(1_000) {
+                Some(Action::Request(Command::Fault { .. })) => s.reply(&ServerMessage::Ok),
+                None => refused.push(k),
+                other => panic!("{other:?}"),
+            }
+        }
+        assert_eq!(refused, [FAULT_RATE.max]);
+        let text = output(&mut s, 1_000);
+        assert!(
+            text.ends_with("< buslab_refused fault rate max=20 per_ms=1000 retry_ms=50 >"),
+            "{text}"
+        );
+        s.receive(fault);
+        assert_eq!(s.poll_action(1_000 + 49_999_999), None, "not yet");
+        assert!(output(&mut s, 0).contains("retry_ms=1 "));
+        s.receive(fault);
+        assert!(matches!(
+            s.poll_action(1_000 + 50_000_000),
+            Some(Action::Request(Command::Fault { .. }))
+        ));
+        s.reply(&ServerMessage::Ok);
+        // After a quiet second the whole burst is there again.
+        for _ in 0..FAULT_RATE.max {
+            s.receive(fault);
+            assert!(matches!(
+                s.poll_action(2_100_000_000),
+                Some(Action::Request(Command::Fault { .. }))
+            ));
+            s.reply(&ServerMessage::Ok);
+        }
+        s.receive(fault);
+        assert_eq!(s.poll_action(2_100_000_000), None);
     }
 
     #[test]

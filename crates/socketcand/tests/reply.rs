@@ -217,6 +217,53 @@ fn garbage_registers_nodes_and_flush_are_named() {
 }
 
 #[test]
+fn refusals_round_trip_and_garbage_is_named() {
+    use buslab_canbus::admin::FaultLimit;
+    use buslab_socketcand::reply::{parse_refused, refused_fields};
+    use std::time::Duration;
+    let rate = FaultLimit::Rate {
+        max: 20,
+        per: Duration::from_secs(1),
+        retry_after: Duration::from_millis(35),
+    };
+    assert_eq!(
+        refused_fields(&rate),
+        ["fault", "rate", "max=20", "per_ms=1000", "retry_ms=35"]
+    );
+    assert_eq!(parse_refused(&refused_fields(&rate)).unwrap(), rate);
+    let active = FaultLimit::Active { max: 1024 };
+    assert_eq!(refused_fields(&active), ["fault", "active", "max=1024"]);
+    assert_eq!(parse_refused(&refused_fields(&active)).unwrap(), active);
+    // A wait of a fraction of a millisecond is rounded up: waiting that long lets one through.
+    let soon = FaultLimit::Rate {
+        max: 20,
+        per: Duration::from_secs(1),
+        retry_after: Duration::from_micros(1),
+    };
+    assert!(refused_fields(&soon).contains(&"retry_ms=1".to_string()));
+    for bad in [
+        "",
+        "fault",
+        "fault active",
+        "fault active 1024",
+        "fault rate max=20 per_ms=1000",
+        "frame active max=1",
+        "fault active max=1 extra",
+    ] {
+        let err = parse_refused(&tokens(bad)).unwrap_err().to_string();
+        assert!(err.contains("fault active max=N"), "{bad}: {err}");
+    }
+    for (bad, key) in [
+        ("fault active max=-1", "max"),
+        ("fault active max=99999999999", "max"),
+        ("fault rate max=2 per_ms=x retry_ms=1", "per_ms"),
+    ] {
+        let err = parse_refused(&tokens(bad)).unwrap_err().to_string();
+        assert!(err.contains(&format!("{key}=")), "{bad}: {err}");
+    }
+}
+
+#[test]
 fn a_reply_element_parses_into_its_tokens() {
     let m = ServerMessage::parse(&format!("buslab_status {WIRE}")).unwrap();
     let ServerMessage::Other { name, args } = m else {
@@ -234,6 +281,7 @@ proptest! {
         let _ = parse_regs(&tokens);
         let _ = parse_nodes(&tokens);
         let _ = parse_flushed(&tokens);
+        let _ = buslab_socketcand::parse_refused(&tokens);
     }
 
     #[test]

@@ -12,6 +12,7 @@ use buslab_can::controller::ErrorState;
 use buslab_can::node::BusNode;
 use buslab_can::wire::encode;
 use buslab_canbus::WireFault;
+use buslab_canbus::admin::FaultLimit;
 use buslab_canbus::{
     BusOffRecovery, BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef,
     NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
@@ -21,6 +22,7 @@ use buslab_sja1000::BitTiming;
 
 use buslab_slio::{Calibration, DemoBoard, ModeChangeCause, SlioNotice};
 
+use crate::departure::{Departure, DropReason, Verdict};
 use crate::node::{ClientNode, NodeNotice, node_config};
 
 /// Why a bus could not be set up or a request failed.
@@ -43,11 +45,13 @@ pub enum VbusError {
     BadName(String),
     #[error("the chip refused the configuration: {0}")]
     Driver(String),
-    #[error("{0} faults were put on this bus already (repair ends them; at most {MAX_FAULTS})")]
-    TooManyFaults(usize),
+    /// A limit refused a fault (the socketcand extension answers `< buslab_refused … >`).
+    #[error("{0}")]
+    FaultRefused(FaultLimit),
 }
 
-/// Most faults one bus keeps (scenario and injected, ended ones included).
+/// Most faults on one bus at once (scenario and injected, in force or to start later); ended
+/// and repaired ones are forgotten and do not count.
 pub const MAX_FAULTS: usize = 1024;
 
 /// Most nodes on one bus (an ISO 11898 segment allows far fewer real ones).
@@ -62,10 +66,14 @@ pub enum BusEvent {
         btr0: u8,
         btr1: u8,
     },
+    /// A node left the bus: at once, or once its departed client's frames were sent or
+    /// given up (`dropped` of them, for `reason`; see [`crate::departure`]).
     Left {
         number: u32,
         name: String,
         counters: NodeCounters,
+        dropped: u64,
+        reason: Option<DropReason>,
     },
     Renamed {
         number: u32,
@@ -121,6 +129,7 @@ impl BusEvent {
             }
             BusEvent::Slio { notice, .. } => matches!(notice, SlioNotice::BusModeChange(_)),
             BusEvent::Fault { .. } => true,
+            BusEvent::Left { dropped, .. } => *dropped > 0,
             _ => false,
         }
     }
@@ -142,11 +151,19 @@ impl fmt::Display for BusEvent {
                 number,
                 name,
                 counters: c,
-            } => write!(
-                f,
-                "node {number} ({name}) left: sent {}, received {}, lost {}",
-                c.sent, c.received, c.rx_lost
-            ),
+                dropped,
+                reason,
+            } => {
+                write!(
+                    f,
+                    "node {number} ({name}) left: sent {}, dropped {dropped}",
+                    c.sent
+                )?;
+                if let Some(reason) = reason.filter(|_| *dropped > 0) {
+                    write!(f, " ({reason})")?;
+                }
+                write!(f, ", received {}, lost {}", c.received, c.rx_lost)
+            }
             BusEvent::Fault {
                 description,
                 lasting,
@@ -290,6 +307,8 @@ pub struct VirtualBus {
     /// The bit-time by which a client's frame put on an idle bus has reached every node (see
     /// [`VirtualBus::frame_end`]).
     frame_end: Option<u64>,
+    /// Nodes whose clients left, until they have left too.
+    departures: Vec<Departure>,
 }
 
 impl VirtualBus {
@@ -323,6 +342,7 @@ impl VirtualBus {
             bus_off_recovery: BusOffRecovery::default(),
             events: Vec::new(),
             frame_end: None,
+            departures: Vec::new(),
         }
     }
 
@@ -432,7 +452,16 @@ impl VirtualBus {
     /// Hands a client's frame to its node (`Ok(Err(frame))`: the node's queue is full, the
     /// client waits). A frame put on an idle bus goes out at once and alone, so the bus knows
     /// when it will have reached every node: [`Self::frame_end`].
+    ///
+    /// A departed client's frames go to its node while it sends them; once it has given up
+    /// (see [`Self::depart`]) they are counted as dropped.
     pub fn submit(&mut self, number: u32, frame: Frame) -> Result<Result<(), Frame>, VbusError> {
+        if let Some(d) = self.departure_mut(number)
+            && !d.takes_frames()
+        {
+            d.dropped += 1;
+            return Ok(Ok(()));
+        }
         let idle = self.sim.is_idle();
         let now = self.now();
         let submitted = self.client_mut(number)?.submit(frame);
@@ -518,24 +547,160 @@ impl VirtualBus {
         self.sim.node_mut(i).get_mut()
     }
 
-    /// Removes a node (its connector is pulled, even in the middle of a frame; its queued
-    /// frames are dropped).
+    /// Removes a node at once (its connector is pulled, even in the middle of a frame; its
+    /// queued frames are dropped and counted, as are those of a departed client not handed
+    /// over yet).
     pub fn leave(&mut self, number: u32) {
+        let known = self.departure_mut(number).is_some();
+        let Some(i) = self.index(&NodeRef::Number(number)).filter(|_| !known) else {
+            if known {
+                self.take_off(number);
+            }
+            return;
+        };
+        if self.depart(number).is_err() {
+            // Not a client's node: nothing of anybody's is queued in it.
+            self.collect_notices();
+            let node = self.sim.remove_node(i);
+            self.numbers.remove(i);
+            self.say(BusEvent::Left {
+                number,
+                name: node.name().to_string(),
+                counters: NodeCounters::default(),
+                dropped: 0,
+                reason: None,
+            });
+            return;
+        }
+        self.take_off(number);
+    }
+
+    /// A departure ends now: its node (if still on the bus) is pulled off, and nothing more
+    /// of its client's is handed over.
+    fn take_off(&mut self, number: u32) {
+        if let Some(k) = self.departures.iter().position(|d| d.number == number) {
+            self.departures[k].input_open = false;
+            if !self.departures[k].is_off() {
+                self.pull(k, Some(DropReason::Removed));
+            }
+        }
+        self.check_departures();
+    }
+
+    /// The client of node `number` left: its node stays on the bus and sends the frames the
+    /// client handed over, in order and with their retries, then leaves. It gives up if it goes
+    /// bus-off or sends none of them for [`crate::DEPARTURE_STALL`] of bus time: the attempt on
+    /// the wire ends, the node is pulled off and what it did not send is counted as dropped,
+    /// with the reason ([`BusEvent::Left`]). Meanwhile the server goes on handing over what the
+    /// client sent before it left ([`Self::submit`]) until it says there is no more
+    /// ([`Self::input_ended`]). Its name is given up to a client that asks for it.
+    pub fn depart(&mut self, number: u32) -> Result<(), VbusError> {
+        if self.departure_mut(number).is_some() {
+            return Ok(());
+        }
+        let (now, bitrate) = (self.now(), self.bitrate());
+        let departure = Departure::new(number, self.client(number)?, now, bitrate);
+        self.departures.push(departure);
+        Ok(())
+    }
+
+    /// Everything the departed client of node `number` sent has been handed over.
+    pub fn input_ended(&mut self, number: u32) {
+        // Its client left without the server noticing first (a closed session).
+        let _ = self.depart(number);
+        if let Some(d) = self.departure_mut(number) {
+            d.input_open = false;
+        }
+        self.check_departures();
+    }
+
+    /// Whether node `number`'s client left and the node is still on the bus.
+    pub fn is_departing(&self, number: u32) -> bool {
+        self.departures
+            .iter()
+            .any(|d| d.number == number && !d.is_off())
+    }
+
+    /// Departed clients' nodes still on the bus, or whose client's last frames are still
+    /// being handed over.
+    pub fn departing(&self) -> Vec<u32> {
+        self.departures.iter().map(|d| d.number).collect()
+    }
+
+    /// Whether [`Self::submit`] would take a frame for node `number` now: its queue has room,
+    /// or (a departed client's node that gave up) the frame is counted as dropped.
+    pub fn takes_frame(&self, number: u32) -> bool {
+        if self
+            .departures
+            .iter()
+            .any(|d| d.number == number && !d.takes_frames())
+        {
+            return true;
+        }
+        self.client(number).is_ok_and(|node| node.tx_room() > 0)
+    }
+
+    fn departure_mut(&mut self, number: u32) -> Option<&mut Departure> {
+        self.departures.iter_mut().find(|d| d.number == number)
+    }
+
+    /// The earliest bit-time at which a departure must be looked at.
+    fn next_departure_check(&self) -> Option<u64> {
+        self.departures.iter().filter_map(Departure::deadline).min()
+    }
+
+    /// Looks at every departed client's node: pulls off those that are done or gave up, and
+    /// says which have left.
+    fn check_departures(&mut self) {
+        let now = self.now();
+        let mut k = 0;
+        while k < self.departures.len() {
+            if !self.departures[k].is_off() {
+                let number = self.departures[k].number;
+                let verdict = match self
+                    .index(&NodeRef::Number(number))
+                    .and_then(|i| self.sim.node_mut(i).get_mut::<ClientNode>())
+                {
+                    Some(node) => self.departures[k].check(now, node),
+                    None => Verdict::Stay,
+                };
+                if verdict == Verdict::Pull {
+                    self.pull(k, None);
+                }
+            }
+            let d = &self.departures[k];
+            if d.is_off() && !d.input_open {
+                let d = self.departures.remove(k);
+                let (name, counters) = d.off.clone().unwrap_or_default();
+                self.say(BusEvent::Left {
+                    number: d.number,
+                    name,
+                    counters,
+                    dropped: d.dropped,
+                    reason: d.reason(),
+                });
+                continue;
+            }
+            k += 1;
+        }
+    }
+
+    /// Takes departure `k`'s node off the wire (its connector is pulled).
+    fn pull(&mut self, k: usize, reason: Option<DropReason>) {
+        let number = self.departures[k].number;
         let Some(i) = self.index(&NodeRef::Number(number)) else {
+            // Not on the bus any more (never happens: only departures pull client nodes).
+            self.departures[k].vanished();
             return;
         };
         self.collect_notices();
         let mut node = self.sim.remove_node(i);
         self.numbers.remove(i);
-        let counters = node
-            .get_mut::<ClientNode>()
-            .map(|c| c.counters)
-            .unwrap_or_default();
-        self.say(BusEvent::Left {
-            number,
-            name: node.name().to_string(),
-            counters,
-        });
+        let name = node.name().to_string();
+        match node.get_mut::<ClientNode>() {
+            Some(client) => self.departures[k].pulled(name, client, reason),
+            None => self.departures[k].vanished(),
+        }
     }
 
     /// Renames node `number`.
@@ -550,7 +715,22 @@ impl VirtualBus {
         }
         let i = self.index_of(&NodeRef::Number(number))?;
         if let Some(other) = self.sim.find_node(name).filter(|&j| j != i) {
-            return Err(VbusError::NameTaken(name.to_string(), self.numbers[other]));
+            let holder = self.numbers[other];
+            if !self.is_departing(holder) {
+                return Err(VbusError::NameTaken(name.to_string(), holder));
+            }
+            // A departed client's node gives its name up (python-can scripts run back to back
+            // under one name): it goes back to its number's.
+            let mut default = format!("node{holder}");
+            while self.sim.find_node(&default).is_some() {
+                default.push('_');
+            }
+            self.sim.node_mut(other).set_name(default.clone());
+            self.say(BusEvent::Renamed {
+                number: holder,
+                old: name.to_string(),
+                new: default,
+            });
         }
         let node = self.sim.node_mut(i);
         let old = node.name().to_string();
@@ -591,8 +771,13 @@ impl VirtualBus {
         fault: &WireFault,
         lasting: Option<std::time::Duration>,
     ) -> Result<(), VbusError> {
-        if self.sim.faults().len() >= MAX_FAULTS {
-            return Err(VbusError::TooManyFaults(self.sim.faults().len()));
+        let now = self.now();
+        // Those ended but not forgotten yet (the bus has not run since) do not count either.
+        let on_wire = self.sim.faults().iter().filter(|f| f.end > now).count();
+        if on_wire >= MAX_FAULTS {
+            return Err(VbusError::FaultRefused(FaultLimit::Active {
+                max: MAX_FAULTS as u32,
+            }));
         }
         let indices = |bus: &Self, nodes: &[NodeRef]| -> Result<Vec<usize>, VbusError> {
             nodes.iter().map(|n| bus.index_of(n)).collect()
@@ -642,13 +827,19 @@ impl VirtualBus {
     /// Simulates up to (not including) bit-time `end`.
     pub fn run_until(&mut self, end: u64) {
         while self.now() < end {
-            let stop = end.min(self.next_window);
+            let mut stop = end.min(self.next_window);
+            if let Some(check) = self.next_departure_check() {
+                stop = stop.min(check.max(self.now() + 1));
+            }
             self.sim.run_until(stop);
             if self.now() >= self.next_window {
                 let stats = *self.sim.bus_stats();
                 self.last_second = stats.since(&self.window_start);
                 self.window_start = stats;
                 self.next_window += self.bitrate() as u64;
+            }
+            if !self.departures.is_empty() {
+                self.check_departures();
             }
         }
     }

@@ -6,6 +6,7 @@
 //!
 //! - [`node`]: a client's chip and driver as a node of the engine ([`ClientNode`]).
 //! - [`bus`]: the sans-IO part, [`VirtualBus`]: the engine with its client nodes.
+//! - [`departure`]: a client that left, while its node sends what it handed over.
 //! - [`speed`]: how fast the bus runs ([`Speed`]: N times real time, or `max`).
 //! - [`server`]: one event loop (listener, client sessions, pacing) around [`VirtualBus`] and
 //!   the socketcand crate's sans-IO sessions ([`spawn`]).
@@ -20,11 +21,13 @@
 //! ```
 
 pub mod bus;
+pub mod departure;
 pub mod node;
 pub mod server;
 pub mod speed;
 
 pub use bus::{BusEvent, MAX_NODES, VbusError, VirtualBus};
+pub use departure::{DEPARTURE_STALL, DropReason};
 pub use node::{ClientNode, Delivery, NodeNotice, TimedErrorFrame};
 pub use server::{Poster, ServerConfig, ServerError, ServerHandle, spawn};
 pub use speed::{Speed, SpeedError};

@@ -20,10 +20,10 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use buslab_canbus::{NodeRef, TxReport};
 use buslab_sim::Simulation;
-use buslab_socketcand::server::{Action, Session, SessionConfig};
+use buslab_socketcand::server::{Action, FAULT_RATE, RateLimit, Session, SessionConfig};
 use buslab_socketcand::{
-    Command, FormattedFrame, ServerMessage, Timestamp, flushed_reply, nodes_reply, regs_reply,
-    status_reply,
+    Command, FormattedFrame, ServerMessage, Timestamp, flushed_reply, nodes_reply, refused_reply,
+    regs_reply, status_reply,
 };
 use mio::net::{TcpListener, TcpStream};
 use mio::unix::SourceFd;
@@ -67,6 +67,9 @@ pub struct ServerConfig {
     /// How client chips come back after bus-off: the seed's (the chip counts 128 × 11 recessive
     /// bits, TXERR falling; the default) or Linux's fast restart after 100 ms.
     pub bus_off_recovery: buslab_canbus::BusOffRecovery,
+    /// Faults one client may put on the wire (`< buslab_fault … >`); more are answered
+    /// `< buslab_refused fault rate … >` with the limit and the wait.
+    pub fault_rate: RateLimit,
 }
 
 impl ServerConfig {
@@ -84,6 +87,7 @@ impl ServerConfig {
             error_frames: false,
             beacon: None,
             bus_off_recovery: buslab_canbus::BusOffRecovery::default(),
+            fault_rate: FAULT_RATE,
         }
     }
 }
@@ -99,6 +103,8 @@ pub enum ServerError {
     Speed(#[from] SpeedError),
     #[error("client queue {0} must be 16..=1048576 frames")]
     ClientQueue(usize),
+    #[error("a fault rate of {max} per {per:?} must be at least 1 per 1 ms .. 1 h")]
+    FaultRate { max: u32, per: Duration },
     #[error("bus name {0:?} must be 1..=64 of A-Z a-z 0-9 _ - . : (one token clients can open)")]
     Channel(String),
     #[error("the scenario runs at {scenario} bit/s but the bus at {bus} bit/s")]
@@ -229,6 +235,10 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     if !valid_channel(&config.channel) {
         return Err(ServerError::Channel(config.channel));
     }
+    let RateLimit { max, per } = config.fault_rate;
+    if max == 0 || !(Duration::from_millis(1)..=Duration::from_secs(3600)).contains(&per) {
+        return Err(ServerError::FaultRate { max, per });
+    }
     let mut bus = VirtualBus::new(config.bitrate)?;
     bus.set_error_frames(config.error_frames);
     bus.set_bus_off_recovery(config.bus_off_recovery);
@@ -308,6 +318,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     // A raw-mode frame line is typically 40 to 50 bytes.
     session_config.max_output = config.client_queue * 48;
     session_config.open_timeout_ns = config.open_timeout.as_nanos().min(u64::MAX as u128) as u64;
+    session_config.fault_rate = config.fault_rate;
     let server = Server {
         poll,
         timer,
@@ -445,8 +456,11 @@ struct Client {
     /// Readiness not used up yet (mio is edge-triggered).
     readable: bool,
     writable: bool,
-    /// The peer closed or the socket failed: the node leaves at once.
-    gone: bool,
+    /// The peer closed or reset the connection, or writing to it failed: nothing reaches it
+    /// any more, its node departs (see [`client_left`]), and what it sent before is still read.
+    left: bool,
+    /// Its last byte has been read (end of stream, or a failed read).
+    input_ended: bool,
     /// A frame the node's full queue could not take yet.
     backlog: Option<buslab_can::Frame>,
     /// `< buslab_flush >`es: each answered once the node has done this many frames.
@@ -546,9 +560,9 @@ impl Server {
                         if let Some(Some(c)) = self.clients.get_mut(t - FIRST_CLIENT) {
                             c.readable |= event.is_readable();
                             c.writable |= event.is_writable();
-                            c.gone |= event.is_read_closed() || event.is_error();
-                            if event.is_write_closed() {
-                                c.gone = true;
+                            if event.is_read_closed() || event.is_write_closed() || event.is_error()
+                            {
+                                client_left(c, &mut self.bus);
                             }
                         }
                     }
@@ -564,6 +578,10 @@ impl Server {
             {
                 self.bus.leave(n);
             }
+        }
+        // Departed clients' nodes still sending.
+        for n in self.bus.departing() {
+            self.bus.leave(n);
         }
         self.log_bus_events();
         let lag = *lock(&self.lag);
@@ -682,7 +700,7 @@ impl Server {
         self.clients
             .iter()
             .flatten()
-            .filter(|c| !c.gone && reads(c))
+            .filter(|c| !c.left && reads(c))
             .filter_map(|c| {
                 let room = c.session.frame_room(LONGEST_LINE)? as u64;
                 let node = self.bus.client(c.session.node()?).ok()?;
@@ -838,7 +856,7 @@ impl Server {
         let limit = self.session_config.max_output / 2;
         self.clients.iter().flatten().any(|c| {
             let (a, b) = c.session.output();
-            a.len() + b.len() >= limit && reads(c) && !c.gone
+            a.len() + b.len() >= limit && reads(c) && !c.left
         })
     }
 
@@ -928,7 +946,8 @@ impl Server {
                 accepted: now_ns,
                 readable: true,
                 writable: true,
-                gone: false,
+                left: false,
+                input_ended: false,
                 backlog: None,
                 flushes: VecDeque::new(),
                 dropped_reported: 0,
@@ -1038,18 +1057,13 @@ impl Server {
         self.clients
             .iter()
             .flatten()
-            .any(|c| c.readable && !c.gone && c.backlog.is_none() && c.session.wants_input())
+            .any(|c| c.readable && c.backlog.is_none() && c.session.wants_input())
     }
 
     /// Whether a client's frame that waited for room in its node's queue would go in now.
     fn backlog_fits(&self) -> bool {
         self.clients.iter().flatten().any(|c| {
-            c.backlog.is_some()
-                && !c.gone
-                && c.session
-                    .node()
-                    .and_then(|n| self.bus.client(n).ok())
-                    .is_some_and(|node| node.tx_room() > 0)
+            c.backlog.is_some() && c.session.node().is_some_and(|n| self.bus.takes_frame(n))
         })
     }
 
@@ -1064,7 +1078,7 @@ impl Server {
                 return false;
             }
             while budget > 0 {
-                let Some(action) = c.session.poll_action() else {
+                let Some(action) = c.session.poll_action(self.now_ns()) else {
                     break;
                 };
                 budget -= 1;
@@ -1076,26 +1090,34 @@ impl Server {
             if budget == 0 {
                 return true;
             }
-            if !(c.readable && c.session.wants_input() && !c.gone) {
+            if !(c.readable && c.session.wants_input()) {
                 return false;
             }
+            // A client that left is read to the end of its stream: the kernel keeps what it
+            // sent before its FIN, and before its RST too (the read after the last byte fails).
             match c.stream.read(&mut buf) {
-                Ok(0) => {
-                    c.gone = true;
-                    return false;
-                }
+                Ok(0) => self.input_ended(c),
                 Ok(n) => c.session.receive(&buf[..n]),
+                // After the peer closed, nothing more can come.
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock && c.left => self.input_ended(c),
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
                     c.readable = false;
                     return false;
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                Err(_) => {
-                    c.gone = true;
-                    return false;
+                Err(e) => {
+                    debug!("reading from {}: {e}", c.peer);
+                    self.input_ended(c);
                 }
             }
         }
+    }
+
+    /// The client's last byte was read: the session hands out the rest of what it sent.
+    fn input_ended(&mut self, c: &mut Client) {
+        c.input_ended = true;
+        c.session.finish_input();
+        client_left(c, &mut self.bus);
     }
 
     /// Hands a client's frame to its node; `false` (frame kept back) when the queue is full.
@@ -1118,6 +1140,11 @@ impl Server {
                 let result = self.bus.join().map_err(|e| e.to_string());
                 if let Ok(number) = result {
                     info!("client {} is node {number}", c.peer);
+                    // It sent `< open … >` and more, then left before the answer: its node
+                    // sends what followed.
+                    if c.left {
+                        let _ = self.bus.depart(number);
+                    }
                 }
                 if let Some(Action::Close) = c.session.joined(result) {
                     // The session closes itself once its last words are written.
@@ -1134,6 +1161,8 @@ impl Server {
                     return;
                 };
                 match command {
+                    // Nobody to tell.
+                    Command::Flush if c.left => {}
                     Command::Flush => match self.bus.client_mut(me) {
                         Ok(node) => c.flushes.push_back(node.submitted()),
                         Err(e) => c.session.reply(&ServerMessage::Error(e.to_string())),
@@ -1145,6 +1174,13 @@ impl Server {
                 }
             }
             Action::Close => {}
+            Action::Unfinished { excerpt, bytes } => warn!(
+                "client {}{} closed in the middle of an element: {bytes} bytes discarded ({excerpt:?})",
+                c.peer,
+                c.session
+                    .node()
+                    .map_or(String::new(), |n| format!(" (node {n})"))
+            ),
         }
     }
 
@@ -1211,30 +1247,35 @@ impl Server {
             if !c.session.has_output() {
                 c.drained_at = Instant::now();
             }
-            while c.writable && c.session.has_output() && !c.gone {
+            while c.writable && c.session.has_output() {
                 let (a, b) = c.session.output();
                 let first = if a.is_empty() { b } else { a };
                 match c.stream.write(first) {
-                    Ok(0) => c.gone = true,
+                    Ok(0) => client_left(c, &mut self.bus),
                     Ok(n) => {
                         c.session.consumed(n, now_ns);
                         c.drained_at = Instant::now();
                     }
                     Err(e) if e.kind() == io::ErrorKind::WouldBlock => c.writable = false,
                     Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                    Err(_) => c.gone = true,
+                    Err(e) => {
+                        debug!("writing to {}: {e}", c.peer);
+                        client_left(c, &mut self.bus);
+                    }
                 }
             }
         }
     }
 
-    /// Drops connections that are over: the peer left (its node leaves at once, queued frames
-    /// and all), or the session closed and its last words are out.
+    /// Drops connections that are over: the session closed and its last words are out, or
+    /// the peer left and everything it sent has been handed over (its node stays until its
+    /// frames are sent or given up: [`VirtualBus::depart`]).
     fn reap(&mut self) {
         for slot in self.clients.iter_mut() {
-            let over = slot
-                .as_ref()
-                .is_some_and(|c| c.gone || (c.session.is_closing() && !c.session.has_output()));
+            let over = slot.as_ref().is_some_and(|c| {
+                (c.session.is_closing() && !c.session.has_output())
+                    || (c.input_ended && c.session.is_drained() && c.backlog.is_none())
+            });
             if !over {
                 continue;
             }
@@ -1244,8 +1285,12 @@ impl Server {
             self.open -= 1;
             match c.session.node() {
                 Some(number) => {
-                    self.bus.leave(number);
-                    info!("client {} (node {number}) disconnected", c.peer);
+                    if c.session.is_closing() {
+                        self.bus.leave(number);
+                    } else {
+                        self.bus.input_ended(number);
+                    }
+                    debug!("client {} (node {number}) disconnected", c.peer);
                 }
                 None => debug!("{} disconnected", c.peer),
             }
@@ -1293,6 +1338,23 @@ impl Server {
                 info!("({t:.6}) {event}");
             }
         }
+    }
+}
+
+/// The client closed or reset its connection, or writing to it failed: nothing reaches it any
+/// more, and its node departs (it sends what the client handed over, then leaves:
+/// [`VirtualBus::depart`]) while what the client sent before is still read. At the end of a
+/// stream reads never block again, so the client stays readable.
+fn client_left(c: &mut Client, bus: &mut VirtualBus) {
+    if std::mem::replace(&mut c.left, true) {
+        return;
+    }
+    c.readable = true;
+    c.session.close_output();
+    c.flushes.clear();
+    if let Some(number) = c.session.node() {
+        debug!("client {} (node {number}) left", c.peer);
+        let _ = bus.depart(number);
     }
 }
 
@@ -1419,7 +1481,10 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
             "{other} is not an extension command"
         ))),
     };
-    result.unwrap_or_else(|e| ServerMessage::Error(e.to_string()))
+    result.unwrap_or_else(|e| match e {
+        VbusError::FaultRefused(limit) => refused_reply(&limit),
+        e => ServerMessage::Error(e.to_string()),
+    })
 }
 
 #[cfg(test)]

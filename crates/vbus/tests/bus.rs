@@ -318,6 +318,50 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
     assert!(err.to_string().contains("no node nobody"), "{err}");
 }
 
+#[test]
+fn fault_injection_does_not_stop_after_1024_faults_only_1024_on_the_wire_at_once_are_refused() {
+    // Every fault ever put on the bus counted, ended and repaired ones too: any client
+    // reached the cap in a second and the dashboard's cut-wire button answered 400 for good.
+    use buslab_canbus::admin::FaultLimit;
+    use buslab_canbus::{Probability, WireFault};
+    use buslab_vbus::VbusError;
+    use buslab_vbus::bus::MAX_FAULTS;
+    use std::time::Duration;
+    let mut bus = VirtualBus::new(RATE).unwrap();
+    let a = bus.join().unwrap();
+    let _b = bus.join().unwrap();
+    let noise = WireFault::Noise {
+        nodes: vec![NodeRef::Number(a)],
+        rate: Probability::new(0.001).unwrap(),
+    };
+    // Four times the cap, each lasting 1 ms, one after the other.
+    for k in 0..4 * MAX_FAULTS {
+        bus.inject_fault(&noise, Some(Duration::from_millis(1)))
+            .unwrap_or_else(|e| panic!("fault {k} refused: {e}"));
+        bus.run_until(bus.now() + RATE as u64 / 1000);
+    }
+    assert!(bus.sim().faults().len() <= 1, "ended faults are forgotten");
+    // Repaired ones too.
+    for _ in 0..2 * MAX_FAULTS {
+        bus.inject_fault(&noise, None).unwrap();
+        assert_eq!(bus.repair(), 1);
+    }
+    // The cap is on faults on the wire at once (in force or to start later).
+    for _ in 0..MAX_FAULTS {
+        bus.inject_fault(&noise, None).unwrap();
+    }
+    let err = bus.inject_fault(&noise, None).unwrap_err();
+    assert_eq!(
+        err,
+        VbusError::FaultRefused(FaultLimit::Active {
+            max: MAX_FAULTS as u32
+        })
+    );
+    assert!(err.to_string().contains("at most 1024 at once"), "{err}");
+    assert_eq!(bus.repair(), MAX_FAULTS);
+    bus.inject_fault(&noise, None).unwrap();
+}
+
 /// The server sleeps until `frame_end` while a client's frame is on the wire: its deliveries
 /// must be there once the bus has run up to it (a late prediction costs every frame a wake-up
 /// slice), and not long before (an early one delays them by the length of the frame).

@@ -614,7 +614,9 @@ fn clients_pipelining_requests_do_not_put_the_bus_behind() {
 fn a_zombie_client_leaves_the_bus_at_once_with_its_queued_frames() {
     // A client with the wrong bit timing and megabytes of queued sends disconnected; its node
     // stayed for hours (bus-off every 110 ms), and a node joining later got stale frames: its
-    // session thread was stuck handing frames to the full queue and never saw the end.
+    // session thread was stuck handing frames to the full queue and never saw the end. Its
+    // node now sends what it handed over until it goes bus-off (at once: nothing it sends
+    // gets through), then leaves with the rest counted as dropped (issue 25).
     let s = server(500_000, 8192);
     let mut watcher = client(&s);
     let mut zombie = raw(&s);
