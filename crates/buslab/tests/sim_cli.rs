@@ -242,13 +242,16 @@ fn lab_shows_a_status_line_and_no_frames_by_default() {
     );
     let status = err
         .lines()
-        .find(|l| l.starts_with("bus: "))
+        .find(|l| l.starts_with("load "))
         .unwrap_or_else(|| panic!("no status line:\n{err}"));
-    // Ten nodes (four simulated, three SLIO boards, the PowerPC node, the counter, the web
-    // pages' client) and frames from them.
-    assert!(status.contains("10 nodes (10 active)"), "{status}");
+    // Eight nodes of the bench (four simulated, three SLIO boards, the PowerPC node) and two
+    // clients (the counter, the web pages), and frames from them.
+    assert!(
+        status.contains("8 nodes + 2 clients: 10 active"),
+        "{status}"
+    );
     let frames: u64 = status
-        .split("; ")
+        .split("  ")
         .last()
         .and_then(|t| t.split_whitespace().next())
         .and_then(|n| n.parse().ok())
