@@ -47,7 +47,7 @@ pub fn init(verbosity: &Verbosity, chatty: bool) {
     let verbose = verbosity.verbose > 0 || std::env::var_os("RUST_LOG").is_some();
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(crate::status_line::LogWriter)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()));
     // Ignored if a subscriber is already installed (cannot happen in the binary).
     if verbose {

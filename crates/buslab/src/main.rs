@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod cmd;
 mod config;
 mod logging;
+mod status_line;
 mod terminal;
 mod units;
 

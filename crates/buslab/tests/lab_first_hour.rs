@@ -5,8 +5,8 @@
 #[path = "support/pty_program.rs"]
 mod pty_program;
 
-use std::io::{BufRead, BufReader};
-use std::net::TcpListener;
+use std::io::{BufRead, BufReader, Write};
+use std::net::{TcpListener, TcpStream};
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
 
@@ -28,14 +28,32 @@ fn lab_status_line_stays_on_one_row_of_an_80_column_terminal() {
     let mut command = buslab();
     command.args(["lab", "--no-devices", "--no-web", "--listen", "127.0.0.1:0"]);
     let mut lab = PtyProgram::spawn(command, 24, 80, Stderr::Terminal);
+    let refreshes = |p: &PtyProgram| String::from_utf8_lossy(&p.raw).matches(REFRESH).count();
+    lab.wait_until("a status line", |p| refreshes(p) >= 1);
+    // A warning while the status shows (a client that leaves in the middle of a command) is
+    // a line of its own, not glued to the status.
+    let url = lab
+        .contents()
+        .split_whitespace()
+        .find(|w| w.starts_with("socketcand://"))
+        .map(|u| u.trim_start_matches("socketcand://").to_string())
+        .unwrap();
+    let addr = url.split('/').next().unwrap().to_string();
+    let mut client = TcpStream::connect(&addr).unwrap();
+    client.write_all(b"< open vcan0 >< send 1").unwrap();
+    drop(client);
+    lab.wait_for_text("closed in the middle of an element");
     // Three refreshes in place: a line wider than the terminal would have wrapped, and each
     // refresh would have left its first part on the row above.
-    lab.wait_until("three status refreshes", |p| {
-        String::from_utf8_lossy(&p.raw).matches(REFRESH).count() >= 3
-    });
+    let seen = refreshes(&lab);
+    lab.wait_until("three more status refreshes", |p| refreshes(p) >= seen + 3);
     let raw = String::from_utf8_lossy(&lab.raw).to_string();
+    // Every status as drawn (the erase sequence also comes before each log line).
     for status in raw.split(REFRESH).skip(1) {
         let line = status.split(['\r', '\n']).next().unwrap();
+        if !line.contains("frames/s") {
+            continue;
+        }
         assert!(
             line.chars().count() < 80,
             "{} columns: {line:?}",
@@ -45,6 +63,19 @@ fn lab_status_line_stays_on_one_row_of_an_80_column_terminal() {
     let rows = lab.contents();
     let status_rows: Vec<&str> = rows.lines().filter(|r| r.contains("frames/s")).collect();
     assert_eq!(status_rows.len(), 1, "the screen:\n{rows}");
+    let warning = rows
+        .lines()
+        .find(|r| r.contains("closed in the middle of an element"))
+        .unwrap();
+    assert!(
+        warning.contains("WARN") && !warning.contains("frames/s"),
+        "{rows}"
+    );
+    assert_eq!(
+        rows.lines().rfind(|r| !r.trim().is_empty()),
+        Some(status_rows[0]),
+        "the status is the last row:\n{rows}"
+    );
     assert!(status_rows[0].starts_with("load "), "{}", status_rows[0]);
     assert!(status_rows[0].contains(" client"), "{}", status_rows[0]);
 }

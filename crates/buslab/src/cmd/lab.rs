@@ -27,6 +27,8 @@ use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
 use buslab_web::{WebConfig, WebError, WebServer};
 
 use buslab_logs::Entry;
+
+use crate::status_line::StatusLine;
 use buslab_logs::candump::{Terminal, TimestampMode, View};
 
 #[derive(clap::Args)]
@@ -342,22 +344,18 @@ fn status_lines(
             break;
         };
         let line = fit(&fields, status_width(terminal));
-        let mut err = io::stderr().lock();
         if terminal {
-            write!(err, "\r\x1b[2K{line}")?;
+            StatusLine::show(&line)?;
         } else {
+            let mut err = io::stderr().lock();
             writeln!(err, "{line}")?;
+            err.flush()?;
         }
-        err.flush()?;
     }
     // The last word, on its own line.
-    if let Some(fields) = server.with_bus(status_fields) {
-        let line = fit(&fields, status_width(terminal));
-        let mut err = io::stderr().lock();
-        if terminal {
-            write!(err, "\r\x1b[2K")?;
-        }
-        writeln!(err, "{line}")?;
+    match server.with_bus(status_fields) {
+        Some(fields) => StatusLine::finish(&fit(&fields, status_width(terminal)))?,
+        None => StatusLine::clear()?,
     }
     Ok(())
 }
