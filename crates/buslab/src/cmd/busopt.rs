@@ -32,9 +32,29 @@ pub fn one_bus(iface: Option<&BusUrl>, bus: Option<&BusUrl>) -> anyhow::Result<B
     }
 }
 
-/// Opens the bus behind `url` with the backend its scheme names.
+/// Opens the bus behind `url` with the backend its scheme names, and applies the
+/// configuration's `[controller]` (the keys given) to this client's own node where the bus
+/// has the setting: on buslab's bus, its own SJA1000 (docs/config.md). What the bus cannot
+/// apply is said once per run, as a warning naming the setting and why.
 pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
-    Ok(buslab_backends::open_url(url, &OpenOptions::default())?)
+    let options = OpenOptions {
+        controller: crate::config::get().controller_settings,
+        ..OpenOptions::default()
+    };
+    let opened = buslab_backends::open_configured(url, &options)?;
+    static TOLD: std::sync::Once = std::sync::Once::new();
+    TOLD.call_once(|| {
+        for (part, why) in opened.controller.not_applied() {
+            tracing::warn!(
+                "{url}: {} from the configuration not applied: {why}",
+                part.describe()
+            );
+        }
+        if !opened.controller.is_empty() {
+            tracing::info!("{url}: controller settings:\n{}", opened.controller);
+        }
+    });
+    Ok(opened.bus)
 }
 
 /// The bus's administration side, or an error saying `what` needs a buslab bus.
