@@ -218,7 +218,7 @@ fn the_wizard_asks_checks_each_answer_and_writes_the_file() {
     // The refused answer stays on the line, to be corrected.
     answer(
         &mut w,
-        "must be at most 0xFF here",
+        "# must be at most 0xFF here",
         &format!("{ERASE}0xE0{ENTER}"),
     );
     answer(&mut w, "Acceptance mask", &format!("0x0F{ENTER}"));
@@ -235,7 +235,8 @@ fn the_wizard_asks_checks_each_answer_and_writes_the_file() {
     );
     answer(
         &mut w,
-        "whose OCMODE (bits 1..0) is not 01",
+        // The refusal ("#"), not the help below the question, which says the same.
+        "# must be an OCR value",
         &format!("{ERASE}0x1A{ENTER}"),
     );
     answer(&mut w, "Clock output", &format!("n{ENTER}"));
@@ -444,7 +445,15 @@ fn the_wizard_s_filter_and_bit_rate_reach_the_client_s_sja1000_and_dump_shows_on
         answer(&mut w, question, ENTER);
     }
     let status = w.wait_exit();
-    assert!(status.success(), "{status}\n{}", w.contents());
+    let screen = w.contents();
+    assert!(status.success(), "{status}\n{screen}");
+    // Each question, redrawn at every key (the bus's help wraps over two rows), ends as one
+    // line with its answer: none is left behind half typed.
+    assert!(!screen.lines().any(|l| l.starts_with("? ")), "{screen}");
+    assert!(
+        screen.contains("> Bit rate (e.g. 125000, 125k, 500 kbit/s, 1M) 125k\n"),
+        "{screen}"
+    );
     let text = fs::read_to_string(&out).unwrap();
     for line in [
         "bitrate = 125000",

@@ -119,7 +119,7 @@ pub struct Key {
     pub help: &'static str,
     /// JerryCAN's name for it in `jerrycan.properties`, if it had one.
     pub jerrycan: Option<&'static str>,
-    /// Which commands use it (and, for the controller, which transports apply it).
+    /// Which commands use it; for the controller's keys, which transports apply it.
     pub used_by: &'static str,
     apply: fn(&mut Settings, &Raw, &str) -> Result<(), String>,
     show: fn(&Settings) -> Option<String>,
@@ -307,7 +307,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be \"PeliCAN\", \"BasicCAN\", \"listen-only\" or \"self-test\" (the last two PeliCAN)",
         help: "the SJA1000's mode: PeliCAN (CAN 2.0B), BasicCAN (PCA82C200, 11-bit IDs), or PeliCAN listen-only (receives, never acknowledges) or self-test (no acknowledge needed)",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's SJA1000; SLCAN: listen-only as L, the others not; SocketCAN: not (netlink)",
+        used_by: "buslab's bus: the client's SJA1000; SLCAN: listen-only as L, the others not; SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             let i = value::choice(raw, &MODE_NAMES, allowed)?;
             s.mode = ControllerMode::ALL[i];
@@ -320,7 +320,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be the crystal frequency in Hz, 1000000..=24000000",
         help: "the SJA1000's crystal (the CAN clock is half of it)",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's SJA1000 crystal; SLCAN and SocketCAN: only to compute the bit rate",
+        used_by: "buslab's bus: the client's SJA1000 crystal; SLCAN and SocketCAN: only to compute the bit rate",
         apply: |s, raw, allowed| {
             let (min, max) = (
                 buslab_canbus::config::MIN_CRYSTAL_HZ.into(),
@@ -336,7 +336,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a bit rate 1..=1000000 bit/s: 125000, 125k, \"500 kbit/s\" or 1M",
         help: "the bit rate; BTR0/BTR1 are chosen as Linux does (or give btr0 and btr1); unset: the bus's or the adapter's",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's BTR0/BTR1; SLCAN: S/s; SocketCAN: not (netlink: ip link … bitrate)",
+        used_by: "buslab's bus: the client's BTR0/BTR1; SLCAN: S/s; SocketCAN: not (netlink: ip link … bitrate)",
         apply: |s, raw, allowed| {
             s.bitrate = Some(value::bitrate(raw, allowed)?);
             Ok(())
@@ -348,7 +348,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a sample point in per cent, 50..=95 (e.g. 87.5)",
         help: "the sample point with bitrate; default CiA's: 87.5 % up to 500 kbit/s, 80 % up to 800 kbit/s, 75 % above",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's BTR0/BTR1; SLCAN: through s; SocketCAN: not (netlink)",
+        used_by: "buslab's bus: the client's BTR0/BTR1; SLCAN: through s; SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             let percent = value::number(raw, 50.0, 95.0, allowed)?;
             s.sample_point = Some((percent * 10.0).round() as u32);
@@ -364,7 +364,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a register value 0x00..=0xFF",
         help: "BTR0 (SJW, prescaler), with btr1 instead of bitrate",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's BTR0; SLCAN: s (or S for a standard rate); SocketCAN: not (netlink)",
+        used_by: "buslab's bus: the client's BTR0; SLCAN: s (or S for a standard rate); SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             s.btr0 = Some(byte(raw, allowed)?);
             Ok(())
@@ -376,7 +376,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a register value 0x00..=0xFF",
         help: "BTR1 (SAM, TSEG2, TSEG1), with btr0 instead of bitrate",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's BTR1; SLCAN: s (or S for a standard rate); SocketCAN: not (netlink)",
+        used_by: "buslab's bus: the client's BTR1; SLCAN: s (or S for a standard rate); SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             s.btr1 = Some(byte(raw, allowed)?);
             Ok(())
@@ -388,7 +388,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be \"accept-all\", \"basic\" (BasicCAN), \"single\" or \"dual\" (PeliCAN)",
         help: "the acceptance filter: every frame, BasicCAN's 8 bits on ID.10..3, or PeliCAN's single or dual filter",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's SJA1000; SLCAN: M/m (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
+        used_by: "buslab's bus: the client's SJA1000; SLCAN: M/m (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
         apply: |s, raw, allowed| {
             let i = value::choice(raw, &FilterKind::NAMES, allowed)?;
             s.filter = FilterKind::ALL[i];
@@ -401,7 +401,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be 0x00..=0xFF (filter \"basic\") or 0x00000000..=0xFFFFFFFF (ACR0..ACR3, ACR0 the high byte)",
         help: "ACR: the bits a frame must have where the mask says \"care\"",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's ACR; SLCAN: M (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
+        used_by: "buslab's bus: the client's ACR; SLCAN: M (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
         apply: |s, raw, allowed| {
             s.acceptance_code = value::integer(raw, 0, u32::MAX.into(), allowed)? as u32;
             Ok(())
@@ -413,7 +413,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be 0x00..=0xFF (filter \"basic\") or 0x00000000..=0xFFFFFFFF (AMR0..AMR3, AMR0 the high byte)",
         help: "AMR: bit 1 = \"don't care\"; default all 1 (every frame passes)",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus: the client's AMR; SLCAN: m (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
+        used_by: "buslab's bus: the client's AMR; SLCAN: m (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
         apply: |s, raw, allowed| {
             let mask = value::integer(raw, 0, u32::MAX.into(), allowed)? as u32;
             s.acceptance_mask = Some(mask);
@@ -426,7 +426,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be an OCR value 0x00..=0xFF whose OCMODE (bits 1..0) is not 01, the test mode",
         help: "OCR: how TX0 and TX1 drive the bus (default 0xDA: normal mode, TX0 push-pull)",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus only (the client's OCR); SLCAN, SocketCAN: not (no such command)",
+        used_by: "buslab's bus only (the client's OCR); SLCAN, SocketCAN: not (no such command)",
         apply: |s, raw, allowed| {
             let ocr = byte(raw, allowed)?;
             if ocr & 0x03 == 0x01 {
@@ -442,7 +442,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be true or false",
         help: "whether the CLKOUT pin runs (CDR.3 clear)",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus only (the client's CDR); SLCAN, SocketCAN: not (no such command)",
+        used_by: "buslab's bus only (the client's CDR); SLCAN, SocketCAN: not (no such command)",
         apply: |s, raw, _| {
             s.clock_out = value::boolean(raw)?;
             Ok(())
@@ -454,7 +454,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be 1, 2, 4, 6, 8, 10, 12 or 14",
         help: "CLKOUT = crystal / this divider",
         jerrycan: None,
-        used_by: "every command that opens a bus, for its own node (dump, send, gen, monitor, web, regs, status, …): buslab's bus only (the client's CDR); SLCAN, SocketCAN: not (no such command)",
+        used_by: "buslab's bus only (the client's CDR); SLCAN, SocketCAN: not (no such command)",
         apply: |s, raw, allowed| {
             let d = value::integer(raw, 1, 14, allowed)? as u8;
             if ClockOut::Divider(d).cdr_bits().is_none() {
@@ -469,6 +469,18 @@ pub static KEYS: &[Key] = &[
 
 /// The bit rate the library's checks assume when none is set (buslab's bus by default).
 pub const DEFAULT_BUS_BITRATE: u32 = 500_000;
+
+/// The part of the controller settings a `[controller]` key belongs to.
+pub fn controller_part(name: &str) -> Option<buslab_canbus::ControllerPart> {
+    use buslab_canbus::ControllerPart as P;
+    Some(match name.strip_prefix("controller.")? {
+        "mode" => P::Mode,
+        "crystal_hz" | "bitrate" | "sample_point" | "btr0" | "btr1" => P::Timing,
+        "filter" | "acceptance_code" | "acceptance_mask" => P::Filter,
+        "output_control" => P::OutputControl,
+        _ => P::ClockOut,
+    })
+}
 
 /// The sections (tables) of the file.
 pub const SECTIONS: [&str; 3] = ["mail", "manager", "controller"];

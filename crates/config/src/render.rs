@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use buslab_canbus::{CanMode, Sja1000Config};
 
-use super::keys::{KEYS, Settings, Sources};
+use super::keys::{KEYS, Settings, Sources, controller_part};
 use super::{ENV_MAIL_PASSWORD, Loaded, Source};
 
 /// Where the `# source` comments start.
@@ -25,7 +25,8 @@ pub fn render_show(loaded: &Loaded) -> String {
         "# Each key with the commands that use it; the controller's keys apply to the node a\n\
          # command opens a bus with, each on the transports that have the setting.\n",
     );
-    body(&mut out, &loaded.settings, Some(&loaded.sources));
+    let applied = loaded.config.controller_settings.parts();
+    body(&mut out, &loaded.settings, Some(&loaded.sources), &applied);
     let password = match &loaded.config.mail.password {
         Some(_) => format!("from ${ENV_MAIL_PASSWORD} (not shown)"),
         None => format!("not set: asked for when needed, or set ${ENV_MAIL_PASSWORD}"),
@@ -39,6 +40,11 @@ pub fn render_show(loaded: &Loaded) -> String {
     .lines()
     {
         let _ = writeln!(out, "# {line}");
+    }
+    if loaded.config.controller.filter != buslab_canbus::AcceptanceFilter::AcceptAll {
+        for line in crate::filter::explain(&loaded.config.controller.filter).lines() {
+            let _ = writeln!(out, "# {line}");
+        }
     }
     let applied = &loaded.config.controller_settings;
     let _ = writeln!(
@@ -78,12 +84,23 @@ pub fn render_file(settings: &Settings) -> String {
     out
 }
 
-fn body(out: &mut String, settings: &Settings, sources: Option<&Sources>) {
+fn body(
+    out: &mut String,
+    settings: &Settings,
+    sources: Option<&Sources>,
+    applied: &[buslab_canbus::ControllerPart],
+) {
     let mut section = None;
     for (i, key) in KEYS.iter().enumerate() {
         if key.section() != section {
             section = key.section();
             let _ = write!(out, "\n[{}]\n", section.unwrap_or_default());
+            if section == Some("controller") {
+                out.push_str(
+                    "# Applied to the node of every command that opens a bus (dump, send, gen,\n\
+                     # monitor, web, regs, status, ...), each key where the transport has it.\n",
+                );
+            }
         }
         let source = sources.map_or(&Source::Default, |s| s.get(i));
         let _ = writeln!(out, "# {}: {}", key.leaf(), key.used_by);
@@ -93,7 +110,9 @@ fn body(out: &mut String, settings: &Settings, sources: Option<&Sources>) {
             }
             // Not given: not applied, the bus's or the adapter's stays (as a comment, the text
             // read back applies the same).
-            Some(value) if key.section() == Some("controller") && *source == Source::Default => {
+            Some(value)
+                if controller_part(key.name).is_some_and(|part| !applied.contains(&part)) =>
+            {
                 format!("# {} = {value} (not set: not applied)", key.leaf())
             }
             Some(value) => format!("{} = {value}", key.leaf()),

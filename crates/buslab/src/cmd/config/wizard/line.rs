@@ -51,8 +51,8 @@ impl LineEditor {
         self.cursor
     }
 
-    /// The bytes of one read from the terminal; stops at the first Enter or cancel (what
-    /// follows it in the same read is dropped: the question is over).
+    /// Bytes from the terminal (one key's, as [`ask`] reads them); stops at the first Enter
+    /// or cancel, the bytes after it not looked at.
     pub fn feed(&mut self, bytes: &[u8]) -> Outcome {
         let mut i = 0;
         while i < bytes.len() {
@@ -215,23 +215,22 @@ pub fn ask(
     let mut out = std::io::stdout();
     let mut stdin = std::io::stdin();
     let mut editor = LineEditor::default();
+    let mut screen = Screen::default();
     let mut note = format!("[{help}]");
     let prefix = if default.is_empty() {
         format!("? {question} ")
     } else {
         format!("? {question} ({default}) ")
     };
-    let mut buf = [0u8; 256];
     loop {
-        draw(&mut out, &prefix, &editor, &note)?;
-        let n = stdin.read(&mut buf)?;
-        if n == 0 {
+        screen.draw(&mut out, &prefix, &editor, &note)?;
+        let Some(key) = read_key(&mut stdin)? else {
             return Err(AskError::Cancelled);
-        }
-        match editor.feed(&buf[..n]) {
+        };
+        match editor.feed(&key) {
             Outcome::Editing => {}
             Outcome::Cancel => {
-                finish(&mut out, &format!("> {question} (cancelled)"))?;
+                screen.finish(&mut out, &format!("> {question} (cancelled)"))?;
                 return Err(AskError::Cancelled);
             }
             Outcome::Submit => {
@@ -243,7 +242,7 @@ pub fn ask(
                 };
                 match check(&answer) {
                     Ok(()) => {
-                        finish(&mut out, &format!("> {question} {answer}"))?;
+                        screen.finish(&mut out, &format!("> {question} {answer}"))?;
                         return Ok(answer);
                     }
                     Err(why) => {
@@ -256,39 +255,98 @@ pub fn ask(
     }
 }
 
-/// The question's line and the note below it, the cursor where the editor has it.
-fn draw(
-    out: &mut impl Write,
-    prefix: &str,
-    editor: &LineEditor,
-    note: &str,
-) -> std::io::Result<()> {
-    use crossterm::{cursor, queue, terminal};
-    let column = prefix.chars().count() + editor.cursor();
-    queue!(
-        out,
-        cursor::MoveToColumn(0),
-        terminal::Clear(terminal::ClearType::FromCursorDown)
-    )?;
-    write!(out, "{prefix}{}\r\n{note}", editor.text())?;
-    queue!(
-        out,
-        cursor::MoveUp(1),
-        cursor::MoveToColumn(column.min(u16::MAX as usize) as u16)
-    )?;
-    out.flush()
+/// How long the rest of an escape sequence may take to follow its Escape (a terminal sends
+/// them at once; a lone Escape is the key).
+const ESCAPE_WAIT_MS: u16 = 50;
+
+/// One key's bytes, read a byte at a time: nothing typed after it is taken from the terminal
+/// (the next question, an `inquire` one, reads it). `None` at the end of the input.
+fn read_key(stdin: &mut std::io::Stdin) -> std::io::Result<Option<Vec<u8>>> {
+    use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+    use std::os::fd::AsFd;
+    let mut byte = [0u8; 1];
+    if stdin.read(&mut byte)? == 0 {
+        return Ok(None);
+    }
+    let mut key = vec![byte[0]];
+    if byte[0] != 0x1B {
+        return Ok(Some(key));
+    }
+    let complete = |k: &[u8]| match k {
+        [_, b'[' | b'O'] => false,
+        [_, _] => true,
+        [_, _, .., last] => (0x40..=0x7E).contains(last),
+        _ => false,
+    };
+    while key.len() < 16 && !complete(&key) {
+        let mut fds = [PollFd::new(stdin.as_fd(), PollFlags::POLLIN)];
+        if poll(&mut fds, PollTimeout::from(ESCAPE_WAIT_MS)).map_err(std::io::Error::from)? == 0 {
+            break;
+        }
+        if stdin.read(&mut byte)? == 0 {
+            break;
+        }
+        key.push(byte[0]);
+    }
+    Ok(Some(key))
 }
 
-/// Replaces the question and its note by `line`.
-fn finish(out: &mut impl Write, line: &str) -> std::io::Result<()> {
-    use crossterm::{cursor, queue, terminal};
-    queue!(
-        out,
-        cursor::MoveToColumn(0),
-        terminal::Clear(terminal::ClearType::FromCursorDown)
-    )?;
-    write!(out, "{line}\r\n")?;
-    out.flush()
+/// Where the question is drawn: the cursor is `up` rows below the question's first row (a
+/// long line or note wraps over several rows of the terminal).
+#[derive(Default)]
+struct Screen {
+    up: u16,
+}
+
+impl Screen {
+    /// The question's line and the note below it, the cursor where the editor has it.
+    fn draw(
+        &mut self,
+        out: &mut impl Write,
+        prefix: &str,
+        editor: &LineEditor,
+        note: &str,
+    ) -> std::io::Result<()> {
+        use crossterm::{cursor, queue};
+        let width = crossterm::terminal::size().map_or(80, |(w, _)| w).max(1) as usize;
+        let rows = |chars: usize| chars.max(1).div_ceil(width);
+        self.top(out)?;
+        let line = format!("{prefix}{}", editor.text());
+        write!(out, "{line}\r\n{note}")?;
+        let last = rows(line.chars().count()) + rows(note.chars().count()) - 1;
+        let at = prefix.chars().count() + editor.cursor();
+        let row = (at / width).min(last);
+        if last > row {
+            queue!(
+                out,
+                cursor::MoveUp((last - row).min(u16::MAX as usize) as u16)
+            )?;
+        }
+        queue!(out, cursor::MoveToColumn((at % width) as u16))?;
+        self.up = row.min(u16::MAX as usize) as u16;
+        out.flush()
+    }
+
+    /// Replaces the question and its note by `line`.
+    fn finish(&mut self, out: &mut impl Write, line: &str) -> std::io::Result<()> {
+        self.top(out)?;
+        write!(out, "{line}\r\n")?;
+        self.up = 0;
+        out.flush()
+    }
+
+    /// To the question's first row, everything from there down cleared.
+    fn top(&self, out: &mut impl Write) -> std::io::Result<()> {
+        use crossterm::{cursor, queue, terminal};
+        if self.up > 0 {
+            queue!(out, cursor::MoveUp(self.up))?;
+        }
+        queue!(
+            out,
+            cursor::MoveToColumn(0),
+            terminal::Clear(terminal::ClearType::FromCursorDown)
+        )
+    }
 }
 
 #[cfg(test)]
