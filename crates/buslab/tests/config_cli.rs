@@ -539,6 +539,23 @@ fn the_controller_settings_are_in_the_client_s_registers() {
     let basic = regs(&["controller.mode=BasicCAN", "controller.clock_divider=4"]);
     assert!(basic.contains("BasicCAN registers"), "{basic}");
     assert_eq!(register(&basic, "CDR"), "01", "{basic}");
+    // A bit rate that is not the bus's is applied, and said: the node cannot communicate.
+    let out = run(
+        dir.path(),
+        &[
+            "--set",
+            "controller.bitrate=500k",
+            "regs",
+            "--bus",
+            &serve.url,
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("this node's bit rate from the configuration (500000 bit/s, BTR0=0x00 BTR1=0x1C) is not the bus's (125000 bit/s): it cannot communicate"),
+        "{}",
+        stderr(&out)
+    );
     // A combination the chip refuses stops the command with the reason.
     let out = run(
         dir.path(),

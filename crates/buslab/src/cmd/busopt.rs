@@ -41,7 +41,21 @@ pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
         controller: crate::config::get().controller_settings,
         ..OpenOptions::default()
     };
-    let opened = buslab_backends::open_configured(url, &options)?;
+    let mut opened = buslab_backends::open_configured(url, &options)?;
+    if options.controller.timing.is_some()
+        && let Some(admin) = opened.bus.admin()
+        && let Ok(status) = admin.node_status(None)
+        && let Some(timing) = status.timing.filter(|t| !t.matches_bus)
+    {
+        // Applied, and the node cannot follow the bus: said at once, every time.
+        tracing::warn!(
+            "{url}: this node's bit rate from the configuration ({} bit/s, BTR0=0x{:02X} BTR1=0x{:02X}) is not the bus's ({} bit/s): it cannot communicate (docs/bus.md)",
+            timing.bitrate,
+            timing.btr0,
+            timing.btr1,
+            status.bus.bitrate
+        );
+    }
     static TOLD: std::sync::Once = std::sync::Once::new();
     TOLD.call_once(|| {
         for (part, why) in opened.controller.not_applied() {
