@@ -56,8 +56,20 @@ pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
             status.bus.bitrate
         );
     }
-    static TOLD: std::sync::Once = std::sync::Once::new();
-    TOLD.call_once(|| {
+    // Once per bus in a run: `dump` reopens its bus after a drop, `bridge` opens two.
+    static TOLD: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+    let first = {
+        let mut told = TOLD
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let name = url.to_string();
+        let first = !told.contains(&name);
+        if first {
+            told.push(name);
+        }
+        first
+    };
+    if first {
         for (part, why) in opened.controller.not_applied() {
             tracing::warn!(
                 "{url}: {} from the configuration not applied: {why}",
@@ -67,7 +79,7 @@ pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
         if !opened.controller.is_empty() {
             tracing::info!("{url}: controller settings:\n{}", opened.controller);
         }
-    });
+    }
     Ok(opened.bus)
 }
 
