@@ -176,8 +176,8 @@ fn ask_wanted_ids(p: &mut dyn Prompter, s: &mut Settings) -> anyhow::Result<()> 
         _ => (u32::from_be_bytes(code), Some(u32::from_be_bytes(mask))),
     };
     let (acr, amr) = (
-        KEYS[key_index("controller.acceptance_code")].show(s),
-        KEYS[key_index("controller.acceptance_mask")].show(s),
+        key_of("controller.acceptance_code").show(s),
+        key_of("controller.acceptance_mask").show(s),
     );
     p.say(&format!(
         "ACR={} AMR={}: {}",
@@ -210,12 +210,6 @@ fn ask_registers(p: &mut dyn Prompter, s: &mut Settings, max: u32) -> anyhow::Re
         ask_key_with(p, s, key, &question, Some(u64::from(max)))?;
     }
     Ok(())
-}
-
-fn key_index(name: &str) -> usize {
-    KEYS.iter()
-        .position(|k| k.name == name)
-        .expect("a known key")
 }
 
 /// The ways to give the bit timing.
