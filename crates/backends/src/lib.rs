@@ -25,6 +25,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod controller;
 pub mod pump;
 pub mod registry;
 #[cfg(target_os = "linux")]
@@ -32,9 +33,11 @@ pub mod socketcan;
 pub mod spec;
 pub mod url;
 
+pub use controller::{Accepting, ControllerReport, Outcome};
 pub use pump::{BusJob, JOB_LATENCY, Pump, PumpEvent, PumpSender, PumpStopped, TrySendError};
 pub use registry::{
-    BACKENDS, Backend, DynBus, OpenError, OpenFn, OpenOptions, backend, open, open_url,
+    BACKENDS, Backend, DynBus, OpenError, OpenFn, OpenOptions, Opened, backend, open,
+    open_configured, open_url,
 };
 pub use spec::{BusSpec, FilterItem, FilterSet, IdFilter, SpecError, filter_set};
 pub use url::{

@@ -3,18 +3,23 @@
 use std::io;
 use std::time::Duration;
 
-use buslab_canbus::CanBus;
+use buslab_canbus::{AcceptanceFilter, CanBus, ControllerMode, ControllerPart, ControllerSettings};
+use buslab_slcan::AcceptanceAnswer;
 use buslab_socketcand::{ClientError, ClientOptions, SocketcandBus};
 
+use crate::controller::{Accepting, ControllerReport, Outcome};
 use crate::url::{self, BusUrl, UrlError, UrlProblem};
 
-/// Deadlines for opening a bus.
+/// Deadlines for opening a bus, and what to ask of this client's controller.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OpenOptions {
     /// How long to wait for a connection.
     pub connect_timeout: Duration,
     /// How long to wait for each answer of the server or device.
     pub reply_timeout: Duration,
+    /// The controller configuration to apply where the bus has the setting (see
+    /// [`crate::controller`]); empty by default: the bus or adapter as it is.
+    pub controller: ControllerSettings,
 }
 
 impl Default for OpenOptions {
@@ -23,6 +28,7 @@ impl Default for OpenOptions {
         Self {
             connect_timeout: c.connect_timeout,
             reply_timeout: c.reply_timeout,
+            controller: ControllerSettings::default(),
         }
     }
 }
@@ -30,8 +36,14 @@ impl Default for OpenOptions {
 /// An open bus, of whichever backend.
 pub type DynBus = Box<dyn CanBus + Send>;
 
+/// An open bus and what became of the controller settings asked for.
+pub struct Opened {
+    pub bus: DynBus,
+    pub controller: ControllerReport,
+}
+
 /// A backend's way to open a bus.
-pub type OpenFn = fn(&BusUrl, &OpenOptions) -> Result<DynBus, OpenError>;
+pub type OpenFn = fn(&BusUrl, &OpenOptions) -> Result<Opened, OpenError>;
 
 /// Why a bus could not be opened.
 #[derive(Debug, thiserror::Error)]
@@ -58,6 +70,14 @@ pub enum OpenError {
     Slcan {
         url: String,
         source: buslab_slcan::SlcanError,
+    },
+    /// The controller settings cannot be used on this bus (a timing no command of the
+    /// adapter reaches, a combination the chip refuses).
+    #[error("{url}: cannot set this client's controller ({settings}): {reason}")]
+    Controller {
+        url: String,
+        settings: ControllerSettings,
+        reason: String,
     },
 }
 
@@ -159,8 +179,19 @@ pub fn open(url: &str) -> Result<DynBus, OpenError> {
     open_url(&url.parse()?, &OpenOptions::default())
 }
 
-/// Opens a parsed URL with its backend from the registry.
+/// Opens a parsed URL with its backend from the registry; a part of the controller settings
+/// the bus cannot apply is logged as a warning.
 pub fn open_url(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> {
+    let opened = open_configured(url, options)?;
+    for (part, why) in opened.controller.not_applied() {
+        tracing::warn!("{url}: {} not applied: {why}", part.describe());
+    }
+    Ok(opened.bus)
+}
+
+/// Opens a parsed URL with its backend from the registry, and says what became of each part
+/// of the controller settings asked for.
+pub fn open_configured(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> {
     let scheme = url.scheme();
     match backend(scheme).and_then(|b| b.open) {
         Some(open) => open(url, options),
@@ -168,6 +199,33 @@ pub fn open_url(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError
             url: url.to_string(),
             scheme,
         }),
+    }
+}
+
+/// The bus as it is, nothing asked of its controller.
+fn plain(bus: DynBus) -> Opened {
+    Opened {
+        bus,
+        controller: ControllerReport::default(),
+    }
+}
+
+/// A bus with no controller of the client's own: the filter is checked by buslab
+/// ([`accepting`]), the other parts are not applied, for `why`.
+fn without_controller(settings: &ControllerSettings, why: &str) -> ControllerReport {
+    ControllerReport::each(settings, |part| match part {
+        ControllerPart::Filter => Outcome::Applied(format!(
+            "each frame checked by buslab as the configured SJA1000 would ({why})"
+        )),
+        _ => Outcome::NotApplied(why.to_string()),
+    })
+}
+
+/// `bus` checking received frames against `filter` when one is asked.
+fn accepting(bus: DynBus, filter: Option<AcceptanceFilter>) -> DynBus {
+    match filter {
+        Some(f) if f != AcceptanceFilter::AcceptAll => Box::new(Accepting::new(bus, f)),
+        _ => bus,
     }
 }
 
@@ -186,21 +244,52 @@ fn wrong_kind(url: &BusUrl, expected: &'static str) -> OpenError {
 }
 
 #[cfg(target_os = "linux")]
-fn open_socketcan(url: &BusUrl, _options: &OpenOptions) -> Result<DynBus, OpenError> {
+fn open_socketcan(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> {
     let BusUrl::SocketCan { interface } = url else {
         return Err(wrong_kind(url, "socketcan:IFACE"));
     };
-    let bus =
-        crate::socketcan::SocketCanBus::open(interface).map_err(|source| OpenError::SocketCan {
-            url: url.to_string(),
-            interface: interface.clone(),
-            source,
-        })?;
+    let socketcan_error = |source| OpenError::SocketCan {
+        url: url.to_string(),
+        interface: interface.clone(),
+        source,
+    };
+    let mut bus = crate::socketcan::SocketCanBus::open(interface).map_err(socketcan_error)?;
     tracing::info!("opened {url}");
-    Ok(Box::new(bus))
+    let settings = options.controller;
+    if let Some(filter) = settings.filter {
+        // The ID part in the kernel (fewer wake-ups); the rest is checked by `Accepting`.
+        buslab_canbus::CanBus::set_filters(&mut bus, &filter.id_cover())
+            .map_err(|e| socketcan_error(std::io::Error::other(e.to_string())))?;
+    }
+    let netlink = |what: String| {
+        Outcome::NotApplied(format!(
+            "a SocketCAN interface's {what} is set through netlink, which buslab does not use:              `ip link set {interface} down && ip link set {interface} type can {} && ip link set {interface} up` (as root)",
+            match what.as_str() {
+                "bit rate" => format!("bitrate {}", settings.timing.map_or(0, |t| t.bitrate())),
+                _ => "listen-only on".to_string(),
+            }
+        ))
+    };
+    let controller = ControllerReport::each(&settings, |part| match part {
+        ControllerPart::Filter => Outcome::Applied(
+            "kernel filters on the ID, then each frame checked by buslab as the SJA1000 would"
+                .into(),
+        ),
+        ControllerPart::Timing => netlink("bit rate".into()),
+        ControllerPart::Mode if settings.mode == Some(ControllerMode::ListenOnly) => {
+            netlink("listen-only mode".into())
+        }
+        _ => Outcome::NotApplied(
+            "a SocketCAN interface has no such setting (its driver programs the chip)".into(),
+        ),
+    });
+    Ok(Opened {
+        bus: accepting(Box::new(bus), settings.filter),
+        controller,
+    })
 }
 
-fn open_slcan(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> {
+fn open_slcan(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> {
     let BusUrl::Slcan {
         device,
         baud,
@@ -213,21 +302,80 @@ fn open_slcan(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> 
             "slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]",
         ));
     };
+    let settings = options.controller;
+    let asked_rate = settings.timing.map(|t| t.bitrate());
+    // The URL is the more specific: its bit rate and listen-only win over the configuration's.
+    let listen = settings.mode == Some(ControllerMode::ListenOnly);
     let slcan = buslab_slcan::SlcanOptions {
         baud: baud.unwrap_or(buslab_slcan::SlcanOptions::default().baud),
-        bitrate: *bitrate,
-        listen_only: *listen_only,
+        bitrate: bitrate.or(asked_rate),
+        listen_only: *listen_only || listen,
         reply_timeout: options.reply_timeout,
     };
-    let bus = buslab_slcan::SlcanBus::open(device, &slcan).map_err(|source| OpenError::Slcan {
-        url: url.to_string(),
-        source,
-    })?;
-    Ok(Box::new(bus))
+    let acceptance = settings
+        .filter
+        .filter(|f| *f != AcceptanceFilter::AcceptAll)
+        .map(|f| {
+            let (code, mask) = f.registers();
+            (u32::from_be_bytes(code), u32::from_be_bytes(mask))
+        });
+    let bus = buslab_slcan::SlcanBus::open_with_acceptance(device, &slcan, acceptance).map_err(
+        |source| match source {
+            buslab_slcan::SlcanError::Bitrate { .. } if bitrate.is_none() => {
+                OpenError::Controller {
+                    url: url.to_string(),
+                    settings,
+                    reason: source.to_string(),
+                }
+            }
+            source => OpenError::Slcan {
+                url: url.to_string(),
+                source,
+            },
+        },
+    )?;
+    let answer = bus.acceptance_answer();
+    let controller = ControllerReport::each(&settings, |part| {
+        match part {
+        ControllerPart::Timing => match (bitrate, asked_rate) {
+            (Some(url_rate), Some(rate)) if *url_rate != rate => Outcome::NotApplied(format!(
+                "the URL's bitrate={url_rate} wins over the configuration's {rate} bit/s"
+            )),
+            _ => Outcome::Applied(format!(
+                "the adapter's bit rate set to {} bit/s (S/s)",
+                slcan.bitrate.unwrap_or(0)
+            )),
+        },
+        ControllerPart::Mode if listen => Outcome::Applied("the channel opened with L".into()),
+        ControllerPart::Filter => Outcome::Applied(match answer {
+            _ if acceptance.is_none() => "nothing to set (accept all)".into(),
+            AcceptanceAnswer::Taken => {
+                "acceptance code and mask sent to the adapter (M/m), and each frame checked by buslab as the configured SJA1000 would".into()
+            }
+            AcceptanceAnswer::Unconfirmed => {
+                "acceptance code and mask sent (M/m, unconfirmed: the adapter answers no command), and each frame checked by buslab".into()
+            }
+            AcceptanceAnswer::Refused => {
+                "the adapter refused M/m; each frame is checked by buslab as the configured SJA1000 would".into()
+            }
+            AcceptanceAnswer::NotSent => {
+                "this adapter has no acceptance filter command (CANable's M is its silent mode); each frame is checked by buslab as the configured SJA1000 would".into()
+            }
+        }),
+        _ => Outcome::NotApplied(
+            "an SLCAN adapter has no command for it (only S/s, L and M/m)".into(),
+        ),
+    }
+    });
+    Ok(Opened {
+        bus: accepting(Box::new(bus), settings.filter),
+        controller,
+    })
 }
 
-/// Connects, and turns buslab's extensions on when the server has them.
-fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenError> {
+/// Connects, turns buslab's extensions on when the server has them, and programs this
+/// client's own SJA1000 with the controller settings.
+fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> {
     let BusUrl::Socketcand {
         host,
         port,
@@ -255,5 +403,42 @@ fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<DynBus, OpenEr
             " (a plain socketcand: no node status, registers or send confirmation)"
         }
     );
-    Ok(Box::new(bus))
+    let settings = options.controller;
+    if settings.is_empty() {
+        return Ok(plain(Box::new(bus)));
+    }
+    if !extensions {
+        let controller = without_controller(
+            &settings,
+            "a plain socketcand server: its interface is set up on the server (ip link)",
+        );
+        return Ok(Opened {
+            bus: accepting(Box::new(bus), settings.filter),
+            controller,
+        });
+    }
+    match bus.configure(&settings) {
+        Ok(()) => Ok(Opened {
+            bus: Box::new(bus),
+            controller: ControllerReport::each(&settings, |_| {
+                Outcome::Applied("this client's own SJA1000 on the virtual bus".into())
+            }),
+        }),
+        Err(ClientError::Server(text)) if text.contains("unknown command") => {
+            let controller = without_controller(
+                &settings,
+                "this buslab server is older and has no buslab_controller",
+            );
+            Ok(Opened {
+                bus: accepting(Box::new(bus), settings.filter),
+                controller,
+            })
+        }
+        Err(ClientError::Server(reason)) => Err(OpenError::Controller {
+            url: url.to_string(),
+            settings,
+            reason,
+        }),
+        Err(e) => Err(connect(e)),
+    }
 }

@@ -26,7 +26,9 @@ pub struct ConfigArgs {
     #[arg(long, conflicts_with = "config")]
     pub no_config: bool,
     /// Set a configuration key for this run, over the file and the environment
-    /// (e.g. --set controller.bitrate=125000); repeatable; before the subcommand.
+    /// (e.g. --set controller.bitrate=125k: the bit rate of the node this command opens the
+    /// bus with; `buslab config show` says which command uses each key); repeatable; before
+    /// the subcommand.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
 }

@@ -314,6 +314,16 @@ pub trait BusAdmin {
             backend: "this bus".into(),
         })
     }
+    /// Reprograms this client's own controller with the parts of `settings` that are given
+    /// (mode, bit timing, acceptance filter, output control, clock output), the others kept.
+    /// Only a bus whose clients have a controller of their own has one to program.
+    fn configure(&mut self, settings: &crate::ControllerSettings) -> Result<(), BusError> {
+        let _ = settings;
+        Err(BusError::Unsupported {
+            what: "controller settings",
+            backend: "this bus".into(),
+        })
+    }
 }
 
 #[cfg(test)]

@@ -63,8 +63,8 @@ pub use admin::{
 };
 pub use bus::{BusError, BusEvent, BusState, CanBus, ErrorMessage, Filter, Message};
 pub use config::{
-    AcceptanceFilter, BusOffRecovery, ClockOut, ConfigError, InterruptEnables, Sja1000Config,
-    Timing,
+    AcceptanceFilter, BusOffRecovery, ClockOut, ConfigError, ControllerMode, ControllerPart,
+    ControllerSettings, InterruptEnables, Sja1000Config, Timing, TimingSetting,
 };
 pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 pub use driver::{ControllerState, DriverError, DriverEvent, Sja1000Driver, TxFailure, TxMode};

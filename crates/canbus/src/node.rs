@@ -17,8 +17,8 @@ use buslab_can::{Frame, Level};
 use buslab_sja1000::Sja1000;
 
 use crate::{
-    BusOffRecovery, ControllerState, DriverEvent, ErrorFrame, NodeCounters, Sja1000Config,
-    Sja1000Driver, Timing, TxFailure,
+    BusOffRecovery, ControllerSettings, ControllerState, DriverEvent, ErrorFrame, NodeCounters,
+    Sja1000Config, Sja1000Driver, Timing, TxFailure,
 };
 
 /// Crystal of every client's SJA1000 (the seed's boards: 16 MHz, CAN clock 8 MHz).
@@ -198,7 +198,12 @@ impl Sja1000Node {
 
     /// The node's bit rate from its BTR0/BTR1 and crystal.
     pub fn bitrate(&self) -> u32 {
-        self.chip().bit_timing().bitrate(CRYSTAL_HZ / 2)
+        self.chip().bit_timing().bitrate(self.config.crystal_hz / 2)
+    }
+
+    /// The configuration its driver programmed.
+    pub fn config(&self) -> &Sja1000Config {
+        &self.config
     }
 
     /// BTR0 and BTR1.
@@ -239,7 +244,24 @@ impl Sja1000Node {
     pub fn set_btr(&mut self, btr0: u8, btr1: u8) -> Result<(), String> {
         let mut config = self.config.clone();
         config.timing = Timing::Registers { btr0, btr1 };
-        self.driver.init(&config).map_err(|e| e.to_string())?;
+        self.reprogram(config)
+    }
+
+    /// Reprograms the chip through the driver with the parts `settings` gives, the others as
+    /// they are (the host's controller configuration: mode, timing, filter, OCR, CLKOUT). A
+    /// configuration the chip refuses leaves it as it was.
+    pub fn configure(&mut self, settings: &ControllerSettings) -> Result<(), String> {
+        let config = settings.apply_to(&self.config);
+        config.validate().map_err(|e| e.to_string())?;
+        self.reprogram(config)
+    }
+
+    fn reprogram(&mut self, config: Sja1000Config) -> Result<(), String> {
+        if let Err(e) = self.driver.init(&config) {
+            // Back to what worked: the node stays on the bus as it was.
+            let _ = self.driver.init(&self.config);
+            return Err(e.to_string());
+        }
         self.config = config;
         self.restart_at = None;
         let rate = self.bitrate();

@@ -5,8 +5,8 @@ use std::time::Duration;
 
 use buslab_backends::resolve;
 use buslab_canbus::{
-    AcceptanceFilter, CanMode, ClockOut, ConfigError as ChipError, ManagerConfig, Sja1000Config,
-    Timing,
+    AcceptanceFilter, CanMode, ClockOut, ConfigError as ChipError, ControllerMode,
+    ControllerSettings, ManagerConfig, Sja1000Config, Timing, TimingSetting,
 };
 
 use super::value::{self, Raw, quoted};
@@ -42,14 +42,7 @@ impl FilterKind {
 }
 
 /// The controller modes as the file names them.
-pub const MODE_NAMES: [&str; 2] = ["PeliCAN", "BasicCAN"];
-
-pub fn mode_name(mode: CanMode) -> &'static str {
-    match mode {
-        CanMode::Peli => MODE_NAMES[0],
-        CanMode::Basic => MODE_NAMES[1],
-    }
-}
+pub const MODE_NAMES: [&str; 4] = ["PeliCAN", "BasicCAN", "listen-only", "self-test"];
 
 /// Every value of the file, typed, before the checks between keys.
 #[derive(Clone, Debug, PartialEq)]
@@ -64,9 +57,10 @@ pub struct Settings {
     pub mail_user: Option<String>,
     pub mail_interval: Duration,
     pub poll_interval: Duration,
-    pub mode: CanMode,
+    pub mode: ControllerMode,
     pub crystal_hz: u32,
-    pub bitrate: u32,
+    /// `None`: the bus's (buslab's bus) or the adapter's, left as it is.
+    pub bitrate: Option<u32>,
     /// Per mille; `None`: CiA's for the bit rate.
     pub sample_point: Option<u32>,
     pub btr0: Option<u8>,
@@ -80,9 +74,9 @@ pub struct Settings {
     pub clock_divider: u8,
 }
 
-/// Defaults: buslab's bus (500 kbit/s, so the controller's bit rate is that too), the seed's
-/// loader identifier 0, MoniCAN's mail identifier 0x700, the host library's manager and
-/// SJA1000 defaults otherwise (docs/decisions.md).
+/// Defaults: buslab's bus, the bit rate left to the bus or the adapter, the seed's loader
+/// identifier 0, MoniCAN's mail identifier 0x700, the host library's manager and SJA1000
+/// defaults otherwise (docs/decisions.md).
 impl Default for Settings {
     fn default() -> Self {
         let chip = Sja1000Config::default();
@@ -96,9 +90,9 @@ impl Default for Settings {
             mail_user: None,
             mail_interval: Duration::from_secs(60),
             poll_interval: ManagerConfig::default().poll_interval,
-            mode: chip.mode,
+            mode: ControllerMode::PeliCan,
             crystal_hz: chip.crystal_hz,
-            bitrate: 500_000,
+            bitrate: None,
             sample_point: None,
             btr0: None,
             btr1: None,
@@ -125,6 +119,8 @@ pub struct Key {
     pub help: &'static str,
     /// JerryCAN's name for it in `jerrycan.properties`, if it had one.
     pub jerrycan: Option<&'static str>,
+    /// Which commands use it; for the controller's keys, which transports apply it.
+    pub used_by: &'static str,
     apply: fn(&mut Settings, &Raw, &str) -> Result<(), String>,
     show: fn(&Settings) -> Option<String>,
 }
@@ -194,6 +190,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a bus as --bus takes it: vcan0 (buslab's bus on this machine), an interface (can0), an SLCAN adapter's path (/dev/ttyACM0), socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE or slcan:DEVICE",
         help: "the bus a CAN command uses when none is given (--bus, IFACE)",
         jerrycan: None,
+        used_by: "every CAN command given no --bus or IFACE: dump, send, gen, regs, status, monitor, web, slio, monican, play, load, sendfile, recvfile, mail, bridge, slcan serve",
         apply: |s, raw, allowed| {
             let t = value::text(raw)?;
             resolve(t).map_err(|e| format!("{}; {}", e.problem, allowed))?;
@@ -207,6 +204,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a file path (relative to the current directory; ~/ is the home folder)",
         help: "the log `buslab dump -w` writes every frame to (its format from the extension, as with -l)",
         jerrycan: Some("logfile"),
+        used_by: "buslab dump -w",
         apply: |s, raw, allowed| {
             let t = plain(raw, 4096, allowed)?;
             s.log_file = Some(t);
@@ -219,6 +217,7 @@ pub static KEYS: &[Key] = &[
         allowed: ID_ALLOWED,
         help: "the identifier of the loader handshake's remote frame (buslab load)",
         jerrycan: Some("idloader"),
+        used_by: "buslab load",
         apply: |s, raw, _| {
             s.loader_id = id(raw)?;
             Ok(())
@@ -230,6 +229,7 @@ pub static KEYS: &[Key] = &[
         allowed: ID_ALLOWED,
         help: "the identifier the mail notifier announces and sends mail on (buslab mail, MoniCAN)",
         jerrycan: Some("idmail"),
+        used_by: "buslab mail, buslab monican",
         apply: |s, raw, _| {
             s.mail_id = id(raw)?;
             Ok(())
@@ -241,6 +241,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a host name or address, 1..=253 characters without spaces or /",
         help: "the IMAP server the mail notifier polls",
         jerrycan: Some("host"),
+        used_by: "buslab mail",
         apply: |s, raw, allowed| {
             let t = plain(raw, 253, allowed)?;
             if t.contains(|c: char| c.is_whitespace() || c == '/') {
@@ -256,6 +257,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a TCP port 1..=65535",
         help: "the IMAP server's port",
         jerrycan: None,
+        used_by: "buslab mail",
         apply: |s, raw, allowed| {
             s.mail_port = value::integer(raw, 1, 65535, allowed)? as u16;
             Ok(())
@@ -267,6 +269,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a user name, 1..=256 characters without control characters",
         help: "the mailbox's user name",
         jerrycan: None,
+        used_by: "buslab mail",
         apply: |s, raw, allowed| {
             s.mail_user = Some(plain(raw, 256, allowed)?);
             Ok(())
@@ -278,6 +281,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a duration with its unit from 1s to 1day, e.g. \"60s\" or \"5min\"",
         help: "how often the mailbox is checked for new mail",
         jerrycan: Some("mailsleepingtime"),
+        used_by: "buslab mail",
         apply: |s, raw, allowed| {
             let max = Duration::from_secs(86_400);
             s.mail_interval = value::duration(raw, Duration::from_secs(1), max, allowed)?;
@@ -290,6 +294,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a duration with its unit from 0s (poll without pause) to 10s, e.g. \"1ms\"",
         help: "the host library's manager: the pause between polls of the chip when no request arrives",
         jerrycan: Some("managersleepingtime"),
+        used_by: "no buslab command: the host library's Manager (Config::manager_config)",
         apply: |s, raw, allowed| {
             let max = Duration::from_secs(10);
             s.poll_interval = value::duration(raw, Duration::ZERO, max, allowed)?;
@@ -299,21 +304,23 @@ pub static KEYS: &[Key] = &[
     },
     Key {
         name: "controller.mode",
-        allowed: "must be \"PeliCAN\" or \"BasicCAN\"",
-        help: "the SJA1000's mode: PeliCAN (CAN 2.0B) or BasicCAN (PCA82C200, 11-bit IDs)",
+        allowed: "must be \"PeliCAN\", \"BasicCAN\", \"listen-only\" or \"self-test\" (the last two PeliCAN)",
+        help: "the SJA1000's mode: PeliCAN (CAN 2.0B), BasicCAN (PCA82C200, 11-bit IDs), or PeliCAN listen-only (receives, never acknowledges) or self-test (no acknowledge needed)",
         jerrycan: None,
+        used_by: "buslab's bus: the client's SJA1000; SLCAN: listen-only as L, the others not; SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             let i = value::choice(raw, &MODE_NAMES, allowed)?;
-            s.mode = [CanMode::Peli, CanMode::Basic][i];
+            s.mode = ControllerMode::ALL[i];
             Ok(())
         },
-        show: |s| Some(quoted(mode_name(s.mode))),
+        show: |s| Some(quoted(s.mode.name())),
     },
     Key {
         name: "controller.crystal_hz",
         allowed: "must be the crystal frequency in Hz, 1000000..=24000000",
         help: "the SJA1000's crystal (the CAN clock is half of it)",
         jerrycan: None,
+        used_by: "buslab's bus: the client's SJA1000 crystal; SLCAN and SocketCAN: only to compute the bit rate",
         apply: |s, raw, allowed| {
             let (min, max) = (
                 buslab_canbus::config::MIN_CRYSTAL_HZ.into(),
@@ -326,20 +333,22 @@ pub static KEYS: &[Key] = &[
     },
     Key {
         name: "controller.bitrate",
-        allowed: "must be a bit rate in bit/s, 1..=1000000",
-        help: "the bit rate; BTR0/BTR1 are chosen as Linux does (or give btr0 and btr1)",
+        allowed: "must be a bit rate 1..=1000000 bit/s: 125000, 125k, \"500 kbit/s\" or 1M",
+        help: "the bit rate; BTR0/BTR1 are chosen as Linux does (or give btr0 and btr1); unset: the bus's or the adapter's",
         jerrycan: None,
+        used_by: "buslab's bus: the client's BTR0/BTR1; SLCAN: S/s; SocketCAN: not (netlink: ip link … bitrate)",
         apply: |s, raw, allowed| {
-            s.bitrate = value::integer(raw, 1, 1_000_000, allowed)? as u32;
+            s.bitrate = Some(value::bitrate(raw, allowed)?);
             Ok(())
         },
-        show: |s| Some(s.bitrate.to_string()),
+        show: |s| s.bitrate.map(|b| b.to_string()),
     },
     Key {
         name: "controller.sample_point",
         allowed: "must be a sample point in per cent, 50..=95 (e.g. 87.5)",
         help: "the sample point with bitrate; default CiA's: 87.5 % up to 500 kbit/s, 80 % up to 800 kbit/s, 75 % above",
         jerrycan: None,
+        used_by: "buslab's bus: the client's BTR0/BTR1; SLCAN: through s; SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             let percent = value::number(raw, 50.0, 95.0, allowed)?;
             s.sample_point = Some((percent * 10.0).round() as u32);
@@ -355,6 +364,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a register value 0x00..=0xFF",
         help: "BTR0 (SJW, prescaler), with btr1 instead of bitrate",
         jerrycan: None,
+        used_by: "buslab's bus: the client's BTR0; SLCAN: s (or S for a standard rate); SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             s.btr0 = Some(byte(raw, allowed)?);
             Ok(())
@@ -366,6 +376,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be a register value 0x00..=0xFF",
         help: "BTR1 (SAM, TSEG2, TSEG1), with btr0 instead of bitrate",
         jerrycan: None,
+        used_by: "buslab's bus: the client's BTR1; SLCAN: s (or S for a standard rate); SocketCAN: not (netlink)",
         apply: |s, raw, allowed| {
             s.btr1 = Some(byte(raw, allowed)?);
             Ok(())
@@ -377,6 +388,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be \"accept-all\", \"basic\" (BasicCAN), \"single\" or \"dual\" (PeliCAN)",
         help: "the acceptance filter: every frame, BasicCAN's 8 bits on ID.10..3, or PeliCAN's single or dual filter",
         jerrycan: None,
+        used_by: "buslab's bus: the client's SJA1000; SLCAN: M/m (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
         apply: |s, raw, allowed| {
             let i = value::choice(raw, &FilterKind::NAMES, allowed)?;
             s.filter = FilterKind::ALL[i];
@@ -389,6 +401,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be 0x00..=0xFF (filter \"basic\") or 0x00000000..=0xFFFFFFFF (ACR0..ACR3, ACR0 the high byte)",
         help: "ACR: the bits a frame must have where the mask says \"care\"",
         jerrycan: None,
+        used_by: "buslab's bus: the client's ACR; SLCAN: M (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
         apply: |s, raw, allowed| {
             s.acceptance_code = value::integer(raw, 0, u32::MAX.into(), allowed)? as u32;
             Ok(())
@@ -400,6 +413,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be 0x00..=0xFF (filter \"basic\") or 0x00000000..=0xFFFFFFFF (AMR0..AMR3, AMR0 the high byte)",
         help: "AMR: bit 1 = \"don't care\"; default all 1 (every frame passes)",
         jerrycan: None,
+        used_by: "buslab's bus: the client's AMR; SLCAN: m (Lawicel) and checked by buslab; SocketCAN: kernel filters and checked by buslab",
         apply: |s, raw, allowed| {
             let mask = value::integer(raw, 0, u32::MAX.into(), allowed)? as u32;
             s.acceptance_mask = Some(mask);
@@ -412,6 +426,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be an OCR value 0x00..=0xFF whose OCMODE (bits 1..0) is not 01, the test mode",
         help: "OCR: how TX0 and TX1 drive the bus (default 0xDA: normal mode, TX0 push-pull)",
         jerrycan: None,
+        used_by: "buslab's bus only (the client's OCR); SLCAN, SocketCAN: not (no such command)",
         apply: |s, raw, allowed| {
             let ocr = byte(raw, allowed)?;
             if ocr & 0x03 == 0x01 {
@@ -427,6 +442,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be true or false",
         help: "whether the CLKOUT pin runs (CDR.3 clear)",
         jerrycan: None,
+        used_by: "buslab's bus only (the client's CDR); SLCAN, SocketCAN: not (no such command)",
         apply: |s, raw, _| {
             s.clock_out = value::boolean(raw)?;
             Ok(())
@@ -438,6 +454,7 @@ pub static KEYS: &[Key] = &[
         allowed: "must be 1, 2, 4, 6, 8, 10, 12 or 14",
         help: "CLKOUT = crystal / this divider",
         jerrycan: None,
+        used_by: "buslab's bus only (the client's CDR); SLCAN, SocketCAN: not (no such command)",
         apply: |s, raw, allowed| {
             let d = value::integer(raw, 1, 14, allowed)? as u8;
             if ClockOut::Divider(d).cdr_bits().is_none() {
@@ -449,6 +466,21 @@ pub static KEYS: &[Key] = &[
         show: |s| Some(s.clock_divider.to_string()),
     },
 ];
+
+/// The bit rate the library's checks assume when none is set (buslab's bus by default).
+pub const DEFAULT_BUS_BITRATE: u32 = 500_000;
+
+/// The part of the controller settings a `[controller]` key belongs to.
+pub fn controller_part(name: &str) -> Option<buslab_canbus::ControllerPart> {
+    use buslab_canbus::ControllerPart as P;
+    Some(match name.strip_prefix("controller.")? {
+        "mode" => P::Mode,
+        "crystal_hz" | "bitrate" | "sample_point" | "btr0" | "btr1" => P::Timing,
+        "filter" | "acceptance_code" | "acceptance_mask" => P::Filter,
+        "output_control" => P::OutputControl,
+        _ => P::ClockOut,
+    })
+}
 
 /// The sections (tables) of the file.
 pub const SECTIONS: [&str; 3] = ["mail", "manager", "controller"];
@@ -497,14 +529,16 @@ impl Settings {
         self.acceptance_mask.unwrap_or(self.filter.max_code())
     }
 
-    /// The timing: the registers if given, else the bit rate and sample point.
-    pub fn timing(&self) -> Timing {
-        match (self.btr0, self.btr1) {
-            (Some(btr0), Some(btr1)) => Timing::Registers { btr0, btr1 },
-            _ => Timing::Bitrate {
-                bitrate: self.bitrate,
+    /// The timing: the registers if given, else the bit rate and sample point; `None` when
+    /// neither is (the bus's or the adapter's bit rate).
+    pub fn timing(&self) -> Option<Timing> {
+        match (self.btr0, self.btr1, self.bitrate) {
+            (Some(btr0), Some(btr1), _) => Some(Timing::Registers { btr0, btr1 }),
+            (_, _, Some(bitrate)) => Some(Timing::Bitrate {
+                bitrate,
                 sample_point_permille: self.sample_point,
-            },
+            }),
+            _ => None,
         }
     }
 
@@ -527,13 +561,19 @@ impl Settings {
                 mask: mask.to_be_bytes(),
             },
         };
-        let base = match self.mode {
+        let base = match self.mode.can_mode() {
             CanMode::Basic => Sja1000Config::basic_can(),
             CanMode::Peli => Sja1000Config::peli_can(),
         };
         Sja1000Config {
-            mode: self.mode,
-            timing: self.timing(),
+            mode: self.mode.can_mode(),
+            listen_only: self.mode == ControllerMode::ListenOnly,
+            self_test: self.mode == ControllerMode::SelfTest,
+            // Unset: what buslab's bus runs at by default (only for the library's checks).
+            timing: self.timing().unwrap_or(Timing::Bitrate {
+                bitrate: DEFAULT_BUS_BITRATE,
+                sample_point_permille: None,
+            }),
             crystal_hz: self.crystal_hz,
             filter,
             output_control: self.output_control,
@@ -570,6 +610,7 @@ impl Settings {
             "mail.host" => self.mail_host = None,
             "mail.user" => self.mail_user = None,
             "controller.sample_point" => self.sample_point = None,
+            "controller.bitrate" => self.bitrate = None,
             _ => {}
         }
     }
@@ -579,7 +620,9 @@ impl Settings {
     pub fn relevant(&self, name: &str) -> bool {
         let registers = self.btr0.is_some() && self.btr1.is_some();
         match name {
-            "controller.bitrate" | "controller.sample_point" => !registers,
+            "controller.bitrate" => !registers,
+            "controller.sample_point" => !registers && self.bitrate.is_some(),
+            "controller.crystal_hz" => self.timing().is_some(),
             "controller.acceptance_code" | "controller.acceptance_mask" => {
                 self.filter != FilterKind::AcceptAll
             }
@@ -619,6 +662,7 @@ impl Settings {
         controller
             .validate()
             .map_err(|e| self.chip_error(sources, e))?;
+        let controller_settings = self.controller_settings(&controller, sources);
         Ok(Config {
             bus,
             bus_name: self.bus.clone(),
@@ -634,7 +678,36 @@ impl Settings {
             },
             manager_poll_interval: self.poll_interval,
             controller,
+            controller_settings,
         })
+    }
+
+    /// The parts of the controller configuration that were given (file, environment,
+    /// `--set`), to apply where a command opens a bus; the bit timing when a bit rate or the
+    /// registers are set.
+    fn controller_settings(&self, chip: &Sja1000Config, sources: &Sources) -> ControllerSettings {
+        let given = |keys: &[&str]| keys.iter().any(|k| sources.given(k));
+        let timing = self.timing().and_then(|_| chip.bit_timing().ok()).map(|t| {
+            let (btr0, btr1) = t.registers();
+            TimingSetting {
+                crystal_hz: chip.crystal_hz,
+                btr0,
+                btr1,
+            }
+        });
+        ControllerSettings {
+            mode: given(&["controller.mode"]).then_some(self.mode),
+            timing,
+            filter: given(&[
+                "controller.filter",
+                "controller.acceptance_code",
+                "controller.acceptance_mask",
+            ])
+            .then_some(chip.filter),
+            output_control: given(&["controller.output_control"]).then_some(chip.output_control),
+            clock_out: given(&["controller.clock_out", "controller.clock_divider"])
+                .then_some(chip.clock_out),
+        }
     }
 
     fn check_timing(
@@ -677,7 +750,7 @@ impl Settings {
     ) -> Result<(), ConfigError> {
         const FILTER: &str = "controller.filter";
         const MODE: &str = "controller.mode";
-        match (self.filter, self.mode) {
+        match (self.filter, self.mode.can_mode()) {
             (FilterKind::AcceptAll, _) => {
                 for key in ["controller.acceptance_code", "controller.acceptance_mask"] {
                     if sources.given(key) {

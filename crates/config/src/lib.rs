@@ -10,6 +10,7 @@
 //! whole run, the password prompt, the wizard and `config show`'s printing.
 
 pub mod duration;
+pub mod filter;
 mod keys;
 mod lookup;
 mod render;
@@ -20,9 +21,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use buslab_backends::BusUrl;
-use buslab_canbus::{ManagerConfig, Sja1000Config};
+use buslab_canbus::{ControllerSettings, ManagerConfig, Sja1000Config};
 
-pub use keys::{FilterKind, KEYS, Key, MODE_NAMES, Settings};
+pub use keys::{DEFAULT_BUS_BITRATE, FilterKind, KEYS, Key, MODE_NAMES, Settings};
 pub use lookup::{Found, Lookup, load, load_text};
 pub use render::{registers, render_file, render_show};
 pub use value::{Raw, integer_text};
@@ -56,6 +57,9 @@ pub struct Config {
     pub manager_poll_interval: Duration,
     /// The SJA1000 configuration (JerryCAN's configuration assistant), validated.
     pub controller: Sja1000Config,
+    /// The parts of it that were given, as commands apply them to their own node when they
+    /// open a bus (the others stay as the bus or the adapter has them).
+    pub controller_settings: ControllerSettings,
 }
 
 /// The mail server the notifier polls.
@@ -95,11 +99,10 @@ impl fmt::Debug for Password {
 }
 
 impl Config {
-    /// The bit rate the controller configuration gives (its timing and crystal).
-    pub fn controller_bitrate(&self) -> u32 {
-        self.controller
-            .bit_timing()
-            .map_or(0, |t| t.bitrate(self.controller.can_clock_hz()))
+    /// The bit rate the controller configuration sets, if it sets one (its timing and
+    /// crystal).
+    pub fn controller_bitrate(&self) -> Option<u32> {
+        self.controller_settings.timing.map(|t| t.bitrate())
     }
 
     /// The host library's manager as configured: `Manager::start(driver,

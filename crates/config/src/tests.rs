@@ -48,7 +48,9 @@ fn the_defaults_are_buslab_s_bus_and_the_seed_s_identifiers() {
     assert_eq!(c.mail.interval, Duration::from_secs(60));
     assert_eq!(c.manager_poll_interval, Duration::from_millis(1));
     assert_eq!(c.controller.mode, CanMode::Peli);
-    assert_eq!(c.controller_bitrate(), 500_000);
+    // No bit rate of its own: the bus's (or the adapter's) stays; nothing is applied.
+    assert_eq!(c.controller_bitrate(), None);
+    assert!(c.controller_settings.is_empty());
     assert_eq!(c.controller.filter, AcceptanceFilter::AcceptAll);
     assert_eq!(c.controller.output_control, 0xDA);
     assert_eq!(c.controller.clock_out, ClockOut::Divider(2));
@@ -114,7 +116,17 @@ clock_out = false
     assert_eq!(chip.output_control, 0x1A);
     assert_eq!(chip.clock_out, ClockOut::Off);
     // 12 MHz CAN clock / (8 × 20 quanta).
-    assert_eq!(c.controller_bitrate(), 75_000);
+    assert_eq!(c.controller_bitrate(), Some(75_000));
+    // Every part was given, so every part is applied where a command opens a bus.
+    let applied = &c.controller_settings;
+    assert_eq!(applied.mode, Some(buslab_canbus::ControllerMode::BasicCan));
+    assert_eq!(applied.filter, Some(chip.filter));
+    assert_eq!(applied.output_control, Some(0x1A));
+    assert_eq!(applied.clock_out, Some(ClockOut::Off));
+    assert_eq!(
+        applied.timing.map(|t| (t.crystal_hz, t.btr0, t.btr1)),
+        Some((24_000_000, 0x07, 0x4D))
+    );
     match loaded.source("controller.btr1") {
         Some(Source::File { line, .. }) => assert_eq!(*line, 20),
         other => panic!("{other:?}"),
@@ -147,7 +159,7 @@ fn every_bad_value_is_named_with_its_file_line_key_and_what_is_allowed() {
         ),
         (
             "[controller]\nmode = \"CAN FD\"",
-            "controller.mode = \"CAN FD\": must be \"PeliCAN\" or \"BasicCAN\"",
+            "controller.mode = \"CAN FD\": must be \"PeliCAN\", \"BasicCAN\", \"listen-only\" or \"self-test\"",
         ),
         (
             "[controller]\nclock_divider = 3",

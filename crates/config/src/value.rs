@@ -126,6 +126,44 @@ pub fn duration(
     }
 }
 
+/// A bit rate in bit/s, 1..=1000000: an integer (`125000`), or text as people write it:
+/// `125k`, `125 kbit/s`, `125kbps`, `1M`, `1 Mbit/s`, `83.3k` (rounded to the bit/s).
+pub fn bitrate(raw: &Raw, allowed: &str) -> Result<u32, String> {
+    let n = match raw {
+        Raw::Int(n) => Some(*n as f64),
+        Raw::Str(t) | Raw::Text(t) => bitrate_text(t),
+        _ => None,
+    };
+    match n {
+        Some(n) if n.is_finite() && (1.0..=1_000_000.0).contains(&n.round()) => {
+            Ok(n.round() as u32)
+        }
+        _ => Err(allowed.to_string()),
+    }
+}
+
+/// `125k`, `500 kbit/s`, `1M`, `125000`, `125000 bit/s`: the bit rate in bit/s.
+fn bitrate_text(text: &str) -> Option<f64> {
+    let t = text.trim().to_ascii_lowercase().replace('_', "");
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let number: f64 = number.parse().ok()?;
+    let unit = unit.trim();
+    let unit = ["bit/s", "bps", "b/s", "bit", ""]
+        .iter()
+        .find_map(|suffix| unit.strip_suffix(suffix))?
+        .trim();
+    let scale = match unit {
+        "" => 1.0,
+        "k" => 1e3,
+        "m" => 1e6,
+        _ => return None,
+    };
+    Some(number * scale)
+}
+
 /// A number (`87.5`, `80`, and as text or a string also `87.5%`) in `min..=max`.
 pub fn number(raw: &Raw, min: f64, max: f64, allowed: &str) -> Result<f64, String> {
     let n = match raw {
@@ -195,6 +233,42 @@ mod tests {
         assert!(bare.contains("\"60s\""), "{bare}");
         assert!(duration(&Raw::Str("11s".into()), min, max, "x").is_err());
         assert!(duration(&Raw::Text("soon".into()), min, max, "x").is_err());
+    }
+
+    #[test]
+    fn bit_rates_as_people_write_them() {
+        let allowed = "must be a bit rate";
+        for (text, rate) in [
+            ("125000", 125_000),
+            ("125k", 125_000),
+            ("125K", 125_000),
+            ("125 k", 125_000),
+            ("500 kbit/s", 500_000),
+            ("500kbps", 500_000),
+            ("1M", 1_000_000),
+            ("1 Mbit/s", 1_000_000),
+            ("83.333k", 83_333),
+            ("125000 bit/s", 125_000),
+            ("10_000", 10_000),
+        ] {
+            assert_eq!(
+                bitrate(&Raw::Text(text.into()), allowed),
+                Ok(rate),
+                "{text}"
+            );
+        }
+        assert_eq!(bitrate(&Raw::Int(125_000), allowed), Ok(125_000));
+        assert_eq!(bitrate(&Raw::Str("125k".into()), allowed), Ok(125_000));
+        for bad in [
+            "", "k", "fast", "2M", "125 kHz", "-1", "0", "1.5.0k", "125kk", "nan",
+        ] {
+            assert_eq!(
+                bitrate(&Raw::Text(bad.into()), allowed),
+                Err(allowed.into()),
+                "{bad}"
+            );
+        }
+        assert!(bitrate(&Raw::Bool(true), allowed).is_err());
     }
 
     #[test]

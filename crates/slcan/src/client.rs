@@ -26,7 +26,9 @@ use crate::codec::{
     CodecError, Command, Line, LineSplitter, MAX_REPLY_LINE, Reply, STANDARD_BITRATES, StatusFlags,
     format_command, parse_reply,
 };
-use crate::handshake::{CANABLE_BITRATES, Firmware, Handshake, HandshakeError, Plan, Status};
+use crate::handshake::{
+    AcceptanceAnswer, CANABLE_BITRATES, Firmware, Handshake, HandshakeError, Plan, Status,
+};
 
 /// The CAN clock `sxxyy` registers are computed for: an SJA1000 at 16 MHz (Lawicel CAN232,
 /// CANUSB) divides by 2; python-can requires the same for its `timing`.
@@ -142,11 +144,23 @@ pub struct SlcanBus {
     firmware: Option<Firmware>,
     serial: Option<[u8; 4]>,
     refused: u64,
+    acceptance: AcceptanceAnswer,
 }
 
 impl SlcanBus {
     /// Opens the adapter at `device` and its channel.
     pub fn open(device: &str, options: &SlcanOptions) -> Result<Self, SlcanError> {
+        Self::open_with_acceptance(device, options, None)
+    }
+
+    /// [`Self::open`], setting the acceptance code and mask (`M`/`m`: SJA1000 ACR0..3 and
+    /// AMR0..3) first on adapters that answer like Lawicel's; see
+    /// [`Self::acceptance_answer`].
+    pub fn open_with_acceptance(
+        device: &str,
+        options: &SlcanOptions,
+        acceptance: Option<(u32, u32)>,
+    ) -> Result<Self, SlcanError> {
         // A bit rate no command reaches is refused before anything is sent; 750 kbit/s only
         // CANable's S7 reaches.
         let bitrate = match options.bitrate {
@@ -185,12 +199,14 @@ impl SlcanBus {
             firmware: None,
             serial: None,
             refused: 0,
+            acceptance: AcceptanceAnswer::NotSent,
         };
         let plan = Plan {
             bitrate,
             listen_only: options.listen_only,
         };
-        let (hs, after) = bus.handshake(plan, options)?;
+        let (hs, after) = bus.handshake(plan, options, acceptance)?;
+        bus.acceptance = hs.acceptance_answer();
         bus.acknowledges = hs.acknowledges();
         bus.stray_acks = usize::from(hs.trailing_ack());
         bus.firmware = hs.firmware().cloned();
@@ -236,8 +252,12 @@ impl SlcanBus {
         &mut self,
         plan: Plan,
         options: &SlcanOptions,
+        acceptance: Option<(u32, u32)>,
     ) -> Result<(Handshake, Vec<Result<Reply, CodecError>>), SlcanError> {
         let mut hs = Handshake::new(plan);
+        if let Some((code, mask)) = acceptance {
+            hs = hs.with_acceptance(code, mask);
+        }
         let char_time = Duration::from_secs_f64(10.0 / f64::from(options.baud.max(1)));
         let settle = SETTLE.max(char_time * SETTLE_CHARS);
         let mut deadline = Instant::now() + options.reply_timeout;
@@ -301,6 +321,11 @@ impl SlcanBus {
                 return Ok((hs, replies.collect()));
             }
         }
+    }
+
+    /// What the adapter did with the acceptance code and mask asked when it was opened.
+    pub fn acceptance_answer(&self) -> AcceptanceAnswer {
+        self.acceptance
     }
 
     /// The adapter's `V` answer (`1013`, or CANable's text), if it gave one.

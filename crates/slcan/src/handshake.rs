@@ -53,6 +53,21 @@ pub struct Plan {
     pub listen_only: bool,
 }
 
+/// What the adapter did with the acceptance code and mask (`M`/`m`, Lawicel's SJA1000 ACR
+/// and AMR) asked with [`Handshake::with_acceptance`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AcceptanceAnswer {
+    /// Not sent: none asked, or the adapter is not Lawicel's kind (CANable's `M` is its
+    /// silent mode).
+    NotSent,
+    /// Both answered CR.
+    Taken,
+    /// One answered BEL: the adapter has no such filter.
+    Refused,
+    /// Sent; the adapter answers no command.
+    Unconfirmed,
+}
+
 /// Why the channel was not opened.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum HandshakeError {
@@ -95,6 +110,8 @@ enum Purpose {
     Serial,
     /// CANable's own `M0`/`M1` (normal/silent), which it has instead of `L`.
     CanableMode,
+    /// Lawicel's `m` and `M` (acceptance mask and code); a refusal does not stop the opening.
+    Acceptance,
     Bitrate,
     Open,
 }
@@ -123,6 +140,8 @@ pub struct Handshake {
     leftovers: u64,
     failed: Option<HandshakeError>,
     open: bool,
+    acceptance: Option<(u32, u32)>,
+    acceptance_answer: AcceptanceAnswer,
 }
 
 impl Handshake {
@@ -151,12 +170,26 @@ impl Handshake {
             leftovers: 0,
             failed: None,
             open: false,
+            acceptance: None,
+            acceptance_answer: AcceptanceAnswer::NotSent,
         };
         hs.start(Step {
             purpose: Purpose::Sync,
             command: Command::Close,
         });
         hs
+    }
+
+    /// Also sets the acceptance code and mask (SJA1000 ACR0..3 and AMR0..3, the first byte
+    /// the highest) before the channel opens, on adapters that answer `V` as Lawicel's do.
+    pub fn with_acceptance(mut self, code: u32, mask: u32) -> Self {
+        self.acceptance = Some((code, mask));
+        self
+    }
+
+    /// What the adapter did with the acceptance code and mask.
+    pub fn acceptance_answer(&self) -> AcceptanceAnswer {
+        self.acceptance_answer
     }
 
     /// Bytes to write to the adapter.
@@ -301,6 +334,13 @@ impl Handshake {
                 self.plan_the_rest();
             }
             Purpose::Serial | Purpose::CanableMode => {}
+            Purpose::Acceptance => {
+                self.acceptance_answer = match (self.acceptance_answer, answer) {
+                    (AcceptanceAnswer::Refused, _) | (_, Some(false)) => AcceptanceAnswer::Refused,
+                    (_, Some(true)) => AcceptanceAnswer::Taken,
+                    (_, None) => AcceptanceAnswer::Unconfirmed,
+                };
+            }
             Purpose::Bitrate | Purpose::Open => {
                 if answer == Some(false) {
                     let command = self.current.as_ref().map(|s| s.command.clone());
@@ -356,6 +396,15 @@ impl Handshake {
                 purpose: Purpose::Bitrate,
                 command,
             });
+        }
+        if let (Some((code, mask)), Some(Firmware::Lawicel(_))) = (self.acceptance, &self.firmware)
+        {
+            for command in [Command::AcceptanceMask(mask), Command::AcceptanceCode(code)] {
+                self.steps.push_back(Step {
+                    purpose: Purpose::Acceptance,
+                    command,
+                });
+            }
         }
         self.steps
             .push_back(open_step(self.plan.listen_only && !canable));

@@ -41,5 +41,5 @@ pub use codec::{
     STANDARD_BITRATES, StatusFlags, format_command, format_frame, format_reply, parse_command,
     parse_reply,
 };
-pub use handshake::{Firmware, Handshake, HandshakeError, Plan};
+pub use handshake::{AcceptanceAnswer, Firmware, Handshake, HandshakeError, Plan};
 pub use serve::{INPUT_QUEUE, Input, serve};

@@ -9,8 +9,8 @@ use buslab_can::Frame;
 use buslab_canbus::admin::FaultLimit;
 use buslab_canbus::bus::Human;
 use buslab_canbus::{
-    BusAdmin, BusError, BusEvent, BusState, CanBus, Filter, Message, NodeInfo, NodeRef,
-    NodeRegisters, NodeStatus, TxReport, WireFault,
+    BusAdmin, BusError, BusEvent, BusState, CanBus, ControllerSettings, Filter, Message, NodeInfo,
+    NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
 
 use crate::command::Command;
@@ -228,6 +228,18 @@ impl SocketcandBus {
         self.need_extensions("setting the bit timing")?;
         self.request(
             &Command::Btr { btr0, btr1 },
+            None,
+            self.options.reply_timeout,
+        )
+        .map(drop)
+    }
+
+    /// Reprograms this client's chip with the parts of a controller configuration that are
+    /// given (buslab servers: `< buslab_controller … >`).
+    pub fn configure(&mut self, settings: &ControllerSettings) -> Result<(), ClientError> {
+        self.need_extensions("controller settings")?;
+        self.request(
+            &Command::Controller(*settings),
             None,
             self.options.reply_timeout,
         )
@@ -617,6 +629,10 @@ impl BusAdmin for SocketcandBus {
 
     fn set_btr(&mut self, btr0: u8, btr1: u8) -> Result<(), BusError> {
         Ok(SocketcandBus::set_btr(self, btr0, btr1)?)
+    }
+
+    fn configure(&mut self, settings: &ControllerSettings) -> Result<(), BusError> {
+        Ok(SocketcandBus::configure(self, settings)?)
     }
 
     fn flush(&mut self, timeout: Duration) -> Result<TxReport, BusError> {

@@ -62,6 +62,10 @@ pub enum Command {
     Fault { fault: WireFault, lasting_ms: u64 },
     /// `< buslab_repair >`: ends every fault on the wire now (`< ok >`).
     Repair,
+    /// `< buslab_controller KEY=VALUE… >`: reprogram this client's chip with the parts of a
+    /// controller configuration it gives (mode, timing, filter, OCR, CLKOUT; see
+    /// [`crate::controller`]).
+    Controller(buslab_canbus::ControllerSettings),
 }
 
 /// socketcand's commands that buslab does not implement.
@@ -148,6 +152,7 @@ impl Command {
             },
             "buslab_fault" => parse_fault(args),
             "buslab_repair" => no_args(Command::Repair, "buslab_repair"),
+            crate::controller::NAME => crate::controller::parse(args).map(Command::Controller),
             n if UNSUPPORTED.contains(&n) => Ok(Command::Unsupported {
                 name: n.to_string(),
                 args: args.iter().map(|s| s.to_string()).collect(),
@@ -411,6 +416,12 @@ impl fmt::Display for Command {
                 f.write_str(" >")
             }
             Command::Repair => f.write_str("< buslab_repair >"),
+            Command::Controller(settings) => write!(
+                f,
+                "< {} {} >",
+                crate::controller::NAME,
+                crate::controller::Args(settings)
+            ),
         }
     }
 }

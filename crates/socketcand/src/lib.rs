@@ -16,6 +16,7 @@
 
 pub mod client;
 pub mod command;
+pub mod controller;
 pub mod element;
 pub mod inbound;
 pub mod message;

@@ -14,8 +14,8 @@ use buslab_can::wire::encode;
 use buslab_canbus::WireFault;
 use buslab_canbus::admin::FaultLimit;
 use buslab_canbus::{
-    BusOffRecovery, BusState, BusSummary, ErrorRegisters, NodeCounters, NodeInfo, NodeRef,
-    NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
+    BusOffRecovery, BusState, BusSummary, ControllerSettings, ErrorRegisters, NodeCounters,
+    NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
 };
 use buslab_sim::{BusStats, Fault, FaultKind, Simulation};
 use buslab_sja1000::BitTiming;
@@ -102,6 +102,14 @@ pub enum BusEvent {
     },
     /// A client ended the faults on the wire.
     Repaired { faults: usize },
+    /// A client reprogrammed its controller (buslab.toml's `[controller]`): what it set.
+    Configured {
+        number: u32,
+        name: String,
+        settings: ControllerSettings,
+        /// Whether its bit rate now lets it follow the bus.
+        matches_bus: bool,
+    },
     /// A SLIO board's calibration changed, or it changed its bus mode.
     Slio {
         number: u32,
@@ -129,6 +137,7 @@ impl BusEvent {
             }
             BusEvent::Slio { notice, .. } => matches!(notice, SlioNotice::BusModeChange(_)),
             BusEvent::Fault { .. } => true,
+            BusEvent::Configured { matches_bus, .. } => !matches_bus,
             BusEvent::Left { dropped, .. } => *dropped > 0,
             _ => false,
         }
@@ -175,6 +184,18 @@ impl fmt::Display for BusEvent {
                 }
             }
             BusEvent::Repaired { faults } => write!(f, "wire repaired: {faults} fault(s) ended"),
+            BusEvent::Configured {
+                number,
+                name,
+                settings,
+                matches_bus,
+            } => {
+                write!(f, "node {number} ({name}) set its controller: {settings}")?;
+                if !matches_bus {
+                    f.write_str(": its bit rate is not the bus's, it cannot communicate")?;
+                }
+                Ok(())
+            }
             BusEvent::Renamed { number, old, new } => {
                 write!(f, "node {number} ({old}) is now called {new}")
             }
@@ -761,6 +782,33 @@ impl VirtualBus {
             btr1,
             bitrate,
             bus_bitrate,
+        });
+        Ok(())
+    }
+
+    /// Reprograms a client's controller with the parts `settings` gives (see
+    /// [`ClientNode::configure`]): as the seed's configuration assistant set up the card
+    /// JerryCAN then used.
+    pub fn configure(
+        &mut self,
+        number: u32,
+        settings: &ControllerSettings,
+    ) -> Result<(), VbusError> {
+        let bus_bitrate = self.bitrate();
+        let i = self.index_of(&NodeRef::Number(number))?;
+        let node = self.sim.node_mut(i);
+        let name = node.name().to_string();
+        let client = node
+            .get_mut::<ClientNode>()
+            .ok_or_else(|| VbusError::NotAClient(number.to_string()))?;
+        client.configure(settings).map_err(VbusError::Driver)?;
+        let matches_bus =
+            client.mismatch().is_none() && within_tolerance(client.bitrate(), bus_bitrate);
+        self.say(BusEvent::Configured {
+            number,
+            name,
+            settings: *settings,
+            matches_bus,
         });
         Ok(())
     }

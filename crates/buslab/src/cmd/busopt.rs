@@ -32,9 +32,55 @@ pub fn one_bus(iface: Option<&BusUrl>, bus: Option<&BusUrl>) -> anyhow::Result<B
     }
 }
 
-/// Opens the bus behind `url` with the backend its scheme names.
+/// Opens the bus behind `url` with the backend its scheme names, and applies the
+/// configuration's `[controller]` (the keys given) to this client's own node where the bus
+/// has the setting: on buslab's bus, its own SJA1000 (docs/config.md). What the bus cannot
+/// apply is said once per run, as a warning naming the setting and why.
 pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
-    Ok(buslab_backends::open_url(url, &OpenOptions::default())?)
+    let options = OpenOptions {
+        controller: crate::config::get().controller_settings,
+        ..OpenOptions::default()
+    };
+    let mut opened = buslab_backends::open_configured(url, &options)?;
+    if options.controller.timing.is_some()
+        && let Some(admin) = opened.bus.admin()
+        && let Ok(status) = admin.node_status(None)
+        && let Some(timing) = status.timing.filter(|t| !t.matches_bus)
+    {
+        // Applied, and the node cannot follow the bus: said at once, every time.
+        tracing::warn!(
+            "{url}: this node's bit rate from the configuration ({} bit/s, BTR0=0x{:02X} BTR1=0x{:02X}) is not the bus's ({} bit/s): it cannot communicate (docs/bus.md)",
+            timing.bitrate,
+            timing.btr0,
+            timing.btr1,
+            status.bus.bitrate
+        );
+    }
+    // Once per bus in a run: `dump` reopens its bus after a drop, `bridge` opens two.
+    static TOLD: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+    let first = {
+        let mut told = TOLD
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let name = url.to_string();
+        let first = !told.contains(&name);
+        if first {
+            told.push(name);
+        }
+        first
+    };
+    if first {
+        for (part, why) in opened.controller.not_applied() {
+            tracing::warn!(
+                "{url}: {} from the configuration not applied: {why}",
+                part.describe()
+            );
+        }
+        if !opened.controller.is_empty() {
+            tracing::info!("{url}: controller settings:\n{}", opened.controller);
+        }
+    }
+    Ok(opened.bus)
 }
 
 /// The bus's administration side, or an error saying `what` needs a buslab bus.

@@ -5,15 +5,22 @@
 //! controller accepts it. The file is written atomically at the end.
 //!
 //! The questions go through [`Prompter`] so that the steps can be tested with scripted answers;
-//! [`Terminal`] asks them with `inquire`.
+//! [`Terminal`] asks the choices with `inquire` and the text with [`line`] (readline's editing
+//! keys).
+//!
+//! A filter is shown as the IDs it lets through, and can be derived from the IDs wanted
+//! (`buslab_config::filter`).
+
+mod line;
 
 use std::path::Path;
 use std::rc::Rc;
 
 use anyhow::{Context, bail};
-use buslab_canbus::CanMode;
+use buslab_canbus::{AcceptanceFilter, CanMode, ControllerMode};
 
 use super::WizardArgs;
+use crate::config::filter::{self as filters, Kind};
 use crate::config::{self, FilterKind, KEYS, MODE_NAMES, Raw, Settings};
 
 /// Checks one answer; the error says what is allowed.
@@ -100,28 +107,95 @@ pub fn ask_all(p: &mut dyn Prompter, mut s: Settings) -> anyhow::Result<Settings
 }
 
 fn ask_mode(p: &mut dyn Prompter, s: &mut Settings) -> anyhow::Result<()> {
-    let start = usize::from(s.mode == CanMode::Basic);
+    let start = ControllerMode::ALL
+        .iter()
+        .position(|&m| m == s.mode)
+        .unwrap_or(0);
     let i = p.select("Controller mode", &MODE_NAMES, start)?;
-    s.mode = [CanMode::Peli, CanMode::Basic][i];
+    s.mode = ControllerMode::ALL[i];
     Ok(())
 }
 
+/// The ways to give a filter.
+const FILTER_FROM: [&str; 2] = ["the IDs to let through", "ACR and AMR registers"];
+
+/// The filter's kind, then its code and mask (from the IDs wanted, or the registers), shown
+/// as the IDs it lets through; asked again until the user keeps it.
 fn ask_filter(p: &mut dyn Prompter, s: &mut Settings) -> anyhow::Result<()> {
-    let kinds: &[FilterKind] = match s.mode {
+    let kinds: &[FilterKind] = match s.mode.can_mode() {
         CanMode::Basic => &[FilterKind::AcceptAll, FilterKind::Basic],
         CanMode::Peli => &[FilterKind::AcceptAll, FilterKind::Single, FilterKind::Dual],
     };
     let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
-    let start = kinds.iter().position(|&k| k == s.filter).unwrap_or(0);
-    s.filter = kinds[p.select("Acceptance filter", &names, start)?];
-    if s.filter == FilterKind::AcceptAll {
-        s.acceptance_code = 0;
-        s.acceptance_mask = None;
-        return Ok(());
+    loop {
+        let start = kinds.iter().position(|&k| k == s.filter).unwrap_or(0);
+        s.filter = kinds[p.select("Acceptance filter", &names, start)?];
+        if s.filter == FilterKind::AcceptAll {
+            s.acceptance_code = 0;
+            s.acceptance_mask = None;
+            return Ok(());
+        }
+        let max = s.filter.max_code();
+        s.acceptance_code &= max;
+        s.acceptance_mask = Some(s.mask() & max);
+        if p.select("Acceptance filter from", &FILTER_FROM, 0)? == 0 {
+            ask_wanted_ids(p, s)?;
+        } else {
+            ask_registers(p, s, max)?;
+        }
+        p.say(&filters::explain(&s.controller().filter));
+        if p.confirm("Keep this filter?", true)? {
+            return Ok(());
+        }
     }
-    let max = s.filter.max_code();
-    s.acceptance_code &= max;
-    s.acceptance_mask = Some(s.mask() & max);
+}
+
+/// The IDs wanted; the code and mask that let them through, and what else passes.
+fn ask_wanted_ids(p: &mut dyn Prompter, s: &mut Settings) -> anyhow::Result<()> {
+    let kind = match s.filter {
+        FilterKind::Basic => Kind::Basic,
+        FilterKind::Dual => Kind::Dual,
+        _ => Kind::Single,
+    };
+    let check: Check =
+        Rc::new(move |answer| filters::derive(kind, &filters::parse_wanted(answer)?).map(drop));
+    let answer = p.text(
+        "IDs to let through",
+        "",
+        "hex as candump writes them: 123, 100-1FF, 18FEF100 (8 digits: extended)",
+        check,
+    )?;
+    let derived = filters::derive(
+        kind,
+        &filters::parse_wanted(&answer).map_err(anyhow::Error::msg)?,
+    )
+    .map_err(anyhow::Error::msg)?;
+    let (code, mask) = derived.filter.registers();
+    (s.acceptance_code, s.acceptance_mask) = match derived.filter {
+        AcceptanceFilter::Basic { code, mask } => (code.into(), Some(mask.into())),
+        _ => (u32::from_be_bytes(code), Some(u32::from_be_bytes(mask))),
+    };
+    let (acr, amr) = (
+        key_of("controller.acceptance_code").show(s),
+        key_of("controller.acceptance_mask").show(s),
+    );
+    p.say(&format!(
+        "ACR={} AMR={}: {}",
+        acr.unwrap_or_default(),
+        amr.unwrap_or_default(),
+        match derived.extra {
+            0 => format!("exactly the {} IDs asked for", derived.wanted),
+            n => format!(
+                "the {} IDs asked for and {n} others the filter cannot tell apart",
+                derived.wanted
+            ),
+        }
+    ));
+    Ok(())
+}
+
+/// ACR and AMR as numbers.
+fn ask_registers(p: &mut dyn Prompter, s: &mut Settings, max: u32) -> anyhow::Result<()> {
     let width = if max == 0xFF { "8" } else { "32" };
     for (key, question) in [
         (
@@ -138,15 +212,35 @@ fn ask_filter(p: &mut dyn Prompter, s: &mut Settings) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The ways to give the bit timing.
+const TIMING_FROM: [&str; 3] = [
+    "the bus's (buslab's bus) or the adapter's: leave it",
+    "bit rate and sample point",
+    "BTR0 and BTR1 registers",
+];
+
 fn ask_timing(p: &mut dyn Prompter, s: &mut Settings) -> anyhow::Result<()> {
     loop {
+        let start = match (s.btr0, s.bitrate) {
+            (Some(_), _) => 2,
+            (None, Some(_)) => 1,
+            (None, None) => 0,
+        };
+        let way = p.select("Bus timing", &TIMING_FROM, start)?;
+        if way == 0 {
+            (s.btr0, s.btr1, s.bitrate, s.sample_point) = (None, None, None, None);
+            return Ok(());
+        }
         ask_key(p, s, "controller.crystal_hz", "Crystal frequency in Hz")?;
-        let ways = ["bit rate and sample point", "BTR0 and BTR1 registers"];
-        let start = usize::from(s.btr0.is_some());
-        if p.select("Bus timing from", &ways, start)? == 0 {
+        if way == 1 {
             s.btr0 = None;
             s.btr1 = None;
-            ask_key(p, s, "controller.bitrate", "Bit rate in bit/s")?;
+            ask_key(
+                p,
+                s,
+                "controller.bitrate",
+                "Bit rate (e.g. 125000, 125k, 500 kbit/s, 1M)",
+            )?;
             ask_optional(
                 p,
                 s,
@@ -272,7 +366,7 @@ fn unquote(literal: &str) -> String {
 /// Shows the registers and writes the file after a last confirmation.
 pub fn write(p: &mut dyn Prompter, settings: &Settings, path: &Path) -> anyhow::Result<()> {
     let checked = settings.check()?;
-    p.say(config::registers(&checked.controller).trim_end());
+    p.say(config::registers(&checked.controller, settings.timing().is_some()).trim_end());
     if !p.confirm(&format!("Write {}?", path.display()), true)? {
         p.say("Nothing written.");
         return Ok(());
@@ -313,17 +407,10 @@ impl Prompter for Terminal {
         help: &str,
         check: Check,
     ) -> anyhow::Result<String> {
-        inquire::Text::new(question)
-            .with_default(default)
-            .with_help_message(help)
-            .with_validator(move |answer: &str| {
-                Ok(match check(answer) {
-                    Ok(()) => inquire::validator::Validation::Valid,
-                    Err(why) => inquire::validator::Validation::Invalid(why.into()),
-                })
-            })
-            .prompt()
-            .map_err(asked)
+        line::ask(question, default, help, &*check).map_err(|e| match e {
+            line::AskError::Cancelled => anyhow::anyhow!("cancelled; nothing written"),
+            line::AskError::Io(e) => anyhow::anyhow!("cannot ask on the terminal: {e}"),
+        })
     }
 
     fn confirm(&mut self, question: &str, default: bool) -> anyhow::Result<bool> {

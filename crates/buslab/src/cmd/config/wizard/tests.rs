@@ -71,10 +71,13 @@ impl Prompter for Script {
     }
 }
 
-/// Enter on every question: the mode, filter, crystal, timing way, bit rate, sample point,
-/// OCR, clock out, divider, bus, two identifiers, mail host, port, user, interval, manager
-/// interval, log file.
-const ALL_DEFAULTS: [&str; 18] = [""; 18];
+/// Enter on every question: the mode, filter, timing (the bus's), OCR, clock out, divider,
+/// bus, two identifiers, mail host, port, user, interval, manager interval, log file.
+const ALL_DEFAULTS: [&str; 15] = [""; 15];
+
+/// After the timing: OCR, clock out, divider, bus, two identifiers, mail host, port, user,
+/// interval, manager interval, log file.
+const REST: [&str; 12] = [""; 12];
 
 #[test]
 fn enter_everywhere_keeps_the_defaults() {
@@ -86,14 +89,82 @@ fn enter_everywhere_keeps_the_defaults() {
         "{:?}",
         script.refused
     );
+    // Nothing chosen for the controller: nothing of it is applied anywhere.
+    assert!(settings.check().unwrap().controller_settings.is_empty());
+}
+
+#[test]
+fn a_filter_from_the_ids_wanted_is_shown_as_the_ids_it_lets_through() {
+    let mut answers = vec![
+        "",
+        "single",
+        "the IDs to let through",
+        "1FF-100", // a range that goes down: refused
+        "100-1FF",
+        "",
+        "bit rate and sample point",
+        "",
+        "125 kHz", // refused, with what is accepted
+        "125k",
+        "-",
+    ];
+    answers.extend(REST);
+    let mut script = Script::new(&answers);
+    let s = ask_all(&mut script, Settings::default()).unwrap();
+    let said = script.said.join("\n");
     assert!(
-        script
-            .said
-            .iter()
-            .any(|s| s.contains("BTR0=0x00 BTR1=0x1C")),
-        "{:?}",
-        script.said
+        said.contains("ACR=0x20000000 AMR=0x1FFFFFFF: exactly the 256 IDs asked for"),
+        "{said}"
     );
+    assert!(
+        said.contains("standard 0x100..=0x1FF (256 IDs), data and remote frames"),
+        "{said}"
+    );
+    let refused = script.refused.join("\n");
+    assert!(
+        refused.contains("1FF-100: \"1FF-100\": the range goes down"),
+        "{refused}"
+    );
+    assert!(
+        refused.contains("125 kHz: must be a bit rate 1..=1000000 bit/s: 125000, 125k"),
+        "{refused}"
+    );
+    assert_eq!(s.bitrate, Some(125_000));
+    let c = s.check().unwrap();
+    assert_eq!(
+        c.controller.filter,
+        AcceptanceFilter::Single {
+            code: [0x20, 0x00, 0x00, 0x00],
+            mask: [0x1F, 0xFF, 0xFF, 0xFF]
+        }
+    );
+}
+
+#[test]
+fn a_filter_not_kept_is_asked_again() {
+    let mut answers = vec![
+        "",
+        "single",
+        "ACR and AMR registers",
+        "0x123",
+        "0x001FFFFF",
+        "n", // lets only 0x000 through: not kept
+        "dual",
+        "the IDs to let through",
+        "120-12F 7FF",
+        "",
+        "",
+    ];
+    answers.extend(REST);
+    let mut script = Script::new(&answers);
+    let s = ask_all(&mut script, Settings::default()).unwrap();
+    let said = script.said.join("\n");
+    assert!(
+        said.contains("standard 0x000, data and remote frames"),
+        "{said}"
+    );
+    assert!(said.contains("exactly the 17 IDs asked for"), "{said}");
+    assert_eq!(s.filter, FilterKind::Dual);
 }
 
 #[test]
@@ -101,11 +172,13 @@ fn a_basiccan_configuration_with_refused_answers_asked_again() {
     let mut script = Script::new(&[
         "BasicCAN",
         "basic",
+        "ACR and AMR registers",
         "0x1E0", // 9 bits: refused
         "0xE0",
         "0x0F",
-        "12000000",
+        "",
         "BTR0 and BTR1 registers",
+        "12000000",
         "0x3F", // with 0x7F: a bit time the chip cannot do? keep the valid pair below
         "0x4D",
         "0xD9", // OCR test mode: refused
@@ -141,6 +214,8 @@ fn a_basiccan_configuration_with_refused_answers_asked_again() {
         "{:?}",
         script.said
     );
+    let said = script.said.join("\n");
+    assert!(said.contains("standard 0x700..=0x77F (128 IDs)"), "{said}");
     let c: Config = s.check().unwrap();
     assert_eq!(c.controller.mode, CanMode::Basic);
     assert_eq!(
@@ -168,10 +243,10 @@ fn a_basiccan_configuration_with_refused_answers_asked_again() {
 
 #[test]
 fn a_timing_the_chip_cannot_do_repeats_the_timing_step() {
-    let mut answers = vec!["", "", "", "", "3", "-"];
+    let mut answers = vec!["", "", "bit rate and sample point", "", "3", "-"];
     // Again, with a bit rate it can do and a sample point.
     answers.extend(["", "", "125000", "75"]);
-    answers.extend([""; 12]);
+    answers.extend(REST);
     let mut script = Script::new(&answers);
     let s = ask_all(&mut script, Settings::default()).unwrap();
     assert!(
@@ -182,16 +257,23 @@ fn a_timing_the_chip_cannot_do_repeats_the_timing_step() {
         "{:?}",
         script.said
     );
-    assert_eq!((s.bitrate, s.sample_point), (125_000, Some(750)));
+    assert_eq!((s.bitrate, s.sample_point), (Some(125_000), Some(750)));
 }
 
 #[test]
 fn the_file_written_reads_back_as_the_configuration_answered() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sub").join("buslab.toml");
-    let mut answers = vec!["PeliCAN", "dual", "0x12345678", "0x000000FF"];
-    answers.extend(["", "BTR0 and BTR1 registers", "0x01", "0x1C"]);
-    answers.extend([""; 12]);
+    let mut answers = vec![
+        "PeliCAN",
+        "dual",
+        "ACR and AMR registers",
+        "0x12345678",
+        "0x000000FF",
+        "",
+    ];
+    answers.extend(["BTR0 and BTR1 registers", "", "0x01", "0x1C"]);
+    answers.extend(REST);
     answers.push("y");
     let mut script = Script::new(&answers);
     let settings = ask_all(&mut script, Settings::default()).unwrap();
@@ -201,7 +283,18 @@ fn the_file_written_reads_back_as_the_configuration_answered() {
         ..Lookup::default()
     };
     let loaded = config::load(&lookup, &|_| None, dir.path(), None).unwrap();
-    assert_eq!(loaded.config, settings.check().unwrap());
+    let mut expected = settings.check().unwrap();
+    // Read from the file, the keys written are given: the filter and the timing are applied;
+    // the mode, OCR and clock out kept their defaults and were not written.
+    let applied = loaded.config.controller_settings;
+    assert_eq!(applied.filter, Some(expected.controller.filter));
+    assert_eq!(applied.timing.map(|t| (t.btr0, t.btr1)), Some((0x01, 0x1C)));
+    assert_eq!(
+        (applied.mode, applied.output_control, applied.clock_out),
+        (None, None, None)
+    );
+    expected.controller_settings = applied;
+    assert_eq!(loaded.config, expected);
     let text = std::fs::read_to_string(&path).unwrap();
     assert!(
         text.contains("btr0 = 0x01") && !text.contains("bitrate ="),
