@@ -43,6 +43,10 @@ fuzz_target!(|data: &[u8]| {
         "the responses are not the bytes received"
     );
     if let Some(e) = refused {
-        assert_eq!(framer.push(b"\r\n"), Err(e), "a refused stream stays refused");
+        assert_eq!(
+            framer.push(b"\r\n"),
+            Err(e),
+            "a refused stream stays refused"
+        );
     }
 });

@@ -18,7 +18,12 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     let limit = 64 + usize::from(u16::from_le_bytes([*l0, *l1]));
-    let size = message.len() as u64 + if whole % 2 == 0 { 0 } else { u64::from(*whole) << 24 };
+    let size = message.len() as u64
+        + if whole % 2 == 0 {
+            0
+        } else {
+            u64::from(*whole) << 24
+        };
     let text = mail_text(message, size, limit);
     assert!(
         text.len() <= limit,

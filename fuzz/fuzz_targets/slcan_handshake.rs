@@ -9,9 +9,9 @@
 #![no_main]
 
 use buslab_fuzz::{Item, items};
+use buslab_slcan::Command;
 use buslab_slcan::codec::{Line, LineSplitter, MAX_REPLY_LINE, parse_reply};
 use buslab_slcan::handshake::{Handshake, Plan, Status};
-use buslab_slcan::Command;
 use libfuzzer_sys::fuzz_target;
 
 /// Every exchange is one command and `V`: at most eight of them (sync, Z1, N, CANable's mode,
@@ -26,7 +26,13 @@ fuzz_target!(|data: &[u8]| {
         0 => None,
         1 => Some((500_000, Some(Command::Bitrate(6)))),
         2 => Some((750_000, None)),
-        _ => Some((33_333, Some(Command::Btr { btr0: 0x0B, btr1: 0x2F }))),
+        _ => Some((
+            33_333,
+            Some(Command::Btr {
+                btr0: 0x0B,
+                btr1: 0x2F,
+            }),
+        )),
     };
     let mut hs = Handshake::new(Plan {
         bitrate,

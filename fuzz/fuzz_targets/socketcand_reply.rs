@@ -29,7 +29,10 @@ fuzz_target!(|data: &[u8]| {
     }
     if let Ok(limit) = parse_refused(&tokens) {
         let fields = refused_fields(&limit);
-        assert_eq!(parse_refused(&fields).expect("printed refusal parses"), limit);
+        assert_eq!(
+            parse_refused(&fields).expect("printed refusal parses"),
+            limit
+        );
     }
     if let Ok(report) = parse_flushed(&tokens) {
         let fields = flushed_fields(&report);
