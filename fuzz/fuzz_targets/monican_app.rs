@@ -48,7 +48,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
         );
         // A few frames sent per step, as a bus would take them.
         for _ in 0..4 {
-            app.poll_transmit();
+            app.poll_transmit(now);
         }
         for _ in 0..1_000 {
             match app.next_deadline() {

@@ -1,12 +1,12 @@
 //! buslab's extension replies as the client reads them (`parse_status`, `parse_regs`,
-//! `parse_nodes`, `parse_flushed`, `parse_refused` over a reply's tokens): no panic, and what
+//! `parse_nodes`, `parse_flushed`, `parse_refused`, `parse_board` over a reply's tokens): no panic, and what
 //! was accepted prints as fields that read back to the same value.
 #![no_main]
 
 use buslab_fuzz::text;
 use buslab_socketcand::reply::{
-    flushed_fields, nodes_fields, parse_flushed, parse_nodes, parse_refused, parse_regs,
-    parse_status, refused_fields, regs_fields, status_fields,
+    board_fields, flushed_fields, nodes_fields, parse_board, parse_flushed, parse_nodes,
+    parse_refused, parse_regs, parse_status, refused_fields, regs_fields, status_fields,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -40,5 +40,9 @@ fuzz_target!(|data: &[u8]| {
             parse_flushed(&fields).expect("printed report parses"),
             report
         );
+    }
+    if let Ok(board) = parse_board(&tokens) {
+        let fields = board_fields(&board);
+        assert_eq!(parse_board(&fields).expect("printed board parses"), board);
     }
 });

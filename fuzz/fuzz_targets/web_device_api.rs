@@ -5,13 +5,14 @@
 //! Besides no panic: a refusal is a client error (4xx) whose reason names the refused value;
 //! an accepted body gives an order that, written as a body again, reads back as the same
 //! order, within the limits the panel promises (a RAM view of 1..512 bytes, a measurement of
-//! 1..100 blocks lasting 10 minutes at most, bank and configuration 0..7).
+//! 1..100 blocks lasting 10 minutes at most, bank and configuration 0..7, a demo board's
+//! switch 0..3 and potentiometer 0..5 V).
 #![no_main]
 
 use buslab_web::ApiError;
 use buslab_web::device_request::{
-    Cpu196Order, DeviceRequestError, MAX_MEASUREMENT, ZelleOrder, cpu196_request, slio_request,
-    zelle_request,
+    Cpu196Order, DeviceRequestError, MAX_MEASUREMENT, SlioOrder, ZelleOrder, cpu196_request,
+    slio_request, zelle_request,
 };
 use buslab_web::devices::zelle::{MAX_CHUNKS, MAX_RAM_VIEW, run_time};
 use libfuzzer_sys::fuzz_target;
@@ -21,6 +22,8 @@ fn refused(e: DeviceRequestError) {
     let named = match &e {
         DeviceRequestError::Json { example, .. } => example.to_string(),
         DeviceRequestError::SlioNumber(text) => format!("{text:?}"),
+        DeviceRequestError::Switch(bad) => format!("switch {}", bad.0),
+        DeviceRequestError::Volts(volts) => format!("volts {volts}"),
         DeviceRequestError::RamLength(len) => len.to_string(),
         DeviceRequestError::Series { channels, .. }
         | DeviceRequestError::EmptyMeasurement { channels, .. } => format!("{channels:?}"),
@@ -46,6 +49,11 @@ fuzz_target!(|data: &[u8]| {
     match which % 3 {
         0 => match slio_request(body) {
             Ok(order) => {
+                match order {
+                    SlioOrder::Switch { switch, .. } => assert!(switch.number() <= 3),
+                    SlioOrder::Pot { volts, .. } => assert!((0.0..=5.0).contains(&volts.get())),
+                    _ => {}
+                }
                 let json = order.to_json();
                 match slio_request(json.as_bytes()) {
                     Ok(again) => assert_eq!(again, order, "written as {json}"),

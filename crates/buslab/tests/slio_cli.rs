@@ -4,6 +4,9 @@
 #[path = "support/outside_tools.rs"]
 mod outside_tools;
 
+#[path = "support/vt100_terminal.rs"]
+mod vt100_terminal;
+
 mod bus_common;
 
 use outside_tools::{python_can, root};
@@ -344,5 +347,138 @@ fn a_bad_analog_source_is_named() {
             err.contains(flag) && err.contains(want),
             "{flag} {spec}: {err}"
         );
+    }
+}
+
+/// `buslab slio` with `args` as given (no default timeout), `--bus` after the subcommand.
+fn slio_bus_after(serve: &Serve, args: &[&str]) -> (bool, String, String) {
+    let out = serve
+        .buslab()
+        .arg("slio")
+        .args(args)
+        .args(["--bus", &serve.url])
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Issue 26 (deliverable 4): nothing could flip the lab's switches or turn its potentiometer,
+/// so MoniCAN's `I0`–`I3` read 0. `buslab slio board` does, on the virtual bus: the SLIO sees
+/// the new levels at once, reports the edges its edge registers ask for by itself (no request:
+/// MoniCAN shows them), and converts the new potentiometer level.
+#[test]
+fn a_boards_switches_and_potentiometer_reach_the_slio_and_monican() {
+    use buslab_canbus::CanBus;
+    use buslab_monican::layout::*;
+    use std::time::{Duration, Instant};
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("monican");
+    // The PowerPC node's MoniCAN keeps SLIO 3 calibrated and selects its input switches (P13).
+    let serve = Serve::start_with(
+        125_000,
+        &[
+            "--slio",
+            "3",
+            "--slio-pot",
+            "1V",
+            "--ppc",
+            link.to_str().unwrap(),
+        ],
+    );
+    let mut screen = vt100_terminal::Terminal::open(&link);
+    screen.type_keys(b"\x0c");
+    let row = slio_row(buslab_slio::SlioId::new(3).unwrap());
+    let cell = |t: &vt100_terminal::Terminal, col: u8, len: usize| {
+        t.row(row)
+            .get(col as usize - 1..col as usize - 1 + len)
+            .map(str::to_string)
+    };
+    screen.wait_until("SLIO 3 initialised", |t| {
+        cell(t, OUTPUTS_COL, 4).as_deref() == Some("2000")
+    });
+    let (ok, out, err) = slio_bus_after(&serve, &["board", "3"]);
+    assert!(ok, "{err}");
+    assert!(
+        out.starts_with("SLIO 3 (node 1, slio3): switches 0000 (P3..P0), potentiometer 1.000 V, ADC1 1.250 V, LEDs off"),
+        "{out}"
+    );
+    // Switch 2 on: the pins show it (P13 selects the switches), nothing was sent for it.
+    let (ok, out, err) = slio_bus_after(&serve, &["board", "3", "switch", "2", "on"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("switches 0100 (P3..P0)"), "{out}");
+    let (ok, out, err) = slio_bus_after(&serve, &["read", "3", "DATA_INPUT", "--timeout", "30s"]);
+    assert!(ok, "{err}");
+    assert_eq!(out.trim(), "SLIO 3 DATA_INPUT = 0x2004");
+    screen.type_keys(b"3I2");
+    screen.wait_until("MoniCAN's I2", |t| {
+        t.row(INPUT_LOG_ROW).trim_end() == "ID_slio:3 Data input:2004"
+    });
+    // With edge reports asked for, the SLIO sends DATA_INPUT by itself when a switch moves.
+    for register in ["POSITIVE_EDGE", "NEGATIVE_EDGE"] {
+        let (ok, _, err) = slio(&serve, &["write", "3", register, "0x000F"]);
+        assert!(ok, "{err}");
+    }
+    let mut listener = serve.client();
+    let (ok, out, err) = slio_bus_after(&serve, &["board", "3", "switches", "1011"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("switches 1011 (P3..P0)"), "{out}");
+    let start = Instant::now();
+    let report = loop {
+        let m = listener
+            .recv(Some(
+                Duration::from_secs(60).saturating_sub(start.elapsed()),
+            ))
+            .unwrap()
+            .expect("no frame from SLIO 3 within 60 s");
+        if m.frame.id().as_raw() == 0x29D {
+            break m.frame.to_string();
+        }
+    };
+    assert_eq!(
+        report, "29D#20200B",
+        "DATA_INPUT with the switches, unasked"
+    );
+    screen.wait_until("MoniCAN showing the report", |t| {
+        cell(t, INPUTS_COL, 4).as_deref() == Some("200B")
+    });
+    // The potentiometer: the next conversion reads it, by `buslab slio` and by MoniCAN.
+    let (ok, out, err) = slio_bus_after(&serve, &["board", "3", "pot", "2500mV"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("potentiometer 2.500 V"), "{out}");
+    let (ok, out, err) = slio(&serve, &["adc", "3", "2"]);
+    assert!(ok, "{err}");
+    assert_eq!(out.trim(), "SLIO 3 ADC2 = 512 (2.502 V)");
+    screen.type_keys(b"3I6");
+    screen.wait_until("MoniCAN's ADC2", |t| {
+        cell(t, ADC2_COL, 2).as_deref() == Some("80")
+    });
+    // The LEDs as the board shows them.
+    screen.type_keys(b"3O901");
+    screen.wait_until("P9 lit", |t| {
+        cell(t, OUTPUTS_COL, 4).as_deref() == Some("2200")
+    });
+    let (ok, out, err) = slio_bus_after(&serve, &["board", "3"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("LEDs P9, DPM1 0.000 V"), "{out}");
+    // What cannot be: named.
+    for (args, want) in [
+        (
+            &["board", "5"][..],
+            "no SLIO demo board 5 on this bus (boards: 3)",
+        ),
+        (&["board", "3", "switch", "4", "on"], "switch \"4\""),
+        (&["board", "3", "switch", "1", "up"], "level \"up\""),
+        (&["board", "3", "switches", "5"], "switches \"5\""),
+        (
+            &["board", "3", "pot", "6V"],
+            "potentiometer level \"6V\": 0..5 V",
+        ),
+    ] {
+        let (ok, _, err) = slio_bus_after(&serve, args);
+        assert!(!ok && err.contains(want), "{args:?}: {err}");
     }
 }

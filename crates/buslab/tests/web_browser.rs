@@ -537,3 +537,158 @@ fn the_lab_dashboard_shows_its_devices_and_an_led_follows_the_slio() {
     );
     browser.pages_work_under_the_policy(base, &["devices", "dashboard"]);
 }
+
+/// Issue 26 (deliverable 4): the lab's switches and potentiometer from the devices panel. A
+/// click flips switch 2 of SLIO 3 on the board; the panel reads the SLIO's pins again and
+/// shows the switch as the SLIO reads it. The potentiometer turned to 2.5 V converts as
+/// 512 (2.502 V). Meanwhile a `buslab dump` of the bus sees every frame sent to a SLIO with
+/// 3 bytes (the panel's reads were 1-byte frames the SLIO ignores).
+#[test]
+fn the_lab_dashboard_flips_a_switch_and_turns_the_potentiometer() {
+    if !tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let lab_dir = dir.path().join("lab");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args([
+            "lab",
+            "--no-devices",
+            "--listen",
+            "127.0.0.1:0",
+            "--web",
+            "127.0.0.1:0",
+        ])
+        .arg("--dir")
+        .arg(&lab_dir)
+        .env_remove("BUSLAB_BUS")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let _lab = Kill(child);
+    let mut lines = BufReader::new(stderr).lines();
+    let dashboard = loop {
+        let line = lines.next().expect("the banner ended").unwrap();
+        if let Some(url) = line.trim().strip_prefix("dashboard:") {
+            break url.trim().to_string();
+        }
+    };
+    std::thread::spawn(move || lines.for_each(drop));
+    let bus_file = lab_dir.join("bus");
+    let deadline = Instant::now() + HANG;
+    let url = loop {
+        if let Ok(text) = std::fs::read_to_string(&bus_file)
+            && text.ends_with('\n')
+        {
+            break text.trim().to_string();
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the lab never wrote {}",
+            bus_file.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    // Every frame on the bus while the page is open.
+    let mut dump = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["dump", "-L", "--bus", &url])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let captured = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let into = captured.clone();
+    let dump_lines = BufReader::new(dump.stdout.take().unwrap()).lines();
+    let _dump = Kill(dump);
+    std::thread::spawn(move || {
+        for line in dump_lines.map_while(Result::ok) {
+            if let Some(frame) = line.split_whitespace().nth(2) {
+                into.lock().unwrap().push(frame.to_string());
+            }
+        }
+    });
+
+    let browser = Browser::start(&dir.path().join("profile"));
+    browser.open(&dashboard);
+    browser.until(
+        "SLIO 3's switches as the SLIO reads them",
+        &cell("3", "switches"),
+        |v| v.as_str() == Some("0 0 0 0"),
+    );
+    browser.until("SLIO 3's board", &cell("3", "bench"), |v| {
+        v.as_str()
+            .is_some_and(|s| s.starts_with("switches 0 0 0 0"))
+    });
+    browser.click("#slio-3 button.switch[data-switch=\"2\"]");
+    browser.until("the switch on the board", &cell("3", "bench"), |v| {
+        v.as_str()
+            .is_some_and(|s| s.starts_with("switches 0 0 1 0"))
+    });
+    browser.until(
+        "the switch as SLIO 3 reads it",
+        &cell("3", "switches"),
+        |v| v.as_str() == Some("0 0 1 0"),
+    );
+    let label = browser.script(
+        "return document.querySelector('#slio-3 button.switch[data-switch=\"2\"]').textContent",
+    );
+    assert_eq!(label, "S2 on");
+    // The potentiometer: turned, then converted by the SLIO.
+    browser.script("document.querySelector('#slio-3 input.pot').value = '2.5'; return null");
+    browser.click("#slio-3 button.pot");
+    browser.until("the potentiometer on the board", &cell("3", "bench"), |v| {
+        v.as_str()
+            .is_some_and(|s| s.ends_with("potentiometer 2.500 V"))
+    });
+    browser.click("#slio-3 button.adc2");
+    browser.until("SLIO 3's ADC2", &cell("3", "adc2"), |v| {
+        v.as_str() == Some("512 (2.502 V)")
+    });
+    // The panel's other frames: a read of the pins, an LED.
+    let answered = browser.script(&cell("A", "replies"));
+    browser.click("#slio-A button.read");
+    browser.until("SLIO A's answer", &cell("A", "replies"), |v| *v != answered);
+    browser.click("#slio-A button.led[data-pin=\"9\"]");
+    browser.until("SLIO A's LED P9 on", &led("A", 9), |v| {
+        *v == json!([true, false])
+    });
+    let id = browser.find("#slio-3");
+    screenshot(
+        &browser,
+        &format!("/element/{id}/screenshot"),
+        "web-slio-board.png",
+    );
+    browser.pages_work_under_the_policy(
+        dashboard.split("dashboard#").next().unwrap(),
+        &["devices", "dashboard"],
+    );
+    // Every frame sent to a SLIO while the page was open: 3 bytes (`29C#000000`).
+    let frames = captured.lock().unwrap().clone();
+    let to_slios: Vec<&String> = frames
+        .iter()
+        .filter(|f| {
+            let id = f.split('#').next().unwrap_or("");
+            id.len() == 3
+                && u16::from_str_radix(id, 16).is_ok_and(|raw| {
+                    buslab_slio::SlioId::from_id(buslab_can::Id::standard(raw).unwrap())
+                        .is_some_and(|(_, d)| d == buslab_slio::Direction::ToSlio)
+                })
+        })
+        .collect();
+    for want in ["29C#000000", "394#000000", "394#032200"] {
+        assert!(
+            to_slios.iter().any(|f| *f == want),
+            "the panel's {want}: {to_slios:?}"
+        );
+    }
+    for f in &to_slios {
+        assert_eq!(f.len(), "29C#000000".len(), "{f} is not a 3-byte frame");
+    }
+    eprintln!(
+        "{} frames on the bus, {} to the SLIOs, all of 3 bytes",
+        frames.len(),
+        to_slios.len()
+    );
+}

@@ -7,6 +7,9 @@
 use std::fmt;
 use std::time::Duration;
 
+use buslab_slio::SlioId;
+use buslab_slio::board::{LED_PINS, VDD};
+
 use crate::bus::{BusError, BusState, Human};
 use crate::decode::{ErrorRegisters, RegisterDump, Status};
 
@@ -274,6 +277,152 @@ pub enum FaultLimit {
     },
 }
 
+/// One of the four input switches of a SLIO demo board: 0..=3, on P0..P3 (the seed's §3.2:
+/// « P0-P3: ID / Entrées digitales (switches) »).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct BoardSwitch(u8);
+
+/// A switch number that is not one of the board's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("switch {0}: a demo board has input switches 0..=3 (on P0..P3)")]
+pub struct BadSwitch(pub u8);
+
+impl BoardSwitch {
+    pub fn new(n: u8) -> Result<Self, BadSwitch> {
+        if n <= 3 {
+            Ok(Self(n))
+        } else {
+            Err(BadSwitch(n))
+        }
+    }
+
+    /// 0..=3, the pin it is on.
+    pub fn number(self) -> u8 {
+        self.0
+    }
+}
+
+impl fmt::Display for BoardSwitch {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.0)
+    }
+}
+
+/// A level on an analog input of a demo board: 0..=5 V (its supply), never NaN.
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+pub struct BoardVolts(f64);
+
+impl Eq for BoardVolts {}
+
+/// A level the board's analog inputs cannot take.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("{0} V: a demo board's analog inputs take 0..=5 V (its supply)")]
+pub struct BadVolts(pub f64);
+
+impl BoardVolts {
+    pub fn new(volts: f64) -> Result<Self, BadVolts> {
+        if (0.0..=VDD).contains(&volts) {
+            // -0.0 + 0.0 is 0.0: one zero.
+            Ok(Self(volts + 0.0))
+        } else {
+            Err(BadVolts(volts))
+        }
+    }
+
+    pub fn get(self) -> f64 {
+        self.0
+    }
+}
+
+impl fmt::Display for BoardVolts {
+    /// Millivolts are the finest step shown (the ADC's is 4.9 mV).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:.3}", self.0)
+    }
+}
+
+/// What a person at the bench does to a SLIO demo board's inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BoardInput {
+    /// One input switch on or off.
+    Switch { switch: BoardSwitch, on: bool },
+    /// The four input switches at once (bit 0 = the switch on P0).
+    Switches(u8),
+    /// The potentiometer (P6, ADC2) turned to a level; it stays there.
+    Potentiometer(BoardVolts),
+}
+
+impl fmt::Display for BoardInput {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BoardInput::Switch { switch, on } => {
+                write!(f, "switch {switch} {}", if *on { "on" } else { "off" })
+            }
+            BoardInput::Switches(bits) => write!(f, "switches {}", switch_bits(*bits)),
+            BoardInput::Potentiometer(v) => write!(f, "potentiometer at {v} V"),
+        }
+    }
+}
+
+/// `0101`: the switches from 3 down to 0, as they sit on the board's P3..P0.
+pub fn switch_bits(bits: u8) -> String {
+    (0..4)
+        .rev()
+        .map(|k| if bits >> k & 1 == 1 { '1' } else { '0' })
+        .collect()
+}
+
+/// A SLIO demo board as a person at the bench sees it: its inputs and what its outputs do.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoardState {
+    pub slio: SlioId,
+    /// Its node on the bus.
+    pub node: NodeInfo,
+    /// The four input switches (bit 0 = P0).
+    pub switches: u8,
+    /// The potentiometer (P6, ADC2) and the level on ADC1 (P5), in volts, now.
+    pub potentiometer: f64,
+    pub adc1: f64,
+    /// The pins whose LED is lit (of P7, P8, P9, P11, P12).
+    pub leds: u16,
+    /// DPM1 (P10) and DPM2 (P4): their mean level in volts, `None` while the pin floats.
+    pub dpm: [Option<f64>; 2],
+}
+
+/// `SLIO 3 (node 6, slio3): switches 0101, potentiometer 2.500 V, ADC1 1.250 V, LEDs P7 P11,
+/// DPM1 0.000 V, DPM2 floating`.
+impl fmt::Display for BoardState {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "SLIO {} (node {}, {}): switches {} (P3..P0), potentiometer {:.3} V, ADC1 {:.3} V, LEDs ",
+            self.slio,
+            self.node.number,
+            self.node.name,
+            switch_bits(self.switches),
+            self.potentiometer,
+            self.adc1
+        )?;
+        let lit: Vec<String> = LED_PINS
+            .iter()
+            .filter(|&&p| self.leds & 1 << p != 0)
+            .map(|p| format!("P{p}"))
+            .collect();
+        if lit.is_empty() {
+            f.write_str("off")?;
+        } else {
+            f.write_str(&lit.join(" "))?;
+        }
+        for (k, dpm) in self.dpm.iter().enumerate() {
+            match dpm {
+                Some(v) => write!(f, ", DPM{} {v:.3} V", k + 1)?,
+                None => write!(f, ", DPM{} floating", k + 1)?,
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The administration side of a bus: nodes, status, registers, and settings of this client's
 /// own node. Backends that have none of it return `None` from
 /// [`CanBus::admin`](crate::CanBus::admin).
@@ -321,6 +470,16 @@ pub trait BusAdmin {
         let _ = settings;
         Err(BusError::Unsupported {
             what: "controller settings",
+    /// A SLIO demo board on the bus, after `change` to its inputs if given (a switch flipped,
+    /// the potentiometer turned). Only a virtual bus has boards to reach.
+    fn demo_board(
+        &mut self,
+        slio: SlioId,
+        change: Option<BoardInput>,
+    ) -> Result<BoardState, BusError> {
+        let _ = (slio, change);
+        Err(BusError::Unsupported {
+            what: "demo boards",
             backend: "this bus".into(),
         })
     }
@@ -330,6 +489,40 @@ pub trait BusAdmin {
 mod tests {
     use super::*;
     use crate::decode::{Alc, Ecc};
+
+    #[test]
+    fn board_inputs_are_checked_and_read_like_the_board() {
+        assert_eq!(BoardSwitch::new(4), Err(BadSwitch(4)));
+        assert_eq!(
+            BadSwitch(4).to_string(),
+            "switch 4: a demo board has input switches 0..=3 (on P0..P3)"
+        );
+        assert!(BoardVolts::new(f64::NAN).is_err());
+        assert!(BoardVolts::new(5.01).is_err());
+        assert!(BoardVolts::new(-0.0).is_ok());
+        assert_eq!(BoardVolts::new(2.5).unwrap().to_string(), "2.500");
+        let state = BoardState {
+            slio: SlioId::new(3).unwrap(),
+            node: NodeInfo {
+                number: 6,
+                name: "slio3".into(),
+            },
+            switches: 0b0101,
+            potentiometer: 2.5,
+            adc1: 1.25,
+            leds: 0x0880,
+            dpm: [Some(0.0), None],
+        };
+        assert_eq!(
+            state.to_string(),
+            "SLIO 3 (node 6, slio3): switches 0101 (P3..P0), potentiometer 2.500 V, ADC1 1.250 V, LEDs P7 P11, DPM1 0.000 V, DPM2 floating"
+        );
+        let switch = BoardInput::Switch {
+            switch: BoardSwitch::new(2).unwrap(),
+            on: true,
+        };
+        assert_eq!(switch.to_string(), "switch 2 on");
+    }
 
     #[test]
     fn a_refused_fault_names_the_limit_and_the_value_allowed() {

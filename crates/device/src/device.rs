@@ -10,6 +10,13 @@ pub trait ByteDevice {
     /// When [`poll`](ByteDevice::poll) must be called again even if no byte arrives; `None` if
     /// the device only reacts to input.
     fn next_deadline(&self) -> Option<u64>;
+    /// Some of the bytes it produced by `now_ns` never reached the client (one that does not
+    /// read loses them, as a real port's buffer overflows). A device whose output builds on
+    /// what the client already shows (a VT100 screen sent as changes) starts again from
+    /// scratch. Nothing by default.
+    fn output_lost(&mut self, now_ns: u64) {
+        let _ = now_ns;
+    }
 }
 
 /// A device whose state survives a power cycle (battery-backed RAM, flash): what its state or

@@ -167,6 +167,7 @@ fn serve_loop<D: ByteDevice>(
         let room = MAX_OUTBOUND.saturating_sub(outbound.len());
         if produced.len() > room {
             losses.overflowed(produced.len() - room);
+            device.output_lost(now);
         }
         outbound.extend(produced.drain(..).take(room));
         flush(pty, &mut outbound)?;
@@ -317,10 +318,12 @@ impl Arrivals {
     }
 }
 
-/// Writes as much of `outbound` as the PTY takes now.
+/// Writes as much of `outbound` as the PTY takes now, in one write when it takes it all (what
+/// a device produced at once reaches the client at once: a screen update is not split where
+/// the queue's buffer wraps).
 fn flush(pty: &Pty, outbound: &mut VecDeque<u8>) -> io::Result<()> {
     while !outbound.is_empty() {
-        let (front, _) = outbound.as_slices();
+        let front = &*outbound.make_contiguous();
         match pty.write(front) {
             Ok(n) => {
                 outbound.drain(..n);

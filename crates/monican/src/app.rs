@@ -3,6 +3,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use buslab_can::{Frame, Id, StandardId};
+use buslab_slio::board::{OutputLevels, set_bit};
 use buslab_slio::{
     CALIBRATION_ID, Direction as SlioDirection, Master, MasterEvent, Register, Reply, RequestId,
     SlioId, Transmit,
@@ -27,6 +28,8 @@ pub const MAX_MAIL_LIMIT: usize = 64 * 1024;
 pub const OUTPUT_ENABLE: u16 = buslab_slio::board::OUTPUT_ENABLE;
 /// DATA_OUTPUT after sign-on: P13 high, so P0..P3 show the input switches, every LED off.
 pub const INITIAL_OUTPUTS: u16 = 1 << buslab_slio::board::SELECT_PIN;
+/// What a request for the pin levels is named on the notice line when it gets no answer.
+const LEVELS: &str = "pin levels for an LED command";
 
 pub const MAIL_NOTICE: &str = "you've got mail ! (press Ctrl R to read it)";
 /// What MoniCAN says when it is asked for the loader but has none to hand over to (in the
@@ -145,8 +148,35 @@ pub struct SlioView {
 enum Purpose {
     /// A DATA_OUTPUT write (counted until confirmed, see `intended`).
     Outputs,
+    /// A read of DATA_INPUT for the output levels an LED command waits for (`deferred`).
+    Levels,
     Convert(Adc),
     Other,
+}
+
+/// LED commands typed before MoniCAN knew the SLIO's outputs: the pins to drive high and low
+/// once it does.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct LedChanges {
+    high: u16,
+    low: u16,
+}
+
+impl LedChanges {
+    fn add(&mut self, pin: u8, on: bool) {
+        let bit = 1 << pin;
+        if on {
+            self.high |= bit;
+            self.low &= !bit;
+        } else {
+            self.low |= bit;
+            self.high &= !bit;
+        }
+    }
+
+    fn apply(self, base: u16) -> u16 {
+        (base | self.high) & !self.low
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -202,6 +232,12 @@ pub struct MoniCan {
     /// DATA_OUTPUT as the commands sent so far make it, while writes are unconfirmed: a second
     /// LED command builds on the first even before the SLIO confirmed it.
     intended: [Option<u16>; 16],
+    /// The outputs as the SLIO last told them (its DATA_OUTPUT answers, the levels DATA_INPUT
+    /// reads back), whoever asked: what an LED command keeps of the other pins.
+    levels: [OutputLevels; 16],
+    /// LED commands waiting for the levels (a SLIO calibrated by another master, whose
+    /// outputs MoniCAN never saw): they are written once DATA_INPUT tells.
+    deferred: [Option<LedChanges>; 16],
     /// The ADC input last asked of each SLIO, for a conversion result nobody waits for.
     last_adc: [Option<Adc>; 16],
     events: VecDeque<Event>,
@@ -230,6 +266,8 @@ impl MoniCan {
             outbox: VecDeque::new(),
             sent: BTreeMap::new(),
             intended: [None; 16],
+            levels: [OutputLevels::default(); 16],
+            deferred: [None; 16],
             last_adc: [None; 16],
             events: VecDeque::new(),
         })
@@ -347,8 +385,12 @@ impl MoniCan {
             self.keys = Keys::Escape;
         }
         if matches!(self.page, Page::Mail(_) | Page::Text { .. }) {
-            // Any key goes back to the SLIO screen, redrawn from what is known.
-            self.page = Page::Slios;
+            // Ctrl L redraws the page (a terminal that connected after the loader's report
+            // was drawn); any other key goes back to the SLIO screen, redrawn from what is
+            // known.
+            if byte != CTRL_L {
+                self.page = Page::Slios;
+            }
             self.screen.redraw();
             return;
         }
@@ -392,6 +434,9 @@ impl MoniCan {
             && reply.status.reset_detected
             && reply.register == Register::DataInput
         {
+            // Reset: LED commands that waited for its old outputs are void (they are
+            // initialised again).
+            self.deferred[slio.number() as usize] = None;
             self.master.handle_frame(now, frame);
             self.drain_master();
             self.sign_on(slio);
@@ -463,7 +508,7 @@ impl MoniCan {
         let i = slio.number() as usize;
         match command.action {
             Action::ReadInputs { .. } => {
-                self.read_inputs(slio, "inputs");
+                self.read_inputs(slio, Purpose::Other, "inputs");
             }
             Action::Convert(adc) => {
                 let value = match adc {
@@ -480,15 +525,20 @@ impl MoniCan {
                 );
             }
             Action::Led { pin, on } => {
-                let base = self.intended[i]
-                    .or(self.slios[i].outputs)
-                    .unwrap_or(INITIAL_OUTPUTS);
-                let value = if on {
-                    base | 1 << pin
+                // The other outputs keep their levels: the ones MoniCAN asked for, else the
+                // ones the SLIO told. Unknown (a SLIO another master initialised), they are
+                // read first (DATA_INPUT: outputs read back their levels), and the command
+                // waits for the answer.
+                let base = self.intended[i].or(self.levels[i].get());
+                if let (Some(base), None) = (base, self.deferred[i]) {
+                    self.write_outputs(slio, set_bit(base, pin, on));
                 } else {
-                    base & !(1 << pin)
-                };
-                self.write_outputs(slio, value);
+                    let waiting = self.deferred[i].is_some();
+                    self.deferred[i].get_or_insert_default().add(pin, on);
+                    if !waiting {
+                        self.read_inputs(slio, Purpose::Levels, LEVELS);
+                    }
+                }
             }
             Action::Dpm { output, value } => {
                 let register = match output {
@@ -517,7 +567,7 @@ impl MoniCan {
         self.write(slio, Register::Dpm1, 0, Purpose::Other, "initialisation");
         self.write(slio, Register::Dpm2, 0, Purpose::Other, "initialisation");
         self.write_outputs(slio, INITIAL_OUTPUTS);
-        self.read_inputs(slio, "initialisation");
+        self.read_inputs(slio, Purpose::Other, "initialisation");
         self.event(Event::SignedOn(slio));
     }
 
@@ -552,14 +602,14 @@ impl MoniCan {
     }
 
     /// A read of DATA_INPUT (the 3-byte frame `29C#000000` for SLIO 3: seed §2.1.2.1).
-    fn read_inputs(&mut self, slio: SlioId, what: &'static str) {
+    fn read_inputs(&mut self, slio: SlioId, purpose: Purpose, what: &'static str) {
         match self.master.read(slio, Register::DataInput) {
             Ok(request) => {
                 self.sent.insert(
                     request.0,
                     Sent {
                         slio,
-                        purpose: Purpose::Other,
+                        purpose,
                         what,
                     },
                 );
@@ -585,7 +635,12 @@ impl MoniCan {
                     self.done(request);
                 }
                 MasterEvent::NoAnswer { request, slio } => {
-                    let what = self.done(request).map_or("request", |s| s.what);
+                    let sent = self.done(request);
+                    if sent.is_some_and(|s| s.purpose == Purpose::Levels) {
+                        // The LED commands that waited are not sent: the outputs stay unknown.
+                        self.deferred[slio.number() as usize] = None;
+                    }
+                    let what = sent.map_or("request", |s| s.what);
                     self.notice = Some(format!("SLIO {slio} did not answer ({what})"));
                     self.event(Event::NoAnswer(slio));
                 }
@@ -613,6 +668,13 @@ impl MoniCan {
     /// A register's content the SLIO sent: the only way a value reaches the screen.
     fn show_register(&mut self, slio: SlioId, register: Register, value: u16) {
         let i = slio.number() as usize;
+        self.levels[i].learn(register, value);
+        if let Some(base) = self.levels[i].get()
+            && let Some(changes) = self.deferred[i].take()
+        {
+            let base = self.intended[i].unwrap_or(base);
+            self.write_outputs(slio, changes.apply(base));
+        }
         let view = &mut self.slios[i];
         let label = match register {
             Register::DataInput => {

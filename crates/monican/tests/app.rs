@@ -262,6 +262,82 @@ fn a_typed_command_changes_the_screen_only_when_the_slio_answers() {
     assert_eq!(sent(&mut app, MS), ["29C#032100"]);
 }
 
+/// Issue 26 (5): `buslab monican` beside the lab, after `3I0` (`Data input:2880`), sent
+/// `3O801` as DATA_OUTPUT `2100`: it built on its sign-on value for a SLIO it never saw sign
+/// on, and the lab MoniCAN's LEDs on P7 and P11 went off. The outputs the SLIO told (here the
+/// levels DATA_INPUT read back) are kept.
+#[test]
+fn an_led_command_keeps_the_leds_another_monican_lit() {
+    let (mut app, mut term) = started();
+    keys(&mut app, MS, "3I0");
+    assert_eq!(sent(&mut app, MS), ["29C#000000"]);
+    // P13 (the input select), P11 and P7 high: the lab's MoniCAN set them.
+    app.handle_frame(2 * MS, &frame("29D#202880"));
+    keys(&mut app, 3 * MS, "3O801");
+    assert_eq!(
+        sent(&mut app, 3 * MS),
+        ["29C#032980"],
+        "P8 on, the others kept"
+    );
+    term.update(&mut app);
+    assert_eq!(
+        term.cells(slio_row(slio(3)), OUTPUTS_COL, 4),
+        "XXXX",
+        "shown once the SLIO confirms"
+    );
+    app.handle_frame(4 * MS, &frame("29D#232980"));
+    term.update(&mut app);
+    assert_eq!(term.cells(slio_row(slio(3)), OUTPUTS_COL, 4), "2980");
+}
+
+/// An LED command for a SLIO whose outputs MoniCAN never heard of reads them first
+/// (DATA_INPUT: outputs read back their levels) and writes once the SLIO answered; commands
+/// typed meanwhile join it. It never writes pins it does not know.
+#[test]
+fn an_led_command_for_unknown_outputs_reads_them_first() {
+    let (mut app, _term) = started();
+    keys(&mut app, MS, "3O801");
+    assert_eq!(sent(&mut app, MS), ["29C#000000"], "a read, no write yet");
+    keys(&mut app, MS, "3O901");
+    keys(&mut app, MS, "3OB00");
+    assert!(sent(&mut app, MS).is_empty(), "one read for all of them");
+    // The input switches (P0, P2) and LEDs P7, P11 high.
+    app.handle_frame(2 * MS, &frame("29D#202885"));
+    assert_eq!(
+        sent(&mut app, 2 * MS),
+        ["29C#032380"],
+        "P8 and P9 on, P11 off, P7 and P13 kept; input pins not driven"
+    );
+    // Learned from another host's write too: its DATA_OUTPUT answer.
+    let (mut app, _term) = started();
+    app.handle_frame(MS, &frame("29D#233080"));
+    keys(&mut app, 2 * MS, "3O700");
+    assert_eq!(sent(&mut app, 2 * MS), ["29C#033000"]);
+}
+
+#[test]
+fn an_led_command_whose_levels_get_no_answer_writes_nothing() {
+    let (mut app, mut term) = started();
+    keys(&mut app, MS, "5O701");
+    assert_eq!(sent(&mut app, MS), ["2AC#000000"]);
+    let mut now = MS;
+    while now < 100 * MS {
+        now = app.next_deadline().unwrap().max(now + 1);
+        app.handle_timeout(now);
+        for t in std::iter::from_fn(|| app.poll_transmit(now)) {
+            assert_eq!(t.frame.to_string(), "0AA#AA04", "only calibration");
+        }
+    }
+    term.update(&mut app);
+    assert_eq!(
+        term.row(NOTICE_ROW),
+        "SLIO 5 did not answer (pin levels for an LED command)"
+    );
+    // A late answer does not send the forgotten command.
+    app.handle_frame(now, &frame("2AD#202000"));
+    assert!(sent(&mut app, now).is_empty());
+}
+
 #[test]
 fn conversions_fill_their_adc_column_and_dpm_values_are_scaled() {
     let (mut app, mut term) = started();
@@ -460,6 +536,38 @@ fn a_busy_bus_costs_one_screen_update_not_one_per_frame() {
         term.row(LAST_FRAME_ROW),
         "Last frame received : ID1:81 ID2:E0 DATA1:00 DATA2:00 DATA3:27 DATA4:0F"
     );
+}
+
+/// Issue 26 (7): the loader's report waited for "any key", and Ctrl L counted: a user who
+/// connected after a load and pressed Ctrl L, as docs/loader.md says, never saw it.
+#[test]
+fn ctrl_l_redraws_the_loaders_report_and_keeps_it() {
+    let (mut app, mut term) = started();
+    app.show_page(
+        "*** CAN loader (loadcan) ***",
+        vec!["Program loaded: 2048 bytes".to_string()],
+    );
+    app.take_screen(); // drawn for nobody: the terminal connects later
+    let mut late = Term::new();
+    app.handle_key(MS, 0x0C);
+    let all = late.update(&mut app);
+    assert!(all.starts_with(b"\x1b[0m\x1b[H\x1b[2J"), "redrawn whole");
+    assert!(app.showing_page());
+    assert_eq!(late.row(1), "*** CAN loader (loadcan) ***");
+    assert_eq!(late.row(3), "Program loaded: 2048 bytes");
+    assert_eq!(late.row(24), PAGE_HINT);
+    // Any other key goes back.
+    app.handle_key(2 * MS, b' ');
+    late.update(&mut app);
+    assert_eq!(late.row(1), TITLE);
+    // The mail page too: Ctrl L redraws it.
+    app.handle_frame(3 * MS, &frame("700#01"));
+    app.handle_key(3 * MS, 0x12);
+    assert!(app.reading_mail());
+    app.handle_key(4 * MS, 0x0C);
+    assert!(app.reading_mail());
+    term.update(&mut app);
+    assert_eq!(term.row(1), PAGE_TITLE);
 }
 
 #[test]

@@ -5,7 +5,9 @@
 //! The PTY side is a [`ByteDevice`] paced by `buslab_link`: keys the terminal sends are posted
 //! to the bus thread ([`PpcNode::key`]); screen updates are pulled from the node only when the
 //! line has room ([`PpcNode::take_screen`] diffs the screen when it is called), so a busy bus
-//! never piles up stale updates behind a 19200-baud line.
+//! never piles up stale updates behind a 19200-baud line. Each update reaches the terminal
+//! whole, once the line had the time to carry it: a terminal (or a capture of it) never shows
+//! half an update, such as the identifier of a new frame beside the data of the last one.
 //!
 //! The memory image ([`MemoryStore`]) is an S-record file, read at start and written atomically
 //! whenever a load changed it; the node is told once the file is on disk
@@ -30,15 +32,11 @@ use buslab_vbus::{Poster, VirtualBus};
 
 /// 19200 8N1: 10 bit-times per byte.
 const BYTE_NS: u64 = 1_000_000_000 * 10 / BAUD as u64;
-/// Bytes waiting for the line before more of the screen is asked for.
-const LOW_WATER: usize = 256;
 /// How often the terminal side looks for screen updates while idle.
 const POLL_NS: u64 = 20_000_000;
-/// Bytes handed to the pseudo-terminal at once when that many are waiting: the line's pace
-/// holds over each batch, and a screen that changes with every frame on a saturated bus wakes
-/// the thread (and asks the bus thread for more) a few hundred times a second, not at every
-/// byte.
-const BATCH: u64 = 8;
+/// How often it looks for the bus thread's answer while one is asked for (it comes within a
+/// turn of the bus's loop; the line would stay idle until it is picked up).
+const ANSWER_POLL_NS: u64 = 1_000_000;
 
 /// The terminal side of the PowerPC node.
 pub struct PpcTerminal {
@@ -49,9 +47,15 @@ pub struct PpcTerminal {
     screen_tx: Sender<Vec<u8>>,
     /// A request for screen bytes is on its way to the bus thread.
     asked: Arc<AtomicBool>,
-    out: VecDeque<u8>,
-    /// When the next byte may leave (line pacing).
-    next_at: u64,
+    /// Screen updates waiting for the line, each whole: the one the line carries, and at most
+    /// one behind it (asked for while the first is carried, so the line stays busy with fresh
+    /// changes rather than a queue of stale ones).
+    updates: VecDeque<Vec<u8>>,
+    /// Bytes were lost on the way to the terminal: the next update is the whole screen.
+    redraw: bool,
+    /// When the line has carried everything handed over so far (line pacing: the next update
+    /// leaves once the line had the time for all its bytes after this).
+    line_free_at: u64,
     now: u64,
 }
 
@@ -65,31 +69,39 @@ impl PpcTerminal {
             screen,
             screen_tx,
             asked: Arc::new(AtomicBool::new(false)),
-            out: VecDeque::new(),
-            next_at: 0,
+            updates: VecDeque::new(),
+            redraw: false,
+            line_free_at: 0,
             now: 0,
         }
     }
 
-    /// Asks the node for what changed on its screen, if the line has room and no request is
-    /// pending.
+    /// Asks the node for what changed on its screen, if nothing waits behind the update on
+    /// the line and no request is pending.
     fn ask(&mut self) {
-        if self.out.len() >= LOW_WATER || self.asked.swap(true, Ordering::SeqCst) {
+        if self.updates.len() > 1 || self.asked.swap(true, Ordering::SeqCst) {
             return;
         }
         let node = self.node.clone();
         let tx = self.screen_tx.clone();
         let asked = self.asked.clone();
+        let redraw = std::mem::take(&mut self.redraw);
         let posted = self.bus.post(move |bus| {
             let bytes = bus
                 .device_mut::<PpcNode>(&node)
-                .map(PpcNode::take_screen)
+                .map(|ppc| {
+                    if redraw {
+                        ppc.redraw();
+                    }
+                    ppc.take_screen()
+                })
                 .unwrap_or_default();
             let _ = tx.send(bytes);
             asked.store(false, Ordering::SeqCst);
         });
         if !posted {
             self.asked.store(false, Ordering::SeqCst);
+            self.redraw |= redraw;
         }
     }
 }
@@ -107,26 +119,49 @@ impl ByteDevice for PpcTerminal {
     fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>) {
         self.now = now_ns;
         while let Ok(bytes) = self.screen.try_recv() {
-            self.out.extend(bytes);
+            if bytes.is_empty() {
+                continue;
+            }
+            if self.updates.is_empty() {
+                // The line was idle: it starts carrying this update now.
+                self.line_free_at = self.line_free_at.max(now_ns);
+            }
+            self.updates.push_back(bytes);
         }
-        // Bytes leave at the line rate, one after the other.
-        self.next_at = self.next_at.max(now_ns.saturating_sub(BYTE_NS));
-        while self.next_at + BYTE_NS <= now_ns {
-            let Some(b) = self.out.pop_front() else { break };
-            out.push(b);
-            self.next_at += BYTE_NS;
+        // Each update leaves whole once the line had the time for it; the line's time is
+        // kept however late this thread wakes (a late wake sends what is due at once).
+        while let Some(front) = self.updates.front()
+            && self.line_free_at + line_time(front.len()) <= now_ns
+        {
+            let update = self.updates.pop_front().expect("front");
+            self.line_free_at += line_time(update.len());
+            out.extend_from_slice(&update);
         }
         self.ask();
     }
 
     fn next_deadline(&self) -> Option<u64> {
-        if self.out.is_empty() {
-            Some(self.now + POLL_NS)
+        let poll = if self.asked.load(Ordering::SeqCst) {
+            ANSWER_POLL_NS
         } else {
-            let batch = BATCH.min(self.out.len() as u64);
-            Some(self.next_at + batch * BYTE_NS)
-        }
+            POLL_NS
+        };
+        let release = self
+            .updates
+            .front()
+            .map_or(u64::MAX, |front| self.line_free_at + line_time(front.len()));
+        Some(release.min(self.now + poll))
     }
+
+    fn output_lost(&mut self, _now_ns: u64) {
+        // What the terminal shows is no longer what the node's screen thinks it shows.
+        self.redraw = true;
+    }
+}
+
+/// The time `bytes` take on the line.
+fn line_time(bytes: usize) -> u64 {
+    bytes as u64 * BYTE_NS
 }
 
 /// Serves the terminal of PowerPC node `node` on a pseudo-terminal (19200 8N1), linked at
@@ -517,6 +552,82 @@ pub fn serve(node: &str, bus: Poster, options: PpcOptions) -> Result<ServedPpc, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bus server with a PowerPC node alone on it, and its terminal side.
+    fn terminal() -> (buslab_vbus::server::ServerHandle, PpcTerminal) {
+        let mut config =
+            buslab_vbus::server::ServerConfig::new("127.0.0.1:0".parse().unwrap(), 125_000);
+        let node = PpcNode::new(buslab_monican::Config::default()).unwrap();
+        config.devices.push(("ppc".into(), Box::new(node)));
+        let server = buslab_vbus::server::spawn(config).unwrap();
+        let terminal = PpcTerminal::new("ppc", server.poster());
+        (server, terminal)
+    }
+
+    /// Polls at virtual times a second apart (the line has all the time it needs) until the
+    /// terminal hands over bytes; each poll's bytes, as the pseudo-terminal gets them.
+    fn next_bytes(t: &mut PpcTerminal, now: &mut u64) -> Vec<u8> {
+        let start = std::time::Instant::now();
+        loop {
+            *now += 1_000_000_000;
+            let mut out = Vec::new();
+            t.poll(*now, &mut out);
+            if !out.is_empty() {
+                return out;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "the node's screen never came"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// Issue 26 (10): screen updates went to the pseudo-terminal 8 bytes at a time, so a
+    /// terminal read between two pieces showed half an update. Now each leaves whole, at the
+    /// line's pace: none before the line had the time for all its bytes.
+    #[test]
+    fn screen_updates_leave_whole_at_the_lines_pace() {
+        let (_server, mut t) = terminal();
+        let mut now = 0;
+        let first = next_bytes(&mut t, &mut now);
+        assert!(
+            first.starts_with(b"\x1b[0m\x1b[H\x1b[2J"),
+            "the whole screen"
+        );
+        assert!(first.ends_with(b"H"), "it ends with the cursor's place");
+        // A key changes the command line: that update leaves once its bytes had their line
+        // time.
+        t.receive(now, b'3');
+        let start = std::time::Instant::now();
+        let mut out = Vec::new();
+        while t.updates.is_empty() {
+            assert!(start.elapsed() < Duration::from_secs(60));
+            t.poll(now, &mut out);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let len = t.updates[0].len();
+        t.poll(now + line_time(len) - 1, &mut out);
+        assert!(out.is_empty(), "not before its last byte's time");
+        t.poll(now + line_time(len), &mut out);
+        assert_eq!(out.len(), len, "all of it at once");
+    }
+
+    /// Bytes the pseudo-terminal lost (nobody read it) leave the terminal showing something
+    /// else than the node's screen thinks: the next update is the whole screen again.
+    #[test]
+    fn after_lost_output_the_whole_screen_is_sent_again() {
+        let (_server, mut t) = terminal();
+        let mut now = 0;
+        next_bytes(&mut t, &mut now);
+        t.output_lost(now);
+        let mut again = next_bytes(&mut t, &mut now);
+        while !again.windows(4).any(|w| w == b"\x1b[2J") {
+            // An update asked for before the loss may come first.
+            again = next_bytes(&mut t, &mut now);
+        }
+        assert!(again.starts_with(b"\x1b[0m\x1b[H\x1b[2J"), "{again:?}");
+    }
 
     #[test]
     fn control_lines_are_parsed_and_answered() {

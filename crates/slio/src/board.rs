@@ -10,9 +10,12 @@
 //! - P10 and P4: the DPM1 and DPM2 quasi-analog outputs.
 //! - OUTPUT_ENABLE for all of these: 0x3F90.
 //!
-//! Its inputs can be changed while it runs ([`DemoBoard::set_switches`], the
-//! [`Signal`]s on the analog inputs) and its outputs observed ([`DemoBoard::leds`],
-//! [`DemoBoard::dpm_volts`]).
+//! Its inputs can be changed while it runs ([`DemoBoard::set_switches`],
+//! [`DemoBoard::set_potentiometer`], the [`Signal`]s on the analog inputs) and its outputs
+//! observed ([`DemoBoard::leds`], [`DemoBoard::dpm_volts`]).
+//!
+//! A host that drives the LEDs needs the levels of the outputs it does not change:
+//! [`OutputLevels`] learns them from what the SLIO sends.
 
 use std::any::Any;
 use std::ops::Range;
@@ -22,7 +25,7 @@ use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 
 use crate::ids::SlioId;
-use crate::registers::Register;
+use crate::registers::{Register, Reply};
 use crate::slio::{AnalogInputs, Slio, SlioError, SlioNotice, frame_level};
 
 /// The demo board's OUTPUT_ENABLE: LEDs, DPM outputs, the input select.
@@ -31,6 +34,11 @@ pub const OUTPUT_ENABLE: u16 = 0x3F90;
 pub const LED_PINS: [u8; 5] = [7, 8, 9, 11, 12];
 /// The pin that selects the input switches instead of the ID switches.
 pub const SELECT_PIN: u8 = 13;
+/// The demo board's digital outputs: the LEDs and the input select, that is OUTPUT_ENABLE
+/// without the DPM pins (P10 and P4 follow their duty, not DATA_OUTPUT).
+pub const DIGITAL_OUTPUTS: u16 = 0x3B80;
+/// The input switches' pins, P0..P3 (while P13 selects them).
+pub const SWITCH_PINS: u16 = 0x000F;
 /// ANALOG_CONFIGURATION values that convert ADC1 (P5) and ADC2 (P6, the potentiometer).
 pub const CONVERT_ADC1: u16 = 0xE0;
 pub const CONVERT_ADC2: u16 = 0xC0;
@@ -60,7 +68,7 @@ impl<F: FnMut(u64) -> f64 + Send> Signal for F {
 }
 
 /// The two analog inputs of the board.
-struct BoardAnalog {
+pub(crate) struct BoardAnalog {
     adc1: Box<dyn Signal>,
     potentiometer: Box<dyn Signal>,
 }
@@ -136,7 +144,9 @@ impl DemoBoard {
         self.slio.id()
     }
 
-    /// The four input switches (bit 0 = the switch on P0), as set at bit-time `now`.
+    /// The four input switches (bit 0 = the switch on P0), as set at bit-time `now`. While
+    /// P13 selects them their pins change, and a calibrated SLIO reports the edges its edge
+    /// registers ask for.
     pub fn set_switches(&mut self, now: u64, switches: u8) {
         self.input_switches = switches & 0xF;
         self.update_pins(now);
@@ -144,6 +154,35 @@ impl DemoBoard {
 
     pub fn switches(&self) -> u8 {
         self.input_switches
+    }
+
+    /// Turns the potentiometer (P6, ADC2): from now on it gives `signal` (a level in volts,
+    /// a waveform); the next conversion reads it.
+    pub fn set_potentiometer(&mut self, signal: Box<dyn Signal>) {
+        self.analog_mut().potentiometer = signal;
+    }
+
+    /// The potentiometer's level at bit-time `now` (what a conversion then would read,
+    /// before the ADC's rounding).
+    pub fn potentiometer_volts(&mut self, now: u64) -> f64 {
+        let t = self.nanos(now);
+        self.analog_mut().potentiometer.volts(t)
+    }
+
+    /// The level on ADC1 (P5) at bit-time `now`.
+    pub fn adc1_volts(&mut self, now: u64) -> f64 {
+        let t = self.nanos(now);
+        self.analog_mut().adc1.volts(t)
+    }
+
+    fn nanos(&self, now: u64) -> u64 {
+        (u128::from(now) * 1_000_000_000 / u128::from(self.slio.bitrate())) as u64
+    }
+
+    fn analog_mut(&mut self) -> &mut BoardAnalog {
+        (self.slio.analog_mut() as &mut dyn Any)
+            .downcast_mut::<BoardAnalog>()
+            .expect("a demo board's SLIO has the board's analog inputs")
     }
 
     /// What the SLIO did since the last call (calibration, bus-mode changes, registers).
@@ -196,6 +235,52 @@ impl DemoBoard {
             self.id_switches
         };
         self.slio.set_inputs(now, u16::from(low & 0xF));
+    }
+}
+
+/// What a host knows of a demo board's digital outputs (the LEDs and P13), learned from the
+/// SLIO's frames, whoever asked for them: DATA_OUTPUT as the SLIO confirmed a write, or the
+/// levels its output pins read back in DATA_INPUT (seed §2.1.2: the SLIO answers every
+/// command with the register's content; a P82C150 has no read of DATA_OUTPUT). The newer
+/// frame wins. A host that builds its DATA_OUTPUT write on [`OutputLevels::with_pin`] keeps
+/// the outputs it does not mean to change, and writes none it does not know.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OutputLevels(Option<u16>);
+
+impl OutputLevels {
+    /// A SLIO's frame (an answer to anyone, a sign-on, an edge report).
+    pub fn reply(&mut self, reply: &Reply) {
+        self.learn(reply.register, reply.value);
+    }
+
+    /// A register's content the SLIO sent.
+    pub fn learn(&mut self, register: Register, value: u16) {
+        match register {
+            Register::DataOutput => self.0 = Some(value),
+            // Input pins' bits drive nothing: written as zeros, as MoniCAN initialises them.
+            Register::DataInput => self.0 = Some(value & DIGITAL_OUTPUTS),
+            _ => {}
+        }
+    }
+
+    /// DATA_OUTPUT as last known, if the SLIO told.
+    pub fn get(self) -> Option<u16> {
+        self.0
+    }
+
+    /// The DATA_OUTPUT that drives `pin` to `high` and keeps every other output; `None` while
+    /// the SLIO has told neither.
+    pub fn with_pin(self, pin: u8, high: bool) -> Option<u16> {
+        self.0.map(|base| set_bit(base, pin, high))
+    }
+}
+
+/// `value` with bit `pin` set to `high`.
+pub fn set_bit(value: u16, pin: u8, high: bool) -> u16 {
+    if high {
+        value | 1 << pin
+    } else {
+        value & !(1 << pin)
     }
 }
 
@@ -262,5 +347,45 @@ impl BusNode for DemoBoard {
     }
     fn as_any_mut(&mut self) -> &mut dyn Any {
         self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::registers::Status;
+
+    fn reply(register: Register, value: u16) -> Reply {
+        Reply {
+            status: Status::default(),
+            register,
+            value,
+        }
+    }
+
+    #[test]
+    fn output_levels_come_from_the_slios_answers_newest_first() {
+        let mut levels = OutputLevels::default();
+        assert_eq!(levels.with_pin(8, true), None, "nothing told yet");
+        levels.reply(&reply(Register::Dpm1, 0x200));
+        assert_eq!(levels.get(), None);
+        // DATA_INPUT: the switches (P0, P2) and the DPM pins are not DATA_OUTPUT's.
+        levels.reply(&reply(Register::DataInput, 0x2C85));
+        assert_eq!(levels.get(), Some(0x2880));
+        assert_eq!(levels.with_pin(8, true), Some(0x2980));
+        assert_eq!(levels.with_pin(11, false), Some(0x2080));
+        levels.reply(&reply(Register::DataOutput, 0x2000));
+        assert_eq!(levels.get(), Some(0x2000));
+    }
+
+    #[test]
+    fn the_potentiometer_turns_while_the_board_runs() {
+        let id = SlioId::new(3).unwrap();
+        let mut board = DemoBoard::new(id, 125_000, Box::new(1.25), Box::new(0.5)).unwrap();
+        assert_eq!(board.potentiometer_volts(0), 0.5);
+        board.set_potentiometer(Box::new(|t: u64| t as f64 / 1e9));
+        // 125000 bit-times: one second.
+        assert_eq!(board.potentiometer_volts(125_000), 1.0);
+        assert_eq!(board.adc1_volts(125_000), 1.25);
     }
 }

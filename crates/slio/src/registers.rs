@@ -267,16 +267,6 @@ impl Request {
         Ok(Frame::data(slio.command_id(), &self.data()?).expect("3 bytes"))
     }
 
-    /// The frame data for this request: [`Request::data`]'s 3 bytes. A read of a writable
-    /// register has no such frame: it gives its register number alone, which a P82C150
-    /// ignores (kept for callers not moved to [`Request::frame`] yet, which refuses it).
-    pub fn encode(self) -> Vec<u8> {
-        match self.data() {
-            Ok(data) => data.to_vec(),
-            Err(NotReadable(register)) => vec![register.number()],
-        }
-    }
-
     pub fn register(self) -> Register {
         match self {
             Request::Read { register } | Request::Write { register, .. } => register,
@@ -354,7 +344,7 @@ mod tests {
                 value: 0x32E5
             }
         );
-        assert_eq!(w.encode(), [0x03, 0x32, 0xE5]);
+        assert_eq!(w.data(), Ok([0x03, 0x32, 0xE5]));
     }
 
     #[test]

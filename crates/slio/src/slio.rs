@@ -96,8 +96,8 @@ pub enum SlioNotice {
 }
 
 /// What a SLIO reads on its analog inputs: the multiplexer input (0..=7) at a time, as a
-/// 10-bit code (0..=1023 for 0..5 V).
-pub trait AnalogInputs: Send {
+/// 10-bit code (0..=1023 for 0..5 V). (`Any`: the board that connected them changes them.)
+pub trait AnalogInputs: Send + Any {
     fn code(&mut self, input: u8, t_ns: u64) -> u16;
 }
 
@@ -212,6 +212,11 @@ impl Slio {
     pub fn with_analog(mut self, analog: Box<dyn AnalogInputs>) -> Self {
         self.analog = analog;
         self
+    }
+
+    /// The analog inputs connected (to turn the board's potentiometer).
+    pub fn analog_mut(&mut self) -> &mut dyn AnalogInputs {
+        &mut *self.analog
     }
 
     pub fn id(&self) -> SlioId {

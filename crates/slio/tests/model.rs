@@ -86,7 +86,7 @@ impl Bench {
     }
 
     fn write(&mut self, n: u8, register: Register, value: u16) {
-        let data = Request::Write { register, value }.encode();
+        let data = Request::Write { register, value }.data().unwrap();
         self.send(Frame::data(id(n).command_id(), &data).unwrap());
     }
 }

@@ -274,6 +274,21 @@ impl SocketcandBus {
             .map(drop)
     }
 
+    /// A SLIO demo board on the virtual bus, after `change` to its inputs (buslab servers).
+    pub fn demo_board(
+        &mut self,
+        slio: buslab_slio::SlioId,
+        change: Option<buslab_canbus::admin::BoardInput>,
+    ) -> Result<buslab_canbus::admin::BoardState, ClientError> {
+        self.need_extensions("demo boards")?;
+        let args = self.request(
+            &Command::Board { slio, change },
+            Some(reply::BOARD),
+            self.options.reply_timeout,
+        )?;
+        Ok(reply::parse_board(&args)?)
+    }
+
     /// The nodes on the bus.
     pub fn nodes(&mut self) -> Result<Vec<NodeInfo>, ClientError> {
         self.need_extensions("listing nodes")?;
@@ -653,5 +668,13 @@ impl BusAdmin for SocketcandBus {
 
     fn repair(&mut self) -> Result<(), BusError> {
         Ok(SocketcandBus::repair(self)?)
+    }
+
+    fn demo_board(
+        &mut self,
+        slio: buslab_slio::SlioId,
+        change: Option<buslab_canbus::admin::BoardInput>,
+    ) -> Result<buslab_canbus::admin::BoardState, BusError> {
+        Ok(SocketcandBus::demo_board(self, slio, change)?)
     }
 }

@@ -7,7 +7,9 @@ use buslab_can::{Frame, Id};
 use crate::{ProtocolError, tokens};
 
 pub use buslab_canbus::NodeRef;
+use buslab_canbus::admin::{BoardInput, BoardSwitch, BoardVolts};
 use buslab_canbus::{Probability, WireFault};
+use buslab_slio::SlioId;
 
 /// One client command.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -66,6 +68,14 @@ pub enum Command {
     /// controller configuration it gives (mode, timing, filter, OCR, CLKOUT; see
     /// [`crate::controller`]).
     Controller(buslab_canbus::ControllerSettings),
+    /// `< buslab_board SLIO [CHANGE] >`: a SLIO demo board on the virtual bus, after a change
+    /// to its inputs: `switch N 0|1` (N 0..3, on P0..P3), `switches H` (the four at once, one
+    /// hex digit, bit 0 = P0) or `pot VOLTS` (the potentiometer, 0..5). Answered
+    /// `< buslab_board … >` with the board's inputs and outputs.
+    Board {
+        slio: SlioId,
+        change: Option<BoardInput>,
+    },
 }
 
 /// socketcand's commands that buslab does not implement.
@@ -153,6 +163,7 @@ impl Command {
             "buslab_fault" => parse_fault(args),
             "buslab_repair" => no_args(Command::Repair, "buslab_repair"),
             crate::controller::NAME => crate::controller::parse(args).map(Command::Controller),
+            "buslab_board" => parse_board(args),
             n if UNSUPPORTED.contains(&n) => Ok(Command::Unsupported {
                 name: n.to_string(),
                 args: args.iter().map(|s| s.to_string()).collect(),
@@ -220,6 +231,62 @@ fn parse_fault(args: &[&str]) -> Result<Command, ProtocolError> {
         _ => return Err(bad()),
     };
     Ok(Command::Fault { fault, lasting_ms })
+}
+
+const BOARD_ARGS: &str = "SLIO (one hex digit 0..F), then nothing, switch N 0|1 (N 0..3), switches H (one hex digit: bit 0 is P0) or pot VOLTS (0..5)";
+
+fn parse_board(args: &[&str]) -> Result<Command, ProtocolError> {
+    let bad = || arguments("buslab_board", BOARD_ARGS, args);
+    let [slio, rest @ ..] = args else {
+        return Err(bad());
+    };
+    let slio: SlioId = one_hex_digit(slio)
+        .and_then(|n| SlioId::new(n).ok())
+        .ok_or_else(bad)?;
+    let change = match rest {
+        [] => None,
+        ["switch", n, level] => {
+            let switch = n
+                .parse::<u8>()
+                .ok()
+                .filter(|_| n.len() == 1 && n.bytes().all(|b| b.is_ascii_digit()))
+                .ok_or_else(bad)?;
+            let switch = BoardSwitch::new(switch).map_err(|e| ProtocolError::Arguments {
+                command: "buslab_board",
+                expected: BOARD_ARGS,
+                got: e.to_string(),
+            })?;
+            let on = match *level {
+                "0" => false,
+                "1" => true,
+                _ => return Err(bad()),
+            };
+            Some(BoardInput::Switch { switch, on })
+        }
+        ["switches", bits] => Some(BoardInput::Switches(one_hex_digit(bits).ok_or_else(bad)?)),
+        ["pot", volts] => {
+            // Digits and one point only: `f64::from_str` would take `inf`, `NaN`, `1e3`, `+2`.
+            let plain = !volts.is_empty()
+                && volts.bytes().all(|b| b.is_ascii_digit() || b == b'.')
+                && volts.bytes().filter(|&b| b == b'.').count() <= 1
+                && volts.len() <= 32;
+            let v: f64 = volts.parse().ok().filter(|_| plain).ok_or_else(bad)?;
+            let v = BoardVolts::new(v).map_err(|e| ProtocolError::Arguments {
+                command: "buslab_board",
+                expected: BOARD_ARGS,
+                got: e.to_string(),
+            })?;
+            Some(BoardInput::Potentiometer(v))
+        }
+        _ => return Err(bad()),
+    };
+    Ok(Command::Board { slio, change })
+}
+
+/// One hex digit (`A`, `f`).
+fn one_hex_digit(text: &str) -> Option<u8> {
+    let [b] = text.as_bytes() else { return None };
+    (*b as char).to_digit(16).map(|d| d as u8)
 }
 
 /// A node list as `buslab_fault` writes it: `a,b`, or `*` for none (every node).
@@ -422,6 +489,103 @@ impl fmt::Display for Command {
                 crate::controller::NAME,
                 crate::controller::Args(settings)
             ),
+            Command::Board { slio, change } => {
+                write!(f, "< buslab_board {slio}")?;
+                match change {
+                    None => {}
+                    Some(BoardInput::Switch { switch, on }) => {
+                        write!(f, " switch {switch} {}", u8::from(*on))?
+                    }
+                    Some(BoardInput::Switches(bits)) => write!(f, " switches {:X}", bits & 0xF)?,
+                    // Rust's shortest text that reads back as the same number.
+                    Some(BoardInput::Potentiometer(v)) => write!(f, " pot {}", v.get())?,
+                }
+                f.write_str(" >")
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slio(n: u8) -> SlioId {
+        SlioId::new(n).unwrap()
+    }
+
+    #[test]
+    fn board_commands_round_trip_through_their_text() {
+        let switch = |n, on| BoardInput::Switch {
+            switch: BoardSwitch::new(n).unwrap(),
+            on,
+        };
+        let pot = |v| BoardInput::Potentiometer(BoardVolts::new(v).unwrap());
+        for (command, text) in [
+            ((slio(3), None), "< buslab_board 3 >"),
+            (
+                (slio(3), Some(switch(2, true))),
+                "< buslab_board 3 switch 2 1 >",
+            ),
+            (
+                (slio(10), Some(switch(0, false))),
+                "< buslab_board A switch 0 0 >",
+            ),
+            (
+                (slio(15), Some(BoardInput::Switches(0x5))),
+                "< buslab_board F switches 5 >",
+            ),
+            ((slio(0), Some(pot(2.5))), "< buslab_board 0 pot 2.5 >"),
+            ((slio(0), Some(pot(5.0))), "< buslab_board 0 pot 5 >"),
+            (
+                (slio(0), Some(pot(1.0 / 3.0))),
+                "< buslab_board 0 pot 0.3333333333333333 >",
+            ),
+        ] {
+            let (slio, change) = command;
+            let command = Command::Board { slio, change };
+            assert_eq!(command.to_string(), text);
+            let inner = text.strip_prefix("< ").unwrap().strip_suffix(" >").unwrap();
+            assert_eq!(Command::parse(inner).unwrap(), command, "{text}");
+        }
+        // A switch is on with 1, a SLIO is one hex digit either case.
+        assert_eq!(
+            Command::parse("buslab_board a switch 3 1").unwrap(),
+            Command::Board {
+                slio: slio(10),
+                change: Some(switch(3, true)),
+            }
+        );
+    }
+
+    #[test]
+    fn bad_board_commands_name_what_is_wrong() {
+        for (text, named) in [
+            ("buslab_board", "SLIO (one hex digit 0..F)"),
+            ("buslab_board 10", "got \"10\""),
+            ("buslab_board G", "got \"G\""),
+            (
+                "buslab_board 3 switch 4 1",
+                "switch 4: a demo board has input switches 0..=3",
+            ),
+            ("buslab_board 3 switch 1 on", "got \"3 switch 1 on\""),
+            ("buslab_board 3 switch +1 1", "got \"3 switch +1 1\""),
+            ("buslab_board 3 switches 10", "got \"3 switches 10\""),
+            (
+                "buslab_board 3 pot 5.5",
+                "5.5 V: a demo board's analog inputs take 0..=5 V",
+            ),
+            ("buslab_board 3 pot -1", "got \"3 pot -1\""),
+            ("buslab_board 3 pot NaN", "got \"3 pot NaN\""),
+            ("buslab_board 3 pot inf", "got \"3 pot inf\""),
+            ("buslab_board 3 pot 1e0", "got \"3 pot 1e0\""),
+            ("buslab_board 3 pot 1.2.3", "got \"3 pot 1.2.3\""),
+            ("buslab_board 3 pot", "got \"3 pot\""),
+            ("buslab_board 3 led 7 1", "got \"3 led 7 1\""),
+        ] {
+            let e = Command::parse(text).unwrap_err().to_string();
+            assert!(e.contains(named), "{text}: {e}");
+            assert!(e.contains("buslab_board"), "{text}: {e}");
         }
     }
 }

@@ -12,7 +12,8 @@ use buslab_canbus::{
 
 use std::time::Duration;
 
-use buslab_canbus::admin::FaultLimit;
+use buslab_canbus::admin::{BoardState, FaultLimit};
+use buslab_slio::SlioId;
 
 use crate::message::ServerMessage;
 
@@ -23,6 +24,8 @@ pub const NODES: &str = "buslab_nodes";
 pub const FLUSHED: &str = "buslab_flushed";
 /// A request a limit refused (`< buslab_refused fault rate max=20 … >`).
 pub const REFUSED: &str = "buslab_refused";
+/// A SLIO demo board's inputs and outputs (`< buslab_board 3 6 slio3 switches=5 … >`).
+pub const BOARD: &str = "buslab_board";
 
 /// Why a reply's tokens are not what its name promises.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -526,6 +529,111 @@ pub fn parse_refused(args: &[impl AsRef<str>]) -> Result<FaultLimit, ReplyError>
     }
 }
 
+// ------------------------------------------------------------------------------ board
+
+/// `[SLIO, N, NAME, switches=H, pot=V, adc1=V, leds=HHHH, dpm1=V|floating, dpm2=V|floating]`:
+/// a demo board as `< buslab_board … >` carries it (volts as Rust's shortest text that reads
+/// back as the same number).
+pub fn board_fields(board: &BoardState) -> Vec<String> {
+    let dpm = |v: Option<f64>| v.map_or("floating".to_string(), |v| v.to_string());
+    vec![
+        board.slio.to_string(),
+        board.node.number.to_string(),
+        board.node.name.clone(),
+        format!("switches={:X}", board.switches & 0xF),
+        format!("pot={}", board.potentiometer),
+        format!("adc1={}", board.adc1),
+        format!("leds={:04X}", board.leds),
+        format!("dpm1={}", dpm(board.dpm[0])),
+        format!("dpm2={}", dpm(board.dpm[1])),
+    ]
+}
+
+/// `< buslab_board … >`: the answer to `< buslab_board SLIO [CHANGE] >`.
+pub fn board_reply(board: &BoardState) -> ServerMessage {
+    ServerMessage::Other {
+        name: BOARD.into(),
+        args: board_fields(board),
+    }
+}
+
+/// Volts 0..=5 as a plain decimal (no sign, exponent, `inf` or `NaN`).
+fn volts(text: &str) -> Option<f64> {
+    let plain = !text.is_empty()
+        && text.len() <= 32
+        && text.bytes().all(|b| b.is_ascii_digit() || b == b'.')
+        && text.bytes().filter(|&b| b == b'.').count() <= 1;
+    plain
+        .then(|| text.parse::<f64>().ok())
+        .flatten()
+        .filter(|v| (0.0..=buslab_slio::board::VDD).contains(v))
+}
+
+/// Reads a demo board back from `< buslab_board … >`.
+pub fn parse_board(args: &[impl AsRef<str>]) -> Result<BoardState, ReplyError> {
+    let args: Vec<&str> = args.iter().map(|a| a.as_ref()).collect();
+    let shape = |expected: &'static str, got: &str| ReplyError::Shape {
+        reply: BOARD,
+        expected,
+        got: got.to_string(),
+    };
+    let [slio, number, name, fields @ ..] = args.as_slice() else {
+        return Err(shape("SLIO N NAME KEY=VALUE…", &join(&args)));
+    };
+    let slio = (slio.len() == 1)
+        .then(|| slio.parse::<SlioId>().ok())
+        .flatten()
+        .ok_or_else(|| shape("a SLIO number 0..F first", slio))?;
+    let number = decimal(number).ok_or_else(|| shape("a node number after the SLIO", number))?;
+    let field = |key: &'static str| -> Result<&str, ReplyError> {
+        let mut found = fields
+            .iter()
+            .filter_map(|f| f.split_once('=').filter(|(k, _)| *k == key).map(|(_, v)| v));
+        let value = found
+            .next()
+            .ok_or(ReplyError::Missing { reply: BOARD, key })?;
+        if found.next().is_some() {
+            return Err(ReplyError::Duplicate {
+                reply: BOARD,
+                key: key.to_string(),
+            });
+        }
+        Ok(value)
+    };
+    let value = |key: &'static str, expected: &'static str, parse: &dyn Fn(&str) -> Option<f64>| {
+        let v = field(key)?;
+        parse(v).ok_or_else(|| bad(BOARD, key, v, expected))
+    };
+    let dpm = |key: &'static str| -> Result<Option<f64>, ReplyError> {
+        match field(key)? {
+            "floating" => Ok(None),
+            v => volts(v)
+                .map(Some)
+                .ok_or_else(|| bad(BOARD, key, v, "volts 0..5 or floating")),
+        }
+    };
+    let switches = field("switches")?;
+    let leds = field("leds")?;
+    Ok(BoardState {
+        slio,
+        node: NodeInfo {
+            number,
+            name: name.to_string(),
+        },
+        switches: (switches.len() == 1)
+            .then(|| u8::from_str_radix(switches, 16).ok())
+            .flatten()
+            .ok_or_else(|| bad(BOARD, "switches", switches, "one hex digit"))?,
+        potentiometer: value("pot", "volts 0..5", &volts)?,
+        adc1: value("adc1", "volts 0..5", &volts)?,
+        leds: (leds.len() == 4 && leds.bytes().all(|b| b.is_ascii_hexdigit()))
+            .then(|| u16::from_str_radix(leds, 16).ok())
+            .flatten()
+            .ok_or_else(|| bad(BOARD, "leds", leds, "four hex digits (a pin mask)"))?,
+        dpm: [dpm("dpm1")?, dpm("dpm2")?],
+    })
+}
+
 /// The tokens for an error message (the first few: garbage can be long).
 fn join(args: &[impl AsRef<str>]) -> String {
     let mut text: Vec<&str> = args.iter().take(8).map(|a| a.as_ref()).collect();
@@ -533,4 +641,75 @@ fn join(args: &[impl AsRef<str>]) -> String {
         text.push("…");
     }
     text.join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn board() -> BoardState {
+        BoardState {
+            slio: SlioId::new(3).unwrap(),
+            node: NodeInfo {
+                number: 6,
+                name: "slio3".into(),
+            },
+            switches: 0x5,
+            potentiometer: 1.0 / 3.0,
+            adc1: 1.25,
+            leds: 0x0880,
+            dpm: [Some(2.5), None],
+        }
+    }
+
+    #[test]
+    fn a_board_reads_back_as_it_was_written() {
+        let fields = board_fields(&board());
+        assert_eq!(
+            fields.join(" "),
+            "3 6 slio3 switches=5 pot=0.3333333333333333 adc1=1.25 leds=0880 dpm1=2.5 dpm2=floating"
+        );
+        assert_eq!(parse_board(&fields).unwrap(), board());
+    }
+
+    #[test]
+    fn a_bad_board_reply_names_the_field() {
+        let with = |key: &str, value: &str| {
+            let mut fields = board_fields(&board());
+            for f in &mut fields {
+                if f.starts_with(&format!("{key}=")) {
+                    *f = format!("{key}={value}");
+                }
+            }
+            parse_board(&fields).unwrap_err().to_string()
+        };
+        assert_eq!(
+            with("pot", "7"),
+            "buslab_board: pot=\"7\" must be volts 0..5"
+        );
+        assert!(with("switches", "10").contains("one hex digit"));
+        assert!(with("leds", "88").contains("four hex digits"));
+        assert!(with("dpm2", "off").contains("volts 0..5 or floating"));
+        assert!(with("adc1", "NaN").contains("adc1"));
+        let mut twice = board_fields(&board());
+        twice.push("pot=1".into());
+        assert_eq!(
+            parse_board(&twice).unwrap_err(),
+            ReplyError::Duplicate {
+                reply: BOARD,
+                key: "pot".into()
+            }
+        );
+        let short = ["3", "6"];
+        assert!(parse_board(&short).is_err());
+        let mut missing = board_fields(&board());
+        missing.retain(|f| !f.starts_with("leds="));
+        assert_eq!(
+            parse_board(&missing).unwrap_err(),
+            ReplyError::Missing {
+                reply: BOARD,
+                key: "leds"
+            }
+        );
+    }
 }

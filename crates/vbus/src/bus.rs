@@ -13,6 +13,7 @@ use buslab_can::node::BusNode;
 use buslab_can::wire::encode;
 use buslab_canbus::WireFault;
 use buslab_canbus::admin::FaultLimit;
+use buslab_canbus::admin::{BoardInput, BoardState};
 use buslab_canbus::{
     BusOffRecovery, BusState, BusSummary, ControllerSettings, ErrorRegisters, NodeCounters,
     NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
@@ -20,7 +21,8 @@ use buslab_canbus::{
 use buslab_sim::{BusStats, Fault, FaultKind, Simulation};
 use buslab_sja1000::BitTiming;
 
-use buslab_slio::{Calibration, DemoBoard, ModeChangeCause, SlioNotice};
+use buslab_slio::board::{LED_PINS, VDD};
+use buslab_slio::{Calibration, DemoBoard, ModeChangeCause, SlioId, SlioNotice};
 
 use crate::departure::{Departure, DropReason, Verdict};
 use crate::node::{ClientNode, NodeNotice, node_config};
@@ -48,6 +50,19 @@ pub enum VbusError {
     /// A limit refused a fault (the socketcand extension answers `< buslab_refused … >`).
     #[error("{0}")]
     FaultRefused(FaultLimit),
+    /// No demo board with that SLIO number; the ones there are.
+    #[error("no SLIO demo board {slio} on this bus ({})", boards_text(.boards))]
+    NoBoard { slio: SlioId, boards: Vec<SlioId> },
+    #[error("switches {0:#X}: a demo board has four input switches (0x0..0xF, bit 0 on P0)")]
+    Switches(u8),
+}
+
+fn boards_text(boards: &[SlioId]) -> String {
+    if boards.is_empty() {
+        return "it has none".into();
+    }
+    let list: Vec<String> = boards.iter().map(ToString::to_string).collect();
+    format!("boards: {}", list.join(", "))
 }
 
 /// Most faults on one bus at once (scenario and injected, in force or to start later); ended
@@ -109,6 +124,11 @@ pub enum BusEvent {
         settings: ControllerSettings,
         /// Whether its bit rate now lets it follow the bus.
         matches_bus: bool,
+    /// A client changed a SLIO demo board's inputs (a switch, the potentiometer).
+    Board {
+        number: u32,
+        name: String,
+        input: BoardInput,
     },
     /// A SLIO board's calibration changed, or it changed its bus mode.
     Slio {
@@ -196,6 +216,11 @@ impl fmt::Display for BusEvent {
                 }
                 Ok(())
             }
+            BusEvent::Board {
+                number,
+                name,
+                input,
+            } => write!(f, "node {number} ({name}): demo board's {input}"),
             BusEvent::Renamed { number, old, new } => {
                 write!(f, "node {number} ({old}) is now called {new}")
             }
@@ -863,6 +888,81 @@ impl VirtualBus {
         Ok(())
     }
 
+    /// A SLIO demo board (by its SLIO number), after `change` to its inputs at the bus's
+    /// time: the SLIO sees the new levels on its pins (reporting the edges its edge registers
+    /// ask for, while P13 selects the switches) and converts the new potentiometer level.
+    pub fn demo_board(
+        &mut self,
+        slio: SlioId,
+        change: Option<BoardInput>,
+    ) -> Result<BoardState, VbusError> {
+        let now = self.now();
+        let found = self
+            .sim
+            .nodes()
+            .iter()
+            .position(|n| n.get::<DemoBoard>().is_some_and(|b| b.id() == slio));
+        let Some(i) = found else {
+            let boards = self
+                .sim
+                .nodes()
+                .iter()
+                .filter_map(|n| n.get::<DemoBoard>().map(DemoBoard::id))
+                .collect();
+            return Err(VbusError::NoBoard { slio, boards });
+        };
+        let number = self.numbers[i];
+        let node = self.sim.node_mut(i);
+        let name = node.name().to_string();
+        let board = node.get_mut::<DemoBoard>().expect("found above");
+        match change {
+            None => {}
+            Some(BoardInput::Switch { switch, on }) => {
+                let bit = 1 << switch.number();
+                let switches = if on {
+                    board.switches() | bit
+                } else {
+                    board.switches() & !bit
+                };
+                board.set_switches(now, switches);
+            }
+            Some(BoardInput::Switches(bits)) if bits > 0xF => {
+                return Err(VbusError::Switches(bits));
+            }
+            Some(BoardInput::Switches(bits)) => board.set_switches(now, bits),
+            Some(BoardInput::Potentiometer(volts)) => {
+                board.set_potentiometer(Box::new(volts.get()))
+            }
+        }
+        // As the ADC reads them (it clamps to its supply).
+        let level = |v: f64| if v.is_nan() { 0.0 } else { v.clamp(0.0, VDD) };
+        let leds = board.leds();
+        let state = BoardState {
+            slio,
+            node: NodeInfo {
+                number,
+                name: name.clone(),
+            },
+            switches: board.switches(),
+            potentiometer: level(board.potentiometer_volts(now)),
+            adc1: level(board.adc1_volts(now)),
+            leds: LED_PINS
+                .iter()
+                .zip(leds)
+                .filter(|(_, lit)| *lit)
+                .fold(0, |mask, (pin, _)| mask | 1 << pin),
+            dpm: board.dpm_volts(),
+        };
+        if let Some(input) = change {
+            self.say(BusEvent::Board {
+                number,
+                name,
+                input,
+            });
+        }
+        Ok(state)
+    }
+
     /// Ends every fault on the wire now; returns how many were ended.
     pub fn repair(&mut self) -> usize {
         let ended = self.sim.end_faults();
@@ -1045,4 +1145,67 @@ impl VirtualBus {
 /// The bit timing a node gets for `bitrate` (for the log and docs).
 pub fn timing_for(bitrate: u32) -> Option<BitTiming> {
     node_config(bitrate).bit_timing().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use buslab_canbus::admin::{BoardSwitch, BoardVolts};
+
+    fn bus_with_board(id: u8) -> VirtualBus {
+        let mut bus = VirtualBus::new(125_000).unwrap();
+        let slio = SlioId::new(id).unwrap();
+        let board = DemoBoard::new(slio, 125_000, Box::new(1.25), Box::new(0.0)).unwrap();
+        bus.add_node(&format!("slio{slio}"), Box::new(board))
+            .unwrap();
+        bus
+    }
+
+    #[test]
+    fn a_demo_boards_switches_and_potentiometer_change_and_are_said() {
+        let mut bus = bus_with_board(3);
+        let s3 = SlioId::new(3).unwrap();
+        let state = bus.demo_board(s3, None).unwrap();
+        assert_eq!(
+            (state.switches, state.potentiometer, state.adc1),
+            (0, 0.0, 1.25)
+        );
+        assert_eq!(state.node.name, "slio3");
+        assert_eq!(
+            (state.leds, state.dpm),
+            (0, [None, None]),
+            "not initialised"
+        );
+        let on = BoardInput::Switch {
+            switch: BoardSwitch::new(2).unwrap(),
+            on: true,
+        };
+        assert_eq!(bus.demo_board(s3, Some(on)).unwrap().switches, 0b0100);
+        let pot = BoardInput::Potentiometer(BoardVolts::new(2.5).unwrap());
+        assert_eq!(bus.demo_board(s3, Some(pot)).unwrap().potentiometer, 2.5);
+        let all = BoardInput::Switches(0xF);
+        assert_eq!(bus.demo_board(s3, Some(all)).unwrap().switches, 0xF);
+        assert_eq!(
+            bus.demo_board(s3, Some(BoardInput::Switches(0x10))),
+            Err(VbusError::Switches(0x10))
+        );
+        let said: Vec<String> = bus
+            .take_events()
+            .into_iter()
+            .map(|(_, e)| e.to_string())
+            .collect();
+        assert_eq!(
+            said,
+            [
+                "node 1 (slio3): demo board's switch 2 on",
+                "node 1 (slio3): demo board's potentiometer at 2.500 V",
+                "node 1 (slio3): demo board's switches 1111",
+            ]
+        );
+        let err = bus.demo_board(SlioId::new(5).unwrap(), None).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "no SLIO demo board 5 on this bus (boards: 3)"
+        );
+    }
 }

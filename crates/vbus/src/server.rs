@@ -1471,6 +1471,9 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
             bus.repair();
             Ok(ServerMessage::Ok)
         }
+        Command::Board { slio, change } => bus
+            .demo_board(slio, change)
+            .map(|board| buslab_socketcand::reply::board_reply(&board)),
         Command::Nodes => Ok(nodes_reply(&bus.nodes())),
         Command::Status(node) => bus
             .status(node.as_ref().unwrap_or(&own))

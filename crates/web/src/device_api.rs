@@ -6,8 +6,11 @@ use axum::Json;
 use axum::body::Bytes;
 use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode};
-use axum::response::IntoResponse;
+use axum::response::{IntoResponse, Response};
 use buslab_backends::TrySendError;
+use buslab_canbus::admin::{BoardInput, BoardState};
+use buslab_canbus::{BusError, CanBus};
+use buslab_slio::SlioId;
 
 use crate::device_request::{
     Cpu196Order, SlioOrder, ZelleOrder, cpu196_request, slio_request, zelle_request,
@@ -37,16 +40,21 @@ fn absent(what: &str) -> ApiError {
 }
 
 /// `POST /api/slio`: a request frame to a SLIO; its answer, seen on the bus, changes the
-/// panel (202: queued, not yet confirmed).
+/// panel (202: queued, not yet confirmed). A switch or the potentiometer is the board's, on
+/// the bench: changed at once (200, the board's inputs as the bench then has them), and the
+/// SLIO's pins are read again so that the panel shows what the SLIO sees.
 pub async fn slio(
     State(app): State<App>,
     headers: HeaderMap,
     bytes: Bytes,
-) -> Result<impl IntoResponse, ApiError> {
+) -> Result<Response, ApiError> {
     authorize(&app, &headers)?;
     let order = slio_request(&bytes)?;
     if app.hub.devices.slio().is_empty() {
         return Err(absent("SLIO boards"));
+    }
+    if let Some(change) = order.bench() {
+        return bench(&app, order.slio(), change).await;
     }
     let frames = {
         let mut panels = app.hub.devices.slio();
@@ -67,6 +75,10 @@ pub async fn slio(
             SlioOrder::Convert { slio, input } => {
                 vec![panels.convert_request(slio, input).map_err(bad)?]
             }
+            // Answered above: the board's, not its SLIO's.
+            SlioOrder::Switch { .. } | SlioOrder::Pot { .. } | SlioOrder::Board { .. } => {
+                Vec::new()
+            }
             SlioOrder::Read { slio: id } => {
                 let want = format!("{:03X}", id.command_id().as_raw());
                 let frames: Vec<_> = panels
@@ -84,6 +96,16 @@ pub async fn slio(
         }
     };
     app.hub.devices.changed();
+    let queued = queue(&app, frames)?;
+    Ok((
+        StatusCode::ACCEPTED,
+        Json(serde_json::json!({ "queued": queued })),
+    )
+        .into_response())
+}
+
+/// Hands frames to the bus; their text.
+fn queue(app: &App, frames: Vec<buslab_can::Frame>) -> Result<Vec<String>, ApiError> {
     let mut queued = Vec::new();
     for frame in frames {
         match app.sender.try_send(frame) {
@@ -102,10 +124,82 @@ pub async fn slio(
             }
         }
     }
-    Ok((
-        StatusCode::ACCEPTED,
-        Json(serde_json::json!({ "queued": queued })),
-    ))
+    Ok(queued)
+}
+
+/// A demo board's inputs on the bench: changed (or only looked at) on the bus's own thread
+/// through the virtual bus's extension; a changed switch is then read back through the SLIO.
+async fn bench(app: &App, slio: SlioId, change: Option<BoardInput>) -> Result<Response, ApiError> {
+    let unknown = |id| {
+        ApiError::bad_request(crate::devices::slio::SlioRequestError::UnknownBoard(id).to_string())
+    };
+    if !app.hub.devices.slio().has(slio) {
+        return Err(unknown(slio));
+    }
+    let board = demo_board(app, slio, change).await?;
+    let read = {
+        let mut panels = app.hub.devices.slio();
+        panels.bench(board.clone()).map_err(|_| unknown(slio))?;
+        match change {
+            Some(BoardInput::Switch { .. } | BoardInput::Switches(_)) => {
+                vec![panels.pins_request(slio).map_err(|_| unknown(slio))?]
+            }
+            _ => Vec::new(),
+        }
+    };
+    app.hub.devices.changed();
+    let queued = queue(app, read)?;
+    Ok(Json(serde_json::json!({
+        "board": {
+            "slio": board.slio.to_string(),
+            "switches": buslab_canbus::admin::switch_bits(board.switches),
+            "potentiometer": board.potentiometer,
+        },
+        "queued": queued,
+    }))
+    .into_response())
+}
+
+/// `BusAdmin::demo_board` on the bus's thread.
+async fn demo_board(
+    app: &App,
+    slio: SlioId,
+    change: Option<BoardInput>,
+) -> Result<BoardState, ApiError> {
+    let stopped = || {
+        ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the bus is no longer served (it failed: see the overview page)",
+        )
+    };
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let job = Box::new(move |bus: &mut dyn CanBus| {
+        let result = match bus.admin() {
+            Some(admin) => admin.demo_board(slio, change),
+            None => Err(BusError::Unsupported {
+                what: "demo boards",
+                backend: bus.channel_info(),
+            }),
+        };
+        let _ = tx.send(result);
+    });
+    let sender = app.sender.clone();
+    // The pump's queue is bounded: queuing may wait, so not on the async workers.
+    tokio::task::spawn_blocking(move || sender.run(job))
+        .await
+        .map_err(|_| stopped())?
+        .map_err(|_| stopped())?;
+    match rx.await.map_err(|_| stopped())? {
+        Ok(board) => Ok(board),
+        Err(e @ BusError::Unsupported { .. }) => Err(ApiError::new(
+            StatusCode::CONFLICT,
+            format!("{e} (only a buslab virtual bus has demo boards to reach)"),
+        )),
+        Err(e @ (BusError::Other(_) | BusError::Rejected(_))) => {
+            Err(ApiError::bad_request(format!("the bus refused it: {e}")))
+        }
+        Err(e) => Err(ApiError::new(StatusCode::BAD_GATEWAY, e.to_string())),
+    }
 }
 
 /// `POST /api/zelle`: a measurement (plotted block by block), its stop, a RAM read.

@@ -9,6 +9,7 @@
 use std::time::Duration;
 
 use axum::http::StatusCode;
+use buslab_canbus::admin::{BadSwitch, BoardInput, BoardSwitch, BoardVolts};
 use buslab_slio::SlioId;
 use buslab_zelle::client::{SeriesError, SeriesParams};
 use serde::Deserialize;
@@ -36,6 +37,10 @@ pub enum DeviceRequestError {
     },
     #[error("slio {0:?}: a SLIO number 0..F")]
     SlioNumber(String),
+    #[error("{0}")]
+    Switch(BadSwitch),
+    #[error("volts {0}: the potentiometer turns from 0 to 5 V")]
+    Volts(f64),
     #[error("len {0}: 1..{MAX_RAM_VIEW} bytes from 0800h")]
     RamLength(usize),
     #[error("channels {channels:?}, interval_ms {interval_ms}: {source}")]
@@ -91,6 +96,9 @@ enum SlioBody {
     Dpm { slio: String, output: u8, duty: u16 },
     Convert { slio: String, input: u8 },
     Read { slio: String },
+    Switch { slio: String, switch: u8, on: bool },
+    Pot { slio: String, volts: f64 },
+    Board { slio: String },
 }
 
 /// What `POST /api/slio` asks of a SLIO. Whether the pin, DPM or ADC exists on the demo board
@@ -103,8 +111,18 @@ pub enum SlioOrder {
     Dpm { slio: SlioId, output: u8, duty: u16 },
     /// Convert ADC1 or ADC2.
     Convert { slio: SlioId, input: u8 },
-    /// Read the board's registers again (inputs, outputs, DPMs).
+    /// Read the board's pins again (DATA_INPUT: the switches, the outputs read back).
     Read { slio: SlioId },
+    /// Flip an input switch of the board (the bench's, not the SLIO's).
+    Switch {
+        slio: SlioId,
+        switch: BoardSwitch,
+        on: bool,
+    },
+    /// Turn the board's potentiometer to a level.
+    Pot { slio: SlioId, volts: BoardVolts },
+    /// The board's switches and potentiometer as the bench has them.
+    Board { slio: SlioId },
 }
 
 impl SlioOrder {
@@ -114,7 +132,21 @@ impl SlioOrder {
             Self::Output { slio, .. }
             | Self::Dpm { slio, .. }
             | Self::Convert { slio, .. }
-            | Self::Read { slio } => slio,
+            | Self::Read { slio }
+            | Self::Switch { slio, .. }
+            | Self::Pot { slio, .. }
+            | Self::Board { slio } => slio,
+        }
+    }
+
+    /// What it does to the board's inputs on the bench, for the orders that go to the board
+    /// rather than its SLIO (`Some(None)`: only look).
+    pub fn bench(&self) -> Option<Option<BoardInput>> {
+        match *self {
+            Self::Switch { switch, on, .. } => Some(Some(BoardInput::Switch { switch, on })),
+            Self::Pot { volts, .. } => Some(Some(BoardInput::Potentiometer(volts))),
+            Self::Board { .. } => Some(None),
+            _ => None,
         }
     }
 
@@ -132,6 +164,13 @@ impl SlioOrder {
                 serde_json::json!({ "action": "convert", "slio": slio, "input": input })
             }
             Self::Read { .. } => serde_json::json!({ "action": "read", "slio": slio }),
+            Self::Switch { switch, on, .. } => serde_json::json!({
+                "action": "switch", "slio": slio, "switch": switch.number(), "on": on
+            }),
+            Self::Pot { volts, .. } => {
+                serde_json::json!({ "action": "pot", "slio": slio, "volts": volts.get() })
+            }
+            Self::Board { .. } => serde_json::json!({ "action": "board", "slio": slio }),
         };
         value.to_string()
     }
@@ -159,6 +198,16 @@ pub fn slio_request(body: &[u8]) -> Result<SlioOrder, DeviceRequestError> {
             input,
         },
         SlioBody::Read { slio } => SlioOrder::Read { slio: id(&slio)? },
+        SlioBody::Switch { slio, switch, on } => SlioOrder::Switch {
+            slio: id(&slio)?,
+            switch: BoardSwitch::new(switch).map_err(DeviceRequestError::Switch)?,
+            on,
+        },
+        SlioBody::Pot { slio, volts } => SlioOrder::Pot {
+            slio: id(&slio)?,
+            volts: BoardVolts::new(volts).map_err(|_| DeviceRequestError::Volts(volts))?,
+        },
+        SlioBody::Board { slio } => SlioOrder::Board { slio: id(&slio)? },
     })
 }
 
@@ -362,6 +411,22 @@ mod tests {
             "-1",
         );
         refused(slio_request(br#"{"action":"read","slio":"16"}"#), "\"16\"");
+        refused(
+            slio_request(br#"{"action":"switch","slio":"3","switch":4,"on":true}"#),
+            "switch 4: a demo board has input switches 0..=3",
+        );
+        refused(
+            slio_request(br#"{"action":"pot","slio":"3","volts":5.5}"#),
+            "volts 5.5: the potentiometer turns from 0 to 5 V",
+        );
+        refused(
+            slio_request(br#"{"action":"pot","slio":"3","volts":-0.5}"#),
+            "volts -0.5",
+        );
+        refused(
+            slio_request(br#"{"action":"pot","slio":"3","volts":"2.5V"}"#),
+            SLIO_EXAMPLE,
+        );
         refused(slio_request(br#"{"action":"read","slio":"G"}"#), "\"G\"");
         refused(zelle_request(br#"{"action":"ram","len":0}"#), "len 0");
         refused(zelle_request(br#"{"action":"ram","len":513}"#), "len 513");
@@ -410,6 +475,12 @@ mod tests {
             r#"{"action":"dpm","slio":"12","output":2,"duty":1023}"#,
             r#"{"action":"convert","slio":"a","input":2}"#,
             r#"{"action":"read","slio":" F "}"#,
+            r#"{"action":"switch","slio":"3","switch":2,"on":true}"#,
+            r#"{"action":"switch","slio":"A","switch":0,"on":false}"#,
+            r#"{"action":"pot","slio":"3","volts":2.5}"#,
+            r#"{"action":"pot","slio":"3","volts":0.1}"#,
+            r#"{"action":"pot","slio":"3","volts":0}"#,
+            r#"{"action":"board","slio":"0"}"#,
         ] {
             let order = slio_request(body.as_bytes()).unwrap();
             assert_eq!(slio_request(order.to_json().as_bytes()).unwrap(), order);

@@ -1,21 +1,30 @@
 //! `buslab slio`: P82C150 SLIOs on any bus — calibrate them, list them, read and write their
-//! registers, drive an output, convert an input, set a DPM output.
+//! registers, drive an output, convert an input, set a DPM output — and, on a buslab virtual
+//! bus, the demo boards' switches and potentiometer (`board`).
 
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+use buslab_backends::{BusUrl, resolve};
+use buslab_canbus::admin::{BoardInput, BoardSwitch, BoardVolts};
 use buslab_canbus::slio::SlioHost;
 use buslab_slio::board::{CONVERT_ADC1, CONVERT_ADC2, VDD};
 use buslab_slio::registers::TEN_BITS;
 use buslab_slio::{Register, Request, SlioId};
 
-use super::busopt::{BusOpt, open};
+use super::busopt::{self, open};
 use crate::units::Human;
 
 #[derive(clap::Args)]
 pub struct Args {
-    #[command(flatten)]
-    pub bus: BusOpt,
+    /// The bus: vcan0 (buslab's bus on this machine), an interface (can0: SocketCAN), an
+    /// SLCAN adapter's path (/dev/ttyACM0), or a URL: socketcand://HOST[:PORT][/CHANNEL],
+    /// socketcan:IFACE, slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1] (docs/transports.md).
+    /// Default: the configuration's `bus` (docs/config.md), else vcan0. Before or after the
+    /// subcommand.
+    #[arg(long, global = true, value_name = "BUS",
+          default_value = crate::config::get().bus_name.as_str(), value_parser = resolve)]
+    pub bus: BusUrl,
     /// The bus's bit rate in bit/s, for the calibration rhythm (a buslab bus says it itself;
     /// SLIOs follow 20000..125000).
     #[arg(long, global = true, value_name = "BIT/S")]
@@ -85,6 +94,17 @@ pub enum SlioCommand {
         #[arg(value_parser = clap::value_parser!(u8).range(1..=2))]
         input: u8,
     },
+    /// A demo board on a buslab virtual bus (`buslab lab`, `bus serve --slio`) as a person at
+    /// the bench sees it: its input switches, potentiometer, LEDs and DPM outputs; with a
+    /// change, flip a switch or turn the potentiometer first. The SLIO sees the new levels at
+    /// once (`read SLIO DATA_INPUT`, MoniCAN's `3I0`; edges its edge registers ask for are
+    /// reported), and the next conversion of ADC2 reads the potentiometer.
+    Board {
+        /// The board's SLIO number: 0..F.
+        slio: SlioId,
+        #[command(subcommand)]
+        change: Option<BoardChange>,
+    },
     /// Set a quasi-analog output: 1 = DPM1 (P10), 2 = DPM2 (P4), a duty of 0..1023 (/1024).
     Dpm {
         /// The SLIO: 0..F.
@@ -96,6 +116,91 @@ pub enum SlioCommand {
         #[arg(value_parser = clap::value_parser!(u16).range(0..=1023))]
         duty: u16,
     },
+}
+
+/// A change to a demo board's inputs.
+#[derive(clap::Subcommand)]
+pub enum BoardChange {
+    /// Flip one input switch (0..3, on P0..P3): `switch 2 on`.
+    Switch {
+        /// 0..3.
+        #[arg(value_parser = parse_switch)]
+        switch: BoardSwitch,
+        /// on/off, 1/0, high/low.
+        #[arg(action = clap::ArgAction::Set, value_parser = parse_level)]
+        level: bool,
+    },
+    /// Set the four input switches at once, as the board shows them from P3 to P0 (`0101`),
+    /// or as a number (`0x5`).
+    Switches {
+        #[arg(value_parser = parse_switches)]
+        switches: u8,
+    },
+    /// Turn the potentiometer (P6, ADC2) to a level, 0..5 V (`2.5V`, `2500mV`, `2.5`); it
+    /// stays there (the lab's slow turn stops).
+    Pot {
+        #[arg(value_parser = parse_volts)]
+        level: BoardVolts,
+    },
+}
+
+impl BoardChange {
+    fn input(&self) -> BoardInput {
+        match *self {
+            BoardChange::Switch { switch, level } => BoardInput::Switch { switch, on: level },
+            BoardChange::Switches { switches } => BoardInput::Switches(switches),
+            BoardChange::Pot { level } => BoardInput::Potentiometer(level),
+        }
+    }
+}
+
+fn parse_switch(text: &str) -> Result<BoardSwitch, String> {
+    let n = text
+        .parse::<u8>()
+        .ok()
+        .filter(|_| text.bytes().all(|b| b.is_ascii_digit()))
+        .unwrap_or(u8::MAX);
+    BoardSwitch::new(n)
+        .map_err(|_| format!("switch {text:?}: a demo board has input switches 0..3 (on P0..P3)"))
+}
+
+/// `0101` (P3..P0) or `0x5`.
+fn parse_switches(text: &str) -> Result<u8, String> {
+    let t = text.trim();
+    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(hex) if hex.len() == 1 => u8::from_str_radix(hex, 16).ok(),
+        Some(_) => None,
+        None if t.len() == 4 && t.bytes().all(|b| b == b'0' || b == b'1') => {
+            u8::from_str_radix(t, 2).ok()
+        }
+        None => None,
+    };
+    parsed.ok_or_else(|| {
+        format!(
+            "switches {text:?}: four 0/1 digits from P3 to P0 (0101: switches 0 and 2 on) or 0x0..0xF"
+        )
+    })
+}
+
+/// `2.5V`, `2500mV`, `2.5` (volts), 0..5.
+fn parse_volts(text: &str) -> Result<BoardVolts, String> {
+    let t = text.trim();
+    let (number, scale) = if let Some(n) = t.strip_suffix("mV") {
+        (n, 1e-3)
+    } else if let Some(n) = t.strip_suffix(['V', 'v']) {
+        (n, 1.0)
+    } else {
+        (t, 1.0)
+    };
+    // Digits and one point: `f64::from_str` would take `inf`, `NaN`, `1e3`, `-0`.
+    let plain = !number.is_empty()
+        && number.bytes().all(|b| b.is_ascii_digit() || b == b'.')
+        && number.bytes().filter(|&b| b == b'.').count() <= 1;
+    plain
+        .then(|| number.parse::<f64>().ok())
+        .flatten()
+        .and_then(|v| BoardVolts::new(v * scale).ok())
+        .ok_or_else(|| format!("potentiometer level {text:?}: 0..5 V, as 2.5V, 2500mV or 2.5"))
 }
 
 /// `0x2000`, `2000h`, `8192`.
@@ -124,8 +229,11 @@ fn parse_level(text: &str) -> Result<bool, String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let url = args.bus.bus.clone();
+    let url = args.bus.clone();
     let mut bus = open(&url)?;
+    if let SlioCommand::Board { slio, change } = &args.command {
+        return board(&mut bus, &url, *slio, change.as_ref());
+    }
     let bitrate = match (args.bitrate, bus.admin()) {
         (Some(b), _) => b,
         (None, Some(admin)) => admin.node_status(None)?.bus.bitrate,
@@ -240,6 +348,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 f64::from(code) / 1023.0 * VDD
             );
         }
+        // The board, not its SLIO: answered above.
+        SlioCommand::Board { .. } => {}
         SlioCommand::Dpm { slio, output, duty } => {
             prepare(&mut host, calibrate)?;
             let register = if output == 1 {
@@ -257,10 +367,55 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `board`: the demo board as the server sees it, after the change; nothing goes on the bus
+/// (the board's SLIO tells the change itself, as the chip does).
+fn board(
+    bus: &mut buslab_backends::DynBus,
+    url: &BusUrl,
+    slio: SlioId,
+    change: Option<&BoardChange>,
+) -> anyhow::Result<()> {
+    let admin = busopt::admin(bus, url, "demo boards")?;
+    let board = admin
+        .demo_board(slio, change.map(BoardChange::input))
+        .with_context(|| format!("{url}: SLIO {slio}'s demo board"))?;
+    println!("{board}");
+    Ok(())
+}
+
 /// With --calibrate, the start-up calibration before a request.
 fn prepare(host: &mut SlioHost<'_>, calibrate: bool) -> anyhow::Result<()> {
     if calibrate {
         host.settle()?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn board_inputs_are_read_as_a_person_writes_them() {
+        assert_eq!(parse_switch("2").map(BoardSwitch::number), Ok(2));
+        assert!(parse_switch("4").unwrap_err().contains("0..3"));
+        assert!(parse_switch("+1").is_err());
+        assert_eq!(parse_switches("0101"), Ok(0b0101));
+        assert_eq!(parse_switches("0xF"), Ok(0xF));
+        assert!(parse_switches("5").unwrap_err().contains("four 0/1 digits"));
+        assert!(parse_switches("0x10").is_err());
+        for (text, volts) in [
+            ("2.5V", 2.5),
+            ("2500mV", 2.5),
+            ("2.5", 2.5),
+            ("5V", 5.0),
+            ("0", 0.0),
+        ] {
+            assert_eq!(parse_volts(text).map(BoardVolts::get), Ok(volts), "{text}");
+        }
+        for text in ["5.1V", "-1V", "NaN", "inf", "1e0", "V", "2.5 V", "2.5.1"] {
+            let e = parse_volts(text).unwrap_err();
+            assert!(e.contains("0..5 V"), "{text}: {e}");
+        }
+    }
 }

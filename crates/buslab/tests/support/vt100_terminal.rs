@@ -13,6 +13,8 @@ use nix::sys::termios::{BaudRate, SetArg, cfmakeraw, cfsetspeed, tcgetattr, tcse
 
 /// The ceiling for a wait (a wait returns as soon as the screen shows what it waits for).
 pub const CEILING: Duration = Duration::from_secs(60);
+/// Bytes the reader asks the link for at once: a chunk this long may end inside a write.
+pub const READ_SIZE: usize = 4096;
 
 pub struct Terminal {
     keys: File,
@@ -36,7 +38,7 @@ impl Terminal {
         let mut reader = file.try_clone().unwrap();
         let (tx, output) = mpsc::channel();
         std::thread::spawn(move || {
-            let mut buf = [0u8; 4096];
+            let mut buf = [0u8; READ_SIZE];
             while let Ok(n) = reader.read(&mut buf) {
                 if n == 0 || tx.send(buf[..n].to_vec()).is_err() {
                     break;
@@ -47,6 +49,21 @@ impl Terminal {
             keys: file,
             output,
             screen: vt100::Parser::new(24, 80, 0),
+        }
+    }
+
+    /// Takes in the next chunk, as one read of the link gave it (what a terminal shows
+    /// between two reads); returns its length.
+    pub fn read_chunk(&mut self) -> usize {
+        match self.output.recv_timeout(CEILING) {
+            Ok(bytes) => {
+                self.screen.process(&bytes);
+                bytes.len()
+            }
+            Err(_) => panic!(
+                "nothing came within {CEILING:?}; the screen:\n{}",
+                self.contents()
+            ),
         }
     }
 

@@ -1,10 +1,23 @@
 // The bench's device panels on the live dashboard (docs/web.md): SLIO boards, the ZELLE cell,
 // the CPU196 board. Uses dashboard.js's helpers ($, text, svg, chart, write). A value on a
 // panel is what the device told: an LED clicked stays as it was (marked pending) until the
-// SLIO's answer comes back over the bus.
+// SLIO's answer comes back over the bus. A board's switches and potentiometer are the
+// bench's: a click changes them on the board at once, and the SLIO's pins are read again.
 "use strict";
 
 const LED_PINS = [7, 8, 9, 11, 12];
+
+// The board's switches and potentiometer as the bench has them, asked once per panel (a
+// write: only with the token; the answer comes back in the live updates).
+function askBench(slio) {
+  const token = $("token").value.trim();
+  if (!token) return;
+  fetch("/api/slio", {
+    method: "POST",
+    headers: { "Content-Type": "application/json", "X-Buslab-Token": token },
+    body: JSON.stringify({ action: "board", slio }),
+  }).catch(() => {});
+}
 
 function button(label, onClick, cls) {
   const b = text("button", label, cls);
@@ -42,7 +55,24 @@ function slioBox(s) {
   d.appendChild(leds);
   const table = document.createElement("table");
   table.className = "kv";
-  for (const [key, label] of [["switches", "switches P0..P3"], ["adc1", "ADC1 (P5)"],
+  const bench = document.createElement("p");
+  bench.className = "bench";
+  bench.appendChild(document.createTextNode("switches "));
+  for (const k of [0, 1, 2, 3]) {
+    const b = button("S" + k, () => {
+      write("/api/slio", { action: "switch", slio: s.slio, switch: k, on: b.dataset.on !== "1" });
+    }, "switch");
+    b.dataset.switch = k;
+    b.title = "input switch " + k + " (P" + k + "): click to flip it on the board";
+    bench.appendChild(b);
+  }
+  const pot = document.createElement("input");
+  pot.type = "number"; pot.min = 0; pot.max = 5; pot.step = 0.1; pot.value = 2.5; pot.size = 4;
+  pot.className = "pot";
+  bench.append(text("span", " potentiometer "), pot, text("span", " V "),
+    button("turn", () => write("/api/slio", { action: "pot", slio: s.slio, volts: Number(pot.value) }), "pot"));
+  d.appendChild(bench);
+  for (const [key, label] of [["switches", "switches P0..P3 (SLIO)"], ["bench", "board (bench)"], ["adc1", "ADC1 (P5)"],
     ["adc2", "ADC2 (P6, pot.)"], ["dpm1", "DPM1 (P10)"], ["dpm2", "DPM2 (P4)"],
     ["outputs", "DATA_OUTPUT"], ["status", "status"], ["replies", "frames from it"]]) {
     const tr = document.createElement("tr");
@@ -67,6 +97,7 @@ function slioBox(s) {
     button("DPM1", () => write("/api/slio", { action: "dpm", slio: s.slio, output: 1, duty: Number(duty.value) })),
     button("DPM2", () => write("/api/slio", { action: "dpm", slio: s.slio, output: 2, duty: Number(duty.value) })));
   d.appendChild(dpm);
+  askBench(s.slio);
   return d;
 }
 
@@ -78,7 +109,16 @@ function applySlio(d, s) {
     b.dataset.pending = led.pending ? "1" : "0";
   }
   const set = (key, v) => { d.querySelector('td[data-key="' + key + '"]').textContent = v; };
+  // A switch shows the board's position when the bench told it, else what the SLIO read.
+  const positions = s.bench ? s.bench.switches : s.switches;
+  for (const b of d.querySelectorAll("button.switch")) {
+    const on = positions ? positions[Number(b.dataset.switch)] : false;
+    b.dataset.on = on ? "1" : "0";
+    b.textContent = "S" + b.dataset.switch + (positions ? (on ? " on" : " off") : "");
+  }
   set("switches", s.switches ? s.switches.map((x) => (x ? "1" : "0")).join(" ") : "-");
+  set("bench", s.bench ? "switches " + s.bench.switches.map((x) => (x ? "1" : "0")).join(" ") +
+    ", potentiometer " + s.bench.potentiometer.toFixed(3) + " V" : "-");
   set("adc1", volts(s.adc[0]));
   set("adc2", volts(s.adc[1]));
   set("dpm1", volts(s.dpm[0]));

@@ -4,21 +4,25 @@
 //! As on MoniCAN's screen, a value is shown only once the SLIO sent it: a click on an LED
 //! sends a DATA_OUTPUT write and marks the LED *pending*; the LED changes when the SLIO's
 //! reply (its register content) comes back on the bus.
+//!
+//! Every frame the panels send a SLIO has 3 bytes ([`Request::frame`], as the seed's
+//! `make_slio_ffi` builds them), and only DATA_INPUT is read (a P82C150 has no read of its
+//! writable registers): the outputs come from the SLIO's answers to writes, whoever made them,
+//! or from the levels its output pins read back in DATA_INPUT ([`OutputLevels`]); the DPMs
+//! and OUTPUT_ENABLE from the answers to writes.
+//!
+//! The board's own inputs (its switches and potentiometer, as a person at the bench sets
+//! them) are the bench's, not the SLIO's: [`SlioPanels::bench`] keeps what the virtual bus
+//! last said of them.
 
 use buslab_can::Frame;
-use buslab_slio::board::{CONVERT_ADC1, CONVERT_ADC2, LED_PINS, VDD};
+use buslab_canbus::admin::BoardState;
+use buslab_slio::board::{
+    CONVERT_ADC1, CONVERT_ADC2, LED_PINS, OutputLevels, SELECT_PIN, SWITCH_PINS, VDD, set_bit,
+};
 use buslab_slio::registers::{CONVERT, MUX_MASK, MUX_SHIFT, TEN_BITS};
 use buslab_slio::{Direction, Register, Reply, Request, SlioId};
 use serde::Serialize;
-
-/// The registers the server asks each board for until it has heard them.
-pub const WATCHED: [Register; 5] = [
-    Register::DataInput,
-    Register::DataOutput,
-    Register::OutputEnable,
-    Register::Dpm1,
-    Register::Dpm2,
-];
 
 /// Why a click cannot become a request.
 #[derive(Debug, PartialEq, Eq, thiserror::Error)]
@@ -27,7 +31,9 @@ pub enum SlioRequestError {
     UnknownBoard(SlioId),
     #[error("P{0} is not an LED of the demo board (its LEDs are P7, P8, P9, P11, P12)")]
     NotAnLed(u8),
-    #[error("SLIO {0} has not told its DATA_OUTPUT yet: wait for its answer and click again")]
+    #[error(
+        "SLIO {0} has not told its outputs yet (its pin levels are asked for): click again once it answered"
+    )]
     OutputsUnknown(SlioId),
     #[error("DPM{0}: the demo board has DPM1 and DPM2")]
     NoDpm(u8),
@@ -43,6 +49,10 @@ struct Board {
     id: SlioId,
     /// Register contents the SLIO sent, by number.
     registers: [Option<u16>; 9],
+    /// Its outputs as it last told them (DATA_OUTPUT answers, DATA_INPUT's levels).
+    levels: OutputLevels,
+    /// Its switches and potentiometer as the bench last said (the board, not the SLIO).
+    bench: Option<BoardState>,
     /// The last ADC result of each input (ADC1, ADC2).
     adc: [Option<u16>; 2],
     /// The multiplexer input of the last conversion asked for (the ADC reply does not say).
@@ -81,9 +91,11 @@ pub struct BoardView {
     pub heard: bool,
     pub replies: u64,
     pub leds: Vec<Led>,
-    /// DATA_INPUT, and the four input switches (P0..P3) read from it.
+    /// DATA_INPUT, and the four input switches (P0..P3) read from it while P13 selects them
+    /// (otherwise P0..P3 show the ID switches).
     pub inputs: Option<u16>,
     pub switches: Option<[bool; 4]>,
+    /// DATA_OUTPUT as the SLIO confirmed it, or its output pins' levels read back.
     pub outputs: Option<u16>,
     pub output_enable: Option<u16>,
     /// ADC1 and ADC2: the 10-bit code and volts.
@@ -91,6 +103,17 @@ pub struct BoardView {
     /// DPM1 and DPM2: the duty (/1024) and the mean volts.
     pub dpm: [Option<Analog>; 2],
     pub status: Option<String>,
+    /// The board's switches and potentiometer as the bench set them (what a person at the
+    /// bench sees), once the bus was asked.
+    pub bench: Option<BenchView>,
+}
+
+/// The board's inputs as the bench has them.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct BenchView {
+    pub switches: [bool; 4],
+    /// Volts, as the next conversion of ADC2 would read them.
+    pub potentiometer: f64,
 }
 
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
@@ -107,6 +130,8 @@ impl SlioPanels {
                 .map(|&id| Board {
                     id,
                     registers: [None; 9],
+                    levels: OutputLevels::default(),
+                    bench: None,
                     adc: [None; 2],
                     converting: None,
                     requested_outputs: None,
@@ -156,6 +181,7 @@ impl SlioPanels {
                 board.replies += 1;
                 board.status = Some(reply.status);
                 board.registers[reply.register.index()] = Some(reply.value);
+                board.levels.reply(&reply);
                 match reply.register {
                     Register::DataOutput => board.requested_outputs = None,
                     Register::Adc => {
@@ -193,21 +219,11 @@ impl SlioPanels {
             .ok_or(SlioRequestError::UnknownBoard(id))?;
         let base = board
             .requested_outputs
-            .or(board.registers[Register::DataOutput.index()])
+            .or(board.levels.get())
             .ok_or(SlioRequestError::OutputsUnknown(id))?;
-        let value = if on {
-            base | 1 << pin
-        } else {
-            base & !(1 << pin)
-        };
+        let value = set_bit(base, pin, on);
         board.requested_outputs = Some(value);
-        Ok(request(
-            id,
-            Request::Write {
-                register: Register::DataOutput,
-                value,
-            },
-        ))
+        Ok(write(id, Register::DataOutput, value))
     }
 
     /// A DPM duty (output 1 or 2, 0..1023).
@@ -226,13 +242,7 @@ impl SlioPanels {
         if duty > TEN_BITS {
             return Err(SlioRequestError::Duty(duty));
         }
-        Ok(request(
-            id,
-            Request::Write {
-                register,
-                value: duty,
-            },
-        ))
+        Ok(write(id, register, duty))
     }
 
     /// A conversion of ADC1 or ADC2; the result comes in the SLIO's ADC reply.
@@ -246,27 +256,38 @@ impl SlioPanels {
             .board_mut(id)
             .ok_or(SlioRequestError::UnknownBoard(id))?;
         board.converting = Some((value >> MUX_SHIFT) & MUX_MASK);
-        Ok(request(
-            id,
-            Request::Write {
-                register: Register::AnalogConfig,
-                value,
-            },
-        ))
+        Ok(write(id, Register::AnalogConfig, value))
     }
 
-    /// Reads of the watched registers not heard yet, for every board (all of them with
-    /// `all`): what the server asks for so that the panels fill without anyone clicking.
+    /// Reads of DATA_INPUT (the pin levels: the switches, and the outputs read back) for the
+    /// boards not heard yet (every board with `all`): what the server asks so that the panels
+    /// fill without anyone clicking. The other registers have no read on a P82C150.
     pub fn read_requests(&self, all: bool) -> Vec<Frame> {
-        let mut frames = Vec::new();
-        for board in &self.boards {
-            for register in WATCHED {
-                if all || board.registers[register.index()].is_none() {
-                    frames.push(request(board.id, Request::Read { register }));
-                }
-            }
-        }
-        frames
+        self.boards
+            .iter()
+            .filter(|b| all || b.registers[Register::DataInput.index()].is_none())
+            .map(|b| read_pins(b.id))
+            .collect()
+    }
+
+    /// The read of one board's pins (DATA_INPUT), after a change on the bench.
+    pub fn pins_request(&self, id: SlioId) -> Result<Frame, SlioRequestError> {
+        self.check(id)?;
+        Ok(read_pins(id))
+    }
+
+    /// What the bench said of a board's inputs (switches, potentiometer).
+    pub fn bench(&mut self, state: BoardState) -> Result<(), SlioRequestError> {
+        let board = self
+            .board_mut(state.slio)
+            .ok_or(SlioRequestError::UnknownBoard(state.slio))?;
+        board.bench = Some(state);
+        Ok(())
+    }
+
+    /// Whether a board is on this bench.
+    pub fn has(&self, id: SlioId) -> bool {
+        self.check(id).is_ok()
     }
 
     fn check(&self, id: SlioId) -> Result<(), SlioRequestError> {
@@ -282,8 +303,20 @@ impl SlioPanels {
     }
 }
 
-fn request(id: SlioId, request: Request) -> Frame {
-    Frame::data(id.command_id(), &request.encode()).expect("1 or 3 bytes")
+/// The 3-byte frame of a write.
+fn write(id: SlioId, register: Register, value: u16) -> Frame {
+    Request::Write { register, value }
+        .frame(id)
+        .expect("a write always has its 3-byte frame")
+}
+
+/// `29C#000000`: a read of DATA_INPUT.
+fn read_pins(id: SlioId) -> Frame {
+    Request::Read {
+        register: Register::DataInput,
+    }
+    .frame(id)
+    .expect("DATA_INPUT is read-only: it has a read")
 }
 
 fn analog(code: u16, full: f64) -> Analog {
@@ -296,7 +329,7 @@ fn analog(code: u16, full: f64) -> Analog {
 impl Board {
     fn view(&self) -> BoardView {
         let reg = |r: Register| self.registers[r.index()];
-        let outputs = reg(Register::DataOutput);
+        let outputs = self.levels.get();
         let leds = LED_PINS
             .iter()
             .map(|&pin| {
@@ -316,7 +349,9 @@ impl Board {
             replies: self.replies,
             leds,
             inputs,
-            switches: inputs.map(|i| std::array::from_fn(|k| i & (1 << k) != 0)),
+            switches: inputs
+                .filter(|i| i & (1 << SELECT_PIN) != 0)
+                .map(|i| std::array::from_fn(|k| i & SWITCH_PINS & (1 << k) != 0)),
             outputs,
             output_enable: reg(Register::OutputEnable),
             adc: self.adc.map(|c| c.map(|c| analog(c, 1023.0))),
@@ -328,6 +363,10 @@ impl Board {
                     u8::from(s.ew),
                     u8::from(s.reset_detected)
                 )
+            }),
+            bench: self.bench.as_ref().map(|b| BenchView {
+                switches: std::array::from_fn(|k| b.switches & (1 << k) != 0),
+                potentiometer: b.potentiometer,
             }),
         }
     }
@@ -438,15 +477,93 @@ mod tests {
         assert!(!p.frame(&"123#00".parse().unwrap()));
     }
 
+    /// Issue 26: the panel asked for DATA_OUTPUT, OUTPUT_ENABLE, DPM1 and DPM2 with 1-byte
+    /// frames, which a P82C150 (and the model) ignores. It reads DATA_INPUT only, with the
+    /// seed's 3-byte frame, and only until the board answered it.
     #[test]
-    fn reads_ask_for_what_is_not_known() {
+    fn reads_are_three_byte_reads_of_data_input_until_heard() {
         let s0 = slio(0);
-        let mut p = SlioPanels::new(&[s0]);
-        assert_eq!(p.read_requests(false).len(), WATCHED.len());
+        let s3 = slio(3);
+        let mut p = SlioPanels::new(&[s0, s3]);
+        let asked: Vec<String> = p
+            .read_requests(false)
+            .iter()
+            .map(Frame::to_string)
+            .collect();
+        assert_eq!(asked, ["284#000000", "29C#000000"]);
         p.frame(&reply(s0, Register::DataInput, 0x000F));
-        let asked = p.read_requests(false);
-        assert_eq!(asked.len(), WATCHED.len() - 1);
-        assert!(asked.iter().all(|f| f.payload() != [0]));
-        assert_eq!(p.view()[0].switches, Some([true; 4]));
+        let asked: Vec<String> = p
+            .read_requests(false)
+            .iter()
+            .map(Frame::to_string)
+            .collect();
+        assert_eq!(asked, ["29C#000000"]);
+        assert_eq!(p.read_requests(true).len(), 2, "the read button asks again");
+        for f in p.read_requests(true) {
+            assert_eq!(f.payload().len(), 3, "{f}");
+        }
+        // P13 low: P0..P3 show the ID switches, not the input switches.
+        assert_eq!(p.view()[0].switches, None);
+        p.frame(&reply(s0, Register::DataInput, 0x2005));
+        assert_eq!(p.view()[0].switches, Some([true, false, true, false]));
+        assert_eq!(p.pins_request(s3).unwrap().to_string(), "29C#000000");
+        assert_eq!(
+            p.pins_request(slio(5)),
+            Err(SlioRequestError::UnknownBoard(slio(5)))
+        );
+    }
+
+    /// The outputs a board never confirmed to this server come from the levels its pins read
+    /// back (another host, MoniCAN, lit P7 and P11): a click keeps them.
+    #[test]
+    fn an_led_click_keeps_the_outputs_the_pins_read_back() {
+        let s3 = slio(3);
+        let mut p = SlioPanels::new(&[s3]);
+        p.frame(&reply(s3, Register::DataInput, 0x2885));
+        let v = p.view();
+        assert_eq!(v[0].outputs, Some(0x2880));
+        let lit: Vec<u8> = v[0]
+            .leds
+            .iter()
+            .filter(|l| l.on == Some(true))
+            .map(|l| l.pin)
+            .collect();
+        assert_eq!(lit, [7, 11]);
+        assert_eq!(
+            p.output_request(s3, 8, true).unwrap().to_string(),
+            "29C#032980"
+        );
+    }
+
+    #[test]
+    fn the_bench_says_what_the_board_has() {
+        let s3 = slio(3);
+        let mut p = SlioPanels::new(&[s3]);
+        assert_eq!(p.view()[0].bench, None);
+        let state = BoardState {
+            slio: s3,
+            node: buslab_canbus::NodeInfo {
+                number: 6,
+                name: "slio3".into(),
+            },
+            switches: 0b0100,
+            potentiometer: 2.5,
+            adc1: 1.25,
+            leds: 0,
+            dpm: [None, None],
+        };
+        p.bench(state.clone()).unwrap();
+        assert_eq!(
+            p.view()[0].bench,
+            Some(BenchView {
+                switches: [false, false, true, false],
+                potentiometer: 2.5
+            })
+        );
+        let other = BoardState {
+            slio: slio(4),
+            ..state
+        };
+        assert_eq!(p.bench(other), Err(SlioRequestError::UnknownBoard(slio(4))));
     }
 }
