@@ -470,6 +470,9 @@ pub trait BusAdmin {
         let _ = settings;
         Err(BusError::Unsupported {
             what: "controller settings",
+            backend: "this bus".into(),
+        })
+    }
     /// A SLIO demo board on the bus, after `change` to its inputs if given (a switch flipped,
     /// the potentiometer turned). Only a virtual bus has boards to reach.
     fn demo_board(

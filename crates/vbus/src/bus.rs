@@ -124,6 +124,7 @@ pub enum BusEvent {
         settings: ControllerSettings,
         /// Whether its bit rate now lets it follow the bus.
         matches_bus: bool,
+    },
     /// A client changed a SLIO demo board's inputs (a switch, the potentiometer).
     Board {
         number: u32,

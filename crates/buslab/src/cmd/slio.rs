@@ -133,12 +133,14 @@ pub enum BoardChange {
     /// Set the four input switches at once, as the board shows them from P3 to P0 (`0101`),
     /// or as a number (`0x5`).
     Switches {
+        /// Four binary digits P3..P0 (`0101`) or a number 0..15 (`0x5`).
         #[arg(value_parser = parse_switches)]
         switches: u8,
     },
     /// Turn the potentiometer (P6, ADC2) to a level, 0..5 V (`2.5V`, `2500mV`, `2.5`); it
     /// stays there (the lab's slow turn stops).
     Pot {
+        /// 0..5 V: `2.5V`, `2500mV` or `2.5`.
         #[arg(value_parser = parse_volts)]
         level: BoardVolts,
     },
