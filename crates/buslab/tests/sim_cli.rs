@@ -630,7 +630,8 @@ fn bit_level_prints_the_same_as_the_fast_path_for_every_shipped_scenario() {
 
 /// The printed trace is a format others read (canplayer, log2asc, the user's scripts): pinned
 /// byte for byte, frames, receptions, errors, state changes, faults, counter samples and the
-/// summary, against files generated before the printer was rewritten for speed (issue 28).
+/// summary (and the `--counters` CSV), against files generated before the printer was
+/// rewritten for speed (issue 28).
 /// The seed experiment runs past the printer's first chunk of 100 000 bit-times.
 #[test]
 fn printed_trace_is_the_same_byte_for_byte() {
@@ -664,4 +665,13 @@ fn printed_trace_is_the_same_byte_for_byte() {
         );
         assert!(got == want, "{file}: the outputs differ");
     }
+    // The --counters CSV too.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("counters.csv");
+    stdout_of(&["-q", "sim", every_line, "--counters", csv.to_str().unwrap()]);
+    let want = std::fs::read_to_string(golden.join("sim-every-line.counters.csv")).unwrap();
+    assert!(
+        std::fs::read_to_string(&csv).unwrap() == want,
+        "sim-every-line.counters.csv: the outputs differ"
+    );
 }
