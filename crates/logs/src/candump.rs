@@ -14,7 +14,6 @@
 //! [`Terminal`], with candump's views: `-t a|d|z` timestamps, `-a` ASCII, `-x` direction,
 //! `-e` error frames in words.
 
-use std::fmt::Write as _;
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
 
@@ -420,23 +419,37 @@ pub(crate) fn push_record(out: &mut Vec<u8>, record: &Record) {
     }
 }
 
-/// A frame in can-utils syntax (`123#1122`, `12345678#R3`).
-fn push_frame(out: &mut Vec<u8>, f: &Frame) {
-    match f.id() {
-        Id::Standard(id) => text::push_hex(out, u32::from(id.as_raw()), 3),
-        Id::Extended(id) => text::push_hex(out, id.as_raw(), 8),
-    }
-    out.push(b'#');
+/// Appends a frame in can-utils syntax (`123#1122`, `12345678#R3`): the text of
+/// [`Frame`]'s `Display`, built on the stack and copied once.
+pub fn push_frame(out: &mut Vec<u8>, f: &Frame) {
+    // 8 ID digits, `#`, 16 data digits.
+    let mut buf = [0u8; 25];
+    let mut n = match f.id() {
+        Id::Standard(id) => {
+            buf[..3].copy_from_slice(&text::hex_fixed::<3>(u32::from(id.as_raw())));
+            3
+        }
+        Id::Extended(id) => {
+            buf[..8].copy_from_slice(&text::hex_fixed::<8>(id.as_raw()));
+            8
+        }
+    };
+    buf[n] = b'#';
+    n += 1;
     if f.is_remote() {
-        out.push(b'R');
+        buf[n] = b'R';
+        n += 1;
         if f.dlc() > 0 {
-            out.push(b'0' + f.dlc());
+            buf[n] = b'0' + f.dlc();
+            n += 1;
         }
     } else {
         for &b in f.payload() {
-            text::push_hex_byte(out, b);
+            buf[n..n + 2].copy_from_slice(&text::hex_pair(b));
+            n += 2;
         }
     }
+    out.extend_from_slice(&buf[..n]);
 }
 
 /// One log line without the newline; the direction (` R`/` T`) only if `direction` is set
@@ -623,88 +636,93 @@ impl Terminal {
     /// One entry's text without the final newline (with `-e` an error frame takes several
     /// lines).
     pub fn line(&mut self, entry: &Entry) -> String {
-        let mut out = String::with_capacity(80);
-        out.push(' ');
+        let mut out = Vec::with_capacity(80);
+        self.write_line(&mut out, entry);
+        String::from_utf8_lossy(&out).into_owned()
+    }
+
+    /// Appends [`Self::line`]'s text to `out`, without allocating.
+    pub fn write_line(&mut self, out: &mut Vec<u8>, entry: &Entry) {
+        out.push(b' ');
         if let Some(mode) = self.view.timestamps {
-            self.timestamp(&mut out, mode, entry.timestamp);
+            self.timestamp(out, mode, entry.timestamp);
         }
-        out.push(' ');
-        out.push_str(&entry.interface);
+        out.push(b' ');
+        out.extend_from_slice(entry.interface.as_bytes());
         if self.view.extra {
-            out.push_str(match entry.direction {
-                Some(Direction::Tx) => "  TX - -",
-                _ => "  RX - -",
+            out.extend_from_slice(match entry.direction {
+                Some(Direction::Tx) => b"  TX - -",
+                _ => b"  RX - -",
             });
         }
-        out.push_str("  ");
+        out.extend_from_slice(b"  ");
         match &entry.record {
-            Record::Frame(frame) => self.frame(&mut out, frame),
+            Record::Frame(frame) => self.frame(out, frame),
             Record::Error(e) => {
                 let (class, data) = e.encode();
                 let len = e.data_len();
-                let _ = write!(out, "{:08X}   [{len}] ", ERROR_FLAG | class);
-                for b in &data[..len] {
-                    let _ = write!(out, " {b:02X}");
-                }
-                out.push_str("   ERRORFRAME");
+                text::push_hex(out, ERROR_FLAG | class, 8);
+                out.extend_from_slice(b"   [");
+                text::push_u64(out, len as u64);
+                out.extend_from_slice(b"] ");
+                text::push_spaced_hex(out, &data[..len]);
+                out.extend_from_slice(b"   ERRORFRAME");
                 if self.view.error_words {
-                    out.push_str("\n\t");
-                    out.push_str(&e.describe("\n\t"));
+                    out.extend_from_slice(b"\n\t");
+                    out.extend_from_slice(e.describe("\n\t").as_bytes());
                 }
             }
         }
-        out
     }
 
-    fn timestamp(&mut self, out: &mut String, mode: TimestampMode, t: Duration) {
-        let shown = match mode {
-            TimestampMode::Absolute => {
-                let _ = write!(out, "({:010}.{:06}) ", t.as_secs(), t.subsec_micros());
-                return;
-            }
+    fn timestamp(&mut self, out: &mut Vec<u8>, mode: TimestampMode, t: Duration) {
+        let (shown, width) = match mode {
+            TimestampMode::Absolute => (t, 10),
             TimestampMode::Delta => {
                 let since = t.saturating_sub(self.last.unwrap_or(t));
                 self.last = Some(t);
-                since
+                (since, 3)
             }
-            TimestampMode::Zero => t.saturating_sub(*self.first.get_or_insert(t)),
+            TimestampMode::Zero => (t.saturating_sub(*self.first.get_or_insert(t)), 3),
         };
-        let _ = write!(
-            out,
-            "({:03}.{:06}) ",
-            shown.as_secs(),
-            shown.subsec_micros()
-        );
+        out.push(b'(');
+        text::push_u64_zeros(out, shown.as_secs(), width);
+        out.push(b'.');
+        text::push_u64_zeros(out, u64::from(shown.subsec_micros()), 6);
+        out.extend_from_slice(b") ");
     }
 
-    fn frame(&mut self, out: &mut String, frame: &Frame) {
+    fn frame(&mut self, out: &mut Vec<u8>, frame: &Frame) {
         self.extended_seen |= frame.is_extended();
-        let id = frame.id().to_string();
-        if self.extended_seen && !frame.is_extended() {
-            let _ = write!(out, "{id:>8}");
-        } else {
-            out.push_str(&id);
+        match frame.id() {
+            Id::Extended(id) => out.extend_from_slice(&text::hex_fixed::<8>(id.as_raw())),
+            Id::Standard(id) => {
+                if self.extended_seen {
+                    out.extend_from_slice(b"     ");
+                }
+                out.extend_from_slice(&text::hex_fixed::<3>(u32::from(id.as_raw())));
+            }
         }
-        let _ = write!(out, "   [{}] ", frame.dlc());
+        out.extend_from_slice(b"   [");
+        out.push(b'0' + frame.dlc());
+        out.extend_from_slice(b"] ");
         if frame.is_remote() {
-            out.push_str(" remote request");
+            out.extend_from_slice(b" remote request");
             return;
         }
-        for b in frame.payload() {
-            let _ = write!(out, " {b:02X}");
-        }
+        let payload = frame.payload();
+        text::push_spaced_hex(out, payload);
         if self.view.ascii {
             // At a fixed column after the bytes, as candump puts it.
-            let width = 3 * (8 - frame.payload().len()) + 4;
-            let _ = write!(out, "{:>width$}", "'");
-            for &b in frame.payload() {
-                out.push(if (0x20..0x7F).contains(&b) {
-                    b as char
-                } else {
-                    '.'
-                });
-            }
-            out.push('\'');
+            let pad = 3 * (8 - payload.len()) + 3;
+            out.extend_from_slice(&b"                           "[..pad]);
+            out.push(b'\'');
+            out.extend(
+                payload
+                    .iter()
+                    .map(|&b| if (0x20..0x7F).contains(&b) { b } else { b'.' }),
+            );
+            out.push(b'\'');
         }
     }
 }
@@ -713,6 +731,8 @@ impl Terminal {
 mod tests {
     use super::*;
     use crate::seconds;
+    use proptest::collection::vec;
+    use proptest::prelude::*;
 
     fn entry(frame: &str, t: f64) -> Entry {
         Entry {
@@ -729,6 +749,164 @@ mod tests {
             .iter()
             .map(|f| term.line(&entry(f, t)) + "\n")
             .collect()
+    }
+
+    /// The terminal layout as it was written before it was made allocation-free (with
+    /// `format!`), kept as the reference the fast writer must match byte for byte.
+    #[derive(Default)]
+    struct Reference {
+        view: View,
+        extended_seen: bool,
+        first: Option<Duration>,
+        last: Option<Duration>,
+    }
+
+    impl Reference {
+        fn line(&mut self, entry: &Entry) -> String {
+            use std::fmt::Write as _;
+            let mut out = String::from(" ");
+            if let Some(mode) = self.view.timestamps {
+                let t = entry.timestamp;
+                let shown = match mode {
+                    TimestampMode::Absolute => None,
+                    TimestampMode::Delta => {
+                        let since = t.saturating_sub(self.last.unwrap_or(t));
+                        self.last = Some(t);
+                        Some(since)
+                    }
+                    TimestampMode::Zero => Some(t.saturating_sub(*self.first.get_or_insert(t))),
+                };
+                match shown {
+                    None => write!(out, "({:010}.{:06}) ", t.as_secs(), t.subsec_micros()),
+                    Some(d) => write!(out, "({:03}.{:06}) ", d.as_secs(), d.subsec_micros()),
+                }
+                .unwrap();
+            }
+            out.push(' ');
+            out.push_str(&entry.interface);
+            if self.view.extra {
+                out.push_str(match entry.direction {
+                    Some(Direction::Tx) => "  TX - -",
+                    _ => "  RX - -",
+                });
+            }
+            out.push_str("  ");
+            match &entry.record {
+                Record::Frame(frame) => {
+                    self.extended_seen |= frame.is_extended();
+                    let id = frame.id().to_string();
+                    if self.extended_seen && !frame.is_extended() {
+                        write!(out, "{id:>8}").unwrap();
+                    } else {
+                        out.push_str(&id);
+                    }
+                    write!(out, "   [{}] ", frame.dlc()).unwrap();
+                    if frame.is_remote() {
+                        out.push_str(" remote request");
+                        return out;
+                    }
+                    for b in frame.payload() {
+                        write!(out, " {b:02X}").unwrap();
+                    }
+                    if self.view.ascii {
+                        let width = 3 * (8 - frame.payload().len()) + 4;
+                        write!(out, "{:>width$}", "'").unwrap();
+                        for &b in frame.payload() {
+                            let printable = (0x20..0x7F).contains(&b);
+                            out.push(if printable { b as char } else { '.' });
+                        }
+                        out.push('\'');
+                    }
+                }
+                Record::Error(e) => {
+                    let (class, data) = e.encode();
+                    let len = e.data_len();
+                    write!(out, "{:08X}   [{len}] ", ERROR_FLAG | class).unwrap();
+                    for b in &data[..len] {
+                        write!(out, " {b:02X}").unwrap();
+                    }
+                    out.push_str("   ERRORFRAME");
+                    if self.view.error_words {
+                        out.push_str("\n\t");
+                        out.push_str(&e.describe("\n\t"));
+                    }
+                }
+            }
+            out
+        }
+    }
+
+    fn any_frame() -> impl Strategy<Value = Frame> {
+        let id = prop_oneof![
+            (0u16..=0x7FF).prop_map(|v| Id::standard(v).unwrap()),
+            (0u32..=0x1FFF_FFFF).prop_map(|v| Id::extended(v).unwrap()),
+        ];
+        (id, any::<bool>(), vec(any::<u8>(), 0..=8), 0u8..=8).prop_map(|(id, remote, data, dlc)| {
+            if remote {
+                Frame::remote(id, dlc).unwrap()
+            } else {
+                Frame::data(id, &data).unwrap()
+            }
+        })
+    }
+
+    fn any_entry() -> impl Strategy<Value = Entry> {
+        let record = prop_oneof![
+            4 => any_frame().prop_map(Record::Frame),
+            1 => (prop_oneof![0u32..=0x3FF, 0u32..=0x1FFF_FFFF], vec(any::<u8>(), 0..=8))
+                .prop_map(|(class, data)| Record::Error(ErrorFrame::decode(class, &data).unwrap())),
+        ];
+        let direction = prop_oneof![
+            Just(None),
+            Just(Some(Direction::Rx)),
+            Just(Some(Direction::Tx))
+        ];
+        (
+            0u64..20_000_000_000,
+            0u32..1_000_000_000,
+            "[a-z0-9]{1,8}",
+            record,
+            direction,
+        )
+            .prop_map(|(secs, nanos, interface, record, direction)| Entry {
+                timestamp: Duration::new(secs, nanos),
+                interface,
+                record,
+                direction,
+            })
+    }
+
+    proptest! {
+        /// The terminal lines are the reference's, byte for byte, in every view, over runs of
+        /// entries (the `-t d`/`-t z` and extended-ID state carries from line to line).
+        #[test]
+        fn terminal_lines_are_the_references(
+            entries in vec(any_entry(), 1..12),
+            mode in prop_oneof![
+                Just(None),
+                Just(Some(TimestampMode::Absolute)),
+                Just(Some(TimestampMode::Delta)),
+                Just(Some(TimestampMode::Zero)),
+            ],
+            ascii in any::<bool>(),
+            extra in any::<bool>(),
+            error_words in any::<bool>(),
+        ) {
+            let view = View { timestamps: mode, ascii, extra, error_words };
+            let mut fast = Terminal::new(view);
+            let mut reference = Reference { view, ..Reference::default() };
+            for e in &entries {
+                prop_assert_eq!(fast.line(e), reference.line(e));
+            }
+        }
+
+        /// A frame's log text is its `Display` (can-utils' compact syntax).
+        #[test]
+        fn pushed_frames_are_their_display(f in any_frame()) {
+            let mut out = Vec::new();
+            push_frame(&mut out, &f);
+            prop_assert_eq!(String::from_utf8(out).unwrap(), f.to_string());
+        }
     }
 
     #[test]

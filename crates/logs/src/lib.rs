@@ -37,7 +37,7 @@ pub mod pcap;
 pub mod pcapng;
 mod socketcan;
 pub mod sqlite;
-mod text;
+pub mod text;
 mod time;
 pub mod trc;
 

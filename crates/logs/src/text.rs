@@ -208,71 +208,96 @@ pub fn decimal_duration(text: &[u8], unit_ns: u64) -> Option<Duration> {
     Some(Duration::new(secs as u64, (total % 1_000_000_000) as u32))
 }
 
+/// `00` to `99`: decimal digits two at a time.
+static DEC_PAIRS: [[u8; 2]; 100] = {
+    let mut t = [[0u8; 2]; 100];
+    let mut i = 0;
+    while i < 100 {
+        t[i] = [b'0' + (i / 10) as u8, b'0' + (i % 10) as u8];
+        i += 1;
+    }
+    t
+};
+
+/// `v`'s decimal digits at the end of `digits`; returns where they start.
+#[inline]
+fn decimal(digits: &mut [u8; 20], mut v: u64) -> usize {
+    let mut i = digits.len();
+    while v >= 100 {
+        i -= 2;
+        digits[i..i + 2].copy_from_slice(&DEC_PAIRS[(v % 100) as usize]);
+        v /= 100;
+    }
+    if v >= 10 {
+        i -= 2;
+        digits[i..i + 2].copy_from_slice(&DEC_PAIRS[v as usize]);
+    } else {
+        i -= 1;
+        digits[i] = b'0' + v as u8;
+    }
+    i
+}
+
 /// Appends `v` in decimal.
 #[inline]
-pub fn push_u64(out: &mut Vec<u8>, mut v: u64) {
+pub fn push_u64(out: &mut Vec<u8>, v: u64) {
     let mut digits = [0u8; 20];
-    let mut i = digits.len();
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
-    }
+    let i = decimal(&mut digits, v);
     out.extend_from_slice(&digits[i..]);
 }
 
 /// Appends `v` in decimal with at least `width` digits (leading zeros).
 #[inline]
 pub fn push_u64_zeros(out: &mut Vec<u8>, v: u64, width: usize) {
-    let mut digits = [0u8; 20];
-    let mut i = digits.len();
-    let mut v = v;
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
+    // Every place not taken by a digit is already a leading zero.
+    let mut digits = [b'0'; 20];
+    let i = decimal(&mut digits, v);
+    let mut extra = width.saturating_sub(digits.len());
+    while extra > 0 {
+        let n = extra.min(digits.len());
+        out.extend_from_slice(&[b'0'; 20][..n]);
+        extra -= n;
     }
-    let len = digits.len() - i;
-    if len < width {
-        out.extend_from_slice(&b"00000000000000000000"[..(width - len).min(20)]);
-    }
-    out.extend_from_slice(&digits[i..]);
+    out.extend_from_slice(&digits[i.min(digits.len().saturating_sub(width))..]);
 }
 
 /// Appends `v` right-aligned in `width` columns (leading spaces).
 #[inline]
 pub fn push_u64_right(out: &mut Vec<u8>, v: u64, width: usize) {
     let mut digits = [0u8; 20];
-    let mut i = digits.len();
-    let mut v = v;
-    loop {
-        i -= 1;
-        digits[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
-    }
-    let len = digits.len() - i;
-    if len < width {
-        out.extend_from_slice(&SPACES[..(width - len).min(SPACES.len())]);
+    let i = decimal(&mut digits, v);
+    let mut spaces = width.saturating_sub(digits.len() - i);
+    while spaces > 0 {
+        let n = spaces.min(SPACES.len());
+        out.extend_from_slice(&SPACES[..n]);
+        spaces -= n;
     }
     out.extend_from_slice(&digits[i..]);
 }
 
 const HEX: &[u8; 16] = b"0123456789ABCDEF";
 
+/// Each byte as two uppercase hex digits.
+static HEX_PAIRS: [[u8; 2]; 256] = {
+    let mut t = [[0u8; 2]; 256];
+    let mut i = 0;
+    while i < 256 {
+        t[i] = [HEX[i >> 4], HEX[i & 15]];
+        i += 1;
+    }
+    t
+};
+
+/// A byte as two uppercase hex digits.
+#[inline]
+pub fn hex_pair(b: u8) -> [u8; 2] {
+    HEX_PAIRS[usize::from(b)]
+}
+
 /// Appends a byte as two uppercase hex digits.
 #[inline]
 pub fn push_hex_byte(out: &mut Vec<u8>, b: u8) {
-    out.push(HEX[usize::from(b >> 4)]);
-    out.push(HEX[usize::from(b & 15)]);
+    out.extend_from_slice(&hex_pair(b));
 }
 
 /// Appends `v` in uppercase hex with at least `width` digits.
@@ -294,6 +319,16 @@ pub fn push_hex(out: &mut Vec<u8>, v: u32, width: usize) {
     out.extend_from_slice(&digits[i..]);
 }
 
+/// `v`'s low `N` nibbles in uppercase hex (leading zeros): an ID's fixed width.
+#[inline]
+pub fn hex_fixed<const N: usize>(v: u32) -> [u8; N] {
+    let mut digits = [0u8; N];
+    for (k, d) in digits.iter_mut().enumerate() {
+        *d = HEX[((v >> (4 * (N - 1 - k))) & 15) as usize];
+    }
+    digits
+}
+
 const SPACES: [u8; 64] = [b' '; 64];
 
 /// Appends spaces until the line (since `start`) is `width` long (at most 64 at once).
@@ -311,8 +346,7 @@ pub fn push_spaced_hex(out: &mut Vec<u8>, bytes: &[u8]) {
     let mut buf = [0u8; 24];
     for (k, &b) in bytes.iter().take(8).enumerate() {
         buf[3 * k] = b' ';
-        buf[3 * k + 1] = HEX[usize::from(b >> 4)];
-        buf[3 * k + 2] = HEX[usize::from(b & 15)];
+        buf[3 * k + 1..3 * k + 3].copy_from_slice(&hex_pair(b));
     }
     out.extend_from_slice(&buf[..3 * bytes.len().min(8)]);
 }
@@ -382,6 +416,37 @@ mod tests {
         push_hex_byte(&mut out, 0xA5);
         push_u64_right(&mut out, 7, 3);
         assert_eq!(out, b"00004201FA5  7");
+        assert_eq!(hex_fixed::<3>(0x7FF), *b"7FF");
+        assert_eq!(hex_fixed::<8>(0x0ABC_DEF0), *b"0ABCDEF0");
+    }
+
+    /// The writers' digits are std's, at every length and at the edges.
+    #[test]
+    fn digits_as_std_formats_them() {
+        let mut values = vec![0, 1, 9, 10, 99, 100, 101, 999, 1000, u64::MAX, u64::MAX - 1];
+        let mut p = 1u64;
+        while let Some(next) = p.checked_mul(10) {
+            values.extend([p - 1, p, p + 1, next / 2]);
+            p = next;
+        }
+        for v in values {
+            for width in [0, 1, 6, 10, 20, 25, 70] {
+                let mut out = Vec::new();
+                push_u64(&mut out, v);
+                assert_eq!(out, v.to_string().as_bytes());
+                out.clear();
+                push_u64_zeros(&mut out, v, width);
+                assert_eq!(out, format!("{v:0width$}").as_bytes(), "{v} {width}");
+                out.clear();
+                push_u64_right(&mut out, v, width);
+                assert_eq!(out, format!("{v:>width$}").as_bytes(), "{v} {width}");
+            }
+        }
+        for b in 0..=255u8 {
+            let mut out = Vec::new();
+            push_hex_byte(&mut out, b);
+            assert_eq!(out, format!("{b:02X}").as_bytes());
+        }
         assert_eq!(hex_u32(b"1fffFFFF"), Some(0x1FFF_FFFF));
         assert_eq!(hex_u32(b"123456789"), None);
         assert_eq!(field(b"  ab  cd"), (&b"ab"[..], &b"  cd"[..]));

@@ -17,7 +17,8 @@ use std::time::{Duration, Instant, UNIX_EPOCH};
 use anyhow::{Context, bail};
 use buslab_backends::{BusSpec, BusUrl, DynBus, FilterSet, resolve};
 use buslab_canbus::BusEvent;
-use buslab_logs::candump::{Terminal, TimestampMode, View, format_line};
+use buslab_logs::candump::{self, Terminal, TimestampMode, View};
+use buslab_logs::text;
 use buslab_logs::{Entry, Format, LogWriter, WriteOptions, create_writer_with};
 
 use super::busopt::{open, set_name};
@@ -504,7 +505,8 @@ fn dump(args: Args) -> anyhow::Result<()> {
     result.and(finished)
 }
 
-/// Turns events into output lines, held until the log has them.
+/// Turns events into output lines, held until the log has them: their text is gathered in
+/// one buffer (nothing allocated per line once it has grown) and written at once.
 struct Printer<'a> {
     args: &'a Args,
     sources: &'a [Source],
@@ -513,8 +515,11 @@ struct Printer<'a> {
     dated: bool,
     zero: Option<Duration>,
     seen: u64,
-    /// Lines (or spinner turns) to print once the log is flushed.
-    lines: Vec<String>,
+    /// The text to print once the log is flushed, and how many lines (or spinner turns).
+    held: Vec<u8>,
+    lines: usize,
+    /// A terminal line before the date goes in front of it (`-t A`).
+    scratch: Vec<u8>,
     spin: usize,
 }
 
@@ -538,7 +543,9 @@ impl<'a> Printer<'a> {
             dated,
             zero: None,
             seen: 0,
-            lines: Vec::new(),
+            held: Vec::with_capacity(64 * 1024),
+            lines: 0,
+            scratch: Vec::new(),
             spin: 0,
         }
     }
@@ -549,7 +556,7 @@ impl<'a> Printer<'a> {
     }
 
     fn pending(&self) -> usize {
-        self.lines.len()
+        self.lines
     }
 
     /// Takes one item: an entry goes to the log and its line is held. `Ok(true)` when
@@ -566,9 +573,11 @@ impl<'a> Printer<'a> {
                 if self.args.silent != Some(2) {
                     let name = self.sources[index].name.trim_start();
                     let s = if frames > 1 { "s" } else { "" };
-                    self.lines.push(format!(
+                    writeln!(
+                        self.held,
                         "DROPCOUNT: dropped {frames} CAN frame{s} on '{name}' (total drops {total})"
-                    ));
+                    )?;
+                    self.lines += 1;
                 }
                 return Ok(false);
             }
@@ -597,48 +606,56 @@ impl<'a> Printer<'a> {
         match self.args.silent {
             Some(2) => {}
             Some(1) => {
-                const SPINNER: [char; 4] = ['|', '/', '-', '\\'];
-                self.lines
-                    .push(format!("{}\x08", SPINNER[self.spin % SPINNER.len()]));
+                const SPINNER: [u8; 4] = [b'|', b'/', b'-', b'\\'];
+                self.held.push(SPINNER[self.spin % SPINNER.len()]);
+                self.held.push(0x08);
                 self.spin += 1;
+                self.lines += 1;
             }
             _ => {
-                let line = self.line(&entry);
-                let line = if self.args.color {
-                    format!("\x1b[{}m{line}\x1b[0m\n", 31 + index % 6)
-                } else {
-                    line + "\n"
-                };
-                self.lines.push(line);
+                if self.args.color {
+                    self.held.extend_from_slice(b"\x1b[");
+                    text::push_u64(&mut self.held, (31 + index % 6) as u64);
+                    self.held.push(b'm');
+                }
+                self.line(&mut entry);
+                if self.args.color {
+                    self.held.extend_from_slice(b"\x1b[0m");
+                }
+                self.held.push(b'\n');
+                self.lines += 1;
             }
         }
         Ok(true)
     }
 
-    fn line(&mut self, entry: &Entry) -> String {
+    /// Appends `entry`'s line (the log has it already: `-t z` shifts its time for `-L`).
+    fn line(&mut self, entry: &mut Entry) {
         if self.args.log_format {
-            let mut shown = entry.clone();
             if self.timestamps == Some(TimestampMode::Zero) {
                 let first = *self.zero.get_or_insert(entry.timestamp);
-                shown.timestamp = entry.timestamp.saturating_sub(first);
+                entry.timestamp = entry.timestamp.saturating_sub(first);
             }
-            format_line(&shown, self.args.extra)
+            candump::write_line(&mut self.held, entry, self.args.extra, false);
         } else if self.dated {
-            let line = self.terminal.line(entry);
-            format!(" ({}) {}", date(entry.timestamp), &line[1..])
+            self.scratch.clear();
+            self.terminal.write_line(&mut self.scratch, entry);
+            self.held.extend_from_slice(b" (");
+            self.held
+                .extend_from_slice(date(entry.timestamp).as_bytes());
+            self.held.extend_from_slice(b") ");
+            self.held.extend_from_slice(&self.scratch[1..]);
         } else {
-            self.terminal.line(entry)
+            self.terminal.write_line(&mut self.held, entry);
         }
     }
 
-    /// Prints the held lines (DROPCOUNT lines end without a newline: added here).
+    /// Prints the held lines.
     fn print(&mut self, out: &mut impl Write) -> io::Result<()> {
-        for line in self.lines.drain(..) {
-            out.write_all(line.as_bytes())?;
-            if line.starts_with("DROPCOUNT") {
-                out.write_all(b"\n")?;
-            }
-        }
+        let written = out.write_all(&self.held);
+        self.held.clear();
+        self.lines = 0;
+        written?;
         out.flush()
     }
 }
@@ -907,6 +924,9 @@ mod tests {
             record: Record::Frame("123#11".parse().unwrap()),
             direction: None,
         };
-        assert_eq!(format_line(&e, false), "(0000000001.000000) vcan0 123#11");
+        assert_eq!(
+            candump::format_line(&e, false),
+            "(0000000001.000000) vcan0 123#11"
+        );
     }
 }

@@ -9,7 +9,9 @@ use std::io::{self, BufWriter, Write};
 use std::path::PathBuf;
 
 use anyhow::Context;
+use buslab_can::Frame;
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
+use buslab_logs::{candump, text};
 use buslab_plot::{Band, Figure, Lane, Panel, Series, Shade, StateLanes};
 use buslab_sim::observe::signal_names;
 use buslab_sim::time::seconds_micros;
@@ -138,17 +140,15 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let stdout = io::stdout();
     let mut out = BufWriter::new(stdout.lock());
     let mut printer = Printer::new(&scenario, &args);
+    let mut csv = Vec::new();
     while sim.now() < end {
         sim.run_until(end.min(sim.now() + CHUNK));
         let records = sim.take_records();
         let series = sim.take_series();
         if let Some(w) = &mut counters {
-            for c in &series {
-                let (secs, us) = seconds_micros(c.time, scenario.bitrate);
-                let name = &scenario.nodes[c.node].name;
-                let state = state_name(c.state);
-                writeln!(w, "{secs}.{us:06},{name},{},{},{state}", c.tec, c.rec)?;
-            }
+            csv.clear();
+            counter_rows(&mut csv, &scenario, &series);
+            w.write_all(&csv)?;
         }
         if let Some(plot) = &mut plot {
             plot.add(&records, &series);
@@ -173,6 +173,25 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     summary(&mut out, &sim)?;
     out.flush()?;
     Ok(())
+}
+
+/// The `--counters` rows of `series`: `time_s,node,tec,rec,state`.
+fn counter_rows(out: &mut Vec<u8>, scenario: &Scenario, series: &[CounterSample]) {
+    for c in series {
+        let (secs, us) = seconds_micros(c.time, scenario.bitrate);
+        text::push_u64(out, secs);
+        out.push(b'.');
+        text::push_u64_zeros(out, u64::from(us), 6);
+        out.push(b',');
+        out.extend_from_slice(scenario.nodes[c.node].name.as_bytes());
+        out.push(b',');
+        text::push_u64(out, u64::from(c.tec));
+        out.push(b',');
+        text::push_u64(out, u64::from(c.rec));
+        out.push(b',');
+        out.extend_from_slice(state_name(c.state).as_bytes());
+        out.push(b'\n');
+    }
 }
 
 /// The `--plot` figure: each node's TEC and REC over time with the fault-confinement regions
@@ -290,31 +309,44 @@ impl CounterPlot {
     }
 }
 
-/// Formats trace records as candump log lines and `#` status lines.
+/// Formats trace records as candump log lines and `#` status lines into one buffer per chunk
+/// of the run, written at once: nothing allocated per line, digits and hex by table, and the
+/// records no line shows (receptions without `--rx`, errors without `--errors`, lost
+/// arbitrations) passed over before any formatting.
 struct Printer<'a> {
     scenario: &'a Scenario,
     bitrate: u32,
-    width: usize,
+    /// Each node's name right-aligned to the longest, the frame lines' interface column
+    /// (names are ASCII: the scenario checks them).
+    columns: Vec<String>,
     rx: bool,
     errors: bool,
     /// The last TEC/REC values printed, to print the series only when it changes.
     last_counters: Vec<(u16, u16)>,
+    /// The chunk's text.
+    buf: Vec<u8>,
 }
 
 impl<'a> Printer<'a> {
     fn new(scenario: &'a Scenario, args: &Args) -> Self {
+        let width = scenario
+            .nodes
+            .iter()
+            .map(|n| n.name.len())
+            .max()
+            .unwrap_or(0);
         Self {
             scenario,
             bitrate: scenario.bitrate,
-            width: scenario
+            columns: scenario
                 .nodes
                 .iter()
-                .map(|n| n.name.len())
-                .max()
-                .unwrap_or(0),
+                .map(|n| format!("{:>width$}", n.name))
+                .collect(),
             rx: args.rx,
             errors: args.errors,
             last_counters: vec![(0, 0); scenario.nodes.len()],
+            buf: Vec::with_capacity(64 * 1024),
         }
     }
 
@@ -328,64 +360,103 @@ impl<'a> Printer<'a> {
         let mut samples = series.chunk_by(|a, b| a.time == b.time).peekable();
         for record in records {
             while let Some(group) = samples.next_if(|g| g[0].time <= record.time) {
-                self.print_counters(out, group)?;
+                self.counters(group);
             }
-            self.print(out, record)?;
+            self.record(record);
         }
         for group in samples {
-            self.print_counters(out, group)?;
+            self.counters(group);
         }
+        out.write_all(&self.buf)?;
+        self.buf.clear();
         Ok(())
+    }
+
+    /// `(0000000001.250000)`: the candump log timestamp of bit-time `t`.
+    fn stamp(&mut self, t: BitTime) {
+        let (s, us) = seconds_micros(t, self.bitrate);
+        self.buf.push(b'(');
+        text::push_u64_zeros(&mut self.buf, s, 10);
+        self.buf.push(b'.');
+        text::push_u64_zeros(&mut self.buf, u64::from(us), 6);
+        self.buf.push(b')');
+    }
+
+    /// `# (…) `: the start of a status line.
+    fn status(&mut self, t: BitTime) {
+        self.buf.extend_from_slice(b"# ");
+        self.stamp(t);
+        self.buf.push(b' ');
+    }
+
+    /// `# (…) NODE: `: the start of a node's status line.
+    fn node_status(&mut self, t: BitTime, node: usize) {
+        self.status(t);
+        self.buf
+            .extend_from_slice(self.scenario.nodes[node].name.as_bytes());
+        self.buf.extend_from_slice(b": ");
+    }
+
+    /// ` (TEC 8, REC 0)` and the end of the line.
+    fn counters_end(&mut self, tec: u16, rec: u16) {
+        self.buf.extend_from_slice(b" (TEC ");
+        text::push_u64(&mut self.buf, u64::from(tec));
+        self.buf.extend_from_slice(b", REC ");
+        text::push_u64(&mut self.buf, u64::from(rec));
+        self.buf.extend_from_slice(b")\n");
     }
 
     /// One sample of every node's TEC/REC, if any changed since the last one printed.
-    fn print_counters(&mut self, out: &mut impl Write, group: &[CounterSample]) -> io::Result<()> {
-        let now: Vec<(u16, u16)> = group.iter().map(|s| (s.tec, s.rec)).collect();
-        if now == self.last_counters {
-            return Ok(());
+    fn counters(&mut self, group: &[CounterSample]) {
+        let same = group.len() == self.last_counters.len()
+            && group
+                .iter()
+                .zip(&self.last_counters)
+                .all(|(s, &last)| (s.tec, s.rec) == last);
+        if same {
+            return;
         }
-        let (s, us) = seconds_micros(group[0].time, self.bitrate);
-        write!(out, "# ({s:010}.{us:06}) TEC/REC:")?;
+        self.status(group[0].time);
+        self.buf.extend_from_slice(b"TEC/REC:");
         for (sample, node) in group.iter().zip(&self.scenario.nodes) {
-            write!(out, " {} {}/{}", node.name, sample.tec, sample.rec)?;
+            self.buf.push(b' ');
+            self.buf.extend_from_slice(node.name.as_bytes());
+            self.buf.push(b' ');
+            text::push_u64(&mut self.buf, u64::from(sample.tec));
+            self.buf.push(b'/');
+            text::push_u64(&mut self.buf, u64::from(sample.rec));
         }
-        writeln!(out)?;
-        self.last_counters = now;
-        Ok(())
+        self.buf.push(b'\n');
+        self.last_counters.clear();
+        self.last_counters
+            .extend(group.iter().map(|s| (s.tec, s.rec)));
     }
 
-    fn print(&self, out: &mut impl Write, record: &Record) -> io::Result<()> {
-        let (s, us) = seconds_micros(record.time, self.bitrate);
-        let ts = format!("({s:010}.{us:06})");
+    fn record(&mut self, record: &Record) {
+        let t = record.time;
         let (node, event) = match &record.what {
-            Happening::FaultStarted { index } => {
-                let what = self.scenario.describe_fault(*index);
-                return writeln!(out, "# {ts} fault {} started: {what}", index + 1);
-            }
-            Happening::FaultEnded { index } => {
-                let what = self.scenario.describe_fault(*index);
-                return writeln!(out, "# {ts} fault {} ended: {what}", index + 1);
-            }
-            Happening::Node { node, event } => (&self.scenario.nodes[*node].name, event),
+            Happening::FaultStarted { index } => return self.fault(t, *index, "started"),
+            Happening::FaultEnded { index } => return self.fault(t, *index, "ended"),
+            Happening::Node { node, event } => (*node, event),
         };
-        let w = self.width;
         match event {
-            Event::Transmitted(frame) if self.rx => writeln!(out, "{ts} {node:>w$} {frame} T"),
-            Event::Transmitted(frame) => writeln!(out, "{ts} {node:>w$} {frame}"),
-            Event::Received(frame) if self.rx => writeln!(out, "{ts} {node:>w$} {frame} R"),
-            Event::StateChanged { from, to, tec, rec } => writeln!(
-                out,
-                "# {ts} {node}: {} -> {} (TEC {tec}, REC {rec})",
-                state_name(*from),
-                state_name(*to)
-            ),
+            Event::Transmitted(frame) => self.frame(t, node, frame, b" T\n"),
+            Event::Received(frame) if self.rx => self.frame(t, node, frame, b" R\n"),
+            Event::StateChanged { from, to, tec, rec } => {
+                self.node_status(t, node);
+                self.buf.extend_from_slice(state_name(*from).as_bytes());
+                self.buf.extend_from_slice(b" -> ");
+                self.buf.extend_from_slice(state_name(*to).as_bytes());
+                self.counters_end(*tec, *rec);
+            }
             Event::Warning { above, tec, rec } => {
-                let what = if *above {
-                    "error warning: a counter reached 96"
+                self.node_status(t, node);
+                self.buf.extend_from_slice(if *above {
+                    b"error warning: a counter reached 96"
                 } else {
-                    "error warning cleared: both counters below 96"
-                };
-                writeln!(out, "# {ts} {node}: {what} (TEC {tec}, REC {rec})")
+                    b"error warning cleared: both counters below 96"
+                });
+                self.counters_end(*tec, *rec);
             }
             Event::Error {
                 kind,
@@ -394,23 +465,49 @@ impl<'a> Printer<'a> {
                 tec,
                 rec,
             } if self.errors => {
-                let role = if *transmitter {
-                    "transmitter"
+                self.node_status(t, node);
+                self.buf.extend_from_slice(kind_name(*kind).as_bytes());
+                self.buf.extend_from_slice(if *transmitter {
+                    b" error as transmitter at bit "
                 } else {
-                    "receiver"
-                };
-                writeln!(
-                    out,
-                    "# {ts} {node}: {} error as {role} at bit {bit} (TEC {tec}, REC {rec})",
-                    kind_name(*kind)
-                )
+                    b" error as receiver at bit "
+                });
+                text::push_u64(&mut self.buf, u64::from(*bit));
+                self.counters_end(*tec, *rec);
             }
             Event::Dropped(frame) => {
                 // A single-shot attempt that failed, or what a chip's bus-off aborted.
-                writeln!(out, "# {ts} {node}: frame {frame} given up")
+                self.node_status(t, node);
+                self.buf.extend_from_slice(b"frame ");
+                candump::push_frame(&mut self.buf, frame);
+                self.buf.extend_from_slice(b" given up\n");
             }
-            _ => Ok(()),
+            _ => {}
         }
+    }
+
+    /// `(…) NODE FRAME`, then ` T`/` R` with `--rx`, and the end of the line.
+    fn frame(&mut self, t: BitTime, node: usize, frame: &Frame, direction: &[u8; 3]) {
+        self.stamp(t);
+        self.buf.push(b' ');
+        self.buf.extend_from_slice(self.columns[node].as_bytes());
+        self.buf.push(b' ');
+        candump::push_frame(&mut self.buf, frame);
+        let end: &[u8] = if self.rx { direction } else { b"\n" };
+        self.buf.extend_from_slice(end);
+    }
+
+    fn fault(&mut self, t: BitTime, index: usize, what: &str) {
+        // Rare: the description may allocate.
+        let description = self.scenario.describe_fault(index);
+        self.status(t);
+        self.buf.extend_from_slice(b"fault ");
+        text::push_u64(&mut self.buf, index as u64 + 1);
+        self.buf.push(b' ');
+        self.buf.extend_from_slice(what.as_bytes());
+        self.buf.extend_from_slice(b": ");
+        self.buf.extend_from_slice(description.as_bytes());
+        self.buf.push(b'\n');
     }
 }
 
