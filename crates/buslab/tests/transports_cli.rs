@@ -41,6 +41,15 @@ impl Running {
     /// Starts `buslab ARGS` and waits until a line of its stderr contains `ready` (its log at
     /// -v), or, with `ready` empty, until its first stdout line, which is returned.
     fn start(args: &[&str], ready: &str) -> (Self, String) {
+        Self::launch(args, ready, true)
+    }
+
+    /// Runs `buslab ARGS` to its end (bounded as [`Running::finish`]): stdout and stderr.
+    fn run(args: &[&str]) -> (String, String) {
+        Self::launch(args, "", false).0.finish()
+    }
+
+    fn launch(args: &[&str], ready: &str, wait: bool) -> (Self, String) {
         let mut child = buslab()
             .args(args)
             .stdout(Stdio::piped())
@@ -63,7 +72,9 @@ impl Running {
             all
         });
         let mut first = String::new();
-        let ok = if ready.is_empty() {
+        let ok = if !wait {
+            true
+        } else if ready.is_empty() {
             stdout.read_line(&mut first).is_ok_and(|n| n > 0)
         } else {
             rx.recv_timeout(EVENT).is_ok()
@@ -81,14 +92,31 @@ impl Running {
     }
 
     /// Waits for the process to end by itself; its stdout and stderr.
+    /// A process that has not ended EVENT after its last output is killed and the test fails
+    /// with what it printed (a hang is a failure to read, not a CI timeout).
     fn finish(mut self) -> (String, String) {
-        let mut out = String::new();
-        self.stdout
-            .take()
-            .unwrap()
-            .read_to_string(&mut out)
-            .unwrap();
-        let status = self.child.wait().unwrap();
+        let mut stdout = self.stdout.take().unwrap();
+        let reader = thread::spawn(move || {
+            let mut out = String::new();
+            let _ = stdout.read_to_string(&mut out);
+            out
+        });
+        let deadline = Instant::now() + EVENT;
+        let status = loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                break Some(status);
+            }
+            if Instant::now() >= deadline {
+                break None;
+            }
+            thread::sleep(Duration::from_millis(20));
+        };
+        let Some(status) = status else {
+            let err = self.stop();
+            let out = reader.join().unwrap();
+            panic!("still running after {EVENT:?}; stdout: {out:?}\nstderr:\n{err}");
+        };
+        let out = reader.join().unwrap();
         let err = self.stderr.take().unwrap().join().unwrap();
         assert!(status.success(), "{err}");
         (out, err)
@@ -184,15 +212,7 @@ fn the_slcan_backend_sends_and_receives_through_the_served_adapter() {
     let (_adapter, pty) = slcan_serve(&serve.url, dir.path());
     let url = format!("slcan:{}?bitrate=500000", pty.display());
     let mut me = serve.client();
-    let out = buslab()
-        .args(["send", &url, "123#1122", "1ABCDEF0#", "7FF#R8"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    Running::run(&["send", &url, "123#1122", "1ABCDEF0#", "7FF#R8"]);
     let got: Vec<String> = (0..3)
         .map(|_| me.recv(WAIT).unwrap().unwrap().frame.to_string())
         .collect();
