@@ -135,20 +135,23 @@ impl Chart<'_> {
             .map(|band| (self.px(band.from).max(0.0), self.px(band.to).min(W), band))
             .filter(|(a, z, _)| z > a)
             .collect();
-        let rows = label_rows(
-            &shown
-                .iter()
-                .map(|(a, _, band)| (*a, band.label.chars().count()))
-                .collect::<Vec<_>>(),
-        );
-        for ((a, z, band), row) in shown.iter().zip(rows) {
+        // A label starts at its band, or further left where it would run out of the chart.
+        let starts: Vec<(f64, usize)> = shown
+            .iter()
+            .map(|(a, _, band)| {
+                let chars = band.label.chars().count();
+                ((a + 2.0).min(W - chars as f64 * CHAR_WIDTH).max(0.0), chars)
+            })
+            .collect();
+        let rows = label_rows(&starts);
+        for (((a, z, band), row), (x, _)) in shown.iter().zip(rows).zip(&starts) {
             let _ = write!(
                 b,
                 "<rect class=band x={a:.1} y=0 width={:.1} height={H}><title>{}</title></rect>\
                  <text class=bandlabel x={:.1} y={}>{}</text>",
                 z - a,
                 esc(&band.what),
-                a + 2.0,
+                x,
                 10 + 11 * row,
                 esc(&band.label)
             );
@@ -351,5 +354,29 @@ mod tests {
         // A label that would run into the one before goes a row down.
         assert!(svg.contains("x=2.0 y=10>cut at engine<"), "{svg}");
         assert!(svg.contains("x=62.0 y=21>noise 1 %<"), "{svg}");
+    }
+
+    #[test]
+    fn a_label_of_a_band_at_the_right_edge_stays_inside_the_chart() {
+        let chart = Chart {
+            x: (60.0, 120.0),
+            axis: TimeAxis::Ago,
+            top: 8.0,
+            unit: "",
+            caption: "TEC".into(),
+            rules: vec![],
+            bands: vec![Band {
+                from: 118.0,
+                to: 121.0,
+                label: "cut at engine".into(),
+                what: "the wire cut".into(),
+            }],
+            series: vec![],
+        };
+        let mut svg = String::new();
+        chart.render(&mut svg);
+        // The band starts 2 s before now (580 of 600); its 13 characters end at the edge.
+        assert!(svg.contains("class=band x=580.0 y=0 width=20.0"), "{svg}");
+        assert!(svg.contains("x=527.2 y=10>cut at engine<"), "{svg}");
     }
 }

@@ -12,7 +12,7 @@ const state = {
   load: [],             // {t, percent, frames}
   history: new Map(),   // node number -> [{t, tec, rec, state}]
   names: new Map(),     // node number -> name
-  faults: new Map(),    // mark id -> {t, until, what}
+  faults: new Map(),    // mark id -> {t, until, label, what}
   now: 0,               // the server's view time of the last update (seconds)
   held: 0,
   lastTime: null,       // the time of the last log line (for "since the previous frame")
@@ -51,8 +51,8 @@ function connect() {
   source.onopen = () => { $("link").textContent = "live"; };
   source.onerror = () => {
     $("link").textContent = "reconnecting";
-    // A bad filter is refused with 400: say why.
-    fetch(url).then((r) => r.ok ? null : r.text()).then((why) => {
+    // A bad filter is refused with 400: say why (asked of the finite state, not the stream).
+    fetch("/api/state?n=0&" + query).then((r) => r.ok ? null : r.text()).then((why) => {
       if (why) { $("filtererror").textContent = why; source.close(); }
     }).catch(() => {});
   };
@@ -292,11 +292,13 @@ function drawChart(el, o) {
   const parts = [svg("rect", { x: 0, y: 0, width: W, height: H, class: "frame" })];
   const bands = (o.bands || []).map((b) => ({ ...b, a: Math.max(px(b.from), 0), z: Math.min(px(b.to), W) }))
     .filter((b) => b.z > b.a);
-  const rows = labelRows(bands.map((b) => [b.a, b.label.length]));
+  // A label starts at its band, or further left where it would run out of the chart.
+  for (const b of bands) b.x = Math.max(Math.min(b.a + 2, W - b.label.length * 5.6), 0);
+  const rows = labelRows(bands.map((b) => [b.x, b.label.length]));
   bands.forEach((b, i) => {
     const band = svg("rect", { class: "band", x: b.a.toFixed(1), y: 0, width: (b.z - b.a).toFixed(1), height: H });
     band.appendChild(svg("title", {}, b.what));
-    parts.push(band, svg("text", { class: "bandlabel", x: (b.a + 2).toFixed(1), y: 10 + 11 * rows[i] }, b.label));
+    parts.push(band, svg("text", { class: "bandlabel", x: b.x.toFixed(1), y: 10 + 11 * rows[i] }, b.label));
   });
   for (const [y, name] of o.rules || []) {
     if (y > o.top) continue;
