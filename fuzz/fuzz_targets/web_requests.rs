@@ -4,8 +4,9 @@
 //! `X-Buslab-Token` header. The first byte chooses which; the rest is the input.
 //!
 //! Besides no panic: a refusal is a 4xx with a reason; an accepted filter prints as text that
-//! parses to the same filter, an accepted frame likewise; a fault lasts 1 ms..1 h or until
-//! repaired; the token is accepted exactly when it is the server's.
+//! parses to the same filter, an accepted frame likewise; a chart window is 1 s..10 min; a
+//! fault lasts 1 ms..1 h or until repaired; the token is accepted exactly when it is the
+//! server's.
 #![no_main]
 
 use std::time::Duration;
@@ -15,7 +16,7 @@ use buslab_fuzz::assert_reparses;
 use buslab_view::LogFilter;
 use buslab_web::ApiError;
 use buslab_web::request::{
-    MAX_FAULT_MS, MAX_STATE_LOG, ViewQuery, check_token, fault_request, send_request,
+    MAX_FAULT_MS, MAX_STATE_LOG, MAX_WINDOW, ViewQuery, check_token, fault_request, send_request,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -36,6 +37,11 @@ fuzz_target!(|data: &[u8]| {
             match query.checked() {
                 Ok(view) => {
                     assert!(view.frames <= MAX_STATE_LOG);
+                    assert!(
+                        (Duration::from_secs(1)..=MAX_WINDOW).contains(&view.window),
+                        "{:?}",
+                        view.window
+                    );
                     assert_reparses(
                         &view.filter,
                         &view.filter.to_string(),

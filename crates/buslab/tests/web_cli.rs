@@ -280,3 +280,56 @@ fn buslab_web_refuses_foreign_hosts_and_frees_places_held_by_stalled_requests() 
     assert!(started.elapsed() >= Duration::from_secs(1));
     served("localhost");
 }
+
+#[test]
+fn error_frames_of_a_buslab_bus_reach_the_web_log_with_their_class() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("engine.toml");
+    std::fs::write(
+        &scenario,
+        "bitrate = 500000\n[[nodes]]\nname = \"engine\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0C0#0FA0\"\n  period = \"2ms\"\n  start = \"1ms\"\n[[nodes]]\nname = \"dash\"\n",
+    )
+    .unwrap();
+    let serve = Serve::start_with(500_000, &["--nodes", scenario.to_str().unwrap()]);
+    let (_web, addr) = start_web(&serve, &["--token", TOKEN]);
+    engine_until(addr, "sending", |e| e["sent"].as_u64() > Some(0));
+    // Noise on the whole bus until an error frame reaches the web server's log (its own
+    // node sees the bus errors, as a SocketCAN node would).
+    let (status, body) = post(
+        addr,
+        "/api/fault",
+        Some(TOKEN),
+        r#"{"kind":"noise","rate":0.01}"#,
+    );
+    assert_eq!(status, 200, "{body}");
+    assert!(
+        body.contains(
+            r#""done":"noise on the whole bus: 1 % of the bits read wrong, until repaired""#
+        ),
+        "{body}"
+    );
+    let deadline = Instant::now() + HANG;
+    let error = loop {
+        let (_, body) = get(addr, "/api/state?n=10&filter=%23FFFFFFFF");
+        let state: serde_json::Value = serde_json::from_str(&body).unwrap();
+        if let Some(e) = state["delta"]["log"].as_array().unwrap().first() {
+            break e.clone();
+        }
+        assert!(Instant::now() < deadline, "no error frame: {body}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let (status, body) = post(addr, "/api/repair", Some(TOKEN), "");
+    assert_eq!(status, 200, "{body}");
+    // candump's form (the error flag and the class) and the class in words.
+    let frame = error["frame"].as_str().unwrap();
+    let class = error["error"]["class"].as_u64().unwrap();
+    assert_eq!(
+        &frame[..9],
+        format!("{:08X}#", 0x2000_0000 | class),
+        "{error}"
+    );
+    let words = error["error"]["classes"].as_array().unwrap();
+    assert!(!words.is_empty(), "{error}");
+    let (_, page) = get(addr, "/frames?filter=%23FFFFFFFF&refresh=0");
+    assert!(page.contains("<b>ERRORFRAME</b>"), "{page}");
+}

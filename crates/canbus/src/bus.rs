@@ -195,6 +195,10 @@ pub enum BusError {
     Timeout { what: String, after: Duration },
     #[error("{backend} cannot deliver {what}")]
     Unsupported { what: &'static str, backend: String },
+    /// A limit of the bus refused a fault: too many on the wire, or too many from this client
+    /// for now (then with the time until the next is allowed).
+    #[error("{0}")]
+    FaultRefused(crate::admin::FaultLimit),
     #[error("{0}")]
     Other(String),
 }

@@ -77,7 +77,7 @@ impl From<ClientError> for BusError {
             ClientError::Protocol(_) | ClientError::Element(_) | ClientError::Reply(_) => {
                 BusError::Protocol(e.to_string())
             }
-            ClientError::Refused(limit) => BusError::Rejected(limit.to_string()),
+            ClientError::Refused(limit) => BusError::FaultRefused(limit),
             other => BusError::Other(other.to_string()),
         }
     }

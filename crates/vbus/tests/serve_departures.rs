@@ -245,7 +245,10 @@ fn a_client_beyond_its_fault_rate_is_refused_with_the_limit_and_the_wait() {
         .inject_fault(&WireFault::StuckDominant, None)
         .unwrap_err();
     assert!(
-        matches!(&err, buslab_canbus::BusError::Rejected(text) if text.contains("at most 20 per")),
+        matches!(
+            err,
+            buslab_canbus::BusError::FaultRefused(FaultLimit::Rate { max: 20, .. })
+        ),
         "{err}"
     );
     s.shutdown();

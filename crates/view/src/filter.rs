@@ -1,17 +1,24 @@
-//! Which frames a log shows: candump's `ID:MASK` (and `ID~MASK`, inverted) filters.
+//! Which frames a log shows: candump's `ID:MASK` (and `ID~MASK`, inverted) filters, and its
+//! `#MASK` for error frames.
 
 use std::fmt;
 use std::str::FromStr;
 
 use buslab_can::Frame;
+use buslab_canbus::ErrorFrame;
 
-/// One or more filters, comma-separated, any of which lets a frame through; empty: all.
+/// One or more filters, comma-separated, any of which lets a frame through; empty: every
+/// frame and every error frame.
 ///
 /// `123` (exactly that ID), `120:7F0` (candump's ID and mask), `300~700` (every frame that
-/// does NOT match). An ID of more than three hex digits is extended.
+/// does NOT match). An ID of more than three hex digits is extended. `#MASK` lets the error
+/// frames through that have a class bit in MASK (`#FFFFFFFF`: all, `#080`: bus errors), as
+/// candump's error filter; a filter without one shows no error frames.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct LogFilter {
     rules: Vec<Rule>,
+    /// The class bits of error frames let through (0: none, unless there are no rules).
+    error_mask: u32,
     text: String,
 }
 
@@ -34,6 +41,10 @@ pub enum FilterError {
     Range { text: String, id: u32, max: u32 },
     #[error("filter {0:?} is longer than 256 characters")]
     TooLong(String),
+    #[error(
+        "filter {0:?}: expected #MASK, the error classes in hex (e.g. #FFFFFFFF for every error frame, #080 for bus errors)"
+    )]
+    ErrorMask(String),
 }
 
 impl LogFilter {
@@ -43,11 +54,11 @@ impl LogFilter {
     }
 
     pub fn is_all(&self) -> bool {
-        self.rules.is_empty()
+        self.rules.is_empty() && self.error_mask == 0
     }
 
     pub fn matches(&self, frame: &Frame) -> bool {
-        if self.rules.is_empty() {
+        if self.is_all() {
             return true;
         }
         let id = frame.id();
@@ -56,6 +67,12 @@ impl LogFilter {
             let hit = r.extended == extended && (raw ^ r.id) & r.mask == 0;
             hit != r.invert
         })
+    }
+
+    /// Whether an error frame passes: every one with no filter at all, else those with a
+    /// class in the filter's `#MASK`.
+    pub fn matches_error(&self, error: &ErrorFrame) -> bool {
+        self.is_all() || error.class() & self.error_mask != 0
     }
 }
 
@@ -68,7 +85,17 @@ impl FromStr for LogFilter {
             return Err(FilterError::TooLong(text.chars().take(40).collect()));
         }
         let mut rules = Vec::new();
+        let mut error_mask = 0;
         for part in text.split([',', ' ']).filter(|p| !p.is_empty()) {
+            if let Some(mask) = part.strip_prefix('#') {
+                let bad = || FilterError::ErrorMask(part.to_string());
+                if mask.is_empty() || mask.len() > 8 || !mask.bytes().all(|b| b.is_ascii_hexdigit())
+                {
+                    return Err(bad());
+                }
+                error_mask |= u32::from_str_radix(mask, 16).map_err(|_| bad())?;
+                continue;
+            }
             let syntax = || FilterError::Syntax(part.to_string());
             let (id_text, mask_text, invert) = match part.split_once([':', '~']) {
                 Some((id, mask)) => (id, Some(mask), part.contains('~')),
@@ -104,6 +131,7 @@ impl FromStr for LogFilter {
         }
         Ok(Self {
             rules,
+            error_mask,
             text: text.to_string(),
         })
     }
@@ -135,6 +163,31 @@ mod tests {
         assert!(!range.matches(&f("130#")));
         let not: LogFilter = "200~7FF".parse().unwrap();
         assert!(!not.matches(&f("200#00")) && not.matches(&f("080#01")));
+    }
+
+    #[test]
+    fn error_frames_pass_no_filter_or_a_filter_naming_their_class() {
+        let bus_error = ErrorFrame::decode(0x088, &[]).unwrap();
+        let bus_off = ErrorFrame::decode(0x040, &[]).unwrap();
+        assert!(LogFilter::all().matches_error(&bus_error));
+        let ids: LogFilter = "123".parse().unwrap();
+        assert!(
+            !ids.matches_error(&bus_error),
+            "as candump: IDs alone show no errors"
+        );
+        let both: LogFilter = "123, #080".parse().unwrap();
+        assert!(both.matches_error(&bus_error) && !both.matches_error(&bus_off));
+        assert!(both.matches(&f("123#")) && !both.matches(&f("124#")));
+        let errors_only: LogFilter = "#FFFFFFFF".parse().unwrap();
+        assert!(errors_only.matches_error(&bus_off));
+        assert!(
+            !errors_only.matches(&f("123#")),
+            "an error mask alone shows no frames"
+        );
+        for bad in ["#", "#XYZ", "#123456789"] {
+            let e = bad.parse::<LogFilter>().unwrap_err().to_string();
+            assert!(e.contains("#MASK") && e.contains(bad), "{e}");
+        }
     }
 
     #[test]

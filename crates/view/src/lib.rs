@@ -3,15 +3,21 @@
 //!
 //! - a per-ID table (count, period, DLC, data, the bytes that changed lately: cansniffer's and
 //!   SavvyCAN's view), bounded in size;
-//! - a frame log: a bounded ring with sequence numbers, read through a [`LogFilter`];
+//! - a frame log: a bounded ring with sequence numbers, frames and error frames (with their
+//!   class and meaning in can-utils' words), read through a [`LogFilter`];
 //! - the bus load over time (from the bus's own figure when it has one, else estimated from
 //!   the frames' lengths on the wire at a known bit rate);
 //! - every node's error state over time (TEC, REC, error-active/passive/bus-off) with its
-//!   latest typed status (STATUS bits, ALC and ECC).
+//!   latest typed status (STATUS bits, ALC and ECC);
+//! - the faults put on the wire through the consumer ([`FaultMark`]), for the time charts.
 //!
-//! Frames and node statuses go in with the instant they were seen ([`BusView::frame`],
-//! [`BusView::nodes`], [`BusView::tick`]); what changed since a [`Cursor`] comes out
-//! ([`BusView::delta`]). A consumer keeps one cursor and advances it only when it actually
+//! The load, the histories and the marks go back [`ViewConfig::retention`]; a new consumer
+//! asks for the time window its charts show ([`BusView::delta_within`]), never for the whole
+//! age of the view.
+//!
+//! Frames, error frames and node statuses go in with the instant they were seen
+//! ([`BusView::frame`], [`BusView::error_frame`], [`BusView::nodes`], [`BusView::tick`]); what
+//! changed since a [`Cursor`] comes out ([`BusView::delta`]). A consumer keeps one cursor and advances it only when it actually
 //! delivered the delta, so a viewer that missed updates simply gets a larger one next time.
 //! Time is explicit: a [`Duration`] since the view started, given by the adapter.
 
@@ -22,7 +28,8 @@ mod model;
 pub use filter::{FilterError, LogFilter};
 pub use load::frame_bits;
 pub use model::{
-    BusView, Cursor, Delta, ErrorSample, IdRow, LoadSample, LogEntry, NodeView, ViewConfig,
+    BusView, Cursor, Delta, ErrorEntry, ErrorSample, FaultMark, IdRow, LoadSample, LogEntry,
+    Logged, NodeView, ViewConfig,
 };
 
 pub use std::time::Duration;

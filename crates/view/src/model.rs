@@ -4,7 +4,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
 use buslab_can::{Frame, Id};
-use buslab_canbus::{BusState, Message, NodeStatus};
+use buslab_canbus::{BusState, ErrorFrame, ErrorMessage, Message, NodeStatus};
 use serde::Serialize;
 
 use crate::filter::LogFilter;
@@ -22,8 +22,12 @@ pub struct ViewConfig {
     pub highlight: Duration,
     /// Load samples kept (one per second).
     pub load_points: usize,
-    /// TEC/REC samples kept per node.
+    /// TEC/REC samples kept per node at most (a run of equal samples is kept as its first
+    /// and last).
     pub history_points: usize,
+    /// How far back the load, the TEC/REC histories and the fault marks go: the longest
+    /// window a chart can ask for.
+    pub retention: Duration,
     /// The bus's bit rate when the bus cannot tell, for estimating the load from frames.
     pub bitrate: Option<u32>,
 }
@@ -34,8 +38,9 @@ impl Default for ViewConfig {
             log_capacity: 4096,
             max_ids: 4096,
             highlight: Duration::from_secs(1),
-            load_points: 120,
-            history_points: 1200,
+            load_points: 600,
+            history_points: 4096,
+            retention: Duration::from_secs(600),
             bitrate: None,
         }
     }
@@ -85,16 +90,73 @@ impl IdRow {
     }
 }
 
-/// A frame in the log.
+/// A frame or an error frame in the log.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct LogEntry {
     pub seq: u64,
     /// The frame's own timestamp (seconds).
     pub time: f64,
-    /// can-utils' compact form, `123#1122`.
+    /// can-utils' compact form, `123#1122`; an error frame as candump logs it,
+    /// `20000088#0000000000000000`.
     pub frame: String,
+    /// What an error frame says (`None` for a frame).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<ErrorEntry>,
     #[serde(skip)]
-    pub raw: Frame,
+    pub raw: Logged,
+}
+
+/// What a log entry holds.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Logged {
+    Frame(Frame),
+    Error(ErrorFrame),
+}
+
+/// An error frame's class and meaning, in the words `buslab dump -e` prints (can-utils').
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ErrorEntry {
+    /// The class bits (the CAN ID without the error flag), `0x088` as 136.
+    pub class: u32,
+    /// One entry per class with its details: `protocol-violation{{single-bit-error}{data-field}}`,
+    /// `bus-error`.
+    pub classes: Vec<String>,
+    /// The TX and RX error counters, when the frame carries them.
+    pub tec: Option<u8>,
+    pub rec: Option<u8>,
+}
+
+impl ErrorEntry {
+    fn of(error: &ErrorFrame) -> Self {
+        let mut classes: Vec<String> = error.describe("\n").lines().map(str::to_string).collect();
+        // The counters are fields of their own.
+        if error.counters.is_some() {
+            classes.pop();
+        }
+        Self {
+            class: error.class(),
+            classes,
+            tec: error.counters.map(|c| c.tx),
+            rec: error.counters.map(|c| c.rx),
+        }
+    }
+}
+
+/// A fault put on the wire from this view's server, as a band on the time charts.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FaultMark {
+    /// Stays the same when the mark changes (a repair ends it early): replace by `id`.
+    pub id: u64,
+    /// Seconds since the view started.
+    pub t: f64,
+    /// When it ends (or ended); `None`: until repaired.
+    pub until: Option<f64>,
+    /// What it is, in a few words for the chart: `cut at engine`.
+    pub label: String,
+    /// What it is, in a sentence: `the wire cut: engine on the far side, …`.
+    pub what: String,
+    #[serde(skip)]
+    seq: u64,
 }
 
 /// The bus load over one second.
@@ -122,6 +184,12 @@ pub struct ErrorSample {
     seq: u64,
 }
 
+impl ErrorSample {
+    fn same_values(&self, other: &ErrorSample) -> bool {
+        (self.tec, self.rec, self.state) == (other.tec, other.rec, other.state)
+    }
+}
+
 /// A node: its latest status in words, and the new part of its TEC/REC history.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct NodeView {
@@ -142,7 +210,8 @@ pub struct NodeView {
     pub bus_errors: u64,
     pub bus_off: u64,
     pub arbitration_lost: u64,
-    /// Samples newer than the cursor (the whole kept history for a new consumer).
+    /// Samples newer than the cursor (for a new consumer: those of the window asked for,
+    /// with the one before it, so that a chart's line enters from its left edge).
     pub history: Vec<ErrorSample>,
 }
 
@@ -166,8 +235,12 @@ pub struct Delta {
     pub log_skipped: u64,
     pub load: Vec<LoadSample>,
     pub nodes: Vec<NodeView>,
+    /// Fault marks new or changed since the cursor (for a new consumer: those in the window).
+    pub faults: Vec<FaultMark>,
     /// Frames seen since the view started.
     pub frames: u64,
+    /// Error frames seen since the view started.
+    pub error_frames: u64,
     /// Frames per second over the last complete second.
     pub frames_per_s: u64,
     pub bitrate: Option<u32>,
@@ -201,7 +274,10 @@ pub struct BusView {
     log: VecDeque<LogEntry>,
     load: VecDeque<LoadSample>,
     nodes: BTreeMap<u32, Node>,
+    faults: VecDeque<FaultMark>,
+    next_fault: u64,
     frames: u64,
+    error_frames: u64,
     /// The current second: its start, frames and estimated bits.
     window_start: Duration,
     window_frames: u64,
@@ -225,7 +301,10 @@ impl BusView {
             log: VecDeque::new(),
             load: VecDeque::new(),
             nodes: BTreeMap::new(),
+            faults: VecDeque::new(),
+            next_fault: 0,
             frames: 0,
+            error_frames: 0,
             window_start: Duration::ZERO,
             window_frames: 0,
             window_bits: 0,
@@ -291,16 +370,80 @@ impl BusView {
             }
             None => self.ids_dropped += 1,
         }
+        self.log(LogEntry {
+            seq,
+            time: message.timestamp,
+            frame: frame.to_string(),
+            error: None,
+            raw: Logged::Frame(frame),
+        });
+    }
+
+    /// An error frame seen at `now`: logged (it is no frame of the table or the load).
+    pub fn error_frame(&mut self, now: Duration, message: &ErrorMessage) {
+        self.tick(now);
+        let seq = self.next_seq();
+        self.error_frames += 1;
+        let e = &message.error;
+        let (_, data) = e.encode();
+        let bytes: String = data[..e.data_len()]
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect();
+        self.log(LogEntry {
+            seq,
+            time: message.timestamp,
+            frame: format!("{:08X}#{bytes}", e.can_id()),
+            error: Some(ErrorEntry::of(e)),
+            raw: Logged::Error(e.clone()),
+        });
+    }
+
+    fn log(&mut self, entry: LogEntry) {
         if self.log.len() >= self.config.log_capacity.max(1) {
             self.log.pop_front();
         }
         self.logged += 1;
-        self.log.push_back(LogEntry {
+        self.log.push_back(entry);
+    }
+
+    /// A fault put on the wire at `now` for `lasting` (`None`: until repaired), named by
+    /// `label` and described by `what`; its mark's id.
+    pub fn fault(
+        &mut self,
+        now: Duration,
+        label: String,
+        what: String,
+        lasting: Option<Duration>,
+    ) -> u64 {
+        self.tick(now);
+        let seq = self.next_seq();
+        self.next_fault += 1;
+        if self.faults.len() >= MAX_FAULT_MARKS {
+            self.faults.pop_front();
+        }
+        self.faults.push_back(FaultMark {
+            id: self.next_fault,
+            t: now.as_secs_f64(),
+            until: lasting.map(|d| (now + d).as_secs_f64()),
+            label,
+            what,
             seq,
-            time: message.timestamp,
-            frame: frame.to_string(),
-            raw: frame,
         });
+        self.next_fault
+    }
+
+    /// Every fault ended at `now` (a repair): marks still running end there.
+    pub fn repaired(&mut self, now: Duration) {
+        self.tick(now);
+        let seq = self.next_seq();
+        let t = now.as_secs_f64();
+        for mark in &mut self.faults {
+            if mark.until.is_none_or(|u| u > t) {
+                mark.until = Some(t);
+                mark.seq = seq;
+            }
+        }
     }
 
     /// Every node's status at `now` (nodes missing from the list have left).
@@ -313,7 +456,8 @@ impl BusView {
         let present: Vec<u32> = statuses.iter().map(|s| s.number).collect();
         self.nodes.retain(|n, _| present.contains(n));
         let t = now.as_secs_f64();
-        let cap = self.config.history_points.max(1);
+        let cap = self.config.history_points.max(2);
+        let oldest = now.saturating_sub(self.config.retention).as_secs_f64();
         for status in statuses {
             let node = self.nodes.entry(status.number).or_insert_with(|| Node {
                 status: status.clone(),
@@ -321,16 +465,14 @@ impl BusView {
                 seq,
             });
             if let Some(e) = status.errors {
-                if node.history.len() >= cap {
-                    node.history.pop_front();
-                }
-                node.history.push_back(ErrorSample {
+                let sample = ErrorSample {
                     t,
                     tec: e.txerr,
                     rec: e.rxerr,
                     state: state_word(status.state),
                     seq,
-                });
+                };
+                keep_sample(&mut node.history, sample, oldest, cap);
             }
             node.status = status;
             node.seq = seq;
@@ -357,6 +499,14 @@ impl BusView {
         let seq = self.next_seq();
         if self.load.len() >= self.config.load_points.max(1) {
             self.load.pop_front();
+        }
+        let oldest = now.saturating_sub(self.config.retention).as_secs_f64();
+        while self
+            .faults
+            .front()
+            .is_some_and(|f| f.until.is_some_and(|u| u < oldest))
+        {
+            self.faults.pop_front();
         }
         self.load.push_back(LoadSample {
             t: now.as_secs_f64(),
@@ -387,8 +537,8 @@ impl BusView {
     }
 
     /// What changed since `cursor`, at `now`: rows, log frames passing `filter` (the newest
-    /// `max_log`), load samples, nodes. Call [`Cursor`] advancing through
-    /// [`BusView::advance`] once the delta was delivered.
+    /// `max_log`), load samples, nodes, fault marks; a new consumer gets everything kept.
+    /// Call [`Cursor`] advancing through [`BusView::advance`] once the delta was delivered.
     pub fn delta(
         &self,
         cursor: &Cursor,
@@ -396,7 +546,27 @@ impl BusView {
         filter: &LogFilter,
         max_log: usize,
     ) -> Delta {
+        self.delta_within(cursor, now, filter, max_log, self.config.retention)
+    }
+
+    /// As [`BusView::delta`], but a new consumer gets the load, histories and fault marks of
+    /// the last `window` only (what its charts show), each history with the sample before
+    /// the window.
+    pub fn delta_within(
+        &self,
+        cursor: &Cursor,
+        now: Duration,
+        filter: &LogFilter,
+        max_log: usize,
+        window: Duration,
+    ) -> Delta {
         let full = !cursor.fresh || cursor.seq < self.cleared_at;
+        // What a chart of the window shows (everything kept for a consumer that has the rest).
+        let from = if full {
+            now.saturating_sub(window).as_secs_f64()
+        } else {
+            f64::NEG_INFINITY
+        };
         let since = if full { 0 } else { cursor.seq };
         let highlight = self.config.highlight;
         // A highlight that ran out since the last delta changes the row too.
@@ -418,7 +588,7 @@ impl BusView {
         let mut in_log = 0u64;
         for e in self.log.iter().rev().take_while(|e| e.seq > since) {
             in_log += 1;
-            if filter.matches(&e.raw) {
+            if e.passes(filter) {
                 passed += 1;
                 if log.len() < max_log {
                     log.push(e.clone());
@@ -435,7 +605,11 @@ impl BusView {
                 .saturating_sub(cursor.logged)
                 .saturating_sub(in_log)
         };
-        let nodes = self.nodes.values().map(|n| node_view(n, since)).collect();
+        let nodes = self
+            .nodes
+            .values()
+            .map(|n| node_view(n, since, from))
+            .collect();
         Delta {
             full,
             t: now.as_secs_f64(),
@@ -446,11 +620,18 @@ impl BusView {
             load: self
                 .load
                 .iter()
-                .filter(|s| s.seq > since)
+                .filter(|s| s.seq > since && s.t >= from)
                 .copied()
                 .collect(),
             nodes,
+            faults: self
+                .faults
+                .iter()
+                .filter(|f| f.seq > since && f.until.is_none_or(|u| u >= from))
+                .cloned()
+                .collect(),
             frames: self.frames,
+            error_frames: self.error_frames,
             frames_per_s: self.last_frames_per_s,
             bitrate: self.reported.map(|(_, b)| b).or(self.config.bitrate),
         }
@@ -480,7 +661,7 @@ impl BusView {
             .log
             .iter()
             .rev()
-            .filter(|e| filter.matches(&e.raw))
+            .filter(|e| e.passes(filter))
             .take(n)
             .cloned()
             .collect();
@@ -496,6 +677,11 @@ impl BusView {
     /// Every node's latest status.
     pub fn node_statuses(&self) -> impl Iterator<Item = &NodeStatus> {
         self.nodes.values().map(|n| &n.status)
+    }
+
+    /// The fault marks kept, oldest first.
+    pub fn faults(&self) -> impl Iterator<Item = &FaultMark> {
+        self.faults.iter()
     }
 
     /// A node's kept TEC/REC history.
@@ -538,6 +724,36 @@ impl BusView {
     }
 }
 
+/// Fault marks kept at most (ended ones also leave after the retention time).
+const MAX_FAULT_MARKS: usize = 256;
+
+impl LogEntry {
+    fn passes(&self, filter: &LogFilter) -> bool {
+        match &self.raw {
+            Logged::Frame(f) => filter.matches(f),
+            Logged::Error(e) => filter.matches_error(e),
+        }
+    }
+}
+
+/// Appends `sample` to a node's history: a run of equal samples is kept as its first and last
+/// (the last moves on), samples older than `oldest` leave but for the one before it (where a
+/// chart's line comes from), and at most `cap` stay.
+fn keep_sample(history: &mut VecDeque<ErrorSample>, sample: ErrorSample, oldest: f64, cap: usize) {
+    let n = history.len();
+    if n >= 2 && history[n - 1].same_values(&sample) && history[n - 2].same_values(&sample) {
+        history[n - 1] = sample;
+    } else {
+        history.push_back(sample);
+    }
+    while history.len() > 1 && history[1].t <= oldest {
+        history.pop_front();
+    }
+    while history.len() > cap {
+        history.pop_front();
+    }
+}
+
 fn state_word(state: BusState) -> &'static str {
     match state {
         BusState::Active => "active",
@@ -546,7 +762,7 @@ fn state_word(state: BusState) -> &'static str {
     }
 }
 
-fn node_view(n: &Node, since: u64) -> NodeView {
+fn node_view(n: &Node, since: u64, from: f64) -> NodeView {
     let s = &n.status;
     let e = s.errors;
     NodeView {
@@ -564,11 +780,15 @@ fn node_view(n: &Node, since: u64) -> NodeView {
         bus_errors: s.counters.bus_errors,
         bus_off: s.counters.bus_off,
         arbitration_lost: s.counters.arbitration_lost,
-        history: n
-            .history
-            .iter()
-            .filter(|h| h.seq > since)
-            .copied()
-            .collect(),
+        history: {
+            // The samples in the window, and the one before it.
+            let first = n.history.partition_point(|h| h.t < from).saturating_sub(1);
+            n.history
+                .iter()
+                .skip(first)
+                .filter(|h| h.seq > since)
+                .copied()
+                .collect()
+        },
     }
 }

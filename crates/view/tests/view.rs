@@ -219,3 +219,154 @@ fn the_table_is_bounded_and_clear_starts_over() {
     let d = view.delta(&cursor, ms(2), &LogFilter::all(), 10);
     assert!(d.full && d.ids.is_empty() && d.log.is_empty());
 }
+
+/// Ten minutes of a node polled every 250 ms, its TEC climbing to bus-off for 3 s near the
+/// end (the seed's experiment), as `buslab lab` lives it.
+fn ten_minutes_with_the_experiment() -> BusView {
+    let mut view = BusView::new(ViewConfig::default());
+    for i in 0..=2400u64 {
+        let t = ms(250 * i);
+        // The cut from 570 s to 573 s: bus-off while it lasts, then back with TEC 0.
+        let (tec, state) = if (2280..2292).contains(&i) {
+            (255, BusState::BusOff)
+        } else {
+            (0, BusState::Active)
+        };
+        if i == 2280 {
+            view.fault(t, "cut".into(), "cut at engine".into(), Some(ms(3000)));
+        }
+        view.nodes(t, vec![status(1, "engine", tec, state)]);
+    }
+    view
+}
+
+#[test]
+fn a_chart_window_gets_the_last_seconds_not_the_whole_age_of_the_view() {
+    let view = ten_minutes_with_the_experiment();
+    let now = ms(600_000);
+    let all = LogFilter::all();
+    let d = view.delta_within(&Cursor::start(), now, &all, 0, Duration::from_secs(60));
+    let h = &d.nodes[0].history;
+    // The one sample before the window (where the line comes from), then the window's.
+    assert!(h[0].t < 540.0 && h[1].t >= 540.0, "{:?}", &h[..2]);
+    assert!(h[1..].iter().all(|s| s.t >= 540.0));
+    // The climb is there, with the samples around it.
+    assert!(h.iter().any(|s| s.tec == 255 && s.state == "bus-off"));
+    assert_eq!(h.last().unwrap().t, 600.0);
+    assert!(d.load.iter().all(|l| l.t >= 540.0) && !d.load.is_empty());
+    assert_eq!(d.faults.len(), 1);
+    assert_eq!((d.faults[0].t, d.faults[0].until), (570.0, Some(573.0)));
+    // A window that ends before the cut does not carry its mark.
+    let d = view.delta_within(&Cursor::start(), now, &all, 0, Duration::from_secs(10));
+    assert!(d.faults.is_empty(), "{:?}", d.faults);
+    assert!(d.nodes[0].history.iter().all(|s| s.tec == 0));
+}
+
+#[test]
+fn equal_samples_are_kept_as_a_run_and_the_history_spans_the_retention_time() {
+    let view = ten_minutes_with_the_experiment();
+    let h: Vec<_> = view.history(1).copied().collect();
+    // 2401 samples in three runs (active, bus-off, active): each kept as its ends.
+    assert_eq!(
+        h.iter().map(|s| (s.t, s.tec)).collect::<Vec<_>>(),
+        [
+            (0.0, 0),
+            (569.75, 0),
+            (570.0, 255),
+            (572.75, 255),
+            (573.0, 0),
+            (600.0, 0)
+        ]
+    );
+    // Samples older than the retention time go (but the one where the line comes from).
+    let mut short = BusView::new(ViewConfig {
+        retention: Duration::from_secs(10),
+        ..ViewConfig::default()
+    });
+    for i in 0..100u64 {
+        let tec = (i % 2) as u8;
+        short.nodes(
+            ms(250 * i),
+            vec![status(1, "engine", tec, BusState::Active)],
+        );
+    }
+    // The last sample at 24.75 s: from 14.75 s on.
+    let kept: Vec<_> = short.history(1).map(|s| s.t).collect();
+    assert_eq!((kept[0], kept[1]), (14.75, 15.0), "{kept:?}");
+    assert_eq!(kept.len(), 41, "{kept:?}");
+}
+
+#[test]
+fn error_frames_are_logged_with_their_class_and_meaning() {
+    use buslab_canbus::{ErrorFrame, ErrorMessage};
+    let mut view = BusView::new(ViewConfig::default());
+    view.frame(ms(0), &msg(100.0, "123#11"));
+    // Linux's SJA1000 frame for a stuff error while receiving in the data field, with the
+    // counters.
+    let error = ErrorFrame::decode(0x288, &[0, 0, 0x04, 0x0A, 0, 0, 0, 9]).unwrap();
+    view.error_frame(
+        ms(1),
+        &ErrorMessage {
+            timestamp: 100.001,
+            channel: "vcan0".into(),
+            error,
+        },
+    );
+    let d = view.delta(&Cursor::start(), ms(2), &LogFilter::all(), 10);
+    assert_eq!(d.log.len(), 2);
+    assert_eq!(
+        (d.frames, d.error_frames),
+        (1, 1),
+        "an error frame is no frame"
+    );
+    assert_eq!(d.ids.len(), 1, "nor a row of the table");
+    let e = &d.log[1];
+    assert_eq!(e.frame, "20000288#0000040A00000009");
+    let entry = e.error.as_ref().unwrap();
+    assert_eq!(entry.class, 0x288);
+    assert_eq!(
+        entry.classes,
+        [
+            "protocol-violation{{bit-stuffing-error}{data-field}}",
+            "bus-error"
+        ]
+    );
+    assert_eq!((entry.tec, entry.rec), (Some(0), Some(9)));
+    let json = serde_json::to_string(&d.log).unwrap();
+    assert!(json.contains("\"classes\":[\"protocol-violation"), "{json}");
+    assert!(
+        !json.contains("\"error\":null"),
+        "frames carry no error: {json}"
+    );
+    // candump's filters: IDs alone leave error frames out, #MASK takes them.
+    let ids: LogFilter = "123".parse().unwrap();
+    assert_eq!(view.log_tail(&ids, 10).len(), 1);
+    let errors: LogFilter = "#080".parse().unwrap();
+    assert_eq!(
+        view.log_tail(&errors, 10)[0].frame,
+        "20000288#0000040A00000009"
+    );
+}
+
+#[test]
+fn a_repair_ends_the_fault_marks_still_running() {
+    let mut view = BusView::new(ViewConfig::default());
+    let cursor = view.advance(ms(0));
+    let all = LogFilter::all();
+    let _ = view.delta(&cursor, ms(0), &all, 0);
+    let cursor = view.advance(ms(0));
+    let timed = view.fault(ms(1000), "noise".into(), "noise".into(), Some(ms(500)));
+    let open = view.fault(ms(1200), "cut".into(), "cut at engine".into(), None);
+    let d = view.delta(&cursor, ms(1300), &all, 0);
+    assert_eq!(d.faults.len(), 2);
+    assert_eq!(d.faults[1].until, None);
+    let cursor = view.advance(ms(1300));
+    view.repaired(ms(2000));
+    let d = view.delta(&cursor, ms(2000), &all, 0);
+    // The ended one stays as it was; the open one now ends at the repair, same id.
+    assert_eq!(
+        d.faults.iter().map(|f| (f.id, f.until)).collect::<Vec<_>>(),
+        [(open, Some(2.0))]
+    );
+    assert_ne!(timed, open);
+}

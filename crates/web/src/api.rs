@@ -1,5 +1,6 @@
 //! The JSON side: the whole view, live updates over server-sent events, and the writes (send
-//! a frame, inject or repair a fault), each write behind the token.
+//! a frame, inject or repair a fault), each write behind the token and answered with what was
+//! done in words (`done`), a refusal with its reason.
 
 use std::convert::Infallible;
 use std::time::Duration;
@@ -11,7 +12,9 @@ use axum::http::{HeaderMap, StatusCode};
 use axum::response::IntoResponse;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use buslab_backends::TrySendError;
-use buslab_canbus::{BusAdmin, BusError, CanBus};
+use buslab_canbus::admin::FaultLimit;
+use buslab_canbus::bus::Human;
+use buslab_canbus::{BusAdmin, BusError, CanBus, NodeRef, WireFault};
 use buslab_view::{Cursor, Delta, LogFilter};
 use futures_util::Stream;
 use serde::Serialize;
@@ -47,9 +50,16 @@ pub async fn state(
     State(app): State<App>,
     Query(q): Query<ViewQuery>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let ViewRequest { filter, frames: n } = q.checked()?;
+    let ViewRequest {
+        filter,
+        frames: n,
+        window,
+    } = q.checked()?;
     let now = app.hub.now();
-    let delta = app.hub.view().delta(&Cursor::start(), now, &filter, n);
+    let delta = app
+        .hub
+        .view()
+        .delta_within(&Cursor::start(), now, &filter, n, window);
     Ok(Json(serde_json::json!({
         "delta": delta,
         "bus_failure": app.hub.failure(),
@@ -62,6 +72,8 @@ struct Viewer {
     app: App,
     cursor: Cursor,
     filter: LogFilter,
+    /// How far back the first (whole) update's charts go.
+    window: Duration,
     lost: u64,
     ticker: tokio::time::Interval,
     /// The device panels' version this viewer has (`None`: none sent yet).
@@ -75,13 +87,14 @@ pub async fn events(
     State(app): State<App>,
     Query(q): Query<ViewQuery>,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let filter = q.checked()?.filter;
+    let ViewRequest { filter, window, .. } = q.checked()?;
     let mut ticker = tokio::time::interval(UPDATE_EVERY);
     ticker.set_missed_tick_behavior(MissedTickBehavior::Delay);
     let viewer = Viewer {
         app,
         cursor: Cursor::start(),
         filter,
+        window,
         lost: 0,
         ticker,
         devices_seen: None,
@@ -91,7 +104,7 @@ pub async fn events(
         let now = v.app.hub.now();
         let delta = {
             let view = v.app.hub.view();
-            let delta = view.delta(&v.cursor, now, &v.filter, MAX_LOG);
+            let delta = view.delta_within(&v.cursor, now, &v.filter, MAX_LOG, v.window);
             v.cursor = view.advance(now);
             delta
         };
@@ -135,7 +148,10 @@ pub async fn send(
     match app.sender.try_send(frame) {
         Ok(()) => Ok((
             StatusCode::ACCEPTED,
-            Json(serde_json::json!({ "queued": frame.to_string() })),
+            Json(serde_json::json!({
+                "queued": frame.to_string(),
+                "done": format!("{frame} is queued for the bus"),
+            })),
         )),
         Err(TrySendError::Full) => Err(ApiError::new(
             StatusCode::SERVICE_UNAVAILABLE,
@@ -155,10 +171,20 @@ pub async fn fault(
     let FaultOrder { fault, lasting } = fault_request(&body)?;
     let for_ms = lasting.map(|d| d.as_millis() as u64);
     let name = fault.name();
+    let (label, what) = (fault_label(&fault), fault_words(&fault));
     on_bus(&app, move |admin| admin.inject_fault(&fault, lasting)).await?;
-    Ok(Json(
-        serde_json::json!({ "injected": name, "for_ms": for_ms }),
-    ))
+    // Marked on the time charts, from when the bus took it.
+    let now = app.hub.now();
+    app.hub.view().fault(now, label, what.clone(), lasting);
+    let until = match lasting {
+        Some(d) => format!("for {}", Human(d)),
+        None => "until repaired".to_string(),
+    };
+    Ok(Json(serde_json::json!({
+        "injected": name,
+        "for_ms": for_ms,
+        "done": format!("{what}, {until}"),
+    })))
 }
 
 /// `POST /api/repair`: ends every fault on the wire.
@@ -168,7 +194,70 @@ pub async fn repair(
 ) -> Result<impl IntoResponse, ApiError> {
     authorize(&app, &headers)?;
     on_bus(&app, |admin| admin.repair()).await?;
-    Ok(Json(serde_json::json!({ "repaired": true })))
+    let now = app.hub.now();
+    app.hub.view().repaired(now);
+    Ok(Json(serde_json::json!({
+        "repaired": true,
+        "done": "the wire is repaired: every fault on it ended",
+    })))
+}
+
+/// A fault in a few words, for its band on the time charts.
+pub fn fault_label(fault: &WireFault) -> String {
+    match fault {
+        WireFault::Cut { far_side, .. } => format!("cut at {}", node_list(far_side)),
+        WireFault::Disconnect { node } => format!("{} disconnected", node_words(node)),
+        WireFault::Flip { node: Some(node) } => format!("flip at {}", node_words(node)),
+        WireFault::Flip { node: None } => "flip".to_string(),
+        WireFault::Noise { rate, .. } => format!("noise {}", percent(rate.get())),
+        WireFault::StuckDominant => "stuck dominant".to_string(),
+    }
+}
+
+/// `5 %`, `0.1 %`: a probability as a person says it.
+fn percent(p: f64) -> String {
+    let p = (p * 100.0 * 1000.0).round() / 1000.0;
+    format!("{p} %")
+}
+
+/// A fault in words, as the dashboard's result line and the charts' marks say it.
+pub fn fault_words(fault: &WireFault) -> String {
+    match fault {
+        WireFault::Cut {
+            far_side,
+            error_rate,
+        } => format!(
+            "the wire cut: {} on the far side, {} of the bits read there wrong",
+            node_list(far_side),
+            percent(error_rate.get())
+        ),
+        WireFault::Disconnect { node } => format!("{} disconnected", node_words(node)),
+        WireFault::Flip { node: Some(node) } => {
+            format!("every bit {} reads inverted", node_words(node))
+        }
+        WireFault::Flip { node: None } => "every bit read inverted, by every node".to_string(),
+        WireFault::Noise { nodes, rate } if nodes.is_empty() => format!(
+            "noise on the whole bus: {} of the bits read wrong",
+            percent(rate.get())
+        ),
+        WireFault::Noise { nodes, rate } => format!(
+            "noise at {}: {} of the bits read wrong",
+            node_list(nodes),
+            percent(rate.get())
+        ),
+        WireFault::StuckDominant => "the bus held dominant".to_string(),
+    }
+}
+
+fn node_words(node: &NodeRef) -> String {
+    match node {
+        NodeRef::Number(n) => format!("node {n}"),
+        NodeRef::Name(name) => name.clone(),
+    }
+}
+
+fn node_list(nodes: &[NodeRef]) -> String {
+    nodes.iter().map(node_words).collect::<Vec<_>>().join(", ")
 }
 
 fn stopped() -> ApiError {
@@ -206,6 +295,12 @@ async fn on_bus(
             StatusCode::CONFLICT,
             format!("{e} (only a buslab virtual bus has a wire to break)"),
         )),
+        Err(BusError::FaultRefused(limit @ FaultLimit::Rate { retry_after, .. })) => Err(
+            ApiError::too_many(format!("the bus refused the fault: {limit}"), retry_after),
+        ),
+        Err(BusError::FaultRefused(limit @ FaultLimit::Active { .. })) => Err(
+            ApiError::bad_request(format!("the bus refused the fault: {limit}")),
+        ),
         Err(e @ (BusError::Other(_) | BusError::Rejected(_))) => {
             Err(ApiError::bad_request(format!("the bus refused it: {e}")))
         }

@@ -11,6 +11,8 @@ use buslab_backends::{DynBus, Pump, PumpEvent, PumpSender};
 use buslab_canbus::{BusEvent, CanBus, NodeRef, NodeStatus};
 use buslab_view::{BusView, ViewConfig};
 
+use crate::request::MAX_WINDOW;
+
 use crate::devices::{DeviceConfig, Devices};
 
 /// What the request handlers share.
@@ -80,9 +82,14 @@ impl BusSide {
             admin.node_status(None).ok().map(|s| s.number)
         });
         let has_admin = bus.admin().is_some();
+        // Error frames go to the log too (a bus that has none just gives frames).
+        if let Err(e) = bus.set_error_frames(true) {
+            tracing::debug!("no error frames from {channel}: {e}");
+        }
         let hub = Arc::new(Hub {
             view: Mutex::new(BusView::new(ViewConfig {
                 bitrate,
+                retention: MAX_WINDOW,
                 ..ViewConfig::default()
             })),
             started: Instant::now(),
@@ -102,7 +109,11 @@ impl BusSide {
                     hub.devices.frame(&message.frame);
                     true
                 }
-                PumpEvent::Received(BusEvent::Error(_)) => true,
+                PumpEvent::Received(BusEvent::Error(error)) => {
+                    let now = hub.now();
+                    hub.view().error_frame(now, &error);
+                    true
+                }
                 PumpEvent::SendFailed { frame, error } => {
                     tracing::warn!("the bus refused {frame}: {error}");
                     hub.send_failures.fetch_add(1, Ordering::Relaxed);

@@ -22,6 +22,7 @@
 //! (thread-based) command-line tool can start it next to anything else.
 
 mod api;
+mod chart;
 mod device_api;
 pub mod device_request;
 pub mod devices;

@@ -6,9 +6,13 @@ use std::fmt::Write as _;
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{Html, IntoResponse, Response};
-use buslab_view::{Cursor, Delta, ErrorSample, IdRow, LoadSample, LogFilter, NodeView};
+use std::time::Duration;
+
+use buslab_view::{Cursor, Delta, ErrorSample, IdRow, LogEntry, LogFilter, NodeView};
 use serde::Deserialize;
 
+use crate::chart::{self, Band, Chart, Series, TimeAxis, nice_top};
+use crate::request::{DEFAULT_WINDOW, MAX_WINDOW};
 use crate::routes::{ApiError, App};
 
 const STYLE: &str = include_str!("assets/style.css");
@@ -29,22 +33,44 @@ pub struct PageQuery {
     filter: Option<String>,
     /// How many frames the frames page shows.
     n: Option<usize>,
+    /// Seconds the time charts show (60 unless given, at most 600).
+    window: Option<u64>,
 }
 
-/// The whole view now, with the newest `frames` frames passing `filter`.
-fn snapshot(app: &App, filter: &LogFilter, frames: usize) -> Delta {
+impl PageQuery {
+    fn window(&self) -> Result<Duration, ApiError> {
+        match self.window {
+            None => Ok(DEFAULT_WINDOW),
+            Some(s) if (1..=MAX_WINDOW.as_secs()).contains(&s) => Ok(Duration::from_secs(s)),
+            Some(s) => Err(ApiError::bad_request(format!(
+                "window={s}: the charts show from 1 to {} seconds",
+                MAX_WINDOW.as_secs()
+            ))),
+        }
+    }
+}
+
+/// The whole view now, with the newest `frames` frames passing `filter` and the charts'
+/// `window`.
+fn snapshot(app: &App, filter: &LogFilter, frames: usize, window: Duration) -> Delta {
     let now = app.hub.now();
-    app.hub.view().delta(&Cursor::start(), now, filter, frames)
+    app.hub
+        .view()
+        .delta_within(&Cursor::start(), now, filter, frames, window)
 }
 
-pub async fn overview(State(app): State<App>, Query(q): Query<PageQuery>) -> Html<String> {
-    let d = snapshot(&app, &LogFilter::all(), OVERVIEW_FRAMES);
+pub async fn overview(
+    State(app): State<App>,
+    Query(q): Query<PageQuery>,
+) -> Result<Html<String>, ApiError> {
+    let window = q.window()?;
+    let d = snapshot(&app, &LogFilter::all(), OVERVIEW_FRAMES, window);
     let mut b = String::new();
     bus_summary(&mut b, &app, &d);
     b.push_str("<h2>Nodes</h2>");
     nodes_table(&mut b, &d.nodes, app.hub.has_admin);
     b.push_str("<h2>Bus load</h2>");
-    load_chart(&mut b, &d.load);
+    load_chart(&mut b, &d, window);
     let _ = write!(
         b,
         "<h2>Last frames</h2><p><a href=\"/frames\">more, with a filter</a></p>"
@@ -52,11 +78,11 @@ pub async fn overview(State(app): State<App>, Query(q): Query<PageQuery>) -> Htm
     frames_table(&mut b, &d);
     b.push_str("<h2>Per ID</h2>");
     ids_table(&mut b, &d.ids);
-    layout("bus", q.refresh.unwrap_or(2), &b)
+    Ok(layout("bus", q.refresh.unwrap_or(2), &b))
 }
 
 pub async fn ids(State(app): State<App>, Query(q): Query<PageQuery>) -> Html<String> {
-    let d = snapshot(&app, &LogFilter::all(), 0);
+    let d = snapshot(&app, &LogFilter::all(), 0, DEFAULT_WINDOW);
     let mut b = String::new();
     let _ = write!(
         b,
@@ -88,12 +114,12 @@ pub async fn frames(
             "n={n}: show 1 to {MAX_FRAMES} frames"
         )));
     }
-    let d = snapshot(&app, &filter, n);
+    let d = snapshot(&app, &filter, n, DEFAULT_WINDOW);
     let mut b = String::new();
     let _ = write!(
         b,
         "<h2>Frames</h2><form method=get action=/frames>\
-         <label>filter <input name=filter value=\"{}\" placeholder=\"123, 120:7F0, 300~700\"></label> \
+         <label>filter <input name=filter value=\"{}\" placeholder=\"123, 120:7F0, 300~700, #FFFFFFFF\"></label> \
          <label>frames <input name=n type=number min=1 max={MAX_FRAMES} value={n}></label> \
          <input type=hidden name=refresh value={}> <button>show</button></form>",
         esc(&text),
@@ -108,7 +134,8 @@ pub async fn node(
     Path(number): Path<u32>,
     Query(q): Query<PageQuery>,
 ) -> Result<Html<String>, ApiError> {
-    let d = snapshot(&app, &LogFilter::all(), 0);
+    let window = q.window()?;
+    let d = snapshot(&app, &LogFilter::all(), 0, window);
     let Some(n) = d.nodes.iter().find(|n| n.number == number) else {
         return Err(ApiError::new(
             StatusCode::NOT_FOUND,
@@ -126,7 +153,7 @@ pub async fn node(
         esc(n.ecc.as_deref().unwrap_or("-"))
     );
     b.push_str("<h3>TEC and REC over time</h3>");
-    history_chart(&mut b, &n.history);
+    history_chart(&mut b, &d, &n.history, window);
     Ok(layout(
         &format!("node {number}"),
         q.refresh.unwrap_or(2),
@@ -257,16 +284,56 @@ fn frames_table(b: &mut String, d: &Delta) {
         b.push_str("<p>No frames yet.</p>");
         return;
     }
-    b.push_str("<table class=frames><tr><th>time (s)</th><th>frame</th></tr>");
+    b.push_str("<table class=frames><tr><th>time (UTC)</th><th>frame</th></tr>");
     for e in d.log.iter().rev() {
         let _ = write!(
             b,
-            "<tr><td>{:.6}</td><td><code>{}</code></td></tr>",
-            e.time,
-            esc(&e.frame)
+            "<tr{}><td>{}</td><td>{}</td></tr>",
+            if e.error.is_some() {
+                " class=errorframe"
+            } else {
+                ""
+            },
+            time_of_day(e.time),
+            entry_text(e)
         );
     }
     b.push_str("</table>");
+}
+
+/// A frame's time as a person reads it: the time of day (UTC) with milliseconds for a
+/// wall-clock timestamp, seconds for a simulation's (which start near 0).
+pub fn time_of_day(t: f64) -> String {
+    // Before 2001: no wall clock, a simulation's own seconds.
+    if !(1e9..1e11).contains(&t) {
+        return format!("{t:.3} s");
+    }
+    let ms = (t * 1000.0).round() as u64 % 86_400_000;
+    format!(
+        "{:02}:{:02}:{:02}.{:03}",
+        ms / 3_600_000,
+        ms / 60_000 % 60,
+        ms / 1000 % 60,
+        ms % 1000
+    )
+}
+
+/// A log entry as HTML: the frame, or an error frame with its classes in can-utils' words.
+fn entry_text(e: &LogEntry) -> String {
+    match &e.error {
+        None => format!("<code>{}</code>", esc(&e.frame)),
+        Some(err) => {
+            let mut words = err.classes.join(", ");
+            if let (Some(tec), Some(rec)) = (err.tec, err.rec) {
+                let _ = write!(words, " (TEC {tec}, REC {rec})");
+            }
+            format!(
+                "<code>{}</code> <b>ERRORFRAME</b> {}",
+                esc(&e.frame),
+                esc(&words)
+            )
+        }
+    }
 }
 
 fn ids_table(b: &mut String, rows: &[IdRow]) {
@@ -301,95 +368,115 @@ fn ids_table(b: &mut String, rows: &[IdRow]) {
     b.push_str("</table>");
 }
 
-/// The load (or, when the bus's load is unknown, frames per second) as an SVG line.
-fn load_chart(b: &mut String, load: &[LoadSample]) {
-    if load.len() < 2 {
+/// The load (or, when the bus's load is unknown, frames per second) over the window as an
+/// SVG line, on an axis that fits it.
+fn load_chart(b: &mut String, d: &Delta, window: Duration) {
+    if d.load.len() < 2 {
         b.push_str("<p>Measuring (one point a second).</p>");
         return;
     }
-    let percent = load.iter().all(|l| l.percent.is_some());
-    let values: Vec<(f64, f64)> = load
+    let percent = d.load.iter().all(|l| l.percent.is_some());
+    let values: Vec<(f64, f64)> = d
+        .load
         .iter()
         .map(|l| (l.t, l.percent.unwrap_or(l.frames as f64)))
         .collect();
-    let top = if percent {
-        100.0
+    let max = values.iter().map(|v| v.1).fold(0.0, f64::max);
+    let (top, unit, what) = if percent {
+        (nice_top(max, 1.0).min(100.0), "%", "bus load")
     } else {
-        values.iter().map(|v| v.1).fold(1.0, f64::max)
+        (nice_top(max, 1.0), "frames/s", "frames per second")
     };
-    let unit = if percent { "% load" } else { "frames/s" };
-    line_chart(b, &[("load", &values)], top, unit, &[]);
+    Chart {
+        x: (d.t - window.as_secs_f64(), d.t),
+        axis: TimeAxis::Ago,
+        top,
+        unit,
+        caption: format!(
+            "{what} over the last {} (scale 0 to {} {unit})",
+            chart::window_words(window),
+            chart::label(top)
+        ),
+        rules: Vec::new(),
+        bands: fault_bands(d),
+        series: vec![Series {
+            class: "load",
+            pieces: vec![&values],
+        }],
+    }
+    .render(b);
 }
 
-fn history_chart(b: &mut String, history: &[ErrorSample]) {
+/// The faults put on the wire from this server, as bands.
+fn fault_bands(d: &Delta) -> Vec<Band> {
+    d.faults
+        .iter()
+        .map(|f| Band {
+            from: f.t,
+            to: f.until.unwrap_or(d.t),
+            label: f.label.clone(),
+            what: f.what.clone(),
+        })
+        .collect()
+}
+
+fn history_chart(b: &mut String, d: &Delta, history: &[ErrorSample], window: Duration) {
     if history.len() < 2 {
         b.push_str("<p>No history yet (this bus may not report error counters).</p>");
         return;
     }
     let tec: Vec<(f64, f64)> = history.iter().map(|s| (s.t, f64::from(s.tec))).collect();
     let rec: Vec<(f64, f64)> = history.iter().map(|s| (s.t, f64::from(s.rec))).collect();
-    line_chart(
-        b,
-        &[("tec", &tec), ("rec", &rec)],
-        256.0,
-        "TEC (red), REC (blue)",
-        &[(96.0, "warning 96"), (128.0, "passive 128")],
-    );
+    let from = d.t - window.as_secs_f64();
+    let max = history
+        .iter()
+        .filter(|s| s.t >= from)
+        .map(|s| f64::from(s.tec.max(s.rec)))
+        .fold(0.0, f64::max);
+    let top = chart::counter_top(max);
+    Chart {
+        x: (from, d.t),
+        axis: TimeAxis::Ago,
+        top,
+        unit: "",
+        caption: format!(
+            "TEC (red) and REC (blue) over the last {} (scale 0 to {})",
+            chart::window_words(window),
+            chart::label(top)
+        ),
+        rules: vec![(96.0, "warning 96"), (128.0, "passive 128")],
+        bands: fault_bands(d),
+        series: vec![
+            Series {
+                class: "tec",
+                pieces: vec![&tec],
+            },
+            Series {
+                class: "rec",
+                pieces: vec![&rec],
+            },
+        ],
+    }
+    .render(b);
 }
 
-/// A small SVG line chart: `series` as (x, y) points, y from 0 to `top`, with labelled
-/// horizontal rules.
-fn line_chart(
-    b: &mut String,
-    series: &[(&str, &[(f64, f64)])],
-    top: f64,
-    unit: &str,
-    rules: &[(f64, &str)],
-) {
-    const W: f64 = 600.0;
-    const H: f64 = 160.0;
-    let xs = series.iter().flat_map(|s| s.1.iter().map(|p| p.0));
+/// Volts over the seconds measured, 0 to 5 V (the devices' range).
+fn volts_chart(b: &mut String, series: Vec<Series<'_>>, caption: &str) {
+    let xs = series
+        .iter()
+        .flat_map(|s| s.pieces.iter().flat_map(|p| p.iter().map(|v| v.0)));
     let (x0, x1) = xs.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
-    let span = (x1 - x0).max(1e-9);
-    let px = |x: f64| (x - x0) / span * W;
-    let py = |y: f64| H - (y / top).clamp(0.0, 1.0) * H;
-    let _ = write!(
-        b,
-        "<svg class=chart viewBox=\"-40 -10 {} {}\" width=640 height=190 role=img \
-         aria-label=\"{}\"><rect x=0 y=0 width={W} height={H} class=frame />",
-        W + 50.0,
-        H + 30.0,
-        esc(unit)
-    );
-    for (y, label) in rules {
-        let _ = write!(
-            b,
-            "<line class=rule x1=0 x2={W} y1={0:.1} y2={0:.1} /><text x=4 y={1:.1}>{2}</text>",
-            py(*y),
-            py(*y) - 2.0,
-            esc(label)
-        );
+    Chart {
+        x: (x0, x1.max(x0 + 1e-3)),
+        axis: TimeAxis::Seconds,
+        top: 5.0,
+        unit: "V",
+        caption: caption.to_string(),
+        rules: Vec::new(),
+        bands: Vec::new(),
+        series,
     }
-    let _ = write!(
-        b,
-        "<text x=-38 y=10>{top:.0}</text><text x=-38 y={H}>0</text>\
-         <text x=0 y={}>{:.0} s</text><text x={} y={}>{:.0} s</text><text x=200 y={}>{}</text>",
-        H + 16.0,
-        x0,
-        W - 40.0,
-        H + 16.0,
-        x1,
-        H + 16.0,
-        esc(unit)
-    );
-    for (name, points) in series {
-        let mut d = String::new();
-        for (x, y) in points.iter() {
-            let _ = write!(d, "{:.1},{:.1} ", px(*x), py(*y));
-        }
-        let _ = write!(b, "<polyline class={name} points=\"{d}\" />");
-    }
-    b.push_str("</svg>");
+    .render(b);
 }
 
 /// HTML-escapes text (node names and filters come from outside).
@@ -471,16 +558,18 @@ pub async fn devices(State(app): State<App>, Query(q): Query<PageQuery>) -> Html
         if let Some(e) = &z.error {
             let _ = write!(b, "<p class=warn>{}</p>", esc(e));
         }
-        if z.series.iter().any(|s| s.len() > 1) {
-            let named: Vec<(String, &[(f64, f64)])> = z
+        if z.series.iter().flatten().map(Vec::len).sum::<usize>() > 1 {
+            // Each block apart: the cell measured nothing between two.
+            let series = z
                 .series
                 .iter()
                 .enumerate()
-                .map(|(k, s)| (format!("ch{}", k % 4 + 1), s.as_slice()))
+                .map(|(k, blocks)| Series {
+                    class: ["ch1", "ch2", "ch3", "ch4"][k % 4],
+                    pieces: blocks.iter().map(Vec::as_slice).collect(),
+                })
                 .collect();
-            let series: Vec<(&str, &[(f64, f64)])> =
-                named.iter().map(|(n, s)| (n.as_str(), *s)).collect();
-            line_chart(&mut b, &series, 5.0, "volts over time", &[]);
+            volts_chart(&mut b, series, "volts over the seconds of the run");
         }
         if let Some(ram) = &z.ram {
             let _ = write!(b, "<h4>RAM from 0800h</h4><pre>{}</pre>", esc(ram));
@@ -497,15 +586,18 @@ pub async fn devices(State(app): State<App>, Query(q): Query<PageQuery>) -> Html
         if let Some(e) = &c.error {
             let _ = write!(b, "<p class=warn>{}</p>", esc(e));
         }
-        let series: Vec<(&str, &[(f64, f64)])> = c
-            .series
-            .iter()
-            .take(4)
-            .enumerate()
-            .map(|(k, (_, s))| (["ch1", "ch2", "ch3", "ch4"][k], s.as_slice()))
-            .collect();
-        if series.iter().any(|s| s.1.len() > 1) {
-            line_chart(&mut b, &series, 5.0, "A/D stream, volts", &[]);
+        if c.series.iter().take(4).any(|(_, s)| s.len() > 1) {
+            let series = c
+                .series
+                .iter()
+                .take(4)
+                .enumerate()
+                .map(|(k, (_, s))| Series {
+                    class: ["ch1", "ch2", "ch3", "ch4"][k],
+                    pieces: vec![s.as_slice()],
+                })
+                .collect();
+            volts_chart(&mut b, series, "A/D stream, volts");
         }
         if !c.text.is_empty() {
             let _ = write!(b, "<h4>THREAD text</h4><pre>{}</pre>", esc(&c.text));

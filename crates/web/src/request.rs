@@ -19,21 +19,29 @@ pub const MAX_STATE_LOG: usize = 1000;
 pub const MAX_FAULT_MS: u64 = 3_600_000;
 /// Nodes one fault names at most.
 pub const MAX_FAULT_NODES: usize = 64;
+/// The time charts' window unless a request gives `window` (seconds).
+pub const DEFAULT_WINDOW: Duration = Duration::from_secs(60);
+/// The longest window a request may ask for: what the view keeps.
+pub const MAX_WINDOW: Duration = Duration::from_secs(600);
 
-/// The query of `/api/state?filter=F&n=N` and `/api/events?filter=F`, as axum's `Query` reads
-/// it; [`ViewQuery::checked`] gives what it means.
+/// The query of `/api/state?filter=F&n=N&window=S` and `/api/events?filter=F&window=S`, as
+/// axum's `Query` reads it; [`ViewQuery::checked`] gives what it means.
 #[derive(Debug, Default, Deserialize)]
 pub struct ViewQuery {
     filter: Option<String>,
     n: Option<usize>,
+    /// Seconds of load and TEC/REC history a whole view carries.
+    window: Option<u64>,
 }
 
-/// A view request: which frames, and how many at most.
+/// A view request: which frames, how many at most, and how far back the charts go.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ViewRequest {
     pub filter: LogFilter,
     /// `n`, 100 unless given; at most [`MAX_STATE_LOG`].
     pub frames: usize,
+    /// `window`, [`DEFAULT_WINDOW`] unless given; 1 s to [`MAX_WINDOW`].
+    pub window: Duration,
 }
 
 impl ViewQuery {
@@ -50,7 +58,21 @@ impl ViewQuery {
                 "n={frames}: at most {MAX_STATE_LOG} frames"
             )));
         }
-        Ok(ViewRequest { filter, frames })
+        let window = match self.window {
+            None => DEFAULT_WINDOW,
+            Some(s) if (1..=MAX_WINDOW.as_secs()).contains(&s) => Duration::from_secs(s),
+            Some(s) => {
+                return Err(ApiError::bad_request(format!(
+                    "window={s}: the charts show from 1 to {} seconds",
+                    MAX_WINDOW.as_secs()
+                )));
+            }
+        };
+        Ok(ViewRequest {
+            filter,
+            frames,
+            window,
+        })
     }
 }
 

@@ -1,6 +1,7 @@
 //! The routes, the shared application state, the token rule and errors with reasons.
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use axum::Router;
 use axum::body::Body;
@@ -122,6 +123,8 @@ async fn method_not_allowed() -> ApiError {
 pub struct ApiError {
     pub status: StatusCode,
     pub reason: String,
+    /// When to ask again (a `Retry-After` header, in whole seconds rounded up).
+    pub retry_after: Option<Duration>,
 }
 
 impl ApiError {
@@ -129,6 +132,15 @@ impl ApiError {
         Self {
             status,
             reason: reason.into(),
+            retry_after: None,
+        }
+    }
+
+    /// 429: a rate limit refused it; the next is allowed after `wait`.
+    pub fn too_many(reason: impl Into<String>, wait: Duration) -> Self {
+        Self {
+            retry_after: Some(wait),
+            ..Self::new(StatusCode::TOO_MANY_REQUESTS, reason)
         }
     }
 
@@ -144,6 +156,13 @@ impl IntoResponse for ApiError {
             header::CONTENT_TYPE,
             HeaderValue::from_static("text/plain; charset=utf-8"),
         );
+        if let Some(wait) = self.retry_after {
+            // Whole seconds, at least 1: a client that waits that long is allowed.
+            let seconds = wait.as_millis().div_ceil(1000).max(1);
+            response
+                .headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(seconds as u64));
+        }
         response
     }
 }

@@ -145,8 +145,10 @@ function applyZelle(d, z) {
   d.querySelector(".state").textContent = "on " + z.port + ": " + (z.busy || "idle") +
     (z.runs ? ", " + z.chunks + " blocks measured" : "") +
     (z.missing ? ", " + z.missing + " readings missing" : "") + (z.error ? " — " + z.error : "");
-  const series = z.series.map((points, k) => ({ name: "ch" + (k % 4 + 1), points }));
-  chart(d.querySelector("svg"), series, 5, "volts over time (channel " + z.channels.join(", ") + ")", []);
+  // Each measured block its own piece: between two the cell measured nothing (it was read).
+  const series = z.series.map((blocks, k) => ({ name: "ch" + (k % 4 + 1), pieces: blocks }));
+  chart(d.querySelector("svg"), series, 5, "volts over the seconds of the run (channel " +
+    z.channels.join(", ") + "; gaps: the cell was read back)", [], "V");
   d.querySelector("pre.ram").textContent = z.ram || "(read RAM, or measure: the data area from 0800h)";
 }
 

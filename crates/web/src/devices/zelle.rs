@@ -1,5 +1,7 @@
 //! The ZELLE cell's panel: measurements run by a worker thread, a chunk at a time so the plot
-//! fills while the cell measures, and the data area in RAM as a hex listing.
+//! fills while the cell measures, and the data area in RAM as a hex listing. Each chunk is a
+//! block of its own in the plot: between two blocks the cell did not measure (it was read
+//! back), and a line drawn across that gap would show values nobody measured.
 
 use std::collections::VecDeque;
 use std::path::PathBuf;
@@ -20,6 +22,9 @@ use super::{PANEL_PATIENCE, Version, lock};
 
 /// Points kept per channel (the oldest go first).
 const MAX_POINTS: usize = 1500;
+
+/// One measured block of a channel: (seconds since the run started, volts).
+pub type Block = Vec<(f64, f64)>;
 /// Bytes of the data area the RAM view reads at most.
 pub const MAX_RAM_VIEW: usize = 512;
 /// A run's chunks at most (each a block of the series).
@@ -51,7 +56,8 @@ type Set<'a> = &'a dyn Fn(&mut dyn FnMut(&mut ZelleState));
 struct ZelleState {
     busy: Option<String>,
     channels: Vec<u8>,
-    series: Vec<VecDeque<(f64, f64)>>,
+    /// Per channel, its blocks, oldest first.
+    series: Vec<VecDeque<Block>>,
     runs: u64,
     chunks_done: u64,
     missing: usize,
@@ -65,9 +71,10 @@ pub struct ZelleView {
     pub port: String,
     /// What the cell is doing, `None` when idle.
     pub busy: Option<String>,
-    /// The channels of the last run and their points (seconds, volts).
+    /// The channels of the last run and, per channel, its measured blocks, each a list of
+    /// (seconds, volts): the cell measured nothing between two blocks.
     pub channels: Vec<u8>,
-    pub series: Vec<Vec<(f64, f64)>>,
+    pub series: Vec<Vec<Block>>,
     pub runs: u64,
     pub chunks: u64,
     /// Readings the cell should have given and did not (a block cut short).
@@ -138,7 +145,7 @@ impl ZelleWorker {
             series: s
                 .series
                 .iter()
-                .map(|p| p.iter().copied().collect())
+                .map(|blocks| blocks.iter().cloned().collect())
                 .collect(),
             runs: s.runs,
             chunks: s.chunks_done,
@@ -225,22 +232,44 @@ fn measure(
         let offset = started.elapsed().as_secs_f64();
         let m = cell.measure(params, 1, |_| {}).map_err(|e| e.to_string())?;
         set(&mut |s| {
-            for row in &m.rows {
-                for (k, value) in row.values.iter().enumerate() {
-                    let t = offset + row.time_ns as f64 * 1e-9 + k as f64 * 1e-3;
-                    if let Some(points) = s.series.get_mut(k) {
-                        if points.len() == MAX_POINTS {
-                            points.pop_front();
-                        }
-                        points.push_back(((t * 1000.0).round() / 1000.0, to_volts(*value)));
-                    }
-                }
+            for (k, blocks) in s.series.iter_mut().enumerate() {
+                let block = m
+                    .rows
+                    .iter()
+                    .filter_map(|row| {
+                        let value = row.values.get(k)?;
+                        let t = offset + row.time_ns as f64 * 1e-9 + k as f64 * 1e-3;
+                        Some(((t * 1000.0).round() / 1000.0, to_volts(*value)))
+                    })
+                    .collect();
+                keep_block(blocks, block, MAX_POINTS);
             }
             s.chunks_done += 1;
             s.missing += m.missing_values();
         });
     }
     Ok(())
+}
+
+/// Appends a channel's new block; the oldest points go once there are more than `max`.
+fn keep_block(blocks: &mut VecDeque<Block>, block: Block, max: usize) {
+    blocks.push_back(block);
+    let mut excess = blocks
+        .iter()
+        .map(Vec::len)
+        .sum::<usize>()
+        .saturating_sub(max);
+    while excess > 0 {
+        let Some(oldest) = blocks.front_mut() else {
+            break;
+        };
+        let cut = excess.min(oldest.len());
+        oldest.drain(..cut);
+        excess -= cut;
+        if oldest.is_empty() {
+            blocks.pop_front();
+        }
+    }
 }
 
 fn read_ram(cell: &mut Client<SerialLine>, len: usize, set: Set<'_>) -> Result<(), String> {
@@ -257,4 +286,39 @@ fn read_ram(cell: &mut Client<SerialLine>, len: usize, set: Set<'_>) -> Result<(
 /// How long a measurement job takes at least (for the refusal of absurd ones).
 pub fn run_time(params: &SeriesParams, chunks: u32) -> Duration {
     Duration::from_nanos(params.block_ns()).saturating_mul(chunks)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn block(from: f64, n: usize) -> Block {
+        (0..n).map(|i| (from + i as f64 * 0.01, 1.0)).collect()
+    }
+
+    #[test]
+    fn blocks_stay_apart_and_the_oldest_points_go_first() {
+        let mut blocks = VecDeque::new();
+        keep_block(&mut blocks, block(0.0, 50), 120);
+        keep_block(&mut blocks, block(0.8, 50), 120);
+        assert_eq!(
+            blocks.len(),
+            2,
+            "a block of its own, not joined to the last"
+        );
+        keep_block(&mut blocks, block(1.6, 50), 120);
+        // 150 points, 120 kept: the first block lost its 30 oldest.
+        assert_eq!(
+            blocks.iter().map(Vec::len).collect::<Vec<_>>(),
+            [20, 50, 50]
+        );
+        assert!((blocks[0][0].0 - 0.3).abs() < 1e-9, "{:?}", blocks[0][0]);
+        keep_block(&mut blocks, block(2.4, 50), 120);
+        assert_eq!(
+            blocks.iter().map(Vec::len).collect::<Vec<_>>(),
+            [20, 50, 50],
+            "the emptied block is gone"
+        );
+        assert!((blocks[0][0].0 - 1.1).abs() < 1e-9, "{:?}", blocks[0][0]);
+    }
 }

@@ -1,0 +1,524 @@
+//! What the live dashboard's charts, log and result line get from the server, over real TCP on
+//! a stand-in bus: the time window of a whole view (not the server's age), error frames in
+//! the log and the live updates with their class and meaning, writes answered with what was
+//! done in words, faults marked on the time charts, a rate-limited fault answered 429 with
+//! `Retry-After`. (How the page draws them: crates/buslab/tests/web_browser.rs.)
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use buslab_can::Frame;
+use buslab_canbus::admin::FaultLimit;
+use buslab_canbus::{
+    BusAdmin, BusError, BusEvent, BusState, BusSummary, CanBus, ErrorFrame, ErrorMessage,
+    ErrorRegisters, Filter, Message, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus,
+    TxReport, WireFault,
+};
+use buslab_web::{WebConfig, WebServer};
+use serde_json::Value;
+
+/// Only a guard against a hung server: every wait below ends on an event first.
+const HANG: Duration = Duration::from_secs(120);
+const TOKEN: &str = "dashboard-token";
+
+/// What the test controls of the stand-in bus.
+#[derive(Default)]
+struct Control {
+    /// Whether the server asked for error frames.
+    error_frames: AtomicBool,
+    /// Node 2's status answers given: its TEC counts them from 100 to 119 and again (so no
+    /// two samples in a row are equal, and the axis for them is 0 to 128).
+    polls: AtomicU32,
+    /// The refusal of the next faults, if any.
+    refuse: Mutex<Option<FaultLimit>>,
+    /// The bus's load figure, in tenths of a per cent.
+    load_tenths: AtomicU32,
+}
+
+struct FakeBus {
+    events: Receiver<BusEvent>,
+    control: Arc<Control>,
+}
+
+impl CanBus for FakeBus {
+    fn send(&mut self, _: &Frame) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+        loop {
+            match self.recv_event(timeout)? {
+                Some(BusEvent::Frame(m)) => return Ok(Some(m)),
+                Some(BusEvent::Error(_)) => continue,
+                None => return Ok(None),
+            }
+        }
+    }
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+        match self.events.recv_timeout(timeout.unwrap_or(HANG)) {
+            Ok(e) => Ok(Some(e)),
+            Err(mpsc::RecvTimeoutError::Timeout) => Ok(None),
+            Err(mpsc::RecvTimeoutError::Disconnected) => Err(BusError::Closed),
+        }
+    }
+    fn set_error_frames(&mut self, on: bool) -> Result<(), BusError> {
+        self.control.error_frames.store(on, Ordering::SeqCst);
+        Ok(())
+    }
+    fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn state(&mut self) -> Result<BusState, BusError> {
+        Ok(BusState::Active)
+    }
+    fn channel_info(&self) -> String {
+        "fake bus".into()
+    }
+    fn admin(&mut self) -> Option<&mut dyn BusAdmin> {
+        Some(self)
+    }
+}
+
+impl BusAdmin for FakeBus {
+    fn nodes(&mut self) -> Result<Vec<NodeInfo>, BusError> {
+        Ok(vec![
+            NodeInfo {
+                number: 1,
+                name: "web".into(),
+            },
+            NodeInfo {
+                number: 2,
+                name: "sender".into(),
+            },
+        ])
+    }
+    fn node_status(&mut self, node: Option<&NodeRef>) -> Result<NodeStatus, BusError> {
+        let (number, name) = match node {
+            None | Some(NodeRef::Number(1)) => (1, "web"),
+            Some(NodeRef::Number(2)) => (2, "sender"),
+            Some(other) => return Err(BusError::Other(format!("no node {other}"))),
+        };
+        let tec = if number == 2 {
+            100 + (self.control.polls.fetch_add(1, Ordering::SeqCst) % 20) as u8
+        } else {
+            0
+        };
+        Ok(NodeStatus {
+            number,
+            name: name.into(),
+            state: BusState::Active,
+            errors: Some(ErrorRegisters {
+                alc: None,
+                ecc: None,
+                rxerr: 0,
+                txerr: tec,
+            }),
+            sr: None,
+            timing: None,
+            counters: NodeCounters::default(),
+            tx_queued: 0,
+            bus: BusSummary {
+                bitrate: 125_000,
+                load_percent: f64::from(self.control.load_tenths.load(Ordering::SeqCst)) / 10.0,
+                frames: 0,
+                errors: 0,
+            },
+        })
+    }
+    fn register_dump(&mut self, _: Option<&NodeRef>) -> Result<NodeRegisters, BusError> {
+        Err(BusError::Other("no registers".into()))
+    }
+    fn set_name(&mut self, _: &str) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn set_btr(&mut self, _: u8, _: u8) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn flush(&mut self, _: Duration) -> Result<TxReport, BusError> {
+        Err(BusError::Other("no flush".into()))
+    }
+    fn abort(&mut self) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn inject_fault(&mut self, _: &WireFault, _: Option<Duration>) -> Result<(), BusError> {
+        match *self.control.refuse.lock().unwrap() {
+            Some(limit) => Err(BusError::FaultRefused(limit)),
+            None => Ok(()),
+        }
+    }
+    fn repair(&mut self) -> Result<(), BusError> {
+        Ok(())
+    }
+}
+
+struct Bench {
+    server: WebServer,
+    events: Sender<BusEvent>,
+    control: Arc<Control>,
+}
+
+impl Bench {
+    fn start() -> Self {
+        let (events, rx) = mpsc::channel();
+        let control = Arc::new(Control::default());
+        control.load_tenths.store(31, Ordering::SeqCst);
+        let bus = FakeBus {
+            events: rx,
+            control: control.clone(),
+        };
+        let server = WebServer::start(
+            Box::new(bus),
+            WebConfig {
+                listen: "127.0.0.1:0".parse().unwrap(),
+                token: Some(TOKEN.into()),
+                // Many TEC/REC samples quickly.
+                status_every: Duration::from_millis(20),
+                ..WebConfig::default()
+            },
+        )
+        .unwrap();
+        Self {
+            server,
+            events,
+            control,
+        }
+    }
+
+    fn addr(&self) -> SocketAddr {
+        self.server.addr()
+    }
+
+    fn error(&self, class: u32, data: &[u8]) {
+        let error = ErrorFrame::decode(class, data).unwrap();
+        self.events
+            .send(BusEvent::Error(ErrorMessage {
+                timestamp: 1_700_000_000.25,
+                channel: "fake".into(),
+                error,
+            }))
+            .unwrap();
+    }
+
+    fn frame(&self, text: &str) {
+        self.events
+            .send(BusEvent::Frame(Message::rx(
+                1_700_000_000.125,
+                "fake",
+                text.parse().unwrap(),
+            )))
+            .unwrap();
+    }
+}
+
+/// (status, head, body).
+fn exchange(addr: SocketAddr, raw: &str) -> (u16, String, String) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(HANG)).unwrap();
+    s.write_all(raw.as_bytes()).unwrap();
+    let mut text = String::new();
+    let _ = s.read_to_string(&mut text);
+    let status = text
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+    (status, head.to_string(), body.to_string())
+}
+
+fn get(addr: SocketAddr, path: &str) -> (u16, String) {
+    let (status, _, body) = exchange(
+        addr,
+        &format!("GET {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n"),
+    );
+    (status, body)
+}
+
+fn post(addr: SocketAddr, path: &str, body: &str) -> (u16, String, String) {
+    exchange(
+        addr,
+        &format!(
+            "POST {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\
+             X-Buslab-Token: {TOKEN}\r\nContent-Type: application/json\r\n\
+             Content-Length: {}\r\n\r\n{body}",
+            body.len()
+        ),
+    )
+}
+
+fn json(addr: SocketAddr, path: &str) -> Value {
+    let (status, body) = get(addr, path);
+    assert_eq!(status, 200, "{path}: {body}");
+    serde_json::from_str(&body).unwrap()
+}
+
+/// Reads `path` (JSON) until `done` holds for it.
+fn until(addr: SocketAddr, path: &str, done: impl Fn(&Value) -> bool) -> Value {
+    let deadline = Instant::now() + HANG;
+    loop {
+        let v = json(addr, path);
+        if done(&v) {
+            return v;
+        }
+        assert!(Instant::now() < deadline, "{path} never showed it: {v}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The server's own clock (seconds since it started) as its views give it.
+fn server_time(v: &Value) -> f64 {
+    v["delta"]["t"].as_f64().unwrap()
+}
+
+/// The sender node's TEC/REC history in a view (the server's own node is not shown).
+fn history(delta: &Value) -> &[Value] {
+    let nodes = delta["nodes"].as_array().unwrap();
+    let sender = nodes.iter().find(|n| n["name"] == "sender");
+    sender.unwrap_or_else(|| panic!("no sender: {nodes:?}"))["history"]
+        .as_array()
+        .unwrap()
+}
+
+/// Checks that `samples` (each with `t`) are the window [now - window, now] and the one before
+/// it, and that there was history before the window to leave out.
+fn holds_the_window(samples: &[Value], now: f64, window: f64) {
+    let t: Vec<f64> = samples.iter().map(|s| s["t"].as_f64().unwrap()).collect();
+    assert!(t.len() >= 2, "{t:?}");
+    let from = now - window;
+    assert!(
+        t[0] < from,
+        "the sample before the window comes first: {t:?}"
+    );
+    assert!(t[1..].iter().all(|&x| x >= from), "nothing older: {t:?}");
+}
+
+#[test]
+fn a_whole_view_carries_the_chart_window_not_the_servers_age() {
+    let b = Bench::start();
+    let addr = b.addr();
+    // Wait for the server's own clock to pass 3 s, so that a 1-s window leaves most out.
+    until(addr, "/api/state?n=0&window=600", |v| server_time(v) > 3.0);
+    let v = json(addr, "/api/state?n=0&window=1");
+    let now = server_time(&v);
+    holds_the_window(history(&v["delta"]), now, 1.0);
+    let load = v["delta"]["load"].as_array().unwrap();
+    assert!(
+        load.iter().all(|l| l["t"].as_f64().unwrap() >= now - 1.0),
+        "{load:?}"
+    );
+    // The whole kept history when the window is longer than the server's age.
+    let all = json(addr, "/api/state?n=0&window=600");
+    let first = history(&all["delta"])[0]["t"].as_f64().unwrap();
+    assert!(first < 1.0, "{first}");
+
+    // The live updates' first, whole, view is the window too.
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(HANG)).unwrap();
+    s.write_all(b"GET /api/events?window=1 HTTP/1.1\r\nHost: localhost\r\n\r\n")
+        .unwrap();
+    let update = BufReader::new(s)
+        .lines()
+        .map(|l| l.unwrap())
+        .find_map(|l| l.strip_prefix("data: ").map(str::to_string))
+        .unwrap();
+    let update: Value = serde_json::from_str(&update).unwrap();
+    assert_eq!(update["full"], true);
+    let now = update["t"].as_f64().unwrap();
+    holds_the_window(history(&update), now, 1.0);
+
+    // A window the server does not keep is refused with the range.
+    for bad in ["0", "601"] {
+        for path in ["/api/state", "/api/events", "/", "/nodes/2"] {
+            let (status, body) = get(addr, &format!("{path}?window={bad}"));
+            assert_eq!(status, 400, "{path}?window={bad}: {body}");
+            assert!(body.contains("from 1 to 600 seconds"), "{body}");
+        }
+    }
+}
+
+#[test]
+fn the_node_page_charts_the_window_on_an_axis_that_fits_and_the_load_is_autoscaled() {
+    let b = Bench::start();
+    let addr = b.addr();
+    until(addr, "/api/state?n=0&window=600", |v| {
+        server_time(v) > 3.0 && v["delta"]["load"].as_array().unwrap().len() >= 2
+    });
+    let (status, page) = get(addr, "/nodes/2?window=2&refresh=0");
+    assert_eq!(status, 200, "{page}");
+    assert!(page.contains(">−2 s<") && page.contains(">now<"), "{page}");
+    // TEC from 100 to 119: the axis goes to the power of two above (not to 256).
+    assert!(
+        page.contains("TEC (red) and REC (blue) over the last 2 s (scale 0 to 128)"),
+        "{page}"
+    );
+    // The load, 3.1 %, on a 0..5 % axis (not a flat line at the bottom of 0..100 %).
+    let (_, overview) = get(addr, "/?refresh=0");
+    assert!(
+        overview.contains("bus load over the last 60 s (scale 0 to 5 %)"),
+        "{overview}"
+    );
+    assert!(overview.contains(">5 %<") && overview.contains(">2.5 %<"));
+}
+
+#[test]
+fn error_frames_reach_the_log_and_the_live_updates_with_their_class_and_meaning() {
+    let b = Bench::start();
+    let addr = b.addr();
+    // The server asks for error frames when it joins the bus.
+    until(addr, "/api/state?n=0", |_| {
+        b.control.error_frames.load(Ordering::SeqCst)
+    });
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(HANG)).unwrap();
+    s.write_all(b"GET /api/events?filter=123,%23080 HTTP/1.1\r\nHost: localhost\r\n\r\n")
+        .unwrap();
+    let mut lines = BufReader::new(s).lines();
+    b.frame("123#11");
+    b.frame("124#22");
+    // Linux's SJA1000 frame for a stuff error in the data field, with the counters; then a
+    // bus-off, which the viewer's filter (#080: bus errors) leaves out.
+    b.error(0x288, &[0, 0, 0x04, 0x0A, 0, 0, 8, 0]);
+    b.error(0x040, &[]);
+    b.frame("123#33");
+    let mut seen = Vec::new();
+    while !seen.iter().any(|e: &Value| e["frame"] == "123#33") {
+        let line = lines.next().expect("the stream ended").unwrap();
+        let Some(data) = line.strip_prefix("data: ") else {
+            continue;
+        };
+        let update: Value = serde_json::from_str(data).unwrap();
+        seen.extend(update["log"].as_array().unwrap().iter().cloned());
+    }
+    let frames: Vec<&str> = seen.iter().map(|e| e["frame"].as_str().unwrap()).collect();
+    assert_eq!(
+        frames,
+        ["123#11", "20000288#0000040A00000800", "123#33"],
+        "{seen:?}"
+    );
+    let error = &seen[1]["error"];
+    assert_eq!(error["class"], 0x288);
+    assert_eq!(
+        error["classes"],
+        serde_json::json!([
+            "protocol-violation{{bit-stuffing-error}{data-field}}",
+            "bus-error"
+        ])
+    );
+    assert_eq!(
+        (&error["tec"], &error["rec"]),
+        (&Value::from(8), &Value::from(0))
+    );
+    assert!(seen[0].get("error").is_none(), "a frame is no error frame");
+
+    // Without a filter every error frame is in the log; error frames are counted apart.
+    let v = json(addr, "/api/state?n=100");
+    let log = v["delta"]["log"].as_array().unwrap();
+    assert_eq!(log.iter().filter(|e| e.get("error").is_some()).count(), 2);
+    assert_eq!(
+        (&v["delta"]["frames"], &v["delta"]["error_frames"]),
+        (&Value::from(3), &Value::from(2))
+    );
+    // The pages without JavaScript show them too, with a readable time.
+    let (_, page) = get(addr, "/frames?refresh=0");
+    assert!(
+        page.contains("<code>20000040#</code> <b>ERRORFRAME</b> bus-off"),
+        "{page}"
+    );
+    assert!(page.contains("<td>22:13:20.125</td>"), "{page}");
+    let (status, bad) = get(addr, "/api/state?filter=%23XYZ");
+    assert_eq!(status, 400);
+    assert!(bad.contains("#MASK"), "{bad}");
+}
+
+#[test]
+fn writes_answer_what_was_done_in_words_and_faults_are_marked_on_the_charts() {
+    let b = Bench::start();
+    let addr = b.addr();
+    let done = |body: &str| -> String {
+        let v: Value = serde_json::from_str(body).unwrap();
+        v["done"].as_str().unwrap().to_string()
+    };
+    let (status, _, body) = post(addr, "/api/send", r#"{"frame":"123#1122"}"#);
+    assert_eq!(status, 202, "{body}");
+    assert_eq!(done(&body), "123#1122 is queued for the bus");
+    let (status, _, body) = post(
+        addr,
+        "/api/fault",
+        r#"{"kind":"cut","nodes":["sender"],"for_ms":3000}"#,
+    );
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(
+        done(&body),
+        "the wire cut: sender on the far side, 5 % of the bits read there wrong, for 3.00 s"
+    );
+    let (_, _, body) = post(addr, "/api/fault", r#"{"kind":"noise","rate":0.001}"#);
+    assert_eq!(
+        done(&body),
+        "noise on the whole bus: 0.1 % of the bits read wrong, until repaired"
+    );
+    let v = json(addr, "/api/state?n=0");
+    let faults = v["delta"]["faults"].as_array().unwrap();
+    assert_eq!(faults.len(), 2, "{faults:?}");
+    assert_eq!(faults[0]["label"], "cut at sender");
+    let (t, until) = (
+        faults[0]["t"].as_f64().unwrap(),
+        faults[0]["until"].as_f64().unwrap(),
+    );
+    assert!((until - t - 3.0).abs() < 1e-6, "{faults:?}");
+    assert_eq!(
+        (&faults[1]["label"], &faults[1]["until"]),
+        (&Value::from("noise 0.1 %"), &Value::Null)
+    );
+    let (status, _, body) = post(addr, "/api/repair", "{}");
+    assert_eq!(status, 200);
+    assert_eq!(done(&body), "the wire is repaired: every fault on it ended");
+    let v = json(addr, "/api/state?n=0");
+    assert!(
+        v["delta"]["faults"][1]["until"].is_f64(),
+        "the repair ended it: {v}"
+    );
+}
+
+#[test]
+fn a_fault_over_the_rate_limit_is_429_with_retry_after_and_the_limit_in_words() {
+    let b = Bench::start();
+    let addr = b.addr();
+    *b.control.refuse.lock().unwrap() = Some(FaultLimit::Rate {
+        max: 20,
+        per: Duration::from_secs(1),
+        retry_after: Duration::from_millis(1500),
+    });
+    let (status, head, body) = post(addr, "/api/fault", r#"{"kind":"stuck","for_ms":10}"#);
+    assert_eq!(status, 429, "{head}\n{body}");
+    assert!(
+        head.to_ascii_lowercase().contains("retry-after: 2\r\n"),
+        "{head}"
+    );
+    assert!(
+        body.contains("too many faults from this client: at most 20 per 1.00 s"),
+        "{body}"
+    );
+    // A wait under a second is still asked for as 1 s (the header counts whole seconds).
+    *b.control.refuse.lock().unwrap() = Some(FaultLimit::Rate {
+        max: 20,
+        per: Duration::from_secs(1),
+        retry_after: Duration::from_millis(50),
+    });
+    let (_, head, _) = post(addr, "/api/fault", r#"{"kind":"stuck","for_ms":10}"#);
+    assert!(
+        head.to_ascii_lowercase().contains("retry-after: 1\r\n"),
+        "{head}"
+    );
+    // Too many faults on the wire at once: no use waiting a given time, 400 and the reason.
+    *b.control.refuse.lock().unwrap() = Some(FaultLimit::Active { max: 1024 });
+    let (status, head, body) = post(addr, "/api/fault", r#"{"kind":"stuck"}"#);
+    assert_eq!(status, 400, "{body}");
+    assert!(!head.to_ascii_lowercase().contains("retry-after"), "{head}");
+    assert!(body.contains("at most 1024 at once"), "{body}");
+    // A refused fault is not marked.
+    let v = json(addr, "/api/state?n=0");
+    assert_eq!(v["delta"]["faults"], serde_json::json!([]));
+}
