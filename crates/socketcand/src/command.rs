@@ -7,7 +7,7 @@ use buslab_can::{Frame, Id};
 use crate::{ProtocolError, tokens};
 
 pub use buslab_canbus::NodeRef;
-use buslab_canbus::{Probability, WireFault};
+use buslab_canbus::{BusOffRecovery, Probability, WireFault};
 
 /// One client command.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -62,6 +62,9 @@ pub enum Command {
     Fault { fault: WireFault, lasting_ms: u64 },
     /// `< buslab_repair >`: ends every fault on the wire now (`< ok >`).
     Repair,
+    /// `< buslab_busoff counted|fast|manual >`: how this client's chip comes back after
+    /// bus-off (the bus's policy until then; `manual`: it stays bus-off, as a Lawicel CANUSB).
+    BusOff(BusOffRecovery),
 }
 
 /// socketcand's commands that buslab does not implement.
@@ -148,6 +151,12 @@ impl Command {
             },
             "buslab_fault" => parse_fault(args),
             "buslab_repair" => no_args(Command::Repair, "buslab_repair"),
+            "buslab_busoff" => match args {
+                ["counted"] => Ok(Command::BusOff(BusOffRecovery::Counted)),
+                ["fast"] => Ok(Command::BusOff(BusOffRecovery::Fast)),
+                ["manual"] => Ok(Command::BusOff(BusOffRecovery::Manual)),
+                _ => Err(arguments("buslab_busoff", "counted, fast or manual", args)),
+            },
             n if UNSUPPORTED.contains(&n) => Ok(Command::Unsupported {
                 name: n.to_string(),
                 args: args.iter().map(|s| s.to_string()).collect(),
@@ -411,6 +420,15 @@ impl fmt::Display for Command {
                 f.write_str(" >")
             }
             Command::Repair => f.write_str("< buslab_repair >"),
+            Command::BusOff(recovery) => write!(
+                f,
+                "< buslab_busoff {} >",
+                match recovery {
+                    BusOffRecovery::Counted => "counted",
+                    BusOffRecovery::Fast => "fast",
+                    BusOffRecovery::Manual => "manual",
+                }
+            ),
         }
     }
 }

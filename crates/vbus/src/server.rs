@@ -1457,6 +1457,10 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
             ServerMessage::Ok
         }),
         Command::Btr { btr0, btr1 } => bus.set_btr(me, btr0, btr1).map(|()| ServerMessage::Ok),
+        Command::BusOff(recovery) => bus.client_mut(me).map(|n| {
+            n.set_bus_off_recovery(recovery);
+            ServerMessage::Ok
+        }),
         Command::Abort => bus.client_mut(me).map(|n| {
             n.abort();
             ServerMessage::Ok
