@@ -329,6 +329,46 @@ fn slcan_host_at_the_wrong_bit_rate_is_told_and_goes_bus_off_until_reopened() {
     eprintln!("errors the other node saw: {broken}\n{err}");
 }
 
+/// Issue 26 (4) as the user met it: python-can's `slcan` interface at 500 kbit/s on a
+/// 125 kbit/s bus, then again at 125 kbit/s.
+#[test]
+fn python_can_at_the_wrong_bit_rate_is_refused_until_it_reopens_at_the_right_one() {
+    let Some(python) = python_can() else {
+        return;
+    };
+    let serve = Serve::start(125_000);
+    let dir = tempfile::tempdir().unwrap();
+    let (mut adapter, pty) = slcan_serve(&serve.url, dir.path());
+    let mut me = serve.client();
+    let peer = Command::new(&python)
+        .arg(root().join("tests/interop/can_slcan_wrong_rate.py"))
+        .args([pty.to_str().unwrap(), "500000", "125000"])
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&peer.stdout);
+    assert!(
+        peer.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
+    assert_eq!(out, "sent\nflags A4\nrefused\nreopened\n");
+    // Nothing of the frames at the wrong rate reached the bus; the one at the right rate did.
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("456#AA"));
+    let broken = me
+        .admin()
+        .unwrap()
+        .node_status(None)
+        .unwrap()
+        .counters
+        .bus_errors;
+    // One bus-off: at most 32 attempts broke a frame (the others' view of it).
+    assert!((1..=32).contains(&broken), "{broken} errors");
+    let err = adapter.stop();
+    let warning = "the host opened the adapter at 500000 bit/s but the bus runs at 125000 bit/s";
+    assert_eq!(err.matches(warning).count(), 1, "{err}");
+    eprintln!("errors the other node saw: {broken}");
+}
+
 /// One answer of the adapter: up to a CR or a BEL.
 fn read_reply(bytes: &mpsc::Receiver<Vec<u8>>) -> Vec<u8> {
     let mut got = Vec::new();
