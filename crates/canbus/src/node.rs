@@ -220,8 +220,7 @@ impl Sja1000Node {
         self.mismatch
     }
 
-    /// How the chip comes back after bus-off from now on (a chip bus-off now stays so until
-    /// its next bus-off or initialisation if the new policy is [`BusOffRecovery::Manual`]).
+    /// How the chip comes back from its next bus-off (one under way goes on as it began).
     pub fn set_bus_off_recovery(&mut self, recovery: BusOffRecovery) {
         self.config.bus_off_recovery = recovery;
     }
