@@ -3,11 +3,13 @@
 //! without bound: the output for the host stays within `MAX_OUTPUT`, the events are drained.
 //!
 //! Input: data bytes go to the adapter; `FF` then an op byte (see `buslab_fuzz::items`):
-//! `00..7F` delivers a frame from the bus (ID and data from the op, extended above 3F),
-//! `80..FE` lets the host read `(op & 7F) * 16` bytes.
+//! `00..7B` delivers a frame from the bus (ID and data from the op, extended above 3F),
+//! `7C..7F` an error frame of the adapter's controller (bus error, passive, bus-off, back to
+//! active), `80..FE` lets the host read `(op & 7F) * 16` bytes.
 #![no_main]
 
 use buslab_can::{Frame, Id};
+use buslab_canbus::{ControllerState, Ecc, ErrorCounters, ErrorFrame};
 use buslab_fuzz::{Item, items};
 use buslab_slcan::{Adapter, AdapterEvent, MAX_OUTPUT};
 use libfuzzer_sys::fuzz_target;
@@ -23,7 +25,16 @@ fuzz_target!(|data: &[u8]| {
                 lines += usize::from(byte == b'\r' || byte == 0x07);
                 adapter.receive(&[byte]);
             }
-            Item::Op(op @ 0x00..=0x7F) => {
+            Item::Op(op @ 0x7C..=0x7F) => {
+                let counters = ErrorCounters { tx: op, rx: 0 };
+                adapter.controller_error(&match op {
+                    0x7C => ErrorFrame::sja1000_bus_error(Ecc(0x3C), Some(counters)),
+                    0x7D => ErrorFrame::state_change(ControllerState::Passive, counters),
+                    0x7E => ErrorFrame::state_change(ControllerState::BusOff, counters),
+                    _ => ErrorFrame::state_change(ControllerState::Active, counters),
+                });
+            }
+            Item::Op(op @ 0x00..=0x7B) => {
                 let id = if op > 0x3F {
                     Id::extended((u32::from(op) * 0x0123_4567) & 0x1FFF_FFFF)
                 } else {
@@ -44,11 +55,11 @@ fuzz_target!(|data: &[u8]| {
             adapter.output().len()
         );
         while let Some(event) = adapter.poll_event() {
-            if let AdapterEvent::Transmit(_) = event {
+            if let AdapterEvent::Transmit(_) | AdapterEvent::RefusedBusOff(_) = event {
                 transmitted += 1;
             }
         }
-        // A frame to send is one command line.
+        // A frame to send (or refused while bus-off) is one command line.
         assert!(transmitted <= lines);
     }
 });

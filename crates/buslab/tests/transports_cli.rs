@@ -293,6 +293,114 @@ fn garbage_gets_bel_and_the_adapter_keeps_serving() {
     assert!(err.contains("answered BEL to a bad line"), "{err}");
 }
 
+/// Issue 26 (4): python-can at 500 kbit/s on the lab's 125 kbit/s bus. The host is told
+/// (a warning naming both rates, `F` flags, BEL once bus-off), the adapter's node goes bus-off
+/// and stays off instead of breaking the others' frames again and again, and reopening at the
+/// bus's rate works.
+#[test]
+fn slcan_host_at_the_wrong_bit_rate_is_told_and_goes_bus_off_until_reopened() {
+    let serve = Serve::start(125_000);
+    let dir = tempfile::tempdir().unwrap();
+    let (mut adapter, pty) = slcan_serve(&serve.url, dir.path());
+    let mut me = serve.client();
+    let mut port = OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&pty)
+        .unwrap();
+    let bytes = reader(&port);
+    port.write_all(b"C\rS6\rO\rt1230\r").unwrap();
+    assert_eq!(read_until(&bytes, b"z\r"), b"\r\r\rz\r");
+    // The frame cannot get through: the node tries until it is bus-off, and `F` says so
+    // (error warning, error passive and bus error, Lawicel's flags have no bus-off bit).
+    let deadline = Instant::now() + EVENT;
+    loop {
+        port.write_all(b"F\r").unwrap();
+        let got = read_until(&bytes, b"\r");
+        if got == b"FA4\r" {
+            port.write_all(b"t1230\r").unwrap();
+            match read_reply(&bytes).as_slice() {
+                b"\x07" => break,
+                // Still error-passive (a bus error since the last F): queued, try again.
+                b"z\r" => {}
+                other => panic!("{other:?}"),
+            }
+        }
+        assert!(Instant::now() < deadline, "never bus-off: {got:?}");
+        thread::sleep(Duration::from_millis(20));
+    }
+    let status = me.admin().unwrap().node_status(None).unwrap();
+    // Each of its attempts breaks one frame on the wire, 32 at most (TEC += 8 up to 256);
+    // measured: 14.
+    let broken = status.counters.bus_errors;
+    assert!((1..=32).contains(&broken), "{status}");
+    // Reopened at the bus's rate, frames go through (nothing left from before).
+    port.write_all(b"C\rS4\rO\rF\rt4561AA\r").unwrap();
+    assert_eq!(read_until(&bytes, b"z\r"), b"\r\r\rF00\rz\r");
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("456#AA"));
+    let err = adapter.stop();
+    let warning = "the host opened the adapter at 500000 bit/s but the bus runs at 125000 bit/s";
+    assert_eq!(err.matches(warning).count(), 1, "{err}");
+    assert!(err.contains("WARN"), "{err}");
+    assert!(
+        err.contains("123# refused (BEL): the adapter is bus-off"),
+        "{err}"
+    );
+    eprintln!("errors the other node saw: {broken}\n{err}");
+}
+
+/// Issue 26 (4) as the user met it: python-can's `slcan` interface at 500 kbit/s on a
+/// 125 kbit/s bus, then again at 125 kbit/s.
+#[test]
+fn python_can_at_the_wrong_bit_rate_is_refused_until_it_reopens_at_the_right_one() {
+    let Some(python) = python_can() else {
+        return;
+    };
+    let serve = Serve::start(125_000);
+    let dir = tempfile::tempdir().unwrap();
+    let (mut adapter, pty) = slcan_serve(&serve.url, dir.path());
+    let mut me = serve.client();
+    let peer = Command::new(&python)
+        .arg(root().join("tests/interop/can_slcan_wrong_rate.py"))
+        .args([pty.to_str().unwrap(), "500000", "125000"])
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&peer.stdout);
+    assert!(
+        peer.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&peer.stderr)
+    );
+    assert_eq!(out, "sent\nflags A4\nrefused\nreopened\n");
+    // Nothing of the frames at the wrong rate reached the bus; the one at the right rate did.
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("456#AA"));
+    let broken = me
+        .admin()
+        .unwrap()
+        .node_status(None)
+        .unwrap()
+        .counters
+        .bus_errors;
+    // One bus-off: at most 32 attempts broke a frame (the others' view of it).
+    assert!((1..=32).contains(&broken), "{broken} errors");
+    let err = adapter.stop();
+    let warning = "the host opened the adapter at 500000 bit/s but the bus runs at 125000 bit/s";
+    assert_eq!(err.matches(warning).count(), 1, "{err}");
+    eprintln!("errors the other node saw: {broken}");
+}
+
+/// One answer of the adapter: up to a CR or a BEL.
+fn read_reply(bytes: &mpsc::Receiver<Vec<u8>>) -> Vec<u8> {
+    let mut got = Vec::new();
+    while !got.ends_with(b"\r") && !got.ends_with(b"\x07") {
+        match bytes.recv_timeout(EVENT) {
+            Ok(chunk) => got.extend_from_slice(&chunk),
+            Err(_) => panic!("no answer after {got:?}"),
+        }
+    }
+    got
+}
+
 #[test]
 fn bridge_copies_both_ways_without_duplicates_or_echoes() {
     let one = Serve::start(500_000);

@@ -443,6 +443,15 @@ pub trait BusAdmin {
     /// Gives up the frame this client's controller is trying (as CMR.AT: a frame already on
     /// the wire finishes its attempt but is not retried) and the frames queued behind it.
     fn abort(&mut self) -> Result<(), BusError>;
+    /// How this client's chip comes back after bus-off (the bus's policy until then). Only
+    /// a virtual bus lets a client choose.
+    fn set_bus_off_recovery(&mut self, recovery: crate::BusOffRecovery) -> Result<(), BusError> {
+        let _ = recovery;
+        Err(BusError::Unsupported {
+            what: "choosing the bus-off recovery",
+            backend: "this bus".into(),
+        })
+    }
     /// Puts a fault on the wire from now on, for `lasting` (until [`BusAdmin::repair`] if
     /// `None`). Only a virtual bus has a wire to break.
     fn inject_fault(

@@ -53,6 +53,10 @@ pub enum BusOffRecovery {
     Counted,
     /// Linux's `restart()`: TXERR := 0 in reset mode ends bus-off at once.
     Fast,
+    /// None: the chip stays bus-off (in the reset mode it entered) until it is initialised
+    /// again. Linux's default (`restart-ms 0`: until `ip link set down` and `up`) and a Lawicel
+    /// CANUSB's (until the host closes and opens the channel, `C` then `O`).
+    Manual,
 }
 
 impl Default for Sja1000Config {

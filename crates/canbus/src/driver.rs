@@ -581,7 +581,8 @@ impl<R: RegisterAccess> Sja1000Driver<R> {
     /// ([`BusOffRecovery`](crate::BusOffRecovery)): `Counted`, the seed's way, only clears
     /// reset mode (the chip set it) and lets the chip wait its 128 × 11 recessive bits, TXERR
     /// falling and SR.ES clearing below the warning limit on the way; `poll` reports
-    /// `BusOff → Active` when it is back. `Fast` is [`restart`](Self::restart).
+    /// `BusOff → Active` when it is back. `Fast` is [`restart`](Self::restart). `Manual`
+    /// means nobody calls this at bus-off; called anyway, it recovers as `Counted`.
     pub fn recover(&mut self) -> Result<(), DriverError> {
         let config = self.config.clone().ok_or(DriverError::NotInitialized)?;
         if config.bus_off_recovery == crate::BusOffRecovery::Fast {

@@ -5,7 +5,8 @@
 //! The CPU keeps a software queue of frames ahead of the chip's single TX buffer, takes received
 //! frames and error frames out for its host, and brings the chip back after bus-off as the
 //! configuration says: the seed's way by default (reset mode cleared at once, the chip counting
-//! its 128 × 11 recessive bits with TXERR falling), or Linux's fast restart 100 ms later.
+//! its 128 × 11 recessive bits with TXERR falling), Linux's fast restart 100 ms later, or not at
+//! all (the chip stays bus-off until it is initialised again, as a Lawicel CANUSB's).
 
 use std::any::Any;
 use std::collections::VecDeque;
@@ -31,6 +32,10 @@ pub const TOLERANCE_PERMILLE: u64 = 10;
 pub const RESTART_AFTER_MS: u64 = 100;
 /// Per-node transmit queue length (frames waiting for the chip's single TX buffer).
 pub const TX_QUEUE: usize = 64;
+/// Recessive bit-times after which the bus is idle (CAN's bus-integration run: the ACK
+/// delimiter, end of frame and intermission). A node at the wrong bit rate reads an idle bus
+/// right: recessive is recessive at any rate.
+pub const IDLE_BITS: u32 = 11;
 
 /// A frame for a client and the bit-time at which its chip had it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -79,6 +84,9 @@ pub struct Sja1000Node {
     /// The node's own bit rate when it differs from the bus's.
     mismatch: Option<u32>,
     rng: u64,
+    /// Recessive bit-times in a row on the bus, up to [`IDLE_BITS`] (what a node at the wrong
+    /// rate can still tell).
+    recessive_run: u32,
     /// Frames the client sent, not yet handed to the chip.
     tx: VecDeque<Frame>,
     /// Frames for the client.
@@ -125,6 +133,7 @@ impl Sja1000Node {
             bus_bitrate,
             mismatch: None,
             rng: 0x9E37_79B9_7F4A_7C15,
+            recessive_run: 0,
             tx: VecDeque::new(),
             rx: Vec::new(),
             errors: Vec::new(),
@@ -214,6 +223,15 @@ impl Sja1000Node {
     /// The node's bit rate when it cannot follow the bus.
     pub fn mismatch(&self) -> Option<u32> {
         self.mismatch
+    }
+
+    /// How the chip comes back from its next bus-off (one under way goes on as it began).
+    pub fn set_bus_off_recovery(&mut self, recovery: BusOffRecovery) {
+        self.config.bus_off_recovery = recovery;
+    }
+
+    pub fn bus_off_recovery(&self) -> BusOffRecovery {
+        self.config.bus_off_recovery
     }
 
     pub fn state(&self) -> ControllerState {
@@ -320,6 +338,8 @@ impl Sja1000Node {
                                     Some(now + self.bus_bitrate as u64 * RESTART_AFTER_MS / 1000);
                             }
                             BusOffRecovery::Counted => self.recovering = true,
+                            // Bus-off is reset mode (the chip set MOD.RM): nothing clears it.
+                            BusOffRecovery::Manual => {}
                         }
                     } else if from == ControllerState::BusOff
                         && self.config.bus_off_recovery == BusOffRecovery::Counted
@@ -422,8 +442,14 @@ impl BusNode for Sja1000Node {
 
     fn sample(&mut self, now: u64, bus: Level) {
         self.now = now;
-        let seen = if self.mismatch.is_some() {
-            // Sampling at the wrong instants: what it reads has nothing to do with the bus.
+        let idle = self.recessive_run >= IDLE_BITS;
+        self.recessive_run = match bus {
+            Level::Recessive => (self.recessive_run + 1).min(IDLE_BITS),
+            Level::Dominant => 0,
+        };
+        let seen = if self.mismatch.is_some() && !(idle && bus == Level::Recessive) {
+            // Sampling a frame at the wrong instants: what it reads has nothing to do with
+            // the bits. An idle bus reads recessive at any rate.
             self.rng ^= self.rng << 13;
             self.rng ^= self.rng >> 7;
             self.rng ^= self.rng << 17;

@@ -11,6 +11,7 @@
 use std::collections::VecDeque;
 
 use buslab_can::Frame;
+use buslab_canbus::{CanError, ControllerProblems, ErrorFrame};
 
 use crate::codec::{
     CodecError, Command, Line, LineSplitter, Reply, STANDARD_BITRATES, StatusFlags,
@@ -87,6 +88,39 @@ pub enum AdapterEvent {
     Garbage(CodecError),
     /// Output for the host filled up: frames are being dropped (said once per episode).
     Overrun,
+    /// A frame refused with BEL: the adapter's controller is bus-off (until the host closes
+    /// and opens the channel). Said for the first refused frame of each bus-off.
+    RefusedBusOff(Frame),
+}
+
+/// The error level of the adapter's controller, as its error frames tell it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ErrorLevel {
+    /// Both counters below 96.
+    #[default]
+    Active,
+    /// A counter at 96 or more (SJA1000 SR.ES).
+    Warning,
+    /// A counter at 128 or more: its error flags are recessive.
+    Passive,
+    /// TXERR passed 255: off the bus until the host closes and opens the channel.
+    BusOff,
+}
+
+impl ErrorLevel {
+    /// The `F` flags this level keeps set while it lasts. Lawicel's `F` has no bus-off bit:
+    /// bus-off shows as error warning, error passive and bus error together (docs/decisions.md,
+    /// "An SLCAN host at the wrong bit rate").
+    pub const fn flags(self) -> u8 {
+        match self {
+            ErrorLevel::Active => 0,
+            ErrorLevel::Warning => StatusFlags::ERROR_WARNING,
+            ErrorLevel::Passive => StatusFlags::ERROR_WARNING | StatusFlags::ERROR_PASSIVE,
+            ErrorLevel::BusOff => {
+                StatusFlags::ERROR_WARNING | StatusFlags::ERROR_PASSIVE | StatusFlags::BUS_ERROR
+            }
+        }
+    }
 }
 
 /// The adapter model.
@@ -101,9 +135,13 @@ pub struct Adapter {
     acceptance_mask: u32,
     output: Vec<u8>,
     events: VecDeque<AdapterEvent>,
-    /// Flags `F` reports once and clears (overruns).
+    /// Flags `F` reports once and clears (overruns, bus errors, lost arbitrations).
     sticky: u8,
     dropped: u64,
+    /// The controller's error level since the channel opened.
+    level: ErrorLevel,
+    /// A frame was refused in this bus-off already.
+    refused: bool,
 }
 
 impl Default for Adapter {
@@ -127,6 +165,53 @@ impl Adapter {
             events: VecDeque::new(),
             sticky: 0,
             dropped: 0,
+            level: ErrorLevel::Active,
+            refused: false,
+        }
+    }
+
+    /// The controller's error level, as its error frames told it.
+    pub fn level(&self) -> ErrorLevel {
+        self.level
+    }
+
+    /// An error frame of the adapter's controller (its node on the bus): `F` reports it, as
+    /// the SJA1000's interrupt flags a Lawicel adapter shows (bus error, arbitration lost,
+    /// data overrun until read; warning, passive and bus-off while they last), and a bus-off
+    /// controller refuses frames with BEL.
+    pub fn controller_error(&mut self, error: &ErrorFrame) {
+        if self.mode == Mode::Closed {
+            return;
+        }
+        for e in &error.errors {
+            match *e {
+                CanError::Protocol { .. } | CanError::BusError | CanError::NoAck => {
+                    self.sticky |= StatusFlags::BUS_ERROR;
+                }
+                CanError::LostArbitration { .. } => self.sticky |= StatusFlags::ARBITRATION_LOST,
+                CanError::BusOff => self.level = ErrorLevel::BusOff,
+                CanError::Restarted => self.level = ErrorLevel::Active,
+                CanError::Controller(p) => {
+                    const WARNING: u8 =
+                        ControllerProblems::TX_WARNING | ControllerProblems::RX_WARNING;
+                    const PASSIVE: u8 =
+                        ControllerProblems::TX_PASSIVE | ControllerProblems::RX_PASSIVE;
+                    if p.0 & ControllerProblems::RX_OVERFLOW != 0 {
+                        self.sticky |= StatusFlags::DATA_OVERRUN;
+                    }
+                    if p.0 & PASSIVE != 0 {
+                        self.level = ErrorLevel::Passive;
+                    } else if p.0 & WARNING != 0 {
+                        self.level = ErrorLevel::Warning;
+                    } else if p.0 & ControllerProblems::ACTIVE != 0 {
+                        self.level = ErrorLevel::Active;
+                    }
+                }
+                CanError::TxTimeout | CanError::Transceiver(_) | CanError::Unknown(_) => {}
+            }
+        }
+        if self.level != ErrorLevel::BusOff {
+            self.refused = false;
         }
     }
 
@@ -238,6 +323,9 @@ impl Adapter {
                 } else {
                     Mode::Open
                 };
+                // Opening initialises the controller: counters at zero, bus-off ended.
+                self.level = ErrorLevel::Active;
+                self.refused = false;
                 self.events.push_back(AdapterEvent::Opened {
                     listen_only,
                     timing: self.timing,
@@ -259,6 +347,14 @@ impl Adapter {
                 }
                 Some(Reply::Ok)
             }
+            Command::Transmit(frame)
+                if self.mode == Mode::Open && self.level == ErrorLevel::BusOff =>
+            {
+                if !std::mem::replace(&mut self.refused, true) {
+                    self.events.push_back(AdapterEvent::RefusedBusOff(frame));
+                }
+                Some(Reply::Error)
+            }
             Command::Transmit(frame) if self.mode == Mode::Open => {
                 self.events.push_back(AdapterEvent::Transmit(frame));
                 Some(Reply::Queued {
@@ -267,7 +363,7 @@ impl Adapter {
             }
             Command::Transmit(_) => Some(Reply::Error),
             Command::Status => {
-                let flags = StatusFlags(std::mem::take(&mut self.sticky));
+                let flags = StatusFlags(std::mem::take(&mut self.sticky) | self.level.flags());
                 Some(Reply::Status(flags))
             }
             Command::Version => Some(Reply::Version(self.identity.version)),
@@ -433,5 +529,57 @@ mod tests {
                 mask: 0
             }
         );
+    }
+
+    /// A bit-rate mismatch told to the host: python-can at 500 kbit/s on a 125 kbit/s bus.
+    #[test]
+    fn a_mismatched_host_sees_the_controller_state_in_f_and_bel_when_bus_off() {
+        use buslab_canbus::{ControllerState, Ecc, ErrorCounters};
+        let mut a = Adapter::default();
+        exchange(&mut a, "S6\rO\r");
+        events(&mut a);
+        let counters = |tx, rx| ErrorCounters { tx, rx };
+        a.controller_error(&ErrorFrame::sja1000_bus_error(
+            Ecc(0x3C),
+            Some(counters(8, 1)),
+        ));
+        assert_eq!(exchange(&mut a, "F\r"), "F80\r", "a bus error, once");
+        assert_eq!(exchange(&mut a, "F\r"), "F00\r");
+        a.controller_error(&ErrorFrame::state_change(
+            ControllerState::Warning,
+            counters(96, 1),
+        ));
+        assert_eq!(exchange(&mut a, "F\r"), "F04\r", "the warning lasts");
+        a.controller_error(&ErrorFrame::state_change(
+            ControllerState::Passive,
+            counters(128, 1),
+        ));
+        assert_eq!(exchange(&mut a, "F\rF\r"), "F24\rF24\r");
+        assert_eq!(
+            exchange(&mut a, "t1230\r"),
+            "z\r",
+            "a passive node still sends"
+        );
+        a.controller_error(&ErrorFrame::state_change(
+            ControllerState::BusOff,
+            counters(255, 1),
+        ));
+        assert_eq!(a.level(), ErrorLevel::BusOff);
+        assert_eq!(exchange(&mut a, "F\r"), "FA4\r");
+        assert_eq!(
+            exchange(&mut a, "t1230\rt1230\r"),
+            "\x07\x07",
+            "bus-off refuses frames"
+        );
+        assert_eq!(
+            events(&mut a),
+            [
+                AdapterEvent::Transmit(frame("123#")),
+                AdapterEvent::RefusedBusOff(frame("123#"))
+            ],
+            "the first refused frame is told"
+        );
+        // Closing and opening again initialises the controller, as a CANUSB's C and O.
+        assert_eq!(exchange(&mut a, "C\rS4\rO\rF\rt1230\r"), "\r\r\rF00\rz\r");
     }
 }

@@ -33,7 +33,7 @@ pub mod codec;
 pub mod handshake;
 pub mod serve;
 
-pub use adapter::{Adapter, AdapterEvent, Identity, MAX_OUTPUT, Mode, Timing};
+pub use adapter::{Adapter, AdapterEvent, ErrorLevel, Identity, MAX_OUTPUT, Mode, Timing};
 pub use client::{BTR_CLOCK_HZ, SlcanBus, SlcanError, SlcanOptions, bitrate_command};
 pub use clock::DeviceClock;
 pub use codec::{

@@ -9,6 +9,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
 use std::time::{Duration, Instant};
 
 use buslab_can::Frame;
+use buslab_canbus::ErrorFrame;
 use nix::errno::Errno;
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
@@ -21,6 +22,8 @@ pub enum Input {
     Host(Vec<u8>),
     /// A frame the adapter received from the bus.
     Frame(Frame),
+    /// An error frame of the adapter's own controller (see [`Adapter::controller_error`]).
+    Error(ErrorFrame),
 }
 
 /// How often the loops look at `stop` while nothing happens.
@@ -62,6 +65,7 @@ pub fn serve(
                     Ok(Input::Frame(frame)) => {
                         adapter.deliver(&frame, epoch.elapsed().as_millis() as u64)
                     }
+                    Ok(Input::Error(error)) => adapter.controller_error(&error),
                     Err(RecvTimeoutError::Timeout) => {}
                     Err(RecvTimeoutError::Disconnected) => break,
                 }

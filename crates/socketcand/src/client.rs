@@ -9,8 +9,8 @@ use buslab_can::Frame;
 use buslab_canbus::admin::FaultLimit;
 use buslab_canbus::bus::Human;
 use buslab_canbus::{
-    BusAdmin, BusError, BusEvent, BusState, CanBus, ControllerSettings, Filter, Message, NodeInfo,
-    NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
+    BusAdmin, BusError, BusEvent, BusOffRecovery, BusState, CanBus, ControllerSettings, Filter,
+    Message, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
 
 use crate::command::Command;
@@ -244,6 +244,13 @@ impl SocketcandBus {
             self.options.reply_timeout,
         )
         .map(drop)
+    }
+
+    /// How this client's chip comes back after bus-off (buslab servers).
+    pub fn set_bus_off_recovery(&mut self, recovery: BusOffRecovery) -> Result<(), ClientError> {
+        self.need_extensions("choosing the bus-off recovery")?;
+        self.request(&Command::BusOff(recovery), None, self.options.reply_timeout)
+            .map(drop)
     }
 
     /// Puts a fault on the virtual bus's wire for `lasting` (until repaired if `None`;
@@ -656,6 +663,10 @@ impl BusAdmin for SocketcandBus {
 
     fn abort(&mut self) -> Result<(), BusError> {
         Ok(SocketcandBus::abort(self)?)
+    }
+
+    fn set_bus_off_recovery(&mut self, recovery: BusOffRecovery) -> Result<(), BusError> {
+        Ok(SocketcandBus::set_bus_off_recovery(self, recovery)?)
     }
 
     fn inject_fault(

@@ -8,7 +8,7 @@ use crate::{ProtocolError, tokens};
 
 pub use buslab_canbus::NodeRef;
 use buslab_canbus::admin::{BoardInput, BoardSwitch, BoardVolts};
-use buslab_canbus::{Probability, WireFault};
+use buslab_canbus::{BusOffRecovery, Probability, WireFault};
 use buslab_slio::SlioId;
 
 /// One client command.
@@ -76,6 +76,9 @@ pub enum Command {
         slio: SlioId,
         change: Option<BoardInput>,
     },
+    /// `< buslab_busoff counted|fast|manual >`: how this client's chip comes back after
+    /// bus-off (the bus's policy until then; `manual`: it stays bus-off, as a Lawicel CANUSB).
+    BusOff(BusOffRecovery),
 }
 
 /// socketcand's commands that buslab does not implement.
@@ -164,6 +167,12 @@ impl Command {
             "buslab_repair" => no_args(Command::Repair, "buslab_repair"),
             crate::controller::NAME => crate::controller::parse(args).map(Command::Controller),
             "buslab_board" => parse_board(args),
+            "buslab_busoff" => match args {
+                ["counted"] => Ok(Command::BusOff(BusOffRecovery::Counted)),
+                ["fast"] => Ok(Command::BusOff(BusOffRecovery::Fast)),
+                ["manual"] => Ok(Command::BusOff(BusOffRecovery::Manual)),
+                _ => Err(arguments("buslab_busoff", "counted, fast or manual", args)),
+            },
             n if UNSUPPORTED.contains(&n) => Ok(Command::Unsupported {
                 name: n.to_string(),
                 args: args.iter().map(|s| s.to_string()).collect(),
@@ -502,6 +511,15 @@ impl fmt::Display for Command {
                 }
                 f.write_str(" >")
             }
+            Command::BusOff(recovery) => write!(
+                f,
+                "< buslab_busoff {} >",
+                match recovery {
+                    BusOffRecovery::Counted => "counted",
+                    BusOffRecovery::Fast => "fast",
+                    BusOffRecovery::Manual => "manual",
+                }
+            ),
         }
     }
 }

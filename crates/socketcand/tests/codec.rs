@@ -2,7 +2,7 @@
 //! garbage.
 
 use buslab_can::{Frame, Id};
-use buslab_canbus::{Probability, WireFault};
+use buslab_canbus::{BusOffRecovery, Probability, WireFault};
 use buslab_socketcand::{Command, Deframer, ElementError, NodeRef, ServerMessage, Timestamp};
 use proptest::prelude::*;
 
@@ -69,6 +69,9 @@ fn commands_round_trip_through_their_text() {
         Command::ReceiveOwn(true),
         Command::ErrorFrames(true),
         Command::ErrorFrames(false),
+        Command::BusOff(BusOffRecovery::Manual),
+        Command::BusOff(BusOffRecovery::Counted),
+        Command::BusOff(BusOffRecovery::Fast),
         Command::Nodes,
         Command::Flush,
         Command::Abort,
@@ -159,6 +162,10 @@ fn garbage_commands_name_what_is_wrong() {
         ("buslab_name a/b", "buslab_name: expected one name"),
         ("buslab_own 2", "buslab_own: expected 0 or 1"),
         ("buslab_errors yes", "buslab_errors: expected 0 or 1"),
+        (
+            "buslab_busoff never",
+            "buslab_busoff: expected counted, fast or manual",
+        ),
         ("buslab_fault", "buslab_fault: expected MS then cut"),
         (
             "buslab_fault 10 melt x",

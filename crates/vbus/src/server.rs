@@ -1458,6 +1458,10 @@ fn answer(bus: &mut VirtualBus, me: u32, command: Command) -> ServerMessage {
         }),
         Command::Btr { btr0, btr1 } => bus.set_btr(me, btr0, btr1).map(|()| ServerMessage::Ok),
         Command::Controller(settings) => bus.configure(me, &settings).map(|()| ServerMessage::Ok),
+        Command::BusOff(recovery) => bus.client_mut(me).map(|n| {
+            n.set_bus_off_recovery(recovery);
+            ServerMessage::Ok
+        }),
         Command::Abort => bus.client_mut(me).map(|n| {
             n.abort();
             ServerMessage::Ok

@@ -8,7 +8,7 @@ use std::sync::mpsc;
 
 use anyhow::Context;
 use buslab_backends::{BusUrl, Pump, PumpEvent, PumpSender, TrySendError, resolve};
-use buslab_canbus::{BitTiming, BusEvent, CanBus};
+use buslab_canbus::{BitTiming, BusError, BusEvent, BusOffRecovery, CanBus};
 use buslab_link::Pty;
 use buslab_slcan::{Adapter, AdapterEvent, BTR_CLOCK_HZ, Identity, Input, Timing};
 
@@ -59,7 +59,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let url = args.bus.clone();
-    let bus = open(&url)?;
+    let mut bus = open(&url)?;
+    // The adapter's controller tells its host its state (`F`, BEL when bus-off).
+    if let Err(e) = bus.set_error_frames(true) {
+        tracing::debug!("no error frames from {url}: {e}");
+    }
     let mut pty = Pty::open().context("opening a pseudo-terminal")?;
     if let Some(link) = &args.link {
         pty.link_at(link)
@@ -72,7 +76,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         let stop = stop.clone();
         Pump::spawn("slcan-bus", bus, move |event| match event {
             PumpEvent::Received(BusEvent::Frame(m)) => feed.send(Input::Frame(m.frame)).is_ok(),
-            PumpEvent::Received(BusEvent::Error(_)) => true,
+            PumpEvent::Received(BusEvent::Error(e)) => feed.send(Input::Error(e.error)).is_ok(),
             PumpEvent::SendFailed { frame, error } => {
                 tracing::warn!("the bus refused {frame}: {error}");
                 true
@@ -134,18 +138,21 @@ fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
                 if listen_only { " listen-only" } else { "" },
                 timing.map_or(String::new(), |t| format!(" ({})", describe(t)))
             );
-            if let Some(regs) = timing.and_then(registers) {
-                // On buslab's bus the adapter's node takes the host's timing: a bit rate that
-                // does not match the bus cannot communicate, as with a real adapter.
-                let _ = bus.run(Box::new(move |bus: &mut dyn CanBus| {
-                    if let Some(admin) = bus.admin()
-                        && let Err(e) = admin.set_btr(regs.0, regs.1)
-                    {
-                        tracing::warn!("cannot give the adapter's node the host's timing: {e}");
-                    }
-                }));
-            }
+            let host = timing.map(describe);
+            // On buslab's bus the adapter's node takes the host's timing: a bit rate that
+            // does not match the bus cannot communicate, as with a real adapter. Opening
+            // initialises the chip (ending a bus-off), which then stays bus-off until the
+            // next opening, as a Lawicel CANUSB's.
+            let regs = timing.and_then(registers);
+            let _ = bus.run(Box::new(move |bus: &mut dyn CanBus| {
+                if let Some(admin) = bus.admin() {
+                    open_node(admin, regs, host.as_deref());
+                }
+            }));
         }
+        AdapterEvent::RefusedBusOff(frame) => tracing::warn!(
+            "{frame} refused (BEL): the adapter is bus-off; the host must close and open the channel (C, O)"
+        ),
         AdapterEvent::Closed => tracing::info!("the host closed the adapter"),
         AdapterEvent::FilterNotModelled { code, mask } => tracing::warn!(
             "acceptance filter M{code:08X} m{mask:08X} is not modelled: the adapter delivers every frame"
@@ -161,6 +168,43 @@ fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
         AdapterEvent::Overrun => {
             tracing::warn!("the host does not read: frames are dropped (F reports a data overrun)")
         }
+    }
+}
+
+/// The adapter's node on buslab's bus as the host opened it: stays bus-off until the next
+/// opening, the host's timing (else its own again, which ends a bus-off), and a warning naming
+/// both rates when they differ.
+fn open_node(admin: &mut dyn buslab_canbus::BusAdmin, regs: Option<(u8, u8)>, host: Option<&str>) {
+    match admin.set_bus_off_recovery(BusOffRecovery::Manual) {
+        Ok(()) | Err(BusError::Unsupported { .. }) => {}
+        Err(e) => tracing::debug!("the adapter's node recovers from bus-off as the bus says: {e}"),
+    }
+    // Initialising the chip drops what it was trying to send, as a real adapter's C and O.
+    if let Err(e) = admin.abort() {
+        tracing::debug!("nothing aborted on the adapter's node: {e}");
+    }
+    let regs = regs.or_else(|| {
+        let status = admin.node_status(None).ok()?;
+        status.timing.map(|t| (t.btr0, t.btr1))
+    });
+    if let Some((btr0, btr1)) = regs
+        && let Err(e) = admin.set_btr(btr0, btr1)
+    {
+        tracing::warn!("cannot give the adapter's node the host's timing: {e}");
+        return;
+    }
+    match admin.node_status(None) {
+        Ok(status) => {
+            if let Some(t) = status.timing.filter(|t| !t.matches_bus) {
+                tracing::warn!(
+                    "the host opened the adapter at {} but the bus runs at {} bit/s: it cannot communicate: its node goes error-passive, bus-off when the host sends, and stays off until the host reopens it at {} bit/s (C, then S or s, then O)",
+                    host.map_or_else(|| format!("{} bit/s", t.bitrate), str::to_string),
+                    status.bus.bitrate,
+                    status.bus.bitrate
+                );
+            }
+        }
+        Err(e) => tracing::debug!("no status of the adapter's node: {e}"),
     }
 }
 
