@@ -140,7 +140,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Wire(args) => cmd::wire::run(args),
         Command::Sim(args) => cmd::sim::run(args, quiet),
         Command::Zelle(args) => cmd::zelle::run(args),
-        Command::Cpu196(args) => cmd::cpu196::run(args),
+        Command::Cpu196(args) => cmd::cpu196::run(args, quiet),
         Command::Bus(args) => cmd::bus::run(args),
         Command::Dump(args) => cmd::dump::run(args),
         Command::Send(args) => cmd::send::run(args),
@@ -157,7 +157,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sendfile(args) => cmd::sendfile::run(args),
         Command::Mail(args) => cmd::mail::run(args),
         Command::Recvfile(args) => cmd::recvfile::run(args),
-        Command::Web(args) => cmd::web::run(args),
+        Command::Web(args) => cmd::web::run(args, quiet),
         Command::Monitor(args) => cmd::monitor::run(args),
         Command::Config(args) => cmd::config::run(args),
     }
