@@ -4,11 +4,17 @@
 mod bus_common;
 #[path = "support/outside_tools.rs"]
 mod outside_tools;
+#[path = "support/pty_program.rs"]
+mod pty_program;
 
 use std::io::{BufRead, BufReader, Read};
 use std::process::{Child, Command, Output, Stdio};
 
+use buslab_canbus::CanBus;
+
 use bus_common::Serve;
+use outside_tools::{python_can, root};
+use pty_program::{CEILING, PtyProgram};
 
 /// `buslab` with no configuration file and no bus from the environment: the defaults.
 fn buslab() -> Command {
@@ -197,4 +203,101 @@ fn quiet_help_says_what_q_does_for_that_command() {
     }
     assert!(quiet_line(&["sim", "--help"]).contains("only the summary"));
     assert!(quiet_line(&["lab", "--help"]).contains("no status line"));
+}
+
+#[test]
+fn monitor_shows_the_frames_it_sends() {
+    // `buslab monitor` did not show the frames it sent with `s`: no backend hands a client
+    // its own frames.
+    let serve = Serve::start(500_000);
+    // Another node on the bus, which acknowledges the monitor's frame and receives it.
+    let mut other = serve.client();
+    let mut command = buslab();
+    command.args(["-q", "monitor", "--bus", &serve.url]);
+    let mut monitor = PtyProgram::spawn(command, 30, 110, pty_program::Stderr::Null);
+    monitor.wait_for_contents("the monitor's screen", |t| t.contains("q quit"));
+    monitor.type_keys("s123#1122\r");
+    monitor.wait_for_contents("the sent frame in the table and the log", |t| {
+        t.contains("123#1122  TX") && t.lines().any(|l| l.contains("123") && l.contains("11 22"))
+    });
+    let got = other
+        .recv(Some(CEILING))
+        .unwrap()
+        .expect("the monitor's frame");
+    assert_eq!(got.frame.to_string(), "123#1122");
+    // A frame another node sends is not marked.
+    other.send(&"456#33".parse().unwrap()).unwrap();
+    monitor.wait_for_contents("the other node's frame", |t| t.contains("456#33"));
+    let log_line = monitor
+        .contents()
+        .lines()
+        .find(|l| l.contains("456#33"))
+        .unwrap()
+        .to_string();
+    assert!(!log_line.contains("TX"), "{log_line}");
+    monitor.type_keys("q");
+    assert!(monitor.wait_exit().success());
+}
+
+/// The python-can example of docs/bus.md, as printed there.
+fn python_example() -> String {
+    let doc = std::fs::read_to_string(root().join("docs/bus.md")).unwrap();
+    let section = doc
+        .split("\n## python-can\n")
+        .nth(1)
+        .expect("a python-can section");
+    let code = section
+        .split("```python\n")
+        .nth(1)
+        .and_then(|rest| rest.split("```").next())
+        .expect("a python block in docs/bus.md's python-can section");
+    code.to_string()
+}
+
+#[test]
+fn the_python_can_example_of_the_docs_runs_as_printed() {
+    // On an empty bus the example printed `None`, then python-can's warning
+    // `SocketCanDaemonBus was not properly shut down`.
+    let Some(python) = python_can() else {
+        return;
+    };
+    let example = python_example();
+    assert!(example.contains("port=29536"), "{example}");
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("sender.toml");
+    std::fs::write(
+        &scenario,
+        "bitrate = 125000\n[[nodes]]\nname = \"sender\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"456#AABB\"\n  period = \"100ms\"\n",
+    )
+    .unwrap();
+    let run = |serve: &Serve| {
+        let script = dir.path().join("example.py");
+        let code = example.replace("port=29536", &format!("port={}", serve.addr.port()));
+        std::fs::write(&script, code).unwrap();
+        let out = Command::new(&python).arg(&script).output().unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        assert_eq!(stderr(&out), "", "python-can's warnings");
+        stdout(&out)
+    };
+    // Alone on the bus: nobody else sends, and a client does not get its own frames.
+    let alone = run(&Serve::start(125_000));
+    assert_eq!(alone, "no frame from another node within 10 s\n");
+    // Beside a node that sends.
+    let beside = run(&Serve::start_with(
+        125_000,
+        &["--nodes", scenario.to_str().unwrap()],
+    ));
+    assert!(
+        beside.contains("ID:      456") && beside.contains("aa bb") && beside.contains("Rx"),
+        "{beside}"
+    );
+    // What the docs say it prints.
+    let doc = std::fs::read_to_string(root().join("docs/bus.md")).unwrap();
+    assert!(doc.contains("it prints `no frame from another node within 10 s`"));
+    let printed = doc
+        .lines()
+        .find(|l| l.starts_with("Timestamp: "))
+        .expect("the example's output in docs/bus.md");
+    let shape = |line: &str| line.split_once("ID:").unwrap().1.trim().to_string();
+    assert_eq!(shape(printed), shape(beside.trim()));
 }
