@@ -301,3 +301,81 @@ fn the_python_can_example_of_the_docs_runs_as_printed() {
     let shape = |line: &str| line.split_once("ID:").unwrap().1.trim().to_string();
     assert_eq!(shape(printed), shape(beside.trim()));
 }
+
+/// The load `log info` prints for one interface: the percentage and the rest of the line.
+fn load_of(info: &str) -> (f64, String) {
+    let line = info
+        .lines()
+        .find(|l| l.starts_with("can0 "))
+        .unwrap_or_else(|| panic!("no can0 line:\n{info}"));
+    let load = line.split_once(", load ").unwrap().1;
+    let percent = load.split(' ').next().unwrap().parse().unwrap();
+    (percent, load.to_string())
+}
+
+#[test]
+fn log_info_takes_the_load_at_the_logs_bit_rate_or_says_its_assumption() {
+    // `log info` on a 125 kbit/s log said `load 4.3 % at 500 kbit/s` where the lab said
+    // 17.1 %: a candump log does not carry its bit rate, a TRC header does.
+    let dir = tempfile::tempdir().unwrap();
+    // An 8-byte frame every ms for 2 s: 112 bits each with stuffing and the intermission, so
+    // 2001 × 112 bits in 2 s at 125 kbit/s: 89.6 %.
+    let log: String = (0..=2000)
+        .map(|ms| {
+            format!(
+                "({}.{:06}) can0 123#1122334455667788\n",
+                100 + ms / 1000,
+                (ms % 1000) * 1000
+            )
+        })
+        .collect();
+    let candump = dir.path().join("lab.log");
+    std::fs::write(&candump, log).unwrap();
+    let info = |args: &[&str]| {
+        let out = buslab().args(["log", "info"]).args(args).output().unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        load_of(&stdout(&out))
+    };
+    let path = candump.to_str().unwrap();
+    let (assumed, text) = info(&[path]);
+    assert_eq!(
+        text,
+        format!(
+            "{assumed:.1} % if the bus ran at 500 kbit/s (the log does not give its bit rate: --bitrate N says it)"
+        )
+    );
+    let (given, text) = info(&[path, "--bitrate", "125000"]);
+    assert_eq!(text, format!("{given:.1} % at 125 kbit/s (--bitrate)"));
+    assert_eq!(given, 89.6);
+    assert!((given - 4.0 * assumed).abs() < 0.3, "{given} vs {assumed}");
+
+    // The same frames in a TRC file whose header names 125 kBit/s (PCAN-View's table).
+    let trc = dir.path().join("lab.trc");
+    let out = buslab()
+        .args(["-q", "log", "convert", path, trc.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = std::fs::read_to_string(&trc).unwrap();
+    let (first, rest) = text.split_once("\r\n").unwrap();
+    std::fs::write(
+        &trc,
+        format!(
+            "{first}\r\n;   Bus  Name         Connection        Protocol  Bit rate\r\n\
+             ;   1    Connection1  lab@pcan_usb      CAN       125 kBit/s\r\n;---\r\n{rest}"
+        ),
+    )
+    .unwrap();
+    let trc = trc.to_str().unwrap();
+    let (from_header, text) = info(&[trc]);
+    assert_eq!(from_header, given);
+    assert_eq!(
+        text,
+        format!("{given:.1} % at 125 kbit/s (the log's header)")
+    );
+    let (_, text) = info(&[trc, "--bitrate", "500000"]);
+    assert_eq!(
+        text,
+        format!("{assumed:.1} % at 500 kbit/s (--bitrate; the log's header says 125 kbit/s)")
+    );
+}
