@@ -379,3 +379,60 @@ fn log_info_takes_the_load_at_the_logs_bit_rate_or_says_its_assumption() {
         format!("{assumed:.1} % at 500 kbit/s (--bitrate; the log's header says 125 kbit/s)")
     );
 }
+
+#[test]
+fn test_setup_says_what_it_would_install_and_installs_nothing_without_root_and_apt() {
+    // `scripts/test.sh` installed packages as root without saying so first. Here the tools
+    // are hidden (a PATH with only what the script itself runs, no apt-get): the setup lists
+    // what it lacks and stops before installing anything.
+    let bin = tempfile::tempdir().unwrap();
+    for tool in [
+        "bash", "cargo", "id", "ls", "grep", "tr", "cmp", "ldd", "dirname", "cat", "python3",
+    ] {
+        let found = Command::new("sh")
+            .args(["-c", &format!("command -v {tool}")])
+            .output()
+            .unwrap();
+        let path = String::from_utf8_lossy(&found.stdout).trim().to_string();
+        if !path.is_empty() {
+            std::os::unix::fs::symlink(&path, bin.path().join(tool)).unwrap();
+        }
+    }
+    let setup = |args: &[&str]| {
+        Command::new(bin.path().join("bash"))
+            .arg(root().join("scripts/setup-test-deps.sh"))
+            .args(args)
+            .env("PATH", bin.path())
+            .output()
+            .unwrap()
+    };
+    let check = setup(&["--check"]);
+    assert_eq!(check.status.code(), Some(1), "{}", stderr(&check));
+    let listed = stdout(&check);
+    assert!(
+        listed.starts_with("setup-test-deps: the test tools this machine lacks:\n"),
+        "{listed}"
+    );
+    assert!(
+        listed.contains("  Debian, with apt-get as root: sigrok-cli "),
+        "{listed}"
+    );
+    assert!(listed.contains(" tshark "), "{listed}");
+
+    let install = setup(&[]);
+    assert!(!install.status.success());
+    assert!(
+        stdout(&install).starts_with(
+            "setup-test-deps: the test tools this machine lacks, to be installed now:\n"
+        ),
+        "{}",
+        stdout(&install)
+    );
+    let err = stderr(&install);
+    assert!(
+        err.contains("installing Debian packages needs root and apt-get"),
+        "{err}"
+    );
+    assert!(err.contains("nothing was installed"), "{err}");
+    assert!(err.contains("--no-setup"), "{err}");
+}
