@@ -14,79 +14,153 @@
 #   and buslab (downloaded, not committed: python-can is LGPL-3.0, see docs/decisions.md).
 # Whatever cannot be installed stops the script with a message and a non-zero exit: the interop
 # tests must not pass by skipping (under CI=1 they fail when a tool is missing).
+#
+# It looks first and says what it is about to install, and from where, before installing
+# anything; Debian packages need root and apt-get: without them it names every missing package
+# at once and stops before changing anything. `--check` only says what is missing (exit 1 if
+# anything is).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+check_only=false
+case "${1:-}" in
+--check) check_only=true ;;
+"") ;;
+*) echo "usage: scripts/setup-test-deps.sh [--check]" >&2; exit 2 ;;
+esac
 
 fail() {
     echo "setup-test-deps: error: $*" >&2
     exit 1
 }
 
-if ! cargo nextest --version >/dev/null 2>&1; then
-    echo "installing cargo-nextest (crates.io, built once)"
+has() { command -v "$1" >/dev/null 2>&1; }
+
+# --- What is missing (nothing is installed in this part) ---------------------------------
+
+need_nextest=false
+has cargo && cargo nextest --version >/dev/null 2>&1 || need_nextest=true
+
+debs=()
+# The Debian package PACKAGE, once.
+want_deb() {
+    local d
+    for d in "${debs[@]}"; do [ "$d" = "$1" ] && return 0; done
+    debs+=("$1")
+}
+# TOOL:PACKAGE...: the package of each tool that is not on PATH.
+want_tools() {
+    local pair
+    for pair in "$@"; do
+        has "${pair%%:*}" || want_deb "${pair#*:}"
+    done
+}
+
+# sigrok-cli decodes our VCD waveforms independently.
+want_tools sigrok-cli:sigrok-cli
+# The mail notifier's IMAP server (crates/buslab/tests/mail_dovecot.rs runs /usr/sbin/dovecot).
+[ -x /usr/sbin/dovecot ] || want_deb dovecot-imapd
+# The mail tests make a throwaway certificate authority with it (Dovecot's TLS, the hostile
+# server's STARTTLS); dovecot-core depends on it, this is in case it did not come.
+want_tools openssl:openssl
+# The web dashboard's browser test (crates/buslab/tests/web_browser.rs): headless Chromium
+# driven over WebDriver.
+want_tools chromium:chromium chromedriver:chromium-driver
+# The SocketCAN test VM: QEMU (software emulation), a busybox initramfs with can-utils.
+want_tools qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio \
+    candump:can-utils slcand:can-utils strip:binutils
+# busybox must be the static one: the initramfs has no libraries for it.
+if has busybox && ldd "$(command -v busybox)" >/dev/null 2>&1; then
+    want_deb busybox-static
+fi
+# Debian's current amd64 kernel package (linux-image-amd64 depends on it), kept in target/.
+need_kernel=false
+ls target/vm-cache/linux-image-*-amd64_*.deb >/dev/null 2>&1 || need_kernel=true
+# log2asc/asc2log (the log-format interop tests), tshark/editcap (decode buslab's pcap and
+# pcapng).
+want_tools log2asc:can-utils asc2log:can-utils tshark:tshark editcap:tshark
+# The MCS-51 core's differential check against SDCC's simulator s51 (Debian sdcc-ucsim;
+# scripts/mcs51-vs-s51.sh, run by .ci/run) and the assembler of its benchmark programs (as31;
+# crates/mcs51/tests/bench_program.rs, bench/mcs51_speed.sh).
+want_tools s51:sdcc-ucsim as31:as31
+# Python for the interop tests, with its venv module (Debian's python3 needs python3-venv).
+requirements=scripts/test-requirements.txt
+stamp=.venv/.requirements
+need_venv=false
+[ -x .venv/bin/python ] || need_venv=true
+if $need_venv; then
+    want_tools python3:python3
+    has python3 && ! python3 -c "import ensurepip" >/dev/null 2>&1 && want_deb python3-venv
+fi
+need_pip=false
+cmp -s "$requirements" "$stamp" || need_pip=true
+# python-can's own test logs (Vector ASC/BLF, PEAK TRC 1.0..2.1), from its sdist on PyPI.
+pycan_version=4.6.1
+pycan_sha256=290fea135d04b8504ebff33889cc6d301e2181a54099116609f940825ffe5005
+pycan_dir=target/python-can-sdist
+pycan_data=$pycan_dir/python_can-$pycan_version/test/data
+need_sdist=false
+[ -f "$pycan_data/logfile.asc" ] || need_sdist=true
+
+# --- Say it ---------------------------------------------------------------------------------
+
+if ! $need_nextest && [ ${#debs[@]} = 0 ] && ! $need_kernel && ! $need_venv && ! $need_pip &&
+    ! $need_sdist; then
+    $check_only && echo "setup-test-deps: every test tool is here"
+    exit 0
+fi
+root_apt=false
+[ "$(id -u)" = 0 ] && has apt-get && root_apt=true
+echo "setup-test-deps: the test tools this machine lacks$($check_only || echo ", to be installed now"):"
+$need_nextest && echo "  crates.io: cargo-nextest (cargo install --locked; built once, a few minutes)"
+[ ${#debs[@]} = 0 ] || echo "  Debian, with apt-get as root: ${debs[*]}"
+$need_kernel && echo "  Debian's amd64 kernel package, downloaded into target/vm-cache/ (not installed)"
+$need_venv && echo "  a Python virtual environment in .venv/"
+$need_pip && echo "  PyPI, into .venv/: $(grep -v '^#' "$requirements" | tr '\n' ' ')"
+$need_sdist && echo "  PyPI, into $pycan_dir/: python-can $pycan_version's source distribution (for its test logs)"
+if $check_only; then
+    exit 1
+fi
+if [ ${#debs[@]} != 0 ] && ! $root_apt; then
+    fail "installing Debian packages needs root and apt-get: install ${debs[*]} (sudo apt-get install ${debs[*]}), or run this script as root; nothing was installed. (scripts/test.sh --no-setup runs the tests without this setup; the interop tests then say SKIPPED for what is missing, and fail under CI=1.)"
+fi
+
+# --- Install --------------------------------------------------------------------------------
+
+if $need_nextest; then
     cargo install --locked cargo-nextest ||
         fail "cannot install cargo-nextest (cargo install --locked cargo-nextest); scripts/test.sh needs it"
 fi
 
 apt_updated=false
-apt_install() {
-    [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 ||
-        fail "$1 is missing and cannot be installed here (needs root and apt-get): install Debian's '$1' package"
+apt_update() {
     if ! $apt_updated; then
         apt-get update -qq || fail "apt-get update failed"
         apt_updated=true
     fi
-    echo "installing $1 (Debian)"
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$1" >/dev/null ||
-        fail "apt-get install $1 failed"
 }
-
-if ! command -v sigrok-cli >/dev/null 2>&1; then
-    apt_install sigrok-cli
-    command -v sigrok-cli >/dev/null 2>&1 || fail "sigrok-cli is still missing after installing it"
-fi
-
-# The mail notifier's IMAP server (crates/buslab/tests/mail_dovecot.rs runs /usr/sbin/dovecot).
-if [ ! -x /usr/sbin/dovecot ]; then
-    apt_install dovecot-imapd
-    [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"
-fi
-# The mail tests make a throwaway certificate authority with it (Dovecot's TLS, the hostile
-# server's STARTTLS); dovecot-core depends on it, this is in case it did not come.
-if ! command -v openssl >/dev/null 2>&1; then
-    apt_install openssl
-    command -v openssl >/dev/null 2>&1 || fail "openssl is still missing after installing it"
-fi
-
-# The web dashboard's browser test (crates/buslab/tests/web_browser.rs): headless Chromium
-# driven over WebDriver.
-for tool in chromium:chromium chromedriver:chromium-driver; do
-    if ! command -v "${tool%%:*}" >/dev/null 2>&1; then
-        apt_install "${tool#*:}"
-        command -v "${tool%%:*}" >/dev/null 2>&1 || fail "${tool%%:*} is still missing after installing ${tool#*:}"
+if [ ${#debs[@]} != 0 ]; then
+    apt_update
+    # tshark asks whether non-root users may capture: answer no, without a dialog.
+    if [[ " ${debs[*]} " == *" tshark "* ]]; then
+        echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections ||
+            fail "cannot preseed wireshark-common/install-setuid (debconf-set-selections)"
     fi
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${debs[@]}" >/dev/null ||
+        fail "apt-get install ${debs[*]} failed"
+fi
+# Every tool is there now.
+for pair in sigrok-cli:sigrok-cli openssl:openssl chromium:chromium chromedriver:chromium-driver \
+    qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio candump:can-utils \
+    slcand:can-utils strip:binutils log2asc:can-utils asc2log:can-utils tshark:tshark \
+    editcap:tshark s51:sdcc-ucsim as31:as31; do
+    has "${pair%%:*}" || fail "${pair%%:*} is still missing after installing ${pair#*:}"
 done
+[ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"
+ldd "$(command -v busybox)" >/dev/null 2>&1 && fail "busybox is dynamically linked; install busybox-static"
 
-# The SocketCAN test VM: QEMU (software emulation), a busybox initramfs with can-utils.
-for tool in qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio \
-    candump:can-utils slcand:can-utils strip:binutils; do
-    if ! command -v "${tool%%:*}" >/dev/null 2>&1; then
-        apt_install "${tool#*:}"
-        command -v "${tool%%:*}" >/dev/null 2>&1 || fail "${tool%%:*} is still missing after installing ${tool#*:}"
-    fi
-done
-# busybox must be the static one: the initramfs has no libraries for it.
-busybox_path="$(command -v busybox)"
-if ldd "$busybox_path" >/dev/null 2>&1; then
-    apt_install busybox-static
-    ldd "$(command -v busybox)" >/dev/null 2>&1 && fail "busybox is dynamically linked; install busybox-static"
-fi
-# Debian's current amd64 kernel package (linux-image-amd64 depends on it), kept in target/.
-if ! ls target/vm-cache/linux-image-*-amd64_*.deb >/dev/null 2>&1; then
-    if ! $apt_updated && [ "$(id -u)" = 0 ]; then
-        apt-get update -qq || fail "apt-get update failed"
-        apt_updated=true
-    fi
+if $need_kernel; then
+    $root_apt && apt_update
     kernel="$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-/ { print $2; exit }')"
     [ -n "$kernel" ] || fail "apt-cache finds no kernel package behind linux-image-amd64 (apt-get update?)"
     echo "downloading $kernel (Debian; unpacked for the SocketCAN test VM, not installed)"
@@ -97,40 +171,9 @@ if ! ls target/vm-cache/linux-image-*-amd64_*.deb >/dev/null 2>&1; then
         fail "apt-get download $kernel left no package in target/vm-cache/"
 fi
 
-if ! command -v log2asc >/dev/null 2>&1 || ! command -v asc2log >/dev/null 2>&1; then
-    apt_install can-utils
-    command -v log2asc >/dev/null 2>&1 || fail "log2asc is still missing after installing can-utils"
-fi
-
-if ! command -v tshark >/dev/null 2>&1 || ! command -v editcap >/dev/null 2>&1; then
-    # tshark asks whether non-root users may capture: answer no, without a dialog.
-    echo "wireshark-common wireshark-common/install-setuid boolean false" | debconf-set-selections ||
-        fail "cannot preseed wireshark-common/install-setuid (debconf-set-selections)"
-    apt_install tshark
-    command -v tshark >/dev/null 2>&1 && command -v editcap >/dev/null 2>&1 ||
-        fail "tshark or editcap is still missing after installing tshark"
-fi
-
-# The MCS-51 core's differential check against SDCC's simulator s51 (Debian sdcc-ucsim;
-# scripts/mcs51-vs-s51.sh, run by .ci/run) and the assembler of its benchmark programs (as31;
-# crates/mcs51/tests/bench_program.rs, bench/mcs51_speed.sh).
-for tool in s51:sdcc-ucsim as31:as31; do
-    if ! command -v "${tool%%:*}" >/dev/null 2>&1; then
-        apt_install "${tool#*:}"
-        command -v "${tool%%:*}" >/dev/null 2>&1 || fail "${tool%%:*} is still missing after installing ${tool#*:}"
-    fi
-done
-
-requirements=scripts/test-requirements.txt
-stamp=.venv/.requirements
-if [ ! -x .venv/bin/python ]; then
-    command -v python3 >/dev/null 2>&1 || fail "python3 is missing (the interop tests need it)"
-    if ! python3 -m venv .venv; then
-        rm -rf .venv
-        # Debian's own python3 needs its venv module as a package.
-        apt_install python3-venv
-        python3 -m venv .venv || fail "python3 -m venv .venv failed"
-    fi
+if $need_venv; then
+    has python3 || fail "python3 is missing (the interop tests need it)"
+    python3 -m venv .venv || { rm -rf .venv; fail "python3 -m venv .venv failed"; }
 fi
 if ! cmp -s "$requirements" "$stamp"; then
     echo "installing Python test packages into .venv"
@@ -141,12 +184,7 @@ fi
 .venv/bin/python -c "import serial, can" ||
     fail "the .venv lacks pyserial or python-can; delete .venv and run this script again"
 
-# python-can's own test logs (Vector ASC/BLF, PEAK TRC 1.0..2.1), from its sdist on PyPI.
-pycan_version=4.6.1
-pycan_sha256=290fea135d04b8504ebff33889cc6d301e2181a54099116609f940825ffe5005
-pycan_dir=target/python-can-sdist
-pycan_data=$pycan_dir/python_can-$pycan_version/test/data
-if [ ! -f "$pycan_data/logfile.asc" ]; then
+if $need_sdist; then
     echo "downloading python-can $pycan_version's source distribution (PyPI, for its test logs)"
     mkdir -p "$pycan_dir"
     printf 'python-can==%s --hash=sha256:%s\n' "$pycan_version" "$pycan_sha256" >"$pycan_dir/requirements.txt"

@@ -143,7 +143,19 @@ pub mod logs {
             let mut entry = Entry::default();
             match reader.read_into(&mut entry) {
                 Ok(true) => entries.push(entry),
-                Ok(false) => return entries,
+                Ok(false) => {
+                    // A bit rate the log gives is one CAN has: 1 kbit/s..1 Mbit/s.
+                    for entry in &entries {
+                        if let Some(rate) = reader.bit_rate(&entry.interface) {
+                            assert!(
+                                (1_000..=1_000_000).contains(&rate.bits_per_s),
+                                "{rate:?} for {}",
+                                entry.interface
+                            );
+                        }
+                    }
+                    return entries;
+                }
                 Err(e) if e.is_fatal() => {
                     // A fatal error ends the log: the next read says so.
                     let mut after = Entry::default();
@@ -193,7 +205,19 @@ pub mod logs {
             let mut entry = Entry::default();
             match reader.read_into(&mut entry) {
                 Ok(true) => entries.push(entry),
-                Ok(false) => return entries,
+                Ok(false) => {
+                    // A bit rate the log gives is one CAN has: 1 kbit/s..1 Mbit/s.
+                    for entry in &entries {
+                        if let Some(rate) = reader.bit_rate(&entry.interface) {
+                            assert!(
+                                (1_000..=1_000_000).contains(&rate.bits_per_s),
+                                "{rate:?} for {}",
+                                entry.interface
+                            );
+                        }
+                    }
+                    return entries;
+                }
                 Err(e) => panic!("the writer's own output does not read back: {e}"),
             }
         }

@@ -58,12 +58,14 @@ pub enum OpenError {
     /// The reason's text is part of the message (with a hint when nobody listens).
     #[error("cannot join {url}: {reason}{}", hint(reason))]
     Connect { url: String, reason: ClientError },
-    /// A SocketCAN interface that cannot be opened, with what to do about it.
-    #[error("cannot open {url}: {source}{}", socketcan_hint(source, interface))]
+    /// A SocketCAN interface that cannot be opened, with what to do about it. The reason's
+    /// text is part of the message, before the hint (so it is not also the error's source,
+    /// which a report of the causes would print a second time).
+    #[error("cannot open {url}: {reason}{}", socketcan_hint(reason, interface))]
     SocketCan {
         url: String,
         interface: String,
-        source: io::Error,
+        reason: io::Error,
     },
     /// An SLCAN adapter that cannot be opened or does not answer.
     #[error("cannot open {url}: {source}")]
@@ -85,7 +87,7 @@ pub enum OpenError {
 fn socketcan_hint(e: &io::Error, interface: &str) -> String {
     match e.raw_os_error() {
         Some(libc_enodev) if libc_enodev == ENODEV => format!(
-            " (no interface {interface}: a virtual one is made with `ip link add dev {interface} type vcan && ip link set up {interface}`; a bus served by buslab is vcan0, socketcand://HOST/CHANNEL)"
+            " (no interface {interface} on this machine: buslab's own bus, from `buslab lab` or `buslab bus serve`, is vcan0 or its socketcand://HOST:PORT/CHANNEL URL; a virtual SocketCAN interface is made as root with `ip link add dev {interface} type vcan && ip link set up {interface}`)"
         ),
         Some(no_family) if no_family == EAFNOSUPPORT => " (this kernel has no SocketCAN: load the can and can-raw modules, or use a bus served by `buslab bus serve`)".to_string(),
         _ => String::new(),
@@ -248,10 +250,10 @@ fn open_socketcan(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenErr
     let BusUrl::SocketCan { interface } = url else {
         return Err(wrong_kind(url, "socketcan:IFACE"));
     };
-    let socketcan_error = |source| OpenError::SocketCan {
+    let socketcan_error = |reason| OpenError::SocketCan {
         url: url.to_string(),
         interface: interface.clone(),
-        source,
+        reason,
     };
     let mut bus = crate::socketcan::SocketCanBus::open(interface).map_err(socketcan_error)?;
     tracing::info!("opened {url}");
@@ -440,5 +442,34 @@ fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenEr
             reason,
         }),
         Err(e) => Err(connect(e)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_interface_that_cannot_be_opened_is_named_once_with_what_to_do() {
+        // `buslab dump can0` printed `No such device (os error 19)` twice: once in the
+        // message and once more as its source.
+        for (errno, hint) in [
+            (ENODEV, "ip link add dev can0 type vcan"),
+            (EAFNOSUPPORT, "this kernel has no SocketCAN"),
+        ] {
+            let e = OpenError::SocketCan {
+                url: "socketcan:can0".into(),
+                interface: "can0".into(),
+                reason: io::Error::from_raw_os_error(errno),
+            };
+            assert!(std::error::Error::source(&e).is_none());
+            let text = e.to_string();
+            assert_eq!(
+                text.matches(&format!("(os error {errno})")).count(),
+                1,
+                "{text}"
+            );
+            assert!(text.contains(hint), "{text}");
+        }
     }
 }

@@ -182,6 +182,11 @@ pub enum SpecError {
     Bus(#[from] UrlError),
     #[error(transparent)]
     Filter(#[from] FilterError),
+    /// A filter where the bus should be (`123:7FF` alone, or after `--bus URL`).
+    #[error(
+        "{text:?} is a filter, not a bus: as with candump, a filter follows its bus after a comma: vcan0,{text}, or URL,{text} for a bus given by its URL (--bus takes no filters)"
+    )]
+    FilterWithoutBus { text: String },
 }
 
 impl FromStr for BusSpec {
@@ -190,7 +195,17 @@ impl FromStr for BusSpec {
     /// `NAME[,FILTER…]`.
     fn from_str(text: &str) -> Result<Self, SpecError> {
         let mut parts = text.split(',');
-        let url = resolve(parts.next().unwrap_or_default())?;
+        let name = parts.next().unwrap_or_default();
+        let url = resolve(name).map_err(|e| {
+            // `dump --bus URL 123:7FF`: the filter was given without its bus.
+            if name.parse::<FilterItem>().is_ok() {
+                SpecError::FilterWithoutBus {
+                    text: text.to_string(),
+                }
+            } else {
+                SpecError::Bus(e)
+            }
+        })?;
         let items = parts
             .map(str::parse)
             .collect::<Result<Vec<FilterItem>, _>>()?;
@@ -301,5 +316,31 @@ mod tests {
         }
         let err = "tcp://x,1:1".parse::<BusSpec>().unwrap_err().to_string();
         assert!(err.contains("unknown backend"), "{err}");
+    }
+
+    #[test]
+    fn a_filter_given_without_its_bus_suggests_the_bus_first() {
+        // `buslab dump --bus URL 123:7FF` said `unknown backend "123"`.
+        for (bad, suggested) in [
+            ("123:7FF", "vcan0,123:7FF"),
+            ("~200:700", "vcan0,~200:700"),
+            (
+                "12345678:1FFFFFFF,#FFFFFFFF",
+                "vcan0,12345678:1FFFFFFF,#FFFFFFFF",
+            ),
+        ] {
+            let err = bad.parse::<BusSpec>().unwrap_err();
+            assert!(
+                matches!(err, SpecError::FilterWithoutBus { .. }),
+                "{bad}: {err:?}"
+            );
+            let text = err.to_string();
+            assert!(text.contains("is a filter, not a bus"), "{bad}: {text}");
+            assert!(text.contains(suggested), "{bad}: {text}");
+            assert!(text.contains(&format!("URL,{bad}")), "{bad}: {text}");
+        }
+        // A bus that is wrong for another reason keeps its own error.
+        let err = "tcp://x:1".parse::<BusSpec>().unwrap_err();
+        assert!(matches!(err, SpecError::Bus(_)), "{err:?}");
     }
 }

@@ -13,10 +13,64 @@ pub struct Verbosity {
     /// (RUST_LOG overrides).
     #[arg(short, long, action = clap::ArgAction::Count, global = true)]
     verbose: u8,
-    /// Fewer log lines: errors only (RUST_LOG overrides); `sim` prints only its summary,
-    /// `lab` no status line.
+    /// Fewer log lines: errors only (RUST_LOG overrides).
+    // The commands that also print less say how in their own `-q` help ([`QUIET_HELP`]).
     #[arg(short, long, global = true, conflicts_with = "verbose")]
     quiet: bool,
+}
+
+/// What `-q` does besides the log, for the commands that print less with it: their `-q` help
+/// (the global flag's help is one text for every command; [`quiet_help`] puts these in place).
+pub const QUIET_HELP: &[(&[&str], &str)] = &[
+    (
+        &["lab"],
+        "Fewer log lines: errors only (RUST_LOG overrides); no status line and no `Ctrl-C to stop` (the banner stays)",
+    ),
+    (
+        &["sim"],
+        "Print only the summary, not the trace of frames and errors; errors only in the log (RUST_LOG overrides)",
+    ),
+    (
+        &["log", "convert"],
+        "No progress bar and no summary line; errors only in the log (RUST_LOG overrides)",
+    ),
+    (
+        &["play"],
+        "No summary line at the end; errors only in the log (RUST_LOG overrides)",
+    ),
+    (
+        &["web"],
+        "Fewer log lines: errors only (RUST_LOG overrides); no `Ctrl-C to stop` (the addresses stay)",
+    ),
+    (
+        &["cpu196", "serve"],
+        "Fewer log lines: errors only (RUST_LOG overrides); no `Ctrl-C to stop`",
+    ),
+    (
+        &["cpu196", "monitor"],
+        "Fewer log lines: errors only (RUST_LOG overrides); no `Ctrl-C to stop`",
+    ),
+];
+
+/// `command` with each [`QUIET_HELP`] text on its command's `-q`: that command gets its own
+/// copy of the global flag (clap then leaves the global one out there, and the value reaches
+/// [`Verbosity`] as from the global one). `command` must not be built yet.
+pub fn quiet_help(mut command: clap::Command) -> clap::Command {
+    fn set(command: clap::Command, path: &[&str], quiet: clap::Arg) -> clap::Command {
+        match path {
+            [] => command.arg(quiet),
+            [first, rest @ ..] => command.mut_subcommand(first, |sub| set(sub, rest, quiet)),
+        }
+    }
+    let global = command
+        .get_arguments()
+        .find(|a| a.get_id() == "quiet")
+        .cloned()
+        .expect("the global -q");
+    for (path, help) in QUIET_HELP {
+        command = set(command, path, global.clone().help(*help));
+    }
+    command
 }
 
 impl Verbosity {

@@ -3,7 +3,7 @@
 use std::ffi::OsString;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod cmd;
 mod config;
@@ -85,7 +85,8 @@ fn main() -> ExitCode {
     // The configuration first: options take their defaults from it.
     let args: Vec<OsString> = std::env::args_os().collect();
     config::init(&config::Lookup::scan(&args));
-    let cli = Cli::parse_from(args);
+    let cli = Cli::from_arg_matches(&command().get_matches_from(args))
+        .unwrap_or_else(|e| e.format(&mut command()).exit());
     let chatty = matches!(
         &cli.command,
         Command::Bus(cmd::bus::Args {
@@ -108,6 +109,11 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The command line's definition: the derived one, each `-q` with its own command's help.
+fn command() -> clap::Command {
+    logging::quiet_help(Cli::command())
 }
 
 /// The error and its causes on one line, `a: b: c`. A cause whose text the message already
@@ -141,7 +147,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Wire(args) => cmd::wire::run(args),
         Command::Sim(args) => cmd::sim::run(args, quiet),
         Command::Zelle(args) => cmd::zelle::run(args),
-        Command::Cpu196(args) => cmd::cpu196::run(args),
+        Command::Cpu196(args) => cmd::cpu196::run(args, quiet),
         Command::Bus(args) => cmd::bus::run(args),
         Command::Dump(args) => cmd::dump::run(args),
         Command::Send(args) => cmd::send::run(args),
@@ -158,7 +164,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sendfile(args) => cmd::sendfile::run(args),
         Command::Mail(args) => cmd::mail::run(args),
         Command::Recvfile(args) => cmd::recvfile::run(args),
-        Command::Web(args) => cmd::web::run(args),
+        Command::Web(args) => cmd::web::run(args, quiet),
         Command::Monitor(args) => cmd::monitor::run(args),
         Command::Config(args) => cmd::config::run(args),
     }
@@ -201,7 +207,49 @@ mod tests {
 
 #[cfg(test)]
 mod help_tests {
-    use clap::CommandFactory;
+    /// `-q`'s help in `buslab PATH --help`.
+    fn quiet_help(path: &[&str]) -> String {
+        let mut command = super::command();
+        command.build();
+        for name in path {
+            command = command.find_subcommand(name).unwrap().clone();
+        }
+        let quiet = command.get_arguments().find(|a| a.get_id() == "quiet");
+        quiet.unwrap().get_help().unwrap().to_string()
+    }
+
+    /// Every subcommand's `-q` help mentioned `sim` and `lab`.
+    #[test]
+    fn each_commands_quiet_help_says_what_it_does_there() {
+        for path in [
+            &["dump"][..],
+            &["bus", "serve"],
+            &["log", "info"],
+            &["cpu196", "info"],
+        ] {
+            assert_eq!(
+                quiet_help(path),
+                "Fewer log lines: errors only (RUST_LOG overrides)",
+                "{path:?}"
+            );
+        }
+        assert!(quiet_help(&["lab"]).contains("no status line"));
+        assert!(quiet_help(&["sim"]).contains("only the summary"));
+        assert!(quiet_help(&["log", "convert"]).contains("No progress bar"));
+        assert!(quiet_help(&["web"]).contains("no `Ctrl-C to stop`"));
+        assert!(quiet_help(&["cpu196", "serve"]).contains("no `Ctrl-C to stop`"));
+        for (path, _) in crate::logging::QUIET_HELP {
+            assert!(!quiet_help(path).contains("`sim`"), "{path:?}");
+        }
+        // The flag still works where its help differs, before and after the subcommand.
+        for args in [
+            &["buslab", "-q", "sim", "x.toml"][..],
+            &["buslab", "sim", "-q", "x.toml"],
+        ] {
+            let m = super::command().try_get_matches_from(args).unwrap();
+            assert!(m.get_flag("quiet"), "{args:?}");
+        }
+    }
 
     /// Every argument of every subcommand explains itself in `--help`.
     #[test]
@@ -224,7 +272,7 @@ mod help_tests {
             }
         }
         let mut missing = Vec::new();
-        let cli = super::Cli::command();
+        let cli = super::command();
         // clap's own consistency checks on every subcommand (they otherwise fire only when a
         // user runs that subcommand).
         cli.clone().debug_assert();

@@ -10,6 +10,12 @@
 
 use std::time::Duration;
 
+/// An 11-bit CAN identifier as help texts show it (`0x700`, `0x000`): hex, as the bus
+/// commands print identifiers, and read back by the options' parsers.
+pub fn hex_id(id: u16) -> String {
+    format!("0x{id:03X}")
+}
+
 /// The parser lives with the configuration file's (its durations are the command line's).
 pub use buslab_config::duration::{MAX_DURATION, duration};
 

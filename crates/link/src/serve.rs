@@ -54,14 +54,24 @@ pub fn serve<D: ByteDevice>(
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
 ) -> io::Result<()> {
-    serve_with(device, pty, line, control, stop, &mut |_, _, _| {})
+    serve_with(
+        "the device",
+        device,
+        pty,
+        line,
+        control,
+        stop,
+        &mut |_, _, _| {},
+    )
 }
 
 /// [`serve`], calling `after_poll(device, now, output)` each time the device has been polled,
 /// before the bytes it produced go to the client; `output` says whether it produced any (where
 /// an adapter takes snapshots to persist, and syncs its journal before an acknowledgement
-/// leaves).
+/// leaves). `name` names the device in the warnings about lost bytes (`monican`): a process
+/// may serve several.
 pub(crate) fn serve_with<D: ByteDevice>(
+    name: &str,
     device: &mut D,
     pty: &Pty,
     line: LineSettings,
@@ -69,15 +79,22 @@ pub(crate) fn serve_with<D: ByteDevice>(
     stop: &AtomicBool,
     after_poll: &mut dyn FnMut(&mut D, u64, bool),
 ) -> io::Result<()> {
-    let mut losses = Losses::default();
+    let mut losses = Losses {
+        device: format!("{name} on {}", pty.path().display()),
+        ..Losses::default()
+    };
     let result = serve_loop(device, pty, line, control, stop, after_poll, &mut losses);
-    losses.summarise(line);
+    for warning in losses.summary(line) {
+        tracing::warn!("{warning}");
+    }
     result
 }
 
 /// What the line lost, for one warning each and a summary at the end.
 #[derive(Default)]
 struct Losses {
+    /// The device and its PTY, as the warnings name them (`monican on /dev/pts/3`).
+    device: String,
     /// Bytes from a client at other settings (framing errors), and the last such settings.
     garbled: u64,
     peer: Option<LineSettings>,
@@ -89,8 +106,9 @@ impl Losses {
     fn garbled(&mut self, n: usize, peer: LineSettings, line: LineSettings) {
         if self.garbled == 0 {
             tracing::warn!(
-                "the client's port is set to {peer}, the device expects {line}; its bytes are \
-                 lost as framing errors"
+                "{}: the client's port is set to {peer}, the device expects {line}; its bytes \
+                 are lost as framing errors",
+                self.device
             );
         }
         self.garbled += n as u64;
@@ -100,27 +118,31 @@ impl Losses {
     fn overflowed(&mut self, n: usize) {
         if self.overflowed == 0 {
             tracing::warn!(
-                "the client does not read; the device's output beyond {MAX_OUTBOUND} waiting \
-                 bytes is lost"
+                "{}: the client does not read; the device's output beyond {MAX_OUTBOUND} \
+                 waiting bytes is lost",
+                self.device
             );
         }
         self.overflowed += n as u64;
     }
 
-    fn summarise(&self, line: LineSettings) {
+    /// The warnings when serving ends, one per kind of loss.
+    fn summary(&self, line: LineSettings) -> Vec<String> {
+        let mut warnings = Vec::new();
         if let Some(peer) = self.peer {
-            tracing::warn!(
-                "{} bytes from the client were lost as framing errors (client at {peer}, \
+            warnings.push(format!(
+                "{}: {} bytes from the client were lost as framing errors (client at {peer}, \
                  device at {line})",
-                self.garbled
-            );
+                self.device, self.garbled
+            ));
         }
         if self.overflowed > 0 {
-            tracing::warn!(
-                "{} bytes of the device's output were lost: the client did not read them",
-                self.overflowed
-            );
+            warnings.push(format!(
+                "{}: {} bytes of the device's output were lost: the client did not read them",
+                self.device, self.overflowed
+            ));
         }
+        warnings
     }
 }
 
@@ -338,7 +360,32 @@ fn flush(pty: &Pty, outbound: &mut VecDeque<u8>) -> io::Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::Arrivals;
+    use super::{Arrivals, LineSettings, Losses};
+
+    #[test]
+    fn the_warnings_about_lost_bytes_name_the_device() {
+        // `WARN 8264 bytes of the device's output were lost` did not say which device: the
+        // lab serves three.
+        let mut losses = Losses {
+            device: "monican on /dev/pts/3".into(),
+            ..Losses::default()
+        };
+        losses.overflowed(8264);
+        losses.garbled(5, LineSettings::n81(9600), LineSettings::n81(19_200));
+        let warnings = losses.summary(LineSettings::n81(19_200));
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[0].starts_with("monican on /dev/pts/3: 5 bytes from the client were lost"),
+            "{}",
+            warnings[0]
+        );
+        assert!(
+            warnings[1]
+                .starts_with("monican on /dev/pts/3: 8264 bytes of the device's output were lost"),
+            "{}",
+            warnings[1]
+        );
+    }
 
     #[test]
     fn bytes_follow_each_other_at_line_rate_from_when_they_were_read() {

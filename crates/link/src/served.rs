@@ -127,7 +127,8 @@ impl<D: ByteDevice + Send + 'static> Serve<D> {
         }
         let path = pty.path().to_path_buf();
         let mut device = device;
-        let saver = match persistence {
+        // The saver thread and the journal, when the state is kept in a file.
+        let keeping = match persistence {
             Some(p) => {
                 // The device was built from the state file with its journals replayed: what
                 // it holds now is everything, and older changes are not journaled again.
@@ -152,24 +153,24 @@ impl<D: ByteDevice + Send + 'static> Serve<D> {
             }
             None => None,
         };
-        let (saver, writer) = match saver {
-            Some((saver, writer)) => (Some(saver), Some(writer)),
-            None => (None, None),
-        };
+        let handle_saver = keeping.as_ref().map(|(saver, _)| saver.clone());
         let (control, control_rx) = channel::<Control<D>>();
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
             let stop = stop.clone();
-            let saver = saver.clone();
+            let name = name.clone();
             std::thread::Builder::new()
                 .name(format!("{name}-serve"))
-                .spawn(move || run(device, pty, line, &control_rx, &stop, saver, writer))
+                .spawn(move || run(&name, device, pty, line, &control_rx, &stop, keeping))
                 .map_err(ServedError::Serve)?
         };
         tracing::info!(device = %name, pty = %path.display(), "serving at {line}");
         Ok(Served {
             path,
-            handle: Handle { control, saver },
+            handle: Handle {
+                control,
+                saver: handle_saver,
+            },
             stop,
             thread: Some(thread),
         })
@@ -196,22 +197,23 @@ impl<D: ByteDevice + Persistent + Send + 'static> Serve<D> {
 /// The serve thread: paces the device, journals its changes, takes snapshots when its state
 /// changed, saves it at the end.
 fn run<D: ByteDevice>(
+    name: &str,
     mut device: D,
     pty: Pty,
     line: LineSettings,
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
-    saver: Option<Saver<D>>,
-    writer: Option<journal::Writer>,
+    keeping: Option<(Saver<D>, journal::Writer)>,
 ) -> Result<(), ServedError> {
-    let mut keeper = saver.map(|saver| Keeper {
+    let mut keeper = keeping.map(|(saver, writer)| Keeper {
         saver,
-        writer,
+        writer: Some(writer),
         next_look: 0,
         must_save: false,
         failing: false,
     });
     let result = serve_with(
+        name,
         &mut device,
         &pty,
         line,

@@ -26,8 +26,10 @@
 //! The reader takes `base hex|dec`, `timestamps absolute|relative`, the dates of log2asc,
 //! python-can and Vector (English or German, am/pm), classic frames in `CANFD` lines, remote
 //! frames with or without a DLC, a classic DLC of 9..15 (8 data bytes, as CAN has it), the
-//! `Length = … BitCount = … ID = …` fields CANoe writes after a frame (their values are not
-//! kept), and skips the events it does not know (statistics, status, J1939, comments).
+//! `Length = … BitCount = … ID = …` fields CANoe writes after a frame (the lengths, the
+//! frames' time on the wire in nanoseconds, give the channel's bit rate:
+//! [`LogReader::bit_rate`]), and skips the events it does not know (statistics, status, J1939,
+//! comments).
 
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
@@ -36,7 +38,9 @@ use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
 use buslab_canbus::error_frame::CanError;
 
-use crate::channel::{ChannelMap, set_channel_name};
+use crate::LogBitRate;
+use crate::bitrate::FrameLengths;
+use crate::channel::{ChannelMap, channel_of, set_channel_name};
 use crate::error::{Problem, ReadError, excerpt};
 use crate::file::{Encoder, LogReader};
 use crate::text::{self, Lines, TooLong, field};
@@ -70,6 +74,8 @@ struct State {
     last: Duration,
     /// The error frame of a `// buslab error-frame` comment, for the `ErrorFrame` line after it.
     error_frame: Option<ErrorFrame>,
+    /// The frames' lengths on the wire (`Length = …`), per channel.
+    lengths: FrameLengths,
 }
 
 impl<R: BufRead> Reader<R> {
@@ -84,6 +90,7 @@ impl<R: BufRead> Reader<R> {
                 exact: None,
                 last: Duration::ZERO,
                 error_frame: None,
+                lengths: FrameLengths::default(),
             },
         }
     }
@@ -219,6 +226,10 @@ impl State {
         } else {
             self.start() + offset
         };
+        if let (Record::Frame(frame), Some(ns)) = (&record, after_key(line, b"Length = ")) {
+            let bits = after_key(line, b"BitCount = ");
+            self.lengths.add(channel, frame, ns, bits);
+        }
         set_channel_name(&mut entry.interface, channel);
         entry.record = record;
         entry.direction = direction;
@@ -376,6 +387,14 @@ fn error_comment(text: &[u8]) -> Result<ErrorFrame, Problem> {
     }
 }
 
+/// A number CANoe writes after a frame: `Length = N` (its time on the wire in nanoseconds) or
+/// `BitCount = N`; 0 (not measured) is none.
+fn after_key(line: &[u8], key: &[u8]) -> Option<u64> {
+    let at = line.windows(key.len()).position(|w| w == key)? + key.len();
+    let (value, _) = field(&line[at..]);
+    text::dec_u64(value).filter(|&n| n > 0)
+}
+
 fn channel_number(text: &[u8]) -> Result<u16, Problem> {
     text::dec_u64(text)
         .and_then(|c| u16::try_from(c).ok())
@@ -471,6 +490,9 @@ fn classify(line: &[u8]) -> Kind<'_> {
 impl<R: BufRead + Send> LogReader for Reader<R> {
     fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
+    }
+    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
+        self.state.lengths.rate(channel_of(interface)?)
     }
 }
 

@@ -9,7 +9,9 @@
 //! Read: CAN_MESSAGE (1) and CAN_MESSAGE2 (86) as frames, CAN_ERROR_EXT (73) as error frames
 //! (the ID as the SocketCAN error class and the data bytes, as python-can writes them),
 //! CAN_ERROR (2) as a bus error, classic frames in CAN_FD_MESSAGE (100) and
-//! CAN_FD_MESSAGE_64 (101) objects; other objects are skipped. Written: CAN_MESSAGE and
+//! CAN_FD_MESSAGE_64 (101) objects; other objects are skipped. The frame length CAN_MESSAGE2
+//! and CAN_FD_MESSAGE carry (the frame's time on the wire, ns) gives the channel's bit rate
+//! ([`LogReader::bit_rate`]). Written: CAN_MESSAGE and
 //! CAN_ERROR_EXT in zlib containers (level 1) of about 128 KiB (python-can's size), nanosecond times
 //! from the first entry's millisecond. The header is written at creation and rewritten at each
 //! flush, so a writer killed at any moment leaves a file that reads up to its last whole object
@@ -23,12 +25,13 @@ use buslab_canbus::ErrorFrame;
 use flate2::{Compress, Compression, Decompress, FlushCompress, FlushDecompress, Status};
 
 use crate::asc::error_frame as bus_error;
-use crate::channel::{ChannelMap, set_channel_name};
+use crate::bitrate::FrameLengths;
+use crate::channel::{ChannelMap, channel_of, set_channel_name};
 use crate::error::{Problem, ReadError};
 use crate::file::{Encoder, LogReader};
 use crate::pcap::{read_full, truncated};
 use crate::time;
-use crate::{Direction, Entry, Location, Record};
+use crate::{Direction, Entry, Location, LogBitRate, Record};
 
 const FILE_SIGNATURE: &[u8; 4] = b"LOGG";
 const OBJ_SIGNATURE: &[u8; 4] = b"LOBJ";
@@ -89,6 +92,8 @@ pub struct Reader<R> {
     /// The error to give once the objects before a cut are read.
     cut: Option<ReadError>,
     done: bool,
+    /// The frames' lengths on the wire, per channel.
+    lengths: FrameLengths,
 }
 
 impl<R: Read> Reader<R> {
@@ -104,6 +109,7 @@ impl<R: Read> Reader<R> {
             object: Vec::new(),
             cut: None,
             done: false,
+            lengths: FrameLengths::default(),
         }
     }
 
@@ -265,6 +271,17 @@ impl<R: Read> Reader<R> {
         let Some((channel, record, direction)) = decoded.map_err(|p| ReadError::bad(at, p))? else {
             return Ok(Some(false));
         };
+        // CAN_MESSAGE2: frame length u32 and bit count u8 after the data; CAN_FD_MESSAGE:
+        // after the ID.
+        let length = match ty {
+            CAN_MESSAGE2 if body.len() >= 21 => Some((u32_at(body, 16), body[20])),
+            CAN_FD_MESSAGE => Some((u32_at(body, 8), body[12])),
+            _ => None,
+        };
+        if let (Record::Frame(frame), Some((ns, bits))) = (&record, length) {
+            let bits = (bits > 0).then_some(u64::from(bits));
+            self.lengths.add(channel, frame, u64::from(ns), bits);
+        }
         entry.timestamp = self.start + since_start;
         set_channel_name(&mut entry.interface, channel);
         entry.record = record;
@@ -512,6 +529,9 @@ impl<R: Read + Send> LogReader for Reader<R> {
     fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
+    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
+        self.lengths.rate(channel_of(interface)?)
+    }
 }
 
 /// Writes a BLF file whose every state on disk reads: the header is valid from creation and
@@ -754,5 +774,64 @@ impl<W: Write + Seek + Send> Encoder<W> for Writer<W> {
     }
     fn finish(self) -> io::Result<W> {
         Writer::finish(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BitRateSource;
+
+    /// A CAN_MESSAGE2 object (header version 1, ns) with `frame` on `channel`, recorded as
+    /// taking `length_ns` on the wire.
+    fn message2(channel: u16, frame: &Frame, length_ns: u32) -> Vec<u8> {
+        let mut o = Vec::new();
+        o.extend_from_slice(OBJ_SIGNATURE);
+        o.extend_from_slice(&32u16.to_le_bytes());
+        o.extend_from_slice(&1u16.to_le_bytes());
+        o.extend_from_slice(&56u32.to_le_bytes());
+        o.extend_from_slice(&CAN_MESSAGE2.to_le_bytes());
+        o.extend_from_slice(&TIME_ONE_NANS.to_le_bytes());
+        o.extend_from_slice(&[0; 4]);
+        o.extend_from_slice(&1_000u64.to_le_bytes());
+        o.extend_from_slice(&channel.to_le_bytes());
+        o.push(0);
+        o.push(frame.dlc());
+        o.extend_from_slice(&frame.id().as_raw().to_le_bytes());
+        let mut data = [0u8; 8];
+        data[..frame.payload().len()].copy_from_slice(frame.payload());
+        o.extend_from_slice(&data);
+        o.extend_from_slice(&length_ns.to_le_bytes());
+        o.extend_from_slice(&[0; 4]);
+        o
+    }
+
+    #[test]
+    fn can_message2_frame_lengths_give_the_channels_bit_rate() {
+        let frame: Frame = "6F9#050C000000000000".parse().unwrap();
+        let mut reader = Reader::new(io::empty());
+        // 120 bits: 240 µs at 500 kbit/s on channel 1, 960 µs at 125 kbit/s on channel 2; a
+        // length of 0 (not measured) on channel 3.
+        reader.data = [
+            message2(1, &frame, 240_000),
+            message2(2, &frame, 960_000),
+            message2(3, &frame, 0),
+        ]
+        .concat();
+        let mut entry = Entry::default();
+        for _ in 0..3 {
+            assert_eq!(reader.next_object(&mut entry).unwrap(), Some(true));
+        }
+        let rate = |name: &str| LogReader::bit_rate(&reader, name);
+        assert_eq!(
+            rate("can0"),
+            Some(LogBitRate {
+                bits_per_s: 500_000,
+                source: BitRateSource::FrameLengths
+            })
+        );
+        assert_eq!(rate("can1").unwrap().bits_per_s, 125_000);
+        assert_eq!(rate("can2"), None);
+        assert_eq!(rate("vcan0"), None);
     }
 }

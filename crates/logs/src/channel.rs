@@ -62,6 +62,16 @@ pub fn channel_name(channel: u16) -> String {
     format!("can{}", channel.saturating_sub(1))
 }
 
+/// The channel number an interface name read back from a numbered format stands for: `can0`
+/// is 1 (the inverse of [`channel_name`]); `None` for a name no reader gives.
+pub(crate) fn channel_of(interface: &str) -> Option<u16> {
+    let digits = interface.strip_prefix("can")?;
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse::<u16>().ok()?.checked_add(1)
+}
+
 /// Writes [`channel_name`] into `out`, reusing its allocation.
 pub(crate) fn set_channel_name(out: &mut String, channel: u16) {
     use std::fmt::Write as _;

@@ -13,7 +13,7 @@ use tempfile::TempPath;
 use crate::error::{LogError, ReadError};
 use crate::follow::{Following, Watch};
 use crate::format::Format;
-use crate::{Entry, asc, blf, candump, csv, pcap, pcapng, sqlite, trc};
+use crate::{Entry, LogBitRate, asc, blf, candump, csv, pcap, pcapng, sqlite, trc};
 
 /// The read buffer of a log file.
 pub(crate) const READ_BUFFER: usize = 256 * 1024;
@@ -27,11 +27,21 @@ pub trait LogReader: Send {
     /// [fatal](ReadError::is_fatal) the next call goes on with the next record; after a fatal
     /// one it returns `Ok(false)`.
     fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError>;
+    /// The bus's bit rate the log gives for `interface` in what was read so far: its header
+    /// names it (TRC) or its frames carry their length on the wire (ASC, BLF). `None` when it
+    /// does not say (candump, CSV, SQLite and pcap logs never do).
+    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
+        let _ = interface;
+        None
+    }
 }
 
 impl<R: LogReader + ?Sized> LogReader for Box<R> {
     fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
         (**self).read_into(entry)
+    }
+    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
+        (**self).bit_rate(interface)
     }
 }
 
@@ -276,6 +286,9 @@ impl<R: LogReader> LogReader for Named<R> {
         self.inner
             .read_into(entry)
             .map_err(|e| e.in_file(&self.path))
+    }
+    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
+        self.inner.bit_rate(interface)
     }
 }
 

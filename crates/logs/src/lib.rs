@@ -25,6 +25,7 @@ use buslab_can::Frame;
 use buslab_canbus::{BusEvent, ErrorFrame, ErrorMessage, Message};
 
 pub mod asc;
+mod bitrate;
 pub mod blf;
 pub mod candump;
 mod channel;
@@ -41,6 +42,7 @@ pub mod text;
 mod time;
 pub mod trc;
 
+pub use bitrate::{BitRateSource, LogBitRate};
 pub use channel::{ChannelMap, channel_name};
 pub use error::{Location, LogError, Problem, ReadError};
 pub use file::{

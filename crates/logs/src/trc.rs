@@ -23,14 +23,18 @@
 //! writes it with 15 decimals, the first entry's time to the nanosecond. IDs have 4 hex digits
 //! (standard) or 8 (extended). The writer leaves error frames out (TRC's error records are
 //! not SocketCAN's; python-can leaves them out too), counted by `left_out`. The reader takes
-//! versions 1.0 to 2.1 and skips status, error-counter and event records.
+//! versions 1.0 to 2.1 and skips status, error-counter and event records. The bit rates of a
+//! PCAN-View header's connection table (`;   1    Connection1   TestNet@pcan_usb   CAN   500
+//! kBit/s`) are the buses' ([`LogReader::bit_rate`]).
 
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
 
 use buslab_can::{Frame, Id};
 
-use crate::channel::{ChannelMap, set_channel_name};
+use crate::LogBitRate;
+use crate::bitrate::HeaderRates;
+use crate::channel::{ChannelMap, channel_of, set_channel_name};
 use crate::error::{Problem, ReadError, excerpt};
 use crate::file::{Encoder, LogReader};
 use crate::text::{self, Lines, TooLong, field};
@@ -66,6 +70,8 @@ pub struct Reader<R> {
 struct State {
     layout: Layout,
     start: Duration,
+    /// The bit rates of the header's connection table.
+    rates: HeaderRates,
 }
 
 impl<R: BufRead> Reader<R> {
@@ -75,6 +81,7 @@ impl<R: BufRead> Reader<R> {
             state: State {
                 layout: Layout::V1_0,
                 start: Duration::ZERO,
+                rates: HeaderRates::default(),
             },
         }
     }
@@ -121,6 +128,7 @@ impl State {
     fn header(&mut self, comment: &[u8]) {
         let text = String::from_utf8_lossy(comment);
         let Some((key, value)) = text.trim().split_once('=') else {
+            self.rates.comment(&text);
             return;
         };
         match key.trim() {
@@ -299,6 +307,9 @@ impl State {
 impl<R: BufRead + Send> LogReader for Reader<R> {
     fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
+    }
+    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
+        self.state.rates.rate(channel_of(interface)?)
     }
 }
 

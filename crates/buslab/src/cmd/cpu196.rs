@@ -431,7 +431,8 @@ fn baud(s: &str) -> Result<u32, String> {
     }
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// `quiet` (the global `-q`): no `Ctrl-C to stop`.
+pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     if let Cmd::Serve(s) = &args.command {
         if args.port.is_some() || args.baud.is_some() || args.timeout.is_some() || args.yes {
             bail!(
@@ -439,7 +440,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                  makes its own port and takes its own --baud"
             );
         }
-        return serve(s);
+        return serve(s, quiet);
     }
     let baud = args.baud.unwrap_or(DEFAULT_BAUD);
     let path = args
@@ -477,7 +478,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 pic_ad: false,
                 pic_timer: false,
             });
-            monitor(&mut c, files.as_deref(), record.as_deref(), duration, start)
+            monitor(
+                &mut c,
+                files.as_deref(),
+                record.as_deref(),
+                duration,
+                start,
+                quiet,
+            )
         }
         Cmd::Start(s) => {
             start(&mut c, s)?;
@@ -588,7 +596,7 @@ fn bar(len: u64, what: &str) -> ProgressBar {
     pb
 }
 
-fn serve(s: &ServeArgs) -> anyhow::Result<()> {
+fn serve(s: &ServeArgs, quiet: bool) -> anyhow::Result<()> {
     // Before the PTY and its link exist (see `zelle serve`).
     let stopped = super::stop_requests()?;
     let mut inputs = Inputs::default();
@@ -610,8 +618,9 @@ fn serve(s: &ServeArgs) -> anyhow::Result<()> {
         say!("{}", l.display());
     }
     eprintln!(
-        "CPU196 board model serving at {} baud 8N1; Ctrl-C to stop",
-        s.baud
+        "CPU196 board model serving at {} baud 8N1{}",
+        s.baud,
+        if quiet { "" } else { "; Ctrl-C to stop" }
     );
     std::io::stdout().flush().ok();
     // The kernel's log (what it refused and why), as it comes. A serve thread that ended (an
@@ -633,6 +642,7 @@ fn monitor<P: Port>(
     record: Option<&Path>,
     duration: Option<Duration>,
     start: Option<StartArgs>,
+    quiet: bool,
 ) -> anyhow::Result<()> {
     let files = match files {
         Some(d) => Some(Box::new(
@@ -657,7 +667,7 @@ fn monitor<P: Port>(
     };
     let mut session = Monitor::new(files, recorder, c.now());
     let mut out = String::new();
-    say!("monitoring; Ctrl-C to stop");
+    say!("monitoring{}", if quiet { "" } else { "; Ctrl-C to stop" });
     if let Some(s) = start {
         let started = session.start(c, s.word()).with_context(|| s.context())?;
         let without_ad = if started.ad196() == s.word().ad196() {

@@ -24,6 +24,10 @@ use super::busopt::{BusOpt, open};
 use super::transfer;
 use crate::units::Human;
 
+/// `--id`'s default (the configuration's `loader_id`), in hex as help shows identifiers.
+static DEFAULT_ID: std::sync::LazyLock<String> =
+    std::sync::LazyLock::new(|| crate::units::hex_id(crate::config::get().loader_id));
+
 #[derive(clap::Args)]
 pub struct Args {
     /// The S-record file (S19/S28/S37 and the other kinds; .s29 as the seed's).
@@ -32,7 +36,7 @@ pub struct Args {
     pub bus: BusOpt,
     /// The loader's identifier (JerryCAN's `idloader`, `loader_id` in buslab.toml; hex with
     /// 0x, or decimal).
-    #[arg(long, value_name = "N", default_value_t = crate::config::get().loader_id, value_parser = parse_loader_id)]
+    #[arg(long, value_name = "N", default_value = DEFAULT_ID.as_str(), value_parser = parse_loader_id)]
     pub id: u16,
     /// How long to wait for the loader's answer (`2s`, `500ms`).
     #[arg(long, value_name = "DURATION", default_value = "5s", value_parser = crate::units::duration)]

@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use buslab_logs::{
-    Entry, Format, LogSource, LogWriter, OpenOptions, ReadError, Record, candump, create_writer,
-    create_writer_atomic, open_source,
+    Entry, Format, LogBitRate, LogSource, LogWriter, OpenOptions, ReadError, Record, candump,
+    create_writer, create_writer_atomic, open_source,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -73,9 +73,11 @@ pub struct ConvertArgs {
 pub struct InfoArgs {
     #[command(flatten)]
     pub input: Input,
-    /// The bit rate the load is estimated for, in bit/s.
-    #[arg(long, value_name = "BIT/S", default_value_t = 500_000)]
-    pub bitrate: u32,
+    /// The bus's bit rate, for the load: by default the one the log gives (a TRC header's,
+    /// or from the frame lengths ASC and BLF loggers record), else 500 kbit/s, said as an
+    /// assumption.
+    #[arg(long, value_name = "BIT/S", value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
+    pub bitrate: Option<u32>,
     /// Also draw the bus load over time, per interface, as an SVG figure.
     #[arg(long, value_name = "FILE.svg")]
     pub plot: Option<PathBuf>,
@@ -417,16 +419,17 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
             Human(last - first)
         )?;
     }
+    let mut rates = Vec::new();
     for (name, s) in &per {
         let span = s.last.unwrap_or_default() - s.first.unwrap_or_default();
+        let rate = BitRate::choose(args.bitrate, source.reader.bit_rate(name));
+        rates.push(rate.bits_per_s());
         let load = if span.is_zero() {
             "n/a (one instant)".to_string()
         } else {
-            format!(
-                "{:.1} % at {} kbit/s",
-                100.0 * s.bits as f64 / (span.as_secs_f64() * f64::from(args.bitrate.max(1))),
-                f64::from(args.bitrate) / 1000.0
-            )
+            let percent =
+                100.0 * s.bits as f64 / (span.as_secs_f64() * f64::from(rate.bits_per_s()));
+            rate.load_text(percent)
         };
         let mut busiest: Vec<(&(bool, u32), &u64)> = s.ids.iter().collect();
         busiest.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
@@ -456,14 +459,73 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
         }
     }
     if let (Some(load), Some(plot)) = (load, &args.plot) {
-        let title = format!(
-            "{}: bus load at {} kbit/s",
-            path.display(),
-            f64::from(args.bitrate) / 1000.0
-        );
-        super::plot::write(&load.figure(title, args.bitrate), plot)?;
+        // One rate for the figure: the interfaces' own when they agree.
+        rates.dedup();
+        let bitrate = match rates[..] {
+            [one] => one,
+            _ => args.bitrate.unwrap_or(ASSUMED_BITRATE),
+        };
+        let title = format!("{}: bus load at {}", path.display(), kbit(bitrate));
+        super::plot::write(&load.figure(title, bitrate), plot)?;
     }
     Ok(())
+}
+
+/// The bit rate `log info` assumes when neither the log nor `--bitrate` gives one.
+const ASSUMED_BITRATE: u32 = 500_000;
+
+/// The bit rate an interface's load is computed at, and why that one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum BitRate {
+    /// `--bitrate`, and what the log says if it says something else.
+    Given { given: u32, log: Option<LogBitRate> },
+    /// The log's own.
+    Log(LogBitRate),
+    /// Neither: [`ASSUMED_BITRATE`].
+    Assumed,
+}
+
+impl BitRate {
+    fn choose(given: Option<u32>, log: Option<LogBitRate>) -> Self {
+        match (given, log) {
+            (Some(given), log) => BitRate::Given { given, log },
+            (None, Some(log)) => BitRate::Log(log),
+            (None, None) => BitRate::Assumed,
+        }
+    }
+
+    fn bits_per_s(self) -> u32 {
+        match self {
+            BitRate::Given { given, .. } => given,
+            BitRate::Log(log) => log.bits_per_s,
+            BitRate::Assumed => ASSUMED_BITRATE,
+        }
+    }
+
+    /// `17.1 % at 125 kbit/s (the log's header)`, or the assumption said as one.
+    fn load_text(self, percent: f64) -> String {
+        let at = kbit(self.bits_per_s());
+        match self {
+            BitRate::Given { log: Some(log), .. } if log.bits_per_s != self.bits_per_s() => {
+                format!(
+                    "{percent:.1} % at {at} (--bitrate; {} says {})",
+                    log.source,
+                    kbit(log.bits_per_s)
+                )
+            }
+            BitRate::Given { .. } => format!("{percent:.1} % at {at} (--bitrate)"),
+            BitRate::Log(log) => format!("{percent:.1} % at {at} ({})", log.source),
+            BitRate::Assumed => format!(
+                "{percent:.1} % if the bus ran at {at} (the log does not give its bit rate: \
+                 --bitrate N says it)"
+            ),
+        }
+    }
+}
+
+/// `125 kbit/s`, `83.333 kbit/s`, `1000 kbit/s`.
+fn kbit(bits_per_s: u32) -> String {
+    format!("{} kbit/s", f64::from(bits_per_s) / 1000.0)
 }
 
 fn seconds(t: Duration) -> String {

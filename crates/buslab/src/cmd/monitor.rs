@@ -4,16 +4,21 @@
 //! viewers). The model is `buslab_view::BusView`, as for `buslab web`; this adapter owns the
 //! terminal (raw mode and the alternate screen, restored on every way out), the keys and the
 //! bus.
+//!
+//! No backend hands a client its own frames (socketcand, SocketCAN without
+//! `CAN_RAW_RECV_OWN_MSGS`, SLCAN), so the frames the monitor sends (`s`) go into the view
+//! when the bus takes them, marked `TX` in the log as `candump -x` marks the host's own.
 
+use std::collections::VecDeque;
 use std::io::{IsTerminal, Stdout};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, TryRecvError};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::{Context, bail};
 use buslab_backends::DynBus;
 use buslab_can::Frame;
-use buslab_canbus::{NodeRef, NodeStatus};
+use buslab_canbus::{Message, NodeRef, NodeStatus};
 use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
 use ratatui::Terminal;
 use ratatui::backend::CrosstermBackend;
@@ -40,6 +45,8 @@ const ESC: u8 = 0x1B;
 const REDRAW: Duration = Duration::from_millis(100);
 /// Node statuses are asked for this often.
 const STATUS_EVERY: Duration = Duration::from_millis(250);
+/// Frames the log shows at most (the newest).
+const LOG_LINES: usize = 200;
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     if !std::io::stdin().is_terminal() || !std::io::stdout().is_terminal() {
@@ -84,6 +91,9 @@ struct Monitor {
     entry: Option<(Entry, String)>,
     message: String,
     selected: usize,
+    /// The frames this monitor sent that the log may still show (time and frame), to mark
+    /// them `TX`.
+    sent: VecDeque<(f64, Frame)>,
 }
 
 impl Monitor {
@@ -102,6 +112,7 @@ impl Monitor {
             entry: None,
             message: String::new(),
             selected: 0,
+            sent: VecDeque::new(),
         }
     }
 
@@ -142,9 +153,17 @@ impl Monitor {
                 if !self.paused {
                     self.shown_log = self
                         .view
-                        .log_tail(&self.filter, 200)
+                        .log_tail(&self.filter, LOG_LINES)
                         .into_iter()
-                        .map(|e| format!("{:>17.6}  {}", e.time, e.frame))
+                        .map(|e| {
+                            let own = self.sent.contains(&(e.time, e.raw));
+                            format!(
+                                "{:>17.6}  {}{}",
+                                e.time,
+                                e.frame,
+                                if own { "  TX" } else { "" }
+                            )
+                        })
                         .collect();
                 }
                 terminal
@@ -217,13 +236,35 @@ impl Monitor {
             Entry::Send => match text.parse::<Frame>() {
                 Ok(frame) => {
                     self.message = match bus.send(&frame) {
-                        Ok(()) => format!("sent {frame}"),
+                        Ok(()) => {
+                            self.show_sent(frame);
+                            format!("sent {frame}")
+                        }
                         Err(e) => format!("cannot send {frame}: {e}"),
                     }
                 }
                 Err(e) => self.message = format!("frame {text:?}: {e}"),
             },
         }
+    }
+
+    /// A frame the bus took from this monitor, in the table and the log as the bus carries it.
+    fn show_sent(&mut self, frame: Frame) {
+        // Wall-clock seconds, as the frames received from a live bus carry.
+        let timestamp = SystemTime::now()
+            .duration_since(SystemTime::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let message = Message {
+            timestamp,
+            channel: String::new(),
+            frame,
+            is_rx: false,
+        };
+        self.view.frame(self.epoch.elapsed(), &message);
+        if self.sent.len() == LOG_LINES {
+            self.sent.pop_front();
+        }
+        self.sent.push_back((timestamp, frame));
     }
 
     fn draw(&self, f: &mut ratatui::Frame, now: Duration) {

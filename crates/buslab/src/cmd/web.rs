@@ -48,7 +48,8 @@ pub struct AllowHost {
     pub allow_host: Vec<String>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// `quiet` (the global `-q`): no `Ctrl-C to stop`.
+pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     let token = match args.token.as_deref() {
         None => None,
         Some("") => Some(generate_token()?),
@@ -75,12 +76,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The URL on stdout alone (scripts and tests read it), the rest for people on stderr.
     println!("{}", server.url());
     eprintln!("buslab web: {url} at {}", server.url());
-    eprintln!("  live dashboard: {}dashboard", server.url());
     match server.token() {
-        Some(token) => eprintln!("  writes allowed with the header X-Buslab-Token: {token}"),
-        None => eprintln!("  read-only (start with --token to allow sending and faults)"),
+        Some(token) => {
+            // The token in the fragment: the dashboard takes it from there (the part after `#`
+            // never leaves the browser), as the lab prints it.
+            eprintln!("  live dashboard: {}dashboard#token={token}", server.url());
+            eprintln!("  writes allowed with the header X-Buslab-Token: {token}");
+        }
+        None => {
+            eprintln!("  live dashboard: {}dashboard", server.url());
+            eprintln!("  read-only (start with --token to allow sending and faults)");
+        }
     }
-    eprintln!("Ctrl-C to stop");
+    if !quiet {
+        eprintln!("Ctrl-C to stop");
+    }
     let stop = super::interrupted()?;
     while !stop.load(Ordering::SeqCst) {
         if let Some(why) = server.bus_failure() {

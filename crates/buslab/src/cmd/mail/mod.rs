@@ -14,9 +14,9 @@ mod poller;
 mod tls;
 
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::{Arc, LazyLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
@@ -27,6 +27,10 @@ use buslab_mail::Announcer;
 use super::busopt::{BusOpt, open};
 use crate::units::Human;
 use poller::{Account, Polled, Server, TlsMode};
+
+/// `--id`'s default (the configuration's `mail_id`), in hex as help shows identifiers.
+static DEFAULT_ID: LazyLock<String> =
+    LazyLock::new(|| crate::units::hex_id(crate::config::get().mail_id));
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -61,7 +65,7 @@ pub struct Args {
     pub interval: Option<Duration>,
     /// The identifier mail is announced and sent on (JerryCAN's `idmail`; MoniCAN's
     /// `--mail-id`; hex with 0x, or decimal).
-    #[arg(long, value_name = "ID", default_value_t = crate::config::get().mail_id, value_parser = super::monican::parse_id)]
+    #[arg(long, value_name = "ID", default_value = DEFAULT_ID.as_str(), value_parser = super::monican::parse_id)]
     pub id: u16,
     /// Bytes of a mail sent at most (MoniCAN keeps 2048 by default); a longer mail is cut
     /// and says how much was left out.
