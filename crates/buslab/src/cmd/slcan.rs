@@ -12,6 +12,9 @@ use buslab_canbus::{BitTiming, BusError, BusEvent, BusOffRecovery, CanBus};
 use buslab_link::Pty;
 use buslab_slcan::{Adapter, AdapterEvent, BTR_CLOCK_HZ, Identity, Input, Timing};
 
+/// How long the answer to the host's `O` waits for the adapter's node to be initialised.
+const OPEN_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
 use super::busopt::open;
 
 #[derive(clap::Args)]
@@ -144,11 +147,20 @@ fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
             // initialises the chip (ending a bus-off), which then stays bus-off until the
             // next opening, as a Lawicel CANUSB's.
             let regs = timing.and_then(registers);
-            let _ = bus.run(Box::new(move |bus: &mut dyn CanBus| {
+            let (done, opened) = mpsc::sync_channel(1);
+            let queued = bus.run(Box::new(move |bus: &mut dyn CanBus| {
                 if let Some(admin) = bus.admin() {
                     open_node(admin, regs, host.as_deref());
                 }
+                let _ = done.send(());
             }));
+            // The host's `O` is answered when this returns: by then the node is initialised,
+            // so a frame put on the bus after the answer reaches the host (initialising a chip
+            // drops what is on the wire meanwhile). Bounded: the pump may itself be waiting
+            // for this loop to take frames.
+            if queued.is_ok() && opened.recv_timeout(OPEN_WAIT).is_err() {
+                tracing::debug!("the adapter's node was not initialised within {OPEN_WAIT:?}");
+            }
         }
         AdapterEvent::RefusedBusOff(frame) => tracing::warn!(
             "{frame} refused (BEL): the adapter is bus-off; the host must close and open the channel (C, O)"
