@@ -36,6 +36,7 @@ mod format;
 pub mod pcap;
 pub mod pcapng;
 mod socketcan;
+#[cfg(feature = "sqlite")]
 pub mod sqlite;
 mod text;
 mod time;
