@@ -44,6 +44,7 @@ impl From<&ConfigArgs> for Lookup {
 }
 
 /// Why a password could not be had.
+#[cfg(feature = "mail")]
 #[derive(Debug, thiserror::Error)]
 pub enum PromptError {
     #[error("no password: set ${0} or run on a terminal to be asked")]
@@ -54,6 +55,7 @@ pub enum PromptError {
 
 /// The mailbox's password: from `$BUSLAB_MAIL_PASSWORD`, else asked for on the terminal (not
 /// echoed).
+#[cfg(feature = "mail")]
 pub fn password_or_prompt(mail: &MailSettings) -> Result<Password, PromptError> {
     if let Some(p) = &mail.password {
         return Ok(p.clone());

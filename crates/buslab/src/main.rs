@@ -85,8 +85,9 @@ fn main() -> ExitCode {
     // The configuration first: options take their defaults from it.
     let args: Vec<OsString> = std::env::args_os().collect();
     config::init(&config::Lookup::scan(&args));
-    let cli = Cli::from_arg_matches(&command().get_matches_from(args))
-        .unwrap_or_else(|e| e.format(&mut command()).exit());
+    let mut command = command();
+    let cli = Cli::from_arg_matches(&command.clone().get_matches_from(args))
+        .unwrap_or_else(|e| e.format(&mut command).exit());
     let chatty = matches!(
         &cli.command,
         Command::Bus(cmd::bus::Args {
@@ -111,9 +112,10 @@ fn main() -> ExitCode {
     }
 }
 
-/// The command line's definition: the derived one, each `-q` with its own command's help.
+/// The command line's definition: the derived one, each `-q` with its own command's help, the
+/// commands of the features this build lacks marked in --help.
 fn command() -> clap::Command {
-    logging::quiet_help(Cli::command())
+    cmd::absent::mark_missing(logging::quiet_help(Cli::command()))
 }
 
 /// The error and its causes on one line, `a: b: c`. A cause whose text the message already

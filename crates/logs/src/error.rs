@@ -74,6 +74,7 @@ pub enum Problem {
     },
     #[error("{0}")]
     Io(#[from] io::Error),
+    #[cfg(feature = "sqlite")]
     #[error("SQLite: {0}")]
     Sqlite(#[from] rusqlite::Error),
     #[error("zlib data: {0}")]
@@ -200,6 +201,7 @@ pub enum LogError {
     NotRegular { path: PathBuf, what: &'static str },
     #[error("{source}")]
     Read { source: ReadError },
+    #[cfg(feature = "sqlite")]
     #[error("{}: SQLite: {source}", path.display())]
     Sqlite {
         path: PathBuf,
@@ -209,4 +211,11 @@ pub enum LogError {
     CannotFollow { path: PathBuf, format: &'static str },
     #[error("{}: gzip-compressed: {what}", path.display())]
     Gzip { path: PathBuf, what: &'static str },
+    /// A format this build was made without (its cargo feature was off).
+    #[error("{}: {what} are not in this build (it was made without the `{feature}` feature)", path.display())]
+    NotBuilt {
+        path: PathBuf,
+        what: &'static str,
+        feature: &'static str,
+    },
 }

@@ -13,7 +13,9 @@ use tempfile::TempPath;
 use crate::error::{LogError, ReadError};
 use crate::follow::{Following, Watch};
 use crate::format::Format;
-use crate::{Entry, LogBitRate, asc, blf, candump, csv, pcap, pcapng, sqlite, trc};
+#[cfg(feature = "sqlite")]
+use crate::sqlite;
+use crate::{Entry, LogBitRate, asc, blf, candump, csv, pcap, pcapng, trc};
 
 /// The read buffer of a log file.
 pub(crate) const READ_BUFFER: usize = 256 * 1024;
@@ -162,6 +164,7 @@ pub fn open_source(
     format: Format,
     options: &OpenOptions,
 ) -> Result<LogSource, LogError> {
+    require_built(path, format)?;
     let mut file = open_regular(path)?;
     let len = file.metadata().map(|m| m.len()).unwrap_or(0);
     let bytes_read = ByteCounter::default();
@@ -169,6 +172,7 @@ pub fn open_source(
         path: path.to_path_buf(),
         source,
     })?;
+    #[cfg(feature = "sqlite")]
     if format == Format::Sqlite {
         if gzip {
             return Err(LogError::Gzip {
@@ -359,6 +363,17 @@ enum Output {
     Atomic { temp: TempPath, dest: PathBuf },
 }
 
+#[cfg(feature = "sqlite")]
+impl Output {
+    /// The file being written: `path` itself, or the temporary file beside it.
+    fn written<'a>(&'a self, path: &'a Path) -> &'a Path {
+        match self {
+            Output::Direct => path,
+            Output::Atomic { temp, .. } => temp,
+        }
+    }
+}
+
 /// Creates (or truncates) a log file written as `format`, straight to `path`: what was
 /// flushed is in the file even if the process is killed (the choice for live logging).
 pub fn create_writer(path: &Path, format: Format) -> Result<Box<dyn LogWriter + Send>, LogError> {
@@ -398,6 +413,7 @@ fn create(
     atomic: bool,
     options: WriteOptions,
 ) -> Result<Box<dyn LogWriter + Send>, LogError> {
+    require_built(path, format)?;
     let create_err = |source| LogError::Create {
         path: path.to_path_buf(),
         source,
@@ -414,7 +430,7 @@ fn create(
     if let Ok(meta) = fs::metadata(path) {
         check_regular(path, &meta)?;
     }
-    let (file, target_path, output) = if atomic {
+    let (file, output) = if atomic {
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
@@ -431,10 +447,8 @@ fn create(
             .tempfile_in(dir)
             .map_err(create_err)?;
         let (file, temp) = temp.into_parts();
-        let temp_path = temp.to_path_buf();
         (
             file,
-            temp_path,
             Output::Atomic {
                 temp,
                 dest: path.to_path_buf(),
@@ -449,18 +463,16 @@ fn create(
                 Err(e) => return Err(create_err(e)),
             }
         }
-        (
-            File::create(path).map_err(create_err)?,
-            path.to_path_buf(),
-            Output::Direct,
-        )
+        (File::create(path).map_err(create_err)?, Output::Direct)
     };
+    #[cfg(feature = "sqlite")]
     if format == Format::Sqlite {
         drop(file);
-        let writer = sqlite::Writer::create(&target_path).map_err(|source| LogError::Sqlite {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let writer =
+            sqlite::Writer::create(output.written(path)).map_err(|source| LogError::Sqlite {
+                path: path.to_path_buf(),
+                source,
+            })?;
         return Ok(Box::new(SqliteFile { writer, output }));
     }
     let out = BufWriter::with_capacity(WRITE_BUFFER, CutBack::new(file));
@@ -604,12 +616,26 @@ impl<E: Encoder<Out>> LogWriter for FileWriter<E> {
     }
 }
 
+/// Refuses a format this build was made without, before its file is touched.
+fn require_built(path: &Path, format: Format) -> Result<(), LogError> {
+    if format == Format::Sqlite && !cfg!(feature = "sqlite") {
+        return Err(LogError::NotBuilt {
+            path: path.to_path_buf(),
+            what: "SQLite logs",
+            feature: "sqlite",
+        });
+    }
+    Ok(())
+}
+
 /// The SQLite writer on its file.
+#[cfg(feature = "sqlite")]
 struct SqliteFile {
     writer: sqlite::Writer,
     output: Output,
 }
 
+#[cfg(feature = "sqlite")]
 impl LogWriter for SqliteFile {
     fn write(&mut self, entry: &Entry) -> io::Result<()> {
         self.writer.write(entry)
@@ -637,4 +663,44 @@ fn put_in_place(output: Output) -> io::Result<()> {
         _ => Path::new("."),
     };
     File::open(dir)?.sync_all()
+}
+
+#[cfg(all(test, not(feature = "sqlite")))]
+mod without_sqlite {
+    use super::*;
+
+    /// A build without SQLite refuses a `.db` log by name and feature, and leaves a file
+    /// already there as it was (a writer would have truncated it).
+    #[test]
+    fn an_sqlite_log_is_refused_naming_the_feature_and_the_file_is_untouched() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("trace.db");
+        fs::write(&path, b"an older database").unwrap();
+        let created = create_writer(&path, Format::Sqlite).err().expect("refused");
+        let opened = open_source(&path, Format::Sqlite, &OpenOptions::default())
+            .err()
+            .expect("refused");
+        for error in [created, opened] {
+            assert!(matches!(
+                error,
+                LogError::NotBuilt {
+                    feature: "sqlite",
+                    ..
+                }
+            ));
+            assert_eq!(
+                error.to_string(),
+                format!(
+                    "{}: SQLite logs are not in this build (it was made without the `sqlite` feature)",
+                    path.display()
+                )
+            );
+        }
+        assert_eq!(fs::read(&path).unwrap(), b"an older database");
+        assert_eq!(
+            fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temporary file left"
+        );
+    }
 }

@@ -37,6 +37,7 @@ mod format;
 pub mod pcap;
 pub mod pcapng;
 mod socketcan;
+#[cfg(feature = "sqlite")]
 pub mod sqlite;
 pub mod text;
 mod time;

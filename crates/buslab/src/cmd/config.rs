@@ -7,6 +7,9 @@ use anyhow::bail;
 
 use crate::config;
 
+#[cfg(not(feature = "tui"))]
+use super::absent::wizard;
+#[cfg(feature = "tui")]
 mod wizard;
 
 #[derive(clap::Args)]

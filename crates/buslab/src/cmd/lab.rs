@@ -24,7 +24,6 @@ use buslab_canbus::CanBus;
 use buslab_sim::{BitTime, Simulation, Traffic};
 use buslab_socketcand::SocketcandBus;
 use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
-use buslab_web::{WebConfig, WebError, WebServer};
 
 use buslab_logs::Entry;
 
@@ -62,23 +61,40 @@ pub struct Args {
     /// Only the CAN bus: no ZELLE cell or CPU196 board.
     #[arg(long)]
     pub no_devices: bool,
+    #[command(flatten)]
+    pub web: WebOptions,
+}
+
+/// The lab's web pages (`buslab web` on the lab's bus): the same options in every build; a
+/// build without the `web` feature refuses `--web` and `--allow-host`.
+#[derive(clap::Args)]
+pub struct WebOptions {
     /// Where the web pages and the live dashboard listen (`buslab web`, docs/web.md); by
     /// default 127.0.0.1:8080, or a free port if that one is taken. Writes need the token
     /// printed at start.
-    #[arg(long, value_name = "ADDR", conflicts_with = "no_web")]
-    pub web: Option<SocketAddr>,
+    #[arg(
+        id = "web",
+        long = "web",
+        value_name = "ADDR",
+        conflicts_with = "no_web"
+    )]
+    pub listen: Option<SocketAddr>,
     /// No web pages or dashboard.
     #[arg(long)]
     pub no_web: bool,
     #[command(flatten)]
-    pub web_hosts: super::web::AllowHost,
+    pub hosts: AllowHost,
 }
 
-/// Where the lab's web pages listen unless told otherwise.
-const WEB_DEFAULT: SocketAddr = SocketAddr::V4(std::net::SocketAddrV4::new(
-    std::net::Ipv4Addr::LOCALHOST,
-    8080,
-));
+/// `--allow-host`, shared with `buslab web`.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct AllowHost {
+    /// A host name the pages answer to besides IP addresses and localhost (repeatable):
+    /// requests naming any other host are refused with 403, so that a page of another site
+    /// cannot read the bus by pointing its name at this machine (DNS rebinding).
+    #[arg(long = "allow-host", value_name = "NAME")]
+    pub allow_host: Vec<String>,
+}
 
 /// The bus name clients open.
 const CHANNEL: &str = "vcan0";
@@ -142,27 +158,12 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     if let Some(devices) = &devices {
         devices.describe(&hints);
     }
-    let web = if args.no_web {
-        None
-    } else {
-        let panels = buslab_web::DeviceConfig {
-            slios: slio_bench.ids.clone(),
-            zelle: devices.as_ref().map(|d| d.zelle.path().to_path_buf()),
-            cpu196: devices
-                .as_ref()
-                .map(|d| (d.cpu196.path().to_path_buf(), super::cpu196::DEFAULT_BAUD)),
-        };
-        let web = start_web(addr, args.web, &panels, &args.web_hosts.allow_host)?;
-        eprintln!(
-            "  web pages:  {} (no JavaScript needed; devices: {}devices)",
-            web.url(),
-            web.url()
-        );
-        if let Some(token) = web.token() {
-            eprintln!("  dashboard:  {}dashboard#token={token}", web.url());
-        }
-        Some(web)
-    };
+    let web = super::web::lab_pages(
+        &args.web,
+        &url,
+        &slio_bench.ids,
+        devices.as_ref().map(|d| (d.zelle.path(), d.cpu196.path())),
+    )?;
     // The lab's bus for scripts (`export BUSLAB_BUS=$(cat DIR/bus)`): written last, so that
     // it is there once everything else is.
     let bus_file = args.dir.as_deref().map(|dir| dir.join("bus"));
@@ -270,38 +271,6 @@ fn program_name() -> String {
         format!("'{text}'")
     } else {
         text
-    }
-}
-
-/// The web pages on the lab's bus, with a fresh write token (the dashboard injects faults).
-fn start_web(
-    bus: SocketAddr,
-    listen: Option<SocketAddr>,
-    devices: &buslab_web::DeviceConfig,
-    allowed_hosts: &[String],
-) -> anyhow::Result<WebServer> {
-    let url = format!("socketcand://{bus}/{CHANNEL}");
-    let token = buslab_web::generate_token()?;
-    let start = |listen: SocketAddr| -> anyhow::Result<Result<WebServer, WebError>> {
-        let bus = buslab_backends::open(&url)
-            .with_context(|| format!("the web pages cannot join the lab's bus {url}"))?;
-        let config = WebConfig {
-            listen,
-            token: Some(token.clone()),
-            devices: devices.clone(),
-            allowed_hosts: allowed_hosts.to_vec(),
-            ..WebConfig::default()
-        };
-        Ok(WebServer::start(bus, config))
-    };
-    match start(listen.unwrap_or(WEB_DEFAULT))? {
-        Ok(web) => Ok(web),
-        // The usual port is taken (another lab?): any free one will do.
-        Err(WebError::Listen { .. }) if listen.is_none() => Ok(start(SocketAddr::from((
-            std::net::Ipv4Addr::LOCALHOST,
-            0,
-        )))??),
-        Err(e) => Err(e.into()),
     }
 }
 

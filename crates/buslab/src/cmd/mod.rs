@@ -5,6 +5,7 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::Context;
 
+pub mod absent;
 pub mod bridge;
 pub mod bus;
 pub mod busopt;
@@ -15,8 +16,14 @@ pub mod r#gen;
 pub mod lab;
 pub mod load;
 pub mod log;
+#[cfg(not(feature = "mail"))]
+pub use absent::mail;
+#[cfg(feature = "mail")]
 pub mod mail;
 pub mod monican;
+#[cfg(not(feature = "tui"))]
+pub use absent::monitor;
+#[cfg(feature = "tui")]
 pub mod monitor;
 pub mod play;
 pub mod plot;
@@ -29,6 +36,9 @@ pub mod slcan;
 pub mod slio;
 pub mod status;
 pub mod transfer;
+#[cfg(not(feature = "web"))]
+pub use absent::web;
+#[cfg(feature = "web")]
 pub mod web;
 pub mod wire;
 pub mod zelle;

@@ -19,7 +19,7 @@ use anyhow::{Context, bail};
 use buslab_backends::DynBus;
 use buslab_can::Frame;
 use buslab_canbus::{Message, NodeRef, NodeStatus};
-use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
+use buslab_view::{BusView, Cursor, LogFilter, Logged, ViewConfig};
 use ratatui::Terminal;
 use ratatui::backend::CrosstermBackend;
 use ratatui::layout::{Constraint, Layout};
@@ -156,7 +156,7 @@ impl Monitor {
                         .log_tail(&self.filter, LOG_LINES)
                         .into_iter()
                         .map(|e| {
-                            let own = self.sent.contains(&(e.time, e.raw));
+                            let own = matches!(e.raw, Logged::Frame(f) if self.sent.contains(&(e.time, f)));
                             format!(
                                 "{:>17.6}  {}{}",
                                 e.time,

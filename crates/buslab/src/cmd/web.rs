@@ -1,14 +1,17 @@
 //! `buslab web --bus URL [--listen ADDR] [--token [TOKEN]]`: the bus as web pages (the seed's
 //! CAN WebServer) and a live dashboard (docs/web.md).
 
-use std::net::SocketAddr;
+use std::net::{Ipv4Addr, SocketAddr};
+use std::path::Path;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::Context;
-use buslab_web::{Timeouts, WebConfig, WebServer, generate_token};
+use buslab_slio::SlioId;
+use buslab_web::{DeviceConfig, Timeouts, WebConfig, WebError, WebServer, generate_token};
 
 use super::busopt::{BusOpt, open};
+use super::lab::{AllowHost, WebOptions};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -36,16 +39,6 @@ pub struct Args {
     /// kept-alive connection idle (for tests; docs/web.md).
     #[arg(long, value_name = "DURATION", value_parser = crate::units::duration, hide = true)]
     pub request_timeout: Option<Duration>,
-}
-
-/// `--allow-host`, shared with `buslab lab`.
-#[derive(clap::Args, Clone, Debug, Default)]
-pub struct AllowHost {
-    /// A host name the pages answer to besides IP addresses and localhost (repeatable):
-    /// requests naming any other host are refused with 403, so that a page of another site
-    /// cannot read the bus by pointing its name at this machine (DNS rebinding).
-    #[arg(long = "allow-host", value_name = "NAME")]
-    pub allow_host: Vec<String>,
 }
 
 /// `quiet` (the global `-q`): no `Ctrl-C to stop`.
@@ -101,4 +94,57 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     }
     server.stop();
     Ok(())
+}
+
+/// Where the lab's web pages listen unless told otherwise.
+const LAB_DEFAULT: SocketAddr =
+    SocketAddr::V4(std::net::SocketAddrV4::new(Ipv4Addr::LOCALHOST, 8080));
+
+/// The lab's web pages on its bus `url`, with a fresh write token (the dashboard injects
+/// faults) and panels for its SLIO boards and its ZELLE and CPU196 ports; none with
+/// `--no-web`. The addresses are printed for the banner.
+pub fn lab_pages(
+    options: &WebOptions,
+    url: &str,
+    slios: &[SlioId],
+    ports: Option<(&Path, &Path)>,
+) -> anyhow::Result<Option<WebServer>> {
+    if options.no_web {
+        return Ok(None);
+    }
+    let devices = DeviceConfig {
+        slios: slios.to_vec(),
+        zelle: ports.map(|(zelle, _)| zelle.to_path_buf()),
+        cpu196: ports.map(|(_, cpu196)| (cpu196.to_path_buf(), super::cpu196::DEFAULT_BAUD)),
+    };
+    let token = generate_token()?;
+    let start = |listen: SocketAddr| -> anyhow::Result<Result<WebServer, WebError>> {
+        let bus = buslab_backends::open(url)
+            .with_context(|| format!("the web pages cannot join the lab's bus {url}"))?;
+        let config = WebConfig {
+            listen,
+            token: Some(token.clone()),
+            devices: devices.clone(),
+            allowed_hosts: options.hosts.allow_host.clone(),
+            ..WebConfig::default()
+        };
+        Ok(WebServer::start(bus, config))
+    };
+    let web = match start(options.listen.unwrap_or(LAB_DEFAULT))? {
+        Ok(web) => web,
+        // The usual port is taken (another lab?): any free one will do.
+        Err(WebError::Listen { .. }) if options.listen.is_none() => {
+            start(SocketAddr::from((Ipv4Addr::LOCALHOST, 0)))??
+        }
+        Err(e) => return Err(e.into()),
+    };
+    eprintln!(
+        "  web pages:  {} (no JavaScript needed; devices: {}devices)",
+        web.url(),
+        web.url()
+    );
+    if let Some(token) = web.token() {
+        eprintln!("  dashboard:  {}dashboard#token={token}", web.url());
+    }
+    Ok(Some(web))
 }
