@@ -375,9 +375,10 @@ mod tests {
         let deadline = Instant::now() + HANG;
         loop {
             let s = connect(&b.path);
-            writeln!(&s, "ping").unwrap();
+            // A refused client may find its connection closed before it writes (EPIPE).
+            let _ = writeln!(&s, "ping");
             let mut reply = String::new();
-            BufReader::new(&s).read_line(&mut reply).unwrap();
+            let _ = BufReader::new(&s).read_line(&mut reply);
             if reply == "ok 4\n" {
                 break;
             }
