@@ -2,7 +2,9 @@
 //! glue onto it: a log line first erases the status, then the status is drawn again under it.
 //!
 //! Everything written to stderr while a status is shown goes through [`StatusLine`]'s lock,
-//! so a warning from a server thread and the status thread's refresh never interleave.
+//! so a warning from a server thread and the status thread's refresh never interleave. Each
+//! update is one write (stderr is unbuffered): a terminal never shows the erased line without
+//! what replaces it.
 
 use std::io::{self, Write};
 use std::sync::{Mutex, MutexGuard};
@@ -27,7 +29,7 @@ impl StatusLine {
     pub fn show(line: &str) -> io::Result<()> {
         let mut shown = shown();
         let mut err = io::stderr().lock();
-        write!(err, "{ERASE}{line}")?;
+        err.write_all(format!("{ERASE}{line}").as_bytes())?;
         err.flush()?;
         *shown = Some(line.to_string());
         Ok(())
@@ -48,10 +50,8 @@ impl StatusLine {
     pub fn finish(last: &str) -> io::Result<()> {
         let mut shown = shown();
         let mut err = io::stderr().lock();
-        if shown.take().is_some() {
-            write!(err, "{ERASE}")?;
-        }
-        writeln!(err, "{last}")?;
+        let erase = if shown.take().is_some() { ERASE } else { "" };
+        err.write_all(format!("{erase}{last}\n").as_bytes())?;
         err.flush()
     }
 }
@@ -91,9 +91,13 @@ impl Drop for LogLine {
         let mut err = io::stderr().lock();
         // Nothing to do with an error here: stderr is where errors would go.
         let _ = match shown.as_deref() {
-            Some(status) => write!(err, "{ERASE}")
-                .and_then(|()| err.write_all(&self.0))
-                .and_then(|()| write!(err, "{status}")),
+            Some(status) => {
+                let mut all = Vec::with_capacity(ERASE.len() + self.0.len() + status.len());
+                all.extend_from_slice(ERASE.as_bytes());
+                all.extend_from_slice(&self.0);
+                all.extend_from_slice(status.as_bytes());
+                err.write_all(&all)
+            }
             None => err.write_all(&self.0),
         };
         let _ = err.flush();

@@ -60,6 +60,10 @@ fn lab_status_line_stays_on_one_row_of_an_80_column_terminal() {
             line.chars().count()
         );
     }
+    // The screen between two updates: one status row, under the warning.
+    lab.wait_for_contents("one status row", |t| {
+        t.lines().filter(|r| r.contains("frames/s")).count() == 1
+    });
     let rows = lab.contents();
     let status_rows: Vec<&str> = rows.lines().filter(|r| r.contains("frames/s")).collect();
     assert_eq!(status_rows.len(), 1, "the screen:\n{rows}");

@@ -210,7 +210,15 @@ fn counters_csv_follows_the_tec_to_bus_off_and_back() {
 
 #[test]
 fn lab_prints_candump_lines_when_asked_and_stops_by_itself() {
-    let out = stdout_of(&["lab", "--duration", "1s", "--no-devices", "--frames"]);
+    let out = stdout_of(&[
+        "lab",
+        "--duration",
+        "1s",
+        "--no-devices",
+        "--listen",
+        "127.0.0.1:0",
+        "--frames",
+    ]);
     let frames: Vec<&str> = out.lines().collect();
     // How many frames a second of real time carries depends on how much CPU the lab got (a
     // stress run saw 99); what it prints does not.
@@ -229,8 +237,17 @@ fn lab_prints_candump_lines_when_asked_and_stops_by_itself() {
 
 #[test]
 fn lab_shows_a_status_line_and_no_frames_by_default() {
+    // On a port of its own: a lab on 29536 counts whatever else in the suite joins the default
+    // bus (a CI run saw a passive third client there).
     let out = buslab()
-        .args(["lab", "--duration", "1s", "--no-devices"])
+        .args([
+            "lab",
+            "--duration",
+            "1s",
+            "--no-devices",
+            "--listen",
+            "127.0.0.1:0",
+        ])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);

@@ -810,7 +810,8 @@ fn reader_at_max_gets_every_frame(client_queue: usize, quiet: Duration, pause: D
     });
     let mut text = String::new();
     let mut buf = [0u8; 512];
-    while text.matches("< frame ").count() < total as usize {
+    // Until the last frame's element is whole, not only begun.
+    while text.matches("< frame ").count() < total as usize || !text.ends_with('>') {
         std::thread::sleep(pause);
         let n = reader.read(&mut buf).expect("every frame arrives");
         assert!(
