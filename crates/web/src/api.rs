@@ -267,17 +267,19 @@ fn stopped() -> ApiError {
     )
 }
 
-/// Runs `work` on the bus's administration side, on the bus's own thread.
-async fn on_bus(
+/// Runs `work` on the bus's administration side, on the bus's own thread: the bus's answer,
+/// or `Unsupported` naming `what` for a bus without one. A bus no longer served is 503.
+pub(crate) async fn on_admin<T: Send + 'static>(
     app: &App,
-    work: impl FnOnce(&mut dyn BusAdmin) -> Result<(), BusError> + Send + 'static,
-) -> Result<(), ApiError> {
+    what: &'static str,
+    work: impl FnOnce(&mut dyn BusAdmin) -> Result<T, BusError> + Send + 'static,
+) -> Result<Result<T, BusError>, ApiError> {
     let (tx, rx) = tokio::sync::oneshot::channel();
     let job = Box::new(move |bus: &mut dyn CanBus| {
         let result = match bus.admin() {
             Some(admin) => work(admin),
             None => Err(BusError::Unsupported {
-                what: "fault injection",
+                what,
                 backend: bus.channel_info(),
             }),
         };
@@ -289,7 +291,15 @@ async fn on_bus(
         .await
         .map_err(|_| stopped())?
         .map_err(|_| stopped())?;
-    match rx.await.map_err(|_| stopped())? {
+    rx.await.map_err(|_| stopped())
+}
+
+/// Runs `work` (a fault, a repair) on the bus's administration side.
+async fn on_bus(
+    app: &App,
+    work: impl FnOnce(&mut dyn BusAdmin) -> Result<(), BusError> + Send + 'static,
+) -> Result<(), ApiError> {
+    match on_admin(app, "fault injection", work).await? {
         Ok(()) => Ok(()),
         Err(e @ BusError::Unsupported { .. }) => Err(ApiError::new(
             StatusCode::CONFLICT,

@@ -8,8 +8,8 @@ use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use buslab_backends::TrySendError;
+use buslab_canbus::BusError;
 use buslab_canbus::admin::{BoardInput, BoardState};
-use buslab_canbus::{BusError, CanBus};
 use buslab_slio::SlioId;
 
 use crate::device_request::{
@@ -166,30 +166,11 @@ async fn demo_board(
     slio: SlioId,
     change: Option<BoardInput>,
 ) -> Result<BoardState, ApiError> {
-    let stopped = || {
-        ApiError::new(
-            StatusCode::SERVICE_UNAVAILABLE,
-            "the bus is no longer served (it failed: see the overview page)",
-        )
-    };
-    let (tx, rx) = tokio::sync::oneshot::channel();
-    let job = Box::new(move |bus: &mut dyn CanBus| {
-        let result = match bus.admin() {
-            Some(admin) => admin.demo_board(slio, change),
-            None => Err(BusError::Unsupported {
-                what: "demo boards",
-                backend: bus.channel_info(),
-            }),
-        };
-        let _ = tx.send(result);
-    });
-    let sender = app.sender.clone();
-    // The pump's queue is bounded: queuing may wait, so not on the async workers.
-    tokio::task::spawn_blocking(move || sender.run(job))
-        .await
-        .map_err(|_| stopped())?
-        .map_err(|_| stopped())?;
-    match rx.await.map_err(|_| stopped())? {
+    match crate::api::on_admin(app, "demo boards", move |admin| {
+        admin.demo_board(slio, change)
+    })
+    .await?
+    {
         Ok(board) => Ok(board),
         Err(e @ BusError::Unsupported { .. }) => Err(ApiError::new(
             StatusCode::CONFLICT,
