@@ -267,6 +267,29 @@ fn bytes_after_starttls_ok_are_refused_not_taken_as_protected() {
 }
 
 #[test]
+fn an_answer_to_a_command_not_yet_sent_is_refused() {
+    // Found by the fuzzer: the answer to CAPABILITY and an "OK" for STARTTLS in one read,
+    // before STARTTLS was sent; taking it would start TLS on a reply made up in advance.
+    let mut c = Client::new(config(Security::StartTls, None));
+    assert_eq!(c.hear(b"* OK hi\r\n").unwrap(), "b1 CAPABILITY\r\n");
+    assert_eq!(
+        c.hear(b"* CAPABILITY IMAP4rev1 STARTTLS\r\nb1 OK\r\nb2 OK go\r\n"),
+        Err(PollError::AnsweredBeforeAsked {
+            step: Step::StartTls
+        })
+    );
+    // The same with LOGIN's literal: "+" then OK before the password went out.
+    let mut config = config(Security::Plain, None);
+    config.password = "pässword".into();
+    let mut c = Client::new(config);
+    assert_eq!(c.hear(b"* OK ready\r\n").unwrap(), "b1 LOGIN alice {9}\r\n");
+    assert_eq!(
+        c.hear(b"+ go ahead\r\nb1 OK in\r\n"),
+        Err(PollError::AnsweredBeforeAsked { step: Step::Login })
+    );
+}
+
+#[test]
 fn a_literal_password_waits_for_the_servers_go_ahead() {
     let mut config = config(Security::Plain, None);
     config.password = "pässword".into();

@@ -150,6 +150,10 @@ pub enum PollError {
         "the server sent data after agreeing to STARTTLS, before the TLS handshake (refused: it would be taken as protected)"
     )]
     StartTlsInjection,
+    #[error(
+        "the server answered {step} before it was sent (a reply made up in advance, refused: it could stand for STARTTLS's or LOGIN's)"
+    )]
+    AnsweredBeforeAsked { step: Step },
     #[error("the server logged the connection in (PREAUTH) in clear text, before STARTTLS")]
     PreauthInClear,
     #[error("login as {user:?} refused: {text}")]
@@ -557,6 +561,11 @@ impl Poll {
 
     fn completed(&mut self, completion: Completion, now: Instant) -> Result<(), PollError> {
         let step = self.step;
+        // The command (or its literal) is still waiting to go out: whatever the server says
+        // about it now was written before it could know it.
+        if !self.transmit.is_empty() || !self.pending.is_empty() {
+            return Err(PollError::AnsweredBeforeAsked { step });
+        }
         if let Completion::Refused(text) = completion {
             return Err(match step {
                 Step::StartTls => PollError::StartTlsRefused { text },
