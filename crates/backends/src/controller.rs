@@ -19,7 +19,7 @@ use buslab_canbus::{
     ControllerSettings, Filter, Message,
 };
 
-use crate::registry::DynBus;
+use crate::DynBus;
 
 /// What became of one part of the controller settings.
 #[derive(Clone, Debug, PartialEq, Eq)]

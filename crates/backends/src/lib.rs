@@ -36,13 +36,14 @@ pub mod url;
 pub use controller::{Accepting, ControllerReport, Outcome};
 pub use pump::{BusJob, JOB_LATENCY, Pump, PumpEvent, PumpSender, PumpStopped, TrySendError};
 pub use registry::{
-    BACKENDS, Backend, DynBus, OpenError, OpenFn, OpenOptions, Opened, backend, open,
-    open_configured, open_url,
+    BACKENDS, Backend, OpenError, OpenFn, OpenOptions, Opened, backend, open, open_configured,
+    open_url, resolve,
 };
 pub use spec::{BusSpec, FilterItem, FilterSet, IdFilter, SpecError, filter_set};
-pub use url::{
-    BusUrl, DEFAULT_CHANNEL, DEFAULT_NAME, SOCKETCAND_PORT, UrlError, UrlProblem, resolve,
-};
+pub use url::{BusUrl, DEFAULT_CHANNEL, DEFAULT_NAME, SOCKETCAND_PORT, UrlError, UrlProblem};
+
+/// An open bus, of whichever backend.
+pub type DynBus = Box<dyn buslab_canbus::CanBus + Send>;
 
 /// The bus the command-line tools use by default: `buslab bus serve` on this machine.
 pub const DEFAULT_URL: &str = "socketcand://127.0.0.1:29536/vcan0";

@@ -3,12 +3,14 @@
 use std::io;
 use std::time::Duration;
 
-use buslab_canbus::{AcceptanceFilter, CanBus, ControllerMode, ControllerPart, ControllerSettings};
+use buslab_canbus::{AcceptanceFilter, ControllerMode, ControllerPart, ControllerSettings};
 use buslab_slcan::AcceptanceAnswer;
 use buslab_socketcand::{ClientError, ClientOptions, SocketcandBus};
 
+use crate::DynBus;
 use crate::controller::{Accepting, ControllerReport, Outcome};
-use crate::url::{self, BusUrl, UrlError, UrlProblem};
+use crate::url::{self, BusUrl, DEFAULT_NAME, UrlError, UrlProblem, parse_slcan, parse_socketcan};
+use std::str::FromStr;
 
 /// Deadlines for opening a bus, and what to ask of this client's controller.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -32,9 +34,6 @@ impl Default for OpenOptions {
         }
     }
 }
-
-/// An open bus, of whichever backend.
-pub type DynBus = Box<dyn CanBus + Send>;
 
 /// An open bus and what became of the controller settings asked for.
 pub struct Opened {
@@ -443,6 +442,57 @@ fn open_socketcand(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenEr
         }),
         Err(e) => Err(connect(e)),
     }
+}
+
+impl FromStr for BusUrl {
+    type Err = UrlError;
+
+    /// Finds the backend by the URL's scheme in the registry and lets it read the rest.
+    fn from_str(url: &str) -> Result<Self, UrlError> {
+        let scheme = url.split_once(':').map_or("", |(s, _)| s);
+        match backend(scheme) {
+            Some(b) => (b.parse)(url),
+            None => Err(UrlError::new(
+                url,
+                UrlProblem::UnknownScheme {
+                    scheme: scheme.to_string(),
+                    expected: syntaxes(),
+                },
+            )),
+        }
+    }
+}
+
+/// A bus as a person types it on the command line, as can-utils take interface names:
+///
+/// | name | bus |
+/// |---|---|
+/// | `vcan0` | buslab's bus on this machine, [`crate::DEFAULT_URL`] (`buslab bus serve`, `buslab lab`) |
+/// | a URL (`socketcand://…`, `socketcan:…`, `slcan:…`) | as it says |
+/// | a path (`/dev/ttyACM0`, `./adapter`) | the SLCAN adapter there, `slcan:PATH` |
+/// | any other interface name (`can0`, `vcan1`, `slcan0`) | the Linux interface, `socketcan:NAME` |
+///
+/// ```
+/// use buslab_backends::{BusUrl, resolve};
+///
+/// assert_eq!(resolve("vcan0")?.to_string(), "socketcand://127.0.0.1:29536/vcan0");
+/// assert_eq!(resolve("can0")?.to_string(), "socketcan:can0");
+/// assert_eq!(resolve("/dev/ttyACM0")?.to_string(), "slcan:/dev/ttyACM0");
+/// assert_eq!(resolve("socketcand://bench:29536/can1")?.to_string(), "socketcand://bench:29536/can1");
+/// # Ok::<(), buslab_backends::UrlError>(())
+/// ```
+pub fn resolve(name: &str) -> Result<BusUrl, UrlError> {
+    if name == DEFAULT_NAME {
+        return crate::DEFAULT_URL.parse();
+    }
+    if name.starts_with('/') || name.starts_with("./") || name.starts_with("../") {
+        return parse_slcan(&format!("slcan:{name}")).map_err(|e| UrlError::new(name, e.problem));
+    }
+    if name.contains(':') {
+        return name.parse();
+    }
+    parse_socketcan(&format!("socketcan:{name}"))
+        .map_err(|_| UrlError::new(name, UrlProblem::Name(name.to_string(), syntaxes())))
 }
 
 #[cfg(test)]

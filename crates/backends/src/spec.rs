@@ -20,7 +20,8 @@ use std::str::FromStr;
 use buslab_can::Frame;
 use buslab_canbus::ErrorFrame;
 
-use crate::url::{BusUrl, UrlError, resolve};
+use crate::registry::resolve;
+use crate::url::{BusUrl, UrlError};
 
 /// SocketCAN's flags in a frame's ID, as candump filters see them.
 pub const EFF_FLAG: u32 = 0x8000_0000;

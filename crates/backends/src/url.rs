@@ -2,9 +2,6 @@
 //! `slcan:DEVICE[@BAUD][?bitrate=N]`).
 
 use std::fmt;
-use std::str::FromStr;
-
-use crate::registry;
 
 /// socketcand's port.
 pub const SOCKETCAND_PORT: u16 = 29536;
@@ -82,7 +79,7 @@ pub enum UrlProblem {
 }
 
 impl UrlError {
-    fn new(url: &str, problem: UrlProblem) -> Self {
+    pub(crate) fn new(url: &str, problem: UrlProblem) -> Self {
         Self {
             url: url.to_string(),
             problem,
@@ -90,64 +87,9 @@ impl UrlError {
     }
 }
 
-impl FromStr for BusUrl {
-    type Err = UrlError;
-
-    /// Finds the backend by the URL's scheme in the registry and lets it read the rest.
-    fn from_str(url: &str) -> Result<Self, UrlError> {
-        let scheme = url.split_once(':').map_or("", |(s, _)| s);
-        match registry::backend(scheme) {
-            Some(b) => (b.parse)(url),
-            None => Err(UrlError::new(
-                url,
-                UrlProblem::UnknownScheme {
-                    scheme: scheme.to_string(),
-                    expected: registry::syntaxes(),
-                },
-            )),
-        }
-    }
-}
-
 /// The interface name that means buslab's own bus: `buslab bus serve`'s or `buslab lab`'s on
 /// this machine, [`crate::DEFAULT_URL`].
 pub const DEFAULT_NAME: &str = "vcan0";
-
-/// A bus as a person types it on the command line, as can-utils take interface names:
-///
-/// | name | bus |
-/// |---|---|
-/// | `vcan0` | buslab's bus on this machine, [`crate::DEFAULT_URL`] (`buslab bus serve`, `buslab lab`) |
-/// | a URL (`socketcand://…`, `socketcan:…`, `slcan:…`) | as it says |
-/// | a path (`/dev/ttyACM0`, `./adapter`) | the SLCAN adapter there, `slcan:PATH` |
-/// | any other interface name (`can0`, `vcan1`, `slcan0`) | the Linux interface, `socketcan:NAME` |
-///
-/// ```
-/// use buslab_backends::{BusUrl, resolve};
-///
-/// assert_eq!(resolve("vcan0")?.to_string(), "socketcand://127.0.0.1:29536/vcan0");
-/// assert_eq!(resolve("can0")?.to_string(), "socketcan:can0");
-/// assert_eq!(resolve("/dev/ttyACM0")?.to_string(), "slcan:/dev/ttyACM0");
-/// assert_eq!(resolve("socketcand://bench:29536/can1")?.to_string(), "socketcand://bench:29536/can1");
-/// # Ok::<(), buslab_backends::UrlError>(())
-/// ```
-pub fn resolve(name: &str) -> Result<BusUrl, UrlError> {
-    if name == DEFAULT_NAME {
-        return crate::DEFAULT_URL.parse();
-    }
-    if name.starts_with('/') || name.starts_with("./") || name.starts_with("../") {
-        return parse_slcan(&format!("slcan:{name}")).map_err(|e| UrlError::new(name, e.problem));
-    }
-    if name.contains(':') {
-        return name.parse();
-    }
-    parse_socketcan(&format!("socketcan:{name}")).map_err(|_| {
-        UrlError::new(
-            name,
-            UrlProblem::Name(name.to_string(), registry::syntaxes()),
-        )
-    })
-}
 
 /// `socketcand://HOST[:PORT][/CHANNEL]` (port 29536 and channel vcan0 by default; IPv6 as
 /// `[::1]`).
@@ -353,6 +295,7 @@ impl fmt::Display for BusUrl {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::resolve;
 
     fn url(text: &str) -> BusUrl {
         text.parse().unwrap_or_else(|e| panic!("{text}: {e}"))

@@ -1,6 +1,8 @@
 //! A [`CanBus`] over a socketcand TCP connection in raw mode (the IO adapter around the codec),
 //! with buslab's extensions as a [`BusAdmin`] when the server has them.
 
+pub mod inbound;
+
 use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
@@ -15,11 +17,11 @@ use buslab_canbus::{
 
 use crate::command::Command;
 use crate::element::ElementError;
-use crate::inbound::Inbound;
-pub use crate::inbound::MAX_INBOX;
 use crate::message::ServerMessage;
 use crate::reply::{self, ReplyError};
 use crate::{ProtocolError, sanitize};
+use inbound::Inbound;
+pub use inbound::MAX_INBOX;
 
 /// Deadlines of a client.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

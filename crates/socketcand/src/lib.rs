@@ -18,15 +18,14 @@ pub mod client;
 pub mod command;
 pub mod controller;
 pub mod element;
-pub mod inbound;
 pub mod message;
 pub mod reply;
 pub mod server;
 
+pub use client::inbound::Inbound;
 pub use client::{ClientError, ClientOptions, SocketcandBus};
 pub use command::{Command, NodeRef};
 pub use element::{Deframer, ElementError, MAX_ELEMENT};
-pub use inbound::Inbound;
 pub use message::{FormattedFrame, ServerMessage, Timestamp};
 pub use reply::{
     ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_refused, parse_regs,

@@ -7,8 +7,8 @@ use std::collections::VecDeque;
 use buslab_canbus::bus::matches_any;
 use buslab_canbus::{BusEvent, ErrorFrame, ErrorMessage, Filter, Message};
 
+use super::ClientError;
 use crate::ProtocolError;
-use crate::client::ClientError;
 use crate::element::{Deframer, element_text};
 use crate::message::{ServerMessage, parse_frame_fast};
 
