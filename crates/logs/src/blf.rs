@@ -27,9 +27,9 @@ use flate2::{Compress, Compression, Decompress, FlushCompress, FlushDecompress, 
 use crate::asc::error_frame as bus_error;
 use crate::bitrate::FrameLengths;
 use crate::channel::{ChannelMap, channel_of, set_channel_name};
+use crate::codec::{Encoder, LogReader};
+use crate::codec::{read_full, truncated};
 use crate::error::{Problem, ReadError};
-use crate::file::{Encoder, LogReader};
-use crate::pcap::{read_full, truncated};
 use crate::time;
 use crate::{Direction, Entry, Location, LogBitRate, Record};
 

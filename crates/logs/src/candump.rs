@@ -21,37 +21,13 @@ use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
 use buslab_canbus::error_frame::ERROR_FLAG;
 
-use crate::file::{Encoder, LogReader};
+use crate::codec::{Encoder, LogReader};
+pub use crate::error::LineError;
 use crate::text::{self, Lines, TooLong};
 use crate::{Direction, Entry, Location, ReadError, Record};
 
 /// The longest line [`Reader`] takes (a classic CAN line is under 80 characters).
 pub const MAX_LINE: usize = text::MAX_LINE;
-
-/// Why a log line cannot be read.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum LineError {
-    #[error("empty line: expected (SECONDS.FRACTION) IFACE FRAME")]
-    Empty,
-    #[error(
-        "timestamp {0:?} must be (SECONDS.FRACTION) with 1..9 decimals, e.g. (1700000000.123456)"
-    )]
-    Timestamp(String),
-    #[error("no interface after the timestamp: expected (SECONDS.FRACTION) IFACE FRAME")]
-    NoInterface,
-    #[error("no frame after interface {0:?}: expected (SECONDS.FRACTION) IFACE FRAME")]
-    NoFrame(String),
-    #[error("{0}")]
-    Frame(#[from] buslab_can::ParseError),
-    #[error("error frame {text:?}: {reason}")]
-    ErrorFrame { text: String, reason: String },
-    #[error("unexpected {0:?} after the frame: only R or T (candump -x) may follow")]
-    Trailing(String),
-    #[error("line is longer than {MAX_LINE} bytes")]
-    TooLong,
-    #[error("line is not UTF-8 text")]
-    NotText,
-}
 
 /// Reads one log line: `(SEC.FRACTION) IFACE FRAME [R|T]`. Runs of spaces separate the
 /// fields (candump right-aligns interface names to the longest one).

@@ -18,8 +18,8 @@ use base64::engine::general_purpose::STANDARD as BASE64;
 use buslab_can::{Frame, Id};
 use buslab_canbus::ErrorFrame;
 
+use crate::codec::{Encoder, LogReader};
 use crate::error::{Problem, ReadError};
-use crate::file::{Encoder, LogReader};
 use crate::text::{self, Lines, TooLong};
 use crate::{Entry, Location, Record};
 

@@ -4,7 +4,32 @@ use std::fmt;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use crate::candump::LineError;
+use crate::text::MAX_LINE;
+
+/// Why a log line cannot be read.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LineError {
+    #[error("empty line: expected (SECONDS.FRACTION) IFACE FRAME")]
+    Empty,
+    #[error(
+        "timestamp {0:?} must be (SECONDS.FRACTION) with 1..9 decimals, e.g. (1700000000.123456)"
+    )]
+    Timestamp(String),
+    #[error("no interface after the timestamp: expected (SECONDS.FRACTION) IFACE FRAME")]
+    NoInterface,
+    #[error("no frame after interface {0:?}: expected (SECONDS.FRACTION) IFACE FRAME")]
+    NoFrame(String),
+    #[error("{0}")]
+    Frame(#[from] buslab_can::ParseError),
+    #[error("error frame {text:?}: {reason}")]
+    ErrorFrame { text: String, reason: String },
+    #[error("unexpected {0:?} after the frame: only R or T (candump -x) may follow")]
+    Trailing(String),
+    #[error("line is longer than {MAX_LINE} bytes")]
+    TooLong,
+    #[error("line is not UTF-8 text")]
+    NotText,
+}
 
 /// Where in a file a bad record is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

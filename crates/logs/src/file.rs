@@ -2,128 +2,25 @@
 //! or a device would block or never end); reading is streamed through a fixed buffer.
 
 use std::fs::{self, File};
-use std::io::{self, BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use flate2::read::MultiGzDecoder;
 use tempfile::TempPath;
 
+use crate::codec::{ByteCounter, Encoder, Entries, LogReader, LogWriter, READ_BUFFER};
 use crate::error::{LogError, ReadError};
-use crate::follow::{Following, Watch};
+use crate::follow::{Following, OnWait, Watch};
 use crate::format::Format;
+use crate::input::{Counted, Named, check_regular, is_gzip, open_regular, reader};
 #[cfg(feature = "sqlite")]
 use crate::sqlite;
-use crate::{Entry, LogBitRate, asc, blf, candump, csv, pcap, pcapng, trc};
+use crate::{Entry, asc, blf, candump, csv, pcap, pcapng, trc};
 
-/// The read buffer of a log file.
-pub(crate) const READ_BUFFER: usize = 256 * 1024;
 /// The write buffer of a log file.
 const WRITE_BUFFER: usize = 256 * 1024;
-
-/// A log being read, one entry at a time into the caller's [`Entry`] (the text formats then
-/// allocate nothing per entry).
-pub trait LogReader: Send {
-    /// Reads the next entry into `entry`; `Ok(false)` at the end. After an error that is not
-    /// [fatal](ReadError::is_fatal) the next call goes on with the next record; after a fatal
-    /// one it returns `Ok(false)`.
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError>;
-    /// The bus's bit rate the log gives for `interface` in what was read so far: its header
-    /// names it (TRC) or its frames carry their length on the wire (ASC, BLF). `None` when it
-    /// does not say (candump, CSV, SQLite and pcap logs never do).
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        let _ = interface;
-        None
-    }
-}
-
-impl<R: LogReader + ?Sized> LogReader for Box<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
-        (**self).read_into(entry)
-    }
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        (**self).bit_rate(interface)
-    }
-}
-
-/// A log being written.
-pub trait LogWriter {
-    fn write(&mut self, entry: &Entry) -> io::Result<()>;
-    /// Hands everything written so far to the operating system (the SQLite writer commits),
-    /// so it survives the process being killed.
-    fn flush(&mut self) -> io::Result<()>;
-    /// Completes the file (headers that need the totals, the last container or transaction),
-    /// syncs it to disk and, for an atomic writer, puts it in place.
-    fn finish(self: Box<Self>) -> io::Result<()>;
-    /// Entries the format cannot hold, left out so far (each kind warned about once).
-    fn left_out(&self) -> u64 {
-        0
-    }
-}
-
-/// A format's writer over some output (the file layer wraps it into a [`LogWriter`]).
-pub(crate) trait Encoder<W>: Send {
-    fn write(&mut self, entry: &Entry) -> io::Result<()>;
-    fn flush(&mut self) -> io::Result<()>;
-    /// Writes what is still pending and gives the output back.
-    fn finish(self) -> io::Result<W>;
-    fn left_out(&self) -> u64 {
-        0
-    }
-}
-
-/// The entries of a [`LogReader`] as an iterator (one allocation per entry for its interface
-/// name; [`LogReader::read_into`] avoids it).
-pub struct Entries<R> {
-    reader: R,
-    done: bool,
-}
-
-impl<R: LogReader> Entries<R> {
-    pub fn new(reader: R) -> Self {
-        Self {
-            reader,
-            done: false,
-        }
-    }
-}
-
-impl<R: LogReader> Iterator for Entries<R> {
-    type Item = Result<Entry, ReadError>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.done {
-            return None;
-        }
-        let mut entry = Entry::default();
-        match self.reader.read_into(&mut entry) {
-            Ok(true) => Some(Ok(entry)),
-            Ok(false) => {
-                self.done = true;
-                None
-            }
-            Err(e) => {
-                self.done = e.is_fatal();
-                Some(Err(e))
-            }
-        }
-    }
-}
-
-/// How many bytes of a file were read so far (for a progress bar in another thread).
-#[derive(Clone, Debug, Default)]
-pub struct ByteCounter(Arc<AtomicU64>);
-
-impl ByteCounter {
-    pub fn get(&self) -> u64 {
-        self.0.load(Ordering::Relaxed)
-    }
-
-    pub(crate) fn add(&self, n: u64) {
-        self.0.fetch_add(n, Ordering::Relaxed);
-    }
-}
 
 /// An opened log: its reader, the bytes read so far, the file's size when opened.
 pub struct LogSource {
@@ -131,9 +28,6 @@ pub struct LogSource {
     pub bytes_read: ByteCounter,
     pub len: u64,
 }
-
-/// Called when a followed file has no more bytes for now (e.g. to flush what was written).
-pub type OnWait = Arc<dyn Fn() + Send + Sync>;
 
 /// How to open a log.
 #[derive(Clone, Default)]
@@ -190,7 +84,7 @@ pub fn open_source(
         let reader = sqlite::Reader::open(path).map_err(|e| LogError::Read {
             source: e.in_file(path),
         })?;
-        bytes_read.0.store(len, Ordering::Relaxed);
+        bytes_read.set(len);
         return Ok(LogSource {
             reader: Box::new(Named::new(reader, path)),
             bytes_read,
@@ -234,124 +128,6 @@ pub fn open_source(
         reader: Box::new(Named::new(reader, path)),
         bytes_read,
         len,
-    })
-}
-
-/// The reader for `format` over any buffered input (a file, bytes in memory, a fuzzer's
-/// input). The pcap formats tell pcap from pcapng by the first bytes, so either name reads
-/// both. SQLite is read from a file only ([`open_source`]).
-pub fn reader<R: BufRead + Send + 'static>(
-    mut input: R,
-    format: Format,
-) -> Result<Box<dyn LogReader + Send>, ReadError> {
-    Ok(match format {
-        Format::Candump => Box::new(candump::Reader::new(input)),
-        Format::Asc => Box::new(asc::Reader::new(input)),
-        Format::Blf => Box::new(blf::Reader::new(input)),
-        Format::Trc11 | Format::Trc21 => Box::new(trc::Reader::new(input)),
-        Format::Csv => Box::new(csv::Reader::new(input)),
-        Format::Pcap | Format::Pcapng => {
-            let head = input.fill_buf().map_err(ReadError::io)?;
-            if head.starts_with(&pcapng::BLOCK_SHB.to_le_bytes()) {
-                Box::new(pcapng::Reader::new(input))
-            } else {
-                Box::new(pcap::Reader::new(input))
-            }
-        }
-        Format::Sqlite => {
-            return Err(ReadError::fatal(
-                None,
-                crate::Problem::NotFormat {
-                    format: "stream",
-                    reason: "an SQLite database is read from a file".into(),
-                },
-            ));
-        }
-    })
-}
-
-/// A reader whose errors name its file.
-struct Named<R> {
-    inner: R,
-    path: PathBuf,
-}
-
-impl<R> Named<R> {
-    fn new(inner: R, path: &Path) -> Self {
-        Self {
-            inner,
-            path: path.to_path_buf(),
-        }
-    }
-}
-
-impl<R: LogReader> LogReader for Named<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
-        self.inner
-            .read_into(entry)
-            .map_err(|e| e.in_file(&self.path))
-    }
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        self.inner.bit_rate(interface)
-    }
-}
-
-/// Counts the bytes read.
-struct Counted<R> {
-    inner: R,
-    count: ByteCounter,
-}
-
-impl<R: Read> Read for Counted<R> {
-    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        self.count.add(n as u64);
-        Ok(n)
-    }
-}
-
-/// Whether the file starts with gzip's magic number (it is read from its start afterwards).
-fn is_gzip(file: &mut File) -> io::Result<bool> {
-    let mut magic = [0u8; 2];
-    let got = crate::pcap::read_full(file, &mut magic)?;
-    file.rewind()?;
-    Ok(got == 2 && magic == [0x1F, 0x8B])
-}
-
-/// Opens `path` for reading if it is a regular file.
-pub(crate) fn open_regular(path: &Path) -> Result<File, LogError> {
-    let meta = fs::metadata(path).map_err(|source| LogError::Open {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    check_regular(path, &meta)?;
-    File::open(path).map_err(|source| LogError::Open {
-        path: path.to_path_buf(),
-        source,
-    })
-}
-
-fn check_regular(path: &Path, meta: &fs::Metadata) -> Result<(), LogError> {
-    use std::os::unix::fs::FileTypeExt;
-    let t = meta.file_type();
-    let what = if t.is_file() {
-        return Ok(());
-    } else if t.is_dir() {
-        "a directory"
-    } else if t.is_fifo() {
-        "a FIFO"
-    } else if t.is_char_device() {
-        "a character device"
-    } else if t.is_block_device() {
-        "a block device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        "something else"
-    };
-    Err(LogError::NotRegular {
-        path: path.to_path_buf(),
-        what,
     })
 }
 

@@ -12,9 +12,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
+use crate::codec::{ByteCounter, LogReader, READ_BUFFER};
 use crate::error::{LogError, ReadError};
-use crate::file::{ByteCounter, LogReader, OnWait, READ_BUFFER, open_regular, reader};
 use crate::format::Format;
+use crate::input::{open_regular, reader};
 use crate::{Entry, blf};
 
 /// How often a followed file is looked at for new bytes.
@@ -251,3 +252,6 @@ impl LogReader for Following {
         }
     }
 }
+
+/// Called when a followed file has no more bytes for now (e.g. to flush what was written).
+pub type OnWait = Arc<dyn Fn() + Send + Sync>;

@@ -29,11 +29,13 @@ mod bitrate;
 pub mod blf;
 pub mod candump;
 mod channel;
+mod codec;
 pub mod csv;
 mod error;
 mod file;
 mod follow;
 mod format;
+mod input;
 pub mod pcap;
 pub mod pcapng;
 mod socketcan;
@@ -45,12 +47,15 @@ pub mod trc;
 
 pub use bitrate::{BitRateSource, LogBitRate};
 pub use channel::{ChannelMap, channel_name};
+pub use codec::{ByteCounter, Entries, LogReader, LogWriter};
 pub use error::{Location, LogError, Problem, ReadError};
 pub use file::{
-    ByteCounter, Entries, LogReader, LogSource, LogWriter, OnWait, OpenOptions, WriteOptions,
-    create_writer, create_writer_atomic, create_writer_with, open_reader, open_source, reader,
+    LogSource, OpenOptions, WriteOptions, create_writer, create_writer_atomic, create_writer_with,
+    open_reader, open_source,
 };
+pub use follow::OnWait;
 pub use format::{Format, FormatError};
+pub use input::reader;
 
 /// One logged event: a frame or an error frame, when and where.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -11,8 +11,8 @@
 use std::io::{self, Read, Write};
 use std::time::Duration;
 
+use crate::codec::{Encoder, LogReader, read_full, truncated};
 use crate::error::{Problem, ReadError};
-use crate::file::{Encoder, LogReader};
 use crate::socketcan;
 use crate::{Entry, Location};
 
@@ -23,20 +23,6 @@ const MAGIC_NANOS: u32 = 0xA1B2_3C4D;
 pub const MAX_PACKET: u32 = 262_144;
 /// The interface name entries of a pcap file get.
 pub const INTERFACE: &str = "can0";
-
-/// Reads as many bytes as there are, up to `buf.len()`: fewer only at the end of the input.
-pub(crate) fn read_full(input: &mut impl Read, buf: &mut [u8]) -> io::Result<usize> {
-    let mut got = 0;
-    while got < buf.len() {
-        match input.read(&mut buf[got..]) {
-            Ok(0) => break,
-            Ok(n) => got += n,
-            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(got)
-}
 
 #[derive(Clone, Copy, Debug)]
 struct Header {
@@ -198,17 +184,6 @@ fn not_pcap(reason: String) -> ReadError {
         Problem::NotFormat {
             format: "pcap",
             reason,
-        },
-    )
-}
-
-pub(crate) fn truncated(at: u64, what: &'static str, have: usize, need: usize) -> ReadError {
-    ReadError::fatal(
-        Some(Location::Offset(at)),
-        Problem::Truncated {
-            what,
-            have: have as u64,
-            need: need as u64,
         },
     )
 }

@@ -14,9 +14,9 @@
 use std::io::{self, Read, Write};
 use std::time::Duration;
 
+use crate::codec::{Encoder, LogReader};
+use crate::codec::{read_full, truncated};
 use crate::error::{Problem, ReadError};
-use crate::file::{Encoder, LogReader};
-use crate::pcap::{read_full, truncated};
 use crate::socketcan::{self, LINKTYPE_CAN_SOCKETCAN};
 use crate::{Direction, Entry, Location};
 

@@ -28,8 +28,8 @@ use rusqlite::config::DbConfig;
 use rusqlite::types::{Value, ValueRef};
 use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
 
+use crate::codec::LogReader;
 use crate::error::{Problem, ReadError};
-use crate::file::LogReader;
 use crate::{Entry, Location, Record, seconds};
 
 pub const TABLE: &str = "messages";
