@@ -20,8 +20,9 @@ use futures_util::Stream;
 use serde::Serialize;
 use tokio::time::MissedTickBehavior;
 
+use crate::app::{App, authorize};
+use crate::error::ApiError;
 use crate::request::{FaultOrder, ViewQuery, ViewRequest, fault_request, send_request};
-use crate::routes::{ApiError, App, authorize};
 
 /// Updates per second a viewer gets at most (the issue allows 20).
 const UPDATE_EVERY: Duration = Duration::from_millis(100);

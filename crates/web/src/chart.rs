@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use crate::pages::esc;
+use crate::html::esc;
 
 /// The plot area in SVG units (the labels go around it).
 pub const W: f64 = 600.0;

@@ -12,12 +12,13 @@ use buslab_canbus::BusError;
 use buslab_canbus::admin::{BoardInput, BoardState};
 use buslab_slio::SlioId;
 
+use crate::app::{App, authorize};
 use crate::device_request::{
     Cpu196Order, SlioOrder, ZelleOrder, cpu196_request, slio_request, zelle_request,
 };
 use crate::devices::cpu196::Cpu196Job;
 use crate::devices::zelle::{JobRefused, ZelleJob};
-use crate::routes::{ApiError, App, authorize};
+use crate::error::ApiError;
 
 /// `GET /api/devices`: every panel.
 pub async fn devices(State(app): State<App>) -> impl IntoResponse {

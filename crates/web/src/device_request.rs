@@ -15,7 +15,7 @@ use buslab_zelle::client::{SeriesError, SeriesParams};
 use serde::Deserialize;
 
 use crate::devices::zelle::{MAX_CHUNKS, MAX_RAM_VIEW, run_time};
-use crate::routes::ApiError;
+use crate::error::ApiError;
 
 /// A measurement from the dashboard lasts this long at most.
 pub const MAX_MEASUREMENT: Duration = Duration::from_secs(600);

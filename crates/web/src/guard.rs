@@ -20,7 +20,7 @@ use std::net::{Ipv4Addr, Ipv6Addr};
 use axum::http::header::HeaderName;
 use axum::http::{HeaderMap, HeaderValue, StatusCode};
 
-use crate::routes::ApiError;
+use crate::error::ApiError;
 
 /// What every page may load: its own scripts, styles and images, its own API; nothing
 /// inline, no plug-ins, no framing, forms only to itself.

@@ -22,11 +22,14 @@
 //! (thread-based) command-line tool can start it next to anything else.
 
 mod api;
+mod app;
 mod chart;
 mod device_api;
 pub mod device_request;
 pub mod devices;
+mod error;
 pub mod guard;
+mod html;
 mod hub;
 mod limits;
 mod pages;
@@ -38,9 +41,9 @@ use std::net::SocketAddr;
 use std::time::Duration;
 
 pub use devices::DeviceConfig;
+pub use error::ApiError;
 pub use guard::BadHostName;
 pub use limits::Timeouts;
-pub use routes::ApiError;
 pub use server::WebServer;
 
 /// The header that carries the write token.

@@ -22,7 +22,7 @@ use futures_util::StreamExt;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::time::Sleep;
 
-use crate::routes::ApiError;
+use crate::error::ApiError;
 
 /// How long a client may take, as configured ([`crate::WebConfig`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

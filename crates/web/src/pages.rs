@@ -11,9 +11,11 @@ use std::time::Duration;
 use buslab_view::{Cursor, Delta, ErrorSample, IdRow, LogEntry, LogFilter, NodeView};
 use serde::Deserialize;
 
+use crate::app::App;
 use crate::chart::{self, Band, Chart, Series, TimeAxis, nice_top};
+use crate::error::ApiError;
+use crate::html::esc;
 use crate::request::{DEFAULT_WINDOW, MAX_WINDOW};
-use crate::routes::{ApiError, App};
 
 const STYLE: &str = include_str!("assets/style.css");
 const DASHBOARD: &str = include_str!("assets/dashboard.html");
@@ -477,22 +479,6 @@ fn volts_chart(b: &mut String, series: Vec<Series<'_>>, caption: &str) {
         series,
     }
     .render(b);
-}
-
-/// HTML-escapes text (node names and filters come from outside).
-pub fn esc(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
-    }
-    out
 }
 
 /// `/devices`: the bench's device panels without JavaScript (read-only: a write needs the

@@ -11,7 +11,7 @@ use buslab_canbus::{NodeRef, Probability, WireFault};
 use buslab_view::LogFilter;
 use serde::Deserialize;
 
-use crate::routes::ApiError;
+use crate::error::ApiError;
 
 /// Frames `/api/state` gives at most.
 pub const MAX_STATE_LOG: usize = 1000;

@@ -1,34 +1,21 @@
-//! The routes, the shared application state, the token rule and errors with reasons.
-
-use std::sync::Arc;
-use std::time::Duration;
+//! The routes: which handler answers which method and path, and the fallbacks.
 
 use axum::Router;
 use axum::body::Body;
 use axum::extract::{DefaultBodyLimit, Request, State};
-use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, Version, header};
+use axum::http::{HeaderValue, Method, StatusCode, Version, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
-use buslab_backends::PumpSender;
 
-use crate::guard::{HostGuard, add_security_headers};
-use crate::hub::Hub;
-use crate::limits::{Timeouts, read_body};
-use crate::{TOKEN_HEADER, api, device_api, pages};
+use crate::app::App;
+use crate::error::ApiError;
+use crate::guard::add_security_headers;
+use crate::limits::read_body;
+use crate::{api, device_api, pages};
 
 /// The largest request body (a frame, a fault): anything larger is refused with 413.
 pub const MAX_BODY: usize = 4096;
-
-#[derive(Clone)]
-pub struct App {
-    pub hub: Arc<Hub>,
-    pub sender: PumpSender,
-    pub token: Option<Arc<str>>,
-    /// The hosts this server answers to.
-    pub hosts: Arc<HostGuard>,
-    pub timeouts: Timeouts,
-}
 
 pub fn router(app: App) -> Router {
     Router::new()
@@ -115,63 +102,5 @@ async fn method_not_allowed() -> ApiError {
         StatusCode::METHOD_NOT_ALLOWED,
         "method not allowed here: pages are GET, writes are POST to /api/send, /api/fault, \
          /api/repair, /api/slio, /api/zelle, /api/cpu196",
-    )
-}
-
-/// A refusal with its reason, as plain text.
-#[derive(Debug)]
-pub struct ApiError {
-    pub status: StatusCode,
-    pub reason: String,
-    /// When to ask again (a `Retry-After` header, in whole seconds rounded up).
-    pub retry_after: Option<Duration>,
-}
-
-impl ApiError {
-    pub fn new(status: StatusCode, reason: impl Into<String>) -> Self {
-        Self {
-            status,
-            reason: reason.into(),
-            retry_after: None,
-        }
-    }
-
-    /// 429: a rate limit refused it; the next is allowed after `wait`.
-    pub fn too_many(reason: impl Into<String>, wait: Duration) -> Self {
-        Self {
-            retry_after: Some(wait),
-            ..Self::new(StatusCode::TOO_MANY_REQUESTS, reason)
-        }
-    }
-
-    pub fn bad_request(reason: impl Into<String>) -> Self {
-        Self::new(StatusCode::BAD_REQUEST, reason)
-    }
-}
-
-impl IntoResponse for ApiError {
-    fn into_response(self) -> Response {
-        let mut response = (self.status, format!("{}\n", self.reason)).into_response();
-        response.headers_mut().insert(
-            header::CONTENT_TYPE,
-            HeaderValue::from_static("text/plain; charset=utf-8"),
-        );
-        if let Some(wait) = self.retry_after {
-            // Whole seconds, at least 1: a client that waits that long is allowed.
-            let seconds = wait.as_millis().div_ceil(1000).max(1);
-            response
-                .headers_mut()
-                .insert(header::RETRY_AFTER, HeaderValue::from(seconds as u64));
-        }
-        response
-    }
-}
-
-/// Writes need the server's token in the `X-Buslab-Token` header
-/// ([`crate::request::check_token`]).
-pub fn authorize(app: &App, headers: &HeaderMap) -> Result<(), ApiError> {
-    crate::request::check_token(
-        app.token.as_deref(),
-        headers.get(TOKEN_HEADER).map(HeaderValue::as_bytes),
     )
 }

@@ -12,10 +12,11 @@ use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
 use tokio::sync::{Semaphore, oneshot};
 
+use crate::app::App;
 use crate::guard::{HostGuard, SECURITY_HEADERS};
 use crate::hub::BusSide;
 use crate::limits::{StallGuard, Timeouts};
-use crate::routes::{App, router};
+use crate::routes::router;
 use crate::{WebConfig, WebError, check_token};
 
 /// The largest request head read (hyper's smallest allowed buffer is 8 KiB).
