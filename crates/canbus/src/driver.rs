@@ -13,7 +13,6 @@ use buslab_can::Frame;
 use buslab_sja1000::regs::*;
 use buslab_sja1000::{CanMode, layout};
 
-use crate::bus::BusState;
 use crate::config::{ConfigError, Sja1000Config};
 use crate::decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 use crate::regs::RegisterAccess;
@@ -56,40 +55,7 @@ impl TxMode {
     }
 }
 
-/// Error state as the SJA1000 shows it (Linux's four states).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum ControllerState {
-    /// Both counters below the warning limit.
-    Active,
-    /// A counter at or above the warning limit (SR.ES), still error-active.
-    Warning,
-    /// A counter above 127 (PeliCAN only: BasicCAN cannot read its counters).
-    Passive,
-    /// SR.BS: the controller left the bus.
-    BusOff,
-}
-
-impl ControllerState {
-    /// The python-can view (warning counts as active).
-    pub fn bus_state(self) -> BusState {
-        match self {
-            ControllerState::Active | ControllerState::Warning => BusState::Active,
-            ControllerState::Passive => BusState::Passive,
-            ControllerState::BusOff => BusState::BusOff,
-        }
-    }
-}
-
-impl fmt::Display for ControllerState {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            ControllerState::Active => "error-active",
-            ControllerState::Warning => "error warning",
-            ControllerState::Passive => "error-passive",
-            ControllerState::BusOff => "bus-off",
-        })
-    }
-}
+pub use buslab_bus::state::ControllerState;
 
 /// Why a requested transmission ended without success.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -1,15 +1,19 @@
 //! buslab's CAN host library (the successor of the seed's CANAPI).
 //!
-//! - [`bus`]: a bus interface in the spirit of python-can's `BusABC` ([`CanBus`], [`Message`],
-//!   [`Filter`], [`BusState`]).
-//! - [`admin`]: nodes, typed node status and registers of buslab's virtual bus ([`BusAdmin`]).
+//! The bus vocabulary ([`Message`], [`Filter`], [`BusState`], [`BusError`], [`ErrorFrame`],
+//! node counters and faults) lives in `buslab-bus`, which needs no model; it is re-exported
+//! here under the same paths.
+//!
+//! - [`bus`]: a bus interface in the spirit of python-can's `BusABC` ([`CanBus`]).
+//! - [`admin`]: typed node status and registers of buslab's virtual bus, demo boards
+//!   ([`BusAdmin`]).
 //! - [`regs`]: register access ([`RegisterAccess`]), the seam between a driver and a chip.
 //! - [`config`]: SJA1000 configuration with defaults and validation ([`Sja1000Config`]).
 //! - [`driver`]: the SJA1000 driver, BasicCAN and PeliCAN behind one interface
 //!   ([`Sja1000Driver`]); it touches the chip only through register reads and writes.
 //! - [`decode`]: status, error-code and arbitration-lost registers decoded into words.
-//! - [`error_frame`]: SocketCAN error frames as typed values ([`ErrorFrame`]), decoded,
-//!   encoded, and in can-utils' words.
+//! - [`error_frame`]: the SJA1000 driver's events as SocketCAN error frames
+//!   ([`error_frame::from_driver_event`]), as Linux's driver sends them.
 //! - [`manager`]: the single owner of a driver: one thread, listeners and requests
 //!   ([`Manager`], [`ManagerHandle`]).
 //! - [`node`]: an SJA1000 with the CPU running this driver as a node of the bus engine

@@ -298,7 +298,7 @@ impl Sja1000Node {
         for event in events.drain(..) {
             if self.error_frames {
                 let registers = self.driver.error_registers();
-                if let Some(frame) = ErrorFrame::from_driver_event(&event, registers) {
+                if let Some(frame) = crate::error_frame::from_driver_event(&event, registers) {
                     self.errors.push(TimedErrorFrame { frame, time: now });
                 }
             }
