@@ -34,9 +34,9 @@
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
 
+use buslab_bus::ErrorFrame;
+use buslab_bus::error_frame::CanError;
 use buslab_can::{Frame, Id};
-use buslab_canbus::ErrorFrame;
-use buslab_canbus::error_frame::CanError;
 
 use crate::LogBitRate;
 use crate::bitrate::FrameLengths;

@@ -20,8 +20,8 @@
 use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::time::Duration;
 
+use buslab_bus::ErrorFrame;
 use buslab_can::{Frame, Id};
-use buslab_canbus::ErrorFrame;
 use flate2::{Compress, Compression, Decompress, FlushCompress, FlushDecompress, Status};
 
 use crate::asc::error_frame as bus_error;

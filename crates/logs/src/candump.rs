@@ -17,9 +17,9 @@
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
 
+use buslab_bus::ErrorFrame;
+use buslab_bus::error_frame::ERROR_FLAG;
 use buslab_can::{Frame, Id};
-use buslab_canbus::ErrorFrame;
-use buslab_canbus::error_frame::ERROR_FLAG;
 
 use crate::codec::{Encoder, LogReader};
 pub use crate::error::LineError;

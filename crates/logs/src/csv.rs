@@ -15,8 +15,8 @@ use std::io::{self, BufRead, Write};
 
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD as BASE64;
+use buslab_bus::ErrorFrame;
 use buslab_can::{Frame, Id};
-use buslab_canbus::ErrorFrame;
 
 use crate::codec::{Encoder, LogReader};
 use crate::error::{Problem, ReadError};

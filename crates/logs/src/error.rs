@@ -65,7 +65,7 @@ pub enum Problem {
     #[error("{0}")]
     Frame(#[from] buslab_can::ParseError),
     #[error("error frame: {0}")]
-    ErrorFrame(#[from] buslab_canbus::error_frame::ErrorFrameError),
+    ErrorFrame(#[from] buslab_bus::error_frame::ErrorFrameError),
     #[error(
         "a CAN FD frame: buslab's frames are classic CAN (0..8 bytes); --skip-bad leaves such frames out"
     )]

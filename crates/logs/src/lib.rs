@@ -21,8 +21,8 @@
 
 use std::time::Duration;
 
+use buslab_bus::{BusEvent, ErrorFrame, ErrorMessage, Message};
 use buslab_can::Frame;
-use buslab_canbus::{BusEvent, ErrorFrame, ErrorMessage, Message};
 
 pub mod asc;
 mod bitrate;

@@ -8,8 +8,8 @@
 //! LINKTYPE_CAN_SOCKETCAN (`can-bigendian`, or the old link-type tag saying 227) are read as
 //! above; any other is refused, naming the dissector.
 
+use buslab_bus::ErrorFrame;
 use buslab_can::{Frame, Id};
-use buslab_canbus::ErrorFrame;
 
 use crate::Record;
 use crate::error::{Problem, excerpt};

@@ -22,8 +22,8 @@ use std::sync::{Arc, LazyLock, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use buslab_bus::ErrorFrame;
 use buslab_can::{Frame, Id};
-use buslab_canbus::ErrorFrame;
 use rusqlite::config::DbConfig;
 use rusqlite::types::{Value, ValueRef};
 use rusqlite::{Connection, OpenFlags, OptionalExtension, params};

@@ -4,8 +4,8 @@
 use std::io::Cursor;
 use std::time::Duration;
 
+use buslab_bus::{CanError, ErrorFrame};
 use buslab_can::Frame;
-use buslab_canbus::{CanError, ErrorFrame};
 use buslab_logs::asc::{Reader, Writer};
 use buslab_logs::{Direction, Entry, Location, Problem, ReadError, Record};
 

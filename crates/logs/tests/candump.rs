@@ -3,8 +3,8 @@
 use std::io::Cursor;
 use std::time::Duration;
 
+use buslab_bus::{CanError, ErrorFrame};
 use buslab_can::{Frame, Id};
-use buslab_canbus::{CanError, ErrorFrame};
 use buslab_logs::candump::{LineError, MAX_LINE, Reader, Writer, format_line, parse_line};
 use buslab_logs::{Direction, Entry, Location, Problem, ReadError, Record};
 use proptest::prelude::*;

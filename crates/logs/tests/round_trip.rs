@@ -5,8 +5,8 @@ use std::io::Cursor;
 use std::path::Path;
 use std::time::Duration;
 
+use buslab_bus::ErrorFrame;
 use buslab_can::{Frame, Id};
-use buslab_canbus::ErrorFrame;
 use buslab_logs::{
     ChannelMap, Direction, Entry, Format, Record, create_writer, create_writer_atomic, open_reader,
     reader,
