@@ -2,16 +2,17 @@
 //! nodes and reports each one's error state, counters and registers ([`BusAdmin`]).
 //!
 //! The values are typed here; a transport carries them however it must (the socketcand
-//! extension as `key=value` text) and turns them back into these types at its edge.
+//! extension as `key=value` text) and turns them back into these types at its edge. The
+//! values that need no SJA1000 or SLIO facts live in `buslab-bus` and are re-exported here.
 
 use std::fmt;
 
+pub use buslab_bus::admin::*;
+use buslab_bus::{BusError, BusState};
 use buslab_slio::SlioId;
 use buslab_slio::board::{LED_PINS, VDD};
 
 use crate::decode::{ErrorRegisters, RegisterDump, Status};
-pub use buslab_bus::admin::*;
-use buslab_bus::{BusError, BusState};
 
 /// A node's status: error state, registers, counters.
 #[derive(Clone, Debug, PartialEq)]

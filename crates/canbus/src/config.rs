@@ -429,9 +429,9 @@ impl AcceptanceFilter {
     /// ID filters (python-can's `can_id`/`can_mask`) that pass at least every frame this
     /// filter passes: its comparisons on ID bits, without those on RTR and data bytes. For
     /// kernel filters ahead of [`Self::accepts`]; empty for "everything".
-    pub fn id_cover(&self) -> Vec<crate::Filter> {
+    pub fn id_cover(&self) -> Vec<buslab_bus::Filter> {
         let care = |m: u8| !m;
-        let filter = |id: u32, mask: u32, extended: bool| crate::Filter {
+        let filter = |id: u32, mask: u32, extended: bool| buslab_bus::Filter {
             id: id & mask,
             mask,
             extended: Some(extended),
@@ -763,7 +763,7 @@ mod controller_tests {
                 if filter.accepts(&frame) {
                     passed += 1;
                     assert!(
-                        crate::bus::matches_any(&cover, &frame),
+                        buslab_bus::matches_any(&cover, &frame),
                         "{filter:?} passes {frame} but its cover {cover:?} does not"
                     );
                 }
