@@ -471,13 +471,15 @@ impl Chip {
                     self.begin();
                 }
                 Run::Busy { until } => {
-                    if !self.stall_to(board, until.min(target), tx) {
+                    if !self.stall_to(board, until.min(target), tx) || self.core.now().0 < until {
                         return None;
                     }
                     self.run = Run::Running;
                 }
                 Run::Inter { until } => {
-                    if !self.stall_to(board, until.min(target), tx) {
+                    // Reaching the target before `until` is not reaching `until`: "Inter"
+                    // would find its byte still on the line and wait again, for ever.
+                    if !self.stall_to(board, until.min(target), tx) || self.core.now().0 < until {
                         return None;
                     }
                     self.inter();
