@@ -9,16 +9,18 @@
 //! p26 pull 0|1                            P2.6 pulled low from outside
 //! bus ADDR VALUE                          what the parallel-bus peripheral at ADDR answers
 //! status                                  mode, activity, value count, bytes lost
+//! cpu                                     the program's CPU: running, or at its last stop
+//! iram                                    the internal RAM (128 bytes)
 //! save                                    write the state file now
 //! ```
 
 use crate::analog::{SourceError, SourceSpec};
-use crate::{Activity, Cell};
+use crate::{Activity, Cell, view};
 
 /// Help text for the control language.
 pub const HELP: &str = "key press DURATION | key down | key up | power off | power on | \
      power cycle | reset | analog CH SOURCE | p1 pull MASK | p26 pull 0|1 | bus ADDR VALUE | \
-     status | save | help";
+     status | cpu | iram | save | help";
 
 /// One control line, parsed.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,6 +37,8 @@ pub enum ControlCommand {
     P26Pull(bool),
     Bus { addr: u8, value: u8 },
     Status,
+    Cpu,
+    Iram,
     Save,
     Help,
 }
@@ -107,6 +111,8 @@ impl ControlCommand {
                     as u8,
             },
             ["status"] => Status,
+            ["cpu"] => Cpu,
+            ["iram"] => Iram,
             ["save"] => Save,
             ["help"] => Help,
             _ => return Err(bad("unknown command")),
@@ -169,6 +175,16 @@ pub fn apply(cell: &mut Cell, now: u64, cmd: &ControlCommand) -> String {
             Err(e) => format!("error: {e}"),
         },
         Status | Save => status(cell),
+        Cpu => {
+            let running = cell.program_cpu();
+            view::cpu_line(
+                running.as_ref(),
+                cell.last_program_stop().as_ref(),
+                cell.program_routine(),
+                cell.internal_ram(),
+            )
+        }
+        Iram => view::iram_line(cell.internal_ram()),
         Help => HELP.into(),
     }
 }
@@ -329,6 +345,36 @@ mod tests {
             let last = line.split_whitespace().last().unwrap();
             assert!(err.contains(line.trim()) || err.contains(last), "{err}");
         }
+    }
+
+    #[test]
+    fn cpu_shows_the_running_program_then_its_stop() {
+        let mut cell = Cell::default();
+        let mut out = Vec::new();
+        assert_eq!(
+            apply(&mut cell, 0, &parse("cpu")),
+            "no program has run since the model started"
+        );
+        // MOV A,#55h; MOV R3,#0AAh; SJMP $
+        cell.write_ram(crate::PROGRAM_AREA, &[0x74, 0x55, 0x7B, 0xAA, 0x80, 0xFE]);
+        let ms = 1_000_000;
+        cell.receive(ms, 6);
+        cell.poll(20 * ms, &mut out);
+        let running = apply(&mut cell, 20 * ms, &parse("cpu"));
+        assert!(
+            running.starts_with("program running: PC=0404 A=55"),
+            "{running}"
+        );
+        assert!(running.contains("bank 0 R0-R7=00 00 00 AA"), "{running}");
+        cell.receive(21 * ms, 0);
+        cell.poll(40 * ms, &mut out);
+        let stopped = apply(&mut cell, 40 * ms, &parse("cpu"));
+        assert!(
+            stopped.starts_with("program stopped (interrupted by a 0 on RxD): PC=0404 A=55"),
+            "{stopped}"
+        );
+        let iram = apply(&mut cell, 40 * ms, &parse("iram"));
+        assert!(iram.starts_with("00: 00 00 00 AA"), "{iram}");
     }
 
     #[test]

@@ -30,6 +30,7 @@ pub mod program;
 pub mod rom;
 pub mod sfr;
 pub mod timing;
+pub mod view;
 
 pub use board::BUS_BASE;
 pub use buslab_device::{ByteDevice, Changes, Persistent, Port, SimPort};
