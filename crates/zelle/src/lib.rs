@@ -26,6 +26,7 @@ pub mod control;
 mod converter;
 mod device;
 mod memory;
+mod number;
 pub mod program;
 pub mod rom;
 pub mod sfr;
