@@ -16,8 +16,9 @@
 use alloc::collections::VecDeque;
 use core::ops::RangeInclusive;
 
-use crate::event::{Event, InputError, LineFrame, Stop};
+use crate::event::{Event, LineFrame, Stop};
 use crate::interrupts::{Flags, Interrupts, Source};
+use crate::pins::InputError;
 use crate::pins::{Inputs, Pin, Port, Ports, p3};
 use crate::sfr::{self, ie, pcon, scon, tcon};
 use crate::time::CLOCKS_PER_CYCLE;
