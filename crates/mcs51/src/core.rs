@@ -460,10 +460,13 @@ impl Mcs51 {
     }
 
     /// Returns from a subroutine as `RET` does (for a trap's routine), without spending time.
+    /// It stands for an instruction: after a write to IE or IP in the routine, it is the one
+    /// more instruction that runs before an interrupt is taken.
     pub fn ret(&mut self) {
         let hi = self.pop();
         let lo = self.pop();
         self.pc = u16::from_be_bytes([hi, lo]);
+        self.irq_block = false;
     }
 
     /// Returns from an interrupt routine as `RETI` does (for a trapped interrupt vector),

@@ -130,11 +130,11 @@ mod tests {
         // Code: the stand-in EPROM below 0400h, the RAM up to 7FFFh, nothing above.
         b.write_xdata(0x0400, 0x74, Clocks::ZERO);
         assert_eq!(b.code(0x0400), 0x74);
-        assert_eq!(b.code(0x0100), 0x30);
+        assert_eq!(b.code(0x03F4), 0x30, "Sende's wait: JNB TI,$");
         assert_eq!(
             b.code(0x03FF),
-            0x01,
-            "not the start byte: that is data space"
+            0x39,
+            "Empf's wait, not the start byte: that is data space"
         );
         assert_eq!(b.code(0x8005), OPEN_BUS);
         assert_eq!(b.ram_generation, 2, "the two RAM writes, not the bus write");

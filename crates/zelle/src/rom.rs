@@ -2,9 +2,9 @@
 //! may call, the interrupt vectors, and the stand-in EPROM the model answers code fetches with.
 //!
 //! The OS is the Rust model, not 8051 code: the core stops (a trap) when the program counter
-//! enters 0000h..00FFh and the model does what the OS routine there would. Only the waiting
-//! loops of `Sende` and `Empf` are real code (at 0100h), so a program's own interrupts go on
-//! being served while it waits in them, as on the cell.
+//! enters 0000h..03F3h and the model does what the OS routine there would. Only the waiting
+//! loops of `Sende` and `Empf` are real code (at 03F4h, the end of the OS area), so a
+//! program's own interrupts go on being served while it waits in them, as on the cell.
 //!
 //! ```text
 //! 0000h  reset: the OS starts and resumes the stored mode (a program may LJMP here)
@@ -16,9 +16,10 @@
 //! 0030h  Sende: sends A
 //! 0033h  Empf: receives a byte into A
 //! 0040h  where the program returns to (its return address at start): back to the OS
-//! 0100h  JNB TI,$ / LJMP 0036h        Sende's wait (0036h: Sende's end, trapped)
-//! 0106h  JNB RI,$ / LJMP 0039h        Empf's wait (0039h: Empf's end, trapped)
-//! other  01h bytes: AJMP 0001h, so a jump anywhere else ends in the trap range as a fault
+//! 03F4h  JNB TI,$ / LJMP 0036h        Sende's wait (0036h: Sende's end, trapped)
+//! 03FAh  JNB RI,$ / LJMP 0039h        Empf's wait (0039h: Empf's end, trapped)
+//! other  trapped: a jump anywhere else in the OS area is a fault at the address it reached
+//!        (01h bytes to MOVC)
 //! ```
 
 use std::ops::RangeInclusive;
@@ -42,11 +43,12 @@ pub(crate) const SENDE_DONE: u16 = 0x0036;
 /// Where `Empf`'s wait loop falls through to (trapped: the rest of `Empf`).
 pub(crate) const EMPF_DONE: u16 = 0x0039;
 /// `Sende`'s wait: `JNB TI,$`.
-pub(crate) const SENDE_WAIT: u16 = 0x0100;
+pub(crate) const SENDE_WAIT: u16 = 0x03F4;
 /// `Empf`'s wait: `JNB RI,$`.
-pub(crate) const EMPF_WAIT: u16 = 0x0106;
-/// Where the core stops for the model.
-pub(crate) const TRAPS: RangeInclusive<u16> = 0x0000..=0x00FF;
+pub(crate) const EMPF_WAIT: u16 = 0x03FA;
+/// Where the core stops for the model: the whole OS area but the waits, so a jump into it
+/// is seen where it lands.
+pub(crate) const TRAPS: RangeInclusive<u16> = 0x0000..=SENDE_WAIT - 1;
 
 /// The interrupt vectors that lead into the program area (all but INT0's), with the address
 /// they jump to.
@@ -107,15 +109,18 @@ mod tests {
         );
         assert_eq!(code(0x000E), 0x01);
         assert_eq!(
-            [code(0x0100), code(0x0101), code(0x0102)],
+            [code(0x03F4), code(0x03F5), code(0x03F6)],
             [0x30, 0x99, 0xFD]
         );
         assert_eq!(
-            [code(0x0109), code(0x010A), code(0x010B)],
+            [code(0x03FD), code(0x03FE), code(0x03FF)],
             [0x02, 0x00, 0x39]
         );
-        assert_eq!([code(0x010C), code(0x03FF), code(0x0001)], [0x01; 3]);
+        assert_eq!([code(0x010C), code(0x03F3), code(0x0001)], [0x01; 3]);
         assert!(TRAPS.contains(&SENDE_DONE) && TRAPS.contains(&EMPF_DONE));
         assert!(!TRAPS.contains(&SENDE_WAIT) && !TRAPS.contains(&EMPF_WAIT));
+        // Everything else in the OS area is trapped.
+        assert_eq!((*TRAPS.start(), *TRAPS.end() + 1), (0, SENDE_WAIT));
+        assert_eq!(usize::from(EMPF_WAIT + 6), usize::from(PROGRAM_AREA));
     }
 }
