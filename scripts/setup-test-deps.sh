@@ -81,8 +81,9 @@ ls target/vm-cache/linux-image-*-amd64_*.deb >/dev/null 2>&1 || need_kernel=true
 want_tools log2asc:can-utils asc2log:can-utils tshark:tshark editcap:tshark
 # The MCS-51 core's differential check against SDCC's simulator s51 (Debian sdcc-ucsim;
 # scripts/mcs51-vs-s51.sh, run by .ci/run) and the assembler of its benchmark programs (as31;
-# crates/mcs51/tests/bench_program.rs, bench/mcs51_speed.sh).
-want_tools s51:sdcc-ucsim as31:as31
+# crates/mcs51/tests/bench_program.rs, bench/mcs51_speed.sh); SDCC builds the C example of
+# the ZELLE cell's programs (examples/zelle/, crates/buslab/tests/zelle_programs.rs).
+want_tools s51:sdcc-ucsim as31:as31 sdcc:sdcc
 # Python for the interop tests, with its venv module (Debian's python3 needs python3-venv).
 requirements=scripts/test-requirements.txt
 stamp=.venv/.requirements
@@ -153,7 +154,7 @@ fi
 for pair in sigrok-cli:sigrok-cli openssl:openssl chromium:chromium chromedriver:chromium-driver \
     qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio candump:can-utils \
     slcand:can-utils strip:binutils log2asc:can-utils asc2log:can-utils tshark:tshark \
-    editcap:tshark s51:sdcc-ucsim as31:as31; do
+    editcap:tshark s51:sdcc-ucsim as31:as31 sdcc:sdcc; do
     has "${pair%%:*}" || fail "${pair%%:*} is still missing after installing ${pair#*:}"
 done
 [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"

@@ -549,6 +549,90 @@ fn cli_covers_every_client_command() {
 }
 
 #[test]
+fn a_program_is_traced_and_its_cpu_and_registers_are_shown_after_its_stop() {
+    let mut s = Served::start(&["--trace", "200"]);
+    let trace = s.stderr_lines();
+    let pty = s.pty.clone();
+    let dir = s.dir.path().to_path_buf();
+    let run = |args: &[&str]| buslab(&pty, args).trim().to_owned();
+    // MOV R3,#0AAh; MOV 30h,#5Ah; MOV A,#41h; LCALL 0030h (Sende); SJMP $
+    let program = [
+        0x7B, 0xAA, 0x75, 0x30, 0x5A, 0x74, 0x41, 0x12, 0x00, 0x30, 0x80, 0xFE,
+    ];
+    std::fs::write(dir.join("p.hex"), hex_file(0x0400, &program)).unwrap();
+    run(&["load", dir.join("p.hex").to_str().unwrap()]);
+    run(&["run"]);
+    // The trace shows each instruction with its bytes and mnemonic, and the OS routine.
+    let mut seen = Vec::new();
+    let deadline = std::time::Instant::now() + served::ALLOWANCE;
+    while !seen
+        .iter()
+        .any(|l: &String| l.contains("040A  80 FE     SJMP 040Ah"))
+    {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match trace.recv_timeout(left) {
+            Ok(line) => seen.push(line),
+            Err(e) => panic!("no SJMP in the trace ({e}): {seen:#?}"),
+        }
+    }
+    let expected = [
+        "0400  7B AA     MOV R3,#AAh",
+        "0402  75 30 5A  MOV 30h,#5Ah",
+        "0405  74 41     MOV A,#41h",
+        "0407  12 00 30  LCALL 0030h",
+        "OS routine Sende",
+    ];
+    let mut at = 0;
+    for line in &seen {
+        if at < expected.len() && line.contains(expected[at]) {
+            at += 1;
+        }
+    }
+    assert_eq!(at, expected.len(), "in order: {expected:?}\n{seen:#?}");
+    assert!(
+        s.control("cpu")
+            .starts_with("ok program running: PC=040A A=41"),
+        "{}",
+        s.control("cpu")
+    );
+    run(&["stop"]);
+    s.status_until(", ready,");
+    let cpu = s.control("cpu");
+    assert!(
+        cpu.starts_with("ok program stopped (interrupted by a 0 on RxD): PC=040A A=41"),
+        "{cpu}"
+    );
+    assert!(cpu.contains("bank 0 R0-R7=00 00 00 AA"), "{cpu}");
+    // Through the protocol (command 16): the RAM as the program left it.
+    let regs = run(&["regs"]);
+    assert!(
+        regs.contains("bank 0 00h  R0-R7  00 00 00 AA 00 00 00 00"),
+        "{regs}"
+    );
+    assert!(
+        regs.contains("30h           5A 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00"),
+        "{regs}"
+    );
+    assert!(
+        regs.contains("SFR (the OS's, as it answers): SP="),
+        "{regs}"
+    );
+}
+
+#[test]
+fn serve_refuses_a_trace_rate_out_of_range() {
+    for bad in ["0", "1000001", "lots"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["zelle", "serve", "--trace", bad])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "--trace {bad} was taken");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(bad) && err.contains("--trace"), "{err}");
+    }
+}
+
+#[test]
 fn csv_replay_feeds_an_input_from_the_command_line_and_the_control_interface() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("in.csv");

@@ -16,8 +16,9 @@
 use alloc::collections::VecDeque;
 use core::ops::RangeInclusive;
 
-use crate::event::{Event, InputError, LineFrame, Stop};
+use crate::event::{Event, LineFrame, Stop};
 use crate::interrupts::{Flags, Interrupts, Source};
+use crate::pins::InputError;
 use crate::pins::{Inputs, Pin, Port, Ports, p3};
 use crate::sfr::{self, ie, pcon, scon, tcon};
 use crate::time::CLOCKS_PER_CYCLE;
@@ -280,9 +281,39 @@ impl Mcs51 {
 
     /// The outside drives all of `port`'s pins from `at` on (1 = high or left alone).
     pub fn set_port(&mut self, at: Clocks, port: Port, levels: u8) -> Result<(), InputError> {
-        self.inputs.push(at, self.now, port, 0xFF, levels)?;
+        self.set_port_bits(at, port, 0xFF, levels)
+    }
+
+    /// The outside drives the pins of `port` in `mask` from `at` on (1 = high or left alone);
+    /// the other pins keep what was announced for them.
+    pub fn set_port_bits(
+        &mut self,
+        at: Clocks,
+        port: Port,
+        mask: u8,
+        levels: u8,
+    ) -> Result<(), InputError> {
+        self.inputs.push(at, self.now, port, mask, levels)?;
         self.after_input();
         Ok(())
+    }
+
+    /// The outside drives the pins of `port` in `mask` to `levels` from now on, seen by the
+    /// next instruction already: for a device that answers a port write within the writing
+    /// instruction's cycle (a converter's data output after its clock edge). The board takes
+    /// the [`Event::Port`] that [`run`](Self::run) stopped for and answers before running on;
+    /// [`set_pin`](Self::set_pin) would wait for the next sample instant after now. Changes
+    /// announced for later still take effect at their time.
+    pub fn drive_now(&mut self, port: Port, mask: u8, levels: u8) {
+        self.catch_up_fully(self.now);
+        let before = self.ports.pins(3);
+        self.apply_levels(port as u8, mask, levels & mask);
+        if port == Port::P3 {
+            let after = self.ports.pins(3);
+            self.p3_changed(self.now, before, after);
+        }
+        self.reschedule();
+        self.next_event = 0;
     }
 
     /// Puts `frame` on RxD starting at `at` (the start bit's leading edge): start bit, data
@@ -429,10 +460,28 @@ impl Mcs51 {
     }
 
     /// Returns from a subroutine as `RET` does (for a trap's routine), without spending time.
+    /// It stands for an instruction: after a write to IE or IP in the routine, it is the one
+    /// more instruction that runs before an interrupt is taken.
     pub fn ret(&mut self) {
         let hi = self.pop();
         let lo = self.pop();
         self.pc = u16::from_be_bytes([hi, lo]);
+        self.irq_block = false;
+    }
+
+    /// Returns from an interrupt routine as `RETI` does (for a trapped interrupt vector),
+    /// without spending time: the routine's priority level ends, and one more instruction runs
+    /// before the next interrupt is taken.
+    pub fn reti(&mut self) {
+        self.ret();
+        self.irq.reti();
+        self.irq_block = true;
+        self.next_event = 0;
+    }
+
+    /// Whether the UART is sending: SBUF was written and the frame's TI is not set yet.
+    pub fn transmitting(&self) -> bool {
+        self.uart.sending()
     }
 
     // ----- inside: data access -------------------------------------------------------------

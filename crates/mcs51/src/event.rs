@@ -109,14 +109,3 @@ pub struct LineFrame {
     /// One bit time in clocks (1152 at 9600 baud from 11.0592 MHz).
     pub bit_clocks: u64,
 }
-
-/// An input the core cannot take.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum InputError {
-    #[error("pin bit {0} is out of range 0..=7")]
-    Bit(u8),
-    #[error("{queued} level changes are already waiting, the most the core keeps ahead")]
-    Full { queued: usize },
-    #[error("a bit time of {0} clocks is out of range 1..=1000000000")]
-    BitTime(u64),
-}

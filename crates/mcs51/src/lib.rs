@@ -44,8 +44,8 @@ mod uart;
 
 pub use crate::core::{IRAM_SIZE, Mcs51, NO_UPPER_RAM, Registers};
 pub use bus::{Bus, FlatMemory};
-pub use event::{Event, InputError, LineFrame, SerialFrame, SerialMode, Stop};
+pub use event::{Event, LineFrame, SerialFrame, SerialMode, Stop};
 pub use interrupts::Source;
 pub use opcodes::Instruction;
-pub use pins::{MAX_QUEUED_INPUTS, Pin, Port};
+pub use pins::{InputError, MAX_QUEUED_INPUTS, Pin, Port};
 pub use time::{CLOCKS_PER_CYCLE, Clocks, Crystal, CrystalError};

@@ -8,8 +8,8 @@
 
 use alloc::collections::VecDeque;
 
+use crate::Clocks;
 use crate::time::CLOCKS_PER_CYCLE;
-use crate::{Clocks, InputError};
 
 /// One of the four 8-bit ports.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -193,6 +193,17 @@ impl Inputs {
     pub fn len(&self) -> usize {
         self.queue.len()
     }
+}
+
+/// An input the core cannot take.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum InputError {
+    #[error("pin bit {0} is out of range 0..=7")]
+    Bit(u8),
+    #[error("{queued} level changes are already waiting, the most the core keeps ahead")]
+    Full { queued: usize },
+    #[error("a bit time of {0} clocks is out of range 1..=1000000000")]
+    BitTime(u64),
 }
 
 #[cfg(test)]

@@ -121,6 +121,11 @@ impl Uart {
         SerialMode::from_scon(self.scon)
     }
 
+    /// Whether a frame is on its way out (SBUF written, TI not set yet).
+    pub fn sending(&self) -> bool {
+        !matches!(self.tx, Tx::Idle)
+    }
+
     /// Mode 2's tick length in clocks.
     fn mode2_tick(&self) -> u64 {
         if self.smod { 2 } else { 4 }

@@ -232,3 +232,113 @@ fn bad_inputs_are_refused_naming_the_value() {
         "crystal frequency 0 Hz is out of range 1..=100000000"
     );
 }
+
+#[test]
+fn a_trapped_interrupt_vector_returns_with_reti_which_ends_its_level() {
+    // INT0 edge-triggered and enabled; the vector at 0003h is the board's (trapped).
+    let mut b = Board::new(&[]);
+    b.load(
+        0x0400,
+        &[
+            0x75, 0x88, 0x01, // MOV TCON,#01h   IT0
+            0x75, 0xA8, 0x81, // MOV IE,#81h     EA, EX0
+            0x05, 0x30, // INC 30h
+            0x80, 0xFC, // SJMP back to INC
+        ],
+    );
+    b.cpu.set_traps(0x0000..=0x00FF);
+    b.cpu.set_pc(0x0400);
+    b.run_cycles(10);
+    let edge = |b: &mut Board| {
+        let now = b.now();
+        b.cpu.set_pin(Clocks(now), Pin::INT0, false).unwrap();
+        b.cpu
+            .set_pin(Clocks(now + 2 * CYCLE), Pin::INT0, true)
+            .unwrap();
+    };
+    edge(&mut b);
+    assert_eq!(b.run_cycles(20), Stop::Trap { pc: 0x0003 });
+    let inside = b.now();
+    b.cpu.reti();
+    assert!(
+        b.cpu.pc() >= 0x0406,
+        "back in the loop at {:04X}h",
+        b.cpu.pc()
+    );
+    // The routine's level ended: the next edge is taken again.
+    edge(&mut b);
+    assert_eq!(b.run_cycles(20), Stop::Trap { pc: 0x0003 });
+    assert!(b.now() > inside);
+    // With RET instead, the level stays in progress and a third edge is not taken.
+    b.cpu.ret();
+    edge(&mut b);
+    assert_eq!(b.run_cycles(40), Stop::Limit);
+}
+
+#[test]
+fn a_device_driving_a_pin_now_is_seen_by_the_next_instruction() {
+    let program = [
+        0xC2, 0x91, // CLR P1.1       the device answers by pulling P1.3 low
+        0xA2, 0x93, // MOV C,P1.3     the very next instruction reads it
+        0x92, 0x00, // MOV 20h.0,C
+        0x80, 0xFE, // SJMP $
+    ];
+    let answered = |now: bool| {
+        let mut b = Board::new(&program);
+        loop {
+            let stop = b.cpu.run(&mut b.mem, Clocks(20 * CYCLE));
+            if let Some(Event::Port { port: Port::P1, .. }) = b.cpu.poll_event() {
+                if now {
+                    b.cpu.drive_now(Port::P1, 0x08, 0x00);
+                } else {
+                    let at = b.cpu.now();
+                    b.cpu
+                        .set_pin(at, Pin::new(Port::P1, 3).unwrap(), false)
+                        .unwrap();
+                }
+            }
+            if stop == Stop::Limit {
+                return b.iram(0x20) & 1;
+            }
+        }
+    };
+    assert_eq!(answered(true), 0, "driven now: read low");
+    assert_eq!(
+        answered(false),
+        1,
+        "a level announced for now waits for the next sample"
+    );
+}
+
+#[test]
+fn set_port_bits_changes_only_the_masked_pins() {
+    let mut b = Board::new(&[0x80, 0xFE]);
+    b.cpu.set_port(Clocks(0), Port::P1, 0xF0).unwrap();
+    b.cpu
+        .set_port_bits(Clocks(2 * CYCLE), Port::P1, 0x81, 0x00)
+        .unwrap();
+    b.run_cycles(4);
+    assert_eq!(b.cpu.port_pins(Port::P1), 0x70);
+}
+
+#[test]
+fn transmitting_lasts_from_the_sbuf_write_to_ti() {
+    let mut b = Board::new(&[
+        0x75, 0x89, 0x20, // MOV TMOD,#20h
+        0x75, 0x8D, 0xFD, // MOV TH1,#FDh
+        0x75, 0x88, 0x40, // MOV TCON,#40h   TR1
+        0x75, 0x98, 0x40, // MOV SCON,#40h   mode 1
+        0x75, 0x99, 0x55, // MOV SBUF,#55h
+        0x80, 0xFE, // SJMP $
+    ]);
+    // Four 2-cycle MOVs, then MOV SBUF writes at the start of cycle 9.
+    b.run_cycles(8);
+    assert!(!b.cpu.transmitting());
+    b.run_cycles(2);
+    assert!(b.cpu.transmitting());
+    // Timer 1 counts from TL1 = 0: its first overflow is 256 cycles away; then 9600 baud,
+    // the frame's TI within 11 bit times (96 cycles each).
+    b.run_cycles(256 + 11 * 96);
+    assert!(!b.cpu.transmitting());
+    assert_eq!(b.frames().len(), 1);
+}

@@ -9,7 +9,7 @@ use buslab_link::{Handle, LineHandler, Serve, Served, ServedError};
 use buslab_zelle::analog::{Source, SourceSpec};
 use buslab_zelle::control::{self, ControlCommand};
 use buslab_zelle::timing::LINE;
-use buslab_zelle::{BatteryRam, Cell, SetupRule};
+use buslab_zelle::{BatteryRam, Cell, SetupRule, TraceEvent};
 
 use crate::ServeError;
 
@@ -32,6 +32,9 @@ pub struct CellOptions {
     pub link: Option<PathBuf>,
     /// `(channel, source)` pairs.
     pub analog: Vec<(u8, Source)>,
+    /// Trace at most this many instructions a second of the cell's time
+    /// ([`ServedCell::take_trace`]).
+    pub trace: Option<u32>,
 }
 
 /// A cell served on a PTY by a background thread; stopped (and its state saved) when dropped.
@@ -73,6 +76,7 @@ impl ServedCell {
         for (channel, source) in &options.analog {
             cell.set_analog(*channel, source.clone())?;
         }
+        cell.set_trace(options.trace);
         let served = Serve::new(cell, LINE)
             .name("zelle")
             .link(options.link)
@@ -92,6 +96,16 @@ impl ServedCell {
         work: impl FnOnce(&mut Cell, u64) -> T + Send + 'static,
     ) -> Result<T, ServedError> {
         self.served.with(work)
+    }
+
+    /// The trace lines of the programs run since the last call (none unless
+    /// [`CellOptions::trace`] was given).
+    pub fn take_trace(&self) -> Result<Vec<TraceEvent>, ServedError> {
+        self.served.with(|cell, _| {
+            let mut lines = Vec::new();
+            cell.take_trace(&mut lines);
+            lines
+        })
     }
 
     /// The control lines of this cell, for stdin and a control socket.

@@ -221,7 +221,7 @@ pub fn parse_channel_source(arg: &str) -> Result<(u8, SourceSpec), SourceError> 
         spec: arg.to_owned(),
         why: "must look like CH=SOURCE, e.g. 1=sine:1Hz".into(),
     })?;
-    let channel = match crate::control::parse_number(ch) {
+    let channel = match crate::number::parse_number(ch) {
         Some(c @ 1..=4) => c as u8,
         _ => {
             return Err(SourceError::Channel {

@@ -1,9 +1,11 @@
 //! The cell model: the OS's command loop, measurement series, UART, ports, START key and power,
-//! all driven by virtual time.
+//! and user programs on the 8051 core, all driven by virtual time.
 //!
 //! The OS is a sequential program. It is either waiting for a received byte (or the START key)
 //! or busy until some instant (a set-up, an A/D conversion, a byte being sent, a measurement
-//! block). The UART receives in hardware meanwhile, into the 8051's single receive buffer:
+//! block), or it has called a user program, which then runs on the core ([`chip`](crate::chip))
+//! until it stops (a byte 0, a return, a jump to the OS, RESET or power). The UART receives in
+//! hardware meanwhile, into the 8051's single receive buffer:
 //!
 //! - a byte that completes while the previous one is still unread is lost (overrun);
 //! - a byte whose start bit begins during the 1 ms set-up after commands 1, 2, 3 and 5 is lost
@@ -14,17 +16,21 @@
 
 use std::collections::VecDeque;
 
-use buslab_device::{ChangeLog, Changes, ReplayError};
+use buslab_device::{Changes, ReplayError};
+use buslab_mcs51::Port;
 
 use crate::analog::Source;
+use crate::board::Board;
+use crate::chip::{Chip, CpuSnapshot, LAG_CLOCKS, ProgramEnd, ProgramStop, TraceEvent};
 use crate::command::Command;
+use crate::converter::line;
 use crate::memory::{
-    BatteryRam, DATA_AREA, INTERNAL_RAM_SIZE, OPEN_BUS, PARAMS_LEN, PROGRAM_AREA, START_BYTE,
+    BatteryRam, DATA_AREA, INTERNAL_RAM_SIZE, PARAMS_LEN, PROGRAM_AREA, START_BYTE,
 };
 use crate::sfr;
 use crate::timing::{
     BYTE_NS, CONVERSION_NS, KEY_HOLD_MEASURE_NS, KEY_HOLD_PROGRAM_NS, KEY_HOLD_READY_NS, MS,
-    SETUP_NS,
+    PROGRAM_POLL_NS, SETUP_NS,
 };
 
 /// Start byte values (at 03FFh).
@@ -37,6 +43,9 @@ const START_PROGRAM: u8 = 130;
 pub const COUNT_HIGH_REGISTER: u8 = 6;
 /// See [`COUNT_HIGH_REGISTER`].
 pub const COUNT_LOW_REGISTER: u8 = 7;
+
+/// P2.6, the single line of port 2.
+const P26: u8 = 1 << 6;
 
 /// The mode the start byte at 03FFh selects after power-on or reset.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -74,7 +83,7 @@ pub enum Activity {
     MeasureWaiting,
     /// A block of a series is being measured.
     Measuring,
-    /// The user program runs (the model treats it as opaque: it only waits to be interrupted).
+    /// The user program runs on the 8051 core.
     ProgramRunning,
 }
 
@@ -92,7 +101,8 @@ pub enum SetupRule {
     Keep,
 }
 
-/// Counters of bytes the cell did not take, by reason.
+/// Counters of bytes the cell did not take, by reason, and of what programs did that the host
+/// cannot see.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
     /// Started during the set-up after commands 1, 2, 3 or 5.
@@ -104,8 +114,13 @@ pub struct Stats {
     /// Arrived while the cell was switched off or timing the START key.
     pub lost_off: u64,
     /// Read, but meaning nothing in the state they arrived in (unknown commands, bytes other
-    /// than 9 while a series waits, bytes to a running program).
+    /// than 9 while a series waits).
     pub ignored: u64,
+    /// Frames a program sent that a host at 9600 8N2 cannot read (another baud rate or serial
+    /// mode): not passed on.
+    pub unreadable_frames: u64,
+    /// Times a program ran the reserved opcode A5h (a one-cycle no-op).
+    pub reserved_opcodes: u64,
 }
 
 /// Which RAM area commands 3 and 5 fill.
@@ -196,6 +211,7 @@ enum Os {
         slot: u8,
         cycle_start: u64,
     },
+    /// The user program has the CPU (the chip runs it).
     Program,
 }
 
@@ -204,26 +220,19 @@ enum Os {
 pub struct Cell {
     now: u64,
     powered: bool,
-    ram: BatteryRam,
-    ram_generation: u64,
-    /// Writes to the battery-backed RAM not yet taken by the host (for its journal).
-    changes: ChangeLog,
+    board: Board,
+    chip: Chip,
     /// The last external RAM address the OS used (the data pointer; command 16 reads it).
     dptr: u16,
-    iram: [u8; INTERNAL_RAM_SIZE],
-    p1_latch: u8,
-    p1_pulled_low: u8,
-    p26_latch: bool,
-    p26_pulled_low: bool,
-    bus: [u8; 128],
-    key_down: bool,
     key_release_at: Option<u64>,
-    analog: [Source; 4],
     rx: Option<u8>,
     rx_deaf_until: u64,
     setup_rule: SetupRule,
     tx_free_at: u64,
     tx: VecDeque<(u64, u8)>,
+    /// Host bytes heard while a program runs, kept until the core is past their start bits:
+    /// if the program stops before, the OS takes them.
+    program_rx: VecDeque<(u64, u8)>,
     os: Os,
     busy_until: u64,
     stats: Stats,
@@ -241,24 +250,16 @@ impl Cell {
         let mut cell = Cell {
             now: 0,
             powered: false,
-            ram,
-            ram_generation: 0,
-            changes: ChangeLog::default(),
+            board: Board::new(ram),
+            chip: Chip::new(),
             dptr: 0,
-            iram: [0; INTERNAL_RAM_SIZE],
-            p1_latch: 0xFF,
-            p1_pulled_low: 0,
-            p26_latch: true,
-            p26_pulled_low: false,
-            bus: [OPEN_BUS; 128],
-            key_down: false,
             key_release_at: None,
-            analog: Default::default(),
             rx: None,
             rx_deaf_until: 0,
             setup_rule: SetupRule::Lose,
             tx_free_at: 0,
             tx: VecDeque::new(),
+            program_rx: VecDeque::new(),
             os: Os::Off,
             busy_until: 0,
             stats: Stats::default(),
@@ -272,20 +273,29 @@ impl Cell {
     /// A byte has fully arrived on RxD at `now` (its stop bits ended).
     pub fn receive(&mut self, now: u64, byte: u8) {
         let now = self.advance(now);
+        if self.powered {
+            // On RxD and INT0 from its start bit on, for a program's UART and "Inter".
+            self.chip.announce_byte(now, byte);
+        }
+        if let Os::Program = self.os {
+            self.program_rx.push_back((now, byte));
+            self.forget_program_bytes();
+        } else {
+            self.receive_os(now, byte);
+        }
+    }
+
+    /// The OS's part of a received byte.
+    fn receive_os(&mut self, now: u64, byte: u8) {
         match self.os {
             Os::Off | Os::KeyHold { .. } => {
                 self.stats.lost_off += 1;
                 return;
             }
-            // RxD is wired to the external interrupt too: a 0 byte stops a series or a program
-            // at once. Inside the serial routines (every other state) it is masked.
-            Os::MeasureWait { .. } | Os::Block { .. } | Os::Program if byte == 0 => {
+            // RxD is wired to the external interrupt too: a 0 byte stops a series at once.
+            // Inside the serial routines (every other state) it is masked.
+            Os::MeasureWait { .. } | Os::Block { .. } if byte == 0 => {
                 self.interrupt(now);
-                return;
-            }
-            // The opaque program never reads the UART.
-            Os::Program => {
-                self.stats.ignored += 1;
                 return;
             }
             _ => {}
@@ -304,6 +314,17 @@ impl Cell {
         }
     }
 
+    /// Drops the bytes a running program has had from the start bit on: they are its.
+    fn forget_program_bytes(&mut self) {
+        let core = self.chip.now_ns();
+        while let Some(&(at, _)) = self.program_rx.front() {
+            if at.saturating_sub(BYTE_NS) > core {
+                break;
+            }
+            self.program_rx.pop_front();
+        }
+    }
+
     /// Advances to `now` and appends the bytes whose transmission has ended by then.
     pub fn poll(&mut self, now: u64, out: &mut Vec<u8>) {
         let now = self.advance(now);
@@ -318,16 +339,22 @@ impl Cell {
 
     /// When [`poll`](Self::poll) must be called next even without input.
     pub fn next_deadline(&self) -> Option<u64> {
-        let busy = (self.powered && self.busy_until > self.now).then_some(self.busy_until);
+        let program = matches!(self.os, Os::Program);
+        let busy =
+            (self.powered && !program && self.busy_until > self.now).then_some(self.busy_until);
         let key_hold = match self.os {
             Os::KeyHold { since } => Some(since + KEY_HOLD_READY_NS),
             _ => None,
         };
+        let chip = program
+            .then(|| self.chip.next_deadline(self.now, PROGRAM_POLL_NS))
+            .flatten();
         [
             self.tx.front().map(|&(done, _)| done),
             busy,
             self.key_release_at,
             key_hold,
+            chip,
         ]
         .into_iter()
         .flatten()
@@ -345,28 +372,33 @@ impl Cell {
         }
         self.powered = true;
         // Internal RAM is not battery-backed; call it cleared.
-        self.iram = [0; INTERNAL_RAM_SIZE];
+        self.chip.power_on();
         self.restart(now);
     }
 
-    /// Switches the cell off: bytes still being sent are cut, received bytes are lost, the
-    /// battery-backed RAM stays.
+    /// Switches the cell off: bytes still being sent are cut, received bytes are lost, a
+    /// running program stops, the battery-backed RAM stays.
     pub fn power_off(&mut self, now: u64) {
-        let now = self.advance(now);
+        let now = self.advance_exactly(now);
         if !self.powered {
             return;
         }
         self.powered = false;
+        self.chip.stop(ProgramEnd::PowerOff);
         self.tx.retain(|&(done, _)| done <= now);
         self.rx = None;
+        self.program_rx.clear();
         self.os = Os::Off;
     }
 
     /// The RESET key: like power-on, but internal RAM keeps its contents.
     pub fn reset(&mut self, now: u64) {
-        let now = self.advance(now);
+        let now = self.advance_exactly(now);
         if self.powered {
+            self.chip.stop(ProgramEnd::Reset);
+            self.chip.reset();
             self.tx.retain(|&(done, _)| done <= now);
+            self.program_rx.clear();
             self.restart(now);
         }
     }
@@ -375,10 +407,11 @@ impl Cell {
     pub fn key_down(&mut self, now: u64) {
         let now = self.advance(now);
         self.key_release_at = None;
-        if self.key_down {
+        if self.board.key_down {
             return;
         }
-        self.key_down = true;
+        self.board.key_down = true;
+        self.chip.set_key(now, true);
         if let Os::MeasureWait { series } = self.os
             && now >= self.busy_until
         {
@@ -400,14 +433,14 @@ impl Cell {
 
     /// Whether the START key is down.
     pub fn key_is_down(&self) -> bool {
-        self.key_down
+        self.board.key_down
     }
 
     /// Feeds A/D input `channel` (1..4) from `source`.
     pub fn set_analog(&mut self, channel: u8, source: Source) -> Result<(), InputError> {
         match channel {
             1..=4 => {
-                self.analog[usize::from(channel - 1)] = source;
+                self.board.analog[usize::from(channel - 1)] = source;
                 Ok(())
             }
             _ => Err(InputError::Channel(channel)),
@@ -416,28 +449,65 @@ impl Cell {
 
     /// The source on A/D input `channel` (1..4).
     pub fn analog(&self, channel: u8) -> Option<&Source> {
-        self.analog.get(usize::from(channel.wrapping_sub(1)))
+        self.board.analog.get(usize::from(channel.wrapping_sub(1)))
     }
 
     /// Pins of port 1 that outside circuits pull low (a bit set = pulled low). A pin reads low
     /// if either the cell's latch or the outside pulls it low (quasi-bidirectional port).
     pub fn set_port1_pulled_low(&mut self, mask: u8) {
-        self.p1_pulled_low = mask;
+        self.board.p1_pulled_low = mask;
+        let converter = self.board.converter.data_out();
+        self.chip.set_p1_pulls(self.now, mask, converter);
     }
 
     /// Whether an outside circuit pulls P2.6 low.
     pub fn set_p26_pulled_low(&mut self, low: bool) {
-        self.p26_pulled_low = low;
+        self.board.p26_pulled_low = low;
+        self.chip.set_p26_pull(self.now, low);
     }
 
     /// Sets what the peripheral at parallel-bus address `addr` (0..127) answers to reads.
     pub fn set_bus(&mut self, addr: u8, value: u8) -> Result<(), InputError> {
         let slot = self
+            .board
             .bus
             .get_mut(usize::from(addr))
             .ok_or(InputError::BusAddress(addr))?;
         *slot = value;
         Ok(())
+    }
+
+    // ----- programs -------------------------------------------------------------------------
+
+    /// Shows at most `per_second` instructions a second (of the cell's time) that programs run
+    /// ([`take_trace`](Self::take_trace)); `None` turns tracing off.
+    pub fn set_trace(&mut self, per_second: Option<u32>) {
+        self.chip.set_trace(per_second);
+    }
+
+    /// The trace since the last call.
+    pub fn take_trace(&mut self, out: &mut Vec<TraceEvent>) {
+        self.chip.take_trace(out);
+    }
+
+    /// How the last program stopped, with its CPU at that instant.
+    pub fn last_program_stop(&self) -> Option<ProgramStop> {
+        self.chip.last_stop()
+    }
+
+    /// The running program's CPU (as far as the core has run: one character time behind the
+    /// line); `None` when no program runs.
+    pub fn program_cpu(&mut self) -> Option<CpuSnapshot> {
+        if let Os::Program = self.os {
+            self.chip.cpu()
+        } else {
+            None
+        }
+    }
+
+    /// The OS routine the running program is in (`Sende`, `Empf`, `Inter`), if any.
+    pub fn program_routine(&self) -> Option<&'static str> {
+        self.chip.in_os_routine()
     }
 
     // ----- looking inside -------------------------------------------------------------------
@@ -454,7 +524,7 @@ impl Cell {
 
     /// The mode the start byte selects.
     pub fn mode(&self) -> Mode {
-        Mode::from_start_byte(self.ram.read(START_BYTE))
+        Mode::from_start_byte(self.board.ram.read(START_BYTE))
     }
 
     /// What the OS is doing.
@@ -473,26 +543,26 @@ impl Cell {
 
     /// The battery-backed RAM.
     pub fn ram(&self) -> &BatteryRam {
-        &self.ram
+        &self.board.ram
     }
 
     /// Bumped whenever the battery-backed RAM changes, so a state file is rewritten only then.
     pub fn ram_generation(&self) -> u64 {
-        self.ram_generation
+        self.board.ram_generation
     }
 
     /// Writes the battery-backed RAM directly (a test fixture or a control command, not the
     /// serial line).
     pub fn write_ram(&mut self, addr: u16, bytes: &[u8]) {
         for (i, &b) in bytes.iter().enumerate() {
-            self.ram_changed(addr.wrapping_add(i as u16), b);
+            self.board.write_ram(addr.wrapping_add(i as u16), b);
         }
     }
 
     /// The RAM writes since the last call, as journal records: `[address high, address low,
     /// bytes…]`, contiguous writes in one record.
     pub fn take_ram_changes(&mut self) -> Changes {
-        self.changes.take()
+        self.board.changes.take()
     }
 
     /// Applies a record from [`take_ram_changes`](Self::take_ram_changes) to a RAM image.
@@ -510,48 +580,39 @@ impl Cell {
         Ok(())
     }
 
-    /// Writes one byte of battery-backed RAM and notes it for the state file and its journal.
-    fn ram_changed(&mut self, addr: u16, value: u8) {
-        self.ram.write(addr, value);
-        self.ram_generation += 1;
-        if let Some(last) = self.changes.last_mut()
-            && let [high, low, data @ ..] = &last[..]
-            && u32::from(u16::from_be_bytes([*high, *low])) + data.len() as u32 == u32::from(addr)
-        {
-            last.push(value);
-            self.changes.extended(1);
-            return;
-        }
-        let [high, low] = addr.to_be_bytes();
-        self.changes.record(vec![high, low, value]);
-    }
-
-    /// Internal RAM 0..127.
+    /// Internal RAM 0..127 (shared by the OS and programs).
     pub fn internal_ram(&self) -> &[u8; INTERNAL_RAM_SIZE] {
-        &self.iram
+        self.chip.iram()
     }
 
     /// Values stored by the current or last series (registers R6:R7).
     pub fn value_count(&self) -> u16 {
+        let iram = self.chip.iram();
         u16::from_be_bytes([
-            self.iram[usize::from(COUNT_HIGH_REGISTER)],
-            self.iram[usize::from(COUNT_LOW_REGISTER)],
+            iram[usize::from(COUNT_HIGH_REGISTER)],
+            iram[usize::from(COUNT_LOW_REGISTER)],
         ])
     }
 
     /// Port 1 as the cell drives it (its latch).
     pub fn port1_latch(&self) -> u8 {
-        self.p1_latch
+        self.chip.latch(Port::P1)
     }
 
-    /// Port 1 pins: the latch ANDed with outside pull-downs.
+    /// Port 1 pins: the latch ANDed with outside pull-downs (and the converter's output on
+    /// P1.3).
     pub fn port1_pins(&self) -> u8 {
-        self.p1_latch & !self.p1_pulled_low
+        let converter = if self.board.converter.data_out() {
+            0xFF
+        } else {
+            !line::DO
+        };
+        self.port1_latch() & !self.board.p1_pulled_low & converter
     }
 
     /// P2.6 pin level.
     pub fn p26_pin(&self) -> bool {
-        self.p26_latch && !self.p26_pulled_low
+        self.chip.latch(Port::P2) & P26 != 0 && !self.board.p26_pulled_low
     }
 
     /// The LED on P1.0 lights when the pin is low.
@@ -561,12 +622,16 @@ impl Cell {
 
     /// What the peripheral at bus address `addr` holds.
     pub fn bus(&self, addr: u8) -> Option<u8> {
-        self.bus.get(usize::from(addr)).copied()
+        self.board.bus.get(usize::from(addr)).copied()
     }
 
-    /// Bytes the cell did not take.
+    /// Bytes the cell did not take, and what programs sent that a host cannot read.
     pub fn stats(&self) -> Stats {
-        self.stats
+        Stats {
+            unreadable_frames: self.chip.stats.unreadable_frames,
+            reserved_opcodes: self.chip.stats.reserved_opcodes,
+            ..self.stats
+        }
     }
 
     /// What happens to a byte sent within the set-up after commands 1, 2, 3 and 5 (a new cell
@@ -582,21 +647,35 @@ impl Cell {
 
     // ----- the OS ---------------------------------------------------------------------------
 
-    /// Runs every event due up to `to` (OS wake-ups, key release, key-hold timeout) in order,
-    /// then returns the time the model is at.
+    /// Runs every event due up to `to` (OS wake-ups, key release, key-hold timeout, a program
+    /// on the core, one character time behind) in order, then returns the time the model is at.
     fn advance(&mut self, to: u64) -> u64 {
+        self.advance_lagging(to, LAG_CLOCKS)
+    }
+
+    /// [`advance`](Self::advance) with the core brought all the way to `to` (before RESET or
+    /// power-off: the program runs up to that instant).
+    fn advance_exactly(&mut self, to: u64) -> u64 {
+        self.advance_lagging(to, 0)
+    }
+
+    fn advance_lagging(&mut self, to: u64, lag: u64) -> u64 {
         let to = to.max(self.now);
         loop {
-            let busy = (self.powered && self.busy_until > self.now).then_some(self.busy_until);
-            let key_hold = match self.os {
-                Os::KeyHold { since } => Some(since + KEY_HOLD_READY_NS),
-                _ => None,
-            };
-            let next = [busy, self.key_release_at, key_hold]
-                .into_iter()
-                .flatten()
-                .filter(|&t| t <= to)
-                .min();
+            let next = self.next_os_event().filter(|&t| t <= to);
+            // The core first, up to the OS's next event (it may stop the program earlier).
+            let horizon = next.unwrap_or(to);
+            if let Some((at, why)) = self
+                .chip
+                .advance(&mut self.board, horizon, lag, &mut self.tx)
+            {
+                self.program_ended(at, why);
+                continue;
+            }
+            if let Some(&(done, _)) = self.tx.back() {
+                self.tx_free_at = self.tx_free_at.max(done);
+            }
+            self.forget_program_bytes();
             let Some(t) = next else { break };
             self.now = t;
             if self.key_release_at == Some(t) {
@@ -605,7 +684,7 @@ impl Cell {
             if let Os::KeyHold { since } = self.os
                 && t >= since + KEY_HOLD_READY_NS
             {
-                self.end_key_hold(t - since);
+                self.end_key_hold(t, t - since);
             }
             self.run_os(t);
         }
@@ -613,34 +692,76 @@ impl Cell {
         to
     }
 
-    fn release_key(&mut self, now: u64) {
-        self.key_release_at = None;
-        if !self.key_down {
-            return;
+    /// The OS's own next wake-up (a set-up, conversion or reply ending, the key).
+    fn next_os_event(&self) -> Option<u64> {
+        let program = matches!(self.os, Os::Program);
+        let busy =
+            (self.powered && !program && self.busy_until > self.now).then_some(self.busy_until);
+        let key_hold = match self.os {
+            Os::KeyHold { since } => Some(since + KEY_HOLD_READY_NS),
+            _ => None,
+        };
+        [busy, self.key_release_at, key_hold]
+            .into_iter()
+            .flatten()
+            .min()
+    }
+
+    /// The program stopped at `at` (up to a character time ago): the OS takes over from that
+    /// instant, and takes the host bytes whose start bits came after it.
+    fn program_ended(&mut self, at: u64, why: ProgramEnd) {
+        self.now = at;
+        self.busy_until = at;
+        self.tx_free_at = self.tx_free_at.max(at);
+        self.rx = None;
+        match why {
+            ProgramEnd::Returned => self.os = Os::Ready,
+            ProgramEnd::Restarted => self.restart(at),
+            ProgramEnd::Interrupted
+            | ProgramEnd::Fault { .. }
+            | ProgramEnd::Reset
+            | ProgramEnd::PowerOff => self.interrupt(at),
         }
-        self.key_down = false;
-        if let Os::KeyHold { since } = self.os {
-            self.end_key_hold(now - since);
+        for (t, byte) in std::mem::take(&mut self.program_rx) {
+            if t.saturating_sub(BYTE_NS) < at {
+                continue;
+            }
+            let t = self.advance(t);
+            if let Os::Program = self.os {
+                self.program_rx.push_back((t, byte));
+            } else {
+                self.receive_os(t, byte);
+            }
         }
     }
 
-    /// Start of the OS after power-on or reset: port latches high, then either time the START
-    /// key or resume the stored mode.
+    fn release_key(&mut self, now: u64) {
+        self.key_release_at = None;
+        if !self.board.key_down {
+            return;
+        }
+        self.board.key_down = false;
+        self.chip.set_key(now, false);
+        if let Os::KeyHold { since } = self.os {
+            self.end_key_hold(now, now - since);
+        }
+    }
+
+    /// Start of the OS after power-on, reset or a jump to 0000h: either time the START key
+    /// or resume the stored mode.
     fn restart(&mut self, now: u64) {
-        self.p1_latch = 0xFF;
-        self.p26_latch = true;
         self.rx = None;
         self.rx_deaf_until = 0;
         self.busy_until = now;
         self.tx_free_at = self.tx_free_at.min(now);
-        if self.key_down {
+        if self.board.key_down {
             self.os = Os::KeyHold { since: now };
         } else {
-            self.resume();
+            self.resume(now);
         }
     }
 
-    fn end_key_hold(&mut self, held: u64) {
+    fn end_key_hold(&mut self, now: u64, held: u64) {
         let start = if held >= KEY_HOLD_READY_NS {
             Some(START_READY)
         } else if held >= KEY_HOLD_PROGRAM_NS {
@@ -653,17 +774,24 @@ impl Cell {
         if let Some(start) = start {
             self.set_start_byte(start);
         }
-        self.resume();
+        self.resume(now);
     }
 
     /// Branches on the start byte.
-    fn resume(&mut self) {
+    fn resume(&mut self, now: u64) {
         self.dptr = START_BYTE;
         match self.mode() {
             Mode::Ready => self.os = Os::Ready,
             Mode::Measure => self.start_series(),
-            Mode::Program => self.os = Os::Program,
+            Mode::Program => self.start_program(now),
         }
+    }
+
+    /// The OS calls the program at 0400h.
+    fn start_program(&mut self, now: u64) {
+        self.os = Os::Program;
+        self.program_rx.clear();
+        self.chip.start(now);
     }
 
     /// The interrupt service routine: start byte 0, OS restarted with a fresh stack.
@@ -676,20 +804,21 @@ impl Cell {
 
     fn set_start_byte(&mut self, value: u8) {
         self.dptr = START_BYTE;
-        if self.ram.read(START_BYTE) != value {
-            self.ram_changed(START_BYTE, value);
+        if self.board.ram.read(START_BYTE) != value {
+            self.board.write_ram(START_BYTE, value);
         }
     }
 
+    /// The OS writes external memory (`MOVX`, through the data pointer).
     fn store(&mut self, addr: u16, value: u8) {
         self.dptr = addr;
-        self.ram_changed(addr, value);
+        self.board.write_data(addr, value);
     }
 
-    /// The OS reads external RAM (through the data pointer).
+    /// The OS reads external memory (through the data pointer).
     fn load(&mut self, addr: u16) -> u8 {
         self.dptr = addr;
-        self.ram.read(addr)
+        self.board.read_data(addr)
     }
 
     /// What the special function registers reflect now.
@@ -697,7 +826,7 @@ impl Cell {
         sfr::Pins {
             p1: self.port1_pins(),
             p26: self.p26_pin(),
-            key_down: self.key_down,
+            key_down: self.board.key_down,
             dptr: self.dptr,
         }
     }
@@ -899,13 +1028,13 @@ impl Cell {
             Command::AnalogRepeat => self.os = Os::AnalogLoop,
             Command::RunProgram => {
                 self.set_start_byte(START_PROGRAM);
-                self.os = Os::Program;
+                self.start_program(now);
             }
             // START means nothing outside a series.
             Command::Start => {}
             Command::RepeatSeries => self.start_series(),
             Command::ReadPort1 => self.send(now, self.port1_pins()),
-            Command::ReadKey => self.send(now, u8::from(!self.key_down)),
+            Command::ReadKey => self.send(now, u8::from(!self.board.key_down)),
             Command::ReadP26 => self.send(now, u8::from(self.p26_pin())),
             Command::Analog
             | Command::Bus
@@ -931,21 +1060,24 @@ impl Cell {
             Command::Analog if args[0] == 0 => {}
             Command::Analog => self.convert_and_reply(now, args[0]),
             Command::Bus if args[0] & 0x80 != 0 => {
-                self.send(now, self.bus[usize::from(args[0] & 0x7F)]);
+                self.send(now, self.board.bus[usize::from(args[0] & 0x7F)]);
             }
-            Command::Bus => self.bus[usize::from(args[0])] = args[1],
-            Command::WritePort1 => self.p1_latch = args[0],
+            Command::Bus => self.board.bus[usize::from(args[0])] = args[1],
+            Command::WritePort1 => self.chip.write_latch(&mut self.board, Port::P1, args[0]),
             // The OS moves bit 0 of the byte to the pin.
-            Command::WriteP26 => self.p26_latch = args[0] & 1 != 0,
+            Command::WriteP26 => {
+                let p2 = self.chip.latch(Port::P2) & !P26 | if args[0] & 1 != 0 { P26 } else { 0 };
+                self.chip.write_latch(&mut self.board, Port::P2, p2);
+            }
             Command::ReadRegister => {
-                let value = match self.iram.get(usize::from(args[0])) {
+                let value = match self.chip.iram().get(usize::from(args[0])) {
                     Some(&value) => value,
                     None => sfr::read(args[0], self.sfr_pins()),
                 };
                 self.send(now, value);
             }
             Command::WriteRegister => {
-                if let Some(r) = self.iram.get_mut(usize::from(args[0])) {
+                if let Some(r) = self.chip.iram_mut().get_mut(usize::from(args[0])) {
                     *r = args[1];
                 }
             }
@@ -981,8 +1113,16 @@ impl Cell {
     /// Reads converter input `input` (0..3) sampled at `at`. The converter's lines are P1.0..3;
     /// after a conversion they are all high again.
     fn sample(&mut self, input: u8, at: u64) -> u8 {
-        self.p1_latch |= 0x0F;
-        self.analog[usize::from(input)].code(at)
+        self.release_converter_lines();
+        self.board.analog[usize::from(input)].code(at)
+    }
+
+    /// After a conversion the converter's lines P1.0..3 are high (the seed).
+    fn release_converter_lines(&mut self) {
+        let p1 = self.chip.latch(Port::P1);
+        if p1 & 0x0F != 0x0F {
+            self.chip.write_latch(&mut self.board, Port::P1, p1 | 0x0F);
+        }
     }
 
     /// Arms a series with the parameters at 0800h: start byte 129, value count 0, waiting for
@@ -994,7 +1134,7 @@ impl Cell {
         }
         self.set_start_byte(START_MEASURE);
         self.set_value_count(0);
-        self.p1_latch |= 0x0F;
+        self.release_converter_lines();
         self.os = Os::MeasureWait {
             series: Series::from_params(params),
         };
@@ -1002,8 +1142,9 @@ impl Cell {
 
     fn set_value_count(&mut self, count: u16) {
         let [high, low] = count.to_be_bytes();
-        self.iram[usize::from(COUNT_HIGH_REGISTER)] = high;
-        self.iram[usize::from(COUNT_LOW_REGISTER)] = low;
+        let iram = self.chip.iram_mut();
+        iram[usize::from(COUNT_HIGH_REGISTER)] = high;
+        iram[usize::from(COUNT_LOW_REGISTER)] = low;
     }
 
     fn start_block(&mut self, now: u64, series: Series) {

@@ -9,16 +9,19 @@
 //! p26 pull 0|1                            P2.6 pulled low from outside
 //! bus ADDR VALUE                          what the parallel-bus peripheral at ADDR answers
 //! status                                  mode, activity, value count, bytes lost
+//! cpu                                     the program's CPU: running, or at its last stop
+//! iram                                    the internal RAM (128 bytes)
 //! save                                    write the state file now
 //! ```
 
 use crate::analog::{SourceError, SourceSpec};
-use crate::{Activity, Cell};
+pub use crate::number::{NumberError, parse_duration_ns, parse_number, parse_number_in};
+use crate::{Activity, Cell, view};
 
 /// Help text for the control language.
 pub const HELP: &str = "key press DURATION | key down | key up | power off | power on | \
      power cycle | reset | analog CH SOURCE | p1 pull MASK | p26 pull 0|1 | bus ADDR VALUE | \
-     status | save | help";
+     status | cpu | iram | save | help";
 
 /// One control line, parsed.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,6 +38,8 @@ pub enum ControlCommand {
     P26Pull(bool),
     Bus { addr: u8, value: u8 },
     Status,
+    Cpu,
+    Iram,
     Save,
     Help,
 }
@@ -107,6 +112,8 @@ impl ControlCommand {
                     as u8,
             },
             ["status"] => Status,
+            ["cpu"] => Cpu,
+            ["iram"] => Iram,
             ["save"] => Save,
             ["help"] => Help,
             _ => return Err(bad("unknown command")),
@@ -169,6 +176,16 @@ pub fn apply(cell: &mut Cell, now: u64, cmd: &ControlCommand) -> String {
             Err(e) => format!("error: {e}"),
         },
         Status | Save => status(cell),
+        Cpu => {
+            let running = cell.program_cpu();
+            view::cpu_line(
+                running.as_ref(),
+                cell.last_program_stop().as_ref(),
+                cell.program_routine(),
+                cell.internal_ram(),
+            )
+        }
+        Iram => view::iram_line(cell.internal_ram()),
         Help => HELP.into(),
     }
 }
@@ -197,59 +214,6 @@ pub fn status(cell: &Cell) -> String {
         s.lost_off,
         s.kept_in_setup,
     )
-}
-
-/// `12`, `0x1F`, `1Fh`.
-pub fn parse_number(s: &str) -> Option<u32> {
-    let s = s.trim();
-    // Digits only: `from_str_radix` and `parse` would take a sign (`+f`, `+5`).
-    if !s.bytes().all(|b| b.is_ascii_alphanumeric()) {
-        return None;
-    }
-    if let Some(hex) = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
-        u32::from_str_radix(hex, 16).ok()
-    } else if let Some(hex) = s.strip_suffix(['h', 'H']) {
-        u32::from_str_radix(hex, 16).ok()
-    } else {
-        s.parse().ok()
-    }
-}
-
-/// A number argument outside what is allowed.
-#[derive(Debug, thiserror::Error, PartialEq, Eq)]
-#[error("{what} `{text}` is not a number in 0..{max} (decimal, 0x1F or 1Fh)")]
-pub struct NumberError {
-    pub what: &'static str,
-    pub text: String,
-    pub max: u32,
-}
-
-/// [`parse_number`] limited to `0..=max`; `what` names the value in the error.
-pub fn parse_number_in(text: &str, what: &'static str, max: u32) -> Result<u32, NumberError> {
-    parse_number(text)
-        .filter(|&v| v <= max)
-        .ok_or_else(|| NumberError {
-            what,
-            text: text.to_owned(),
-            max,
-        })
-}
-
-/// `1.2s`, `500ms`, `2` (seconds).
-pub fn parse_duration_ns(s: &str) -> Option<u64> {
-    let s = s.trim();
-    let (num, scale) = if let Some(n) = s.strip_suffix("ms") {
-        (n, 1e6)
-    } else if let Some(n) = s.strip_suffix("us") {
-        (n, 1e3)
-    } else if let Some(n) = s.strip_suffix('s') {
-        (n, 1e9)
-    } else {
-        (s, 1e9)
-    };
-    let v: f64 = num.parse().ok()?;
-    let ns = v * scale;
-    (ns.is_finite() && (0.0..1e18).contains(&ns)).then_some(ns.round() as u64)
 }
 
 #[cfg(test)]
@@ -329,6 +293,36 @@ mod tests {
             let last = line.split_whitespace().last().unwrap();
             assert!(err.contains(line.trim()) || err.contains(last), "{err}");
         }
+    }
+
+    #[test]
+    fn cpu_shows_the_running_program_then_its_stop() {
+        let mut cell = Cell::default();
+        let mut out = Vec::new();
+        assert_eq!(
+            apply(&mut cell, 0, &parse("cpu")),
+            "no program has run since the model started"
+        );
+        // MOV A,#55h; MOV R3,#0AAh; SJMP $
+        cell.write_ram(crate::PROGRAM_AREA, &[0x74, 0x55, 0x7B, 0xAA, 0x80, 0xFE]);
+        let ms = 1_000_000;
+        cell.receive(ms, 6);
+        cell.poll(20 * ms, &mut out);
+        let running = apply(&mut cell, 20 * ms, &parse("cpu"));
+        assert!(
+            running.starts_with("program running: PC=0404 A=55"),
+            "{running}"
+        );
+        assert!(running.contains("bank 0 R0-R7=00 00 00 AA"), "{running}");
+        cell.receive(21 * ms, 0);
+        cell.poll(40 * ms, &mut out);
+        let stopped = apply(&mut cell, 40 * ms, &parse("cpu"));
+        assert!(
+            stopped.starts_with("program stopped (interrupted by a 0 on RxD): PC=0404 A=55"),
+            "{stopped}"
+        );
+        let iram = apply(&mut cell, 40 * ms, &parse("iram"));
+        assert!(iram.starts_with("00: 00 00 00 AA"), "{iram}");
     }
 
     #[test]

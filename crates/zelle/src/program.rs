@@ -15,7 +15,10 @@ pub enum ProgramError {
     Hex(String),
     #[error("Intel HEX data at {addr:04X}h is outside the program area 0400h..07FFh")]
     OutsideArea { addr: u32 },
-    #[error("the program is {len} bytes; the program area 0400h..07FFh holds 1024")]
+    #[error(
+        "the program is {len} bytes; the program area 0400h..07FFh holds 1024 (a raw image \
+         from 0000h, as `as31 -Fbin` writes, is taken if it ends by 07FFh with 0000h..03FFh blank)"
+    )]
     TooLong { len: usize },
     #[error("the program is empty")]
     Empty,
@@ -25,7 +28,9 @@ const AREA_LEN: usize = (DATA_AREA - PROGRAM_AREA) as usize;
 
 /// The bytes to load from 0400h. A file whose first non-blank character is `:` is read as
 /// Intel HEX with absolute addresses (which must lie in 0400h..07FFh; gaps are filled with
-/// FFh); anything else is a raw binary image of the program area.
+/// FFh); anything else is a raw binary image of the program area, or of memory from 0000h
+/// (what `as31 -Fbin` and `objcopy -O binary` write for code at 0400h) if it is longer than
+/// the area, ends by 07FFh and has 0000h..03FFh blank (all 00h or all FFh).
 pub fn image_from_file(contents: &[u8]) -> Result<Vec<u8>, ProgramError> {
     let first = contents.iter().find(|b| !b.is_ascii_whitespace());
     let image = match first {
@@ -34,7 +39,16 @@ pub fn image_from_file(contents: &[u8]) -> Result<Vec<u8>, ProgramError> {
                 .map_err(|_| ProgramError::Hex("the file is not text".into()))?;
             from_hex(text)?
         }
-        _ => contents.to_vec(),
+        _ => match contents.split_at_checked(usize::from(PROGRAM_AREA)) {
+            Some((below, program))
+                if contents.len() > AREA_LEN
+                    && contents.len() <= usize::from(DATA_AREA)
+                    && (below.iter().all(|&b| b == 0) || below.iter().all(|&b| b == 0xFF)) =>
+            {
+                program.to_vec()
+            }
+            _ => contents.to_vec(),
+        },
     };
     if image.is_empty() {
         return Err(ProgramError::Empty);
@@ -86,7 +100,7 @@ mod tests {
         assert_eq!(image_from_file(&[0x02, 0x04, 0x00]).unwrap(), [2, 4, 0]);
         assert_eq!(image_from_file(&[]), Err(ProgramError::Empty));
         assert_eq!(
-            image_from_file(&[0; 1025]),
+            image_from_file(&[0x74; 1025]),
             Err(ProgramError::TooLong { len: 1025 })
         );
     }
@@ -108,6 +122,28 @@ mod tests {
             image_from_file(file.as_bytes()).unwrap(),
             [0x74, 0x55, 0xFF, 0xFF, 0x80, 0xFE]
         );
+    }
+
+    #[test]
+    fn a_raw_image_from_0000h_is_taken_from_0400h_if_blank_below() {
+        // as31 -Fbin of code at 0400h: 1024 zero bytes, then the program.
+        let mut image = vec![0u8; 0x400];
+        image.extend_from_slice(&[0x80, 0xFE]);
+        assert_eq!(image_from_file(&image), Ok(vec![0x80, 0xFE]));
+        image[..0x400].fill(0xFF);
+        assert_eq!(image_from_file(&image), Ok(vec![0x80, 0xFE]));
+        // Something below 0400h is not a program for the area.
+        image[0x10] = 0x12;
+        assert_eq!(
+            image_from_file(&image),
+            Err(ProgramError::TooLong { len: 0x402 })
+        );
+        // Past 07FFh: too long, whatever is below.
+        let mut long = vec![0u8; 0x801];
+        long[0x400] = 1;
+        let err = image_from_file(&long).unwrap_err();
+        assert_eq!(err, ProgramError::TooLong { len: 0x801 });
+        assert!(err.to_string().contains("as31 -Fbin"), "{err}");
     }
 
     #[test]

@@ -31,3 +31,7 @@ pub const KEY_HOLD_MEASURE_NS: u64 = 1_000 * MS;
 pub const KEY_HOLD_PROGRAM_NS: u64 = 3_000 * MS;
 /// See [`KEY_HOLD_MEASURE_NS`]. The OS stops timing here even if the key is still held.
 pub const KEY_HOLD_READY_NS: u64 = 5_000 * MS;
+
+/// How often the cell asks to be run while a program runs: its output is known only once the
+/// core has run (one character time behind the line), so the host polls it this often.
+pub const PROGRAM_POLL_NS: u64 = MS;

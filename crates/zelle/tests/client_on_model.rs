@@ -146,6 +146,27 @@ fn program_load_arms_program_mode_and_runs_after_reset() {
 }
 
 #[test]
+fn a_program_deaf_to_the_line_fails_the_reset_naming_the_start_key() {
+    let mut c = client();
+    // CLR EA; SJMP $: "Inter" can no longer run.
+    c.load_program(&[0xC2, 0xAF, 0x80, 0xFE], Transfer::Pipelined)
+        .unwrap();
+    c.run_program().unwrap();
+    let err = c.reset().unwrap_err();
+    assert!(matches!(err, Error::ResetUnanswered { .. }), "{err:?}");
+    assert!(err.to_string().contains("START key about 5 s"), "{err}");
+    // The seed's way out: START held about 5 s after a RESET.
+    let now = c.port().now_ns();
+    c.port().device_mut().key_down(now);
+    c.port().device_mut().reset(now);
+    c.port().pause(Duration::from_millis(5_200));
+    let now = c.port().now_ns();
+    c.port().device_mut().key_up(now);
+    c.reset().unwrap();
+    assert_eq!(c.port().device().mode(), Mode::Ready);
+}
+
+#[test]
 fn measure_produces_a_sine_on_two_channels() {
     let mut c = client();
     c.port()

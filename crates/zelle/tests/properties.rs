@@ -75,6 +75,67 @@ proptest! {
     }
 }
 
+/// A case the property found: command 6 starts the (empty) program area, and "Inter" came to
+/// wait for a byte still on the line just as the core reached the cell's time less its lag.
+/// It took reaching that target for reaching the end of the wait, looked again, waited again:
+/// the cell never returned from the host's pause.
+#[test]
+fn inter_waiting_past_the_cores_target_does_not_hang() {
+    let bytes: [(u8, u16); 44] = [
+        (1, 0),
+        (0, 0),
+        (1, 2371),
+        (9, 768),
+        (17, 577),
+        (1, 0),
+        (0, 2677),
+        (11, 0),
+        (1, 2526),
+        (14, 0),
+        (0, 2295),
+        (9, 0),
+        (89, 2183),
+        (9, 0),
+        (1, 1361),
+        (0, 0),
+        (9, 0),
+        (9, 0),
+        (0, 0),
+        (214, 1132),
+        (1, 0),
+        (10, 0),
+        (0, 0),
+        (8, 2174),
+        (7, 0),
+        (1, 2290),
+        (9, 0),
+        (1, 0),
+        (1, 0),
+        (9, 0),
+        (11, 0),
+        (9, 2653),
+        (0, 2988),
+        (6, 1932),
+        (0, 64),
+        (123, 0),
+        (196, 2261),
+        (1, 0),
+        (1, 2143),
+        (185, 2930),
+        (202, 0),
+        (0, 1143),
+        (15, 1755),
+        (25, 1881),
+    ];
+    let mut c = Client::new(Cell::default().into_sim_port());
+    for (b, gap_us) in bytes {
+        c.port().pause(Duration::from_micros(u64::from(gap_us)));
+        c.port().send(&[b]).unwrap();
+    }
+    c.reset().unwrap();
+    assert_eq!(c.port().device().activity(), Activity::Ready);
+}
+
 /// Answers with whatever it was given, a few bytes at a time, then times out.
 struct GarbagePort {
     replies: VecDeque<u8>,

@@ -675,6 +675,7 @@ impl Devices {
             state: file("zelle.toml"),
             link: file("zelle"),
             analog: vec![(1, sine(2.0, 2.5)), (2, sine(1.0, 2.5))],
+            trace: None,
         })
         .context("starting the ZELLE cell")?;
         let cpu196 = buslab_served::cpu196::spawn_board(buslab_served::cpu196::BoardOptions {

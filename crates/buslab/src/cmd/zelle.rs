@@ -4,6 +4,7 @@
 
 use std::io::{self, BufRead, Write};
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::RecvTimeoutError;
 use std::time::Duration;
 
 use anyhow::Context;
@@ -17,7 +18,7 @@ use buslab_zelle::client::{
 };
 use buslab_zelle::control::{self, parse_number_in};
 use buslab_zelle::timing::LINE;
-use buslab_zelle::{DATA_AREA, EXT_RAM_SIZE, PARAMS_LEN, SetupRule, hex_listing};
+use buslab_zelle::{DATA_AREA, EXT_RAM_SIZE, PARAMS_LEN, SetupRule, TraceEvent, hex_listing};
 
 use crate::units::duration;
 
@@ -114,6 +115,9 @@ pub enum ZelleCommand {
         /// Byte to write (0..255); none: read it.
         value: Option<String>,
     },
+    /// Show the internal RAM as a program left it (the four register banks, the bit area, the
+    /// rest) and the special function registers as the OS has them (command 16 for each).
+    Regs,
     /// Read a parallel-bus address, or write it (command 8).
     Bus {
         /// Bus address 0..127.
@@ -160,6 +164,11 @@ pub struct ServeArgs {
     /// far beyond 1 ms after its drain, and a loaded host may still lose its byte.
     #[arg(long)]
     pub strict_setup: bool,
+    /// Show the instructions programs run on stderr: at most N a second of the cell's time
+    /// (1..1000000; the rest counted as not traced) [default N: 1000].
+    #[arg(long, value_name = "N", num_args = 0..=1, default_missing_value = "1000",
+          value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub trace: Option<u32>,
 }
 
 #[derive(clap::Args)]
@@ -212,6 +221,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let serial = SerialLine::open_when_free(&port_path, LINE, timeout)
         .with_context(|| format!("opening the cell at {}", port_path.display()))?;
     let mut cell = Client::with_timeout(serial, timeout);
+    // Bytes waiting on the line are no answer to this command: what a program sent with
+    // nobody reading (its `Sende` output), or what an earlier client left.
+    cell.port()
+        .discard_input()
+        .with_context(|| format!("clearing the input of {}", port_path.display()))?;
     let mode = |saw: bool| {
         if saw {
             Transfer::StopAndWait
@@ -275,6 +289,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ZelleCommand::P26 { value: None } => say!("{}", u8::from(cell.read_p26()?)),
         ZelleCommand::P26 { value: Some(v) } => {
             cell.write_p26(parse_number_in(&v, "P2.6 level", 1)? == 1)?
+        }
+        ZelleCommand::Regs => {
+            let iram = (0..=127u8)
+                .map(|addr| cell.read_register(addr))
+                .collect::<Result<Vec<u8>, _>>()?;
+            let mut sfrs = Vec::new();
+            for (name, addr) in SFRS {
+                sfrs.push(format!("{name}={:02X}", cell.read_register(addr)?));
+            }
+            print_stdout(&registers_view(&iram, &sfrs.join(" ")))?;
         }
         ZelleCommand::Key => say!(
             "{}",
@@ -435,6 +459,56 @@ fn print_stdout(text: &str) -> anyhow::Result<()> {
     }
 }
 
+/// The special function registers `regs` shows, by name.
+const SFRS: [(&str, u8); 20] = [
+    ("SP", 0x81),
+    ("DPL", 0x82),
+    ("DPH", 0x83),
+    ("PSW", 0xD0),
+    ("ACC", 0xE0),
+    ("B", 0xF0),
+    ("IE", 0xA8),
+    ("IP", 0xB8),
+    ("TCON", 0x88),
+    ("TMOD", 0x89),
+    ("TH0", 0x8C),
+    ("TL0", 0x8A),
+    ("TH1", 0x8D),
+    ("TL1", 0x8B),
+    ("SCON", 0x98),
+    ("PCON", 0x87),
+    ("P0", 0x80),
+    ("P1", 0x90),
+    ("P2", 0xA0),
+    ("P3", 0xB0),
+];
+
+/// The internal RAM in rows: the four banks as R0..R7, then 16 bytes a row; the SFRs last.
+fn registers_view(iram: &[u8], sfrs: &str) -> String {
+    let hex = |bytes: &[u8]| {
+        bytes
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let mut out = String::new();
+    for (bank, regs) in iram[..32].chunks(8).enumerate() {
+        out.push_str(&format!(
+            "bank {bank} {:02X}h  R0-R7  {}\n",
+            bank * 8,
+            hex(regs)
+        ));
+    }
+    for (row, bytes) in iram[32..].chunks(16).enumerate() {
+        let addr = 32 + row * 16;
+        let what = if addr < 0x30 { "bits " } else { "     " };
+        out.push_str(&format!("{addr:02X}h    {what}  {}\n", hex(bytes)));
+    }
+    out.push_str(&format!("SFR (the OS's, as it answers): {sfrs}\n"));
+    out
+}
+
 // ----- serving the model --------------------------------------------------------------------
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
@@ -456,6 +530,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             state: args.state.clone(),
             link: args.link.clone(),
             analog,
+            trace: args.trace,
         },
         rule,
     )?;
@@ -489,8 +564,34 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
             }
         });
     }
-    let _ = stopped.recv();
+    match args.trace {
+        Some(_) => {
+            // The cell queues the trace; it is printed as it comes until a stop is asked for.
+            while let Err(RecvTimeoutError::Timeout) = stopped.recv_timeout(TRACE_EVERY) {
+                print_trace(&served.take_trace()?);
+            }
+            print_trace(&served.take_trace()?);
+        }
+        None => {
+            let _ = stopped.recv();
+        }
+    }
     Ok(served.stop()?)
+}
+
+/// How often `serve --trace` prints what the cell traced.
+const TRACE_EVERY: Duration = Duration::from_millis(100);
+
+fn print_trace(events: &[TraceEvent]) {
+    if events.is_empty() {
+        return;
+    }
+    let mut text = String::new();
+    for event in events {
+        text.push_str(&format!("{event}\n"));
+    }
+    // stderr: stdout carries the PTY's path and the control replies.
+    let _ = io::stderr().lock().write_all(text.as_bytes());
 }
 
 fn control_socket(

@@ -112,6 +112,22 @@ impl Served {
         })
     }
 
+    /// The child's stderr, a line at a time, read by a thread (so that a trace never fills
+    /// the pipe).
+    pub fn stderr_lines(&mut self) -> std::sync::mpsc::Receiver<String> {
+        let stderr = BufReader::new(self.child.stderr.take().expect("stderr taken once"));
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in stderr.lines() {
+                let Ok(line) = line else { break };
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        rx
+    }
+
     pub fn state_file(&self) -> PathBuf {
         self.dir.path().join("state.toml")
     }

@@ -62,6 +62,14 @@ pub enum Error {
         wanted: usize,
         timeout: Duration,
     },
+    #[error(
+        "the cell did not answer within {} after ten zeros and command 13 (a reset); is it \
+         switched on, at 9600 8N2? A program that masks the RxD interrupt (EA or EX0 off) or \
+         waits in Empf cannot be stopped from the line: hold the START key about 5 s after a \
+         RESET (served model: control lines `key down`, `reset`, then `key up` after 5 s)",
+        Human(*timeout)
+    )]
+    ResetUnanswered { timeout: Duration },
     #[error("analog channel {0} is out of range 1..4")]
     Channel(u8),
     #[error("register address {0} is out of range 0..127")]
@@ -262,7 +270,10 @@ impl<P: Port> Client<P> {
         // byte on a line that then stays quiet.
         self.send(&[Command::ReadKey as u8])?;
         let quiet = (self.timeout / 4).max(Duration::from_nanos(20 * BYTE_NS));
-        let mut last = self.read_byte(DURING)?;
+        let mut last = self.read_byte(DURING).map_err(|e| match e {
+            Error::Timeout { timeout, .. } => Error::ResetUnanswered { timeout },
+            e => e,
+        })?;
         let mut stale = 0usize;
         let mut buf = [0u8; 64];
         loop {
