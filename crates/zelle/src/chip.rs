@@ -213,7 +213,7 @@ impl Chip {
     pub fn new() -> Chip {
         let mut core = Mcs51::new();
         core.set_traps(rom::TRAPS);
-        Chip {
+        let mut chip = Chip {
             core,
             run: Run::Off,
             frames: VecDeque::new(),
@@ -221,7 +221,9 @@ impl Chip {
             last_stop: None,
             trace: None,
             stats: ChipStats::default(),
-        }
+        };
+        chip.os_serial_setup();
+        chip
     }
 
     // ----- what the OS uses -----------------------------------------------------------------
@@ -249,13 +251,32 @@ impl Chip {
     pub fn power_on(&mut self) {
         self.core.reset();
         self.core.iram_mut().fill(0);
+        self.os_serial_setup();
         self.run = Run::Off;
     }
 
     /// The RESET pin (internal RAM kept).
     pub fn reset(&mut self) {
         self.core.reset();
+        self.os_serial_setup();
         self.run = Run::Off;
+    }
+
+    /// What the OS sets up first after a reset: its UART, receiving at 9600 8N2 from then on.
+    /// The core's receiver then follows every host byte from its start bit while the OS runs,
+    /// so a byte on the line when a program starts reaches the program whole (RI, SBUF), as on
+    /// the cell: a receiver switched on in the middle of it took a 0 data bit for a start bit.
+    fn os_serial_setup(&mut self) {
+        for (addr, value) in START_SFRS {
+            if matches!(
+                addr,
+                sfr::TMOD | sfr::TH1 | sfr::TL1 | sfr::PCON | sfr::SCON
+            ) {
+                self.core.write_direct(addr, value);
+            }
+        }
+        let tcon = self.core.read_direct(sfr::TCON);
+        self.core.write_direct(sfr::TCON, tcon | tcon::TR1);
     }
 
     /// Whether the program is in the OS's `Sende` or `Empf` (or "Inter").
@@ -593,7 +614,15 @@ impl Chip {
             self.core.push(0);
             self.core.reti();
         }
+        // The baud generator already running as the OS left it is not restarted: a reload in
+        // the middle of a host byte would shift the receiver's sampling.
+        let baud_running = self.core.read_direct(sfr::TMOD) == 0x20
+            && self.core.read_direct(sfr::TH1) == 0xFD
+            && self.core.read_direct(sfr::TCON) & tcon::TR1 != 0;
         for (addr, value) in START_SFRS {
+            if baud_running && addr == sfr::TL1 {
+                continue;
+            }
             self.core.write_direct(addr, value);
         }
         self.core.set_registers(Registers {
@@ -731,6 +760,8 @@ impl Chip {
     }
 
     fn finish(&mut self, why: ProgramEnd) -> (u64, ProgramEnd) {
+        // The OS starts over: its UART set up again, whatever the program made of it.
+        self.os_serial_setup();
         self.run = Run::Off;
         (self.now_ns(), why)
     }

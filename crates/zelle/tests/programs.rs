@@ -748,6 +748,41 @@ fn empf_receives_host_bytes_in_order_even_back_to_back() {
     assert_eq!(l.cell.stats().lost_overrun, 0);
 }
 
+#[test]
+fn a_byte_sent_right_behind_command_6_reaches_the_program_whole() {
+    // Found by the echo example on a loaded machine (zelle_programs::echo: 0x41 answered with
+    // 0xD1 in 1 of 15 runs beside 3 busy loops, 0 of 25 since): a byte on the line when the
+    // program started met a receiver switched on mid-frame, which took a 0 data bit for its
+    // start bit (0x41 read as 0xD0). The OS's UART now receives all along, as on the cell.
+    // This sweep pins the behaviour in virtual time for every start-bit instant.
+    let echo_plus_one = image(&[(
+        0x0400,
+        &[
+            &lcall(EMPF)[..],
+            &[0x04], // INC A
+            &lcall(SENDE)[..],
+            &[0x80, 0xF7], // SJMP 0400h
+        ]
+        .concat(),
+    )]);
+    // The byte's start bit anywhere from right behind the 6 to two characters later.
+    for gap in (0..=44).map(|half_bits| half_bits * BIT_NS / 2) {
+        for byte in [0x41u8, 0x55, 0x01, 0xFE] {
+            let mut l = Line::new(Cell::new(BatteryRam::default()));
+            l.load(&echo_plus_one);
+            l.take();
+            l.send(&[6]);
+            l.wait(gap);
+            l.send(&[byte]);
+            assert_eq!(
+                l.expect(1, 10 * MS),
+                [byte.wrapping_add(1)],
+                "sent {byte:#04x} {gap} ns after the 6"
+            );
+        }
+    }
+}
+
 /// A piece of a well-behaved program (it leaves INT0's enable, priority and edge mode alone,
 /// and the line's baud rate).
 #[derive(Clone, Debug)]

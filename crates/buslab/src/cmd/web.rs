@@ -68,22 +68,28 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     .with_context(|| format!("buslab web on {url}"))?;
     // The URL on stdout alone (scripts and tests read it), the rest for people on stderr.
     println!("{}", server.url());
-    eprintln!("buslab web: {url} at {}", server.url());
+    // The banner in one write: a reader (or a kill right after its last line) never sees a
+    // part of it (a test killed the server between "writes allowed" and "Ctrl-C to stop").
+    let mut banner = format!("buslab web: {url} at {}\n", server.url());
     match server.token() {
         Some(token) => {
             // The token in the fragment: the dashboard takes it from there (the part after `#`
             // never leaves the browser), as the lab prints it.
-            eprintln!("  live dashboard: {}dashboard#token={token}", server.url());
-            eprintln!("  writes allowed with the header X-Buslab-Token: {token}");
+            banner += &format!(
+                "  live dashboard: {}dashboard#token={token}\n",
+                server.url()
+            );
+            banner += &format!("  writes allowed with the header X-Buslab-Token: {token}\n");
         }
         None => {
-            eprintln!("  live dashboard: {}dashboard", server.url());
-            eprintln!("  read-only (start with --token to allow sending and faults)");
+            banner += &format!("  live dashboard: {}dashboard\n", server.url());
+            banner += "  read-only (start with --token to allow sending and faults)\n";
         }
     }
     if !quiet {
-        eprintln!("Ctrl-C to stop");
+        banner += "Ctrl-C to stop\n";
     }
+    eprint!("{banner}");
     let stop = super::interrupted()?;
     while !stop.load(Ordering::SeqCst) {
         if let Some(why) = server.bus_failure() {
