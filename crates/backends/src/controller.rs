@@ -13,11 +13,11 @@
 use std::fmt;
 use std::time::{Duration, Instant};
 
-use buslab_can::Frame;
-use buslab_canbus::{
+use buslab_bus::{
     AcceptanceFilter, BusAdmin, BusError, BusEvent, BusState, CanBus, ControllerPart,
     ControllerSettings, Filter, Message,
 };
+use buslab_can::Frame;
 
 use crate::DynBus;
 

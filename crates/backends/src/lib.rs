@@ -13,7 +13,7 @@
 //! interface arguments with their filters (`can0,123:7FF,~200:700,#FFFFFFFF`).
 //!
 //! ```no_run
-//! use buslab_canbus::CanBus;
+//! use buslab_bus::CanBus;
 //!
 //! let mut bus = buslab_backends::open("socketcand://127.0.0.1:29536/vcan0")?;
 //! bus.send(&"123#DEADBEEF".parse()?)?;
@@ -43,7 +43,7 @@ pub use spec::{BusSpec, FilterItem, FilterSet, IdFilter, SpecError, filter_set};
 pub use url::{BusUrl, DEFAULT_CHANNEL, DEFAULT_NAME, SOCKETCAND_PORT, UrlError, UrlProblem};
 
 /// An open bus, of whichever backend.
-pub type DynBus = Box<dyn buslab_canbus::CanBus + Send>;
+pub type DynBus = Box<dyn buslab_bus::CanBus + Send>;
 
 /// The bus the command-line tools use by default: `buslab bus serve` on this machine.
 pub const DEFAULT_URL: &str = "socketcand://127.0.0.1:29536/vcan0";

@@ -11,8 +11,8 @@ use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use buslab_bus::{BusError, BusEvent, CanBus};
 use buslab_can::Frame;
-use buslab_canbus::{BusError, BusEvent, CanBus};
 
 use crate::DynBus;
 
@@ -195,7 +195,7 @@ fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use buslab_canbus::{BusState, Filter, Message};
+    use buslab_bus::{BusState, Filter, Message};
     use std::sync::mpsc::Sender;
 
     /// A bus whose transmit queue stays full; it reports each attempt.

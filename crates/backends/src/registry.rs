@@ -3,7 +3,7 @@
 use std::io;
 use std::time::Duration;
 
-use buslab_canbus::{AcceptanceFilter, ControllerMode, ControllerPart, ControllerSettings};
+use buslab_bus::{AcceptanceFilter, ControllerMode, ControllerPart, ControllerSettings};
 use buslab_slcan::AcceptanceAnswer;
 use buslab_socketcand::{ClientError, ClientOptions, SocketcandBus};
 
@@ -259,7 +259,7 @@ fn open_socketcan(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenErr
     let settings = options.controller;
     if let Some(filter) = settings.filter {
         // The ID part in the kernel (fewer wake-ups); the rest is checked by `Accepting`.
-        buslab_canbus::CanBus::set_filters(&mut bus, &filter.id_cover())
+        buslab_bus::CanBus::set_filters(&mut bus, &filter.id_cover())
             .map_err(|e| socketcan_error(std::io::Error::other(e.to_string())))?;
     }
     let netlink = |what: String| {

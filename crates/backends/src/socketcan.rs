@@ -9,13 +9,13 @@
 use std::io;
 use std::time::{Duration, UNIX_EPOCH};
 
-use buslab_can::{Frame, Id};
-use buslab_canbus::bus::matches_any;
-use buslab_canbus::error_frame::class;
-use buslab_canbus::{
+use buslab_bus::bus::matches_any;
+use buslab_bus::error_frame::class;
+use buslab_bus::{
     BusError, BusEvent, BusState, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorMessage,
     Filter, Message,
 };
+use buslab_can::{Frame, Id};
 use socketcan::frame::can_frame_default;
 use socketcan::{CanFilter, CanFrame, CanSocket, Socket, SocketOptions};
 

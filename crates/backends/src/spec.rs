@@ -17,8 +17,8 @@
 use std::fmt;
 use std::str::FromStr;
 
+use buslab_bus::ErrorFrame;
 use buslab_can::Frame;
-use buslab_canbus::ErrorFrame;
 
 use crate::registry::resolve;
 use crate::url::{BusUrl, UrlError};

@@ -1,5 +1,6 @@
 //! buslab's bus vocabulary: what every bus, log and view speaks, with no model or driver
-//! behind it (it depends on `buslab-can` only, and on `buslab-device` for [`Human`]).
+//! behind it (it depends on `buslab-can`, on `buslab-chips` for the SJA1000 and SLIO facts its
+//! values are in terms of, and on `buslab-device` for [`Human`]).
 //!
 //! - [`bus`]: messages and error messages with their time and channel ([`Message`],
 //!   [`ErrorMessage`], [`BusEvent`]), receive filters ([`Filter`]), typed errors ([`BusError`]).
@@ -7,8 +8,13 @@
 //!   ([`ControllerState`]).
 //! - [`error_frame`]: SocketCAN error frames as typed values ([`ErrorFrame`]), decoded,
 //!   encoded, and in can-utils' words.
-//! - [`admin`]: typed values of a bus that has more to tell than frames: nodes, counters,
-//!   timing, faults on the wire and the limits that refuse them.
+//! - [`admin`]: typed values of a bus that has more to tell than frames: nodes, their status
+//!   and registers, counters, timing, faults on the wire and the limits that refuse them,
+//!   demo boards.
+//! - [`decode`]: SJA1000 status, error-code and arbitration-lost registers in words
+//!   ([`Status`], [`Ecc`], [`Alc`], [`RegisterDump`]).
+//! - [`settings`]: what a host asks of its own controller ([`ControllerSettings`]).
+//! - [`interface`]: the traits a bus implements, [`CanBus`] and [`BusAdmin`].
 //!
 //! ```
 //! use buslab_bus::{ErrorFrame, Filter, Message, matches_any};
@@ -22,16 +28,30 @@
 
 pub mod admin;
 pub mod bus;
+pub mod decode;
 pub mod error_frame;
+pub mod interface;
+pub mod settings;
 pub mod state;
 
 pub use admin::{
-    BadProbability, BadSwitch, BoardSwitch, BusSummary, FaultLimit, NodeCounters, NodeInfo,
-    NodeRef, NodeTiming, Probability, TxReport, WireFault, switch_bits,
+    BadProbability, BadSwitch, BadVolts, BoardInput, BoardState, BoardSwitch, BoardVolts,
+    BusSummary, FaultLimit, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming,
+    Probability, TxReport, WireFault, switch_bits,
 };
 pub use bus::{BusError, BusEvent, ErrorMessage, Filter, Human, Message, matches_any};
+pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 pub use error_frame::{
     ArbitrationBit, CanError, CapturedBusError, ControllerProblems, ErrorCounters, ErrorFrame,
     ErrorFrameError, ProtocolLocation, ProtocolViolation, TransceiverStatus,
 };
+pub use interface::{BusAdmin, CanBus};
+pub use settings::{
+    AcceptanceFilter, BusOffRecovery, ClockOut, ControllerMode, ControllerPart, ControllerSettings,
+    TimingSetting,
+};
 pub use state::{BusState, ControllerState};
+
+/// The chip facts a bus's values are in terms of, so a user of a bus needs no other crate.
+pub use buslab_chips::sja1000::{BitTiming, CanMode, FilterMode};
+pub use buslab_chips::slio::SlioId;

@@ -4,34 +4,8 @@
 
 pub use buslab_bus::error_frame::*;
 
-use crate::decode::{Alc, Ecc, EccKind, ErrorRegisters};
+use crate::decode::ErrorRegisters;
 use crate::driver::DriverEvent;
-
-/// The ECC's kind and direction as the violation type, its segment as the location.
-impl From<Ecc> for CapturedBusError {
-    fn from(ecc: Ecc) -> Self {
-        let mut violation = match ecc.kind() {
-            EccKind::Bit => ProtocolViolation::BIT,
-            EccKind::Form => ProtocolViolation::FORM,
-            EccKind::Stuff => ProtocolViolation::STUFF,
-            EccKind::Other => 0,
-        };
-        if ecc.during_transmission() {
-            violation |= ProtocolViolation::TX;
-        }
-        Self {
-            violation: ProtocolViolation(violation),
-            location: ProtocolLocation::from_code(ecc.segment()),
-        }
-    }
-}
-
-/// ALC bits 4..0: the bit position.
-impl From<Alc> for ArbitrationBit {
-    fn from(alc: Alc) -> Self {
-        ArbitrationBit(alc.bit())
-    }
-}
 
 /// The error frame Linux's SJA1000 driver would send for a driver event, if any (frames
 /// and transmit results are not errors). `registers` gives the counters.
@@ -62,6 +36,7 @@ pub fn from_driver_event(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::decode::{Alc, Ecc};
     use crate::driver::ControllerState;
 
     #[test]

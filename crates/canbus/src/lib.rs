@@ -1,8 +1,9 @@
 //! buslab's CAN host library (the successor of the seed's CANAPI).
 //!
 //! The bus vocabulary ([`Message`], [`Filter`], [`BusState`], [`BusError`], [`ErrorFrame`],
-//! node counters and faults) lives in `buslab-bus`, which needs no model; it is re-exported
-//! here under the same paths.
+//! node status, counters and faults, decoded registers, controller settings, and the
+//! [`CanBus`] and [`BusAdmin`] traits) lives in `buslab-bus`, which needs no model; it is
+//! re-exported here under the same paths.
 //!
 //! - [`bus`]: a bus interface in the spirit of python-can's `BusABC` ([`CanBus`]).
 //! - [`admin`]: typed node status and registers of buslab's virtual bus, demo boards

@@ -269,7 +269,7 @@ impl Sja1000Node {
     /// they are (the host's controller configuration: mode, timing, filter, OCR, CLKOUT). A
     /// configuration the chip refuses leaves it as it was.
     pub fn configure(&mut self, settings: &ControllerSettings) -> Result<(), String> {
-        let config = settings.apply_to(&self.config);
+        let config = self.config.with_settings(settings);
         config.validate().map_err(|e| e.to_string())?;
         self.reprogram(config)
     }

@@ -2,14 +2,7 @@
 
 use buslab_can::{Frame, Id};
 
-/// The two register layouts of the SJA1000.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum CanMode {
-    /// PCA82C200-compatible: 11-bit IDs only, 32 registers.
-    Basic,
-    /// CAN 2.0B: extended IDs, error counters and captures, 128 registers.
-    Peli,
-}
+pub use buslab_chips::sja1000::CanMode;
 
 /// Bytes of one stored message: header then data (none for remote frames).
 pub fn encode(mode: CanMode, frame: &Frame, out: &mut [u8; 13]) -> usize {

@@ -9,13 +9,12 @@
 
 mod chip;
 pub mod fifo;
-pub mod filter;
 pub mod layout;
 mod mac;
-pub mod regs;
-pub mod timing;
 
+/// The register map, acceptance filter and bit timing are datasheet facts shared with the bus
+/// vocabulary; they live in `buslab-chips` and keep their paths here.
+pub use buslab_chips::sja1000::{filter, regs, timing};
+
+pub use buslab_chips::sja1000::{BitTiming, CanMode, FilterMode, TimingError};
 pub use chip::Sja1000;
-pub use filter::FilterMode;
-pub use layout::CanMode;
-pub use timing::{BitTiming, TimingError};

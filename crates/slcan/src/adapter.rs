@@ -10,8 +10,8 @@
 
 use std::collections::VecDeque;
 
+use buslab_bus::{CanError, ControllerProblems, ErrorFrame};
 use buslab_can::Frame;
-use buslab_canbus::{CanError, ControllerProblems, ErrorFrame};
 
 use crate::codec::{
     CodecError, Command, Line, LineSplitter, Reply, STANDARD_BITRATES, StatusFlags,
@@ -534,7 +534,7 @@ mod tests {
     /// A bit-rate mismatch told to the host: python-can at 500 kbit/s on a 125 kbit/s bus.
     #[test]
     fn a_mismatched_host_sees_the_controller_state_in_f_and_bel_when_bus_off() {
-        use buslab_canbus::{ControllerState, Ecc, ErrorCounters};
+        use buslab_bus::{ControllerState, Ecc, ErrorCounters};
         let mut a = Adapter::default();
         exchange(&mut a, "S6\rO\r");
         events(&mut a);

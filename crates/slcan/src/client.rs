@@ -16,9 +16,9 @@ use std::io::{self, Read, Write};
 use std::os::fd::{AsRawFd, BorrowedFd};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use buslab_bus::bus::matches_any;
+use buslab_bus::{BitTiming, BusError, BusState, CanBus, Filter, Message};
 use buslab_can::Frame;
-use buslab_canbus::bus::matches_any;
-use buslab_canbus::{BitTiming, BusError, BusState, CanBus, Filter, Message};
 use serialport::{ClearBuffer, FlowControl, SerialPort, TTYPort};
 
 use crate::clock::DeviceClock;

@@ -8,7 +8,7 @@
 //! - [`handshake`]: opening an adapter, sans-IO ([`Handshake`]): every command closed by `V`,
 //!   so replies left from an earlier session cannot shift the answers; Lawicel, CANable and
 //!   buslab's own answers.
-//! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over an adapter on a serial port
+//! - [`client`]: a [`CanBus`](buslab_bus::CanBus) over an adapter on a serial port
 //!   ([`SlcanBus`]), the `slcan:` backend.
 //! - [`clock`]: the adapter's wrapping millisecond timestamps mapped onto the host clock.
 //! - [`serve`](mod@serve): the adapter model served on a pseudo-terminal's master side.

@@ -6,7 +6,7 @@ mod fake_adapter;
 
 use std::time::Duration;
 
-use buslab_canbus::CanBus;
+use buslab_bus::CanBus;
 use buslab_slcan::{Firmware, SlcanBus, SlcanError, SlcanOptions};
 use fake_adapter::{ALL, CANABLE_VERSION, FORK_VERSION, FakeAdapter, Kind};
 

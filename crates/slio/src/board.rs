@@ -30,8 +30,8 @@ use crate::slio::{AnalogInputs, Slio, SlioError, SlioNotice, frame_level};
 
 /// The demo board's OUTPUT_ENABLE: LEDs, DPM outputs, the input select.
 pub const OUTPUT_ENABLE: u16 = 0x3F90;
-/// The LED pins, in MoniCAN's order.
-pub const LED_PINS: [u8; 5] = [7, 8, 9, 11, 12];
+/// The LED pins (in MoniCAN's order) and the supply are facts shared with the bus vocabulary.
+pub use buslab_chips::slio::{LED_PINS, VDD};
 /// The pin that selects the input switches instead of the ID switches.
 pub const SELECT_PIN: u8 = 13;
 /// The demo board's digital outputs: the LEDs and the input select, that is OUTPUT_ENABLE
@@ -45,8 +45,6 @@ pub const CONVERT_ADC2: u16 = 0xC0;
 /// The multiplexer inputs the board wires to P5 and P6.
 const ADC1_INPUT: u8 = 6;
 const ADC2_INPUT: u8 = 4;
-/// The supply: analog inputs span 0..5 V, DPM outputs swing to it.
-pub const VDD: f64 = 5.0;
 
 /// A voltage that changes with time: a constant, a waveform, a recording.
 pub trait Signal: Send {

@@ -10,7 +10,8 @@
 #![forbid(unsafe_code)]
 
 pub mod board;
-pub mod ids;
+/// SLIO identifiers are chip facts shared with the bus vocabulary (`buslab-chips`).
+pub use buslab_chips::slio::ids;
 pub mod master;
 pub mod registers;
 pub mod slio;

@@ -6,7 +6,7 @@
 
 use std::hint::black_box;
 
-use buslab_canbus::BusEvent;
+use buslab_bus::BusEvent;
 use buslab_socketcand::Inbound;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 

@@ -7,13 +7,13 @@ use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::{Duration, Instant};
 
-use buslab_can::Frame;
-use buslab_canbus::admin::FaultLimit;
-use buslab_canbus::bus::Human;
-use buslab_canbus::{
+use buslab_bus::admin::FaultLimit;
+use buslab_bus::bus::Human;
+use buslab_bus::{
     BusAdmin, BusError, BusEvent, BusOffRecovery, BusState, CanBus, ControllerSettings, Filter,
     Message, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
+use buslab_can::Frame;
 
 use crate::command::Command;
 use crate::element::ElementError;
@@ -286,9 +286,9 @@ impl SocketcandBus {
     /// A SLIO demo board on the virtual bus, after `change` to its inputs (buslab servers).
     pub fn demo_board(
         &mut self,
-        slio: buslab_slio::SlioId,
-        change: Option<buslab_canbus::admin::BoardInput>,
-    ) -> Result<buslab_canbus::admin::BoardState, ClientError> {
+        slio: buslab_bus::SlioId,
+        change: Option<buslab_bus::admin::BoardInput>,
+    ) -> Result<buslab_bus::admin::BoardState, ClientError> {
         self.need_extensions("demo boards")?;
         let args = self.request(
             &Command::Board { slio, change },
@@ -685,9 +685,9 @@ impl BusAdmin for SocketcandBus {
 
     fn demo_board(
         &mut self,
-        slio: buslab_slio::SlioId,
-        change: Option<buslab_canbus::admin::BoardInput>,
-    ) -> Result<buslab_canbus::admin::BoardState, BusError> {
+        slio: buslab_bus::SlioId,
+        change: Option<buslab_bus::admin::BoardInput>,
+    ) -> Result<buslab_bus::admin::BoardState, BusError> {
         Ok(SocketcandBus::demo_board(self, slio, change)?)
     }
 }

@@ -6,10 +6,10 @@ use buslab_can::{Frame, Id};
 
 use crate::{ProtocolError, tokens};
 
-pub use buslab_canbus::NodeRef;
-use buslab_canbus::admin::{BoardInput, BoardSwitch, BoardVolts};
-use buslab_canbus::{BusOffRecovery, Probability, WireFault};
-use buslab_slio::SlioId;
+pub use buslab_bus::NodeRef;
+use buslab_bus::SlioId;
+use buslab_bus::admin::{BoardInput, BoardSwitch, BoardVolts};
+use buslab_bus::{BusOffRecovery, Probability, WireFault};
 
 /// One client command.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -67,7 +67,7 @@ pub enum Command {
     /// `< buslab_controller KEY=VALUE… >`: reprogram this client's chip with the parts of a
     /// controller configuration it gives (mode, timing, filter, OCR, CLKOUT; see
     /// [`crate::controller`]).
-    Controller(buslab_canbus::ControllerSettings),
+    Controller(buslab_bus::ControllerSettings),
     /// `< buslab_board SLIO [CHANGE] >`: a SLIO demo board on the virtual bus, after a change
     /// to its inputs: `switch N 0|1` (N 0..3, on P0..P3), `switches H` (the four at once, one
     /// hex digit, bit 0 = P0) or `pot VOLTS` (the potentiometer, 0..5). Answered

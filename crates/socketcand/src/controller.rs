@@ -14,9 +14,7 @@
 
 use std::fmt;
 
-use buslab_canbus::{
-    AcceptanceFilter, ClockOut, ControllerMode, ControllerSettings, TimingSetting,
-};
+use buslab_bus::{AcceptanceFilter, ClockOut, ControllerMode, ControllerSettings, TimingSetting};
 
 use crate::ProtocolError;
 

@@ -7,8 +7,8 @@
 //! - [`reply`]: buslab's extension replies (status, registers, nodes, flush, refusals) typed
 //!   both ways.
 //! - [`inbound`]: the client's receive path, sans-IO ([`Inbound`]).
-//! - [`client`]: a [`CanBus`](buslab_canbus::CanBus) over a TCP connection ([`SocketcandBus`]),
-//!   and a [`BusAdmin`](buslab_canbus::BusAdmin) when the server has buslab's extensions.
+//! - [`client`]: a [`CanBus`](buslab_bus::CanBus) over a TCP connection ([`SocketcandBus`]),
+//!   and a [`BusAdmin`](buslab_bus::BusAdmin) when the server has buslab's extensions.
 //!
 //! The codec is sans-IO: strings in, values out, and back. buslab's own extensions are
 //! commands and replies whose name starts with `buslab_`; a real socketcand answers them with

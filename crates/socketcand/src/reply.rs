@@ -5,15 +5,15 @@
 //! `< buslab_regs N NAME MODE STATE HH … >`, `< buslab_nodes N:NAME … >`,
 //! `< buslab_flushed SENT FAILED >`. The values are typed on both sides of it.
 
-use buslab_canbus::{
+use buslab_bus::{
     Alc, BusState, BusSummary, CanMode, Ecc, ErrorRegisters, NodeCounters, NodeInfo, NodeRegisters,
     NodeStatus, NodeTiming, RegisterDump, Status, TxReport,
 };
 
 use std::time::Duration;
 
-use buslab_canbus::admin::{BoardState, FaultLimit};
-use buslab_slio::SlioId;
+use buslab_bus::SlioId;
+use buslab_bus::admin::{BoardState, FaultLimit};
 
 use crate::message::ServerMessage;
 
@@ -566,7 +566,7 @@ fn volts(text: &str) -> Option<f64> {
     plain
         .then(|| text.parse::<f64>().ok())
         .flatten()
-        .filter(|v| (0.0..=buslab_slio::board::VDD).contains(v))
+        .filter(|v| (0.0..=buslab_chips::slio::VDD).contains(v))
 }
 
 /// Reads a demo board back from `< buslab_board … >`.

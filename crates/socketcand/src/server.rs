@@ -22,8 +22,8 @@ use std::collections::VecDeque;
 use std::fmt::Write as _;
 use std::time::Duration;
 
+use buslab_bus::admin::FaultLimit;
 use buslab_can::Frame;
-use buslab_canbus::admin::FaultLimit;
 
 use crate::command::Command;
 use crate::element::Deframer;

@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
-use buslab_canbus::{
+use buslab_bus::{
     BusEvent, BusState, CanBus, CanError, NodeCounters, NodeStatus, ProtocolLocation,
     ProtocolViolation, TxReport,
 };
@@ -313,8 +313,5 @@ fn garbage_in_a_status_reply_is_an_error_naming_the_key() {
     );
     // Through the admin trait too, as a protocol error.
     let err = bus.admin().unwrap().node_status(None).unwrap_err();
-    assert!(
-        matches!(err, buslab_canbus::BusError::Protocol(_)),
-        "{err:?}"
-    );
+    assert!(matches!(err, buslab_bus::BusError::Protocol(_)), "{err:?}");
 }

@@ -1,8 +1,8 @@
 //! The socketcand codec: every element python-can and socketcand exchange, round trips, and
 //! garbage.
 
+use buslab_bus::{BusOffRecovery, Probability, WireFault};
 use buslab_can::{Frame, Id};
-use buslab_canbus::{BusOffRecovery, Probability, WireFault};
 use buslab_socketcand::{Command, Deframer, ElementError, NodeRef, ServerMessage, Timestamp};
 use proptest::prelude::*;
 

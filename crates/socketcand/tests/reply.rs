@@ -1,7 +1,7 @@
 //! buslab's extension replies: typed values to the wire text docs/bus.md lists and back, and
 //! garbage from a server named, never a panic.
 
-use buslab_canbus::{
+use buslab_bus::{
     Alc, BusState, BusSummary, CanMode, Ecc, ErrorRegisters, NodeCounters, NodeInfo, NodeRegisters,
     NodeStatus, NodeTiming, RegisterDump, Status, TxReport,
 };
@@ -218,7 +218,7 @@ fn garbage_registers_nodes_and_flush_are_named() {
 
 #[test]
 fn refusals_round_trip_and_garbage_is_named() {
-    use buslab_canbus::admin::FaultLimit;
+    use buslab_bus::admin::FaultLimit;
     use buslab_socketcand::reply::{parse_refused, refused_fields};
     use std::time::Duration;
     let rate = FaultLimit::Rate {

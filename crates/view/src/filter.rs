@@ -4,8 +4,8 @@
 use std::fmt;
 use std::str::FromStr;
 
+use buslab_bus::ErrorFrame;
 use buslab_can::Frame;
-use buslab_canbus::ErrorFrame;
 
 /// One or more filters, comma-separated, any of which lets a frame through; empty: every
 /// frame and every error frame.

@@ -3,8 +3,8 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
+use buslab_bus::{BusState, ErrorFrame, ErrorMessage, Message, NodeStatus};
 use buslab_can::{Frame, Id};
-use buslab_canbus::{BusState, ErrorFrame, ErrorMessage, Message, NodeStatus};
 use serde::Serialize;
 
 use crate::filter::LogFilter;

@@ -2,9 +2,7 @@
 
 use std::time::Duration;
 
-use buslab_canbus::{
-    BusState, BusSummary, ErrorRegisters, Message, NodeCounters, NodeStatus, Status,
-};
+use buslab_bus::{BusState, BusSummary, ErrorRegisters, Message, NodeCounters, NodeStatus, Status};
 use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
 
 fn ms(n: u64) -> Duration {
@@ -22,7 +20,7 @@ fn status(number: u32, name: &str, tec: u8, state: BusState) -> NodeStatus {
         state,
         errors: Some(ErrorRegisters {
             alc: None,
-            ecc: Some(buslab_canbus::Ecc(0x0A)),
+            ecc: Some(buslab_bus::Ecc(0x0A)),
             rxerr: 0,
             txerr: tec,
         }),
@@ -298,7 +296,7 @@ fn equal_samples_are_kept_as_a_run_and_the_history_spans_the_retention_time() {
 
 #[test]
 fn error_frames_are_logged_with_their_class_and_meaning() {
-    use buslab_canbus::{ErrorFrame, ErrorMessage};
+    use buslab_bus::{ErrorFrame, ErrorMessage};
     let mut view = BusView::new(ViewConfig::default());
     view.frame(ms(0), &msg(100.0, "123#11"));
     // Linux's SJA1000 frame for a stuff error while receiving in the data field, with the

@@ -8,8 +8,8 @@ use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use buslab_backends::TrySendError;
-use buslab_canbus::BusError;
-use buslab_canbus::admin::{BoardInput, BoardState};
+use buslab_bus::BusError;
+use buslab_bus::admin::{BoardInput, BoardState};
 use buslab_slio::SlioId;
 
 use crate::app::{App, authorize};
@@ -153,7 +153,7 @@ async fn bench(app: &App, slio: SlioId, change: Option<BoardInput>) -> Result<Re
     Ok(Json(serde_json::json!({
         "board": {
             "slio": board.slio.to_string(),
-            "switches": buslab_canbus::admin::switch_bits(board.switches),
+            "switches": buslab_bus::admin::switch_bits(board.switches),
             "potentiometer": board.potentiometer,
         },
         "queued": queued,

@@ -9,7 +9,7 @@
 use std::time::Duration;
 
 use axum::http::StatusCode;
-use buslab_canbus::admin::{BadSwitch, BoardInput, BoardSwitch, BoardVolts};
+use buslab_bus::admin::{BadSwitch, BoardInput, BoardSwitch, BoardVolts};
 use buslab_slio::SlioId;
 use buslab_zelle::client::{SeriesError, SeriesParams};
 use serde::Deserialize;

@@ -8,7 +8,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use buslab_backends::{DynBus, Pump, PumpEvent, PumpSender};
-use buslab_canbus::{BusEvent, CanBus, NodeRef, NodeStatus};
+use buslab_bus::{BusEvent, CanBus, NodeRef, NodeStatus};
 use buslab_view::{BusView, ViewConfig};
 
 use crate::request::MAX_WINDOW;

@@ -6,8 +6,8 @@
 use std::time::Duration;
 
 use axum::http::StatusCode;
+use buslab_bus::{NodeRef, Probability, WireFault};
 use buslab_can::Frame;
-use buslab_canbus::{NodeRef, Probability, WireFault};
 use buslab_view::LogFilter;
 use serde::Deserialize;
 

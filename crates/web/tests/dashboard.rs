@@ -11,13 +11,13 @@ use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use buslab_can::Frame;
-use buslab_canbus::admin::FaultLimit;
-use buslab_canbus::{
+use buslab_bus::admin::FaultLimit;
+use buslab_bus::{
     BusAdmin, BusError, BusEvent, BusState, BusSummary, CanBus, ErrorFrame, ErrorMessage,
     ErrorRegisters, Filter, Message, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus,
     TxReport, WireFault,
 };
+use buslab_can::Frame;
 use buslab_web::{WebConfig, WebServer};
 use serde_json::Value;
 

@@ -10,8 +10,8 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::{Duration, Instant};
 
+use buslab_bus::{BusError, BusState, CanBus, Filter, Message};
 use buslab_can::Frame;
-use buslab_canbus::{BusError, BusState, CanBus, Filter, Message};
 use buslab_web::{Timeouts, WebConfig, WebServer};
 
 /// Only a guard against a hung server: every wait ends on an event first.

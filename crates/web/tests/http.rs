@@ -8,11 +8,11 @@ use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use buslab_can::Frame;
-use buslab_canbus::{
+use buslab_bus::{
     BusAdmin, BusError, BusState, BusSummary, CanBus, ErrorRegisters, Filter, Message,
     NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, Status, TxReport, WireFault,
 };
+use buslab_can::Frame;
 use buslab_web::{WebConfig, WebServer};
 
 /// Only a guard against a hung server: every wait below ends on an event first.

@@ -9,8 +9,8 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::mpsc::{self, Receiver};
 use std::time::Duration;
 
+use buslab_bus::{BusError, BusState, CanBus, Filter, Message};
 use buslab_can::{Frame, Id};
-use buslab_canbus::{BusError, BusState, CanBus, Filter, Message};
 use buslab_web::{WebConfig, WebServer};
 use serde_json::Value;
 

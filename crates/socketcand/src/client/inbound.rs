@@ -4,8 +4,8 @@
 
 use std::collections::VecDeque;
 
-use buslab_canbus::bus::matches_any;
-use buslab_canbus::{BusEvent, ErrorFrame, ErrorMessage, Filter, Message};
+use buslab_bus::bus::matches_any;
+use buslab_bus::{BusEvent, ErrorFrame, ErrorMessage, Filter, Message};
 
 use super::ClientError;
 use crate::ProtocolError;

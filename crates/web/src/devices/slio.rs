@@ -15,8 +15,8 @@
 //! them) are the bench's, not the SLIO's: [`SlioPanels::bench`] keeps what the virtual bus
 //! last said of them.
 
+use buslab_bus::admin::BoardState;
 use buslab_can::Frame;
-use buslab_canbus::admin::BoardState;
 use buslab_slio::board::{
     CONVERT_ADC1, CONVERT_ADC2, LED_PINS, OutputLevels, SELECT_PIN, SWITCH_PINS, VDD, set_bit,
 };
@@ -542,7 +542,7 @@ mod tests {
         assert_eq!(p.view()[0].bench, None);
         let state = BoardState {
             slio: s3,
-            node: buslab_canbus::NodeInfo {
+            node: buslab_bus::NodeInfo {
                 number: 6,
                 name: "slio3".into(),
             },
