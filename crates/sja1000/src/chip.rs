@@ -824,7 +824,7 @@ const fn flag(on: bool, mask: u8) -> u8 {
 
 /// The chip on the one bus engine. A bare chip has no CPU: frames reach its transmit buffer
 /// only through register writes (the host library's driver wraps the chip for that), so
-/// [`BusNode::enqueue`] refuses them.
+/// [`BusNode::enqueue`](buslab_can::node::BusNode::enqueue) refuses them.
 impl buslab_can::node::BusNode for Sja1000 {
     fn output(&self) -> Level {
         Sja1000::output(self)

@@ -6,7 +6,7 @@
 //! - [`server`]: one client connection of a server, sans-IO ([`server::Session`]).
 //! - [`reply`]: buslab's extension replies (status, registers, nodes, flush, refusals) typed
 //!   both ways.
-//! - [`inbound`]: the client's receive path, sans-IO ([`Inbound`]).
+//! - [`client::inbound`]: the client's receive path, sans-IO ([`Inbound`]).
 //! - [`client`]: a [`CanBus`](buslab_bus::CanBus) over a TCP connection ([`SocketcandBus`]),
 //!   and a [`BusAdmin`](buslab_bus::BusAdmin) when the server has buslab's extensions.
 //!
