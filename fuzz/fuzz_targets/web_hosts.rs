@@ -41,7 +41,8 @@ fuzz_target!(|data: &[u8]| {
                 return;
             };
             if let Ok(guard) = HostGuard::new(&[name.to_string()]) {
-                let host = if name.contains(':') {
+                // An IPv6 address goes into a Host header in brackets (given with or without).
+                let host = if name.contains(':') && !name.starts_with('[') {
                     format!("[{name}]")
                 } else {
                     name.to_string()
