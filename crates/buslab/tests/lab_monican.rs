@@ -154,6 +154,40 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
 /// the lab's MoniCAN had lit P7 and P11 of SLIO 3, and `3O801` typed in the user's MoniCAN
 /// (which never saw SLIO 3 sign on: its outputs column said `XXXX`) wrote DATA_OUTPUT 2100.
 /// Now it reads the pin levels first and keeps them: both MoniCANs show 2980.
+/// Issue 28 (4): tried as a new user would, `screen DIR/monican 19200` showed a blank screen
+/// until Ctrl L: the screen drawn before the terminal came waited in the PTY, and the terminal
+/// program threw it away as it started. The terminal now gets the whole screen when it opens
+/// the port, and again when it throws away what it had not read.
+#[test]
+fn a_terminal_opened_late_shows_the_whole_screen_without_ctrl_l() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_lab, url) = lab(dir.path(), &["--no-devices"]);
+    // The screen is drawn (to nobody) and the boards signed on before anyone looks: the
+    // lab's MoniCAN has calibrated them once `slio list` finds all three.
+    let start = Instant::now();
+    loop {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["slio", "--bus", &url, "list"])
+            .output()
+            .unwrap();
+        if String::from_utf8_lossy(&out.stdout).lines().count() >= 3 {
+            break;
+        }
+        assert!(
+            start.elapsed() < CEILING,
+            "the boards never signed on: {out:?}"
+        );
+    }
+    let mut t = Terminal::open_flushing(&dir.path().join("monican"));
+    t.wait_until("the title, the header and the boards, no key typed", |t| {
+        t.row(TITLE_ROW).contains(TITLE)
+            && t.row(HEADER_ROW).contains(HEADER)
+            && [0, 3, 10]
+                .iter()
+                .all(|&n| t.row(slio_row_of(n)).starts_with('*'))
+    });
+}
+
 #[test]
 fn monican_beside_the_lab_keeps_the_leds_the_lab_lit() {
     let dir = tempfile::tempdir().unwrap();

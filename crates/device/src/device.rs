@@ -17,6 +17,12 @@ pub trait ByteDevice {
     fn output_lost(&mut self, now_ns: u64) {
         let _ = now_ns;
     }
+    /// A client opened the device's port at `now_ns` (a terminal program started on the
+    /// line). A device that shows a screen sends it whole again, so a terminal opened late
+    /// does not stay blank until its user asks for a redraw. Nothing by default.
+    fn port_opened(&mut self, now_ns: u64) {
+        let _ = now_ns;
+    }
 }
 
 /// A device whose state survives a power cycle (battery-backed RAM, flash): what its state or

@@ -1,17 +1,34 @@
 //! A pseudo-terminal for a device model: the model holds the master side, any serial program
 //! opens the slave path (`/dev/pts/N`, or a symlink to it) as if it were the device's port.
+//!
+//! Two things a real port's owner learns from its line the master side also tells: a client
+//! opened the port (an inotify watch on the slave path: the device may greet a terminal that
+//! arrives late), and a client threw away what the device sent before it read it (`tcflush`,
+//! as terminal programs do when they start; the master then runs in packet mode, where the
+//! kernel reports such a flush): the device's output never reached the client.
 
 use std::fs::{File, OpenOptions};
 use std::io;
 use std::os::fd::{AsFd, AsRawFd, BorrowedFd};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use nix::fcntl::{FcntlArg, OFlag, fcntl};
 use nix::pty::{PtyMaster, grantpt, posix_openpt, ptsname_r, unlockpt};
+use nix::sys::inotify::{AddWatchFlags, InitFlags, Inotify};
 use nix::sys::termios::{self, SetArg};
 
 use buslab_device::{LineSettings, Parity};
+
+/// What Linux's pseudo-terminal hands over in one read at most (its line discipline's buffer,
+/// `N_TTY_BUF_SIZE` 4096, keeps one byte free), plus packet mode's status byte.
+const PACKET_MAX: usize = 4096;
+
+/// Packet mode's status bytes (Linux `<asm-generic/ioctls.h>`; the libc crate lacks them): a
+/// packet of data, and the slave's input queue flushed.
+const TIOCPKT_DATA: u8 = 0;
+const TIOCPKT_FLUSHREAD: u8 = 1;
 
 /// The master side of a pseudo-terminal, non-blocking.
 pub struct Pty {
@@ -20,6 +37,13 @@ pub struct Pty {
     _slave: File,
     path: PathBuf,
     link: Option<PathBuf>,
+    /// Opens of the slave path; `None` where inotify is not available (its limits reached):
+    /// the device is then not told of a client's arrival.
+    opens: Option<Inotify>,
+    /// The master is in packet mode ([`report_flushes`](Pty::report_flushes)).
+    packet: AtomicBool,
+    /// The kernel reported that the client flushed what it had not read yet.
+    flushed: AtomicBool,
 }
 
 impl Pty {
@@ -40,11 +64,24 @@ impl Pty {
         termios::tcsetattr(&slave, SetArg::TCSANOW, &attrs)?;
         let flags = OFlag::from_bits_truncate(fcntl(&master, FcntlArg::F_GETFL)?);
         fcntl(&master, FcntlArg::F_SETFL(flags | OFlag::O_NONBLOCK))?;
+        // After our own open of the slave: only clients' opens are seen.
+        let opens = watch_opens(&path)
+            .inspect_err(|e| {
+                tracing::warn!(
+                    "{}: cannot watch for clients opening the port ({e}); a device that \
+                     draws a screen will not redraw it for a terminal opened late",
+                    path.display()
+                )
+            })
+            .ok();
         Ok(Self {
             master,
             _slave: slave,
             path,
             link: None,
+            opens,
+            packet: AtomicBool::new(false),
+            flushed: AtomicBool::new(false),
         })
     }
 
@@ -82,9 +119,70 @@ impl Pty {
         peer_settings(self.master.as_fd())
     }
 
-    /// Reads what the client wrote; `Ok(0)` or `WouldBlock` when nothing is waiting.
+    /// From now on the kernel reports when the client flushes its input
+    /// ([`take_flushed`](Pty::take_flushed)): the master runs in packet mode, which only
+    /// [`read`](Pty::read) understands (not a raw `read` of the file descriptor).
+    pub fn report_flushes(&self) -> io::Result<()> {
+        set_packet_mode(self.master.as_fd())?;
+        self.packet.store(true, Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Reads what the client wrote (in packet mode at most 4095 bytes at once, the line
+    /// discipline's buffer); `Ok(0)` or `WouldBlock` when nothing is waiting. A flush the
+    /// kernel reports on the way is noted for [`take_flushed`](Pty::take_flushed).
     pub fn read(&self, buf: &mut [u8]) -> io::Result<usize> {
-        nix::unistd::read(&self.master, buf).map_err(io::Error::from)
+        if !self.packet.load(Ordering::Relaxed) {
+            return nix::unistd::read(&self.master, buf).map_err(io::Error::from);
+        }
+        let mut packet = [0u8; PACKET_MAX];
+        let want = buf.len().min(PACKET_MAX - 1) + 1;
+        loop {
+            let n =
+                nix::unistd::read(&self.master, &mut packet[..want]).map_err(io::Error::from)?;
+            let Some((&status, data)) = packet[..n].split_first() else {
+                return Ok(0);
+            };
+            if status == TIOCPKT_DATA {
+                buf[..data.len()].copy_from_slice(data);
+                return Ok(data.len());
+            }
+            // A status packet carries no data; the data (if any) comes in the next read.
+            if status & TIOCPKT_FLUSHREAD != 0 {
+                self.flushed.store(true, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// Whether the client threw away bytes sent to it before reading them (`tcflush` of its
+    /// input, as `screen` and `picocom` do when they start) since the last call: they never
+    /// reached it. Never before [`report_flushes`](Pty::report_flushes).
+    pub fn take_flushed(&self) -> bool {
+        self.flushed.swap(false, Ordering::Relaxed)
+    }
+
+    /// Whether a client opened the port since the last call (never, where it cannot be
+    /// watched).
+    pub fn take_opened(&self) -> bool {
+        let Some(opens) = &self.opens else {
+            return false;
+        };
+        let mut opened = false;
+        // Non-blocking: EAGAIN once every waiting event is read.
+        while let Ok(events) = opens.read_events() {
+            opened |= events
+                .iter()
+                .any(|e| e.mask.contains(AddWatchFlags::IN_OPEN));
+            if events.is_empty() {
+                break;
+            }
+        }
+        opened
+    }
+
+    /// What becomes readable when a client opens the port, for `poll` beside the master.
+    pub fn opens_fd(&self) -> Option<BorrowedFd<'_>> {
+        self.opens.as_ref().map(|opens| opens.as_fd())
     }
 
     /// Writes toward the client; may write less than asked (non-blocking).
@@ -108,6 +206,24 @@ impl Drop for Pty {
             let _ = std::fs::remove_file(link);
         }
     }
+}
+
+/// Packet mode: the kernel tells the master when the slave flushes its queues.
+#[allow(unsafe_code)]
+fn set_packet_mode(fd: BorrowedFd<'_>) -> io::Result<()> {
+    let on: libc::c_int = 1;
+    // SAFETY: TIOCPKT reads an int we own; the fd is valid for the call.
+    if unsafe { libc::ioctl(fd.as_raw_fd(), libc::TIOCPKT, &on) } != 0 {
+        return Err(io::Error::last_os_error());
+    }
+    Ok(())
+}
+
+/// An inotify watch for opens of the slave device (through any link to it).
+fn watch_opens(path: &Path) -> io::Result<Inotify> {
+    let opens = Inotify::init(InitFlags::IN_NONBLOCK | InitFlags::IN_CLOEXEC)?;
+    opens.add_watch(path, AddWatchFlags::IN_OPEN)?;
+    Ok(opens)
 }
 
 /// Reads termios2 so rates outside the classic `Bxxx` set (31250, 250000) come back exactly.

@@ -46,7 +46,10 @@ const MAX_OUTBOUND: usize = 64 * 1024;
 /// framing errors on a real line: they are dropped, with one warning (`tracing`). A client that
 /// writes faster than the line carries is held back (its writes block once 4 KiB wait, as on a
 /// real port), and one that does not read loses the device's output beyond 64 KiB waiting (one
-/// warning). When serving ends, a summary of what was lost is logged if anything was.
+/// warning). When serving ends, a summary of what was lost is logged if anything was. The
+/// device hears of a client opening the port ([`ByteDevice::port_opened`]) and of a client
+/// throwing away what it had not read yet (`tcflush`, as terminal programs do when they start:
+/// [`ByteDevice::output_lost`]).
 pub fn serve<D: ByteDevice>(
     device: &mut D,
     pty: &Pty,
@@ -155,6 +158,7 @@ fn serve_loop<D: ByteDevice>(
     after_poll: &mut dyn FnMut(&mut D, u64, bool),
     losses: &mut Losses,
 ) -> io::Result<()> {
+    pty.report_flushes()?;
     let epoch = Instant::now();
     let clock = || epoch.elapsed().as_nanos() as u64;
     let mut inbound = Inbound {
@@ -176,6 +180,16 @@ fn serve_loop<D: ByteDevice>(
                 break;
             }
             inbound.read(pty, line, &clock, losses)?;
+        }
+        // A client that arrived or threw away what it had not read yet: before the device's
+        // poll, so its answer (a whole screen) leaves in this turn.
+        if pty.take_opened() {
+            tracing::debug!("{}: a client opened the port", losses.device);
+            device.port_opened(now);
+        }
+        if pty.take_flushed() {
+            tracing::debug!("{}: the client flushed what it had not read", losses.device);
+            device.output_lost(now);
         }
         while controls_open {
             match control.try_recv() {
@@ -209,7 +223,15 @@ fn serve_loop<D: ByteDevice>(
         if !outbound.is_empty() {
             events |= PollFlags::POLLOUT;
         }
-        let mut fds = [PollFd::new(pty.as_fd(), events)];
+        // Where opens cannot be watched, the master again with no events: one array always.
+        let (opens, open_events) = match pty.opens_fd() {
+            Some(opens) => (opens, PollFlags::POLLIN),
+            None => (pty.as_fd(), PollFlags::empty()),
+        };
+        let mut fds = [
+            PollFd::new(pty.as_fd(), events),
+            PollFd::new(opens, open_events),
+        ];
         // ppoll, not poll: poll's whole milliseconds would round a wait under 1 ms (a byte at
         // 115200 baud is 87 µs) down to 0 and spin the loop.
         match ppoll(&mut fds, Some(TimeSpec::from_duration(sleep)), None) {

@@ -346,3 +346,167 @@ fn output_to_a_client_that_does_not_read_is_bounded() {
         "{total} bytes were kept for a client that did not read"
     );
 }
+
+/// A screen device: it sends its whole screen whenever a client opens the port or loses what
+/// was sent to it, and tells the test each time.
+struct Screen {
+    heard: mpsc::Sender<&'static str>,
+    out: Vec<u8>,
+    /// Bytes handed to the line so far.
+    sent: Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl ByteDevice for Screen {
+    fn receive(&mut self, _now_ns: u64, _byte: u8) {}
+    fn poll(&mut self, _now_ns: u64, out: &mut Vec<u8>) {
+        if !self.out.is_empty() {
+            self.sent.fetch_add(self.out.len(), Ordering::SeqCst);
+            out.append(&mut self.out);
+            let _ = self.heard.send("sent");
+        }
+    }
+    fn next_deadline(&self) -> Option<u64> {
+        None
+    }
+    fn output_lost(&mut self, _now_ns: u64) {
+        self.out.extend_from_slice(b"[whole screen]");
+        let _ = self.heard.send("lost");
+    }
+    fn port_opened(&mut self, _now_ns: u64) {
+        self.out.extend_from_slice(b"[whole screen]");
+        let _ = self.heard.send("opened");
+    }
+}
+
+/// A terminal program's start, as screen and picocom do it: open, raw at the line's rate,
+/// throw away what waits unread.
+fn open_like_a_terminal(path: &std::path::Path) -> std::fs::File {
+    use nix::sys::termios::{BaudRate, FlushArg, SetArg, cfmakeraw, cfsetspeed, tcflush};
+    use std::os::fd::AsFd;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .unwrap();
+    let mut t = nix::sys::termios::tcgetattr(file.as_fd()).unwrap();
+    cfmakeraw(&mut t);
+    cfsetspeed(&mut t, BaudRate::B19200).unwrap();
+    nix::sys::termios::tcsetattr(file.as_fd(), SetArg::TCSANOW, &t).unwrap();
+    tcflush(file.as_fd(), FlushArg::TCIFLUSH).unwrap();
+    file
+}
+
+/// Issue 28 (4): a terminal opened on the served MoniCAN port stayed blank until its user
+/// pressed Ctrl L: the device never heard that a client had arrived, and the screen it had
+/// sent before waited in the PTY, where the terminal program's start-up flush threw it away.
+#[test]
+fn a_client_opening_the_port_and_flushing_it_gets_the_whole_screen() {
+    let pty = Pty::open().unwrap();
+    let path = pty.path().to_path_buf();
+    let stop = Arc::new(AtomicBool::new(false));
+    let (control, rx) = mpsc::channel::<Control<Screen>>();
+    let (heard_tx, heard) = mpsc::channel();
+    let flag = stop.clone();
+    let line = LineSettings::n81(19_200);
+    let sent = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let device_sent = sent.clone();
+    let thread = std::thread::spawn(move || {
+        let mut dev = Screen {
+            heard: heard_tx,
+            out: Vec::new(),
+            sent: device_sent,
+        };
+        serve(&mut dev, &pty, line, &rx, &flag).unwrap();
+    });
+    // Something on the screen before anyone looks: it waits in the PTY, unread.
+    control
+        .send(Box::new(|d: &mut Screen, _| {
+            d.out.extend_from_slice(b"[stale update]")
+        }))
+        .unwrap();
+    hear(&heard, "sent");
+    let mut file = open_like_a_terminal(&path);
+    // The open is heard. Whether the terminal's flush threw away the stale update alone or
+    // the screen sent for the open too (then the flush is heard and the screen sent again),
+    // the last thing the client gets is the whole screen.
+    hear(&heard, "opened");
+    read_until(&mut file, b"[whole screen]");
+    // Later: an update sent, not read, then flushed by the client: the device hears it lost.
+    const UPDATE: &[u8] = b"[update nobody read]";
+    control
+        .send(Box::new(|d: &mut Screen, _| {
+            d.sent.store(0, Ordering::SeqCst);
+            d.out.extend_from_slice(UPDATE)
+        }))
+        .unwrap();
+    // Flushed once the update waits in the client's queue (what came before it may wait
+    // there too: a second screen from the start).
+    let start = std::time::Instant::now();
+    while sent.load(Ordering::SeqCst) < UPDATE.len() || unread(&file) < UPDATE.len() {
+        assert!(start.elapsed() < ALLOWANCE, "the update never came");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    while heard.try_recv().is_ok() {}
+    nix::sys::termios::tcflush(
+        std::os::fd::AsFd::as_fd(&file),
+        nix::sys::termios::FlushArg::TCIFLUSH,
+    )
+    .unwrap();
+    hear(&heard, "lost");
+    let got = String::from_utf8(read_until(&mut file, b"[whole screen]")).unwrap();
+    assert!(!got.contains("[update nobody read]"), "{got}");
+    stop.store(true, Ordering::Relaxed);
+    thread.join().unwrap();
+}
+
+/// Waits for the device to tell `what`, skipping its other news; fails after the allowance.
+fn hear(heard: &mpsc::Receiver<&'static str>, what: &str) {
+    loop {
+        match heard.recv_timeout(ALLOWANCE) {
+            Ok(news) if news == what => return,
+            Ok(_) => {}
+            Err(e) => panic!("the device never told {what:?}: {e}"),
+        }
+    }
+}
+
+/// Bytes waiting unread in the client's input queue (`FIONREAD`).
+#[allow(unsafe_code)]
+fn unread(file: &std::fs::File) -> usize {
+    use std::os::fd::AsRawFd;
+    let mut n: libc::c_int = 0;
+    // SAFETY: FIONREAD writes one int we own; the fd is open for the call.
+    assert_eq!(
+        unsafe { libc::ioctl(file.as_raw_fd(), libc::FIONREAD, &mut n) },
+        0
+    );
+    n as usize
+}
+
+/// Whether `file` has something to read within the allowance.
+fn readable(file: &std::fs::File) -> bool {
+    use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
+    let mut fds = [PollFd::new(
+        std::os::fd::AsFd::as_fd(file),
+        PollFlags::POLLIN,
+    )];
+    poll(&mut fds, PollTimeout::try_from(ALLOWANCE).unwrap()).unwrap() > 0
+}
+
+/// What the client reads until it ends with `end`; fails if nothing more comes within the
+/// allowance.
+fn read_until(file: &mut std::fs::File, end: &[u8]) -> Vec<u8> {
+    let mut got = Vec::new();
+    let mut buf = [0u8; 256];
+    while !got.ends_with(end) {
+        assert!(
+            readable(file),
+            "{:?} never came; read {:?}",
+            String::from_utf8_lossy(end),
+            String::from_utf8_lossy(&got)
+        );
+        let n = file.read(&mut buf).unwrap();
+        got.extend_from_slice(&buf[..n]);
+    }
+    got
+}

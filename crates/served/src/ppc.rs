@@ -157,6 +157,12 @@ impl ByteDevice for PpcTerminal {
         // What the terminal shows is no longer what the node's screen thinks it shows.
         self.redraw = true;
     }
+
+    fn port_opened(&mut self, _now_ns: u64) {
+        // A terminal opened late has seen nothing of the screen (or only what it threw away
+        // on starting): it gets the whole screen, as Ctrl L would draw it.
+        self.redraw = true;
+    }
 }
 
 /// The time `bytes` take on the line.

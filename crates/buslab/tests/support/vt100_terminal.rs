@@ -9,7 +9,9 @@ use std::path::Path;
 use std::sync::mpsc::{self, Receiver};
 use std::time::{Duration, Instant};
 
-use nix::sys::termios::{BaudRate, SetArg, cfmakeraw, cfsetspeed, tcgetattr, tcsetattr};
+use nix::sys::termios::{
+    BaudRate, FlushArg, SetArg, cfmakeraw, cfsetspeed, tcflush, tcgetattr, tcsetattr,
+};
 
 /// The ceiling for a wait (a wait returns as soon as the screen shows what it waits for).
 pub const CEILING: Duration = Duration::from_secs(60);
@@ -26,6 +28,16 @@ pub struct Terminal {
 impl Terminal {
     /// Opens the link raw at 19200 baud; a thread forwards what the node sends.
     pub fn open(path: &Path) -> Self {
+        Self::open_with(path, false)
+    }
+
+    /// Opens the link as `screen` and `picocom` do: raw at 19200 baud, then throws away what
+    /// waited unread (`tcflush`).
+    pub fn open_flushing(path: &Path) -> Self {
+        Self::open_with(path, true)
+    }
+
+    fn open_with(path: &Path, flush: bool) -> Self {
         let file = OpenOptions::new()
             .read(true)
             .write(true)
@@ -35,6 +47,9 @@ impl Terminal {
         cfmakeraw(&mut t);
         cfsetspeed(&mut t, BaudRate::B19200).unwrap();
         tcsetattr(file.as_fd(), SetArg::TCSANOW, &t).unwrap();
+        if flush {
+            tcflush(file.as_fd(), FlushArg::TCIFLUSH).unwrap();
+        }
         let mut reader = file.try_clone().unwrap();
         let (tx, output) = mpsc::channel();
         std::thread::spawn(move || {
