@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use buslab_cpu196::adconfig::{AdConfigError, AdRefusal};
 use buslab_cpu196::codes::{Alert, MsgCode};
-use buslab_cpu196::host::{Client, ClientError, FileRequests, LOST_AFTER, Monitor};
+use buslab_cpu196::host::{Client, ClientError, CsvSamples, FileRequests, LOST_AFTER, Monitor};
 use buslab_cpu196::message::*;
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, Image, SimPort};
@@ -127,7 +127,7 @@ fn a_powered_down_board_is_lost_and_the_monitor_says_so_then_sees_it_back() {
     assert!(text.contains("board lost?"), "{text}");
     assert!(text.contains("115200 8N1"), "{text}");
 
-    let mut monitor = Monitor::<Vec<u8>>::new(None, None, c.now());
+    let mut monitor = Monitor::<CsvSamples<Vec<u8>>>::new(None, None, c.now());
     let mut out = String::new();
     let t0 = c.now();
     while !monitor.board_lost() {
@@ -169,7 +169,7 @@ fn the_monitor_keeps_a_run_alive_and_a_silent_pc_loses_it() {
 
     // The monitor pings every 500 ms: ten seconds of streaming, no alert.
     let mut c = client();
-    let mut monitor = Monitor::<Vec<u8>>::new(None, None, c.now());
+    let mut monitor = Monitor::<CsvSamples<Vec<u8>>>::new(None, None, c.now());
     let mut out = String::new();
     monitor.start(&mut c, Start::run(0, 0, true)).unwrap();
     let t0 = c.now();
@@ -203,7 +203,7 @@ fn a_refused_acquisition_says_why_and_the_monitor_starts_such_a_set_without_it()
         ),
         "{err}"
     );
-    let mut monitor = Monitor::<Vec<u8>>::new(None, None, c.now());
+    let mut monitor = Monitor::<CsvSamples<Vec<u8>>>::new(None, None, c.now());
     let mut out = String::new();
     let started = monitor.start(&mut c, Start::run(0, 4, true)).unwrap();
     assert_eq!(started, Start::run(0, 4, false));
@@ -269,7 +269,8 @@ fn the_monitor_serves_the_loggers_file_and_shows_its_text() {
             self.0.borrow_mut().handle(request)
         }
     }
-    let mut monitor = Monitor::<Vec<u8>>::new(Some(Box::new(Shared(files.clone()))), None, c.now());
+    let mut monitor =
+        Monitor::<CsvSamples<Vec<u8>>>::new(Some(Box::new(Shared(files.clone()))), None, c.now());
     let mut out = String::new();
     monitor.start(&mut c, Start::run(0, 1, true)).unwrap();
     let t0 = c.now();

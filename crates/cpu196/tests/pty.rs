@@ -177,7 +177,7 @@ fn recorded_samples_match_the_sources() {
     let s = serve(b, None);
     let mut c = connect(&s);
     c.start(Start::run(0, 1, true)).unwrap();
-    let mut rec = Recorder::new(Vec::new(), c.now()).unwrap();
+    let mut rec = Recorder::csv(Vec::new(), c.now()).unwrap();
     // 20 frames take 160 ms at 1 kHz with 8 scans a frame; wait for them, however long a
     // loaded machine takes.
     let until = Instant::now() + ALLOWANCE;
@@ -192,7 +192,7 @@ fn recorded_samples_match_the_sources() {
         }
     }
     c.stop().unwrap();
-    let csv = String::from_utf8(rec.finish().unwrap()).unwrap();
+    let csv = String::from_utf8(rec.finish().unwrap().into_inner()).unwrap();
     for line in csv.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         let volts: f64 = f[4].parse().unwrap();

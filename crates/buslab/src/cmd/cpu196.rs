@@ -12,7 +12,8 @@ use anyhow::{Context, bail};
 use buslab_cpu196::adconfig::ConfigReport;
 use buslab_cpu196::codes::MsgCode;
 use buslab_cpu196::host::{
-    Client, ClientError, DEFAULT_TIMEOUT, FileRequests, Monitor, Port, Recorder,
+    Client, ClientError, CsvSamples, DEFAULT_TIMEOUT, FileRequests, Monitor, Port, Recorder,
+    Sample, SampleSink, SampleSource,
 };
 use buslab_cpu196::image::{BAUD_RATES, BootConfig, BootEdit};
 use buslab_cpu196::message::{Bridge, Message, Start, printable};
@@ -709,15 +710,19 @@ fn report_frame_errors<P: Port>(c: &Client<P>) {
     }
 }
 
-/// A CSV recorder on a new file. (Written as the samples come, so a run cut short keeps what
-/// was recorded.)
-fn new_recorder<P: Port>(
-    c: &Client<P>,
-    path: &Path,
-) -> anyhow::Result<Recorder<std::io::BufWriter<std::fs::File>>> {
+/// A CSV recorder on a new file.
+fn new_recorder<P: Port>(c: &Client<P>, path: &Path) -> anyhow::Result<Recorder<CsvFile>> {
+    Ok(Recorder::new(csv_file(path)?, c.now()))
+}
+
+type CsvFile = CsvSamples<std::io::BufWriter<std::fs::File>>;
+
+/// Samples as CSV in a new file (written as they come, so a run cut short keeps what was
+/// recorded).
+fn csv_file(path: &Path) -> anyhow::Result<CsvFile> {
     let file =
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    Ok(Recorder::new(std::io::BufWriter::new(file), c.now())?)
+    Ok(CsvSamples::new(std::io::BufWriter::new(file))?)
 }
 
 fn record<P: Port>(
@@ -729,15 +734,9 @@ fn record<P: Port>(
 ) -> anyhow::Result<()> {
     if let Some(path) = plot {
         super::plot::check_target(path)?;
-        // The figure is drawn from the CSV read back: a device or FIFO cannot be read back.
-        if std::fs::metadata(out_path).is_ok_and(|m| !m.is_file()) {
-            bail!(
-                "--plot draws the recording from --out read back; {} is not a regular file",
-                out_path.display()
-            );
-        }
     }
-    let mut recorder = new_recorder(c, out_path)?;
+    // The figure's series as the samples come (an empty one without --plot).
+    let mut recorder = Recorder::new((csv_file(out_path)?, FigureSamples::default()), c.now());
     // log8 samples expand through the board's own table.
     recorder.set_log_table(c.log_table()?);
     let mut session = Monitor::new(None, Some(recorder), c.now());
@@ -751,65 +750,63 @@ fn record<P: Port>(
     session.stop(c, &mut out)?;
     show(&mut out);
     report_frame_errors(c);
-    let (_, frames, samples) = session.finish()?.expect("a recorder was given");
+    let ((_, figure), frames, samples) = session.finish()?.expect("a recorder was given");
     say!(
         "recorded {samples} samples from {frames} frames into {}",
         out_path.display()
     );
     if let Some(path) = plot {
-        super::plot::write(&recording_figure(out_path)?, path)?;
+        super::plot::write(&figure.figure(out_path)?, path)?;
     }
     Ok(())
 }
 
-/// The `--plot` figure of a recording, read back from its CSV (`t_s,source,channel,value,volts`,
-/// see the `Recorder`): a line per source and channel, in volts; virtual channels (no volts)
-/// in their own panel.
-fn recording_figure(csv: &Path) -> anyhow::Result<Figure> {
-    use std::collections::BTreeMap;
-    use std::io::BufRead;
-    let context = |line: usize| format!("reading back {} line {line}", csv.display());
-    let file = std::fs::File::open(csv).with_context(|| context(0))?;
-    let mut volts: BTreeMap<(String, u32), Series> = BTreeMap::new();
-    let mut virtual_values: BTreeMap<u32, Series> = BTreeMap::new();
-    for (i, line) in std::io::BufReader::new(file).lines().enumerate().skip(1) {
-        let line = line.with_context(|| context(i + 1))?;
-        let fields: Vec<&str> = line.split(',').collect();
-        let [t, source, channel, value, v] = fields[..] else {
-            bail!("{}: expected 5 fields: {line}", context(i + 1));
-        };
-        let number = |f: &str| f.parse::<f64>().with_context(|| context(i + 1));
-        let (t, channel) = (
-            number(t)?,
-            channel.parse::<u32>().with_context(|| context(i + 1))?,
-        );
-        if v.is_empty() {
-            virtual_values
-                .entry(channel)
-                .or_insert_with(|| Series::new(format!("{source} ch{channel}")))
-                .push(t, number(value)?);
-        } else {
-            volts
-                .entry((source.to_owned(), channel))
-                .or_insert_with(|| Series::new(format!("{source} ch{channel}")))
-                .push(t, number(v)?);
+/// The `--plot` figure of a recording, built from its samples as they come: a line per source
+/// and channel, in volts; virtual channels (no volts) in their own panel.
+#[derive(Default)]
+struct FigureSamples {
+    volts: std::collections::BTreeMap<(SampleSource, u8), Series>,
+    virtual_values: std::collections::BTreeMap<u8, Series>,
+}
+
+impl SampleSink for FigureSamples {
+    fn sample(&mut self, s: &Sample) -> std::io::Result<()> {
+        let name = || format!("{} ch{}", s.source, s.channel);
+        match s.volts {
+            Some(volts) => self
+                .volts
+                .entry((s.source, s.channel))
+                .or_insert_with(|| Series::new(name()))
+                .push(s.t_s, volts),
+            None => self
+                .virtual_values
+                .entry(s.channel)
+                .or_insert_with(|| Series::new(name()))
+                .push(s.t_s, s.value),
         }
+        Ok(())
     }
-    let mut analog = Panel::new("A/D channels", "voltage", Some("V"));
-    analog.covers = Some((0.0, FULL_SCALE_V));
-    analog.series = volts.into_values().collect();
-    let mut virtuals = Panel::new("virtual channels", "value", None);
-    virtuals.series = virtual_values.into_values().collect();
-    let mut figure = Figure::new(format!("CPU196 recording {}", csv.display()));
-    // A panel without a series says nothing; a figure with none is refused when drawn.
-    figure.panels = [analog, virtuals]
-        .into_iter()
-        .filter(|p| !p.series.is_empty())
-        .collect();
-    if figure.panels.is_empty() {
-        bail!("no samples were recorded: nothing to plot");
+}
+
+impl FigureSamples {
+    /// The figure of the recording written to `csv`.
+    fn figure(self, csv: &Path) -> anyhow::Result<Figure> {
+        let mut analog = Panel::new("A/D channels", "voltage", Some("V"));
+        analog.covers = Some((0.0, FULL_SCALE_V));
+        analog.series = self.volts.into_values().collect();
+        let mut virtuals = Panel::new("virtual channels", "value", None);
+        virtuals.series = self.virtual_values.into_values().collect();
+        let mut figure = Figure::new(format!("CPU196 recording {}", csv.display()));
+        // A panel without a series says nothing; a figure with none is refused when drawn.
+        figure.panels = [analog, virtuals]
+            .into_iter()
+            .filter(|p| !p.series.is_empty())
+            .collect();
+        if figure.panels.is_empty() {
+            bail!("no samples were recorded: nothing to plot");
+        }
+        Ok(figure)
     }
-    Ok(figure)
 }
 
 /// A file's bytes, at most `max`, padded with FFh to `max`.

@@ -13,7 +13,7 @@ use std::time::Duration;
 pub use buslab_device::Port;
 use buslab_device::{Human, LineSettings};
 pub use monitor::{FileRequests, LOST_AFTER, Monitor, MonitorError, PING_EVERY};
-pub use recorder::Recorder;
+pub use recorder::{CsvSamples, Recorder, Sample, SampleSink, SampleSource};
 
 use crate::acquisition::LogTable;
 use crate::adconfig::{AdConfig, AdRefusal};

@@ -3,10 +3,10 @@
 //! the board falls silent. Output is text for the caller to print.
 
 use std::fmt::Write as _;
-use std::io::{self, Write};
+use std::io;
 use std::time::Duration;
 
-use super::{Client, ClientError, Port, Recorder};
+use super::{Client, ClientError, Port, Recorder, SampleSink};
 use crate::adconfig::{AdConfigError, AdRefusal};
 use crate::codes::MsgCode;
 use crate::message::{Message, Start, Thread};
@@ -36,9 +36,9 @@ pub enum MonitorError {
 }
 
 /// One monitor session (see the module docs).
-pub struct Monitor<W: Write> {
+pub struct Monitor<S: SampleSink> {
     files: Option<Box<dyn FileRequests>>,
-    recorder: Option<Recorder<W>>,
+    recorder: Option<Recorder<S>>,
     last_ping: Option<Duration>,
     last_heard: Duration,
     lost: bool,
@@ -46,12 +46,12 @@ pub struct Monitor<W: Write> {
     mid_line: bool,
 }
 
-impl<W: Write> Monitor<W> {
+impl<S: SampleSink> Monitor<S> {
     /// A session that answers file requests with `files` (refuses them without) and records
     /// samples with `recorder`; `now` is the client's clock.
     pub fn new(
         files: Option<Box<dyn FileRequests>>,
-        recorder: Option<Recorder<W>>,
+        recorder: Option<Recorder<S>>,
         now: Duration,
     ) -> Self {
         Self {
@@ -148,8 +148,8 @@ impl<W: Write> Monitor<W> {
         self.lost
     }
 
-    /// Ends the session: the recorder's output (flushed), frames and samples recorded.
-    pub fn finish(self) -> io::Result<Option<(W, u64, u64)>> {
+    /// Ends the session: the recorder's sink (flushed), frames and samples recorded.
+    pub fn finish(self) -> io::Result<Option<(S, u64, u64)>> {
         match self.recorder {
             Some(r) => {
                 let (frames, samples) = (r.frames, r.samples);

@@ -3,14 +3,14 @@
 //! board's monitor (watchdog pings, the stream read and recorded) while it runs.
 
 use std::collections::{BTreeMap, VecDeque};
-use std::io::{self, Write};
+use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use buslab_cpu196::host::{Client, Monitor, Recorder};
+use buslab_cpu196::host::{Client, Monitor, Recorder, Sample, SampleSink};
 use buslab_cpu196::message::Start;
 use buslab_link::{LineSettings, SerialLine};
 use serde::Serialize;
@@ -222,7 +222,7 @@ fn stream(
 ) -> Result<(), String> {
     let mut c = open(port, baud)?;
     let err = |e: &dyn std::fmt::Display| e.to_string();
-    let mut recorder = Recorder::new(Samples::new(state.clone()), c.now()).map_err(|e| err(&e))?;
+    let mut recorder = Recorder::new(Samples::new(state.clone()), c.now());
     match c.log_table() {
         Ok(t) => recorder.set_log_table(t),
         Err(e) => tracing::debug!("CPU196 panel: log table not read ({e}); log8 uses the default"),
@@ -281,64 +281,36 @@ fn append_text(text: &mut String, more: &str) {
     }
 }
 
-/// The recorder's CSV rows (`t_s,source,channel,value,volts`) turned into plot points.
+/// The recorder's samples turned into plot points, per source and channel.
 struct Samples {
     state: Arc<Mutex<Cpu196State>>,
-    line: Vec<u8>,
-    header: bool,
 }
 
 impl Samples {
     fn new(state: Arc<Mutex<Cpu196State>>) -> Self {
-        Self {
-            state,
-            line: Vec::new(),
-            header: true,
-        }
+        Self { state }
     }
+}
 
-    fn row(&mut self, row: &str) {
-        if std::mem::take(&mut self.header) {
-            return;
-        }
-        let mut f = row.split(',');
-        let (Some(t), Some(source), Some(channel), Some(_), Some(volts)) =
-            (f.next(), f.next(), f.next(), f.next(), f.next())
-        else {
-            return;
-        };
+impl SampleSink for Samples {
+    fn sample(&mut self, sample: &Sample) -> io::Result<()> {
         // Virtual channels have no volts: not plotted.
-        let (Ok(t), Ok(volts)) = (t.parse::<f64>(), volts.parse::<f64>()) else {
-            return;
+        let Some(volts) = sample.volts else {
+            return Ok(());
         };
         let mut s = lock(&self.state);
         s.samples += 1;
-        let key = format!("{source} {channel}");
+        let key = format!("{} {}", sample.source, sample.channel);
         if !s.series.contains_key(&key) && s.series.len() >= MAX_SERIES {
-            return;
+            return Ok(());
         }
         let points = s.series.entry(key).or_default();
         if points.len() == MAX_POINTS {
             points.pop_front();
         }
-        points.push_back(((t * 1e4).round() / 1e4, volts));
-    }
-}
-
-impl Write for Samples {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        for &b in buf {
-            if b == b'\n' {
-                let line = std::mem::take(&mut self.line);
-                self.row(&String::from_utf8_lossy(&line));
-            } else if self.line.len() < 256 {
-                self.line.push(b);
-            }
-        }
-        Ok(buf.len())
-    }
-
-    fn flush(&mut self) -> io::Result<()> {
+        // What the page shows: 0.1 ms and 0.1 mV.
+        let round = |x: f64| (x * 1e4).round() / 1e4;
+        points.push_back((round(sample.t_s), round(volts)));
         Ok(())
     }
 }
@@ -346,15 +318,29 @@ impl Write for Samples {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use buslab_cpu196::host::SampleSource;
 
     #[test]
-    fn recorder_rows_become_points_per_channel() {
+    fn samples_become_points_per_channel_and_virtual_ones_are_not_plotted() {
         let state = Arc::new(Mutex::new(Cpu196State::default()));
         let mut s = Samples::new(state.clone());
-        s.write_all(b"t_s,source,channel,value,volts\n0.001,c196,0,512,2.5")
-            .unwrap();
-        s.write_all(b"000\n0.002,c196,0,1023,5.0000\n0.003,virtual,1,7,\n")
-            .unwrap();
+        let c196 = |t_s, value, volts| Sample {
+            t_s,
+            source: SampleSource::C196,
+            channel: 0,
+            value,
+            volts: Some(volts),
+        };
+        s.sample(&c196(0.001, 512.0, 2.500_04)).unwrap();
+        s.sample(&c196(0.002_04, 1023.0, 5.0)).unwrap();
+        s.sample(&Sample {
+            t_s: 0.003,
+            source: SampleSource::Virtual,
+            channel: 1,
+            value: 7.0,
+            volts: None,
+        })
+        .unwrap();
         let st = lock(&state);
         assert_eq!(st.samples, 2);
         let points: Vec<_> = st.series["c196 0"].iter().copied().collect();
