@@ -39,10 +39,8 @@ pub const MAX_BITRATE: u32 = 125_000;
 pub const WATCHDOG_BITS: u64 = 8192;
 /// Recessive bits that tell a listener the bus is idle.
 const IDLE_BITS: u8 = 11;
-/// The most bit-times a frame applied whole takes, intermission included: an extended data
-/// frame of 8 bytes with every possible stuff bit (118 stuffed bits, 29 stuff bits, 10 fixed
-/// bits to the end of EOF, 3 of intermission).
-pub const LONGEST_FRAME_BITS: u64 = 160;
+/// The most bit-times a frame applied whole takes, intermission included.
+pub use buslab_can::wire::LONGEST_FRAME_BITS;
 
 /// The bus level at wire bit `bit` of a whole frame (recessive in its intermission).
 pub(crate) fn frame_level(frame: &WireFrame, bit: u32) -> Level {

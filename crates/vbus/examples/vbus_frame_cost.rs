@@ -15,10 +15,10 @@ use buslab_vbus::VirtualBus;
 const BITRATE: u32 = 1_000_000;
 const RECEIVERS: usize = 8;
 const DEFAULT_BITS: u64 = 2_000_000;
-/// The longest classic frame with its stuff bits and intermission: as the server's
-/// `--speed max` loop, each stretch runs long enough for the queued frames to end inside it
-/// (a frame cut by a stretch's end would be stepped bit by bit).
-const LONGEST_FRAME_BITS: u64 = 168;
+// The longest classic frame with its stuff bits and intermission: as the server's
+// `--speed max` loop, each stretch runs long enough for the queued frames to end inside it
+// (a frame cut by a stretch's end would be stepped bit by bit).
+use buslab_can::wire::LONGEST_FRAME_BITS;
 
 fn main() {
     let bits = std::env::args()

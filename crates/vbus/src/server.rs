@@ -412,9 +412,9 @@ pub const BUSY_SLICE: Duration = Duration::from_micros(100);
 /// The longest wall time spent simulating before the loop looks at the clients again, and
 /// serving clients before the bus runs again (it matters when the host cannot keep up).
 const MAX_RUN: Duration = Duration::from_millis(2);
-/// The longest classic frame on the wire with its worst stuffing, error-free, and the
-/// intermission after it (extended ID, 8 data bytes: 160 bits; rounded up).
-const LONGEST_FRAME_BITS: u64 = 168;
+// The longest classic frame on the wire with its worst stuffing, error-free, and the
+// intermission after it.
+use buslab_can::wire::LONGEST_FRAME_BITS;
 /// At `max`: a receiver that has not read for this long no longer holds the bus (its frames
 /// are dropped as at any speed).
 const STALLED_AFTER: Duration = Duration::from_secs(1);

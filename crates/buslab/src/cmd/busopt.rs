@@ -116,9 +116,8 @@ pub fn node_ref(text: &str) -> NodeRef {
     NodeRef::parse(text)
 }
 
-/// Bits a classic frame takes on the wire at most: 8 data bytes, extended ID, worst-case
-/// stuffing, intermission.
-pub const WORST_FRAME_BITS: u64 = 160;
+/// Bits a classic frame takes on the wire at most, intermission included.
+pub use buslab_can::wire::LONGEST_FRAME_BITS as WORST_FRAME_BITS;
 
 /// Waits until the `count` frames this client sent were transmitted or given up, for
 /// `timeout` beyond the time the frames still queued need on the bus (a socketcand `send`

@@ -16,6 +16,13 @@ mod field;
 mod receive;
 mod stuffing;
 
+/// The most bit-times a classic frame takes on the wire, intermission included: an extended
+/// data frame of 8 bytes with every possible stuff bit (118 bits from SOF to the end of the
+/// CRC, a stuff bit after each 4 of them past the first, 29; 10 from the CRC delimiter to the
+/// end of EOF; 3 of intermission). The one place this fact lives: budgets, timeouts and
+/// watchdogs elsewhere use it.
+pub const LONGEST_FRAME_BITS: u64 = 118 + (118 - 1) / 4 + 10 + 3;
+
 pub use bits::Bits;
 pub use cache::EncodeCache;
 pub use crc::{CRC15_POLY, Crc15};

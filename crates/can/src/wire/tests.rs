@@ -4,7 +4,7 @@ use alloc::string::ToString;
 use alloc::vec::Vec;
 
 use super::*;
-use crate::Frame;
+use crate::{Frame, Id};
 
 fn frame(s: &str) -> Frame {
     s.parse().unwrap()
@@ -301,4 +301,30 @@ fn a_flipped_stuff_bit_is_a_stuff_error_in_the_field_that_caused_it() {
         }
     }
     assert_eq!(checked, 2 + 5 + 1 + 9 + 5 + 16 + 14);
+}
+
+/// Every frame fits [`LONGEST_FRAME_BITS`] with its intermission, and the bound is the
+/// encoder's own arithmetic: an extended 8-byte frame is 128 bits unstuffed (118 of them
+/// stuffable), plus at most one stuff bit per four stuffable bits after the first.
+#[test]
+fn no_frame_is_longer_on_the_wire_than_the_longest_frame_bits() {
+    let longest = Frame::data(Id::extended(0x1234_5678).unwrap(), &[0x55; 8]).unwrap();
+    let unstuffed = encode(&longest).unstuffed().len() as u64;
+    assert_eq!(unstuffed, 128);
+    assert_eq!(LONGEST_FRAME_BITS, unstuffed + (118 - 1) / 4 + 3);
+    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+    for i in 0..20_000u32 {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        let id = (seed as u32) & crate::EFF_MAX;
+        let data = if i % 3 == 0 {
+            [0; 8]
+        } else {
+            seed.to_le_bytes()
+        };
+        let frame = Frame::data(Id::extended(id).unwrap(), &data[..(i % 9) as usize]).unwrap();
+        let bits = encode(&frame).stuffed().len() as u64 + 3;
+        assert!(bits <= LONGEST_FRAME_BITS, "{frame}: {bits} bit-times");
+    }
 }
