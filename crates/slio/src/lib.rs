@@ -13,7 +13,7 @@ pub mod board;
 /// SLIO identifiers are chip facts shared with the bus vocabulary (`buslab-chips`).
 pub use buslab_chips::slio::ids;
 pub mod master;
-pub mod registers;
+pub use buslab_chips::slio::registers;
 pub mod slio;
 
 pub use board::DemoBoard;

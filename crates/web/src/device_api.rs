@@ -10,7 +10,7 @@ use axum::response::{IntoResponse, Response};
 use buslab_backends::TrySendError;
 use buslab_bus::BusError;
 use buslab_bus::admin::{BoardInput, BoardState};
-use buslab_slio::SlioId;
+use buslab_chips::slio::SlioId;
 
 use crate::app::{App, authorize};
 use crate::device_request::{

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use axum::http::StatusCode;
 use buslab_bus::admin::{BadSwitch, BoardInput, BoardSwitch, BoardVolts};
-use buslab_slio::SlioId;
+use buslab_chips::slio::SlioId;
 use buslab_zelle::client::{SeriesError, SeriesParams};
 use serde::Deserialize;
 

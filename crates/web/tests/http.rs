@@ -519,7 +519,7 @@ fn the_dashboard_and_its_files_are_served_from_the_binary() {
 
 #[test]
 fn a_slio_led_set_over_the_api_shows_only_once_the_slio_answers() {
-    let slio3 = buslab_slio::SlioId::new(3).unwrap();
+    let slio3 = buslab_chips::slio::SlioId::new(3).unwrap();
     let b = bench_with(
         Some(TOKEN),
         64,

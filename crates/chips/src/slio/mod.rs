@@ -1,6 +1,8 @@
 //! Facts of the Philips P82C150 SLIO and the seed's demo board around it.
 
+pub mod board;
 pub mod ids;
+pub mod registers;
 
 pub use ids::{CALIBRATION_ID, Direction, SlioId, SlioIdError, calibration_frame};
 

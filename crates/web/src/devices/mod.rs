@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use buslab_slio::SlioId;
+use buslab_chips::slio::SlioId;
 use serde::Serialize;
 
 /// The devices a server shows besides the bus (all optional).

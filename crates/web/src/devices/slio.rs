@@ -17,11 +17,13 @@
 
 use buslab_bus::admin::BoardState;
 use buslab_can::Frame;
-use buslab_slio::board::{
+use buslab_chips::slio::board::{
     CONVERT_ADC1, CONVERT_ADC2, LED_PINS, OutputLevels, SELECT_PIN, SWITCH_PINS, VDD, set_bit,
 };
-use buslab_slio::registers::{CONVERT, MUX_MASK, MUX_SHIFT, TEN_BITS};
-use buslab_slio::{Direction, Register, Reply, Request, SlioId};
+use buslab_chips::slio::registers::{
+    CONVERT, MUX_MASK, MUX_SHIFT, Register, Reply, Request, Status, TEN_BITS,
+};
+use buslab_chips::slio::{Direction, SlioId};
 use serde::Serialize;
 
 /// Why a click cannot become a request.
@@ -62,7 +64,7 @@ struct Board {
     /// Frames the SLIO sent.
     replies: u64,
     /// Its last status nibble: bus mode, EW, reset detected.
-    status: Option<buslab_slio::Status>,
+    status: Option<Status>,
 }
 
 /// Every board of the bench.
@@ -382,7 +384,7 @@ mod tests {
 
     fn reply(id: SlioId, register: Register, value: u16) -> Frame {
         let r = Reply {
-            status: buslab_slio::Status::default(),
+            status: Status::default(),
             register,
             value,
         };

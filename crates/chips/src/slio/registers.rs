@@ -15,7 +15,7 @@ use core::fmt;
 
 use buslab_can::Frame;
 
-use crate::ids::SlioId;
+use super::ids::SlioId;
 
 /// One of the nine registers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
