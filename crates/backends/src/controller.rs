@@ -14,8 +14,8 @@ use std::fmt;
 use std::time::{Duration, Instant};
 
 use buslab_bus::{
-    AcceptanceFilter, BusAdmin, BusError, BusEvent, BusState, CanBus, ControllerPart,
-    ControllerSettings, Filter, Message,
+    AcceptanceFilter, BusAdmin, BusError, BusEvent, CanBus, ControllerPart, ControllerSettings,
+    ErrorState, Filter, Message,
 };
 use buslab_can::Frame;
 
@@ -150,7 +150,7 @@ impl CanBus for Accepting {
         self.inner.set_filters(filters)
     }
 
-    fn state(&mut self) -> Result<BusState, BusError> {
+    fn state(&mut self) -> Result<ErrorState, BusError> {
         self.inner.state()
     }
 
@@ -181,8 +181,8 @@ mod tests {
         fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
             Ok(())
         }
-        fn state(&mut self) -> Result<BusState, BusError> {
-            Ok(BusState::Active)
+        fn state(&mut self) -> Result<ErrorState, BusError> {
+            Ok(ErrorState::Active)
         }
         fn channel_info(&self) -> String {
             "scripted".into()

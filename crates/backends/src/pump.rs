@@ -195,7 +195,7 @@ fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use buslab_bus::{BusState, Filter, Message};
+    use buslab_bus::{ErrorState, Filter, Message};
     use std::sync::mpsc::Sender;
 
     /// A bus whose transmit queue stays full; it reports each attempt.
@@ -213,8 +213,8 @@ mod tests {
         fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
             Ok(())
         }
-        fn state(&mut self) -> Result<BusState, BusError> {
-            Ok(BusState::Active)
+        fn state(&mut self) -> Result<ErrorState, BusError> {
+            Ok(ErrorState::Active)
         }
         fn channel_info(&self) -> String {
             "jammed".into()

@@ -12,7 +12,7 @@ use std::time::{Duration, UNIX_EPOCH};
 use buslab_bus::bus::matches_any;
 use buslab_bus::error_frame::class;
 use buslab_bus::{
-    BusError, BusEvent, BusState, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorMessage,
+    BusError, BusEvent, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorMessage, ErrorState,
     Filter, Message,
 };
 use buslab_can::{Frame, Id};
@@ -35,7 +35,7 @@ pub struct SocketCanBus {
     interface: String,
     filters: Vec<Filter>,
     error_frames: bool,
-    state: BusState,
+    state: ErrorState,
 }
 
 impl SocketCanBus {
@@ -49,7 +49,7 @@ impl SocketCanBus {
             interface: interface.to_string(),
             filters: Vec::new(),
             error_frames: false,
-            state: BusState::Active,
+            state: ErrorState::Active,
         })
     }
 
@@ -88,16 +88,16 @@ impl SocketCanBus {
     fn track_state(&mut self, error: &ErrorFrame) {
         for e in &error.errors {
             self.state = match e {
-                CanError::BusOff => BusState::BusOff,
-                CanError::Restarted => BusState::Active,
+                CanError::BusOff => ErrorState::BusOff,
+                CanError::Restarted => ErrorState::Active,
                 CanError::Controller(p)
                     if p.contains(ControllerProblems::RX_PASSIVE)
                         || p.contains(ControllerProblems::TX_PASSIVE) =>
                 {
-                    BusState::Passive
+                    ErrorState::Passive
                 }
                 CanError::Controller(p) if p.contains(ControllerProblems::ACTIVE) => {
-                    BusState::Active
+                    ErrorState::Active
                 }
                 _ => continue,
             };
@@ -231,7 +231,7 @@ impl CanBus for SocketCanBus {
 
     /// The state the kernel last reported in an error frame (error-active until one says
     /// otherwise).
-    fn state(&mut self) -> Result<BusState, BusError> {
+    fn state(&mut self) -> Result<ErrorState, BusError> {
         Ok(self.state)
     }
 

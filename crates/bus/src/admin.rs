@@ -12,7 +12,7 @@ use buslab_chips::slio::{LED_PINS, SlioId, VDD};
 use buslab_device::Human;
 
 use crate::decode::{ErrorRegisters, RegisterDump, Status};
-use crate::state::BusState;
+use buslab_can::controller::ErrorState;
 
 /// A node on a buslab virtual bus: its number (given in joining order from 1) or its name.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -251,7 +251,7 @@ mod tests {
 pub struct NodeStatus {
     pub number: u32,
     pub name: String,
-    pub state: BusState,
+    pub state: ErrorState,
     /// TXERR, RXERR and the last captured ALC and ECC, for nodes that have these registers
     /// (an SJA1000 in PeliCAN mode; BasicCAN cannot read its counters).
     pub errors: Option<ErrorRegisters>,
@@ -487,7 +487,7 @@ mod node_tests {
         let mut st = NodeStatus {
             number: 3,
             name: "loser".into(),
-            state: BusState::Passive,
+            state: ErrorState::Passive,
             errors: Some(ErrorRegisters {
                 alc: Some(Alc(0)),
                 ecc: Some(Ecc(0x0A)),

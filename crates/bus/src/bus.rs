@@ -7,7 +7,7 @@ use std::time::Duration;
 use buslab_can::Frame;
 
 use crate::error_frame::ErrorFrame;
-pub use crate::state::BusState;
+pub use buslab_can::controller::ErrorState;
 
 /// A received (or sent, `is_rx = false`) frame with its time and channel, like `can.Message`.
 #[derive(Clone, Debug, PartialEq)]
@@ -193,6 +193,6 @@ mod tests {
         assert_eq!(m.to_string(), "(1.500000) vcan0 123#DEAD");
         m.is_rx = false;
         assert_eq!(m.to_string(), "(1.500000) vcan0 123#DEAD TX");
-        assert_eq!(BusState::Passive.to_string(), "error-passive");
+        assert_eq!(ErrorState::Passive.to_string(), "error-passive");
     }
 }

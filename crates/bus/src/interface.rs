@@ -10,7 +10,7 @@ use buslab_chips::slio::SlioId;
 use crate::admin::{
     BoardInput, BoardState, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
-use crate::bus::{BusError, BusEvent, BusState, Filter, Message};
+use crate::bus::{BusError, BusEvent, ErrorState, Filter, Message};
 use crate::settings::{BusOffRecovery, ControllerSettings};
 
 /// One bus: a socketcand connection, a managed SJA1000, a simulated node.
@@ -52,7 +52,7 @@ pub trait CanBus {
     /// Replaces the receive filters; `&[]` accepts everything.
     fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError>;
     /// The controller's error state.
-    fn state(&mut self) -> Result<BusState, BusError>;
+    fn state(&mut self) -> Result<ErrorState, BusError>;
     /// A human-readable description of the channel (like python-can's `channel_info`).
     fn channel_info(&self) -> String;
     /// The bus's administration side (node list, status, registers), if it has one.

@@ -4,7 +4,7 @@
 //!
 //! - [`bus`]: messages and error messages with their time and channel ([`Message`],
 //!   [`ErrorMessage`], [`BusEvent`]), receive filters ([`Filter`]), typed errors ([`BusError`]).
-//! - [`state`]: a controller's error state, python-can's ([`BusState`]) and Linux's
+//! - [`state`]: a controller's error state, python-can's ([`ErrorState`]) and Linux's
 //!   ([`ControllerState`]).
 //! - [`error_frame`]: SocketCAN error frames as typed values ([`ErrorFrame`]), decoded,
 //!   encoded, and in can-utils' words.
@@ -40,6 +40,7 @@ pub use admin::{
     Probability, TxReport, WireFault, switch_bits,
 };
 pub use bus::{BusError, BusEvent, ErrorMessage, Filter, Human, Message, matches_any};
+pub use buslab_can::controller::ErrorState;
 pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 pub use error_frame::{
     ArbitrationBit, CanError, CapturedBusError, ControllerProblems, ErrorCounters, ErrorFrame,
@@ -50,7 +51,7 @@ pub use settings::{
     AcceptanceFilter, BusOffRecovery, ClockOut, ControllerMode, ControllerPart, ControllerSettings,
     TimingSetting,
 };
-pub use state::{BusState, ControllerState};
+pub use state::ControllerState;
 
 /// The chip facts a bus's values are in terms of, so a user of a bus needs no other crate.
 pub use buslab_chips::sja1000::{BitTiming, CanMode, FilterMode};

@@ -1,28 +1,12 @@
-//! A controller's error state: python-can's three ([`BusState`]) and Linux's four
-//! ([`ControllerState`]).
+//! A controller's error state as an SJA1000 reports it: Linux's four ([`ControllerState`]),
+//! the warning level a state of its own. Fault confinement's three are
+//! [`ErrorState`](buslab_can::controller::ErrorState), the one error-state type; this is the
+//! chip's report of it (SR.ES and SR.BS, the counters), turned into it by
+//! [`ControllerState::error_state`].
 
 use std::fmt;
 
-/// The error state of a controller, as python-can names it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum BusState {
-    /// Error-active (including the warning level).
-    Active,
-    /// Error-passive: a counter is above 127.
-    Passive,
-    /// Bus-off: the controller takes no part in bus traffic.
-    BusOff,
-}
-
-impl fmt::Display for BusState {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            BusState::Active => "error-active",
-            BusState::Passive => "error-passive",
-            BusState::BusOff => "bus-off",
-        })
-    }
-}
+use buslab_can::controller::ErrorState;
 
 /// Error state as the SJA1000 shows it (Linux's four states).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -38,12 +22,12 @@ pub enum ControllerState {
 }
 
 impl ControllerState {
-    /// The python-can view (warning counts as active).
-    pub fn bus_state(self) -> BusState {
+    /// The fault confinement state (warning counts as active), python-can's `ErrorState`.
+    pub fn error_state(self) -> ErrorState {
         match self {
-            ControllerState::Active | ControllerState::Warning => BusState::Active,
-            ControllerState::Passive => BusState::Passive,
-            ControllerState::BusOff => BusState::BusOff,
+            ControllerState::Active | ControllerState::Warning => ErrorState::Active,
+            ControllerState::Passive => ErrorState::Passive,
+            ControllerState::BusOff => ErrorState::BusOff,
         }
     }
 }

@@ -9,7 +9,7 @@ use std::process::Command;
 use std::thread;
 
 use buslab_canbus::{
-    BusState, BusSummary, CanMode, ErrorRegisters, NodeCounters, NodeInfo, NodeRegisters,
+    BusSummary, CanMode, ErrorRegisters, ErrorState, NodeCounters, NodeInfo, NodeRegisters,
     NodeStatus, RegisterDump, Status,
 };
 use buslab_socketcand::reply::{nodes_fields, regs_fields, status_fields};
@@ -21,7 +21,7 @@ fn status(number: u32, name: &str) -> NodeStatus {
     NodeStatus {
         number,
         name: name.into(),
-        state: BusState::Active,
+        state: ErrorState::Active,
         errors: Some(ErrorRegisters {
             alc: None,
             ecc: None,

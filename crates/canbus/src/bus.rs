@@ -5,6 +5,6 @@
 /// The bus vocabulary and the [`CanBus`] trait live in `buslab-bus`; these paths stay for the
 /// users of this crate.
 pub use buslab_bus::bus::{
-    BusError, BusEvent, BusState, ErrorMessage, Filter, Human, Message, matches_any,
+    BusError, BusEvent, ErrorMessage, ErrorState, Filter, Human, Message, matches_any,
 };
 pub use buslab_bus::interface::CanBus;

@@ -1,6 +1,6 @@
 //! buslab's CAN host library (the successor of the seed's CANAPI).
 //!
-//! The bus vocabulary ([`Message`], [`Filter`], [`BusState`], [`BusError`], [`ErrorFrame`],
+//! The bus vocabulary ([`Message`], [`Filter`], [`ErrorState`], [`BusError`], [`ErrorFrame`],
 //! node status, counters and faults, decoded registers, controller settings, and the
 //! [`CanBus`] and [`BusAdmin`] traits) lives in `buslab-bus`, which needs no model; it is
 //! re-exported here under the same paths.
@@ -66,7 +66,7 @@ pub use admin::{
     BadProbability, BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters,
     NodeStatus, NodeTiming, Probability, TxReport, WireFault,
 };
-pub use bus::{BusError, BusEvent, BusState, CanBus, ErrorMessage, Filter, Message};
+pub use bus::{BusError, BusEvent, CanBus, ErrorMessage, ErrorState, Filter, Message};
 pub use config::{
     AcceptanceFilter, BusOffRecovery, ClockOut, ConfigError, ControllerMode, ControllerPart,
     ControllerSettings, InterruptEnables, Sja1000Config, Timing, TimingSetting,

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use buslab_can::Frame;
 
-use crate::bus::{self, BusError, BusState, CanBus, Filter, Message};
+use crate::bus::{self, BusError, CanBus, ErrorState, Filter, Message};
 use crate::config::Sja1000Config;
 use crate::decode::{ErrorRegisters, RegisterDump, Status};
 use crate::driver::{ControllerState, DriverError, DriverEvent, Sja1000Driver, TxFailure, TxMode};
@@ -387,10 +387,10 @@ impl CanBus for ManagerBus {
         Ok(())
     }
 
-    fn state(&mut self) -> Result<BusState, BusError> {
+    fn state(&mut self) -> Result<ErrorState, BusError> {
         self.handle
             .state()
-            .map(ControllerState::bus_state)
+            .map(ControllerState::error_state)
             .map_err(|_| BusError::Closed)
     }
 

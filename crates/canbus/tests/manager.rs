@@ -12,7 +12,7 @@ use buslab_can::Level;
 use buslab_canbus::driver::DriverEvent;
 use buslab_canbus::manager::{ManagerError, SendError};
 use buslab_canbus::{
-    BusState, CanBus, Filter, Manager, ManagerConfig, ManagerHandle, SharedChip, Sja1000Config,
+    CanBus, ErrorState, Filter, Manager, ManagerConfig, ManagerHandle, SharedChip, Sja1000Config,
     Sja1000Driver, Status,
 };
 use common::{Bus, frame};
@@ -220,14 +220,14 @@ fn bus_off_fails_sends_and_restart_recovers() {
         Err(SendError::BusOff)
     );
     let mut bus_a = a.bus("a");
-    assert_eq!(bus_a.state().unwrap(), BusState::BusOff);
+    assert_eq!(bus_a.state().unwrap(), ErrorState::BusOff);
 
     stepper.jam.store(false, Ordering::Relaxed);
     a.restart().unwrap();
     assert_eq!(a.send(frame("126#01")).wait(Some(LONG)), Ok(()));
     let message = wait_for(&frames_b, "the frame after restart", |_| true);
     assert_eq!(message.frame, frame("126#01"));
-    assert_eq!(bus_a.state().unwrap(), BusState::Active);
+    assert_eq!(bus_a.state().unwrap(), ErrorState::Active);
     a.shutdown();
     b.shutdown();
 }
@@ -298,7 +298,7 @@ fn the_manager_as_a_can_bus_filters_in_software() {
         .map(|_| rx.recv(Some(LONG)).unwrap().unwrap().frame.to_string())
         .collect();
     assert_eq!(got, ["123#02", "00000042#05", "123#FF"]);
-    assert_eq!(rx.state().unwrap(), BusState::Active);
+    assert_eq!(rx.state().unwrap(), ErrorState::Active);
     a.shutdown();
     b.shutdown();
 }

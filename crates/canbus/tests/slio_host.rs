@@ -9,7 +9,7 @@ use std::time::Duration;
 use buslab_can::Frame;
 use buslab_canbus::slio::{SingleShot, SlioHost, send_single_shot};
 use buslab_canbus::{
-    BusAdmin, BusError, BusState, BusSummary, CanBus, Filter, Message, NodeCounters, NodeInfo,
+    BusAdmin, BusError, BusSummary, CanBus, ErrorState, Filter, Message, NodeCounters, NodeInfo,
     NodeRef, NodeRegisters, NodeStatus, TxReport,
 };
 use buslab_slio::{SlioId, calibration_frame};
@@ -86,8 +86,8 @@ impl CanBus for ScriptedBus {
     fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
         Ok(())
     }
-    fn state(&mut self) -> Result<BusState, BusError> {
-        Ok(BusState::Active)
+    fn state(&mut self) -> Result<ErrorState, BusError> {
+        Ok(ErrorState::Active)
     }
     fn channel_info(&self) -> String {
         "scripted".into()
@@ -105,7 +105,7 @@ impl BusAdmin for ScriptedBus {
         Ok(NodeStatus {
             number: 1,
             name: "host".into(),
-            state: BusState::Active,
+            state: ErrorState::Active,
             errors: None,
             sr: None,
             timing: None,

@@ -17,7 +17,7 @@ use std::os::fd::{AsRawFd, BorrowedFd};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use buslab_bus::bus::matches_any;
-use buslab_bus::{BitTiming, BusError, BusState, CanBus, Filter, Message};
+use buslab_bus::{BitTiming, BusError, CanBus, ErrorState, Filter, Message};
 use buslab_can::Frame;
 use serialport::{ClearBuffer, FlowControl, SerialPort, TTYPort};
 
@@ -589,14 +589,14 @@ impl CanBus for SlcanBus {
 
     /// From the status flags (`F`): error-passive when the adapter says so, else active
     /// (Lawicel's flags have no bus-off).
-    fn state(&mut self) -> Result<BusState, BusError> {
+    fn state(&mut self) -> Result<ErrorState, BusError> {
         let flags = self
             .status_flags(Duration::from_secs(2))
             .map_err(|e| BusError::Protocol(e.to_string()))?;
         Ok(if flags.contains(StatusFlags::ERROR_PASSIVE) {
-            BusState::Passive
+            ErrorState::Passive
         } else {
-            BusState::Active
+            ErrorState::Active
         })
     }
 

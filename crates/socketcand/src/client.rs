@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::bus::Human;
 use buslab_bus::{
-    BusAdmin, BusError, BusEvent, BusOffRecovery, BusState, CanBus, ControllerSettings, Filter,
+    BusAdmin, BusError, BusEvent, BusOffRecovery, CanBus, ControllerSettings, ErrorState, Filter,
     Message, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
 use buslab_can::Frame;
@@ -614,9 +614,9 @@ impl CanBus for SocketcandBus {
         Ok(())
     }
 
-    fn state(&mut self) -> Result<BusState, BusError> {
+    fn state(&mut self) -> Result<ErrorState, BusError> {
         if !self.extensions {
-            return Ok(BusState::Active);
+            return Ok(ErrorState::Active);
         }
         Ok(self.node_status(None)?.state)
     }

@@ -6,8 +6,8 @@
 //! `< buslab_flushed SENT FAILED >`. The values are typed on both sides of it.
 
 use buslab_bus::{
-    Alc, BusState, BusSummary, CanMode, Ecc, ErrorRegisters, NodeCounters, NodeInfo, NodeRegisters,
-    NodeStatus, NodeTiming, RegisterDump, Status, TxReport,
+    Alc, BusSummary, CanMode, Ecc, ErrorRegisters, ErrorState, NodeCounters, NodeInfo,
+    NodeRegisters, NodeStatus, NodeTiming, RegisterDump, Status, TxReport,
 };
 
 use std::time::Duration;
@@ -199,11 +199,11 @@ fn hex_byte(text: &str) -> Option<u8> {
     u8::from_str_radix(text, 16).ok()
 }
 
-fn bus_state(text: &str) -> Option<BusState> {
+fn bus_state(text: &str) -> Option<ErrorState> {
     match text {
-        "error-active" => Some(BusState::Active),
-        "error-passive" => Some(BusState::Passive),
-        "bus-off" => Some(BusState::BusOff),
+        "error-active" => Some(ErrorState::Active),
+        "error-passive" => Some(ErrorState::Passive),
+        "bus-off" => Some(ErrorState::BusOff),
         _ => None,
     }
 }

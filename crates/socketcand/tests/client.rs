@@ -8,7 +8,7 @@ use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use buslab_bus::{
-    BusEvent, BusState, CanBus, CanError, NodeCounters, NodeStatus, ProtocolLocation,
+    BusEvent, CanBus, CanError, ErrorState, NodeCounters, NodeStatus, ProtocolLocation,
     ProtocolViolation, TxReport,
 };
 use buslab_socketcand::{ClientError, Command, Deframer, SocketcandBus, status_fields};
@@ -93,7 +93,7 @@ fn status_with(sent: u64, tx_failed: u64) -> String {
     let st = NodeStatus {
         number: 1,
         name: "node1".into(),
-        state: BusState::Active,
+        state: ErrorState::Active,
         errors: None,
         sr: None,
         timing: None,

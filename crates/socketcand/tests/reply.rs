@@ -2,8 +2,8 @@
 //! garbage from a server named, never a panic.
 
 use buslab_bus::{
-    Alc, BusState, BusSummary, CanMode, Ecc, ErrorRegisters, NodeCounters, NodeInfo, NodeRegisters,
-    NodeStatus, NodeTiming, RegisterDump, Status, TxReport,
+    Alc, BusSummary, CanMode, Ecc, ErrorRegisters, ErrorState, NodeCounters, NodeInfo,
+    NodeRegisters, NodeStatus, NodeTiming, RegisterDump, Status, TxReport,
 };
 use buslab_socketcand::reply::{
     flushed_fields, nodes_fields, parse_flushed, parse_nodes, parse_regs, parse_status,
@@ -16,7 +16,7 @@ fn status() -> NodeStatus {
     NodeStatus {
         number: 2,
         name: "pc".into(),
-        state: BusState::Active,
+        state: ErrorState::Active,
         errors: Some(ErrorRegisters {
             alc: Some(Alc(0x01)),
             ecc: Some(Ecc(0x1B)),
@@ -75,7 +75,7 @@ fn status_without_optional_parts_round_trips() {
     st.errors = None;
     st.sr = None;
     st.timing = None;
-    st.state = BusState::BusOff;
+    st.state = ErrorState::BusOff;
     let wire = status_fields(&st);
     assert!(wire.contains(&"bus_bitrate=500000".to_string()), "{wire:?}");
     assert!(
@@ -92,7 +92,7 @@ fn status_without_optional_parts_round_trips() {
         txerr: 127,
     });
     st.timing.as_mut().unwrap().matches_bus = false;
-    st.state = BusState::Passive;
+    st.state = ErrorState::Passive;
     let wire = status_fields(&st);
     assert!(wire.contains(&"timing=mismatch".to_string()));
     assert_eq!(parse_status(&wire).unwrap(), st);

@@ -8,15 +8,14 @@
 use std::fmt;
 
 use buslab_can::Frame;
-use buslab_can::controller::ErrorState;
 use buslab_can::node::BusNode;
 use buslab_can::wire::encode;
 use buslab_canbus::WireFault;
 use buslab_canbus::admin::FaultLimit;
 use buslab_canbus::admin::{BoardInput, BoardState};
 use buslab_canbus::{
-    BusOffRecovery, BusState, BusSummary, ControllerSettings, ErrorRegisters, NodeCounters,
-    NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
+    BusOffRecovery, BusSummary, ControllerSettings, ErrorRegisters, NodeCounters, NodeInfo,
+    NodeRef, NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
 };
 use buslab_sim::{BusStats, Fault, FaultKind, Simulation};
 use buslab_sja1000::BitTiming;
@@ -1030,7 +1029,7 @@ impl VirtualBus {
             });
             let tx_queued = client.tx_queued() as u64;
             let counters = client.counters;
-            let state = client.state().bus_state();
+            let state = client.state().error_state();
             let driver = client.driver();
             let sr = Some(driver.status());
             // BasicCAN cannot read its counters: none then, as the chip shows.
@@ -1050,11 +1049,7 @@ impl VirtualBus {
         Ok(NodeStatus {
             number,
             name,
-            state: match state {
-                ErrorState::Active => BusState::Active,
-                ErrorState::Passive => BusState::Passive,
-                ErrorState::BusOff => BusState::BusOff,
-            },
+            state,
             errors: Some(ErrorRegisters {
                 alc: None,
                 ecc: None,

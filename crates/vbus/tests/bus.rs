@@ -271,7 +271,7 @@ fn a_client_chip_counts_its_way_back_from_bus_off() {
 /// TEC falls with each frame it gets through.
 #[test]
 fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
-    use buslab_canbus::{BusState, Probability, WireFault};
+    use buslab_canbus::{ErrorState, Probability, WireFault};
     let scenario = buslab_sim::Scenario::from_toml(
         "bitrate = 500000\n[[nodes]]\nname = \"engine\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0C0#0FA0\"\n  period = \"1ms\"\n  start = \"100us\"\n[[nodes]]\nname = \"dash\"\n",
     )
@@ -281,7 +281,7 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
         .with_scenario(scenario.build().unwrap());
     bus.run_until(RATE as u64 / 100);
     let engine = || NodeRef::Name("engine".into());
-    assert_eq!(bus.status(&engine()).unwrap().state, BusState::Active);
+    assert_eq!(bus.status(&engine()).unwrap().state, ErrorState::Active);
     let cut = WireFault::Cut {
         far_side: vec![engine()],
         error_rate: Probability::new(0.05).unwrap(),
@@ -293,7 +293,7 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
         bus.run_until(bus.now() + RATE as u64 / 1000);
         let st = bus.status(&engine()).unwrap();
         worst = worst.max(st.errors.unwrap().txerr);
-        passive |= st.state != BusState::Active;
+        passive |= st.state != ErrorState::Active;
     }
     assert!(
         passive,
@@ -303,7 +303,7 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
     // Bus-off recovery (128 x 11 bits), then each frame through takes 1 off the TEC.
     bus.run_until(bus.now() + RATE as u64 / 2);
     let st = bus.status(&engine()).unwrap();
-    assert_eq!(st.state, BusState::Active, "{st}");
+    assert_eq!(st.state, ErrorState::Active, "{st}");
     assert!(st.errors.unwrap().txerr < 128, "{st}");
     assert_eq!(bus.repair(), 0, "nothing left to repair");
     // Unknown nodes are named in the refusal.

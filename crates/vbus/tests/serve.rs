@@ -5,7 +5,7 @@ use std::net::TcpStream;
 use std::time::Duration;
 
 use buslab_can::Frame;
-use buslab_canbus::{BusEvent, BusState, CanBus};
+use buslab_canbus::{BusEvent, CanBus, ErrorState};
 use buslab_socketcand::{NodeRef, SocketcandBus};
 use buslab_vbus::{ServerConfig, ServerHandle, Speed, spawn};
 
@@ -60,7 +60,7 @@ fn frames_flow_both_ways_standard_extended_remote() {
     // The sender does not get its own frames back: the next thing it receives is b's.
     b.send(&frame("457#BB")).unwrap();
     assert_eq!(recv(&mut a), "457#BB");
-    assert_eq!(a.state().unwrap(), BusState::Active);
+    assert_eq!(a.state().unwrap(), ErrorState::Active);
     s.shutdown();
 }
 

@@ -8,7 +8,7 @@
 //! it then stays off; with the seed's counted recovery it comes back and starts again.
 
 use buslab_canbus::node::ScenarioNodes;
-use buslab_canbus::{BusOffRecovery, BusState, NodeRef};
+use buslab_canbus::{BusOffRecovery, ErrorState, NodeRef};
 use buslab_sja1000::BitTiming;
 use buslab_vbus::VirtualBus;
 
@@ -60,7 +60,7 @@ fn adapter(bus: &mut VirtualBus, recovery: BusOffRecovery) -> u32 {
     n
 }
 
-fn state(bus: &mut VirtualBus, n: u32) -> BusState {
+fn state(bus: &mut VirtualBus, n: u32) -> ErrorState {
     bus.status(&NodeRef::Number(n)).unwrap().state
 }
 
@@ -80,7 +80,7 @@ fn a_listening_node_at_the_wrong_rate_breaks_frames_until_it_is_error_passive_th
     let mut bus = lab();
     let adapter = adapter(&mut bus, BusOffRecovery::Manual);
     let mut second = 0;
-    while state(&mut bus, adapter) == BusState::Active {
+    while state(&mut bus, adapter) == ErrorState::Active {
         second += 1;
         assert!(second <= 10, "still error-active after {second} s");
         bus.run_until(second * SECOND);
@@ -127,7 +127,7 @@ fn a_sender_at_the_wrong_rate_goes_bus_off_once_and_stays_off_without_recovery()
         let st = bus.status(&NodeRef::Number(adapter)).unwrap();
         counts.push((recovery, after_2s, after_12s, st.counters.bus_off));
         if recovery == BusOffRecovery::Manual {
-            assert_eq!(st.state, BusState::BusOff);
+            assert_eq!(st.state, ErrorState::BusOff);
             assert_eq!(st.counters.bus_off, 1);
             assert_eq!(st.counters.sent, 0);
             // Receive errors until error-passive (at most 128), then its 32 attempts at most.

@@ -3,7 +3,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
-use buslab_bus::{BusState, ErrorFrame, ErrorMessage, Message, NodeStatus};
+use buslab_bus::{ErrorFrame, ErrorMessage, ErrorState, Message, NodeStatus};
 use buslab_can::{Frame, Id};
 use serde::Serialize;
 
@@ -754,11 +754,11 @@ fn keep_sample(history: &mut VecDeque<ErrorSample>, sample: ErrorSample, oldest:
     }
 }
 
-fn state_word(state: BusState) -> &'static str {
+fn state_word(state: ErrorState) -> &'static str {
     match state {
-        BusState::Active => "active",
-        BusState::Passive => "passive",
-        BusState::BusOff => "bus-off",
+        ErrorState::Active => "active",
+        ErrorState::Passive => "passive",
+        ErrorState::BusOff => "bus-off",
     }
 }
 

@@ -2,7 +2,9 @@
 
 use std::time::Duration;
 
-use buslab_bus::{BusState, BusSummary, ErrorRegisters, Message, NodeCounters, NodeStatus, Status};
+use buslab_bus::{
+    BusSummary, ErrorRegisters, ErrorState, Message, NodeCounters, NodeStatus, Status,
+};
 use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
 
 fn ms(n: u64) -> Duration {
@@ -13,7 +15,7 @@ fn msg(t: f64, text: &str) -> Message {
     Message::rx(t, "vcan0", text.parse().unwrap())
 }
 
-fn status(number: u32, name: &str, tec: u8, state: BusState) -> NodeStatus {
+fn status(number: u32, name: &str, tec: u8, state: ErrorState) -> NodeStatus {
     NodeStatus {
         number,
         name: name.into(),
@@ -170,9 +172,9 @@ fn load_is_estimated_from_frame_lengths_at_a_known_bit_rate() {
 #[test]
 fn node_history_follows_tec_and_state_and_the_bus_reports_its_own_load() {
     let mut view = BusView::new(ViewConfig::default());
-    view.nodes(ms(0), vec![status(1, "engine", 0, BusState::Active)]);
+    view.nodes(ms(0), vec![status(1, "engine", 0, ErrorState::Active)]);
     let cursor = view.advance(ms(0));
-    view.nodes(ms(100), vec![status(1, "engine", 136, BusState::Passive)]);
+    view.nodes(ms(100), vec![status(1, "engine", 136, ErrorState::Passive)]);
     view.tick(ms(1000));
     let d = view.delta(&cursor, ms(1000), &LogFilter::all(), 10);
     let node = &d.nodes[0];
@@ -191,7 +193,7 @@ fn node_history_follows_tec_and_state_and_the_bus_reports_its_own_load() {
     assert_eq!(d.load[0].percent, Some(12.5), "the bus's own figure");
     assert_eq!(d.bitrate, Some(125_000));
     // A node that left is gone.
-    view.nodes(ms(1100), vec![status(2, "dash", 0, BusState::Active)]);
+    view.nodes(ms(1100), vec![status(2, "dash", 0, ErrorState::Active)]);
     assert_eq!(
         view.node_statuses().map(|s| s.number).collect::<Vec<_>>(),
         [2]
@@ -226,9 +228,9 @@ fn ten_minutes_with_the_experiment() -> BusView {
         let t = ms(250 * i);
         // The cut from 570 s to 573 s: bus-off while it lasts, then back with TEC 0.
         let (tec, state) = if (2280..2292).contains(&i) {
-            (255, BusState::BusOff)
+            (255, ErrorState::BusOff)
         } else {
-            (0, BusState::Active)
+            (0, ErrorState::Active)
         };
         if i == 2280 {
             view.fault(t, "cut".into(), "cut at engine".into(), Some(ms(3000)));
@@ -285,7 +287,7 @@ fn equal_samples_are_kept_as_a_run_and_the_history_spans_the_retention_time() {
         let tec = (i % 2) as u8;
         short.nodes(
             ms(250 * i),
-            vec![status(1, "engine", tec, BusState::Active)],
+            vec![status(1, "engine", tec, ErrorState::Active)],
         );
     }
     // The last sample at 24.75 s: from 14.75 s on.

@@ -13,8 +13,8 @@ use std::time::{Duration, Instant};
 
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::{
-    BusAdmin, BusError, BusEvent, BusState, BusSummary, CanBus, ErrorFrame, ErrorMessage,
-    ErrorRegisters, Filter, Message, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus,
+    BusAdmin, BusError, BusEvent, BusSummary, CanBus, ErrorFrame, ErrorMessage, ErrorRegisters,
+    ErrorState, Filter, Message, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus,
     TxReport, WireFault,
 };
 use buslab_can::Frame;
@@ -71,8 +71,8 @@ impl CanBus for FakeBus {
     fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
         Ok(())
     }
-    fn state(&mut self) -> Result<BusState, BusError> {
-        Ok(BusState::Active)
+    fn state(&mut self) -> Result<ErrorState, BusError> {
+        Ok(ErrorState::Active)
     }
     fn channel_info(&self) -> String {
         "fake bus".into()
@@ -109,7 +109,7 @@ impl BusAdmin for FakeBus {
         Ok(NodeStatus {
             number,
             name: name.into(),
-            state: BusState::Active,
+            state: ErrorState::Active,
             errors: Some(ErrorRegisters {
                 alc: None,
                 ecc: None,

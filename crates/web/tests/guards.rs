@@ -10,7 +10,7 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::{Duration, Instant};
 
-use buslab_bus::{BusError, BusState, CanBus, Filter, Message};
+use buslab_bus::{BusError, CanBus, ErrorState, Filter, Message};
 use buslab_can::Frame;
 use buslab_web::{Timeouts, WebConfig, WebServer};
 
@@ -39,8 +39,8 @@ impl CanBus for Feed {
     fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
         Ok(())
     }
-    fn state(&mut self) -> Result<BusState, BusError> {
-        Ok(BusState::Active)
+    fn state(&mut self) -> Result<ErrorState, BusError> {
+        Ok(ErrorState::Active)
     }
     fn channel_info(&self) -> String {
         "feed".into()

@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use buslab_bus::{
-    BusAdmin, BusError, BusState, BusSummary, CanBus, ErrorRegisters, Filter, Message,
+    BusAdmin, BusError, BusSummary, CanBus, ErrorRegisters, ErrorState, Filter, Message,
     NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, Status, TxReport, WireFault,
 };
 use buslab_can::Frame;
@@ -47,8 +47,8 @@ impl CanBus for FakeBus {
     fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
         Ok(())
     }
-    fn state(&mut self) -> Result<BusState, BusError> {
-        Ok(BusState::Active)
+    fn state(&mut self) -> Result<ErrorState, BusError> {
+        Ok(ErrorState::Active)
     }
     fn channel_info(&self) -> String {
         "fake bus".into()
@@ -81,9 +81,9 @@ impl BusAdmin for FakeBus {
             number,
             name: name.into(),
             state: if tec >= 128 {
-                BusState::Passive
+                ErrorState::Passive
             } else {
-                BusState::Active
+                ErrorState::Active
             },
             errors: Some(ErrorRegisters {
                 alc: None,

@@ -9,7 +9,7 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::mpsc::{self, Receiver};
 use std::time::Duration;
 
-use buslab_bus::{BusError, BusState, CanBus, Filter, Message};
+use buslab_bus::{BusError, CanBus, ErrorState, Filter, Message};
 use buslab_can::{Frame, Id};
 use buslab_web::{WebConfig, WebServer};
 use serde_json::Value;
@@ -40,8 +40,8 @@ impl CanBus for Feed {
     fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
         Ok(())
     }
-    fn state(&mut self) -> Result<BusState, BusError> {
-        Ok(BusState::Active)
+    fn state(&mut self) -> Result<ErrorState, BusError> {
+        Ok(ErrorState::Active)
     }
     fn channel_info(&self) -> String {
         "feed".into()

@@ -54,12 +54,29 @@ impl Default for ControllerConfig {
     }
 }
 
-/// Fault confinement state.
+/// Fault confinement state (ISO 11898-1): the one error-state type of the workspace, from the
+/// protocol controller up to python-can's `ErrorState` view in the host tools. The warning
+/// level is no state of its own here (it is error-active); the SJA1000's status shows it, see
+/// `buslab_bus::ControllerState`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ErrorState {
+    /// Error-active (the warning level included): takes part fully, signals errors with
+    /// active error flags.
     Active,
+    /// Error-passive: a counter is above 127.
     Passive,
+    /// Bus-off: the controller takes no part in bus traffic.
     BusOff,
+}
+
+impl core::fmt::Display for ErrorState {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            ErrorState::Active => "error-active",
+            ErrorState::Passive => "error-passive",
+            ErrorState::BusOff => "bus-off",
+        })
+    }
 }
 
 /// The five CAN error kinds.
