@@ -115,12 +115,15 @@ pub enum BusError {
     Closed,
     #[error("transmit queue full: {0}")]
     QueueFull(String),
+    /// The controller or the server behind the bus refused: the typed reason (a driver's
+    /// error, or the text a socketcand server sent with `< error … >`).
     #[error("the controller refused the frame: {0}")]
-    Rejected(String),
+    Rejected(Reason),
     #[error("{0}")]
     Io(#[from] std::io::Error),
+    /// The other side broke its protocol: the codec's typed error.
     #[error("protocol error: {0}")]
-    Protocol(String),
+    Protocol(Reason),
     /// `what` names what did not come: "answer to < buslab_flush >".
     #[error("no {what} within {}", Human(*after))]
     Timeout { what: String, after: Duration },
@@ -130,9 +133,14 @@ pub enum BusError {
     /// for now (then with the time until the next is allowed).
     #[error("{0}")]
     FaultRefused(crate::admin::FaultLimit),
+    /// What a backend could not fit in the variants above, typed by the backend.
     #[error("{0}")]
-    Other(String),
+    Other(Reason),
 }
+
+/// A backend's own error inside a [`BusError`], kept typed (`downcast_ref` finds it again);
+/// text (`"…".into()`) where the reason is a peer's words.
+pub type Reason = Box<dyn std::error::Error + Send + Sync>;
 
 /// `2.06 s`, `350 ms`: three significant digits and a unit, for messages.
 pub use buslab_device::Human;

@@ -39,7 +39,7 @@ pub use admin::{
     BusSummary, FaultLimit, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming,
     Probability, TxReport, WireFault, switch_bits,
 };
-pub use bus::{BusError, BusEvent, ErrorMessage, Filter, Human, Message, matches_any};
+pub use bus::{BusError, BusEvent, ErrorMessage, Filter, Human, Message, Reason, matches_any};
 pub use buslab_can::controller::ErrorState;
 pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 pub use error_frame::{

@@ -358,7 +358,7 @@ impl CanBus for ManagerBus {
         match outcome {
             Ok(()) => Ok(()),
             Err(SendError::Shutdown) => Err(BusError::Closed),
-            Err(e) => Err(BusError::Rejected(e.to_string())),
+            Err(e) => Err(BusError::Rejected(Box::new(e))),
         }
     }
 

@@ -592,7 +592,7 @@ impl CanBus for SlcanBus {
     fn state(&mut self) -> Result<ErrorState, BusError> {
         let flags = self
             .status_flags(Duration::from_secs(2))
-            .map_err(|e| BusError::Protocol(e.to_string()))?;
+            .map_err(|e| BusError::Protocol(Box::new(e)))?;
         Ok(if flags.contains(StatusFlags::ERROR_PASSIVE) {
             ErrorState::Passive
         } else {

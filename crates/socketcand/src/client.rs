@@ -77,10 +77,10 @@ impl From<ClientError> for BusError {
                 after,
             },
             ClientError::Protocol(_) | ClientError::Element(_) | ClientError::Reply(_) => {
-                BusError::Protocol(e.to_string())
+                BusError::Protocol(Box::new(e))
             }
             ClientError::Refused(limit) => BusError::FaultRefused(limit),
-            other => BusError::Other(other.to_string()),
+            other => BusError::Other(Box::new(other)),
         }
     }
 }
@@ -517,7 +517,7 @@ impl SocketcandBus {
                 Pumped::Deadline => return Ok(None),
                 // An error sent without a request (e.g. for a refused command): report it.
                 Pumped::Message(ServerMessage::Error(text)) => {
-                    return Err(BusError::Rejected(text));
+                    return Err(BusError::Rejected(text.into()));
                 }
                 Pumped::Message(other) => self.unsolicited(other),
                 Pumped::Frames => {}

@@ -311,7 +311,16 @@ fn garbage_in_a_status_reply_is_an_error_naming_the_key() {
         err.contains("buslab_status: state=\"sleepy\" must be error-active"),
         "{err}"
     );
-    // Through the admin trait too, as a protocol error.
+    // Through the admin trait too, as a protocol error whose reason is the client's own
+    // typed error, not its text.
     let err = bus.admin().unwrap().node_status(None).unwrap_err();
-    assert!(matches!(err, buslab_bus::BusError::Protocol(_)), "{err:?}");
+    let buslab_bus::BusError::Protocol(reason) = err else {
+        panic!("{err:?}")
+    };
+    assert!(
+        reason
+            .downcast_ref::<buslab_socketcand::ClientError>()
+            .is_some(),
+        "{reason:?}"
+    );
 }

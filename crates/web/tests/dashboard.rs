@@ -99,7 +99,7 @@ impl BusAdmin for FakeBus {
         let (number, name) = match node {
             None | Some(NodeRef::Number(1)) => (1, "web"),
             Some(NodeRef::Number(2)) => (2, "sender"),
-            Some(other) => return Err(BusError::Other(format!("no node {other}"))),
+            Some(other) => return Err(BusError::Other(format!("no node {other}").into())),
         };
         let tec = if number == 2 {
             100 + (self.control.polls.fetch_add(1, Ordering::SeqCst) % 20) as u8

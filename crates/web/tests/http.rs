@@ -75,7 +75,7 @@ impl BusAdmin for FakeBus {
         let (number, name, tec) = match node {
             None | Some(NodeRef::Number(1)) => (1, "web", 0),
             Some(NodeRef::Number(2)) => (2, "<sender>", self.wire.lock().unwrap().tec),
-            Some(other) => return Err(BusError::Other(format!("no node {other}"))),
+            Some(other) => return Err(BusError::Other(format!("no node {other}").into())),
         };
         Ok(NodeStatus {
             number,
