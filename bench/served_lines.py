@@ -38,7 +38,11 @@ character times, `longest ms` is the longest, `% busy` the rate over the time ou
 (the rate while the device was sending), and `max read` the biggest single read (a served line
 paced to its rate hands over a few characters at a time; a big read is a burst after a stall).
 `% window` is every byte read in the window over the whole window: it also charges a stall
-still running when the window closes, which first-to-last leaves out. A protocol round trip (MoniCAN's Ctrl-L handling,
+still running when the window closes, which first-to-last leaves out. `client s` is the part
+of `gaps` ended by a read that brought everything the client had asked for: the device had
+answered every request and waited for the next, so that time is the client's (its thread was
+not running); the rest of `gaps` is time the device had requests and sent nothing (the
+server's). MoniCAN sends without being asked, so its gaps are not split. A protocol round trip (MoniCAN's Ctrl-L handling,
 a reply not yet requested) shows up there, not in a scheduling delay of the server; with the
 requests pipelined as above no gap is by design, so `%` is the figure to judge.
 """
@@ -125,6 +129,9 @@ class MoniCan:
         self.ask(fd)
         return False
 
+    def outstanding(self):
+        return None  # a redraw's size is the screen's
+
     def detail(self):
         return f"{self.asked} Ctrl-L sent, one every {1000 * self.EVERY:.0f} ms"
 
@@ -158,6 +165,9 @@ class Zelle:
     def stop(self, fd):
         write_all(fd, b"\x00")
 
+    def outstanding(self):
+        return self.asked - self.received
+
     def detail(self):
         return f"{self.received} of {self.DATA_AREA} data bytes read, {self.AHEAD} requests ahead"
 
@@ -186,6 +196,9 @@ class Cpu196:
     def quiet(self, fd, seconds):
         return False
 
+    def outstanding(self):
+        return self.owed
+
     def detail(self):
         return f"flash bank 0 block reads, {self.AHEAD} ahead"
 
@@ -209,6 +222,7 @@ def drive(device, path, seconds, out):
         longest = 0.0
         biggest = 0
         in_window = 0
+        client_gaps = 0.0
         prev = t0
         while True:
             now = time.monotonic()
@@ -219,6 +233,7 @@ def drive(device, path, seconds, out):
             if not r:
                 device.quiet(fd, now - prev)
                 continue
+            owed = device.outstanding()
             try:
                 data = os.read(fd, 65536)
             except BlockingIOError:
@@ -236,6 +251,9 @@ def drive(device, path, seconds, out):
                     biggest = max(biggest, len(data))
                     if idle > gap_limit:
                         gaps += idle
+                        # Everything asked had come: the device waited for the client.
+                        if owed is not None and len(data) >= owed:
+                            client_gaps += idle
                 last = now
             prev = now
         if hasattr(device, "stop"):
@@ -248,6 +266,7 @@ def drive(device, path, seconds, out):
         res.longest = longest
         res.biggest = biggest
         res.in_window = in_window
+        res.client_gaps = client_gaps
         res.window = seconds
         out.append(res)
     finally:
@@ -278,7 +297,7 @@ def print_table(title, results, load):
     print(f"{title} (load average 1 min at the end: {load})")
     head = (
         f"{'device':<17} {'line':<13} {'line B/s':>9} {'bytes':>7} {'s':>6} {'B/s':>8} "
-        f"{'%':>7} {'gaps s':>7} {'longest ms':>10} {'% busy':>7} {'max read':>8} {'% window':>8}"
+        f"{'%':>7} {'gaps s':>7} {'longest ms':>10} {'% busy':>7} {'max read':>8} {'% window':>8} {'client s':>8}"
     )
     print(head)
     for r in results:
@@ -292,7 +311,7 @@ def print_table(title, results, load):
         print(
             f"{dev.name:<17} {settings:<13} {line_rate:>9.1f} {r.bytes:>7} {r.span:>6.2f} "
             f"{rate:>8.1f} {100 * rate / line_rate:>6.1f}% {r.gaps:>7.2f} "
-            f"{1000 * r.longest:>10.1f} {100 * busy / line_rate:>6.1f}% {r.biggest:>8} {100 * r.in_window / r.window / line_rate:>7.1f}%"
+            f"{1000 * r.longest:>10.1f} {100 * busy / line_rate:>6.1f}% {r.biggest:>8} {100 * r.in_window / r.window / line_rate:>7.1f}% {r.client_gaps:>8.2f}"
         )
     for r in results:
         print(f"  {r.device.name}: {r.device.detail()}")
