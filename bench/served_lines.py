@@ -12,11 +12,10 @@ One `buslab lab -q --no-web --dir DIR` serves the three lines on pseudo-terminal
 device's settings (raw, same speed and stop bits) and all three are driven at the same time,
 one thread each, first with no busy loop, then with `--busy` of them, in the same run:
 
-- MoniCAN: Ctrl-L (full VT100 redraw). The redraw's size is measured once; then a new Ctrl-L
-  is sent whenever less than one redraw is still owed, so the next one is queued before the
-  last ends (if the terminal went quiet for 300 ms anyway, another Ctrl-L is sent).
-- MoniCAN also writes every CAN frame it sees to the screen, so its line is near full without
-  a key; the Ctrl-Ls make sure it never waits.
+- MoniCAN: a Ctrl-L (full VT100 redraw, ~1360 bytes, 0.7 s of line) every 200 ms, so one is
+  always queued. MoniCAN also writes every CAN frame it sees to the screen, so its line is
+  near full even without a key. A redraw reaches the PTY whole once its line time is over
+  (crates/served/src/ppc.rs), hence reads of ~1360 bytes.
 - ZELLE: command 2 (read the data area), the 50 ms set-up pause, then `1` per byte with 16
   requests ahead of the replies (the 30 KiB data area outlasts the window), as `buslab zelle
   dump` does.
