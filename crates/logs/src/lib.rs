@@ -41,6 +41,7 @@ pub mod pcapng;
 mod socketcan;
 #[cfg(feature = "sqlite")]
 pub mod sqlite;
+pub mod stats;
 pub mod text;
 mod time;
 pub mod trc;

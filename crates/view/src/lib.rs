@@ -22,11 +22,11 @@
 //! Time is explicit: a [`Duration`] since the view started, given by the adapter.
 
 mod filter;
-mod load;
+
 mod model;
 
+pub use buslab_can::wire::frame_bits;
 pub use filter::{FilterError, LogFilter};
-pub use load::frame_bits;
 pub use model::{
     BusView, Cursor, Delta, ErrorEntry, ErrorSample, FaultMark, IdRow, LoadSample, LogEntry,
     Logged, NodeView, ViewConfig,

@@ -8,7 +8,7 @@ use buslab_can::{Frame, Id};
 use serde::Serialize;
 
 use crate::filter::LogFilter;
-use crate::load::frame_bits;
+use buslab_can::wire::frame_bits;
 
 /// Sizes and times of a view.
 #[derive(Clone, Debug)]

@@ -1,7 +1,6 @@
 //! `buslab log convert|info|cat`: CAN log files in every format `buslab_logs` reads (candump,
 //! ASC, BLF, TRC, CSV, pcap, pcapng, SQLite).
 
-use std::collections::{BTreeMap, HashMap};
 use std::io::{self, IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -9,8 +8,9 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+use buslab_logs::stats::LogStats;
 use buslab_logs::{
-    Entry, Format, LogBitRate, LogSource, LogWriter, OpenOptions, ReadError, Record, candump,
+    Entry, Format, LogBitRate, LogSource, LogWriter, OpenOptions, ReadError, candump,
     create_writer, create_writer_atomic, open_source,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -327,23 +327,6 @@ fn progress(len: u64, hidden: bool) -> ProgressBar {
     bar
 }
 
-/// Per interface: what `log info` counts.
-#[derive(Default)]
-struct Stats {
-    frames: u64,
-    errors: u64,
-    remote: u64,
-    extended: u64,
-    bits: u64,
-    first: Option<Duration>,
-    last: Option<Duration>,
-    ids: HashMap<(bool, u32), u64>,
-    ids_overflow: bool,
-}
-
-/// The most distinct IDs `log info` counts per interface (bounded memory).
-const MAX_IDS: usize = 100_000;
-
 fn info(args: InfoArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.plot {
         super::plot::check_target(path)?;
@@ -353,36 +336,11 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
     let path = &args.input.input;
     let mut source = open_source(path, format, &OpenOptions::default())?;
     let stop = super::interrupted()?;
-    let mut per: BTreeMap<String, Stats> = BTreeMap::new();
+    let mut stats = LogStats::default();
     let mut tally = Tally::default();
     let read = read_all(&mut source, args.input.skip_bad, &stop, &mut tally, |e| {
-        let s = match per.get_mut(&e.interface) {
-            Some(s) => s,
-            None => per.entry(e.interface.clone()).or_default(),
-        };
-        s.first = Some(s.first.map_or(e.timestamp, |f| f.min(e.timestamp)));
-        s.last = Some(s.last.map_or(e.timestamp, |l| l.max(e.timestamp)));
-        match &e.record {
-            Record::Error(_) => s.errors += 1,
-            Record::Frame(f) => {
-                s.frames += 1;
-                s.remote += u64::from(f.is_remote());
-                s.extended += u64::from(f.is_extended());
-                // Wire bits with stuffing, plus the 3-bit intermission.
-                let bits = buslab_can::wire::encode(f).on_bus().len() as u64 + 3;
-                s.bits += bits;
-                if let Some(load) = &mut load {
-                    load.add(&e.interface, e.timestamp, bits);
-                }
-                let key = (f.is_extended(), f.id().as_raw());
-                if let Some(n) = s.ids.get_mut(&key) {
-                    *n += 1;
-                } else if s.ids.len() < MAX_IDS {
-                    s.ids.insert(key, 1);
-                } else {
-                    s.ids_overflow = true;
-                }
-            }
+        if let (Some(bits), Some(load)) = (stats.add(e), &mut load) {
+            load.add(&e.interface, e.timestamp, bits);
         }
         Ok(())
     });
@@ -396,21 +354,18 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
         "file        {} ({format}, {size} bytes)",
         path.display()
     )?;
-    let frames: u64 = per.values().map(|s| s.frames).sum();
-    let errors: u64 = per.values().map(|s| s.errors).sum();
     writeln!(
         out,
-        "entries     {} frames, {errors} error frames{}",
-        frames,
+        "entries     {} frames, {} error frames{}",
+        stats.frames(),
+        stats.errors(),
         if tally.bad > 0 {
             format!(", {} bad skipped", tally.bad)
         } else {
             String::new()
         }
     )?;
-    let first = per.values().filter_map(|s| s.first).min();
-    let last = per.values().filter_map(|s| s.last).max();
-    if let (Some(first), Some(last)) = (first, last) {
+    if let Some((first, last)) = stats.first_last() {
         writeln!(
             out,
             "time        {} .. {} ({})",
@@ -420,24 +375,18 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
         )?;
     }
     let mut rates = Vec::new();
-    for (name, s) in &per {
-        let span = s.last.unwrap_or_default() - s.first.unwrap_or_default();
+    for (name, s) in &stats.interfaces {
         let rate = BitRate::choose(args.bitrate, source.reader.bit_rate(name));
         rates.push(rate.bits_per_s());
-        let load = if span.is_zero() {
-            "n/a (one instant)".to_string()
-        } else {
-            let percent =
-                100.0 * s.bits as f64 / (span.as_secs_f64() * f64::from(rate.bits_per_s()));
-            rate.load_text(percent)
+        let load = match s.load_percent(rate.bits_per_s()) {
+            Some(percent) => rate.load_text(percent),
+            None => "n/a (one instant)".to_string(),
         };
-        let mut busiest: Vec<(&(bool, u32), &u64)> = s.ids.iter().collect();
-        busiest.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
-        let top: Vec<String> = busiest
-            .iter()
-            .take(5)
-            .map(|((ext, id), n)| {
-                if *ext {
+        let top: Vec<String> = s
+            .busiest(5)
+            .into_iter()
+            .map(|(ext, id, n)| {
+                if ext {
                     format!("{id:08X} ({n})")
                 } else {
                     format!("{id:03X} ({n})")
@@ -452,7 +401,7 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
             s.remote,
             s.errors,
             if s.ids_overflow { "more than " } else { "" },
-            s.ids.len()
+            s.ids()
         )?;
         if !top.is_empty() {
             writeln!(out, "{:<11} busiest: {}", "", top.join(", "))?;

@@ -21,7 +21,16 @@ mod stuffing;
 /// CRC, a stuff bit after each 4 of them past the first, 29; 10 from the CRC delimiter to the
 /// end of EOF; 3 of intermission). The one place this fact lives: budgets, timeouts and
 /// watchdogs elsewhere use it.
-pub const LONGEST_FRAME_BITS: u64 = 118 + (118 - 1) / 4 + 10 + 3;
+pub const LONGEST_FRAME_BITS: u64 = 118 + (118 - 1) / 4 + 10 + INTERMISSION_BITS;
+
+/// The recessive bits between two frames (ISO 11898-1's intermission).
+pub const INTERMISSION_BITS: u64 = 3;
+
+/// Bit-times `frame` takes on an undisturbed bus: SOF to the end of EOF with its stuff bits,
+/// and the intermission after it (the unit of bus load).
+pub fn frame_bits(frame: &crate::Frame) -> u64 {
+    encode(frame).stuffed().len() as u64 + INTERMISSION_BITS
+}
 
 pub use bits::Bits;
 pub use cache::EncodeCache;

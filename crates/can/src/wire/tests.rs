@@ -328,3 +328,19 @@ fn no_frame_is_longer_on_the_wire_than_the_longest_frame_bits() {
         assert!(bits <= LONGEST_FRAME_BITS, "{frame}: {bits} bit-times");
     }
 }
+
+#[test]
+fn frame_bits_count_stuffing_and_the_intermission() {
+    // A standard data frame with no data: 44 bits, stuffing, 3 of intermission; 8 bytes of
+    // 0x55 stuff nothing in the data (alternating bits).
+    let empty: Frame = "7FF#".parse().unwrap();
+    let bits = frame_bits(&empty);
+    assert_eq!(bits, encode(&empty).stuffed().len() as u64 + 3);
+    assert!((47..=60).contains(&bits), "{bits}");
+    let full: Frame = "555#5555555555555555".parse().unwrap();
+    assert!(
+        (111..=130).contains(&frame_bits(&full)),
+        "{}",
+        frame_bits(&full)
+    );
+}

@@ -1,0 +1,182 @@
+//! What a log holds, counted as its entries go by (`buslab log info`): per interface, frames
+//! by kind, error frames, the time span, the bits on the wire for the load, the busiest IDs.
+//! Bounded: at most [`MAX_IDS`] distinct IDs are counted per interface.
+
+use std::collections::{BTreeMap, HashMap};
+use std::time::Duration;
+
+use buslab_can::wire::frame_bits;
+
+use crate::{Entry, Record};
+
+/// The most distinct IDs counted per interface (bounded memory).
+pub const MAX_IDS: usize = 100_000;
+
+/// One interface's counts.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct InterfaceStats {
+    pub frames: u64,
+    pub errors: u64,
+    pub remote: u64,
+    pub extended: u64,
+    /// Bit-times the frames took on the wire, stuffing and intermission included.
+    pub bits: u64,
+    pub first: Option<Duration>,
+    pub last: Option<Duration>,
+    ids: HashMap<(bool, u32), u64>,
+    /// More than [`MAX_IDS`] distinct IDs were seen: [`ids`](Self::ids) is a lower bound.
+    pub ids_overflow: bool,
+}
+
+impl InterfaceStats {
+    /// Distinct IDs counted (a lower bound when [`ids_overflow`](Self::ids_overflow)).
+    pub fn ids(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// The `n` most frequent IDs, `(extended, id, count)`, most frequent first, then by ID.
+    pub fn busiest(&self, n: usize) -> Vec<(bool, u32, u64)> {
+        let mut all: Vec<(bool, u32, u64)> = self
+            .ids
+            .iter()
+            .map(|(&(ext, id), &count)| (ext, id, count))
+            .collect();
+        all.sort_by(|a, b| b.2.cmp(&a.2).then((a.0, a.1).cmp(&(b.0, b.1))));
+        all.truncate(n);
+        all
+    }
+
+    /// From the first entry to the last.
+    pub fn span(&self) -> Duration {
+        self.last.unwrap_or_default() - self.first.unwrap_or_default()
+    }
+
+    /// The load at `bits_per_s` in percent; `None` over a span of one instant.
+    pub fn load_percent(&self, bits_per_s: u32) -> Option<f64> {
+        let span = self.span();
+        (!span.is_zero())
+            .then(|| 100.0 * self.bits as f64 / (span.as_secs_f64() * f64::from(bits_per_s)))
+    }
+}
+
+/// A log's counts per interface, in name order.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LogStats {
+    pub interfaces: BTreeMap<String, InterfaceStats>,
+}
+
+impl LogStats {
+    /// Counts `entry`; returns the bit-times a frame took on the wire (`None` for an error
+    /// frame).
+    pub fn add(&mut self, entry: &Entry) -> Option<u64> {
+        let s = match self.interfaces.get_mut(&entry.interface) {
+            Some(s) => s,
+            None => self.interfaces.entry(entry.interface.clone()).or_default(),
+        };
+        s.first = Some(s.first.map_or(entry.timestamp, |f| f.min(entry.timestamp)));
+        s.last = Some(s.last.map_or(entry.timestamp, |l| l.max(entry.timestamp)));
+        let f = match &entry.record {
+            Record::Error(_) => {
+                s.errors += 1;
+                return None;
+            }
+            Record::Frame(f) => f,
+        };
+        s.frames += 1;
+        s.remote += u64::from(f.is_remote());
+        s.extended += u64::from(f.is_extended());
+        let bits = frame_bits(f);
+        s.bits += bits;
+        let key = (f.is_extended(), f.id().as_raw());
+        if let Some(n) = s.ids.get_mut(&key) {
+            *n += 1;
+        } else if s.ids.len() < MAX_IDS {
+            s.ids.insert(key, 1);
+        } else {
+            s.ids_overflow = true;
+        }
+        Some(bits)
+    }
+
+    pub fn frames(&self) -> u64 {
+        self.interfaces.values().map(|s| s.frames).sum()
+    }
+
+    pub fn errors(&self) -> u64 {
+        self.interfaces.values().map(|s| s.errors).sum()
+    }
+
+    /// The earliest and the latest entry of any interface.
+    pub fn first_last(&self) -> Option<(Duration, Duration)> {
+        let first = self.interfaces.values().filter_map(|s| s.first).min()?;
+        let last = self.interfaces.values().filter_map(|s| s.last).max()?;
+        Some((first, last))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use buslab_bus::ErrorFrame;
+
+    fn entry(t_ms: u64, interface: &str, frame: &str) -> Entry {
+        Entry {
+            timestamp: Duration::from_millis(t_ms),
+            interface: interface.into(),
+            record: Record::Frame(frame.parse().unwrap()),
+            direction: None,
+        }
+    }
+
+    #[test]
+    fn counts_per_interface_with_the_busiest_ids_and_the_load() {
+        let mut stats = LogStats::default();
+        for (t, i, f) in [
+            (0, "can0", "123#11"),
+            (10, "can0", "123#22"),
+            (20, "can0", "12345678#"),
+            (30, "can0", "7FF#R"),
+            (5, "can1", "100#"),
+        ] {
+            assert!(stats.add(&entry(t, i, f)).is_some());
+        }
+        let error = Entry {
+            timestamp: Duration::from_millis(40),
+            interface: "can0".into(),
+            record: Record::Error(ErrorFrame::default()),
+            direction: None,
+        };
+        assert_eq!(stats.add(&error), None);
+        assert_eq!((stats.frames(), stats.errors()), (5, 1));
+        let can0 = &stats.interfaces["can0"];
+        assert_eq!((can0.extended, can0.remote, can0.ids()), (1, 1, 3));
+        assert_eq!(can0.busiest(2), [(false, 0x123, 2), (false, 0x7FF, 1)]);
+        assert_eq!(can0.span(), Duration::from_millis(40));
+        let bits: u64 = ["123#11", "123#22", "12345678#", "7FF#R"]
+            .iter()
+            .map(|f| frame_bits(&f.parse().unwrap()))
+            .sum();
+        assert_eq!(can0.bits, bits);
+        let load = can0.load_percent(125_000).unwrap();
+        assert!(
+            (load - 100.0 * bits as f64 / 5_000.0).abs() < 1e-9,
+            "{load}"
+        );
+        assert_eq!(stats.interfaces["can1"].load_percent(125_000), None);
+        assert_eq!(
+            stats.first_last(),
+            Some((Duration::ZERO, Duration::from_millis(40)))
+        );
+    }
+
+    #[test]
+    fn distinct_ids_are_bounded() {
+        let mut stats = LogStats::default();
+        for id in 0..(MAX_IDS as u32 + 10) {
+            stats.add(&entry(0, "can0", &format!("{id:08X}#")));
+        }
+        let can0 = &stats.interfaces["can0"];
+        assert_eq!(can0.ids(), MAX_IDS);
+        assert!(can0.ids_overflow);
+    }
+}
