@@ -1,6 +1,6 @@
 //! A controller's error state as an SJA1000 reports it: Linux's four ([`ControllerState`]),
 //! the warning level a state of its own. Fault confinement's three are
-//! [`ErrorState`](buslab_can::controller::ErrorState), the one error-state type; this is the
+//! [`ErrorState`], the one error-state type; this is the
 //! chip's report of it (SR.ES and SR.BS, the counters), turned into it by
 //! [`ControllerState::error_state`].
 

@@ -1,5 +1,5 @@
 //! The acceptance filter in words: which IDs an ACR/AMR pair lets through ([`explain`]), and
-//! the ACR/AMR that let through the IDs someone wants ([`derive`]), for the SJA1000's three
+//! the ACR/AMR that let through the IDs someone wants ([`derive()`]), for the SJA1000's three
 //! filters (BasicCAN's 8 bits, PeliCAN's single and dual filter). The rules are the
 //! datasheet's, as the model applies them (`buslab_sja1000::filter`); the tests hold the two
 //! together frame by frame.

@@ -70,7 +70,7 @@ pub struct MailSettings {
     /// The IMAP server's port. Default 143.
     pub port: u16,
     pub user: Option<String>,
-    /// From `$BUSLAB_MAIL_PASSWORD` only; [`MailSettings::password_or_prompt`] asks for it
+    /// From `$BUSLAB_MAIL_PASSWORD` only; the binary's `password_or_prompt` asks for it
     /// otherwise. Never printed.
     pub password: Option<Password>,
     /// How often the mailbox is checked (JerryCAN's `mailsleepingtime`). Default 60 s.

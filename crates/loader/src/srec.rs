@@ -10,7 +10,7 @@
 //! | S5, S6 | 2, 3 bytes | count of the S1/S2/S3 records before it |
 //! | S7, S8, S9 | 4, 3, 2 bytes | start address (entry point); ends the file |
 //!
-//! [`parse`] reads a whole file and checks every record; [`write`] makes one (the PowerPC
+//! [`parse`] reads a whole file and checks every record; [`write()`] makes one (the PowerPC
 //! node keeps its memory image in this format). Lines end with LF or CR LF; blank lines are
 //! allowed; anything else that is not a record is an error naming its line.
 
@@ -20,7 +20,7 @@ use std::fmt;
 pub const MAX_RECORD_CHARS: usize = 4 + 2 * 255;
 /// Errors kept from one file; beyond, they are counted (a file of garbage has one per line).
 pub const MAX_ERRORS: usize = 20;
-/// Data bytes per record in files [`write`] makes.
+/// Data bytes per record in files [`write()`] makes.
 pub const WRITE_CHUNK: usize = 32;
 
 /// How many address bytes a record type has.

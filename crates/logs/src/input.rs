@@ -12,7 +12,7 @@ use crate::{Entry, LogBitRate, asc, blf, candump, csv, pcap, pcapng, trc};
 
 /// The reader for `format` over any buffered input (a file, bytes in memory, a fuzzer's
 /// input). The pcap formats tell pcap from pcapng by the first bytes, so either name reads
-/// both. SQLite is read from a file only ([`open_source`]).
+/// both. SQLite is read from a file only ([`open_source`](crate::open_source)).
 pub fn reader<R: BufRead + Send + 'static>(
     mut input: R,
     format: Format,

@@ -1,6 +1,6 @@
 //! pcap captures with LINKTYPE_CAN_SOCKETCAN (227), as Wireshark, tcpdump and `candump`'s
 //! kernel capture write them, or with Wireshark's exported SocketCAN PDUs (252, see
-//! [`crate::socketcan`]); a file of any other link type is refused, naming it.
+//! the crate's `socketcan` module); a file of any other link type is refused, naming it.
 //!
 //! A 24-byte file header (magic `a1b2c3d4` for microseconds or `a1b23c4d` for nanoseconds,
 //! in the writer's byte order; version 2.4; snap length; link type), then per packet a 16-byte

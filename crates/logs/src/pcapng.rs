@@ -1,5 +1,5 @@
 //! pcapng captures with LINKTYPE_CAN_SOCKETCAN (227) interfaces, or Wireshark's exported
-//! SocketCAN PDUs (252, see [`crate::socketcan`]).
+//! SocketCAN PDUs (252, see the crate's `socketcan` module).
 //!
 //! Blocks: a Section Header (byte order), an Interface Description per interface (link type,
 //! `if_name`, `if_tsresol`), then Enhanced Packet Blocks (interface, 64-bit timestamp, the

@@ -1,5 +1,5 @@
 //! The cell's 8051 running a user program: the MCS-51 core wired to the cell's hardware
-//! ([`Board`]), the OS area trapped ([`rom`]), its UART on the cell's line.
+//! (`board::Board`), the OS area trapped (`rom`), its UART on the cell's line.
 //!
 //! **One character behind.** The cell hears a host byte when its stop bits have ended, but the
 //! core must see its start bit: the core is run one character time (11 bits at 9600 baud) plus
