@@ -10,23 +10,7 @@ use std::time::Duration;
 
 use buslab_zelle::client::{Error, Port, SeriesParams, Transfer};
 use buslab_zelle::{BatteryRam, START_BYTE};
-use served::{Served, client_on};
-
-/// Runs `buslab zelle` on the cell, with a time-out far above any scheduling delay.
-fn buslab(pty: &std::path::Path, args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
-        .args(["zelle", "--timeout", "30s", "--port"])
-        .arg(pty)
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
+use served::{Served, buslab_zelle as buslab, client_on};
 
 #[test]
 fn every_command_through_the_client_over_a_pty() {

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use buslab_zelle::client::{Port, Transfer};
 use buslab_zelle::program::image_from_file;
-use served::{ALLOWANCE, Served};
+use served::{ALLOWANCE, Served, buslab_zelle as buslab};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -67,21 +67,6 @@ fn build(name: &str, dir: &Path) -> Option<PathBuf> {
         String::from_utf8_lossy(&run.stderr)
     );
     Some(hex)
-}
-
-fn buslab(pty: &Path, args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
-        .args(["zelle", "--timeout", "30s", "--port"])
-        .arg(pty)
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
 }
 
 /// P1's latch from the control line `cpu` while the program runs.

@@ -339,21 +339,12 @@ impl Cell {
 
     /// When [`poll`](Self::poll) must be called next even without input.
     pub fn next_deadline(&self) -> Option<u64> {
-        let program = matches!(self.os, Os::Program);
-        let busy =
-            (self.powered && !program && self.busy_until > self.now).then_some(self.busy_until);
-        let key_hold = match self.os {
-            Os::KeyHold { since } => Some(since + KEY_HOLD_READY_NS),
-            _ => None,
-        };
-        let chip = program
+        let chip = matches!(self.os, Os::Program)
             .then(|| self.chip.next_deadline(self.now, PROGRAM_POLL_NS))
             .flatten();
         [
             self.tx.front().map(|&(done, _)| done),
-            busy,
-            self.key_release_at,
-            key_hold,
+            self.next_os_event(),
             chip,
         ]
         .into_iter()

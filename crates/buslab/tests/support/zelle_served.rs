@@ -183,3 +183,20 @@ pub fn client_on(pty: &Path, timeout: Duration) -> SerialClient {
     let port = SerialLine::open(pty, buslab_zelle::timing::LINE).unwrap();
     Client::with_timeout(port, timeout)
 }
+
+/// Runs `buslab zelle` on the cell at `pty`, with a time-out far above any scheduling delay;
+/// its standard output (the command must succeed).
+pub fn buslab_zelle(pty: &Path, args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args(["zelle", "--timeout", "30s", "--port"])
+        .arg(pty)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
