@@ -311,7 +311,8 @@ fn record_plot_shows_each_channel_in_volts() {
     ]);
     assert!(err.contains("ending in .svg"), "{err}");
     // The figure is drawn from the samples as they came, not from the CSV read back: a
-    // recording that goes nowhere still has its picture.
+    // recording that goes nowhere still has its picture (a second of it, as above: the A/D
+    // runs at the board's pace, whatever the load).
     let nowhere = b.path("nowhere.svg");
     b.ok(&[
         "record",
@@ -320,7 +321,7 @@ fn record_plot_shows_each_channel_in_volts() {
         "--out",
         "/dev/null",
         "--duration",
-        "200ms",
+        "1s",
         "--plot",
         s(&nowhere),
     ]);
