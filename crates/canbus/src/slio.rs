@@ -200,6 +200,14 @@ impl<'a> SlioHost<'a> {
     fn take_master_events(&mut self, done: &mut impl FnMut(&MasterEvent) -> bool) -> bool {
         let mut finished = false;
         while let Some(e) = self.master.poll_event() {
+            if let MasterEvent::CalibrationLost { silent_ns } = e {
+                // The first start-up frame, tried once, also gives up what the bus still
+                // retries for this host ([`send_single_shot`] aborts after its attempt).
+                tracing::warn!(
+                    "this host did not run for {} ms, near the SLIOs' watchdog: calibrating them again",
+                    silent_ns / 1_000_000
+                );
+            }
             finished |= done(&e);
             self.events.push(e);
         }

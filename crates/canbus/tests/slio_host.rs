@@ -12,7 +12,9 @@ use buslab_canbus::{
     BusAdmin, BusError, BusSummary, CanBus, ErrorState, Filter, Message, NodeCounters, NodeInfo,
     NodeRef, NodeRegisters, NodeStatus, TxReport,
 };
-use buslab_slio::{SlioId, calibration_frame};
+use buslab_slio::{
+    Direction, MasterEvent, Register, Reply, Request, SlioId, Status, calibration_frame,
+};
 
 const RATE: u32 = 125_000;
 
@@ -208,4 +210,223 @@ fn the_census_counts_every_sign_on_up_to_the_bus_confirmation_after_the_last_fra
     assert_eq!(bus.calibrations, 48);
     assert_eq!(bus.aborts, 3);
     assert_eq!(bus.sent.len(), 48);
+}
+
+/// One SLIO on a bus that runs in wall-clock time, as a served buslab bus does: it calibrates
+/// on the second calibration frame it sees (the first counts as the valid frame before it),
+/// loses its calibration when no calibration frame came within its watchdog, executes a
+/// command while it is not calibrated but answers only once calibrated. The wire runs when the
+/// host looks (a receive or a flush); a frame nobody acknowledges stays at the head of the
+/// queue and is tried again, holding up the frames behind it.
+struct WatchdogBus {
+    slio: SlioId,
+    /// Another node (a `buslab dump` beside) acknowledges every frame.
+    others_acknowledge: bool,
+    /// The host stops running this long right after handing over its first request.
+    stall_after_request: Option<Duration>,
+    calibrated: bool,
+    /// Calibration frames seen since it lost its calibration.
+    seen: u32,
+    last_calibration: std::time::Instant,
+    output: u16,
+    queue: VecDeque<Frame>,
+    inbox: VecDeque<Frame>,
+    bus_errors: u64,
+}
+
+/// 8192 bit-times at [`RATE`].
+const WATCHDOG: Duration = Duration::from_micros(8192 * 8);
+
+impl WatchdogBus {
+    fn new(others_acknowledge: bool, stall_after_request: Option<Duration>) -> Self {
+        Self {
+            slio: SlioId::new(3).unwrap(),
+            others_acknowledge,
+            stall_after_request,
+            calibrated: false,
+            seen: 0,
+            last_calibration: std::time::Instant::now(),
+            output: 0,
+            queue: VecDeque::new(),
+            inbox: VecDeque::new(),
+            bus_errors: 0,
+        }
+    }
+
+    fn reply(&mut self, register: Register, value: u16, reset_detected: bool) {
+        let reply = Reply {
+            status: Status {
+                reset_detected,
+                ew: true,
+                bus_mode: 0,
+            },
+            register,
+            value,
+        };
+        let frame = Frame::data(self.slio.reply_id(), &reply.encode()).unwrap();
+        self.inbox.push_back(frame);
+    }
+
+    /// The frames at the head of the queue have their attempt.
+    fn run_wire(&mut self) {
+        if self.calibrated && self.last_calibration.elapsed() > WATCHDOG {
+            self.calibrated = false;
+            self.seen = 0;
+            self.output = 0;
+        }
+        while let Some(&frame) = self.queue.front() {
+            let was_calibrated = self.calibrated;
+            if frame == calibration_frame() {
+                self.seen += 1;
+                self.last_calibration = std::time::Instant::now();
+                if !self.calibrated && self.seen >= 2 {
+                    self.calibrated = true;
+                    self.reply(Register::DataInput, 0x0003, true);
+                }
+            } else if SlioId::from_id(frame.id()) == Some((self.slio, Direction::ToSlio))
+                && let Ok(Request::Write {
+                    register: Register::DataOutput,
+                    value,
+                }) = Request::parse(frame.is_remote(), frame.payload())
+            {
+                self.output = value;
+                if was_calibrated {
+                    self.reply(Register::DataOutput, value, false);
+                }
+            }
+            if !(was_calibrated || self.others_acknowledge) {
+                self.bus_errors += 1;
+                return;
+            }
+            self.queue.pop_front();
+        }
+    }
+}
+
+impl CanBus for WatchdogBus {
+    fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
+        self.queue.push_back(*frame);
+        if frame != &calibration_frame()
+            && let Some(stall) = self.stall_after_request.take()
+        {
+            std::thread::sleep(stall);
+        }
+        Ok(())
+    }
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+        self.run_wire();
+        if let Some(frame) = self.inbox.pop_front() {
+            return Ok(Some(Message::rx(0.0, "watchdog", frame)));
+        }
+        std::thread::sleep(
+            timeout
+                .unwrap_or(Duration::MAX)
+                .min(Duration::from_micros(200)),
+        );
+        Ok(None)
+    }
+    fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn state(&mut self) -> Result<ErrorState, BusError> {
+        Ok(ErrorState::Active)
+    }
+    fn channel_info(&self) -> String {
+        "watchdog".into()
+    }
+    fn admin(&mut self) -> Option<&mut dyn BusAdmin> {
+        Some(self)
+    }
+}
+
+impl BusAdmin for WatchdogBus {
+    fn nodes(&mut self) -> Result<Vec<NodeInfo>, BusError> {
+        Ok(Vec::new())
+    }
+    fn node_status(&mut self, _: Option<&NodeRef>) -> Result<NodeStatus, BusError> {
+        Ok(NodeStatus {
+            number: 1,
+            name: "host".into(),
+            state: ErrorState::Active,
+            errors: None,
+            sr: None,
+            timing: None,
+            counters: NodeCounters {
+                bus_errors: self.bus_errors,
+                ..NodeCounters::default()
+            },
+            tx_queued: self.queue.len() as u64,
+            bus: BusSummary {
+                bitrate: RATE,
+                ..BusSummary::default()
+            },
+        })
+    }
+    fn register_dump(&mut self, _: Option<&NodeRef>) -> Result<NodeRegisters, BusError> {
+        Err(BusError::Other("no registers".into()))
+    }
+    fn set_name(&mut self, _: &str) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn set_btr(&mut self, _: u8, _: u8) -> Result<(), BusError> {
+        Ok(())
+    }
+    fn flush(&mut self, timeout: Duration) -> Result<TxReport, BusError> {
+        self.run_wire();
+        if self.queue.is_empty() {
+            Ok(TxReport::default())
+        } else {
+            Err(BusError::Timeout {
+                what: "flush".into(),
+                after: timeout,
+            })
+        }
+    }
+    fn abort(&mut self) -> Result<(), BusError> {
+        self.queue.clear();
+        Ok(())
+    }
+}
+
+/// CI, 2026-11-28 (`slio_cli calibrate_then_drive_a_demo_board`): `buslab slio --calibrate
+/// write` did not run for longer than the SLIOs' watchdog (a loaded machine); the SLIO lost
+/// its calibration, executed the write without answering, and was calibrated again by the
+/// next periodic frame; the write was never answered. Now the host calibrates again after such
+/// a pause and repeats its request: whether it stopped before the request or right after
+/// handing it over, and whether another node acknowledged the frame meanwhile or nobody did
+/// (the frame then held up the calibration behind it).
+#[test]
+fn a_host_that_stopped_running_past_the_watchdog_still_gets_its_write_answered() {
+    let stall = 3 * WATCHDOG;
+    for others_acknowledge in [true, false] {
+        for stall_after_request in [None, Some(stall)] {
+            let case = format!(
+                "others acknowledge: {others_acknowledge}, stall after the request: {stall_after_request:?}"
+            );
+            let mut bus = WatchdogBus::new(others_acknowledge, stall_after_request);
+            let mut host = SlioHost::new(&mut bus, RATE, true);
+            let signed = host.settle().unwrap();
+            assert_eq!(signed, [(SlioId::new(3).unwrap(), 0x0003)], "{case}");
+            if stall_after_request.is_none() {
+                std::thread::sleep(stall);
+            }
+            let got = host
+                .write(
+                    SlioId::new(3).unwrap(),
+                    Register::DataOutput,
+                    0x2080,
+                    Duration::from_secs(60),
+                )
+                .unwrap_or_else(|e| panic!("{case}: {e}"));
+            assert_eq!(got, 0x2080, "{case}");
+            let lost = host
+                .take_events()
+                .into_iter()
+                .filter(|e| matches!(e, MasterEvent::CalibrationLost { .. }))
+                .count();
+            assert!(lost >= 1, "{case}: the pause went unnoticed");
+            drop(host);
+            assert_eq!(bus.output, 0x2080, "{case}");
+        }
+    }
 }

@@ -644,6 +644,8 @@ impl MoniCan {
                     self.notice = Some(format!("SLIO {slio} did not answer ({what})"));
                     self.event(Event::NoAnswer(slio));
                 }
+                // The master calibrates again and repeats what was unanswered.
+                MasterEvent::CalibrationLost { .. } => {}
             }
         }
     }

@@ -599,6 +599,11 @@ proptest! {
         prop_assert!(term.row(COMMAND_ROW).starts_with("Next command > SLIO:"));
         prop_assert_eq!(term.row(HEADER_ROW), HEADER);
         for t in std::iter::from_fn(|| app.poll_transmit(1000 * MS)) {
+            // A second without a look at the clock reads as a host that did not run: the
+            // SLIOs are calibrated again first.
+            if t.frame == buslab_slio::calibration_frame() {
+                continue;
+            }
             prop_assert!(SlioId::from_id(t.frame.id()).is_some(), "{}", t.frame);
             // Every frame to a SLIO has 3 bytes (seed §2.1.2.1).
             prop_assert!(!t.frame.is_remote() && t.frame.payload().len() == 3, "{}", t.frame);

@@ -14,7 +14,10 @@
 //! - register writes and reads that complete only when the SLIO confirms them: every request is
 //!   a 3-byte data frame, as the seed's `make_slio_ffi` builds them (DLC = 3), and only the
 //!   read-only registers have a read ([`Request`]); a request's wait for its answer starts when
-//!   its frame is handed to the adapter, not when it is queued behind others.
+//!   its frame is handed to the adapter, not when it is queued behind others;
+//! - a host that was not running (a PC under load, a process stopped) for nearly the SLIOs'
+//!   watchdog may have let them lose their calibration: the master then calibrates them again
+//!   as at start and sends the unanswered requests again ([`MasterEvent::CalibrationLost`]).
 
 use std::collections::VecDeque;
 
@@ -22,6 +25,7 @@ use buslab_can::Frame;
 
 use crate::ids::{Direction, SlioId, calibration_frame};
 use crate::registers::{NotReadable, Register, Reply, Request};
+use crate::slio::{LONGEST_FRAME_BITS, WATCHDOG_BITS};
 
 /// Calibration frames sent at start (the seed's `calibration_slio` loops 48 times).
 pub const START_CALIBRATIONS: u32 = 48;
@@ -30,6 +34,11 @@ pub const CALIBRATION_EVERY_BITS: u64 = 5000;
 /// How long a request waits for the SLIO's answer, in bit-times: a few frames' worth on a
 /// busy bus.
 pub const ANSWER_WITHIN_BITS: u64 = 4000;
+/// Bit-times between two calibration frames handed over after which the SLIOs may have lost
+/// their calibration: the watchdog's 8192, less the time the later frame may wait on the wire
+/// behind eight of the longest frames. (The rhythm of [`CALIBRATION_EVERY_BITS`] keeps the
+/// gaps well below this while the host runs.)
+pub const CALIBRATION_LOST_AFTER_BITS: u64 = WATCHDOG_BITS - 8 * LONGEST_FRAME_BITS;
 
 /// A frame for the adapter to send.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,6 +69,11 @@ pub enum MasterEvent {
     },
     /// A request got no answer in time.
     NoAnswer { request: RequestId, slio: SlioId },
+    /// No calibration frame went out for `silent_ns` (the host did not run), so the SLIOs may
+    /// have lost their calibration and ignored or left unanswered what was sent meanwhile.
+    /// The start-up calibration goes out again (tried once each: the adapter's abort after the
+    /// first also gives up a frame nobody acknowledges), then the requests still unanswered.
+    CalibrationLost { silent_ns: u64 },
 }
 
 /// Identifies a request in [`MasterEvent::Confirmed`] and [`MasterEvent::NoAnswer`].
@@ -80,6 +94,8 @@ struct Pending {
     id: RequestId,
     slio: SlioId,
     register: Register,
+    /// Its frame, to send again after a lost calibration.
+    frame: Frame,
     /// When the answer is given up: set when the frame is handed to the adapter.
     deadline: Option<u64>,
 }
@@ -99,6 +115,9 @@ pub struct Master {
     first_answer_deadline: Option<u64>,
     next_request: u64,
     next_calibration: Option<u64>,
+    /// When the last calibration frame was handed over (the SLIOs' watchdog restarts about
+    /// then); `keeping` counts from its creation.
+    last_calibration_sent: u64,
 }
 
 impl Master {
@@ -116,6 +135,7 @@ impl Master {
             first_answer_deadline: None,
             next_request: 0,
             next_calibration: None,
+            last_calibration_sent: now,
         };
         m.calibrate(now);
         m
@@ -132,15 +152,19 @@ impl Master {
     /// Queues the start-up calibration (48 frames, each tried once) and restarts the period.
     pub fn calibrate(&mut self, now: u64) {
         for _ in 0..START_CALIBRATIONS {
-            self.outbox.push_back((
-                Transmit {
-                    frame: calibration_frame(),
-                    single_shot: true,
-                },
-                None,
-            ));
+            self.outbox.push_back(Self::start_up_frame());
         }
         self.next_calibration = Some(now + self.calibration_period());
+    }
+
+    fn start_up_frame() -> (Transmit, Option<RequestId>) {
+        (
+            Transmit {
+                frame: calibration_frame(),
+                single_shot: true,
+            },
+            None,
+        )
     }
 
     /// One calibration period ([`CALIBRATION_EVERY_BITS`]) in nanoseconds.
@@ -219,6 +243,7 @@ impl Master {
             id,
             slio,
             register,
+            frame,
             deadline: None,
         });
         Ok(id)
@@ -270,8 +295,10 @@ impl Master {
         true
     }
 
-    /// Time passes: the periodic calibration, requests that got no answer.
+    /// Time passes: a calibration perhaps lost while the host did not run, the periodic
+    /// calibration, requests that got no answer.
     pub fn handle_timeout(&mut self, now: u64) {
+        self.check_calibration_gap(now);
         if let Some(t) = self.next_calibration
             && now >= t
         {
@@ -304,6 +331,44 @@ impl Master {
         }
     }
 
+    /// Whether the SLIOs may have lost their calibration since the last calibration frame went
+    /// out (asked before anything is handed over: a frame handed over after a pause must not
+    /// hide it).
+    fn check_calibration_gap(&mut self, now: u64) {
+        let silent_ns = now.saturating_sub(self.last_calibration_sent);
+        if self.next_calibration.is_some() && silent_ns >= CALIBRATION_LOST_AFTER_BITS * self.bit_ns
+        {
+            self.recalibrate(now, silent_ns);
+        }
+    }
+
+    /// The SLIOs may have lost their calibration: the start-up calibration goes first again,
+    /// then the requests handed over and not answered (their wait restarts when they go out
+    /// again), then what was queued.
+    fn recalibrate(&mut self, now: u64, silent_ns: u64) {
+        let mut again: VecDeque<_> = (0..START_CALIBRATIONS)
+            .map(|_| Self::start_up_frame())
+            .collect();
+        for p in self.pending.iter_mut().filter(|p| p.deadline.is_some()) {
+            p.deadline = None;
+            again.push_back((
+                Transmit {
+                    frame: p.frame,
+                    single_shot: false,
+                },
+                Some(p.id),
+            ));
+        }
+        self.pending_changed();
+        again.append(&mut self.outbox);
+        self.outbox = again;
+        // Counted from now until the adapter reports the start-up frames sent.
+        self.last_calibration_sent = now;
+        self.next_calibration = Some(now + self.calibration_period());
+        self.events
+            .push_back(MasterEvent::CalibrationLost { silent_ns });
+    }
+
     /// When [`Self::handle_timeout`] must be called.
     pub fn next_deadline(&self) -> Option<u64> {
         match (self.next_calibration, self.first_answer_deadline) {
@@ -319,7 +384,13 @@ impl Master {
     /// The next frame to send, handed to the adapter at `now`: a request's answer is awaited
     /// from then on.
     pub fn poll_transmit(&mut self, now: u64) -> Option<Transmit> {
+        if !self.outbox.is_empty() {
+            self.check_calibration_gap(now);
+        }
         let (transmit, request) = self.outbox.pop_front()?;
+        if transmit.frame == calibration_frame() {
+            self.last_calibration_sent = now;
+        }
         if let Some(request) = request
             && let Some(p) = self.pending.iter_mut().find(|p| p.id == request)
         {
@@ -461,6 +532,74 @@ mod tests {
             request: r,
             slio: slio(5)
         }));
+    }
+
+    /// CI, 2026-11-28: `buslab slio --calibrate write` on a loaded machine stopped running for
+    /// longer than the SLIOs' watchdog after the census; they lost their calibration, executed
+    /// the write without answering (a roughly calibrated SLIO does not transmit), signed on
+    /// again after the next calibration frames, and the write was never answered. Now a gap
+    /// near the watchdog between calibration frames queues the start-up calibration again,
+    /// then the unanswered request.
+    #[test]
+    fn a_host_that_did_not_run_for_the_watchdog_calibrates_again_and_repeats_its_request() {
+        let bit = 8000; // 125 kbit/s
+        let mut m = Master::new(125_000, 0);
+        // A user's generous wait (`buslab slio --timeout 30s`).
+        let within = 30_000_000_000;
+        m.set_answer_within(within);
+        while m.poll_transmit(0).is_some() {}
+        m.start_up_sent(0);
+        let r = m.write(slio(3), Register::DataOutput, 0x2080);
+        assert_eq!(m.poll_transmit(0).unwrap().frame.to_string(), "29C#032080");
+        // A late wake-up that keeps within the watchdog: only the periodic frame.
+        let late = 6000 * bit;
+        m.handle_timeout(late);
+        assert_eq!(m.poll_event(), None);
+        let t = m.poll_transmit(late).unwrap();
+        assert!(!t.single_shot && t.frame == calibration_frame());
+        assert!(m.poll_transmit(late).is_none());
+        // Then nothing for CALIBRATION_LOST_AFTER_BITS.
+        let back = late + CALIBRATION_LOST_AFTER_BITS * bit;
+        m.handle_timeout(back);
+        assert_eq!(
+            m.poll_event(),
+            Some(MasterEvent::CalibrationLost {
+                silent_ns: CALIBRATION_LOST_AFTER_BITS * bit
+            })
+        );
+        let sent: Vec<Transmit> = std::iter::from_fn(|| m.poll_transmit(back)).collect();
+        assert_eq!(sent.len(), 49);
+        assert!(
+            sent[..48]
+                .iter()
+                .all(|t| t.single_shot && t.frame == calibration_frame())
+        );
+        assert_eq!(sent[48].frame.to_string(), "29C#032080");
+        // The request's wait restarted when it went out again; its answer completes it.
+        assert_eq!(m.next_deadline(), Some(back + 5000 * bit));
+        m.stop_calibrating();
+        assert_eq!(m.next_deadline(), Some(back + within));
+        m.handle_frame(
+            back + 1,
+            &Frame::data(slio(3).reply_id(), &[0x23, 0x20, 0x80]).unwrap(),
+        );
+        let events: Vec<_> = std::iter::from_fn(|| m.poll_event()).collect();
+        assert!(
+            events
+                .iter()
+                .any(|e| matches!(e, MasterEvent::Confirmed { request, value: 0x2080, .. } if *request == r)),
+            "{events:?}"
+        );
+    }
+
+    /// A master that stopped calibrating leaves the SLIOs alone, however long it was away.
+    #[test]
+    fn a_master_that_stopped_calibrating_does_not_calibrate_again() {
+        let mut m = Master::keeping(125_000, 0);
+        m.stop_calibrating();
+        m.handle_timeout(u64::MAX / 2);
+        assert_eq!(m.poll_event(), None);
+        assert!(m.poll_transmit(u64::MAX / 2).is_none());
     }
 
     /// The wait for an answer opened when the request was queued, so a request queued behind
