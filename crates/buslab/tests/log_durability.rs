@@ -125,10 +125,13 @@ impl Running {
         }
     }
 
+    /// The next whole line. A line cut by the kill (the pipe took part of a write, CI
+    /// 2026-11-29: `(1795917208.81416`) was never printed: it ends the output.
     fn next_stdout_line(&mut self) -> Option<String> {
         let mut line = String::new();
         match self.stdout.as_mut()?.read_line(&mut line) {
             Ok(0) | Err(_) => None,
+            Ok(_) if !line.ends_with('\n') => None,
             Ok(_) => Some(line.trim_end().to_string()),
         }
     }
