@@ -5,7 +5,7 @@
 #![no_main]
 
 use buslab_fuzz::text;
-use buslab_logs::Entry;
+use buslab_logs::Message;
 use buslab_logs::candump::{Reader, format_line, parse_line, parse_line_into};
 use libfuzzer_sys::fuzz_target;
 
@@ -20,7 +20,7 @@ fuzz_target!(|data: &[u8]| {
     let Some(text) = text(data) else { return };
     for line in text.lines() {
         // The reader's fast path gives what the full parser gives, on any line.
-        let mut fast = Entry::default();
+        let mut fast = Message::default();
         let fast = parse_line_into(line.as_bytes(), &mut fast).map(|()| fast);
         assert_eq!(
             fast.as_ref().ok(),
@@ -35,10 +35,10 @@ fuzz_target!(|data: &[u8]| {
         let printed = format_line(&entry, entry.direction.is_some());
         match parse_line(&printed) {
             Ok(again) => {
-                assert_eq!(again.timestamp.as_micros(), entry.timestamp.as_micros());
+                assert_eq!(again.at.as_micros(), entry.at.as_micros());
                 assert_eq!(
-                    (&again.interface, &again.record),
-                    (&entry.interface, &entry.record)
+                    (&again.channel, &again.record),
+                    (&entry.channel, &entry.record)
                 );
                 assert_eq!(format_line(&again, again.direction.is_some()), printed);
             }

@@ -119,7 +119,7 @@ impl Host {
     }
 
     fn op(&mut self, op: u8) {
-        let ts = Timestamp::from_nanos(u128::from(self.now));
+        let ts = Timestamp::from_nanos(self.now);
         match op % 8 {
             0 => {
                 let id = Id::Standard(StandardId::new(u16::from(op) << 3).unwrap());

@@ -130,27 +130,27 @@ pub fn drive_byte_device<D: buslab_device::ByteDevice>(
 pub mod logs {
     use std::io::Cursor;
 
-    use buslab_logs::{Entry, LogReader};
+    use buslab_logs::{LogReader, Message};
 
     /// Reads every entry the way `buslab play`/`dump` do (going on after an error that is not
     /// fatal, stopping after a fatal one) and gives the entries read. Fails if the reader does
     /// not move on: more calls than `max_calls` (a bound derived from the input's size) means
     /// it hands out the same error or entry forever.
-    pub fn read_all(mut reader: impl LogReader, max_calls: usize) -> Vec<Entry> {
+    pub fn read_all(mut reader: impl LogReader, max_calls: usize) -> Vec<Message> {
         let mut entries = Vec::new();
         let mut errors = 0usize;
         for _ in 0..max_calls {
-            let mut entry = Entry::default();
+            let mut entry = Message::default();
             match reader.read_into(&mut entry) {
                 Ok(true) => entries.push(entry),
                 Ok(false) => {
                     // A bit rate the log gives is one CAN has: 1 kbit/s..1 Mbit/s.
                     for entry in &entries {
-                        if let Some(rate) = reader.bit_rate(&entry.interface) {
+                        if let Some(rate) = reader.bit_rate(&entry.channel) {
                             assert!(
                                 (1_000..=1_000_000).contains(&rate.bits_per_s),
                                 "{rate:?} for {}",
-                                entry.interface
+                                entry.channel
                             );
                         }
                     }
@@ -158,7 +158,7 @@ pub mod logs {
                 }
                 Err(e) if e.is_fatal() => {
                     // A fatal error ends the log: the next read says so.
-                    let mut after = Entry::default();
+                    let mut after = Message::default();
                     assert!(
                         matches!(reader.read_into(&mut after), Ok(false)),
                         "the reader went on after the fatal error {e}"
@@ -179,8 +179,8 @@ pub mod logs {
     /// error, and nothing drifts (after the first pass, which may round the timestamps or map
     /// the interface names to the format's channels).
     pub fn assert_writes_back<R: LogReader>(
-        entries: &[Entry],
-        write: impl Fn(&[Entry]) -> Vec<u8>,
+        entries: &[Message],
+        write: impl Fn(&[Message]) -> Vec<u8>,
         read: impl Fn(Cursor<Vec<u8>>) -> R,
     ) {
         if entries.is_empty() {
@@ -199,20 +199,20 @@ pub mod logs {
     }
 
     /// Every entry of a file a writer made: any error is a failure.
-    fn read_strict(mut reader: impl LogReader, len: usize) -> Vec<Entry> {
+    fn read_strict(mut reader: impl LogReader, len: usize) -> Vec<Message> {
         let mut entries = Vec::new();
         for _ in 0..len + 2 {
-            let mut entry = Entry::default();
+            let mut entry = Message::default();
             match reader.read_into(&mut entry) {
                 Ok(true) => entries.push(entry),
                 Ok(false) => {
                     // A bit rate the log gives is one CAN has: 1 kbit/s..1 Mbit/s.
                     for entry in &entries {
-                        if let Some(rate) = reader.bit_rate(&entry.interface) {
+                        if let Some(rate) = reader.bit_rate(&entry.channel) {
                             assert!(
                                 (1_000..=1_000_000).contains(&rate.bits_per_s),
                                 "{rate:?} for {}",
-                                entry.interface
+                                entry.channel
                             );
                         }
                     }

@@ -14,8 +14,8 @@ use std::fmt;
 use std::time::{Duration, Instant};
 
 use buslab_bus::{
-    AcceptanceFilter, BusAdmin, BusError, BusEvent, CanBus, ControllerPart, ControllerSettings,
-    ErrorState, Filter, Message,
+    AcceptanceFilter, BusAdmin, BusError, CanBus, ControllerPart, ControllerSettings, ErrorState,
+    Filter, Message, Record,
 };
 use buslab_can::Frame;
 
@@ -96,8 +96,8 @@ impl Accepting {
     fn next(
         &mut self,
         timeout: Option<Duration>,
-        mut read: impl FnMut(&mut DynBus, Option<Duration>) -> Result<Option<BusEvent>, BusError>,
-    ) -> Result<Option<BusEvent>, BusError> {
+        mut read: impl FnMut(&mut DynBus, Option<Duration>) -> Result<Option<Message>, BusError>,
+    ) -> Result<Option<Message>, BusError> {
         let deadline = timeout.map(|t| Instant::now() + t);
         // Once the time is up, the frames already there are still looked through, up to a
         // bound (a bus that never stops must not hold the caller).
@@ -105,7 +105,10 @@ impl Accepting {
         loop {
             let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
             match read(&mut self.inner, left)? {
-                Some(BusEvent::Frame(m)) if !self.filter.accepts(&m.frame) => {
+                Some(Message {
+                    record: Record::Frame(frame),
+                    ..
+                }) if !self.filter.accepts(&frame) => {
                     if left.is_some_and(|l| l.is_zero()) {
                         late += 1;
                         if late > LATE_FRAMES {
@@ -128,17 +131,14 @@ impl CanBus for Accepting {
         self.inner.send_all(frames)
     }
 
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         let event = self.next(timeout, |bus, left| {
-            Ok(bus.recv(left)?.map(BusEvent::Frame))
+            Ok(bus.recv(left)?.map(Message::into_record))
         })?;
-        Ok(match event {
-            Some(BusEvent::Frame(m)) => Some(m),
-            _ => None,
-        })
+        Ok(event.and_then(Message::into_frame))
     }
 
-    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         self.next(timeout, |bus, left| bus.recv_event(left))
     }
 
@@ -175,8 +175,11 @@ mod tests {
         fn send(&mut self, _: &Frame) -> Result<(), BusError> {
             Ok(())
         }
-        fn recv(&mut self, _: Option<Duration>) -> Result<Option<Message>, BusError> {
-            Ok(self.0.pop_front().map(|f| Message::rx(0.0, "test", f)))
+        fn recv(&mut self, _: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
+            Ok(self
+                .0
+                .pop_front()
+                .map(|f| Message::rx(buslab_bus::Timestamp::EPOCH, "test", f)))
         }
         fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
             Ok(())
@@ -196,7 +199,7 @@ mod tests {
         let mut bus = Accepting::new(Box::new(inner), AcceptanceFilter::standard_id(0x123));
         let mut got = Vec::new();
         while let Some(m) = bus.recv(Some(Duration::ZERO)).unwrap() {
-            got.push(m.frame.to_string());
+            got.push(m.record.to_string());
         }
         // standard_id passes data and remote frames of 0x123, nothing else.
         assert_eq!(got, ["123#11", "123#R"]);

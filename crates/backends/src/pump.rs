@@ -11,7 +11,7 @@ use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use buslab_bus::{BusError, BusEvent, CanBus};
+use buslab_bus::{BusError, CanBus, Message};
 use buslab_can::Frame;
 
 use crate::DynBus;
@@ -27,7 +27,7 @@ pub const QUEUE: usize = 1024;
 #[derive(Debug)]
 pub enum PumpEvent {
     /// A frame or error frame from the bus.
-    Received(BusEvent),
+    Received(Message),
     /// A frame the bus refused (it is dropped).
     SendFailed { frame: Frame, error: BusError },
     /// Receiving failed: the pump stops.
@@ -195,7 +195,7 @@ fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use buslab_bus::{ErrorState, Filter, Message};
+    use buslab_bus::{ErrorState, Filter};
     use std::sync::mpsc::Sender;
 
     /// A bus whose transmit queue stays full; it reports each attempt.
@@ -206,7 +206,7 @@ mod tests {
             let _ = self.0.send(());
             Err(BusError::QueueFull("jammed".into()))
         }
-        fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+        fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
             std::thread::sleep(timeout.unwrap_or(JOB_LATENCY));
             Ok(None)
         }

@@ -12,8 +12,8 @@ use std::time::{Duration, UNIX_EPOCH};
 use buslab_bus::bus::matches_any;
 use buslab_bus::error_frame::class;
 use buslab_bus::{
-    BusError, BusEvent, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorMessage, ErrorState,
-    Filter, Message,
+    BusError, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorState, Filter, Message,
+    Record, Timestamp,
 };
 use buslab_can::{Frame, Id};
 use socketcan::frame::can_frame_default;
@@ -54,7 +54,7 @@ impl SocketCanBus {
     }
 
     /// The next frame or error frame from the socket, or `None` after `timeout`.
-    fn read(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+    fn read(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         // SO_RCVTIMEO: `None` blocks; a zero timeout would too, so wait at least 1 µs.
         let timeout = timeout.map(|t| t.max(Duration::from_micros(1)));
         self.socket.as_raw_socket().set_read_timeout(timeout)?;
@@ -70,17 +70,13 @@ impl SocketCanBus {
             }
             Err(e) => return Err(e.into()),
         };
-        let timestamp = time
+        let at = time
             .duration_since(UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64());
+            .map_or(Timestamp::EPOCH, Timestamp::since_epoch);
         let raw: &libc::can_frame = frame.as_ref();
         Ok(Some(match decode(raw) {
-            Ok(frame) => BusEvent::Frame(Message::rx(timestamp, self.interface.clone(), frame)),
-            Err(error) => BusEvent::Error(ErrorMessage {
-                timestamp,
-                channel: self.interface.clone(),
-                error,
-            }),
+            Ok(frame) => Message::rx(at, self.interface.clone(), frame).into_record(),
+            Err(error) => Message::error(at, self.interface.clone(), error),
         }))
     }
 
@@ -172,17 +168,19 @@ impl CanBus for SocketCanBus {
         }
     }
 
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         let deadline = timeout.map(|t| std::time::Instant::now() + t);
         loop {
             let left = deadline.map(|d| d.saturating_duration_since(std::time::Instant::now()));
-            match self.read(left)? {
-                Some(BusEvent::Frame(m)) if matches_any(&self.filters, &m.frame) => {
-                    return Ok(Some(m));
+            let Some(m) = self.read(left)? else {
+                return Ok(None);
+            };
+            match &m.record {
+                Record::Frame(frame) if matches_any(&self.filters, frame) => {
+                    return Ok(m.into_frame());
                 }
-                Some(BusEvent::Error(e)) => self.track_state(&e.error),
-                Some(BusEvent::Frame(_)) => {}
-                None => return Ok(None),
+                Record::Error(error) => self.track_state(error),
+                Record::Frame(_) => {}
             }
             if left.is_some_and(|l| l.is_zero()) {
                 return Ok(None);
@@ -190,20 +188,23 @@ impl CanBus for SocketCanBus {
         }
     }
 
-    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         if !self.error_frames {
-            return Ok(self.recv(timeout)?.map(BusEvent::Frame));
+            return Ok(self.recv(timeout)?.map(Message::into_record));
         }
         let deadline = timeout.map(|t| std::time::Instant::now() + t);
         loop {
             let left = deadline.map(|d| d.saturating_duration_since(std::time::Instant::now()));
-            match self.read(left)? {
-                Some(BusEvent::Frame(m)) if !matches_any(&self.filters, &m.frame) => {}
-                Some(BusEvent::Error(e)) => {
-                    self.track_state(&e.error);
-                    return Ok(Some(BusEvent::Error(e)));
+            let Some(m) = self.read(left)? else {
+                return Ok(None);
+            };
+            match &m.record {
+                Record::Frame(frame) if !matches_any(&self.filters, frame) => {}
+                Record::Error(error) => {
+                    self.track_state(error);
+                    return Ok(Some(m));
                 }
-                other => return Ok(other),
+                Record::Frame(_) => return Ok(Some(m)),
             }
             if left.is_some_and(|l| l.is_zero()) {
                 return Ok(None);

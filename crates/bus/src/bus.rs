@@ -4,59 +4,155 @@
 use std::fmt;
 use std::time::Duration;
 
-use buslab_can::Frame;
+use buslab_can::{Frame, Timestamp};
 
 use crate::error_frame::ErrorFrame;
 pub use buslab_can::controller::ErrorState;
 
-/// A received (or sent, `is_rx = false`) frame with its time and channel, like `can.Message`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Message {
-    /// Seconds (Unix epoch for wall-clock sources; virtual seconds for simulations).
-    pub timestamp: f64,
+/// Now on the wall clock, since the Unix epoch (the epoch itself if the clock is set before it).
+pub fn wall_clock() -> Timestamp {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(Timestamp::EPOCH, Timestamp::since_epoch)
+}
+
+/// Received by this interface, or sent by it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Direction {
+    Rx,
+    Tx,
+}
+
+/// What happened on a bus: a frame, or an error frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Record {
+    Frame(Frame),
+    Error(ErrorFrame),
+}
+
+/// A frame or an error frame with its time, channel and direction: what a bus gives, a log
+/// holds and a screen shows (python-can's `can.Message`). `R` is [`Record`] (a frame or an
+/// error frame: [`CanBus::recv_event`](crate::CanBus::recv_event), logs) or [`Frame`]
+/// ([`CanBus::recv`](crate::CanBus::recv), which gives frames only).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Message<R = Record> {
+    /// When it happened: since the Unix epoch for wall-clock sources, since the start for
+    /// simulations and relative logs.
+    pub at: Timestamp,
+    /// The interface or channel name (`vcan0`, `can1`).
     pub channel: String,
-    pub frame: Frame,
-    /// `true` for a received frame, `false` for one this node sent.
-    pub is_rx: bool,
+    /// Received or sent; `None` when a log does not say (candump without `-x`).
+    pub direction: Option<Direction>,
+    pub record: R,
+}
+
+impl Message<Frame> {
+    /// A received frame.
+    pub fn rx(at: Timestamp, channel: impl Into<String>, frame: Frame) -> Self {
+        Self {
+            at,
+            channel: channel.into(),
+            direction: Some(Direction::Rx),
+            record: frame,
+        }
+    }
+
+    /// The same, as a frame or an error frame.
+    pub fn into_record(self) -> Message {
+        Message {
+            at: self.at,
+            channel: self.channel,
+            direction: self.direction,
+            record: Record::Frame(self.record),
+        }
+    }
+}
+
+impl From<Message<Frame>> for Message {
+    fn from(m: Message<Frame>) -> Self {
+        m.into_record()
+    }
 }
 
 impl Message {
-    /// A received message.
-    pub fn rx(timestamp: f64, channel: impl Into<String>, frame: Frame) -> Self {
+    /// An error frame, received.
+    pub fn error(at: Timestamp, channel: impl Into<String>, error: ErrorFrame) -> Self {
         Self {
-            timestamp,
+            at,
             channel: channel.into(),
-            frame,
-            is_rx: true,
+            direction: Some(Direction::Rx),
+            record: Record::Error(error),
+        }
+    }
+
+    /// The frame, if this is one (not an error frame).
+    pub fn frame(&self) -> Option<&Frame> {
+        match &self.record {
+            Record::Frame(f) => Some(f),
+            Record::Error(_) => None,
+        }
+    }
+
+    /// The error frame, if this is one.
+    pub fn error_frame(&self) -> Option<&ErrorFrame> {
+        match &self.record {
+            Record::Frame(_) => None,
+            Record::Error(e) => Some(e),
+        }
+    }
+
+    /// The frame with its time, channel and direction, if this is one.
+    pub fn into_frame(self) -> Option<Message<Frame>> {
+        match self.record {
+            Record::Frame(frame) => Some(Message {
+                at: self.at,
+                channel: self.channel,
+                direction: self.direction,
+                record: frame,
+            }),
+            Record::Error(_) => None,
+        }
+    }
+}
+
+impl Default for Message {
+    /// An empty error frame at the epoch on no channel: a buffer for a log reader's
+    /// `read_into`.
+    fn default() -> Self {
+        Self {
+            at: Timestamp::EPOCH,
+            channel: String::new(),
+            direction: None,
+            record: Record::Error(ErrorFrame::default()),
+        }
+    }
+}
+
+impl<R> Message<R> {
+    /// Received, or not said (python-can's `is_rx` defaults to true).
+    pub fn is_rx(&self) -> bool {
+        self.direction != Some(Direction::Tx)
+    }
+}
+
+impl fmt::Display for Record {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Record::Frame(frame) => frame.fmt(f),
+            Record::Error(error) => error.fmt(f),
         }
     }
 }
 
 /// candump-like: `(1700000000.123456) can0 123#DEADBEEF`, with ` TX` for sent frames.
-impl fmt::Display for Message {
+impl<R: fmt::Display> fmt::Display for Message<R> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "({:.6}) {} {}", self.timestamp, self.channel, self.frame)?;
-        if !self.is_rx {
+        write!(f, "({}) {} {}", self.at, self.channel, self.record)?;
+        if self.direction == Some(Direction::Tx) {
             f.write_str(" TX")?;
         }
         Ok(())
     }
-}
-
-/// An error frame with its time and channel (python-can's `Message` with `is_error_frame`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ErrorMessage {
-    /// Seconds, as [`Message::timestamp`].
-    pub timestamp: f64,
-    pub channel: String,
-    pub error: ErrorFrame,
-}
-
-/// What a bus's `recv_event` gives: a frame or an error frame.
-#[derive(Clone, Debug, PartialEq)]
-pub enum BusEvent {
-    Frame(Message),
-    Error(ErrorMessage),
 }
 
 /// A receive filter with python-can semantics: a frame matches when
@@ -197,10 +293,12 @@ mod tests {
 
     #[test]
     fn messages_print_like_candump() {
-        let mut m = Message::rx(1.5, "vcan0", f("123#DEAD"));
+        let mut m = Message::rx(Timestamp::from_micros(1_500_000), "vcan0", f("123#DEAD"));
         assert_eq!(m.to_string(), "(1.500000) vcan0 123#DEAD");
-        m.is_rx = false;
+        m.direction = Some(Direction::Tx);
         assert_eq!(m.to_string(), "(1.500000) vcan0 123#DEAD TX");
+        let error = Message::error(m.at, "vcan0", ErrorFrame::decode(0x040, &[]).unwrap());
+        assert_eq!(error.to_string(), "(1.500000) vcan0 bus-off");
         assert_eq!(ErrorState::Passive.to_string(), "error-passive");
     }
 }

@@ -10,7 +10,7 @@ use buslab_chips::slio::SlioId;
 use crate::admin::{
     BoardInput, BoardState, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
-use crate::bus::{BusError, BusEvent, ErrorState, Filter, Message};
+use crate::bus::{BusError, ErrorState, Filter, Message};
 use crate::settings::{BusOffRecovery, ControllerSettings};
 
 /// One bus: a socketcand connection, a managed SJA1000, a simulated node.
@@ -30,12 +30,12 @@ pub trait CanBus {
     fn send_all(&mut self, frames: &[Frame]) -> Result<(), BusError> {
         frames.iter().try_for_each(|f| self.send(f))
     }
-    /// The next message that passes the filters, or `None` after `timeout`.
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError>;
+    /// The next frame that passes the filters, or `None` after `timeout`.
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError>;
     /// The next frame that passes the filters or error frame, in the order they happened, or
     /// `None` after `timeout`. Backends without error frames give frames only.
-    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
-        Ok(self.recv(timeout)?.map(BusEvent::Frame))
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+        Ok(self.recv(timeout)?.map(Message::into_record))
     }
     /// Asks for error frames (bus errors, lost arbitrations, state changes) too; a backend
     /// that cannot deliver them refuses with [`BusError::Unsupported`].

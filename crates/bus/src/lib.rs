@@ -2,8 +2,9 @@
 //! behind it (it depends on `buslab-can`, on `buslab-chips` for the SJA1000 and SLIO facts its
 //! values are in terms of, and on `buslab-device` for [`Human`]).
 //!
-//! - [`bus`]: messages and error messages with their time and channel ([`Message`],
-//!   [`ErrorMessage`], [`BusEvent`]), receive filters ([`Filter`]), typed errors ([`BusError`]).
+//! - [`bus`]: frames and error frames with their time, channel and direction ([`Message`],
+//!   [`Record`], [`Direction`], [`Timestamp`]), receive filters ([`Filter`]), typed errors
+//!   ([`BusError`]).
 //! - [`state`]: a controller's error state, python-can's ([`ErrorState`]) and Linux's
 //!   ([`ControllerState`]).
 //! - [`error_frame`]: SocketCAN error frames as typed values ([`ErrorFrame`]), decoded,
@@ -17,10 +18,10 @@
 //! - [`interface`]: the traits a bus implements, [`CanBus`] and [`BusAdmin`].
 //!
 //! ```
-//! use buslab_bus::{ErrorFrame, Filter, Message, matches_any};
+//! use buslab_bus::{ErrorFrame, Filter, Message, Timestamp, matches_any};
 //!
-//! let message = Message::rx(1.5, "vcan0", "123#DEAD".parse()?);
-//! assert!(matches_any(&[Filter::standard(0x123)], &message.frame));
+//! let message = Message::rx(Timestamp::from_micros(1_500_000), "vcan0", "123#DEAD".parse()?);
+//! assert!(matches_any(&[Filter::standard(0x123)], &message.record));
 //! assert_eq!(message.to_string(), "(1.500000) vcan0 123#DEAD");
 //! assert_eq!(ErrorFrame::decode(0x040, &[])?.to_string(), "bus-off");
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -39,7 +40,10 @@ pub use admin::{
     BusSummary, FaultLimit, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, NodeTiming,
     Probability, TxReport, WireFault, switch_bits,
 };
-pub use bus::{BusError, BusEvent, ErrorMessage, Filter, Human, Message, Reason, matches_any};
+pub use bus::{
+    BusError, Direction, Filter, Human, Message, Reason, Record, matches_any, wall_clock,
+};
+pub use buslab_can::Timestamp;
 pub use buslab_can::controller::ErrorState;
 pub use decode::{Alc, Ecc, ErrorRegisters, RegisterDump, Status};
 pub use error_frame::{

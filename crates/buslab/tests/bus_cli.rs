@@ -124,7 +124,7 @@ fn a_frame_the_bus_receives_comes_to_the_library_client_too() {
     let (ok, _, err) = run(&serve, &["send", "00000005#01"]);
     assert!(ok, "{err}");
     let m = me.recv(WAIT).unwrap().unwrap();
-    assert_eq!(m.frame, frame("00000005#01"));
+    assert_eq!(m.record, frame("00000005#01"));
 }
 
 #[test]
@@ -140,7 +140,7 @@ fn gen_increments_ids_and_data() {
     assert!(ok, "{err}");
     for i in 0..20u32 {
         let m = me.recv(WAIT).unwrap().unwrap();
-        assert_eq!(m.frame.to_string(), format!("{i:03X}#{i:02X}00"));
+        assert_eq!(m.record.to_string(), format!("{i:03X}#{i:02X}00"));
     }
 }
 
@@ -298,7 +298,7 @@ fn scenario_nodes_share_the_wire_with_clients() {
     let mut me = serve.client();
     for _ in 0..3 {
         let m = me.recv(WAIT).unwrap().unwrap();
-        assert_eq!(m.frame, frame("0AA#55"));
+        assert_eq!(m.record, frame("0AA#55"));
     }
     // And the scenario node acknowledges a client's frame: the sender completes.
     let (ok, _, err) = run(&serve, &["send", "123#01"]);
@@ -338,7 +338,7 @@ fn serve_at_max_speed_delivers_every_frame_in_order() {
     assert_eq!((report.sent, report.failed), (500, 0));
     for want in &frames {
         let got = rx.recv(WAIT).unwrap().expect("every frame arrives");
-        assert_eq!(&got.frame, want);
+        assert_eq!(&got.record, want);
     }
 }
 
@@ -734,7 +734,7 @@ fn a_departed_clients_dropped_frames_are_logged_with_the_reason() {
         read_element(&mut sender);
     }
     drop(sender);
-    assert_eq!(watcher.recv(WAIT).unwrap().unwrap().frame, frame("321#AA"));
+    assert_eq!(watcher.recv(WAIT).unwrap().unwrap().record, frame("321#AA"));
     wait_for("(sender) left:");
     assert!(
         text().contains("(sender) left: sent 1, dropped 0, received 0"),

@@ -69,7 +69,7 @@ fn python_can_exchanges_frames_and_sees_priority_order() {
     // A deadline for frames that normally come within milliseconds.
     let wait = Some(Duration::from_secs(60));
     let got: Vec<String> = (0..3)
-        .map(|_| me.recv(wait).unwrap().unwrap().frame.to_string())
+        .map(|_| me.recv(wait).unwrap().unwrap().record.to_string())
         .collect();
     // python-can's remote frame (`< send 321 3 >`) is a remote frame on the bus.
     assert_eq!(got, ["123#0102", "1ABCDEF0#DEAD", "321#R3"]);
@@ -119,7 +119,7 @@ mod leaving_right_after_sending {
                 rx.recv(Some(Duration::from_secs(60)))
                     .unwrap()
                     .unwrap_or_else(|| panic!("frame {k} of {count} never came"))
-                    .frame
+                    .record
                     .to_string()
             })
             .collect()

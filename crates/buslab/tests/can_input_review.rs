@@ -142,7 +142,7 @@ fn ids_follow_the_digit_rule_and_jerrycan_ids_are_read_the_jerrycan_way() {
         .recv(Some(std::time::Duration::from_secs(30)))
         .unwrap()
         .expect("the frame");
-    assert_eq!(got.frame.to_string(), "123#1122");
+    assert_eq!(got.record.to_string(), "123#1122");
 }
 
 #[test]

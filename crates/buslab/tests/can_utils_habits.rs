@@ -49,7 +49,7 @@ fn receive(me: &mut impl CanBus, n: usize) -> Vec<String> {
             me.recv(Some(EVENT))
                 .unwrap()
                 .expect("a frame")
-                .frame
+                .record
                 .to_string()
         })
         .collect()
@@ -61,7 +61,7 @@ fn nothing_more(serve: &Serve, me: &mut impl CanBus) {
     let mut other = serve.client();
     other.send(&frame("7FF#5E")).unwrap();
     let m = me.recv(Some(EVENT)).unwrap().expect("the sentinel");
-    assert_eq!(m.frame, frame("7FF#5E"), "an extra frame was sent");
+    assert_eq!(m.record, frame("7FF#5E"), "an extra frame was sent");
 }
 
 #[test]

@@ -224,7 +224,7 @@ fn monitor_shows_the_frames_it_sends() {
         .recv(Some(CEILING))
         .unwrap()
         .expect("the monitor's frame");
-    assert_eq!(got.frame.to_string(), "123#1122");
+    assert_eq!(got.record.to_string(), "123#1122");
     // A frame another node sends is not marked.
     other.send(&"456#33".parse().unwrap()).unwrap();
     monitor.wait_for_contents("the other node's frame", |t| t.contains("456#33"));

@@ -362,8 +362,8 @@ fn play(
     let mut at = Vec::new();
     for _ in 0..expect {
         let m = me.recv(Some(EVENT)).unwrap().expect("a played frame");
-        at.push(m.timestamp);
-        got.push(m.frame.to_string());
+        at.push(m.at);
+        got.push(m.record.to_string());
     }
     let out = player.join().unwrap();
     assert!(
@@ -374,15 +374,12 @@ fn play(
     let mut other = serve.client();
     other.send(&frame("7FF#5E")).unwrap();
     let m = me.recv(Some(EVENT)).unwrap().expect("the sentinel");
-    assert_eq!(m.frame, frame("7FF#5E"), "an extra frame was played");
+    assert_eq!(m.record, frame("7FF#5E"), "an extra frame was played");
     if warm_up {
         got.remove(0);
         at.remove(0);
     }
-    let gaps = at
-        .windows(2)
-        .map(|w| Duration::from_secs_f64((w[1] - w[0]).max(0.0)))
-        .collect();
+    let gaps = at.windows(2).map(|w| w[1].saturating_since(w[0])).collect();
     (got, gaps)
 }
 

@@ -22,7 +22,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use buslab_logs::{Direction, Entry, Format, OpenOptions, Problem, ReadError, Record, open_source};
+use buslab_logs::{
+    Direction, Format, Message, OpenOptions, Problem, ReadError, Record, open_source,
+};
 use outside_tools::{present, python_can, root};
 
 /// python-can holds times as float seconds (steps of 0.24 µs at today's epoch, 0.48 µs at
@@ -118,13 +120,13 @@ fn python_reads(python: &Path, files: &[PathBuf]) -> BTreeMap<PathBuf, Vec<PyMes
 }
 
 /// Every entry and every error of buslab reading `path` as `buslab log cat` does.
-fn buslab_reads(path: &Path) -> Vec<Result<Entry, ReadError>> {
+fn buslab_reads(path: &Path) -> Vec<Result<Message, ReadError>> {
     let format = Format::from_path(path).unwrap();
     let mut source = open_source(path, format, &OpenOptions::default())
         .unwrap_or_else(|e| panic!("buslab cannot open {}: {e}", path.display()));
     let mut out = Vec::new();
     loop {
-        let mut entry = Entry::default();
+        let mut entry = Message::default();
         match source.reader.read_into(&mut entry) {
             Ok(true) => out.push(Ok(entry)),
             Ok(false) => return out,
@@ -170,7 +172,7 @@ fn interface(ext: &str, channel: &str) -> String {
 fn compare(
     ext: &str,
     want: &PyMessage,
-    got: &Result<Entry, ReadError>,
+    got: &Result<Message, ReadError>,
 ) -> Result<Option<Deliberate>, String> {
     let entry = match got {
         Ok(entry) => entry,
@@ -192,15 +194,15 @@ fn compare(
         }
     };
     let mismatch = |what: &str| Err(format!("{what}: python-can reads {want}, buslab {entry:?}"));
-    let t = entry.timestamp.as_secs_f64();
+    let t = entry.at.as_secs_f64();
     if (t - want.time).abs() > FLOAT_SECONDS {
         return mismatch("time");
     }
     match &want.channel {
-        Some(channel) if interface(ext, channel) != entry.interface => return mismatch("channel"),
+        Some(channel) if interface(ext, channel) != entry.channel => return mismatch("channel"),
         // python-can gives no channel: CSV and SQLite have none (buslab reads them on can0);
         // its candump reader drops an error frame's.
-        None if !matches!(ext, "log") && entry.interface != "can0" => return mismatch("channel"),
+        None if !matches!(ext, "log") && entry.channel != "can0" => return mismatch("channel"),
         _ => {}
     }
     let rx = entry.direction.unwrap_or(Direction::Rx) == Direction::Rx;
@@ -414,5 +416,8 @@ fn blf_times_are_exact_to_the_nanosecond() {
     let Some(dir) = data_dir() else { return };
     let got = buslab_reads(&dir.join("test_CanErrorFrameExt.blf"));
     let first = got[0].as_ref().unwrap();
-    assert_eq!(first.timestamp, Duration::new(2_459_565_876, 494_606_882));
+    assert_eq!(
+        first.at,
+        buslab_logs::Timestamp::since_epoch(Duration::new(2_459_565_876, 494_606_882))
+    );
 }

@@ -460,7 +460,7 @@ fn wait_for_announcement(bus: &mut impl CanBus) {
     let start = Instant::now();
     while start.elapsed() < ALLOWANCE {
         if let Some(message) = bus.recv(Some(Duration::from_millis(200))).unwrap() {
-            let frame = message.frame;
+            let frame = message.record;
             if frame.is_remote() && frame.id().as_raw() == 0x700 {
                 return;
             }
@@ -678,7 +678,7 @@ fn a_20_mb_mail_is_fetched_in_part_and_goes_on_the_bus_within_the_limit() {
         let Some(message) = bus.recv(Some(Duration::from_millis(200))).unwrap() else {
             continue;
         };
-        let frame = message.frame;
+        let frame = message.record;
         if frame.id() != id || frame.is_remote() {
             continue;
         }

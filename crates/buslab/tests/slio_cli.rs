@@ -224,9 +224,9 @@ fn every_frame_slio_sends_a_slio_has_three_bytes() {
     let mut to_slio = Vec::new();
     while let Some(m) = listener.recv(Some(std::time::Duration::ZERO)).unwrap() {
         if let Some((_, buslab_slio::Direction::ToSlio)) =
-            buslab_slio::SlioId::from_id(m.frame.id())
+            buslab_slio::SlioId::from_id(m.record.id())
         {
-            to_slio.push(m.frame.to_string());
+            to_slio.push(m.record.to_string());
         }
     }
     assert!(!to_slio.is_empty());
@@ -434,8 +434,8 @@ fn a_boards_switches_and_potentiometer_reach_the_slio_and_monican() {
             ))
             .unwrap()
             .expect("no frame from SLIO 3 within 60 s");
-        if m.frame.id().as_raw() == 0x29D {
-            break m.frame.to_string();
+        if m.record.id().as_raw() == 0x29D {
+            break m.record.to_string();
         }
     };
     assert_eq!(

@@ -214,7 +214,7 @@ fn the_slcan_backend_sends_and_receives_through_the_served_adapter() {
     let mut me = serve.client();
     Running::run(&["send", &url, "123#1122", "1ABCDEF0#", "7FF#R8"]);
     let got: Vec<String> = (0..3)
-        .map(|_| me.recv(WAIT).unwrap().unwrap().frame.to_string())
+        .map(|_| me.recv(WAIT).unwrap().unwrap().record.to_string())
         .collect();
     assert_eq!(got, ["123#1122", "1ABCDEF0#", "7FF#R8"]);
 
@@ -288,7 +288,7 @@ fn garbage_gets_bel_and_the_adapter_keeps_serving() {
     let mut me = serve.client();
     port.write_all(b"O\rt1232CAFE\r").unwrap();
     assert_eq!(read_until(&bytes, b"z\r"), b"\rz\r");
-    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("123#CAFE"));
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("123#CAFE"));
     let err = adapter.stop();
     assert!(err.contains("answered BEL to a bad line"), "{err}");
 }
@@ -337,7 +337,7 @@ fn slcan_host_at_the_wrong_bit_rate_is_told_and_goes_bus_off_until_reopened() {
     // Reopened at the bus's rate, frames go through (nothing left from before).
     port.write_all(b"C\rS4\rO\rF\rt4561AA\r").unwrap();
     assert_eq!(read_until(&bytes, b"z\r"), b"\r\r\rF00\rz\r");
-    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("456#AA"));
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("456#AA"));
     let err = adapter.stop();
     let warning = "the host opened the adapter at 500000 bit/s but the bus runs at 125000 bit/s";
     assert_eq!(err.matches(warning).count(), 1, "{err}");
@@ -373,7 +373,7 @@ fn python_can_at_the_wrong_bit_rate_is_refused_until_it_reopens_at_the_right_one
     );
     assert_eq!(out, "sent\nflags A4\nrefused\nreopened\n");
     // Nothing of the frames at the wrong rate reached the bus; the one at the right rate did.
-    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("456#AA"));
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("456#AA"));
     let broken = me
         .admin()
         .unwrap()
@@ -409,21 +409,21 @@ fn bridge_copies_both_ways_without_duplicates_or_echoes() {
     let (mut a, mut a_listener) = (one.client(), one.client());
     let mut b = two.client();
     a.send(&frame("123#01")).unwrap();
-    assert_eq!(b.recv(WAIT).unwrap().unwrap().frame, frame("123#01"));
+    assert_eq!(b.recv(WAIT).unwrap().unwrap().record, frame("123#01"));
     assert_eq!(
-        a_listener.recv(WAIT).unwrap().unwrap().frame,
+        a_listener.recv(WAIT).unwrap().unwrap().record,
         frame("123#01")
     );
     b.send(&frame("00000456#02")).unwrap();
     // The next frame on bus one is B's: the first frame did not come back from bus two.
     assert_eq!(
-        a_listener.recv(WAIT).unwrap().unwrap().frame,
+        a_listener.recv(WAIT).unwrap().unwrap().record,
         frame("00000456#02")
     );
-    assert_eq!(a.recv(WAIT).unwrap().unwrap().frame, frame("00000456#02"));
+    assert_eq!(a.recv(WAIT).unwrap().unwrap().record, frame("00000456#02"));
     // And B's frame did not come back to bus two: B's next frame is a fresh one from A.
     a.send(&frame("7FF#R1")).unwrap();
-    assert_eq!(b.recv(WAIT).unwrap().unwrap().frame, frame("7FF#R1"));
+    assert_eq!(b.recv(WAIT).unwrap().unwrap().record, frame("7FF#R1"));
 }
 
 #[test]
@@ -448,11 +448,11 @@ fn bridge_one_way_with_a_filter() {
     a.send(&frame("123#01")).unwrap();
     a.send(&frame("321#03")).unwrap();
     // 0x123 is held back by the inverted filter.
-    assert_eq!(b.recv(WAIT).unwrap().unwrap().frame, frame("321#03"));
+    assert_eq!(b.recv(WAIT).unwrap().unwrap().record, frame("321#03"));
     // B's frame, sent first, did not cross the other way: bus one carries only A's frames.
     a.send(&frame("555#")).unwrap();
     let on_one: Vec<String> = (0..3)
-        .map(|_| a_listener.recv(WAIT).unwrap().unwrap().frame.to_string())
+        .map(|_| a_listener.recv(WAIT).unwrap().unwrap().record.to_string())
         .collect();
     assert_eq!(on_one, ["123#01", "321#03", "555#"]);
 }
@@ -482,7 +482,7 @@ fn cansend_and_candump_habits() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(me.recv(WAIT).unwrap().unwrap().frame, frame("123#1122"));
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("123#1122"));
     let out = buslab()
         .args(["send", url, "123#11", "--bus", url])
         .output()
@@ -557,7 +557,7 @@ fn a_bridge_flooded_both_ways_keeps_copying() {
                 .recv(Some(resend.saturating_duration_since(Instant::now())))
                 .unwrap()
             {
-                if m.frame == frame(f) {
+                if m.record == frame(f) {
                     break 'seen;
                 }
             }

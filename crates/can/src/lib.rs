@@ -16,9 +16,11 @@ mod frame;
 mod id;
 mod level;
 pub mod node;
+pub mod time;
 pub mod wire;
 
 pub use error::ParseError;
 pub use frame::Frame;
 pub use id::{EFF_MAX, ExtendedId, Id, SFF_MAX, StandardId};
 pub use level::Level;
+pub use time::Timestamp;

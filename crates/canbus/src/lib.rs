@@ -66,7 +66,9 @@ pub use admin::{
     BadProbability, BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters,
     NodeStatus, NodeTiming, Probability, TxReport, WireFault,
 };
-pub use bus::{BusError, BusEvent, CanBus, ErrorMessage, ErrorState, Filter, Message};
+pub use bus::{
+    BusError, CanBus, Direction, ErrorState, Filter, Message, Record, Timestamp, wall_clock,
+};
 pub use config::{
     AcceptanceFilter, BusOffRecovery, ClockOut, ConfigError, ControllerMode, ControllerPart,
     ControllerSettings, InterruptEnables, Sja1000Config, Timing, TimingSetting,

@@ -11,25 +11,20 @@ use std::fmt;
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::{self, JoinHandle};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use buslab_can::Frame;
 
-use crate::bus::{self, BusError, CanBus, ErrorState, Filter, Message};
+use crate::bus::{self, BusError, CanBus, ErrorState, Filter, Message, Timestamp};
 use crate::config::Sja1000Config;
 use crate::decode::{ErrorRegisters, RegisterDump, Status};
 use crate::driver::{ControllerState, DriverError, DriverEvent, Sja1000Driver, TxFailure, TxMode};
 use crate::regs::RegisterAccess;
 
-/// Seconds for message timestamps.
-pub type Clock = Arc<dyn Fn() -> f64 + Send + Sync>;
+/// Where message times come from.
+pub type Clock = Arc<dyn Fn() -> Timestamp + Send + Sync>;
 
-/// Wall-clock seconds since the Unix epoch.
-pub fn wall_clock() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
-}
+pub use crate::bus::wall_clock;
 
 /// How the manager runs.
 #[derive(Clone)]
@@ -147,7 +142,7 @@ enum Request {
     Restart(Reply<()>),
     AbortCurrent,
     AbortAll,
-    Frames(Sender<Message>),
+    Frames(Sender<Message<Frame>>),
     Status(Sender<Status>),
     Errors(Sender<ErrorRegisters>),
     Events(Sender<DriverEvent>),
@@ -218,7 +213,7 @@ impl ManagerHandle {
     }
 
     /// Every received frame from now on. Dropping the receiver unsubscribes.
-    pub fn subscribe_frames(&self) -> Receiver<Message> {
+    pub fn subscribe_frames(&self) -> Receiver<Message<Frame>> {
         let (tx, rx) = mpsc::channel();
         let _ = self.post(Request::Frames(tx));
         rx
@@ -331,7 +326,7 @@ impl ManagerHandle {
 #[derive(Debug)]
 pub struct ManagerBus {
     handle: ManagerHandle,
-    frames: Receiver<Message>,
+    frames: Receiver<Message<Frame>>,
     filters: Vec<Filter>,
     channel: String,
     /// `Some(t)`: `send` waits up to `t` for the confirmation and reports failures;
@@ -362,7 +357,7 @@ impl CanBus for ManagerBus {
         }
     }
 
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         let deadline = timeout.map(|t| Instant::now() + t);
         loop {
             let message = match deadline {
@@ -376,7 +371,7 @@ impl CanBus for ManagerBus {
                     }
                 }
             };
-            if bus::matches_any(&self.filters, &message.frame) {
+            if bus::matches_any(&self.filters, &message.record) {
                 return Ok(Some(message));
             }
         }
@@ -414,7 +409,7 @@ struct Worker<R: RegisterAccess> {
     config: ManagerConfig,
     queue: VecDeque<Pending>,
     current: Option<Pending>,
-    frames: Vec<Sender<Message>>,
+    frames: Vec<Sender<Message<Frame>>>,
     statuses: Vec<Sender<Status>>,
     errors: Vec<Sender<ErrorRegisters>>,
     events: Vec<Sender<DriverEvent>>,

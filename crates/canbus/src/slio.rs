@@ -18,7 +18,7 @@ use buslab_can::Frame;
 use buslab_slio::slio::LONGEST_FRAME_BITS;
 use buslab_slio::{Master, MasterEvent, NotReadable, Register, RequestId, SlioId, Transmit};
 
-use crate::bus::{BusError, BusEvent, CanBus};
+use crate::bus::{BusError, CanBus, Message, Record};
 
 /// Why a SLIO request failed.
 #[derive(Debug, thiserror::Error)]
@@ -190,9 +190,9 @@ impl<'a> SlioHost<'a> {
         }
     }
 
-    fn handle(&mut self, event: BusEvent) {
-        if let BusEvent::Frame(m) = event {
-            self.master.handle_frame(self.now(), &m.frame);
+    fn handle(&mut self, event: Message) {
+        if let Record::Frame(frame) = event.record {
+            self.master.handle_frame(self.now(), &frame);
         }
     }
 

@@ -122,10 +122,10 @@ fn confirmations_come_in_order_and_listeners_get_the_frames() {
     let got: Vec<String> = (0..10)
         .map(|_| {
             let message = frames_b.recv_timeout(LONG).unwrap();
-            assert!(message.is_rx);
+            assert!(message.is_rx());
             assert_eq!(message.channel, "b");
-            assert!(message.timestamp > 1.0e9, "wall-clock seconds");
-            message.frame.to_string()
+            assert!(message.at.as_secs() > 1_000_000_000, "wall-clock seconds");
+            message.record.to_string()
         })
         .collect();
     assert_eq!(got, sent);
@@ -226,7 +226,7 @@ fn bus_off_fails_sends_and_restart_recovers() {
     a.restart().unwrap();
     assert_eq!(a.send(frame("126#01")).wait(Some(LONG)), Ok(()));
     let message = wait_for(&frames_b, "the frame after restart", |_| true);
-    assert_eq!(message.frame, frame("126#01"));
+    assert_eq!(message.record, frame("126#01"));
     assert_eq!(bus_a.state().unwrap(), ErrorState::Active);
     a.shutdown();
     b.shutdown();
@@ -295,7 +295,7 @@ fn the_manager_as_a_can_bus_filters_in_software() {
         tx.send(&frame(f)).unwrap();
     }
     let got: Vec<String> = (0..3)
-        .map(|_| rx.recv(Some(LONG)).unwrap().unwrap().frame.to_string())
+        .map(|_| rx.recv(Some(LONG)).unwrap().unwrap().record.to_string())
         .collect();
     assert_eq!(got, ["123#02", "00000042#05", "123#FF"]);
     assert_eq!(rx.state().unwrap(), ErrorState::Active);

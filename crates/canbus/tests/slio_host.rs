@@ -79,11 +79,11 @@ impl CanBus for ScriptedBus {
         self.sent.push(*frame);
         Ok(())
     }
-    fn recv(&mut self, _timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, _timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         Ok(self
             .inbox
             .pop_front()
-            .map(|f| Message::rx(0.0, "scripted", f)))
+            .map(|f| Message::rx(buslab_can::Timestamp::EPOCH, "scripted", f)))
     }
     fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
         Ok(())
@@ -313,10 +313,14 @@ impl CanBus for WatchdogBus {
         }
         Ok(())
     }
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         self.run_wire();
         if let Some(frame) = self.inbox.pop_front() {
-            return Ok(Some(Message::rx(0.0, "watchdog", frame)));
+            return Ok(Some(Message::rx(
+                buslab_can::Timestamp::EPOCH,
+                "watchdog",
+                frame,
+            )));
         }
         std::thread::sleep(
             timeout

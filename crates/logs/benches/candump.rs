@@ -5,8 +5,9 @@ use std::hint::black_box;
 use std::io::Cursor;
 use std::time::Duration;
 
+use buslab_logs::Timestamp;
 use buslab_logs::candump::{Reader, Writer};
-use buslab_logs::{Entry, Record};
+use buslab_logs::{Message, Record};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
 /// `n` lines like candump's: mixed standard and extended IDs, 0..8 bytes, two interfaces.
@@ -31,9 +32,9 @@ pub fn log(n: u64) -> Vec<u8> {
                 hex(&seed.to_le_bytes()[..len])
             )
         };
-        w.write(&Entry {
-            timestamp: Duration::from_micros(1_700_000_000_000_000 + i * 137),
-            interface: if i % 5 == 0 { "vcan1" } else { "vcan0" }.into(),
+        w.write(&Message {
+            at: Timestamp::since_epoch(Duration::from_micros(1_700_000_000_000_000 + i * 137)),
+            channel: if i % 5 == 0 { "vcan1" } else { "vcan0" }.into(),
             record: Record::Frame(text.parse().unwrap()),
             direction: None,
         })
@@ -54,7 +55,7 @@ fn bench(c: &mut Criterion) {
     group.bench_function("parse", |b| {
         b.iter(|| {
             let mut reader = Reader::new(Cursor::new(&input[..]));
-            let mut entry = Entry::default();
+            let mut entry = Message::default();
             let mut n = 0u64;
             while reader.read_into(&mut entry).unwrap() {
                 n += 1;
@@ -65,7 +66,7 @@ fn bench(c: &mut Criterion) {
     });
     let mut entries = Vec::new();
     let mut reader = Reader::new(Cursor::new(&input[..]));
-    let mut entry = Entry::default();
+    let mut entry = Message::default();
     while reader.read_into(&mut entry).unwrap() {
         entries.push(entry.clone());
     }

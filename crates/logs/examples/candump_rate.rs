@@ -7,7 +7,7 @@
 use std::io::Cursor;
 use std::time::Instant;
 
-use buslab_logs::Entry;
+use buslab_logs::Message;
 use buslab_logs::candump::Reader;
 
 /// This thread's user + system CPU time in seconds (clock ticks of /proc/thread-self/stat).
@@ -29,7 +29,7 @@ fn cpu_seconds() -> f64 {
 fn run(input: &[u8], passes: u32) -> (u64, f64, f64) {
     let (cpu0, wall0) = (cpu_seconds(), Instant::now());
     let mut frames = 0u64;
-    let mut entry = Entry::default();
+    let mut entry = Message::default();
     for _ in 0..passes {
         let mut reader = Reader::new(Cursor::new(input));
         while reader.read_into(&mut entry).expect("a bad line") {

@@ -45,7 +45,7 @@ use crate::codec::{Encoder, LogReader};
 use crate::error::{Problem, ReadError, excerpt};
 use crate::text::{self, Lines, TooLong, field};
 use crate::time;
-use crate::{Direction, Entry, Location, Record};
+use crate::{Direction, Location, Message, Record, Timestamp};
 
 /// The comment buslab writes with the first entry's exact time.
 const START_COMMENT: &str = "// buslab start-time ";
@@ -96,7 +96,7 @@ impl<R: BufRead> Reader<R> {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         let state = &mut self.state;
         loop {
             let step = self.lines.next(|number, line| {
@@ -167,7 +167,7 @@ impl State {
     }
 
     /// One event line: `Ok(false)` for an event that is not a frame.
-    fn event(&mut self, line: &[u8], entry: &mut Entry) -> Result<bool, Problem> {
+    fn event(&mut self, line: &[u8], entry: &mut Message) -> Result<bool, Problem> {
         // A comment's error frame belongs to the line right after it only.
         let commented = self.error_frame.take();
         let error_record = || Record::Error(commented.unwrap_or_else(error_frame));
@@ -220,17 +220,17 @@ impl State {
                 (record, Some(direction), channel)
             }
         };
-        entry.timestamp = if self.relative {
+        entry.at = Timestamp::since_epoch(if self.relative {
             self.last = self.last.max(self.start()) + offset;
             self.last
         } else {
             self.start() + offset
-        };
+        });
         if let (Record::Frame(frame), Some(ns)) = (&record, after_key(line, b"Length = ")) {
             let bits = after_key(line, b"BitCount = ");
             self.lengths.add(channel, frame, ns, bits);
         }
-        set_channel_name(&mut entry.interface, channel);
+        set_channel_name(&mut entry.channel, channel);
         entry.record = record;
         entry.direction = direction;
         Ok(true)
@@ -488,11 +488,11 @@ fn classify(line: &[u8]) -> Kind<'_> {
 }
 
 impl<R: BufRead + Send> LogReader for Reader<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        self.state.lengths.rate(channel_of(interface)?)
+    fn bit_rate(&self, channel: &str) -> Option<LogBitRate> {
+        self.state.lengths.rate(channel_of(channel)?)
     }
 }
 
@@ -533,18 +533,18 @@ impl<W: Write> Writer<W> {
         Ok(start_us)
     }
 
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
         let start = match self.start_us {
             Some(s) => s,
-            None => self.header(entry.timestamp)?,
+            None => self.header(entry.at.since_epoch_duration())?,
         };
-        let t = entry.timestamp;
+        let t = entry.at.since_epoch_duration();
         let us = t
             .as_secs()
             .saturating_mul(1_000_000)
             .saturating_add(u64::from(t.subsec_micros()));
         let offset = us.saturating_sub(start);
-        let channel = self.channels.number(&entry.interface);
+        let channel = self.channels.number(&entry.channel);
         let line = &mut self.line;
         line.clear();
         if let Record::Error(_) = &entry.record {
@@ -603,7 +603,7 @@ impl<W: Write> Writer<W> {
 }
 
 impl<W: Write + Send> Encoder<W> for Writer<W> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         Writer::write(self, entry)
     }
     fn flush(&mut self) -> io::Result<()> {

@@ -31,7 +31,7 @@ use crate::codec::{Encoder, LogReader};
 use crate::codec::{read_full, truncated};
 use crate::error::{Problem, ReadError};
 use crate::time;
-use crate::{Direction, Entry, Location, LogBitRate, Record};
+use crate::{Direction, Location, LogBitRate, Message, Record, Timestamp};
 
 const FILE_SIGNATURE: &[u8; 4] = b"LOGG";
 const OBJ_SIGNATURE: &[u8; 4] = b"LOBJ";
@@ -155,7 +155,7 @@ impl<R: Read> Reader<R> {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         if self.done {
             return Ok(false);
         }
@@ -168,7 +168,7 @@ impl<R: Read> Reader<R> {
         result
     }
 
-    fn next_entry(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn next_entry(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         if !self.started {
             self.started = true;
             self.read_file_header()?;
@@ -202,7 +202,7 @@ impl<R: Read> Reader<R> {
 
     /// Parses the object at `pos`: `Some(true)` an entry, `Some(false)` another object,
     /// `None` when the data ends before the next whole object.
-    fn next_object(&mut self, entry: &mut Entry) -> Result<Option<bool>, ReadError> {
+    fn next_object(&mut self, entry: &mut Message) -> Result<Option<bool>, ReadError> {
         let at = Location::Offset(self.container_at);
         let avail = &self.data[self.pos..];
         if avail.len() < BASE_HEADER {
@@ -282,8 +282,8 @@ impl<R: Read> Reader<R> {
             let bits = (bits > 0).then_some(u64::from(bits));
             self.lengths.add(channel, frame, u64::from(ns), bits);
         }
-        entry.timestamp = self.start + since_start;
-        set_channel_name(&mut entry.interface, channel);
+        entry.at = Timestamp::since_epoch(self.start + since_start);
+        set_channel_name(&mut entry.channel, channel);
         entry.record = record;
         entry.direction = direction;
         Ok(Some(true))
@@ -526,11 +526,11 @@ fn fd_message_64(body: &[u8]) -> Result<Decoded, Problem> {
 }
 
 impl<R: Read + Send> LogReader for Reader<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        self.lengths.rate(channel_of(interface)?)
+    fn bit_rate(&self, channel: &str) -> Option<LogBitRate> {
+        self.lengths.rate(channel_of(channel)?)
     }
 }
 
@@ -578,42 +578,49 @@ impl<W: Write + Seek> Writer<W> {
     /// last a SYSTEMTIME names, or more than 584 years after the file's start, the most its
     /// nanosecond offsets count) is refused with [`io::ErrorKind::InvalidInput`] and nothing
     /// is written.
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
-        if !time::fits_systemtime(entry.timestamp) {
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
+        if !time::fits_systemtime(entry.at.since_epoch_duration()) {
             return Err(time::out_of_range(
-                entry.timestamp,
+                entry.at.since_epoch_duration(),
                 "a BLF file",
                 "times up to the year 65535 (its SYSTEMTIME)",
             ));
         }
         if let Some(start) = self.start
-            && u64::try_from(entry.timestamp.saturating_sub(start).as_nanos()).is_err()
+            && u64::try_from(
+                entry
+                    .at
+                    .since_epoch_duration()
+                    .saturating_sub(start)
+                    .as_nanos(),
+            )
+            .is_err()
         {
             return Err(time::out_of_range(
-                entry.timestamp,
+                entry.at.since_epoch_duration(),
                 "a BLF file",
                 "times up to 584 years after its first entry (nanoseconds in 64 bits)",
             ));
         }
-        let start =
-            *self.start.get_or_insert_with(|| {
-                // python-can's start: the first time cut to the millisecond, none before 1990.
-                if entry.timestamp.as_secs() < 631_152_000 {
-                    Duration::ZERO
-                } else {
-                    Duration::from_millis(
-                        (entry.timestamp.as_millis()).min(u128::from(u64::MAX)) as u64
-                    )
-                }
-            });
-        self.stop = self.stop.max(entry.timestamp);
+        let start = *self.start.get_or_insert_with(|| {
+            // python-can's start: the first time cut to the millisecond, none before 1990.
+            if entry.at.since_epoch_duration().as_secs() < 631_152_000 {
+                Duration::ZERO
+            } else {
+                Duration::from_millis(
+                    (entry.at.since_epoch_duration().as_millis()).min(u128::from(u64::MAX)) as u64,
+                )
+            }
+        });
+        self.stop = self.stop.max(entry.at.since_epoch_duration());
         // Checked above (the first entry's offset is below a millisecond).
         let ticks = entry
-            .timestamp
+            .at
+            .since_epoch_duration()
             .saturating_sub(start)
             .as_nanos()
             .min(u128::from(u64::MAX)) as u64;
-        let channel = self.channels.number(&entry.interface);
+        let channel = self.channels.number(&entry.channel);
         let mut body = [0u8; 32];
         let (ty, len) = match &entry.record {
             Record::Frame(f) => {
@@ -766,7 +773,7 @@ impl<W: Write + Seek> Writer<W> {
 }
 
 impl<W: Write + Seek + Send> Encoder<W> for Writer<W> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         Writer::write(self, entry)
     }
     fn flush(&mut self) -> io::Result<()> {
@@ -818,7 +825,7 @@ mod tests {
             message2(3, &frame, 0),
         ]
         .concat();
-        let mut entry = Entry::default();
+        let mut entry = Message::default();
         for _ in 0..3 {
             assert_eq!(reader.next_object(&mut entry).unwrap(), Some(true));
         }

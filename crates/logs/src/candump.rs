@@ -24,14 +24,14 @@ use buslab_can::{Frame, Id};
 use crate::codec::{Encoder, LogReader};
 pub use crate::error::LineError;
 use crate::text::{self, Lines, TooLong};
-use crate::{Direction, Entry, Location, ReadError, Record};
+use crate::{Direction, Location, Message, ReadError, Record, Timestamp};
 
 /// The longest line [`Reader`] takes (a classic CAN line is under 80 characters).
 pub const MAX_LINE: usize = text::MAX_LINE;
 
 /// Reads one log line: `(SEC.FRACTION) IFACE FRAME [R|T]`. Runs of spaces separate the
 /// fields (candump right-aligns interface names to the longest one).
-pub fn parse_line(line: &str) -> Result<Entry, LineError> {
+pub fn parse_line(line: &str) -> Result<Message, LineError> {
     let mut fields = line.split_ascii_whitespace();
     let stamp = fields.next().ok_or(LineError::Empty)?;
     let timestamp = parse_timestamp(stamp)?;
@@ -48,9 +48,9 @@ pub fn parse_line(line: &str) -> Result<Entry, LineError> {
     if let Some(more) = fields.next() {
         return Err(LineError::Trailing(excerpt(more)));
     }
-    Ok(Entry {
-        timestamp,
-        interface: interface.to_string(),
+    Ok(Message {
+        at: Timestamp::since_epoch(timestamp),
+        channel: interface.to_string(),
         record: parse_record(frame)?,
         direction,
     })
@@ -119,7 +119,7 @@ fn excerpt(text: &str) -> String {
 
 /// Reads one log line into `entry`, reusing its interface's allocation: the reader's hot path
 /// (no allocation for an ordinary line). Same result as [`parse_line`] on any input.
-pub fn parse_line_into(line: &[u8], entry: &mut Entry) -> Result<(), LineError> {
+pub fn parse_line_into(line: &[u8], entry: &mut Message) -> Result<(), LineError> {
     if parse_fast(line, entry).is_some() {
         return Ok(());
     }
@@ -156,7 +156,7 @@ const POW10: [u32; 10] = [
 /// 3- or 8-digit ID and plain hex data or `R[dlc]`. `None` for anything else (then
 /// [`parse_line`] decides, with its precise error).
 #[inline]
-fn parse_fast(line: &[u8], entry: &mut Entry) -> Option<()> {
+fn parse_fast(line: &[u8], entry: &mut Message) -> Option<()> {
     let n = line.len();
     // candump's own `(%010u.%06u) ` in one go.
     if let Some((secs, micros)) = candump_time(line) {
@@ -246,7 +246,7 @@ fn parse_after_time(
     mut i: usize,
     secs: u64,
     frac: u32,
-    entry: &mut Entry,
+    entry: &mut Message,
 ) -> Option<()> {
     let n = line.len();
     // interface
@@ -302,13 +302,13 @@ fn parse_after_time(
     } else {
         None
     };
-    entry.timestamp = Duration::new(secs, frac);
+    entry.at = Timestamp::since_epoch(Duration::new(secs, frac));
     // Mostly the same interface as the line before: then nothing to copy.
-    if entry.interface.as_bytes() != interface {
-        entry.interface.clear();
+    if entry.channel.as_bytes() != interface {
+        entry.channel.clear();
         // The interface bytes are ASCII graphic characters (checked above).
         entry
-            .interface
+            .channel
             .extend(interface.iter().map(|&b| char::from(b)));
     }
     entry.record = Record::Frame(frame);
@@ -355,8 +355,8 @@ fn fast_frame(text: &[u8]) -> Option<Frame> {
 /// Appends one log line without the newline: `(%010u.%06u) IFACE FRAME` (microseconds, cut
 /// as candump does; nanoseconds with `nanos`), then ` R`/` T` if `direction` and the entry has
 /// one (candump `-x`).
-pub fn write_line(out: &mut Vec<u8>, entry: &Entry, direction: bool, nanos: bool) {
-    let t = entry.timestamp;
+pub fn write_line(out: &mut Vec<u8>, entry: &Message, direction: bool, nanos: bool) {
+    let t = entry.at.since_epoch_duration();
     out.push(b'(');
     text::push_u64_zeros(out, t.as_secs(), 10);
     out.push(b'.');
@@ -366,7 +366,7 @@ pub fn write_line(out: &mut Vec<u8>, entry: &Entry, direction: bool, nanos: bool
         text::push_u64_zeros(out, u64::from(t.subsec_micros()), 6);
     }
     out.extend_from_slice(b") ");
-    out.extend_from_slice(entry.interface.as_bytes());
+    out.extend_from_slice(entry.channel.as_bytes());
     out.push(b' ');
     push_record(out, &entry.record);
     if direction {
@@ -430,7 +430,7 @@ pub fn push_frame(out: &mut Vec<u8>, f: &Frame) {
 
 /// One log line without the newline; the direction (` R`/` T`) only if `direction` is set
 /// and the entry has one (candump `-x`).
-pub fn format_line(entry: &Entry, direction: bool) -> String {
+pub fn format_line(entry: &Message, direction: bool) -> String {
     let mut out = Vec::with_capacity(64);
     write_line(&mut out, entry, direction, false);
     String::from_utf8_lossy(&out).into_owned()
@@ -458,7 +458,7 @@ impl<R: BufRead> Reader<R> {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         loop {
             let step = self.lines.next(|number, line| {
                 let at = Location::Line(number);
@@ -485,16 +485,16 @@ impl<R: BufRead> Reader<R> {
 }
 
 impl<R: BufRead + Send> LogReader for Reader<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
 }
 
 impl<R: BufRead> Iterator for Reader<R> {
-    type Item = Result<Entry, ReadError>;
+    type Item = Result<Message, ReadError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let mut entry = Entry::default();
+        let mut entry = Message::default();
         match self.read_into(&mut entry) {
             Ok(true) => Some(Ok(entry)),
             Ok(false) => None,
@@ -533,7 +533,7 @@ impl<W: Write> Writer<W> {
         self
     }
 
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
         self.line.clear();
         write_line(&mut self.line, entry, self.direction, self.nanos);
         self.line.push(b'\n');
@@ -550,7 +550,7 @@ impl<W: Write> Writer<W> {
 }
 
 impl<W: Write + Send> Encoder<W> for Writer<W> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         Writer::write(self, entry)
     }
     fn flush(&mut self) -> io::Result<()> {
@@ -604,27 +604,27 @@ impl Terminal {
     }
 
     /// The time `-t z` counts from (by default the first line's).
-    pub fn with_zero(mut self, zero: Duration) -> Self {
-        self.first = Some(zero);
+    pub fn with_zero(mut self, zero: Timestamp) -> Self {
+        self.first = Some(zero.since_epoch_duration());
         self
     }
 
     /// One entry's text without the final newline (with `-e` an error frame takes several
     /// lines).
-    pub fn line(&mut self, entry: &Entry) -> String {
+    pub fn line(&mut self, entry: &Message) -> String {
         let mut out = Vec::with_capacity(80);
         self.write_line(&mut out, entry);
         String::from_utf8_lossy(&out).into_owned()
     }
 
     /// Appends [`Self::line`]'s text to `out`, without allocating.
-    pub fn write_line(&mut self, out: &mut Vec<u8>, entry: &Entry) {
+    pub fn write_line(&mut self, out: &mut Vec<u8>, entry: &Message) {
         out.push(b' ');
         if let Some(mode) = self.view.timestamps {
-            self.timestamp(out, mode, entry.timestamp);
+            self.timestamp(out, mode, entry.at.since_epoch_duration());
         }
         out.push(b' ');
-        out.extend_from_slice(entry.interface.as_bytes());
+        out.extend_from_slice(entry.channel.as_bytes());
         if self.view.extra {
             out.extend_from_slice(match entry.direction {
                 Some(Direction::Tx) => b"  TX - -",
@@ -706,14 +706,13 @@ impl Terminal {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::seconds;
     use proptest::collection::vec;
     use proptest::prelude::*;
 
-    fn entry(frame: &str, t: f64) -> Entry {
-        Entry {
-            timestamp: seconds(t),
-            interface: "vcan0".into(),
+    fn entry(frame: &str, t: f64) -> Message {
+        Message {
+            at: Timestamp::from_secs_f64(t),
+            channel: "vcan0".into(),
             record: Record::Frame(frame.parse().unwrap()),
             direction: None,
         }
@@ -738,11 +737,11 @@ mod tests {
     }
 
     impl Reference {
-        fn line(&mut self, entry: &Entry) -> String {
+        fn line(&mut self, entry: &Message) -> String {
             use std::fmt::Write as _;
             let mut out = String::from(" ");
             if let Some(mode) = self.view.timestamps {
-                let t = entry.timestamp;
+                let t = entry.at.since_epoch_duration();
                 let shown = match mode {
                     TimestampMode::Absolute => None,
                     TimestampMode::Delta => {
@@ -759,7 +758,7 @@ mod tests {
                 .unwrap();
             }
             out.push(' ');
-            out.push_str(&entry.interface);
+            out.push_str(&entry.channel);
             if self.view.extra {
                 out.push_str(match entry.direction {
                     Some(Direction::Tx) => "  TX - -",
@@ -826,7 +825,7 @@ mod tests {
         })
     }
 
-    fn any_entry() -> impl Strategy<Value = Entry> {
+    fn any_entry() -> impl Strategy<Value = Message> {
         let record = prop_oneof![
             4 => any_frame().prop_map(Record::Frame),
             1 => (prop_oneof![0u32..=0x3FF, 0u32..=0x1FFF_FFFF], vec(any::<u8>(), 0..=8))
@@ -844,9 +843,9 @@ mod tests {
             record,
             direction,
         )
-            .prop_map(|(secs, nanos, interface, record, direction)| Entry {
-                timestamp: Duration::new(secs, nanos),
-                interface,
+            .prop_map(|(secs, nanos, channel, record, direction)| Message {
+                at: Timestamp::since_epoch(Duration::new(secs, nanos)),
+                channel,
                 record,
                 direction,
             })
@@ -939,7 +938,7 @@ mod tests {
             timestamps: Some(TimestampMode::Zero),
             ..View::default()
         })
-        .with_zero(seconds(9.5));
+        .with_zero(Timestamp::from_secs_f64(9.5));
         assert_eq!(
             since_start.line(&entry("123#", 10.0))[1..13],
             *"(000.500000)"
@@ -972,9 +971,9 @@ mod tests {
 
     #[test]
     fn error_frames_in_words_like_candump_e() {
-        let e = Entry {
-            timestamp: Duration::ZERO,
-            interface: "vcan0".into(),
+        let e = Message {
+            at: Timestamp::since_epoch(Duration::ZERO),
+            channel: "vcan0".into(),
             // Linux's frame for a bus error without details (CAN_ERR_DLC: 8 bytes).
             record: Record::Error(ErrorFrame::decode(0x088, &[0; 8]).unwrap()),
             direction: None,
@@ -998,7 +997,7 @@ mod tests {
             "(0000000000.000000) vcan0 20000088#0000000000000000"
         );
         // A frame of fewer bytes shows them, as candump shows a frame's length.
-        let short = Entry {
+        let short = Message {
             record: Record::Error(ErrorFrame::decode(0x004, &[0, 0x04]).unwrap()),
             ..e
         };

@@ -6,39 +6,39 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Location, Problem, ReadError};
-use crate::{Entry, LogBitRate};
+use crate::{LogBitRate, Message};
 
 /// The read buffer of a log file.
 pub(crate) const READ_BUFFER: usize = 256 * 1024;
 
-/// A log being read, one entry at a time into the caller's [`Entry`] (the text formats then
+/// A log being read, one entry at a time into the caller's [`Message`] (the text formats then
 /// allocate nothing per entry).
 pub trait LogReader: Send {
     /// Reads the next entry into `entry`; `Ok(false)` at the end. After an error that is not
     /// [fatal](ReadError::is_fatal) the next call goes on with the next record; after a fatal
     /// one it returns `Ok(false)`.
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError>;
-    /// The bus's bit rate the log gives for `interface` in what was read so far: its header
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError>;
+    /// The bus's bit rate the log gives for `channel` in what was read so far: its header
     /// names it (TRC) or its frames carry their length on the wire (ASC, BLF). `None` when it
     /// does not say (candump, CSV, SQLite and pcap logs never do).
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        let _ = interface;
+    fn bit_rate(&self, channel: &str) -> Option<LogBitRate> {
+        let _ = channel;
         None
     }
 }
 
 impl<R: LogReader + ?Sized> LogReader for Box<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         (**self).read_into(entry)
     }
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        (**self).bit_rate(interface)
+    fn bit_rate(&self, channel: &str) -> Option<LogBitRate> {
+        (**self).bit_rate(channel)
     }
 }
 
 /// A log being written.
 pub trait LogWriter {
-    fn write(&mut self, entry: &Entry) -> io::Result<()>;
+    fn write(&mut self, entry: &Message) -> io::Result<()>;
     /// Hands everything written so far to the operating system (the SQLite writer commits),
     /// so it survives the process being killed.
     fn flush(&mut self) -> io::Result<()>;
@@ -53,7 +53,7 @@ pub trait LogWriter {
 
 /// A format's writer over some output (the file layer wraps it into a [`LogWriter`]).
 pub(crate) trait Encoder<W>: Send {
-    fn write(&mut self, entry: &Entry) -> io::Result<()>;
+    fn write(&mut self, entry: &Message) -> io::Result<()>;
     fn flush(&mut self) -> io::Result<()>;
     /// Writes what is still pending and gives the output back.
     fn finish(self) -> io::Result<W>;
@@ -79,13 +79,13 @@ impl<R: LogReader> Entries<R> {
 }
 
 impl<R: LogReader> Iterator for Entries<R> {
-    type Item = Result<Entry, ReadError>;
+    type Item = Result<Message, ReadError>;
 
     fn next(&mut self) -> Option<Self::Item> {
         if self.done {
             return None;
         }
-        let mut entry = Entry::default();
+        let mut entry = Message::default();
         match self.reader.read_into(&mut entry) {
             Ok(true) => Some(Ok(entry)),
             Ok(false) => {

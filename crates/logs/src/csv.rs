@@ -21,7 +21,7 @@ use buslab_can::{Frame, Id};
 use crate::codec::{Encoder, LogReader};
 use crate::error::{Problem, ReadError};
 use crate::text::{self, Lines, TooLong};
-use crate::{Entry, Location, Record};
+use crate::{Location, Message, Record, Timestamp};
 
 pub const HEADER: &str = "timestamp,arbitration_id,extended,remote,error,dlc,data";
 /// The interface name entries of a CSV file get.
@@ -40,7 +40,7 @@ impl<R: BufRead> Reader<R> {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         loop {
             let step = self.lines.next(|number, line| {
                 let at = Location::Line(number);
@@ -78,7 +78,7 @@ fn flag(text: &[u8], what: &'static str) -> Result<bool, Problem> {
 }
 
 /// One row into `entry`.
-pub fn parse_row(line: &[u8], entry: &mut Entry) -> Result<(), Problem> {
+pub fn parse_row(line: &[u8], entry: &mut Message) -> Result<(), Problem> {
     let bad = |expected, found: &[u8]| Problem::Expected {
         expected,
         found: crate::error::excerpt(found),
@@ -138,16 +138,16 @@ pub fn parse_row(line: &[u8], entry: &mut Entry) -> Result<(), Problem> {
             Record::Frame(Frame::data(id, bytes)?)
         }
     };
-    entry.timestamp = timestamp;
-    entry.interface.clear();
-    entry.interface.push_str(INTERFACE);
+    entry.at = Timestamp::since_epoch(timestamp);
+    entry.channel.clear();
+    entry.channel.push_str(INTERFACE);
     entry.record = record;
     entry.direction = None;
     Ok(())
 }
 
 impl<R: BufRead + Send> LogReader for Reader<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
 }
@@ -177,11 +177,11 @@ impl<W: Write> Writer<W> {
         Ok(())
     }
 
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
         self.header()?;
         let line = &mut self.line;
         line.clear();
-        push_seconds(line, entry.timestamp);
+        push_seconds(line, entry.at.since_epoch_duration());
         line.extend_from_slice(b",0x");
         let mut data = [0u8; 8];
         let (raw, extended, remote, error, dlc, len) = match &entry.record {
@@ -242,7 +242,7 @@ pub(crate) fn push_seconds(out: &mut Vec<u8>, t: std::time::Duration) {
 }
 
 impl<W: Write + Send> Encoder<W> for Writer<W> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         Writer::write(self, entry)
     }
     fn flush(&mut self) -> io::Result<()> {

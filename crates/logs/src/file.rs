@@ -17,7 +17,7 @@ use crate::format::Format;
 use crate::input::{Counted, Named, check_regular, is_gzip, open_regular, reader};
 #[cfg(feature = "sqlite")]
 use crate::sqlite;
-use crate::{Entry, asc, blf, candump, csv, pcap, pcapng, trc};
+use crate::{Message, asc, blf, candump, csv, pcap, pcapng, trc};
 
 /// The write buffer of a log file.
 const WRITE_BUFFER: usize = 256 * 1024;
@@ -45,7 +45,7 @@ pub struct OpenOptions {
 pub fn open_reader(
     path: &Path,
     format: Format,
-) -> Result<Box<dyn Iterator<Item = Result<Entry, ReadError>> + Send>, LogError> {
+) -> Result<Box<dyn Iterator<Item = Result<Message, ReadError>> + Send>, LogError> {
     let source = open_source(path, format, &OpenOptions::default())?;
     Ok(Box::new(Entries::new(source.reader)))
 }
@@ -362,7 +362,7 @@ impl<E: Encoder<Out> + 'static> FileWriter<E> {
 }
 
 impl<E: Encoder<Out>> LogWriter for FileWriter<E> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         self.encoder.write(entry)
     }
 
@@ -413,7 +413,7 @@ struct SqliteFile {
 
 #[cfg(feature = "sqlite")]
 impl LogWriter for SqliteFile {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         self.writer.write(entry)
     }
 

@@ -16,7 +16,7 @@ use crate::codec::{ByteCounter, LogReader, READ_BUFFER};
 use crate::error::{LogError, ReadError};
 use crate::format::Format;
 use crate::input::{open_regular, reader};
-use crate::{Entry, blf};
+use crate::{Message, blf};
 
 /// How often a followed file is looked at for new bytes.
 const POLL: Duration = Duration::from_millis(100);
@@ -230,7 +230,7 @@ fn open_inner(
 }
 
 impl LogReader for Following {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         loop {
             let result = self.inner.read_into(entry);
             if let Ok(true) = result {

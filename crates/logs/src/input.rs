@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use crate::codec::{ByteCounter, LogReader, read_full};
 use crate::error::{LogError, ReadError};
 use crate::format::Format;
-use crate::{Entry, LogBitRate, asc, blf, candump, csv, pcap, pcapng, trc};
+use crate::{LogBitRate, Message, asc, blf, candump, csv, pcap, pcapng, trc};
 
 /// The reader for `format` over any buffered input (a file, bytes in memory, a fuzzer's
 /// input). The pcap formats tell pcap from pcapng by the first bytes, so either name reads
@@ -59,13 +59,13 @@ impl<R> Named<R> {
 }
 
 impl<R: LogReader> LogReader for Named<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         self.inner
             .read_into(entry)
             .map_err(|e| e.in_file(&self.path))
     }
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        self.inner.bit_rate(interface)
+    fn bit_rate(&self, channel: &str) -> Option<LogBitRate> {
+        self.inner.bit_rate(channel)
     }
 }
 

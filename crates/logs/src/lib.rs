@@ -1,5 +1,5 @@
-//! CAN log formats, each a module with a streaming reader and writer over one shared record
-//! type, [`Entry`]:
+//! CAN log formats, each a module with a streaming reader and writer over the bus vocabulary's
+//! record, [`Message`] (a frame or an error frame with its time, channel and direction):
 //!
 //! - [`candump`]: can-utils' log line `(SEC.USEC) IFACE FRAME` (candump `-l`, canplayer,
 //!   python-can's `.log`), and candump's terminal layout with its `-t`/`-a`/`-x`/`-e` views;
@@ -16,13 +16,8 @@
 //! target can feed it bytes. Error frames go through every format that holds them byte for
 //! byte (class, bytes and length).
 //!
-//! Timestamps are [`Duration`]s since the Unix epoch (or since whatever zero the log uses),
-//! exact to the nanosecond a format carries.
-
-use std::time::Duration;
-
-use buslab_bus::{BusEvent, ErrorFrame, ErrorMessage, Message};
-use buslab_can::Frame;
+//! Times are [`Timestamp`]s since the Unix epoch (or since whatever zero the log uses), exact
+//! to the nanosecond a format carries.
 
 pub mod asc;
 mod bitrate;
@@ -58,95 +53,6 @@ pub use follow::OnWait;
 pub use format::{Format, FormatError};
 pub use input::reader;
 
-/// One logged event: a frame or an error frame, when and where.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Entry {
-    pub timestamp: Duration,
-    /// The interface or channel name (`vcan0`, `can1`).
-    pub interface: String,
-    pub record: Record,
-    /// Received or sent, when the log says (candump `-x`).
-    pub direction: Option<Direction>,
-}
-
-/// What happened.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Record {
-    Frame(Frame),
-    Error(ErrorFrame),
-}
-
-/// Received by this interface, or sent by it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Direction {
-    Rx,
-    Tx,
-}
-
-impl Default for Entry {
-    /// An empty error frame at time 0 on no interface: a buffer for
-    /// [`LogReader::read_into`].
-    fn default() -> Self {
-        Self {
-            timestamp: Duration::ZERO,
-            interface: String::new(),
-            record: Record::Error(ErrorFrame::default()),
-            direction: None,
-        }
-    }
-}
-
-impl Entry {
-    /// A received or sent frame from a bus.
-    pub fn from_message(m: &Message) -> Self {
-        Self {
-            timestamp: seconds(m.timestamp),
-            interface: m.channel.clone(),
-            record: Record::Frame(m.frame),
-            direction: Some(if m.is_rx {
-                Direction::Rx
-            } else {
-                Direction::Tx
-            }),
-        }
-    }
-
-    /// An error frame from a bus.
-    pub fn from_error(e: &ErrorMessage) -> Self {
-        Self {
-            timestamp: seconds(e.timestamp),
-            interface: e.channel.clone(),
-            record: Record::Error(e.error.clone()),
-            direction: Some(Direction::Rx),
-        }
-    }
-
-    pub fn from_event(event: &BusEvent) -> Self {
-        match event {
-            BusEvent::Frame(m) => Self::from_message(m),
-            BusEvent::Error(e) => Self::from_error(e),
-        }
-    }
-
-    /// The frame, if this entry is one (not an error frame).
-    pub fn frame(&self) -> Option<&Frame> {
-        match &self.record {
-            Record::Frame(f) => Some(f),
-            Record::Error(_) => None,
-        }
-    }
-}
-
-/// Float seconds (as buses give them) to a duration, rounded to the microsecond (the
-/// precision socketcand and candump carry; truncating would turn `.218691` into `.218690`).
-/// Negative, NaN or huge values are clamped to 0 and `u64::MAX` µs.
-pub fn seconds(t: f64) -> Duration {
-    let micros = (t * 1e6).round();
-    if micros.is_nan() || micros <= 0.0 {
-        Duration::ZERO
-    } else if micros >= u64::MAX as f64 {
-        Duration::from_micros(u64::MAX)
-    } else {
-        Duration::from_micros(micros as u64)
-    }
-}
+/// One logged event, a frame or an error frame, when and where: the bus vocabulary's
+/// [`Message`], the same a bus gives.
+pub use buslab_bus::{Direction, Message, Record, Timestamp};

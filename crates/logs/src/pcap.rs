@@ -14,7 +14,7 @@ use std::time::Duration;
 use crate::codec::{Encoder, LogReader, read_full, truncated};
 use crate::error::{Problem, ReadError};
 use crate::socketcan;
-use crate::{Entry, Location};
+use crate::{Location, Message, Timestamp};
 
 const MAGIC_MICROS: u32 = 0xA1B2_C3D4;
 const MAGIC_NANOS: u32 = 0xA1B2_3C4D;
@@ -111,7 +111,7 @@ impl<R: Read> Reader<R> {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         if self.done {
             return Ok(false);
         }
@@ -127,7 +127,7 @@ impl<R: Read> Reader<R> {
         result
     }
 
-    fn next_packet(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn next_packet(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         let header = match self.header {
             Some(h) => h,
             None => {
@@ -168,10 +168,11 @@ impl<R: Read> Reader<R> {
         let record = socketcan::decode_packet(header.linktype, &self.packet)
             .map_err(|p| ReadError::bad(Location::Offset(start), p))?;
         let unit = if header.nanos { 1 } else { 1_000 };
-        entry.timestamp =
-            Duration::from_secs(u64::from(secs)) + Duration::from_nanos(u64::from(frac) * unit);
-        entry.interface.clear();
-        entry.interface.push_str(INTERFACE);
+        entry.at = Timestamp::since_epoch(
+            Duration::from_secs(u64::from(secs)) + Duration::from_nanos(u64::from(frac) * unit),
+        );
+        entry.channel.clear();
+        entry.channel.push_str(INTERFACE);
         entry.record = record;
         entry.direction = None;
         Ok(true)
@@ -196,7 +197,7 @@ impl Header {
 }
 
 impl<R: Read + Send> LogReader for Reader<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
 }
@@ -227,8 +228,8 @@ impl<W: Write> Writer<W> {
 
     /// Writes one entry; an entry after 2106-02-07 06:28:15 UTC (pcap's seconds are 32 bits)
     /// is refused with [`io::ErrorKind::InvalidInput`] and nothing is written.
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
-        let t = entry.timestamp;
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
+        let t = entry.at.since_epoch_duration();
         let Ok(secs) = u32::try_from(t.as_secs()) else {
             return Err(crate::time::out_of_range(
                 t,
@@ -255,7 +256,7 @@ impl<W: Write> Writer<W> {
 }
 
 impl<W: Write + Send> Encoder<W> for Writer<W> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         Writer::write(self, entry)
     }
     fn flush(&mut self) -> io::Result<()> {

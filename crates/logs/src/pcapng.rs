@@ -18,7 +18,7 @@ use crate::codec::{Encoder, LogReader};
 use crate::codec::{read_full, truncated};
 use crate::error::{Problem, ReadError};
 use crate::socketcan::{self, LINKTYPE_CAN_SOCKETCAN};
-use crate::{Direction, Entry, Location};
+use crate::{Direction, Location, Message, Timestamp};
 
 /// The Section Header Block's type (a palindrome: the same in both byte orders).
 pub const BLOCK_SHB: u32 = 0x0A0D_0D0A;
@@ -89,7 +89,7 @@ impl<R: Read> Reader<R> {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         while !self.done {
             match self.next_block(entry) {
                 Ok(Some(true)) => return Ok(true),
@@ -124,7 +124,7 @@ impl<R: Read> Reader<R> {
 
     /// One block: `Some(true)` when it filled `entry`, `Some(false)` for another kind of
     /// block, `None` at the end of the file.
-    fn next_block(&mut self, entry: &mut Entry) -> Result<Option<bool>, ReadError> {
+    fn next_block(&mut self, entry: &mut Message) -> Result<Option<bool>, ReadError> {
         let start = self.offset;
         let mut head = [0u8; 12];
         let got = read_full(&mut self.input, &mut head[..8])?;
@@ -291,7 +291,7 @@ impl<R: Read> Reader<R> {
         &mut self,
         start: u64,
         body: &[u8],
-        entry: &mut Entry,
+        entry: &mut Message,
     ) -> Result<bool, ReadError> {
         if body.len() < 20 {
             return Err(ReadError::bad(
@@ -333,7 +333,7 @@ impl<R: Read> Reader<R> {
         &mut self,
         start: u64,
         body: &[u8],
-        entry: &mut Entry,
+        entry: &mut Message,
     ) -> Result<bool, ReadError> {
         if body.len() < 4 {
             return Err(ReadError::bad(
@@ -356,7 +356,7 @@ impl<R: Read> Reader<R> {
         ticks: Option<u64>,
         data: &[u8],
         direction: Option<Direction>,
-        entry: &mut Entry,
+        entry: &mut Message,
     ) -> Result<bool, ReadError> {
         let Some(interface) = self.interfaces.get_mut(iface) else {
             return Err(ReadError::bad(
@@ -387,9 +387,9 @@ impl<R: Read> Reader<R> {
         }
         let record = socketcan::decode_packet(linktype, data)
             .map_err(|p| ReadError::bad(Location::Offset(start), p))?;
-        entry.timestamp = ticks.map_or(Duration::ZERO, |t| interface.timestamp(t));
-        entry.interface.clear();
-        entry.interface.push_str(&interface.name);
+        entry.at = Timestamp::since_epoch(ticks.map_or(Duration::ZERO, |t| interface.timestamp(t)));
+        entry.channel.clear();
+        entry.channel.push_str(&interface.name);
         entry.record = record;
         entry.direction = direction;
         Ok(true)
@@ -407,7 +407,7 @@ fn not_pcapng(at: u64, reason: String) -> ReadError {
 }
 
 impl<R: Read + Send> LogReader for Reader<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
 }
@@ -485,15 +485,15 @@ impl<W: Write> Writer<W> {
 
     /// Writes one entry; an entry after 2554-07-21 23:34:33 UTC (nanoseconds in 64 bits) is
     /// refused with [`io::ErrorKind::InvalidInput`] and nothing is written.
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
-        let Ok(ns) = u64::try_from(entry.timestamp.as_nanos()) else {
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
+        let Ok(ns) = u64::try_from(entry.at.since_epoch_duration().as_nanos()) else {
             return Err(crate::time::out_of_range(
-                entry.timestamp,
+                entry.at.since_epoch_duration(),
                 "a pcapng file",
                 "times up to 18446744073.709551615 s (2554-07-21 23:34:33 UTC, 64-bit nanoseconds)",
             ));
         };
-        let iface = self.interface(&entry.interface)?;
+        let iface = self.interface(&entry.channel)?;
         let record = socketcan::encode(&entry.record);
         let buf = &mut self.buf;
         buf.clear();
@@ -524,7 +524,7 @@ impl<W: Write> Writer<W> {
 }
 
 impl<W: Write + Send> Encoder<W> for Writer<W> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         Writer::write(self, entry)
     }
     fn flush(&mut self) -> io::Result<()> {

@@ -30,7 +30,7 @@ use rusqlite::{Connection, OpenFlags, OptionalExtension, params};
 
 use crate::codec::LogReader;
 use crate::error::{Problem, ReadError};
-use crate::{Entry, Location, Record, seconds};
+use crate::{Location, Message, Record, Timestamp};
 
 pub const TABLE: &str = "messages";
 /// python-can's table, column for column.
@@ -180,7 +180,7 @@ impl Reader {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         if self.done {
             return Ok(false);
         }
@@ -296,7 +296,7 @@ fn int(v: &Value, what: &'static str) -> Result<i64, Problem> {
     }
 }
 
-fn decode_row(row: &Row, entry: &mut Entry) -> Result<(), Problem> {
+fn decode_row(row: &Row, entry: &mut Message) -> Result<(), Problem> {
     for (cell, (_, what)) in row.cells.iter().zip(COLUMNS) {
         if let Some(size) = cell.size
             && size > MAX_VALUE
@@ -372,16 +372,16 @@ fn decode_row(row: &Row, entry: &mut Entry) -> Result<(), Problem> {
             Record::Frame(Frame::data(id, data)?)
         }
     };
-    entry.timestamp = seconds(ts);
-    entry.interface.clear();
-    entry.interface.push_str(INTERFACE);
+    entry.at = Timestamp::from_secs_f64(ts);
+    entry.channel.clear();
+    entry.channel.push_str(INTERFACE);
     entry.record = record;
     entry.direction = None;
     Ok(())
 }
 
 impl LogReader for Reader {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
 }
@@ -467,7 +467,7 @@ impl Writer {
         })
     }
 
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
         let mut state = lock(&self.state);
         if let Some(e) = state.failed.take() {
             return Err(sql_io(e));
@@ -493,7 +493,7 @@ impl Writer {
                 data = &error_bytes[..len];
             }
         }
-        let ts = entry.timestamp.as_secs_f64();
+        let ts = entry.at.since_epoch_duration().as_secs_f64();
         let Some(conn) = &state.conn else {
             return Err(io::Error::other("the SQLite writer is closed"));
         };

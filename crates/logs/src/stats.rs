@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use buslab_can::wire::frame_bits;
 
-use crate::{Entry, Record};
+use crate::{Message, Record, Timestamp};
 
 /// The most distinct IDs counted per interface (bounded memory).
 pub const MAX_IDS: usize = 100_000;
@@ -21,8 +21,8 @@ pub struct InterfaceStats {
     pub extended: u64,
     /// Bit-times the frames took on the wire, stuffing and intermission included.
     pub bits: u64,
-    pub first: Option<Duration>,
-    pub last: Option<Duration>,
+    pub first: Option<Timestamp>,
+    pub last: Option<Timestamp>,
     ids: HashMap<(bool, u32), u64>,
     /// More than [`MAX_IDS`] distinct IDs were seen: [`ids`](Self::ids) is a lower bound.
     pub ids_overflow: bool,
@@ -48,7 +48,9 @@ impl InterfaceStats {
 
     /// From the first entry to the last.
     pub fn span(&self) -> Duration {
-        self.last.unwrap_or_default() - self.first.unwrap_or_default()
+        self.last
+            .unwrap_or_default()
+            .saturating_since(self.first.unwrap_or_default())
     }
 
     /// The load at `bits_per_s` in percent; `None` over a span of one instant.
@@ -68,13 +70,13 @@ pub struct LogStats {
 impl LogStats {
     /// Counts `entry`; returns the bit-times a frame took on the wire (`None` for an error
     /// frame).
-    pub fn add(&mut self, entry: &Entry) -> Option<u64> {
-        let s = match self.interfaces.get_mut(&entry.interface) {
+    pub fn add(&mut self, entry: &Message) -> Option<u64> {
+        let s = match self.interfaces.get_mut(&entry.channel) {
             Some(s) => s,
-            None => self.interfaces.entry(entry.interface.clone()).or_default(),
+            None => self.interfaces.entry(entry.channel.clone()).or_default(),
         };
-        s.first = Some(s.first.map_or(entry.timestamp, |f| f.min(entry.timestamp)));
-        s.last = Some(s.last.map_or(entry.timestamp, |l| l.max(entry.timestamp)));
+        s.first = Some(s.first.map_or(entry.at, |f| f.min(entry.at)));
+        s.last = Some(s.last.map_or(entry.at, |l| l.max(entry.at)));
         let f = match &entry.record {
             Record::Error(_) => {
                 s.errors += 1;
@@ -107,7 +109,7 @@ impl LogStats {
     }
 
     /// The earliest and the latest entry of any interface.
-    pub fn first_last(&self) -> Option<(Duration, Duration)> {
+    pub fn first_last(&self) -> Option<(Timestamp, Timestamp)> {
         let first = self.interfaces.values().filter_map(|s| s.first).min()?;
         let last = self.interfaces.values().filter_map(|s| s.last).max()?;
         Some((first, last))
@@ -119,10 +121,10 @@ mod tests {
     use super::*;
     use buslab_bus::ErrorFrame;
 
-    fn entry(t_ms: u64, interface: &str, frame: &str) -> Entry {
-        Entry {
-            timestamp: Duration::from_millis(t_ms),
-            interface: interface.into(),
+    fn entry(t_ms: u64, channel: &str, frame: &str) -> Message {
+        Message {
+            at: Timestamp::since_epoch(Duration::from_millis(t_ms)),
+            channel: channel.into(),
             record: Record::Frame(frame.parse().unwrap()),
             direction: None,
         }
@@ -140,9 +142,9 @@ mod tests {
         ] {
             assert!(stats.add(&entry(t, i, f)).is_some());
         }
-        let error = Entry {
-            timestamp: Duration::from_millis(40),
-            interface: "can0".into(),
+        let error = Message {
+            at: Timestamp::since_epoch(Duration::from_millis(40)),
+            channel: "can0".into(),
             record: Record::Error(ErrorFrame::default()),
             direction: None,
         };
@@ -165,7 +167,7 @@ mod tests {
         assert_eq!(stats.interfaces["can1"].load_percent(125_000), None);
         assert_eq!(
             stats.first_last(),
-            Some((Duration::ZERO, Duration::from_millis(40)))
+            Some((Timestamp::EPOCH, Timestamp::from_micros(40_000)))
         );
     }
 

@@ -39,7 +39,7 @@ use crate::codec::{Encoder, LogReader};
 use crate::error::{Problem, ReadError, excerpt};
 use crate::text::{self, Lines, TooLong, field};
 use crate::time;
-use crate::{Direction, Entry, Location, Record};
+use crate::{Direction, Location, Message, Record, Timestamp};
 
 /// The TRC version a writer writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -87,7 +87,7 @@ impl<R: BufRead> Reader<R> {
     }
 
     /// Reads the next entry into `entry`; `Ok(false)` at the end.
-    pub fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    pub fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         let state = &mut self.state;
         loop {
             let step = self.lines.next(|number, line| {
@@ -159,7 +159,7 @@ impl State {
     }
 
     /// One record: `Ok(false)` for a record that is not a frame (status, errors, events).
-    fn record(&mut self, line: &[u8], entry: &mut Entry) -> Result<bool, Problem> {
+    fn record(&mut self, line: &[u8], entry: &mut Message) -> Result<bool, Problem> {
         let mut rest = line;
         let mut next = || {
             let (w, r) = field(rest);
@@ -296,8 +296,8 @@ impl State {
             }
             Frame::data(id, &data[..usize::from(dlc)])?
         };
-        entry.timestamp = self.start + offset;
-        set_channel_name(&mut entry.interface, bus);
+        entry.at = Timestamp::since_epoch(self.start + offset);
+        set_channel_name(&mut entry.channel, bus);
         entry.record = Record::Frame(frame);
         entry.direction = Some(direction);
         Ok(true)
@@ -305,11 +305,11 @@ impl State {
 }
 
 impl<R: BufRead + Send> LogReader for Reader<R> {
-    fn read_into(&mut self, entry: &mut Entry) -> Result<bool, ReadError> {
+    fn read_into(&mut self, entry: &mut Message) -> Result<bool, ReadError> {
         Reader::read_into(self, entry)
     }
-    fn bit_rate(&self, interface: &str) -> Option<LogBitRate> {
-        self.state.rates.rate(channel_of(interface)?)
+    fn bit_rate(&self, channel: &str) -> Option<LogBitRate> {
+        self.state.rates.rate(channel_of(channel)?)
     }
 }
 
@@ -378,7 +378,7 @@ impl<W: Write> Writer<W> {
         Ok(())
     }
 
-    pub fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    pub fn write(&mut self, entry: &Message) -> io::Result<()> {
         let Record::Frame(frame) = &entry.record else {
             if self.left_out == 0 {
                 tracing::warn!(
@@ -391,13 +391,13 @@ impl<W: Write> Writer<W> {
         let start = match self.start {
             Some(s) => s,
             None => {
-                self.header(entry.timestamp)?;
-                entry.timestamp
+                self.header(entry.at.since_epoch_duration())?;
+                entry.at.since_epoch_duration()
             }
         };
         self.number += 1;
-        let offset = entry.timestamp.saturating_sub(start);
-        let bus = self.channels.number(&entry.interface);
+        let offset = entry.at.since_epoch_duration().saturating_sub(start);
+        let bus = self.channels.number(&entry.channel);
         let line = &mut self.line;
         line.clear();
         let dir: &[u8] = match entry.direction {
@@ -495,7 +495,7 @@ fn right_align(line: &mut Vec<u8>, col: usize, width: usize) {
 }
 
 impl<W: Write + Send> Encoder<W> for Writer<W> {
-    fn write(&mut self, entry: &Entry) -> io::Result<()> {
+    fn write(&mut self, entry: &Message) -> io::Result<()> {
         Writer::write(self, entry)
     }
     fn flush(&mut self) -> io::Result<()> {

@@ -6,20 +6,21 @@ use std::time::Duration;
 
 use buslab_bus::{CanError, ErrorFrame};
 use buslab_can::Frame;
+use buslab_logs::Timestamp;
 use buslab_logs::asc::{Reader, Writer};
-use buslab_logs::{Direction, Entry, Location, Problem, ReadError, Record};
+use buslab_logs::{Direction, Location, Message, Problem, ReadError, Record};
 
 /// An ASC file of `body` lines (times from 0: no date header).
 fn asc(body: &str) -> String {
     format!("base hex  timestamps absolute\nBegin Triggerblock\n{body}End TriggerBlock\n")
 }
 
-fn read(text: &str) -> Vec<Result<Entry, ReadError>> {
+fn read(text: &str) -> Vec<Result<Message, ReadError>> {
     let mut reader = Reader::new(Cursor::new(text.as_bytes().to_vec()));
     let mut out = Vec::new();
     // A read takes a line at least, plus the end.
     for _ in 0..=text.lines().count() {
-        let mut e = Entry::default();
+        let mut e = Message::default();
         match reader.read_into(&mut e) {
             Ok(true) => out.push(Ok(e)),
             Ok(false) => return out,
@@ -29,13 +30,13 @@ fn read(text: &str) -> Vec<Result<Entry, ReadError>> {
     panic!("the reader does not end");
 }
 
-fn frames(text: &str) -> Vec<(Duration, String, Frame, Option<Direction>)> {
+fn frames(text: &str) -> Vec<(Timestamp, String, Frame, Option<Direction>)> {
     read(text)
         .into_iter()
         .map(|r| {
             let e = r.unwrap();
             let f = *e.frame().unwrap();
-            (e.timestamp, e.interface, f, e.direction)
+            (e.at, e.channel, f, e.direction)
         })
         .collect()
 }
@@ -56,25 +57,25 @@ fn remote_lines_without_a_dlc_and_with_length_fields() {
         got,
         [
             (
-                Duration::from_micros(2_510_001),
+                Timestamp::from_micros(2_510_001),
                 "can1".into(),
                 frame("100#R"),
                 Some(Direction::Tx)
             ),
             (
-                Duration::from_micros(2_520_002),
+                Timestamp::from_micros(2_520_002),
                 "can2".into(),
                 frame("200#R"),
                 Some(Direction::Tx)
             ),
             (
-                Duration::from_micros(2_584_921),
+                Timestamp::from_micros(2_584_921),
                 "can3".into(),
                 frame("300#R8"),
                 Some(Direction::Rx)
             ),
             (
-                Duration::from_micros(2_600_000),
+                Timestamp::from_micros(2_600_000),
                 "can0".into(),
                 frame("00012345#R3"),
                 Some(Direction::Rx)
@@ -125,10 +126,10 @@ fn classic_dlc_above_8_and_fd_lengths() {
     assert_eq!(got.len(), 4);
 }
 
-fn error_entry(e: ErrorFrame, micros: u64) -> Entry {
-    Entry {
-        timestamp: Duration::from_micros(1_700_000_000_000_000 + micros),
-        interface: "can0".into(),
+fn error_entry(e: ErrorFrame, micros: u64) -> Message {
+    Message {
+        at: Timestamp::since_epoch(Duration::from_micros(1_700_000_000_000_000 + micros)),
+        channel: "can0".into(),
         record: Record::Error(e),
         direction: Some(Direction::Rx),
     }
@@ -161,7 +162,7 @@ fn error_frames_come_back_byte_for_byte() {
         ),
         "{text}"
     );
-    let back: Vec<Entry> = read(&text).into_iter().map(Result::unwrap).collect();
+    let back: Vec<Message> = read(&text).into_iter().map(Result::unwrap).collect();
     assert_eq!(back, entries);
 }
 

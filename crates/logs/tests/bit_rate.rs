@@ -4,12 +4,12 @@
 
 use std::io::Cursor;
 
-use buslab_logs::{BitRateSource, Entry, Format, LogBitRate, LogReader, reader};
+use buslab_logs::{BitRateSource, Format, LogBitRate, LogReader, Message, reader};
 
 /// Reads `text` as `format` to its end and gives the reader.
 fn read_all(text: &str, format: Format) -> Box<dyn LogReader + Send> {
     let mut r = reader(Cursor::new(text.as_bytes().to_vec()), format).unwrap();
-    let mut e = Entry::default();
+    let mut e = Message::default();
     let mut entries = 0;
     while r.read_into(&mut e).unwrap() {
         entries += 1;

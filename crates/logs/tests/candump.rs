@@ -5,8 +5,9 @@ use std::time::Duration;
 
 use buslab_bus::{CanError, ErrorFrame};
 use buslab_can::{Frame, Id};
+use buslab_logs::Timestamp;
 use buslab_logs::candump::{LineError, MAX_LINE, Reader, Writer, format_line, parse_line};
-use buslab_logs::{Direction, Entry, Location, Problem, ReadError, Record};
+use buslab_logs::{Direction, Location, Message, Problem, ReadError, Record};
 use proptest::prelude::*;
 
 /// A bad line `line` whose error passes `check`.
@@ -24,9 +25,9 @@ fn lines_as_can_utils_writes_them() {
     let e = parse_line("(1700000000.123456) can1 12345678#DEADBEEF").unwrap();
     assert_eq!(
         e,
-        Entry {
-            timestamp: Duration::new(1_700_000_000, 123_456_000),
-            interface: "can1".into(),
+        Message {
+            at: Timestamp::since_epoch(Duration::new(1_700_000_000, 123_456_000)),
+            channel: "can1".into(),
             record: Record::Frame(frame("12345678#DEADBEEF")),
             direction: None,
         }
@@ -41,17 +42,17 @@ fn lines_as_can_utils_writes_them() {
     assert_eq!(
         parse_line("(1700000000.000000001) vcan0 5A1#11.2233.44556677.88")
             .unwrap()
-            .timestamp,
-        Duration::new(1_700_000_000, 1)
+            .at,
+        Timestamp::since_epoch(Duration::new(1_700_000_000, 1))
     );
     assert_eq!(
-        parse_line("(000.000000) vcan0 123#").unwrap().timestamp,
-        Duration::ZERO
+        parse_line("(000.000000) vcan0 123#").unwrap().at,
+        Timestamp::EPOCH
     );
     // python-can's writer: any number of decimals up to 9.
     assert_eq!(
-        parse_line("(1.5) vcan0 123#").unwrap().timestamp,
-        Duration::from_millis(1500)
+        parse_line("(1.5) vcan0 123#").unwrap().at,
+        Timestamp::since_epoch(Duration::from_millis(1500))
     );
 }
 
@@ -173,7 +174,7 @@ fn the_reader_skips_notes_and_names_bad_lines() {
     );
     assert!(err.to_string().starts_with("line 4: "), "{err}");
     // Reading goes on after a bad line; CRLF and a missing last newline are fine.
-    let rest: Vec<Entry> = reader.by_ref().map(Result::unwrap).collect();
+    let rest: Vec<Message> = reader.by_ref().map(Result::unwrap).collect();
     assert_eq!(rest.len(), 2);
     assert_eq!(rest[1].record, Record::Frame(frame("125#33")));
     assert_eq!(reader.skipped(), 2);
@@ -195,15 +196,15 @@ fn the_reader_bounds_lines_and_refuses_binary() {
 #[test]
 fn the_writer_writes_what_the_reader_reads() {
     let entries = vec![
-        Entry {
-            timestamp: Duration::new(1_700_000_000, 123_456_789),
-            interface: "vcan0".into(),
+        Message {
+            at: Timestamp::since_epoch(Duration::new(1_700_000_000, 123_456_789)),
+            channel: "vcan0".into(),
             record: Record::Frame(frame("1ABCDEF0#DEADBEEF")),
             direction: Some(Direction::Rx),
         },
-        Entry {
-            timestamp: Duration::new(1_700_000_001, 0),
-            interface: "vcan0".into(),
+        Message {
+            at: Timestamp::since_epoch(Duration::new(1_700_000_001, 0)),
+            channel: "vcan0".into(),
             record: Record::Error(ErrorFrame::new(vec![CanError::BusOff], None)),
             direction: Some(Direction::Tx),
         },
@@ -217,9 +218,12 @@ fn the_writer_writes_what_the_reader_reads() {
         text,
         "(1700000000.123456) vcan0 1ABCDEF0#DEADBEEF R\n(1700000001.000000) vcan0 20000040#0000000000000000 T\n"
     );
-    let back: Vec<Entry> = Reader::new(Cursor::new(text)).map(Result::unwrap).collect();
+    let back: Vec<Message> = Reader::new(Cursor::new(text)).map(Result::unwrap).collect();
     // Microseconds, as candump writes them.
-    assert_eq!(back[0].timestamp, Duration::new(1_700_000_000, 123_456_000));
+    assert_eq!(
+        back[0].at,
+        Timestamp::since_epoch(Duration::new(1_700_000_000, 123_456_000))
+    );
     assert_eq!(back[1], entries[1]);
 }
 
@@ -261,9 +265,9 @@ proptest! {
 
     #[test]
     fn any_frame_round_trips(f in any_frame(), secs in 0u64..10_000_000_000, micros in 0u32..1_000_000) {
-        let e = Entry {
-            timestamp: Duration::new(secs, micros * 1000),
-            interface: "can0".into(),
+        let e = Message {
+            at: Timestamp::since_epoch(Duration::new(secs, micros * 1000)),
+            channel: "can0".into(),
             record: Record::Frame(f),
             direction: None,
         };

@@ -1,7 +1,7 @@
 //! The byte-level fast path of the candump reader gives exactly what the reference parser
 //! (`parse_line`) gives, on lines near the grammar and on arbitrary text.
 
-use buslab_logs::Entry;
+use buslab_logs::Message;
 use buslab_logs::candump::{parse_line, parse_line_into};
 use proptest::prelude::*;
 
@@ -48,8 +48,8 @@ fn line() -> impl Strategy<Value = String> {
 }
 
 fn check(text: &str) {
-    let mut entry = Entry::default();
-    entry.interface.push_str("stale");
+    let mut entry = Message::default();
+    entry.channel.push_str("stale");
     let fast = parse_line_into(text.as_bytes(), &mut entry).map(|()| entry);
     assert_eq!(fast, parse_line(text), "{text:?}");
 }

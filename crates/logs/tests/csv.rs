@@ -3,14 +3,14 @@
 use std::io::Cursor;
 
 use buslab_logs::csv::{HEADER, Reader, Writer};
-use buslab_logs::{Entry, ReadError};
+use buslab_logs::{Message, ReadError};
 
-fn read(body: &str) -> Vec<Result<Entry, ReadError>> {
+fn read(body: &str) -> Vec<Result<Message, ReadError>> {
     let text = format!("{HEADER}\n{body}");
     let mut reader = Reader::new(Cursor::new(text.clone().into_bytes()));
     let mut out = Vec::new();
     for _ in 0..=text.lines().count() {
-        let mut e = Entry::default();
+        let mut e = Message::default();
         match reader.read_into(&mut e) {
             Ok(true) => out.push(Ok(e)),
             Ok(false) => return out,
@@ -20,7 +20,7 @@ fn read(body: &str) -> Vec<Result<Entry, ReadError>> {
     panic!("the reader does not end");
 }
 
-fn line(e: &Result<Entry, ReadError>) -> String {
+fn line(e: &Result<Message, ReadError>) -> String {
     buslab_logs::candump::format_line(e.as_ref().unwrap(), false)
 }
 

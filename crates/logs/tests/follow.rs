@@ -9,7 +9,7 @@ use std::sync::mpsc::{self, Receiver};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use buslab_logs::{Entry, Format, OpenOptions, open_source};
+use buslab_logs::{Format, Message, OpenOptions, open_source};
 
 /// How long a test waits for an event that normally comes within a second.
 const EVENT: Duration = Duration::from_secs(60);
@@ -26,10 +26,10 @@ fn write(path: &Path, text: &str) {
 }
 
 /// What the reader read, as candump lines without times.
-fn shown(entries: &[Entry]) -> Vec<String> {
+fn shown(entries: &[Message]) -> Vec<String> {
     entries
         .iter()
-        .map(|e| format!("{} {}", e.interface, e.frame().unwrap()))
+        .map(|e| format!("{} {}", e.channel, e.frame().unwrap()))
         .collect()
 }
 
@@ -45,7 +45,7 @@ struct Follower {
     caught_up: Receiver<()>,
     go: mpsc::Sender<()>,
     stop: Arc<AtomicBool>,
-    entries: Receiver<Entry>,
+    entries: Receiver<Message>,
     thread: std::thread::JoinHandle<()>,
 }
 
@@ -66,7 +66,7 @@ impl Follower {
         let (entry_tx, entries) = mpsc::channel();
         let thread = std::thread::spawn(move || {
             let mut source = open_source(&path, Format::Candump, &options).unwrap();
-            let mut entry = Entry::default();
+            let mut entry = Message::default();
             while source.reader.read_into(&mut entry).unwrap() {
                 entry_tx.send(entry.clone()).unwrap();
             }
@@ -91,7 +91,7 @@ impl Follower {
         self.go.send(()).unwrap();
     }
 
-    fn finish(self) -> Vec<Entry> {
+    fn finish(self) -> Vec<Message> {
         self.stop.store(true, Ordering::SeqCst);
         drop(self.go);
         self.thread.join().unwrap();

@@ -5,13 +5,14 @@ use std::path::Path;
 use std::time::Duration;
 
 use buslab_can::Frame;
-use buslab_logs::{Entry, LogReader, Record, blf, pcap, pcapng, sqlite, trc};
+use buslab_logs::Timestamp;
+use buslab_logs::{LogReader, Message, Record, blf, pcap, pcapng, sqlite, trc};
 
 /// Every entry, or the errors, of a reader that must end within `max_calls` reads.
-fn read_all(mut reader: impl LogReader, max_calls: usize) -> (Vec<Entry>, Vec<String>) {
+fn read_all(mut reader: impl LogReader, max_calls: usize) -> (Vec<Message>, Vec<String>) {
     let (mut entries, mut errors) = (Vec::new(), Vec::new());
     for _ in 0..max_calls {
-        let mut entry = Entry::default();
+        let mut entry = Message::default();
         match reader.read_into(&mut entry) {
             Ok(true) => entries.push(entry),
             Ok(false) => return (entries, errors),
@@ -76,12 +77,15 @@ fn pcapng_interface_name_ends_at_its_first_nul() {
     let (entries, errors) = read_all(pcapng::Reader::new(&file[..]), 10);
     assert!(errors.is_empty(), "{errors:?}");
     assert_eq!(entries.len(), 1);
-    assert_eq!(entries[0].interface, "can1");
+    assert_eq!(entries[0].channel, "can1");
     assert_eq!(
         entries[0].record,
         Record::Frame("123#1122".parse::<Frame>().unwrap())
     );
-    assert_eq!(entries[0].timestamp, Duration::from_millis(1));
+    assert_eq!(
+        entries[0].at,
+        Timestamp::since_epoch(Duration::from_millis(1))
+    );
 }
 
 /// `logs_trc`: an entry 1.56e16 s after the first one was written with a 20-digit millisecond
@@ -90,9 +94,9 @@ fn pcapng_interface_name_ends_at_its_first_nul() {
 #[test]
 fn trc_offsets_of_twenty_digits_read_back() {
     let frame: Frame = "123#11".parse().unwrap();
-    let at = |secs| Entry {
-        timestamp: Duration::from_secs(secs),
-        interface: "can0".into(),
+    let at = |secs| Message {
+        at: Timestamp::since_epoch(Duration::from_secs(secs)),
+        channel: "can0".into(),
         record: Record::Frame(frame),
         direction: None,
     };
@@ -105,8 +109,8 @@ fn trc_offsets_of_twenty_digits_read_back() {
         let file = writer.finish().unwrap();
         let (read, errors) = read_all(trc::Reader::new(&file[..]), 100);
         assert!(errors.is_empty(), "{errors:?}");
-        let times: Vec<_> = read.iter().map(|e| e.timestamp).collect();
-        assert_eq!(times, [entries[0].timestamp, entries[1].timestamp]);
+        let times: Vec<_> = read.iter().map(|e| e.at).collect();
+        assert_eq!(times, [entries[0].at, entries[1].at]);
     }
 }
 
@@ -141,10 +145,10 @@ fn blf_writer() -> blf::Writer<std::io::Cursor<Vec<u8>>> {
     blf::Writer::new(std::io::Cursor::new(Vec::new())).expect("memory")
 }
 
-fn frame_at(timestamp: Duration) -> Entry {
-    Entry {
-        timestamp,
-        interface: "can0".into(),
+fn frame_at(timestamp: Duration) -> Message {
+    Message {
+        at: Timestamp::since_epoch(timestamp),
+        channel: "can0".into(),
         record: Record::Frame("123#1122".parse::<Frame>().unwrap()),
         direction: None,
     }
@@ -161,15 +165,13 @@ fn blf_entry_after_the_year_65535_is_refused_not_moved() {
     let (entries, _) = read_all(blf::Reader::new(&bytes[..]), 1_000);
     assert!(!entries.is_empty());
     let mut writer = blf_writer();
-    let late = entries
-        .iter()
-        .find(|e| e.timestamp.as_secs() > 2_006_000_000_000);
+    let late = entries.iter().find(|e| e.at.as_secs() > 2_006_000_000_000);
     let late = late.expect("the input has an entry after the year 65535");
     let err = writer.write(late).expect_err("after the year 65535");
     assert_eq!(err.kind(), std::io::ErrorKind::InvalidInput);
     let text = err.to_string();
     assert!(
-        text.contains(&late.timestamp.as_secs().to_string()) && text.contains("65535"),
+        text.contains(&late.at.as_secs().to_string()) && text.contains("65535"),
         "{text}"
     );
 
@@ -185,7 +187,12 @@ fn blf_entry_after_the_year_65535_is_refused_not_moved() {
     let bytes = writer.finish().unwrap().into_inner();
     let (back, errors) = read_all(blf::Reader::new(&bytes[..]), 10);
     assert!(errors.is_empty(), "{errors:?}");
-    assert_eq!(back.iter().map(|e| e.timestamp).collect::<Vec<_>>(), [last]);
+    assert_eq!(
+        back.iter()
+            .map(|e| e.at.since_epoch_duration())
+            .collect::<Vec<_>>(),
+        [last]
+    );
 
     // Offsets are nanoseconds in 64 bits: 584 years after the first entry is the most.
     let mut writer = blf_writer();
@@ -223,5 +230,10 @@ fn pcap_and_pcapng_refuse_times_they_cannot_hold() {
     let bytes = pcapng.finish().unwrap();
     let (back, errors) = read_all(pcapng::Reader::new(&bytes[..]), 10);
     assert!(errors.is_empty(), "{errors:?}");
-    assert_eq!(back.iter().map(|e| e.timestamp).collect::<Vec<_>>(), [last]);
+    assert_eq!(
+        back.iter()
+            .map(|e| e.at.since_epoch_duration())
+            .collect::<Vec<_>>(),
+        [last]
+    );
 }

@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use buslab_logs::{Entry, Format, LogError, create_writer, create_writer_atomic, open_reader};
+use buslab_logs::{Format, LogError, Message, create_writer, create_writer_atomic, open_reader};
 use flate2::Compression;
 use flate2::write::GzEncoder;
 
@@ -14,7 +14,7 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
     z.finish().unwrap()
 }
 
-fn read(path: &Path, format: Format) -> Vec<Entry> {
+fn read(path: &Path, format: Format) -> Vec<Message> {
     open_reader(path, format)
         .unwrap()
         .collect::<Result<Vec<_>, _>>()

@@ -3,12 +3,13 @@
 
 use std::time::Duration;
 
-use buslab_logs::{Entry, Format, Record, create_writer, open_reader};
+use buslab_logs::Timestamp;
+use buslab_logs::{Format, Message, Record, create_writer, open_reader};
 
-fn entry(i: u64) -> Entry {
-    Entry {
-        timestamp: Duration::from_micros(1_700_000_000_000_000 + i * 1000),
-        interface: "can0".into(),
+fn entry(i: u64) -> Message {
+    Message {
+        at: Timestamp::since_epoch(Duration::from_micros(1_700_000_000_000_000 + i * 1000)),
+        channel: "can0".into(),
         record: Record::Frame(
             format!("{:03X}#{:02X}", i % 0x800, i % 256)
                 .parse()
@@ -19,7 +20,7 @@ fn entry(i: u64) -> Entry {
 }
 
 /// Every entry the file holds now, with the reader's error if one stopped it.
-fn read(path: &std::path::Path, format: Format) -> (Vec<Entry>, Option<String>) {
+fn read(path: &std::path::Path, format: Format) -> (Vec<Message>, Option<String>) {
     let mut got = Vec::new();
     for e in open_reader(path, format).unwrap() {
         match e {
@@ -31,10 +32,10 @@ fn read(path: &std::path::Path, format: Format) -> (Vec<Entry>, Option<String>) 
 }
 
 /// The frames (and their times to the microsecond: SQLite keeps float seconds).
-fn frames(entries: &[Entry]) -> Vec<(u128, Record)> {
+fn frames(entries: &[Message]) -> Vec<(u128, Record)> {
     entries
         .iter()
-        .map(|e| (e.timestamp.as_micros(), e.record.clone()))
+        .map(|e| (e.at.as_micros(), e.record.clone()))
         .collect()
 }
 

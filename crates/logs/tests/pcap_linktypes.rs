@@ -3,7 +3,7 @@
 
 use std::io::Cursor;
 
-use buslab_logs::{Entry, LogReader, Problem, ReadError, Record, pcap, pcapng};
+use buslab_logs::{LogReader, Message, Problem, ReadError, Record, pcap, pcapng};
 
 const LINKTYPE_ETHERNET: u16 = 1;
 const LINKTYPE_CAN_SOCKETCAN: u16 = 227;
@@ -88,10 +88,10 @@ fn pcapng_file(linktypes: &[u16], packets: &[(u32, Vec<u8>)]) -> Vec<u8> {
     out
 }
 
-fn read_all(mut reader: impl LogReader, max: usize) -> Vec<Result<Entry, ReadError>> {
+fn read_all(mut reader: impl LogReader, max: usize) -> Vec<Result<Message, ReadError>> {
     let mut out = Vec::new();
     for _ in 0..max {
-        let mut e = Entry::default();
+        let mut e = Message::default();
         match reader.read_into(&mut e) {
             Ok(true) => out.push(Ok(e)),
             Ok(false) => return out,
@@ -107,7 +107,7 @@ fn read_all(mut reader: impl LogReader, max: usize) -> Vec<Result<Entry, ReadErr
     panic!("the reader does not end");
 }
 
-fn records(results: &[Result<Entry, ReadError>]) -> Vec<String> {
+fn records(results: &[Result<Message, ReadError>]) -> Vec<String> {
     results
         .iter()
         .map(|r| match r {
@@ -254,7 +254,7 @@ fn other_link_types_are_errors_naming_them() {
 
 #[test]
 fn error_frames_keep_their_bytes_and_length_in_pcap_and_pcapng() {
-    let entries: Vec<Entry> = [
+    let entries: Vec<Message> = [
         "20000088#0000020A00000102",
         "20000080#0000040200000001",
         "20000004#0004",

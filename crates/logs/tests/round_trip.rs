@@ -7,9 +7,10 @@ use std::time::Duration;
 
 use buslab_bus::ErrorFrame;
 use buslab_can::{Frame, Id};
+use buslab_logs::Timestamp;
 use buslab_logs::{
-    ChannelMap, Direction, Entry, Format, Record, create_writer, create_writer_atomic, open_reader,
-    reader,
+    ChannelMap, Direction, Format, Message, Record, create_writer, create_writer_atomic,
+    open_reader, reader,
 };
 use proptest::prelude::*;
 
@@ -57,7 +58,7 @@ fn direction() -> impl Strategy<Value = Option<Direction>> {
 }
 
 /// Entries in time order (as logs are), from any start up to 2^32 s (pcap's limit).
-fn entries() -> impl Strategy<Value = Vec<Entry>> {
+fn entries() -> impl Strategy<Value = Vec<Message>> {
     (
         0u64..(1 << 32) * 1_000_000_000 / 2,
         prop::collection::vec(
@@ -76,9 +77,9 @@ fn entries() -> impl Strategy<Value = Vec<Entry>> {
                 .into_iter()
                 .map(|(step, iface, record, direction)| {
                     t += step;
-                    Entry {
-                        timestamp: Duration::from_nanos(t),
-                        interface: iface.to_string(),
+                    Message {
+                        at: Timestamp::since_epoch(Duration::from_nanos(t)),
+                        channel: iface.to_string(),
                         record,
                         direction,
                     }
@@ -92,14 +93,18 @@ fn floor(t: Duration, unit_ns: u128) -> Duration {
     Duration::new((ns / 1_000_000_000) as u64, (ns % 1_000_000_000) as u32)
 }
 
+fn floor_at(t: Timestamp, unit_ns: u128) -> Timestamp {
+    Timestamp::since_epoch(floor(t.since_epoch_duration(), unit_ns))
+}
+
 /// What `format` keeps of `entries`.
-fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
+fn kept(format: Format, entries: &[Message]) -> Vec<Message> {
     let mut channels = ChannelMap::new();
-    let mut numbered = |e: &Entry| format!("can{}", channels.number(&e.interface) - 1);
+    let mut numbered = |e: &Message| format!("can{}", channels.number(&e.channel) - 1);
     let first = entries.iter().find(|e| {
         !matches!(format, Format::Trc11 | Format::Trc21) || matches!(e.record, Record::Frame(_))
     });
-    let first_t = first.map(|e| e.timestamp).unwrap_or_default();
+    let first_t = first.map(|e| e.at).unwrap_or_default();
     entries
         .iter()
         .filter(|e| {
@@ -111,12 +116,12 @@ fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
             let rx = Some(e.direction.unwrap_or(Direction::Rx));
             match format {
                 Format::Candump => {
-                    k.timestamp = floor(e.timestamp, 1000);
+                    k.at = floor_at(e.at, 1000);
                     k.direction = None;
                 }
                 Format::Asc => {
-                    k.timestamp = floor(e.timestamp, 1000);
-                    k.interface = numbered(e);
+                    k.at = floor_at(e.at, 1000);
+                    k.channel = numbered(e);
                     k.direction = if let Record::Error(_) = k.record {
                         Some(Direction::Rx)
                     } else {
@@ -124,7 +129,7 @@ fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
                     };
                 }
                 Format::Blf => {
-                    k.interface = numbered(e);
+                    k.channel = numbered(e);
                     k.direction = if let Record::Error(_) = k.record {
                         Some(Direction::Rx)
                     } else {
@@ -137,9 +142,9 @@ fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
                     } else {
                         1000
                     };
-                    k.timestamp = first_t + floor(e.timestamp - first_t, unit);
+                    k.at = first_t.saturating_add(floor(e.at.saturating_since(first_t), unit));
                     // TRC 1.1 has no bus column.
-                    k.interface = if format == Format::Trc11 {
+                    k.channel = if format == Format::Trc11 {
                         "can0".into()
                     } else {
                         numbered(e)
@@ -147,12 +152,12 @@ fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
                     k.direction = rx;
                 }
                 Format::Csv | Format::Sqlite | Format::Pcap => {
-                    k.interface = "can0".into();
+                    k.channel = "can0".into();
                     k.direction = None;
-                    k.timestamp = match format {
-                        Format::Sqlite => buslab_logs::seconds(e.timestamp.as_secs_f64()),
-                        Format::Pcap => floor(e.timestamp, 1000),
-                        _ => e.timestamp,
+                    k.at = match format {
+                        Format::Sqlite => Timestamp::from_secs_f64(e.at.as_secs_f64()),
+                        Format::Pcap => floor_at(e.at, 1000),
+                        _ => e.at,
                     };
                 }
                 Format::Pcapng => {}
@@ -162,7 +167,7 @@ fn kept(format: Format, entries: &[Entry]) -> Vec<Entry> {
         .collect()
 }
 
-fn write_then_read(dir: &Path, format: Format, entries: &[Entry], atomic: bool) -> Vec<Entry> {
+fn write_then_read(dir: &Path, format: Format, entries: &[Message], atomic: bool) -> Vec<Message> {
     let path = dir.join(format!("log.{}", format.extension()));
     let mut w = if atomic {
         create_writer_atomic(&path, format).unwrap()
@@ -198,7 +203,7 @@ proptest! {
                 continue;
             }
             let mut r = reader(Cursor::new(bytes.clone()), format).unwrap();
-            let mut e = Entry::default();
+            let mut e = Message::default();
             // Every read consumes input or ends: bounded by the input's size.
             for _ in 0..=bytes.len() + 1 {
                 match r.read_into(&mut e) {
@@ -243,10 +248,10 @@ proptest! {
 
 /// Entries read from a file cut at `len` bytes: every whole record before the cut, then one
 /// error naming the cut (or a clean end, when the cut falls between records).
-fn read_cut(format: Format, bytes: &[u8], len: usize) -> (Vec<Entry>, Option<String>) {
+fn read_cut(format: Format, bytes: &[u8], len: usize) -> (Vec<Message>, Option<String>) {
     let mut r = reader(Cursor::new(bytes[..len].to_vec()), format).unwrap();
     let mut got = Vec::new();
-    let mut e = Entry::default();
+    let mut e = Message::default();
     loop {
         match r.read_into(&mut e) {
             Ok(true) => got.push(e.clone()),
@@ -262,10 +267,10 @@ fn read_cut(format: Format, bytes: &[u8], len: usize) -> (Vec<Entry>, Option<Str
 #[test]
 fn truncated_binary_logs_give_every_record_before_the_cut() {
     let dir = tempfile::tempdir().unwrap();
-    let entries: Vec<Entry> = (0..3000u64)
-        .map(|i| Entry {
-            timestamp: Duration::from_micros(1_700_000_000_000_000 + i * 250),
-            interface: "can0".into(),
+    let entries: Vec<Message> = (0..3000u64)
+        .map(|i| Message {
+            at: Timestamp::since_epoch(Duration::from_micros(1_700_000_000_000_000 + i * 250)),
+            channel: "can0".into(),
             record: Record::Frame(
                 Frame::data(
                     Id::standard((i % 0x7FF) as u16).unwrap(),
@@ -379,9 +384,9 @@ fn an_atomic_writer_dropped_unfinished_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.asc");
     let mut w = create_writer_atomic(&path, Format::Asc).unwrap();
-    w.write(&Entry {
-        timestamp: Duration::from_secs(1),
-        interface: "can0".into(),
+    w.write(&Message {
+        at: Timestamp::since_epoch(Duration::from_secs(1)),
+        channel: "can0".into(),
         record: Record::Frame("123#11".parse().unwrap()),
         direction: None,
     })

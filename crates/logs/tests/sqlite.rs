@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use buslab_logs::sqlite::{MAX_VALUE, Reader};
-use buslab_logs::{Entry, Format, Location, Problem, ReadError, Record, open_reader};
+use buslab_logs::{Format, Location, Message, Problem, ReadError, Record, open_reader};
 use rusqlite::Connection;
 
 const PYTHON_CAN_TABLE: &str = "CREATE TABLE messages (ts REAL, arbitration_id INTEGER, \
@@ -27,10 +27,10 @@ fn refused(path: &Path) -> String {
     }
 }
 
-fn read_all(mut reader: Reader) -> Vec<Result<Entry, ReadError>> {
+fn read_all(mut reader: Reader) -> Vec<Result<Message, ReadError>> {
     let mut out = Vec::new();
     for _ in 0..100 {
-        let mut e = Entry::default();
+        let mut e = Message::default();
         match reader.read_into(&mut e) {
             Ok(true) => out.push(Ok(e)),
             Ok(false) => return out,

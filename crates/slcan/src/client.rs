@@ -14,10 +14,10 @@
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::os::fd::{AsRawFd, BorrowedFd};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use buslab_bus::bus::matches_any;
-use buslab_bus::{BitTiming, BusError, CanBus, ErrorState, Filter, Message};
+use buslab_bus::{BitTiming, BusError, CanBus, ErrorState, Filter, Message, wall_clock};
 use buslab_can::Frame;
 use serialport::{ClearBuffer, FlowControl, SerialPort, TTYPort};
 
@@ -132,7 +132,7 @@ pub struct SlcanBus {
     device: String,
     channel: String,
     splitter: LineSplitter,
-    inbox: VecDeque<Message>,
+    inbox: VecDeque<Message<Frame>>,
     /// Answers owed to frames sent (python-can style: not waited for).
     owed: usize,
     /// The adapter answers commands and frames (CANable's firmware does not).
@@ -503,7 +503,7 @@ impl SlcanBus {
 
     /// A received frame, stamped now (refined by the adapter's counter).
     fn keep_frame(&mut self, frame: Frame, timestamp_ms: Option<u16>) {
-        let t = self.clock.stamp(unix_now(), timestamp_ms);
+        let t = self.clock.stamp(wall_clock(), timestamp_ms);
         self.keep(Message::rx(t, self.channel.clone(), frame));
     }
 
@@ -518,8 +518,8 @@ impl SlcanBus {
         }
     }
 
-    fn keep(&mut self, m: Message) {
-        if !matches_any(&self.filters, &m.frame) {
+    fn keep(&mut self, m: Message<Frame>) {
+        if !matches_any(&self.filters, &m.record) {
             return;
         }
         if self.inbox.len() == MAX_INBOX {
@@ -539,12 +539,6 @@ fn shown(command: &Command) -> String {
     format_command(command, &mut bytes);
     bytes.pop();
     String::from_utf8_lossy(&bytes).into_owned()
-}
-
-fn unix_now() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// serialport leaves the descriptor inheritable: a child started meanwhile would keep the port.
@@ -568,7 +562,7 @@ impl CanBus for SlcanBus {
         Ok(())
     }
 
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         let deadline = timeout.map(|t| Instant::now() + t);
         loop {
             if let Some(m) = self.inbox.pop_front() {
@@ -583,7 +577,7 @@ impl CanBus for SlcanBus {
 
     fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError> {
         self.filters = filters.to_vec();
-        self.inbox.retain(|m| matches_any(filters, &m.frame));
+        self.inbox.retain(|m| matches_any(filters, &m.record));
         Ok(())
     }
 

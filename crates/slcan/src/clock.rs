@@ -1,16 +1,20 @@
 //! Device timestamps (`Z1`: milliseconds wrapping at 60000) mapped onto the host's clock, so
 //! frames keep the adapter's spacing instead of the USB stack's jitter.
 
+use std::time::Duration;
+
+use buslab_bus::Timestamp;
+
 use crate::codec::TIMESTAMP_WRAP_MS;
 
-/// The device counter is trusted only while it stays this close to the host clock (seconds);
-/// beyond, the mapping starts again from the host's time.
-const MAX_DRIFT_S: f64 = 0.5;
+/// The device counter is trusted only while it stays this close to the host clock; beyond, the
+/// mapping starts again from the host's time.
+const MAX_DRIFT: Duration = Duration::from_millis(500);
 
-/// Maps the adapter's wrapping millisecond counter to host seconds: the first frame anchors
-/// the counter to the host time it arrived; later frames add the counter's progress. A gap
-/// longer than half a wrap (30 s, when the counter's progress is ambiguous) or a drift beyond
-/// half a second re-anchors.
+/// Maps the adapter's wrapping millisecond counter to host time: the first frame anchors the
+/// counter to the host time it arrived; later frames add the counter's progress. A gap longer
+/// than half a wrap (30 s, when the counter's progress is ambiguous) or a drift beyond half a
+/// second re-anchors.
 #[derive(Clone, Debug, Default)]
 pub struct DeviceClock {
     anchor: Option<Anchor>,
@@ -18,12 +22,11 @@ pub struct DeviceClock {
 
 #[derive(Clone, Copy, Debug)]
 struct Anchor {
-    host_s: f64,
-    /// The device counter unwrapped, at the anchor and at the last frame.
-    device_ms_at_anchor: u64,
+    host: Timestamp,
+    /// The device counter unwrapped since the anchor, at the last frame.
     device_ms: u64,
     last_raw: u16,
-    last_host_s: f64,
+    last_host: Timestamp,
 }
 
 impl DeviceClock {
@@ -31,34 +34,36 @@ impl DeviceClock {
         Self::default()
     }
 
-    /// The time of a frame that arrived at `host_s` with the device's timestamp, if it has one.
-    pub fn stamp(&mut self, host_s: f64, device_ms: Option<u16>) -> f64 {
+    /// The time of a frame that arrived at `host` with the device's timestamp, if it has one.
+    pub fn stamp(&mut self, host: Timestamp, device_ms: Option<u16>) -> Timestamp {
         let Some(raw) = device_ms else {
-            return host_s;
+            return host;
         };
         let raw = raw % TIMESTAMP_WRAP_MS;
+        let half_wrap = Duration::from_millis(u64::from(TIMESTAMP_WRAP_MS) / 2);
         if let Some(a) = &mut self.anchor
-            && host_s - a.last_host_s < f64::from(TIMESTAMP_WRAP_MS) / 2000.0
+            && host.saturating_since(a.last_host) < half_wrap
+            && host >= a.last_host
         {
             let progress = (u32::from(raw) + u32::from(TIMESTAMP_WRAP_MS) - u32::from(a.last_raw))
                 % u32::from(TIMESTAMP_WRAP_MS);
             let device_ms = a.device_ms + u64::from(progress);
-            let t = a.host_s + (device_ms - a.device_ms_at_anchor) as f64 / 1000.0;
-            if (t - host_s).abs() <= MAX_DRIFT_S {
+            let t = a.host.saturating_add(Duration::from_millis(device_ms));
+            let drift = t.saturating_since(host).max(host.saturating_since(t));
+            if drift <= MAX_DRIFT {
                 a.device_ms = device_ms;
                 a.last_raw = raw;
-                a.last_host_s = host_s;
+                a.last_host = host;
                 return t;
             }
         }
         self.anchor = Some(Anchor {
-            host_s,
-            device_ms_at_anchor: 0,
+            host,
             device_ms: 0,
             last_raw: raw,
-            last_host_s: host_s,
+            last_host: host,
         });
-        host_s
+        host
     }
 }
 
@@ -66,27 +71,37 @@ impl DeviceClock {
 mod tests {
     use super::*;
 
+    fn ms(ms: u64) -> Timestamp {
+        Timestamp::from_micros(ms * 1000)
+    }
+
     #[test]
     fn the_device_spacing_is_kept_across_a_wrap() {
         let mut c = DeviceClock::new();
-        assert_eq!(c.stamp(100.0, Some(59_990)), 100.0);
+        assert_eq!(c.stamp(ms(100_000), Some(59_990)), ms(100_000));
         // USB jitter: the frame arrives 7 ms late, the device says 20 ms after the first.
-        let t = c.stamp(100.027, Some(10));
-        assert!((t - 100.020).abs() < 1e-9, "{t}");
-        assert_eq!(c.stamp(100.5, None), 100.5, "no device time: the host's");
+        assert_eq!(c.stamp(ms(100_027), Some(10)), ms(100_020));
+        assert_eq!(
+            c.stamp(ms(100_500), None),
+            ms(100_500),
+            "no device time: the host's"
+        );
     }
 
     #[test]
     fn a_long_gap_or_drift_reanchors_to_the_host() {
         let mut c = DeviceClock::new();
-        c.stamp(0.0, Some(0));
-        assert_eq!(c.stamp(45.0, Some(5_000)), 45.0, "ambiguous after 30 s");
+        c.stamp(ms(0), Some(0));
         assert_eq!(
-            c.stamp(46.0, Some(5_000)),
-            46.0,
+            c.stamp(ms(45_000), Some(5_000)),
+            ms(45_000),
+            "ambiguous after 30 s"
+        );
+        assert_eq!(
+            c.stamp(ms(46_000), Some(5_000)),
+            ms(46_000),
             "the counter stood still: drift"
         );
-        let t = c.stamp(46.1, Some(5_100));
-        assert!((t - 46.1).abs() < 1e-9, "{t}");
+        assert_eq!(c.stamp(ms(46_100), Some(5_100)), ms(46_100));
     }
 }

@@ -81,7 +81,7 @@ fn leftovers_in_the_ports_queue_and_garbage_are_skipped() {
         let mut bus = open(&fake, &options(None, false));
         fake.deliver("t7FF8AABBCCDDEEFF0011");
         let m = bus.recv(Some(EVENT)).unwrap().expect("a frame");
-        assert_eq!(m.frame.to_string(), "7FF#AABBCCDDEEFF0011", "{kind:?}");
+        assert_eq!(m.record.to_string(), "7FF#AABBCCDDEEFF0011", "{kind:?}");
     }
 }
 
@@ -156,7 +156,7 @@ fn frames_flow_both_ways_after_opening() {
         let mut bus = open(&fake, &options(Some(125_000), false));
         fake.deliver("t1002AA33");
         let m = bus.recv(Some(EVENT)).unwrap().expect("a frame");
-        assert_eq!(m.frame.to_string(), "100#AA33", "{kind:?}");
+        assert_eq!(m.record.to_string(), "100#AA33", "{kind:?}");
         bus.send(&"1ABCDEF0#0102".parse().unwrap()).unwrap();
         drop(bus);
         fake.wait_for(EVENT, |s| !s.open);

@@ -6,7 +6,7 @@
 
 use std::hint::black_box;
 
-use buslab_bus::BusEvent;
+use buslab_bus::Record;
 use buslab_socketcand::Inbound;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
@@ -44,8 +44,8 @@ fn receive_all(inbound: &mut Inbound, input: &[u8]) -> usize {
             black_box(m);
         }
         while let Some(event) = inbound.pop(false) {
-            if let BusEvent::Frame(m) = event {
-                black_box(&m.frame);
+            if let Record::Frame(frame) = &event.record {
+                black_box(frame);
                 n += 1;
             }
         }

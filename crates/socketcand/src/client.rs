@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::bus::Human;
 use buslab_bus::{
-    BusAdmin, BusError, BusEvent, BusOffRecovery, CanBus, ControllerSettings, ErrorState, Filter,
-    Message, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
+    BusAdmin, BusError, BusOffRecovery, CanBus, ControllerSettings, ErrorState, Filter, Message,
+    NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
 use buslab_can::Frame;
 
@@ -505,7 +505,7 @@ impl SocketcandBus {
         &mut self,
         timeout: Option<Duration>,
         with_errors: bool,
-    ) -> Result<Option<BusEvent>, BusError> {
+    ) -> Result<Option<Message>, BusError> {
         // Read the clock only when waiting: most calls on a busy bus find an event kept.
         let mut deadline = None;
         loop {
@@ -583,14 +583,13 @@ impl CanBus for SocketcandBus {
         Ok(())
     }
 
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
-        Ok(match self.next_event(timeout, false)? {
-            Some(BusEvent::Frame(m)) => Some(m),
-            _ => None,
-        })
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
+        Ok(self
+            .next_event(timeout, false)?
+            .and_then(Message::into_frame))
     }
 
-    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         self.next_event(timeout, true)
     }
 

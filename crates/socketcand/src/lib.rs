@@ -26,7 +26,7 @@ pub use client::inbound::Inbound;
 pub use client::{ClientError, ClientOptions, SocketcandBus};
 pub use command::{Command, NodeRef};
 pub use element::{Deframer, ElementError, MAX_ELEMENT};
-pub use message::{FormattedFrame, ServerMessage, Timestamp};
+pub use message::{FormattedFrame, ServerMessage, Timestamp, parse_timestamp};
 pub use reply::{
     ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_refused, parse_regs,
     parse_status, refused_reply, regs_reply, status_fields, status_reply,

@@ -7,46 +7,23 @@ use buslab_can::{Frame, Id};
 use crate::command::{IdText, parse_id};
 use crate::{ProtocolError, tokens};
 
-/// A frame time as socketcand writes it: seconds and microseconds (`23.424242`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct Timestamp {
-    pub secs: u64,
-    pub micros: u32,
-}
+pub use buslab_can::Timestamp;
 
-impl Timestamp {
-    /// From nanoseconds (truncated to microseconds, as socketcand's `%06ld`).
-    pub fn from_nanos(nanos: u128) -> Self {
-        Self {
-            secs: (nanos / 1_000_000_000) as u64,
-            micros: ((nanos % 1_000_000_000) / 1000) as u32,
-        }
+/// A frame time as socketcand writes it: seconds and 1..6 digits of microseconds
+/// (`23.424242`; `1.5` is 1.500000 s).
+pub fn parse_timestamp(text: &str) -> Result<Timestamp, ProtocolError> {
+    let bad = || ProtocolError::BadTimestamp {
+        text: text.to_string(),
+    };
+    let (s, us) = text.split_once('.').ok_or_else(bad)?;
+    let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+    if !digits(s) || !digits(us) || us.len() > 6 {
+        return Err(bad());
     }
-
-    pub fn as_secs_f64(self) -> f64 {
-        self.secs as f64 + self.micros as f64 * 1e-6
-    }
-
-    pub fn parse(text: &str) -> Result<Self, ProtocolError> {
-        let bad = || ProtocolError::BadTimestamp {
-            text: text.to_string(),
-        };
-        let (s, us) = text.split_once('.').ok_or_else(bad)?;
-        let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
-        if !digits(s) || !digits(us) || us.len() > 6 {
-            return Err(bad());
-        }
-        let secs = s.parse().map_err(|_| bad())?;
-        // "1.5" means 1.500000 s (at most 6 digits, checked above).
-        let micros = us.parse::<u32>().map_err(|_| bad())? * 10u32.pow(6 - us.len() as u32);
-        Ok(Self { secs, micros })
-    }
-}
-
-impl fmt::Display for Timestamp {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}.{:06}", self.secs, self.micros)
-    }
+    let secs = s.parse().map_err(|_| bad())?;
+    // At most 6 digits (checked above).
+    let micros = us.parse::<u32>().map_err(|_| bad())? * 10u32.pow(6 - us.len() as u32);
+    Ok(Timestamp::from_secs_micros(secs, micros))
 }
 
 /// One server message.
@@ -102,7 +79,7 @@ impl ServerMessage {
             ("echo", []) => Ok(ServerMessage::Echo),
             ("frame", [id, ts, data @ ..]) => {
                 let id = parse_id(id)?;
-                let timestamp = Timestamp::parse(ts)?;
+                let timestamp = parse_timestamp(ts)?;
                 let frame = match data {
                     [r] if r.starts_with(['R', 'r']) => {
                         let dlc: u8 = r[1..].parse().map_err(|_| ProtocolError::BadDlc {
@@ -128,13 +105,13 @@ impl ServerMessage {
                 got: args.join(" "),
             }),
             ("error", [class, ts, data @ ..])
-                if Timestamp::parse(ts).is_ok()
+                if parse_timestamp(ts).is_ok()
                     && u32::from_str_radix(class, 16).is_ok()
                     && !class.starts_with('+') =>
             {
                 Ok(ServerMessage::ErrorFrame {
                     class: u32::from_str_radix(class, 16).unwrap_or(0) & 0x1FFF_FFFF,
-                    timestamp: Timestamp::parse(ts)?,
+                    timestamp: parse_timestamp(ts)?,
                     data: parse_data(data)?,
                 })
             }
@@ -239,7 +216,7 @@ fn decimal(text: &[u8]) -> Option<u64> {
     (!bad).then_some(value)
 }
 
-/// `SECS.USECS` as [`Timestamp::parse`] reads it (1..6 digits of microseconds).
+/// `SECS.USECS` as [`parse_timestamp`] reads it (1..6 digits of microseconds).
 fn fast_timestamp(text: &[u8]) -> Option<Timestamp> {
     let dot = text.iter().position(|&b| b == b'.')?;
     let (secs, micros) = (&text[..dot], &text[dot + 1..]);
@@ -249,7 +226,7 @@ fn fast_timestamp(text: &[u8]) -> Option<Timestamp> {
     let secs = decimal(secs)?;
     // At most 6 digits: fits, and "1.5" means 1.500000 s.
     let micros = decimal(micros)? as u32 * 10u32.pow(6 - micros.len() as u32);
-    Some(Timestamp { secs, micros })
+    Some(Timestamp::from_secs_micros(secs, micros))
 }
 
 /// Packed hex data (pairs of digits, at most 8 bytes, or none) into `out`; the bytes written.
@@ -487,7 +464,7 @@ mod tests {
                 Id::standard((raw & 0x7FF) as u16).unwrap()
             };
             let frame = Frame::data(id, &data).unwrap();
-            let timestamp = Timestamp { secs, micros };
+            let timestamp = Timestamp::from_secs_micros(secs, micros);
             let text = FormattedFrame::new(&frame, timestamp).text(true).to_string();
             let inner = &text[1..text.len() - 1];
             prop_assert_eq!(parse_frame_fast(inner.as_bytes()), Some((frame, timestamp)));

@@ -560,7 +560,7 @@ mod tests {
     }
 
     fn ts(secs: u64) -> Timestamp {
-        Timestamp { secs, micros: 0 }
+        Timestamp::from_secs(secs)
     }
 
     /// A session through `< open vcan0 >` and `< rawmode >`, joined as node 7.

@@ -8,8 +8,8 @@ use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
 use buslab_bus::{
-    BusEvent, CanBus, CanError, ErrorState, NodeCounters, NodeStatus, ProtocolLocation,
-    ProtocolViolation, TxReport,
+    CanBus, CanError, ErrorState, Message, NodeCounters, NodeStatus, ProtocolLocation,
+    ProtocolViolation, Record, Timestamp, TxReport,
 };
 use buslab_socketcand::{ClientError, Command, Deframer, SocketcandBus, status_fields};
 
@@ -129,7 +129,7 @@ fn flush_waits_for_the_servers_answer_and_keeps_frames_that_came_meanwhile() {
         TxReport { sent: 2, failed: 0 }
     );
     let m = bus.recv(WAIT).unwrap().unwrap();
-    assert_eq!(m.frame, frame("321#AA"));
+    assert_eq!(m.record, frame("321#AA"));
     drop(bus);
     // One request, no status polling.
     assert_eq!(fake.count(&Command::Flush), 1);
@@ -231,20 +231,17 @@ fn error_frames_come_in_order_with_frames_when_asked_for() {
     });
     let mut bus = fake.client();
     bus.set_error_frames(true).unwrap();
-    let events: Vec<BusEvent> = (0..3)
+    let events: Vec<Message> = (0..3)
         .map(|_| bus.recv_event(WAIT).unwrap().unwrap())
         .collect();
-    let BusEvent::Frame(first) = &events[0] else {
+    assert_eq!(events[0].frame(), Some(&frame("123#11")), "{events:?}");
+    let Some(error) = events[1].error_frame() else {
         panic!("{events:?}")
     };
-    assert_eq!(first.frame, frame("123#11"));
-    let BusEvent::Error(e) = &events[1] else {
-        panic!("{events:?}")
-    };
-    assert_eq!(e.timestamp, 1.0001);
-    assert_eq!(e.channel, "vcan0");
+    assert_eq!(events[1].at, Timestamp::from_micros(1_000_100));
+    assert_eq!(events[1].channel, "vcan0");
     assert_eq!(
-        (&e.error.errors[..], e.error.counters),
+        (&error.errors[..], error.counters),
         (
             &[
                 CanError::Protocol {
@@ -256,10 +253,10 @@ fn error_frames_come_in_order_with_frames_when_asked_for() {
             None
         )
     );
-    assert!(matches!(&events[2], BusEvent::Frame(m) if m.frame == frame("124#22")));
+    assert_eq!(events[2].frame(), Some(&frame("124#22")));
     // `recv` stays frames-only: it passes over the error frame.
     bus.set_name("x").unwrap();
-    assert_eq!(bus.recv(WAIT).unwrap().unwrap().frame, frame("125#33"));
+    assert_eq!(bus.recv(WAIT).unwrap().unwrap().record, frame("125#33"));
     assert!(bus.recv(Some(Duration::ZERO)).unwrap().is_none());
 }
 
@@ -280,7 +277,10 @@ fn a_plain_socketcand_has_no_admin_and_its_error_frames_are_kept_once_asked_for(
     bus.send(&frame("100#")).unwrap();
     assert!(matches!(
         bus.recv_event(WAIT).unwrap(),
-        Some(BusEvent::Frame(_))
+        Some(Message {
+            record: Record::Frame(_),
+            ..
+        })
     ));
     // Not asked for: dropped.
     assert!(bus.recv_event(Some(Duration::ZERO)).unwrap().is_none());
@@ -288,12 +288,19 @@ fn a_plain_socketcand_has_no_admin_and_its_error_frames_are_kept_once_asked_for(
     bus.send(&frame("100#")).unwrap();
     assert!(matches!(
         bus.recv_event(WAIT).unwrap(),
-        Some(BusEvent::Frame(_))
+        Some(Message {
+            record: Record::Frame(_),
+            ..
+        })
     ));
-    let Some(BusEvent::Error(e)) = bus.recv_event(WAIT).unwrap() else {
+    let Some(Message {
+        record: Record::Error(e),
+        ..
+    }) = bus.recv_event(WAIT).unwrap()
+    else {
         panic!("an error frame")
     };
-    assert_eq!(e.error.errors, [CanError::BusOff]);
+    assert_eq!(e.errors, [CanError::BusOff]);
     // The plain server never saw a buslab command after buslab_ext.
     drop(bus);
     assert_eq!(fake.count(&Command::ErrorFrames(true)), 0);

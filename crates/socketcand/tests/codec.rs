@@ -3,7 +3,9 @@
 
 use buslab_bus::{BusOffRecovery, Probability, WireFault};
 use buslab_can::{Frame, Id};
-use buslab_socketcand::{Command, Deframer, ElementError, NodeRef, ServerMessage, Timestamp};
+use buslab_socketcand::{
+    Command, Deframer, ElementError, NodeRef, ServerMessage, Timestamp, parse_timestamp,
+};
 use proptest::prelude::*;
 
 fn elements(bytes: &[u8]) -> Vec<Result<String, ElementError>> {
@@ -192,10 +194,7 @@ fn garbage_commands_name_what_is_wrong() {
 
 #[test]
 fn server_messages_parse_as_python_can_and_socketcand_send_them() {
-    let ts = Timestamp {
-        secs: 23,
-        micros: 424_242,
-    };
+    let ts = Timestamp::from_secs_micros(23, 424_242);
     let cases = [
         ("hi", ServerMessage::Hi),
         ("ok", ServerMessage::Ok),
@@ -245,10 +244,7 @@ fn server_messages_parse_as_python_can_and_socketcand_send_them() {
 
 #[test]
 fn server_messages_round_trip() {
-    let ts = Timestamp {
-        secs: 1_700_000_000,
-        micros: 100,
-    };
+    let ts = Timestamp::from_secs_micros(1_700_000_000, 100);
     for m in [
         ServerMessage::Hi,
         ServerMessage::Ok,
@@ -272,24 +268,21 @@ fn exact_bytes_python_can_compares() {
     assert_eq!(
         ServerMessage::frame(
             frame("123#1A220344"),
-            Timestamp {
-                secs: 23,
-                micros: 424_242
-            }
+            Timestamp::from_secs_micros(23, 424_242)
         )
         .to_string(),
         "< frame 123 23.424242 1A220344 >"
     );
     // Empty data keeps its (empty) field, as socketcand writes it; python-can needs it.
     assert_eq!(
-        ServerMessage::frame(frame("123#"), Timestamp { secs: 1, micros: 0 }).to_string(),
+        ServerMessage::frame(frame("123#"), Timestamp::from_secs_micros(1, 0)).to_string(),
         "< frame 123 1.000000  >"
     );
     let mut plain = String::new();
     buslab_socketcand::message::format_frame(
         &mut plain,
         &frame("321#R3"),
-        Timestamp { secs: 1, micros: 0 },
+        Timestamp::from_secs_micros(1, 0),
         false,
     )
     .unwrap();
@@ -361,14 +354,11 @@ fn deframer_bounds_an_endless_element_and_binary_input() {
 #[test]
 fn timestamps_parse_strictly() {
     assert_eq!(
-        Timestamp::parse("1.5").unwrap(),
-        Timestamp {
-            secs: 1,
-            micros: 500_000
-        }
+        parse_timestamp("1.5").unwrap(),
+        Timestamp::from_secs_micros(1, 500_000)
     );
     for bad in ["1", ".5", "1.", "-1.0", "1.0000000", "a.b"] {
-        assert!(Timestamp::parse(bad).is_err(), "{bad}");
+        assert!(parse_timestamp(bad).is_err(), "{bad}");
     }
 }
 
@@ -400,7 +390,7 @@ proptest! {
         let send = Command::Send(f).to_string();
         let inner = elements(send.as_bytes()).remove(0).unwrap();
         prop_assert_eq!(Command::parse(&inner).unwrap(), Command::Send(f));
-        let m = ServerMessage::frame(f, Timestamp { secs, micros });
+        let m = ServerMessage::frame(f, Timestamp::from_secs_micros(secs, micros));
         let inner = elements(m.to_string().as_bytes()).remove(0).unwrap();
         prop_assert_eq!(ServerMessage::parse(&inner).unwrap(), m);
     }

@@ -69,7 +69,7 @@ fn recv(url: &str, idle: Duration) -> Result<(), String> {
     let mut latencies = Vec::new();
     while let Some(message) = bus.recv(Some(idle)).map_err(|e| e.to_string())? {
         let t = now_us();
-        let data = message.frame.payload();
+        let data = message.record.payload();
         if data.len() != 8 {
             continue;
         }

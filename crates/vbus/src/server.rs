@@ -1189,8 +1189,10 @@ impl Server {
     fn deliver(&mut self) {
         let bitrate = self.bus.bitrate() as u128;
         let unix0 = self.unix0;
-        let stamp =
-            |time: u64| Timestamp::from_nanos(unix0 + time as u128 * 1_000_000_000 / bitrate);
+        let stamp = |time: u64| {
+            let ns = unix0 + time as u128 * 1_000_000_000 / bitrate;
+            Timestamp::from_nanos(u64::try_from(ns).unwrap_or(u64::MAX))
+        };
         let now_ns = self.now_ns();
         // Every receiver gets the same frames in the same order: each is formatted once.
         let mut formatted = FormattedFrames::default();

@@ -5,7 +5,7 @@ use std::net::TcpStream;
 use std::time::Duration;
 
 use buslab_can::Frame;
-use buslab_canbus::{BusEvent, CanBus, ErrorState};
+use buslab_canbus::{CanBus, ErrorState, Record};
 use buslab_socketcand::{NodeRef, SocketcandBus};
 use buslab_vbus::{ServerConfig, ServerHandle, Speed, spawn};
 
@@ -34,7 +34,7 @@ fn recv(bus: &mut SocketcandBus) -> String {
     bus.recv(WAIT)
         .unwrap()
         .expect("a frame within 5 s")
-        .frame
+        .record
         .to_string()
 }
 
@@ -75,7 +75,8 @@ fn timestamps_are_wall_clock_seconds() {
         .duration_since(std::time::UNIX_EPOCH)
         .unwrap()
         .as_secs_f64();
-    assert!((now - m.timestamp).abs() < 2.0, "{} vs {now}", m.timestamp);
+    let at = m.at.as_secs_f64();
+    assert!((now - at).abs() < 2.0, "{at} vs {now}");
     s.shutdown();
 }
 
@@ -331,15 +332,18 @@ fn error_frames_reach_clients_that_ask_for_them() {
     bad.send(&frame("123#11")).unwrap();
     let error = loop {
         match watcher.recv_event(WAIT).unwrap() {
-            Some(BusEvent::Error(e)) => break e,
-            Some(BusEvent::Frame(_)) => {}
+            Some(m) => {
+                if let Record::Error(e) = m.record {
+                    break e;
+                }
+            }
             None => panic!("no error frame within {EVENT:?}"),
         }
     };
     // Protocol violation + bus error, with the counters, as Linux's SJA1000 driver reports a
     // bus error.
-    assert_eq!(error.error.class(), 0x288, "{error:?}");
-    assert!(error.error.counters.is_some(), "{error:?}");
+    assert_eq!(error.class(), 0x288, "{error:?}");
+    assert!(error.counters.is_some(), "{error:?}");
     // The quiet client got none: its echo comes back with nothing before it.
     quiet.write_all(b"< echo >").unwrap();
     let got = read_until(&mut quiet, "< echo >");
@@ -754,7 +758,8 @@ fn a_frame_sent_after_a_quiet_spell_enters_the_bus_at_the_wall_clock_time() {
     // Virtual time never runs ahead of the wall clock, so the frame cannot be stamped later
     // than it really ended; and it entered the bus no earlier than it was sent (1 ms for the
     // two clocks' rounding).
-    assert!(m.timestamp >= before - 0.001, "{} < {before}", m.timestamp);
+    let at = m.at.as_secs_f64();
+    assert!(at >= before - 0.001, "{at} < {before}");
     s.shutdown();
 }
 
@@ -775,7 +780,7 @@ fn at_max_speed_frames_sent_at_once_all_arrive_in_order() {
     assert_eq!((report.sent, report.failed), (2000, 0));
     for want in &frames {
         let got = rx.recv(WAIT).unwrap().expect("every frame arrives");
-        assert_eq!(&got.frame, want);
+        assert_eq!(&got.record, want);
     }
     s.shutdown();
 }

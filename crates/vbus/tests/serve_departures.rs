@@ -49,7 +49,7 @@ fn receive(rx: &mut SocketcandBus, count: usize) -> Vec<String> {
             rx.recv(Some(EVENT))
                 .unwrap()
                 .unwrap_or_else(|| panic!("frame {k} of {count} never came"))
-                .frame
+                .record
                 .to_string()
         })
         .collect()

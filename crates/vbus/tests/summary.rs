@@ -54,7 +54,7 @@ fn one_bus_error_is_summarised_once_not_every_five_seconds() {
         .recv(Some(Duration::from_secs(60)))
         .unwrap()
         .expect("the frame");
-    assert_eq!(got.frame.to_string(), "123#0102030405060708");
+    assert_eq!(got.record.to_string(), "123#0102030405060708");
     // Two summary periods and more: the one change is summarised once.
     std::thread::sleep(Duration::from_secs(12));
     s.shutdown();

@@ -29,7 +29,7 @@ pub use buslab_can::wire::frame_bits;
 pub use filter::{FilterError, LogFilter};
 pub use model::{
     BusView, Cursor, Delta, ErrorEntry, ErrorSample, FaultMark, IdRow, LoadSample, LogEntry,
-    Logged, NodeView, ViewConfig,
+    NodeView, ViewConfig,
 };
 
 pub use std::time::Duration;

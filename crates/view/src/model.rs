@@ -3,7 +3,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::time::Duration;
 
-use buslab_bus::{ErrorFrame, ErrorMessage, ErrorState, Message, NodeStatus};
+use buslab_bus::{ErrorFrame, ErrorState, Message, NodeStatus, Record, Timestamp};
 use buslab_can::{Frame, Id};
 use serde::Serialize;
 
@@ -94,8 +94,9 @@ impl IdRow {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct LogEntry {
     pub seq: u64,
-    /// The frame's own timestamp (seconds).
-    pub time: f64,
+    /// The frame's own time (in JSON: `time`, seconds).
+    #[serde(rename = "time", serialize_with = "seconds")]
+    pub at: Timestamp,
     /// can-utils' compact form, `123#1122`; an error frame as candump logs it,
     /// `20000088#0000000000000000`.
     pub frame: String,
@@ -103,14 +104,12 @@ pub struct LogEntry {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<ErrorEntry>,
     #[serde(skip)]
-    pub raw: Logged,
+    pub record: Record,
 }
 
-/// What a log entry holds.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Logged {
-    Frame(Frame),
-    Error(ErrorFrame),
+/// A time as JSON seconds.
+fn seconds<S: serde::Serializer>(at: &Timestamp, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(at.as_secs_f64())
 }
 
 /// An error frame's class and meaning, in the words `buslab dump -e` prints (can-utils').
@@ -250,8 +249,8 @@ pub struct Delta {
 struct Row {
     frame: Frame,
     count: u64,
-    last_time: f64,
-    period: Option<f64>,
+    last_time: Timestamp,
+    period: Option<Duration>,
     seen_at: Duration,
     changed_at: [Option<Duration>; 8],
     seq: u64,
@@ -324,11 +323,18 @@ impl BusView {
         self.seq
     }
 
-    /// A frame seen at `now`.
-    pub fn frame(&mut self, now: Duration, message: &Message) {
+    /// A frame or an error frame seen at `now`.
+    pub fn message(&mut self, now: Duration, message: &Message) {
+        match &message.record {
+            Record::Frame(frame) => self.frame(now, message.at, *frame),
+            Record::Error(error) => self.error_frame(now, message.at, error),
+        }
+    }
+
+    /// A frame with its own time `at`, seen at `now`.
+    pub fn frame(&mut self, now: Duration, at: Timestamp, frame: Frame) {
         self.tick(now);
         let seq = self.next_seq();
-        let frame = message.frame;
         self.frames += 1;
         self.window_frames += 1;
         if self.config.bitrate.is_some() && self.reported.is_none() {
@@ -346,9 +352,8 @@ impl BusView {
                         row.changed_at[i] = Some(now);
                     }
                 }
-                let dt = message.timestamp - row.last_time;
-                row.period = (dt >= 0.0 && dt.is_finite()).then_some(dt);
-                row.last_time = message.timestamp;
+                row.period = (at >= row.last_time).then(|| at.saturating_since(row.last_time));
+                row.last_time = at;
                 row.frame = frame;
                 row.count += 1;
                 row.seen_at = now;
@@ -360,7 +365,7 @@ impl BusView {
                     Row {
                         frame,
                         count: 1,
-                        last_time: message.timestamp,
+                        last_time: at,
                         period: None,
                         seen_at: now,
                         changed_at: [None; 8],
@@ -372,19 +377,19 @@ impl BusView {
         }
         self.log(LogEntry {
             seq,
-            time: message.timestamp,
+            at,
             frame: frame.to_string(),
             error: None,
-            raw: Logged::Frame(frame),
+            record: Record::Frame(frame),
         });
     }
 
-    /// An error frame seen at `now`: logged (it is no frame of the table or the load).
-    pub fn error_frame(&mut self, now: Duration, message: &ErrorMessage) {
+    /// An error frame with its own time `at`, seen at `now`: logged (it is no frame of the
+    /// table or the load).
+    pub fn error_frame(&mut self, now: Duration, at: Timestamp, e: &ErrorFrame) {
         self.tick(now);
         let seq = self.next_seq();
         self.error_frames += 1;
-        let e = &message.error;
         let (_, data) = e.encode();
         let bytes: String = data[..e.data_len()]
             .iter()
@@ -392,10 +397,10 @@ impl BusView {
             .collect();
         self.log(LogEntry {
             seq,
-            time: message.timestamp,
+            at,
             frame: format!("{:08X}#{bytes}", e.can_id()),
             error: Some(ErrorEntry::of(e)),
-            raw: Logged::Error(e.clone()),
+            record: Record::Error(e.clone()),
         });
     }
 
@@ -713,7 +718,7 @@ impl BusView {
             id,
             extended: key.is_extended(),
             count: r.count,
-            period_ms: r.period.map(|p| p * 1000.0),
+            period_ms: r.period.map(|p| p.as_secs_f64() * 1000.0),
             dlc: r.frame.dlc(),
             remote: r.frame.is_remote(),
             data,
@@ -729,9 +734,9 @@ const MAX_FAULT_MARKS: usize = 256;
 
 impl LogEntry {
     fn passes(&self, filter: &LogFilter) -> bool {
-        match &self.raw {
-            Logged::Frame(f) => filter.matches(f),
-            Logged::Error(e) => filter.matches_error(e),
+        match &self.record {
+            Record::Frame(f) => filter.matches(f),
+            Record::Error(e) => filter.matches_error(e),
         }
     }
 }

@@ -3,7 +3,7 @@
 use std::time::Duration;
 
 use buslab_bus::{
-    BusSummary, ErrorRegisters, ErrorState, Message, NodeCounters, NodeStatus, Status,
+    BusSummary, ErrorRegisters, ErrorState, Message, NodeCounters, NodeStatus, Status, Timestamp,
 };
 use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
 
@@ -12,7 +12,7 @@ fn ms(n: u64) -> Duration {
 }
 
 fn msg(t: f64, text: &str) -> Message {
-    Message::rx(t, "vcan0", text.parse().unwrap())
+    Message::rx(Timestamp::from_secs_f64(t), "vcan0", text.parse().unwrap()).into_record()
 }
 
 fn status(number: u32, name: &str, tec: u8, state: ErrorState) -> NodeStatus {
@@ -42,9 +42,9 @@ fn status(number: u32, name: &str, tec: u8, state: ErrorState) -> NodeStatus {
 #[test]
 fn the_table_counts_ids_measures_periods_and_highlights_changed_bytes() {
     let mut view = BusView::new(ViewConfig::default());
-    view.frame(ms(0), &msg(10.000, "123#0011"));
-    view.frame(ms(10), &msg(10.010, "123#0012"));
-    view.frame(ms(20), &msg(10.020, "0C0#01"));
+    view.message(ms(0), &msg(10.000, "123#0011"));
+    view.message(ms(10), &msg(10.010, "123#0012"));
+    view.message(ms(20), &msg(10.020, "0C0#01"));
     let rows = view.rows(ms(30));
     assert_eq!(rows.len(), 2);
     assert_eq!((rows[0].id.as_str(), rows[0].count), ("0C0", 1));
@@ -63,13 +63,13 @@ fn the_table_counts_ids_measures_periods_and_highlights_changed_bytes() {
 fn deltas_carry_only_what_changed_and_a_missed_delta_is_made_up_next_time() {
     let mut view = BusView::new(ViewConfig::default());
     let all = LogFilter::all();
-    view.frame(ms(0), &msg(0.0, "100#01"));
-    view.frame(ms(1), &msg(0.001, "200#02"));
+    view.message(ms(0), &msg(0.0, "100#01"));
+    view.message(ms(1), &msg(0.001, "200#02"));
     let first = view.delta(&Cursor::start(), ms(2), &all, 100);
     assert!(first.full);
     assert_eq!((first.ids.len(), first.log.len()), (2, 2));
     let mut cursor = view.advance(ms(2));
-    view.frame(ms(3), &msg(0.003, "200#03"));
+    view.message(ms(3), &msg(0.003, "200#03"));
     let d = view.delta(&cursor, ms(4), &all, 100);
     assert!(!d.full);
     assert_eq!(
@@ -81,7 +81,7 @@ fn deltas_carry_only_what_changed_and_a_missed_delta_is_made_up_next_time() {
         ["200#03"]
     );
     // The consumer could not take that delta: its cursor stays, and the next delta has both.
-    view.frame(ms(5), &msg(0.005, "100#04"));
+    view.message(ms(5), &msg(0.005, "100#04"));
     let d = view.delta(&cursor, ms(6), &all, 100);
     assert_eq!(d.ids.len(), 2);
     assert_eq!(d.log.len(), 2);
@@ -104,7 +104,7 @@ fn the_log_is_bounded_filtered_and_limited_to_the_newest() {
     });
     for i in 0..25u64 {
         let id = if i % 5 == 0 { "300" } else { "080" };
-        view.frame(ms(i), &msg(i as f64 / 1000.0, &format!("{id}#{:02X}", i)));
+        view.message(ms(i), &msg(i as f64 / 1000.0, &format!("{id}#{:02X}", i)));
     }
     let only: LogFilter = "300".parse().unwrap();
     let d = view.delta(&Cursor::start(), ms(30), &only, 100);
@@ -126,14 +126,14 @@ fn a_consumer_behind_the_log_counts_every_frame_it_missed() {
         log_capacity: 10,
         ..ViewConfig::default()
     });
-    view.frame(ms(0), &msg(0.0, "080#00"));
+    view.message(ms(0), &msg(0.0, "080#00"));
     let all = LogFilter::all();
     let first = view.delta(&Cursor::start(), ms(1), &all, 5);
     assert!(first.full);
     let cursor = view.advance(ms(1));
     // 25 frames while the consumer looked away: 10 still in the log, 3 given, 22 missed.
     for i in 1..=25u64 {
-        view.frame(ms(1 + i), &msg(i as f64 / 1000.0, &format!("080#{i:02X}")));
+        view.message(ms(1 + i), &msg(i as f64 / 1000.0, &format!("080#{i:02X}")));
     }
     let d = view.delta(&cursor, ms(30), &all, 3);
     assert!(!d.full);
@@ -141,7 +141,7 @@ fn a_consumer_behind_the_log_counts_every_frame_it_missed() {
     assert_eq!(d.log_skipped, 22);
     // Caught up: nothing missed any more.
     let cursor = view.advance(ms(30));
-    view.frame(ms(31), &msg(0.031, "080#FF"));
+    view.message(ms(31), &msg(0.031, "080#FF"));
     let d = view.delta(&cursor, ms(32), &all, 3);
     assert_eq!((d.log.len(), d.log_skipped), (1, 0));
 }
@@ -154,7 +154,7 @@ fn load_is_estimated_from_frame_lengths_at_a_known_bit_rate() {
     });
     // 1000 frames of ~111 bits in one second at 125 kbit/s: ~89 %.
     for i in 0..1000u64 {
-        view.frame(ms(i), &msg(i as f64 / 1000.0, "555#5555555555555555"));
+        view.message(ms(i), &msg(i as f64 / 1000.0, "555#5555555555555555"));
     }
     view.tick(ms(1000));
     let load: Vec<_> = view.load().copied().collect();
@@ -164,7 +164,7 @@ fn load_is_estimated_from_frame_lengths_at_a_known_bit_rate() {
     assert!((85.0..100.0).contains(&p), "{p}");
     // Without a bit rate only the frame rate is known.
     let mut blind = BusView::new(ViewConfig::default());
-    blind.frame(ms(0), &msg(0.0, "001#"));
+    blind.message(ms(0), &msg(0.0, "001#"));
     blind.tick(ms(1000));
     assert_eq!(blind.load().next().unwrap().percent, None);
 }
@@ -210,7 +210,7 @@ fn the_table_is_bounded_and_clear_starts_over() {
         ..ViewConfig::default()
     });
     for id in ["001", "002", "003", "004", "005"] {
-        view.frame(ms(0), &msg(0.0, &format!("{id}#")));
+        view.message(ms(0), &msg(0.0, &format!("{id}#")));
     }
     let d = view.delta(&Cursor::start(), ms(1), &LogFilter::all(), 10);
     assert_eq!((d.ids.len(), d.ids_dropped), (3, 2));
@@ -298,19 +298,15 @@ fn equal_samples_are_kept_as_a_run_and_the_history_spans_the_retention_time() {
 
 #[test]
 fn error_frames_are_logged_with_their_class_and_meaning() {
-    use buslab_bus::{ErrorFrame, ErrorMessage};
+    use buslab_bus::ErrorFrame;
     let mut view = BusView::new(ViewConfig::default());
-    view.frame(ms(0), &msg(100.0, "123#11"));
+    view.message(ms(0), &msg(100.0, "123#11"));
     // Linux's SJA1000 frame for a stuff error while receiving in the data field, with the
     // counters.
     let error = ErrorFrame::decode(0x288, &[0, 0, 0x04, 0x0A, 0, 0, 0, 9]).unwrap();
-    view.error_frame(
+    view.message(
         ms(1),
-        &ErrorMessage {
-            timestamp: 100.001,
-            channel: "vcan0".into(),
-            error,
-        },
+        &Message::error(Timestamp::from_secs_f64(100.001), "vcan0", error),
     );
     let d = view.delta(&Cursor::start(), ms(2), &LogFilter::all(), 10);
     assert_eq!(d.log.len(), 2);

@@ -8,7 +8,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use buslab_backends::{DynBus, Pump, PumpEvent, PumpSender};
-use buslab_bus::{BusEvent, CanBus, NodeRef, NodeStatus};
+use buslab_bus::{CanBus, NodeRef, NodeStatus};
 use buslab_view::{BusView, ViewConfig};
 
 use crate::request::MAX_WINDOW;
@@ -103,15 +103,12 @@ impl BusSide {
         let pump = Pump::spawn("web-bus", bus, {
             let hub = hub.clone();
             move |event| match event {
-                PumpEvent::Received(BusEvent::Frame(message)) => {
+                PumpEvent::Received(message) => {
                     let now = hub.now();
-                    hub.view().frame(now, &message);
-                    hub.devices.frame(&message.frame);
-                    true
-                }
-                PumpEvent::Received(BusEvent::Error(error)) => {
-                    let now = hub.now();
-                    hub.view().error_frame(now, &error);
+                    hub.view().message(now, &message);
+                    if let Some(frame) = message.frame() {
+                        hub.devices.frame(frame);
+                    }
                     true
                 }
                 PumpEvent::SendFailed { frame, error } => {

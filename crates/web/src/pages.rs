@@ -8,6 +8,7 @@ use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{Html, IntoResponse, Response};
 use std::time::Duration;
 
+use buslab_bus::Timestamp;
 use buslab_view::{Cursor, Delta, ErrorSample, IdRow, LogEntry, LogFilter, NodeView};
 use serde::Deserialize;
 
@@ -296,7 +297,7 @@ fn frames_table(b: &mut String, d: &Delta) {
             } else {
                 ""
             },
-            time_of_day(e.time),
+            time_of_day(e.at),
             entry_text(e)
         );
     }
@@ -305,12 +306,13 @@ fn frames_table(b: &mut String, d: &Delta) {
 
 /// A frame's time as a person reads it: the time of day (UTC) with milliseconds for a
 /// wall-clock timestamp, seconds for a simulation's (which start near 0).
-pub fn time_of_day(t: f64) -> String {
+pub fn time_of_day(t: Timestamp) -> String {
+    let (secs, micros) = t.secs_and_micros();
     // Before 2001: no wall clock, a simulation's own seconds.
-    if !(1e9..1e11).contains(&t) {
-        return format!("{t:.3} s");
+    if !(1_000_000_000..100_000_000_000).contains(&secs) {
+        return format!("{}.{:03} s", secs, micros / 1000);
     }
-    let ms = (t * 1000.0).round() as u64 % 86_400_000;
+    let ms = (secs % 86_400) * 1000 + u64::from(micros / 1000);
     format!(
         "{:02}:{:02}:{:02}.{:03}",
         ms / 3_600_000,

@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::{
-    BusAdmin, BusError, BusEvent, BusSummary, CanBus, ErrorFrame, ErrorMessage, ErrorRegisters,
-    ErrorState, Filter, Message, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus,
-    TxReport, WireFault,
+    BusAdmin, BusError, BusSummary, CanBus, ErrorFrame, ErrorRegisters, ErrorState, Filter,
+    Message, NodeCounters, NodeInfo, NodeRef, NodeRegisters, NodeStatus, Timestamp, TxReport,
+    WireFault,
 };
 use buslab_can::Frame;
 use buslab_web::{WebConfig, WebServer};
@@ -40,7 +40,7 @@ struct Control {
 }
 
 struct FakeBus {
-    events: Receiver<BusEvent>,
+    events: Receiver<Message>,
     control: Arc<Control>,
 }
 
@@ -48,16 +48,18 @@ impl CanBus for FakeBus {
     fn send(&mut self, _: &Frame) -> Result<(), BusError> {
         Ok(())
     }
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         loop {
             match self.recv_event(timeout)? {
-                Some(BusEvent::Frame(m)) => return Ok(Some(m)),
-                Some(BusEvent::Error(_)) => continue,
+                Some(m) => match m.into_frame() {
+                    Some(frame) => return Ok(Some(frame)),
+                    None => continue,
+                },
                 None => return Ok(None),
             }
         }
     }
-    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<BusEvent>, BusError> {
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         match self.events.recv_timeout(timeout.unwrap_or(HANG)) {
             Ok(e) => Ok(Some(e)),
             Err(mpsc::RecvTimeoutError::Timeout) => Ok(None),
@@ -156,7 +158,7 @@ impl BusAdmin for FakeBus {
 
 struct Bench {
     server: WebServer,
-    events: Sender<BusEvent>,
+    events: Sender<Message>,
     control: Arc<Control>,
 }
 
@@ -194,21 +196,24 @@ impl Bench {
     fn error(&self, class: u32, data: &[u8]) {
         let error = ErrorFrame::decode(class, data).unwrap();
         self.events
-            .send(BusEvent::Error(ErrorMessage {
-                timestamp: 1_700_000_000.25,
-                channel: "fake".into(),
+            .send(Message::error(
+                Timestamp::from_micros(1_700_000_000_250_000),
+                "fake",
                 error,
-            }))
+            ))
             .unwrap();
     }
 
     fn frame(&self, text: &str) {
         self.events
-            .send(BusEvent::Frame(Message::rx(
-                1_700_000_000.125,
-                "fake",
-                text.parse().unwrap(),
-            )))
+            .send(
+                Message::rx(
+                    Timestamp::from_micros(1_700_000_000_125_000),
+                    "fake",
+                    text.parse().unwrap(),
+                )
+                .into_record(),
+            )
             .unwrap();
     }
 }

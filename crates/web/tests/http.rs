@@ -37,9 +37,13 @@ impl CanBus for FakeBus {
         let _ = self.sent.send(*frame);
         Ok(())
     }
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         match self.frames.recv_timeout(timeout.unwrap_or(HANG)) {
-            Ok(f) => Ok(Some(Message::rx(1.0, "fake", f))),
+            Ok(f) => Ok(Some(Message::rx(
+                buslab_bus::Timestamp::from_secs(1),
+                "fake",
+                f,
+            ))),
             Err(mpsc::RecvTimeoutError::Timeout) => Ok(None),
             Err(mpsc::RecvTimeoutError::Disconnected) => Err(BusError::Closed),
         }

@@ -30,9 +30,13 @@ impl CanBus for Feed {
     fn send(&mut self, _: &Frame) -> Result<(), BusError> {
         Ok(())
     }
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
         match self.0.recv_timeout(timeout.unwrap_or(HANG)) {
-            Ok(f) => Ok(Some(Message::rx(1.0, "feed", f))),
+            Ok(f) => Ok(Some(Message::rx(
+                buslab_can::Timestamp::from_secs(1),
+                "feed",
+                f,
+            ))),
             Err(mpsc::RecvTimeoutError::Timeout) => Ok(None),
             Err(mpsc::RecvTimeoutError::Disconnected) => Err(BusError::Closed),
         }

@@ -14,7 +14,7 @@ use std::time::Duration;
 use anyhow::bail;
 use buslab_backends::{BusUrl, FilterItem, Pump, PumpEvent, TrySendError, filter_set, resolve};
 use buslab_can::Frame;
-use buslab_canbus::{BusEvent, Filter};
+use buslab_canbus::{Filter, Record};
 
 use super::busopt::open;
 
@@ -78,8 +78,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Way::BtoA => args.b.clone(),
         };
         Pump::spawn(name, bus, move |event| match event {
-            PumpEvent::Received(BusEvent::Frame(m)) => tx.send((way, m.frame)).is_ok(),
-            PumpEvent::Received(BusEvent::Error(_)) => true,
+            PumpEvent::Received(m) => match m.record {
+                Record::Frame(frame) => tx.send((way, frame)).is_ok(),
+                Record::Error(_) => true,
+            },
             PumpEvent::SendFailed { frame, error } => {
                 tracing::warn!("{url} refused {frame}: {error}");
                 true

@@ -16,10 +16,10 @@ use std::time::{Duration, Instant, UNIX_EPOCH};
 
 use anyhow::{Context, bail};
 use buslab_backends::{BusSpec, BusUrl, DynBus, FilterSet, resolve};
-use buslab_canbus::BusEvent;
+use buslab_canbus::{Record, Timestamp};
 use buslab_logs::candump::{self, Terminal, TimestampMode, View};
 use buslab_logs::text;
-use buslab_logs::{Entry, Format, LogWriter, WriteOptions, create_writer_with};
+use buslab_logs::{Format, LogWriter, Message, WriteOptions, create_writer_with};
 
 use super::busopt::{open, set_name};
 
@@ -328,7 +328,7 @@ fn open_source(source: &Source, args: &Args) -> anyhow::Result<DynBus> {
 
 /// What a bus reader hands the printer.
 enum Item {
-    Event(usize, BusEvent),
+    Event(usize, Message),
     /// Frames the bus lost for this client since the last report (-d), and the total.
     Dropped {
         index: usize,
@@ -513,7 +513,7 @@ struct Printer<'a> {
     terminal: Terminal,
     timestamps: Option<TimestampMode>,
     dated: bool,
-    zero: Option<Duration>,
+    zero: Option<Timestamp>,
     seen: u64,
     /// The text to print once the log is flushed, and how many lines (or spinner turns).
     held: Vec<u8>,
@@ -586,20 +586,20 @@ impl<'a> Printer<'a> {
             }
         };
         let source = &self.sources[index];
-        let passes = match &event {
-            BusEvent::Frame(m) => source.filters.passes(&m.frame),
-            BusEvent::Error(e) => source
+        let passes = match &event.record {
+            Record::Frame(frame) => source.filters.passes(frame),
+            Record::Error(error) => source
                 .filters
-                .passes_error(&e.error, if self.args.errors { u32::MAX } else { 0 }),
+                .passes_error(error, if self.args.errors { u32::MAX } else { 0 }),
         };
         if !passes {
             return Ok(false);
         }
-        if let BusEvent::Frame(_) = event {
+        if let Record::Frame(_) = event.record {
             self.seen += 1;
         }
-        let mut entry = Entry::from_event(&event);
-        entry.interface.clone_from(&source.name);
+        let mut entry = event;
+        entry.channel.clone_from(&source.name);
         if let Some(log) = log {
             log.write(&entry)?;
         }
@@ -630,19 +630,18 @@ impl<'a> Printer<'a> {
     }
 
     /// Appends `entry`'s line (the log has it already: `-t z` shifts its time for `-L`).
-    fn line(&mut self, entry: &mut Entry) {
+    fn line(&mut self, entry: &mut Message) {
         if self.args.log_format {
             if self.timestamps == Some(TimestampMode::Zero) {
-                let first = *self.zero.get_or_insert(entry.timestamp);
-                entry.timestamp = entry.timestamp.saturating_sub(first);
+                let first = *self.zero.get_or_insert(entry.at);
+                entry.at = Timestamp::since_epoch(entry.at.saturating_since(first));
             }
             candump::write_line(&mut self.held, entry, self.args.extra, false);
         } else if self.dated {
             self.scratch.clear();
             self.terminal.write_line(&mut self.scratch, entry);
             self.held.extend_from_slice(b" (");
-            self.held
-                .extend_from_slice(date(entry.timestamp).as_bytes());
+            self.held.extend_from_slice(date(entry.at).as_bytes());
             self.held.extend_from_slice(b") ");
             self.held.extend_from_slice(&self.scratch[1..]);
         } else {
@@ -708,7 +707,7 @@ impl Log {
         }
     }
 
-    fn write(&mut self, entry: &Entry) -> anyhow::Result<()> {
+    fn write(&mut self, entry: &Message) -> anyhow::Result<()> {
         let result = self.writer()?.write(entry);
         self.check(result)?;
         self.written += 1;
@@ -876,8 +875,8 @@ impl Drops {
 }
 
 /// `2026-11-23 23:05:33.123456` (UTC) for `-t A`.
-fn date(t: Duration) -> String {
-    let when = UNIX_EPOCH + t;
+fn date(t: Timestamp) -> String {
+    let when = UNIX_EPOCH + t.since_epoch_duration();
     let text = humantime::format_rfc3339_micros(when).to_string();
     // `2026-11-23T23:05:33.123456Z`
     text.trim_end_matches('Z').replacen('T', " ", 1)
@@ -891,7 +890,7 @@ mod tests {
     #[test]
     fn dates_look_like_candump_t_a() {
         assert_eq!(
-            date(Duration::from_micros(1_700_000_000_123_456)),
+            date(Timestamp::from_micros(1_700_000_000_123_456)),
             "2023-11-14 22:13:20.123456"
         );
     }
@@ -918,9 +917,9 @@ mod tests {
 
     #[test]
     fn the_log_format_knows_the_record() {
-        let e = Entry {
-            timestamp: Duration::from_secs(1),
-            interface: "vcan0".into(),
+        let e = Message {
+            at: Timestamp::from_secs(1),
+            channel: "vcan0".into(),
             record: Record::Frame("123#11".parse().unwrap()),
             direction: None,
         };

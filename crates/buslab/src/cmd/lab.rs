@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::{self, JoinHandle};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use buslab_can::controller::ControllerConfig;
@@ -25,7 +25,7 @@ use buslab_sim::{BitTime, Simulation, Traffic};
 use buslab_socketcand::SocketcandBus;
 use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
 
-use buslab_logs::Entry;
+use buslab_logs::Message;
 
 use crate::status_line::StatusLine;
 use buslab_logs::candump::{Terminal, TimestampMode, View};
@@ -125,9 +125,7 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     };
     let (scenario, names) = lab_nodes(args.bitrate, args.seed);
     // Frame times are the server's start plus virtual time: `-t` counts from here.
-    let start_unix = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64());
+    let start_unix = buslab_canbus::wall_clock();
     let slio_bench = SlioBench::new(args.bitrate);
     let server = start_server(args.listen, args.bitrate, scenario, &slio_bench)?;
     let addr = server.local_addr();
@@ -399,7 +397,7 @@ fn monitor(
     addr: SocketAddr,
     args: &Args,
     end: Option<Instant>,
-    start_unix: f64,
+    start_unix: buslab_canbus::Timestamp,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
     let mut bus = join(addr, "monitor")?;
@@ -410,7 +408,7 @@ fn monitor(
         timestamps: args.timestamps.then_some(TimestampMode::Zero),
         ..View::default()
     })
-    .with_zero(buslab_logs::seconds(start_unix));
+    .with_zero(start_unix);
     while !stop.load(Ordering::SeqCst) {
         let left = end.map(|end| end.saturating_duration_since(Instant::now()));
         if left == Some(Duration::ZERO) {
@@ -420,10 +418,10 @@ fn monitor(
             l.min(Duration::from_millis(100))
         });
         if let Some(m) = bus.recv(Some(wait))? {
-            let entry = Entry {
-                interface: CHANNEL.to_string(),
+            let entry = Message {
+                channel: CHANNEL.to_string(),
                 direction: None,
-                ..Entry::from_message(&m)
+                ..m.into_record()
             };
             writeln!(out, "{}", terminal.line(&entry))?;
             out.flush()?;

@@ -158,7 +158,7 @@ fn handshake(bus: &mut buslab_backends::DynBus, id: Id, timeout: Duration) -> an
         let Some(message) = bus.recv(Some(left))? else {
             continue;
         };
-        let frame = &message.frame;
+        let frame = &message.record;
         if frame.id() == id && frame.dlc() == 0 {
             tracing::debug!(
                 "the loader answered with a {} frame",

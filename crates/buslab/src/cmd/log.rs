@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use buslab_logs::stats::LogStats;
 use buslab_logs::{
-    Entry, Format, LogBitRate, LogSource, LogWriter, OpenOptions, ReadError, candump,
+    Format, LogBitRate, LogSource, LogWriter, Message, OpenOptions, ReadError, candump,
     create_writer, create_writer_atomic, open_source,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -136,9 +136,9 @@ fn read_all(
     skip_bad: bool,
     stop: &AtomicBool,
     tally: &mut Tally,
-    mut each: impl FnMut(&Entry) -> anyhow::Result<()>,
+    mut each: impl FnMut(&Message) -> anyhow::Result<()>,
 ) -> Result<(), ReadFailure> {
-    let mut entry = Entry::default();
+    let mut entry = Message::default();
     while !stop.load(Ordering::Relaxed) {
         match source.reader.read_into(&mut entry) {
             Ok(true) => {
@@ -340,7 +340,7 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
     let mut tally = Tally::default();
     let read = read_all(&mut source, args.input.skip_bad, &stop, &mut tally, |e| {
         if let (Some(bits), Some(load)) = (stats.add(e), &mut load) {
-            load.add(&e.interface, e.timestamp, bits);
+            load.add(&e.channel, e.at, bits);
         }
         Ok(())
     });
@@ -369,9 +369,9 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
         writeln!(
             out,
             "time        {} .. {} ({})",
-            seconds(first),
-            seconds(last),
-            Human(last - first)
+            first,
+            last,
+            Human(last.saturating_since(first))
         )?;
     }
     let mut rates = Vec::new();
@@ -475,10 +475,6 @@ impl BitRate {
 /// `125 kbit/s`, `83.333 kbit/s`, `1000 kbit/s`.
 fn kbit(bits_per_s: u32) -> String {
     format!("{} kbit/s", f64::from(bits_per_s) / 1000.0)
-}
-
-fn seconds(t: Duration) -> String {
-    format!("{}.{:06}", t.as_secs(), t.subsec_micros())
 }
 
 fn cat(args: CatArgs) -> anyhow::Result<()> {

@@ -141,7 +141,7 @@ fn session(
             .min(SLICE);
         let mut timeout = wait;
         while let Some(message) = bus.recv(Some(timeout)).context("receiving from the bus")? {
-            app.handle_frame(now(), &message.frame);
+            app.handle_frame(now(), &message.record);
             // Take what already arrived, then look at keys and timers again.
             timeout = Duration::ZERO;
         }

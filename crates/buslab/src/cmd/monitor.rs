@@ -13,13 +13,13 @@ use std::collections::VecDeque;
 use std::io::{IsTerminal, Stdout};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, TryRecvError};
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use buslab_backends::DynBus;
 use buslab_can::Frame;
-use buslab_canbus::{Message, NodeRef, NodeStatus};
-use buslab_view::{BusView, Cursor, LogFilter, Logged, ViewConfig};
+use buslab_canbus::{NodeRef, NodeStatus, Record, Timestamp, wall_clock};
+use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
 use ratatui::Terminal;
 use ratatui::backend::CrosstermBackend;
 use ratatui::layout::{Constraint, Layout};
@@ -93,7 +93,7 @@ struct Monitor {
     selected: usize,
     /// The frames this monitor sent that the log may still show (time and frame), to mark
     /// them `TX`.
-    sent: VecDeque<(f64, Frame)>,
+    sent: VecDeque<(Timestamp, Frame)>,
 }
 
 impl Monitor {
@@ -156,10 +156,10 @@ impl Monitor {
                         .log_tail(&self.filter, LOG_LINES)
                         .into_iter()
                         .map(|e| {
-                            let own = matches!(e.raw, Logged::Frame(f) if self.sent.contains(&(e.time, f)));
+                            let own = matches!(e.record, Record::Frame(f) if self.sent.contains(&(e.at, f)));
                             format!(
-                                "{:>17.6}  {}{}",
-                                e.time,
+                                "{:>17}  {}{}",
+                                e.at.to_string(),
                                 e.frame,
                                 if own { "  TX" } else { "" }
                             )
@@ -175,7 +175,7 @@ impl Monitor {
                 .min(next_status)
                 .saturating_duration_since(Instant::now());
             while let Some(m) = bus.recv(Some(timeout)).context("receiving from the bus")? {
-                self.view.frame(self.epoch.elapsed(), &m);
+                self.view.frame(self.epoch.elapsed(), m.at, m.record);
                 timeout = Duration::ZERO;
             }
         }
@@ -250,21 +250,13 @@ impl Monitor {
 
     /// A frame the bus took from this monitor, in the table and the log as the bus carries it.
     fn show_sent(&mut self, frame: Frame) {
-        // Wall-clock seconds, as the frames received from a live bus carry.
-        let timestamp = SystemTime::now()
-            .duration_since(SystemTime::UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64());
-        let message = Message {
-            timestamp,
-            channel: String::new(),
-            frame,
-            is_rx: false,
-        };
-        self.view.frame(self.epoch.elapsed(), &message);
+        // The wall clock, as the frames received from a live bus carry.
+        let at = wall_clock();
+        self.view.frame(self.epoch.elapsed(), at, frame);
         if self.sent.len() == LOG_LINES {
             self.sent.pop_front();
         }
-        self.sent.push_back((timestamp, frame));
+        self.sent.push_back((at, frame));
     }
 
     fn draw(&self, f: &mut ratatui::Frame, now: Duration) {

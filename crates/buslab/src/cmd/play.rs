@@ -14,7 +14,9 @@ use anyhow::{Context, bail};
 use buslab_backends::{BusUrl, DynBus};
 use buslab_canbus::Filter;
 use buslab_logs::candump;
-use buslab_logs::{Entry, Format, LogReader, OpenOptions, ReadError, Record, open_source};
+use buslab_logs::{
+    Format, LogReader, Message, OpenOptions, ReadError, Record, Timestamp, open_source,
+};
 
 use super::busopt::{BusOpt, confirm_sent, open};
 use crate::units::CanUtilsDuration;
@@ -237,7 +239,7 @@ fn input_and_mappings(args: &Args) -> anyhow::Result<(Input, Vec<Mapping>)> {
 const STDIN_QUEUE: usize = 1024;
 
 enum FromStdin {
-    Entry(Entry),
+    Message(Message),
     Bad(ReadError),
     /// The end, with the lines skipped because they were no log lines (candump).
     End {
@@ -282,9 +284,9 @@ fn read_stdin(format: Format) -> anyhow::Result<Receiver<FromStdin>> {
 /// Hands `reader`'s entries and errors over; whether it reached the end.
 fn forward(reader: &mut impl LogReader, tx: &mpsc::SyncSender<FromStdin>) -> bool {
     loop {
-        let mut entry = Entry::default();
+        let mut entry = Message::default();
         let message = match reader.read_into(&mut entry) {
-            Ok(true) => FromStdin::Entry(entry),
+            Ok(true) => FromStdin::Message(entry),
             Ok(false) => return true,
             Err(e) => {
                 let fatal = e.is_fatal();
@@ -310,7 +312,7 @@ impl Pass {
     /// The next entry; `Ok(false)` at the end (or when stopped while waiting for input).
     fn next(
         &mut self,
-        entry: &mut Entry,
+        entry: &mut Message,
         stop: &AtomicBool,
         skipped: &mut u64,
     ) -> Result<bool, ReadError> {
@@ -318,7 +320,7 @@ impl Pass {
             Pass::File(reader) => reader.read_into(entry),
             Pass::Stdin(rx) => loop {
                 match rx.recv_timeout(Duration::from_millis(100)) {
-                    Ok(FromStdin::Entry(e)) => {
+                    Ok(FromStdin::Message(e)) => {
                         *entry = e;
                         return Ok(true);
                     }
@@ -414,9 +416,9 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
             }
             Input::Stdin => Pass::Stdin(read_stdin(format)?),
         };
-        let mut entry = Entry::default();
-        let mut zero: Option<(Duration, Instant)> = None;
-        let mut previous: Option<Duration> = None;
+        let mut entry = Message::default();
+        let mut zero: Option<(Timestamp, Instant)> = None;
+        let mut previous: Option<Timestamp> = None;
         loop {
             if stop.load(Ordering::Relaxed) || args.count.is_some_and(|n| played >= n) {
                 break 'rounds;
@@ -447,7 +449,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
             let index = if routes.is_empty() {
                 0
             } else {
-                match routes.iter().find(|(log, _)| *log == entry.interface) {
+                match routes.iter().find(|(log, _)| *log == entry.channel) {
                     Some((_, i)) => *i,
                     None => {
                         unmapped += 1;
@@ -471,14 +473,14 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
             let mut due = now;
             if !args.ignore_timestamps {
                 if let (Some(limit), Some(before)) = (skip_gaps, previous)
-                    && entry.timestamp.saturating_sub(before) > limit
+                    && entry.at.saturating_since(before) > limit
                 {
                     // canplayer -s: this frame is due now, the later ones from here.
-                    zero = Some((entry.timestamp, now));
+                    zero = Some((entry.at, now));
                 }
-                previous = Some(entry.timestamp);
-                let (t0, start) = *zero.get_or_insert((entry.timestamp, now));
-                let offset = entry.timestamp.saturating_sub(t0).as_secs_f64() / args.speed;
+                previous = Some(entry.at);
+                let (t0, start) = *zero.get_or_insert((entry.at, now));
+                let offset = entry.at.saturating_since(t0).as_secs_f64() / args.speed;
                 due = start
                     + Duration::from_secs_f64(offset.min(crate::units::MAX_DURATION.as_secs_f64()));
             }
@@ -498,7 +500,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
             *sent += 1;
             played += 1;
             // canplayer -v: each frame as it goes (buslab's -v shows the log's info lines).
-            tracing::info!("{name} ({}) {frame}", entry.interface);
+            tracing::info!("{name} ({}) {frame}", entry.channel);
             last_sent = Some(Instant::now());
         }
     }

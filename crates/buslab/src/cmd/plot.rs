@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use buslab_link::fs::write_atomic;
+use buslab_logs::Timestamp;
 use buslab_plot::{Figure, Panel, Series};
 
 use crate::units::Human;
@@ -55,7 +56,7 @@ pub fn write(figure: &Figure, path: &Path) -> anyhow::Result<()> {
 /// the log is longer than [`LoadWindows::MAX_WINDOWS`] of them, so memory stays bounded for
 /// any log length.
 pub struct LoadWindows {
-    origin: Option<Duration>,
+    origin: Option<Timestamp>,
     width: Duration,
     bits: BTreeMap<String, Vec<u64>>,
     end: Duration,
@@ -77,9 +78,9 @@ impl LoadWindows {
     /// A frame of `bits` bits on the wire (stuffing and intermission included) at `at` on
     /// `interface`. The first entry of the log starts the time axis; an entry stamped before
     /// it (a log out of order) counts in the first window.
-    pub fn add(&mut self, interface: &str, at: Duration, bits: u64) {
+    pub fn add(&mut self, interface: &str, at: Timestamp, bits: u64) {
         let origin = *self.origin.get_or_insert(at);
-        let since = at.saturating_sub(origin);
+        let since = at.saturating_since(origin);
         self.end = self.end.max(since);
         while self.window_of(since) >= Self::MAX_WINDOWS {
             self.width *= 2;

@@ -81,11 +81,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let Some(message) = bus.recv(Some(LOOK))? else {
             continue;
         };
-        if message.frame.id() != id {
+        if message.record.id() != id {
             continue;
         }
         first_frame.get_or_insert_with(Instant::now);
-        match file.push(&message.frame) {
+        match file.push(&message.record) {
             Ok(received) => {
                 out.write_all(received.bytes)?;
                 if received.complete {

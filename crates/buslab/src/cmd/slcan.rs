@@ -8,7 +8,7 @@ use std::sync::mpsc;
 
 use anyhow::Context;
 use buslab_backends::{BusUrl, Pump, PumpEvent, PumpSender, TrySendError, resolve};
-use buslab_canbus::{BitTiming, BusError, BusEvent, BusOffRecovery, CanBus};
+use buslab_canbus::{BitTiming, BusError, BusOffRecovery, CanBus, Record};
 use buslab_link::Pty;
 use buslab_slcan::{Adapter, AdapterEvent, BTR_CLOCK_HZ, Identity, Input, Timing};
 
@@ -78,8 +78,10 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         let feed = feed.clone();
         let stop = stop.clone();
         Pump::spawn("slcan-bus", bus, move |event| match event {
-            PumpEvent::Received(BusEvent::Frame(m)) => feed.send(Input::Frame(m.frame)).is_ok(),
-            PumpEvent::Received(BusEvent::Error(e)) => feed.send(Input::Error(e.error)).is_ok(),
+            PumpEvent::Received(m) => match m.record {
+                Record::Frame(frame) => feed.send(Input::Frame(frame)).is_ok(),
+                Record::Error(error) => feed.send(Input::Error(error)).is_ok(),
+            },
             PumpEvent::SendFailed { frame, error } => {
                 tracing::warn!("the bus refused {frame}: {error}");
                 true

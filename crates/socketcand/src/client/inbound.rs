@@ -5,7 +5,7 @@
 use std::collections::VecDeque;
 
 use buslab_bus::bus::matches_any;
-use buslab_bus::{BusEvent, ErrorFrame, ErrorMessage, Filter, Message};
+use buslab_bus::{ErrorFrame, Filter, Message, Record};
 
 use super::ClientError;
 use crate::ProtocolError;
@@ -20,7 +20,7 @@ pub const MAX_INBOX: usize = 1 << 18;
 #[derive(Debug)]
 pub struct Inbound {
     deframer: Deframer,
-    inbox: VecDeque<BusEvent>,
+    inbox: VecDeque<Message>,
     /// Events dropped because the inbox was full, and the count last warned about.
     dropped: u64,
     dropped_warned: u64,
@@ -80,10 +80,11 @@ impl Inbound {
             match msg {
                 ServerMessage::Frame { frame, timestamp } => {
                     self.received += 1;
-                    let m = Message::rx(timestamp.as_secs_f64(), self.channel.clone(), frame);
-                    // Filtered on arrival too, so unwanted traffic does not pile up.
-                    if matches_any(&self.filters, &m.frame) {
-                        self.keep(BusEvent::Frame(m));
+                    // Filtered on arrival too, so unwanted traffic does not pile up (and its
+                    // channel name is not copied).
+                    if matches_any(&self.filters, &frame) {
+                        let m = Message::rx(timestamp, self.channel.clone(), frame);
+                        self.keep(m.into_record());
                     }
                 }
                 ServerMessage::ErrorFrame {
@@ -100,11 +101,7 @@ impl Inbound {
                                 got: e.to_string(),
                             }
                         })?;
-                        self.keep(BusEvent::Error(ErrorMessage {
-                            timestamp: timestamp.as_secs_f64(),
-                            channel: self.channel.clone(),
-                            error,
-                        }));
+                        self.keep(Message::error(timestamp, self.channel.clone(), error));
                     }
                 }
                 other => return Ok(Some(other)),
@@ -114,7 +111,7 @@ impl Inbound {
     }
 
     /// Keeps an event for `recv`, dropping the oldest when the inbox is full.
-    fn keep(&mut self, event: BusEvent) {
+    fn keep(&mut self, event: Message) {
         if self.inbox.len() >= MAX_INBOX {
             self.inbox.pop_front();
             self.dropped += 1;
@@ -132,11 +129,11 @@ impl Inbound {
 
     /// The next kept event: error frames only if `with_errors` (else dropped), frames that
     /// pass the filters.
-    pub fn pop(&mut self, with_errors: bool) -> Option<BusEvent> {
+    pub fn pop(&mut self, with_errors: bool) -> Option<Message> {
         while let Some(event) = self.inbox.pop_front() {
-            match &event {
-                BusEvent::Frame(m) if matches_any(&self.filters, &m.frame) => return Some(event),
-                BusEvent::Error(_) if with_errors => return Some(event),
+            match &event.record {
+                Record::Frame(frame) if matches_any(&self.filters, frame) => return Some(event),
+                Record::Error(_) if with_errors => return Some(event),
                 _ => {}
             }
         }
@@ -160,10 +157,10 @@ mod tests {
             loop {
                 let next = inbound.next_message();
                 while let Some(event) = inbound.pop(true) {
-                    let BusEvent::Frame(m) = event else {
+                    let Some(m) = event.into_frame() else {
                         panic!("error frames are not kept")
                     };
-                    seen.push(format!("{:?} {}", m.frame, m.timestamp));
+                    seen.push(format!("{:?} {}", m.record, m.at.as_secs_f64()));
                 }
                 match next {
                     Ok(None) => break,

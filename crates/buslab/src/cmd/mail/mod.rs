@@ -197,7 +197,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         if let Some(message) = bus.recv(Some(Duration::from_millis(100)))? {
             let before = announcer.delivered();
-            announcer.handle_frame(&message.frame);
+            announcer.handle_frame(&message.record);
             if announcer.delivered() > before {
                 queued.fetch_sub(1, Ordering::SeqCst);
                 eprintln!(
