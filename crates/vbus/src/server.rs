@@ -613,6 +613,13 @@ impl Server {
                 lag.behind_for.as_secs_f64()
             );
         }
+        if !lag.skipped.is_zero() {
+            warn!(
+                "{:.1} s of bus time were skipped in all (the host more than {} s behind)",
+                lag.skipped.as_secs_f64(),
+                BUS_CREDIT.as_secs()
+            );
+        }
     }
 
     /// Waits for socket events or `timeout`. epoll counts whole milliseconds (mio rounds a
@@ -770,9 +777,9 @@ impl Server {
             let mut lag = lock(&self.lag);
             if lag.skipped.is_zero() {
                 warn!(
-                    "the host stalled: the bus skipped {} ms rather than send more than {} s of traffic at once",
-                    plan.skipped.as_millis(),
-                    BUS_CREDIT.as_secs()
+                    "the host fell more than {} s behind the bus: {} ms of bus time skipped rather than sent to the clients at once (said once; the total at the end)",
+                    BUS_CREDIT.as_secs(),
+                    plan.skipped.as_millis()
                 );
             }
             lag.skipped += plan.skipped;
