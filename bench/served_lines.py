@@ -10,7 +10,8 @@ Usage: python3 bench/served_lines.py [--seconds 10] [--busy 4] [--zelle-ahead 16
 One `buslab lab -q --no-web --dir DIR` serves the three lines on pseudo-terminals (DIR/monican
 19200 8N1, DIR/zelle 9600 8N2, DIR/cpu196 115200 8N1). The client sets each PTY to the
 device's settings (raw, same speed and stop bits) and all three are driven at the same time,
-one thread each, first with no busy loop, then with `--busy` of them, in the same run:
+one process each (threads would also wait for each other at Python's global lock), first with
+no busy loop, then with `--busy` of them, in the same run:
 
 - MoniCAN: a Ctrl-L (full VT100 redraw, ~1360 bytes, 0.7 s of line) every 200 ms, so one is
   always queued. MoniCAN also writes every CAN frame it sees to the screen, so its line is
@@ -23,7 +24,7 @@ one thread each, first with no busy loop, then with `--busy` of them, in the sam
   `buslab cpu196 flash read` does.
 
 The client here is Python and competes with the busy loops too: once it is descheduled for
-longer than its requests ahead last on the line (16 ZELLE bytes = 183 ms, two CPU196 blocks =
+longer than its requests ahead last on the line (16 ZELLE bytes = 18.3 ms, two CPU196 blocks =
 45 ms), the device idles for want of a request, which is the client's doing. `--zelle-ahead` and
 `--cpu196-ahead` deepen the windows to take the client out of the measurement.
 
@@ -39,11 +40,16 @@ paced to its rate hands over a few characters at a time; a big read is a burst a
 `% window` is every byte read in the window over the whole window: it also charges a stall
 still running when the window closes, which first-to-last leaves out. `client s` is the part
 of `gaps` ended by a read that brought everything the client had asked for: the device had
-answered every request and waited for the next, so that time is the client's (its thread was
-not running); the rest of `gaps` is time the device had requests and sent nothing (the
-server's). MoniCAN sends without being asked, so its gaps are not split. A protocol round trip (MoniCAN's Ctrl-L handling,
-a reply not yet requested) shows up there, not in a scheduling delay of the server; with the
-requests pipelined as above no gap is by design, so `%` is the figure to judge.
+answered every request and waited for the next, so that time lies between the device's answer
+and the client's next request (the client not running, or the bytes held in the PTY's kernel
+side, which a kernel worker moves on); the rest of `gaps` is time the device had requests and
+sent nothing (the server's). MoniCAN sends without being asked, so its gaps are not split. A
+protocol round trip (MoniCAN's Ctrl-L handling, a reply not yet requested) shows up there, not
+in a scheduling delay of the server; with the requests pipelined as above no gap is by design,
+so `%` is the figure to judge. `srv wait s` is the time the line's serving thread in the lab
+(`zelle-serve`, ...) waited for a CPU while runnable during the window, `cli wait s` the same
+for the line's client process (Linux's schedstat): line time lost beyond them was lost neither
+to the server's nor to the client's scheduling.
 """
 
 import argparse
@@ -51,9 +57,9 @@ import os
 import select
 import subprocess
 import sys
+import multiprocessing
 import tempfile
 import termios
-import threading
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -206,7 +212,25 @@ class Result:
     pass
 
 
-def drive(device, path, seconds, out):
+def run_queue_wait(path):
+    """Seconds the thread `path` (a `/proc/.../schedstat`) has waited for a CPU while runnable
+    (Linux's schedstat, second field); None where the kernel does not tell."""
+    try:
+        with open(path) as f:
+            return int(f.read().split()[1]) / 1e9
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def waited(before, after):
+    return None if before is None or after is None else after - before
+
+
+def drive(device, path, seconds, server, out):
+    out.put(measure(device, path, seconds, server))
+
+
+def measure(device, path, seconds, server=None):
     fd = open_line(path, device.baud, device.stop_bits)
     try:
         device.start(fd)
@@ -221,6 +245,8 @@ def drive(device, path, seconds, out):
         longest = 0.0
         biggest = 0
         in_window = 0
+        me = "/proc/thread-self/schedstat"
+        waits = None
         client_gaps = 0.0
         prev = t0
         while True:
@@ -239,6 +265,8 @@ def drive(device, path, seconds, out):
                 continue
             device.got(fd, len(data))
             if now >= window_start:
+                if waits is None:
+                    waits = (run_queue_wait(me), server and run_queue_wait(server))
                 in_window += len(data)
                 if first is None:
                     first = now
@@ -267,28 +295,53 @@ def drive(device, path, seconds, out):
         res.in_window = in_window
         res.client_gaps = client_gaps
         res.window = seconds
-        out.append(res)
+        res.client_wait = waited(waits and waits[0], run_queue_wait(me))
+        res.server_wait = waited(waits and waits[1], server and run_queue_wait(server))
+        return res
     finally:
         os.close(fd)
 
 
-def phase(d, seconds, zelle_ahead, cpu196_ahead):
-    results = []
+def serving_thread(lab, name):
+    """The schedstat of the lab's thread that serves `name` (`zelle-serve`), if any."""
+    tasks = f"/proc/{lab}/task"
+    for tid in os.listdir(tasks):
+        try:
+            with open(f"{tasks}/{tid}/comm") as f:
+                if f.read().strip() == f"{name}-serve":
+                    return f"{tasks}/{tid}/schedstat"
+        except OSError:
+            pass
+    return None
+
+
+def phase(d, seconds, zelle_ahead, cpu196_ahead, lab):
+    out = multiprocessing.Queue()
     zelle, cpu196 = Zelle(), Cpu196()
     zelle.AHEAD, cpu196.AHEAD = zelle_ahead, cpu196_ahead
-    threads = [
-        threading.Thread(target=drive, args=(dev, os.path.join(d, link), seconds, results))
+    # One process per line: threads would wait for each other's turn at Python's lock on top
+    # of the busy loops, and that delay would be counted against the served line.
+    clients = [
+        multiprocessing.Process(
+            target=drive,
+            args=(dev, os.path.join(d, link), seconds, serving_thread(lab, link), out),
+        )
         for dev, link in ((MoniCan(), "monican"), (zelle, "zelle"), (cpu196, "cpu196"))
     ]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    for c in clients:
+        c.start()
+    results = [out.get() for _ in clients]
+    for c in clients:
+        c.join()
     with open("/proc/loadavg") as f:
         load = f.read().split()[0]
     order = {"MoniCAN terminal": 0, "ZELLE cell": 1, "CPU196 board": 2}
     results.sort(key=lambda r: order[r.device.name])
     return results, load
+
+
+def seconds(value):
+    return "-" if value is None else f"{value:.3f}"
 
 
 def print_table(title, results, load):
@@ -297,6 +350,7 @@ def print_table(title, results, load):
     head = (
         f"{'device':<17} {'line':<13} {'line B/s':>9} {'bytes':>7} {'s':>6} {'B/s':>8} "
         f"{'%':>7} {'gaps s':>7} {'longest ms':>10} {'% busy':>7} {'max read':>8} {'% window':>8} {'client s':>8}"
+        f" {'srv wait s':>10} {'cli wait s':>10}"
     )
     print(head)
     for r in results:
@@ -311,6 +365,7 @@ def print_table(title, results, load):
             f"{dev.name:<17} {settings:<13} {line_rate:>9.1f} {r.bytes:>7} {r.span:>6.2f} "
             f"{rate:>8.1f} {100 * rate / line_rate:>6.1f}% {r.gaps:>7.2f} "
             f"{1000 * r.longest:>10.1f} {100 * busy / line_rate:>6.1f}% {r.biggest:>8} {100 * r.in_window / r.window / line_rate:>7.1f}% {r.client_gaps:>8.2f}"
+            f" {seconds(r.server_wait):>10} {seconds(r.client_wait):>10}"
         )
     for r in results:
         print(f"  {r.device.name}: {r.device.detail()}")
@@ -339,12 +394,12 @@ def main():
                     return 1
                 time.sleep(0.1)
             time.sleep(2)  # MoniCAN's start-up: calibration of the SLIO boards, sign-on
-            idle, idle_load = phase(d, args.seconds, args.zelle_ahead, args.cpu196_ahead)
+            idle, idle_load = phase(d, args.seconds, args.zelle_ahead, args.cpu196_ahead, lab.pid)
             busy = [
                 subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.busy)
             ]
             time.sleep(1)
-            loaded, loaded_load = phase(d, args.seconds, args.zelle_ahead, args.cpu196_ahead)
+            loaded, loaded_load = phase(d, args.seconds, args.zelle_ahead, args.cpu196_ahead, lab.pid)
         finally:
             for b in busy:
                 b.terminate()

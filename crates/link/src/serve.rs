@@ -1,6 +1,7 @@
 //! Pacing a sans-IO byte device to the wall clock behind a pseudo-terminal.
 
 use std::collections::VecDeque;
+use std::fs::File;
 use std::io;
 use std::os::fd::AsFd;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -11,6 +12,7 @@ use nix::poll::{PollFd, PollFlags, ppoll};
 use nix::sys::time::TimeSpec;
 
 use buslab_device::{ByteDevice, LineSettings};
+use buslab_pace::{Pacer, Rate, Ticks};
 
 use crate::Pty;
 
@@ -20,6 +22,13 @@ pub type Control<D> = Box<dyn FnOnce(&mut D, u64) + Send>;
 
 /// How long the loop may sleep without looking at `stop` and the control channel.
 const MAX_IDLE: Duration = Duration::from_millis(20);
+
+/// The most device time a late turn of the loop catches up at once when the device has work
+/// due (its credit, see `buslab_pace`), and the most by which bytes read late are dated back
+/// to when the loop was woken for them: a second of the line, 11.5 KB at 115200 baud, well
+/// within what a client may have waiting ([`MAX_OUTBOUND`]). A longer stall (the process was
+/// stopped) is skipped, not sent in one burst.
+const DEVICE_CREDIT: Duration = Duration::from_secs(1);
 
 /// Bytes from the client waiting for their line time. Beyond this the loop stops reading the
 /// PTY, so a writer that outruns the line blocks (as on a real port) instead of piling its
@@ -103,6 +112,8 @@ struct Losses {
     peer: Option<LineSettings>,
     /// Device output beyond what a client that does not read may have waiting.
     overflowed: u64,
+    /// Wall time the loop was kept from running beyond the device's credit, skipped.
+    skipped: Duration,
 }
 
 impl Losses {
@@ -129,6 +140,19 @@ impl Losses {
         self.overflowed += n as u64;
     }
 
+    fn stalled(&mut self, skipped: Duration) {
+        if self.skipped.is_zero() {
+            tracing::warn!(
+                "{}: serving stalled for more than {} ms; the device skipped {} ms of its time \
+                 rather than send it in one burst",
+                self.device,
+                DEVICE_CREDIT.as_millis(),
+                skipped.as_millis()
+            );
+        }
+        self.skipped += skipped;
+    }
+
     /// The warnings when serving ends, one per kind of loss.
     fn summary(&self, line: LineSettings) -> Vec<String> {
         let mut warnings = Vec::new();
@@ -145,8 +169,62 @@ impl Losses {
                 self.device, self.overflowed
             ));
         }
+        if !self.skipped.is_zero() {
+            warnings.push(format!(
+                "{}: the device skipped {} ms of its time in stalls of the host",
+                self.device,
+                self.skipped.as_millis()
+            ));
+        }
         warnings
     }
+}
+
+/// The device time from which bytes read at `wall` were there to read: `late` earlier (how long
+/// the woken thread waited for a CPU), at most [`DEVICE_CREDIT`], never before the device's
+/// own time `device_now`.
+fn readable_since(pacer: &Pacer, wall: Duration, late: Duration, device_now: u64) -> u64 {
+    let woken = wall.saturating_sub(late.min(DEVICE_CREDIT));
+    pacer.ticks_at(woken).0.max(device_now)
+}
+
+/// How long this thread has waited for a CPU while runnable, in all (Linux's
+/// `/proc/thread-self/schedstat`, second field): across a wait, how late the thread ran after
+/// it was woken. Zero where the kernel does not tell.
+struct RunQueueWait {
+    file: Option<File>,
+    buf: [u8; 96],
+}
+
+impl RunQueueWait {
+    /// Opened by the thread it measures.
+    fn open() -> Self {
+        Self {
+            file: File::open("/proc/thread-self/schedstat").ok(),
+            buf: [0; 96],
+        }
+    }
+
+    fn total(&mut self) -> Duration {
+        use std::os::unix::fs::FileExt;
+        let Some(file) = &self.file else {
+            return Duration::ZERO;
+        };
+        let Ok(n) = file.read_at(&mut self.buf, 0) else {
+            return Duration::ZERO;
+        };
+        run_queue_wait(&self.buf[..n])
+    }
+}
+
+/// The second field of a `schedstat` line (`on-CPU ns, waiting ns, timeslices`); zero for
+/// anything else.
+fn run_queue_wait(schedstat: &[u8]) -> Duration {
+    std::str::from_utf8(schedstat)
+        .ok()
+        .and_then(|text| text.split_whitespace().nth(1))
+        .and_then(|waited| waited.parse().ok())
+        .map_or(Duration::ZERO, Duration::from_nanos)
 }
 
 fn serve_loop<D: ByteDevice>(
@@ -160,7 +238,10 @@ fn serve_loop<D: ByteDevice>(
 ) -> io::Result<()> {
     pty.report_flushes()?;
     let epoch = Instant::now();
-    let clock = || epoch.elapsed().as_nanos() as u64;
+    let wall = || epoch.elapsed();
+    // The device's nanoseconds, paced to the wall clock.
+    let mut pacer = Pacer::new(Rate::per_second(1_000_000_000), DEVICE_CREDIT);
+    let mut run_queue = RunQueueWait::open();
     let mut inbound = Inbound {
         queue: VecDeque::new(),
         arrivals: Arrivals::new(line.byte_time_ns()),
@@ -169,9 +250,19 @@ fn serve_loop<D: ByteDevice>(
     let mut outbound: VecDeque<u8> = VecDeque::new();
     let mut produced = Vec::new();
     let mut controls_open = true;
+    let mut now = 0;
 
     while !stop.load(Ordering::Relaxed) {
-        let now = clock();
+        let turn = wall();
+        let due = [device.next_deadline(), inbound.next_arrival()]
+            .into_iter()
+            .flatten()
+            .min();
+        let plan = pacer.plan(turn, Ticks(now), due.map(Ticks));
+        if !plan.skipped.is_zero() {
+            losses.stalled(plan.skipped);
+        }
+        now = plan.run_to.0;
         // Bytes that have finished arriving go first, so control work sees them. Bytes the
         // client wrote while it was held back go in before the device's time moves past them.
         loop {
@@ -179,7 +270,8 @@ fn serve_loop<D: ByteDevice>(
             if !inbound.arrivals.held_back || inbound.queue.len() >= MAX_INBOUND {
                 break;
             }
-            inbound.read(pty, line, &clock, losses)?;
+            let read_at = pacer.ticks_at(wall()).0.max(now);
+            inbound.read(pty, line, read_at, losses)?;
         }
         // A client that arrived or threw away what it had not read yet: before the device's
         // poll, so its answer (a whole screen) leaves in this turn.
@@ -208,12 +300,12 @@ fn serve_loop<D: ByteDevice>(
         outbound.extend(produced.drain(..).take(room));
         flush(pty, &mut outbound)?;
 
-        let wake = [device.next_deadline(), inbound.next_arrival()]
+        let due = [device.next_deadline(), inbound.next_arrival()]
             .into_iter()
             .flatten()
             .min();
-        let sleep = match wake {
-            Some(at) => Duration::from_nanos(at.saturating_sub(now)).min(MAX_IDLE),
+        let sleep = match pacer.wake_at(turn, due.map(Ticks)) {
+            Some(at) => at.saturating_sub(turn).min(MAX_IDLE),
             None => MAX_IDLE,
         };
         let mut events = PollFlags::empty();
@@ -234,11 +326,18 @@ fn serve_loop<D: ByteDevice>(
         ];
         // ppoll, not poll: poll's whole milliseconds would round a wait under 1 ms (a byte at
         // 115200 baud is 87 µs) down to 0 and spin the loop.
+        let waited_before = run_queue.total();
         match ppoll(&mut fds, Some(TimeSpec::from_duration(sleep)), None) {
             Ok(_) | Err(nix::errno::Errno::EINTR) => {}
             Err(e) => return Err(e.into()),
         }
-        inbound.read(pty, line, &clock, losses)?;
+        // Woken, this thread may wait for a CPU a long time on a loaded machine: what the
+        // client wrote was there that much earlier, and it is dated so (bounded), or every
+        // late turn would be line time lost for good (a request-reply protocol such as the
+        // ZELLE cell's idles its line for it).
+        let late = run_queue.total().saturating_sub(waited_before);
+        let read_at = readable_since(&pacer, wall(), late, now);
+        inbound.read(pty, line, read_at, losses)?;
     }
     flush(pty, &mut outbound)
 }
@@ -271,11 +370,12 @@ impl Inbound {
 
     /// Reads what the client wrote, as far as the queue has room; notes whether the client is
     /// being held back.
+    /// `read_at`: the device time from which what is read now could have been on the line.
     fn read(
         &mut self,
         pty: &Pty,
         line: LineSettings,
-        clock: &dyn Fn() -> u64,
+        read_at: u64,
         losses: &mut Losses,
     ) -> io::Result<()> {
         loop {
@@ -298,7 +398,7 @@ impl Inbound {
                     }
                     // Bytes sent at other settings occupy the line too (a writer cannot
                     // outrun it), but the device never gets them.
-                    let stamps = self.arrivals.stamp(clock(), n);
+                    let stamps = self.arrivals.stamp(read_at, n);
                     // The kernel's buffer was full: what it still holds follows these bytes
                     // without a gap, however late it comes.
                     self.arrivals.kernel_held_back = n >= PTY_READ_MAX;
@@ -382,7 +482,51 @@ fn flush(pty: &Pty, outbound: &mut VecDeque<u8>) -> io::Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::{Arrivals, LineSettings, Losses};
+    use super::{
+        Arrivals, DEVICE_CREDIT, Duration, LineSettings, Losses, Pacer, Rate, readable_since,
+        run_queue_wait,
+    };
+
+    #[test]
+    fn a_request_read_late_is_dated_from_when_the_loop_was_woken_for_it() {
+        // The ZELLE cell answers each `1` with a byte: a request stamped at the moment a late
+        // serving thread got the CPU was that much line time lost for good. It is dated from
+        // when the thread was woken (read 30 ms after that: 30 ms earlier).
+        let pacer = Pacer::new(Rate::per_second(1_000_000_000), DEVICE_CREDIT);
+        let ms = |n: u64| n * 1_000_000;
+        let wall = Duration::from_millis(1_000);
+        assert_eq!(
+            readable_since(&pacer, wall, Duration::from_millis(30), ms(900)),
+            ms(970)
+        );
+        // On time: the read time.
+        assert_eq!(
+            readable_since(&pacer, wall, Duration::ZERO, ms(900)),
+            ms(1_000)
+        );
+        // Never before the device's own time (it has run past it already).
+        assert_eq!(
+            readable_since(&pacer, wall, Duration::from_millis(300), ms(900)),
+            ms(900)
+        );
+        // At most the device's credit back, however long the thread waited.
+        let wall = Duration::from_secs(10);
+        assert_eq!(
+            readable_since(&pacer, wall, Duration::from_secs(5), 0),
+            ms(10_000) - DEVICE_CREDIT.as_nanos() as u64
+        );
+    }
+
+    #[test]
+    fn the_run_queue_wait_is_the_second_schedstat_field() {
+        assert_eq!(
+            run_queue_wait(b"2061532418 36270051 1431\n"),
+            Duration::from_nanos(36_270_051)
+        );
+        for garbage in [&b""[..], b"12", b"1 x 3", b"\xff\xfe 1 2", b"1 -5 2"] {
+            assert_eq!(run_queue_wait(garbage), Duration::ZERO, "{garbage:?}");
+        }
+    }
 
     #[test]
     fn the_warnings_about_lost_bytes_name_the_device() {

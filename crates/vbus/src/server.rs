@@ -35,6 +35,7 @@ use tracing::{debug, info, warn};
 use crate::bus::{BusEvent, VbusError, VirtualBus};
 use crate::node::TimedErrorFrame;
 use crate::speed::{Speed, SpeedError};
+use buslab_pace::{Pacer, Rate, Ticks};
 
 /// Everything `buslab bus serve` can set.
 pub struct ServerConfig {
@@ -128,6 +129,9 @@ pub struct Lag {
     pub worst: Duration,
     /// Time spent more than [`LAG_WARNING`] behind.
     pub behind_for: Duration,
+    /// Wall time the bus skipped rather than catch up in one burst: stalls of the host
+    /// longer than [`BUS_CREDIT`] with the bus busy.
+    pub skipped: Duration,
 }
 
 /// Posts work to a running server's bus thread without waiting for it (clonable, e.g. for a
@@ -314,6 +318,15 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     let stop = Arc::new(AtomicBool::new(false));
     let lag = Arc::new(Mutex::new(Lag::default()));
     let (jobs_tx, jobs) = mpsc::channel();
+    // `max` is never paced; its factor only keeps the conversions defined.
+    let factor = match config.speed {
+        Speed::Times(f) => f,
+        Speed::Max => *crate::speed::PACED.end(),
+    };
+    let pacer = Pacer::new(
+        Rate::per_second(bus.bitrate() as u64).times(factor),
+        BUS_CREDIT,
+    );
     let mut session_config = SessionConfig::new(config.channel.clone());
     // A raw-mode frame line is typically 40 to 50 bytes.
     session_config.max_output = config.client_queue * 48;
@@ -335,6 +348,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         lag: lag.clone(),
         beacon,
         epoch: Instant::now(),
+        pacer,
         unix0: SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .unwrap_or_default()
@@ -439,6 +453,11 @@ const FEED_ROUNDS: usize = 8;
 /// Elements handled per client per round of serving, so one client cannot starve the others
 /// or the bus.
 const ACTIONS_PER_TURN: usize = 256;
+/// The most wall time's worth of bus time a paced server catches up at once when the bus had
+/// work (its credit, see `buslab_pace`): a loop that wakes late runs the bus up to the wall
+/// clock; after a longer stall (the process was stopped) the rest is skipped rather than sent
+/// to the clients as one burst of frames, and virtual time stays that much behind the wall.
+pub const BUS_CREDIT: Duration = Duration::from_secs(2);
 /// Virtual time this far behind the wall clock, after catching up, means clients see frames
 /// late: worth a warning.
 pub const LAG_WARNING: Duration = Duration::from_millis(50);
@@ -498,6 +517,8 @@ struct Server {
     lag: Arc<Mutex<Lag>>,
     beacon: Option<Beacon>,
     epoch: Instant,
+    /// Bus time (bit-times) against the wall clock since `epoch`.
+    pacer: Pacer,
     unix0: u128,
     lag_state: LagState,
     last_summary: Instant,
@@ -592,6 +613,13 @@ impl Server {
                 lag.behind_for.as_secs_f64()
             );
         }
+        if !lag.skipped.is_zero() {
+            warn!(
+                "{:.1} s of bus time were skipped in all (the host more than {} s behind)",
+                lag.skipped.as_secs_f64(),
+                BUS_CREDIT.as_secs()
+            );
+        }
     }
 
     /// Waits for socket events or `timeout`. epoll counts whole milliseconds (mio rounds a
@@ -624,22 +652,23 @@ impl Server {
         self.epoch.elapsed().as_nanos() as u64
     }
 
-    /// Virtual seconds per wall-clock second while paced (`max` is never paced).
-    fn factor(&self) -> f64 {
-        match self.speed {
-            Speed::Times(f) => f,
-            Speed::Max => *crate::speed::PACED.end(),
-        }
-    }
-
     /// The bit-time the bus should have reached by now.
     fn target_bits(&self) -> u64 {
-        let bits = self.epoch.elapsed().as_secs_f64() * self.factor() * self.bus.bitrate() as f64;
-        bits as u64
+        self.pacer.ticks_at(self.epoch.elapsed()).0
     }
 
     fn bits_to_wall(&self, bits: u64) -> Duration {
-        Duration::from_secs_f64(bits as f64 / self.bus.bitrate() as f64 / self.factor())
+        self.pacer.wall_of(bits)
+    }
+
+    /// Where the bus has work: now while a frame is on the wire, else its next activity.
+    fn bus_due(&self) -> Option<Ticks> {
+        if self.bus.is_idle() {
+            let next = self.bus.next_activity();
+            (next != u64::MAX).then_some(Ticks(next))
+        } else {
+            Some(Ticks(self.bus.now()))
+        }
     }
 
     /// Runs the bus: up to the wall clock when paced, as far as it has work at `max`.
@@ -739,6 +768,22 @@ impl Server {
     /// clients keep being served when the host is slow; records the lag.
     fn advance_paced(&mut self) {
         let started = Instant::now();
+        // A stall beyond the credit with the bus busy: the rest is skipped (the pacer's clock
+        // slips), not caught up in one burst.
+        let plan = self
+            .pacer
+            .plan(self.epoch.elapsed(), Ticks(self.bus.now()), self.bus_due());
+        if !plan.skipped.is_zero() {
+            let mut lag = lock(&self.lag);
+            if lag.skipped.is_zero() {
+                warn!(
+                    "the host fell more than {} s behind the bus: {} ms of bus time skipped rather than sent to the clients at once (said once; the total at the end)",
+                    BUS_CREDIT.as_secs(),
+                    plan.skipped.as_millis()
+                );
+            }
+            lag.skipped += plan.skipped;
+        }
         // Busy bus time is simulated in chunks of this many bit-times, so the wall time spent
         // is checked often enough; idle bus time is skipped in one go.
         let chunk = (self.bus.bitrate() as u64 / 2000).max(1);
@@ -756,7 +801,9 @@ impl Server {
             };
             self.bus.run_until(target.min(now + step));
         }
-        let behind = self.bits_to_wall(self.target_bits().saturating_sub(self.bus.now()));
+        let behind = self
+            .pacer
+            .behind(self.epoch.elapsed(), Ticks(self.bus.now()));
         self.track_lag(behind);
     }
 
@@ -808,7 +855,10 @@ impl Server {
             Some(wall_of_next)
         } else if let Some(end) = self.bus.frame_end() {
             // The frame's deliveries leave the moment the bus has run up to its end.
-            Some(self.bits_to_wall(end).saturating_sub(self.epoch.elapsed()))
+            let wall = self.epoch.elapsed();
+            self.pacer
+                .wake_at(wall, Some(Ticks(end)))
+                .map(|at| at.saturating_sub(wall))
         } else {
             Some(BUSY_SLICE)
         };

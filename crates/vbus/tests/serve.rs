@@ -309,6 +309,43 @@ fn a_host_that_cannot_keep_up_is_reported() {
 }
 
 #[test]
+fn a_stalled_server_skips_what_lies_beyond_its_credit_instead_of_sending_it_at_once() {
+    // A bus a scenario node keeps busy (a frame due every 50 µs, each longer than that), and
+    // the server's thread kept from running for one second longer than its credit (as a
+    // stopped process would be): before, it caught the whole stall up and sent every frame of
+    // it to its clients at once; now it runs its credit's worth and skips the rest.
+    let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 1_000_000);
+    config.scenario = Some(
+        buslab_sim::Scenario::from_toml(
+            "bitrate = 1000000\n[[nodes]]\nname = \"ecu\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0AA#0102030405060708\"\n  period = \"50us\"\n[[nodes]]\nname = \"gateway\"\n",
+        )
+        .unwrap()
+        .build()
+        .unwrap(),
+    );
+    let s = spawn(config).unwrap();
+    let stall = buslab_vbus::server::BUS_CREDIT + Duration::from_secs(1);
+    assert!(s.poster().post(move |_| std::thread::sleep(stall)));
+    // Waits for the event: the first turn after the stall skips.
+    let deadline = std::time::Instant::now() + stall + EVENT;
+    while s.lag().skipped.is_zero() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "nothing skipped within {EVENT:?} after the stall"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let lag = s.lag();
+    // The stall lasted at least `stall`, the bus busy throughout: all beyond the credit.
+    assert!(
+        lag.skipped >= stall - buslab_vbus::server::BUS_CREDIT,
+        "skipped {:?}",
+        lag.skipped
+    );
+    s.shutdown();
+}
+
+#[test]
 fn speed_must_be_positive() {
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 500_000);
     config.speed = Speed::Times(0.0);
