@@ -572,11 +572,9 @@ fn shipped_scenarios_take_their_frames_whole_and_end_the_same() {
     assert!(files.len() >= 6, "{files:?}");
     for file in files {
         let text = std::fs::read_to_string(&file).unwrap();
-        let scenario = buslab_sim::Scenario::from_toml(&text).unwrap();
+        let scenario = buslab_bench::Scenario::from_toml(&text).unwrap();
         let run = |whole| {
-            let mut sim = scenario
-                .build_with(&buslab_canbus::node::ScenarioNodes)
-                .unwrap();
+            let mut sim = scenario.build().unwrap();
             sim.set_whole_frames(whole);
             sim.run_until(scenario.duration);
             sim

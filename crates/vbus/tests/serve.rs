@@ -291,7 +291,7 @@ fn a_host_that_cannot_keep_up_is_reported() {
     // reaches the warning.
     config.speed = Speed::Times(1_000_000.0);
     config.scenario = Some(
-        buslab_sim::Scenario::from_toml(
+        buslab_bench::Scenario::from_toml(
             "bitrate = 1000000\n[[nodes]]\nname = \"ecu\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0AA#0102030405060708\"\n  period = \"50us\"\n[[nodes]]\nname = \"gateway\"\n",
         )
         .unwrap()
