@@ -89,7 +89,7 @@ impl Scenario {
                     // The bit rate was checked when the scenario was read.
                     let board = nodes::slio_board(*id, self.bitrate, *adc1, *potentiometer)
                         .expect("bit rate checked");
-                    sim.add_device(&node.name, Box::new(board))
+                    sim.add_device(&node.name, Box::new(crate::board::on_bus(board)))
                 }
             };
             for t in &node.traffic {

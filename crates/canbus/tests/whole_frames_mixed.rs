@@ -425,7 +425,7 @@ fn node_seen(node: &mut buslab_sim::Node) -> String {
         let chip = n.driver().chip();
         let registers: Vec<u8> = (0..128).map(|a| chip.peek(a)).collect();
         seen += &format!("\nregisters {registers:02X?} int {}", chip.interrupt());
-    } else if let Some(b) = node.get_mut::<DemoBoard>() {
+    } else if let Some(b) = buslab_bench::board::of(node) {
         let slio = b.slio();
         seen += &format!(
             "\n{b:?}\n{:?} {:04X} {:?} {:?}\n{:?}",
