@@ -8,6 +8,7 @@
 //!   driver, SLIO demo boards).
 //! - [`board`]: the SLIO demo boards of `bus serve --slio` and the lab, their analog inputs.
 //! - [`ppc`]: the PowerPC node running MoniCAN.
+//! - [`serve`]: the bench `buslab bus serve` puts beside its clients.
 //! - [`lab`]: the lab's bench (`buslab lab`): simulated traffic, the SLIO bench, its server.
 #![forbid(unsafe_code)]
 
@@ -17,6 +18,7 @@ pub mod lab;
 pub mod nodes;
 pub mod ppc;
 pub mod scenario;
+pub mod serve;
 
 pub use error::ScenarioError;
 pub use nodes::Sja1000Spec;

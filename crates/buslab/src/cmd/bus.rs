@@ -2,11 +2,12 @@
 //! URLs the client commands take are in `busopt.rs` and `buslab_backends`.
 
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
+use buslab_bench::serve::ServeError;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -109,41 +110,33 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 .map_err(|_| anyhow::anyhow!("beacon address {addr:?} must be IP:PORT"))?,
         ),
     };
+    let mut bench = buslab_bench::serve::ServeBench {
+        slios: args.slio.clone(),
+        ppc: args.ppc.is_some(),
+        ..Default::default()
+    };
     if !args.slio.is_empty() {
-        let adc1 = board_source("--slio-adc1", &args.slio_adc1)?;
-        let pot = board_source("--slio-pot", &args.slio_pot)?;
-        for &id in &args.slio {
-            let board =
-                buslab_bench::board::demo_board(id, args.bitrate, adc1.clone(), pot.clone())
-                    .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
-            config
-                .devices
-                .push((buslab_bench::board::name(id), Box::new(board)));
-        }
-    }
-    if args.ppc.is_some() {
-        let ppc = buslab_bench::ppc::node(args.bitrate)
-            .context("--ppc: the PowerPC node cannot join this bus")?;
-        config
-            .devices
-            .push((buslab_bench::ppc::NAME.to_string(), Box::new(ppc)));
+        bench.adc1 = board_source("--slio-adc1", &args.slio_adc1)?;
+        bench.potentiometer = board_source("--slio-pot", &args.slio_pot)?;
     }
     if let Some(path) = &args.nodes {
         let text = super::sim::read_scenario(path)?;
         let scenario = buslab_bench::Scenario::from_toml(&text)
             .with_context(|| format!("bad scenario {}", path.display()))?;
-        if scenario.bitrate != args.bitrate {
-            bail!(
-                "scenario {} runs at {} bit/s but the bus at {} bit/s (--bitrate)",
-                path.display(),
-                scenario.bitrate,
-                args.bitrate
-            );
-        }
-        let mut sim = scenario.build()?;
-        sim.set_record_events(false);
-        config.scenario = Some(sim);
+        bench.scenario = Some(scenario);
     }
+    // The option that put it there.
+    bench.install(&mut config).map_err(|e| {
+        let option = match &e {
+            ServeError::Slio { id, .. } => format!("--slio {id}"),
+            ServeError::Ppc(_) => "--ppc".to_string(),
+            ServeError::ScenarioBitrate { .. } | ServeError::Scenario(_) => {
+                let path = args.nodes.as_deref().unwrap_or(Path::new(""));
+                format!("--nodes {}", path.display())
+            }
+        };
+        anyhow::Error::new(e).context(option)
+    })?;
     let stop = super::interrupted()?;
     let server = buslab_vbus::spawn(config)?;
     let terminal = match &args.ppc {
