@@ -1075,7 +1075,8 @@ impl VirtualBus {
         self.events.push((self.now(), event));
     }
 
-    /// Moves what the client nodes' drivers noticed into the bus's events.
+    /// Moves what the client nodes' drivers and the bench's devices noticed into the bus's
+    /// events.
     fn collect_notices(&mut self) {
         let Self {
             sim,
