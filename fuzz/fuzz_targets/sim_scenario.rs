@@ -2,8 +2,8 @@
 //! small accepted scenario builds (or says why not) and runs for a while without panicking.
 #![no_main]
 
+use buslab_bench::Scenario;
 use buslab_fuzz::text;
-use buslab_sim::Scenario;
 use libfuzzer_sys::fuzz_target;
 
 /// Bit-times a small accepted scenario runs (enough for a few frames and faults to start).
@@ -17,8 +17,8 @@ fuzz_target!(|data: &[u8]| {
     for i in 0..scenario.faults.len() {
         let _ = scenario.describe_fault(i);
     }
-    // Nodes that need a host model (SJA1000 nodes run by `buslab sim`) do not build on the
-    // bare engine: an error, not a panic.
+    // A node the factory cannot make (an SJA1000 at a bit rate its crystal cannot reach) is
+    // an error, not a panic.
     if scenario.nodes.len() <= 8
         && let Ok(mut sim) = scenario.build()
     {

@@ -1,6 +1,6 @@
 //! An SJA1000 with the CPU that services it through the host library's driver, as a
 //! [`BusNode`] on the one bus engine: every client of `buslab bus serve` gets one, and scenario
-//! files put them on the wire with `kind = "sja1000"` ([`ScenarioNodes`]).
+//! files put them on the wire with `kind = "sja1000"` (`buslab-bench`'s node factory).
 //!
 //! The CPU keeps a software queue of frames ahead of the chip's single TX buffer, takes received
 //! frames and error frames out for its host, and brings the chip back after bus-off as the
@@ -543,25 +543,5 @@ pub fn node_config(bitrate: u32) -> Sja1000Config {
         },
         crystal_hz: CRYSTAL_HZ,
         ..Sja1000Config::default()
-    }
-}
-
-/// Makes the SJA1000 nodes of scenario files (`kind = "sja1000"`): a chip at the bus's bit rate
-/// operated by this library's driver, with the seed's bus-off recovery unless the scenario asks
-/// for the fast restart. Pass it to `Scenario::build_with`.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct ScenarioNodes;
-
-impl buslab_sim::scenario::NodeFactory for ScenarioNodes {
-    fn sja1000(
-        &self,
-        spec: &buslab_sim::Sja1000Spec,
-        bitrate: u32,
-    ) -> Result<Box<dyn BusNode>, String> {
-        let mut config = node_config(bitrate);
-        if spec.fast_restart {
-            config.bus_off_recovery = BusOffRecovery::Fast;
-        }
-        Ok(Box::new(Sja1000Node::with_config(config, bitrate, false)?))
     }
 }

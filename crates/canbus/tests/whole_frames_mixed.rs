@@ -425,7 +425,7 @@ fn node_seen(node: &mut buslab_sim::Node) -> String {
         let chip = n.driver().chip();
         let registers: Vec<u8> = (0..128).map(|a| chip.peek(a)).collect();
         seen += &format!("\nregisters {registers:02X?} int {}", chip.interrupt());
-    } else if let Some(b) = node.get_mut::<DemoBoard>() {
+    } else if let Some(b) = buslab_bench::board::of(node) {
         let slio = b.slio();
         seen += &format!(
             "\n{b:?}\n{:?} {:04X} {:?} {:?}\n{:?}",
@@ -572,11 +572,9 @@ fn shipped_scenarios_take_their_frames_whole_and_end_the_same() {
     assert!(files.len() >= 6, "{files:?}");
     for file in files {
         let text = std::fs::read_to_string(&file).unwrap();
-        let scenario = buslab_sim::Scenario::from_toml(&text).unwrap();
+        let scenario = buslab_bench::Scenario::from_toml(&text).unwrap();
         let run = |whole| {
-            let mut sim = scenario
-                .build_with(&buslab_canbus::node::ScenarioNodes)
-                .unwrap();
+            let mut sim = scenario.build().unwrap();
             sim.set_whole_frames(whole);
             sim.run_until(scenario.duration);
             sim

@@ -8,23 +8,23 @@
 //! - [`Fault`]: disconnect, unterminated cut, flipped bits, stuck-dominant, noise.
 //! - Observers: the trace of [`Record`]s, per-node [`NodeStats`], a TEC/REC series, bus load,
 //!   and [`LevelChange`]s for the [`VcdWriter`].
-//! - [`Scenario`]: all of it from a TOML file.
+//!
+//! The engine knows no particular model: scenario files, which put SLIO boards and SJA1000
+//! nodes on the wire, are read by `buslab-bench`.
 #![forbid(unsafe_code)]
 
 mod error;
 pub mod fault;
 pub mod observe;
 mod rng;
-pub mod scenario;
 mod simulation;
 pub mod time;
 pub mod traffic;
 pub mod vcd;
 
-pub use error::{DurationError, ScenarioError};
+pub use error::DurationError;
 pub use fault::{Fault, FaultKind};
 pub use observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats, Record};
-pub use scenario::{EngineOnly, NodeFactory, Scenario, Sja1000Spec};
 pub use simulation::{Node, Simulation};
 pub use time::{BitTime, Span};
 pub use traffic::Traffic;

@@ -4,9 +4,10 @@
 
 mod common;
 
+use buslab_bench::Scenario;
 use buslab_can::Level;
 use buslab_can::controller::{ControllerConfig, ErrorKind, ErrorState, Event};
-use buslab_sim::{Fault, FaultKind, Scenario, Simulation, Traffic};
+use buslab_sim::{Fault, FaultKind, Simulation, Traffic};
 use common::*;
 
 const SEED_SCENARIO: &str = include_str!("../../../scenarios/cut-wire-controllers.toml");

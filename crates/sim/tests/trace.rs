@@ -4,9 +4,10 @@ mod common;
 
 use std::collections::HashMap;
 
+use buslab_bench::Scenario;
 use buslab_can::Level;
 use buslab_sim::observe::signal_names;
-use buslab_sim::{Scenario, Simulation, VcdWriter};
+use buslab_sim::{Simulation, VcdWriter};
 
 const NOISE: &str = include_str!("../../../scenarios/noise.toml");
 const SCENARIOS: [(&str, &str); 4] = [

@@ -20,10 +20,10 @@ use buslab_canbus::{
 use buslab_sim::{BusStats, Fault, FaultKind, Simulation};
 use buslab_sja1000::BitTiming;
 
-use buslab_slio::board::{LED_PINS, VDD};
-use buslab_slio::{Calibration, DemoBoard, ModeChangeCause, SlioId, SlioNotice};
+use buslab_slio::{Calibration, ModeChangeCause, SlioId, SlioNotice};
 
 use crate::departure::{Departure, DropReason, Verdict};
+use crate::device::{Board, DeviceNode, DeviceNotice};
 use crate::node::{ClientNode, NodeNotice, node_config};
 
 /// Why a bus could not be set up or a request failed.
@@ -130,11 +130,12 @@ pub enum BusEvent {
         name: String,
         input: BoardInput,
     },
-    /// A SLIO board's calibration changed, or it changed its bus mode.
-    Slio {
+    /// What a bench's device reported (a SLIO board's calibration changed, or it changed its
+    /// bus mode).
+    Device {
         number: u32,
         name: String,
-        notice: SlioNotice,
+        notice: DeviceNotice,
     },
 }
 
@@ -155,7 +156,7 @@ impl BusEvent {
                         | NodeNotice::Recovering(Err(_))
                 )
             }
-            BusEvent::Slio { notice, .. } => matches!(notice, SlioNotice::BusModeChange(_)),
+            BusEvent::Device { notice, .. } => notice.is_warning(),
             BusEvent::Fault { .. } => true,
             BusEvent::Configured { matches_bus, .. } => !matches_bus,
             BusEvent::Left { dropped, .. } => *dropped > 0,
@@ -245,10 +246,10 @@ impl fmt::Display for BusEvent {
                     )
                 }
             }
-            BusEvent::Slio {
+            BusEvent::Device {
                 number,
                 name,
-                notice,
+                notice: DeviceNotice::Slio(notice),
             } => {
                 write!(f, "node {number} ({name}): SLIO ")?;
                 match notice {
@@ -587,10 +588,15 @@ impl VirtualBus {
         Ok(number)
     }
 
-    /// A node of type `T` by its name (a SLIO board, the PowerPC node).
+    /// A node of type `T` by its name, for whoever put it there (the PowerPC node's
+    /// terminal), as itself or as a [`DeviceNode`]'s node.
     pub fn device_mut<T: BusNode>(&mut self, name: &str) -> Option<&mut T> {
         let i = self.sim.find_node(name)?;
-        self.sim.node_mut(i).get_mut()
+        let node = self.sim.node_mut(i);
+        if node.get::<DeviceNode>().is_some() {
+            return node.get_mut::<DeviceNode>()?.get_mut();
+        }
+        node.get_mut()
     }
 
     /// Removes a node at once (its connector is pulled, even in the middle of a frame; its
@@ -896,63 +902,40 @@ impl VirtualBus {
         slio: SlioId,
         change: Option<BoardInput>,
     ) -> Result<BoardState, VbusError> {
+        if let Some(BoardInput::Switches(bits)) = change
+            && bits > 0xF
+        {
+            return Err(VbusError::Switches(bits));
+        }
         let now = self.now();
         let found = self
             .sim
-            .nodes()
-            .iter()
-            .position(|n| n.get::<DemoBoard>().is_some_and(|b| b.id() == slio));
+            .nodes_mut()
+            .iter_mut()
+            .position(|n| board_of(n).is_some_and(|b| b.slio() == slio));
         let Some(i) = found else {
             let boards = self
                 .sim
-                .nodes()
-                .iter()
-                .filter_map(|n| n.get::<DemoBoard>().map(DemoBoard::id))
+                .nodes_mut()
+                .iter_mut()
+                .filter_map(|n| board_of(n).map(|b| b.slio()))
                 .collect();
             return Err(VbusError::NoBoard { slio, boards });
         };
         let number = self.numbers[i];
         let node = self.sim.node_mut(i);
         let name = node.name().to_string();
-        let board = node.get_mut::<DemoBoard>().expect("found above");
-        match change {
-            None => {}
-            Some(BoardInput::Switch { switch, on }) => {
-                let bit = 1 << switch.number();
-                let switches = if on {
-                    board.switches() | bit
-                } else {
-                    board.switches() & !bit
-                };
-                board.set_switches(now, switches);
-            }
-            Some(BoardInput::Switches(bits)) if bits > 0xF => {
-                return Err(VbusError::Switches(bits));
-            }
-            Some(BoardInput::Switches(bits)) => board.set_switches(now, bits),
-            Some(BoardInput::Potentiometer(volts)) => {
-                board.set_potentiometer(Box::new(volts.get()))
-            }
+        let board = board_of(node).expect("found above");
+        if let Some(input) = change {
+            board.change(now, input);
         }
-        // As the ADC reads them (it clamps to its supply).
-        let level = |v: f64| if v.is_nan() { 0.0 } else { v.clamp(0.0, VDD) };
-        let leds = board.leds();
-        let state = BoardState {
-            slio,
-            node: NodeInfo {
+        let state = board.state(
+            now,
+            NodeInfo {
                 number,
                 name: name.clone(),
             },
-            switches: board.switches(),
-            potentiometer: level(board.potentiometer_volts(now)),
-            adc1: level(board.adc1_volts(now)),
-            leds: LED_PINS
-                .iter()
-                .zip(leds)
-                .filter(|(_, lit)| *lit)
-                .fold(0, |mask, (pin, _)| mask | 1 << pin),
-            dpm: board.dpm_volts(),
-        };
+        );
         if let Some(input) = change {
             self.say(BusEvent::Board {
                 number,
@@ -1092,7 +1075,8 @@ impl VirtualBus {
         self.events.push((self.now(), event));
     }
 
-    /// Moves what the client nodes' drivers noticed into the bus's events.
+    /// Moves what the client nodes' drivers and the bench's devices noticed into the bus's
+    /// events.
     fn collect_notices(&mut self) {
         let Self {
             sim,
@@ -1101,18 +1085,16 @@ impl VirtualBus {
             ..
         } = self;
         for (&number, node) in numbers.iter().zip(sim.nodes_mut()) {
-            if let Some(board) = node.get_mut::<DemoBoard>() {
-                for (time, notice) in board.take_notices() {
-                    if !matches!(notice, SlioNotice::Register { .. }) {
-                        events.push((
-                            time,
-                            BusEvent::Slio {
-                                number,
-                                name: node.name().to_string(),
-                                notice,
-                            },
-                        ));
-                    }
+            if let Some(device) = node.get_mut::<DeviceNode>() {
+                for (time, notice) in device.device_mut().take_notices() {
+                    events.push((
+                        time,
+                        BusEvent::Device {
+                            number,
+                            name: node.name().to_string(),
+                            notice,
+                        },
+                    ));
                 }
                 continue;
             }
@@ -1138,70 +1120,12 @@ impl VirtualBus {
     }
 }
 
+/// A node's SLIO demo board, if it is a device that has one.
+fn board_of(node: &mut buslab_sim::Node) -> Option<&mut dyn Board> {
+    node.get_mut::<DeviceNode>()?.device_mut().board()
+}
+
 /// The bit timing a node gets for `bitrate` (for the log and docs).
 pub fn timing_for(bitrate: u32) -> Option<BitTiming> {
     node_config(bitrate).bit_timing().ok()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use buslab_canbus::admin::{BoardSwitch, BoardVolts};
-
-    fn bus_with_board(id: u8) -> VirtualBus {
-        let mut bus = VirtualBus::new(125_000).unwrap();
-        let slio = SlioId::new(id).unwrap();
-        let board = DemoBoard::new(slio, 125_000, Box::new(1.25), Box::new(0.0)).unwrap();
-        bus.add_node(&format!("slio{slio}"), Box::new(board))
-            .unwrap();
-        bus
-    }
-
-    #[test]
-    fn a_demo_boards_switches_and_potentiometer_change_and_are_said() {
-        let mut bus = bus_with_board(3);
-        let s3 = SlioId::new(3).unwrap();
-        let state = bus.demo_board(s3, None).unwrap();
-        assert_eq!(
-            (state.switches, state.potentiometer, state.adc1),
-            (0, 0.0, 1.25)
-        );
-        assert_eq!(state.node.name, "slio3");
-        assert_eq!(
-            (state.leds, state.dpm),
-            (0, [None, None]),
-            "not initialised"
-        );
-        let on = BoardInput::Switch {
-            switch: BoardSwitch::new(2).unwrap(),
-            on: true,
-        };
-        assert_eq!(bus.demo_board(s3, Some(on)).unwrap().switches, 0b0100);
-        let pot = BoardInput::Potentiometer(BoardVolts::new(2.5).unwrap());
-        assert_eq!(bus.demo_board(s3, Some(pot)).unwrap().potentiometer, 2.5);
-        let all = BoardInput::Switches(0xF);
-        assert_eq!(bus.demo_board(s3, Some(all)).unwrap().switches, 0xF);
-        assert_eq!(
-            bus.demo_board(s3, Some(BoardInput::Switches(0x10))),
-            Err(VbusError::Switches(0x10))
-        );
-        let said: Vec<String> = bus
-            .take_events()
-            .into_iter()
-            .map(|(_, e)| e.to_string())
-            .collect();
-        assert_eq!(
-            said,
-            [
-                "node 1 (slio3): demo board's switch 2 on",
-                "node 1 (slio3): demo board's potentiometer at 2.500 V",
-                "node 1 (slio3): demo board's switches 1111",
-            ]
-        );
-        let err = bus.demo_board(SlioId::new(5).unwrap(), None).unwrap_err();
-        assert_eq!(
-            err.to_string(),
-            "no SLIO demo board 5 on this bus (boards: 3)"
-        );
-    }
 }

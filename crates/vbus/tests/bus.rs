@@ -149,7 +149,7 @@ fn an_unreachable_bit_rate_is_refused_by_name() {
 
 #[test]
 fn scenario_nodes_and_chips_share_the_wire_without_errors() {
-    let scenario = buslab_sim::Scenario::from_toml(
+    let scenario = buslab_bench::Scenario::from_toml(
         "bitrate = 500000\n[[nodes]]\nname = \"ecu\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0AA#55\"\n  period = \"1ms\"\n  start = \"100us\"\n",
     )
     .unwrap();
@@ -179,7 +179,7 @@ fn scenario_nodes_and_chips_share_the_wire_without_errors() {
 
 #[test]
 fn bus_wide_scenario_faults_reach_the_chips() {
-    let scenario = buslab_sim::Scenario::from_toml(
+    let scenario = buslab_bench::Scenario::from_toml(
         "bitrate = 500000\n[[nodes]]\nname = \"ecu\"\n[[faults]]\nkind = \"stuck_dominant\"\nstart = \"1ms\"\nend = \"3ms\"\n",
     )
     .unwrap();
@@ -272,7 +272,7 @@ fn a_client_chip_counts_its_way_back_from_bus_off() {
 #[test]
 fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
     use buslab_canbus::{ErrorState, Probability, WireFault};
-    let scenario = buslab_sim::Scenario::from_toml(
+    let scenario = buslab_bench::Scenario::from_toml(
         "bitrate = 500000\n[[nodes]]\nname = \"engine\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0C0#0FA0\"\n  period = \"1ms\"\n  start = \"100us\"\n[[nodes]]\nname = \"dash\"\n",
     )
     .unwrap();

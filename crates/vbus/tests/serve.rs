@@ -292,7 +292,7 @@ fn a_host_that_cannot_keep_up_is_reported() {
     // reaches the warning.
     config.speed = Speed::Times(1_000_000.0);
     config.scenario = Some(
-        buslab_sim::Scenario::from_toml(
+        buslab_bench::Scenario::from_toml(
             "bitrate = 1000000\n[[nodes]]\nname = \"ecu\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0AA#0102030405060708\"\n  period = \"50us\"\n[[nodes]]\nname = \"gateway\"\n",
         )
         .unwrap()
@@ -316,7 +316,7 @@ fn a_stalled_server_skips_what_lies_beyond_its_credit_instead_of_sending_it_at_o
     // it to its clients at once; now it runs its credit's worth and skips the rest.
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), 1_000_000);
     config.scenario = Some(
-        buslab_sim::Scenario::from_toml(
+        buslab_bench::Scenario::from_toml(
             "bitrate = 1000000\n[[nodes]]\nname = \"ecu\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0AA#0102030405060708\"\n  period = \"50us\"\n[[nodes]]\nname = \"gateway\"\n",
         )
         .unwrap()

@@ -7,7 +7,6 @@
 //! errors take it bus-off. With no automatic recovery (a Lawicel CANUSB's, Linux's default)
 //! it then stays off; with the seed's counted recovery it comes back and starts again.
 
-use buslab_canbus::node::ScenarioNodes;
 use buslab_canbus::{BusOffRecovery, ErrorState, NodeRef};
 use buslab_sja1000::BitTiming;
 use buslab_vbus::VirtualBus;
@@ -20,7 +19,7 @@ const HOST_RATE: u32 = 500_000;
 
 /// A lab-like bus: `lab` sends a frame every 10 ms, `observer` listens (and acknowledges).
 fn lab() -> VirtualBus {
-    let scenario = buslab_sim::Scenario::from_toml(
+    let scenario = buslab_bench::Scenario::from_toml(
         "bitrate = 125000\n\
          [[nodes]]\nname = \"lab\"\nkind = \"sja1000\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  frame = \"0C0#0FA0\"\n  period = \"10ms\"\n\
          [[nodes]]\nname = \"observer\"\nkind = \"sja1000\"\n",
@@ -28,7 +27,7 @@ fn lab() -> VirtualBus {
     .unwrap();
     VirtualBus::new(RATE)
         .unwrap()
-        .with_scenario(scenario.build_with(&ScenarioNodes).unwrap())
+        .with_scenario(scenario.build().unwrap())
 }
 
 /// The bus errors the observer has detected.

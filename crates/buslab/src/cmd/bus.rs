@@ -2,11 +2,12 @@
 //! URLs the client commands take are in `busopt.rs` and `buslab_backends`.
 
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
+use buslab_bench::serve::ServeError;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -56,10 +57,10 @@ pub struct ServeArgs {
     /// The SLIO boards' potentiometer (P6, ADC2): VOLTS, const:VOLTS,
     /// sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]], ramp:FROM:TO:PERIOD or csv:FILE (the
     /// ZELLE's source grammar); default a 0..5 V sine of 10 s.
-    #[arg(long, value_name = "SOURCE", default_value = POTENTIOMETER)]
+    #[arg(long, value_name = "SOURCE", default_value = buslab_bench::board::POTENTIOMETER)]
     pub slio_pot: String,
     /// The SLIO boards' ADC1 input (P5), same grammar; default 1.25 V.
-    #[arg(long, value_name = "SOURCE", default_value = "1.25V")]
+    #[arg(long, value_name = "SOURCE", default_value = buslab_bench::board::ADC1)]
     pub slio_adc1: String,
     /// Put the PowerPC node running MoniCAN on the bus (it calibrates and drives the SLIOs)
     /// and serve its VT100 terminal on a pseudo-terminal (19200 8N1) linked at PATH: open it
@@ -109,41 +110,39 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 .map_err(|_| anyhow::anyhow!("beacon address {addr:?} must be IP:PORT"))?,
         ),
     };
+    let mut bench = buslab_bench::serve::ServeBench {
+        slios: args.slio.clone(),
+        ppc: args.ppc.is_some(),
+        ..Default::default()
+    };
     if !args.slio.is_empty() {
-        let adc1 = board_source("--slio-adc1", &args.slio_adc1)?;
-        let pot = board_source("--slio-pot", &args.slio_pot)?;
-        for &id in &args.slio {
-            let board = demo_board_with(id, args.bitrate, adc1.clone(), pot.clone())
-                .with_context(|| format!("--slio {id}: the SLIO cannot join this bus"))?;
-            config.devices.push((format!("slio{id}"), Box::new(board)));
-        }
-    }
-    if args.ppc.is_some() {
-        let ppc = ppc_node(args.bitrate).context("--ppc: the PowerPC node cannot join this bus")?;
-        config.devices.push((PPC_NODE.to_string(), Box::new(ppc)));
+        bench.adc1 = board_source("--slio-adc1", &args.slio_adc1)?;
+        bench.potentiometer = board_source("--slio-pot", &args.slio_pot)?;
     }
     if let Some(path) = &args.nodes {
         let text = super::sim::read_scenario(path)?;
-        let scenario = buslab_sim::Scenario::from_toml(&text)
+        let scenario = buslab_bench::Scenario::from_toml(&text)
             .with_context(|| format!("bad scenario {}", path.display()))?;
-        if scenario.bitrate != args.bitrate {
-            bail!(
-                "scenario {} runs at {} bit/s but the bus at {} bit/s (--bitrate)",
-                path.display(),
-                scenario.bitrate,
-                args.bitrate
-            );
-        }
-        let mut sim = scenario.build_with(&buslab_canbus::node::ScenarioNodes)?;
-        sim.set_record_events(false);
-        config.scenario = Some(sim);
+        bench.scenario = Some(scenario);
     }
+    // The option that put it there.
+    bench.install(&mut config).map_err(|e| {
+        let option = match &e {
+            ServeError::Slio { id, .. } => format!("--slio {id}"),
+            ServeError::Ppc(_) => "--ppc".to_string(),
+            ServeError::ScenarioBitrate { .. } | ServeError::Scenario(_) => {
+                let path = args.nodes.as_deref().unwrap_or(Path::new(""));
+                format!("--nodes {}", path.display())
+            }
+        };
+        anyhow::Error::new(e).context(option)
+    })?;
     let stop = super::interrupted()?;
     let server = buslab_vbus::spawn(config)?;
     let terminal = match &args.ppc {
         Some(path) => Some(
             buslab_served::ppc::serve(
-                PPC_NODE,
+                buslab_bench::ppc::NAME,
                 server.poster(),
                 buslab_served::ppc::PpcOptions {
                     link: Some(path.clone()),
@@ -176,45 +175,8 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The lab's potentiometer: a 0..5 V sine, 10 s a turn.
-const POTENTIOMETER: &str = "sine:100mHz:2.5V:2.5V";
-
-/// A SLIO demo board as the lab puts it on the bus: ADC1 (P5) reads 1.25 V, the
-/// potentiometer (P6) turns slowly.
-pub fn demo_board(id: buslab_slio::SlioId, bitrate: u32) -> anyhow::Result<buslab_slio::DemoBoard> {
-    let adc1 = board_source("ADC1", "1.25V")?;
-    let pot = board_source("potentiometer", POTENTIOMETER)?;
-    Ok(demo_board_with(id, bitrate, adc1, pot)?)
-}
-
-/// A demo board with these sources on ADC1 and the potentiometer.
-fn demo_board_with(
-    id: buslab_slio::SlioId,
-    bitrate: u32,
-    adc1: buslab_zelle::analog::Source,
-    pot: buslab_zelle::analog::Source,
-) -> Result<buslab_slio::DemoBoard, buslab_slio::SlioError> {
-    buslab_slio::DemoBoard::new(
-        id,
-        bitrate,
-        Box::new(move |t| adc1.volts(t)),
-        Box::new(move |t| pot.volts(t)),
-    )
-}
-
 /// An analog source in the ZELLE's grammar (a CSV replay file read here).
 fn board_source(what: &str, spec: &str) -> anyhow::Result<buslab_zelle::analog::Source> {
     let spec = buslab_zelle::analog::SourceSpec::parse(spec).context(what.to_string())?;
     buslab_served::zelle::load_source(spec).context(what.to_string())
-}
-
-/// The PowerPC node's name on the bus.
-pub const PPC_NODE: &str = "ppc";
-
-/// The PowerPC node running MoniCAN, as `bus serve --ppc` and the lab put it on the bus.
-pub fn ppc_node(bitrate: u32) -> Result<buslab_ppc::PpcNode, buslab_ppc::PpcError> {
-    buslab_ppc::PpcNode::new(buslab_monican::Config {
-        bitrate,
-        ..buslab_monican::Config::default()
-    })
 }

@@ -17,13 +17,12 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use buslab_can::controller::ControllerConfig;
+use buslab_bench::lab::CHANNEL;
 use buslab_can::controller::ErrorState;
 use buslab_can::{Frame, Id};
 use buslab_canbus::CanBus;
-use buslab_sim::{BitTime, Simulation, Traffic};
 use buslab_socketcand::SocketcandBus;
-use buslab_vbus::{ServerConfig, ServerError, ServerHandle};
+use buslab_vbus::ServerHandle;
 
 use buslab_logs::Message;
 
@@ -96,8 +95,6 @@ pub struct AllowHost {
     pub allow_host: Vec<String>,
 }
 
-/// The bus name clients open.
-const CHANNEL: &str = "vcan0";
 /// The lab's counter node: `200#` with a 32-bit little-endian counter.
 const COUNTER_ID: u16 = 0x200;
 const COUNTER_PERIOD: Duration = Duration::from_millis(50);
@@ -123,11 +120,11 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     } else {
         Some(Devices::start(args.dir.as_deref())?)
     };
-    let (scenario, names) = lab_nodes(args.bitrate, args.seed);
     // Frame times are the server's start plus virtual time: `-t` counts from here.
     let start_unix = buslab_canbus::wall_clock();
-    let slio_bench = SlioBench::new(args.bitrate);
-    let server = start_server(args.listen, args.bitrate, scenario, &slio_bench)?;
+    let slio_bench = SlioBench(buslab_bench::lab::SlioBench::new(args.bitrate));
+    let server =
+        buslab_bench::lab::start_server(args.listen, args.bitrate, args.seed, &slio_bench.0)?;
     let addr = server.local_addr();
     let terminal = slio_bench
         .start_terminal(&server, args.dir.as_deref())
@@ -135,10 +132,10 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     eprintln!(
         "buslab lab: CAN bus socketcand://{addr}/{CHANNEL} at {} bit/s, nodes: {}, counter",
         args.bitrate,
-        names
+        buslab_bench::lab::SIMULATED
             .iter()
-            .copied()
-            .chain(slio_bench.names())
+            .map(ToString::to_string)
+            .chain(slio_bench.0.names())
             .collect::<Vec<_>>()
             .join(", ")
     );
@@ -159,7 +156,7 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     let web = super::web::lab_pages(
         &args.web,
         &url,
-        &slio_bench.ids,
+        slio_bench.0.ids(),
         devices.as_ref().map(|d| (d.zelle.path(), d.cpu196.path())),
     )?;
     // The lab's bus for scripts (`export BUSLAB_BUS=$(cat DIR/bus)`): written last, so that
@@ -461,129 +458,17 @@ fn join(addr: SocketAddr, name: &str) -> anyhow::Result<SocketcandBus> {
     Ok(bus)
 }
 
-/// Starts the bus server; on the default address, a taken port falls back to a free one.
-fn start_server(
-    listen: Option<SocketAddr>,
-    bitrate: u32,
-    scenario: Simulation,
-    slio_bench: &SlioBench,
-) -> anyhow::Result<ServerHandle> {
-    let config = |addr, scenario| -> anyhow::Result<ServerConfig> {
-        Ok(ServerConfig {
-            channel: CHANNEL.to_string(),
-            scenario: Some(scenario),
-            devices: slio_bench.devices(bitrate)?,
-            ..ServerConfig::new(addr, bitrate)
-        })
-    };
-    let default: SocketAddr = ([127, 0, 0, 1], 29536).into();
-    match buslab_vbus::spawn(config(listen.unwrap_or(default), scenario)?) {
-        Err(ServerError::Listen { source, .. })
-            if listen.is_none() && source.kind() == io::ErrorKind::AddrInUse =>
-        {
-            let (scenario, _) = lab_nodes(bitrate, 0);
-            buslab_vbus::spawn(config(([127, 0, 0, 1], 0).into(), scenario)?)
-                .context("starting the lab's bus server")
-        }
-        other => other.context("starting the lab's bus server"),
-    }
-}
-
-/// The simulated nodes of the bench and their traffic.
-fn lab_nodes(bitrate: u32, seed: u64) -> (Simulation, Vec<&'static str>) {
-    let mut bus = Simulation::new(bitrate, seed);
-    let ms = |m: u64| m * bitrate as u64 / 1000;
-    let f = |text: &str| -> Frame { text.parse().expect("built-in frame") };
-    let plain = ControllerConfig::default();
-    let brakes = bus.add_node("brakes", plain);
-    bus.add_traffic(brakes, periodic(f("080#0140"), ms(20), 0));
-    let engine = bus.add_node("engine", plain);
-    bus.add_traffic(engine, periodic(f("0C0#0FA0003C00000000"), ms(10), ms(1)));
-    let body = bus.add_node("body", plain);
-    bus.add_traffic(body, periodic(f("18FF0010#A5"), ms(100), ms(3)));
-    let dash = bus.add_node("dash", plain);
-    bus.add_traffic(
-        dash,
-        Traffic::Burst {
-            frame: f("300#D1D2D3D4"),
-            count: 4,
-            period: ms(250),
-            start: ms(5),
-        },
-    );
-    (bus, vec!["brakes", "engine", "body", "dash"])
-}
-
-fn periodic(frame: Frame, period: BitTime, start: BitTime) -> Traffic {
-    Traffic::Periodic {
-        frame,
-        period,
-        start,
-        count: None,
-    }
-}
-
-/// The seed's SLIO bench (002 §3.2, §4.3): three demo boards and the PowerPC node running
-/// MoniCAN, whose VT100 terminal is served on a pseudo-terminal. SLIOs follow 20..125 kbit/s
-/// only; on a faster bus the bench has none (and says so).
-struct SlioBench {
-    ids: Vec<buslab_slio::SlioId>,
-}
-
-/// The demo boards' numbers: three, as the seed's figure shows a few of its 16.
-const LAB_SLIOS: [u8; 3] = [0, 3, 10];
+/// The SLIO bench's side in the binary: the PowerPC node's terminal and the banner's lines.
+struct SlioBench(buslab_bench::lab::SlioBench);
 
 impl SlioBench {
-    fn new(bitrate: u32) -> Self {
-        let fits =
-            (buslab_slio::slio::MIN_BITRATE..=buslab_slio::slio::MAX_BITRATE).contains(&bitrate);
-        let ids = if fits {
-            LAB_SLIOS
-                .iter()
-                .map(|&n| buslab_slio::SlioId::new(n).expect("0..15"))
-                .collect()
-        } else {
-            Vec::new()
-        };
-        Self { ids }
-    }
-
-    fn names(&self) -> Vec<&'static str> {
-        if self.ids.is_empty() {
-            return Vec::new();
-        }
-        vec!["slio0", "slio3", "slioA", super::bus::PPC_NODE]
-    }
-
-    /// The boards and the PowerPC node, fresh for a server.
-    fn devices(
-        &self,
-        bitrate: u32,
-    ) -> anyhow::Result<Vec<(String, Box<dyn buslab_can::node::BusNode>)>> {
-        let mut devices: Vec<(String, Box<dyn buslab_can::node::BusNode>)> = Vec::new();
-        if self.ids.is_empty() {
-            return Ok(devices);
-        }
-        for &id in &self.ids {
-            devices.push((
-                format!("slio{id}"),
-                Box::new(super::bus::demo_board(id, bitrate)?),
-            ));
-        }
-        devices.push((
-            super::bus::PPC_NODE.to_string(),
-            Box::new(super::bus::ppc_node(bitrate)?),
-        ));
-        Ok(devices)
-    }
-
     /// The PowerPC node's terminal, linked as DIR/monican.
     fn start_terminal(
         &self,
         server: &ServerHandle,
         dir: Option<&Path>,
     ) -> anyhow::Result<Option<buslab_served::ppc::ServedPpc>> {
-        if self.ids.is_empty() {
+        if self.0.is_empty() {
             return Ok(None);
         }
         if let Some(dir) = dir {
@@ -597,7 +482,7 @@ impl SlioBench {
             control: dir.map(|d| d.join("ppc.sock")),
         };
         Ok(Some(buslab_served::ppc::serve(
-            super::bus::PPC_NODE,
+            buslab_bench::ppc::NAME,
             server.poster(),
             options,
         )?))
@@ -615,7 +500,7 @@ impl SlioBench {
             );
             return;
         };
-        let ids: Vec<String> = self.ids.iter().map(ToString::to_string).collect();
+        let ids: Vec<String> = self.0.ids().iter().map(ToString::to_string).collect();
         eprintln!(
             "  SLIO boards  {} (demo boards; MoniCAN calibrates and drives them; try: {})",
             ids.join(", "),

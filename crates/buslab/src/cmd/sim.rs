@@ -9,15 +9,14 @@ use std::io::{self, BufWriter, Write};
 use std::path::PathBuf;
 
 use anyhow::Context;
+use buslab_bench::Scenario;
 use buslab_can::Frame;
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
 use buslab_logs::{candump, text};
 use buslab_plot::{Band, Figure, Lane, Panel, Series, Shade, StateLanes};
 use buslab_sim::observe::signal_names;
 use buslab_sim::time::seconds_micros;
-use buslab_sim::{
-    BitTime, CounterSample, Happening, Record, Scenario, Simulation, Span, VcdWriter,
-};
+use buslab_sim::{BitTime, CounterSample, Happening, Record, Simulation, Span, VcdWriter};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -94,17 +93,17 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let end = args
         .duration
         .map_or(scenario.duration, |d| d.to_bits(scenario.bitrate));
-    if end > buslab_sim::scenario::max_duration(scenario.bitrate) {
+    if end > buslab_bench::scenario::max_duration(scenario.bitrate) {
         anyhow::bail!(
             "--duration {} is longer than a simulation may run: up to {} s of virtual time",
             args.duration.map(|d| d.to_string()).unwrap_or_default(),
-            buslab_sim::scenario::MAX_DURATION_S
+            buslab_bench::scenario::MAX_DURATION_S
         );
     }
     if (args.counters.is_some() || args.plot.is_some()) && scenario.sample_every.is_none() {
         scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
     }
-    let mut sim = scenario.build_with(&buslab_canbus::node::ScenarioNodes)?;
+    let mut sim = scenario.build()?;
     if args.bit_level {
         sim.set_whole_frames(false);
         sim.set_fast_forward(false);

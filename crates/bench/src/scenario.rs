@@ -1,17 +1,15 @@
 //! Scenario files (TOML): bit rate, duration, seed, nodes with their options and traffic, and
-//! faults with start and end. See `docs/sim.md` for the format.
+//! faults with start and end. See `docs/sim.md` for the format. [`Scenario::build`] puts the
+//! nodes on the one bus engine, made by the node factory ([`crate::nodes`]).
 
 use buslab_can::controller::ControllerConfig;
-use buslab_can::node::BusNode;
 use buslab_can::{Frame, Id};
-use buslab_slio::{DemoBoard, SlioId};
+use buslab_sim::{BitTime, Fault, FaultKind, Simulation, Span, Traffic};
+use buslab_slio::SlioId;
 use serde::Deserialize;
 
 use crate::error::ScenarioError;
-use crate::fault::{Fault, FaultKind};
-use crate::simulation::Simulation;
-use crate::time::{BitTime, Span};
-use crate::traffic::Traffic;
+use crate::nodes::{self, Sja1000Spec};
 
 /// The longest a simulation may run, in virtual seconds (a `u64::MAX` duration ran for hours).
 pub const MAX_DURATION_S: u64 = 3600;
@@ -57,38 +55,8 @@ pub enum NodeKind {
         potentiometer: f64,
     },
     /// An SJA1000 operated by the host library's driver (the CPU that services it), at the
-    /// bus's bit rate. The engine cannot make it: the caller's [`NodeFactory`] does.
+    /// bus's bit rate.
     Sja1000(Sja1000Spec),
-}
-
-/// How a scenario's SJA1000 node is set up.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Sja1000Spec {
-    /// Linux's fast restart after bus-off (`recovery = "fast"`) instead of the seed's
-    /// (`"counted"`, the default): reset mode cleared, the chip counting TXERR down.
-    pub fast_restart: bool,
-}
-
-/// Makes the nodes a scenario names that run host code (an SJA1000 with the CPU running the
-/// host library's driver). The engine stays free of host code: the binary passes the host
-/// library's factory (`buslab_canbus::node::ScenarioNodes`).
-pub trait NodeFactory {
-    /// An SJA1000 node on a bus at `bitrate`.
-    fn sja1000(&self, spec: &Sja1000Spec, bitrate: u32) -> Result<Box<dyn BusNode>, String>;
-}
-
-/// A factory for engine-only callers: it makes no host nodes.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct EngineOnly;
-
-impl NodeFactory for EngineOnly {
-    fn sja1000(&self, _: &Sja1000Spec, _: u32) -> Result<Box<dyn BusNode>, String> {
-        Err(
-            "an SJA1000 node runs the host library's driver; this program cannot make one \
-             (buslab sim and buslab bus serve --nodes can)"
-                .into(),
-        )
-    }
 }
 
 impl Scenario {
@@ -98,26 +66,19 @@ impl Scenario {
         raw.resolve()
     }
 
-    /// A simulation set up as described, at time 0; only nodes the engine makes itself
-    /// (controllers, SLIOs). See [`build_with`](Self::build_with).
+    /// A simulation set up as described, at time 0, its nodes made by the node factory
+    /// ([`crate::nodes`]).
     pub fn build(&self) -> Result<Simulation, ScenarioError> {
-        self.build_with(&EngineOnly)
-    }
-
-    /// A simulation set up as described, at time 0; `hosts` makes the SJA1000 nodes.
-    pub fn build_with(&self, hosts: &dyn NodeFactory) -> Result<Simulation, ScenarioError> {
         let mut sim = Simulation::new(self.bitrate, self.seed);
         for node in &self.nodes {
             let index = match &node.kind {
                 NodeKind::Sja1000(spec) => {
                     let device =
-                        hosts
-                            .sja1000(spec, self.bitrate)
-                            .map_err(|why| ScenarioError::Host {
-                                node: node.name.clone(),
-                                why,
-                            })?;
-                    sim.add_device(&node.name, device)
+                        nodes::sja1000(spec, self.bitrate).map_err(|why| ScenarioError::Node {
+                            node: node.name.clone(),
+                            why,
+                        })?;
+                    sim.add_device(&node.name, Box::new(device))
                 }
                 NodeKind::Controller(config) => sim.add_node(&node.name, *config),
                 NodeKind::Slio {
@@ -126,14 +87,9 @@ impl Scenario {
                     potentiometer,
                 } => {
                     // The bit rate was checked when the scenario was read.
-                    let board = DemoBoard::new(
-                        *id,
-                        self.bitrate,
-                        Box::new(*adc1),
-                        Box::new(*potentiometer),
-                    )
-                    .expect("bit rate checked");
-                    sim.add_device(&node.name, Box::new(board))
+                    let board = nodes::slio_board(*id, self.bitrate, *adc1, *potentiometer)
+                        .expect("bit rate checked");
+                    sim.add_device(&node.name, Box::new(crate::board::on_bus(board)))
                 }
             };
             for t in &node.traffic {

@@ -2,15 +2,15 @@
 //! seed's cut-wire experiment, the fast restart as an option, and fast-forward over idle bus
 //! time changing nothing.
 
+use buslab_bench::Scenario;
 use buslab_can::controller::{ErrorState, Event};
-use buslab_canbus::node::ScenarioNodes;
-use buslab_sim::{Happening, Scenario, Simulation};
+use buslab_sim::{Happening, Simulation};
 
 const SEED: &str = include_str!("../../../scenarios/seed-cut-wire.toml");
 
 fn run(text: &str, fast_forward: bool) -> Simulation {
     let scenario = Scenario::from_toml(text).unwrap();
-    let mut sim = scenario.build_with(&ScenarioNodes).unwrap();
+    let mut sim = scenario.build().unwrap();
     sim.set_fast_forward(fast_forward);
     sim.run_until(scenario.duration);
     sim
