@@ -42,6 +42,10 @@ pub enum ParseError {
     #[error("remote frame length {text:?} must be one digit 0..8 after R")]
     BadRemoteLength { text: String },
     #[error(
+        "{text:?} is not an 11-bit identifier 0x000..=0x7EF (hex with 0x, or decimal; CAN 2.0A forbids 0x7F0..=0x7FF)"
+    )]
+    ProtocolId { text: String },
+    #[error(
         "JerryCAN ID {text:?} must be 3 hex digits: ID10..ID0 and a don't-care bit (the ID shifted left by one, 000..FFF; 246 is 123)"
     )]
     JerryCanId { text: String },

@@ -8,6 +8,11 @@ use crate::error::ParseError;
 
 /// Largest standard (11-bit) identifier.
 pub const SFF_MAX: u16 = 0x7FF;
+/// Largest standard identifier CAN 2.0A lets a node send: its 7 most significant bits must
+/// not all be recessive, so 0x7F0..=0x7FF are not sent (the rule the SJA1000's era followed;
+/// ISO 11898-1:2003 lifted it). buslab's own protocol identifiers (MoniCAN's mail, the loader,
+/// file transfer) keep to it.
+pub const SFF_MAX_CAN20A: u16 = 0x7EF;
 /// Largest extended (29-bit) identifier.
 pub const EFF_MAX: u32 = 0x1FFF_FFFF;
 
@@ -32,6 +37,25 @@ pub struct StandardId(u16);
 pub struct ExtendedId(u32);
 
 impl StandardId {
+    /// An identifier as a person types it for one of buslab's protocols: hex with `0x`, or
+    /// decimal (`0x700`, `1792`), 0x000..=[`SFF_MAX_CAN20A`]. Digits only: no sign, no spaces
+    /// inside.
+    pub fn parse_protocol_id(text: &str) -> Result<Self, ParseError> {
+        let t = text.trim();
+        let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+            Some(hex) if !hex.is_empty() && hex.bytes().all(|b| b.is_ascii_hexdigit()) => {
+                u16::from_str_radix(hex, 16).ok()
+            }
+            Some(_) => None,
+            None if !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit()) => t.parse().ok(),
+            None => None,
+        };
+        parsed
+            .filter(|&id| id <= SFF_MAX_CAN20A)
+            .map(Self)
+            .ok_or_else(|| ParseError::ProtocolId { text: text.into() })
+    }
+
     pub const fn new(raw: u16) -> Result<Self, ParseError> {
         if raw > SFF_MAX {
             return Err(ParseError::IdOutOfRange {

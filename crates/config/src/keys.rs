@@ -159,7 +159,7 @@ const ID_ALLOWED: &str =
     "must be an 11-bit identifier 0x000..=0x7EF (CAN 2.0A forbids 0x7F0..=0x7FF)";
 
 fn id(raw: &Raw) -> Result<u16, String> {
-    value::integer(raw, 0, 0x7EF, ID_ALLOWED).map(|n| n as u16)
+    value::integer(raw, 0, u64::from(buslab_can::SFF_MAX_CAN20A), ID_ALLOWED).map(|n| n as u16)
 }
 
 fn hex_id(id: u16) -> Option<String> {

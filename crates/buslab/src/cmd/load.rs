@@ -50,11 +50,8 @@ pub struct Args {
     pub check: bool,
 }
 
-/// The loader's ID: 0 (the seed's) up to 0x7FF.
+/// The loader's ID: 0 (the seed's) up to 0x7EF, as `loader_id` in buslab.toml.
 fn parse_loader_id(text: &str) -> Result<u16, String> {
-    if text.trim() == "0" {
-        return Ok(0);
-    }
     super::monican::parse_id(text)
 }
 

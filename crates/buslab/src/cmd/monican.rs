@@ -42,21 +42,12 @@ pub struct Args {
     pub mail_id: u16,
 }
 
-/// An 11-bit identifier: hex with 0x, or decimal, 0x001..0x7FF.
+/// A protocol identifier option (`--mail-id`, `--id`): hex with 0x, or decimal, within CAN
+/// 2.0A's range as `buslab.toml` takes them.
 pub fn parse_id(text: &str) -> Result<u16, String> {
-    let t = text.trim();
-    // Digits only: `from_str_radix` and `parse` would take a sign (`0x+f`, `+5`).
-    let parsed = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
-        Some(hex) if hex.bytes().all(|b| b.is_ascii_hexdigit()) => {
-            u16::from_str_radix(hex, 16).ok()
-        }
-        Some(_) => None,
-        None if t.bytes().all(|b| b.is_ascii_digit()) => t.parse().ok(),
-        None => None,
-    };
-    parsed
-        .filter(|&id| id <= 0x7FF)
-        .ok_or_else(|| format!("{text:?} is not an 11-bit identifier (0x001..0x7FF)"))
+    buslab_can::StandardId::parse_protocol_id(text)
+        .map(|id| id.as_raw())
+        .map_err(|e| e.to_string())
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -178,7 +169,12 @@ mod tests {
     fn mail_ids_parse_in_hex_or_decimal() {
         assert_eq!(parse_id("0x700"), Ok(0x700));
         assert_eq!(parse_id("1792"), Ok(0x700));
-        assert!(parse_id("0x800").is_err());
-        assert!(parse_id("mail").is_err());
+        assert_eq!(parse_id("0"), Ok(0));
+        // The range buslab.toml takes: CAN 2.0A's.
+        assert_eq!(parse_id("0x7EF"), Ok(0x7EF));
+        for bad in ["0x7F0", "0x800", "mail", "0x", "", "+5", "0x+f", "-1"] {
+            let e = parse_id(bad).unwrap_err();
+            assert!(e.contains("0x000..=0x7EF"), "{bad}: {e}");
+        }
     }
 }
