@@ -10,7 +10,8 @@
 //! [`resolve`] turns names as can-utils users type them (`vcan0`, `can0`, `/dev/ttyACM0`)
 //! into URLs; [`Pump`] drives a bus from a thread of its own so a program can send to it while
 //! it waits for frames (bridges, the SLCAN adapter model); [`BusSpec`] reads candump's
-//! interface arguments with their filters (`can0,123:7FF,~200:700,#FFFFFFFF`).
+//! interface arguments with their filters (`can0,123:7FF,~200:700,#FFFFFFFF`);
+//! [`confirm_sent`] waits until the frames a client handed over were sent.
 //!
 //! ```no_run
 //! use buslab_bus::CanBus;
@@ -25,6 +26,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod confirm;
 pub mod controller;
 pub mod pump;
 pub mod registry;
@@ -33,6 +35,7 @@ pub mod socketcan;
 pub mod spec;
 pub mod url;
 
+pub use confirm::{ConfirmError, Confirmation, confirm_sent};
 pub use controller::{Accepting, ControllerReport, Outcome};
 pub use pump::{BusJob, JOB_LATENCY, Pump, PumpEvent, PumpSender, PumpStopped, TrySendError};
 pub use registry::{

@@ -5,10 +5,8 @@
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use buslab_backends::{BusUrl, DynBus, OpenOptions, resolve};
-use buslab_canbus::{BusAdmin, BusError, NodeRef};
-
-use crate::units::Human;
+use buslab_backends::{BusUrl, Confirmation, DynBus, OpenOptions, resolve};
+use buslab_canbus::{BusAdmin, NodeRef};
 
 /// The common `--bus` option.
 #[derive(clap::Args, Clone)]
@@ -119,50 +117,24 @@ pub fn node_ref(text: &str) -> NodeRef {
 /// Bits a classic frame takes on the wire at most, intermission included.
 pub use buslab_can::wire::LONGEST_FRAME_BITS as WORST_FRAME_BITS;
 
-/// Waits until the `count` frames this client sent were transmitted or given up, for
-/// `timeout` beyond the time the frames still queued need on the bus (a socketcand `send`
-/// has no confirmation, and leaving earlier would pull the node off the bus with frames still
-/// queued). A plain socketcand cannot tell: a warning, and success.
+/// Waits until the `count` frames this client sent were transmitted or given up
+/// ([`buslab_backends::confirm_sent`]). A plain socketcand cannot tell: a warning, and
+/// success.
 pub fn confirm_sent(
     bus: &mut DynBus,
     url: &BusUrl,
     count: u64,
     timeout: Duration,
 ) -> anyhow::Result<()> {
-    let Some(admin) = bus.admin() else {
-        // A plain socketcand says nothing about its frames; a SocketCAN interface or an SLCAN
-        // adapter took them into its queue, as cansend leaves it.
-        if matches!(url, BusUrl::Socketcand { .. }) {
-            tracing::warn!(
-                "{url} is not a buslab bus: cannot confirm that the {count} frame(s) were sent"
-            );
+    match buslab_backends::confirm_sent(&mut **bus, count, timeout)? {
+        Confirmation::AllSent => {}
+        Confirmation::Unconfirmable => {
+            if matches!(url, BusUrl::Socketcand { .. }) {
+                tracing::warn!(
+                    "{url} is not a buslab bus: cannot confirm that the {count} frame(s) were sent"
+                );
+            }
         }
-        return Ok(());
-    };
-    let before = admin.node_status(None)?;
-    let done = before.counters.sent + before.counters.tx_failed;
-    let pending = count.saturating_sub(done);
-    let on_the_bus = Duration::from_secs_f64(
-        (pending * WORST_FRAME_BITS) as f64 / f64::from(before.bus.bitrate.max(1)),
-    );
-    let wait = timeout.saturating_add(on_the_bus);
-    match admin.flush(wait) {
-        Ok(report) if report.failed > 0 => {
-            let st = admin.node_status(None)?;
-            bail!(
-                "{} of {count} frames were not sent; the node's status:\n{st}",
-                report.failed
-            )
-        }
-        Ok(_) => Ok(()),
-        Err(BusError::Timeout { .. }) => {
-            let st = admin.node_status(None)?;
-            bail!(
-                "only {} of {count} frames were sent within {} (no other node to acknowledge them, or a bit rate mismatch?); the node's status:\n{st}",
-                st.counters.sent,
-                Human(wait)
-            )
-        }
-        Err(e) => Err(e.into()),
     }
+    Ok(())
 }
