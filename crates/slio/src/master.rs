@@ -346,6 +346,16 @@ impl Master {
     /// then the requests handed over and not answered (their wait restarts when they go out
     /// again), then what was queued.
     fn recalibrate(&mut self, now: u64, silent_ns: u64) {
+        // The start-up frames go first: while some still wait, this is the same lost
+        // calibration (an adapter that does not take frames must not pile up 48 more per
+        // look at the clock), and nothing was handed over since.
+        if self
+            .outbox
+            .front()
+            .is_some_and(|(t, _)| t.single_shot && t.frame == calibration_frame())
+        {
+            return;
+        }
         let mut again: VecDeque<_> = (0..START_CALIBRATIONS)
             .map(|_| Self::start_up_frame())
             .collect();
@@ -590,6 +600,21 @@ mod tests {
                 .any(|e| matches!(e, MasterEvent::Confirmed { request, value: 0x2080, .. } if *request == r)),
             "{events:?}"
         );
+    }
+
+    /// The fuzzer (monican_app): an adapter that takes no frames while the clock jumps again
+    /// and again got 48 more start-up frames per jump. One lost calibration queues them once.
+    #[test]
+    fn an_adapter_that_takes_no_frames_does_not_pile_up_start_up_frames() {
+        let bit = 8000;
+        let mut m = Master::new(125_000, 0);
+        assert_eq!(m.queued(), 48);
+        for step in 1..=10 {
+            m.handle_timeout(step * CALIBRATION_LOST_AFTER_BITS * bit);
+        }
+        // The first 48 were never taken: still the one start-up burst, and the periodic
+        // frames behind it (at most one per look).
+        assert!(m.queued() <= 48 + 10, "{} queued", m.queued());
     }
 
     /// A master that stopped calibrating leaves the SLIOs alone, however long it was away.
