@@ -33,6 +33,7 @@ mod format;
 mod input;
 pub mod pcap;
 pub mod pcapng;
+pub mod replay;
 mod socketcan;
 #[cfg(feature = "sqlite")]
 pub mod sqlite;

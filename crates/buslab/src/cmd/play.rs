@@ -14,9 +14,8 @@ use anyhow::{Context, bail};
 use buslab_backends::{BusUrl, DynBus};
 use buslab_canbus::Filter;
 use buslab_logs::candump;
-use buslab_logs::{
-    Format, LogReader, Message, OpenOptions, ReadError, Record, Timestamp, open_source,
-};
+use buslab_logs::replay::{ReplaySchedule, ReplayTiming};
+use buslab_logs::{Format, LogReader, Message, OpenOptions, ReadError, Record, open_source};
 
 use super::busopt::{BusOpt, confirm_sent, open};
 use crate::units::CanUtilsDuration;
@@ -367,8 +366,14 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     if let Some(skip) = &args.skip_gaps {
         skip.warn_if_bare("-s", "canplayer");
     }
-    let gap = args.gap.as_ref().map(|g| g.duration);
-    let skip_gaps = args.skip_gaps.as_ref().map(|s| s.duration);
+    let mut schedule = ReplaySchedule::new(ReplayTiming {
+        speed: args.speed,
+        skip_gaps: args.skip_gaps.as_ref().map(|s| s.duration),
+        min_gap: args.gap.as_ref().map(|g| g.duration),
+        ignore_timestamps: args.ignore_timestamps,
+    });
+    // The schedule's clock.
+    let epoch = Instant::now();
     let stop = super::interrupted()?;
     // Targets: one per distinct WRITE (or --bus alone), and which log interface goes where.
     let mut targets: Vec<Target> = Vec::new();
@@ -403,7 +408,6 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     let stdout = io::stdout();
     let (mut errors, mut unmapped, mut bad, mut skipped) = (0u64, 0u64, 0u64, 0u64);
     let mut played = 0u64;
-    let mut last_sent: Option<Instant> = None;
     let mut round = 0u64;
     'rounds: while match args.loops {
         Loops::Times(n) => round < n,
@@ -417,8 +421,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
             Input::Stdin => Pass::Stdin(read_stdin(format)?),
         };
         let mut entry = Message::default();
-        let mut zero: Option<(Timestamp, Instant)> = None;
-        let mut previous: Option<Timestamp> = None;
+        schedule.restart();
         loop {
             if stop.load(Ordering::Relaxed) || args.count.is_some_and(|n| played >= n) {
                 break 'rounds;
@@ -469,25 +472,10 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
                 errors += 1;
                 continue;
             };
-            let now = Instant::now();
-            let mut due = now;
-            if !args.ignore_timestamps {
-                if let (Some(limit), Some(before)) = (skip_gaps, previous)
-                    && entry.at.saturating_since(before) > limit
-                {
-                    // canplayer -s: this frame is due now, the later ones from here.
-                    zero = Some((entry.at, now));
-                }
-                previous = Some(entry.at);
-                let (t0, start) = *zero.get_or_insert((entry.at, now));
-                let offset = entry.at.saturating_since(t0).as_secs_f64() / args.speed;
-                due = start
-                    + Duration::from_secs_f64(offset.min(crate::units::MAX_DURATION.as_secs_f64()));
-            }
-            if let (Some(gap), Some(last)) = (gap, last_sent) {
-                due = due.max(last + gap);
-            }
-            if !sleep_until(due, &stop) {
+            let due = schedule
+                .due(entry.at, epoch.elapsed())
+                .min(epoch.elapsed() + crate::units::MAX_DURATION);
+            if !sleep_until(epoch + due, &stop) {
                 break 'rounds;
             }
             let target = &mut targets[index];
@@ -501,7 +489,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
             played += 1;
             // canplayer -v: each frame as it goes (buslab's -v shows the log's info lines).
             tracing::info!("{name} ({}) {frame}", entry.channel);
-            last_sent = Some(Instant::now());
+            schedule.sent(epoch.elapsed());
         }
     }
     for t in &mut targets {
