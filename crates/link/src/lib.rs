@@ -7,7 +7,7 @@
 //!   thread, with an optional symlink, persistence of its state and work from other threads;
 //!   [`ControlSocket`] takes control lines for it.
 //! - [`SerialLine`]: the host side, a real serial port or a PTY as the [`Port`] clients use;
-//!   [`open_serial`] opens one as a plain `serialport` port.
+//!   [`open_serial`] opens one as a plain `serialport` port ([`open_tty`]: as the Unix port).
 //! - [`fs`]: every file buslab writes is written atomically; files it reads are read with a
 //!   size limit.
 //! - [`journal`]: a served device's changes between two state files, synced before the
@@ -24,6 +24,6 @@ mod served;
 pub use buslab_device::{ByteDevice, LineSettings, Parity, Persistent, Port};
 pub use control::{ControlLimits, ControlSocket, LineHandler};
 pub use pty::Pty;
-pub use serial::{SerialError, SerialLine, open_serial};
+pub use serial::{SerialError, SerialLine, open_serial, open_tty};
 pub use serve::{Control, serve};
 pub use served::{Handle, Serve, Served, ServedError};

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use buslab_device::{Human, LineSettings, Parity, Port};
 use nix::fcntl::{FcntlArg, FdFlag, fcntl};
-use serialport::{ClearBuffer, DataBits, FlowControl, SerialPort, StopBits};
+use serialport::{ClearBuffer, DataBits, FlowControl, SerialPort, StopBits, TTYPort};
 
 /// Why a serial port could not be opened.
 #[derive(Debug, thiserror::Error)]
@@ -38,6 +38,17 @@ pub fn open_serial(
     line: LineSettings,
     timeout: Duration,
 ) -> Result<Box<dyn SerialPort>, SerialError> {
+    Ok(Box::new(open_tty(path, line, timeout)?))
+}
+
+/// [`open_serial`], as the Unix port type (for a client that wants its descriptor: the SLCAN
+/// host's `select`-free reads, `ClearBuffer`). Not inherited by child processes: one started
+/// meanwhile would keep the port (and its exclusive lock) after it is closed here.
+pub fn open_tty(
+    path: &Path,
+    line: LineSettings,
+    timeout: Duration,
+) -> Result<TTYPort, SerialError> {
     let data_bits = match line.data_bits {
         5 => DataBits::Five,
         6 => DataBits::Six,
@@ -73,7 +84,7 @@ pub fn open_serial(
     let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
     fcntl(fd, FcntlArg::F_SETFD(FdFlag::FD_CLOEXEC))
         .map_err(|errno| open_error(serialport::Error::from(std::io::Error::from(errno))))?;
-    Ok(Box::new(port))
+    Ok(port)
 }
 
 /// A serial port (or the slave side of a PTY) as the [`Port`] host clients talk through,

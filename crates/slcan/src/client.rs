@@ -13,13 +13,15 @@
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
-use std::os::fd::{AsRawFd, BorrowedFd};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use buslab_bus::bus::matches_any;
 use buslab_bus::{BitTiming, BusError, CanBus, ErrorState, Filter, Message, wall_clock};
 use buslab_can::Frame;
-use serialport::{ClearBuffer, FlowControl, SerialPort, TTYPort};
+use buslab_device::LineSettings;
+use buslab_link::{SerialError, open_tty};
+use serialport::{ClearBuffer, SerialPort, TTYPort};
 
 use crate::clock::DeviceClock;
 use crate::codec::{
@@ -72,11 +74,8 @@ impl Default for SlcanOptions {
 /// Why an adapter could not be opened or used.
 #[derive(Debug, thiserror::Error)]
 pub enum SlcanError {
-    #[error("cannot open serial port {device}: {source}")]
-    Open {
-        device: String,
-        source: serialport::Error,
-    },
+    #[error(transparent)]
+    Open(#[from] SerialError),
     #[error(
         "bit rate {bitrate} bit/s cannot be set: not a standard rate ({}) and no SJA1000 timing at 8 MHz reaches it",
         standard_rates()
@@ -171,15 +170,11 @@ impl SlcanBus {
                 Err(e) => return Err(e),
             },
         };
-        let port = serialport::new(device, options.baud)
-            .flow_control(FlowControl::None)
-            .timeout(options.reply_timeout)
-            .open_native()
-            .map_err(|source| SlcanError::Open {
-                device: device.to_string(),
-                source,
-            })?;
-        set_cloexec(&port);
+        let port = open_tty(
+            Path::new(device),
+            LineSettings::n81(options.baud),
+            options.reply_timeout,
+        )?;
         // Whatever arrived before anyone read it belongs to an earlier session.
         if let Err(e) = port.clear(ClearBuffer::Input) {
             tracing::debug!("{device}: cannot discard its input queue: {e}");
@@ -539,16 +534,6 @@ fn shown(command: &Command) -> String {
     format_command(command, &mut bytes);
     bytes.pop();
     String::from_utf8_lossy(&bytes).into_owned()
-}
-
-/// serialport leaves the descriptor inheritable: a child started meanwhile would keep the port.
-fn set_cloexec(port: &TTYPort) {
-    // SAFETY: the descriptor is owned by `port`, which outlives this borrow.
-    let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
-    let _ = nix::fcntl::fcntl(
-        fd,
-        nix::fcntl::FcntlArg::F_SETFD(nix::fcntl::FdFlag::FD_CLOEXEC),
-    );
 }
 
 impl CanBus for SlcanBus {
