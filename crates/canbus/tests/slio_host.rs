@@ -99,28 +99,36 @@ impl CanBus for ScriptedBus {
     }
 }
 
+/// This host's node as the fake buses report it: its bus errors and queued frames.
+fn host_status(bus_errors: u64, tx_queued: u64) -> NodeStatus {
+    NodeStatus {
+        number: 1,
+        name: "host".into(),
+        state: ErrorState::Active,
+        errors: None,
+        sr: None,
+        timing: None,
+        counters: NodeCounters {
+            bus_errors,
+            ..NodeCounters::default()
+        },
+        tx_queued,
+        bus: BusSummary {
+            bitrate: RATE,
+            ..BusSummary::default()
+        },
+    }
+}
+
 impl BusAdmin for ScriptedBus {
     fn nodes(&mut self) -> Result<Vec<NodeInfo>, BusError> {
         Ok(Vec::new())
     }
     fn node_status(&mut self, _: Option<&NodeRef>) -> Result<NodeStatus, BusError> {
-        Ok(NodeStatus {
-            number: 1,
-            name: "host".into(),
-            state: ErrorState::Active,
-            errors: None,
-            sr: None,
-            timing: None,
-            counters: NodeCounters {
-                bus_errors: self.bus_errors,
-                ..NodeCounters::default()
-            },
-            tx_queued: u64::from(self.pending.is_some()),
-            bus: BusSummary {
-                bitrate: RATE,
-                ..BusSummary::default()
-            },
-        })
+        Ok(host_status(
+            self.bus_errors,
+            u64::from(self.pending.is_some()),
+        ))
     }
     fn register_dump(&mut self, _: Option<&NodeRef>) -> Result<NodeRegisters, BusError> {
         Err(BusError::Other("no registers".into()))
@@ -348,23 +356,7 @@ impl BusAdmin for WatchdogBus {
         Ok(Vec::new())
     }
     fn node_status(&mut self, _: Option<&NodeRef>) -> Result<NodeStatus, BusError> {
-        Ok(NodeStatus {
-            number: 1,
-            name: "host".into(),
-            state: ErrorState::Active,
-            errors: None,
-            sr: None,
-            timing: None,
-            counters: NodeCounters {
-                bus_errors: self.bus_errors,
-                ..NodeCounters::default()
-            },
-            tx_queued: self.queue.len() as u64,
-            bus: BusSummary {
-                bitrate: RATE,
-                ..BusSummary::default()
-            },
-        })
+        Ok(host_status(self.bus_errors, self.queue.len() as u64))
     }
     fn register_dump(&mut self, _: Option<&NodeRef>) -> Result<NodeRegisters, BusError> {
         Err(BusError::Other("no registers".into()))
