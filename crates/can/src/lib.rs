@@ -23,4 +23,4 @@ pub use error::ParseError;
 pub use frame::Frame;
 pub use id::{EFF_MAX, ExtendedId, Id, SFF_MAX, SFF_MAX_CAN20A, StandardId};
 pub use level::Level;
-pub use time::Timestamp;
+pub use time::{BitTime, Nanos, Timestamp};

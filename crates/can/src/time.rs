@@ -106,6 +106,201 @@ impl fmt::Display for Timestamp {
     }
 }
 
+/// Time on a CAN bus, counted in nominal bit-times: a moment since the bus started or a span
+/// between two. The clock of the protocol controller, the bus engine and every bit-level node;
+/// [`BitTime::at_bitrate`] and [`Nanos::bit_times_at`] are the only conversions to and from
+/// a host's nanoseconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct BitTime(u64);
+
+/// Time of a byte device or a host-side core, in nanoseconds: a moment since the core started
+/// or a span between two. The clock of the served devices (ZELLE, CPU196, MoniCAN's
+/// terminal), the 8051 core's peripherals and the sans-IO protocol sessions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Nanos(u64);
+
+macro_rules! counted_time {
+    ($name:ident) => {
+        impl $name {
+            pub const ZERO: Self = Self(0);
+            pub const MAX: Self = Self(u64::MAX);
+
+            pub const fn new(count: u64) -> Self {
+                Self(count)
+            }
+
+            /// The count itself, for arithmetic with other counts (bytes, bits per frame).
+            pub const fn get(self) -> u64 {
+                self.0
+            }
+
+            pub const fn saturating_add(self, other: Self) -> Self {
+                Self(self.0.saturating_add(other.0))
+            }
+
+            /// How far `self` is past `earlier`; zero if it is not later.
+            pub const fn saturating_sub(self, earlier: Self) -> Self {
+                Self(self.0.saturating_sub(earlier.0))
+            }
+
+            pub const fn checked_add(self, other: Self) -> Option<Self> {
+                match self.0.checked_add(other.0) {
+                    Some(sum) => Some(Self(sum)),
+                    None => None,
+                }
+            }
+
+            pub const fn checked_sub(self, other: Self) -> Option<Self> {
+                match self.0.checked_sub(other.0) {
+                    Some(difference) => Some(Self(difference)),
+                    None => None,
+                }
+            }
+        }
+
+        impl core::ops::Add for $name {
+            type Output = Self;
+            fn add(self, other: Self) -> Self {
+                Self(self.0 + other.0)
+            }
+        }
+
+        impl core::ops::AddAssign for $name {
+            fn add_assign(&mut self, other: Self) {
+                self.0 += other.0;
+            }
+        }
+
+        impl core::ops::Sub for $name {
+            type Output = Self;
+            fn sub(self, other: Self) -> Self {
+                Self(self.0 - other.0)
+            }
+        }
+
+        impl core::ops::SubAssign for $name {
+            fn sub_assign(&mut self, other: Self) {
+                self.0 -= other.0;
+            }
+        }
+
+        impl core::ops::Mul<u64> for $name {
+            type Output = Self;
+            fn mul(self, times: u64) -> Self {
+                Self(self.0 * times)
+            }
+        }
+
+        impl core::ops::Div<u64> for $name {
+            type Output = Self;
+            fn div(self, parts: u64) -> Self {
+                Self(self.0 / parts)
+            }
+        }
+
+        /// How many times `other` fits in `self` (whole times).
+        impl core::ops::Div for $name {
+            type Output = u64;
+            fn div(self, other: Self) -> u64 {
+                self.0 / other.0
+            }
+        }
+
+        impl core::ops::Rem for $name {
+            type Output = Self;
+            fn rem(self, other: Self) -> Self {
+                Self(self.0 % other.0)
+            }
+        }
+
+        impl core::iter::Sum for $name {
+            fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+                Self(iter.map(|t| t.0).sum())
+            }
+        }
+
+        /// The bare count, as traces and VCD files print it.
+        impl fmt::Display for $name {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                fmt::Display::fmt(&self.0, f)
+            }
+        }
+    };
+}
+
+counted_time!(BitTime);
+counted_time!(Nanos);
+
+const NANOS_PER_SECOND: u128 = 1_000_000_000;
+
+impl BitTime {
+    /// These bit-times as nanoseconds at `bitrate` bit/s (rounded down; a zero bitrate counts
+    /// as 1 bit/s). The one conversion from a bus's clock to a host's.
+    pub const fn at_bitrate(self, bitrate: u32) -> Nanos {
+        let bitrate = if bitrate == 0 { 1 } else { bitrate as u128 };
+        let nanos = self.0 as u128 * NANOS_PER_SECOND / bitrate;
+        Nanos(if nanos > u64::MAX as u128 {
+            u64::MAX
+        } else {
+            nanos as u64
+        })
+    }
+}
+
+impl Nanos {
+    pub const fn from_micros(micros: u64) -> Self {
+        Self(micros.saturating_mul(1_000))
+    }
+
+    pub const fn from_millis(millis: u64) -> Self {
+        Self(millis.saturating_mul(1_000_000))
+    }
+
+    pub const fn from_secs(secs: u64) -> Self {
+        Self(secs.saturating_mul(1_000_000_000))
+    }
+
+    /// The whole bit-times these nanoseconds hold at `bitrate` bit/s (rounded down). The one
+    /// conversion from a host's clock to a bus's.
+    pub const fn bit_times_at(self, bitrate: u32) -> BitTime {
+        BitTime((self.0 as u128 * bitrate as u128 / NANOS_PER_SECOND) as u64)
+    }
+
+    /// A [`Duration`] of `self` nanoseconds.
+    pub const fn as_duration(self) -> Duration {
+        Duration::from_nanos(self.0)
+    }
+
+    /// `duration` in nanoseconds; the longest a `u64` counts (584 years) for longer ones.
+    pub const fn from_duration(duration: Duration) -> Self {
+        let nanos = duration.as_nanos();
+        Self(if nanos > u64::MAX as u128 {
+            u64::MAX
+        } else {
+            nanos as u64
+        })
+    }
+}
+
+impl From<Duration> for Nanos {
+    fn from(duration: Duration) -> Self {
+        Self::from_duration(duration)
+    }
+}
+
+impl From<Nanos> for Duration {
+    fn from(nanos: Nanos) -> Self {
+        nanos.as_duration()
+    }
+}
+
+/// A core's moment as a host timestamp: `nanos` after the epoch of the core's clock.
+impl From<Nanos> for Timestamp {
+    fn from(nanos: Nanos) -> Self {
+        Self::from_nanos(nanos.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -149,5 +344,42 @@ mod tests {
             Timestamp::since_epoch(Duration::MAX).checked_add(Duration::from_secs(1)),
             None
         );
+    }
+    #[test]
+    fn bit_times_and_nanoseconds_convert_in_one_place() {
+        // 500 kbit/s: a bit-time is 2 µs.
+        assert_eq!(BitTime::new(3).at_bitrate(500_000), Nanos::new(6_000));
+        assert_eq!(Nanos::new(6_999).bit_times_at(500_000), BitTime::new(3));
+        // 20 kbit/s: 8192 bit-times (the SLIO watchdog) are 409.6 ms.
+        assert_eq!(
+            BitTime::new(8192).at_bitrate(20_000),
+            Nanos::from_micros(409_600)
+        );
+        // Far beyond a u64 of nanoseconds, and a zero bitrate, saturate instead of panicking.
+        assert_eq!(BitTime::MAX.at_bitrate(1), Nanos::MAX);
+        assert_eq!(BitTime::new(2).at_bitrate(0), Nanos::from_secs(2));
+        assert_eq!(Nanos::MAX.bit_times_at(1), BitTime::new(18_446_744_073));
+    }
+
+    #[test]
+    fn counted_time_keeps_its_unit_through_arithmetic() {
+        let start = BitTime::new(100);
+        let frame = BitTime::new(47);
+        assert_eq!(start + frame * 2, BitTime::new(194));
+        assert_eq!((start + frame) - start, frame);
+        assert_eq!(start.saturating_sub(start + frame), BitTime::ZERO);
+        assert_eq!(BitTime::MAX.checked_add(frame), None);
+        assert_eq!(BitTime::new(94) / frame, 2);
+        assert_eq!(BitTime::new(95) % frame, BitTime::new(1));
+        assert_eq!(
+            Nanos::from_millis(3).as_duration(),
+            Duration::from_millis(3)
+        );
+        assert_eq!(Nanos::from(Duration::MAX), Nanos::MAX);
+        assert_eq!(
+            Timestamp::from(Nanos::new(1_500)),
+            Timestamp::from_nanos(1_500)
+        );
+        assert_eq!(BitTime::new(42).to_string(), "42");
     }
 }
