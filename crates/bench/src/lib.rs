@@ -9,16 +9,21 @@
 //! - [`board`]: the SLIO demo boards of `bus serve --slio` and the lab, their analog inputs.
 //! - [`ppc`]: the PowerPC node running MoniCAN.
 //! - [`serve`]: the bench `buslab bus serve` puts beside its clients.
-//! - [`lab`]: the lab's bench (`buslab lab`): simulated traffic, the SLIO bench, its server.
+//! - [`lab`]: the lab's bench (`buslab lab`): simulated traffic, the SLIO bench, its server;
+//!   [`devices`], its serial devices; [`counter`], its counter node; [`status`], the bench at
+//!   a glance.
 #![forbid(unsafe_code)]
 
 pub mod board;
+pub mod counter;
+pub mod devices;
 mod error;
 pub mod lab;
 pub mod nodes;
 pub mod ppc;
 pub mod scenario;
 pub mod serve;
+pub mod status;
 
 pub use error::ScenarioError;
 pub use nodes::Sja1000Spec;

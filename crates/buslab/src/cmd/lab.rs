@@ -5,23 +5,22 @@
 //! (python-can, `buslab dump`) can join it. The lab itself joins with a node sending a counter
 //! and, with `--frames`, a monitor whose receptions are printed the way `candump` prints them.
 //! By default a compact status line tells how the bench is doing. Next to the bus, a ZELLE cell
-//! and a CPU196 board are served on pseudo-terminals ([`Devices`]), and the bus is shown as web
+//! and a CPU196 board are served on pseudo-terminals (`buslab_bench::devices`), and the bus is shown as web
 //! pages with a live dashboard (`buslab web`, docs/web.md).
 
 use std::io::{self, IsTerminal, Write};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::thread::{self, JoinHandle};
+use std::thread;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use buslab_bench::counter::{self, CounterNode};
+use buslab_bench::devices::LabDevices;
 use buslab_bench::lab::CHANNEL;
-use buslab_can::controller::ErrorState;
-use buslab_can::{Frame, Id};
+use buslab_bench::status::BenchStatus;
 use buslab_canbus::CanBus;
-use buslab_socketcand::SocketcandBus;
 use buslab_vbus::ServerHandle;
 
 use buslab_logs::Message;
@@ -95,10 +94,6 @@ pub struct AllowHost {
     pub allow_host: Vec<String>,
 }
 
-/// The lab's counter node: `200#` with a 32-bit little-endian counter.
-const COUNTER_ID: u16 = 0x200;
-const COUNTER_PERIOD: Duration = Duration::from_millis(50);
-
 /// `quiet` (the global `-q`): no status line.
 pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     // A reader that goes away (`| head`) ends the run quietly, as for other Unix tools.
@@ -118,7 +113,10 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     let devices = if args.no_devices {
         None
     } else {
-        Some(Devices::start(args.dir.as_deref())?)
+        Some(LabDevices::start(
+            args.dir.as_deref(),
+            super::cpu196::DEFAULT_BAUD,
+        )?)
     };
     // Frame times are the server's start plus virtual time: `-t` counts from here.
     let start_unix = buslab_canbus::wall_clock();
@@ -151,7 +149,7 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     eprintln!("  watch it:   {}", hints.command("dump", "", true));
     slio_bench.describe(terminal.as_ref(), args.dir.as_deref(), &hints);
     if let Some(devices) = &devices {
-        devices.describe(&hints);
+        describe_devices(devices, &hints);
     }
     let web = super::web::lab_pages(
         &args.web,
@@ -170,7 +168,7 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
         eprintln!("Ctrl-C to stop");
     }
 
-    let counter = spawn_counter(addr, stop.clone())?;
+    let counter = CounterNode::spawn(addr, stop.clone())?;
     let end = args.duration.map(|d| Instant::now() + d);
     let result = if args.frames {
         monitor(addr, &args, end, start_unix, &stop)
@@ -192,7 +190,7 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
         devices.stop()?;
     }
     result?;
-    counted.map_err(|_| anyhow::anyhow!("the counter node panicked"))?
+    Ok(counted?)
 }
 
 /// The banner's commands, written so that they work when pasted: the program as the shell
@@ -304,7 +302,7 @@ fn status_lines(
             continue;
         }
         next += every;
-        let Some(fields) = server.with_bus(status_fields) else {
+        let Some(fields) = server.with_bus(|bus| status_fields(&BenchStatus::of(bus))) else {
             break;
         };
         let line = fit(&fields, status_width(terminal));
@@ -317,7 +315,7 @@ fn status_lines(
         }
     }
     // The last word, on its own line.
-    match server.with_bus(status_fields) {
+    match server.with_bus(|bus| status_fields(&BenchStatus::of(bus))) {
         Some(fields) => StatusLine::finish(&fit(&fields, status_width(terminal)))?,
         None => StatusLine::clear()?,
     }
@@ -327,21 +325,11 @@ fn status_lines(
 /// The status line's parts, most telling first; [`fit`] leaves out the last ones that do not
 /// fit the terminal. Nodes are the bench's own and the clients that joined (the lab's counter,
 /// its web pages, every `dump` or python-can script).
-fn status_fields(bus: &mut buslab_vbus::VirtualBus) -> Vec<String> {
-    let last = bus.last_second();
-    let total = *bus.stats();
-    let numbers: Vec<u32> = bus.nodes().iter().map(|n| n.number).collect();
-    let clients = numbers.iter().filter(|&&n| bus.client(n).is_ok()).count();
-    let nodes = bus.sim().nodes();
-    let count = |state| nodes.iter().filter(|n| n.state() == state).count();
-    let mut states = Vec::new();
-    for (state, word) in [
-        (ErrorState::Active, "active"),
-        (ErrorState::Passive, "passive"),
-        (ErrorState::BusOff, "bus-off"),
-    ] {
-        let n = count(state);
-        if n > 0 || state == ErrorState::Active {
+fn status_fields(status: &BenchStatus) -> Vec<String> {
+    let last = &status.last_second;
+    let mut states = vec![format!("{} active", status.active)];
+    for (n, word) in [(status.passive, "passive"), (status.bus_off, "bus-off")] {
+        if n > 0 {
             states.push(format!("{n} {word}"));
         }
     }
@@ -350,12 +338,16 @@ fn status_fields(bus: &mut buslab_vbus::VirtualBus) -> Vec<String> {
         format!("{} frames/s", last.frames),
         format!("{} errors/s", last.errors),
         format!(
-            "{} nodes + {clients} client{}: {}",
-            nodes.len() - clients,
-            if clients == 1 { "" } else { "s" },
+            "{} nodes + {} client{}: {}",
+            status.simulated,
+            status.clients,
+            if status.clients == 1 { "" } else { "s" },
             states.join(", ")
         ),
-        format!("{} frames, {} errors in all", total.frames, total.errors),
+        format!(
+            "{} frames, {} errors in all",
+            status.total.frames, status.total.errors
+        ),
     ]
 }
 
@@ -397,7 +389,7 @@ fn monitor(
     start_unix: buslab_canbus::Timestamp,
     stop: &AtomicBool,
 ) -> anyhow::Result<()> {
-    let mut bus = join(addr, "monitor")?;
+    let mut bus = counter::join(addr, "monitor")?;
     let stdout = io::stdout();
     let mut out = stdout.lock();
     // candump's layout; `-t`: seconds since the lab started, as `candump -t z`.
@@ -425,37 +417,6 @@ fn monitor(
         }
     }
     Ok(())
-}
-
-/// The counter node: a socketcand client sending `200#` + counter every 50 ms.
-fn spawn_counter(
-    addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-) -> anyhow::Result<JoinHandle<anyhow::Result<()>>> {
-    let mut bus = join(addr, "counter")?;
-    let id = Id::standard(COUNTER_ID).expect("valid ID");
-    Ok(thread::spawn(move || {
-        let mut value = 0u32;
-        let mut next = Instant::now();
-        while !stop.load(Ordering::SeqCst) {
-            let frame = Frame::data(id, &value.to_le_bytes()).expect("4 bytes");
-            bus.send(&frame).context("counter node")?;
-            value = value.wrapping_add(1);
-            next += COUNTER_PERIOD;
-            thread::sleep(next.saturating_duration_since(Instant::now()));
-        }
-        Ok(())
-    }))
-}
-
-/// Joins the lab's bus as a named node.
-fn join(addr: SocketAddr, name: &str) -> anyhow::Result<SocketcandBus> {
-    let mut bus = SocketcandBus::connect(addr, CHANNEL)
-        .with_context(|| format!("the {name} cannot join the lab's bus at {addr}"))?;
-    if bus.enable_extensions()? {
-        bus.set_name(name)?;
-    }
-    Ok(bus)
 }
 
 /// The SLIO bench's side in the binary: the PowerPC node's terminal and the banner's lines.
@@ -529,75 +490,21 @@ impl SlioBench {
     }
 }
 
-/// The serial devices of the bench, each served on a pseudo-terminal by its own thread (and
-/// stopped, with its state saved, when the bench stops).
-struct Devices {
-    zelle: buslab_served::zelle::ServedCell,
-    cpu196: buslab_link::Served<buslab_cpu196::Board>,
-    /// What the banner tells tools to open: the stable links when there is a folder, else the
-    /// PTYs.
-    zelle_port: PathBuf,
-    cpu196_port: PathBuf,
-}
-
-impl Devices {
-    fn start(dir: Option<&Path>) -> anyhow::Result<Self> {
-        if let Some(dir) = dir {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create the lab folder {}", dir.display()))?;
-        }
-        let file = |name: &str| dir.map(|d| d.join(name));
-        // Two sine waves on the cell's first channels, so a measurement shows something.
-        let sine = |amplitude, offset| buslab_zelle::analog::Source::Wave {
-            shape: buslab_zelle::analog::Shape::Sine,
-            hz: 0.5,
-            amplitude,
-            offset,
-        };
-        let zelle = buslab_served::zelle::ServedCell::spawn(buslab_served::zelle::CellOptions {
-            state: file("zelle.toml"),
-            link: file("zelle"),
-            analog: vec![(1, sine(2.0, 2.5)), (2, sine(1.0, 2.5))],
-            trace: None,
-        })
-        .context("starting the ZELLE cell")?;
-        let cpu196 = buslab_served::cpu196::spawn_board(buslab_served::cpu196::BoardOptions {
-            image: file("cpu196.toml"),
-            link: file("cpu196"),
-            baud: super::cpu196::DEFAULT_BAUD,
-            inputs: buslab_cpu196::source::Inputs::default(),
-            peer: buslab_cpu196::pic::Peer::default(),
-        })
-        .context("starting the CPU196 board")?;
-        Ok(Self {
-            zelle_port: file("zelle").unwrap_or_else(|| zelle.path().to_path_buf()),
-            cpu196_port: file("cpu196").unwrap_or_else(|| cpu196.path().to_path_buf()),
-            zelle,
-            cpu196,
-        })
-    }
-
-    fn describe(&self, hints: &Hints) {
-        eprintln!(
-            "  ZELLE cell   on {}  (9600 8N2; try: {} zelle --port {} analog 1)",
-            self.zelle.path().display(),
-            hints.program,
-            self.zelle_port.display()
-        );
-        eprintln!(
-            "  CPU196 board on {}  ({} 8N1; try: {} cpu196 --port {} info)",
-            self.cpu196.path().display(),
-            super::cpu196::DEFAULT_BAUD,
-            hints.program,
-            self.cpu196_port.display()
-        );
-    }
-
-    fn stop(self) -> anyhow::Result<()> {
-        self.zelle.stop().context("stopping the ZELLE cell")?;
-        self.cpu196.stop().context("stopping the CPU196 board")?;
-        Ok(())
-    }
+/// The banner's lines for the serial devices.
+fn describe_devices(devices: &LabDevices, hints: &Hints) {
+    eprintln!(
+        "  ZELLE cell   on {}  (9600 8N2; try: {} zelle --port {} analog 1)",
+        devices.zelle.path().display(),
+        hints.program,
+        devices.zelle_port.display()
+    );
+    eprintln!(
+        "  CPU196 board on {}  ({} 8N1; try: {} cpu196 --port {} info)",
+        devices.cpu196.path().display(),
+        super::cpu196::DEFAULT_BAUD,
+        hints.program,
+        devices.cpu196_port.display()
+    );
 }
 
 #[cfg(test)]
