@@ -1,0 +1,283 @@
+//! The one spelling of a source, as every tool takes it on its command line, in its control
+//! lines and in its configuration.
+
+use std::path::PathBuf;
+
+use buslab_can::Nanos;
+
+use crate::source::{Shape, Source};
+
+/// A parsed source spec. A CSV replay names a file, which the caller reads (this crate does
+/// no I/O) and hands to [`Source::replay_from_csv`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum SourceSpec {
+    Ready(Source),
+    CsvFile(PathBuf),
+}
+
+/// The spec grammar, for error messages and help texts.
+pub const SPEC_HELP: &str = "VOLTS | const:VOLTS | sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]] \
+     | ramp:FROM:TO:PERIOD | csv:FILE  (e.g. 2.5V, sine:1Hz:2V:2.5V, ramp:0V:5V:10s)";
+
+/// Why a source spec or replay file was refused.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SourceError {
+    #[error("analog source `{spec}`: {why}")]
+    Spec { spec: String, why: String },
+    #[error("replay CSV line {line} `{text}`: {why}")]
+    CsvLine {
+        line: usize,
+        text: String,
+        why: String,
+    },
+    #[error("replay CSV has no `seconds,volts` rows")]
+    CsvEmpty,
+}
+
+impl SourceSpec {
+    /// Parses `VOLTS`, `const:VOLTS`, `sine:FREQ[:AMPLITUDE[:OFFSET]]` (also `triangle`,
+    /// `square`; amplitude and offset default to 2.5 V, i.e. 0..5 V), `ramp:FROM:TO:PERIOD`
+    /// or `csv:FILE`. Volts may carry `V` or `mV`, frequencies `Hz`, `kHz` or `mHz`, periods
+    /// `s` or `ms`. The CPU196 tools' former comma spelling (`sine:OFFSET,AMPLITUDE,HZ`, ...)
+    /// is refused with its translation.
+    pub fn parse(spec: &str) -> Result<SourceSpec, SourceError> {
+        let bad = |why: String| SourceError::Spec {
+            spec: spec.to_owned(),
+            why,
+        };
+        let spec_t = spec.trim();
+        let (kind, rest) = spec_t.split_once(':').unwrap_or((spec_t, ""));
+        let kind_lower = kind.to_ascii_lowercase();
+        if kind_lower != "csv" && rest.contains(',') {
+            return Err(bad(comma_spelling_hint(&kind_lower, rest)));
+        }
+        let args: Vec<&str> = if rest.is_empty() {
+            Vec::new()
+        } else {
+            rest.split(':').map(str::trim).collect()
+        };
+        let volts = |s: &str| parse_volts(s).map_err(|_| bad(format!("`{s}` is not a voltage")));
+        let ready = |s| Ok(SourceSpec::Ready(s));
+        match kind_lower.as_str() {
+            "csv" if !rest.is_empty() => Ok(SourceSpec::CsvFile(PathBuf::from(rest))),
+            "csv" => Err(bad("csv needs a file: csv:FILE".into())),
+            "const" | "dc" => match args[..] {
+                [v] => ready(Source::Constant(volts(v)?)),
+                _ => Err(bad("const takes one voltage: const:2.5V".into())),
+            },
+            "sine" | "triangle" | "square" => {
+                let shape = match kind_lower.as_str() {
+                    "sine" => Shape::Sine,
+                    "triangle" => Shape::Triangle,
+                    _ => Shape::Square,
+                };
+                if args.is_empty() || args.len() > 3 {
+                    return Err(bad(format!(
+                        "{kind} takes FREQ[:AMPLITUDE[:OFFSET]], e.g. {kind}:1Hz:2V:2.5V"
+                    )));
+                }
+                let hz = parse_hz(args[0])
+                    .map_err(|_| bad(format!("`{}` is not a frequency", args[0])))?;
+                let amplitude = args.get(1).map_or(Ok(2.5), |s| volts(s))?;
+                let offset = args.get(2).map_or(Ok(2.5), |s| volts(s))?;
+                ready(Source::Wave {
+                    shape,
+                    hz,
+                    amplitude,
+                    offset,
+                })
+            }
+            "ramp" => match args[..] {
+                [from, to, period] => {
+                    let period = parse_period(period)
+                        .map_err(|_| bad(format!("`{period}` is not a period like 10s")))?;
+                    if period == Nanos::ZERO {
+                        return Err(bad("the ramp period must be longer than 0".into()));
+                    }
+                    ready(Source::Ramp {
+                        from: volts(from)?,
+                        to: volts(to)?,
+                        period,
+                    })
+                }
+                _ => Err(bad("ramp takes FROM:TO:PERIOD, e.g. ramp:0V:5V:10s".into())),
+            },
+            _ if args.is_empty() => match parse_volts(kind) {
+                Ok(v) => ready(Source::Constant(v)),
+                Err(_) => Err(bad(format!("unknown source; expected {SPEC_HELP}"))),
+            },
+            _ => Err(bad(format!(
+                "unknown source `{kind}`; expected {SPEC_HELP}"
+            ))),
+        }
+    }
+}
+
+/// What to write instead of the CPU196 tools' former spelling (numbers separated by commas,
+/// parameters in another order), or the grammar when the numbers do not fit it.
+fn comma_spelling_hint(kind: &str, rest: &str) -> String {
+    let numbers: Option<Vec<f64>> = rest.split(',').map(|n| finite(n).ok()).collect();
+    let written = match (kind, numbers.as_deref()) {
+        ("sine", Some(&[offset, amplitude, hz])) => {
+            Some(format!("sine:{hz}Hz:{amplitude}V:{offset}V"))
+        }
+        ("square", Some(&[low, high, hz])) => Some(format!(
+            "square:{hz}Hz:{}V:{}V",
+            (high - low) / 2.0,
+            (high + low) / 2.0
+        )),
+        ("ramp", Some(&[from, to, period])) if period > 0.0 => {
+            Some(format!("ramp:{from}V:{to}V:{period}s"))
+        }
+        _ => None,
+    };
+    match written {
+        Some(new) => format!(
+            "parameters are separated by `:` in FREQ:AMPLITUDE:OFFSET order now (the CPU196 tools' \
+             former comma spelling); write {new}"
+        ),
+        None => format!("parameters are separated by `:`; expected {SPEC_HELP}"),
+    }
+}
+
+fn finite(s: &str) -> Result<f64, ()> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(()),
+    }
+}
+
+pub(crate) fn parse_volts(s: &str) -> Result<f64, ()> {
+    let s = s.trim();
+    if let Some(mv) = s.strip_suffix("mV").or_else(|| s.strip_suffix("mv")) {
+        return finite(mv).map(|v| v / 1000.0);
+    }
+    finite(s.strip_suffix(['V', 'v']).unwrap_or(s))
+}
+
+fn parse_hz(s: &str) -> Result<f64, ()> {
+    let s = s.trim();
+    let (num, scale) = if let Some(n) = s.strip_suffix("kHz") {
+        (n, 1e3)
+    } else if let Some(n) = s.strip_suffix("mHz") {
+        (n, 1e-3)
+    } else if let Some(n) = s.strip_suffix("Hz").or_else(|| s.strip_suffix("hz")) {
+        (n, 1.0)
+    } else {
+        (s, 1.0)
+    };
+    let hz = finite(num)? * scale;
+    if hz < 0.0 { Err(()) } else { Ok(hz) }
+}
+
+/// `10s`, `250ms` or bare seconds, up to 1e9 s.
+fn parse_period(s: &str) -> Result<Nanos, ()> {
+    let s = s.trim();
+    let (num, scale) = if let Some(n) = s.strip_suffix("ms") {
+        (n, 1e6)
+    } else if let Some(n) = s.strip_suffix('s') {
+        (n, 1e9)
+    } else {
+        (s, 1e9)
+    };
+    let ns = finite(num)? * scale;
+    if !(0.0..1e18).contains(&ns) {
+        return Err(());
+    }
+    Ok(Nanos::new(ns.round() as u64))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ready(spec: &str) -> Source {
+        match SourceSpec::parse(spec).unwrap() {
+            SourceSpec::Ready(s) => s,
+            other => panic!("{spec} gave {other:?}"),
+        }
+    }
+
+    #[test]
+    fn constants_in_several_spellings() {
+        assert_eq!(ready("2.5V"), Source::Constant(2.5));
+        assert_eq!(ready("1200mV"), Source::Constant(1.2));
+        assert_eq!(ready("const:3"), Source::Constant(3.0));
+        assert_eq!(ready("DC:4v"), Source::Constant(4.0));
+        assert_eq!(
+            ready("sine:2kHz"),
+            Source::Wave {
+                shape: Shape::Sine,
+                hz: 2000.0,
+                amplitude: 2.5,
+                offset: 2.5
+            }
+        );
+        assert_eq!(
+            ready("ramp:0:5:250ms"),
+            Source::Ramp {
+                from: 0.0,
+                to: 5.0,
+                period: Nanos::from_millis(250)
+            }
+        );
+    }
+
+    #[test]
+    fn csv_spec_names_a_file() {
+        assert_eq!(
+            SourceSpec::parse("csv:data/in,1.csv").unwrap(),
+            SourceSpec::CsvFile("data/in,1.csv".into())
+        );
+    }
+
+    #[test]
+    fn the_former_cpu196_spelling_is_refused_with_its_translation() {
+        for (old, new) in [
+            ("sine:2.5,2,2", "write sine:2Hz:2V:2.5V"),
+            ("square:1,4,2", "write square:2Hz:1.5V:2.5V"),
+            ("ramp:0,5,4", "write ramp:0V:5V:4s"),
+        ] {
+            let err = SourceSpec::parse(old).unwrap_err().to_string();
+            assert!(err.contains(new), "{old}: {err}");
+            assert!(err.contains(old), "{old}: {err}");
+            // The translation means what the old spelling meant.
+            let translated = new.strip_prefix("write ").unwrap();
+            assert!(SourceSpec::parse(translated).is_ok(), "{translated}");
+        }
+        let err = SourceSpec::parse("sine:1,x").unwrap_err().to_string();
+        assert!(err.contains("separated by `:`"), "{err}");
+    }
+
+    #[test]
+    fn the_translated_cpu196_spelling_gives_the_same_voltages() {
+        // square:LOW,HIGH,HZ was HIGH in the first half period, LOW in the second.
+        let square = ready("square:2Hz:1.5V:2.5V");
+        assert_eq!(square.volts(Nanos::from_millis(100)), 4.0);
+        assert_eq!(square.volts(Nanos::from_millis(300)), 1.0);
+    }
+
+    #[test]
+    fn garbage_specs_are_refused_with_the_spec_named() {
+        for spec in [
+            "",
+            "sine",
+            "sine:fast",
+            "sine:-1Hz",
+            "sine:1Hz:2V:2.5V:9",
+            "ramp:0:5",
+            "ramp:0:5:0s",
+            "ramp:0:5:1e300s",
+            "noise:1",
+            "csv:",
+            "const:",
+            "const:NaN",
+            "NaN",
+            "inf",
+            "\u{0}\u{ff}",
+        ] {
+            let err = SourceSpec::parse(spec).unwrap_err();
+            assert!(err.to_string().contains(spec), "{err}");
+        }
+    }
+}
