@@ -8,11 +8,10 @@
 //! - [`bus`]: a bus interface in the spirit of python-can's `BusABC` ([`CanBus`]).
 //! - [`admin`]: typed node status and registers of buslab's virtual bus, demo boards
 //!   ([`BusAdmin`]).
-//! - [`regs`]: register access ([`RegisterAccess`]), the seam between a driver and a chip.
-//! - [`config`]: SJA1000 configuration with defaults and validation ([`Sja1000Config`]).
-//! - [`driver`]: the SJA1000 driver, BasicCAN and PeliCAN behind one interface
-//!   ([`Sja1000Driver`]); it touches the chip only through register reads and writes.
-//! - [`decode`]: status, error-code and arbitration-lost registers decoded into words.
+//! - [`regs`], [`config`], [`driver`], [`decode`]: the SJA1000 driver, its register access
+//!   ([`RegisterAccess`]) and configuration ([`Sja1000Config`]); they live in
+//!   `buslab-sja1000-driver` (the PowerPC node, a model, runs the same driver) and are
+//!   re-exported here under their old paths.
 //! - [`error_frame`]: the SJA1000 driver's events as SocketCAN error frames
 //!   ([`error_frame::from_driver_event`]), as Linux's driver sends them.
 //! - [`manager`]: the single owner of a driver: one thread, listeners and requests
@@ -22,45 +21,19 @@
 //! - [`slio`]: SLIOs from any bus ([`slio::SlioHost`], CANAPI's `SlIo` class).
 //! - [`file`](mod@file): the file protocol for data longer than 8 bytes (SPEC N5).
 //!
-//! Two drivers on a wired-AND bus of two model chips, stepped bit by bit:
-//!
-//! ```
-//! use buslab_can::Level;
-//! use buslab_canbus::{DriverEvent, Sja1000Config, Sja1000Driver, shared_chip};
-//!
-//! let chips = [shared_chip(), shared_chip()];
-//! let mut a = Sja1000Driver::new(chips[0].clone());
-//! let mut b = Sja1000Driver::new(chips[1].clone());
-//! a.init(&Sja1000Config::default())?;
-//! b.init(&Sja1000Config::basic_can())?;
-//! a.send(&"123#CAFE".parse()?)?;
-//! let mut received = Vec::new();
-//! while received.is_empty() {
-//!     let wire = chips.iter().fold(Level::Recessive, |bus, chip| {
-//!         bus.and(chip.lock().unwrap().output())
-//!     });
-//!     chips.iter().for_each(|chip| chip.lock().unwrap().sample(wire));
-//!     for event in b.poll() {
-//!         if let DriverEvent::Received(frame) = event {
-//!             received.push(frame.to_string());
-//!         }
-//!     }
-//! }
-//! assert_eq!(received, ["123#CAFE"]);
-//! # Ok::<(), Box<dyn std::error::Error>>(())
-//! ```
+//! How two drivers on a wired-AND bus of model chips exchange a frame is shown in
+//! `buslab-sja1000-driver`'s documentation.
 
 pub mod admin;
 pub mod bus;
-pub mod config;
-pub mod decode;
-pub mod driver;
 pub mod error_frame;
 pub mod file;
 pub mod manager;
 pub mod node;
-pub mod regs;
 pub mod slio;
+
+/// The driver and its vocabulary, under the paths they had when they lived here.
+pub use buslab_sja1000_driver::{config, decode, driver, regs};
 
 pub use admin::{
     BadProbability, BusAdmin, BusSummary, NodeCounters, NodeInfo, NodeRef, NodeRegisters,

@@ -14,7 +14,6 @@
 //!   device's next byte leaves, replayed after a crash.
 
 mod control;
-pub mod fs;
 pub mod journal;
 mod pty;
 mod serial;
@@ -22,6 +21,8 @@ mod serve;
 mod served;
 
 pub use buslab_device::{ByteDevice, LineSettings, Parity, Persistent, Port};
+/// Files written atomically and read with a limit: `buslab-fs`, under the path it had here.
+pub use buslab_fs as fs;
 pub use control::{ControlLimits, ControlSocket, LineHandler};
 pub use pty::Pty;
 pub use serial::{SerialError, SerialLine, open_serial, open_tty};

@@ -3,12 +3,12 @@
 
 use std::fs::{self, File};
 use std::io::{self, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
+use buslab_fs::Staged;
 use flate2::read::MultiGzDecoder;
-use tempfile::TempPath;
 
 use crate::codec::{ByteCounter, Encoder, Entries, LogReader, LogWriter, READ_BUFFER};
 use crate::error::{LogError, ReadError};
@@ -135,8 +135,9 @@ pub fn open_source(
 enum Output {
     /// Straight to its path (a live log: what was flushed is there if the process dies).
     Direct,
-    /// To a temporary file beside it, renamed into place by `finish`.
-    Atomic { temp: TempPath, dest: PathBuf },
+    /// To a temporary file beside it, put in place by `finish` (the one atomic writer,
+    /// `buslab-fs`).
+    Atomic(Staged),
 }
 
 #[cfg(feature = "sqlite")]
@@ -145,7 +146,7 @@ impl Output {
     fn written<'a>(&'a self, path: &'a Path) -> &'a Path {
         match self {
             Output::Direct => path,
-            Output::Atomic { temp, .. } => temp,
+            Output::Atomic(staged) => staged.temp_path(),
         }
     }
 }
@@ -207,29 +208,10 @@ fn create(
         check_regular(path, &meta)?;
     }
     let (file, output) = if atomic {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        // As a plain create would: 0666 less the umask (not the temporary file's 0600).
-        let temp = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".part")
-            .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
-            .tempfile_in(dir)
-            .map_err(create_err)?;
-        let (file, temp) = temp.into_parts();
-        (
-            file,
-            Output::Atomic {
-                temp,
-                dest: path.to_path_buf(),
-            },
-        )
+        let staged = Staged::create(path).map_err(|e| create_err(e.source))?;
+        // The writer's own handle: it seeks and cuts back; the staged file commits.
+        let file = staged.file().try_clone().map_err(create_err)?;
+        (file, Output::Atomic(staged))
     } else {
         if format == Format::Sqlite {
             // A new database: an old file's table would be appended to otherwise.
@@ -382,9 +364,13 @@ impl<E: Encoder<Out>> LogWriter for FileWriter<E> {
                 return Err(CutBack::refused());
             }
         };
-        file.sync_all()?;
-        drop(file);
-        put_in_place(this.output)
+        match this.output {
+            Output::Direct => file.sync_all(),
+            Output::Atomic(staged) => {
+                drop(file);
+                put_in_place(staged)
+            }
+        }
     }
 
     fn left_out(&self) -> u64 {
@@ -424,21 +410,18 @@ impl LogWriter for SqliteFile {
     fn finish(self: Box<Self>) -> io::Result<()> {
         let this = *self;
         this.writer.finish()?;
-        put_in_place(this.output)
+        match this.output {
+            // SQLite synced its own file.
+            Output::Direct => Ok(()),
+            Output::Atomic(staged) => put_in_place(staged),
+        }
     }
 }
 
-/// Renames an atomic writer's temporary file to its destination and syncs the directory.
-fn put_in_place(output: Output) -> io::Result<()> {
-    let Output::Atomic { temp, dest } = output else {
-        return Ok(());
-    };
-    temp.persist(&dest).map_err(|e| e.error)?;
-    let dir = match dest.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    File::open(dir)?.sync_all()
+/// Syncs an atomic writer's temporary file, renames it over its destination and syncs the
+/// folder.
+fn put_in_place(staged: Staged) -> io::Result<()> {
+    staged.commit().map_err(|e| e.source)
 }
 
 #[cfg(all(test, not(feature = "sqlite")))]

@@ -3,8 +3,8 @@
 //!
 //! [`PpcNode`] is a [`BusNode`](buslab_can::node::BusNode): it sits on the one bus engine like
 //! any node. Its SJA1000 ([`buslab_sja1000::Sja1000`]) is driven only through its registers by
-//! the host library's driver ([`buslab_canbus::Sja1000Driver`], PeliCAN as the seed's
-//! `sja_init_pelican`), and the CPU's program is [`buslab_monican::MoniCan`]. The serial port
+//! the SJA1000 driver the host library runs too ([`buslab_sja1000_driver::Sja1000Driver`],
+//! PeliCAN as the seed's `sja_init_pelican`), and the CPU's program is [`buslab_monican::MoniCan`]. The serial port
 //! is sans-IO too: [`PpcNode::key`] takes a byte from the terminal, [`PpcNode::take_screen`]
 //! gives the VT100 bytes for it; whoever serves the port paces them (19200 baud, 8N1).
 #![forbid(unsafe_code)]

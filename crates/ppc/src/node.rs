@@ -16,15 +16,15 @@ use std::collections::VecDeque;
 use buslab_can::controller::{ErrorState, Event, QueueFull};
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
-use buslab_canbus::{
-    ControllerState, DriverError, DriverEvent, Sja1000Config, Sja1000Driver, Timing, TxFailure,
-};
 use buslab_device::{Changes, Persistent, ReplayError};
 use buslab_loader::report::report;
 use buslab_loader::{Loader, MemoryImage, MemoryMap, Outcome};
 use buslab_monican::screen::Screen;
 use buslab_monican::{Config, ConfigError, MoniCan, Transmit};
 use buslab_sja1000::{BitTiming, Sja1000, TimingError};
+use buslab_sja1000_driver::{
+    ControllerState, DriverError, DriverEvent, Sja1000Config, Sja1000Driver, Timing, TxFailure,
+};
 use tracing::{debug, info, warn};
 
 /// The PowerPC board's SJA1000 crystal (the seed: "Xtal de 16MHz"); the CAN clock is half.

@@ -1,4 +1,8 @@
-//! Files as buslab writes and reads them: written atomically, read with a size limit.
+//! Files as buslab writes and reads them: written atomically ([`Staged`], [`AtomicFile`],
+//! [`write_atomic`]), read with a size limit ([`read_limited`]), opened only when they are
+//! regular files ([`open_regular`]). std, `tempfile` and `libc` only, so any host crate can
+//! write its files the one way (`buslab-link` re-exports it as `buslab_link::fs`, `buslab-logs`
+//! puts its converted logs in place with it).
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Read, Write};
@@ -39,37 +43,43 @@ impl ReadError {
 }
 
 /// Writes `path` so that a crash or a concurrent writer leaves either the old or the new
-/// contents: a temporary file with a unique name in the same folder, synced, renamed over
-/// `path`, then the folder synced. An existing file keeps its permissions; a new one gets
-/// `rw-r--r--`.
+/// contents ([`Staged`]: a temporary file with a unique name in the same folder, synced,
+/// renamed over `path`, then the folder synced).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     let mut file = AtomicFile::create(path)?;
     file.write_all(bytes)?;
     file.commit()
 }
 
-/// A file written atomically as it comes ([`write_atomic`] for data that does not fit in
-/// memory, or arrives slowly): [`create`](Self::create) checks the target and makes the
-/// temporary file beside it at once, so a target that cannot be written is refused before
-/// the first byte; [`commit`](Self::commit) syncs it and renames it over the target. Dropped
-/// without a commit, the temporary file is removed and the target left as it was.
-pub struct AtomicFile {
+/// A file that replaces its target whole or not at all: the one way buslab writes a file
+/// atomically. [`create`](Self::create) checks the target and makes a temporary file with a
+/// unique name in the target's folder (so the rename stays on one file system and concurrent
+/// writers never share a file); [`commit`](Self::commit) syncs it, renames it over the
+/// target and syncs the folder, so the new contents survive a crash once `commit` returns.
+/// Dropped without a commit, the temporary file is removed and the target left as it was.
+///
+/// It is unbuffered: [`AtomicFile`] buffers it for data written as it comes; a writer that
+/// keeps its own handle (seeks, cuts back) takes one with [`file`](Self::file), and one that
+/// opens by name (SQLite) uses [`temp_path`](Self::temp_path).
+#[derive(Debug)]
+pub struct Staged {
     path: PathBuf,
     dir: PathBuf,
-    tmp: io::BufWriter<tempfile::NamedTempFile>,
+    temp: tempfile::NamedTempFile,
 }
 
-impl AtomicFile {
+impl Staged {
     /// Refuses a target that exists and is not a regular file (a folder, a FIFO, a device),
-    /// and a folder where no file can be made.
+    /// and a folder where no file can be made. The temporary file is created with the
+    /// target's permissions if it exists (less the umask), else as a plain create makes a
+    /// file (0666 less the umask).
     pub fn create(path: &Path) -> Result<Self, WriteError> {
         let error = |source| WriteError {
             path: path.to_path_buf(),
             source,
         };
-        if let Ok(meta) = fs::metadata(path)
-            && let Some(kind) = not_regular(&meta)
-        {
+        let existing = fs::metadata(path).ok();
+        if let Some(kind) = existing.as_ref().and_then(not_regular) {
             return Err(error(io::Error::new(
                 io::ErrorKind::InvalidInput,
                 format!("it is {kind}, not a regular file; give the path of a file"),
@@ -82,15 +92,19 @@ impl AtomicFile {
         let name = path
             .file_name()
             .ok_or_else(|| error(io::Error::other("the path names no file")))?;
-        let tmp = tempfile::Builder::new()
+        // Never more open than the file it replaces (a private file's new contents are
+        // private from the first byte); the umask narrows it further until the commit.
+        let mode = existing.map_or(0o666, |m| m.permissions().mode() & 0o7777);
+        let temp = tempfile::Builder::new()
             .prefix(&format!(".{}.", name.to_string_lossy()))
             .suffix(".tmp")
+            .permissions(fs::Permissions::from_mode(mode))
             .tempfile_in(dir)
             .map_err(error)?;
         Ok(Self {
             path: path.to_path_buf(),
             dir: dir.to_path_buf(),
-            tmp: io::BufWriter::new(tmp),
+            temp,
         })
     }
 
@@ -99,30 +113,82 @@ impl AtomicFile {
         &self.path
     }
 
-    pub fn write_all(&mut self, bytes: &[u8]) -> Result<(), WriteError> {
-        self.tmp.write_all(bytes).map_err(|source| WriteError {
-            path: self.path.clone(),
-            source,
-        })
+    /// The temporary file's path, for a writer that opens files by name. It goes away with
+    /// the commit (renamed) or the drop (removed).
+    pub fn temp_path(&self) -> &Path {
+        self.temp.path()
     }
 
-    /// Makes the target the written bytes, durably.
+    /// The temporary file; `&File` writes and seeks, and `try_clone` gives a handle of one's
+    /// own on it.
+    pub fn file(&self) -> &File {
+        self.temp.as_file()
+    }
+
+    /// Makes the target the written bytes, durably: an existing target's permissions carried
+    /// over, the file synced, renamed over the target, the folder synced.
     pub fn commit(self) -> Result<(), WriteError> {
-        let Self { path, dir, tmp } = self;
+        let Self { path, dir, temp } = self;
         let error = |source| WriteError {
             path: path.clone(),
             source,
         };
-        let tmp = tmp.into_inner().map_err(|e| error(e.into_error()))?;
-        // A temporary file is private (0600); the file it becomes is an ordinary one.
-        let permissions = fs::metadata(&path)
-            .map(|m| m.permissions())
-            .unwrap_or_else(|_| fs::Permissions::from_mode(0o644));
-        tmp.as_file().set_permissions(permissions).map_err(error)?;
-        tmp.as_file().sync_all().map_err(error)?;
-        tmp.persist(&path).map_err(|e| error(e.error))?;
+        if let Ok(meta) = fs::metadata(&path) {
+            temp.as_file()
+                .set_permissions(meta.permissions())
+                .map_err(error)?;
+        }
+        temp.as_file().sync_all().map_err(error)?;
+        temp.persist(&path).map_err(|e| error(e.error))?;
         // The rename is durable once the folder is.
         File::open(&dir).and_then(|d| d.sync_all()).map_err(error)
+    }
+}
+
+impl Write for Staged {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.temp.write(buf)
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        self.temp.flush()
+    }
+}
+
+/// A [`Staged`] file written as it comes, buffered ([`write_atomic`] for data that does not
+/// fit in memory, or arrives slowly): a target that cannot be written is refused by
+/// [`create`](Self::create), before the first byte.
+pub struct AtomicFile {
+    staged: io::BufWriter<Staged>,
+}
+
+impl AtomicFile {
+    /// [`Staged::create`].
+    pub fn create(path: &Path) -> Result<Self, WriteError> {
+        Ok(Self {
+            staged: io::BufWriter::new(Staged::create(path)?),
+        })
+    }
+
+    /// The target's path.
+    pub fn path(&self) -> &Path {
+        self.staged.get_ref().path()
+    }
+
+    pub fn write_all(&mut self, bytes: &[u8]) -> Result<(), WriteError> {
+        self.staged.write_all(bytes).map_err(|source| WriteError {
+            path: self.path().to_path_buf(),
+            source,
+        })
+    }
+
+    /// Makes the target the written bytes, durably ([`Staged::commit`]).
+    pub fn commit(self) -> Result<(), WriteError> {
+        let path = self.path().to_path_buf();
+        let staged = self.staged.into_inner().map_err(|e| WriteError {
+            path,
+            source: e.into_error(),
+        })?;
+        staged.commit()
     }
 }
 
@@ -284,6 +350,82 @@ mod tests {
             .err()
             .unwrap();
         assert!(e.to_string().contains("missing/out.bin"), "{e}");
+    }
+
+    /// The one atomic writer, as `AtomicFile` and the log writers use it: nothing appears
+    /// before the commit, a dropped one leaves neither target nor temporary file, two at once
+    /// never share a temporary file, and a target that is not a regular file is refused with
+    /// nothing made.
+    #[test]
+    fn a_staged_file_not_committed_leaves_no_file_and_no_temporary_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let names = || -> Vec<String> {
+            let mut n: Vec<_> = fs::read_dir(dir.path())
+                .unwrap()
+                .map(|e| e.unwrap().file_name().into_string().unwrap())
+                .collect();
+            n.sort();
+            n
+        };
+        let path = dir.path().join("trace.blf");
+        let mut staged = Staged::create(&path).unwrap();
+        staged.write_all(b"entries").unwrap();
+        let temp = staged.temp_path().to_path_buf();
+        assert_eq!(temp.parent(), Some(dir.path()), "beside its target");
+        let temp_name = temp.file_name().unwrap().to_str().unwrap().to_owned();
+        assert!(
+            temp_name.starts_with(".trace.blf.") && temp_name.ends_with(".tmp"),
+            "{temp_name}"
+        );
+        let other = Staged::create(&path).unwrap();
+        assert_ne!(other.temp_path(), temp, "two writers, two temporary files");
+        drop(other);
+        assert!(!path.exists(), "nothing before the commit");
+        drop(staged);
+        assert!(!temp.exists());
+        assert_eq!(names(), Vec::<String>::new(), "no file, no temporary file");
+
+        // Written through a handle of its own (the log writer's), then committed: the
+        // target has the bytes, and the permissions a plain create gives.
+        let staged = Staged::create(&path).unwrap();
+        let mut own = staged.file().try_clone().unwrap();
+        own.write_all(b"whole").unwrap();
+        drop(own);
+        staged.commit().unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"whole");
+        let plain = dir.path().join("plain");
+        File::create(&plain).unwrap();
+        let mode = |p: &Path| fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&path), mode(&plain));
+        fs::remove_file(&plain).unwrap();
+        assert_eq!(names(), ["trace.blf"]);
+        // A private file's replacement is private from its first byte, and stays so.
+        fs::set_permissions(&path, fs::Permissions::from_mode(0o600)).unwrap();
+        let staged = Staged::create(&path).unwrap();
+        assert_eq!(mode(staged.temp_path()), 0o600);
+        staged.commit().unwrap();
+        assert_eq!(mode(&path), 0o600);
+        assert_eq!(names(), ["trace.blf"]);
+
+        // Existing targets that are not regular files: refused, nothing made beside them.
+        let fifo = dir.path().join("fifo");
+        nix::unistd::mkfifo(&fifo, nix::sys::stat::Mode::S_IRWXU).unwrap();
+        let sub = dir.path().join("sub");
+        fs::create_dir(&sub).unwrap();
+        for (target, kind) in [(&fifo, "a FIFO"), (&sub, "a folder")] {
+            let e = Staged::create(target).unwrap_err();
+            assert_eq!(
+                e.to_string(),
+                format!(
+                    "cannot write {}: it is {kind}, not a regular file; give the path of a file",
+                    target.display()
+                )
+            );
+        }
+        let e = Staged::create(Path::new("/dev/null")).unwrap_err();
+        assert!(e.to_string().contains("a device"), "{e}");
+        assert_eq!(names(), ["fifo", "sub", "trace.blf"]);
+        assert_eq!(fs::read_dir(&sub).unwrap().count(), 0);
     }
 
     #[test]

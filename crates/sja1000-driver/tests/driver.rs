@@ -3,12 +3,12 @@
 mod common;
 
 use buslab_can::Level;
-use buslab_canbus::driver::{ControllerState, DriverError, DriverEvent, TxFailure, TxMode};
-use buslab_canbus::regs::NoChip;
-use buslab_canbus::{
+use buslab_sja1000::Sja1000;
+use buslab_sja1000_driver::driver::{ControllerState, DriverError, DriverEvent, TxFailure, TxMode};
+use buslab_sja1000_driver::regs::NoChip;
+use buslab_sja1000_driver::{
     AcceptanceFilter, CanMode, RegisterAccess, Sja1000Config, Sja1000Driver, Timing,
 };
-use buslab_sja1000::Sja1000;
 use common::{Bus, Recorder, frame};
 
 fn received(events: &[DriverEvent]) -> Vec<String> {
@@ -428,7 +428,7 @@ fn the_default_recovery_lets_the_chip_count_txerr_down() {
     let mut fast = bus.driver(
         0,
         &Sja1000Config {
-            bus_off_recovery: buslab_canbus::BusOffRecovery::Fast,
+            bus_off_recovery: buslab_sja1000_driver::BusOffRecovery::Fast,
             ..Sja1000Config::default()
         },
     );

@@ -1,7 +1,7 @@
 //! Configuration defaults and validation with garbage values.
 
-use buslab_canbus::config::{ClockOut, ConfigError, InterruptEnables};
-use buslab_canbus::{AcceptanceFilter, CanMode, Sja1000Config, Timing};
+use buslab_sja1000_driver::config::{ClockOut, ConfigError, InterruptEnables};
+use buslab_sja1000_driver::{AcceptanceFilter, CanMode, Sja1000Config, Timing};
 
 fn bitrate(bitrate: u32) -> Timing {
     Timing::Bitrate {
