@@ -6,9 +6,12 @@
 //! each device turns volts into its own codes.
 #![forbid(unsafe_code)]
 
+mod error;
 mod source;
 mod spec;
+mod units;
 
 pub use buslab_can::Nanos;
+pub use error::SourceError;
 pub use source::{Shape, Source};
-pub use spec::{SPEC_HELP, SourceError, SourceSpec};
+pub use spec::{SPEC_HELP, SourceSpec};

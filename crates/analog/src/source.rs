@@ -5,7 +5,8 @@ use std::fmt;
 
 use buslab_can::Nanos;
 
-use crate::spec::{SourceError, parse_volts};
+use crate::error::SourceError;
+use crate::units::parse_volts;
 
 /// A periodic waveform shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 use buslab_can::Nanos;
 
+use crate::error::SourceError;
 use crate::source::{Shape, Source};
+use crate::units::{finite, parse_hz, parse_period, parse_volts};
 
 /// A parsed source spec. A CSV replay names a file, which the caller reads (this crate does
 /// no I/O) and hands to [`Source::replay_from_csv`].
@@ -18,21 +20,6 @@ pub enum SourceSpec {
 /// The spec grammar, for error messages and help texts.
 pub const SPEC_HELP: &str = "VOLTS | const:VOLTS | sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]] \
      | ramp:FROM:TO:PERIOD | csv:FILE  (e.g. 2.5V, sine:1Hz:2V:2.5V, ramp:0V:5V:10s)";
-
-/// Why a source spec or replay file was refused.
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum SourceError {
-    #[error("analog source `{spec}`: {why}")]
-    Spec { spec: String, why: String },
-    #[error("replay CSV line {line} `{text}`: {why}")]
-    CsvLine {
-        line: usize,
-        text: String,
-        why: String,
-    },
-    #[error("replay CSV has no `seconds,volts` rows")]
-    CsvEmpty,
-}
 
 impl SourceSpec {
     /// Parses `VOLTS`, `const:VOLTS`, `sine:FREQ[:AMPLITUDE[:OFFSET]]` (also `triangle`,
@@ -138,53 +125,6 @@ fn comma_spelling_hint(kind: &str, rest: &str) -> String {
         ),
         None => format!("parameters are separated by `:`; expected {SPEC_HELP}"),
     }
-}
-
-fn finite(s: &str) -> Result<f64, ()> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(()),
-    }
-}
-
-pub(crate) fn parse_volts(s: &str) -> Result<f64, ()> {
-    let s = s.trim();
-    if let Some(mv) = s.strip_suffix("mV").or_else(|| s.strip_suffix("mv")) {
-        return finite(mv).map(|v| v / 1000.0);
-    }
-    finite(s.strip_suffix(['V', 'v']).unwrap_or(s))
-}
-
-fn parse_hz(s: &str) -> Result<f64, ()> {
-    let s = s.trim();
-    let (num, scale) = if let Some(n) = s.strip_suffix("kHz") {
-        (n, 1e3)
-    } else if let Some(n) = s.strip_suffix("mHz") {
-        (n, 1e-3)
-    } else if let Some(n) = s.strip_suffix("Hz").or_else(|| s.strip_suffix("hz")) {
-        (n, 1.0)
-    } else {
-        (s, 1.0)
-    };
-    let hz = finite(num)? * scale;
-    if hz < 0.0 { Err(()) } else { Ok(hz) }
-}
-
-/// `10s`, `250ms` or bare seconds, up to 1e9 s.
-fn parse_period(s: &str) -> Result<Nanos, ()> {
-    let s = s.trim();
-    let (num, scale) = if let Some(n) = s.strip_suffix("ms") {
-        (n, 1e6)
-    } else if let Some(n) = s.strip_suffix('s') {
-        (n, 1e9)
-    } else {
-        (s, 1e9)
-    };
-    let ns = finite(num)? * scale;
-    if !(0.0..1e18).contains(&ns) {
-        return Err(());
-    }
-    Ok(Nanos::new(ns.round() as u64))
 }
 
 #[cfg(test)]
