@@ -203,7 +203,7 @@ pub enum ConfigError {
         path: PathBuf,
         found: Found,
         #[source]
-        source: buslab_link::fs::ReadError,
+        source: buslab_fs::ReadError,
     },
     /// Two keys that cannot be given together.
     #[error("{first} ({first_source}) and {second} ({second_source}) {problem}")]

@@ -88,7 +88,7 @@ pub fn load(
     let file = find(lookup, env, cwd, user_file);
     let text = match &file {
         Some((path, found)) => Some(
-            buslab_link::fs::read_text_limited(path, MAX_FILE_BYTES).map_err(|source| {
+            buslab_fs::read_text_limited(path, MAX_FILE_BYTES).map_err(|source| {
                 ConfigError::Read {
                     path: path.clone(),
                     found: *found,
