@@ -14,8 +14,8 @@ fuzz_target!(|data: &[u8]| {
     // The default image computes its log table: once, not per input.
     static IMAGE: OnceLock<Image> = OnceLock::new();
     let image = IMAGE.get_or_init(Image::default).clone();
-    let mut board = Board::new(image, Inputs::default(), 0);
-    let byte_ns = board.line().byte_time_ns();
+    let mut board = Board::new(image, Inputs::default(), buslab_device::Nanos::ZERO);
+    let byte_ns = board.line().byte_time();
     drive_byte_device(&mut board, byte_ns, data, |board, now, op| match op % 2 {
         0 => board.external_interrupt(now),
         _ => board.power_button(now),

@@ -5,6 +5,7 @@
 #![no_main]
 
 use buslab_cpu196::{Decoder, Event};
+use buslab_device::Nanos;
 use libfuzzer_sys::fuzz_target;
 
 /// Input: a header byte, then the bytes on the line. Header bits 0..1: how many user commands
@@ -23,12 +24,12 @@ fn run(data: &[u8]) {
         rest = tail;
     }
     let every = usize::from((header >> 2) & 0x1F) + 1;
-    let mut now = 0u64;
+    let mut now = Nanos::ZERO;
     for (i, &byte) in rest.iter().enumerate() {
         now += if header & 0x80 != 0 && i % every == every - 1 {
-            1_000_000_000
+            Nanos::from_secs(1)
         } else {
-            1_000_000
+            Nanos::from_millis(1)
         };
         let adcont = decoder.adcont_len();
         if let Some(Event::Message(m)) = decoder.push(now, byte) {
@@ -45,7 +46,7 @@ fn run(data: &[u8]) {
             assert!(deadline >= now);
         }
     }
-    let _ = decoder.poll(now.saturating_add(1_000_000_000));
+    let _ = decoder.poll(now.saturating_add(Nanos::from_secs(1)));
     assert!(!decoder.in_frame());
 }
 

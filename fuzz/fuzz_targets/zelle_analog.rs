@@ -8,7 +8,7 @@ use libfuzzer_sys::fuzz_target;
 
 fn sample(source: &Source) {
     for t in [0, 1, 999_999_999, 1 << 40, u64::MAX / 2, u64::MAX] {
-        let _ = source.code(t);
+        let _ = source.code(buslab_device::Nanos::new(t));
         let _ = source.to_string();
     }
 }

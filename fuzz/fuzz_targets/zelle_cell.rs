@@ -9,7 +9,7 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let mut cell = Cell::new(BatteryRam::default());
-    let byte_ns = cell.line().byte_time_ns();
+    let byte_ns = cell.line().byte_time();
     drive_byte_device(&mut cell, byte_ns, data, |cell, now, op| match op % 4 {
         0 => cell.key_down(now),
         1 => cell.key_up(now),

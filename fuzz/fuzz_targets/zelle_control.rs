@@ -10,9 +10,9 @@ use libfuzzer_sys::fuzz_target;
 fuzz_target!(|data: &[u8]| {
     let Some(text) = text(data) else { return };
     let mut cell = Cell::new(BatteryRam::default());
-    let mut now = 0u64;
+    let mut now = buslab_device::Nanos::ZERO;
     for line in text.lines() {
-        now += 1_000_000;
+        now += buslab_device::Nanos::from_millis(1);
         if let Ok(Some(command)) = ControlCommand::parse(line) {
             let _ = apply(&mut cell, now, &command);
             let mut out = Vec::new();

@@ -4,13 +4,14 @@
 //! faster than 9600 baud allows and never asks to be woken in the past.
 #![no_main]
 
+use buslab_device::Nanos;
 use buslab_zelle::{BatteryRam, Cell, PROGRAM_AREA};
 use libfuzzer_sys::fuzz_target;
 
-const US: u64 = 1_000;
-const MS: u64 = 1_000_000;
+const US: Nanos = Nanos::from_micros(1);
+const MS: Nanos = Nanos::from_millis(1);
 /// The cell time an input may spend (the run after the last op included).
-const CAP_NS: u64 = 300 * MS;
+const CAP_NS: Nanos = Nanos::from_millis(300);
 
 /// Input: 1 byte of flags and program length N (low 7 bits, taken modulo what follows; bit 7
 /// turns the instruction trace on), N program bytes at 0400h, then 2-byte operations (op,
@@ -26,15 +27,15 @@ fn run(data: &[u8]) {
     if flags & 0x80 != 0 {
         cell.set_trace(Some(1_000));
     }
-    let byte_ns = cell.line().byte_time_ns();
+    let byte_ns = cell.line().byte_time();
     let mut line = Line {
-        now: 0,
-        rx_free_at: 0,
+        now: Nanos::ZERO,
+        rx_free_at: Nanos::ZERO,
         sent: 0,
         byte_ns,
         out: Vec::new(),
     };
-    line.byte(&mut cell, 0, 6);
+    line.byte(&mut cell, Nanos::ZERO, 6);
     for op in ops.chunks_exact(2) {
         if line.now >= CAP_NS {
             break;
@@ -63,16 +64,16 @@ fn run(data: &[u8]) {
 }
 
 struct Line {
-    now: u64,
-    rx_free_at: u64,
+    now: Nanos,
+    rx_free_at: Nanos,
     sent: u64,
-    byte_ns: u64,
+    byte_ns: Nanos,
     out: Vec<u8>,
 }
 
 impl Line {
     /// A byte arriving `gap` after the line is free, the cell run to its arrival first.
-    fn byte(&mut self, cell: &mut Cell, gap: u64, byte: u8) {
+    fn byte(&mut self, cell: &mut Cell, gap: Nanos, byte: u8) {
         let at = self.now.max(self.rx_free_at) + gap + self.byte_ns;
         self.run_to(cell, at);
         self.rx_free_at = at;
@@ -80,7 +81,7 @@ impl Line {
     }
 
     /// Runs the cell through its deadlines to `end`.
-    fn run_to(&mut self, cell: &mut Cell, end: u64) {
+    fn run_to(&mut self, cell: &mut Cell, end: Nanos) {
         loop {
             self.poll(cell, self.now);
             match cell.next_deadline() {
@@ -95,7 +96,7 @@ impl Line {
         self.poll(cell, self.now);
     }
 
-    fn poll(&mut self, cell: &mut Cell, now: u64) {
+    fn poll(&mut self, cell: &mut Cell, now: Nanos) {
         cell.poll(now, &mut self.out);
         self.sent += self.out.len() as u64;
         self.out.clear();

@@ -2,6 +2,8 @@
 
 use std::fmt::Debug;
 
+use buslab_device::Nanos;
+
 /// The inside of an element as a `Display` impl writes it (`< open can0 >` → `open can0`).
 pub fn element_inside(text: &str) -> &str {
     text.trim()
@@ -63,20 +65,20 @@ pub fn items(data: &[u8]) -> impl Iterator<Item = Item> + '_ {
 /// byte time) and does not keep asking to be woken in the past (an adapter would spin).
 pub fn drive_byte_device<D: buslab_device::ByteDevice>(
     device: &mut D,
-    byte_ns: u64,
+    byte_ns: Nanos,
     data: &[u8],
-    mut extra: impl FnMut(&mut D, u64, u8),
+    mut extra: impl FnMut(&mut D, Nanos, u8),
 ) {
-    const MS: u64 = 1_000_000;
-    let mut now = 0u64;
-    let mut rx_free_at = 0u64;
+    const MS: Nanos = Nanos::from_millis(1);
+    let mut now = Nanos::ZERO;
+    let mut rx_free_at = Nanos::ZERO;
     let mut sent = 0u64;
     let mut out = Vec::new();
     // A device may catch up on a long pause one step per poll (a watchdog a poll), as long as
     // a few polls at the same time bring its deadline past it.
     const CATCH_UP_POLLS: usize = 1_000;
     // Polls at `now` and gives the device's next deadline, which is then after `now`.
-    let mut check = |device: &mut D, now: u64| {
+    let mut check = |device: &mut D, now: Nanos| {
         for _ in 0..CATCH_UP_POLLS {
             device.poll(now, &mut out);
             sent += out.len() as u64;

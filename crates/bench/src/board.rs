@@ -32,8 +32,8 @@ pub fn demo_board(
     let board = DemoBoard::new(
         id,
         bitrate,
-        Box::new(move |t| adc1.volts(t)),
-        Box::new(move |t| potentiometer.volts(t)),
+        Box::new(move |t| adc1.volts(buslab_can::Nanos::new(t))),
+        Box::new(move |t| potentiometer.volts(buslab_can::Nanos::new(t))),
     )?;
     Ok(on_bus(board))
 }
@@ -141,10 +141,10 @@ mod tests {
 
     #[test]
     fn the_built_in_sources_are_what_the_lab_says() {
-        assert_eq!(built_in(ADC1).volts(0), 1.25);
+        assert_eq!(built_in(ADC1).volts(buslab_can::Nanos::ZERO), 1.25);
         // A sine around 2.5 V of 2.5 V: 2.5 V at 0, 5 V a quarter turn (2.5 s) later.
         let pot = built_in(POTENTIOMETER);
-        assert!((pot.volts(0) - 2.5).abs() < 1e-9);
-        assert!((pot.volts(2_500_000_000) - 5.0).abs() < 1e-9);
+        assert!((pot.volts(buslab_can::Nanos::ZERO) - 2.5).abs() < 1e-9);
+        assert!((pot.volts(buslab_can::Nanos::from_millis(2_500)) - 5.0).abs() < 1e-9);
     }
 }

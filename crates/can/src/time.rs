@@ -143,6 +143,16 @@ macro_rules! counted_time {
                 Self(self.0.saturating_sub(earlier.0))
             }
 
+            /// How far apart `self` and `other` are, whichever is later.
+            pub const fn abs_diff(self, other: Self) -> Self {
+                Self(self.0.abs_diff(other.0))
+            }
+
+            /// `times` of these spans; the longest a `u64` counts if more.
+            pub const fn saturating_mul(self, times: u64) -> Self {
+                Self(self.0.saturating_mul(times))
+            }
+
             pub const fn checked_add(self, other: Self) -> Option<Self> {
                 match self.0.checked_add(other.0) {
                     Some(sum) => Some(Self(sum)),
@@ -188,6 +198,14 @@ macro_rules! counted_time {
             type Output = Self;
             fn mul(self, times: u64) -> Self {
                 Self(self.0 * times)
+            }
+        }
+
+        /// A count of spans: `bytes * byte_time` reads as `byte_time * bytes`.
+        impl core::ops::Mul<$name> for u64 {
+            type Output = $name;
+            fn mul(self, time: $name) -> $name {
+                $name(self * time.0)
             }
         }
 
@@ -370,6 +388,11 @@ mod tests {
         assert_eq!(start.saturating_sub(start + frame), BitTime::ZERO);
         assert_eq!(BitTime::MAX.checked_add(frame), None);
         assert_eq!(BitTime::new(94) / frame, 2);
+        assert_eq!(3 * frame, frame * 3);
+        assert_eq!(BitTime::MAX.saturating_mul(2), BitTime::MAX);
+        assert_eq!(Nanos::new(7).saturating_mul(3), Nanos::new(21));
+        assert_eq!(Nanos::new(5).abs_diff(Nanos::new(8)), Nanos::new(3));
+        assert_eq!(Nanos::new(8).abs_diff(Nanos::new(5)), Nanos::new(3));
         assert_eq!(BitTime::new(95) % frame, BitTime::new(1));
         assert_eq!(
             Nanos::from_millis(3).as_duration(),

@@ -12,6 +12,7 @@ use buslab_cpu196::image::{Image, demo_sets};
 use buslab_cpu196::message::{Message, Start};
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, prginf};
+use buslab_device::Nanos;
 use buslab_link::{LineSettings, SerialLine, Serve, Served};
 
 fn connect(s: &Served<Board>, baud: u32) -> Client<SerialLine> {
@@ -29,13 +30,13 @@ fn share(bytes: usize, secs: f64, baud: u32) -> f64 {
 /// The fastest acquisition the kernel accepts at `baud`: 16-bit samples, 16 scans per `FA`
 /// frame, as many channels as fit (8, 4, 2, 1) with the shortest time base T.
 fn fastest(baud: u32) -> AdConfig {
-    let byte_ns = LineSettings::n81(baud).byte_time_ns() as f64;
+    let byte_ns = LineSettings::n81(baud).byte_time().get() as f64;
     for channels in [8u8, 4, 2, 1] {
         let list: Vec<u8> = (0..channels).collect();
         for t in 0..=255u8 {
             let cfg = AdConfig::simple(&list, SampleFormat::Bits16, t, 4);
             let frame_bytes = (cfg.frame_data_len().unwrap() + 3) as f64;
-            if frame_bytes * byte_ns / (cfg.period_ns() * 16) as f64 <= MAX_LINE_SHARE {
+            if frame_bytes * byte_ns / (cfg.period_ns() * 16).get() as f64 <= MAX_LINE_SHARE {
                 return cfg;
             }
         }
@@ -64,7 +65,7 @@ fn main() {
         for block in 0x60..=0xFF {
             image.flash.write(2, block, &[block; 256]).unwrap();
         }
-        let mut board = Board::new(image, Inputs::default(), 0);
+        let mut board = Board::new(image, Inputs::default(), Nanos::ZERO);
         board.set_baud(baud);
         let line = board.line();
         let served = Serve::new(board, line).name("cpu196").spawn().unwrap();
@@ -131,7 +132,7 @@ fn main() {
             }
         }
         let stats = served.with(|b, _| b.stats()).unwrap();
-        let rate = 1e9 / cfg.period_ns() as f64;
+        let rate = 1e9 / cfg.period_ns().get() as f64;
         row(
             &format!(
                 "A/D stream, {} ch × 16 bit at {rate:.0} scans/s (T = {}): {frames} frames, board sent {}, dropped {}, damaged {}",

@@ -8,6 +8,8 @@
 
 use std::collections::VecDeque;
 
+use buslab_device::Nanos;
+
 use crate::adconfig::{AdConfig, Filter, SampleFormat};
 use crate::source::Source;
 
@@ -155,16 +157,16 @@ pub struct Acquisition {
     /// `config`'s scans per `FA` frame and scan period: asked at every step of the board
     /// (`Board::next_deadline`), so worked out once.
     scans_per_frame: u64,
-    period_ns: u64,
+    period_ns: Nanos,
     filters: Vec<FilterState>,
-    next_scan_at: u64,
+    next_scan_at: Nanos,
     /// Latest filtered value of each channel on the 16-bit scale (`ad_voie[n].donnee`).
     pub values: [u16; 8],
     pub scans: u64,
 }
 
 impl Acquisition {
-    pub fn new(config: AdConfig, start_ns: u64) -> Self {
+    pub fn new(config: AdConfig, start_ns: Nanos) -> Self {
         let filters = config
             .channels
             .iter()
@@ -183,7 +185,7 @@ impl Acquisition {
     }
 
     /// When the scan completing the next interrupt happens.
-    pub fn next_interrupt_at(&self) -> u64 {
+    pub fn next_interrupt_at(&self) -> Nanos {
         let spf = self.scans_per_frame;
         let done = self.scans % spf;
         self.next_scan_at + (spf - 1 - done) * self.period_ns
@@ -261,12 +263,12 @@ mod tests {
         let mut inputs = [Source::default(); 8];
         inputs[0] = Source::Constant { volts: 5.0 };
         inputs[2] = Source::Constant { volts: 2.5 };
-        let mut acq = Acquisition::new(cfg.clone(), 0);
-        assert_eq!(acq.next_interrupt_at(), 2 * 60_000);
+        let mut acq = Acquisition::new(cfg.clone(), Nanos::ZERO);
+        assert_eq!(acq.next_interrupt_at(), Nanos::new(2) * 60_000);
         let table = LogTable::default();
         let frame = acq.run_interrupt(&inputs, &table);
         assert_eq!(frame, vec![0xFF, 0x03, 0x00, 0x02, 0xFF, 0x03, 0x00, 0x02]);
-        assert_eq!(acq.next_interrupt_at(), 4 * 60_000);
+        assert_eq!(acq.next_interrupt_at(), Nanos::new(4) * 60_000);
         let scans = decode_frame(&cfg, &frame, &table);
         assert_eq!(scans, vec![vec![(0, 1023.0), (2, 512.0)]; 2]);
         // A frame for a layout that transmits nothing has no scans (it looped forever).

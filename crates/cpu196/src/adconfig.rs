@@ -3,7 +3,7 @@
 
 use core::fmt;
 
-use buslab_device::LineSettings;
+use buslab_device::{LineSettings, Nanos};
 
 /// Share of the line an acquisition may take (the rest is for replies and the watchdog).
 pub const MAX_LINE_SHARE: f64 = 0.97;
@@ -158,7 +158,7 @@ impl AdConfig {
         match self.frame_data_len() {
             Some(n) => {
                 let frame_ns = self.period_ns() * self.scans_per_frame() as u64;
-                (n + 3) as f64 * line.byte_time_ns() as f64 / frame_ns as f64
+                (n + 3) as f64 * line.byte_time().get() as f64 / frame_ns.get() as f64
             }
             None => 0.0,
         }
@@ -232,8 +232,8 @@ impl AdConfig {
     }
 
     /// Sampling period in nanoseconds: (75 + 5·T) × 0.8 µs.
-    pub fn period_ns(&self) -> u64 {
-        (75 + 5 * self.time_base as u64) * 800
+    pub fn period_ns(&self) -> Nanos {
+        Nanos::new(800) * (75 + 5 * self.time_base as u64)
     }
 
     /// Channels sent to the PC, ascending.
@@ -287,7 +287,7 @@ impl fmt::Display for ConfigReport {
                 writeln!(
                     f,
                     "  period     {:.1} µs (T = {}), {} scans per interrupt",
-                    cfg.period_ns() as f64 / 1000.0,
+                    cfg.period_ns().get() as f64 / 1000.0,
                     cfg.time_base,
                     cfg.scans_per_frame()
                 )?;
@@ -336,7 +336,7 @@ mod tests {
     #[test]
     fn period_and_frame_length() {
         let cfg = AdConfig::simple(&[0, 1], SampleFormat::Bits16, 5, 2);
-        assert_eq!(cfg.period_ns(), 100 * 800);
+        assert_eq!(cfg.period_ns(), Nanos::new(100) * 800);
         assert_eq!(cfg.frame_data_len(), Some(4 * 4));
         let one = AdConfig::simple(&[0], SampleFormat::Bits8, 0, 0);
         assert_eq!(one.frame_data_len(), Some(2));

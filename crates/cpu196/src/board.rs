@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use buslab_device::{ByteDevice, ChangeLog, Changes, LineSettings, Persistent, ReplayError};
+use buslab_device::{ByteDevice, ChangeLog, Changes, LineSettings, Nanos, Persistent, ReplayError};
 
 use crate::acquisition::Acquisition;
 use crate::adconfig::AdConfig;
@@ -20,11 +20,11 @@ use crate::source::Inputs;
 use crate::wire::{self, PIC_BLOCK};
 
 /// The board's own watchdog: an `FF` after this long without sending anything.
-pub const WATCHDOG_PERIOD_NS: u64 = 1_000_000_000;
+pub const WATCHDOG_PERIOD_NS: Nanos = Nanos::from_secs(1);
 /// With the watchdog on, the lower loop stops if the PC is silent this long.
-pub const LINK_LOST_NS: u64 = 3_000_000_000;
+pub const LINK_LOST_NS: Nanos = Nanos::from_secs(3);
 /// Battery check period.
-pub const BATTERY_PERIOD_NS: u64 = 100_000_000;
+pub const BATTERY_PERIOD_NS: Nanos = Nanos::from_millis(100);
 /// Transmit FIFO size: A/D frames that would not fit are dropped (and `alert_ad_overrun`).
 pub const TX_FIFO: usize = 4096;
 /// Replies waiting beyond this mean the kernel is still inside its send routine when the next
@@ -33,9 +33,9 @@ pub const TX_FIFO: usize = 4096;
 pub const TX_BACKLOG: usize = 64 * 1024;
 /// A START asked for by a hook while a START is being performed (an `init_prog` that starts
 /// a set) is done this much later, on a later pass of the kernel, not recursively.
-pub const NESTED_START_DELAY_NS: u64 = 1_000_000;
+pub const NESTED_START_DELAY_NS: Nanos = Nanos::from_millis(1);
 /// CPUFORMAT's emergency erase is accepted this long after a reset.
-pub const EMERGENCY_WINDOW_NS: u64 = 100_000_000;
+pub const EMERGENCY_WINDOW_NS: Nanos = Nanos::from_millis(100);
 pub use crate::adconfig::MAX_LINE_SHARE;
 
 /// Kernel commands refused in the lower loop (`_commande_invalide_[9]`).
@@ -79,16 +79,16 @@ pub enum Mode {
 #[derive(Debug)]
 struct Tx {
     queue: VecDeque<u8>,
-    byte_ns: u64,
+    byte_ns: Nanos,
     /// Completion time of the front byte.
-    front_done: u64,
+    front_done: Nanos,
     /// When the line became (or becomes) free after the last byte.
-    free_at: u64,
-    last_send: u64,
+    free_at: Nanos,
+    last_send: Nanos,
 }
 
 impl Tx {
-    fn push(&mut self, at: u64, bytes: &[u8]) {
+    fn push(&mut self, at: Nanos, bytes: &[u8]) {
         if self.queue.is_empty() {
             self.front_done = at.max(self.free_at) + self.byte_ns;
         }
@@ -96,7 +96,7 @@ impl Tx {
         self.last_send = at;
     }
 
-    fn poll(&mut self, now: u64, out: &mut Vec<u8>) {
+    fn poll(&mut self, now: Nanos, out: &mut Vec<u8>) {
         while !self.queue.is_empty() && self.front_done <= now {
             out.push(self.queue.pop_front().expect("not empty"));
             self.free_at = self.front_done;
@@ -104,7 +104,7 @@ impl Tx {
         }
     }
 
-    fn deadline(&self) -> Option<u64> {
+    fn deadline(&self) -> Option<Nanos> {
         (!self.queue.is_empty()).then_some(self.front_done)
     }
 }
@@ -113,7 +113,7 @@ struct Run {
     set: ConfigSet,
     acq: Option<Acquisition>,
     program: Option<Box<dyn UserProgram>>,
-    timers: [Option<(u64, u64)>; 2],
+    timers: [Option<(Nanos, Nanos)>; 2],
     overrun: bool,
 }
 
@@ -133,16 +133,16 @@ pub struct Board {
     pic_ad: [u16; 8],
     adrs: u8,
     page: u8,
-    last_rx: u64,
+    last_rx: Nanos,
     battery: Option<u8>,
-    next_battery: u64,
+    next_battery: Nanos,
     next_file: u8,
     /// Counts changes of the image; `clean` is the count [`Board::take_dirty`] last saw.
     generation: u64,
     clean: u64,
     /// A START a hook asked for while a START was already being performed (an `init_prog`
     /// that starts a set), and when it is done.
-    pending_start: Option<(u64, Start)>,
+    pending_start: Option<(Nanos, Start)>,
     /// Whether a hook-requested START is being performed.
     starting: bool,
     /// Changes of the image not yet taken by the host (for its journal).
@@ -151,12 +151,12 @@ pub struct Board {
     pic_write_refused: bool,
     log: Vec<String>,
     stats: Stats,
-    reset_at: u64,
+    reset_at: Nanos,
 }
 
 impl Board {
     /// Powers a board on at `now` with `image`; its line runs at the image's baud rate, 8N1.
-    pub fn new(image: Image, inputs: Inputs, now: u64) -> Self {
+    pub fn new(image: Image, inputs: Inputs, now: Nanos) -> Self {
         let line = LineSettings::n81(if image.boot.protocol == Protocol::Midi {
             31250
         } else {
@@ -171,9 +171,9 @@ impl Board {
             decoder: Decoder::new(),
             tx: Tx {
                 queue: VecDeque::new(),
-                byte_ns: line.byte_time_ns(),
-                front_done: 0,
-                free_at: 0,
+                byte_ns: line.byte_time(),
+                front_done: Nanos::ZERO,
+                free_at: Nanos::ZERO,
                 last_send: now,
             },
             mode: Mode::Upper,
@@ -209,7 +209,7 @@ impl Board {
     pub fn set_baud(&mut self, baud: u32) {
         self.image.boot.baud = baud;
         self.line = LineSettings::n81(baud);
-        self.tx.byte_ns = self.line.byte_time_ns();
+        self.tx.byte_ns = self.line.byte_time();
         self.changed(None);
     }
 
@@ -265,20 +265,20 @@ impl Board {
 
     /// A rising edge on HSI.0 (the external user interrupt): in the lower loop, `user_prog`
     /// runs.
-    pub fn external_interrupt(&mut self, now: u64) {
+    pub fn external_interrupt(&mut self, now: Nanos) {
         self.advance(now);
         self.call_hook(now, |p, k| p.user(k));
     }
 
     /// Presses the power button (BPON): a powered-down board boots.
-    pub fn power_button(&mut self, now: u64) {
+    pub fn power_button(&mut self, now: Nanos) {
         if self.mode == Mode::PoweredDown {
             self.boot(now);
         }
     }
 
     /// Reset: every variable reinitialised, report `F4 03`, then the boot START if any.
-    fn boot(&mut self, now: u64) {
+    fn boot(&mut self, now: Nanos) {
         self.reset_at = now;
         self.pending_start = None;
         self.mode = Mode::Upper;
@@ -305,7 +305,7 @@ impl Board {
         self.image.boot.protocol == Protocol::Cpu196
     }
 
-    fn send(&mut self, at: u64, m: &Message) {
+    fn send(&mut self, at: Nanos, m: &Message) {
         if !self.protocol_on() {
             return;
         }
@@ -317,13 +317,13 @@ impl Board {
         self.tx.push(at, &bytes);
     }
 
-    fn msg(&mut self, at: u64, code: MsgCode) {
+    fn msg(&mut self, at: Nanos, code: MsgCode) {
         self.send(at, &Message::Msg(code));
     }
 
     // ----- events -------------------------------------------------------------------------
 
-    fn on_frame_error(&mut self, now: u64, e: FrameError) {
+    fn on_frame_error(&mut self, now: Nanos, e: FrameError) {
         self.stats.rx_errors += 1;
         self.note(format!("frame error: {e}"));
         let code = match e {
@@ -334,7 +334,7 @@ impl Board {
         self.msg(now, code);
     }
 
-    fn on_message(&mut self, now: u64, m: Message) {
+    fn on_message(&mut self, now: Nanos, m: Message) {
         // The first 15 chunks of a PIC block write were written and acknowledged as they came
         // (or the write was refused at the first one): the last chunk completes it.
         if let Message::PicWrite { block, data } = &m {
@@ -475,7 +475,7 @@ impl Board {
     }
 
     /// CPUFORMAT (`F7`).
-    fn format(&mut self, now: u64, f: Format) {
+    fn format(&mut self, now: Nanos, f: Format) {
         let guard = |nsc: &[u8; 8], img: &Image| *nsc == encrypt_serial(&img.serial);
         match f {
             Format::ReadPicKernel { nsc }
@@ -624,7 +624,7 @@ impl Board {
     /// 256 bytes of a PIC block write: written and acknowledged at once (flow control: the host
     /// sends the next 256 when it has the acknowledgement). A write to a block out of range is
     /// refused at its first chunk; the rest of its frame is swallowed without more replies.
-    fn pic_chunk(&mut self, now: u64, block: u8, index: u8, data: &[u8]) {
+    fn pic_chunk(&mut self, now: Nanos, block: u8, index: u8, data: &[u8]) {
         let last = usize::from(index) + 1 == PIC_BLOCK / PIC_CHUNK;
         if index == 0 {
             self.pic_write_refused = false;
@@ -659,12 +659,12 @@ impl Board {
         }
     }
 
-    fn bad_param(&mut self, now: u64, why: String) {
+    fn bad_param(&mut self, now: Nanos, why: String) {
         self.note(why);
         self.msg(now, MsgCode::INVALID_PARAMETER_VALUE);
     }
 
-    fn flash_error(&mut self, now: u64, e: FlashError) {
+    fn flash_error(&mut self, now: Nanos, e: FlashError) {
         self.note(e.to_string());
         let code = match e {
             FlashError::Forbidden { .. } => MsgCode::INVALID_PARAMETER_VALUE,
@@ -673,7 +673,7 @@ impl Board {
         self.msg(now, code);
     }
 
-    fn cpu_info(&self, now: u64) -> CpuInfo {
+    fn cpu_info(&self, now: Nanos) -> CpuInfo {
         let supply = (self.inputs.pic[0].volts(now) * 20.0)
             .round()
             .clamp(0.0, 255.0) as u8;
@@ -689,7 +689,7 @@ impl Board {
         }
     }
 
-    fn bridge(&mut self, now: u64, b: Bridge) {
+    fn bridge(&mut self, now: Nanos, b: Bridge) {
         match b {
             Bridge::SpiSend(d) => {
                 self.pic.execute(now, PicCommand::Spi { cmd: 1, data: d });
@@ -723,7 +723,7 @@ impl Board {
 
     // ----- lower loop ---------------------------------------------------------------------
 
-    fn start(&mut self, now: u64, s: Start, from_pc: bool) {
+    fn start(&mut self, now: Nanos, s: Start, from_pc: bool) {
         if !s.is_valid() {
             return self.bad_param(
                 now,
@@ -774,7 +774,10 @@ impl Board {
             self.end_run(now);
         }
         let timer = |has: bool, cycle: u16| {
-            (has && cycle != 0).then(|| (cycle as u64 * 800, now + cycle as u64 * 800))
+            (has && cycle != 0).then(|| {
+                let period = Nanos::new(800) * u64::from(cycle);
+                (period, now + period)
+            })
         };
         let has = program.as_ref().map_or([false, false], |p| p.timers());
         let timers = [timer(has[0], set.cycle1), timer(has[1], set.cycle2)];
@@ -827,7 +830,7 @@ impl Board {
         self.call_hook(now, |p, k| p.init(k));
     }
 
-    fn end_run(&mut self, now: u64) {
+    fn end_run(&mut self, now: Nanos) {
         // A STOP (or a stop from a hook, a lost link) also cancels a START still to come.
         self.pending_start = None;
         if self.run.is_none() {
@@ -849,7 +852,7 @@ impl Board {
     }
 
     /// Calls a hook of the running program and applies what it returns.
-    fn call_hook(&mut self, now: u64, f: impl FnOnce(&mut dyn UserProgram, &mut Api) -> Flow) {
+    fn call_hook(&mut self, now: Nanos, f: impl FnOnce(&mut dyn UserProgram, &mut Api) -> Flow) {
         let Some(run) = self.run.as_mut() else { return };
         let Some(mut program) = run.program.take() else {
             return;
@@ -890,7 +893,7 @@ impl Board {
         }
     }
 
-    fn pic_events(&mut self, now: u64) {
+    fn pic_events(&mut self, now: Nanos) {
         for ev in self.pic.take_events() {
             match ev {
                 PicEvent::Ad { channel, value } => {
@@ -913,7 +916,7 @@ impl Board {
     }
 
     /// The next lower-loop event: (time, 0 = A/D interrupt, 1/2 = software timer).
-    fn next_run_event(&self) -> Option<(u64, u8)> {
+    fn next_run_event(&self) -> Option<(Nanos, u8)> {
         let run = self.run.as_ref()?;
         // Asked at every step of the board: a plain scan, the A/D first on a tie.
         let mut first = run.acq.as_ref().map(|a| (a.next_interrupt_at(), 0));
@@ -927,7 +930,7 @@ impl Board {
         first
     }
 
-    fn run_event(&mut self, at: u64, which: u8) {
+    fn run_event(&mut self, at: Nanos, which: u8) {
         let Some(run) = self.run.as_mut() else { return };
         if which == 0 {
             let Some(acq) = run.acq.as_mut() else { return };
@@ -954,17 +957,17 @@ impl Board {
         }
     }
 
-    fn watchdog_deadline(&self) -> Option<u64> {
+    fn watchdog_deadline(&self) -> Option<Nanos> {
         (self.image.boot.watchdog && self.mode != Mode::PoweredDown && self.protocol_on())
             .then(|| self.tx.last_send.max(self.tx.free_at) + WATCHDOG_PERIOD_NS)
     }
 
-    fn link_lost_deadline(&self) -> Option<u64> {
+    fn link_lost_deadline(&self) -> Option<Nanos> {
         (self.image.boot.watchdog && matches!(self.mode, Mode::Lower { .. }))
             .then(|| self.last_rx + LINK_LOST_NS)
     }
 
-    fn battery_check(&mut self, now: u64) {
+    fn battery_check(&mut self, now: Nanos) {
         let th = self.image.boot.battery_thresholds;
         self.next_battery = now + BATTERY_PERIOD_NS;
         if th == [0xFF; 3] {
@@ -983,7 +986,7 @@ impl Board {
     }
 
     /// Runs everything due up to `now`.
-    fn advance(&mut self, now: u64) {
+    fn advance(&mut self, now: Nanos) {
         if self.mode == Mode::PoweredDown {
             return;
         }
@@ -1119,7 +1122,7 @@ impl ImageChange {
 }
 
 impl ByteDevice for Board {
-    fn receive(&mut self, now_ns: u64, byte: u8) {
+    fn receive(&mut self, now_ns: Nanos, byte: u8) {
         if self.mode == Mode::PoweredDown || !self.protocol_on() {
             return;
         }
@@ -1139,12 +1142,12 @@ impl ByteDevice for Board {
         }
     }
 
-    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>) {
+    fn poll(&mut self, now_ns: Nanos, out: &mut Vec<u8>) {
         self.advance(now_ns);
         self.tx.poll(now_ns, out);
     }
 
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         if self.mode == Mode::PoweredDown {
             return self.tx.deadline();
         }

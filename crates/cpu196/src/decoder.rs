@@ -2,12 +2,14 @@
 //! byte must be followed by its complement, and the whole frame must arrive without a pause
 //! longer than the time-out.
 
+use buslab_device::Nanos;
+
 use crate::adconfig::AdConfig;
 use crate::message::{Message, ParseError};
 use crate::wire::{self, Lengths, ParamsError};
 
 /// Default pause allowed between two bytes of one frame.
-pub const DEFAULT_TIMEOUT_NS: u64 = 200_000_000;
+pub const DEFAULT_TIMEOUT_NS: Nanos = Nanos::from_millis(200);
 
 /// A framing problem, reported the way the kernel reports it.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -79,8 +81,8 @@ impl Lengths for Context {
 pub struct Decoder {
     state: State,
     ctx: Context,
-    timeout_ns: u64,
-    last_byte_at: u64,
+    timeout_ns: Nanos,
+    last_byte_at: Nanos,
 }
 
 impl Default for Decoder {
@@ -98,12 +100,12 @@ impl Decoder {
                 adcont: None,
             },
             timeout_ns: DEFAULT_TIMEOUT_NS,
-            last_byte_at: 0,
+            last_byte_at: Nanos::ZERO,
         }
     }
 
     /// Pause allowed between two bytes of one frame.
-    pub fn with_timeout(mut self, timeout_ns: u64) -> Self {
+    pub fn with_timeout(mut self, timeout_ns: Nanos) -> Self {
         self.timeout_ns = timeout_ns;
         self
     }
@@ -130,12 +132,12 @@ impl Decoder {
     }
 
     /// When [`poll`](Self::poll) will report a time-out if no byte arrives.
-    pub fn deadline(&self) -> Option<u64> {
+    pub fn deadline(&self) -> Option<Nanos> {
         self.in_frame().then(|| self.last_byte_at + self.timeout_ns)
     }
 
     /// Reports a time-out if the partial frame has waited too long.
-    pub fn poll(&mut self, now: u64) -> Option<Event> {
+    pub fn poll(&mut self, now: Nanos) -> Option<Event> {
         let deadline = self.deadline()?;
         if now < deadline {
             return None;
@@ -150,7 +152,7 @@ impl Decoder {
     }
 
     /// Feeds one byte that arrived at `now`.
-    pub fn push(&mut self, now: u64, byte: u8) -> Option<Event> {
+    pub fn push(&mut self, now: Nanos, byte: u8) -> Option<Event> {
         // A frame that timed out before this byte is reported now; the byte starts afresh
         // (at most one event is produced since a lone byte never completes a frame).
         let timed_out = self.poll(now);
@@ -235,11 +237,11 @@ mod tests {
     use crate::codes::MsgCode;
     use crate::message::Message;
 
-    fn feed(d: &mut Decoder, t0: u64, bytes: &[u8]) -> Vec<Event> {
+    fn feed(d: &mut Decoder, t0: Nanos, bytes: &[u8]) -> Vec<Event> {
         bytes
             .iter()
             .enumerate()
-            .filter_map(|(i, &b)| d.push(t0 + i as u64 * 1000, b))
+            .filter_map(|(i, &b)| d.push(t0 + Nanos::new(1000) * i as u64, b))
             .collect()
     }
 
@@ -248,7 +250,7 @@ mod tests {
         let mut d = Decoder::new();
         let mut bytes = vec![0x12, 0x34];
         bytes.extend(Message::Msg(MsgCode::COMPLETED).to_bytes().unwrap());
-        let ev = feed(&mut d, 0, &bytes);
+        let ev = feed(&mut d, Nanos::ZERO, &bytes);
         assert_eq!(
             ev,
             vec![
@@ -267,12 +269,12 @@ mod tests {
 
     #[test]
     fn a_truncated_frame_times_out() {
-        let mut d = Decoder::new().with_timeout(1_000_000);
-        assert!(feed(&mut d, 0, &[0xF5, 0x0A, 0x00, 0x01]).is_empty());
-        assert_eq!(d.deadline(), Some(3000 + 1_000_000));
-        assert_eq!(d.poll(1_002_999), None);
+        let mut d = Decoder::new().with_timeout(Nanos::new(1_000_000));
+        assert!(feed(&mut d, Nanos::ZERO, &[0xF5, 0x0A, 0x00, 0x01]).is_empty());
+        assert_eq!(d.deadline(), Some(Nanos::new(3000 + 1_000_000)));
+        assert_eq!(d.poll(Nanos::new(1_002_999)), None);
         assert_eq!(
-            d.poll(1_003_000),
+            d.poll(Nanos::new(1_003_000)),
             Some(Event::Error(FrameError::TimeOut {
                 cmd: 0xF5,
                 received: 2
@@ -281,29 +283,32 @@ mod tests {
         assert!(!d.in_frame());
         // The next frame decodes normally.
         assert_eq!(
-            feed(&mut d, 2_000_000, &[0xFF, 0x00]),
+            feed(&mut d, Nanos::new(2_000_000), &[0xFF, 0x00]),
             vec![Event::Message(Message::Watchdog)]
         );
     }
 
     #[test]
     fn late_byte_reports_time_out_then_starts_a_new_frame() {
-        let mut d = Decoder::new().with_timeout(1000);
-        assert_eq!(d.push(0, 0xF3), None);
+        let mut d = Decoder::new().with_timeout(Nanos::new(1000));
+        assert_eq!(d.push(Nanos::ZERO, 0xF3), None);
         assert_eq!(
-            d.push(5000, 0xFF),
+            d.push(Nanos::new(5000), 0xFF),
             Some(Event::Error(FrameError::TimeOut {
                 cmd: 0xF3,
                 received: 0
             }))
         );
-        assert_eq!(d.push(5100, 0x00), Some(Event::Message(Message::Watchdog)));
+        assert_eq!(
+            d.push(Nanos::new(5100), 0x00),
+            Some(Event::Message(Message::Watchdog))
+        );
     }
 
     #[test]
     fn unknown_subcode_is_an_invalid_parameter() {
         let mut d = Decoder::new();
-        let ev = feed(&mut d, 0, &[0xF5, 0x0A, 0x07]);
+        let ev = feed(&mut d, Nanos::ZERO, &[0xF5, 0x0A, 0x07]);
         assert!(matches!(ev[..], [Event::Error(FrameError::Params(_))]));
         assert!(!d.in_frame());
     }
@@ -313,7 +318,7 @@ mod tests {
         let data: Box<[u8; wire::PIC_BLOCK]> = Box::new(core::array::from_fn(|i| (i / 256) as u8));
         let bytes = Message::PicWrite { block: 2, data }.to_bytes().unwrap();
         let mut d = Decoder::new();
-        let events = feed(&mut d, 0, &bytes);
+        let events = feed(&mut d, Nanos::ZERO, &bytes);
         assert_eq!(events.len(), 16);
         for (i, e) in events[..15].iter().enumerate() {
             let Event::PicChunk { block, index, data } = e else {
@@ -332,7 +337,7 @@ mod tests {
     fn user_commands_take_their_declared_length() {
         let mut d = Decoder::new();
         d.set_user_len(0x10, 2);
-        let ev = feed(&mut d, 0, &[0x10, 0xEF, 1, 2, 0x11, 0xEE]);
+        let ev = feed(&mut d, Nanos::ZERO, &[0x10, 0xEF, 1, 2, 0x11, 0xEE]);
         assert_eq!(
             ev,
             vec![

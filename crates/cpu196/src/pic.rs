@@ -5,6 +5,8 @@
 
 use std::collections::VecDeque;
 
+use buslab_device::Nanos;
+
 /// A command from the 80C196 to the PIC.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum PicCommand {
@@ -275,8 +277,8 @@ pub struct Pic {
     /// Level on port D inputs (defaults to the latch: a loopback plug).
     pub port_d_inputs: Option<u8>,
     pub timer: Option<(u16, u8)>,
-    ad: Option<(u8, u64)>,
-    next_ad: u64,
+    ad: Option<(u8, Nanos)>,
+    next_ad: Nanos,
     ad_channel: u8,
     pub peer: Peer,
     events: VecDeque<PicEvent>,
@@ -297,7 +299,7 @@ impl Default for Pic {
             port_d_inputs: None,
             timer: None,
             ad: None,
-            next_ad: 0,
+            next_ad: Nanos::ZERO,
             ad_channel: 0,
             peer: Peer::Loopback,
             events: VecDeque::new(),
@@ -318,13 +320,13 @@ impl Pic {
 
     /// Period between two conversions of one channel, for `(0000 pfff)`: the rate is Fosc/2048
     /// (p = 1) or Fosc/(4096·2^f) for all channels, so one channel gets 1/8 of it.
-    pub fn ad_period_ns(rate: u8) -> u64 {
+    pub fn ad_period_ns(rate: u8) -> Nanos {
         let div = if rate & 0x08 != 0 {
             2048
         } else {
             4096u64 << (rate & 7)
         };
-        8 * div * 1_000_000_000 / FOSC_HZ
+        Nanos::new(8 * div * 1_000_000_000 / FOSC_HZ)
     }
 
     fn read_port_d(&self) -> u8 {
@@ -333,7 +335,7 @@ impl Pic {
     }
 
     /// Executes a command at `now`; reads return their bytes.
-    pub fn execute(&mut self, now: u64, cmd: PicCommand) -> Vec<u8> {
+    pub fn execute(&mut self, now: Nanos, cmd: PicCommand) -> Vec<u8> {
         match cmd {
             PicCommand::ReadEvent => {
                 return self
@@ -389,13 +391,13 @@ impl Pic {
     }
 
     /// When the next conversion is due.
-    pub fn next_deadline(&self) -> Option<u64> {
+    pub fn next_deadline(&self) -> Option<Nanos> {
         self.ad.map(|_| self.next_ad)
     }
 
     /// Runs the converter up to `now`; `sample(channel, t)` gives the 10-bit input. Conversions
     /// go round the 8 channels; masked ones raise an event.
-    pub fn advance(&mut self, now: u64, sample: &mut dyn FnMut(u8, u64) -> u16) {
+    pub fn advance(&mut self, now: Nanos, sample: &mut dyn FnMut(u8, Nanos) -> u16) {
         let Some((mask, period)) = self.ad else {
             return;
         };
@@ -406,7 +408,7 @@ impl Pic {
                 self.events.push_back(PicEvent::Ad { channel: ch, value });
             }
             self.ad_channel = (ch + 1) % 8;
-            self.next_ad += period.max(1);
+            self.next_ad += period.max(Nanos::new(1));
         }
     }
 
@@ -487,20 +489,23 @@ mod tests {
     #[test]
     fn eeprom_auto_increments_and_bridges_loop_back() {
         let mut p = Pic::default();
-        p.execute(0, PicCommand::EepromAddress(10));
-        p.execute(0, PicCommand::EepromWrite(1));
-        p.execute(0, PicCommand::EepromWrite(2));
-        p.execute(0, PicCommand::EepromAddress(10));
-        assert_eq!(p.execute(0, PicCommand::ReadEeprom), vec![1]);
-        assert_eq!(p.execute(0, PicCommand::ReadEeprom), vec![2]);
-        p.execute(0, PicCommand::SciWrite(0x33));
-        assert_eq!(p.execute(0, PicCommand::ReadEvent), vec![0xA0, 0]);
-        assert_eq!(p.execute(0, PicCommand::ReadEvent), vec![0x40, 0x33]);
-        assert_eq!(p.execute(0, PicCommand::ReadEvent), vec![0, 0]);
-        p.execute(0, PicCommand::IoAddress(0x0F));
-        p.execute(0, PicCommand::PortDWrite(0xA5));
+        p.execute(Nanos::ZERO, PicCommand::EepromAddress(10));
+        p.execute(Nanos::ZERO, PicCommand::EepromWrite(1));
+        p.execute(Nanos::ZERO, PicCommand::EepromWrite(2));
+        p.execute(Nanos::ZERO, PicCommand::EepromAddress(10));
+        assert_eq!(p.execute(Nanos::ZERO, PicCommand::ReadEeprom), vec![1]);
+        assert_eq!(p.execute(Nanos::ZERO, PicCommand::ReadEeprom), vec![2]);
+        p.execute(Nanos::ZERO, PicCommand::SciWrite(0x33));
+        assert_eq!(p.execute(Nanos::ZERO, PicCommand::ReadEvent), vec![0xA0, 0]);
+        assert_eq!(
+            p.execute(Nanos::ZERO, PicCommand::ReadEvent),
+            vec![0x40, 0x33]
+        );
+        assert_eq!(p.execute(Nanos::ZERO, PicCommand::ReadEvent), vec![0, 0]);
+        p.execute(Nanos::ZERO, PicCommand::IoAddress(0x0F));
+        p.execute(Nanos::ZERO, PicCommand::PortDWrite(0xA5));
         p.port_d_inputs = Some(0x03);
-        assert_eq!(p.execute(0, PicCommand::ReadPortD), vec![0xA3]);
+        assert_eq!(p.execute(Nanos::ZERO, PicCommand::ReadPortD), vec![0xA3]);
     }
 
     #[test]
@@ -509,7 +514,7 @@ mod tests {
             peer: "script:41=4F4B,01=02".parse().unwrap(),
             ..Pic::default()
         };
-        p.execute(0, PicCommand::SciWrite(0x41));
+        p.execute(Nanos::ZERO, PicCommand::SciWrite(0x41));
         assert_eq!(
             p.take_events(),
             vec![
@@ -518,8 +523,8 @@ mod tests {
                 PicEvent::SciReceived(0x4B)
             ]
         );
-        p.execute(0, PicCommand::Spi { cmd: 1, data: 0x01 });
-        p.execute(0, PicCommand::Spi { cmd: 1, data: 0x07 });
+        p.execute(Nanos::ZERO, PicCommand::Spi { cmd: 1, data: 0x01 });
+        p.execute(Nanos::ZERO, PicCommand::Spi { cmd: 1, data: 0x07 });
         assert_eq!(
             p.take_events(),
             vec![PicEvent::SpiReceived(0x02), PicEvent::SpiReceived(0xFF)]
@@ -540,17 +545,17 @@ mod tests {
     #[test]
     fn ad_rate_follows_the_seed() {
         // Fosc/2048 over all channels: 9765.6 conversions/s, one channel 1/8 of that.
-        assert_eq!(Pic::ad_period_ns(0x08), 819_200);
-        assert_eq!(Pic::ad_period_ns(0x01), 3_276_800);
+        assert_eq!(Pic::ad_period_ns(0x08), Nanos::new(819_200));
+        assert_eq!(Pic::ad_period_ns(0x01), Nanos::new(3_276_800));
         let mut p = Pic::default();
         p.execute(
-            0,
+            Nanos::ZERO,
             PicCommand::StartAd {
                 rate: 0x08,
                 mask: 0x01,
             },
         );
-        p.advance(819_200, &mut |ch, _| 100 + ch as u16);
+        p.advance(Nanos::new(819_200), &mut |ch, _| 100 + ch as u16);
         assert_eq!(
             p.take_events(),
             vec![PicEvent::Ad {

@@ -3,6 +3,8 @@
 
 use std::collections::BTreeMap;
 
+use buslab_device::Nanos;
+
 use crate::codes::Alert;
 use crate::message::{AdSample, DisplayFormat, FileMode, Message, Start, Thread};
 use crate::pic::PicEvent;
@@ -34,7 +36,7 @@ impl Flow {
 
 /// The kernel services a hook may call (display, files, virtual channels, PWM, alerts).
 pub struct Api<'a> {
-    pub now_ns: u64,
+    pub now_ns: Nanos,
     /// Arguments of this configuration set (words 1..7 of `ptrprg.user[n]`).
     pub args: [u16; 7],
     /// Latest 80C196 channel values on the 16-bit scale (`ad_voie[n].donnee`).

@@ -3,6 +3,8 @@
 use core::fmt;
 use core::str::FromStr;
 
+use buslab_device::Nanos;
+
 /// Full scale of both converters: 0..5 V.
 pub const FULL_SCALE_V: f64 = 5.0;
 
@@ -39,8 +41,8 @@ impl Default for Source {
 
 impl Source {
     /// Volts at `t_ns`.
-    pub fn volts(&self, t_ns: u64) -> f64 {
-        let t = t_ns as f64 * 1e-9;
+    pub fn volts(&self, t_ns: Nanos) -> f64 {
+        let t = t_ns.get() as f64 * 1e-9;
         match *self {
             Self::Constant { volts } => volts,
             Self::Sine {
@@ -66,7 +68,7 @@ impl Source {
     }
 
     /// The 10-bit conversion at `t_ns`: round(V × 1023 / 5), clamped to 0..=1023.
-    pub fn code10(&self, t_ns: u64) -> u16 {
+    pub fn code10(&self, t_ns: Nanos) -> u16 {
         volts_to_code10(self.volts(t_ns))
     }
 }
@@ -194,7 +196,7 @@ mod tests {
                 to: 5.0,
                 period_s: 1.0
             }
-            .code10(500_000_000),
+            .code10(Nanos::new(500_000_000)),
             512
         );
     }

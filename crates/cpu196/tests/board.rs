@@ -7,17 +7,17 @@ use buslab_cpu196::message::*;
 use buslab_cpu196::source::{Inputs, Source};
 use buslab_cpu196::wire;
 use buslab_cpu196::{Board, Decoder, Event, FrameError, Image, Mode};
-use buslab_device::ByteDevice;
+use buslab_device::{ByteDevice, Nanos};
 
-const MS: u64 = 1_000_000;
+const MS: Nanos = Nanos::from_millis(1);
 
 /// A board and a PC-side decoder, driven in virtual time.
 struct Bench {
     board: Board,
     host: Decoder,
-    now: u64,
+    now: Nanos,
     /// Events with the time their last byte arrived.
-    seen: Vec<(u64, Event)>,
+    seen: Vec<(Nanos, Event)>,
 }
 
 impl Bench {
@@ -27,9 +27,9 @@ impl Bench {
 
     fn with(image: Image, inputs: Inputs) -> Self {
         let mut b = Self {
-            board: Board::new(image, inputs, 0),
+            board: Board::new(image, inputs, Nanos::ZERO),
             host: Decoder::new(),
-            now: 0,
+            now: Nanos::ZERO,
             seen: Vec::new(),
         };
         b.run_for(MS);
@@ -37,11 +37,11 @@ impl Bench {
         b
     }
 
-    fn byte_ns(&self) -> u64 {
-        self.board.line().byte_time_ns()
+    fn byte_ns(&self) -> Nanos {
+        self.board.line().byte_time()
     }
 
-    fn run_until(&mut self, t: u64) {
+    fn run_until(&mut self, t: Nanos) {
         let mut out = Vec::new();
         loop {
             let next = self
@@ -63,7 +63,7 @@ impl Bench {
         }
     }
 
-    fn run_for(&mut self, d: u64) {
+    fn run_for(&mut self, d: Nanos) {
         self.run_until(self.now + d);
     }
 
@@ -907,7 +907,7 @@ mod garbage {
             }
             let mut out = Vec::new();
             for (i, &byte) in bytes.iter().enumerate() {
-                let gap = gaps.get(i).copied().unwrap_or(0) * 50_000;
+                let gap = Nanos::new(gaps.get(i).copied().unwrap_or(0) * 50_000);
                 b.now += b.byte_ns() + gap;
                 b.board.poll(b.now, &mut out);
                 for x in out.drain(..) {

@@ -9,17 +9,17 @@ use buslab_cpu196::host::{Client, ClientError, CsvSamples, FileRequests, LOST_AF
 use buslab_cpu196::message::*;
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, Image, SimPort};
-use buslab_device::LineSettings;
+use buslab_device::{LineSettings, Nanos};
 
 const BAUD: u32 = 115_200;
 
 fn board() -> Board {
-    Board::new(Image::default(), Inputs::default(), 0)
+    Board::new(Image::default(), Inputs::default(), Nanos::ZERO)
 }
 
 fn client_on(board: Board) -> Client<SimPort<Board>> {
     let line = board.line();
-    let mut c = Client::new(SimPort::new(board, line, 0), line.baud);
+    let mut c = Client::new(SimPort::new(board, line, Nanos::ZERO), line.baud);
     // The boot report.
     assert_eq!(
         c.next(Duration::from_millis(10)).unwrap(),
@@ -70,9 +70,9 @@ fn a_flash_bank_written_block_by_block_reads_back_identical() {
     // line twice, one exchange after the other (write, `msg_completed`, read request, data);
     // the bank read is pipelined, its requests cross while the board sends, so the line
     // carries the 256 blocks back to back.
-    let byte = LineSettings::n81(BAUD).byte_time_ns();
+    let byte = LineSettings::n81(BAUD).byte_time();
     let line_ns = (17 * (262 + 3 + 4 + 259) + 256 * 259) as u64 * byte;
-    let took = (c.now() - t0).as_nanos() as u64;
+    let took = Nanos::from(c.now() - t0);
     assert!(
         took >= line_ns && took < line_ns + line_ns / 100,
         "{took} vs {line_ns}"
@@ -218,7 +218,7 @@ fn a_refused_acquisition_says_why_and_the_monitor_starts_such_a_set_without_it()
 fn a_client_at_the_wrong_rate_gets_no_answer_and_a_hint() {
     let b = board();
     let line = b.line();
-    let port = SimPort::new(b, line, 0).with_client_line(LineSettings::n81(9600));
+    let port = SimPort::new(b, line, Nanos::ZERO).with_client_line(LineSettings::n81(9600));
     let mut c = Client::new(port, 9600);
     c.timeout = ms(300);
     let err = c.info().unwrap_err();
@@ -340,7 +340,7 @@ fn a_host_stall_inside_a_pic_block_write_times_out_and_the_block_is_written_agai
     let b = board();
     let line = b.line();
     let port = StallBeforeSend {
-        inner: SimPort::new(b, line, 0),
+        inner: SimPort::new(b, line, Nanos::ZERO),
         sends: 0,
         // The head with the first chunk, then the second chunk: the host stalls before it.
         stall_at: 2,
@@ -372,7 +372,7 @@ fn the_garbage_a_stall_made_of_a_pic_block_is_answered_late_and_the_block_still_
     let b = board();
     let line = b.line();
     let port = StallBeforeSend {
-        inner: SimPort::new(b, line, 0),
+        inner: SimPort::new(b, line, Nanos::ZERO),
         sends: 0,
         stall_at: 2,
         stall: ms(300),

@@ -3,6 +3,7 @@
 use buslab_cpu196::codes::{Alert, MsgCode};
 use buslab_cpu196::message::*;
 use buslab_cpu196::{Decoder, Event};
+use buslab_device::Nanos;
 use proptest::prelude::*;
 
 fn bytes<const N: usize>() -> impl Strategy<Value = Box<[u8; N]>> {
@@ -150,7 +151,7 @@ fn decode_all(d: &mut Decoder, bytes: &[u8]) -> Vec<Event> {
     bytes
         .iter()
         .enumerate()
-        .filter_map(|(i, &b)| d.push(i as u64 * 1000, b))
+        .filter_map(|(i, &b)| d.push(Nanos::new(i as u64 * 1000), b))
         .filter(|e| !matches!(e, Event::PicChunk { .. }))
         .collect()
 }
@@ -191,14 +192,14 @@ proptest! {
         decode_all(&mut d, &garbage);
         // Whatever state the garbage left, a pause longer than the time-out resets the
         // decoder and the next frame decodes exactly.
-        let t = garbage.len() as u64 * 1000 + 10_000_000_000;
+        let t = Nanos::new(garbage.len() as u64 * 1000 + 10_000_000_000);
         let _ = d.poll(t);
         prop_assert!(!d.in_frame());
         let bytes = m.to_bytes().unwrap();
         let ev: Vec<_> = bytes
             .iter()
             .enumerate()
-            .filter_map(|(i, &b)| d.push(t + i as u64, b))
+            .filter_map(|(i, &b)| d.push(t + Nanos::new(i as u64), b))
             .filter(|e| !matches!(e, Event::PicChunk { .. }))
             .collect();
         prop_assert_eq!(ev, vec![Event::Message(m)]);

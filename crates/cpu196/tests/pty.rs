@@ -9,6 +9,7 @@ use buslab_cpu196::host::{Client, ClientError, Recorder};
 use buslab_cpu196::message::*;
 use buslab_cpu196::source::{Inputs, Source};
 use buslab_cpu196::{Board, Image, wire};
+use buslab_device::Nanos;
 use buslab_link::{LineSettings, SerialLine, Serve, Served};
 
 const BAUD: u32 = 250_000;
@@ -18,7 +19,7 @@ const BAUD: u32 = 250_000;
 const ALLOWANCE: Duration = Duration::from_secs(30);
 
 fn board(image: Image) -> Board {
-    let mut b = Board::new(image, Inputs::default(), 0);
+    let mut b = Board::new(image, Inputs::default(), Nanos::ZERO);
     b.set_baud(BAUD);
     b
 }

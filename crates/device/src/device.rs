@@ -1,26 +1,28 @@
 //! The device side of the seam.
 
+use buslab_can::Nanos;
+
 /// A device model that talks over one UART, driven in virtual nanoseconds.
 pub trait ByteDevice {
     /// A byte has fully arrived on the device's RxD at `now_ns`.
-    fn receive(&mut self, now_ns: u64, byte: u8);
+    fn receive(&mut self, now_ns: Nanos, byte: u8);
     /// Advance the model to `now_ns`; append the bytes whose transmission on TxD has completed
     /// by then.
-    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>);
+    fn poll(&mut self, now_ns: Nanos, out: &mut Vec<u8>);
     /// When [`poll`](ByteDevice::poll) must be called again even if no byte arrives; `None` if
     /// the device only reacts to input.
-    fn next_deadline(&self) -> Option<u64>;
+    fn next_deadline(&self) -> Option<Nanos>;
     /// Some of the bytes it produced by `now_ns` never reached the client (one that does not
     /// read loses them, as a real port's buffer overflows). A device whose output builds on
     /// what the client already shows (a VT100 screen sent as changes) starts again from
     /// scratch. Nothing by default.
-    fn output_lost(&mut self, now_ns: u64) {
+    fn output_lost(&mut self, now_ns: Nanos) {
         let _ = now_ns;
     }
     /// A client opened the device's port at `now_ns` (a terminal program started on the
     /// line). A device that shows a screen sends it whole again, so a terminal opened late
     /// does not stay blank until its user asks for a redraw. Nothing by default.
-    fn port_opened(&mut self, now_ns: u64) {
+    fn port_opened(&mut self, now_ns: Nanos) {
         let _ = now_ns;
     }
 }

@@ -21,6 +21,7 @@ mod port;
 mod printable;
 mod sim_port;
 
+pub use buslab_can::Nanos;
 pub use device::{ByteDevice, ChangeLog, Changes, Persistent, ReplayError};
 pub use human::Human;
 pub use line::{LineSettings, Parity};

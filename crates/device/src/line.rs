@@ -2,6 +2,8 @@
 
 use core::fmt;
 
+use buslab_can::{BitTime, Nanos};
+
 /// Parity of a UART character.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Parity {
@@ -47,9 +49,9 @@ impl LineSettings {
             + self.stop_bits as u32
     }
 
-    /// Nanoseconds one character occupies on the line (9600 8N2: 1 145 833 ns).
-    pub const fn byte_time_ns(&self) -> u64 {
-        self.bits_per_byte() as u64 * 1_000_000_000 / self.baud as u64
+    /// The time one character occupies on the line (9600 8N2: 1 145 833 ns).
+    pub const fn byte_time(&self) -> Nanos {
+        BitTime::new(self.bits_per_byte() as u64).at_bitrate(self.baud)
     }
 
     /// Whether a receiver set to `self` decodes characters sent with `sender` correctly. The stop
@@ -84,7 +86,7 @@ mod tests {
     fn zelle_line_is_eleven_bits_per_byte() {
         let line = LineSettings::n82(9600);
         assert_eq!(line.bits_per_byte(), 11);
-        assert_eq!(line.byte_time_ns(), 1_145_833);
+        assert_eq!(line.byte_time(), Nanos::new(1_145_833));
         assert_eq!(line.to_string(), "9600 8N2");
     }
 

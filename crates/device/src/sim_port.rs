@@ -5,6 +5,8 @@ use std::collections::VecDeque;
 use std::io;
 use std::time::Duration;
 
+use buslab_can::Nanos;
+
 use crate::{ByteDevice, LineSettings, Port};
 
 /// The host end of a line to a model, in virtual time. Sends queue bytes on the line back to
@@ -19,10 +21,10 @@ pub struct SimPort<D> {
     device: D,
     line: LineSettings,
     client_line: LineSettings,
-    now: u64,
-    line_free: u64,
+    now: Nanos,
+    line_free: Nanos,
     /// Bytes on their way to the device: arrival time, and the byte unless it is garbled.
-    to_device: VecDeque<(u64, Option<u8>)>,
+    to_device: VecDeque<(Nanos, Option<u8>)>,
     from_device: VecDeque<u8>,
     scratch: Vec<u8>,
 }
@@ -30,7 +32,7 @@ pub struct SimPort<D> {
 impl<D: ByteDevice> SimPort<D> {
     /// A port to `device` on a line at `line`, starting at virtual time `now_ns` (the device's
     /// current time).
-    pub fn new(device: D, line: LineSettings, now_ns: u64) -> Self {
+    pub fn new(device: D, line: LineSettings, now_ns: Nanos) -> Self {
         SimPort {
             device,
             line,
@@ -49,8 +51,8 @@ impl<D: ByteDevice> SimPort<D> {
         self
     }
 
-    /// The virtual time, in nanoseconds.
-    pub fn now_ns(&self) -> u64 {
+    /// The virtual time.
+    pub fn now_ns(&self) -> Nanos {
         self.now
     }
 
@@ -71,7 +73,7 @@ impl<D: ByteDevice> SimPort<D> {
 
     /// Moves virtual time to `t` (never back), delivering bytes and collecting replies on the
     /// way, every event in its order.
-    pub fn run_to(&mut self, t: u64) {
+    pub fn run_to(&mut self, t: Nanos) {
         self.step(self.now);
         while let Some(at) = self.next_event().filter(|&at| at <= t) {
             self.step(at);
@@ -83,7 +85,7 @@ impl<D: ByteDevice> SimPort<D> {
 
     /// The first event after now: a byte's arrival or a deadline of the device. (A device that
     /// keeps asking for a time already passed does not hold time still.)
-    fn next_event(&self) -> Option<u64> {
+    fn next_event(&self) -> Option<Nanos> {
         [
             self.device.next_deadline(),
             self.to_device.front().map(|&(at, _)| at),
@@ -95,7 +97,7 @@ impl<D: ByteDevice> SimPort<D> {
     }
 
     /// Delivers the bytes arrived by `at`, then polls the device at `at`.
-    fn step(&mut self, at: u64) {
+    fn step(&mut self, at: Nanos) {
         while let Some(&(arrival, byte)) = self.to_device.front() {
             if arrival > at {
                 break;
@@ -116,14 +118,10 @@ impl<D: ByteDevice> SimPort<D> {
     }
 }
 
-fn nanos(d: Duration) -> u64 {
-    d.as_nanos().min(u128::from(u64::MAX)) as u64
-}
-
 impl<D: ByteDevice> Port for SimPort<D> {
     fn send(&mut self, bytes: &[u8]) -> io::Result<()> {
         let understood = self.client_line.understands(&self.line);
-        let byte_ns = self.client_line.byte_time_ns();
+        let byte_ns = self.client_line.byte_time();
         for &byte in bytes {
             let arrival = self.now.max(self.line_free) + byte_ns;
             self.line_free = arrival;
@@ -137,7 +135,7 @@ impl<D: ByteDevice> Port for SimPort<D> {
         if buf.is_empty() {
             return Ok(0);
         }
-        let deadline = self.now.saturating_add(nanos(timeout));
+        let deadline = self.now.saturating_add(Nanos::from(timeout));
         self.step(self.now);
         while self.from_device.is_empty() && self.now < deadline {
             let at = self.next_event().map_or(deadline, |t| t.min(deadline));
@@ -151,11 +149,11 @@ impl<D: ByteDevice> Port for SimPort<D> {
     }
 
     fn now(&self) -> Duration {
-        Duration::from_nanos(self.now)
+        self.now.as_duration()
     }
 
     fn pause(&mut self, duration: Duration) {
-        let t = self.now.saturating_add(nanos(duration));
+        let t = self.now.saturating_add(Nanos::from(duration));
         self.run_to(t);
     }
 

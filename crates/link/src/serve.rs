@@ -11,14 +11,14 @@ use std::time::{Duration, Instant};
 use nix::poll::{PollFd, PollFlags, ppoll};
 use nix::sys::time::TimeSpec;
 
-use buslab_device::{ByteDevice, LineSettings};
+use buslab_device::{ByteDevice, LineSettings, Nanos};
 use buslab_pace::{Pacer, Rate, Ticks};
 
 use crate::Pty;
 
 /// Work done on the served device from another thread (press a key, power-cycle, change an
 /// input), with the current virtual time.
-pub type Control<D> = Box<dyn FnOnce(&mut D, u64) + Send>;
+pub type Control<D> = Box<dyn FnOnce(&mut D, Nanos) + Send>;
 
 /// How long the loop may sleep without looking at `stop` and the control channel.
 const MAX_IDLE: Duration = Duration::from_millis(20);
@@ -89,7 +89,7 @@ pub(crate) fn serve_with<D: ByteDevice>(
     line: LineSettings,
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
-    after_poll: &mut dyn FnMut(&mut D, u64, bool),
+    after_poll: &mut dyn FnMut(&mut D, Nanos, bool),
 ) -> io::Result<()> {
     let mut losses = Losses {
         device: format!("{name} on {}", pty.path().display()),
@@ -183,9 +183,20 @@ impl Losses {
 /// The device time from which bytes read at `wall` were there to read: `late` earlier (how long
 /// the woken thread waited for a CPU), at most [`DEVICE_CREDIT`], never before the device's
 /// own time `device_now`.
-fn readable_since(pacer: &Pacer, wall: Duration, late: Duration, device_now: u64) -> u64 {
+fn readable_since(pacer: &Pacer, wall: Duration, late: Duration, device_now: Nanos) -> Nanos {
     let woken = wall.saturating_sub(late.min(DEVICE_CREDIT));
-    pacer.ticks_at(woken).0.max(device_now)
+    nanos(pacer.ticks_at(woken)).max(device_now)
+}
+
+/// The device's time on its pacer's clock: the pacer counts the device's nanoseconds
+/// ([`Rate::per_second`] of 10⁹), so the two are the same count.
+fn ticks(t: Nanos) -> Ticks {
+    Ticks(t.get())
+}
+
+/// The pacer's ticks as the device's time (see [`ticks`]).
+fn nanos(t: Ticks) -> Nanos {
+    Nanos::new(t.0)
 }
 
 /// How long this thread has waited for a CPU while runnable, in all (Linux's
@@ -233,7 +244,7 @@ fn serve_loop<D: ByteDevice>(
     line: LineSettings,
     control: &Receiver<Control<D>>,
     stop: &AtomicBool,
-    after_poll: &mut dyn FnMut(&mut D, u64, bool),
+    after_poll: &mut dyn FnMut(&mut D, Nanos, bool),
     losses: &mut Losses,
 ) -> io::Result<()> {
     pty.report_flushes()?;
@@ -244,13 +255,13 @@ fn serve_loop<D: ByteDevice>(
     let mut run_queue = RunQueueWait::open();
     let mut inbound = Inbound {
         queue: VecDeque::new(),
-        arrivals: Arrivals::new(line.byte_time_ns()),
+        arrivals: Arrivals::new(line.byte_time()),
         buf: vec![0; MAX_INBOUND],
     };
     let mut outbound: VecDeque<u8> = VecDeque::new();
     let mut produced = Vec::new();
     let mut controls_open = true;
-    let mut now = 0;
+    let mut now = Nanos::ZERO;
 
     while !stop.load(Ordering::Relaxed) {
         let turn = wall();
@@ -258,11 +269,11 @@ fn serve_loop<D: ByteDevice>(
             .into_iter()
             .flatten()
             .min();
-        let plan = pacer.plan(turn, Ticks(now), due.map(Ticks));
+        let plan = pacer.plan(turn, ticks(now), due.map(ticks));
         if !plan.skipped.is_zero() {
             losses.stalled(plan.skipped);
         }
-        now = plan.run_to.0;
+        now = nanos(plan.run_to);
         // Bytes that have finished arriving go first, so control work sees them. Bytes the
         // client wrote while it was held back go in before the device's time moves past them.
         loop {
@@ -270,7 +281,7 @@ fn serve_loop<D: ByteDevice>(
             if !inbound.arrivals.held_back || inbound.queue.len() >= MAX_INBOUND {
                 break;
             }
-            let read_at = pacer.ticks_at(wall()).0.max(now);
+            let read_at = nanos(pacer.ticks_at(wall())).max(now);
             inbound.read(pty, line, read_at, losses)?;
         }
         // A client that arrived or threw away what it had not read yet: before the device's
@@ -304,7 +315,7 @@ fn serve_loop<D: ByteDevice>(
             .into_iter()
             .flatten()
             .min();
-        let sleep = match pacer.wake_at(turn, due.map(Ticks)) {
+        let sleep = match pacer.wake_at(turn, due.map(ticks)) {
             Some(at) => at.saturating_sub(turn).min(MAX_IDLE),
             None => MAX_IDLE,
         };
@@ -345,14 +356,14 @@ fn serve_loop<D: ByteDevice>(
 /// Bytes from the client waiting for their line time. `None`: a character the device cannot
 /// decode (the client's settings differ); it still takes its time on the line.
 struct Inbound {
-    queue: VecDeque<(u64, Option<u8>)>,
+    queue: VecDeque<(Nanos, Option<u8>)>,
     arrivals: Arrivals,
     buf: Vec<u8>,
 }
 
 impl Inbound {
     /// Hands the device every byte that has fully arrived by `now`.
-    fn deliver<D: ByteDevice>(&mut self, device: &mut D, now: u64) {
+    fn deliver<D: ByteDevice>(&mut self, device: &mut D, now: Nanos) {
         while let Some(&(at, byte)) = self.queue.front() {
             if at > now {
                 break;
@@ -364,7 +375,7 @@ impl Inbound {
         }
     }
 
-    fn next_arrival(&self) -> Option<u64> {
+    fn next_arrival(&self) -> Option<Nanos> {
         self.queue.front().map(|&(at, _)| at)
     }
 
@@ -375,7 +386,7 @@ impl Inbound {
         &mut self,
         pty: &Pty,
         line: LineSettings,
-        read_at: u64,
+        read_at: Nanos,
         losses: &mut Losses,
     ) -> io::Result<()> {
         loop {
@@ -433,32 +444,32 @@ impl Inbound {
 /// ([`PTY_READ_MAX`]) is followed without a gap by the next bytes read.
 #[derive(Debug)]
 struct Arrivals {
-    byte_ns: u64,
-    last: u64,
+    byte_ns: Nanos,
+    last: Nanos,
     held_back: bool,
     kernel_held_back: bool,
 }
 
 impl Arrivals {
-    fn new(byte_ns: u64) -> Self {
+    fn new(byte_ns: Nanos) -> Self {
         Self {
             byte_ns,
-            last: 0,
+            last: Nanos::ZERO,
             held_back: false,
             kernel_held_back: false,
         }
     }
 
     /// Arrival times of `n` bytes read at `read_at`.
-    fn stamp(&mut self, read_at: u64, n: usize) -> impl Iterator<Item = u64> + use<> {
+    fn stamp(&mut self, read_at: Nanos, n: usize) -> impl Iterator<Item = Nanos> + use<> {
         let start = if self.held_back || self.kernel_held_back {
             self.last
         } else {
             read_at.max(self.last)
         };
         let byte_ns = self.byte_ns;
-        self.last = start + n as u64 * byte_ns;
-        (1..=n as u64).map(move |k| start + k * byte_ns)
+        self.last = start + byte_ns * n as u64;
+        (1..=n as u64).map(move |k| start + byte_ns * k)
     }
 }
 
@@ -483,9 +494,13 @@ fn flush(pty: &Pty, outbound: &mut VecDeque<u8>) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::{
-        Arrivals, DEVICE_CREDIT, Duration, LineSettings, Losses, Pacer, Rate, readable_since,
-        run_queue_wait,
+        Arrivals, DEVICE_CREDIT, Duration, LineSettings, Losses, Nanos, Pacer, Rate,
+        readable_since, run_queue_wait,
     };
+
+    fn ns(counts: &[u64]) -> Vec<Nanos> {
+        counts.iter().copied().map(Nanos::new).collect()
+    }
 
     #[test]
     fn a_request_read_late_is_dated_from_when_the_loop_was_woken_for_it() {
@@ -493,7 +508,7 @@ mod tests {
         // serving thread got the CPU was that much line time lost for good. It is dated from
         // when the thread was woken (read 30 ms after that: 30 ms earlier).
         let pacer = Pacer::new(Rate::per_second(1_000_000_000), DEVICE_CREDIT);
-        let ms = |n: u64| n * 1_000_000;
+        let ms = Nanos::from_millis;
         let wall = Duration::from_millis(1_000);
         assert_eq!(
             readable_since(&pacer, wall, Duration::from_millis(30), ms(900)),
@@ -512,8 +527,8 @@ mod tests {
         // At most the device's credit back, however long the thread waited.
         let wall = Duration::from_secs(10);
         assert_eq!(
-            readable_since(&pacer, wall, Duration::from_secs(5), 0),
-            ms(10_000) - DEVICE_CREDIT.as_nanos() as u64
+            readable_since(&pacer, wall, Duration::from_secs(5), Nanos::ZERO),
+            ms(10_000) - Nanos::from(DEVICE_CREDIT)
         );
     }
 
@@ -555,34 +570,55 @@ mod tests {
 
     #[test]
     fn bytes_follow_each_other_at_line_rate_from_when_they_were_read() {
-        let mut a = Arrivals::new(10);
-        assert_eq!(a.stamp(100, 3).collect::<Vec<_>>(), [110, 120, 130]);
+        let mut a = Arrivals::new(Nanos::new(10));
+        assert_eq!(
+            a.stamp(Nanos::new(100), 3).collect::<Vec<_>>(),
+            ns(&[110, 120, 130])
+        );
         // Read before the line is free: they queue behind the previous ones.
-        assert_eq!(a.stamp(105, 2).collect::<Vec<_>>(), [140, 150]);
+        assert_eq!(
+            a.stamp(Nanos::new(105), 2).collect::<Vec<_>>(),
+            ns(&[140, 150])
+        );
         // Read later: they start then.
-        assert_eq!(a.stamp(1000, 1).collect::<Vec<_>>(), [1010]);
+        assert_eq!(
+            a.stamp(Nanos::new(1000), 1).collect::<Vec<_>>(),
+            ns(&[1010])
+        );
     }
 
     #[test]
     fn bytes_the_server_held_back_follow_without_a_gap_however_late_it_reads_them() {
-        let mut a = Arrivals::new(10);
-        assert_eq!(a.stamp(0, 2).collect::<Vec<_>>(), [10, 20]);
+        let mut a = Arrivals::new(Nanos::new(10));
+        assert_eq!(a.stamp(Nanos::ZERO, 2).collect::<Vec<_>>(), ns(&[10, 20]));
         a.held_back = true;
         // The server was away for a long time (a loaded machine): no pause inside the frame.
-        assert_eq!(a.stamp(500_000_000, 2).collect::<Vec<_>>(), [30, 40]);
+        assert_eq!(
+            a.stamp(Nanos::new(500_000_000), 2).collect::<Vec<_>>(),
+            ns(&[30, 40])
+        );
         // Once nothing waits any more, read times count again.
         a.held_back = false;
-        assert_eq!(a.stamp(500_000_000, 1).collect::<Vec<_>>(), [500_000_010]);
+        assert_eq!(
+            a.stamp(Nanos::new(500_000_000), 1).collect::<Vec<_>>(),
+            ns(&[500_000_010])
+        );
     }
 
     #[test]
     fn bytes_the_kernel_held_back_follow_without_a_gap_however_late_they_come() {
-        let mut a = Arrivals::new(10);
-        assert_eq!(a.stamp(0, 2).collect::<Vec<_>>(), [10, 20]);
+        let mut a = Arrivals::new(Nanos::new(10));
+        assert_eq!(a.stamp(Nanos::ZERO, 2).collect::<Vec<_>>(), ns(&[10, 20]));
         // The read found the kernel's buffer full; the rest came much later.
         a.kernel_held_back = true;
-        assert_eq!(a.stamp(400_000_000, 2).collect::<Vec<_>>(), [30, 40]);
+        assert_eq!(
+            a.stamp(Nanos::new(400_000_000), 2).collect::<Vec<_>>(),
+            ns(&[30, 40])
+        );
         a.kernel_held_back = false;
-        assert_eq!(a.stamp(400_000_000, 1).collect::<Vec<_>>(), [400_000_010]);
+        assert_eq!(
+            a.stamp(Nanos::new(400_000_000), 1).collect::<Vec<_>>(),
+            ns(&[400_000_010])
+        );
     }
 }

@@ -25,7 +25,7 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use buslab_device::{ByteDevice, Changes, LineSettings, Persistent};
+use buslab_device::{ByteDevice, Changes, LineSettings, Nanos, Persistent};
 
 use crate::Pty;
 use crate::fs::write_atomic;
@@ -208,7 +208,7 @@ fn run<D: ByteDevice>(
     let mut keeper = keeping.map(|(saver, writer)| Keeper {
         saver,
         writer: Some(writer),
-        next_look: 0,
+        next_look: Nanos::ZERO,
         must_save: false,
         failing: false,
     });
@@ -241,7 +241,7 @@ struct Keeper<D> {
     saver: Saver<D>,
     /// `None` once the journal could not be continued.
     writer: Option<journal::Writer>,
-    next_look: u64,
+    next_look: Nanos,
     /// Changes are not all in the journal: a snapshot must be written before output leaves.
     must_save: bool,
     /// The journal failed (warned once).
@@ -249,7 +249,7 @@ struct Keeper<D> {
 }
 
 impl<D> Keeper<D> {
-    fn after_poll(&mut self, device: &mut D, now: u64, output: bool) {
+    fn after_poll(&mut self, device: &mut D, now: Nanos, output: bool) {
         match (self.saver.take_changes)(device) {
             Changes::Records(records) if records.is_empty() => {}
             Changes::Records(records) => {
@@ -350,7 +350,7 @@ impl<D: 'static> Served<D> {
     /// See [`Handle::with`].
     pub fn with<T: Send + 'static>(
         &self,
-        work: impl FnOnce(&mut D, u64) -> T + Send + 'static,
+        work: impl FnOnce(&mut D, Nanos) -> T + Send + 'static,
     ) -> Result<T, ServedError> {
         self.handle.with(work)
     }
@@ -408,7 +408,7 @@ impl<D: 'static> Handle<D> {
     /// current virtual time, and waits for its result.
     pub fn with<T: Send + 'static>(
         &self,
-        work: impl FnOnce(&mut D, u64) -> T + Send + 'static,
+        work: impl FnOnce(&mut D, Nanos) -> T + Send + 'static,
     ) -> Result<T, ServedError> {
         let (tx, rx) = channel();
         self.control(Box::new(move |device, now| {
@@ -449,7 +449,7 @@ struct SaveJob {
 struct Saver<D> {
     jobs: Sender<SaveJob>,
     path: PathBuf,
-    every_ns: u64,
+    every_ns: Nanos,
     generation: fn(&D) -> u64,
     snapshot: fn(&D) -> Snapshot,
     take_changes: fn(&mut D) -> Changes,
@@ -493,7 +493,7 @@ impl<D> Saver<D> {
         Ok(Self {
             jobs,
             path: p.path,
-            every_ns: p.every.as_nanos().min(u128::from(u64::MAX)) as u64,
+            every_ns: Nanos::from(p.every),
             generation: p.generation,
             snapshot: p.snapshot,
             take_changes: p.take_changes,

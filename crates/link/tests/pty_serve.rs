@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::Duration;
 
+use buslab_device::Nanos;
 use buslab_link::{ByteDevice, Control, LineSettings, Pty, open_serial, serve};
 
 /// How long a test waits for what must come: far above any scheduling delay on a loaded
@@ -16,19 +17,19 @@ const ALLOWANCE: Duration = Duration::from_secs(30);
 /// request arrived; records arrival times.
 #[derive(Default)]
 struct Echo {
-    byte_ns: u64,
-    pending: Vec<(u64, u8)>,
-    arrivals: Vec<u64>,
+    byte_ns: Nanos,
+    pending: Vec<(Nanos, u8)>,
+    arrivals: Vec<Nanos>,
     offset: u8,
 }
 
 impl ByteDevice for Echo {
-    fn receive(&mut self, now_ns: u64, byte: u8) {
+    fn receive(&mut self, now_ns: Nanos, byte: u8) {
         self.arrivals.push(now_ns);
         self.pending
             .push((now_ns + self.byte_ns, byte.wrapping_add(1 + self.offset)));
     }
-    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>) {
+    fn poll(&mut self, now_ns: Nanos, out: &mut Vec<u8>) {
         while let Some(&(at, byte)) = self.pending.first() {
             if at > now_ns {
                 break;
@@ -37,7 +38,7 @@ impl ByteDevice for Echo {
             self.pending.remove(0);
         }
     }
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         self.pending.first().map(|&(at, _)| at)
     }
 }
@@ -57,7 +58,7 @@ fn start(line: LineSettings) -> Served {
     let flag = stop.clone();
     let thread = std::thread::spawn(move || {
         let mut dev = Echo {
-            byte_ns: line.byte_time_ns(),
+            byte_ns: line.byte_time(),
             ..Echo::default()
         };
         serve(&mut dev, &pty, line, &rx, &flag).unwrap();
@@ -102,12 +103,12 @@ fn bytes_cross_the_pty_paced_at_the_line_rate() {
     let dev = served.thread.join().unwrap();
     // The burst of 8 arrived no faster than the line allows: one character time apart, the
     // first one a whole character after the serve loop started (nothing arrives instantly).
-    assert!(dev.arrivals[0] >= line.byte_time_ns());
-    let gaps: Vec<u64> = dev.arrivals[..8].windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(dev.arrivals[0] >= line.byte_time());
+    let gaps: Vec<Nanos> = dev.arrivals[..8].windows(2).map(|w| w[1] - w[0]).collect();
     assert!(
-        gaps.iter().all(|&g| g >= line.byte_time_ns()),
+        gaps.iter().all(|&g| g >= line.byte_time()),
         "arrival gaps {gaps:?} shorter than {} ns",
-        line.byte_time_ns()
+        line.byte_time()
     );
 }
 
@@ -203,22 +204,22 @@ fn ports_and_ptys_are_not_inherited_by_child_processes() {
 
 /// Wants a look every `period_ns` and counts how often it is polled.
 struct Ticker {
-    period_ns: u64,
-    next: u64,
+    period_ns: Nanos,
+    next: Nanos,
     polls: u64,
-    last_now: u64,
+    last_now: Nanos,
 }
 
 impl ByteDevice for Ticker {
-    fn receive(&mut self, _now_ns: u64, _byte: u8) {}
-    fn poll(&mut self, now_ns: u64, _out: &mut Vec<u8>) {
+    fn receive(&mut self, _now_ns: Nanos, _byte: u8) {}
+    fn poll(&mut self, now_ns: Nanos, _out: &mut Vec<u8>) {
         self.polls += 1;
         self.last_now = now_ns;
         while self.next <= now_ns {
             self.next += self.period_ns;
         }
     }
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         Some(self.next)
     }
 }
@@ -233,10 +234,10 @@ fn deadlines_shorter_than_a_millisecond_are_slept_not_spun() {
     let flag = stop.clone();
     let thread = std::thread::spawn(move || {
         let mut dev = Ticker {
-            period_ns: 700_000,
-            next: 700_000,
+            period_ns: Nanos::new(700_000),
+            next: Nanos::new(700_000),
             polls: 0,
-            last_now: 0,
+            last_now: Nanos::ZERO,
         };
         serve(&mut dev, &pty, LineSettings::n81(115_200), &rx, &flag).unwrap();
         dev
@@ -305,11 +306,11 @@ struct Flood {
 }
 
 impl ByteDevice for Flood {
-    fn receive(&mut self, _now_ns: u64, _byte: u8) {}
-    fn poll(&mut self, _now_ns: u64, out: &mut Vec<u8>) {
+    fn receive(&mut self, _now_ns: Nanos, _byte: u8) {}
+    fn poll(&mut self, _now_ns: Nanos, out: &mut Vec<u8>) {
         out.resize(std::mem::take(&mut self.len), 0x55);
     }
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         None
     }
 }
@@ -357,22 +358,22 @@ struct Screen {
 }
 
 impl ByteDevice for Screen {
-    fn receive(&mut self, _now_ns: u64, _byte: u8) {}
-    fn poll(&mut self, _now_ns: u64, out: &mut Vec<u8>) {
+    fn receive(&mut self, _now_ns: Nanos, _byte: u8) {}
+    fn poll(&mut self, _now_ns: Nanos, out: &mut Vec<u8>) {
         if !self.out.is_empty() {
             self.sent.fetch_add(self.out.len(), Ordering::SeqCst);
             out.append(&mut self.out);
             let _ = self.heard.send("sent");
         }
     }
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         None
     }
-    fn output_lost(&mut self, _now_ns: u64) {
+    fn output_lost(&mut self, _now_ns: Nanos) {
         self.out.extend_from_slice(b"[whole screen]");
         let _ = self.heard.send("lost");
     }
-    fn port_opened(&mut self, _now_ns: u64) {
+    fn port_opened(&mut self, _now_ns: Nanos) {
         self.out.extend_from_slice(b"[whole screen]");
         let _ = self.heard.send("opened");
     }

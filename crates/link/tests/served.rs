@@ -7,7 +7,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use buslab_device::{ChangeLog, Changes, ReplayError};
+use buslab_device::{ChangeLog, Changes, Nanos, ReplayError};
 use buslab_link::{
     ByteDevice, ControlSocket, LineSettings, Persistent, Port, SerialLine, Serve, ServedError,
     journal,
@@ -41,16 +41,16 @@ impl Recorder {
 }
 
 impl ByteDevice for Recorder {
-    fn receive(&mut self, _now_ns: u64, byte: u8) {
+    fn receive(&mut self, _now_ns: Nanos, byte: u8) {
         self.push(&[byte]);
         if self.echo {
             self.acks.push(byte);
         }
     }
-    fn poll(&mut self, _now_ns: u64, out: &mut Vec<u8>) {
+    fn poll(&mut self, _now_ns: Nanos, out: &mut Vec<u8>) {
         out.append(&mut self.acks);
     }
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         None
     }
 }

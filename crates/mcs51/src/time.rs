@@ -4,6 +4,8 @@
 use core::fmt;
 use core::ops::{Add, Sub};
 
+use buslab_can::Nanos;
+
 /// Oscillator periods in one machine cycle.
 pub const CLOCKS_PER_CYCLE: u64 = 12;
 
@@ -81,19 +83,20 @@ impl Crystal {
         self.hz
     }
 
-    /// Nanoseconds from time 0 to `t` (rounded down).
-    pub const fn ns(self, t: Clocks) -> u64 {
+    /// Nanoseconds from time 0 to `t` (rounded down). With [`clocks_at_ns`](Self::clocks_at_ns),
+    /// the one conversion between the core's clock and a host's.
+    pub const fn ns(self, t: Clocks) -> Nanos {
         let ns = t.0 as u128 * 1_000_000_000 / self.hz as u128;
-        if ns > u64::MAX as u128 {
+        Nanos::new(if ns > u64::MAX as u128 {
             u64::MAX
         } else {
             ns as u64
-        }
+        })
     }
 
-    /// The first clock at or after `ns` nanoseconds.
-    pub const fn clocks_at_ns(self, ns: u64) -> Clocks {
-        let c = (ns as u128 * self.hz as u128).div_ceil(1_000_000_000);
+    /// The first clock at or after `ns`.
+    pub const fn clocks_at_ns(self, ns: Nanos) -> Clocks {
+        let c = (ns.get() as u128 * self.hz as u128).div_ceil(1_000_000_000);
         if c > u64::MAX as u128 {
             Clocks::NEVER
         } else {
@@ -131,9 +134,9 @@ mod tests {
         assert_eq!(xtal.timer1_reload(9600, true), Some(0xFA));
         assert_eq!(Crystal::MHZ_12.timer1_reload(9600, false), None);
         // One machine cycle is 1085.07 ns; a 9600-baud bit (1152 clocks) is 104166 ns.
-        assert_eq!(xtal.ns(Clocks::from_cycles(1)), 1085);
-        assert_eq!(xtal.ns(Clocks(1152)), 104_166);
-        assert_eq!(xtal.clocks_at_ns(104_167), Clocks(1153));
+        assert_eq!(xtal.ns(Clocks::from_cycles(1)), Nanos::new(1085));
+        assert_eq!(xtal.ns(Clocks(1152)), Nanos::new(104_166));
+        assert_eq!(xtal.clocks_at_ns(Nanos::new(104_167)), Clocks(1153));
         assert_eq!(
             xtal.clocks_at_ns(xtal.ns(Clocks(1152 * 9600))),
             Clocks(1152 * 9600)

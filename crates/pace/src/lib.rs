@@ -27,8 +27,8 @@ use std::time::Duration;
 pub struct Ticks(pub u64);
 
 impl Ticks {
-    fn saturating_sub(self, other: Ticks) -> u64 {
-        self.0.saturating_sub(other.0)
+    fn saturating_sub(self, other: Ticks) -> Ticks {
+        Ticks(self.0.saturating_sub(other.0))
     }
 }
 
@@ -64,14 +64,14 @@ impl Rate {
     }
 
     /// Whole ticks in `wall` (rounded down).
-    fn ticks_in(self, wall: Duration) -> u64 {
+    fn ticks_in(self, wall: Duration) -> Ticks {
         let ticks = wall.as_nanos() * self.per_kilosecond / NANOS_PER_KILOSECOND;
-        u64::try_from(ticks).unwrap_or(u64::MAX)
+        Ticks(u64::try_from(ticks).unwrap_or(u64::MAX))
     }
 
     /// The wall time `ticks` take (rounded up: the clock has reached them by then).
-    fn wall_of(self, ticks: u64) -> Duration {
-        let nanos = (ticks as u128 * NANOS_PER_KILOSECOND).div_ceil(self.per_kilosecond);
+    fn wall_of(self, ticks: Ticks) -> Duration {
+        let nanos = (ticks.0 as u128 * NANOS_PER_KILOSECOND).div_ceil(self.per_kilosecond);
         Duration::from_nanos(u64::try_from(nanos).unwrap_or(u64::MAX))
     }
 }
@@ -115,7 +115,7 @@ impl Pacer {
     /// The virtual time the clock reads at `wall` (earlier than the origin: the origin).
     pub fn ticks_at(&self, wall: Duration) -> Ticks {
         let since = wall.saturating_sub(self.origin_wall);
-        Ticks(self.origin.0.saturating_add(self.rate.ticks_in(since)))
+        Ticks(self.origin.0.saturating_add(self.rate.ticks_in(since).0))
     }
 
     /// The wall time at which the clock reaches `ticks` (the origin's for earlier ones).
@@ -125,12 +125,12 @@ impl Pacer {
     }
 
     /// How long `ticks` last on the wall clock.
-    pub fn wall_of(&self, ticks: u64) -> Duration {
+    pub fn wall_of(&self, ticks: Ticks) -> Duration {
         self.rate.wall_of(ticks)
     }
 
     /// How many ticks pass in `wall`.
-    pub fn ticks_in(&self, wall: Duration) -> u64 {
+    pub fn ticks_in(&self, wall: Duration) -> Ticks {
         self.rate.ticks_in(wall)
     }
 
@@ -142,7 +142,7 @@ impl Pacer {
     /// work, no more.
     pub fn plan(&mut self, wall: Duration, reached: Ticks, due: Option<Ticks>) -> Plan {
         let target = self.ticks_at(wall);
-        let credit = self.rate.ticks_in(self.max_credit);
+        let credit = self.rate.ticks_in(self.max_credit).0;
         let skipped = match due {
             Some(due) => {
                 let work_from = due.max(reached);
@@ -151,7 +151,7 @@ impl Pacer {
                     // The clock slips: from now on `wall` reads `limit`.
                     self.origin_wall = wall;
                     self.origin = Ticks(limit);
-                    let skipped = self.rate.wall_of(target.0 - limit);
+                    let skipped = self.rate.wall_of(Ticks(target.0 - limit));
                     self.skipped += skipped;
                     skipped
                 } else {

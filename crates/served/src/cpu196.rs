@@ -13,6 +13,7 @@ use buslab_cpu196::message::{FileMode, Message, Thread};
 use buslab_cpu196::pic::Peer;
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, Image};
+use buslab_device::Nanos;
 use buslab_link::fs::{open_regular, read_text_limited};
 use buslab_link::{Serve, Served};
 
@@ -50,7 +51,7 @@ pub fn spawn_board(options: BoardOptions) -> Result<Served<Board>, ServeError> {
         }
         None => Image::default(),
     };
-    let mut board = Board::new(image, options.inputs, 0);
+    let mut board = Board::new(image, options.inputs, Nanos::ZERO);
     board.set_peer(options.peer);
     if board.line().baud != options.baud {
         board.set_baud(options.baud);

@@ -22,7 +22,7 @@ use std::sync::mpsc::{self, Receiver, Sender};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use buslab_device::{ByteDevice, LineSettings, Persistent};
+use buslab_device::{ByteDevice, LineSettings, Nanos, Persistent};
 use buslab_link::ControlSocket;
 use buslab_link::fs::{read_limited, write_atomic};
 use buslab_link::{Serve, Served, ServedError};
@@ -30,13 +30,15 @@ use buslab_loader::MemoryImage;
 use buslab_ppc::{Activity, BAUD, PpcNode};
 use buslab_vbus::{Poster, VirtualBus};
 
-/// 19200 8N1: 10 bit-times per byte.
-const BYTE_NS: u64 = 1_000_000_000 * 10 / BAUD as u64;
+/// The terminal's line: 19200 8N1.
+const LINE: LineSettings = LineSettings::n81(BAUD);
+/// One character on it.
+const BYTE_NS: Nanos = LINE.byte_time();
 /// How often the terminal side looks for screen updates while idle.
-const POLL_NS: u64 = 20_000_000;
+const POLL_NS: Nanos = Nanos::from_millis(20);
 /// How often it looks for the bus thread's answer while one is asked for (it comes within a
 /// turn of the bus's loop; the line would stay idle until it is picked up).
-const ANSWER_POLL_NS: u64 = 1_000_000;
+const ANSWER_POLL_NS: Nanos = Nanos::from_millis(1);
 
 /// The terminal side of the PowerPC node.
 pub struct PpcTerminal {
@@ -55,8 +57,8 @@ pub struct PpcTerminal {
     redraw: bool,
     /// When the line has carried everything handed over so far (line pacing: the next update
     /// leaves once the line had the time for all its bytes after this).
-    line_free_at: u64,
-    now: u64,
+    line_free_at: Nanos,
+    now: Nanos,
 }
 
 impl PpcTerminal {
@@ -71,8 +73,8 @@ impl PpcTerminal {
             asked: Arc::new(AtomicBool::new(false)),
             updates: VecDeque::new(),
             redraw: false,
-            line_free_at: 0,
-            now: 0,
+            line_free_at: Nanos::ZERO,
+            now: Nanos::ZERO,
         }
     }
 
@@ -107,7 +109,7 @@ impl PpcTerminal {
 }
 
 impl ByteDevice for PpcTerminal {
-    fn receive(&mut self, _now_ns: u64, byte: u8) {
+    fn receive(&mut self, _now_ns: Nanos, byte: u8) {
         let node = self.node.clone();
         self.bus.post(move |bus| {
             if let Some(ppc) = bus.device_mut::<PpcNode>(&node) {
@@ -116,7 +118,7 @@ impl ByteDevice for PpcTerminal {
         });
     }
 
-    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>) {
+    fn poll(&mut self, now_ns: Nanos, out: &mut Vec<u8>) {
         self.now = now_ns;
         while let Ok(bytes) = self.screen.try_recv() {
             if bytes.is_empty() {
@@ -140,25 +142,24 @@ impl ByteDevice for PpcTerminal {
         self.ask();
     }
 
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         let poll = if self.asked.load(Ordering::SeqCst) {
             ANSWER_POLL_NS
         } else {
             POLL_NS
         };
-        let release = self
-            .updates
-            .front()
-            .map_or(u64::MAX, |front| self.line_free_at + line_time(front.len()));
+        let release = self.updates.front().map_or(Nanos::MAX, |front| {
+            self.line_free_at + line_time(front.len())
+        });
         Some(release.min(self.now + poll))
     }
 
-    fn output_lost(&mut self, _now_ns: u64) {
+    fn output_lost(&mut self, _now_ns: Nanos) {
         // What the terminal shows is no longer what the node's screen thinks it shows.
         self.redraw = true;
     }
 
-    fn port_opened(&mut self, _now_ns: u64) {
+    fn port_opened(&mut self, _now_ns: Nanos) {
         // A terminal opened late has seen nothing of the screen (or only what it threw away
         // on starting): it gets the whole screen, as Ctrl L would draw it.
         self.redraw = true;
@@ -166,8 +167,8 @@ impl ByteDevice for PpcTerminal {
 }
 
 /// The time `bytes` take on the line.
-fn line_time(bytes: usize) -> u64 {
-    bytes as u64 * BYTE_NS
+fn line_time(bytes: usize) -> Nanos {
+    BYTE_NS * bytes as u64
 }
 
 /// Serves the terminal of PowerPC node `node` on a pseudo-terminal (19200 8N1), linked at
@@ -183,7 +184,7 @@ pub fn serve_terminal(
             ppc.redraw();
         }
     });
-    Serve::new(PpcTerminal::new(node, bus), LineSettings::n81(BAUD))
+    Serve::new(PpcTerminal::new(node, bus), LINE)
         .name("monican")
         .link(link)
         .spawn()
@@ -572,10 +573,10 @@ mod tests {
 
     /// Polls at virtual times a second apart (the line has all the time it needs) until the
     /// terminal hands over bytes; each poll's bytes, as the pseudo-terminal gets them.
-    fn next_bytes(t: &mut PpcTerminal, now: &mut u64) -> Vec<u8> {
+    fn next_bytes(t: &mut PpcTerminal, now: &mut Nanos) -> Vec<u8> {
         let start = std::time::Instant::now();
         loop {
-            *now += 1_000_000_000;
+            *now += Nanos::from_secs(1);
             let mut out = Vec::new();
             t.poll(*now, &mut out);
             if !out.is_empty() {
@@ -595,7 +596,7 @@ mod tests {
     #[test]
     fn screen_updates_leave_whole_at_the_lines_pace() {
         let (_server, mut t) = terminal();
-        let mut now = 0;
+        let mut now = Nanos::ZERO;
         let first = next_bytes(&mut t, &mut now);
         assert!(
             first.starts_with(b"\x1b[0m\x1b[H\x1b[2J"),
@@ -613,7 +614,7 @@ mod tests {
             std::thread::sleep(Duration::from_millis(1));
         }
         let len = t.updates[0].len();
-        t.poll(now + line_time(len) - 1, &mut out);
+        t.poll(now + line_time(len) - Nanos::new(1), &mut out);
         assert!(out.is_empty(), "not before its last byte's time");
         t.poll(now + line_time(len), &mut out);
         assert_eq!(out.len(), len, "all of it at once");
@@ -624,7 +625,7 @@ mod tests {
     #[test]
     fn after_lost_output_the_whole_screen_is_sent_again() {
         let (_server, mut t) = terminal();
-        let mut now = 0;
+        let mut now = Nanos::ZERO;
         next_bytes(&mut t, &mut now);
         t.output_lost(now);
         let mut again = next_bytes(&mut t, &mut now);

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
+use buslab_device::Nanos;
 use buslab_link::fs::read_text_limited;
 use buslab_link::{Handle, LineHandler, Serve, Served, ServedError};
 use buslab_zelle::analog::{Source, SourceSpec};
@@ -93,7 +94,7 @@ impl ServedCell {
     /// Runs `work` on the cell in its serve thread at the current virtual time.
     pub fn with<T: Send + 'static>(
         &self,
-        work: impl FnOnce(&mut Cell, u64) -> T + Send + 'static,
+        work: impl FnOnce(&mut Cell, Nanos) -> T + Send + 'static,
     ) -> Result<T, ServedError> {
         self.served.with(work)
     }

@@ -658,7 +658,7 @@ impl Server {
     }
 
     fn bits_to_wall(&self, bits: u64) -> Duration {
-        self.pacer.wall_of(bits)
+        self.pacer.wall_of(Ticks(bits))
     }
 
     /// Where the bus has work: now while a frame is on the wire, else its next activity.

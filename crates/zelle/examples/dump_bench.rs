@@ -27,7 +27,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut client = Client::with_timeout(SerialLine::open(&path, LINE)?, Duration::from_secs(2));
     client.reset()?;
 
-    let line_rate = 1e9 / BYTE_NS as f64;
+    let line_rate = 1e9 / BYTE_NS.get() as f64;
     println!(
         "dump of {len} bytes of data RAM from the model on {} at {LINE}",
         path.display()

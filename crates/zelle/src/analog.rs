@@ -8,6 +8,8 @@ use std::f64::consts::TAU;
 use std::fmt;
 use std::path::PathBuf;
 
+use buslab_device::Nanos;
+
 /// Full scale of the A/D converter.
 pub const FULL_SCALE_VOLTS: f64 = 5.0;
 
@@ -47,11 +49,11 @@ pub enum Source {
     Ramp {
         from: f64,
         to: f64,
-        period_ns: u64,
+        period_ns: Nanos,
     },
     /// Recorded samples `(time, volts)`, sorted by time; each value holds until the next, the
     /// first before it starts and the last after it ends.
-    Replay(Vec<(u64, f64)>),
+    Replay(Vec<(Nanos, f64)>),
 }
 
 impl Default for Source {
@@ -63,7 +65,7 @@ impl Default for Source {
 
 impl Source {
     /// The voltage at virtual time `t_ns`.
-    pub fn volts(&self, t_ns: u64) -> f64 {
+    pub fn volts(&self, t_ns: Nanos) -> f64 {
         match self {
             Source::Constant(v) => *v,
             Source::Wave {
@@ -72,7 +74,7 @@ impl Source {
                 amplitude,
                 offset,
             } => {
-                let cycles = t_ns as f64 * 1e-9 * hz;
+                let cycles = t_ns.get() as f64 * 1e-9 * hz;
                 let phase = cycles.fract();
                 let unit = match shape {
                     Shape::Sine => (TAU * phase).sin(),
@@ -101,7 +103,7 @@ impl Source {
                 to,
                 period_ns,
             } => {
-                let phase = (t_ns % period_ns) as f64 / *period_ns as f64;
+                let phase = (t_ns % *period_ns).get() as f64 / period_ns.get() as f64;
                 from + (to - from) * phase
             }
             Source::Replay(points) => {
@@ -115,14 +117,14 @@ impl Source {
     }
 
     /// The converter's reading at `t_ns`.
-    pub fn code(&self, t_ns: u64) -> u8 {
+    pub fn code(&self, t_ns: Nanos) -> u8 {
         to_code(self.volts(t_ns))
     }
 
     /// Parses a replay table: lines of `seconds,volts` (a header line, blank lines and lines
     /// starting with `#` are skipped). Times must not go backwards.
     pub fn replay_from_csv(text: &str) -> Result<Source, SourceError> {
-        let mut points: Vec<(u64, f64)> = Vec::new();
+        let mut points: Vec<(Nanos, f64)> = Vec::new();
         for (n, line) in text.lines().enumerate() {
             let line_no = n + 1;
             let line = line.trim();
@@ -158,7 +160,7 @@ impl Source {
                     why: format!("time {t} is not a non-negative number of seconds"),
                 });
             }
-            let at = (t * 1e9).round() as u64;
+            let at = Nanos::new((t * 1e9).round() as u64);
             if points.last().is_some_and(|&(prev, _)| at < prev) {
                 return Err(SourceError::CsvLine {
                     line: line_no,
@@ -196,7 +198,7 @@ impl fmt::Display for Source {
                 from,
                 to,
                 period_ns,
-            } => write!(f, "ramp:{from}V:{to}V:{}s", *period_ns as f64 * 1e-9),
+            } => write!(f, "ramp:{from}V:{to}V:{}s", period_ns.get() as f64 * 1e-9),
             Source::Replay(points) => write!(f, "replay of {} points", points.len()),
         }
     }
@@ -285,7 +287,7 @@ impl SourceSpec {
                 [from, to, period] => {
                     let period_ns = parse_seconds(period)
                         .map_err(|_| bad(format!("`{period}` is not a period like 10s")))?;
-                    if period_ns == 0 {
+                    if period_ns == Nanos::ZERO {
                         return Err(bad("the ramp period must be longer than 0".into()));
                     }
                     ready(Source::Ramp {
@@ -354,7 +356,7 @@ fn parse_hz(s: &str) -> Result<f64, ()> {
     if hz < 0.0 { Err(()) } else { Ok(hz) }
 }
 
-fn parse_seconds(s: &str) -> Result<u64, ()> {
+fn parse_seconds(s: &str) -> Result<Nanos, ()> {
     let s = s.trim();
     let (num, scale) = if let Some(n) = s.strip_suffix("ms") {
         (n, 1e6)
@@ -367,7 +369,7 @@ fn parse_seconds(s: &str) -> Result<u64, ()> {
     if !(0.0..1e18).contains(&ns) {
         return Err(());
     }
-    Ok(ns.round() as u64)
+    Ok(Nanos::new(ns.round() as u64))
 }
 
 #[cfg(test)]
@@ -395,23 +397,23 @@ mod tests {
     #[test]
     fn sine_follows_its_parameters() {
         let s = ready("sine:1Hz:2V:2.5V");
-        assert_eq!(s.code(0), to_code(2.5));
-        assert_eq!(s.code(250_000_000), to_code(4.5)); // peak a quarter period in
-        assert_eq!(s.code(750_000_000), to_code(0.5));
-        assert_eq!(s.code(1_250_000_000), to_code(4.5)); // periodic
+        assert_eq!(s.code(Nanos::ZERO), to_code(2.5));
+        assert_eq!(s.code(Nanos::new(250_000_000)), to_code(4.5)); // peak a quarter period in
+        assert_eq!(s.code(Nanos::new(750_000_000)), to_code(0.5));
+        assert_eq!(s.code(Nanos::new(1_250_000_000)), to_code(4.5)); // periodic
     }
 
     #[test]
     fn triangle_square_and_ramp_shapes() {
         let t = ready("triangle:10Hz:1V:2V");
-        assert!((t.volts(25_000_000) - 3.0).abs() < 1e-9);
-        assert!((t.volts(75_000_000) - 1.0).abs() < 1e-9);
+        assert!((t.volts(Nanos::new(25_000_000)) - 3.0).abs() < 1e-9);
+        assert!((t.volts(Nanos::new(75_000_000)) - 1.0).abs() < 1e-9);
         let q = ready("square:10Hz:1V:2V");
-        assert_eq!(q.volts(10_000_000), 3.0);
-        assert_eq!(q.volts(60_000_000), 1.0);
+        assert_eq!(q.volts(Nanos::new(10_000_000)), 3.0);
+        assert_eq!(q.volts(Nanos::new(60_000_000)), 1.0);
         let r = ready("ramp:0V:5V:10s");
-        assert!((r.volts(5_000_000_000) - 2.5).abs() < 1e-9);
-        assert!((r.volts(12_000_000_000) - 1.0).abs() < 1e-9);
+        assert!((r.volts(Nanos::new(5_000_000_000)) - 2.5).abs() < 1e-9);
+        assert!((r.volts(Nanos::new(12_000_000_000)) - 1.0).abs() < 1e-9);
     }
 
     #[test]
@@ -481,10 +483,10 @@ mod tests {
     fn replay_holds_values_between_and_after_points() {
         let s =
             Source::replay_from_csv("time,volts\n0,1.0\n0.5,2.0\n# comment\n\n1.0;3V\n").unwrap();
-        assert_eq!(s.volts(0), 1.0);
-        assert_eq!(s.volts(499_999_999), 1.0);
-        assert_eq!(s.volts(500_000_000), 2.0);
-        assert_eq!(s.volts(9_000_000_000), 3.0);
+        assert_eq!(s.volts(Nanos::ZERO), 1.0);
+        assert_eq!(s.volts(Nanos::new(499_999_999)), 1.0);
+        assert_eq!(s.volts(Nanos::new(500_000_000)), 2.0);
+        assert_eq!(s.volts(Nanos::new(9_000_000_000)), 3.0);
     }
 
     #[test]
@@ -505,7 +507,7 @@ mod tests {
         );
         assert_eq!(
             Source::replay_from_csv("0;1;\n").unwrap(),
-            Source::Replay(vec![(0, 1.0)])
+            Source::Replay(vec![(Nanos::ZERO, 1.0)])
         );
         assert!(Source::replay_from_csv("5").is_err());
     }

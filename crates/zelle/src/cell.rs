@@ -16,8 +16,8 @@
 
 use std::collections::VecDeque;
 
-use buslab_device::{Changes, ReplayError};
-use buslab_mcs51::Port;
+use buslab_device::{Changes, Nanos, ReplayError};
+use buslab_mcs51::{Clocks, Port};
 
 use crate::analog::Source;
 use crate::board::Board;
@@ -163,7 +163,7 @@ impl Series {
     }
 
     /// Time from one cycle's start to the next: the conversions plus the wait.
-    fn period_ns(&self) -> u64 {
+    fn period_ns(&self) -> Nanos {
         u64::from(self.enabled) * CONVERSION_NS + u64::from(self.wait_ms) * MS
     }
 }
@@ -173,7 +173,7 @@ impl Series {
 enum Os {
     Off,
     KeyHold {
-        since: u64,
+        since: Nanos,
     },
     Ready,
     Args {
@@ -209,7 +209,7 @@ enum Os {
         series: Series,
         cycle: u16,
         slot: u8,
-        cycle_start: u64,
+        cycle_start: Nanos,
     },
     /// The user program has the CPU (the chip runs it).
     Program,
@@ -218,23 +218,23 @@ enum Os {
 /// The ZELLE cell. See the [crate docs](crate) and the module docs for the timing model.
 #[derive(Clone, Debug)]
 pub struct Cell {
-    now: u64,
+    now: Nanos,
     powered: bool,
     board: Board,
     chip: Chip,
     /// The last external RAM address the OS used (the data pointer; command 16 reads it).
     dptr: u16,
-    key_release_at: Option<u64>,
+    key_release_at: Option<Nanos>,
     rx: Option<u8>,
-    rx_deaf_until: u64,
+    rx_deaf_until: Nanos,
     setup_rule: SetupRule,
-    tx_free_at: u64,
-    tx: VecDeque<(u64, u8)>,
+    tx_free_at: Nanos,
+    tx: VecDeque<(Nanos, u8)>,
     /// Host bytes heard while a program runs, kept until the core is past their start bits:
     /// if the program stops before, the OS takes them.
-    program_rx: VecDeque<(u64, u8)>,
+    program_rx: VecDeque<(Nanos, u8)>,
     os: Os,
-    busy_until: u64,
+    busy_until: Nanos,
     stats: Stats,
 }
 
@@ -248,30 +248,30 @@ impl Cell {
     /// A cell with this battery-backed RAM, switched on at time 0 (so the stored mode resumes).
     pub fn new(ram: BatteryRam) -> Cell {
         let mut cell = Cell {
-            now: 0,
+            now: Nanos::ZERO,
             powered: false,
             board: Board::new(ram),
             chip: Chip::new(),
             dptr: 0,
             key_release_at: None,
             rx: None,
-            rx_deaf_until: 0,
+            rx_deaf_until: Nanos::ZERO,
             setup_rule: SetupRule::Lose,
-            tx_free_at: 0,
+            tx_free_at: Nanos::ZERO,
             tx: VecDeque::new(),
             program_rx: VecDeque::new(),
             os: Os::Off,
-            busy_until: 0,
+            busy_until: Nanos::ZERO,
             stats: Stats::default(),
         };
-        cell.power_on(0);
+        cell.power_on(Nanos::ZERO);
         cell
     }
 
     // ----- the line -------------------------------------------------------------------------
 
     /// A byte has fully arrived on RxD at `now` (its stop bits ended).
-    pub fn receive(&mut self, now: u64, byte: u8) {
+    pub fn receive(&mut self, now: Nanos, byte: u8) {
         let now = self.advance(now);
         if self.powered {
             // On RxD and INT0 from its start bit on, for a program's UART and "Inter".
@@ -286,7 +286,7 @@ impl Cell {
     }
 
     /// The OS's part of a received byte.
-    fn receive_os(&mut self, now: u64, byte: u8) {
+    fn receive_os(&mut self, now: Nanos, byte: u8) {
         match self.os {
             Os::Off | Os::KeyHold { .. } => {
                 self.stats.lost_off += 1;
@@ -326,7 +326,7 @@ impl Cell {
     }
 
     /// Advances to `now` and appends the bytes whose transmission has ended by then.
-    pub fn poll(&mut self, now: u64, out: &mut Vec<u8>) {
+    pub fn poll(&mut self, now: Nanos, out: &mut Vec<u8>) {
         let now = self.advance(now);
         while let Some(&(done, byte)) = self.tx.front() {
             if done > now {
@@ -338,7 +338,7 @@ impl Cell {
     }
 
     /// When [`poll`](Self::poll) must be called next even without input.
-    pub fn next_deadline(&self) -> Option<u64> {
+    pub fn next_deadline(&self) -> Option<Nanos> {
         let chip = matches!(self.os, Os::Program)
             .then(|| self.chip.next_deadline(self.now, PROGRAM_POLL_NS))
             .flatten();
@@ -356,7 +356,7 @@ impl Cell {
 
     /// Switches the cell on. The OS starts at address 0: it times the START key if held, then
     /// resumes the mode in the start byte.
-    pub fn power_on(&mut self, now: u64) {
+    pub fn power_on(&mut self, now: Nanos) {
         let now = self.advance(now);
         if self.powered {
             return;
@@ -369,7 +369,7 @@ impl Cell {
 
     /// Switches the cell off: bytes still being sent are cut, received bytes are lost, a
     /// running program stops, the battery-backed RAM stays.
-    pub fn power_off(&mut self, now: u64) {
+    pub fn power_off(&mut self, now: Nanos) {
         let now = self.advance_exactly(now);
         if !self.powered {
             return;
@@ -383,7 +383,7 @@ impl Cell {
     }
 
     /// The RESET key: like power-on, but internal RAM keeps its contents.
-    pub fn reset(&mut self, now: u64) {
+    pub fn reset(&mut self, now: Nanos) {
         let now = self.advance_exactly(now);
         if self.powered {
             self.chip.stop(ProgramEnd::Reset);
@@ -395,7 +395,7 @@ impl Cell {
     }
 
     /// Presses the START key (and keeps it down).
-    pub fn key_down(&mut self, now: u64) {
+    pub fn key_down(&mut self, now: Nanos) {
         let now = self.advance(now);
         self.key_release_at = None;
         if self.board.key_down {
@@ -411,13 +411,13 @@ impl Cell {
     }
 
     /// Releases the START key.
-    pub fn key_up(&mut self, now: u64) {
+    pub fn key_up(&mut self, now: Nanos) {
         let now = self.advance(now);
         self.release_key(now);
     }
 
     /// Presses the START key now and releases it `hold_ns` later.
-    pub fn press_key_for(&mut self, now: u64, hold_ns: u64) {
+    pub fn press_key_for(&mut self, now: Nanos, hold_ns: Nanos) {
         self.key_down(now);
         self.key_release_at = Some(self.now + hold_ns);
     }
@@ -504,7 +504,7 @@ impl Cell {
     // ----- looking inside -------------------------------------------------------------------
 
     /// The time the model has advanced to.
-    pub fn now(&self) -> u64 {
+    pub fn now(&self) -> Nanos {
         self.now
     }
 
@@ -640,17 +640,17 @@ impl Cell {
 
     /// Runs every event due up to `to` (OS wake-ups, key release, key-hold timeout, a program
     /// on the core, one character time behind) in order, then returns the time the model is at.
-    fn advance(&mut self, to: u64) -> u64 {
+    fn advance(&mut self, to: Nanos) -> Nanos {
         self.advance_lagging(to, LAG_CLOCKS)
     }
 
     /// [`advance`](Self::advance) with the core brought all the way to `to` (before RESET or
     /// power-off: the program runs up to that instant).
-    fn advance_exactly(&mut self, to: u64) -> u64 {
-        self.advance_lagging(to, 0)
+    fn advance_exactly(&mut self, to: Nanos) -> Nanos {
+        self.advance_lagging(to, Clocks::ZERO)
     }
 
-    fn advance_lagging(&mut self, to: u64, lag: u64) -> u64 {
+    fn advance_lagging(&mut self, to: Nanos, lag: Clocks) -> Nanos {
         let to = to.max(self.now);
         loop {
             let next = self.next_os_event().filter(|&t| t <= to);
@@ -684,7 +684,7 @@ impl Cell {
     }
 
     /// The OS's own next wake-up (a set-up, conversion or reply ending, the key).
-    fn next_os_event(&self) -> Option<u64> {
+    fn next_os_event(&self) -> Option<Nanos> {
         let program = matches!(self.os, Os::Program);
         let busy =
             (self.powered && !program && self.busy_until > self.now).then_some(self.busy_until);
@@ -700,7 +700,7 @@ impl Cell {
 
     /// The program stopped at `at` (up to a character time ago): the OS takes over from that
     /// instant, and takes the host bytes whose start bits came after it.
-    fn program_ended(&mut self, at: u64, why: ProgramEnd) {
+    fn program_ended(&mut self, at: Nanos, why: ProgramEnd) {
         self.now = at;
         self.busy_until = at;
         self.tx_free_at = self.tx_free_at.max(at);
@@ -726,7 +726,7 @@ impl Cell {
         }
     }
 
-    fn release_key(&mut self, now: u64) {
+    fn release_key(&mut self, now: Nanos) {
         self.key_release_at = None;
         if !self.board.key_down {
             return;
@@ -740,9 +740,9 @@ impl Cell {
 
     /// Start of the OS after power-on, reset or a jump to 0000h: either time the START key
     /// or resume the stored mode.
-    fn restart(&mut self, now: u64) {
+    fn restart(&mut self, now: Nanos) {
         self.rx = None;
-        self.rx_deaf_until = 0;
+        self.rx_deaf_until = Nanos::ZERO;
         self.busy_until = now;
         self.tx_free_at = self.tx_free_at.min(now);
         if self.board.key_down {
@@ -752,7 +752,7 @@ impl Cell {
         }
     }
 
-    fn end_key_hold(&mut self, now: u64, held: u64) {
+    fn end_key_hold(&mut self, now: Nanos, held: Nanos) {
         let start = if held >= KEY_HOLD_READY_NS {
             Some(START_READY)
         } else if held >= KEY_HOLD_PROGRAM_NS {
@@ -769,7 +769,7 @@ impl Cell {
     }
 
     /// Branches on the start byte.
-    fn resume(&mut self, now: u64) {
+    fn resume(&mut self, now: Nanos) {
         self.dptr = START_BYTE;
         match self.mode() {
             Mode::Ready => self.os = Os::Ready,
@@ -779,14 +779,14 @@ impl Cell {
     }
 
     /// The OS calls the program at 0400h.
-    fn start_program(&mut self, now: u64) {
+    fn start_program(&mut self, now: Nanos) {
         self.os = Os::Program;
         self.program_rx.clear();
         self.chip.start(now);
     }
 
     /// The interrupt service routine: start byte 0, OS restarted with a fresh stack.
-    fn interrupt(&mut self, now: u64) {
+    fn interrupt(&mut self, now: Nanos) {
         self.set_start_byte(START_READY);
         self.rx = None;
         self.busy_until = now;
@@ -823,12 +823,12 @@ impl Cell {
     }
 
     /// Lets the OS run at `now` until it waits for input or is busy past `now`.
-    fn run_os(&mut self, now: u64) {
+    fn run_os(&mut self, now: Nanos) {
         while self.powered && now >= self.busy_until && self.step(now) {}
     }
 
     /// One OS action at `now`; false when it is waiting for input.
-    fn step(&mut self, now: u64) -> bool {
+    fn step(&mut self, now: Nanos) -> bool {
         match std::mem::replace(&mut self.os, Os::Off) {
             Os::Off => false,
             os @ Os::KeyHold { .. } => {
@@ -987,7 +987,7 @@ impl Cell {
     }
 
     /// A command byte arrived in the ready state.
-    fn dispatch(&mut self, now: u64, byte: u8) {
+    fn dispatch(&mut self, now: Nanos, byte: u8) {
         let Some(cmd) = Command::from_byte(byte) else {
             self.stats.ignored += 1;
             return;
@@ -1045,7 +1045,7 @@ impl Cell {
     }
 
     /// A command's argument bytes are complete.
-    fn execute(&mut self, now: u64, cmd: Command, args: [u8; 3]) {
+    fn execute(&mut self, now: Nanos, cmd: Command, args: [u8; 3]) {
         match cmd {
             // Channel 0 ends the command without a reading, as it ends command 4's loop.
             Command::Analog if args[0] == 0 => {}
@@ -1083,7 +1083,7 @@ impl Cell {
 
     /// Sends one byte the way the OS's send routine does: start at once (the line is free,
     /// since the routine always waits for the previous byte), then wait until it has left.
-    fn send(&mut self, now: u64, byte: u8) {
+    fn send(&mut self, now: Nanos, byte: u8) {
         let start = now.max(self.tx_free_at);
         let done = start + BYTE_NS;
         self.tx.push_back((done, byte));
@@ -1096,14 +1096,14 @@ impl Cell {
     /// function ends within the time of two stop bits": the conversion happens while the
     /// channel byte's stop bits pass, so the reply starts as soon as the byte is in, and a host
     /// may send command 4's channel bytes back to back.
-    fn convert_and_reply(&mut self, now: u64, channel: u8) {
+    fn convert_and_reply(&mut self, now: Nanos, channel: u8) {
         let byte = self.sample(channel.wrapping_sub(1) & 3, now);
         self.send(now, byte);
     }
 
     /// Reads converter input `input` (0..3) sampled at `at`. The converter's lines are P1.0..3;
     /// after a conversion they are all high again.
-    fn sample(&mut self, input: u8, at: u64) -> u8 {
+    fn sample(&mut self, input: u8, at: Nanos) -> u8 {
         self.release_converter_lines();
         self.board.analog[usize::from(input)].code(at)
     }
@@ -1138,7 +1138,7 @@ impl Cell {
         iram[usize::from(COUNT_LOW_REGISTER)] = low;
     }
 
-    fn start_block(&mut self, now: u64, series: Series) {
+    fn start_block(&mut self, now: Nanos, series: Series) {
         if series.cycles == 0 {
             self.os = Os::MeasureWait { series };
         } else if series.enabled == 0 {
@@ -1159,11 +1159,11 @@ impl Cell {
     /// The conversion of `slot` in `cycle` has ended at `now`: store it and go on.
     fn finish_conversion(
         &mut self,
-        now: u64,
+        now: Nanos,
         series: Series,
         cycle: u16,
         slot: u8,
-        cycle_start: u64,
+        cycle_start: Nanos,
     ) {
         let count = self.value_count();
         let addr = u32::from(DATA_AREA) + u32::from(PARAMS_LEN) + u32::from(count);

@@ -22,6 +22,8 @@
 
 use std::collections::VecDeque;
 
+use buslab_device::Nanos;
+
 use buslab_mcs51::sfr::{self, ie, scon, tcon};
 use buslab_mcs51::{
     Clocks, Event, Instruction, LineFrame, Mcs51, Pin, Port, Registers, SerialFrame, SerialMode,
@@ -40,9 +42,9 @@ pub(crate) const BIT_CLOCKS: u64 = 1152;
 const CYCLE: u64 = 12;
 /// How far the core runs behind the cell: one 8N2 character and the longest instruction (the
 /// core stops at the first instruction boundary at or after its limit).
-pub(crate) const LAG_CLOCKS: u64 = 11 * BIT_CLOCKS + 4 * CYCLE;
+pub(crate) const LAG_CLOCKS: Clocks = Clocks(11 * BIT_CLOCKS + 4 * CYCLE);
 /// When "Inter" knows a byte: the middle of its first stop bit, as the UART would.
-const BYTE_KNOWN: u64 = 19 * BIT_CLOCKS / 2;
+const BYTE_KNOWN: Clocks = Clocks(19 * BIT_CLOCKS / 2);
 /// Host bytes kept for "Inter" to look at; older ones count as the program's.
 const MAX_FRAMES: usize = 16;
 /// A frame the host (at 9600 baud) reads: its bit time within 2 % of 9600 baud's.
@@ -109,7 +111,7 @@ pub struct SfrSnapshot {
 /// The CPU of a program at one instant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CpuSnapshot {
-    pub at_ns: u64,
+    pub at_ns: Nanos,
     pub registers: Registers,
     pub sfr: SfrSnapshot,
     /// Instructions the program ran since it started.
@@ -129,19 +131,19 @@ pub struct ProgramStop {
 pub enum TraceEvent {
     /// An instruction about to run, with A, PSW and SP before it.
     Instruction {
-        at_ns: u64,
+        at_ns: Nanos,
         instruction: Instruction,
         a: u8,
         psw: u8,
         sp: u8,
     },
     /// The core took an interrupt: its routine starts at `vector`.
-    Interrupt { at_ns: u64, vector: u16 },
+    Interrupt { at_ns: Nanos, vector: u16 },
     /// The program called into the OS (`routine`: Sende, Empf, Inter, ...).
-    Os { at_ns: u64, routine: &'static str },
+    Os { at_ns: Nanos, routine: &'static str },
     /// Instructions that ran untraced (beyond the limit per second, or while the queue was
     /// full), up to `until_ns`.
-    Skipped { instructions: u64, until_ns: u64 },
+    Skipped { instructions: u64, until_ns: Nanos },
 }
 
 /// What the chip counts.
@@ -162,17 +164,17 @@ enum Run {
     Off,
     /// The OS calls the program at `at`.
     Starting {
-        at: u64,
+        at: Clocks,
     },
     Running,
     /// Inside an OS routine: time passes (no instructions) until `until`, then the program
     /// runs on.
     Busy {
-        until: u64,
+        until: Clocks,
     },
     /// "Inter" waits until `until` for a byte to be complete.
     Inter {
-        until: u64,
+        until: Clocks,
     },
     /// Stopped for `why`; the OS takes over once the UART's frame in progress has left.
     Draining {
@@ -183,7 +185,7 @@ enum Run {
 /// A host byte on RxD: its start bit's time (clocks) and value.
 #[derive(Clone, Copy, Debug)]
 struct RxFrame {
-    start: u64,
+    start: Clocks,
     byte: u8,
 }
 
@@ -293,9 +295,9 @@ impl Chip {
     }
 
     /// The OS calls the program at `at_ns` (the core gets there one character later).
-    pub fn start(&mut self, at_ns: u64) {
+    pub fn start(&mut self, at_ns: Nanos) {
         self.run = Run::Starting {
-            at: CRYSTAL.clocks_at_ns(at_ns).0,
+            at: CRYSTAL.clocks_at_ns(at_ns),
         };
     }
 
@@ -328,7 +330,7 @@ impl Chip {
     }
 
     /// Where the core's time is, in the cell's nanoseconds.
-    pub fn now_ns(&self) -> u64 {
+    pub fn now_ns(&self) -> Nanos {
         CRYSTAL.ns(self.core.now())
     }
 
@@ -336,7 +338,7 @@ impl Chip {
 
     /// A host byte arrived at `arrival_ns` (its stop bits ended): it is put on RxD and INT0
     /// from its start bit on.
-    pub fn announce_byte(&mut self, arrival_ns: u64, byte: u8) {
+    pub fn announce_byte(&mut self, arrival_ns: Nanos, byte: u8) {
         let start = CRYSTAL
             .clocks_at_ns(arrival_ns.saturating_sub(BYTE_NS))
             .max(self.core.now());
@@ -365,17 +367,14 @@ impl Chip {
                 }
             }
         }
-        self.frames.push_back(RxFrame {
-            start: start.0,
-            byte,
-        });
+        self.frames.push_back(RxFrame { start, byte });
         while self.frames.len() > MAX_FRAMES {
             self.frames.pop_front();
         }
     }
 
     /// The START key (INT1, low while pressed) from `at_ns` on.
-    pub fn set_key(&mut self, at_ns: u64, down: bool) {
+    pub fn set_key(&mut self, at_ns: Nanos, down: bool) {
         let at = CRYSTAL.clocks_at_ns(at_ns);
         if self.core.set_pin(at, Pin::INT1, !down).is_err() {
             self.stats.lost_inputs += 1;
@@ -384,7 +383,7 @@ impl Chip {
 
     /// Port 1 pins pulled low from outside (bit set), from `at_ns` on. P1.3 is also the
     /// converter's output: low if either pulls it.
-    pub fn set_p1_pulls(&mut self, at_ns: u64, mask: u8, converter_out: bool) {
+    pub fn set_p1_pulls(&mut self, at_ns: Nanos, mask: u8, converter_out: bool) {
         let at = CRYSTAL.clocks_at_ns(at_ns);
         let levels = !mask & !line::DO | u8::from(converter_out && mask & line::DO == 0) << 3;
         if self.core.set_port(at, Port::P1, levels).is_err() {
@@ -393,7 +392,7 @@ impl Chip {
     }
 
     /// P2.6 pulled low from outside, from `at_ns` on.
-    pub fn set_p26_pull(&mut self, at_ns: u64, low: bool) {
+    pub fn set_p26_pull(&mut self, at_ns: Nanos, low: bool) {
         let at = CRYSTAL.clocks_at_ns(at_ns);
         let pin = Pin::new(Port::P2, 6).expect("bit 6");
         if self.core.set_pin(at, pin, !low).is_err() {
@@ -459,10 +458,10 @@ impl Chip {
     }
 
     /// Where an untraced stretch must end: the next second's start.
-    fn next_trace_window(&self) -> u64 {
+    fn next_trace_window(&self) -> Clocks {
         match &self.trace {
-            Some(t) => (t.window + 1) * u64::from(CRYSTAL.hz()),
-            None => u64::MAX,
+            Some(t) => Clocks((t.window + 1) * u64::from(CRYSTAL.hz())),
+            None => Clocks::NEVER,
         }
     }
 
@@ -474,11 +473,11 @@ impl Chip {
     pub fn advance(
         &mut self,
         board: &mut Board,
-        now_ns: u64,
-        lag: u64,
-        tx: &mut VecDeque<(u64, u8)>,
-    ) -> Option<(u64, ProgramEnd)> {
-        let target = CRYSTAL.clocks_at_ns(now_ns).0.saturating_sub(lag);
+        now_ns: Nanos,
+        lag: Clocks,
+        tx: &mut VecDeque<(Nanos, u8)>,
+    ) -> Option<(Nanos, ProgramEnd)> {
+        let target = CRYSTAL.clocks_at_ns(now_ns) - lag;
         loop {
             match self.run {
                 Run::Off => {
@@ -486,13 +485,13 @@ impl Chip {
                     return None;
                 }
                 Run::Starting { at } => {
-                    if !self.stall_to(board, at.min(target), tx) || self.core.now().0 < at {
+                    if !self.stall_to(board, at.min(target), tx) || self.core.now() < at {
                         return None;
                     }
                     self.begin();
                 }
                 Run::Busy { until } => {
-                    if !self.stall_to(board, until.min(target), tx) || self.core.now().0 < until {
+                    if !self.stall_to(board, until.min(target), tx) || self.core.now() < until {
                         return None;
                     }
                     self.run = Run::Running;
@@ -500,7 +499,7 @@ impl Chip {
                 Run::Inter { until } => {
                     // Reaching the target before `until` is not reaching `until`: "Inter"
                     // would find its byte still on the line and wait again, for ever.
-                    if !self.stall_to(board, until.min(target), tx) || self.core.now().0 < until {
+                    if !self.stall_to(board, until.min(target), tx) || self.core.now() < until {
                         return None;
                     }
                     self.inter();
@@ -509,22 +508,22 @@ impl Chip {
                     if !self.core.transmitting() {
                         return Some(self.finish(why));
                     }
-                    if self.core.now().0 >= target {
+                    if self.core.now() >= target {
                         return None;
                     }
-                    if self.core.stall(Clocks(target)) == Stop::Events {
+                    if self.core.stall(target) == Stop::Events {
                         self.handle_events(board, tx);
                     }
                 }
                 Run::Running => {
-                    if self.core.now().0 >= target {
+                    if self.core.now() >= target {
                         return None;
                     }
                     let stop = if self.tracing_now() {
                         self.traced_step(board, target)
                     } else {
                         let until = target.min(self.next_trace_window());
-                        self.core.run(board, Clocks(until))
+                        self.core.run(board, until)
                     };
                     match stop {
                         Stop::Limit => {}
@@ -538,24 +537,29 @@ impl Chip {
     }
 
     /// Stalls the core to `until`, taking its events. True when it got there.
-    fn stall_to(&mut self, board: &mut Board, until: u64, tx: &mut VecDeque<(u64, u8)>) -> bool {
+    fn stall_to(
+        &mut self,
+        board: &mut Board,
+        until: Clocks,
+        tx: &mut VecDeque<(Nanos, u8)>,
+    ) -> bool {
         loop {
-            match self.core.stall(Clocks(until)) {
+            match self.core.stall(until) {
                 Stop::Events => self.handle_events(board, tx),
-                _ => return self.core.now().0 >= until,
+                _ => return self.core.now() >= until,
             }
         }
     }
 
     /// One instruction, traced.
-    fn traced_step(&mut self, board: &mut Board, target: u64) -> Stop {
+    fn traced_step(&mut self, board: &mut Board, target: Clocks) -> Stop {
         let pc = self.core.pc();
         let at_ns = self.now_ns();
         let before = self.core.instructions();
         let registers = self.core.registers();
         let instruction = Instruction::at(board, pc);
-        let until = (self.core.now().0 + 1).min(target);
-        let stop = self.core.run(board, Clocks(until));
+        let until = (self.core.now() + Clocks(1)).min(target);
+        let stop = self.core.run(board, until);
         if self.core.instructions() > before {
             self.trace(TraceEvent::Instruction {
                 at_ns,
@@ -573,7 +577,7 @@ impl Chip {
         stop
     }
 
-    fn handle_events(&mut self, board: &mut Board, tx: &mut VecDeque<(u64, u8)>) {
+    fn handle_events(&mut self, board: &mut Board, tx: &mut VecDeque<(Nanos, u8)>) {
         while let Some(event) = self.core.poll_event() {
             match event {
                 Event::Serial(frame) => {
@@ -636,7 +640,7 @@ impl Chip {
         let [high, low] = rom::PROGRAM_RETURN.to_be_bytes();
         self.core.push(low);
         self.core.push(high);
-        let now = self.core.now().0;
+        let now = self.core.now();
         self.frames.retain(|f| f.start >= now);
         self.started_instructions = self.core.instructions();
         self.run = Run::Running;
@@ -644,9 +648,9 @@ impl Chip {
 
     /// The core stopped at `pc` in the OS area: do what the OS does there.
     fn trap(&mut self, pc: u16) {
-        let now = self.core.now().0;
+        let now = self.core.now();
         let busy = |n: u64| Run::Busy {
-            until: now + n * CYCLE,
+            until: now + Clocks::from_cycles(n),
         };
         let name = match pc {
             rom::INTER => "Inter",
@@ -715,7 +719,7 @@ impl Chip {
 
     /// "Inter", at its entry or after waiting for a byte.
     fn inter(&mut self) {
-        let now = self.core.now().0;
+        let now = self.core.now();
         let seen = || self.frames.iter().filter(|f| f.start <= now);
         let known = seen().map(|f| f.start + BYTE_KNOWN).max();
         match known {
@@ -739,7 +743,7 @@ impl Chip {
         self.clear(sfr::TCON, tcon::IE0);
         self.core.reti();
         self.run = Run::Busy {
-            until: now + cycles::INTER_RETURN * CYCLE,
+            until: now + Clocks::from_cycles(cycles::INTER_RETURN),
         };
     }
 
@@ -759,7 +763,7 @@ impl Chip {
         self.run = Run::Draining { why };
     }
 
-    fn finish(&mut self, why: ProgramEnd) -> (u64, ProgramEnd) {
+    fn finish(&mut self, why: ProgramEnd) -> (Nanos, ProgramEnd) {
         // The OS starts over: its UART set up again, whatever the program made of it.
         self.os_serial_setup();
         self.run = Run::Off;
@@ -810,7 +814,7 @@ impl Chip {
 
     /// When the cell must next run the chip, given its time `now_ns`: often while a program
     /// runs (its output is due when it has run), never while it sleeps in power-down.
-    pub fn next_deadline(&self, now_ns: u64, quantum_ns: u64) -> Option<u64> {
+    pub fn next_deadline(&self, now_ns: Nanos, quantum_ns: Nanos) -> Option<Nanos> {
         match self.run {
             Run::Off => None,
             Run::Running if self.core.is_powered_down() => None,

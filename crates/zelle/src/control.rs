@@ -14,6 +14,8 @@
 //! save                                    write the state file now
 //! ```
 
+use buslab_device::Nanos;
+
 use crate::analog::{SourceError, SourceSpec};
 pub use crate::number::{NumberError, parse_duration_ns, parse_number, parse_number_in};
 use crate::{Activity, Cell, view};
@@ -26,7 +28,7 @@ pub const HELP: &str = "key press DURATION | key down | key up | power off | pow
 /// One control line, parsed.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ControlCommand {
-    KeyPress { hold_ns: u64 },
+    KeyPress { hold_ns: Nanos },
     KeyDown,
     KeyUp,
     PowerOff,
@@ -72,7 +74,7 @@ impl ControlCommand {
                     .ok_or_else(|| bad("the hold time must look like 1.2s or 500ms"))?,
             },
             ["key", "press"] => KeyPress {
-                hold_ns: 200_000_000,
+                hold_ns: Nanos::from_millis(200),
             },
             ["key", "down"] => KeyDown,
             ["key", "up"] => KeyUp,
@@ -124,12 +126,12 @@ impl ControlCommand {
 
 /// Applies `cmd` to `cell` at `now` and says what happened. A [`SourceSpec::CsvFile`] must be
 /// loaded by the caller first; [`ControlCommand::Save`] is the caller's to do.
-pub fn apply(cell: &mut Cell, now: u64, cmd: &ControlCommand) -> String {
+pub fn apply(cell: &mut Cell, now: Nanos, cmd: &ControlCommand) -> String {
     use ControlCommand::*;
     match cmd {
         KeyPress { hold_ns } => {
             cell.press_key_for(now, *hold_ns);
-            format!("START pressed for {:.3} s", *hold_ns as f64 * 1e-9)
+            format!("START pressed for {:.3} s", hold_ns.get() as f64 * 1e-9)
         }
         KeyDown => {
             cell.key_down(now);
@@ -231,7 +233,7 @@ mod tests {
         assert_eq!(
             parse("key press 1.2s"),
             ControlCommand::KeyPress {
-                hold_ns: 1_200_000_000
+                hold_ns: Nanos::new(1_200_000_000)
             }
         );
         assert_eq!(parse("  power off "), ControlCommand::PowerOff);
@@ -300,12 +302,12 @@ mod tests {
         let mut cell = Cell::default();
         let mut out = Vec::new();
         assert_eq!(
-            apply(&mut cell, 0, &parse("cpu")),
+            apply(&mut cell, Nanos::ZERO, &parse("cpu")),
             "no program has run since the model started"
         );
         // MOV A,#55h; MOV R3,#0AAh; SJMP $
         cell.write_ram(crate::PROGRAM_AREA, &[0x74, 0x55, 0x7B, 0xAA, 0x80, 0xFE]);
-        let ms = 1_000_000;
+        let ms = Nanos::from_millis(1);
         cell.receive(ms, 6);
         cell.poll(20 * ms, &mut out);
         let running = apply(&mut cell, 20 * ms, &parse("cpu"));
@@ -329,10 +331,10 @@ mod tests {
     fn power_cycle_resumes_the_stored_mode() {
         let mut cell = Cell::default();
         cell.write_ram(crate::START_BYTE, &[129]);
-        let out = apply(&mut cell, 1_000, &parse("power cycle"));
+        let out = apply(&mut cell, Nanos::new(1_000), &parse("power cycle"));
         assert!(out.contains("waiting for START"), "{out}");
         assert_eq!(cell.mode(), Mode::Measure);
-        apply(&mut cell, 2_000, &parse("analog 3 4V"));
+        apply(&mut cell, Nanos::new(2_000), &parse("analog 3 4V"));
         assert_eq!(cell.analog(3), Some(&Source::Constant(4.0)));
     }
 }

@@ -19,6 +19,8 @@
 //! The OS's own readings (commands 4 and 7, series) use the same inputs and scale but are done
 //! by the model directly: they leave P1.0..3 high, as the seed says.
 
+use buslab_device::Nanos;
+
 use crate::analog::{Source, to_code};
 
 /// Port 1 bits of the converter's lines.
@@ -69,7 +71,7 @@ impl Converter {
 
     /// Port 1's pins became `pins` at `at_ns` (a program's write); `inputs` feed the channels.
     /// Returns DO's new level if it changed.
-    pub fn pins_changed(&mut self, pins: u8, at_ns: u64, inputs: &[Source; 4]) -> Option<bool> {
+    pub fn pins_changed(&mut self, pins: u8, at_ns: Nanos, inputs: &[Source; 4]) -> Option<bool> {
         let before = self.data_out;
         let was = self.lines;
         self.lines = pins & (line::CS | line::CLK | line::DI);
@@ -108,7 +110,7 @@ impl Converter {
         };
     }
 
-    fn falling(&mut self, at_ns: u64, inputs: &[Source; 4]) {
+    fn falling(&mut self, at_ns: Nanos, inputs: &[Source; 4]) {
         match self.state {
             State::Settling { bits } => {
                 let value = sample(bits, at_ns, inputs);
@@ -137,7 +139,7 @@ impl Converter {
 }
 
 /// The reading for address `bits` (SGL/DIF, ODD/SIGN, SELECT) at `at_ns`.
-fn sample(bits: u8, at_ns: u64, inputs: &[Source; 4]) -> u8 {
+fn sample(bits: u8, at_ns: Nanos, inputs: &[Source; 4]) -> u8 {
     let single = bits & 0b100 != 0;
     let odd = usize::from(bits & 0b010 != 0);
     let select = usize::from(bits & 0b001 != 0);
@@ -157,11 +159,11 @@ mod tests {
     /// Clocks a whole exchange for `channel` (1..4, single-ended) and reads DO as a program
     /// would after each falling edge: the leading zero, 8 bits MSB first, 7 bits LSB first.
     fn exchange(c: &mut Converter, inputs: &[Source; 4], address: [bool; 4]) -> Vec<bool> {
-        let mut t = 0;
+        let mut t = Nanos::ZERO;
         let mut pins = line::CS | line::CLK | line::DI | line::DO;
         let mut set = |c: &mut Converter, p: u8| {
             pins = p;
-            t += 1000;
+            t += Nanos::new(1000);
             c.pins_changed(pins, t, inputs);
         };
         set(c, line::DI | line::DO); // select, CLK low
@@ -225,7 +227,7 @@ mod tests {
         assert_eq!(value, to_code(2.5));
         // Clocking with /CS high changes nothing.
         for p in [line::CS, line::CS | line::CLK, line::CS] {
-            assert_eq!(c.pins_changed(p | line::DO, 0, &inputs), None);
+            assert_eq!(c.pins_changed(p | line::DO, Nanos::ZERO, &inputs), None);
         }
     }
 }

@@ -1,21 +1,21 @@
 //! The cell as a [`ByteDevice`] the link crate paces to the wall clock, and as a
 //! [`Persistent`] device whose battery-backed RAM is kept in its state file.
 
-use buslab_device::{ByteDevice, Changes, LineSettings, Persistent, ReplayError, SimPort};
+use buslab_device::{ByteDevice, Changes, LineSettings, Nanos, Persistent, ReplayError, SimPort};
 
 use crate::Cell;
 use crate::timing::LINE;
 
 impl ByteDevice for Cell {
-    fn receive(&mut self, now_ns: u64, byte: u8) {
+    fn receive(&mut self, now_ns: Nanos, byte: u8) {
         Cell::receive(self, now_ns, byte);
     }
 
-    fn poll(&mut self, now_ns: u64, out: &mut Vec<u8>) {
+    fn poll(&mut self, now_ns: Nanos, out: &mut Vec<u8>) {
         Cell::poll(self, now_ns, out);
     }
 
-    fn next_deadline(&self) -> Option<u64> {
+    fn next_deadline(&self) -> Option<Nanos> {
         Cell::next_deadline(self)
     }
 }

@@ -1,5 +1,7 @@
 //! Numbers and durations as people type them in control lines and on the command line.
 
+use buslab_device::Nanos;
+
 /// `12`, `0x1F`, `1Fh`.
 pub fn parse_number(s: &str) -> Option<u32> {
     let s = s.trim();
@@ -37,7 +39,7 @@ pub fn parse_number_in(text: &str, what: &'static str, max: u32) -> Result<u32, 
 }
 
 /// `1.2s`, `500ms`, `2` (seconds).
-pub fn parse_duration_ns(s: &str) -> Option<u64> {
+pub fn parse_duration_ns(s: &str) -> Option<Nanos> {
     let s = s.trim();
     let (num, scale) = if let Some(n) = s.strip_suffix("ms") {
         (n, 1e6)
@@ -50,5 +52,5 @@ pub fn parse_duration_ns(s: &str) -> Option<u64> {
     };
     let v: f64 = num.parse().ok()?;
     let ns = v * scale;
-    (ns.is_finite() && (0.0..1e18).contains(&ns)).then_some(ns.round() as u64)
+    (ns.is_finite() && (0.0..1e18).contains(&ns)).then_some(Nanos::new(ns.round() as u64))
 }

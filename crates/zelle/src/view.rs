@@ -4,19 +4,21 @@
 
 use std::fmt;
 
+use buslab_device::Nanos;
+
 use crate::chip::{CpuSnapshot, ProgramEnd, ProgramStop, TraceEvent};
 use crate::memory::INTERNAL_RAM_SIZE;
 
 /// The cell's time in seconds with nanosecond digits.
-struct Seconds(u64);
+struct Seconds(Nanos);
 
 impl fmt::Display for Seconds {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
             "{}.{:09}",
-            self.0 / 1_000_000_000,
-            self.0 % 1_000_000_000
+            self.0.get() / 1_000_000_000,
+            self.0.get() % 1_000_000_000
         )
     }
 }
@@ -203,7 +205,7 @@ mod tests {
     #[test]
     fn a_trace_line_shows_time_address_bytes_mnemonic_and_registers() {
         let line = TraceEvent::Instruction {
-            at_ns: 1_234_567,
+            at_ns: Nanos::new(1_234_567),
             instruction: Instruction {
                 pc: 0x0403,
                 bytes: [0x75, 0x90, 0xFE],
@@ -223,7 +225,7 @@ mod tests {
         let mut iram = [0u8; INTERNAL_RAM_SIZE];
         iram[0x10..0x18].copy_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8]);
         let cpu = CpuSnapshot {
-            at_ns: 2_000_000_000,
+            at_ns: Nanos::new(2_000_000_000),
             registers: Registers {
                 pc: 0x0412,
                 a: 0,

@@ -1,5 +1,6 @@
 //! Every command through the host client against the model, in virtual time.
 
+use buslab_device::Nanos;
 use buslab_zelle::analog::{Source, SourceSpec};
 use buslab_zelle::client::{Client, Error, Port, Progress, SeriesParams, Transfer};
 use buslab_zelle::timing::MS;
@@ -112,7 +113,7 @@ fn pipelined_dump_runs_at_line_rate() {
     let stop_and_wait = c.port().now_ns() - t0;
     let line = 1000 * buslab_zelle::timing::BYTE_NS;
     // The host's pause after command 2, before the first request.
-    let setup = buslab_zelle::client::SETUP_PAUSE.as_nanos() as u64;
+    let setup = Nanos::from(buslab_zelle::client::SETUP_PAUSE);
     // Virtual time, so these are exact properties of the protocol, not of the machine.
     assert!(
         pipelined < setup + line + line / 50,

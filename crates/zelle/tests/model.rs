@@ -1,5 +1,6 @@
 //! The cell model byte by byte, with exact arrival times.
 
+use buslab_device::Nanos;
 use buslab_zelle::analog::Source;
 use buslab_zelle::timing::{BYTE_NS, MS};
 use buslab_zelle::{Activity, BatteryRam, Cell, Mode, START_BYTE, SetupRule};
@@ -7,7 +8,7 @@ use buslab_zelle::{Activity, BatteryRam, Cell, Mode, START_BYTE, SetupRule};
 /// Drives a cell like a line would: bytes back to back unless told to wait.
 struct Line {
     cell: Cell,
-    t: u64,
+    t: Nanos,
     out: Vec<u8>,
 }
 
@@ -15,7 +16,7 @@ impl Line {
     fn new(cell: Cell) -> Line {
         Line {
             cell,
-            t: 0,
+            t: Nanos::ZERO,
             out: Vec::new(),
         }
     }
@@ -29,7 +30,7 @@ impl Line {
     }
 
     /// Lets `ns` pass on an idle line.
-    fn wait(&mut self, ns: u64) {
+    fn wait(&mut self, ns: Nanos) {
         let end = self.t + ns;
         while let Some(d) = self.cell.next_deadline().filter(|&d| d <= end) {
             self.cell.poll(d, &mut self.out);

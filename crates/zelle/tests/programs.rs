@@ -5,6 +5,7 @@
 //! The rules come from seed 003 ("Betriebssystem und Kommandos der ZELLE"); where a test
 //! depends on one, its words are quoted.
 
+use buslab_device::Nanos;
 use buslab_zelle::chip::START_SP;
 use buslab_zelle::rom::{EMPF, PROGRAM_RETURN, SENDE};
 use buslab_zelle::timing::{BYTE_NS, KEY_HOLD_READY_NS, MS, RESET_GAP_NS};
@@ -12,9 +13,9 @@ use buslab_zelle::{Activity, BatteryRam, Cell, Mode, ProgramEnd, START_BYTE};
 use proptest::prelude::*;
 
 /// One bit at 9600 baud.
-const BIT_NS: u64 = BYTE_NS / 11;
+const BIT_NS: Nanos = Nanos::new(BYTE_NS.get() / 11);
 /// One machine cycle at 11.0592 MHz (12 clocks), rounded down.
-const CYCLE_NS: u64 = 1085;
+const CYCLE_NS: Nanos = Nanos::new(1085);
 
 /// `LCALL addr`.
 fn lcall(addr: u16) -> [u8; 3] {
@@ -44,11 +45,11 @@ fn image(pieces: &[(u16, &[u8])]) -> Vec<u8> {
 struct Line {
     cell: Cell,
     /// The line's time: the last instant the cell was run to.
-    t: u64,
+    t: Nanos,
     /// Bytes from the cell with the instant the host had them (a poll's time).
-    heard: Vec<(u64, u8)>,
+    heard: Vec<(Nanos, u8)>,
     /// The longest stretch between two polls: how finely arrival times are known.
-    grid: u64,
+    grid: Nanos,
 }
 
 impl Line {
@@ -58,17 +59,17 @@ impl Line {
             cell,
             t,
             heard: Vec::new(),
-            grid: 100_000,
+            grid: Nanos::new(100_000),
         }
     }
 
     /// Runs the cell to `end`, polling at each of its deadlines and at least every `grid`.
-    fn run_to(&mut self, end: u64) {
+    fn run_to(&mut self, end: Nanos) {
         let mut out = Vec::new();
         while self.t < end {
             let deadline = self.cell.next_deadline().filter(|&d| d > self.t);
             let at = deadline
-                .unwrap_or(u64::MAX)
+                .unwrap_or(Nanos::MAX)
                 .min(self.t + self.grid)
                 .min(end);
             self.cell.poll(at, &mut out);
@@ -78,7 +79,7 @@ impl Line {
     }
 
     /// Lets `ns` pass.
-    fn wait(&mut self, ns: u64) {
+    fn wait(&mut self, ns: Nanos) {
         self.run_to(self.t + ns);
     }
 
@@ -93,7 +94,7 @@ impl Line {
     }
 
     /// Sends bytes `gap_ns` apart (from one byte's end to the next one's).
-    fn send_apart(&mut self, bytes: &[u8], gap_ns: u64) {
+    fn send_apart(&mut self, bytes: &[u8], gap_ns: Nanos) {
         for &b in bytes {
             self.send(&[b]);
             self.wait(gap_ns);
@@ -106,7 +107,7 @@ impl Line {
     }
 
     /// Waits until `n` bytes have been heard in all (at most `limit_ns`), then takes them.
-    fn expect(&mut self, n: usize, limit_ns: u64) -> Vec<u8> {
+    fn expect(&mut self, n: usize, limit_ns: Nanos) -> Vec<u8> {
         let end = self.t + limit_ns;
         while self.heard.len() < n && self.t < end {
             self.run_to((self.t + self.grid).min(end));
@@ -137,14 +138,14 @@ impl Line {
     }
 
     /// Command 6: the program starts at 0400h. Returns the instant the command arrived.
-    fn start(&mut self) -> u64 {
+    fn start(&mut self) -> Nanos {
         self.send(&[6]);
         assert_eq!(self.cell.activity(), Activity::ProgramRunning);
         self.t
     }
 
     /// A fresh cell running `program` (loaded with 5, started with 6); the instant 6 arrived.
-    fn running(program: &[u8]) -> (Line, u64) {
+    fn running(program: &[u8]) -> (Line, Nanos) {
         let mut l = Line::new(Cell::default());
         l.load(program);
         let t = l.start();
@@ -201,7 +202,7 @@ fn a_program_writing_sbuf_is_heard_at_9600_8n2_one_character_after_another() {
     let mut l = Line::new(Cell::default());
     l.load(&SBUF_HELLO);
     // Arrival times known to the microsecond.
-    l.grid = 1_000;
+    l.grid = Nanos::new(1_000);
     let t6 = l.start();
     l.wait(20 * MS);
     let heard = std::mem::take(&mut l.heard);
@@ -252,7 +253,7 @@ const SENDE_HELLO: [u8; 21] = [
 fn a_program_calling_sende_is_heard_byte_after_byte() {
     assert_eq!(SENDE_HELLO[7..10], lcall(SENDE));
     let (mut l, t6) = Line::running(&SENDE_HELLO);
-    l.grid = 1_000;
+    l.grid = Nanos::new(1_000);
     l.wait(20 * MS);
     let heard = std::mem::take(&mut l.heard);
     assert_eq!(heard.iter().map(|&(_, b)| b).collect::<Vec<_>>(), b"HELLO");
@@ -706,7 +707,7 @@ fn timer_0_interrupts_are_served_while_the_program_waits_in_sende_and_empf() {
     assert_eq!(inside, all, "taken in Empf's wait loop");
     // The timer ran from the last count sent (heard one character late) to the byte's
     // arrival, give or take a character: overflows every 256 cycles.
-    let period_ns = 256 * 12 * 1_000_000_000 / 11_059_200;
+    let period_ns = Nanos::new(256 * 12 * 1_000_000_000 / 11_059_200);
     let span = t_arrived - t_heard;
     let (low, high) = (
         (span - BYTE_NS) / period_ns,
@@ -938,12 +939,12 @@ proptest! {
         run_us in 0u32..20_000,
     ) {
         let (mut l, _) = Line::running(&assemble(&program.0, program.1));
-        l.wait(u64::from(run_us) * 1_000);
+        l.wait(Nanos::from_micros(u64::from(run_us)));
         for event in before {
             let t = l.t;
             match event {
                 Before::Byte(b, gap_us) => {
-                    l.wait(u64::from(gap_us) * 1_000);
+                    l.wait(Nanos::from_micros(u64::from(gap_us)));
                     l.send(&[b]);
                 }
                 Before::Reset => l.cell.reset(t),

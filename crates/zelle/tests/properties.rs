@@ -4,6 +4,7 @@ use std::collections::VecDeque;
 use std::io;
 use std::time::Duration;
 
+use buslab_device::Nanos;
 use buslab_zelle::client::{Client, Port, SeriesParams, Transfer};
 use buslab_zelle::timing::MS;
 use buslab_zelle::{Activity, Cell};
@@ -38,10 +39,10 @@ proptest! {
         events in prop::collection::vec((0u8..8, any::<u8>(), 0u32..5_000_000), 0..200)
     ) {
         let mut cell = Cell::default();
-        let mut t = 0u64;
+        let mut t = Nanos::ZERO;
         let mut out = Vec::new();
         for (kind, byte, dt) in events {
-            t += u64::from(dt);
+            t += Nanos::new(u64::from(dt));
             match kind {
                 0..=3 => cell.receive(t, byte),
                 4 => cell.poll(t, &mut out),

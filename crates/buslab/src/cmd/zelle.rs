@@ -366,7 +366,7 @@ fn measure<P: Port>(cell: &mut Client<P>, m: MeasureArgs) -> anyhow::Result<()> 
             total_ns,
         } => {
             bar.set_message(format!("block {}/{blocks}", block + 1));
-            bar.set_position(done_ns * 900 / total_ns.max(1));
+            bar.set_position(done_ns * 900 / total_ns.max(buslab_can::Nanos::new(1)));
         }
         Progress::Reading { done, total } => {
             bar.set_message("reading");
@@ -418,7 +418,7 @@ fn measurement_figure(series: &Measurement) -> Figure {
         .enumerate()
         .map(|(k, name)| {
             let points = series.rows.iter().filter_map(|row| {
-                let t = row.time_ns as f64 * 1e-9 + k as f64 * 1e-3;
+                let t = row.time_ns.get() as f64 * 1e-9 + k as f64 * 1e-3;
                 Some((t, to_volts(*row.values.get(k)?)))
             });
             Series::from_points(name, points)

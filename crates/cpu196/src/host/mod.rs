@@ -11,7 +11,7 @@ use std::io;
 use std::time::Duration;
 
 pub use buslab_device::Port;
-use buslab_device::{Human, LineSettings};
+use buslab_device::{Human, LineSettings, Nanos};
 pub use monitor::{FileRequests, LOST_AFTER, Monitor, MonitorError, PING_EVERY};
 pub use recorder::{CsvSamples, Recorder, Sample, SampleSink, SampleSource};
 
@@ -124,7 +124,7 @@ pub struct Client<P: Port> {
     /// descheduled: a client that reads late (a loaded machine) finds a frame's bytes in two
     /// reads far apart, though the board sent them back to back, and must not take that for
     /// a pause inside the frame.
-    silence_ns: u64,
+    silence_ns: Nanos,
 }
 
 /// The default allowance for a reply beyond its bytes' time on the line.
@@ -141,7 +141,7 @@ impl<P: Port> Client<P> {
             backlog: Backlog::new(),
             inbox: Backlog::new(),
             frame_errors: FrameErrors::default(),
-            silence_ns: 0,
+            silence_ns: Nanos::ZERO,
         }
     }
 
@@ -184,7 +184,12 @@ impl<P: Port> Client<P> {
     /// How long a reply of `n` bytes may take: twice its time on the line (the request's
     /// time is counted by the caller), plus [`timeout`](Self::timeout).
     fn budget(&self, n: usize) -> Duration {
-        self.timeout + Duration::from_nanos((2 * n as u64).saturating_mul(self.line.byte_time_ns()))
+        self.timeout
+            + self
+                .line
+                .byte_time()
+                .saturating_mul(2 * n as u64)
+                .as_duration()
     }
 
     /// The next message from the board (queued ones first), or `None` after `wait`.
@@ -213,9 +218,7 @@ impl<P: Port> Client<P> {
             if n == 0 {
                 // Nothing came while waiting: the line was silent that long.
                 let waited = self.port.now().saturating_sub(before);
-                self.silence_ns = self
-                    .silence_ns
-                    .saturating_add(waited.as_nanos().min(u128::from(u64::MAX)) as u64);
+                self.silence_ns = self.silence_ns.saturating_add(Nanos::from(waited));
                 if let Some(Event::Error(e)) = self.decoder.poll(self.silence_ns) {
                     self.frame_errors.push(e.to_string());
                 }
@@ -479,7 +482,7 @@ impl<P: Port> Client<P> {
     /// frame still in progress is sent again after the board's time-out.
     fn resync_after_broken_message(&mut self) -> Result<(), ClientError> {
         let garbage = self.budget(PIC_CHUNK);
-        let board_time_out = Duration::from_nanos(crate::decoder::DEFAULT_TIMEOUT_NS);
+        let board_time_out = crate::decoder::DEFAULT_TIMEOUT_NS.as_duration();
         let mut attempt = 1;
         loop {
             self.port.pause(board_time_out + garbage);
@@ -867,10 +870,11 @@ mod tests {
         assert!(matches!(err, ClientError::Lost { .. }), "{err}");
         // The deadline is the allowance plus the exchange's time on the line, by the port's
         // clock.
-        let line = 2 * (2 + 25) * LineSettings::n81(115_200).byte_time_ns();
-        let waited = c.now().as_nanos() as u64;
+        let line = 2 * (2 + 25) * LineSettings::n81(115_200).byte_time();
+        let waited = Nanos::from(c.now());
+        let allowance = Nanos::from_millis(100);
         assert!(
-            waited >= 100_000_000 + line && waited <= 100_000_000 + line + 1_000_000,
+            waited >= allowance + line && waited <= allowance + line + Nanos::from_millis(1),
             "{waited}"
         );
         assert!(

@@ -154,7 +154,7 @@ impl<S: SampleSink> Recorder<S> {
                 self.frames += 1;
                 for scan in decode_frame(cfg, data, &self.table) {
                     self.scans += 1;
-                    let t_s = self.scans as f64 * cfg.period_ns() as f64 * 1e-9;
+                    let t_s = self.scans as f64 * cfg.period_ns().get() as f64 * 1e-9;
                     for (channel, value) in scan {
                         self.samples += 1;
                         self.sink.sample(&Sample {

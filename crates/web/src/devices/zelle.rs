@@ -238,7 +238,7 @@ fn measure(
                     .iter()
                     .filter_map(|row| {
                         let value = row.values.get(k)?;
-                        let t = offset + row.time_ns as f64 * 1e-9 + k as f64 * 1e-3;
+                        let t = offset + row.time_ns.get() as f64 * 1e-9 + k as f64 * 1e-3;
                         Some(((t * 1000.0).round() / 1000.0, to_volts(*value)))
                     })
                     .collect();
@@ -285,7 +285,7 @@ fn read_ram(cell: &mut Client<SerialLine>, len: usize, set: Set<'_>) -> Result<(
 
 /// How long a measurement job takes at least (for the refusal of absurd ones).
 pub fn run_time(params: &SeriesParams, chunks: u32) -> Duration {
-    Duration::from_nanos(params.block_ns()).saturating_mul(chunks)
+    params.block_ns().as_duration().saturating_mul(chunks)
 }
 
 #[cfg(test)]

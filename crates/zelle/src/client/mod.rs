@@ -11,8 +11,8 @@ mod series;
 use std::io;
 use std::time::Duration;
 
-use buslab_device::Human;
 pub use buslab_device::Port;
+use buslab_device::{Human, Nanos};
 pub use series::{Measurement, Row, SeriesError, SeriesParams};
 
 use crate::Command;
@@ -107,8 +107,8 @@ pub enum Progress {
     Measuring {
         block: u32,
         blocks: u32,
-        done_ns: u64,
-        total_ns: u64,
+        done_ns: Nanos,
+        total_ns: Nanos,
     },
     /// Reading the values back: `done` of `total` bytes.
     Reading { done: usize, total: usize },
@@ -171,7 +171,7 @@ impl<P: Port> Client<P> {
     /// How long `bytes` answer bytes may take: the requests' and the answers' time on the
     /// line, plus the allowance.
     fn budget(&self, bytes: usize) -> Duration {
-        Duration::from_nanos((2 * bytes as u64).saturating_mul(BYTE_NS)) + self.timeout
+        BYTE_NS.saturating_mul(2 * bytes as u64).as_duration() + self.timeout
     }
 
     /// Sends a command that expects no answer and returns once the cell has received it: the
@@ -180,9 +180,8 @@ impl<P: Port> Client<P> {
     fn send_all(&mut self, bytes: &[u8]) -> Result<()> {
         self.send(bytes)?;
         self.port.drain()?;
-        self.port.pause(Duration::from_nanos(
-            bytes.len() as u64 * BYTE_NS + crate::timing::MS,
-        ));
+        self.port
+            .pause((BYTE_NS * bytes.len() as u64 + crate::timing::MS).as_duration());
         Ok(())
     }
 
@@ -260,20 +259,20 @@ impl<P: Port> Client<P> {
     /// confirms it with command 13. Replies still on their way are thrown away.
     pub fn reset(&mut self) -> Result<()> {
         const DURING: &str = "confirming a reset (command 13 after ten zeros)";
-        let gap = Duration::from_nanos(RESET_GAP_NS);
+        let gap = RESET_GAP_NS.as_duration();
         for _ in 0..10 {
             self.port.pause(gap);
             self.send(&[0])?;
             self.port.drain()?;
         }
-        self.port.pause(gap + Duration::from_nanos(BYTE_NS));
+        self.port.pause(gap + BYTE_NS.as_duration());
         self.port.discard_input()?;
         // Replies to what came before the zeros (or to a zero taken as a command's data) may
         // still come, later still from a cell behind a loaded machine. The cell answers command
         // 13 only once it is ready, after everything it sent before: its answer is the last
         // byte on a line that then stays quiet.
         self.send(&[Command::ReadKey as u8])?;
-        let quiet = (self.timeout / 4).max(Duration::from_nanos(20 * BYTE_NS));
+        let quiet = (self.timeout / 4).max((BYTE_NS * 20).as_duration());
         let mut last = self.read_byte(DURING).map_err(|e| match e {
             Error::Timeout { timeout, .. } => Error::ResetUnanswered { timeout },
             e => e,
@@ -309,7 +308,7 @@ impl<P: Port> Client<P> {
     /// Sends one `0`: stops a running series or program (start byte becomes 0).
     pub fn interrupt(&mut self) -> Result<()> {
         self.send_all(&[0])?;
-        self.port.pause(Duration::from_nanos(RESET_GAP_NS));
+        self.port.pause(RESET_GAP_NS.as_duration());
         Ok(())
     }
 
@@ -583,20 +582,19 @@ impl<P: Port> Client<P> {
         // The cell has no "block done" signal: wait the block's length plus a margin for the
         // START byte's way to the cell.
         let block_ns = params.block_ns();
-        let margin_ns = u64::try_from(self.block_margin.as_nanos()).unwrap_or(u64::MAX);
-        let spacing = block_ns.saturating_add(margin_ns);
+        let spacing = block_ns.saturating_add(Nanos::from(self.block_margin));
         // Saturating: 65535 cycles of 65 s times u32::MAX blocks is past u64 nanoseconds.
         let total_ns = spacing.saturating_mul(u64::from(blocks));
         let step = Duration::from_millis(100);
         let mut starts = Vec::new();
         for block in 0..blocks {
             self.start_block()?;
-            let start = u64::from(block).saturating_mul(spacing);
+            let start = spacing.saturating_mul(u64::from(block));
             starts.push(start);
-            let mut waited = 0;
+            let mut waited = Nanos::ZERO;
             while waited < spacing {
-                let chunk = (spacing - waited).min(step.as_nanos() as u64);
-                self.port.pause(Duration::from_nanos(chunk));
+                let chunk = (spacing - waited).min(Nanos::from(step));
+                self.port.pause(chunk.as_duration());
                 waited += chunk;
                 progress(Progress::Measuring {
                     block,

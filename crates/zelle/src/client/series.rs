@@ -2,6 +2,8 @@
 
 use std::fmt::Write as _;
 
+use buslab_device::Nanos;
+
 use crate::analog::to_volts;
 use crate::timing::{CONVERSION_NS, MS};
 
@@ -95,12 +97,12 @@ impl SeriesParams {
     }
 
     /// How long one block takes on the cell.
-    pub fn block_ns(&self) -> u64 {
+    pub fn block_ns(&self) -> Nanos {
         let n = self.channels().len() as u64;
         if self.cycles == 0 {
-            return 0;
+            return Nanos::ZERO;
         }
-        (u64::from(self.cycles) - 1) * u64::from(self.interval_ms) * MS + n * CONVERSION_NS
+        MS * ((u64::from(self.cycles) - 1) * u64::from(self.interval_ms)) + CONVERSION_NS * n
     }
 }
 
@@ -141,7 +143,7 @@ pub struct Measurement {
 pub struct Row {
     /// When the cycle's first conversion started, from the start of the first block. Channel
     /// k of the cycle was sampled k ms later.
-    pub time_ns: u64,
+    pub time_ns: Nanos,
     /// One reading per column; a cycle cut short by a full data area has fewer.
     pub values: Vec<u8>,
 }
@@ -149,11 +151,11 @@ pub struct Row {
 impl Measurement {
     /// Splits `values` (as dumped after the 8 parameter bytes) into cycles. `block_starts`
     /// gives each block's start time; blocks hold `params.cycles` cycles each.
-    pub fn split(params: SeriesParams, values: &[u8], block_starts: &[u64]) -> Measurement {
+    pub fn split(params: SeriesParams, values: &[u8], block_starts: &[Nanos]) -> Measurement {
         let channels = params.channels();
         let per_row = channels.len().max(1);
         let per_block = usize::from(params.cycles).max(1);
-        let period = u64::from(params.interval_ms) * MS;
+        let period = MS * u64::from(params.interval_ms);
         let rows = values
             .chunks(per_row)
             .enumerate()
@@ -162,11 +164,11 @@ impl Measurement {
                 let start = block_starts.get(block).copied().unwrap_or_else(|| {
                     // More blocks than the host started (a START key on the cell): place them
                     // right after each other.
-                    block_starts.last().copied().unwrap_or(0)
-                        + (block + 1 - block_starts.len()) as u64 * params.block_ns()
+                    block_starts.last().copied().unwrap_or(Nanos::ZERO)
+                        + params.block_ns() * (block + 1 - block_starts.len()) as u64
                 });
                 Row {
-                    time_ns: start + cycle as u64 * period,
+                    time_ns: start + period * cycle as u64,
                     values: chunk.to_vec(),
                 }
             })
@@ -197,7 +199,7 @@ impl Measurement {
         }
         out.push('\n');
         for row in &self.rows {
-            let _ = write!(out, "{:.3}", row.time_ns as f64 * 1e-9);
+            let _ = write!(out, "{:.3}", row.time_ns.get() as f64 * 1e-9);
             for i in 0..self.channels.len() {
                 out.push(',');
                 if let Some(&v) = row.values.get(i) {
@@ -239,7 +241,10 @@ impl Measurement {
             out.extend(line.iter());
             out.push('\n');
         }
-        let last = self.rows.last().map_or(0.0, |r| r.time_ns as f64 * 1e-9);
+        let last = self
+            .rows
+            .last()
+            .map_or(0.0, |r| r.time_ns.get() as f64 * 1e-9);
         let _ = writeln!(out, "    +{}", "-".repeat(width));
         let _ = writeln!(out, "     0 s{:>w$}", format!("{last:.2} s"), w = width - 3);
         let legend: Vec<String> = self
@@ -277,7 +282,7 @@ mod tests {
     #[test]
     fn the_plot_marks_each_channel_and_names_the_span() {
         let p = SeriesParams::new(&[1, 2], 3, 10).unwrap();
-        let m = Measurement::split(p, &[0, 255, 128, 128, 255, 0], &[0]);
+        let m = Measurement::split(p, &[0, 255, 128, 128, 255, 0], &[Nanos::ZERO]);
         let plot = m.plot(20, 5);
         let lines: Vec<&str> = plot.lines().collect();
         assert_eq!(lines.len(), 5 + 3);
@@ -318,12 +323,16 @@ mod tests {
     #[test]
     fn split_makes_rows_with_times_and_csv() {
         let p = SeriesParams::new(&[2, 1], 2, 10).unwrap();
-        let m = Measurement::split(p, &[1, 2, 3, 4, 5, 6, 7], &[0, 1_000_000_000]);
+        let m = Measurement::split(
+            p,
+            &[1, 2, 3, 4, 5, 6, 7],
+            &[Nanos::ZERO, Nanos::from_secs(1)],
+        );
         assert_eq!(m.rows.len(), 4);
         // Two blocks of 2 cycles of 2 channels: the last reading is missing.
         assert_eq!(m.missing_values(), 1);
-        assert_eq!(m.rows[1].time_ns, 10_000_000);
-        assert_eq!(m.rows[2].time_ns, 1_000_000_000);
+        assert_eq!(m.rows[1].time_ns, Nanos::from_millis(10));
+        assert_eq!(m.rows[2].time_ns, Nanos::from_secs(1));
         assert_eq!(
             m.to_csv(false),
             "time_s,ch2,ch1\n0.000,1,2\n0.010,3,4\n1.000,5,6\n1.010,7,\n"
