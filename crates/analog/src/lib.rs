@@ -14,4 +14,4 @@ mod units;
 pub use buslab_can::Nanos;
 pub use error::SourceError;
 pub use source::{Shape, Source};
-pub use spec::{SPEC_HELP, SourceSpec};
+pub use spec::{SPEC_HELP, SourceSpec, parse_channel_source};

@@ -1,6 +1,7 @@
 //! The one spelling of a source, as every tool takes it on its command line, in its control
 //! lines and in its configuration.
 
+use std::ops::RangeInclusive;
 use std::path::PathBuf;
 
 use buslab_can::Nanos;
@@ -20,6 +21,34 @@ pub enum SourceSpec {
 /// The spec grammar, for error messages and help texts.
 pub const SPEC_HELP: &str = "VOLTS | const:VOLTS | sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]] \
      | ramp:FROM:TO:PERIOD | csv:FILE  (e.g. 2.5V, sine:1Hz:2V:2.5V, ramp:0V:5V:10s)";
+
+/// `CH=SOURCE` (`1=sine:1Hz:2V:2.5V`), as devices' `--analog`/`--input` options and control
+/// lines take it: a channel within `channels` (decimal) and a source spec.
+pub fn parse_channel_source(
+    arg: &str,
+    channels: RangeInclusive<u8>,
+) -> Result<(u8, SourceSpec), SourceError> {
+    let (ch, spec) = arg.split_once('=').ok_or_else(|| SourceError::Spec {
+        spec: arg.to_owned(),
+        why: "must look like CH=SOURCE, e.g. 1=sine:1Hz".into(),
+    })?;
+    let ch = ch.trim();
+    // Digits only: `parse` would take a sign.
+    let number = if ch.bytes().all(|b| b.is_ascii_digit()) {
+        ch.parse::<u8>().ok()
+    } else {
+        None
+    };
+    match number {
+        Some(channel) if channels.contains(&channel) => Ok((channel, SourceSpec::parse(spec)?)),
+        _ => Err(SourceError::Channel {
+            arg: arg.to_owned(),
+            channel: ch.to_owned(),
+            first: *channels.start(),
+            last: *channels.end(),
+        }),
+    }
+}
 
 impl SourceSpec {
     /// Parses `VOLTS`, `const:VOLTS`, `sine:FREQ[:AMPLITUDE[:OFFSET]]` (also `triangle`,
@@ -161,6 +190,31 @@ mod tests {
                 period: Nanos::from_millis(250)
             }
         );
+    }
+
+    #[test]
+    fn channel_source_arguments_name_the_bad_part() {
+        assert_eq!(
+            parse_channel_source("2=3.3V", 1..=4).unwrap(),
+            (2, SourceSpec::Ready(Source::Constant(3.3)))
+        );
+        assert_eq!(
+            parse_channel_source(" 7 =1V", 0..=7).unwrap(),
+            (7, SourceSpec::Ready(Source::Constant(1.0)))
+        );
+        for (arg, channels, needle) in [
+            ("9=1V", 1..=4, "channel `9` is out of range 1..4"),
+            ("0=1V", 1..=4, "channel `0` is out of range 1..4"),
+            ("8=1V", 0..=7, "channel `8` is out of range 0..7"),
+            ("x=1V", 1..=4, "channel `x` is out of range 1..4"),
+            ("300=1V", 0..=7, "channel `300` is out of range 0..7"),
+            ("+1=1V", 0..=7, "channel `+1` is out of range 0..7"),
+            ("1V", 1..=4, "must look like CH=SOURCE"),
+            ("1=wobble", 1..=4, "analog source `wobble`"),
+        ] {
+            let err = parse_channel_source(arg, channels).unwrap_err().to_string();
+            assert!(err.contains(needle), "{arg}: {err}");
+        }
     }
 
     #[test]

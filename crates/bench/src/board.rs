@@ -3,6 +3,7 @@
 //! [`Device`] ([`BoardDevice`]): the bus changes its inputs and reads it through [`Board`],
 //! and hears its calibration and bus-mode changes as typed notices.
 
+use buslab_analog::{Source, SourceSpec};
 use buslab_can::node::BusNode;
 use buslab_canbus::NodeInfo;
 use buslab_canbus::admin::{BoardInput, BoardState};
@@ -10,7 +11,6 @@ use buslab_sim::Node;
 use buslab_slio::board::{LED_PINS, VDD};
 use buslab_slio::{DemoBoard, SlioError, SlioId, SlioNotice};
 use buslab_vbus::{Board, Device, DeviceNode, DeviceNotice};
-use buslab_zelle::analog::{Source, SourceSpec};
 
 /// The lab's potentiometer: a 0..5 V sine, 10 s a turn (`bus serve --slio-pot`'s default).
 pub const POTENTIOMETER: &str = "sine:100mHz:2.5V:2.5V";

@@ -4,11 +4,11 @@
 use std::io;
 use std::path::{Path, PathBuf};
 
+use buslab_analog::{Shape, Source};
 use buslab_cpu196::Board;
 use buslab_link::{Served, ServedError};
 use buslab_served::ServeError;
 use buslab_served::zelle::ServedCell;
-use buslab_zelle::analog::{Shape, Source};
 
 const ZELLE: &str = "ZELLE cell";
 const CPU196: &str = "CPU196 board";

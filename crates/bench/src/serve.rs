@@ -3,10 +3,10 @@
 //! The binary reads the options and the files; this puts the nodes into the server's
 //! configuration.
 
+use buslab_analog::Source;
 use buslab_ppc::PpcError;
 use buslab_slio::{SlioError, SlioId};
 use buslab_vbus::ServerConfig;
-use buslab_zelle::analog::Source;
 
 use crate::{Scenario, ScenarioError};
 

@@ -265,7 +265,7 @@ fn record_writes_the_configured_acquisition_to_csv() {
 /// `record --plot`: the recording as a figure: one line per channel, in volts.
 #[test]
 fn record_plot_shows_each_channel_in_volts() {
-    let b = Board::serve(&["--input", "0=sine:2.5,2,2", "--input", "1=const:1"]);
+    let b = Board::serve(&["--input", "0=sine:2Hz:2V:2.5V", "--input", "1=const:1"]);
     let (csv, svg) = (b.path("rec.csv"), b.path("rec.svg"));
     let out = b.ok(&[
         "record",
@@ -670,4 +670,52 @@ fn output_into_a_closed_pipe_ends_quietly() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "{err}");
     assert_eq!(out.status.code(), Some(0), "{err}");
+}
+
+#[test]
+fn analog_inputs_take_the_zelles_spelling_and_a_csv_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    let replay = dir.path().join("battery.csv");
+    std::fs::write(&replay, "seconds,volts\n0,4.0\n1e6,3.1\n").unwrap();
+    let refused = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["cpu196", "serve"])
+            .args(args)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?} was taken");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    // The former comma spelling is refused with what to write instead.
+    let err = refused(&["--input", "0=sine:2.5,2,2"]);
+    assert!(err.contains("write sine:2Hz:2V:2.5V"), "{err}");
+    let err = refused(&["--pic-input", "8=1V"]);
+    assert!(err.contains("channel `8` is out of range 0..7"), "{err}");
+    let err = refused(&["--input", "1=csv:/nonexistent/replay.csv"]);
+    assert!(err.contains("/nonexistent/replay.csv"), "{err}");
+    // A replay (4 V for the first 10^6 s) and the unit spellings are what the board converts.
+    let csv = format!("0=csv:{}", replay.display());
+    let b = Board::serve(&["--input", &csv, "--input", "1=1000mV"]);
+    let out_csv = b.path("rec.csv");
+    let out = b.ok(&[
+        "record",
+        "--config",
+        "1",
+        "--out",
+        s(&out_csv),
+        "--duration",
+        "0.2s",
+    ]);
+    assert!(out.contains("recorded"), "{out}");
+    let recorded = std::fs::read_to_string(&out_csv).unwrap();
+    let mut rows = 0;
+    for line in recorded.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let want = if f[2] == "0" { 4.0 } else { 1.0 };
+        let v: f64 = f[4].parse().unwrap();
+        assert!((v - want).abs() < 0.005, "{line}");
+        rows += 1;
+    }
+    assert!(rows > 0, "nothing recorded:\n{recorded}");
 }

@@ -87,15 +87,13 @@ pub fn load(
 ) -> Result<Loaded, ConfigError> {
     let file = find(lookup, env, cwd, user_file);
     let text = match &file {
-        Some((path, found)) => Some(
-            buslab_fs::read_text_limited(path, MAX_FILE_BYTES).map_err(|source| {
-                ConfigError::Read {
-                    path: path.clone(),
-                    found: *found,
-                    source,
-                }
-            })?,
-        ),
+        Some((path, found)) => Some(buslab_fs::read_text_limited(path, MAX_FILE_BYTES).map_err(
+            |source| ConfigError::Read {
+                path: path.clone(),
+                found: *found,
+                source,
+            },
+        )?),
         None => None,
     };
     let file = file.zip(text);

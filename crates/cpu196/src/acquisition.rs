@@ -194,7 +194,7 @@ impl Acquisition {
     fn scan(&mut self, inputs: &[Source; 8], table: &LogTable, frame: &mut Vec<u8>) {
         let t = self.next_scan_at;
         for &ch in &self.config.sequence {
-            let code = inputs[ch as usize].code10(t);
+            let code = crate::source::reading10(&inputs[ch as usize], t);
             self.values[ch as usize] = self.filters[ch as usize].update(code);
         }
         for (ch, setup) in self.config.transmitted() {
@@ -260,9 +260,9 @@ mod tests {
     #[test]
     fn frames_carry_the_configured_channels() {
         let cfg = AdConfig::simple(&[0, 2], SampleFormat::Bits10, 0, 1);
-        let mut inputs = [Source::default(); 8];
-        inputs[0] = Source::Constant { volts: 5.0 };
-        inputs[2] = Source::Constant { volts: 2.5 };
+        let mut inputs: [Source; 8] = Default::default();
+        inputs[0] = Source::Constant(5.0);
+        inputs[2] = Source::Constant(2.5);
         let mut acq = Acquisition::new(cfg.clone(), Nanos::ZERO);
         assert_eq!(acq.next_interrupt_at(), Nanos::new(2) * 60_000);
         let table = LogTable::default();

@@ -973,7 +973,7 @@ impl Board {
         if th == [0xFF; 3] {
             return;
         }
-        let level = (self.inputs.pic[0].code10(now) >> 2) as u8;
+        let level = (crate::source::reading10(&self.inputs.pic[0], now) >> 2) as u8;
         let state = th.iter().filter(|&&t| t != 0xFF && level >= t).count() as u8;
         let report = match self.battery {
             None => state < 2,
@@ -1006,8 +1006,9 @@ impl Board {
             self.send(at, &Message::Alert(Alert::LINK_LOST));
             self.end_run(at);
         }
-        self.pic
-            .advance(now, &mut |ch, t| self.inputs.pic[ch as usize].code10(t));
+        self.pic.advance(now, &mut |ch, t| {
+            crate::source::reading10(&self.inputs.pic[ch as usize], t)
+        });
         self.pic_events(now);
         if self.next_battery <= now {
             self.battery_check(now);

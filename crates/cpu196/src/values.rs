@@ -4,7 +4,7 @@
 
 use crate::flash::is_user_block;
 use crate::message::{Bridge, Pwm, Start};
-use crate::source::Source;
+use crate::source::{CHANNELS, SourceSpec};
 use crate::wire::FLASH_BLOCK;
 
 /// A value refused, with the reason.
@@ -38,12 +38,8 @@ pub enum ValueError {
     BridgeOp(String),
     #[error("bridge {0} needs a byte")]
     BridgeByte(String),
-    #[error("analog input `{0}` is not CH=SOURCE")]
-    Input(String),
-    #[error("analog input channel `{0}` is out of range 0..7")]
-    InputChannel(String),
     #[error(transparent)]
-    Source(#[from] crate::source::SourceParseError),
+    Source(#[from] crate::source::SourceError),
     #[error(
         "data in block {0:02X}h, outside the user flash (blocks 28h..3Fh, 60h..FFh); nothing \
          written"
@@ -182,18 +178,10 @@ pub fn bridge(op: &str, byte: Option<u8>) -> Result<Bridge, ValueError> {
     })
 }
 
-/// `CH=SOURCE` for an analog input: channel 0..7 and a source (`0=const:4`).
-pub fn parse_input(text: &str) -> Result<(usize, Source), ValueError> {
-    let (ch, src) = text
-        .split_once('=')
-        .ok_or_else(|| ValueError::Input(text.to_owned()))?;
-    let ch = ch
-        .trim()
-        .parse::<usize>()
-        .ok()
-        .filter(|c| *c < 8)
-        .ok_or_else(|| ValueError::InputChannel(ch.to_owned()))?;
-    Ok((ch, src.parse()?))
+/// `CH=SOURCE` for an analog input: channel 0..7 and a source spec (`0=const:4`; the file of
+/// a `csv:FILE` replay is the caller's to read).
+pub fn parse_input(text: &str) -> Result<(u8, SourceSpec), ValueError> {
+    Ok(buslab_analog::parse_channel_source(text, CHANNELS)?)
 }
 
 /// The blocks of a bank image (block 0 at offset 0, up to 64 KiB) that hold data (not all
@@ -227,6 +215,7 @@ mod tests {
     }
 
     use super::*;
+    use crate::source::Source;
 
     #[test]
     fn numbers_in_three_spellings_and_their_ranges() {
@@ -301,7 +290,7 @@ mod tests {
     fn inputs_and_flash_files() {
         assert_eq!(
             parse_input("1=const:4"),
-            Ok((1, Source::Constant { volts: 4.0 }))
+            Ok((1, SourceSpec::Ready(Source::Constant(4.0))))
         );
         assert!(
             parse_input("8=const:4")

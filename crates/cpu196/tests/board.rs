@@ -4,7 +4,7 @@ use buslab_cpu196::acquisition::{LogTable, decode_frame};
 use buslab_cpu196::adconfig::{AdConfig, SampleFormat};
 use buslab_cpu196::codes::{Alert, MsgCode};
 use buslab_cpu196::message::*;
-use buslab_cpu196::source::{Inputs, Source};
+use buslab_cpu196::source::{Inputs, Shape, Source};
 use buslab_cpu196::wire;
 use buslab_cpu196::{Board, Decoder, Event, FrameError, Image, Mode};
 use buslab_device::{ByteDevice, Nanos};
@@ -327,7 +327,8 @@ fn line_errors_get_the_kernel_messages_and_the_link_recovers() {
 #[test]
 fn streamed_samples_match_the_sources_within_resolution() {
     let mut inputs = Inputs::default();
-    inputs.c196[0] = Source::Sine {
+    inputs.c196[0] = Source::Wave {
+        shape: Shape::Sine,
         offset: 2.5,
         amplitude: 2.0,
         hz: 5.0,
@@ -335,10 +336,10 @@ fn streamed_samples_match_the_sources_within_resolution() {
     inputs.c196[1] = Source::Ramp {
         from: 0.0,
         to: 5.0,
-        period_s: 0.5,
+        period: Nanos::from_millis(500),
     };
-    inputs.c196[2] = Source::Constant { volts: 1.25 };
-    inputs.c196[3] = Source::Constant { volts: 3.0 };
+    inputs.c196[2] = Source::Constant(1.25);
+    inputs.c196[3] = Source::Constant(3.0);
     let mut b = Bench::with(Image::default(), inputs.clone());
     // Config 5: ch0 16-bit, ch1 10-bit, ch2 8-bit, ch3 log8, 1 kHz, 4 scans per frame.
     b.send(&Message::Start(Start::run(0, 5, true)));
@@ -434,13 +435,13 @@ fn watchdog_both_ways() {
 #[test]
 fn battery_thresholds_raise_alerts() {
     let mut b = Bench::new();
-    b.board.inputs.pic[0] = Source::Constant { volts: 2.5 }; // 8-bit 127: between 100 and 140
+    b.board.inputs.pic[0] = Source::Constant(2.5); // 8-bit 127: between 100 and 140
     b.run_for(200 * MS);
     assert_eq!(b.take(), vec![Message::Alert(Alert::BATTERY_LOW)]);
-    b.board.inputs.pic[0] = Source::Constant { volts: 0.5 };
+    b.board.inputs.pic[0] = Source::Constant(0.5);
     b.run_for(200 * MS);
     assert_eq!(b.take(), vec![Message::Alert(Alert::BATTERY_DISCHARGED)]);
-    b.board.inputs.pic[0] = Source::Constant { volts: 4.9 };
+    b.board.inputs.pic[0] = Source::Constant(4.9);
     b.run_for(200 * MS);
     assert_eq!(b.take(), vec![Message::Alert(Alert::BATTERY_MAINS)]);
 }
@@ -451,9 +452,9 @@ fn shipped_programs_run_on_their_hooks() {
     inputs.c196[0] = Source::Ramp {
         from: 0.0,
         to: 5.0,
-        period_s: 1.0,
+        period: Nanos::from_secs(1),
     };
-    inputs.c196[1] = Source::Constant { volts: 1.0 };
+    inputs.c196[1] = Source::Constant(1.0);
     let mut b = Bench::with(Image::default(), inputs);
     // Logger: THREAD text, file open, writes.
     b.send(&Message::Start(Start::run(0, 1, true)));
@@ -548,7 +549,7 @@ fn shipped_programs_run_on_their_hooks() {
 #[test]
 fn pic_channels_stream_as_fb_samples() {
     let mut b = Bench::new();
-    b.board.inputs.pic[1] = Source::Constant { volts: 5.0 };
+    b.board.inputs.pic[1] = Source::Constant(5.0);
     let s = Start::new(false, true, 0, 7, 0, false, false, false);
     b.send(&Message::Start(s));
     b.run_for(300 * MS);

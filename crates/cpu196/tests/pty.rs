@@ -173,8 +173,8 @@ fn flash_survives_a_restart_from_the_image() {
 #[test]
 fn recorded_samples_match_the_sources() {
     let mut b = board(Image::default());
-    b.inputs.c196[0] = Source::Constant { volts: 4.0 };
-    b.inputs.c196[1] = Source::Constant { volts: 1.0 };
+    b.inputs.c196[0] = Source::Constant(4.0);
+    b.inputs.c196[1] = Source::Constant(1.0);
     let s = serve(b, None);
     let mut c = connect(&s);
     c.start(Start::run(0, 1, true)).unwrap();

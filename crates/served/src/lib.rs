@@ -1,6 +1,7 @@
 //! The host side of buslab's serial device models: what `buslab zelle serve`,
 //! `buslab cpu196 serve` and `buslab lab` run.
 //!
+//! - [`analog`]: analog sources as the serving tools take them, CSV replays read here.
 //! - [`zelle`]: the ZELLE cell on a pseudo-terminal with its battery-backed RAM in a state file,
 //!   analog inputs (CSV replays read here), and its control lines.
 //! - [`cpu196`]: the CPU196 board on a pseudo-terminal with its image file, and the file
@@ -13,6 +14,7 @@
 //! journaled and replayed after a crash ([`buslab_link::journal`]), so nothing the device
 //! acknowledged is lost.
 
+pub mod analog;
 pub mod cpu196;
 pub mod ppc;
 pub mod zelle;
@@ -43,7 +45,7 @@ pub enum ServeError {
     #[error("image {} is not a CPU196 image: {detail}", path.display())]
     Image { path: PathBuf, detail: String },
     #[error(transparent)]
-    Source(#[from] buslab_zelle::analog::SourceError),
+    Source(#[from] buslab_analog::SourceError),
     #[error(transparent)]
     Input(#[from] buslab_zelle::InputError),
 }

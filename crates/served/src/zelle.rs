@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
+pub use crate::analog::load_source;
 use buslab_device::Nanos;
 use buslab_link::fs::read_text_limited;
 use buslab_link::{Handle, LineHandler, Serve, Served, ServedError};
@@ -19,9 +20,6 @@ pub const SAVE_EVERY: Duration = Duration::from_secs(1);
 
 /// The largest state file read (the RAM as hex is about 70 KB).
 const MAX_STATE_FILE: u64 = 1 << 20;
-
-/// The largest CSV replay file read.
-const MAX_REPLAY_FILE: u64 = 64 << 20;
 
 /// What to serve.
 #[derive(Clone, Debug, Default)]
@@ -189,19 +187,7 @@ pub fn load_state(path: &Path) -> Result<BatteryRam, ServeError> {
     }
 }
 
-/// The source a spec names, reading a CSV replay file if it names one.
-pub fn load_source(spec: SourceSpec) -> Result<Source, ServeError> {
-    match spec {
-        SourceSpec::Ready(s) => Ok(s),
-        SourceSpec::CsvFile(path) => {
-            let text = read_text_limited(&path, MAX_REPLAY_FILE)?;
-            Ok(Source::replay_from_csv(&text)?)
-        }
-    }
-}
-
 /// `CH=SOURCE` as `serve --analog` takes it, with its CSV replay file read.
 pub fn analog_input(arg: &str) -> Result<(u8, Source), ServeError> {
-    let (channel, spec) = buslab_zelle::analog::parse_channel_source(arg)?;
-    Ok((channel, load_source(spec)?))
+    crate::analog::channel_input(arg, buslab_zelle::analog::CHANNELS)
 }

@@ -1105,7 +1105,7 @@ impl Cell {
     /// after a conversion they are all high again.
     fn sample(&mut self, input: u8, at: Nanos) -> u8 {
         self.release_converter_lines();
-        self.board.analog[usize::from(input)].code(at)
+        crate::analog::reading(&self.board.analog[usize::from(input)], at)
     }
 
     /// After a conversion the converter's lines P1.0..3 are high (the seed).

@@ -144,7 +144,7 @@ fn sample(bits: u8, at_ns: Nanos, inputs: &[Source; 4]) -> u8 {
     let odd = usize::from(bits & 0b010 != 0);
     let select = usize::from(bits & 0b001 != 0);
     if single {
-        inputs[odd + 2 * select].code(at_ns)
+        crate::analog::reading(&inputs[odd + 2 * select], at_ns)
     } else {
         let plus = inputs[2 * select + odd].volts(at_ns);
         let minus = inputs[2 * select + (1 - odd)].volts(at_ns);

@@ -50,7 +50,7 @@ fn ramp_ms() -> Source {
     Source::Ramp {
         from: 0.0,
         to: 5.0,
-        period_ns: 255 * MS,
+        period: 255 * MS,
     }
 }
 

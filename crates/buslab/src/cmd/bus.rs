@@ -55,8 +55,8 @@ pub struct ServeArgs {
     #[arg(long, value_name = "IDS", value_delimiter = ',')]
     pub slio: Vec<buslab_slio::SlioId>,
     /// The SLIO boards' potentiometer (P6, ADC2): VOLTS, const:VOLTS,
-    /// sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]], ramp:FROM:TO:PERIOD or csv:FILE (the
-    /// ZELLE's source grammar); default a 0..5 V sine of 10 s.
+    /// sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]], ramp:FROM:TO:PERIOD or csv:FILE (as the
+    /// ZELLE and CPU196 inputs take them); default a 0..5 V sine of 10 s.
     #[arg(long, value_name = "SOURCE", default_value = buslab_bench::board::POTENTIOMETER)]
     pub slio_pot: String,
     /// The SLIO boards' ADC1 input (P5), same grammar; default 1.25 V.
@@ -175,8 +175,8 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// An analog source in the ZELLE's grammar (a CSV replay file read here).
-fn board_source(what: &str, spec: &str) -> anyhow::Result<buslab_zelle::analog::Source> {
-    let spec = buslab_zelle::analog::SourceSpec::parse(spec).context(what.to_string())?;
-    buslab_served::zelle::load_source(spec).context(what.to_string())
+/// An analog source in buslab's one spelling (a CSV replay file read here).
+fn board_source(what: &str, spec: &str) -> anyhow::Result<buslab_analog::Source> {
+    let spec = buslab_analog::SourceSpec::parse(spec).context(what.to_string())?;
+    buslab_served::analog::load_source(spec).context(what.to_string())
 }

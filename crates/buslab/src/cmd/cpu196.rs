@@ -205,12 +205,13 @@ pub struct ServeArgs {
     /// Also make this symlink to the PTY.
     #[arg(long, value_name = "PATH")]
     pub link: Option<PathBuf>,
-    /// Analog input CH=SOURCE of the 80C196 (const:V, sine:OFF,AMP,HZ, ramp:A,B,S, square:L,H,HZ).
+    /// Analog input CH=SOURCE of the 80C196, channel 0..7: VOLTS, sine|triangle|square:FREQ[:AMPLITUDE[:OFFSET]],
+    /// ramp:FROM:TO:PERIOD or csv:FILE (e.g. 0=sine:1Hz:2V:2.5V), as `zelle serve --analog`.
     #[arg(long, value_name = "CH=SOURCE", value_parser = input)]
-    pub input: Vec<(usize, Source)>,
+    pub input: Vec<(u8, Source)>,
     /// Analog input CH=SOURCE of the PIC (channel 0 is the battery).
     #[arg(long, value_name = "CH=SOURCE", value_parser = input)]
-    pub pic_input: Vec<(usize, Source)>,
+    pub pic_input: Vec<(u8, Source)>,
     /// The device on the PIC's SCI and SPI/I2C: loopback, silent, or script:SENT=REPLY,...
     /// (hex, e.g. script:41=4F4B).
     #[arg(long, default_value = "loopback", value_parser = peer)]
@@ -417,8 +418,8 @@ fn boot_start(s: &str) -> Result<u16, ValueError> {
 fn on_off(s: &str) -> Result<bool, ValueError> {
     values::parse_on_off(s)
 }
-fn input(s: &str) -> Result<(usize, Source), ValueError> {
-    values::parse_input(s)
+fn input(s: &str) -> Result<(u8, Source), buslab_served::ServeError> {
+    buslab_served::analog::channel_input(s, buslab_cpu196::source::CHANNELS)
 }
 fn peer(s: &str) -> Result<Peer, String> {
     s.parse()
@@ -601,11 +602,11 @@ fn serve(s: &ServeArgs, quiet: bool) -> anyhow::Result<()> {
     // Before the PTY and its link exist (see `zelle serve`).
     let stopped = super::stop_requests()?;
     let mut inputs = Inputs::default();
-    for &(ch, source) in &s.input {
-        inputs.c196[ch] = source;
+    for (ch, source) in &s.input {
+        inputs.c196[usize::from(*ch)] = source.clone();
     }
-    for &(ch, source) in &s.pic_input {
-        inputs.pic[ch] = source;
+    for (ch, source) in &s.pic_input {
+        inputs.pic[usize::from(*ch)] = source.clone();
     }
     let served = spawn_board(BoardOptions {
         image: s.image.clone(),
