@@ -20,8 +20,11 @@ the monitor counts the frames it has taken). It measures
   screen showed the last frame;
 - `buslab dump` on the same terminal and frames (the text printer of the same bus), for scale;
 - callgrind's instructions per frame: the difference between runs on FRAMES_CG and
-  FRAMES_CG / 2 frames, over the frames between them (the screen redraws of the longer run
-  included: under valgrind a run lasts longer, so it redraws more often per frame than natively).
+  FRAMES_CG / 2 frames, over the frames between them, with the screen redraws of the longer
+  run (under valgrind a run lasts longer, so it redraws more often per frame than natively, and
+  this column moves with the machine's load) and without them (less the inclusive count of
+  `Monitor::draw` that callgrind_annotate gives: what taking a frame costs, steady from run to
+  run).
 
 Nothing here waits without a bound: every wait ends when its work is done or after a time
 derived from the work (frames × a generous time per frame, plus a start-up allowance), and then
@@ -390,7 +393,8 @@ def run_cat(log, n):
 
 
 def instructions(work, binary, sc, n):
-    """callgrind's instruction count of `buslab monitor` taking N frames."""
+    """callgrind's instruction count of `buslab monitor` taking N frames, and the part of it
+    spent in `Monitor::draw` (inclusive)."""
     out = f"{work}/callgrind.out"
     prefix = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", f"--log-file={work}/valgrind.log"]
     run_monitor(work, binary, sc, n, prefix, PER_FRAME_CG_S)
@@ -398,7 +402,14 @@ def instructions(work, binary, sc, n):
         m = re.search(r"Collected : (\d+)", f.read())
     if not m:
         raise Failure("callgrind reported no instruction count")
-    return int(m.group(1))
+    annotated = subprocess.run(
+        ["callgrind_annotate", "--inclusive=yes", "--threshold=100", out],
+        capture_output=True, text=True, timeout=START_S,
+    ).stdout
+    draw = re.search(r"^\s*([\d,]+) .*monitor\.rs:buslab::cmd::monitor::Monitor::draw \[", annotated, re.M)
+    if not draw:
+        raise Failure("callgrind_annotate shows no Monitor::draw (inlined? renamed?)")
+    return int(m.group(1)), int(draw.group(1).replace(",", ""))
 
 
 def per(cpu, n):
@@ -415,7 +426,7 @@ def main():
     p.add_argument("--cg-frames", type=int, default=100_000)
     p.add_argument("binaries", nargs="+", metavar="NAME:BINARY")
     args = p.parse_args()
-    for tool in ("cat", "valgrind"):
+    for tool in ("cat", "valgrind", "callgrind_annotate"):
         if shutil.which(tool) is None:
             sys.exit(f"bench/monitor_output.py: {tool} is missing")
     n, cg = args.frames, args.cg_frames
@@ -428,26 +439,27 @@ def main():
             f"## buslab monitor on a {COLS}×{ROWS} pseudo-terminal: {n} frames from a socketcand "
             f"server as fast as it takes them; callgrind on {cg} - {cg // 2} frames"
         )
-        head = ("run", "frames", "CPU s", "frames/CPU s", "µs/frame", "cat ratio", "term bytes", "updates", "stale ms", "idle CPU", "instr/frame")
-        row = "{:<18} {:>8} {:>7} {:>13} {:>9} {:>10} {:>11} {:>8} {:>9} {:>9} {:>12}"
+        head = ("run", "frames", "CPU s", "frames/CPU s", "µs/frame", "cat ratio", "term bytes", "updates", "stale ms", "idle CPU", "instr/frame", "w/o draw")
+        row = "{:<18} {:>8} {:>7} {:>13} {:>9} {:>10} {:>11} {:>8} {:>9} {:>9} {:>12} {:>9}"
         print(row.format(*head))
-        print(row.format("cat (log lines)", n, f"{cat['cpu']:.2f}", rate(n, cat["cpu"]), per(cat["cpu"], n), "1.0×", cat["bytes"], "-", "-", "-", "-"))
+        print(row.format("cat (log lines)", n, f"{cat['cpu']:.2f}", rate(n, cat["cpu"]), per(cat["cpu"], n), "1.0×", cat["bytes"], "-", "-", "-", "-", "-"))
         try:
             for entry in args.binaries:
                 name, binary = entry.split(":", 1)
                 m = run_monitor(work, binary, sc, n)
-                i = instructions(work, binary, cg2, cg) - instructions(work, binary, cg1, cg // 2)
+                (all2, draw2), (all1, draw1) = instructions(work, binary, cg2, cg), instructions(work, binary, cg1, cg // 2)
+                i, j = all2 - all1, (all2 - draw2) - (all1 - draw1)
                 ratio = (n / cat["cpu"]) / (n / m["cpu"]) if m["cpu"] > 0 and cat["cpu"] > 0 else float("inf")
                 print(row.format(
                     f"{name} monitor", n, f"{m['cpu']:.2f}", rate(n, m["cpu"]), per(m["cpu"], n), f"{ratio:.1f}×",
                     m["bytes"], m["updates"], f"{m['stale'] * 1000:.0f}", f"{m['idle'] * 100:.1f} %",
-                    f"{i / (cg - cg // 2):.0f}",
+                    f"{i / (cg - cg // 2):.0f}", f"{j / (cg - cg // 2):.0f}",
                 ))
                 d = run_dump(work, binary, sc, n)
                 ratio = (n / cat["cpu"]) / (n / d["cpu"]) if d["cpu"] > 0 and cat["cpu"] > 0 else float("inf")
                 print(row.format(
                     f"{name} dump", n, f"{d['cpu']:.2f}", rate(n, d["cpu"]), per(d["cpu"], n), f"{ratio:.1f}×",
-                    d["bytes"], "-", "-", "-", "-",
+                    d["bytes"], "-", "-", "-", "-", "-",
                 ), flush=True)
         except Failure as e:
             sys.exit(f"bench/monitor_output.py: {e}")
@@ -456,7 +468,8 @@ def main():
         "term bytes: what each wrote to the terminal; updates: times the monitor's frame count "
         "moved on the screen; stale ms: the longest the screen showed no new count while the "
         "frames came in; idle CPU: the monitor's CPU time in the "
-        f"{IDLE_S:.0f} s of silence after them, in per cent of one core"
+        f"{IDLE_S:.0f} s of silence after them, in per cent of one core; w/o draw: instructions per "
+        "frame not counting the redraws"
     )
 
 
