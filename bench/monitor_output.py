@@ -23,8 +23,8 @@ the monitor counts the frames it has taken). It measures
   FRAMES_CG / 2 frames, over the frames between them, with the screen redraws of the longer
   run (under valgrind a run lasts longer, so it redraws more often per frame than natively, and
   this column moves with the machine's load) and without them (less the inclusive count of
-  `Monitor::draw` that callgrind_annotate gives: what taking a frame costs, steady from run to
-  run).
+  `Monitor::draw` that callgrind_annotate gives: what taking a frame costs, far steadier; the
+  log lines formatted for each redraw, outside draw, stay in).
 
 Nothing here waits without a bound: every wait ends when its work is done or after a time
 derived from the work (frames × a generous time per frame, plus a start-up allowance), and then
