@@ -12,13 +12,19 @@
 #    socketcand server, printed in candump's terminal layout and, with -L, as log lines),
 #    against `cat` of the same text: lines per CPU second, the ratio to cat, and callgrind's
 #    instructions per line (the difference between two input sizes).
+# 3. `buslab monitor` (the full-screen view) on a pseudo-terminal, fed by a socketcand server
+#    as fast as it takes the frames, against `cat` of the same frames as text to the same
+#    terminal: frames per CPU second, the bytes written to the terminal, how current the screen
+#    stays, instructions per frame (bench/monitor_output.py, which says how).
 #
 # Every output goes to /dev/null; cat reads a file of the same text as the tool printed. The
 # machine is shared and wall times are noisy: read the CPU columns and the instruction counts
 # (they do not move with the load). BASELINE=path/to/an/older/buslab adds its rows, same
 # inputs, same run (e.g. one built from main before a change). SIM_S (simulated seconds of the
 # timed sim runs), LOG_LINES, DUMP_FRAMES, CG_LINES (lines under callgrind), CG_SHORT/CG_LONG
-# (simulated seconds under callgrind) change the sizes. Needs python3, valgrind, /usr/bin/time.
+# (simulated seconds under callgrind), MONITOR_FRAMES, CG_FRAMES (frames under callgrind) change
+# the sizes; TABLES=sim,text,monitor (the default) chooses the tables. Needs python3, valgrind,
+# /usr/bin/time.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,7 +34,11 @@ DUMP_FRAMES=${DUMP_FRAMES:-1000000}
 CG_LINES=${CG_LINES:-100000}
 CG_SHORT=${CG_SHORT:-1}
 CG_LONG=${CG_LONG:-3}
+MONITOR_FRAMES=${MONITOR_FRAMES:-1000000}
+CG_FRAMES=${CG_FRAMES:-100000}
+TABLES=${TABLES:-sim,text,monitor}
 BASELINE=${BASELINE:-}
+table() { [[ ",$TABLES," == *",$1,"* ]]; }
 
 for tool in python3 valgrind /usr/bin/time; do
     command -v "$tool" >/dev/null 2>&1 || {
@@ -63,7 +73,7 @@ bins=("new:$buslab")
 
 # A candump log like a busy two-interface bus: 30 % extended IDs, 0..8 bytes, 50..500 µs
 # apart (as bench/logs.sh). And the same frames as socketcand `< frame … >` messages.
-python3 - "$work" "$LOG_LINES" "$DUMP_FRAMES" "$CG_LINES" <<'EOF'
+table text && python3 - "$work" "$LOG_LINES" "$DUMP_FRAMES" "$CG_LINES" <<'EOF'
 import random, sys
 work, lines, frames, cg = sys.argv[1], *map(int, sys.argv[2:])
 def entries(n):
@@ -164,6 +174,7 @@ cat_rate() {
 
 echo "# buslab output paths; load average: $(cut -d' ' -f1-3 /proc/loadavg)"
 [ -z "$BASELINE" ] || echo "# base = $BASELINE, new = $buslab"
+if table sim; then
 echo
 echo "## buslab sim, saturated 1 Mbit/s bus, 16 nodes, 8-byte frames: ${SIM_S} s simulated (timed), callgrind ${CG_LONG} s - ${CG_SHORT} s"
 printf '%-16s %8s %8s %13s %13s %9s %14s %15s %14s\n' run "wall s" "CPU s" "×real (wall)" "×real (CPU)" lines "lines/CPU s" "Minstr/sim s" "vs -q (instr)"
@@ -186,6 +197,9 @@ for entry in "${bins[@]}"; do
 done
 cmp -s "$work/trace.new" "$work/trace.${bins[-1]%%:*}" && same=yes || same=no
 echo "# cat of the trace: $(cat_rate "$work/trace.new") lines/CPU s; vs -q (instr): -q's instructions per simulated second / this run's (1.00× = printing is free, ≥ 0.50× = the target); same trace from every binary: $same"
+fi
+
+if table text; then
 echo
 
 echo "## text out: ${LOG_LINES} log lines, ${DUMP_FRAMES} frames from a socketcand server; callgrind on ${CG_LINES} - $((CG_LINES / 2)) lines"
@@ -218,4 +232,11 @@ for entry in "${bins[@]}"; do
             "$rate" "$c" "$(div "$c" "$rate")" "$(div "$((i2 - i1))" "$((CG_LINES - CG_LINES / 2))" "%.0f")"
     done
 done
-echo "# cat ratio: how many times faster cat passes the same text (lower is better); load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "# cat ratio: how many times faster cat passes the same text (lower is better)"
+fi
+
+if table monitor; then
+echo
+python3 bench/monitor_output.py --frames "$MONITOR_FRAMES" --cg-frames "$CG_FRAMES" "${bins[@]}"
+fi
+echo "# load average after: $(cut -d' ' -f1-3 /proc/loadavg)"

@@ -270,7 +270,7 @@ pub struct BusView {
     seq: u64,
     rows: BTreeMap<Id, Row>,
     ids_dropped: u64,
-    log: VecDeque<LogEntry>,
+    log: VecDeque<Logged>,
     load: VecDeque<LoadSample>,
     nodes: BTreeMap<u32, Node>,
     faults: VecDeque<FaultMark>,
@@ -375,11 +375,9 @@ impl BusView {
             }
             None => self.ids_dropped += 1,
         }
-        self.log(LogEntry {
+        self.log(Logged {
             seq,
             at,
-            frame: frame.to_string(),
-            error: None,
             record: Record::Frame(frame),
         });
     }
@@ -390,21 +388,14 @@ impl BusView {
         self.tick(now);
         let seq = self.next_seq();
         self.error_frames += 1;
-        let (_, data) = e.encode();
-        let bytes: String = data[..e.data_len()]
-            .iter()
-            .map(|b| format!("{b:02X}"))
-            .collect();
-        self.log(LogEntry {
+        self.log(Logged {
             seq,
             at,
-            frame: format!("{:08X}#{bytes}", e.can_id()),
-            error: Some(ErrorEntry::of(e)),
             record: Record::Error(e.clone()),
         });
     }
 
-    fn log(&mut self, entry: LogEntry) {
+    fn log(&mut self, entry: Logged) {
         if self.log.len() >= self.config.log_capacity.max(1) {
             self.log.pop_front();
         }
@@ -596,7 +587,7 @@ impl BusView {
             if e.passes(filter) {
                 passed += 1;
                 if log.len() < max_log {
-                    log.push(e.clone());
+                    log.push(e.entry());
                 }
             }
         }
@@ -652,11 +643,32 @@ impl BusView {
         }
     }
 
-    /// The whole table at `now`, sorted by ID (for a terminal that redraws everything).
+    /// The whole table at `now`, sorted by ID.
     pub fn rows(&self, now: Duration) -> Vec<IdRow> {
+        self.rows_page(now, 0, usize::MAX)
+    }
+
+    /// At most `n` rows of the table from the `skip`th, at `now`, sorted by ID: what a
+    /// terminal shows, put in words without the thousands of rows it does not show.
+    pub fn rows_page(&self, now: Duration, skip: usize, n: usize) -> Vec<IdRow> {
         self.rows
             .iter()
+            .skip(skip)
+            .take(n)
             .map(|(&key, r)| self.row(key, r, now))
+            .collect()
+    }
+
+    /// Frames per second over the last complete second.
+    pub fn frames_per_s(&self) -> u64 {
+        self.last_frames_per_s
+    }
+
+    /// Every node in words, as [`Delta::nodes`] has them but without their histories.
+    pub fn node_views(&self) -> Vec<NodeView> {
+        self.nodes
+            .values()
+            .map(|n| node_view(n, u64::MAX, f64::INFINITY))
             .collect()
     }
 
@@ -668,14 +680,14 @@ impl BusView {
             .rev()
             .filter(|e| e.passes(filter))
             .take(n)
-            .cloned()
+            .map(Logged::entry)
             .collect();
         tail.reverse();
         tail
     }
 
     /// The load samples kept, oldest first.
-    pub fn load(&self) -> impl Iterator<Item = &LoadSample> {
+    pub fn load(&self) -> impl DoubleEndedIterator<Item = &LoadSample> + ExactSizeIterator {
         self.load.iter()
     }
 
@@ -732,11 +744,44 @@ impl BusView {
 /// Fault marks kept at most (ended ones also leave after the retention time).
 const MAX_FAULT_MARKS: usize = 256;
 
-impl LogEntry {
+/// A frame or an error frame as the log ring keeps it: the record only, put in words when a
+/// consumer takes it (a busy bus logs far more frames than anyone reads).
+#[derive(Clone, Debug)]
+struct Logged {
+    seq: u64,
+    at: Timestamp,
+    record: Record,
+}
+
+impl Logged {
     fn passes(&self, filter: &LogFilter) -> bool {
         match &self.record {
             Record::Frame(f) => filter.matches(f),
             Record::Error(e) => filter.matches_error(e),
+        }
+    }
+
+    fn entry(&self) -> LogEntry {
+        let (frame, error) = match &self.record {
+            Record::Frame(f) => (f.to_string(), None),
+            Record::Error(e) => {
+                let (_, data) = e.encode();
+                let bytes: String = data[..e.data_len()]
+                    .iter()
+                    .map(|b| format!("{b:02X}"))
+                    .collect();
+                (
+                    format!("{:08X}#{bytes}", e.can_id()),
+                    Some(ErrorEntry::of(e)),
+                )
+            }
+        };
+        LogEntry {
+            seq: self.seq,
+            at: self.at,
+            frame,
+            error,
+            record: self.record.clone(),
         }
     }
 }

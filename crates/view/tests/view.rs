@@ -220,6 +220,43 @@ fn the_table_is_bounded_and_clear_starts_over() {
     assert!(d.full && d.ids.is_empty() && d.log.is_empty());
 }
 
+#[test]
+fn a_terminal_gets_the_rows_it_shows_and_the_figures_of_a_delta_without_one() {
+    let mut view = BusView::new(ViewConfig::default());
+    for (i, id) in ["005", "001", "004", "002", "003"].iter().enumerate() {
+        view.message(ms(i as u64), &msg(i as f64, &format!("{id}#AA")));
+    }
+    view.nodes(ms(10), vec![status(1, "engine", 136, ErrorState::Passive)]);
+    view.tick(ms(1_000));
+    // The page is the sorted table's rows from `skip`, at most `n`.
+    let page = view.rows_page(ms(1_000), 1, 2);
+    assert_eq!(page, view.rows(ms(1_000))[1..3]);
+    assert_eq!(
+        page.iter().map(|r| r.id.as_str()).collect::<Vec<_>>(),
+        ["002", "003"]
+    );
+    assert!(view.rows_page(ms(1_000), 5, 2).is_empty());
+    // The figures a delta carries, the same without building one.
+    let d = view.delta(&Cursor::start(), ms(1_000), &LogFilter::all(), 0);
+    assert_eq!(
+        (view.frame_count(), view.frames_per_s()),
+        (d.frames, d.frames_per_s)
+    );
+    assert_eq!(view.frames_per_s(), 5);
+    let nodes = view.node_views();
+    assert_eq!(nodes.len(), 1);
+    assert_eq!(
+        (
+            nodes[0].name.as_str(),
+            nodes[0].state.as_str(),
+            nodes[0].tec
+        ),
+        ("engine", "error-passive", Some(136))
+    );
+    assert!(nodes[0].history.is_empty(), "a terminal draws no chart");
+    assert_eq!(view.load().next_back(), d.load.last());
+}
+
 /// Ten minutes of a node polled every 250 ms, its TEC climbing to bus-off for 3 s near the
 /// end (the seed's experiment), as `buslab lab` lives it.
 fn ten_minutes_with_the_experiment() -> BusView {

@@ -19,7 +19,7 @@ use anyhow::{Context, bail};
 use buslab_backends::DynBus;
 use buslab_can::Frame;
 use buslab_canbus::{NodeRef, NodeStatus, Record, Timestamp, wall_clock};
-use buslab_view::{BusView, Cursor, LogFilter, ViewConfig};
+use buslab_view::{BusView, LogFilter, ViewConfig};
 use ratatui::Terminal;
 use ratatui::backend::CrosstermBackend;
 use ratatui::layout::{Constraint, Layout};
@@ -149,36 +149,49 @@ impl Monitor {
                 next_status = Instant::now() + STATUS_EVERY;
             }
             if Instant::now() >= next_draw {
-                let now = self.epoch.elapsed();
-                if !self.paused {
-                    self.shown_log = self
-                        .view
-                        .log_tail(&self.filter, LOG_LINES)
-                        .into_iter()
-                        .map(|e| {
-                            let own = matches!(e.record, Record::Frame(f) if self.sent.contains(&(e.at, f)));
-                            format!(
-                                "{:>17}  {}{}",
-                                e.at.to_string(),
-                                e.frame,
-                                if own { "  TX" } else { "" }
-                            )
-                        })
-                        .collect();
-                }
-                terminal
-                    .draw(|f| self.draw(f, now))
-                    .context("cannot draw on the terminal")?;
+                self.redraw(terminal)?;
                 next_draw = Instant::now() + REDRAW;
             }
-            let mut timeout = next_draw
-                .min(next_status)
-                .saturating_duration_since(Instant::now());
+            // Frames until the next redraw or status is due, and no longer: a bus that sends
+            // faster than the monitor takes its frames must not keep the screen stale and the
+            // keys unread.
+            let due = next_draw.min(next_status);
+            let mut timeout = due.saturating_duration_since(Instant::now());
             while let Some(m) = bus.recv(Some(timeout)).context("receiving from the bus")? {
-                self.view.frame(self.epoch.elapsed(), m.at, m.record);
+                let seen = Instant::now();
+                self.view.frame(seen - self.epoch, m.at, m.record);
+                if seen >= due {
+                    break;
+                }
                 timeout = Duration::ZERO;
             }
         }
+        Ok(())
+    }
+
+    /// The log's newest lines (unless paused) and the screen, as they are now.
+    fn redraw(&mut self, terminal: &mut Terminal<CrosstermBackend<Stdout>>) -> anyhow::Result<()> {
+        let now = self.epoch.elapsed();
+        if !self.paused {
+            self.shown_log = self
+                .view
+                .log_tail(&self.filter, LOG_LINES)
+                .into_iter()
+                .map(|e| {
+                    let own =
+                        matches!(e.record, Record::Frame(f) if self.sent.contains(&(e.at, f)));
+                    format!(
+                        "{:>17}  {}{}",
+                        e.at.to_string(),
+                        e.frame,
+                        if own { "  TX" } else { "" }
+                    )
+                })
+                .collect();
+        }
+        terminal
+            .draw(|f| self.draw(f, now))
+            .context("cannot draw on the terminal")?;
         Ok(())
     }
 
@@ -260,7 +273,6 @@ impl Monitor {
     }
 
     fn draw(&self, f: &mut ratatui::Frame, now: Duration) {
-        let d = self.view.delta(&Cursor::start(), now, &LogFilter::all(), 0);
         let [top, middle, log, bottom] = Layout::vertical([
             Constraint::Length(1),
             Constraint::Min(6),
@@ -270,37 +282,44 @@ impl Monitor {
         .areas(f.area());
         let [summary, spark] =
             Layout::horizontal([Constraint::Min(40), Constraint::Length(30)]).areas(top);
-        let load = d
-            .load
-            .last()
+        let load = self
+            .view
+            .load()
+            .next_back()
             .and_then(|l| l.percent)
             .map_or("load ?".to_string(), |p| format!("load {p:.1} %"));
         f.render_widget(
             Paragraph::new(format!(
                 "{}  {} frames  {}/s  {load}{}",
                 self.url,
-                d.frames,
-                d.frames_per_s,
+                self.view.frame_count(),
+                self.view.frames_per_s(),
                 if self.paused { "  PAUSED" } else { "" }
             )),
             summary,
         );
-        let points: Vec<u64> = d
-            .load
-            .iter()
+        let kept = self.view.load().len();
+        let points: Vec<u64> = self
+            .view
+            .load()
+            .skip(kept.saturating_sub(usize::from(spark.width)))
             .map(|l| l.percent.map_or(l.frames, |p| p.round() as u64))
             .collect();
-        let start = points.len().saturating_sub(usize::from(spark.width));
-        f.render_widget(Sparkline::default().data(&points[start..]), spark);
+        f.render_widget(Sparkline::default().data(&points), spark);
 
         let [ids, nodes] =
             Layout::horizontal([Constraint::Percentage(58), Constraint::Percentage(42)])
                 .areas(middle);
         let highlight = Style::default().add_modifier(Modifier::REVERSED);
-        let rows = d.ids.iter().map(|r| {
+        // The rows that fit between the borders and under the header, not the whole table
+        // (thousands of IDs on a busy bus, redrawn ten times a second).
+        let shown = self
+            .view
+            .rows_page(now, 0, usize::from(ids.height.saturating_sub(3)));
+        let rows = shown.iter().map(|r| {
             let mut data = Vec::new();
-            for (i, pair) in r.data.as_bytes().chunks(2).enumerate() {
-                let byte = String::from_utf8_lossy(pair).to_string();
+            for (i, at) in (0..r.data.len()).step_by(2).enumerate() {
+                let byte = &r.data[at..at + 2];
                 if r.changed & (1 << i) != 0 {
                     data.push(Span::styled(byte, highlight));
                 } else {
@@ -309,7 +328,7 @@ impl Monitor {
                 data.push(Span::raw(" "));
             }
             Row::new(vec![
-                Line::from(r.id.clone()),
+                Line::from(r.id.as_str()),
                 Line::from(r.count.to_string()),
                 Line::from(r.period_ms.map_or("-".into(), |p| format!("{p:.1}"))),
                 Line::from(r.dlc.to_string()),
@@ -332,12 +351,13 @@ impl Monitor {
             ids,
         );
         let mut lines = Vec::new();
-        let selected = if d.nodes.is_empty() {
+        let nodes_shown = self.view.node_views();
+        let selected = if nodes_shown.is_empty() {
             None
         } else {
-            Some(self.selected % d.nodes.len())
+            Some(self.selected % nodes_shown.len())
         };
-        for (i, n) in d.nodes.iter().enumerate() {
+        for (i, n) in nodes_shown.iter().enumerate() {
             let text = format!(
                 "{:>2} {:<10} {:<13} TEC {:>3} REC {:>3}",
                 n.number,
@@ -352,7 +372,7 @@ impl Monitor {
                 Line::raw(text)
             });
         }
-        if let Some(n) = selected.map(|i| &d.nodes[i]) {
+        if let Some(n) = selected.map(|i| &nodes_shown[i]) {
             lines.push(Line::raw(""));
             lines.push(Line::raw(format!(
                 "STATUS {}",
