@@ -5,13 +5,12 @@
 //! deadlines (never stuck in the past).
 #![no_main]
 
-use buslab_can::{Frame, Id, StandardId};
+use buslab_can::{Frame, Id, Nanos, StandardId};
 use buslab_monican::{Config, DEFAULT_MAIL_ID, MoniCan};
 use buslab_slio::SlioId;
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 
-const MS: u64 = 1_000_000;
 /// Frames MoniCAN may have queued: the 48 calibration frames, a request per SLIO and input
 /// kind, mail answers; far below this unless something leaks.
 const MAX_QUEUED: usize = 1_000;
@@ -35,9 +34,9 @@ fn frame_id(u: &mut Unstructured) -> Result<Id> {
 }
 
 fn run(u: &mut Unstructured) -> Result<()> {
-    let mut now = 0u64;
+    let mut now = Nanos::ZERO;
     let mut app = MoniCan::new(Config::default(), now).unwrap();
-    let check = |app: &mut MoniCan, now: u64| {
+    let check = |app: &mut MoniCan, now: Nanos| {
         while app.poll_event().is_some() {}
         assert!(app.queued() <= MAX_QUEUED, "{} frames queued", app.queued());
         let screen = app.take_screen();
@@ -79,7 +78,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 };
                 app.handle_frame(now, &frame);
             }
-            3 => now += u64::from(u.int_in_range(0..=255u8)?) * MS,
+            3 => now += Nanos::from_millis(u64::from(u.int_in_range(0..=255u8)?)),
             _ => {
                 if let Some(t) = app.next_deadline() {
                     now = now.max(t);

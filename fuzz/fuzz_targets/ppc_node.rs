@@ -6,7 +6,7 @@
 
 use buslab_can::node::BusNode;
 use buslab_can::wire::encode;
-use buslab_can::{Frame, Id, Level, StandardId};
+use buslab_can::{BitTime, Frame, Id, Level, StandardId};
 use buslab_monican::{Config, DEFAULT_MAIL_ID};
 use buslab_ppc::PpcNode;
 use buslab_slio::SlioId;
@@ -17,12 +17,12 @@ use libfuzzer_sys::fuzz_target;
 const MAX_SCREEN: usize = 64 * 1024;
 /// Bit-times an input runs at most. Every bit is a step of the SJA1000 and MoniCAN models, so
 /// a long input of idle runs took a second of CPU; the longest time-out the node keeps (a
-/// SLIO's answer, `buslab_slio::master::ANSWER_WITHIN_BITS`, 4000 bit-times) fits 12 times.
-const MAX_BITS: u64 = 12 * buslab_slio::master::ANSWER_WITHIN_BITS;
+/// SLIO's answer, `buslab_slio::master::ANSWER_WITHIN`, 4000 bit-times) fits 12 times.
+const MAX_BITS: BitTime = BitTime::new(12 * buslab_slio::master::ANSWER_WITHIN.get());
 
 struct Wire {
     node: PpcNode,
-    now: u64,
+    now: BitTime,
 }
 
 impl Wire {
@@ -34,7 +34,7 @@ impl Wire {
             Level::Recessive
         };
         self.node.sample(self.now, bus);
-        self.now += 1;
+        self.now += BitTime::ONE;
         while self.node.poll_event().is_some() {}
     }
 
@@ -56,7 +56,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
     };
     let mut wire = Wire {
         node: PpcNode::new(config).unwrap(),
-        now: 0,
+        now: BitTime::ZERO,
     };
     while !u.is_empty() && wire.now < MAX_BITS {
         match u.int_in_range(0..=5u8)? {

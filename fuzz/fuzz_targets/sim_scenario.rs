@@ -3,11 +3,12 @@
 #![no_main]
 
 use buslab_bench::Scenario;
+use buslab_can::BitTime;
 use buslab_fuzz::text;
 use libfuzzer_sys::fuzz_target;
 
 /// Bit-times a small accepted scenario runs (enough for a few frames and faults to start).
-const RUN_BITS: u64 = 2_000;
+const RUN_BITS: BitTime = BitTime::new(2_000);
 
 fuzz_target!(|data: &[u8]| {
     let Some(text) = text(data) else { return };

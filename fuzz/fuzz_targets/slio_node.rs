@@ -5,19 +5,19 @@
 
 use buslab_can::node::BusNode;
 use buslab_can::wire::encode;
-use buslab_can::{Frame, Id, Level, StandardId};
+use buslab_can::{BitTime, Frame, Id, Level, StandardId};
 use buslab_slio::{Slio, SlioId, calibration_frame};
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 
-/// Bit-times an input may run: the SLIO's longest time-out (`WATCHDOG_BITS`, 8192 bit-times
+/// Bit-times an input may run: the SLIO's longest time-out (`WATCHDOG`, 8192 bit-times
 /// without a frame for it) fits four times. Every bit is a step of the model, and a long input
 /// of idle runs took milliseconds to reach nothing new.
-const MAX_BITS: u64 = 4 * buslab_slio::slio::WATCHDOG_BITS;
+const MAX_BITS: BitTime = BitTime::new(4 * buslab_slio::slio::WATCHDOG.get());
 
 struct Wire {
     slio: Slio,
-    now: u64,
+    now: BitTime,
 }
 
 impl Wire {
@@ -34,7 +34,7 @@ impl Wire {
             driven
         };
         self.slio.sample(self.now, bus);
-        self.now += 1;
+        self.now += BitTime::ONE;
         while self.slio.poll_event().is_some() {}
         for _ in self.slio.take_notices() {}
     }
@@ -54,7 +54,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
     let bitrate = *u.choose(&[20_000, 50_000, 125_000])?;
     let mut wire = Wire {
         slio: Slio::new(id, bitrate).unwrap(),
-        now: 0,
+        now: BitTime::ZERO,
     };
     while !u.is_empty() && wire.now < MAX_BITS {
         match u.int_in_range(0..=5u8)? {

@@ -5,6 +5,7 @@
 
 use buslab_analog::{Source, SourceSpec};
 use buslab_can::node::BusNode;
+use buslab_can::{BitTime, Nanos};
 use buslab_canbus::NodeInfo;
 use buslab_canbus::admin::{BoardInput, BoardState};
 use buslab_sim::Node;
@@ -32,8 +33,8 @@ pub fn demo_board(
     let board = DemoBoard::new(
         id,
         bitrate,
-        Box::new(move |t| adc1.volts(buslab_can::Nanos::new(t))),
-        Box::new(move |t| potentiometer.volts(buslab_can::Nanos::new(t))),
+        Box::new(move |t: Nanos| adc1.volts(t)),
+        Box::new(move |t: Nanos| potentiometer.volts(t)),
     )?;
     Ok(on_bus(board))
 }
@@ -71,7 +72,7 @@ impl Device for BoardDevice {
 
     /// Calibration and bus-mode changes; register values are the board's own business (a
     /// conversion changes one every few milliseconds).
-    fn take_notices(&mut self) -> Vec<(u64, DeviceNotice)> {
+    fn take_notices(&mut self) -> Vec<(BitTime, DeviceNotice)> {
         self.0
             .take_notices()
             .into_iter()
@@ -90,7 +91,7 @@ impl Board for BoardDevice {
         self.0.id()
     }
 
-    fn change(&mut self, now: u64, input: BoardInput) {
+    fn change(&mut self, now: BitTime, input: BoardInput) {
         let board = &mut self.0;
         match input {
             BoardInput::Switch { switch, on } => {
@@ -107,7 +108,7 @@ impl Board for BoardDevice {
         }
     }
 
-    fn state(&mut self, now: u64, node: NodeInfo) -> BoardState {
+    fn state(&mut self, now: BitTime, node: NodeInfo) -> BoardState {
         let board = &mut self.0;
         // As the ADC reads them (it clamps to its supply).
         let level = |v: f64| if v.is_nan() { 0.0 } else { v.clamp(0.0, VDD) };

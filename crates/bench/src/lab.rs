@@ -5,9 +5,9 @@
 use std::io;
 use std::net::SocketAddr;
 
-use buslab_can::Frame;
 use buslab_can::controller::ControllerConfig;
 use buslab_can::node::BusNode;
+use buslab_can::{Frame, Nanos};
 use buslab_ppc::PpcError;
 use buslab_sim::{BitTime, Simulation, Traffic};
 use buslab_slio::{SlioError, SlioId};
@@ -42,11 +42,11 @@ pub const SIMULATED: [&str; 4] = ["brakes", "engine", "body", "dash"];
 /// The simulated nodes of the bench ([`SIMULATED`]) and their traffic.
 pub fn lab_nodes(bitrate: u32, seed: u64) -> Simulation {
     let mut bus = Simulation::new(bitrate, seed);
-    let ms = |m: u64| m * bitrate as u64 / 1000;
+    let ms = |m: u64| Nanos::from_millis(m).bit_times_at(bitrate);
     let f = |text: &str| -> Frame { text.parse().expect("built-in frame") };
     let plain = ControllerConfig::default();
     let [brakes, engine, body, dash] = SIMULATED.map(|name| bus.add_node(name, plain));
-    bus.add_traffic(brakes, periodic(f("080#0140"), ms(20), 0));
+    bus.add_traffic(brakes, periodic(f("080#0140"), ms(20), BitTime::ZERO));
     bus.add_traffic(engine, periodic(f("0C0#0FA0003C00000000"), ms(10), ms(1)));
     bus.add_traffic(body, periodic(f("18FF0010#A5"), ms(100), ms(3)));
     bus.add_traffic(

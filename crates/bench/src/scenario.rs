@@ -3,7 +3,7 @@
 //! nodes on the one bus engine, made by the node factory ([`crate::nodes`]).
 
 use buslab_can::controller::ControllerConfig;
-use buslab_can::{Frame, Id};
+use buslab_can::{Frame, Id, Nanos};
 use buslab_sim::{BitTime, Fault, FaultKind, Simulation, Span, Traffic};
 use buslab_slio::SlioId;
 use serde::Deserialize;
@@ -11,12 +11,12 @@ use serde::Deserialize;
 use crate::error::ScenarioError;
 use crate::nodes::{self, Sja1000Spec};
 
-/// The longest a simulation may run, in virtual seconds (a `u64::MAX` duration ran for hours).
-pub const MAX_DURATION_S: u64 = 3600;
+/// The longest a simulation may run, in virtual time (a `u64::MAX` duration ran for hours).
+pub const MAX_DURATION: Nanos = Nanos::from_secs(3600);
 
-/// [`MAX_DURATION_S`] in bit-times at `bitrate`.
+/// [`MAX_DURATION`] in bit-times at `bitrate`.
 pub fn max_duration(bitrate: u32) -> BitTime {
-    MAX_DURATION_S * u64::from(bitrate)
+    MAX_DURATION.bit_times_at(bitrate)
 }
 
 /// Largest file a scenario may send (16 MiB).
@@ -322,7 +322,7 @@ impl Resolver<'_> {
         start: &Option<RawSpan>,
         end: &Option<RawSpan>,
     ) -> Result<(BitTime, BitTime), ScenarioError> {
-        let s = self.opt_span(context, start, 0)?;
+        let s = self.opt_span(context, start, BitTime::ZERO)?;
         let e = self.opt_span(context, end, BitTime::MAX)?;
         if e < s {
             let show = |r: &Option<RawSpan>| r.as_ref().map_or("0".to_owned(), |r| r.0.clone());
@@ -370,7 +370,11 @@ impl RawScenario {
             bitrate,
             names: &names,
         };
-        let duration = r.opt_span("duration", &self.duration, bitrate as BitTime)?;
+        let duration = r.opt_span(
+            "duration",
+            &self.duration,
+            Nanos::from_secs(1).bit_times_at(bitrate),
+        )?;
         if duration > max_duration(bitrate) {
             return Err(ScenarioError::OutOfRange {
                 context: "duration".to_owned(),
@@ -385,7 +389,7 @@ impl RawScenario {
         }
         let sample_every = match &self.sample_every {
             Some(raw) => match r.span("sample_every", raw)? {
-                0 => {
+                BitTime::ZERO => {
                     return Err(ScenarioError::OutOfRange {
                         context: "sample_every".to_owned(),
                         what: "interval",
@@ -572,7 +576,7 @@ impl RawTraffic {
                 count,
             } => {
                 let period_bits = r.span(context, &period)?;
-                if period_bits == 0 {
+                if period_bits == BitTime::ZERO {
                     return Err(ScenarioError::OutOfRange {
                         context: context.to_owned(),
                         what: "period",
@@ -592,7 +596,7 @@ impl RawTraffic {
                 Traffic::Periodic {
                     frame: r.frame(context, &frame)?,
                     period: period_bits,
-                    start: r.opt_span(context, &start, 0)?,
+                    start: r.opt_span(context, &start, BitTime::ZERO)?,
                     count,
                 }
             }
@@ -613,8 +617,8 @@ impl RawTraffic {
                 Traffic::Burst {
                     frame: r.frame(context, &frame)?,
                     count: count as u32,
-                    period: r.opt_span(context, &period, 0)?,
-                    start: r.opt_span(context, &start, 0)?,
+                    period: r.opt_span(context, &period, BitTime::ZERO)?,
+                    start: r.opt_span(context, &start, BitTime::ZERO)?,
                 }
             }
             RawTraffic::File {
@@ -659,7 +663,7 @@ impl RawTraffic {
                 Traffic::File {
                     id: id_value,
                     data,
-                    start: r.opt_span(context, &start, 0)?,
+                    start: r.opt_span(context, &start, BitTime::ZERO)?,
                 }
             }
             RawTraffic::Once { frame, at } => Traffic::Once {
@@ -703,7 +707,7 @@ impl RawFault {
                 let at = r.span(context, &at)?;
                 (
                     FaultKind::Flip { node },
-                    (at, at.saturating_add(bits.unwrap_or(1))),
+                    (at, at.saturating_add(BitTime::new(bits.unwrap_or(1)))),
                 )
             }
             RawFault::StuckDominant { start, end } => (
@@ -791,27 +795,27 @@ mod tests {
     fn parses_a_full_scenario() {
         let s = Scenario::from_toml(GOOD).unwrap();
         assert_eq!(s.bitrate, 125_000);
-        assert_eq!(s.duration, 12_500);
-        assert_eq!(s.sample_every, Some(125));
+        assert_eq!(s.duration, BitTime::new(12_500));
+        assert_eq!(s.sample_every, Some(BitTime::new(125)));
         assert_eq!(s.nodes.len(), 2);
         assert!(matches!(s.nodes[1].kind, NodeKind::Controller(c) if c.listen_only));
         assert_eq!(
             s.nodes[0].traffic[0],
             Traffic::Periodic {
                 frame: "123#1122".parse().unwrap(),
-                period: 1250,
-                start: 0,
+                period: BitTime::new(1250),
+                start: BitTime::ZERO,
                 count: None
             }
         );
-        assert_eq!(s.faults[0].start, 2500);
-        assert_eq!(s.faults[0].end, 3750);
+        assert_eq!(s.faults[0].start, BitTime::new(2500));
+        assert_eq!(s.faults[0].end, BitTime::new(3750));
         assert_eq!(
             s.faults[1],
             Fault {
                 kind: FaultKind::Flip { node: Some(1) },
-                start: 5000,
-                end: 5001
+                start: BitTime::new(5000),
+                end: BitTime::new(5001)
             }
         );
         assert_eq!(s.build().unwrap().nodes().len(), 2);

@@ -3,6 +3,7 @@
 //! time changing nothing.
 
 use buslab_bench::Scenario;
+use buslab_can::BitTime;
 use buslab_can::controller::{ErrorState, Event};
 use buslab_sim::{Happening, Simulation};
 
@@ -17,7 +18,7 @@ fn run(text: &str, fast_forward: bool) -> Simulation {
 }
 
 /// The sender's TXERR at each sample (bit-time, value), and when it entered bus-off.
-fn sender(sim: &Simulation) -> (Vec<(u64, u16)>, Vec<u64>) {
+fn sender(sim: &Simulation) -> (Vec<(BitTime, u16)>, Vec<BitTime>) {
     let samples = sim
         .series()
         .iter()
@@ -48,7 +49,7 @@ fn the_seed_recovery_counts_txerr_down_and_the_fast_restart_jumps_to_zero() {
     let (samples, bus_offs) = sender(&seed);
     assert!(!bus_offs.is_empty());
     // Right after bus-off the chip shows 127 or a little less, falling.
-    let after = |t: u64| samples.iter().find(|s| s.0 > t).unwrap().1;
+    let after = |t: BitTime| samples.iter().find(|s| s.0 > t).unwrap().1;
     assert!(bus_offs.iter().all(|&t| (100..=127).contains(&after(t))));
 
     let fast = SEED.replace(
@@ -62,7 +63,7 @@ fn the_seed_recovery_counts_txerr_down_and_the_fast_restart_jumps_to_zero() {
     // Linux's restart: bus-off for 100 ms (TXERR stays 127), then TXERR := 0 at once (the
     // wire is still cut, so the next millisecond's sample shows a couple of new failures; the
     // counted recovery would show about 127 - 125 / 11 = 116).
-    let restarted = bus_offs[0] + 125_000 / 10;
+    let restarted = bus_offs[0] + BitTime::new(125_000 / 10);
     let before = samples.iter().rev().find(|s| s.0 < restarted).unwrap().1;
     let after = samples.iter().find(|s| s.0 > restarted).unwrap().1;
     assert_eq!(before, 127);
@@ -73,8 +74,8 @@ fn the_seed_recovery_counts_txerr_down_and_the_fast_restart_jumps_to_zero() {
 fn fast_forward_over_idle_time_changes_nothing_with_sja1000_nodes() {
     let fast = run(SEED, true);
     let slow = run(SEED, false);
-    assert!(fast.fast_forwarded() > 0);
-    assert_eq!(slow.fast_forwarded(), 0);
+    assert!(fast.fast_forwarded() > BitTime::ZERO);
+    assert_eq!(slow.fast_forwarded(), BitTime::ZERO);
     assert_eq!(fast.records(), slow.records());
     assert_eq!(fast.series(), slow.series());
     assert_eq!(fast.bus_stats(), slow.bus_stats());

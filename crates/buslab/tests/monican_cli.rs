@@ -8,6 +8,7 @@ mod pty_program;
 use std::process::Command;
 
 use assert_cmd::cargo::CommandCargoExt;
+use buslab_can::BitTime;
 use buslab_can::controller::Event;
 use buslab_monican::layout::*;
 use buslab_sim::{Happening, Simulation};
@@ -25,7 +26,7 @@ fn bus() -> ServerHandle {
     for (id, switches) in [(0x0, 0x0), (0x3, 0x5), (0xA, 0xF)] {
         let mut board =
             DemoBoard::new(SlioId::new(id).unwrap(), RATE, Box::new(1.0), Box::new(2.5)).unwrap();
-        board.set_switches(0, switches);
+        board.set_switches(BitTime::ZERO, switches);
         sim.add_device(format!("slio{id:X}"), Box::new(board));
     }
     let mut config = ServerConfig::new("127.0.0.1:0".parse().unwrap(), RATE);

@@ -9,6 +9,7 @@
 use core::any::Any;
 use core::ops::Range;
 
+use crate::BitTime;
 use crate::Frame;
 use crate::Level;
 use crate::controller::{
@@ -23,7 +24,7 @@ pub trait BusNode: Any + Send {
 
     /// The bus level this node sees during bit-time `now` (bit-times since the bus started;
     /// it may jump forward over idle bus while the node is [quiet](Self::quiet_until)).
-    fn sample(&mut self, now: u64, bus: Level);
+    fn sample(&mut self, now: BitTime, bus: Level);
 
     /// The next protocol event of this node's controller (what the engine counts and traces).
     fn poll_event(&mut self) -> Option<Event>;
@@ -36,11 +37,11 @@ pub trait BusNode: Any + Send {
     fn state(&self) -> ErrorState;
 
     /// Until when a recessive bus changes nothing in this node but the time: `None` while it
-    /// is busy (it must see every bit), `Some(u64::MAX)` when it is idle with nothing to send,
+    /// is busy (it must see every bit), `Some(BitTime::MAX)` when it is idle with nothing to send,
     /// `Some(t)` when it is idle but has a timer of its own that runs out at bit-time `t`. The
     /// engine may skip bit-times without sampling up to that time; the next
     /// [`sample`](Self::sample) then comes with a later `now`.
-    fn quiet_until(&self) -> Option<u64>;
+    fn quiet_until(&self) -> Option<BitTime>;
 
     /// Queues a frame for transmission (traffic generators, scenario one-shots).
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull>;
@@ -62,7 +63,7 @@ pub trait BusNode: Any + Send {
     /// [`sample`](Self::sample) the bus was recessive (the engine may have skipped those
     /// bit-times, as [`Self::quiet_until`] allowed). A node that keeps time of its own
     /// (timestamps, timers) takes the time here; the default ignores it.
-    fn frame_starts_at(&mut self, now: u64) {
+    fn frame_starts_at(&mut self, now: BitTime) {
         let _ = now;
     }
 
@@ -86,7 +87,7 @@ impl BusNode for Controller {
         Controller::output(self)
     }
     #[inline]
-    fn sample(&mut self, _now: u64, bus: Level) {
+    fn sample(&mut self, _now: BitTime, bus: Level) {
         Controller::sample(self, bus)
     }
     #[inline]
@@ -102,8 +103,8 @@ impl BusNode for Controller {
     fn state(&self) -> ErrorState {
         Controller::state(self)
     }
-    fn quiet_until(&self) -> Option<u64> {
-        (self.is_bus_idle() && Controller::pending(self) == 0).then_some(u64::MAX)
+    fn quiet_until(&self) -> Option<BitTime> {
+        (self.is_bus_idle() && Controller::pending(self) == 0).then_some(BitTime::MAX)
     }
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
         Controller::enqueue(self, frame)

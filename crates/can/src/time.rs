@@ -252,6 +252,15 @@ counted_time!(Nanos);
 const NANOS_PER_SECOND: u128 = 1_000_000_000;
 
 impl BitTime {
+    /// One bit-time: the bus's tick.
+    pub const ONE: Self = Self(1);
+
+    /// These bit-times as float seconds at `bitrate` bit/s (unrounded), for plots and logs
+    /// (a zero bitrate counts as 1 bit/s).
+    pub fn secs_f64_at(self, bitrate: u32) -> f64 {
+        self.0 as f64 / f64::from(bitrate.max(1))
+    }
+
     /// These bit-times as nanoseconds at `bitrate` bit/s (rounded down; a zero bitrate counts
     /// as 1 bit/s). The one conversion from a bus's clock to a host's.
     pub const fn at_bitrate(self, bitrate: u32) -> Nanos {
@@ -262,6 +271,13 @@ impl BitTime {
         } else {
             nanos as u64
         })
+    }
+}
+
+/// `bits` wire bits last as many bit-times (a frame's length, a bit's index in it).
+impl From<u32> for BitTime {
+    fn from(bits: u32) -> Self {
+        Self(bits as u64)
     }
 }
 
@@ -282,6 +298,18 @@ impl Nanos {
     /// conversion from a host's clock to a bus's.
     pub const fn bit_times_at(self, bitrate: u32) -> BitTime {
         BitTime((self.0 as u128 * bitrate as u128 / NANOS_PER_SECOND) as u64)
+    }
+
+    /// The first bit-time at `bitrate` bit/s that is not before these nanoseconds (rounded
+    /// up; the latest bit-time a `u64` counts if beyond): when a bus-clocked node must wake
+    /// for a host-clocked deadline.
+    pub const fn first_bit_time_at(self, bitrate: u32) -> BitTime {
+        let bits = (self.0 as u128 * bitrate as u128).div_ceil(NANOS_PER_SECOND);
+        BitTime(if bits > u64::MAX as u128 {
+            u64::MAX
+        } else {
+            bits as u64
+        })
     }
 
     /// A [`Duration`] of `self` nanoseconds.
@@ -376,7 +404,18 @@ mod tests {
         // Far beyond a u64 of nanoseconds, and a zero bitrate, saturate instead of panicking.
         assert_eq!(BitTime::MAX.at_bitrate(1), Nanos::MAX);
         assert_eq!(BitTime::new(2).at_bitrate(0), Nanos::from_secs(2));
+        assert_eq!(BitTime::new(1).secs_f64_at(3), 1.0 / 3.0);
         assert_eq!(Nanos::MAX.bit_times_at(1), BitTime::new(18_446_744_073));
+        // Rounded up: the bit-time a node must wake at for a deadline between two bits.
+        assert_eq!(
+            Nanos::new(6_001).first_bit_time_at(500_000),
+            BitTime::new(4)
+        );
+        assert_eq!(
+            Nanos::new(6_000).first_bit_time_at(500_000),
+            BitTime::new(3)
+        );
+        assert_eq!(Nanos::MAX.first_bit_time_at(u32::MAX), BitTime::MAX);
     }
 
     #[test]
@@ -404,5 +443,6 @@ mod tests {
             Timestamp::from_nanos(1_500)
         );
         assert_eq!(BitTime::new(42).to_string(), "42");
+        assert_eq!(BitTime::from(111u32), BitTime::new(111));
     }
 }

@@ -14,7 +14,7 @@ use std::ops::Range;
 
 use buslab_can::controller::{ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame};
 use buslab_can::node::BusNode;
-use buslab_can::{Frame, Level};
+use buslab_can::{BitTime, Frame, Level, Nanos};
 use buslab_sja1000::Sja1000;
 
 use crate::{
@@ -29,7 +29,7 @@ pub const CRYSTAL_HZ: u32 = 16_000_000;
 pub const TOLERANCE_PERMILLE: u64 = 10;
 /// With the fast restart, how long a bus-off node waits before its driver restarts it (Linux's
 /// `restart-ms`).
-pub const RESTART_AFTER_MS: u64 = 100;
+pub const RESTART_AFTER: Nanos = Nanos::from_millis(100);
 /// Per-node transmit queue length (frames waiting for the chip's single TX buffer).
 pub const TX_QUEUE: usize = 64;
 /// Recessive bit-times after which the bus is idle (CAN's bus-integration run: the ACK
@@ -41,7 +41,7 @@ pub const IDLE_BITS: u32 = 11;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Delivery {
     pub frame: Frame,
-    pub time: u64,
+    pub time: BitTime,
 }
 
 /// An error frame for a client (SocketCAN's layout, as Linux's SJA1000 driver fills it) and
@@ -49,7 +49,7 @@ pub struct Delivery {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TimedErrorFrame {
     pub frame: ErrorFrame,
-    pub time: u64,
+    pub time: BitTime,
 }
 
 /// Something a client node's driver noticed that its operator should hear about.
@@ -99,18 +99,18 @@ pub struct Sja1000Node {
     pub counters: NodeCounters,
     /// Frames the client handed over since it joined (sent + failed reach it when all are done).
     submitted: u64,
-    restart_at: Option<u64>,
+    restart_at: Option<BitTime>,
     /// Bus-off was seen: the counted recovery starts after this service.
     recovering: bool,
     /// Events for the bus engine besides the chip's own.
     engine_events: VecDeque<Event>,
     /// The driver's events while the interrupt is serviced (kept to spare an allocation).
     driver_events: Vec<DriverEvent>,
-    notices: Vec<(u64, NodeNotice)>,
+    notices: Vec<(BitTime, NodeNotice)>,
     /// The bit-time of the last sample (for what happens between samples).
-    now: u64,
+    now: BitTime,
     /// The bit-time of the SOF of the frame the engine applies whole.
-    frame_sof: u64,
+    frame_sof: BitTime,
 }
 
 impl Sja1000Node {
@@ -146,8 +146,8 @@ impl Sja1000Node {
             engine_events: VecDeque::new(),
             driver_events: Vec::new(),
             notices: Vec::new(),
-            now: 0,
-            frame_sof: 0,
+            now: BitTime::ZERO,
+            frame_sof: BitTime::ZERO,
         })
     }
 
@@ -194,7 +194,7 @@ impl Sja1000Node {
     }
 
     /// What the driver noticed since the last call, with the bit-time.
-    pub fn take_notices(&mut self) -> Vec<(u64, NodeNotice)> {
+    pub fn take_notices(&mut self) -> Vec<(BitTime, NodeNotice)> {
         std::mem::take(&mut self.notices)
     }
 
@@ -292,7 +292,7 @@ impl Sja1000Node {
 
     /// The interrupt handler: the driver's poll, then the next frame into the TX buffer.
     #[inline(never)]
-    fn service(&mut self, now: u64) {
+    fn service(&mut self, now: BitTime) {
         let mut events = std::mem::take(&mut self.driver_events);
         self.driver.poll_into(&mut events);
         for event in events.drain(..) {
@@ -335,7 +335,7 @@ impl Sja1000Node {
                         match self.config.bus_off_recovery {
                             BusOffRecovery::Fast => {
                                 self.restart_at =
-                                    Some(now + self.bus_bitrate as u64 * RESTART_AFTER_MS / 1000);
+                                    Some(now + RESTART_AFTER.bit_times_at(self.bus_bitrate));
                             }
                             BusOffRecovery::Counted => self.recovering = true,
                             // Bus-off is reset mode (the chip set MOD.RM): nothing clears it.
@@ -395,10 +395,10 @@ impl Sja1000Node {
         }
     }
 
-    /// Restarts the chip after bus-off once [`RESTART_AFTER_MS`] have passed.
+    /// Restarts the chip after bus-off once [`RESTART_AFTER`] have passed.
     #[cold]
     #[inline(never)]
-    fn restart(&mut self, now: u64) {
+    fn restart(&mut self, now: BitTime) {
         self.restart_at = None;
         let result = self.driver.restart().map_err(|e| e.to_string());
         if self.error_frames {
@@ -417,7 +417,7 @@ impl Sja1000Node {
     /// What the CPU does after the chip saw the bus up to bit-time `now`: it services the
     /// interrupt, and restarts the chip when the time has come.
     #[inline]
-    fn after_bits(&mut self, now: u64) {
+    fn after_bits(&mut self, now: BitTime) {
         if self.driver.chip().interrupt() {
             self.service(now);
         }
@@ -428,7 +428,7 @@ impl Sja1000Node {
 
     /// Wire bits `bits` of a whole frame through the chip, then the CPU at the last of them.
     fn advance_chip(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
-        let now = self.frame_sof + u64::from(bits.end) - 1;
+        let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
         self.now = now;
         self.driver.registers().advance_frame(frame, role, bits);
         self.after_bits(now);
@@ -440,7 +440,7 @@ impl BusNode for Sja1000Node {
         self.chip().output()
     }
 
-    fn sample(&mut self, now: u64, bus: Level) {
+    fn sample(&mut self, now: BitTime, bus: Level) {
         self.now = now;
         let idle = self.recessive_run >= IDLE_BITS;
         self.recessive_run = match bus {
@@ -461,7 +461,7 @@ impl BusNode for Sja1000Node {
         self.after_bits(now);
     }
 
-    fn frame_starts_at(&mut self, now: u64) {
+    fn frame_starts_at(&mut self, now: BitTime) {
         self.frame_sof = now;
     }
 
@@ -507,13 +507,13 @@ impl BusNode for Sja1000Node {
         self.chip().error_state()
     }
 
-    fn quiet_until(&self) -> Option<u64> {
+    fn quiet_until(&self) -> Option<BitTime> {
         let quiet = self.mismatch.is_none()
             && self.tx.is_empty()
             && !self.driver.tx_pending()
             && self.chip().is_quiescent();
         // A restart after bus-off is the driver's timer.
-        quiet.then_some(self.restart_at.unwrap_or(u64::MAX))
+        quiet.then_some(self.restart_at.unwrap_or(BitTime::MAX))
     }
 
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {

@@ -14,8 +14,8 @@
 
 use std::time::{Duration, Instant};
 
-use buslab_can::Frame;
-use buslab_slio::slio::LONGEST_FRAME_BITS;
+use buslab_can::{Frame, Nanos};
+use buslab_slio::slio::LONGEST_FRAME;
 use buslab_slio::{Master, MasterEvent, NotReadable, Register, RequestId, SlioId, Transmit};
 
 use crate::bus::{BusError, CanBus, Message, Record};
@@ -53,7 +53,7 @@ pub enum SingleShot {
 /// How long one look at a single-shot frame lasts: its attempt, the error frame after it
 /// and a frame ahead of it, twice over.
 fn attempt_time(bitrate: u32) -> Duration {
-    Duration::from_secs_f64((4 * LONGEST_FRAME_BITS) as f64 / f64::from(bitrate.max(1)))
+    (LONGEST_FRAME * 4).at_bitrate(bitrate).as_duration()
 }
 
 /// Sends `frame` to be tried once, as the seed's `calibration_slio` does (TR, wait until the
@@ -116,13 +116,13 @@ impl<'a> SlioHost<'a> {
     /// sent first. Periodic calibration runs while the host is used.
     pub fn new(bus: &'a mut (dyn CanBus + Send), bitrate: u32, calibrate: bool) -> Self {
         let master = if calibrate {
-            Master::new(bitrate, 0)
+            Master::new(bitrate, Nanos::ZERO)
         } else {
-            Master::keeping(bitrate, 0)
+            Master::keeping(bitrate, Nanos::ZERO)
         };
-        let wait = Duration::from_nanos(
-            buslab_slio::master::ANSWER_WITHIN_BITS * 1_000_000_000 / u64::from(bitrate.max(1)),
-        );
+        let wait = buslab_slio::master::ANSWER_WITHIN
+            .at_bitrate(bitrate)
+            .as_duration();
         Self {
             bus,
             master,
@@ -133,8 +133,8 @@ impl<'a> SlioHost<'a> {
         }
     }
 
-    fn now(&self) -> u64 {
-        self.epoch.elapsed().as_nanos() as u64
+    fn now(&self) -> Nanos {
+        Nanos::from_duration(self.epoch.elapsed())
     }
 
     /// The master (inventory, known registers).
@@ -153,16 +153,16 @@ impl<'a> SlioHost<'a> {
         until: Instant,
         done: impl FnMut(&MasterEvent) -> bool,
     ) -> Result<bool, BusError> {
-        let until = until.saturating_duration_since(self.epoch).as_nanos();
-        self.pump(Some(until.min(u128::from(u64::MAX)) as u64), done)
+        let until = Nanos::from_duration(until.saturating_duration_since(self.epoch));
+        self.pump(Some(until), done)
     }
 
-    /// Moves frames both ways until `done` holds for an event, or until `until` (ns on the
+    /// Moves frames both ways until `done` holds for an event, or until `until` (on the
     /// host's clock) if given. At `until` it returns before the timers that fall due then
     /// (the periodic calibration is left for the next call).
     fn pump(
         &mut self,
-        until: Option<u64>,
+        until: Option<Nanos>,
         mut done: impl FnMut(&MasterEvent) -> bool,
     ) -> Result<bool, BusError> {
         loop {
@@ -180,7 +180,7 @@ impl<'a> SlioHost<'a> {
                 .into_iter()
                 .flatten()
                 .min()
-                .map_or(self.wait, |t| Duration::from_nanos(t.saturating_sub(now)));
+                .map_or(self.wait, |t| t.saturating_sub(now).as_duration());
             if let Some(event) = self
                 .bus
                 .recv_event(Some(wait.max(Duration::from_micros(100))))?
@@ -200,12 +200,12 @@ impl<'a> SlioHost<'a> {
     fn take_master_events(&mut self, done: &mut impl FnMut(&MasterEvent) -> bool) -> bool {
         let mut finished = false;
         while let Some(e) = self.master.poll_event() {
-            if let MasterEvent::CalibrationLost { silent_ns } = e {
+            if let MasterEvent::CalibrationLost { silent } = e {
                 // The first start-up frame, tried once, also gives up what the bus still
                 // retries for this host ([`send_single_shot`] aborts after its attempt).
                 tracing::warn!(
                     "this host did not run for {} ms, near the SLIOs' watchdog: calibrating them again",
-                    silent_ns / 1_000_000
+                    silent.as_duration().as_millis()
                 );
             }
             finished |= done(&e);
@@ -239,12 +239,10 @@ impl<'a> SlioHost<'a> {
     }
 
     /// How long a request waits for its answer (and how long the bus may take to confirm a
-    /// frame); default [`ANSWER_WITHIN_BITS`](buslab_slio::master::ANSWER_WITHIN_BITS)
-    /// bit-times.
+    /// frame); default [`ANSWER_WITHIN`](buslab_slio::master::ANSWER_WITHIN).
     pub fn set_answer_within(&mut self, wait: Duration) {
         self.wait = wait;
-        self.master
-            .set_answer_within(wait.as_nanos().min(u64::MAX as u128) as u64);
+        self.master.set_answer_within(Nanos::from_duration(wait));
     }
 
     /// The census after a start-up calibration: sends the calibration frames queued (the 48 if
@@ -317,7 +315,7 @@ impl<'a> SlioHost<'a> {
     /// Runs for `wait` and returns the SLIOs that signed on or answered meanwhile.
     pub fn listen(&mut self, wait: Duration) -> Result<Vec<(SlioId, u16)>, BusError> {
         self.transmit_queued()?;
-        let end = self.now() + wait.as_nanos().min(u128::from(u64::MAX)) as u64;
+        let end = self.now().saturating_add(Nanos::from_duration(wait));
         self.pump(Some(end), |_| false)?;
         Ok(self.present())
     }

@@ -7,6 +7,7 @@
 //! client's deliveries, error frames and notices, every SLIO's registers and notices are the
 //! same with whole frames on and off. A busy mixed bus takes most of its frames whole.
 
+use buslab_can::BitTime;
 use buslab_can::controller::{Controller, ControllerConfig};
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Id};
@@ -337,8 +338,8 @@ fn build(bus: &Bus, whole: bool) -> Simulation {
                 start,
             } => Traffic::Periodic {
                 frame: *frame,
-                period: *period,
-                start: *start,
+                period: BitTime::new(*period),
+                start: BitTime::new(*start),
                 count: None,
             },
             TrafficSpec::Burst {
@@ -349,17 +350,17 @@ fn build(bus: &Bus, whole: bool) -> Simulation {
             } => Traffic::Burst {
                 frame: *frame,
                 count: *count,
-                period: *period,
-                start: *start,
+                period: BitTime::new(*period),
+                start: BitTime::new(*start),
             },
             TrafficSpec::Once { frame, at } => Traffic::Once {
                 frame: *frame,
-                at: *at,
+                at: BitTime::new(*at),
             },
             TrafficSpec::File { id, len, start } => Traffic::File {
                 id: *id,
                 data: (0..*len as u8).collect(),
-                start: *start,
+                start: BitTime::new(*start),
             },
         };
         sim.add_traffic(*node, traffic);
@@ -384,12 +385,12 @@ fn build(bus: &Bus, whole: bool) -> Simulation {
         };
         sim.add_fault(Fault {
             kind,
-            start,
-            end: start + len,
+            start: BitTime::new(start),
+            end: BitTime::new(start + len),
         });
     }
     if let Some(every) = bus.sample_every {
-        sim.sample_counters_every(every);
+        sim.sample_counters_every(BitTime::new(every));
     }
     sim
 }
@@ -462,7 +463,7 @@ fn observed(sim: &mut Simulation) -> (String, String) {
 fn run(bus: &Bus, whole: bool) -> (Simulation, (String, String)) {
     let mut sim = build(bus, whole);
     for step in &bus.steps {
-        sim.run_for(*step);
+        sim.run_for(BitTime::new(*step));
         // A frame queued by hand in the middle of the run, as a scenario's one-shot would
         // (a SLIO refuses it).
         let _ = sim.enqueue(0, "7FF#EE".parse().unwrap());
@@ -497,8 +498,8 @@ fn a_busy_mixed_bus_is_mostly_applied_whole() {
             host,
             Traffic::Periodic {
                 frame: calibration_frame(),
-                period: 2_000,
-                start: 0,
+                period: BitTime::new(2_000),
+                start: BitTime::ZERO,
                 count: None,
             },
         );
@@ -511,8 +512,8 @@ fn a_busy_mixed_bus_is_mostly_applied_whole() {
                 host,
                 Traffic::Periodic {
                     frame: Frame::remote(read, 0).unwrap(),
-                    period: 1_500,
-                    start: 300 + slio as u64 * 100,
+                    period: BitTime::new(1_500),
+                    start: BitTime::new(300 + slio as u64 * 100),
                     count: None,
                 },
             );
@@ -526,7 +527,7 @@ fn a_busy_mixed_bus_is_mostly_applied_whole() {
             let n = sim.add_device(format!("sja{i}"), Box::new(node));
             sim.add_traffic(n, periodic(i, 700, i as u64 * 11));
         }
-        sim.run_for(400_000);
+        sim.run_for(BitTime::new(400_000));
         sim
     };
     let mut fast = bus(true);
@@ -551,8 +552,8 @@ fn a_busy_mixed_bus_is_mostly_applied_whole() {
 fn periodic(n: u32, period: u64, start: u64) -> Traffic {
     Traffic::Periodic {
         frame: Frame::data(standard(n), &[n as u8; 8]).unwrap(),
-        period,
-        start,
+        period: BitTime::new(period),
+        start: BitTime::new(start),
         count: None,
     }
 }

@@ -13,10 +13,10 @@
 //!    [`Outcome::Refused`] names every bad line and nothing is written.
 //!
 //! A remote frame with ID 0 while a file arrives starts over (the supervisor's new attempt). A
-//! transfer that stops for [`IDLE_TIMEOUT_NS`] is given up ([`Outcome::Stopped`]): the seed's
+//! transfer that stops for [`IDLE_TIMEOUT`] is given up ([`Outcome::Stopped`]): the seed's
 //! loader would wait for ever, leaving the node deaf to everything else.
 
-use buslab_can::{Frame, Id, StandardId};
+use buslab_can::{Frame, Id, Nanos, StandardId};
 
 use crate::memory::{MemoryMap, TEXT_BUFFER};
 use crate::srec::{self, Program, SrecErrors};
@@ -24,7 +24,7 @@ use crate::srec::{self, Program, SrecErrors};
 /// The loader's identifier (§4.4.1.1: « d'identificateur 0 »).
 pub const LOADER_ID: u16 = 0;
 /// A transfer with no frame for this long is given up (10 s).
-pub const IDLE_TIMEOUT_NS: u64 = 10_000_000_000;
+pub const IDLE_TIMEOUT: Nanos = Nanos::from_secs(10);
 
 /// The loader's identifier as an [`Id`].
 pub fn loader_id() -> Id {
@@ -53,7 +53,7 @@ pub enum Outcome {
     },
     /// The file was longer than the receive buffer (what came beyond was not kept).
     TooLong { text_bytes: usize },
-    /// No frame for [`IDLE_TIMEOUT_NS`] in the middle of the file.
+    /// No frame for [`IDLE_TIMEOUT`] in the middle of the file.
     Stopped { text_bytes: usize },
 }
 
@@ -83,13 +83,13 @@ pub struct Loader {
     outbox: Option<Frame>,
     outcome: Option<Outcome>,
     /// When the last frame of the file arrived (or the loader started).
-    last_frame: u64,
+    last_frame: Nanos,
     receiving: bool,
 }
 
 impl Loader {
     /// The loader, entered at `now`: its answer to the request is queued.
-    pub fn new(map: MemoryMap, now: u64) -> Self {
+    pub fn new(map: MemoryMap, now: Nanos) -> Self {
         Self {
             map,
             text: Vec::new(),
@@ -112,7 +112,7 @@ impl Loader {
     }
 
     /// A frame from the bus at `now`. Frames on other identifiers are not the loader's.
-    pub fn handle_frame(&mut self, now: u64, frame: &Frame) {
+    pub fn handle_frame(&mut self, now: Nanos, frame: &Frame) {
         if !self.receiving || frame.id() != loader_id() {
             return;
         }
@@ -136,8 +136,8 @@ impl Loader {
     }
 
     /// Time passes: a transfer that stopped is given up.
-    pub fn handle_timeout(&mut self, now: u64) {
-        if self.receiving && now >= self.last_frame.saturating_add(IDLE_TIMEOUT_NS) {
+    pub fn handle_timeout(&mut self, now: Nanos) {
+        if self.receiving && now >= self.last_frame.saturating_add(IDLE_TIMEOUT) {
             self.receiving = false;
             self.outcome = Some(Outcome::Stopped {
                 text_bytes: self.received(),
@@ -146,9 +146,9 @@ impl Loader {
     }
 
     /// When [`handle_timeout`](Self::handle_timeout) must be called.
-    pub fn next_deadline(&self) -> Option<u64> {
+    pub fn next_deadline(&self) -> Option<Nanos> {
         self.receiving
-            .then(|| self.last_frame.saturating_add(IDLE_TIMEOUT_NS))
+            .then(|| self.last_frame.saturating_add(IDLE_TIMEOUT))
     }
 
     /// The next frame to send (the answer).
@@ -206,15 +206,15 @@ mod tests {
 
     #[test]
     fn it_answers_then_loads_a_good_file() {
-        let mut l = Loader::new(MemoryMap::ppc403(), 5);
+        let mut l = Loader::new(MemoryMap::ppc403(), Nanos::new(5));
         assert_eq!(l.poll_transmit(), Some(answer()));
         assert_eq!(l.poll_transmit(), None);
         let text = good_file();
         // Other identifiers are not the loader's.
-        l.handle_frame(6, &"123#0102".parse().unwrap());
+        l.handle_frame(Nanos::new(6), &"123#0102".parse().unwrap());
         for (i, f) in frames(&text).iter().enumerate() {
             assert!(l.is_receiving());
-            l.handle_frame(10 + i as u64, f);
+            l.handle_frame(Nanos::new(10 + i as u64), f);
         }
         assert!(!l.is_receiving());
         let Some(Outcome::Loaded {
@@ -236,9 +236,9 @@ mod tests {
         // Corrupt a digit of the data record (line 2): its checksum no longer agrees.
         let at = text.iter().position(|&b| b == b'\n').unwrap() + 12;
         text[at] = if text[at] == b'0' { b'1' } else { b'0' };
-        let mut l = Loader::new(MemoryMap::ppc403(), 0);
+        let mut l = Loader::new(MemoryMap::ppc403(), Nanos::ZERO);
         for f in frames(&text) {
-            l.handle_frame(1, &f);
+            l.handle_frame(Nanos::new(1), &f);
         }
         let Some(Outcome::Refused { errors, .. }) = l.take_outcome() else {
             panic!("not refused")
@@ -257,29 +257,29 @@ mod tests {
 
     #[test]
     fn a_new_request_starts_over_and_silence_gives_up() {
-        let mut l = Loader::new(MemoryMap::ppc403(), 0);
+        let mut l = Loader::new(MemoryMap::ppc403(), Nanos::ZERO);
         l.poll_transmit();
-        l.handle_frame(1, &"000#5331303030303030".parse().unwrap());
+        l.handle_frame(Nanos::new(1), &"000#5331303030303030".parse().unwrap());
         assert_eq!(l.received(), 8);
-        l.handle_frame(2, &"000#R".parse().unwrap());
+        l.handle_frame(Nanos::new(2), &"000#R".parse().unwrap());
         assert_eq!(l.received(), 0);
         assert_eq!(l.poll_transmit(), Some(answer()));
-        l.handle_frame(3, &"000#5331303030303030".parse().unwrap());
-        assert_eq!(l.next_deadline(), Some(3 + IDLE_TIMEOUT_NS));
-        l.handle_timeout(2 + IDLE_TIMEOUT_NS);
+        l.handle_frame(Nanos::new(3), &"000#5331303030303030".parse().unwrap());
+        assert_eq!(l.next_deadline(), Some(Nanos::new(3) + IDLE_TIMEOUT));
+        l.handle_timeout(Nanos::new(2) + IDLE_TIMEOUT);
         assert!(l.is_receiving());
-        l.handle_timeout(3 + IDLE_TIMEOUT_NS);
+        l.handle_timeout(Nanos::new(3) + IDLE_TIMEOUT);
         assert_eq!(l.take_outcome(), Some(Outcome::Stopped { text_bytes: 8 }));
     }
 
     #[test]
     fn a_file_beyond_the_buffer_is_refused_whole() {
-        let mut l = Loader::new(MemoryMap::ppc403(), 0);
+        let mut l = Loader::new(MemoryMap::ppc403(), Nanos::ZERO);
         let full: Frame = "000#5353535353535353".parse().unwrap();
         for _ in 0..TEXT_BUFFER / 8 + 2 {
-            l.handle_frame(1, &full);
+            l.handle_frame(Nanos::new(1), &full);
         }
-        l.handle_frame(1, &"000#".parse().unwrap());
+        l.handle_frame(Nanos::new(1), &"000#".parse().unwrap());
         assert_eq!(
             l.take_outcome(),
             Some(Outcome::TooLong {

@@ -1,7 +1,7 @@
 //! What the loader shows on the node's terminal when a transfer ends: the loaded ranges and the
 //! entry point, or every bad line with its number. Lines of at most 80 columns.
 
-use crate::loader::{IDLE_TIMEOUT_NS, Outcome};
+use crate::loader::{IDLE_TIMEOUT, Outcome};
 use crate::memory::TEXT_BUFFER;
 
 /// Ranges listed at most; beyond, they are counted.
@@ -76,7 +76,7 @@ pub fn report(outcome: &Outcome) -> Vec<String> {
         )),
         Outcome::Stopped { text_bytes } => lines.push(format!(
             "Transfer stopped: no frame for {} s after {text_bytes} bytes; nothing was loaded",
-            IDLE_TIMEOUT_NS / 1_000_000_000
+            IDLE_TIMEOUT.as_duration().as_secs()
         )),
     }
     lines.into_iter().map(fit).collect()

@@ -2,7 +2,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use buslab_can::{Frame, Id, StandardId};
+use buslab_can::{Frame, Id, Nanos, StandardId};
 use buslab_slio::board::{OutputLevels, set_bit};
 use buslab_slio::{
     CALIBRATION_ID, Direction as SlioDirection, Master, MasterEvent, Register, Reply, RequestId,
@@ -247,7 +247,7 @@ impl MoniCan {
     /// MoniCAN at start-up (§4.3.2.1): the screen is initialised (the first
     /// [`take_screen`](Self::take_screen) clears the terminal and draws it), the 48
     /// calibration frames are queued, then it waits for sign-ons.
-    pub fn new(config: Config, now: u64) -> Result<Self, ConfigError> {
+    pub fn new(config: Config, now: Nanos) -> Result<Self, ConfigError> {
         config.validate()?;
         Ok(Self {
             master: Master::new(config.bitrate, now),
@@ -354,7 +354,7 @@ impl MoniCan {
 
     /// A byte the terminal sent at `now` (the time is not needed: a command's request is timed
     /// from when its frame is handed over, [`Self::poll_transmit`]).
-    pub fn handle_key(&mut self, _now: u64, byte: u8) {
+    pub fn handle_key(&mut self, _now: Nanos, byte: u8) {
         self.dirty = true;
         match self.keys {
             Keys::Escape => {
@@ -410,7 +410,7 @@ impl MoniCan {
     }
 
     /// A frame received from the bus at `now` (not one MoniCAN sent).
-    pub fn handle_frame(&mut self, now: u64, frame: &Frame) {
+    pub fn handle_frame(&mut self, now: Nanos, frame: &Frame) {
         self.dirty = true;
         self.last_frame = Some(*frame);
         let id = frame.id();
@@ -448,20 +448,20 @@ impl MoniCan {
     }
 
     /// Time passes: the periodic calibration, requests that got no answer.
-    pub fn handle_timeout(&mut self, now: u64) {
+    pub fn handle_timeout(&mut self, now: Nanos) {
         self.master.handle_timeout(now);
         self.drain_master();
     }
 
     /// When [`handle_timeout`](Self::handle_timeout) must be called (ns).
-    pub fn next_deadline(&self) -> Option<u64> {
+    pub fn next_deadline(&self) -> Option<Nanos> {
         self.master.next_deadline()
     }
 
     /// The next frame to send, handed to the adapter at `now` (a request's answer is awaited
     /// from then on); `single_shot` frames are tried once (the calibration frames, which
     /// nobody acknowledges before the SLIOs are calibrated).
-    pub fn poll_transmit(&mut self, now: u64) -> Option<Transmit> {
+    pub fn poll_transmit(&mut self, now: Nanos) -> Option<Transmit> {
         self.outbox
             .pop_front()
             .or_else(|| self.master.poll_transmit(now))
@@ -469,7 +469,7 @@ impl MoniCan {
 
     /// The last start-up calibration frame went out at `now`: the periodic calibration
     /// follows one period after it ([`Master::start_up_sent`]).
-    pub fn start_up_sent(&mut self, now: u64) {
+    pub fn start_up_sent(&mut self, now: Nanos) {
         self.master.start_up_sent(now);
     }
 

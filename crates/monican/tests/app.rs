@@ -1,7 +1,7 @@
 //! MoniCAN sans-IO: keys and frames in, frames and VT100 bytes out, the terminal read back by
 //! an independent VT100 emulator (the `vt100` crate) at the cells of the seed's Fig. 4.2.
 
-use buslab_can::Frame;
+use buslab_can::{Frame, Nanos};
 use buslab_monican::app::{LOADER_NOTICE, MAIL_NOTICE, PAGE_HINT};
 use buslab_monican::layout::*;
 use buslab_monican::mail::{END, HINT, PAGE_TITLE};
@@ -88,8 +88,8 @@ fn frame(text: &str) -> Frame {
 
 /// MoniCAN at 0 ns with its start-up calibration sent, and its terminal.
 fn started() -> (MoniCan, Term) {
-    let mut app = MoniCan::new(Config::default(), 0).unwrap();
-    while app.poll_transmit(0).is_some() {}
+    let mut app = MoniCan::new(Config::default(), Nanos::ZERO).unwrap();
+    while app.poll_transmit(Nanos::ZERO).is_some() {}
     let mut term = Term::new();
     term.update(&mut app);
     (app, term)
@@ -97,20 +97,20 @@ fn started() -> (MoniCan, Term) {
 
 /// The frames MoniCAN sends, handed over at `now`.
 fn sent(app: &mut MoniCan, now: u64) -> Vec<String> {
-    std::iter::from_fn(|| app.poll_transmit(now))
+    std::iter::from_fn(|| app.poll_transmit(Nanos::new(now)))
         .map(|t| t.frame.to_string())
         .collect()
 }
 
 fn keys(app: &mut MoniCan, now: u64, text: &str) {
     for b in text.bytes() {
-        app.handle_key(now, b);
+        app.handle_key(Nanos::new(now), b);
     }
 }
 
 /// SLIO 3 signs on (switches 0011 on its ID pins), MoniCAN initialises it, and it confirms.
 fn signed_on_slio3(app: &mut MoniCan) {
-    app.handle_frame(MS, &frame("29D#300003"));
+    app.handle_frame(Nanos::new(MS), &frame("29D#300003"));
     assert_eq!(
         sent(app, MS),
         [
@@ -128,14 +128,14 @@ fn signed_on_slio3(app: &mut MoniCan) {
         "29D#232000",
         "29D#202003",
     ] {
-        app.handle_frame(2 * MS, &frame(answer));
+        app.handle_frame(Nanos::new(2 * MS), &frame(answer));
     }
 }
 
 #[test]
 fn start_up_draws_the_seed_screen_and_calibrates() {
-    let mut app = MoniCan::new(Config::default(), 0).unwrap();
-    let calibration: Vec<_> = std::iter::from_fn(|| app.poll_transmit(0)).collect();
+    let mut app = MoniCan::new(Config::default(), Nanos::ZERO).unwrap();
+    let calibration: Vec<_> = std::iter::from_fn(|| app.poll_transmit(Nanos::ZERO)).collect();
     assert_eq!(calibration.len(), 48);
     assert!(
         calibration
@@ -165,15 +165,15 @@ fn start_up_draws_the_seed_screen_and_calibrates() {
     assert_eq!(term.cursor(), (COMMAND_ROW, SLIO_FIELD.1));
     assert!(term.update(&mut app).is_empty(), "nothing changed");
     // The periodic calibration every 5000 bit-times (40 ms at 125 kbit/s).
-    assert_eq!(app.next_deadline(), Some(40 * MS));
-    app.handle_timeout(40 * MS);
+    assert_eq!(app.next_deadline(), Some(Nanos::new(40 * MS)));
+    app.handle_timeout(Nanos::new(40 * MS));
     assert_eq!(sent(&mut app, MS), ["0AA#AA04"]);
 }
 
 #[test]
 fn a_sign_on_marks_the_slio_and_its_initialisation_shows_once_confirmed() {
     let (mut app, mut term) = started();
-    app.handle_frame(MS, &frame("29D#300003"));
+    app.handle_frame(Nanos::new(MS), &frame("29D#300003"));
     term.update(&mut app);
     let row = slio_row(slio(3));
     assert_eq!(term.cells(row, MARK_COL, 1), "*");
@@ -198,7 +198,7 @@ fn a_sign_on_marks_the_slio_and_its_initialisation_shows_once_confirmed() {
         "29D#232000",
         "29D#202003",
     ] {
-        app.handle_frame(2 * MS, &frame(answer));
+        app.handle_frame(Nanos::new(2 * MS), &frame(answer));
     }
     term.update(&mut app);
     assert_eq!(
@@ -243,7 +243,7 @@ fn a_typed_command_changes_the_screen_only_when_the_slio_answers() {
     // A second LED before the first is confirmed builds on it.
     keys(&mut app, 3 * MS, "3o801");
     assert_eq!(sent(&mut app, MS), ["29C#032180"]);
-    app.handle_frame(4 * MS, &frame("29D#232080"));
+    app.handle_frame(Nanos::new(4 * MS), &frame("29D#232080"));
     let update = term.update(&mut app);
     assert_eq!(term.cells(row, OUTPUTS_COL, 4), "2080");
     assert!(
@@ -254,7 +254,7 @@ fn a_typed_command_changes_the_screen_only_when_the_slio_answers() {
     let text = String::from_utf8_lossy(&update);
     assert!(text.starts_with("\x1b[6;10H8\x1b["), "{text:?}");
     assert!(update.len() < 80, "{text:?}");
-    app.handle_frame(5 * MS, &frame("29D#232180"));
+    app.handle_frame(Nanos::new(5 * MS), &frame("29D#232180"));
     term.update(&mut app);
     assert_eq!(term.cells(row, OUTPUTS_COL, 4), "2180");
     // Switching one off again starts from what the SLIO confirmed.
@@ -272,7 +272,7 @@ fn an_led_command_keeps_the_leds_another_monican_lit() {
     keys(&mut app, MS, "3I0");
     assert_eq!(sent(&mut app, MS), ["29C#000000"]);
     // P13 (the input select), P11 and P7 high: the lab's MoniCAN set them.
-    app.handle_frame(2 * MS, &frame("29D#202880"));
+    app.handle_frame(Nanos::new(2 * MS), &frame("29D#202880"));
     keys(&mut app, 3 * MS, "3O801");
     assert_eq!(
         sent(&mut app, 3 * MS),
@@ -285,7 +285,7 @@ fn an_led_command_keeps_the_leds_another_monican_lit() {
         "XXXX",
         "shown once the SLIO confirms"
     );
-    app.handle_frame(4 * MS, &frame("29D#232980"));
+    app.handle_frame(Nanos::new(4 * MS), &frame("29D#232980"));
     term.update(&mut app);
     assert_eq!(term.cells(slio_row(slio(3)), OUTPUTS_COL, 4), "2980");
 }
@@ -302,7 +302,7 @@ fn an_led_command_for_unknown_outputs_reads_them_first() {
     keys(&mut app, MS, "3OB00");
     assert!(sent(&mut app, MS).is_empty(), "one read for all of them");
     // The input switches (P0, P2) and LEDs P7, P11 high.
-    app.handle_frame(2 * MS, &frame("29D#202885"));
+    app.handle_frame(Nanos::new(2 * MS), &frame("29D#202885"));
     assert_eq!(
         sent(&mut app, 2 * MS),
         ["29C#032380"],
@@ -310,7 +310,7 @@ fn an_led_command_for_unknown_outputs_reads_them_first() {
     );
     // Learned from another host's write too: its DATA_OUTPUT answer.
     let (mut app, _term) = started();
-    app.handle_frame(MS, &frame("29D#233080"));
+    app.handle_frame(Nanos::new(MS), &frame("29D#233080"));
     keys(&mut app, 2 * MS, "3O700");
     assert_eq!(sent(&mut app, 2 * MS), ["29C#033000"]);
 }
@@ -322,9 +322,9 @@ fn an_led_command_whose_levels_get_no_answer_writes_nothing() {
     assert_eq!(sent(&mut app, MS), ["2AC#000000"]);
     let mut now = MS;
     while now < 100 * MS {
-        now = app.next_deadline().unwrap().max(now + 1);
-        app.handle_timeout(now);
-        for t in std::iter::from_fn(|| app.poll_transmit(now)) {
+        now = (app.next_deadline().unwrap().max(Nanos::new(now + 1))).get();
+        app.handle_timeout(Nanos::new(now));
+        for t in std::iter::from_fn(|| app.poll_transmit(Nanos::new(now))) {
             assert_eq!(t.frame.to_string(), "0AA#AA04", "only calibration");
         }
     }
@@ -334,7 +334,7 @@ fn an_led_command_whose_levels_get_no_answer_writes_nothing() {
         "SLIO 5 did not answer (pin levels for an LED command)"
     );
     // A late answer does not send the forgotten command.
-    app.handle_frame(now, &frame("2AD#202000"));
+    app.handle_frame(Nanos::new(now), &frame("2AD#202000"));
     assert!(sent(&mut app, now).is_empty());
 }
 
@@ -345,18 +345,18 @@ fn conversions_fill_their_adc_column_and_dpm_values_are_scaled() {
     let row = slio_row(slio(3));
     keys(&mut app, 3 * MS, "3I6");
     assert_eq!(sent(&mut app, MS), ["29C#0500C0"]);
-    app.handle_frame(4 * MS, &frame("29D#280200"));
+    app.handle_frame(Nanos::new(4 * MS), &frame("29D#280200"));
     keys(&mut app, 5 * MS, "3I5");
     assert_eq!(sent(&mut app, MS), ["29C#0500E0"]);
     term.update(&mut app);
     assert_eq!(term.cells(row, ADC2_COL, 2), "80");
     assert_eq!(term.cells(row, ADC1_COL, 2), "XX", "ADC1 not converted yet");
-    app.handle_frame(6 * MS, &frame("29D#2803FF"));
+    app.handle_frame(Nanos::new(6 * MS), &frame("29D#2803FF"));
     keys(&mut app, 7 * MS, "3OA80");
     keys(&mut app, 7 * MS, "3O4FF");
     assert_eq!(sent(&mut app, MS), ["29C#060200", "29C#0703FC"]);
-    app.handle_frame(8 * MS, &frame("29D#260200"));
-    app.handle_frame(8 * MS, &frame("29D#2703FC"));
+    app.handle_frame(Nanos::new(8 * MS), &frame("29D#260200"));
+    app.handle_frame(Nanos::new(8 * MS), &frame("29D#2703FC"));
     term.update(&mut app);
     assert_eq!(term.cells(row, ADC1_COL, 2), "FF");
     assert_eq!(term.cells(row, ADC2_COL, 2), "80");
@@ -405,11 +405,11 @@ fn an_unanswered_request_is_said_on_the_notice_line() {
     let deadline = app.next_deadline().unwrap();
     let mut now = MS;
     while now < 100 * MS {
-        now = app.next_deadline().unwrap().max(now + 1);
-        app.handle_timeout(now);
-        while app.poll_transmit(now).is_some() {}
+        now = (app.next_deadline().unwrap().max(Nanos::new(now + 1))).get();
+        app.handle_timeout(Nanos::new(now));
+        while app.poll_transmit(Nanos::new(now)).is_some() {}
     }
-    assert!(deadline > MS);
+    assert!(deadline > Nanos::new(MS));
     term.update(&mut app);
     assert_eq!(term.row(NOTICE_ROW), "SLIO 5 did not answer (inputs)");
     assert_eq!(term.cells(slio_row(slio(5)), INPUTS_COL, 4), "XXXX");
@@ -420,10 +420,10 @@ fn an_unanswered_request_is_said_on_the_notice_line() {
 fn mail_is_announced_read_with_ctrl_r_and_any_key_goes_back() {
     let (mut app, mut term) = started();
     signed_on_slio3(&mut app);
-    app.handle_frame(3 * MS, &frame("700#01"));
+    app.handle_frame(Nanos::new(3 * MS), &frame("700#01"));
     term.update(&mut app);
     assert_eq!(term.row(NOTICE_ROW), MAIL_NOTICE);
-    app.handle_key(4 * MS, 0x12);
+    app.handle_key(Nanos::new(4 * MS), 0x12);
     assert_eq!(sent(&mut app, MS), ["700#R"]);
     let page = term.update(&mut app);
     assert!(
@@ -435,15 +435,15 @@ fn mail_is_announced_read_with_ctrl_r_and_any_key_goes_back() {
     let text = b"Hello from the supervisor.\nThe bench closes at 6 pm.";
     for f in buslab_can::file::frames(buslab_can::Id::standard(0x700).unwrap(), text) {
         // SLIO frames go on meanwhile; they do not show on this page.
-        app.handle_frame(5 * MS, &frame("29D#232080"));
-        app.handle_frame(5 * MS, &f);
+        app.handle_frame(Nanos::new(5 * MS), &frame("29D#232080"));
+        app.handle_frame(Nanos::new(5 * MS), &f);
     }
     term.update(&mut app);
     assert_eq!(term.row(3), "Hello from the supervisor.");
     assert_eq!(term.row(4), "The bench closes at 6 pm.");
     assert_eq!(term.row(23), END);
     assert_eq!(term.row(24), HINT);
-    app.handle_key(6 * MS, b'x');
+    app.handle_key(Nanos::new(6 * MS), b'x');
     term.update(&mut app);
     assert!(!app.reading_mail());
     assert_eq!(term.row(1), TITLE);
@@ -463,14 +463,14 @@ fn a_remote_frame_on_the_mail_identifier_announces_mail() {
     // Seed §5.4.5: the notifier sends a remote frame with `idmail`; MoniCAN answers with the
     // same remote frame once Ctrl R is pressed.
     let (mut app, mut term) = started();
-    app.handle_frame(3 * MS, &frame("700#R"));
+    app.handle_frame(Nanos::new(3 * MS), &frame("700#R"));
     term.update(&mut app);
     assert_eq!(term.row(NOTICE_ROW), MAIL_NOTICE);
-    app.handle_key(4 * MS, 0x12);
+    app.handle_key(Nanos::new(4 * MS), 0x12);
     assert_eq!(sent(&mut app, MS), ["700#R"]);
     // A new announcement while the page is open: the notice comes back once it is left.
-    app.handle_frame(5 * MS, &frame("700#R"));
-    app.handle_key(6 * MS, b' ');
+    app.handle_frame(Nanos::new(5 * MS), &frame("700#R"));
+    app.handle_key(Nanos::new(6 * MS), b' ');
     term.update(&mut app);
     assert_eq!(term.row(NOTICE_ROW), MAIL_NOTICE);
 }
@@ -489,8 +489,8 @@ fn a_page_of_text_stays_until_a_key() {
     assert_eq!(term.row(22), "line 20", "what does not fit is cut");
     assert_eq!(term.row(24), PAGE_HINT);
     // MoniCAN goes on underneath: a SLIO's frame is taken in.
-    app.handle_frame(MS, &frame("29D#232080"));
-    app.handle_key(2 * MS, b'3');
+    app.handle_frame(Nanos::new(MS), &frame("29D#232080"));
+    app.handle_key(Nanos::new(2 * MS), b'3');
     term.update(&mut app);
     assert!(!app.showing_page());
     assert_eq!(term.row(1), TITLE);
@@ -504,13 +504,13 @@ fn a_page_of_text_stays_until_a_key() {
 #[test]
 fn the_loader_request_is_announced_and_monican_goes_on() {
     let (mut app, mut term) = started();
-    app.handle_frame(MS, &frame("000#R2"));
+    app.handle_frame(Nanos::new(MS), &frame("000#R2"));
     assert_eq!(
         app.poll_event(),
         None,
         "only a remote frame with DLC 0 asks for the loader"
     );
-    app.handle_frame(MS, &frame("000#R"));
+    app.handle_frame(Nanos::new(MS), &frame("000#R"));
     term.update(&mut app);
     assert_eq!(term.row(NOTICE_ROW), LOADER_NOTICE);
     assert_eq!(app.poll_event(), Some(Event::LoaderRequested));
@@ -528,7 +528,7 @@ fn a_busy_bus_costs_one_screen_update_not_one_per_frame() {
             &k.to_be_bytes(),
         )
         .unwrap();
-        app.handle_frame(MS + u64::from(k), &f);
+        app.handle_frame(Nanos::new(MS + u64::from(k)), &f);
     }
     let update = term.update(&mut app);
     assert!(update.len() < 200, "{} bytes", update.len());
@@ -549,7 +549,7 @@ fn ctrl_l_redraws_the_loaders_report_and_keeps_it() {
     );
     app.take_screen(); // drawn for nobody: the terminal connects later
     let mut late = Term::new();
-    app.handle_key(MS, 0x0C);
+    app.handle_key(Nanos::new(MS), 0x0C);
     let all = late.update(&mut app);
     assert!(all.starts_with(b"\x1b[0m\x1b[H\x1b[2J"), "redrawn whole");
     assert!(app.showing_page());
@@ -557,14 +557,14 @@ fn ctrl_l_redraws_the_loaders_report_and_keeps_it() {
     assert_eq!(late.row(3), "Program loaded: 2048 bytes");
     assert_eq!(late.row(24), PAGE_HINT);
     // Any other key goes back.
-    app.handle_key(2 * MS, b' ');
+    app.handle_key(Nanos::new(2 * MS), b' ');
     late.update(&mut app);
     assert_eq!(late.row(1), TITLE);
     // The mail page too: Ctrl L redraws it.
-    app.handle_frame(3 * MS, &frame("700#01"));
-    app.handle_key(3 * MS, 0x12);
+    app.handle_frame(Nanos::new(3 * MS), &frame("700#01"));
+    app.handle_key(Nanos::new(3 * MS), 0x12);
     assert!(app.reading_mail());
-    app.handle_key(4 * MS, 0x0C);
+    app.handle_key(Nanos::new(4 * MS), 0x0C);
     assert!(app.reading_mail());
     term.update(&mut app);
     assert_eq!(term.row(1), PAGE_TITLE);
@@ -573,7 +573,7 @@ fn ctrl_l_redraws_the_loaders_report_and_keeps_it() {
 #[test]
 fn ctrl_l_redraws_everything() {
     let (mut app, mut term) = started();
-    app.handle_key(MS, 0x0C);
+    app.handle_key(Nanos::new(MS), 0x0C);
     let all = term.update(&mut app);
     assert!(all.starts_with(b"\x1b[0m\x1b[H\x1b[2J"));
     assert_eq!(term.row(2), HEADER);
@@ -587,18 +587,18 @@ proptest! {
     fn garbage_keys_keep_the_screen(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
         let (mut app, mut term) = started();
         for (k, b) in bytes.iter().enumerate() {
-            app.handle_key(k as u64 * MS, *b);
+            app.handle_key(Nanos::new(k as u64 * MS), *b);
             if k % 16 == 0 {
                 term.update(&mut app);
             }
         }
         // Leave a mail page or an escape sequence, then look.
-        app.handle_key(1000 * MS, b'\x1b');
-        app.handle_key(1000 * MS, b'\x1b');
+        app.handle_key(Nanos::new(1000 * MS), b'\x1b');
+        app.handle_key(Nanos::new(1000 * MS), b'\x1b');
         term.update(&mut app);
         prop_assert!(term.row(COMMAND_ROW).starts_with("Next command > SLIO:"));
         prop_assert_eq!(term.row(HEADER_ROW), HEADER);
-        for t in std::iter::from_fn(|| app.poll_transmit(1000 * MS)) {
+        for t in std::iter::from_fn(|| app.poll_transmit(Nanos::new(1000 * MS))) {
             // A second without a look at the clock reads as a host that did not run: the
             // SLIOs are calibrated again first.
             if t.frame == buslab_slio::calibration_frame() {
@@ -631,7 +631,7 @@ proptest! {
             } else {
                 Frame::data(id, data).unwrap()
             };
-            app.handle_frame(k as u64 * MS, &f);
+            app.handle_frame(Nanos::new(k as u64 * MS), &f);
         }
         term.update(&mut app);
         prop_assert_eq!(term.row(TITLE_ROW), TITLE);

@@ -12,7 +12,7 @@
 pub mod node;
 
 pub use node::{
-    Activity, CRYSTAL_HZ, GIVE_UP_BITS, IMAGE_HEADER, LoadRecord, MAX_KEYS, PpcError, PpcNode,
+    Activity, CRYSTAL_HZ, GIVE_UP, IMAGE_HEADER, LoadRecord, MAX_KEYS, PpcError, PpcNode,
     chip_config, slio_timing,
 };
 

@@ -15,7 +15,7 @@ use std::collections::VecDeque;
 
 use buslab_can::controller::{ErrorState, Event, QueueFull};
 use buslab_can::node::BusNode;
-use buslab_can::{Frame, Level};
+use buslab_can::{BitTime, Frame, Level, Nanos};
 use buslab_device::{Changes, Persistent, ReplayError};
 use buslab_loader::report::report;
 use buslab_loader::{Loader, MemoryImage, MemoryMap, Outcome};
@@ -33,9 +33,9 @@ pub const CRYSTAL_HZ: u32 = 16_000_000;
 pub const MAX_KEYS: usize = 256;
 /// A frame that stays in the TX buffer this many bit-times (nobody acknowledges it: the
 /// PowerPC alone on the bus) is aborted, so the periodic calibration never waits behind it.
-pub const GIVE_UP_BITS: u64 = buslab_slio::master::ANSWER_WITHIN_BITS;
+pub const GIVE_UP: BitTime = buslab_slio::master::ANSWER_WITHIN;
 /// How long a bus-off SJA1000 waits before MoniCAN restarts it.
-pub const RESTART_AFTER_MS: u64 = 100;
+pub const RESTART_AFTER: Nanos = Nanos::from_millis(100);
 
 /// Why the PowerPC node cannot be built.
 #[derive(Debug, thiserror::Error)]
@@ -91,7 +91,7 @@ struct InFlight {
     /// CMR.AT was written.
     abort_requested: bool,
     /// The bit-time it was handed to the chip.
-    since: u64,
+    since: BitTime,
 }
 
 /// The header of the memory image's S-record file.
@@ -172,8 +172,8 @@ pub struct PpcNode {
     /// A frame taken from MoniCAN that waits for the chip (a calibration frame waits until the
     /// previous transmission is over, SR.TS = 0, as the seed's `calibration_slio` does).
     next: Option<Transmit>,
-    restart_at: Option<u64>,
-    now: u64,
+    restart_at: Option<BitTime>,
+    now: BitTime,
 }
 
 impl core::fmt::Debug for PpcNode {
@@ -193,7 +193,7 @@ impl PpcNode {
     /// (§4.3.2.1).
     pub fn new(config: Config) -> Result<Self, PpcError> {
         let bitrate = config.bitrate;
-        let app = MoniCan::new(config.clone(), 0)?;
+        let app = MoniCan::new(config.clone(), Nanos::ZERO)?;
         let mut driver = Sja1000Driver::new(Sja1000::new());
         driver.init(&chip_config(bitrate)?)?;
         Ok(Self {
@@ -215,7 +215,7 @@ impl PpcNode {
             in_flight: None,
             next: None,
             restart_at: None,
-            now: 0,
+            now: BitTime::ZERO,
         })
     }
 
@@ -313,7 +313,7 @@ impl PpcNode {
             else {
                 return;
             };
-            let ns = self.ns(self.now);
+            let ns = self.now.at_bitrate(self.bitrate);
             self.resume(ns, outcome, true);
         }
     }
@@ -345,20 +345,8 @@ impl PpcNode {
         self.bitrate
     }
 
-    /// Nanoseconds at bit-time `bits`.
-    fn ns(&self, bits: u64) -> u64 {
-        (u128::from(bits) * 1_000_000_000 / u128::from(self.bitrate)) as u64
-    }
-
-    /// The first bit-time at or after `ns` nanoseconds.
-    fn bits_at(&self, ns: u64) -> u64 {
-        let bits = (u128::from(ns) * u128::from(self.bitrate)).div_ceil(1_000_000_000);
-        u64::try_from(bits).unwrap_or(u64::MAX)
-    }
-
-    /// The interrupt handler: frames to MoniCAN, the end of a transmission, bus-off.
-    fn service(&mut self, now: u64) {
-        let ns = self.ns(now);
+    fn service(&mut self, now: BitTime) {
+        let ns = now.at_bitrate(self.bitrate);
         for event in self.driver.poll() {
             match event {
                 DriverEvent::Received(frame) => self.received(ns, &frame),
@@ -382,12 +370,12 @@ impl PpcNode {
                 DriverEvent::StateChanged { to, .. } => {
                     if to == ControllerState::BusOff {
                         warn!(
-                            "the PowerPC node's SJA1000 went bus-off; restarting it in {RESTART_AFTER_MS} ms"
+                            "the PowerPC node's SJA1000 went bus-off; restarting it in {} ms",
+                            RESTART_AFTER.as_duration().as_millis()
                         );
                         self.in_flight = None;
                         self.next = None;
-                        self.restart_at =
-                            Some(now + u64::from(self.bitrate) * RESTART_AFTER_MS / 1000);
+                        self.restart_at = Some(now + RESTART_AFTER.bit_times_at(self.bitrate));
                     }
                 }
                 DriverEvent::BusError(_)
@@ -399,8 +387,8 @@ impl PpcNode {
 
     /// The seed's `calibration_slio` aborts a calibration frame once it is on the wire
     /// (CMR.AT after SR.TS): one attempt, no retry while nobody acknowledges. Any other frame
-    /// still unsent after [`GIVE_UP_BITS`] is aborted too.
-    fn watch_transmission(&mut self, now: u64) {
+    /// still unsent after [`GIVE_UP`] is aborted too.
+    fn watch_transmission(&mut self, now: BitTime) {
         let Some(tx) = self.in_flight else { return };
         if tx.abort_requested {
             return;
@@ -408,12 +396,12 @@ impl PpcNode {
         let abort = if tx.single_shot {
             self.driver.status().transmitting()
         } else {
-            now >= tx.since + GIVE_UP_BITS
+            now >= tx.since + GIVE_UP
         };
         if abort {
             if !tx.single_shot {
                 warn!(
-                    "the PowerPC node aborts {} after {GIVE_UP_BITS} bit-times unsent (nobody acknowledges it)",
+                    "the PowerPC node aborts {} after {GIVE_UP} bit-times unsent (nobody acknowledges it)",
                     tx.frame
                 );
             }
@@ -426,11 +414,11 @@ impl PpcNode {
     }
 
     /// The next frame of MoniCAN's into a free TX buffer.
-    fn feed(&mut self, now: u64) {
+    fn feed(&mut self, now: BitTime) {
         if self.in_flight.is_some() || self.restart_at.is_some() || self.driver.tx_pending() {
             return;
         }
-        let ns = self.ns(now);
+        let ns = now.at_bitrate(self.bitrate);
         let Some(t) = self.next.take().or_else(|| self.poll_program(ns)) else {
             return;
         };
@@ -457,7 +445,7 @@ impl PpcNode {
 /// The program's side: frames, timers, the hand-over to the loader and back.
 impl PpcNode {
     /// A frame for the CPU at `ns`.
-    fn received(&mut self, ns: u64, frame: &Frame) {
+    fn received(&mut self, ns: Nanos, frame: &Frame) {
         match &mut self.program {
             Program::MoniCan => {
                 if buslab_loader::loader::is_request(frame) {
@@ -476,7 +464,7 @@ impl PpcNode {
     }
 
     /// MoniCAN branches to the loader (§4.3.3.3): what MoniCAN still had to send is dropped.
-    fn enter_loader(&mut self, ns: u64) {
+    fn enter_loader(&mut self, ns: Nanos) {
         info!("the PowerPC node hands over to the CAN loader");
         self.next = None;
         self.program = Program::Loader {
@@ -485,7 +473,7 @@ impl PpcNode {
         };
     }
 
-    fn check_outcome(&mut self, ns: u64) {
+    fn check_outcome(&mut self, ns: Nanos) {
         let Program::Loader { loader, .. } = &mut self.program else {
             return;
         };
@@ -514,7 +502,7 @@ impl PpcNode {
 
     /// The transfer is over: MoniCAN starts again (as the loaded program would) with the
     /// report on its screen.
-    fn resume(&mut self, ns: u64, outcome: Outcome, saved: bool) {
+    fn resume(&mut self, ns: Nanos, outcome: Outcome, saved: bool) {
         let mut lines = report(&outcome);
         if outcome.is_loaded() {
             if saved {
@@ -546,7 +534,7 @@ impl PpcNode {
     }
 
     /// The program's next frame, handed to the chip's driver at `ns`.
-    fn poll_program(&mut self, ns: u64) -> Option<Transmit> {
+    fn poll_program(&mut self, ns: Nanos) -> Option<Transmit> {
         match &mut self.program {
             Program::MoniCan => self.app.poll_transmit(ns),
             Program::Loader { loader, .. } => loader.poll_transmit().map(|frame| Transmit {
@@ -565,7 +553,7 @@ impl PpcNode {
         }
     }
 
-    fn program_deadline(&self) -> Option<u64> {
+    fn program_deadline(&self) -> Option<Nanos> {
         match &self.program {
             Program::MoniCan => self.app.next_deadline(),
             Program::Loader { loader, .. } => loader.next_deadline(),
@@ -573,7 +561,7 @@ impl PpcNode {
         }
     }
 
-    fn program_timeout(&mut self, ns: u64) {
+    fn program_timeout(&mut self, ns: Nanos) {
         match &mut self.program {
             Program::MoniCan => self.app.handle_timeout(ns),
             Program::Loader { loader, .. } => {
@@ -643,12 +631,12 @@ impl BusNode for PpcNode {
         self.driver.chip().output()
     }
 
-    fn sample(&mut self, now: u64, bus: Level) {
+    fn sample(&mut self, now: BitTime, bus: Level) {
         self.now = now;
         let chip = self.driver.registers();
         chip.sample(bus);
         let interrupt = chip.interrupt();
-        let ns = self.ns(now);
+        let ns = now.at_bitrate(self.bitrate);
         while let Some(key) = self.keys.pop_front() {
             // The loader does not read the keyboard.
             if let Program::MoniCan = self.program {
@@ -688,7 +676,7 @@ impl BusNode for PpcNode {
         self.driver.chip().error_state()
     }
 
-    fn quiet_until(&self) -> Option<u64> {
+    fn quiet_until(&self) -> Option<BitTime> {
         if !self.keys.is_empty()
             || self.in_flight.is_some()
             || self.next.is_some()
@@ -706,7 +694,7 @@ impl BusNode for PpcNode {
         // for, the loader's patience) wake it.
         Some(
             self.program_deadline()
-                .map_or(u64::MAX, |t| self.bits_at(t)),
+                .map_or(BitTime::MAX, |t| t.first_bit_time_at(self.bitrate)),
         )
     }
 

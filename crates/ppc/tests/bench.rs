@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use buslab_can::controller::{ControllerConfig, ErrorKind, Event};
-use buslab_can::{Frame, Id};
+use buslab_can::{BitTime, Frame, Id, Nanos};
 use buslab_monican::app::MAIL_NOTICE;
 use buslab_monican::layout::*;
 use buslab_monican::{Config, MoniCan};
@@ -31,7 +31,7 @@ impl Knob {
     fn set(&self, volts: f64) {
         self.0.store(volts.to_bits(), Ordering::Relaxed);
     }
-    fn signal(&self) -> Box<dyn FnMut(u64) -> f64 + Send> {
+    fn signal(&self) -> Box<dyn FnMut(Nanos) -> f64 + Send> {
         let cell = self.0.clone();
         Box::new(move |_| f64::from_bits(cell.load(Ordering::Relaxed)))
     }
@@ -64,7 +64,7 @@ impl Bench {
                 Box::new(knob.signal()),
             )
             .unwrap();
-            board.set_switches(0, switches);
+            board.set_switches(BitTime::ZERO, switches);
             indices.push((id, sim.add_device(format!("slio{id:X}"), Box::new(board))));
         }
         Self {
@@ -97,9 +97,9 @@ impl Bench {
 
     /// Runs `bits` bit-times, then brings the terminal up to date.
     fn run(&mut self, bits: u64) {
-        self.sim.run_for(bits);
+        self.sim.run_for(BitTime::new(bits));
         for r in self.sim.take_records() {
-            self.records.push((r.time, r.what));
+            self.records.push((r.time.get(), r.what));
         }
         let out = self.ppc().take_screen();
         self.term.process(&out);
@@ -107,7 +107,7 @@ impl Bench {
 
     /// Runs in steps of `step` bit-times until `done` holds; panics after [`BUDGET`].
     fn run_until(&mut self, step: u64, what: &str, mut done: impl FnMut(&mut Self) -> bool) {
-        let end = self.sim.now() + BUDGET;
+        let end = self.sim.now() + BitTime::new(BUDGET);
         while !done(self) {
             assert!(
                 self.sim.now() < end,
@@ -530,7 +530,7 @@ fn a_lone_powerpc_gives_up_unacknowledged_frames_and_keeps_calibrating() {
     });
     // The periodic calibration still goes out (it is not stuck behind the command): each
     // 5000 bit-times a frame is tried, retried by the SJA1000 as any unacknowledged frame, and
-    // given up after GIVE_UP_BITS so the next period's goes out.
+    // given up after GIVE_UP so the next period's goes out.
     bench.records.clear();
     bench.run(50_000);
     let periods: std::collections::BTreeSet<u64> = bench

@@ -3,6 +3,7 @@
 //! the next came 5000 bit-times later: past the SLIOs' 8192-bit watchdog, they lost their
 //! calibration every few seconds of the lab.
 
+use buslab_can::BitTime;
 use buslab_can::Frame;
 use buslab_can::controller::ControllerConfig;
 use buslab_ppc::PpcNode;
@@ -20,8 +21,8 @@ fn slios_stay_calibrated_beside_higher_priority_traffic() {
         brakes,
         Traffic::Periodic {
             frame: frame("080#0140"),
-            period: ms(20),
-            start: 0,
+            period: BitTime::new(ms(20)),
+            start: BitTime::ZERO,
             count: None,
         },
     );
@@ -30,8 +31,8 @@ fn slios_stay_calibrated_beside_higher_priority_traffic() {
         engine,
         Traffic::Periodic {
             frame: frame("0C0#0FA0003C00000000"),
-            period: ms(10),
-            start: ms(1),
+            period: BitTime::new(ms(10)),
+            start: BitTime::new(ms(1)),
             count: None,
         },
     );
@@ -62,7 +63,7 @@ fn slios_stay_calibrated_beside_higher_priority_traffic() {
                 sim.node_mut(ppc).get_mut::<PpcNode>().unwrap().key(k);
             }
         }
-        sim.run_for(ms(33) + (step * 7919) % 500);
+        sim.run_for(BitTime::new(ms(33) + (step * 7919) % 500));
         sim.node_mut(ppc)
             .get_mut::<PpcNode>()
             .unwrap()

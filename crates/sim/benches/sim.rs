@@ -8,6 +8,7 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
+use buslab_can::BitTime;
 use buslab_can::controller::ControllerConfig;
 use buslab_can::{Frame, Id};
 use buslab_sim::{Simulation, Traffic};
@@ -28,14 +29,14 @@ fn saturated(nodes: usize, whole_frames: bool) -> Simulation {
             node,
             Traffic::Periodic {
                 frame,
-                period: 50 * nodes as u64,
-                start: 0,
+                period: BitTime::new(50 * nodes as u64),
+                start: BitTime::ZERO,
                 count: None,
             },
         );
     }
     // Past the start-up, so every queue is busy.
-    sim.run_for(10_000);
+    sim.run_for(BitTime::new(10_000));
     sim
 }
 
@@ -54,7 +55,7 @@ fn bench(c: &mut Criterion) {
             let mut sim = saturated(nodes, whole);
             group.bench_function(format!("{nodes}_nodes_{path}_bit_times"), |b| {
                 b.iter(|| {
-                    sim.run_for(CHUNK);
+                    sim.run_for(BitTime::new(CHUNK));
                     black_box(sim.now())
                 })
             });
@@ -97,7 +98,7 @@ fn table() {
             let busy_before = sim.bus_stats().busy_bits;
             let cpu = thread_cpu_time();
             let started = Instant::now();
-            sim.run_for(bits);
+            sim.run_for(BitTime::new(bits));
             let wall = started.elapsed().as_secs_f64();
             let cpu = (thread_cpu_time() - cpu).as_secs_f64();
             let frames = sim.bus_stats().frames - frames_before;

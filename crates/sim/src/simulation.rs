@@ -238,7 +238,7 @@ impl Simulation {
         assert!(bitrate > 0, "bit rate must be positive");
         Self {
             bitrate,
-            now: 0,
+            now: BitTime::ZERO,
             nodes: Vec::new(),
             schedule: Schedule {
                 generators: Vec::new(),
@@ -269,7 +269,7 @@ impl Simulation {
             series: Vec::new(),
             levels: None,
             fast_forward: true,
-            skipped: 0,
+            skipped: BitTime::ZERO,
             whole: whole_frame::WholeFrames::default(),
             others: 0,
         }
@@ -402,7 +402,7 @@ impl Simulation {
 
     /// Sample every node's TEC/REC every `interval` bit-times into [`Self::series`].
     pub fn sample_counters_every(&mut self, interval: BitTime) {
-        assert!(interval > 0);
+        assert!(interval > BitTime::ZERO);
         self.sample_every = Some(interval);
         self.next_sample = self.now;
     }
@@ -505,10 +505,10 @@ impl Simulation {
             self.add_fault(Fault {
                 kind,
                 start: self.now,
-                end: self.now + 1,
+                end: self.now + BitTime::ONE,
             });
         }
-        self.run_for(1);
+        self.run_for(BitTime::ONE);
     }
 
     /// Simulates `bits` more bit-times.
@@ -542,11 +542,11 @@ impl Simulation {
                 // Idle levels are all recessive, as they already were: no level changes. A
                 // node's own timer ends the jump; it is then sampled again.
                 let to = horizon.min(until);
-                self.obs.bus.idle(to - self.now);
+                self.obs.bus.idle((to - self.now).get());
                 self.skipped += to - self.now;
                 self.now = to;
                 if to == until && to < horizon {
-                    self.run_clean(to + 1);
+                    self.run_clean(to + BitTime::ONE);
                 }
             } else if self.faulty || self.levels.is_some() {
                 while self.now < horizon.min(self.schedule.next) {
@@ -707,7 +707,7 @@ impl Simulation {
                 next_recessive &= out.bit();
             }
             obs.bus.bit(bus);
-            *now += 1;
+            *now += BitTime::ONE;
             bus = Level::from_bit(next_recessive);
         }
     }
@@ -783,7 +783,7 @@ impl Simulation {
             levels.set(now, 0, bus);
         }
         self.obs.bus.bit(bus);
-        self.now += 1;
+        self.now += BitTime::ONE;
     }
 
     /// Queue a frame on `node` right now.

@@ -4,14 +4,13 @@ use core::fmt;
 
 use crate::error::DurationError;
 
-/// A point in virtual time or a span of it, counted in bit-times from the start of the run.
-pub type BitTime = u64;
+pub use buslab_can::BitTime;
 
 /// A duration as written by a user: either bit-times or a time with a unit. Converted to
 /// bit-times once the bit rate is known.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Span {
-    Bits(u64),
+    Bits(BitTime),
     Seconds(f64),
 }
 
@@ -33,12 +32,15 @@ impl Span {
         let unit = unit.trim();
         if unit.is_empty() {
             return match number.parse::<u64>() {
-                Ok(0) => Ok(Span::Bits(0)),
+                Ok(0) => Ok(Span::Bits(BitTime::ZERO)),
                 _ => Err(bad()),
             };
         }
         if unit == "bits" || unit == "bit" || unit == "b" {
-            return number.parse::<u64>().map(Span::Bits).map_err(|_| bad());
+            return number
+                .parse::<u64>()
+                .map(|bits| Span::Bits(BitTime::new(bits)))
+                .map_err(|_| bad());
         }
         let scale = match unit {
             "s" => 1.0,
@@ -61,9 +63,9 @@ impl Span {
             Span::Seconds(s) => {
                 let bits = (s * bitrate as f64).round();
                 if bits >= u64::MAX as f64 {
-                    u64::MAX
+                    BitTime::MAX
                 } else {
-                    bits as u64
+                    BitTime::new(bits as u64)
                 }
             }
         }
@@ -86,31 +88,34 @@ impl core::str::FromStr for Span {
     }
 }
 
-/// Bit-time `t` at `bitrate` as `(seconds, microseconds)`, for candump-style timestamps.
-pub fn seconds_micros(t: BitTime, bitrate: u32) -> (u64, u32) {
-    let rate = bitrate as u128;
-    let micros = (t as u128 * 1_000_000) / rate;
-    ((micros / 1_000_000) as u64, (micros % 1_000_000) as u32)
-}
-
-/// Bit-time `t` at `bitrate` in nanoseconds (for VCD timestamps).
-pub fn nanos(t: BitTime, bitrate: u32) -> u64 {
-    ((t as u128 * 1_000_000_000) / bitrate as u128) as u64
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn parses_units() {
-        assert_eq!(Span::parse("2s").unwrap().to_bits(500_000), 1_000_000);
-        assert_eq!(Span::parse("1.5ms").unwrap().to_bits(1_000_000), 1_500);
-        assert_eq!(Span::parse("250us").unwrap().to_bits(125_000), 31);
-        assert_eq!(Span::parse("1000bits").unwrap().to_bits(1), 1000);
-        assert_eq!(Span::parse("0").unwrap(), Span::Bits(0));
-        assert_eq!(Span::parse("1000 bits").unwrap(), Span::Bits(1000));
-        assert_eq!(Span::parse(" 7bit ").unwrap(), Span::Bits(7));
+        assert_eq!(
+            Span::parse("2s").unwrap().to_bits(500_000),
+            BitTime::new(1_000_000)
+        );
+        assert_eq!(
+            Span::parse("1.5ms").unwrap().to_bits(1_000_000),
+            BitTime::new(1_500)
+        );
+        assert_eq!(
+            Span::parse("250us").unwrap().to_bits(125_000),
+            BitTime::new(31)
+        );
+        assert_eq!(
+            Span::parse("1000bits").unwrap().to_bits(1),
+            BitTime::new(1000)
+        );
+        assert_eq!(Span::parse("0").unwrap(), Span::Bits(BitTime::ZERO));
+        assert_eq!(
+            Span::parse("1000 bits").unwrap(),
+            Span::Bits(BitTime::new(1000))
+        );
+        assert_eq!(Span::parse(" 7bit ").unwrap(), Span::Bits(BitTime::new(7)));
     }
 
     #[test]
@@ -133,8 +138,11 @@ mod tests {
 
     #[test]
     fn timestamps() {
-        assert_eq!(seconds_micros(1_500_000, 1_000_000), (1, 500_000));
-        assert_eq!(seconds_micros(3, 125_000), (0, 24));
-        assert_eq!(nanos(3, 125_000), 24_000);
+        let secs_micros = |t: u64, bitrate| {
+            buslab_can::Timestamp::from(BitTime::new(t).at_bitrate(bitrate)).secs_and_micros()
+        };
+        assert_eq!(secs_micros(1_500_000, 1_000_000), (1, 500_000));
+        assert_eq!(secs_micros(3, 125_000), (0, 24));
+        assert_eq!(BitTime::new(3).at_bitrate(125_000).get(), 24_000);
     }
 }

@@ -118,7 +118,7 @@ impl Generator {
                 push(*frame);
                 self.sent += 1;
                 let more = count.is_none_or(|c| self.sent < c);
-                self.next = (more && *period > 0).then(|| now + period);
+                self.next = (more && *period > BitTime::ZERO).then(|| now + *period);
             }
             Traffic::Burst {
                 frame,
@@ -129,7 +129,7 @@ impl Generator {
                 for _ in 0..*count {
                     push(*frame);
                 }
-                self.next = (*period > 0).then(|| now + period);
+                self.next = (*period > BitTime::ZERO).then(|| now + *period);
             }
             Traffic::Once { frame, .. } => {
                 push(*frame);
@@ -171,7 +171,7 @@ impl Generator {
             // Queue full: try again a little later.
             Err(_) => {
                 q.overflows += 1;
-                self.next = Some(now + 1);
+                self.next = Some(now + BitTime::ONE);
             }
         }
     }
@@ -193,15 +193,15 @@ mod tests {
             0,
             Traffic::Periodic {
                 frame: frame("123#01"),
-                period: 10,
-                start: 5,
+                period: BitTime::new(10),
+                start: BitTime::new(5),
                 count: Some(2),
             },
         );
-        assert_eq!(g.next(), Some(5));
-        assert_eq!(g.fire(5, &mut c).queued, 1);
-        assert_eq!(g.next(), Some(15));
-        g.fire(15, &mut c);
+        assert_eq!(g.next(), Some(BitTime::new(5)));
+        assert_eq!(g.fire(BitTime::new(5), &mut c).queued, 1);
+        assert_eq!(g.next(), Some(BitTime::new(15)));
+        g.fire(BitTime::new(15), &mut c);
         assert_eq!(g.next(), None);
 
         let mut c = Controller::new(ControllerConfig {
@@ -213,14 +213,14 @@ mod tests {
             Traffic::Burst {
                 frame: frame("200#"),
                 count: 6,
-                period: 100,
-                start: 0,
+                period: BitTime::new(100),
+                start: BitTime::ZERO,
             },
         );
-        let q = g.fire(0, &mut c);
+        let q = g.fire(BitTime::ZERO, &mut c);
         assert_eq!((q.queued, q.overflows), (4, 2));
         assert_eq!(c.pending(), 4);
-        assert_eq!(g.next(), Some(100));
+        assert_eq!(g.next(), Some(BitTime::new(100)));
     }
 
     #[test]
@@ -228,19 +228,26 @@ mod tests {
         let id = Id::standard(0x100).unwrap();
         let mut c = Controller::new(ControllerConfig::default());
         let data: Vec<u8> = (0..12).collect();
-        let mut g = Generator::new(0, Traffic::File { id, data, start: 0 });
-        g.fire(0, &mut c);
+        let mut g = Generator::new(
+            0,
+            Traffic::File {
+                id,
+                data,
+                start: BitTime::ZERO,
+            },
+        );
+        g.fire(BitTime::ZERO, &mut c);
         assert_eq!(c.pending(), 1);
         let first = frame("100#0001020304050607");
         // Some other frame of the node does not move it on.
-        g.on_done(&frame("100#AA"), 50, &mut c);
+        g.on_done(&frame("100#AA"), BitTime::new(50), &mut c);
         assert_eq!(c.pending(), 1);
         // (The controller here never sends, so the first chunk is still queued too.)
-        g.on_done(&first, 100, &mut c);
+        g.on_done(&first, BitTime::new(100), &mut c);
         assert_eq!(c.pending(), 2);
         assert!(c.queued().any(|f| *f == frame("100#08090A0B")));
-        g.on_done(&frame("100#08090A0B"), 200, &mut c);
-        assert_eq!(g.finished_at, Some(200));
+        g.on_done(&frame("100#08090A0B"), BitTime::new(200), &mut c);
+        assert_eq!(g.finished_at, Some(BitTime::new(200)));
     }
 
     #[test]

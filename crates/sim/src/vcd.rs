@@ -4,17 +4,17 @@
 
 use std::io::{self, Write};
 
-use buslab_can::Level;
+use buslab_can::{Level, Nanos};
 
 use crate::observe::LevelChange;
-use crate::time::{BitTime, nanos};
+use crate::time::BitTime;
 
 /// Writes a VCD file as the simulation runs. Time is in nanoseconds.
 pub struct VcdWriter<W: Write> {
     out: W,
     bitrate: u32,
     codes: Vec<String>,
-    last_time: Option<u64>,
+    last_time: Option<Nanos>,
 }
 
 impl<W: Write> VcdWriter<W> {
@@ -48,14 +48,14 @@ impl<W: Write> VcdWriter<W> {
             out,
             bitrate,
             codes,
-            last_time: Some(0),
+            last_time: Some(Nanos::ZERO),
         })
     }
 
     /// Appends changes (in time order, as the simulation produces them).
     pub fn write_changes(&mut self, changes: &[LevelChange]) -> io::Result<()> {
         for change in changes {
-            let t = nanos(change.time, self.bitrate);
+            let t = change.time.at_bitrate(self.bitrate);
             if self.last_time != Some(t) {
                 writeln!(self.out, "#{t}")?;
                 self.last_time = Some(t);
@@ -72,7 +72,7 @@ impl<W: Write> VcdWriter<W> {
 
     /// Marks the end of the run at bit-time `end` and returns the output.
     pub fn finish(mut self, end: BitTime) -> io::Result<W> {
-        let t = nanos(end, self.bitrate);
+        let t = end.at_bitrate(self.bitrate);
         if self.last_time.is_none_or(|last| t > last) {
             writeln!(self.out, "#{t}")?;
         }
@@ -125,23 +125,23 @@ mod tests {
         let mut w = VcdWriter::new(Vec::new(), 1_000_000, &names).unwrap();
         w.write_changes(&[
             LevelChange {
-                time: 0,
+                time: BitTime::ZERO,
                 signal: 0,
                 level: Level::Dominant,
             },
             LevelChange {
-                time: 3,
+                time: BitTime::new(3),
                 signal: 1,
                 level: Level::Dominant,
             },
             LevelChange {
-                time: 3,
+                time: BitTime::new(3),
                 signal: 0,
                 level: Level::Recessive,
             },
         ])
         .unwrap();
-        let text = String::from_utf8(w.finish(5).unwrap()).unwrap();
+        let text = String::from_utf8(w.finish(BitTime::new(5)).unwrap()).unwrap();
         assert!(text.contains("$var wire 1 \" a_b_tx $end"));
         assert!(text.ends_with("#0\n$dumpvars\n1!\n1\"\n$end\n0!\n#3000\n0\"\n1!\n#5000\n"));
     }

@@ -3,6 +3,7 @@
 
 mod common;
 
+use buslab_can::BitTime;
 use buslab_can::controller::{ControllerConfig, Event};
 use buslab_sim::{Simulation, Traffic};
 use common::*;
@@ -42,7 +43,7 @@ fn lowest_id_wins_and_losers_retry() {
         ("c", &["150#CC"]),
         ("d", &["7FF#"]),
     ]);
-    sim.run_for(2_000);
+    sim.run_for(BitTime::new(2_000));
     assert_eq!(bus_order(&sim), ["100#BB", "150#CC", "200#AA", "7FF#"]);
     // The first round: everyone but b lost; then c's rivals lost again, and so on.
     let lost = |n| sim.node(n).stats().arbitration_lost;
@@ -64,7 +65,7 @@ fn standard_beats_extended_with_the_same_base_and_data_beats_remote() {
         ("data", &["123#0102"]),
         ("ext_remote", &["048C0000#R"]),
     ]);
-    sim.run_for(2_000);
+    sim.run_for(BitTime::new(2_000));
     assert_eq!(
         bus_order(&sim),
         ["123#0102", "123#R2", "048C0000#01", "048C0000#R"]
@@ -76,7 +77,7 @@ fn standard_beats_extended_with_the_same_base_and_data_beats_remote() {
 fn arbitration_loss_is_reported_at_the_deciding_bit() {
     // 0x100 vs 0x101 differ in the last ID bit: SOF + 11 ID bits → bit 11 (SOF = 0).
     let mut sim = bus_with(&[("low", &["100#"]), ("high", &["101#"])]);
-    sim.run_for(500);
+    sim.run_for(BitTime::new(500));
     let lost: Vec<_> = events(sim.records(), 1)
         .into_iter()
         .filter_map(|(_, e)| match e {
@@ -96,13 +97,13 @@ fn saturated_bus_delivers_every_frame_once() {
             n,
             Traffic::Periodic {
                 frame: frame(&format!("{:03X}#{:02X}", 0x700 - i * 0x10, i)),
-                period: 100 + 37 * i as u64,
-                start: 0,
+                period: BitTime::new(100 + 37 * i as u64),
+                start: BitTime::ZERO,
                 count: Some(25),
             },
         );
     }
-    sim.run_for(60_000);
+    sim.run_for(BitTime::new(60_000));
     for n in sim.nodes() {
         assert_eq!(n.stats().sent, 25, "{} sent", n.name());
         assert_eq!(n.stats().received, 7 * 25, "{} received", n.name());

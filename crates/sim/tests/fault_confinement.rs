@@ -5,6 +5,7 @@
 mod common;
 
 use buslab_bench::Scenario;
+use buslab_can::BitTime;
 use buslab_can::Level;
 use buslab_can::controller::{ControllerConfig, ErrorKind, ErrorState, Event};
 use buslab_sim::{Fault, FaultKind, Simulation, Traffic};
@@ -58,7 +59,7 @@ fn cut_wire_drives_the_sender_to_bus_off_and_it_recovers_after_reconnection() {
     assert!(*tec_path.last().unwrap() >= 248, "{tec_path:?}");
 
     // Every recovery from bus-off takes at least 128 × 11 recessive bits.
-    let recoveries: Vec<u64> = ev
+    let recoveries: Vec<BitTime> = ev
         .iter()
         .filter_map(|(t, e)| {
             matches!(
@@ -73,7 +74,10 @@ fn cut_wire_drives_the_sender_to_bus_off_and_it_recovers_after_reconnection() {
         .collect();
     assert!(!recoveries.is_empty());
     for (off, on) in bus_off.iter().zip(&recoveries) {
-        assert!(on - off >= 128 * 11, "bus-off at {off}, recovered at {on}");
+        assert!(
+            *on - *off >= BitTime::new(128 * 11),
+            "bus-off at {off}, recovered at {on}"
+        );
     }
     // The wire is repaired while the sender is bus-off; it recovers after that, and then the
     // counters have fallen.
@@ -106,7 +110,7 @@ fn cut_wire_drives_the_sender_to_bus_off_and_it_recovers_after_reconnection() {
 #[test]
 fn a_node_alone_stops_at_tec_128() {
     let mut sim = bus_with(&[("alone", &["123#1122"])]);
-    sim.run_for(200_000);
+    sim.run_for(BitTime::new(200_000));
     let ev = events(sim.records(), 0);
     let errors: Vec<(ErrorKind, u16)> = ev
         .iter()
@@ -129,12 +133,13 @@ fn a_node_alone_stops_at_tec_128() {
 /// The bit-time of the start of the first frame on the bus (first dominant bus level).
 fn first_sof(mut sim: Simulation) -> u64 {
     sim.trace_levels();
-    sim.run_for(1_000);
-    sim.take_level_changes()
+    sim.run_for(BitTime::new(1_000));
+    (sim.take_level_changes()
         .iter()
         .find(|c| c.signal == 0 && c.level == Level::Dominant)
         .unwrap()
-        .time
+        .time)
+        .get()
 }
 
 /// (c) A bit flipped at one receiver: it signals an error, the frame is retransmitted, and
@@ -147,10 +152,10 @@ fn a_bit_flipped_at_one_receiver_causes_one_retransmission() {
         let mut sim = setup();
         sim.add_fault(Fault {
             kind: FaultKind::Flip { node: Some(1) },
-            start: sof + offset,
-            end: sof + offset + 1,
+            start: BitTime::new(sof + offset),
+            end: BitTime::new(sof + offset + 1),
         });
-        sim.run_for(1_000);
+        sim.run_for(BitTime::new(1_000));
         let r = sim.records();
         assert!(sim.node(1).stats().errors >= 1, "offset {offset}");
         assert_eq!(transmitted(r, 0).len(), 1, "offset {offset}");
@@ -173,21 +178,21 @@ fn a_bit_flipped_at_one_receiver_causes_one_retransmission() {
 fn an_error_at_the_last_eof_bit_seen_by_the_transmitter_duplicates_the_frame() {
     let setup = || bus_with(&[("tx", &["123#AB"]), ("rx", &[])]);
     let mut clean = setup();
-    clean.run_for(500);
+    clean.run_for(BitTime::new(500));
     let accepted = events(clean.records(), 1)
         .into_iter()
         .find_map(|(t, e)| matches!(e, Event::Received(_)).then_some(t))
         .unwrap();
-    let last_eof_bit = accepted + 1;
+    let last_eof_bit = accepted + BitTime::new(1);
     assert_eq!(transmitted(clean.records(), 0)[0].0, last_eof_bit);
 
     let mut sim = setup();
     sim.add_fault(Fault {
         kind: FaultKind::Flip { node: Some(0) },
         start: last_eof_bit,
-        end: last_eof_bit + 1,
+        end: last_eof_bit + BitTime::new(1),
     });
-    sim.run_for(1_000);
+    sim.run_for(BitTime::new(1_000));
     assert_eq!(
         received(sim.records(), 1),
         [frame("123#AB"), frame("123#AB")]
@@ -214,8 +219,8 @@ fn a_listen_only_node_never_drives_dominant() {
             n,
             Traffic::Periodic {
                 frame: frame(f),
-                period: 300,
-                start: 0,
+                period: BitTime::new(300),
+                start: BitTime::ZERO,
                 count: None,
             },
         );
@@ -225,11 +230,11 @@ fn a_listen_only_node_never_drives_dominant() {
             nodes: vec![spy],
             rate: 0.002,
         },
-        start: 0,
-        end: u64::MAX,
+        start: BitTime::ZERO,
+        end: BitTime::new(u64::MAX),
     });
     sim.trace_levels();
-    sim.run_for(50_000);
+    sim.run_for(BitTime::new(50_000));
     let spy_tx = 1 + 2 * spy;
     let changes = sim.take_level_changes();
     assert!(changes.iter().any(|c| c.signal == 2 + 2 * spy));
@@ -247,14 +252,14 @@ fn a_disconnected_node_is_invisible() {
     let mut sim = bus_with(&[("cutoff", &["123#01"]), ("other", &[])]);
     sim.add_fault(Fault {
         kind: FaultKind::Disconnect { node: 0 },
-        start: 0,
-        end: 20_000,
+        start: BitTime::ZERO,
+        end: BitTime::new(20_000),
     });
-    sim.run_for(19_000);
+    sim.run_for(BitTime::new(19_000));
     assert!(received(sim.records(), 1).is_empty());
     assert_eq!(sim.node(0).tec(), 128);
     assert!(sim.node(1).stats().errors == 0);
-    sim.run_for(2_000);
+    sim.run_for(BitTime::new(2_000));
     assert_eq!(received(sim.records(), 1), [frame("123#01")]);
     // Reconnected in the middle of an attempt: the other node flags an error during the
     // sender's passive error flag, so the ACK-error exception does not apply (TEC 128 + 8),
@@ -270,16 +275,20 @@ fn stuck_dominant_bus_sends_the_transmitter_bus_off() {
     // Controllers integrate for 11 bits, so the frame is on the wire at bit 30.
     sim.add_fault(Fault {
         kind: FaultKind::StuckDominant,
-        start: 30,
-        end: 5_000,
+        start: BitTime::new(30),
+        end: BitTime::new(5_000),
     });
-    sim.run_for(20_000);
+    sim.run_for(BitTime::new(20_000));
     let off = entered(sim.records(), 0, ErrorState::BusOff);
     assert_eq!(off.len(), 1);
-    assert!(off[0] < 5_000);
+    assert!(off[0] < BitTime::new(5_000));
     let active = entered(sim.records(), 0, ErrorState::Active);
     // Bits 5000..=t are the 128 × 11 recessive bits of the recovery.
-    assert!(active.last().is_some_and(|&t| t + 1 - 5_000 >= 128 * 11));
+    assert!(
+        active
+            .last()
+            .is_some_and(|&t| t + BitTime::new(1) - BitTime::new(5_000) >= BitTime::new(128 * 11))
+    );
     assert!(sim.node(1).stats().errors > 0);
     assert!(sim.node(1).stats().max_rec >= 128);
 }
@@ -294,26 +303,26 @@ fn a_clean_cut_makes_two_buses() {
             far_side: vec![0, 1],
             error_rate: 0.0,
         },
-        start: 0,
-        end: u64::MAX,
+        start: BitTime::ZERO,
+        end: BitTime::new(u64::MAX),
     });
     for (node, f) in [(0, "100#AA"), (2, "200#CC")] {
         sim.add_traffic(
             node,
             Traffic::Once {
                 frame: frame(f),
-                at: 100,
+                at: BitTime::new(100),
             },
         );
     }
-    sim.run_for(1_000);
+    sim.run_for(BitTime::new(1_000));
     let r = sim.records();
     assert_eq!(received(r, 1), [frame("100#AA")]);
     assert_eq!(received(r, 3), [frame("200#CC")]);
     assert!(received(r, 0).is_empty() && received(r, 2).is_empty());
     // Both went out at the same time, without arbitration between them.
     let (a, c) = (transmitted(r, 0)[0].0, transmitted(r, 2)[0].0);
-    assert!(a.abs_diff(c) < 10, "{a} {c}");
+    assert!(a.get().abs_diff(c.get()) < 10, "{a} {c}");
     assert!(
         sim.nodes()
             .iter()
@@ -330,10 +339,10 @@ fn a_bit_flipped_at_every_node_is_one_error_frame() {
     let mut sim = setup();
     sim.add_fault(Fault {
         kind: FaultKind::Flip { node: None },
-        start: sof + 25,
-        end: sof + 26,
+        start: BitTime::new(sof + 25),
+        end: BitTime::new(sof + 26),
     });
-    sim.run_for(1_000);
+    sim.run_for(BitTime::new(1_000));
     let r = sim.records();
     assert_eq!(transmitted(r, 0).len(), 1);
     for rx in [1, 2] {
@@ -352,23 +361,23 @@ fn ended_faults_are_forgotten_and_the_trace_keeps_their_numbers() {
     let mut sim = bus_with(&[("a", &[]), ("b", &[])]);
     let flip = |start, end| Fault {
         kind: FaultKind::Flip { node: Some(1) },
-        start,
-        end,
+        start: BitTime::new(start),
+        end: BitTime::new(end),
     };
     assert_eq!(sim.add_fault(flip(100, 200)), 0);
     assert_eq!(sim.add_fault(flip(150, 10_000)), 1);
-    sim.run_for(300);
+    sim.run_for(BitTime::new(300));
     // The first ended and is forgotten; the second is in force.
     assert_eq!(sim.faults(), [flip(150, 10_000)]);
     assert_eq!(sim.add_fault(flip(400, 500)), 2);
-    sim.run_for(10_000);
+    sim.run_for(BitTime::new(10_000));
     assert!(sim.faults().is_empty());
     let faults: Vec<_> = sim
         .records()
         .iter()
         .filter_map(|r| match r.what {
-            Happening::FaultStarted { index } => Some((r.time, "started", index)),
-            Happening::FaultEnded { index } => Some((r.time, "ended", index)),
+            Happening::FaultStarted { index } => Some((r.time.get(), "started", index)),
+            Happening::FaultEnded { index } => Some((r.time.get(), "ended", index)),
             Happening::Node { .. } => None,
         })
         .collect();
@@ -406,12 +415,12 @@ fn removing_the_only_node_a_fault_in_force_names_ends_the_fault() {
         let mut sim = bus_with(&[("a", &["123#01"]), ("gone", &["124#02"])]);
         sim.add_fault(Fault {
             kind: kind.clone(),
-            start: 0,
-            end: u64::MAX,
+            start: BitTime::ZERO,
+            end: BitTime::new(u64::MAX),
         });
-        sim.run_for(100);
+        sim.run_for(BitTime::new(100));
         sim.remove_node(1);
-        sim.run_for(20_000);
+        sim.run_for(BitTime::new(20_000));
         assert!(sim.faults().is_empty(), "{kind:?}");
         assert!(
             sim.records()

@@ -3,6 +3,7 @@
 
 mod common;
 
+use buslab_can::BitTime;
 use buslab_can::controller::ControllerConfig;
 use buslab_can::{Frame, Id};
 use buslab_sim::{Simulation, Traffic};
@@ -27,7 +28,7 @@ fn build(frames: &[(usize, bool, Vec<u8>, u64)], nodes: usize, fast_forward: boo
             node % nodes,
             Traffic::Once {
                 frame: Frame::data(id, data).unwrap(),
-                at: *at,
+                at: BitTime::new(*at),
             },
         );
     }
@@ -46,7 +47,7 @@ proptest! {
         ),
     ) {
         let mut sim = build(&frames, nodes, true);
-        sim.run_for(20_000);
+        sim.run_for(BitTime::new(20_000));
         for rx in 0..nodes {
             let mut got: Vec<Frame> = received(sim.records(), rx);
             got.sort();
@@ -62,7 +63,7 @@ proptest! {
         prop_assert_eq!(sim.bus_stats().errors, 0);
 
         let mut slow = build(&frames, nodes, false);
-        slow.run_for(20_000);
+        slow.run_for(BitTime::new(20_000));
         prop_assert_eq!(sim.records(), slow.records());
     }
 }

@@ -5,6 +5,7 @@ mod common;
 use std::collections::HashMap;
 
 use buslab_bench::Scenario;
+use buslab_can::BitTime;
 use buslab_can::Level;
 use buslab_sim::observe::signal_names;
 use buslab_sim::{Simulation, VcdWriter};
@@ -33,7 +34,7 @@ fn run(text: &str, seed: Option<u64>, bits: u64) -> Simulation {
     }
     let mut sim = scenario.build().unwrap();
     sim.trace_levels();
-    sim.run_for(bits);
+    sim.run_for(BitTime::new(bits));
     sim
 }
 
@@ -56,7 +57,9 @@ fn shipped_scenarios_parse_and_run() {
     for (name, text) in SCENARIOS {
         let scenario = Scenario::from_toml(text).unwrap_or_else(|e| panic!("{name}: {e}"));
         let mut sim = scenario.build().unwrap();
-        sim.run_until(scenario.duration.min(50_000));
+        sim.run_until(BitTime::new(
+            (scenario.duration.min(BitTime::new(50_000))).get(),
+        ));
         assert!(sim.bus_stats().frames > 0, "{name}: no frames");
     }
 }
@@ -117,7 +120,7 @@ fn vcd_is_well_formed_and_matches_the_bus() {
     let mut vcd = VcdWriter::new(Vec::new(), sim.bitrate(), &names).unwrap();
     let mut all = Vec::new();
     for _ in 0..4 {
-        sim.run_for(1_000);
+        sim.run_for(BitTime::new(1_000));
         let changes = sim.take_level_changes();
         vcd.write_changes(&changes).unwrap();
         all.extend(changes);
@@ -136,7 +139,7 @@ fn vcd_is_well_formed_and_matches_the_bus() {
             } else {
                 '0'
             };
-            (c.time * 2_000, v)
+            (c.time.get() * 2_000, v)
         }))
         .collect();
     assert_eq!(bus, &expected);
@@ -159,7 +162,7 @@ fn fast_forward_changes_nothing() {
     for (name, text) in SCENARIOS {
         for traced in [false, true] {
             let scenario = Scenario::from_toml(text).unwrap();
-            let bits = scenario.duration.min(120_000);
+            let bits = scenario.duration.min(BitTime::new(120_000));
             let mut fast = scenario.build().unwrap();
             let mut slow = scenario.build().unwrap();
             slow.set_fast_forward(false);
@@ -174,7 +177,7 @@ fn fast_forward_changes_nothing() {
             if ["cut-wire-controllers", "listen-only"].contains(&name) {
                 assert!(fast.fast_forwarded() > bits / 10, "{name}: no fast-forward");
             }
-            assert_eq!(slow.fast_forwarded(), 0);
+            assert_eq!(slow.fast_forwarded(), BitTime::ZERO);
             assert_eq!(
                 fast.take_level_changes(),
                 slow.take_level_changes(),

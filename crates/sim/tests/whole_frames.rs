@@ -6,6 +6,7 @@
 
 mod common;
 
+use buslab_can::BitTime;
 use buslab_can::controller::{Controller, ControllerConfig};
 use buslab_can::{Frame, Id};
 use buslab_sim::{Fault, FaultKind, Simulation, Traffic};
@@ -240,8 +241,8 @@ fn build(bus: &Bus, whole: bool) -> Simulation {
                 start,
             } => Traffic::Periodic {
                 frame: *frame,
-                period: *period,
-                start: *start,
+                period: BitTime::new(*period),
+                start: BitTime::new(*start),
                 count: None,
             },
             TrafficSpec::Burst {
@@ -252,17 +253,17 @@ fn build(bus: &Bus, whole: bool) -> Simulation {
             } => Traffic::Burst {
                 frame: *frame,
                 count: *count,
-                period: *period,
-                start: *start,
+                period: BitTime::new(*period),
+                start: BitTime::new(*start),
             },
             TrafficSpec::Once { frame, at } => Traffic::Once {
                 frame: *frame,
-                at: *at,
+                at: BitTime::new(*at),
             },
             TrafficSpec::File { id, len, start } => Traffic::File {
                 id: *id,
                 data: (0..*len as u8).collect(),
-                start: *start,
+                start: BitTime::new(*start),
             },
         };
         sim.add_traffic(*node, traffic);
@@ -287,12 +288,12 @@ fn build(bus: &Bus, whole: bool) -> Simulation {
         };
         sim.add_fault(Fault {
             kind,
-            start,
-            end: start + len,
+            start: BitTime::new(start),
+            end: BitTime::new(start + len),
         });
     }
     if let Some(every) = bus.sample_every {
-        sim.sample_counters_every(every);
+        sim.sample_counters_every(BitTime::new(every));
     }
     sim
 }
@@ -321,7 +322,7 @@ fn observed(sim: &Simulation) -> (String, String) {
 fn run(bus: &Bus, whole: bool) -> (Simulation, (String, String)) {
     let mut sim = build(bus, whole);
     for step in &bus.steps {
-        sim.run_for(*step);
+        sim.run_for(BitTime::new(*step));
         // A frame queued by hand in the middle of the run, as a scenario's one-shot would.
         let _ = sim.enqueue(0, frame("7FF#EE"));
     }
@@ -367,13 +368,13 @@ fn a_busy_clean_bus_is_mostly_applied_whole() {
                 n,
                 Traffic::Periodic {
                     frame: Frame::data(Id::standard(0x100 + i).unwrap(), &[i as u8; 8]).unwrap(),
-                    period: 500,
-                    start: i as u64 * 7,
+                    period: BitTime::new(500),
+                    start: BitTime::new(i as u64 * 7),
                     count: None,
                 },
             );
         }
-        sim.run_for(200_000);
+        sim.run_for(BitTime::new(200_000));
         sim
     };
     let fast = bus(true);
@@ -406,15 +407,15 @@ fn receivers_in_different_states_are_applied_whole_and_the_same() {
                     Traffic::Periodic {
                         frame: Frame::data(Id::standard(0x700 - i).unwrap(), &[i as u8; 3])
                             .unwrap(),
-                        period: 700,
-                        start: i as u64,
+                        period: BitTime::new(700),
+                        start: BitTime::new(i as u64),
                         count: None,
                     },
                 );
             }
         }
-        sim.sample_counters_every(333);
-        sim.run_for(60_000);
+        sim.sample_counters_every(BitTime::new(333));
+        sim.run_for(BitTime::new(60_000));
         sim
     };
     let fast = bus(true);
@@ -445,7 +446,7 @@ fn run_untraced(bus: &Bus) -> (Simulation, (String, String)) {
     let mut sim = build(bus, true);
     sim.set_record_events(false);
     for step in &bus.steps {
-        sim.run_for(*step);
+        sim.run_for(BitTime::new(*step));
         let _ = sim.enqueue(0, frame("7FF#EE"));
     }
     let seen = observed(&sim);
@@ -492,19 +493,19 @@ fn a_saturated_bus_without_a_trace_ends_the_same() {
                 Traffic::File {
                     id,
                     data: (0..200u8).collect(),
-                    start: i as u64 * 3,
+                    start: BitTime::new(i as u64 * 3),
                 }
             } else {
                 Traffic::Periodic {
                     frame: Frame::data(id, &[i as u8; 8]).unwrap(),
-                    period: 50 * 16,
-                    start: 0,
+                    period: BitTime::new(50 * 16),
+                    start: BitTime::ZERO,
                     count: None,
                 }
             };
             sim.add_traffic(n, traffic);
         }
-        sim.run_for(300_000);
+        sim.run_for(BitTime::new(300_000));
         sim
     };
     let fast = bus(true);

@@ -829,7 +829,7 @@ impl buslab_can::node::BusNode for Sja1000 {
     fn output(&self) -> Level {
         Sja1000::output(self)
     }
-    fn sample(&mut self, _now: u64, bus: Level) {
+    fn sample(&mut self, _now: buslab_can::BitTime, bus: Level) {
         Sja1000::sample(self, bus)
     }
     fn poll_event(&mut self) -> Option<Event> {
@@ -846,8 +846,8 @@ impl buslab_can::node::BusNode for Sja1000 {
     fn state(&self) -> ErrorState {
         self.error_state()
     }
-    fn quiet_until(&self) -> Option<u64> {
-        Sja1000::is_quiescent(self).then_some(u64::MAX)
+    fn quiet_until(&self) -> Option<buslab_can::BitTime> {
+        Sja1000::is_quiescent(self).then_some(buslab_can::BitTime::MAX)
     }
     fn enqueue(&mut self, _frame: Frame) -> Result<(), buslab_can::controller::QueueFull> {
         Err(buslab_can::controller::QueueFull { capacity: 0 })

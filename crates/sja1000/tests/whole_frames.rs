@@ -6,6 +6,7 @@
 //! chip's registers, FIFO, status, interrupts, counters and controller are the same with
 //! whole frames on and off, and so is the trace.
 
+use buslab_can::BitTime;
 use buslab_can::{Frame, Id};
 use buslab_sim::{Fault, FaultKind, Simulation};
 use buslab_sja1000::{CanMode, Sja1000};
@@ -226,12 +227,12 @@ fn run(bus: &Bus, whole: bool) -> (u64, String, String) {
         };
         sim.add_fault(Fault {
             kind,
-            start,
-            end: start + len,
+            start: BitTime::new(start),
+            end: BitTime::new(start + len),
         });
     }
     for (bits, ops) in &bus.pieces {
-        sim.run_for(*bits);
+        sim.run_for(BitTime::new(*bits));
         for op in ops {
             let chip = sim.node_mut(chip_of(op)).get_mut::<Sja1000>().unwrap();
             apply(chip, op);
@@ -293,7 +294,7 @@ fn busy_chips_take_their_frames_whole() {
             load_tx(chip, &Frame::data(id, &[round as u8; 8]).unwrap());
             chip.write(CMR, 0x01);
         }
-        sim.run_for(1_000);
+        sim.run_for(BitTime::new(1_000));
     }
     let (whole, frames) = (sim.whole_frames(), sim.bus_stats().frames);
     assert!(frames >= 700, "{frames} frames");

@@ -22,7 +22,7 @@ use std::ops::Range;
 
 use buslab_can::controller::{ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame};
 use buslab_can::node::BusNode;
-use buslab_can::{Frame, Level};
+use buslab_can::{BitTime, Frame, Level, Nanos};
 
 use crate::ids::SlioId;
 use crate::registers::Register;
@@ -40,20 +40,20 @@ const ADC2_INPUT: u8 = 4;
 
 /// A voltage that changes with time: a constant, a waveform, a recording.
 pub trait Signal: Send {
-    /// The level in volts at `t_ns` nanoseconds since the board started.
-    fn volts(&mut self, t_ns: u64) -> f64;
+    /// The level in volts at `t` since the board started.
+    fn volts(&mut self, t: Nanos) -> f64;
 }
 
 /// A constant level.
 impl Signal for f64 {
-    fn volts(&mut self, _t_ns: u64) -> f64 {
+    fn volts(&mut self, _t: Nanos) -> f64 {
         *self
     }
 }
 
-impl<F: FnMut(u64) -> f64 + Send> Signal for F {
-    fn volts(&mut self, t_ns: u64) -> f64 {
-        self(t_ns)
+impl<F: FnMut(Nanos) -> f64 + Send> Signal for F {
+    fn volts(&mut self, t: Nanos) -> f64 {
+        self(t)
     }
 }
 
@@ -64,10 +64,10 @@ pub(crate) struct BoardAnalog {
 }
 
 impl AnalogInputs for BoardAnalog {
-    fn code(&mut self, input: u8, t_ns: u64) -> u16 {
+    fn code(&mut self, input: u8, t: Nanos) -> u16 {
         let volts = match input {
-            ADC1_INPUT => self.adc1.volts(t_ns),
-            ADC2_INPUT => self.potentiometer.volts(t_ns),
+            ADC1_INPUT => self.adc1.volts(t),
+            ADC2_INPUT => self.potentiometer.volts(t),
             _ => 0.0,
         };
         volts_to_code(volts)
@@ -87,7 +87,7 @@ pub struct DemoBoard {
     slio: Slio,
     id_switches: u8,
     input_switches: u8,
-    notices: Vec<(u64, SlioNotice)>,
+    notices: Vec<(BitTime, SlioNotice)>,
     /// The frame applied whole goes through [`BusNode::sample`] bit by bit (the SLIO only
     /// listened at its SOF).
     frame_by_bits: bool,
@@ -122,7 +122,7 @@ impl DemoBoard {
             notices: Vec::new(),
             frame_by_bits: false,
         };
-        board.update_pins(0);
+        board.update_pins(BitTime::ZERO);
         Ok(board)
     }
 
@@ -137,7 +137,7 @@ impl DemoBoard {
     /// The four input switches (bit 0 = the switch on P0), as set at bit-time `now`. While
     /// P13 selects them their pins change, and a calibrated SLIO reports the edges its edge
     /// registers ask for.
-    pub fn set_switches(&mut self, now: u64, switches: u8) {
+    pub fn set_switches(&mut self, now: BitTime, switches: u8) {
         self.input_switches = switches & 0xF;
         self.update_pins(now);
     }
@@ -154,19 +154,15 @@ impl DemoBoard {
 
     /// The potentiometer's level at bit-time `now` (what a conversion then would read,
     /// before the ADC's rounding).
-    pub fn potentiometer_volts(&mut self, now: u64) -> f64 {
-        let t = self.nanos(now);
+    pub fn potentiometer_volts(&mut self, now: BitTime) -> f64 {
+        let t = now.at_bitrate(self.slio.bitrate());
         self.analog_mut().potentiometer.volts(t)
     }
 
     /// The level on ADC1 (P5) at bit-time `now`.
-    pub fn adc1_volts(&mut self, now: u64) -> f64 {
-        let t = self.nanos(now);
+    pub fn adc1_volts(&mut self, now: BitTime) -> f64 {
+        let t = now.at_bitrate(self.slio.bitrate());
         self.analog_mut().adc1.volts(t)
-    }
-
-    fn nanos(&self, now: u64) -> u64 {
-        (u128::from(now) * 1_000_000_000 / u128::from(self.slio.bitrate())) as u64
     }
 
     fn analog_mut(&mut self) -> &mut BoardAnalog {
@@ -176,7 +172,7 @@ impl DemoBoard {
     }
 
     /// What the SLIO did since the last call (calibration, bus-mode changes, registers).
-    pub fn take_notices(&mut self) -> Vec<(u64, SlioNotice)> {
+    pub fn take_notices(&mut self) -> Vec<(BitTime, SlioNotice)> {
         std::mem::take(&mut self.notices)
     }
 
@@ -193,7 +189,7 @@ impl DemoBoard {
 
     /// What the board does after its SLIO saw the bus up to bit-time `now`: it keeps the
     /// SLIO's news and follows its outputs on the pins.
-    fn after_slio(&mut self, now: u64) {
+    fn after_slio(&mut self, now: BitTime) {
         let before = self.notices.len();
         // Bounded: a board nobody asks keeps the latest news only.
         if before > 4096 {
@@ -217,7 +213,7 @@ impl DemoBoard {
 
     /// The levels on P0..P3 follow the multiplexer: the input switches while P13 is driven
     /// high, the ID switches otherwise.
-    fn update_pins(&mut self, now: u64) {
+    fn update_pins(&mut self, now: BitTime) {
         let select = self.slio.driven() & (1 << SELECT_PIN) != 0;
         let low = if select {
             self.input_switches
@@ -233,12 +229,12 @@ impl BusNode for DemoBoard {
         self.slio.output()
     }
 
-    fn sample(&mut self, now: u64, bus: Level) {
+    fn sample(&mut self, now: BitTime, bus: Level) {
         self.slio.sample(now, bus);
         self.after_slio(now);
     }
 
-    fn frame_starts_at(&mut self, now: u64) {
+    fn frame_starts_at(&mut self, now: BitTime) {
         self.slio.frame_starts_at(now);
     }
 
@@ -256,11 +252,11 @@ impl BusNode for DemoBoard {
         let sof = self.slio.frame_sof();
         if self.frame_by_bits {
             for bit in bits {
-                self.sample(sof + u64::from(bit), frame_level(frame, bit));
+                self.sample(sof + BitTime::from(bit), frame_level(frame, bit));
             }
             return;
         }
-        let now = sof + u64::from(bits.end) - 1;
+        let now = sof + BitTime::from(bits.end) - BitTime::ONE;
         self.slio.advance_frame(frame, role, bits);
         self.after_slio(now);
     }
@@ -277,7 +273,7 @@ impl BusNode for DemoBoard {
     fn state(&self) -> ErrorState {
         self.slio.state()
     }
-    fn quiet_until(&self) -> Option<u64> {
+    fn quiet_until(&self) -> Option<BitTime> {
         self.slio.quiet_until()
     }
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
@@ -302,10 +298,10 @@ mod tests {
     fn the_potentiometer_turns_while_the_board_runs() {
         let id = SlioId::new(3).unwrap();
         let mut board = DemoBoard::new(id, 125_000, Box::new(1.25), Box::new(0.5)).unwrap();
-        assert_eq!(board.potentiometer_volts(0), 0.5);
-        board.set_potentiometer(Box::new(|t: u64| t as f64 / 1e9));
+        assert_eq!(board.potentiometer_volts(BitTime::ZERO), 0.5);
+        board.set_potentiometer(Box::new(|t: Nanos| t.get() as f64 / 1e9));
         // 125000 bit-times: one second.
-        assert_eq!(board.potentiometer_volts(125_000), 1.0);
-        assert_eq!(board.adc1_volts(125_000), 1.25);
+        assert_eq!(board.potentiometer_volts(BitTime::new(125_000)), 1.0);
+        assert_eq!(board.adc1_volts(BitTime::new(125_000)), 1.25);
     }
 }

@@ -3,7 +3,9 @@
 //!
 //! A [`Master`] decides which frames to send and when, and makes sense of what SLIOs send
 //! back; an adapter moves the frames (a `CanBus`, or an SJA1000 driven through its
-//! registers) and gives it the time in nanoseconds:
+//! registers) and gives it the time on the host's clock ([`Nanos`]). Its rhythms are the
+//! SLIOs' and so counted in bit-times ([`BitTime`] consts); [`Master::new`] turns them into
+//! nanoseconds at the bus's bit rate, once:
 //! - calibration at start: 48 calibration frames, each tried once
 //!   ([`Transmit::single_shot`]): before they are calibrated the SLIOs do not acknowledge,
 //!   and a frame nobody acknowledges would be retried forever (the seed aborts it);
@@ -21,24 +23,23 @@
 
 use std::collections::VecDeque;
 
-use buslab_can::Frame;
+use buslab_can::{BitTime, Frame, Nanos};
 
 use crate::ids::{Direction, SlioId, calibration_frame};
 use crate::registers::{NotReadable, Register, Reply, Request};
-use crate::slio::{LONGEST_FRAME_BITS, WATCHDOG_BITS};
+use crate::slio::{LONGEST_FRAME, WATCHDOG};
 
 /// Calibration frames sent at start (the seed's `calibration_slio` loops 48 times).
 pub const START_CALIBRATIONS: u32 = 48;
-/// Bit-times between two periodic calibration frames.
-pub const CALIBRATION_EVERY_BITS: u64 = 5000;
-/// How long a request waits for the SLIO's answer, in bit-times: a few frames' worth on a
-/// busy bus.
-pub const ANSWER_WITHIN_BITS: u64 = 4000;
-/// Bit-times between two calibration frames handed over after which the SLIOs may have lost
+/// Between two periodic calibration frames.
+pub const CALIBRATION_EVERY: BitTime = BitTime::new(5000);
+/// How long a request waits for the SLIO's answer: a few frames' worth on a busy bus.
+pub const ANSWER_WITHIN: BitTime = BitTime::new(4000);
+/// The time between two calibration frames handed over after which the SLIOs may have lost
 /// their calibration: the watchdog's 8192, less the time the later frame may wait on the wire
-/// behind eight of the longest frames. (The rhythm of [`CALIBRATION_EVERY_BITS`] keeps the
+/// behind eight of the longest frames. (The rhythm of [`CALIBRATION_EVERY`] keeps the
 /// gaps well below this while the host runs.)
-pub const CALIBRATION_LOST_AFTER_BITS: u64 = WATCHDOG_BITS - 8 * LONGEST_FRAME_BITS;
+pub const CALIBRATION_LOST_AFTER: BitTime = BitTime::new(WATCHDOG.get() - 8 * LONGEST_FRAME.get());
 
 /// A frame for the adapter to send.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -69,11 +70,11 @@ pub enum MasterEvent {
     },
     /// A request got no answer in time.
     NoAnswer { request: RequestId, slio: SlioId },
-    /// No calibration frame went out for `silent_ns` (the host did not run), so the SLIOs may
+    /// No calibration frame went out for `silent` (the host did not run), so the SLIOs may
     /// have lost their calibration and ignored or left unanswered what was sent meanwhile.
     /// The start-up calibration goes out again (tried once each: the adapter's abort after the
     /// first also gives up a frame nobody acknowledges), then the requests still unanswered.
-    CalibrationLost { silent_ns: u64 },
+    CalibrationLost { silent: Nanos },
 }
 
 /// Identifies a request in [`MasterEvent::Confirmed`] and [`MasterEvent::NoAnswer`].
@@ -85,8 +86,8 @@ pub struct RequestId(pub u64);
 pub struct Known {
     /// The last content each register was seen with (confirmed by the SLIO), by number.
     pub registers: [Option<u16>; 9],
-    /// When it last sent anything (ns).
-    pub last_heard: u64,
+    /// When it last sent anything.
+    pub last_heard: Nanos,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -97,14 +98,17 @@ struct Pending {
     /// Its frame, to send again after a lost calibration.
     frame: Frame,
     /// When the answer is given up: set when the frame is handed to the adapter.
-    deadline: Option<u64>,
+    deadline: Option<Nanos>,
 }
 
 /// The host side of SLIOs on one bus.
 #[derive(Debug)]
 pub struct Master {
-    bit_ns: u64,
-    answer_within_ns: u64,
+    /// [`CALIBRATION_EVERY`] on the host's clock.
+    calibration_period: Nanos,
+    /// [`CALIBRATION_LOST_AFTER`] on the host's clock.
+    calibration_lost_after: Nanos,
+    answer_within: Nanos,
     /// Frames to send, with the request each one carries.
     outbox: VecDeque<(Transmit, Option<RequestId>)>,
     events: VecDeque<MasterEvent>,
@@ -112,22 +116,22 @@ pub struct Master {
     pending: Vec<Pending>,
     /// The earliest of `pending`'s deadlines: [`Self::next_deadline`] is asked at every bit by
     /// a node stepped bit by bit, so it is kept rather than searched for.
-    first_answer_deadline: Option<u64>,
+    first_answer_deadline: Option<Nanos>,
     next_request: u64,
-    next_calibration: Option<u64>,
+    next_calibration: Option<Nanos>,
     /// When the last calibration frame was handed over (the SLIOs' watchdog restarts about
     /// then); `keeping` counts from its creation.
-    last_calibration_sent: u64,
+    last_calibration_sent: Nanos,
 }
 
 impl Master {
     /// A master for a bus at `bitrate`, calibrating from `now` on: the 48 start-up
-    /// calibration frames are queued, then one every [`CALIBRATION_EVERY_BITS`].
-    pub fn new(bitrate: u32, now: u64) -> Self {
-        let bit_ns = 1_000_000_000 / u64::from(bitrate.max(1));
+    /// calibration frames are queued, then one every [`CALIBRATION_EVERY`].
+    pub fn new(bitrate: u32, now: Nanos) -> Self {
         let mut m = Self {
-            bit_ns,
-            answer_within_ns: ANSWER_WITHIN_BITS * bit_ns,
+            calibration_period: CALIBRATION_EVERY.at_bitrate(bitrate),
+            calibration_lost_after: CALIBRATION_LOST_AFTER.at_bitrate(bitrate),
+            answer_within: ANSWER_WITHIN.at_bitrate(bitrate),
             outbox: VecDeque::new(),
             events: VecDeque::new(),
             known: [None; 16],
@@ -143,14 +147,14 @@ impl Master {
 
     /// A master that keeps SLIOs calibrated but does not run the start-up calibration (they
     /// are already calibrated by another host).
-    pub fn keeping(bitrate: u32, now: u64) -> Self {
+    pub fn keeping(bitrate: u32, now: Nanos) -> Self {
         let mut m = Self::new(bitrate, now);
         m.outbox.clear();
         m
     }
 
     /// Queues the start-up calibration (48 frames, each tried once) and restarts the period.
-    pub fn calibrate(&mut self, now: u64) {
+    pub fn calibrate(&mut self, now: Nanos) {
         for _ in 0..START_CALIBRATIONS {
             self.outbox.push_back(Self::start_up_frame());
         }
@@ -167,29 +171,29 @@ impl Master {
         )
     }
 
-    /// One calibration period ([`CALIBRATION_EVERY_BITS`]) in nanoseconds.
-    pub fn calibration_period(&self) -> u64 {
-        CALIBRATION_EVERY_BITS * self.bit_ns
+    /// One calibration period ([`CALIBRATION_EVERY`]) on the host's clock.
+    pub fn calibration_period(&self) -> Nanos {
+        self.calibration_period
     }
 
     /// The last start-up calibration frame went out at `now` (an adapter that waits for each
     /// one may take long over the 48): the periodic ones follow one period after it, not
     /// after the start. Nothing changes while the periodic calibration is stopped.
-    pub fn start_up_sent(&mut self, now: u64) {
+    pub fn start_up_sent(&mut self, now: Nanos) {
         if self.next_calibration.is_some() {
             self.next_calibration = Some(now + self.calibration_period());
         }
     }
 
-    /// When the next periodic calibration frame is due (ns), unless it is stopped.
-    pub fn next_calibration(&self) -> Option<u64> {
+    /// When the next periodic calibration frame is due, unless it is stopped.
+    pub fn next_calibration(&self) -> Option<Nanos> {
         self.next_calibration
     }
 
     /// How long requests wait for their answer before [`MasterEvent::NoAnswer`] (default
-    /// [`ANSWER_WITHIN_BITS`] bit-times; a host on a loaded machine may want more).
-    pub fn set_answer_within(&mut self, ns: u64) {
-        self.answer_within_ns = ns.max(1);
+    /// [`ANSWER_WITHIN`]; a host on a loaded machine may want more).
+    pub fn set_answer_within(&mut self, wait: Nanos) {
+        self.answer_within = wait.max(Nanos::new(1));
     }
 
     /// Stops the periodic calibration (the SLIOs will lose it after 8192 bit-times).
@@ -250,7 +254,7 @@ impl Master {
     }
 
     /// A frame from the bus. Returns whether it was a SLIO's.
-    pub fn handle_frame(&mut self, now: u64, frame: &Frame) -> bool {
+    pub fn handle_frame(&mut self, now: Nanos, frame: &Frame) -> bool {
         let Some((slio, Direction::FromSlio)) = SlioId::from_id(frame.id()) else {
             return false;
         };
@@ -297,7 +301,7 @@ impl Master {
 
     /// Time passes: a calibration perhaps lost while the host did not run, the periodic
     /// calibration, requests that got no answer.
-    pub fn handle_timeout(&mut self, now: u64) {
+    pub fn handle_timeout(&mut self, now: Nanos) {
         self.check_calibration_gap(now);
         if let Some(t) = self.next_calibration
             && now >= t
@@ -313,7 +317,7 @@ impl Master {
                 None,
             ));
             // Keep the rhythm, but never queue a burst after a long pause.
-            let period = CALIBRATION_EVERY_BITS * self.bit_ns;
+            let period = self.calibration_period;
             self.next_calibration = Some((t + period).max(now + period / 2));
         }
         let mut late = Vec::new();
@@ -334,18 +338,17 @@ impl Master {
     /// Whether the SLIOs may have lost their calibration since the last calibration frame went
     /// out (asked before anything is handed over: a frame handed over after a pause must not
     /// hide it).
-    fn check_calibration_gap(&mut self, now: u64) {
-        let silent_ns = now.saturating_sub(self.last_calibration_sent);
-        if self.next_calibration.is_some() && silent_ns >= CALIBRATION_LOST_AFTER_BITS * self.bit_ns
-        {
-            self.recalibrate(now, silent_ns);
+    fn check_calibration_gap(&mut self, now: Nanos) {
+        let silent = now.saturating_sub(self.last_calibration_sent);
+        if self.next_calibration.is_some() && silent >= self.calibration_lost_after {
+            self.recalibrate(now, silent);
         }
     }
 
     /// The SLIOs may have lost their calibration: the start-up calibration goes first again,
     /// then the requests handed over and not answered (their wait restarts when they go out
     /// again), then what was queued.
-    fn recalibrate(&mut self, now: u64, silent_ns: u64) {
+    fn recalibrate(&mut self, now: Nanos, silent: Nanos) {
         // The start-up frames go first: while some still wait, this is the same lost
         // calibration (an adapter that does not take frames must not pile up 48 more per
         // look at the clock), and nothing was handed over since.
@@ -376,11 +379,11 @@ impl Master {
         self.last_calibration_sent = now;
         self.next_calibration = Some(now + self.calibration_period());
         self.events
-            .push_back(MasterEvent::CalibrationLost { silent_ns });
+            .push_back(MasterEvent::CalibrationLost { silent });
     }
 
     /// When [`Self::handle_timeout`] must be called.
-    pub fn next_deadline(&self) -> Option<u64> {
+    pub fn next_deadline(&self) -> Option<Nanos> {
         match (self.next_calibration, self.first_answer_deadline) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
@@ -393,7 +396,7 @@ impl Master {
 
     /// The next frame to send, handed to the adapter at `now`: a request's answer is awaited
     /// from then on.
-    pub fn poll_transmit(&mut self, now: u64) -> Option<Transmit> {
+    pub fn poll_transmit(&mut self, now: Nanos) -> Option<Transmit> {
         if !self.outbox.is_empty() {
             self.check_calibration_gap(now);
         }
@@ -404,7 +407,7 @@ impl Master {
         if let Some(request) = request
             && let Some(p) = self.pending.iter_mut().find(|p| p.id == request)
         {
-            p.deadline = Some(now + self.answer_within_ns);
+            p.deadline = Some(now + self.answer_within);
             self.pending_changed();
         }
         Some(transmit)
@@ -431,44 +434,44 @@ mod tests {
 
     #[test]
     fn start_up_calibration_then_every_5000_bit_times() {
-        let mut m = Master::new(125_000, 0);
+        let mut m = Master::new(125_000, Nanos::ZERO);
         let mut start = 0;
-        while let Some(t) = m.poll_transmit(0) {
+        while let Some(t) = m.poll_transmit(Nanos::ZERO) {
             assert!(t.single_shot);
             assert_eq!(t.frame, calibration_frame());
             start += 1;
         }
         assert_eq!(start, 48);
         // 5000 bit-times at 125 kbit/s = 40 ms.
-        assert_eq!(m.next_deadline(), Some(40_000_000));
-        m.handle_timeout(39_999_999);
-        assert!(m.poll_transmit(39_999_999).is_none());
-        m.handle_timeout(40_000_000);
+        assert_eq!(m.next_deadline(), Some(Nanos::new(40_000_000)));
+        m.handle_timeout(Nanos::new(39_999_999));
+        assert!(m.poll_transmit(Nanos::new(39_999_999)).is_none());
+        m.handle_timeout(Nanos::new(40_000_000));
         assert_eq!(
-            m.poll_transmit(40_000_000).map(|t| t.frame),
+            m.poll_transmit(Nanos::new(40_000_000)).map(|t| t.frame),
             Some(calibration_frame())
         );
-        assert_eq!(m.next_deadline(), Some(80_000_000));
+        assert_eq!(m.next_deadline(), Some(Nanos::new(80_000_000)));
     }
 
     #[test]
     fn the_period_restarts_from_the_last_start_up_frame() {
         // An adapter that waited 100 ms for the 48 start-up frames: the next one is due one
         // period after the last of them, not 60 ms before it went out.
-        let mut m = Master::new(125_000, 0);
-        while m.poll_transmit(0).is_some() {}
-        m.start_up_sent(100_000_000);
-        assert_eq!(m.next_deadline(), Some(140_000_000));
+        let mut m = Master::new(125_000, Nanos::ZERO);
+        while m.poll_transmit(Nanos::ZERO).is_some() {}
+        m.start_up_sent(Nanos::new(100_000_000));
+        assert_eq!(m.next_deadline(), Some(Nanos::new(140_000_000)));
         m.stop_calibrating();
-        m.start_up_sent(200_000_000);
+        m.start_up_sent(Nanos::new(200_000_000));
         assert_eq!(m.next_deadline(), None);
     }
 
     #[test]
     fn a_sign_on_makes_a_slio_present_and_writes_complete_on_confirmation() {
-        let mut m = Master::keeping(125_000, 0);
+        let mut m = Master::keeping(125_000, Nanos::ZERO);
         let sign_on = Frame::data(slio(3).reply_id(), &[0x30, 0x00, 0x03]).unwrap();
-        assert!(m.handle_frame(10, &sign_on));
+        assert!(m.handle_frame(Nanos::new(10), &sign_on));
         assert_eq!(
             m.poll_event(),
             Some(MasterEvent::Present {
@@ -478,12 +481,12 @@ mod tests {
         );
         m.poll_event();
         let r = m.write(slio(3), Register::DataOutput, 0x2000);
-        let sent = m.poll_transmit(20).unwrap();
+        let sent = m.poll_transmit(Nanos::new(20)).unwrap();
         assert!(!sent.single_shot);
         assert_eq!(sent.frame.to_string(), "29C#032000");
         // Another SLIO's frame does not confirm it.
         m.handle_frame(
-            30,
+            Nanos::new(30),
             &Frame::data(slio(4).reply_id(), &[0x23, 0x20, 0x00]).unwrap(),
         );
         let confirmed = |m: &mut Master| {
@@ -492,7 +495,7 @@ mod tests {
         };
         assert!(!confirmed(&mut m));
         m.handle_frame(
-            40,
+            Nanos::new(40),
             &Frame::data(slio(3).reply_id(), &[0x23, 0x20, 0x00]).unwrap(),
         );
         assert!(confirmed(&mut m));
@@ -504,10 +507,10 @@ mod tests {
 
     #[test]
     fn reads_are_three_byte_frames_and_writable_registers_have_none() {
-        let mut m = Master::keeping(125_000, 0);
+        let mut m = Master::keeping(125_000, Nanos::ZERO);
         m.read(slio(3), Register::DataInput).unwrap();
         m.read(slio(3), Register::Adc).unwrap();
-        let sent: Vec<String> = std::iter::from_fn(|| m.poll_transmit(0))
+        let sent: Vec<String> = std::iter::from_fn(|| m.poll_transmit(Nanos::ZERO))
             .map(|t| t.frame.to_string())
             .collect();
         // Seed 002 §2.1.2.1 and `make_slio_ffi` (DLC = 3): never `29C#00`.
@@ -524,19 +527,28 @@ mod tests {
                 "{register}"
             );
         }
-        assert!(m.poll_transmit(0).is_none(), "a refused read sends nothing");
+        assert!(
+            m.poll_transmit(Nanos::ZERO).is_none(),
+            "a refused read sends nothing"
+        );
     }
 
     #[test]
     fn an_unanswered_request_times_out_and_garbage_is_ignored() {
-        let mut m = Master::keeping(125_000, 0);
+        let mut m = Master::keeping(125_000, Nanos::ZERO);
         let r = m.read(slio(5), Register::Adc).unwrap();
-        m.poll_transmit(0).unwrap();
-        m.handle_frame(1, &Frame::data(slio(5).reply_id(), &[0x20]).unwrap());
-        m.handle_frame(1, &Frame::remote(slio(5).reply_id(), 3).unwrap());
-        assert!(!m.handle_frame(1, &"123#112233".parse().unwrap()));
-        let deadline = ANSWER_WITHIN_BITS * 8000;
-        m.handle_timeout(deadline);
+        m.poll_transmit(Nanos::ZERO).unwrap();
+        m.handle_frame(
+            Nanos::new(1),
+            &Frame::data(slio(5).reply_id(), &[0x20]).unwrap(),
+        );
+        m.handle_frame(
+            Nanos::new(1),
+            &Frame::remote(slio(5).reply_id(), 3).unwrap(),
+        );
+        assert!(!m.handle_frame(Nanos::new(1), &"123#112233".parse().unwrap()));
+        let deadline = ANSWER_WITHIN.get() * 8000;
+        m.handle_timeout(Nanos::new(deadline));
         let events: Vec<_> = std::iter::from_fn(|| m.poll_event()).collect();
         assert!(events.contains(&MasterEvent::NoAnswer {
             request: r,
@@ -553,31 +565,35 @@ mod tests {
     #[test]
     fn a_host_that_did_not_run_for_the_watchdog_calibrates_again_and_repeats_its_request() {
         let bit = 8000; // 125 kbit/s
-        let mut m = Master::new(125_000, 0);
+        let mut m = Master::new(125_000, Nanos::ZERO);
         // A user's generous wait (`buslab slio --timeout 30s`).
         let within = 30_000_000_000;
-        m.set_answer_within(within);
-        while m.poll_transmit(0).is_some() {}
-        m.start_up_sent(0);
+        m.set_answer_within(Nanos::new(within));
+        while m.poll_transmit(Nanos::ZERO).is_some() {}
+        m.start_up_sent(Nanos::ZERO);
         let r = m.write(slio(3), Register::DataOutput, 0x2080);
-        assert_eq!(m.poll_transmit(0).unwrap().frame.to_string(), "29C#032080");
+        assert_eq!(
+            m.poll_transmit(Nanos::ZERO).unwrap().frame.to_string(),
+            "29C#032080"
+        );
         // A late wake-up that keeps within the watchdog: only the periodic frame.
         let late = 6000 * bit;
-        m.handle_timeout(late);
+        m.handle_timeout(Nanos::new(late));
         assert_eq!(m.poll_event(), None);
-        let t = m.poll_transmit(late).unwrap();
+        let t = m.poll_transmit(Nanos::new(late)).unwrap();
         assert!(!t.single_shot && t.frame == calibration_frame());
-        assert!(m.poll_transmit(late).is_none());
-        // Then nothing for CALIBRATION_LOST_AFTER_BITS.
-        let back = late + CALIBRATION_LOST_AFTER_BITS * bit;
-        m.handle_timeout(back);
+        assert!(m.poll_transmit(Nanos::new(late)).is_none());
+        // Then nothing for CALIBRATION_LOST_AFTER.
+        let back = late + CALIBRATION_LOST_AFTER.get() * bit;
+        m.handle_timeout(Nanos::new(back));
         assert_eq!(
             m.poll_event(),
             Some(MasterEvent::CalibrationLost {
-                silent_ns: CALIBRATION_LOST_AFTER_BITS * bit
+                silent: Nanos::new(CALIBRATION_LOST_AFTER.get() * bit)
             })
         );
-        let sent: Vec<Transmit> = std::iter::from_fn(|| m.poll_transmit(back)).collect();
+        let sent: Vec<Transmit> =
+            std::iter::from_fn(|| m.poll_transmit(Nanos::new(back))).collect();
         assert_eq!(sent.len(), 49);
         assert!(
             sent[..48]
@@ -586,11 +602,11 @@ mod tests {
         );
         assert_eq!(sent[48].frame.to_string(), "29C#032080");
         // The request's wait restarted when it went out again; its answer completes it.
-        assert_eq!(m.next_deadline(), Some(back + 5000 * bit));
+        assert_eq!(m.next_deadline(), Some(Nanos::new(back + 5000 * bit)));
         m.stop_calibrating();
-        assert_eq!(m.next_deadline(), Some(back + within));
+        assert_eq!(m.next_deadline(), Some(Nanos::new(back + within)));
         m.handle_frame(
-            back + 1,
+            Nanos::new(back + 1),
             &Frame::data(slio(3).reply_id(), &[0x23, 0x20, 0x80]).unwrap(),
         );
         let events: Vec<_> = std::iter::from_fn(|| m.poll_event()).collect();
@@ -607,10 +623,10 @@ mod tests {
     #[test]
     fn an_adapter_that_takes_no_frames_does_not_pile_up_start_up_frames() {
         let bit = 8000;
-        let mut m = Master::new(125_000, 0);
+        let mut m = Master::new(125_000, Nanos::ZERO);
         assert_eq!(m.queued(), 48);
         for step in 1..=10 {
-            m.handle_timeout(step * CALIBRATION_LOST_AFTER_BITS * bit);
+            m.handle_timeout(Nanos::new(step * CALIBRATION_LOST_AFTER.get() * bit));
         }
         // The first 48 were never taken: still the one start-up burst, and the periodic
         // frames behind it (at most one per look).
@@ -620,11 +636,11 @@ mod tests {
     /// A master that stopped calibrating leaves the SLIOs alone, however long it was away.
     #[test]
     fn a_master_that_stopped_calibrating_does_not_calibrate_again() {
-        let mut m = Master::keeping(125_000, 0);
+        let mut m = Master::keeping(125_000, Nanos::ZERO);
         m.stop_calibrating();
-        m.handle_timeout(u64::MAX / 2);
+        m.handle_timeout(Nanos::new(u64::MAX / 2));
         assert_eq!(m.poll_event(), None);
-        assert!(m.poll_transmit(u64::MAX / 2).is_none());
+        assert!(m.poll_transmit(Nanos::new(u64::MAX / 2)).is_none());
     }
 
     /// The wait for an answer opened when the request was queued, so a request queued behind
@@ -632,28 +648,31 @@ mod tests {
     /// loaded machine) was given up before it was even sent.
     #[test]
     fn the_answer_is_awaited_from_the_hand_over_not_from_the_queueing() {
-        let mut m = Master::new(125_000, 0);
+        let mut m = Master::new(125_000, Nanos::ZERO);
         let r = m.read(slio(3), Register::DataInput).unwrap();
-        let within = ANSWER_WITHIN_BITS * 8000;
+        let within = ANSWER_WITHIN.get() * 8000;
         // Not handed over yet: no answer deadline, however late it is.
-        assert_eq!(m.next_deadline(), Some(CALIBRATION_EVERY_BITS * 8000));
+        assert_eq!(
+            m.next_deadline(),
+            Some(Nanos::new(CALIBRATION_EVERY.get() * 8000))
+        );
         m.stop_calibrating();
         assert_eq!(m.next_deadline(), None);
-        m.handle_timeout(10 * within);
+        m.handle_timeout(Nanos::new(10 * within));
         assert!(std::iter::from_fn(|| m.poll_event()).next().is_none());
         // The 48 calibration frames, then the read, handed over at 10 × within.
         let mut sent = 0;
-        while let Some(t) = m.poll_transmit(10 * within) {
+        while let Some(t) = m.poll_transmit(Nanos::new(10 * within)) {
             sent += 1;
             if !t.single_shot {
                 assert_eq!(t.frame.to_string(), "29C#000000");
             }
         }
         assert_eq!(sent, 49);
-        assert_eq!(m.next_deadline(), Some(11 * within));
-        m.handle_timeout(11 * within - 1);
+        assert_eq!(m.next_deadline(), Some(Nanos::new(11 * within)));
+        m.handle_timeout(Nanos::new(11 * within - 1));
         assert!(std::iter::from_fn(|| m.poll_event()).next().is_none());
-        m.handle_timeout(11 * within);
+        m.handle_timeout(Nanos::new(11 * within));
         assert_eq!(
             m.poll_event(),
             Some(MasterEvent::NoAnswer {

@@ -27,7 +27,7 @@ use buslab_can::controller::{
 };
 use buslab_can::node::BusNode;
 use buslab_can::wire::{Receiver, Step};
-use buslab_can::{Frame, Level};
+use buslab_can::{BitTime, Frame, Level, Nanos};
 
 use crate::ids::{CALIBRATION_ID, Direction, SlioId};
 use crate::registers::{CONVERT, MUX_MASK, MUX_SHIFT, Register, Reply, Request, Status, TEN_BITS};
@@ -36,11 +36,11 @@ use crate::registers::{CONVERT, MUX_MASK, MUX_SHIFT, Register, Reply, Request, S
 pub const MIN_BITRATE: u32 = 20_000;
 pub const MAX_BITRATE: u32 = 125_000;
 /// Bit-times without a calibration frame after which a calibrated SLIO changes its bus mode.
-pub const WATCHDOG_BITS: u64 = 8192;
+pub const WATCHDOG: BitTime = BitTime::new(8192);
 /// Recessive bits that tell a listener the bus is idle.
 const IDLE_BITS: u8 = 11;
 /// The most bit-times a frame applied whole takes, intermission included.
-pub use buslab_can::wire::LONGEST_FRAME_BITS;
+pub use buslab_can::wire::{LONGEST_FRAME, LONGEST_FRAME_BITS};
 
 /// The bus level at wire bit `bit` of a whole frame (recessive in its intermission).
 pub(crate) fn frame_level(frame: &WireFrame, bit: u32) -> Level {
@@ -96,7 +96,7 @@ pub enum SlioNotice {
 /// What a SLIO reads on its analog inputs: the multiplexer input (0..=7) at a time, as a
 /// 10-bit code (0..=1023 for 0..5 V). (`Any`: the board that connected them changes them.)
 pub trait AnalogInputs: Send + Any {
-    fn code(&mut self, input: u8, t_ns: u64) -> u16;
+    fn code(&mut self, input: u8, t: Nanos) -> u16;
 }
 
 /// No analog input connected: every conversion reads 0.
@@ -104,7 +104,7 @@ pub trait AnalogInputs: Send + Any {
 pub struct Unconnected;
 
 impl AnalogInputs for Unconnected {
-    fn code(&mut self, _input: u8, _t_ns: u64) -> u16 {
+    fn code(&mut self, _input: u8, _t: Nanos) -> u16 {
         0
     }
 }
@@ -119,7 +119,7 @@ struct Listener {
     /// The last four levels, oldest in bit 3 (1 = recessive), for the `1010` of unsynced.
     history: u8,
     /// The bit-time of the last level seen.
-    last: u64,
+    last: BitTime,
 }
 
 impl Listener {
@@ -128,7 +128,7 @@ impl Listener {
             recessive: 0,
             rx: None,
             history: 0xF,
-            last: 0,
+            last: BitTime::ZERO,
         }
     }
 
@@ -153,15 +153,15 @@ pub struct Slio {
     /// The levels the board puts on the pins that are inputs.
     inputs: u16,
     analog: Box<dyn AnalogInputs>,
-    last_calibration: u64,
-    now: u64,
+    last_calibration: BitTime,
+    now: BitTime,
     /// The bit-time of the SOF of the frame the engine applies whole.
-    frame_sof: u64,
+    frame_sof: BitTime,
     /// That frame goes through [`BusNode::sample`] bit by bit: the SLIO was not calibrated at
     /// its SOF (it only listens, and may calibrate in the middle of the frame).
     frame_by_bits: bool,
     events: VecDeque<Event>,
-    notices: VecDeque<(u64, SlioNotice)>,
+    notices: VecDeque<(BitTime, SlioNotice)>,
 }
 
 impl core::fmt::Debug for Slio {
@@ -197,9 +197,9 @@ impl Slio {
             },
             inputs: 0,
             analog: Box::new(Unconnected),
-            last_calibration: 0,
-            now: 0,
-            frame_sof: 0,
+            last_calibration: BitTime::ZERO,
+            now: BitTime::ZERO,
+            frame_sof: BitTime::ZERO,
             frame_by_bits: false,
             events: VecDeque::new(),
             notices: VecDeque::new(),
@@ -282,13 +282,13 @@ impl Slio {
     }
 
     /// What happened since the last call, with the bit-time.
-    pub fn take_notices(&mut self) -> impl Iterator<Item = (u64, SlioNotice)> + '_ {
+    pub fn take_notices(&mut self) -> impl Iterator<Item = (BitTime, SlioNotice)> + '_ {
         self.notices.drain(..)
     }
 
     /// The board changes the levels on the pins at bit-time `now` (only input pins matter). A
     /// calibrated SLIO reports edges its edge registers ask for with a DATA_INPUT frame.
-    pub fn set_inputs(&mut self, now: u64, levels: u16) {
+    pub fn set_inputs(&mut self, now: BitTime, levels: u16) {
         let before = self.data_input();
         self.inputs = levels;
         let after = self.data_input();
@@ -299,11 +299,6 @@ impl Slio {
             self.now = self.now.max(now);
             self.send(Register::DataInput);
         }
-    }
-
-    /// Seconds × 1e9 at bit-time `t`.
-    fn nanos(&self, t: u64) -> u64 {
-        (t as u128 * 1_000_000_000 / self.bitrate as u128) as u64
     }
 
     fn notice(&mut self, notice: SlioNotice) {
@@ -361,7 +356,7 @@ impl Slio {
     /// A conversion of the selected multiplexer input into the ADC register.
     fn convert(&mut self) {
         let input = (self.regs[Register::AnalogConfig.index()] >> MUX_SHIFT & MUX_MASK) as u8;
-        let t = self.nanos(self.now);
+        let t = self.now.at_bitrate(self.bitrate);
         let code = self.analog.code(input, t).min(TEN_BITS);
         self.set_register(Register::Adc, code);
     }
@@ -463,10 +458,10 @@ impl Slio {
     }
 
     /// One bit while not calibrated: wake up, measure, follow frames.
-    fn listen(&mut self, now: u64, bus: Level) {
+    fn listen(&mut self, now: BitTime, bus: Level) {
         let bit = bus.bit();
         let l = &mut self.listener;
-        if now > l.last + 1 {
+        if now > l.last + BitTime::ONE {
             // Skipped idle bus: recessive all along.
             l.history = 0xF;
             l.recessive = IDLE_BITS;
@@ -527,7 +522,7 @@ impl Slio {
 impl Slio {
     /// What the SLIO does after its controller moved on to bit-time `now`: the frames it
     /// received, bus-off, the watchdog.
-    fn after_controller(&mut self, now: u64) {
+    fn after_controller(&mut self, now: BitTime) {
         let Some(controller) = &mut self.controller else {
             return;
         };
@@ -549,13 +544,13 @@ impl Slio {
         }
         if bus_off {
             self.change_bus_mode(ModeChangeCause::BusOff);
-        } else if now >= self.last_calibration + WATCHDOG_BITS {
+        } else if now >= self.last_calibration + WATCHDOG {
             self.change_bus_mode(ModeChangeCause::Watchdog);
         }
     }
 
     /// The bit-time of the SOF of the frame being applied whole.
-    pub(crate) fn frame_sof(&self) -> u64 {
+    pub(crate) fn frame_sof(&self) -> BitTime {
         self.frame_sof
     }
 
@@ -572,7 +567,7 @@ impl BusNode for Slio {
             .map_or(Level::Recessive, Controller::output)
     }
 
-    fn sample(&mut self, now: u64, bus: Level) {
+    fn sample(&mut self, now: BitTime, bus: Level) {
         self.now = now;
         let Some(controller) = &mut self.controller else {
             self.listen(now, bus);
@@ -582,7 +577,7 @@ impl BusNode for Slio {
         self.after_controller(now);
     }
 
-    fn frame_starts_at(&mut self, now: u64) {
+    fn frame_starts_at(&mut self, now: BitTime) {
         self.frame_sof = now;
     }
 
@@ -595,9 +590,7 @@ impl BusNode for Slio {
                 sends: None,
                 acks: false,
             },
-            Some(_)
-                if self.frame_sof + LONGEST_FRAME_BITS > self.last_calibration + WATCHDOG_BITS =>
-            {
+            Some(_) if self.frame_sof + LONGEST_FRAME > self.last_calibration + WATCHDOG => {
                 FrameStart::NotReady
             }
             Some(c) => c.frame_start(),
@@ -613,14 +606,14 @@ impl BusNode for Slio {
         }
         if self.frame_by_bits {
             for bit in bits {
-                self.sample(self.frame_sof + u64::from(bit), frame_level(frame, bit));
+                self.sample(self.frame_sof + BitTime::from(bit), frame_level(frame, bit));
             }
             return;
         }
         let Some(controller) = &mut self.controller else {
             return;
         };
-        let now = self.frame_sof + u64::from(bits.end) - 1;
+        let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
         self.now = now;
         controller.advance_frame(frame, role, bits);
         self.after_controller(now);
@@ -644,12 +637,12 @@ impl BusNode for Slio {
             .map_or(ErrorState::Active, Controller::state)
     }
 
-    fn quiet_until(&self) -> Option<u64> {
+    fn quiet_until(&self) -> Option<BitTime> {
         match (&self.controller, self.calibration) {
             (Some(c), _) => (c.is_bus_idle() && c.pending() == 0 && self.events.is_empty())
-                .then_some(self.last_calibration + WATCHDOG_BITS),
-            (None, Calibration::Rough) => self.listener.is_idle().then_some(u64::MAX),
-            (None, _) => Some(u64::MAX),
+                .then_some(self.last_calibration + WATCHDOG),
+            (None, Calibration::Rough) => self.listener.is_idle().then_some(BitTime::MAX),
+            (None, _) => Some(BitTime::MAX),
         }
     }
 

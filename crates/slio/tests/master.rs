@@ -2,12 +2,12 @@
 //! controller, as the PowerPC node does through its SJA1000.
 
 use buslab_can::controller::{ControllerConfig, Event};
+use buslab_can::{BitTime, Nanos};
 use buslab_sim::{Happening, Simulation};
 use buslab_slio::board::{CONVERT_ADC2, OUTPUT_ENABLE, volts_to_code};
 use buslab_slio::{DemoBoard, Master, MasterEvent, Register, SlioId};
 
 const RATE: u32 = 125_000;
-const BIT_NS: u64 = 1_000_000_000 / RATE as u64;
 
 struct Host {
     sim: Simulation,
@@ -26,7 +26,7 @@ impl Host {
         }
         Self {
             sim,
-            master: Master::new(RATE, 0),
+            master: Master::new(RATE, Nanos::ZERO),
             events: Vec::new(),
         }
     }
@@ -34,9 +34,9 @@ impl Host {
     /// Runs the adapter for `bits` bit-times: one frame at a time into the host controller
     /// (single-shot when the master says so), received frames and timeouts into the master.
     fn run(&mut self, bits: u64) {
-        let end = self.sim.now() + bits;
+        let end = self.sim.now() + BitTime::new(bits);
         while self.sim.now() < end {
-            let now_ns = self.sim.now() * BIT_NS;
+            let now_ns = self.sim.now().at_bitrate(RATE);
             self.master.handle_timeout(now_ns);
             if self.sim.node(0).device().pending() == 0
                 && let Some(t) = self.master.poll_transmit(now_ns)
@@ -45,14 +45,14 @@ impl Host {
                 c.set_single_shot(t.single_shot);
                 c.enqueue(t.frame).unwrap();
             }
-            self.sim.run_for(16);
+            self.sim.run_for(BitTime::new(16));
             for r in self.sim.take_records() {
                 if let Happening::Node {
                     node: 0,
                     event: Event::Received(f),
                 } = r.what
                 {
-                    self.master.handle_frame(r.time * BIT_NS, &f);
+                    self.master.handle_frame(r.time.at_bitrate(RATE), &f);
                 }
             }
             while let Some(e) = self.master.poll_event() {

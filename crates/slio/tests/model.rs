@@ -1,11 +1,11 @@
 //! The P82C150 model on the one bus engine, bit by bit, against a host controller doing what
 //! the seed's `slio.s` does.
 
-use buslab_can::Frame;
 use buslab_can::controller::{ControllerConfig, ErrorKind, Event};
+use buslab_can::{BitTime, Frame};
 use buslab_sim::{Happening, Simulation};
 use buslab_slio::board::{CONVERT_ADC1, CONVERT_ADC2, OUTPUT_ENABLE, volts_to_code};
-use buslab_slio::slio::WATCHDOG_BITS;
+use buslab_slio::slio::WATCHDOG;
 use buslab_slio::{
     Calibration, DemoBoard, ModeChangeCause, Register, Reply, Request, Slio, SlioId, SlioNotice,
     calibration_frame,
@@ -53,13 +53,13 @@ impl Bench {
     fn send(&mut self, frame: Frame) {
         self.sim.enqueue(self.host, frame).unwrap();
         let host = self.host;
-        let limit = self.sim.now() + 20_000;
+        let limit = self.sim.now() + BitTime::new(20_000);
         while self.sim.node(host).device().pending() > 0 {
             assert!(self.sim.now() < limit, "the host's frame never ended");
-            self.sim.run_for(1);
+            self.sim.run_for(BitTime::new(1));
         }
         // Let the answers come.
-        self.sim.run_for(500);
+        self.sim.run_for(BitTime::new(500));
     }
 
     /// The seed's `calibration_slio`: 48 calibration frames, each given up after one attempt.
@@ -351,7 +351,7 @@ fn input_edges_send_data_input_by_themselves() {
         .get_mut::<DemoBoard>()
         .unwrap()
         .set_switches(now, 0b0010); // switch 1: no edge register
-    b.sim.run_for(500);
+    b.sim.run_for(BitTime::new(500));
     assert!(reply_of(&b.host_received(), 6).is_empty());
     let now = b.sim.now();
     b.sim
@@ -359,7 +359,7 @@ fn input_edges_send_data_input_by_themselves() {
         .get_mut::<DemoBoard>()
         .unwrap()
         .set_switches(now, 0b0011);
-    b.sim.run_for(500);
+    b.sim.run_for(BitTime::new(500));
     let r = reply_of(&b.host_received(), 6);
     assert_eq!(r.len(), 1);
     assert_eq!(
@@ -373,7 +373,7 @@ fn input_edges_send_data_input_by_themselves() {
         .get_mut::<DemoBoard>()
         .unwrap()
         .set_switches(now, 0);
-    b.sim.run_for(500);
+    b.sim.run_for(BitTime::new(500));
     assert!(reply_of(&b.host_received(), 6).is_empty());
 }
 
@@ -388,7 +388,7 @@ fn the_watchdog_trips_after_8192_bit_times_and_recalibration_recovers() {
     // Nothing for a while: the watchdog counts from the last calibration frame.
     let node = b.boards[0];
     let start = b.sim.now();
-    b.sim.run_for(WATCHDOG_BITS);
+    b.sim.run_for(WATCHDOG);
     let slio = b.sim.node(node).get::<DemoBoard>().unwrap().slio();
     assert_ne!(slio.calibration(), Calibration::Calibrated);
     // Registers cleared, outputs float, RSTD = 1, EW = 0, BM = 1; the ID is kept.
@@ -415,7 +415,7 @@ fn calibration_frames_every_few_thousand_bits_keep_it_calibrated() {
     let mut b = Bench::new(&[8]);
     b.calibrate();
     for _ in 0..10 {
-        b.sim.run_for(5000);
+        b.sim.run_for(BitTime::new(5000));
         b.send(calibration_frame());
     }
     assert_eq!(b.board(0).slio().calibration(), Calibration::Calibrated);
@@ -477,9 +477,9 @@ fn bus_off_changes_the_bus_mode() {
     b.sim.add_fault(buslab_sim::Fault {
         kind: buslab_sim::FaultKind::Flip { node: Some(node) },
         start: now,
-        end: now + 4000,
+        end: now + BitTime::new(4000),
     });
-    b.sim.run_for(4000);
+    b.sim.run_for(BitTime::new(4000));
     let notices = b
         .sim
         .node_mut(node)

@@ -6,6 +6,7 @@
 use std::hint::black_box;
 use std::time::Instant;
 
+use buslab_can::BitTime;
 use buslab_can::{Frame, Id};
 use buslab_vbus::VirtualBus;
 use criterion::{Criterion, Throughput, criterion_group};
@@ -25,13 +26,15 @@ fn bus(receivers: usize) -> (VirtualBus, u32) {
 /// Runs `bits` more bit-times with the sender's queue kept full; returns frames sent.
 fn run(bus: &mut VirtualBus, sender: u32, bits: u64) -> u64 {
     let frame = Frame::data(Id::standard(0x123).unwrap(), &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
-    let end = bus.now() + bits;
+    let end = bus.now() + BitTime::new(bits);
     let mut sent = 0;
     while bus.now() < end {
         let node = bus.client_mut(sender).unwrap();
         while node.submit(frame).is_ok() {}
         let before = bus.stats().frames;
-        bus.run_until((bus.now() + 1000).min(end));
+        bus.run_until(BitTime::new(
+            ((bus.now() + BitTime::new(1000)).min(end)).get(),
+        ));
         sent += bus.stats().frames - before;
         for (_, n) in bus.clients_mut() {
             n.take_deliveries();

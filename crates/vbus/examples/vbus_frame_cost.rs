@@ -9,6 +9,7 @@
 //!     target/release/examples/vbus_frame_cost 2000000
 //! ```
 
+use buslab_can::BitTime;
 use buslab_can::{Frame, Id};
 use buslab_vbus::VirtualBus;
 
@@ -33,7 +34,7 @@ fn main() {
     let id = Id::standard(0x123).expect("11 bits");
     let mut sequence = 0u64;
     let mut delivered = 0usize;
-    let end = bus.now() + bits;
+    let end = bus.now() + BitTime::new(bits);
     while bus.now() < end {
         let node = bus.client_mut(sender).expect("the sender joined");
         while node.tx_room() > 0 {
@@ -45,7 +46,9 @@ fn main() {
             .client_mut(sender)
             .expect("the sender joined")
             .tx_queued() as u64;
-        bus.run_until((bus.now() + (queued + 1) * LONGEST_FRAME_BITS).min(end));
+        bus.run_until(BitTime::new(
+            ((bus.now() + BitTime::new((queued + 1) * LONGEST_FRAME_BITS)).min(end)).get(),
+        ));
         for (_, node) in bus.clients_mut() {
             delivered += node.take_deliveries().count();
         }

@@ -7,9 +7,9 @@
 
 use std::fmt;
 
-use buslab_can::Frame;
 use buslab_can::node::BusNode;
 use buslab_can::wire::encode;
+use buslab_can::{BitTime, Frame, Nanos};
 use buslab_canbus::WireFault;
 use buslab_canbus::admin::FaultLimit;
 use buslab_canbus::admin::{BoardInput, BoardState};
@@ -346,14 +346,14 @@ pub struct VirtualBus {
     /// Bus statistics at the start of the current second, and over the last complete one.
     window_start: BusStats,
     last_second: BusStats,
-    next_window: u64,
+    next_window: BitTime,
     error_frames: bool,
     /// How client chips come back after bus-off (the seed's counted recovery by default).
     bus_off_recovery: BusOffRecovery,
-    events: Vec<(u64, BusEvent)>,
+    events: Vec<(BitTime, BusEvent)>,
     /// The bit-time by which a client's frame put on an idle bus has reached every node (see
     /// [`VirtualBus::frame_end`]).
-    frame_end: Option<u64>,
+    frame_end: Option<BitTime>,
     /// Nodes whose clients left, until they have left too.
     departures: Vec<Departure>,
 }
@@ -374,7 +374,7 @@ impl VirtualBus {
     }
 
     fn around(sim: Simulation) -> Self {
-        let bitrate = sim.bitrate() as u64;
+        let second = Nanos::from_secs(1).bit_times_at(sim.bitrate());
         let now = sim.now();
         let stats = *sim.bus_stats();
         let count = sim.nodes().len() as u32;
@@ -383,7 +383,7 @@ impl VirtualBus {
             next_number: count + 1,
             window_start: stats,
             last_second: BusStats::default(),
-            next_window: now + bitrate,
+            next_window: now + second,
             sim,
             error_frames: false,
             bus_off_recovery: BusOffRecovery::default(),
@@ -424,7 +424,7 @@ impl VirtualBus {
         self.sim.bitrate()
     }
     /// Bit-times simulated so far.
-    pub fn now(&self) -> u64 {
+    pub fn now(&self) -> BitTime {
         self.sim.now()
     }
     /// The bus engine (every node, faults, statistics).
@@ -448,7 +448,7 @@ impl VirtualBus {
     }
 
     /// What happened since the last call, with the bit-time.
-    pub fn take_events(&mut self) -> Vec<(u64, BusEvent)> {
+    pub fn take_events(&mut self) -> Vec<(BitTime, BusEvent)> {
         self.collect_notices();
         std::mem::take(&mut self.events)
     }
@@ -515,7 +515,7 @@ impl VirtualBus {
         if submitted.is_ok() && idle {
             // Its start of frame is the next bit; receivers have it at the last but one bit
             // of its end of frame, the sender at the last.
-            let end = now + encode(&frame).stuffed().len() as u64;
+            let end = now + BitTime::new(encode(&frame).stuffed().len() as u64);
             // Several at once: they contend, and the first to end is the shortest at best.
             self.frame_end = Some(match self.frame_end {
                 Some(known) if known > now => known.min(end),
@@ -529,7 +529,7 @@ impl VirtualBus {
     /// have reached every node and its sender (once the bus has run up to it, the deliveries
     /// are there). `None` when the bus cannot tell: no such frame, or it has passed (traffic
     /// of simulated nodes, frames queued behind others, errors).
-    pub fn frame_end(&self) -> Option<u64> {
+    pub fn frame_end(&self) -> Option<BitTime> {
         self.frame_end.filter(|&end| end > self.now())
     }
 
@@ -697,7 +697,7 @@ impl VirtualBus {
     }
 
     /// The earliest bit-time at which a departure must be looked at.
-    fn next_departure_check(&self) -> Option<u64> {
+    fn next_departure_check(&self) -> Option<BitTime> {
         self.departures.iter().filter_map(Departure::deadline).min()
     }
 
@@ -882,9 +882,9 @@ impl VirtualBus {
             WireFault::StuckDominant => FaultKind::StuckDominant,
         };
         let start = self.now();
-        let end = lasting.map_or(u64::MAX, |d| {
-            let bits = d.as_nanos() * u128::from(self.bitrate()) / 1_000_000_000;
-            start.saturating_add(bits.clamp(1, u64::MAX as u128) as u64)
+        let end = lasting.map_or(BitTime::MAX, |d| {
+            let bits = Nanos::from_duration(d).bit_times_at(self.bitrate());
+            start.saturating_add(bits.max(BitTime::ONE))
         });
         self.say(BusEvent::Fault {
             description: describe_fault(&kind, &self.nodes()),
@@ -956,18 +956,18 @@ impl VirtualBus {
     }
 
     /// Simulates up to (not including) bit-time `end`.
-    pub fn run_until(&mut self, end: u64) {
+    pub fn run_until(&mut self, end: BitTime) {
         while self.now() < end {
             let mut stop = end.min(self.next_window);
             if let Some(check) = self.next_departure_check() {
-                stop = stop.min(check.max(self.now() + 1));
+                stop = stop.min(check.max(self.now() + BitTime::ONE));
             }
             self.sim.run_until(stop);
             if self.now() >= self.next_window {
                 let stats = *self.sim.bus_stats();
                 self.last_second = stats.since(&self.window_start);
                 self.window_start = stats;
-                self.next_window += self.bitrate() as u64;
+                self.next_window += Nanos::from_secs(1).bit_times_at(self.bitrate());
             }
             if !self.departures.is_empty() {
                 self.check_departures();
@@ -982,7 +982,7 @@ impl VirtualBus {
     }
 
     /// The next bit-time at which scenario traffic, a fault change or a sample is due.
-    pub fn next_activity(&self) -> u64 {
+    pub fn next_activity(&self) -> BitTime {
         self.sim.next_activity()
     }
 

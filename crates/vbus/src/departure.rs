@@ -12,6 +12,7 @@
 use std::fmt;
 use std::time::Duration;
 
+use buslab_can::{BitTime, Nanos};
 use buslab_canbus::{ControllerState, NodeCounters};
 
 use crate::node::ClientNode;
@@ -20,10 +21,10 @@ use crate::node::ClientNode;
 /// bus time (bit-times at the bus's rate).
 pub const DEPARTURE_STALL: Duration = Duration::from_secs(1);
 
-/// Once a departed node gives up, how long (bit-times) the chip may take to end the attempt
+/// Once a departed node gives up, how long the chip may take to end the attempt
 /// on the wire before it is pulled off anyway: the longest frame with its worst stuffing, an
 /// error frame and the intermission, rounded up.
-pub const GIVE_UP_BITS: u64 = 256;
+pub const GIVE_UP: BitTime = BitTime::new(256);
 
 /// Why frames a departed client handed over were not sent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -57,9 +58,9 @@ impl fmt::Display for DropReason {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Stage {
     /// Its frames are being sent; the last bit-time one was (or the queue was empty).
-    Sending { progress_at: u64, sent: u64 },
+    Sending { progress_at: BitTime, sent: u64 },
     /// Given up at `since`: the chip ends the attempt on the wire, then the node is pulled.
-    GivingUp { reason: DropReason, since: u64 },
+    GivingUp { reason: DropReason, since: BitTime },
     /// Off the bus.
     Off,
 }
@@ -82,7 +83,7 @@ pub(crate) struct Departure {
     pub input_open: bool,
     failed_before: u64,
     bus_off_before: u64,
-    stall_bits: u64,
+    stall: BitTime,
     /// Frames not sent: counted when the node is pulled off, and handed over after it.
     pub dropped: u64,
     /// The node's name and counters once it is off the bus.
@@ -91,9 +92,10 @@ pub(crate) struct Departure {
 
 impl Departure {
     /// `node`'s client left at bit-time `now`, on a bus at `bitrate`.
-    pub fn new(number: u32, node: &ClientNode, now: u64, bitrate: u32) -> Self {
-        let stall_bits = (DEPARTURE_STALL.as_nanos() * u128::from(bitrate) / 1_000_000_000)
-            .clamp(1, u64::MAX as u128) as u64;
+    pub fn new(number: u32, node: &ClientNode, now: BitTime, bitrate: u32) -> Self {
+        let stall = Nanos::from_duration(DEPARTURE_STALL)
+            .bit_times_at(bitrate)
+            .max(BitTime::ONE);
         Self {
             number,
             stage: Stage::Sending {
@@ -104,7 +106,7 @@ impl Departure {
             input_open: true,
             failed_before: node.counters.tx_failed,
             bus_off_before: node.counters.bus_off,
-            stall_bits,
+            stall,
             dropped: 0,
             off: None,
         }
@@ -127,16 +129,16 @@ impl Departure {
     }
 
     /// The bit-time by which [`Self::check`] must look again, if any.
-    pub fn deadline(&self) -> Option<u64> {
+    pub fn deadline(&self) -> Option<BitTime> {
         match self.stage {
-            Stage::Sending { progress_at, .. } => Some(progress_at.saturating_add(self.stall_bits)),
-            Stage::GivingUp { since, .. } => Some(since.saturating_add(GIVE_UP_BITS)),
+            Stage::Sending { progress_at, .. } => Some(progress_at.saturating_add(self.stall)),
+            Stage::GivingUp { since, .. } => Some(since.saturating_add(GIVE_UP)),
             Stage::Off => None,
         }
     }
 
     /// Looks at the node once the bus has run up to `now`.
-    pub fn check(&mut self, now: u64, node: &mut ClientNode) -> Verdict {
+    pub fn check(&mut self, now: BitTime, node: &mut ClientNode) -> Verdict {
         // Nobody reads what it receives any more.
         node.take_deliveries();
         node.take_error_frames();
@@ -154,13 +156,13 @@ impl Departure {
                 if idle && !self.input_open {
                     return Verdict::Pull;
                 }
-            } else if now >= progress_at.saturating_add(self.stall_bits) {
+            } else if now >= progress_at.saturating_add(self.stall) {
                 self.give_up(DropReason::Stalled(DEPARTURE_STALL), now, node);
             }
         }
         match self.stage {
             Stage::GivingUp { since, .. }
-                if node.tx_queued() == 0 || now >= since.saturating_add(GIVE_UP_BITS) =>
+                if node.tx_queued() == 0 || now >= since.saturating_add(GIVE_UP) =>
             {
                 Verdict::Pull
             }
@@ -169,7 +171,7 @@ impl Departure {
     }
 
     /// The chip ends the attempt on the wire and its queue is emptied (CMR.AT).
-    fn give_up(&mut self, reason: DropReason, now: u64, node: &mut ClientNode) {
+    fn give_up(&mut self, reason: DropReason, now: BitTime, node: &mut ClientNode) {
         self.reason = Some(reason);
         self.stage = Stage::GivingUp { reason, since: now };
         node.abort();

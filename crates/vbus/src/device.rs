@@ -8,7 +8,7 @@ use std::ops::Range;
 
 use buslab_can::controller::{ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame};
 use buslab_can::node::BusNode;
-use buslab_can::{Frame, Level};
+use buslab_can::{BitTime, Frame, Level};
 use buslab_canbus::NodeInfo;
 use buslab_canbus::admin::{BoardInput, BoardState};
 use buslab_slio::{SlioId, SlioNotice};
@@ -35,7 +35,7 @@ pub trait Device: Send {
     /// The node on the wire, to step.
     fn node_mut(&mut self) -> &mut dyn BusNode;
     /// What it noticed since the last call, with the bit-time (none by default).
-    fn take_notices(&mut self) -> Vec<(u64, DeviceNotice)> {
+    fn take_notices(&mut self) -> Vec<(BitTime, DeviceNotice)> {
         Vec::new()
     }
     /// Its SLIO demo board, if it is one.
@@ -50,9 +50,9 @@ pub trait Board {
     fn slio(&self) -> SlioId;
     /// Changes an input at bit-time `now` (the bus has checked it: four switches,
     /// `Switches(0x0..=0xF)`).
-    fn change(&mut self, now: u64, input: BoardInput);
+    fn change(&mut self, now: BitTime, input: BoardInput);
     /// What it shows at bit-time `now`, as bus node `node`.
-    fn state(&mut self, now: u64, node: NodeInfo) -> BoardState;
+    fn state(&mut self, now: BitTime, node: NodeInfo) -> BoardState;
 }
 
 /// A [`Device`] on the wire: the engine steps its node, the bus asks it for notices and its
@@ -98,7 +98,7 @@ impl BusNode for DeviceNode {
         self.0.node().output()
     }
     #[inline]
-    fn sample(&mut self, now: u64, bus: Level) {
+    fn sample(&mut self, now: BitTime, bus: Level) {
         self.0.node_mut().sample(now, bus)
     }
     #[inline]
@@ -114,7 +114,7 @@ impl BusNode for DeviceNode {
     fn state(&self) -> ErrorState {
         self.0.node().state()
     }
-    fn quiet_until(&self) -> Option<u64> {
+    fn quiet_until(&self) -> Option<BitTime> {
         self.0.node().quiet_until()
     }
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
@@ -126,7 +126,7 @@ impl BusNode for DeviceNode {
     fn frame_start(&self) -> FrameStart<'_> {
         self.0.node().frame_start()
     }
-    fn frame_starts_at(&mut self, now: u64) {
+    fn frame_starts_at(&mut self, now: BitTime) {
         self.0.node_mut().frame_starts_at(now)
     }
     fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {

@@ -2,7 +2,7 @@
 //! driver ([`buslab_canbus::node::Sja1000Node`], which scenario files use too).
 
 pub use buslab_canbus::node::{
-    CRYSTAL_HZ, Delivery, NodeNotice, RESTART_AFTER_MS, Sja1000Node, TOLERANCE_PERMILLE, TX_QUEUE,
+    CRYSTAL_HZ, Delivery, NodeNotice, RESTART_AFTER, Sja1000Node, TOLERANCE_PERMILLE, TX_QUEUE,
     TimedErrorFrame, node_config,
 };
 

@@ -428,20 +428,21 @@ pub const BUSY_SLICE: Duration = Duration::from_micros(100);
 const MAX_RUN: Duration = Duration::from_millis(2);
 // The longest classic frame on the wire with its worst stuffing, error-free, and the
 // intermission after it.
-use buslab_can::wire::LONGEST_FRAME_BITS;
+use buslab_can::wire::LONGEST_FRAME;
+use buslab_can::{BitTime, Nanos};
 /// At `max`: a receiver that has not read for this long no longer holds the bus (its frames
 /// are dropped as at any speed).
 const STALLED_AFTER: Duration = Duration::from_secs(1);
 /// The fewest bit-times between two frames a receiver is handed: the shortest frame (a
 /// standard data frame without data bytes, SOF to the end of EOF). `k` times as many
 /// bit-times hand it at most `k + 1`.
-const SHORTEST_FRAME_BITS: u64 = 44;
+const SHORTEST_FRAME: BitTime = BitTime::new(44);
 /// With error frames on, a receiver may be handed several at one bit-time (an error, the
 /// state change it causes, a lost arbitration beside a frame): budgeted as at most this many
-/// items in any [`ERROR_WINDOW_BITS`] (an error flag and its delimiter), twice what the
+/// items in any [`ERROR_WINDOW`] (an error flag and its delimiter), twice what the
 /// driver's events give on a bus stuck at dominant.
 const ERROR_ITEMS_PER_WINDOW: u64 = 8;
-const ERROR_WINDOW_BITS: u64 = 6 + 8;
+const ERROR_WINDOW: BitTime = BitTime::new(6 + 8);
 /// The longest line a frame or an error frame takes in a client's output (a raw-mode frame
 /// with an extended ID, 8 data bytes and a ten-digit timestamp is 53 bytes).
 const LONGEST_LINE: usize = 64;
@@ -653,21 +654,21 @@ impl Server {
     }
 
     /// The bit-time the bus should have reached by now.
-    fn target_bits(&self) -> u64 {
-        self.pacer.ticks_at(self.epoch.elapsed()).0
+    fn target_bits(&self) -> BitTime {
+        BitTime::new(self.pacer.ticks_at(self.epoch.elapsed()).0)
     }
 
-    fn bits_to_wall(&self, bits: u64) -> Duration {
-        self.pacer.wall_of(Ticks(bits))
+    fn bits_to_wall(&self, bits: BitTime) -> Duration {
+        self.pacer.wall_of(Ticks(bits.get()))
     }
 
     /// Where the bus has work: now while a frame is on the wire, else its next activity.
     fn bus_due(&self) -> Option<Ticks> {
         if self.bus.is_idle() {
             let next = self.bus.next_activity();
-            (next != u64::MAX).then_some(Ticks(next))
+            (next != BitTime::MAX).then_some(Ticks(next.get()))
         } else {
-            Some(Ticks(self.bus.now()))
+            Some(Ticks(self.bus.now().get()))
         }
     }
 
@@ -693,16 +694,17 @@ impl Server {
             // No further than what every receiver that reads can take before the next
             // delivery: a burst larger than its output would drop frames for it, hold or not.
             let budget = self.delivery_budget();
-            if budget == 0 {
+            if budget == BitTime::ZERO {
                 break;
             }
             let now = self.bus.now();
             if self.bus.is_idle() {
                 let next = self.bus.next_activity();
-                if next == u64::MAX {
+                if next == BitTime::MAX {
                     break;
                 }
-                self.bus.run_until(next.max(now + 1).min(now + budget));
+                self.bus
+                    .run_until(next.max(now + BitTime::ONE).min(now.saturating_add(budget)));
                 continue;
             }
             // Far enough that the queued client frames end inside the stretch (a frame split
@@ -713,7 +715,8 @@ impl Server {
                 .clients_mut()
                 .map(|(_, c)| c.tx_queued() as u64)
                 .sum();
-            let stretch = ((queued + 1) * LONGEST_FRAME_BITS).max(self.bus.bitrate() as u64 / 100);
+            let stretch = (LONGEST_FRAME * (queued + 1))
+                .max(Nanos::from_millis(10).bit_times_at(self.bus.bitrate()));
             self.bus.run_until(now + stretch.min(budget));
         }
     }
@@ -721,10 +724,10 @@ impl Server {
     /// At `max`: how many bit-times the bus may run before the loop next delivers, so that no
     /// receiver that reads (see [`reads`]) is handed more than its output takes: the least
     /// over such receivers of the room left in its output, less what its node holds for it
-    /// already, in bit-times (see [`SHORTEST_FRAME_BITS`], [`ERROR_ITEMS_PER_WINDOW`]). A
+    /// already, in bit-times (see [`SHORTEST_FRAME`], [`ERROR_ITEMS_PER_WINDOW`]). A
     /// receiver with nothing waiting at all lets the bus run at least one shortest frame,
-    /// however small its queue. 0: a receiver must read first; [`u64::MAX`]: nobody limits.
-    fn delivery_budget(&self) -> u64 {
+    /// however small its queue. 0: a receiver must read first; [`BitTime::MAX`]: nobody limits.
+    fn delivery_budget(&self) -> BitTime {
         let all_room = self.session_config.max_output.div_ceil(LONGEST_LINE) as u64;
         self.clients
             .iter()
@@ -738,19 +741,19 @@ impl Server {
                 let empty = waiting == 0 && room == all_room;
                 let room = room.saturating_sub(waiting);
                 let budget = if node.error_frames {
-                    room.saturating_sub(ERROR_ITEMS_PER_WINDOW) / ERROR_ITEMS_PER_WINDOW
-                        * ERROR_WINDOW_BITS
+                    ERROR_WINDOW
+                        * (room.saturating_sub(ERROR_ITEMS_PER_WINDOW) / ERROR_ITEMS_PER_WINDOW)
                 } else {
-                    room.saturating_sub(1) * SHORTEST_FRAME_BITS
+                    SHORTEST_FRAME * room.saturating_sub(1)
                 };
                 Some(if empty {
-                    budget.max(SHORTEST_FRAME_BITS)
+                    budget.max(SHORTEST_FRAME)
                 } else {
                     budget
                 })
             })
             .min()
-            .unwrap_or(u64::MAX)
+            .unwrap_or(BitTime::MAX)
     }
 
     /// Clients with nothing to write now have not fallen behind, however long the loop slept:
@@ -770,9 +773,11 @@ impl Server {
         let started = Instant::now();
         // A stall beyond the credit with the bus busy: the rest is skipped (the pacer's clock
         // slips), not caught up in one burst.
-        let plan = self
-            .pacer
-            .plan(self.epoch.elapsed(), Ticks(self.bus.now()), self.bus_due());
+        let plan = self.pacer.plan(
+            self.epoch.elapsed(),
+            Ticks(self.bus.now().get()),
+            self.bus_due(),
+        );
         if !plan.skipped.is_zero() {
             let mut lag = lock(&self.lag);
             if lag.skipped.is_zero() {
@@ -786,7 +791,9 @@ impl Server {
         }
         // Busy bus time is simulated in chunks of this many bit-times, so the wall time spent
         // is checked often enough; idle bus time is skipped in one go.
-        let chunk = (self.bus.bitrate() as u64 / 2000).max(1);
+        let chunk = Nanos::from_micros(500)
+            .bit_times_at(self.bus.bitrate())
+            .max(BitTime::ONE);
         loop {
             let target = self.target_bits();
             let now = self.bus.now();
@@ -803,7 +810,7 @@ impl Server {
         }
         let behind = self
             .pacer
-            .behind(self.epoch.elapsed(), Ticks(self.bus.now()));
+            .behind(self.epoch.elapsed(), Ticks(self.bus.now().get()));
         self.track_lag(behind);
     }
 
@@ -857,7 +864,7 @@ impl Server {
             // The frame's deliveries leave the moment the bus has run up to its end.
             let wall = self.epoch.elapsed();
             self.pacer
-                .wake_at(wall, Some(Ticks(end)))
+                .wake_at(wall, Some(Ticks(end.get())))
                 .map(|at| at.saturating_sub(wall))
         } else {
             Some(BUSY_SLICE)
@@ -878,7 +885,7 @@ impl Server {
             wait = Some(wait.map_or(d, |w| w.min(d)));
         }
         // The bus's statistics window closes every virtual second.
-        let second = self.bits_to_wall(self.bus.bitrate() as u64);
+        let second = self.bits_to_wall(Nanos::from_secs(1).bit_times_at(self.bus.bitrate()));
         wait.map(|w| w.min(second).min(SUMMARY_EVERY))
     }
 
@@ -916,9 +923,9 @@ impl Server {
         // Work the bus may do now: none while a receiver must read first (see
         // `advance_flat_out`), which holds the bus as a receiver behind does: its write event,
         // or its stall, ends the wait.
-        let must_read = self.delivery_budget() == 0;
+        let must_read = self.delivery_budget() == BitTime::ZERO;
         let bus_has_work =
-            (!self.bus.is_idle() || self.bus.next_activity() != u64::MAX) && !must_read;
+            (!self.bus.is_idle() || self.bus.next_activity() != BitTime::MAX) && !must_read;
         // A client not read because a receiver held the turn: the flush may since have
         // released the hold. Likewise a frame that waited for room in its node's queue: the
         // bus may have emptied the queue during the hold, and no event comes for that.
@@ -1237,10 +1244,10 @@ impl Server {
     /// Moves frames and error frames from the client nodes to their sessions, and answers
     /// flushes whose frames are done.
     fn deliver(&mut self) {
-        let bitrate = self.bus.bitrate() as u128;
+        let bitrate = self.bus.bitrate();
         let unix0 = self.unix0;
-        let stamp = |time: u64| {
-            let ns = unix0 + time as u128 * 1_000_000_000 / bitrate;
+        let stamp = |time: BitTime| {
+            let ns = unix0 + u128::from(time.at_bitrate(bitrate).get());
             Timestamp::from_nanos(u64::try_from(ns).unwrap_or(u64::MAX))
         };
         let now_ns = self.now_ns();
@@ -1379,9 +1386,9 @@ impl Server {
     }
 
     fn log_bus_events(&mut self) {
-        let bitrate = self.bus.bitrate() as f64;
+        let bitrate = self.bus.bitrate();
         for (time, event) in self.bus.take_events() {
-            let t = time as f64 / bitrate;
+            let t = time.secs_f64_at(bitrate);
             if event.is_warning() {
                 warn!("({t:.6}) {event}");
             } else if matches!(event, BusEvent::Node { .. }) {
@@ -1415,7 +1422,7 @@ fn client_left(c: &mut Client, bus: &mut VirtualBus) {
 /// not found is formatted and added).
 #[derive(Default)]
 struct FormattedFrames {
-    frames: Vec<(u64, buslab_can::Frame, FormattedFrame)>,
+    frames: Vec<(BitTime, buslab_can::Frame, FormattedFrame)>,
     cursor: usize,
 }
 
@@ -1430,9 +1437,9 @@ impl FormattedFrames {
 
     fn get(
         &mut self,
-        time: u64,
+        time: BitTime,
         frame: &buslab_can::Frame,
-        stamp: &impl Fn(u64) -> Timestamp,
+        stamp: &impl Fn(BitTime) -> Timestamp,
     ) -> &FormattedFrame {
         let end = self.frames.len().min(self.cursor + LOOK_AHEAD);
         let found = self.frames[self.cursor.min(end)..end]

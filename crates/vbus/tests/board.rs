@@ -1,6 +1,7 @@
 //! SLIO demo boards on the virtual bus, reached through the bench's device (`buslab-bench`):
 //! their inputs change and are said, what they show is read, their notices are typed events.
 
+use buslab_can::BitTime;
 use buslab_canbus::admin::{BoardInput, BoardSwitch, BoardVolts};
 use buslab_slio::{Calibration, DemoBoard, SlioId, SlioNotice};
 use buslab_vbus::{BusEvent, DeviceNotice, VbusError, VirtualBus};
@@ -91,10 +92,10 @@ fn a_boards_calibration_is_a_typed_notice_and_its_registers_are_not() {
         let frame = buslab_slio::calibration_frame();
         while bus.submit(host, frame).unwrap().is_err() {
             let now = bus.now();
-            bus.run_until(now + 100);
+            bus.run_until(BitTime::new((now + BitTime::new(100)).get()));
         }
         let now = bus.now();
-        bus.run_until(now + 500);
+        bus.run_until(BitTime::new((now + BitTime::new(500)).get()));
     }
     let notices: Vec<DeviceNotice> = bus
         .take_events()

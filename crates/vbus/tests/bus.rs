@@ -1,5 +1,6 @@
 //! The virtual bus in virtual time: chips operated through the driver on one wire.
 
+use buslab_can::BitTime;
 use buslab_can::Frame;
 use buslab_canbus::NodeRef;
 use buslab_vbus::VirtualBus;
@@ -41,7 +42,7 @@ fn frames_reach_every_other_node_but_not_the_sender() {
     for f in sent {
         send(&mut bus, a, f);
     }
-    bus.run_until(RATE as u64 / 100);
+    bus.run_until(BitTime::new(RATE as u64 / 100));
     assert_eq!(received(&mut bus, b), sent);
     assert_eq!(received(&mut bus, c), sent);
     assert!(received(&mut bus, a).is_empty());
@@ -56,7 +57,7 @@ fn own_frames_come_back_when_asked() {
     let _b = bus.join().unwrap();
     bus.client_mut(a).unwrap().receive_own = true;
     send(&mut bus, a, "123#01");
-    bus.run_until(RATE as u64 / 100);
+    bus.run_until(BitTime::new(RATE as u64 / 100));
     assert_eq!(received(&mut bus, a), ["123#01"]);
 }
 
@@ -69,7 +70,7 @@ fn contending_nodes_go_in_priority_order_and_losers_capture_alc() {
     for (&n, f) in senders.iter().zip(["300#03", "200#02", "100#01"]) {
         send(&mut bus, n, f);
     }
-    bus.run_until(RATE as u64 / 100);
+    bus.run_until(BitTime::new(RATE as u64 / 100));
     assert_eq!(received(&mut bus, rx), ["100#01", "200#02", "300#03"]);
     // 0x300 lost twice, 0x200 once; 0x100 never.
     assert_eq!(status(&mut bus, senders[0]).counters.arbitration_lost, 2);
@@ -111,7 +112,7 @@ fn a_node_with_the_wrong_bit_rate_cannot_communicate_and_says_so() {
     assert!(!timing.matches_bus);
     assert_eq!(timing.bitrate, 50_000);
     send(&mut bus, bad, "123#11");
-    bus.run_until(RATE as u64 / 20);
+    bus.run_until(BitTime::new(RATE as u64 / 20));
     assert!(received(&mut bus, good).is_empty());
     assert_ne!(status(&mut bus, bad).counters.bus_errors, 0);
     assert!(status(&mut bus, bad).errors.unwrap().ecc.is_some());
@@ -120,7 +121,7 @@ fn a_node_with_the_wrong_bit_rate_cannot_communicate_and_says_so() {
     bus.set_btr(bad, b0, b1).unwrap();
     assert!(status(&mut bus, bad).timing.unwrap().matches_bus);
     send(&mut bus, bad, "124#22");
-    let end = bus.now() + RATE as u64 / 20;
+    let end = bus.now() + BitTime::new(RATE as u64 / 20);
     bus.run_until(end);
     assert_eq!(received(&mut bus, good), ["124#22"]);
 }
@@ -160,7 +161,7 @@ fn scenario_nodes_and_chips_share_the_wire_without_errors() {
     let b = bus.join().unwrap();
     // The chip's frame loses arbitration to nothing and interleaves with the ECU's.
     send(&mut bus, a, "123#01");
-    bus.run_until(RATE as u64 / 100 + 10);
+    bus.run_until(BitTime::new(RATE as u64 / 100 + 10));
     let got = received(&mut bus, b);
     assert_eq!(got.iter().filter(|f| *f == "0AA#55").count(), 10, "{got:?}");
     assert_eq!(got.iter().filter(|f| *f == "123#01").count(), 1, "{got:?}");
@@ -188,9 +189,9 @@ fn bus_wide_scenario_faults_reach_the_chips() {
         .with_scenario(scenario.build().unwrap());
     let a = bus.join().unwrap();
     let b = bus.join().unwrap();
-    bus.run_until(RATE as u64 / 1000 + 100);
+    bus.run_until(BitTime::new(RATE as u64 / 1000 + 100));
     send(&mut bus, a, "123#01");
-    bus.run_until(RATE as u64 / 100);
+    bus.run_until(BitTime::new(RATE as u64 / 100));
     // The stuck wire gave errors; once it is released the frame goes through.
     assert_ne!(status(&mut bus, a).counters.bus_errors, 0);
     assert_ne!(status(&mut bus, b).counters.bus_errors, 0);
@@ -207,13 +208,13 @@ fn jam_to_bus_off(bus: &mut VirtualBus, a: u32) {
             rate: 0.2,
         },
         start,
-        end: start + 5_000,
+        end: start + BitTime::new(5_000),
     });
     send(bus, a, "123#0102030405060708");
     while !status(bus, a).sr.unwrap().bus_off() {
-        assert!(bus.now() < start + 5_000, "never bus-off");
+        assert!(bus.now() < start + BitTime::new(5_000), "never bus-off");
         let now = bus.now();
-        bus.run_until(now + 10);
+        bus.run_until(BitTime::new((now + BitTime::new(10)).get()));
     }
 }
 
@@ -235,7 +236,7 @@ fn a_client_chip_counts_its_way_back_from_bus_off() {
             break;
         }
         let now = bus.now();
-        bus.run_until(now + 11);
+        bus.run_until(BitTime::new((now + BitTime::new(11)).get()));
     }
     let txerr: Vec<u8> = readings.iter().map(|r| r.0).collect();
     assert!(txerr.len() > 50, "{txerr:?}");
@@ -248,7 +249,7 @@ fn a_client_chip_counts_its_way_back_from_bus_off() {
     // And the frame the client sends next goes out.
     send(&mut bus, a, "124#01");
     let now = bus.now();
-    bus.run_until(now + RATE as u64 / 100);
+    bus.run_until(BitTime::new((now + BitTime::new(RATE as u64 / 100)).get()));
     assert_eq!(received(&mut bus, 2), ["124#01"]);
 
     // The fast restart, as an option: TXERR := 0 at once, 100 ms after bus-off.
@@ -258,9 +259,13 @@ fn a_client_chip_counts_its_way_back_from_bus_off() {
     let _b = bus.join().unwrap();
     jam_to_bus_off(&mut bus, a);
     let off = bus.now();
-    bus.run_until(off + RATE as u64 / 10 - 50);
+    bus.run_until(BitTime::new(
+        (off + BitTime::new(RATE as u64 / 10) - BitTime::new(50)).get(),
+    ));
     assert_eq!(status(&mut bus, a).errors.unwrap().txerr, 127);
-    bus.run_until(off + RATE as u64 / 10 + 50);
+    bus.run_until(BitTime::new(
+        (off + BitTime::new(RATE as u64 / 10) + BitTime::new(50)).get(),
+    ));
     let st = status(&mut bus, a);
     assert!(!st.sr.unwrap().bus_off());
     assert_eq!(st.errors.unwrap().txerr, 0);
@@ -279,7 +284,7 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
     let mut bus = VirtualBus::new(RATE)
         .unwrap()
         .with_scenario(scenario.build().unwrap());
-    bus.run_until(RATE as u64 / 100);
+    bus.run_until(BitTime::new(RATE as u64 / 100));
     let engine = || NodeRef::Name("engine".into());
     assert_eq!(bus.status(&engine()).unwrap().state, ErrorState::Active);
     let cut = WireFault::Cut {
@@ -290,7 +295,9 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
     let mut worst = 0;
     let mut passive = false;
     for _ in 0..100 {
-        bus.run_until(bus.now() + RATE as u64 / 1000);
+        bus.run_until(BitTime::new(
+            (bus.now() + BitTime::new(RATE as u64 / 1000)).get(),
+        ));
         let st = bus.status(&engine()).unwrap();
         worst = worst.max(st.errors.unwrap().txerr);
         passive |= st.state != ErrorState::Active;
@@ -301,7 +308,9 @@ fn an_injected_cut_makes_the_sender_error_passive_and_repair_lets_it_recover() {
     );
     assert_eq!(bus.repair(), 1);
     // Bus-off recovery (128 x 11 bits), then each frame through takes 1 off the TEC.
-    bus.run_until(bus.now() + RATE as u64 / 2);
+    bus.run_until(BitTime::new(
+        (bus.now() + BitTime::new(RATE as u64 / 2)).get(),
+    ));
     let st = bus.status(&engine()).unwrap();
     assert_eq!(st.state, ErrorState::Active, "{st}");
     assert!(st.errors.unwrap().txerr < 128, "{st}");
@@ -338,7 +347,9 @@ fn fault_injection_does_not_stop_after_1024_faults_only_1024_on_the_wire_at_once
     for k in 0..4 * MAX_FAULTS {
         bus.inject_fault(&noise, Some(Duration::from_millis(1)))
             .unwrap_or_else(|e| panic!("fault {k} refused: {e}"));
-        bus.run_until(bus.now() + RATE as u64 / 1000);
+        bus.run_until(BitTime::new(
+            (bus.now() + BitTime::new(RATE as u64 / 1000)).get(),
+        ));
     }
     assert!(bus.sim().faults().len() <= 1, "ended faults are forgotten");
     // Repaired ones too.
@@ -378,11 +389,11 @@ fn a_frame_on_an_idle_bus_is_done_exactly_when_the_bus_says() {
         let mut bus = VirtualBus::new(RATE).unwrap();
         let a = bus.join().unwrap();
         let b = bus.join().unwrap();
-        bus.run_until(1000);
+        bus.run_until(BitTime::new(1000));
         assert_eq!(bus.frame_end(), None, "{text}: nothing on the wire yet");
         bus.submit(a, frame(text)).unwrap().unwrap();
         let end = bus.frame_end().expect("a client's frame on an idle bus");
-        bus.run_until(end - 2);
+        bus.run_until(BitTime::new((end - BitTime::new(2)).get()));
         assert!(
             received(&mut bus, b).is_empty(),
             "{text}: received before its end"
@@ -407,7 +418,7 @@ fn the_bus_does_not_guess_the_end_of_frames_behind_others() {
     let mut bus = VirtualBus::new(RATE).unwrap();
     let a = bus.join().unwrap();
     let b = bus.join().unwrap();
-    bus.run_until(1000);
+    bus.run_until(BitTime::new(1000));
     bus.submit(a, frame("100#01")).unwrap().unwrap();
     let first = bus.frame_end().unwrap();
     // Queued while the first is on the wire: it ends later than the bus says.

@@ -2,9 +2,10 @@
 //! bus-off or sends none of it for `DEPARTURE_STALL` of bus time; then it is dropped, counted,
 //! and the node leaves (issue 25; issue 11's zombie guarantee).
 
+use buslab_can::BitTime;
 use buslab_can::Frame;
 use buslab_canbus::{NodeCounters, NodeRef};
-use buslab_vbus::departure::GIVE_UP_BITS;
+use buslab_vbus::departure::GIVE_UP;
 use buslab_vbus::{BusEvent, DEPARTURE_STALL, DropReason, VirtualBus};
 
 const RATE: u32 = 125_000;
@@ -29,7 +30,7 @@ fn on_bus(bus: &VirtualBus, number: u32) -> bool {
 }
 
 /// The `Left` events so far: number, counters, dropped, reason, and the bit-time.
-fn left(bus: &mut VirtualBus) -> Vec<(u32, NodeCounters, u64, Option<DropReason>, u64)> {
+fn left(bus: &mut VirtualBus) -> Vec<(u32, NodeCounters, u64, Option<DropReason>, BitTime)> {
     bus.take_events()
         .into_iter()
         .filter_map(|(time, e)| match e {
@@ -49,7 +50,7 @@ fn left(bus: &mut VirtualBus) -> Vec<(u32, NodeCounters, u64, Option<DropReason>
 fn hand_over(bus: &mut VirtualBus, number: u32, frames: &[Frame]) {
     for &f in frames {
         while bus.submit(number, f).unwrap().is_err() {
-            bus.run_until(bus.now() + FRAME_BITS);
+            bus.run_until(BitTime::new((bus.now() + BitTime::new(FRAME_BITS)).get()));
         }
     }
 }
@@ -72,10 +73,10 @@ fn a_departed_clients_frames_are_all_sent_in_order_then_its_node_leaves() {
     bus.input_ended(sender);
     assert!(on_bus(&bus, sender), "it leaves once its frames are sent");
     let mut got = received(&mut bus, receiver);
-    let deadline = bus.now() + 300 * FRAME_BITS;
+    let deadline = bus.now() + BitTime::new(300) * FRAME_BITS;
     while on_bus(&bus, sender) {
         assert!(bus.now() < deadline, "the departed node stayed");
-        bus.run_until(bus.now() + FRAME_BITS);
+        bus.run_until(BitTime::new((bus.now() + BitTime::new(FRAME_BITS)).get()));
         got.extend(received(&mut bus, receiver));
     }
     let want: Vec<String> = frames.iter().map(Frame::to_string).collect();
@@ -98,13 +99,17 @@ fn a_departed_client_nobody_acknowledges_leaves_after_the_stall_bound_and_frees_
     for f in ["123#01", "124#02", "125#03"] {
         bus.submit(zombie, frame(f)).unwrap().unwrap();
     }
-    bus.run_until(10 * FRAME_BITS);
+    bus.run_until(BitTime::new(10 * FRAME_BITS));
     bus.depart(zombie).unwrap();
     let departed = bus.now();
     bus.input_ended(zombie);
-    bus.run_until(departed + STALL_BITS - 1);
+    bus.run_until(BitTime::new(
+        (departed + BitTime::new(STALL_BITS) - BitTime::new(1)).get(),
+    ));
     assert!(on_bus(&bus, zombie), "it keeps trying until the bound");
-    bus.run_until(departed + STALL_BITS + GIVE_UP_BITS + 1);
+    bus.run_until(BitTime::new(
+        (departed + BitTime::new(STALL_BITS) + GIVE_UP + BitTime::new(1)).get(),
+    ));
     assert!(!on_bus(&bus, zombie), "gone within the bound");
     let [(_, counters, dropped, reason, at)] = left(&mut bus)[..] else {
         panic!("one node left")
@@ -113,7 +118,8 @@ fn a_departed_client_nobody_acknowledges_leaves_after_the_stall_bound_and_frees_
     assert_eq!(dropped, 3);
     assert_eq!(reason, Some(DropReason::Stalled(DEPARTURE_STALL)));
     assert!(
-        (departed + STALL_BITS..=departed + STALL_BITS + GIVE_UP_BITS).contains(&at),
+        (departed + BitTime::new(STALL_BITS)..=departed + BitTime::new(STALL_BITS) + GIVE_UP)
+            .contains(&at),
         "left at {at}, departed at {departed}"
     );
     // The bus is free: idle, and a new pair of nodes talks at once.
@@ -121,7 +127,7 @@ fn a_departed_client_nobody_acknowledges_leaves_after_the_stall_bound_and_frees_
     let a = bus.join().unwrap();
     let b = bus.join().unwrap();
     bus.submit(a, frame("321#AA")).unwrap().unwrap();
-    bus.run_until(bus.now() + FRAME_BITS);
+    bus.run_until(BitTime::new((bus.now() + BitTime::new(FRAME_BITS)).get()));
     assert_eq!(received(&mut bus, b), ["321#AA"]);
 }
 
@@ -142,8 +148,11 @@ fn a_departed_client_whose_node_goes_bus_off_leaves_and_the_errors_stop() {
     let departed = bus.now();
     bus.input_ended(zombie);
     while on_bus(&bus, zombie) {
-        assert!(bus.now() < departed + STALL_BITS, "it went bus-off first");
-        bus.run_until(bus.now() + FRAME_BITS);
+        assert!(
+            bus.now() < departed + BitTime::new(STALL_BITS),
+            "it went bus-off first"
+        );
+        bus.run_until(BitTime::new((bus.now() + BitTime::new(FRAME_BITS)).get()));
     }
     let [(_, counters, dropped, reason, _)] = left(&mut bus)[..] else {
         panic!("one node left")
@@ -160,7 +169,7 @@ fn a_departed_client_whose_node_goes_bus_off_leaves_and_the_errors_stop() {
         .counters
         .bus_errors;
     assert!(errors > 0, "the zombie disturbed the bus");
-    bus.run_until(bus.now() + STALL_BITS);
+    bus.run_until(BitTime::new((bus.now() + BitTime::new(STALL_BITS)).get()));
     let after = bus.status(&NodeRef::Number(watcher)).unwrap().counters;
     assert_eq!(after.bus_errors, errors, "the bus is quiet once it left");
     assert!(bus.is_idle());
@@ -173,7 +182,9 @@ fn frames_handed_over_after_a_departed_node_gave_up_are_counted_as_dropped() {
     bus.submit(zombie, frame("123#01")).unwrap().unwrap();
     bus.depart(zombie).unwrap();
     // The server is still reading its socket when it gives up.
-    bus.run_until(bus.now() + STALL_BITS + GIVE_UP_BITS + 1);
+    bus.run_until(BitTime::new(
+        (bus.now() + BitTime::new(STALL_BITS) + GIVE_UP + BitTime::new(1)).get(),
+    ));
     assert!(!on_bus(&bus, zombie), "off the bus already");
     assert!(left(&mut bus).is_empty(), "it has not finished leaving");
     for k in 0..5u32 {
@@ -197,7 +208,9 @@ fn a_server_that_stops_while_a_departed_clients_input_is_read_still_says_it_left
     let zombie = bus.join().unwrap();
     bus.submit(zombie, frame("123#01")).unwrap().unwrap();
     bus.depart(zombie).unwrap();
-    bus.run_until(bus.now() + STALL_BITS + GIVE_UP_BITS + 1);
+    bus.run_until(BitTime::new(
+        (bus.now() + BitTime::new(STALL_BITS) + GIVE_UP + BitTime::new(1)).get(),
+    ));
     assert!(!on_bus(&bus, zombie));
     bus.submit(zombie, frame("123#02")).unwrap().unwrap();
     bus.leave(zombie);
@@ -219,10 +232,12 @@ fn a_node_whose_client_leaves_in_the_middle_of_a_frame_finishes_it() {
     bus.submit(sender, frame("1ABCDEF0#0102030405060708"))
         .unwrap()
         .unwrap();
-    bus.run_until(bus.now() + 60);
+    bus.run_until(BitTime::new((bus.now() + BitTime::new(60)).get()));
     bus.depart(sender).unwrap();
     bus.input_ended(sender);
-    bus.run_until(bus.now() + 2 * FRAME_BITS);
+    bus.run_until(BitTime::new(
+        (bus.now() + BitTime::new(2) * FRAME_BITS).get(),
+    ));
     assert_eq!(received(&mut bus, receiver), ["1ABCDEF0#0102030405060708"]);
     assert!(!on_bus(&bus, sender));
     let st = bus.status(&NodeRef::Number(receiver)).unwrap();
@@ -258,7 +273,9 @@ fn a_client_reconnecting_at_once_shares_the_bus_with_its_departing_node_and_its_
     );
     let seconds: Vec<Frame> = (0..30u32).map(|k| frame(&format!("200#{k:02X}"))).collect();
     hand_over(&mut bus, second, &seconds);
-    bus.run_until(bus.now() + 80 * FRAME_BITS);
+    bus.run_until(BitTime::new(
+        (bus.now() + BitTime::new(80) * FRAME_BITS).get(),
+    ));
     let got = received(&mut bus, receiver);
     let of =
         |id: &str| -> Vec<String> { got.iter().filter(|f| f.starts_with(id)).cloned().collect() };

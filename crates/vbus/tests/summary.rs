@@ -5,6 +5,7 @@ use std::io::Write;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use buslab_can::BitTime;
 use buslab_canbus::CanBus;
 use buslab_socketcand::SocketcandBus;
 use buslab_vbus::{ServerConfig, spawn};
@@ -45,8 +46,8 @@ fn one_bus_error_is_summarised_once_not_every_five_seconds() {
         let now = bus.now();
         bus.sim_mut().add_fault(buslab_sim::Fault {
             kind: buslab_sim::FaultKind::Flip { node: None },
-            start: now + 30,
-            end: now + 31,
+            start: now + BitTime::new(30),
+            end: now + BitTime::new(31),
         });
     })
     .unwrap();

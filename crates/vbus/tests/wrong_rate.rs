@@ -7,6 +7,7 @@
 //! errors take it bus-off. With no automatic recovery (a Lawicel CANUSB's, Linux's default)
 //! it then stays off; with the seed's counted recovery it comes back and starts again.
 
+use buslab_can::BitTime;
 use buslab_canbus::{BusOffRecovery, ErrorState, NodeRef};
 use buslab_sja1000::BitTiming;
 use buslab_vbus::VirtualBus;
@@ -68,7 +69,7 @@ fn a_node_at_the_wrong_rate_on_an_idle_bus_disturbs_nobody() {
     let mut bus = VirtualBus::new(RATE).unwrap();
     let observer = bus.join().unwrap();
     let _adapter = adapter(&mut bus, BusOffRecovery::Manual);
-    bus.run_until(SECOND);
+    bus.run_until(BitTime::new(SECOND));
     assert_eq!(bus.stats().errors, 0);
     let st = bus.status(&NodeRef::Number(observer)).unwrap();
     assert_eq!(st.counters.bus_errors, 0);
@@ -82,7 +83,7 @@ fn a_listening_node_at_the_wrong_rate_breaks_frames_until_it_is_error_passive_th
     while state(&mut bus, adapter) == ErrorState::Active {
         second += 1;
         assert!(second <= 10, "still error-active after {second} s");
-        bus.run_until(second * SECOND);
+        bus.run_until(BitTime::new(second * SECOND));
     }
     let until_passive = observed(&mut bus);
     // Each error it detects adds at least 1 to its REC: error-passive at 128 at the latest.
@@ -91,7 +92,7 @@ fn a_listening_node_at_the_wrong_rate_breaks_frames_until_it_is_error_passive_th
     // the wire are its overload flags, when garbage read as a dominant bit in its
     // intermission: a real controller at the wrong rate does the same.
     let sent = frames_of_lab(&mut bus);
-    bus.run_until((second + 10) * SECOND);
+    bus.run_until(BitTime::new((second + 10) * SECOND));
     let later = observed(&mut bus) - until_passive;
     assert_eq!(frames_of_lab(&mut bus), sent + 1000);
     assert!(
@@ -113,15 +114,15 @@ fn a_sender_at_the_wrong_rate_goes_bus_off_once_and_stays_off_without_recovery()
     for recovery in [BusOffRecovery::Manual, BusOffRecovery::Counted] {
         let mut bus = lab();
         let adapter = adapter(&mut bus, recovery);
-        bus.run_until(SECOND / 10);
+        bus.run_until(BitTime::new(SECOND / 10));
         for k in 0..3u8 {
             let frame = format!("123#{k:02X}").parse().unwrap();
             bus.submit(adapter, frame).unwrap().unwrap();
         }
-        bus.run_until(SECOND * 2);
+        bus.run_until(BitTime::new(SECOND * 2));
         let after_2s = observed(&mut bus);
         let sent_2s = frames_of_lab(&mut bus);
-        bus.run_until(SECOND * 12);
+        bus.run_until(BitTime::new(SECOND * 12));
         let after_12s = observed(&mut bus);
         let st = bus.status(&NodeRef::Number(adapter)).unwrap();
         counts.push((recovery, after_2s, after_12s, st.counters.bus_off));

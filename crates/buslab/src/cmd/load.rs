@@ -109,9 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     handshake(&mut bus, id, args.timeout)?;
     let started = Instant::now();
     let bar = transfer::bar(text.len() as u64, "sending");
-    let stall = Some(Duration::from_secs_f64(
-        buslab_loader::loader::IDLE_TIMEOUT_NS as f64 / 1e9,
-    ));
+    let stall = Some(buslab_loader::loader::IDLE_TIMEOUT.as_duration());
     let sent = transfer::send_data(&mut bus, url, id, &text, &bar, stall, &stop);
     bar.finish_and_clear();
     sent?;

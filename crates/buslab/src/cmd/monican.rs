@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use buslab_backends::DynBus;
+use buslab_can::Nanos;
 use buslab_canbus::slio::{SingleShot, send_single_shot};
 use buslab_monican::{Config, MoniCan, Transmit};
 
@@ -83,7 +84,7 @@ fn session(
     quit: &AtomicBool,
 ) -> anyhow::Result<()> {
     let epoch = Instant::now();
-    let now = || epoch.elapsed().as_nanos() as u64;
+    let now = || Nanos::from_duration(epoch.elapsed());
     let bitrate = config.bitrate;
     let mut app = MoniCan::new(config, now())?;
     if let Ok((cols, rows)) = crossterm::terminal::size()
@@ -128,7 +129,7 @@ fn session(
         }
         let wait = app
             .next_deadline()
-            .map_or(SLICE, |t| Duration::from_nanos(t.saturating_sub(now())))
+            .map_or(SLICE, |t| t.saturating_sub(now()).as_duration())
             .min(SLICE);
         let mut timeout = wait;
         while let Some(message) = bus.recv(Some(timeout)).context("receiving from the bus")? {

@@ -10,12 +10,11 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use buslab_bench::Scenario;
-use buslab_can::Frame;
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
+use buslab_can::{Frame, Timestamp};
 use buslab_logs::{candump, text};
 use buslab_plot::{Band, Figure, Lane, Panel, Series, Shade, StateLanes};
 use buslab_sim::observe::signal_names;
-use buslab_sim::time::seconds_micros;
 use buslab_sim::{BitTime, CounterSample, Happening, Record, Simulation, Span, VcdWriter};
 
 #[derive(clap::Args)]
@@ -53,7 +52,7 @@ pub struct Args {
 }
 
 /// Bit-times simulated between two flushes of the output.
-const CHUNK: BitTime = 100_000;
+const CHUNK: BitTime = BitTime::new(100_000);
 
 /// `quiet` (the global `-q`): print only the summary.
 pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
@@ -97,11 +96,15 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
         anyhow::bail!(
             "--duration {} is longer than a simulation may run: up to {} s of virtual time",
             args.duration.map(|d| d.to_string()).unwrap_or_default(),
-            buslab_bench::scenario::MAX_DURATION_S
+            buslab_bench::scenario::MAX_DURATION.as_duration().as_secs()
         );
     }
     if (args.counters.is_some() || args.plot.is_some()) && scenario.sample_every.is_none() {
-        scenario.sample_every = Some(Span::Seconds(1e-3).to_bits(scenario.bitrate).max(1));
+        scenario.sample_every = Some(
+            Span::Seconds(1e-3)
+                .to_bits(scenario.bitrate)
+                .max(BitTime::ONE),
+        );
     }
     let mut sim = scenario.build()?;
     if args.bit_level {
@@ -177,7 +180,7 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
 /// The `--counters` rows of `series`: `time_s,node,tec,rec,state`.
 fn counter_rows(out: &mut Vec<u8>, scenario: &Scenario, series: &[CounterSample]) {
     for c in series {
-        let (secs, us) = seconds_micros(c.time, scenario.bitrate);
+        let (secs, us) = Timestamp::from(c.time.at_bitrate(scenario.bitrate)).secs_and_micros();
         text::push_u64(out, secs);
         out.push(b'.');
         text::push_u64_zeros(out, u64::from(us), 6);
@@ -252,7 +255,7 @@ impl CounterPlot {
         let mut points: Vec<_> = changes.chain(samples).collect();
         points.sort_by_key(|p| p.0);
         for (time, node, tec, rec, state) in points {
-            let t = time as f64 / f64::from(self.bitrate);
+            let t = time.secs_f64_at(self.bitrate);
             self.tec[node].push(t, f64::from(tec));
             self.rec[node].push(t, f64::from(rec));
             self.lanes[node].enter(t, state_index(state));
@@ -260,7 +263,7 @@ impl CounterPlot {
     }
 
     fn figure(mut self, scenario: &Scenario, title: String, end: BitTime) -> Figure {
-        let seconds = |t: BitTime| t as f64 / f64::from(scenario.bitrate);
+        let seconds = |t: BitTime| t.secs_f64_at(scenario.bitrate);
         for lane in &mut self.lanes {
             lane.end(seconds(end));
         }
@@ -373,7 +376,7 @@ impl<'a> Printer<'a> {
 
     /// `(0000000001.250000)`: the candump log timestamp of bit-time `t`.
     fn stamp(&mut self, t: BitTime) {
-        let (s, us) = seconds_micros(t, self.bitrate);
+        let (s, us) = Timestamp::from(t.at_bitrate(self.bitrate)).secs_and_micros();
         self.buf.push(b'(');
         text::push_u64_zeros(&mut self.buf, s, 10);
         self.buf.push(b'.');
@@ -561,7 +564,7 @@ fn summary(out: &mut impl Write, sim: &Simulation) -> io::Result<()> {
         )?;
     }
     let bus = sim.bus_stats();
-    let (secs, us) = seconds_micros(sim.now(), sim.bitrate());
+    let (secs, us) = Timestamp::from(sim.now().at_bitrate(sim.bitrate())).secs_and_micros();
     writeln!(
         out,
         "# bus: {} bit/s, {secs}.{us:06} s ({} bit-times), load {:.1} %, {} frames, {} errors",

@@ -22,6 +22,8 @@ mod stuffing;
 /// end of EOF; 3 of intermission). The one place this fact lives: budgets, timeouts and
 /// watchdogs elsewhere use it.
 pub const LONGEST_FRAME_BITS: u64 = 118 + (118 - 1) / 4 + 10 + INTERMISSION_BITS;
+/// [`LONGEST_FRAME_BITS`] as bus time.
+pub const LONGEST_FRAME: crate::BitTime = crate::BitTime::new(LONGEST_FRAME_BITS);
 
 /// The recessive bits between two frames (ISO 11898-1's intermission).
 pub const INTERMISSION_BITS: u64 = 3;

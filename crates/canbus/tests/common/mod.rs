@@ -5,6 +5,7 @@
 
 use std::any::Any;
 
+use buslab_can::BitTime;
 use buslab_can::controller::{ErrorState, Event, QueueFull};
 use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
@@ -25,7 +26,7 @@ impl BusNode for SharedNode {
     fn output(&self) -> Level {
         self.chip().output()
     }
-    fn sample(&mut self, now: u64, bus: Level) {
+    fn sample(&mut self, now: BitTime, bus: Level) {
         BusNode::sample(&mut *self.chip(), now, bus)
     }
     fn poll_event(&mut self) -> Option<Event> {
@@ -41,7 +42,7 @@ impl BusNode for SharedNode {
         self.chip().error_state()
     }
     /// Never: the driver may write a transmission request between two steps.
-    fn quiet_until(&self) -> Option<u64> {
+    fn quiet_until(&self) -> Option<BitTime> {
         None
     }
     fn enqueue(&mut self, frame: Frame) -> Result<(), QueueFull> {
@@ -89,12 +90,12 @@ impl Bus {
     pub fn step_with(&mut self, force: impl Fn(u64, Level) -> Level) {
         let time = self.time;
         self.sim.step_disturbed(|level| force(time, level));
-        self.time = self.sim.now();
+        self.time = self.sim.now().get();
     }
 
     pub fn run(&mut self, bits: u64) {
-        self.sim.run_for(bits);
-        self.time = self.sim.now();
+        self.sim.run_for(BitTime::new(bits));
+        self.time = self.sim.now().get();
     }
 
     /// A driver for chip `i`, initialised with `config`.

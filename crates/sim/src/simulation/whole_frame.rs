@@ -113,8 +113,8 @@ impl WholeFrames {
     pub(super) fn check_from(&self) -> BitTime {
         match (self.on, self.refused_at) {
             (false, _) => BitTime::MAX,
-            (true, Some(t)) => t + 1,
-            (true, None) => 0,
+            (true, Some(t)) => t + BitTime::ONE,
+            (true, None) => BitTime::ZERO,
         }
     }
 
@@ -236,7 +236,7 @@ impl Simulation {
         let wire = &cached.wire;
         let t0 = self.now;
         let total = wire.total();
-        let done = t0 + total as BitTime;
+        let done = t0 + BitTime::from(total);
         if done > end || self.next_fault_change < done {
             return false;
         }
@@ -303,7 +303,7 @@ impl Simulation {
             let node = &mut nodes[i];
             match (&mut node.device, whole.roles[i]) {
                 (Device::Controller(c), FrameRole::LostArbitration { index, .. }) => {
-                    let time = t0 + bit as BitTime;
+                    let time = t0 + BitTime::from(bit);
                     if let Some(event) = c.frame_lost(index) {
                         record(obs, i, node, time, event);
                     }
@@ -331,7 +331,7 @@ impl Simulation {
                 Device::Controller(c) => {
                     c.frame_ack();
                     if c.has_events() {
-                        drain_node(obs, schedule, i, node, t0 + ack as BitTime);
+                        drain_node(obs, schedule, i, node, t0 + BitTime::from(ack));
                     }
                 }
                 // With REC at 0 the ACK slot changes nothing a node could report (a successful
@@ -356,7 +356,7 @@ impl Simulation {
             if let Device::Controller(c) = &mut node.device {
                 // Handed on at once rather than queued in the controller and polled.
                 if let Some(event) = c.frame_received(wire) {
-                    let time = t0 + eof6 as BitTime;
+                    let time = t0 + BitTime::from(eof6);
                     record(obs, i, node, time, event);
                 }
             } else {
@@ -385,7 +385,7 @@ impl Simulation {
                 }
                 c.frame_end(wire);
                 if c.has_events() {
-                    drain_node(obs, schedule, i, node, t0 + last as BitTime);
+                    drain_node(obs, schedule, i, node, t0 + BitTime::from(last));
                 }
             } else {
                 self.advance_other(wire, i, total, t0);
@@ -402,7 +402,7 @@ impl Simulation {
     /// at moved on to just before it.
     #[inline(always)]
     fn handle_due_inside(&mut self, wire: &WireFrame, t0: BitTime, at: &mut u32, bit: u32) {
-        if self.schedule.next.min(self.next_sample) <= t0 + bit as BitTime {
+        if self.schedule.next.min(self.next_sample) <= t0 + BitTime::from(bit) {
             self.handle_due_inside_slow(wire, t0, at, bit);
         }
     }
@@ -411,10 +411,10 @@ impl Simulation {
     fn handle_due_inside_slow(&mut self, wire: &WireFrame, t0: BitTime, at: &mut u32, bit: u32) {
         loop {
             let due = self.schedule.next.min(self.next_sample);
-            if due < t0 + *at as BitTime || due > t0 + bit as BitTime {
+            if due < t0 + BitTime::from(*at) || due > t0 + BitTime::from(bit) {
                 return;
             }
-            *at = (due - t0) as u32;
+            *at = (due - t0).get() as u32;
             // Controllers are up to date at every stage; other nodes are moved on here.
             if self.others > 0 && self.next_sample <= due {
                 for i in 0..self.nodes.len() {
@@ -441,7 +441,7 @@ impl Simulation {
         match &mut node.device {
             Device::Controller(c) => {
                 if c.has_events() {
-                    drain(self, i, t0 + bit as BitTime);
+                    drain(self, i, t0 + BitTime::from(bit));
                 }
             }
             Device::Other(_) => self.advance_other(wire, i, bit + 1, t0),
@@ -461,7 +461,7 @@ impl Simulation {
         }
         self.whole.done[i] = to;
         device.advance_frame(wire, self.whole.roles[i], from..to);
-        drain(self, i, t0 + to as BitTime - 1);
+        drain(self, i, t0 + BitTime::from(to) - BitTime::ONE);
     }
 }
 

@@ -19,7 +19,7 @@ pub fn bus_with(nodes: &[(&str, &[&str])]) -> Simulation {
                 n,
                 Traffic::Once {
                     frame: frame(f),
-                    at: 0,
+                    at: BitTime::ZERO,
                 },
             );
         }

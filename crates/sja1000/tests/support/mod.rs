@@ -3,6 +3,7 @@
 
 use std::ops::{Index, IndexMut};
 
+use buslab_can::BitTime;
 use buslab_can::{Frame, Level};
 use buslab_sim::Simulation;
 use buslab_sja1000::{CanMode, Sja1000};
@@ -64,12 +65,12 @@ impl Bus {
     pub fn step_with(&mut self, force: impl Fn(u64, Level) -> Level) {
         let time = self.time;
         self.chips.0.step_disturbed(|level| force(time, level));
-        self.time = self.chips.0.now();
+        self.time = self.chips.0.now().get();
     }
 
     pub fn run(&mut self, bits: u64) {
-        self.chips.0.run_for(bits);
-        self.time = self.chips.0.now();
+        self.chips.0.run_for(BitTime::new(bits));
+        self.time = self.chips.0.now().get();
     }
 
     /// Runs until `done` holds, at most `limit` bit-times; panics with `what` otherwise.
