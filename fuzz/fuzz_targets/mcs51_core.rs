@@ -36,7 +36,7 @@ fn run(data: &[u8]) {
                 let frame = LineFrame {
                     data: arg,
                     ninth: (op & 0x80 != 0).then_some(arg & 1 != 0),
-                    bit_clocks,
+                    bit_clocks: Clocks(bit_clocks),
                 };
                 let _ = cpu.send_rxd(Clocks(now), frame);
             }

@@ -44,7 +44,7 @@ fuzz_target!(|data: &[u8]| {
                 let payload = [op; 8];
                 let frame = Frame::data(id, &payload[..usize::from(op % 9)]).expect("0..8 bytes");
                 for _ in 0..64 {
-                    adapter.deliver(&frame, now_ms);
+                    adapter.deliver(&frame, buslab_can::Nanos::from_millis(now_ms));
                 }
             }
             Item::Op(op) => adapter.consume(usize::from(op & 0x7F) * 16),

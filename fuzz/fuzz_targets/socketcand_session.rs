@@ -7,7 +7,7 @@
 //! left), and once the input ended it hands out what is left and is drained.
 #![no_main]
 
-use buslab_can::{Frame, Id, StandardId};
+use buslab_can::{Frame, Id, Nanos, StandardId};
 use buslab_fuzz::{Item, items};
 use buslab_socketcand::server::{Action, Session, SessionConfig};
 use buslab_socketcand::{ServerMessage, Timestamp};
@@ -21,7 +21,7 @@ const MAX_OUTPUT: usize = 2048;
 
 struct Host {
     session: Session,
-    now: u64,
+    now: Nanos,
     received: usize,
     waiting_join: bool,
     waiting_reply: bool,
@@ -119,7 +119,7 @@ impl Host {
     }
 
     fn op(&mut self, op: u8) {
-        let ts = Timestamp::from_nanos(self.now);
+        let ts = Timestamp::from(self.now);
         match op % 8 {
             0 => {
                 let id = Id::Standard(StandardId::new(u16::from(op) << 3).unwrap());
@@ -137,7 +137,7 @@ impl Host {
                     self.now = self.now.max(t);
                 }
             }
-            4 => self.now += u64::from(op) * 1_000_000,
+            4 => self.now += Nanos::from_millis(u64::from(op)),
             5 => self.prompt = !self.prompt,
             6 => self.answer(),
             _ => match op >> 6 {
@@ -167,11 +167,11 @@ impl Host {
 fuzz_target!(|data: &[u8]| {
     let mut config = SessionConfig::new("vcan0");
     config.max_output = MAX_OUTPUT;
-    config.raw_hold_ns = 50_000_000;
-    config.open_timeout_ns = 1_000_000_000;
+    config.raw_hold_ns = Nanos::from_millis(50);
+    config.open_timeout_ns = Nanos::from_secs(1);
     let mut host = Host {
-        session: Session::new(config, 0),
-        now: 0,
+        session: Session::new(config, Nanos::ZERO),
+        now: Nanos::ZERO,
         received: 0,
         waiting_join: false,
         waiting_reply: false,

@@ -173,9 +173,11 @@ impl State {
         let error_record = || Record::Error(commented.unwrap_or_else(error_frame));
         let (ts, rest) = field(line);
         let offset =
-            text::decimal_duration(ts, 1_000_000_000).ok_or_else(|| Problem::Expected {
-                expected: "a time in seconds",
-                found: excerpt(ts),
+            text::decimal_duration(ts, buslab_can::Nanos::from_secs(1)).ok_or_else(|| {
+                Problem::Expected {
+                    expected: "a time in seconds",
+                    found: excerpt(ts),
+                }
             })?;
         let (channel, rest) = field(rest);
         let (record, direction, channel) = if channel == b"CANFD" {
@@ -458,8 +460,10 @@ fn classify(line: &[u8]) -> Kind<'_> {
         return Kind::ErrorComment(rest);
     }
     if line.starts_with(START_COMMENT.as_bytes()) {
-        return match text::decimal_duration(text::trim(&line[START_COMMENT.len()..]), 1_000_000_000)
-        {
+        return match text::decimal_duration(
+            text::trim(&line[START_COMMENT.len()..]),
+            buslab_can::Nanos::from_secs(1),
+        ) {
             Some(t) => Kind::Header(Header::Exact(t)),
             None => Kind::Other,
         };

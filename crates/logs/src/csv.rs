@@ -95,7 +95,7 @@ pub fn parse_row(line: &[u8], entry: &mut Message) -> Result<(), Problem> {
     if cols.next().is_some() {
         return Err(bad("exactly 7 columns", line));
     }
-    let timestamp = text::decimal_duration(text::trim(timestamp), 1_000_000_000)
+    let timestamp = text::decimal_duration(text::trim(timestamp), buslab_can::Nanos::from_secs(1))
         .ok_or_else(|| bad("a timestamp in seconds, e.g. 1700000000.123456", timestamp))?;
     let id_text = text::trim(id);
     let raw = id_text

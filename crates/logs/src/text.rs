@@ -4,6 +4,8 @@
 use std::io::{self, BufRead};
 use std::time::Duration;
 
+use buslab_can::Nanos;
+
 /// The longest line a text reader takes (a classic CAN line is under 100 characters; TRC and
 /// ASC headers are longer, but not this long).
 pub const MAX_LINE: usize = 4096;
@@ -180,9 +182,10 @@ pub fn dec_u64(text: &[u8]) -> Option<u64> {
     Some(v)
 }
 
-/// `SECONDS[.FRACTION]` (any number of decimals; beyond nanoseconds they are cut) as a
-/// duration; `scale_ms` reads the number as milliseconds instead (TRC).
-pub fn decimal_duration(text: &[u8], unit_ns: u64) -> Option<Duration> {
+/// `UNITS[.FRACTION]` (any number of decimals; beyond nanoseconds they are cut) as a
+/// duration: `unit` is a second for most logs, a millisecond for TRC.
+pub fn decimal_duration(text: &[u8], unit: Nanos) -> Option<Duration> {
+    let unit_ns = unit.get();
     let (int, frac) = match memchr::memchr(b'.', text) {
         Some(i) => (&text[..i], &text[i + 1..]),
         None => (text, &[][..]),
@@ -396,19 +399,18 @@ mod tests {
 
     #[test]
     fn numbers_both_ways() {
+        const SECOND: Nanos = Nanos::from_secs(1);
+        const MS: Nanos = Nanos::from_millis(1);
         let d = |t: &str, unit| decimal_duration(t.as_bytes(), unit);
-        assert_eq!(d("1.5", 1_000_000_000), Some(Duration::from_millis(1500)));
+        assert_eq!(d("1.5", SECOND), Some(Duration::from_millis(1500)));
+        assert_eq!(d("17535.4", MS), Some(Duration::from_micros(17_535_400)));
         assert_eq!(
-            d("17535.4", 1_000_000),
-            Some(Duration::from_micros(17_535_400))
-        );
-        assert_eq!(
-            d("1700000000.123456789123", 1_000_000_000),
+            d("1700000000.123456789123", SECOND),
             Some(Duration::new(1_700_000_000, 123_456_789))
         );
-        assert_eq!(d(".25", 1_000_000_000), Some(Duration::from_millis(250)));
+        assert_eq!(d(".25", SECOND), Some(Duration::from_millis(250)));
         for bad in ["", ".", "1.2.3", "x", "-1", "1e5", "99999999999999999999"] {
-            assert_eq!(d(bad, 1_000_000_000), None, "{bad}");
+            assert_eq!(d(bad, SECOND), None, "{bad}");
         }
         let mut out = Vec::new();
         push_u64_zeros(&mut out, 42, 6);

@@ -229,9 +229,11 @@ impl State {
             }
         }
         let offset =
-            text::decimal_duration(offset, 1_000_000).ok_or_else(|| Problem::Expected {
-                expected: "a time offset in milliseconds",
-                found: excerpt(offset),
+            text::decimal_duration(offset, buslab_can::Nanos::from_millis(1)).ok_or_else(|| {
+                Problem::Expected {
+                    expected: "a time offset in milliseconds",
+                    found: excerpt(offset),
+                }
             })?;
         let raw = text::hex_u32(id).ok_or_else(|| Problem::Expected {
             expected: "a CAN ID in hex (4 digits standard, 8 extended)",

@@ -320,7 +320,7 @@ impl Mcs51 {
     /// bits least significant first, the 9th bit if any, then the line high (stop bits and
     /// idle). Returns when the first stop bit ends.
     pub fn send_rxd(&mut self, at: Clocks, frame: LineFrame) -> Result<Clocks, InputError> {
-        if frame.bit_clocks == 0 || frame.bit_clocks > 1_000_000_000 {
+        if frame.bit_clocks == Clocks::ZERO || frame.bit_clocks > Clocks(1_000_000_000) {
             return Err(InputError::BitTime(frame.bit_clocks));
         }
         let data_bits: u64 = if frame.ninth.is_some() { 9 } else { 8 };
@@ -335,7 +335,7 @@ impl Mcs51 {
         let mut change = |core: &mut Mcs51, bit: u64, high: bool| {
             if high != level {
                 level = high;
-                let t = Clocks(at.0.saturating_add(bit * frame.bit_clocks));
+                let t = Clocks(at.0.saturating_add(bit * frame.bit_clocks.0));
                 core.inputs
                     .push(
                         t,
@@ -354,7 +354,7 @@ impl Mcs51 {
         change(self, 1 + data_bits, true);
         self.after_input();
         Ok(Clocks(
-            at.0.saturating_add((2 + data_bits) * frame.bit_clocks),
+            at.0.saturating_add((2 + data_bits) * frame.bit_clocks.0),
         ))
     }
 

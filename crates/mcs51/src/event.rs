@@ -83,10 +83,10 @@ impl SerialFrame {
 
     /// The bit time in clocks (mode 0: one machine cycle). If the baud clock changed while the
     /// frame was out, the average.
-    pub fn bit_clocks(&self) -> u64 {
+    pub fn bit_clocks(&self) -> Clocks {
         match self.mode {
-            SerialMode::Mode0 => crate::time::CLOCKS_PER_CYCLE,
-            _ => (self.end.0 - self.start.0) / self.bits(),
+            SerialMode::Mode0 => Clocks::from_cycles(1),
+            _ => Clocks((self.end.0 - self.start.0) / self.bits()),
         }
     }
 
@@ -94,7 +94,7 @@ impl SerialFrame {
     pub fn stop_end(&self) -> Clocks {
         match self.mode {
             SerialMode::Mode0 => self.end,
-            _ => Clocks(self.end.0 + self.bit_clocks()),
+            _ => self.end + self.bit_clocks(),
         }
     }
 }
@@ -107,5 +107,5 @@ pub struct LineFrame {
     /// A 9th data bit (for modes 2 and 3; `None` sends the stop bit right after bit 7).
     pub ninth: Option<bool>,
     /// One bit time in clocks (1152 at 9600 baud from 11.0592 MHz).
-    pub bit_clocks: u64,
+    pub bit_clocks: Clocks,
 }

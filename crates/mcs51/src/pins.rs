@@ -202,8 +202,8 @@ pub enum InputError {
     Bit(u8),
     #[error("{queued} level changes are already waiting, the most the core keeps ahead")]
     Full { queued: usize },
-    #[error("a bit time of {0} clocks is out of range 1..=1000000000")]
-    BitTime(u64),
+    #[error("a bit time of {} clocks is out of range 1..=1000000000", .0.0)]
+    BitTime(Clocks),
 }
 
 #[cfg(test)]

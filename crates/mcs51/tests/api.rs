@@ -209,7 +209,7 @@ fn bad_inputs_are_refused_naming_the_value() {
             LineFrame {
                 data: 0,
                 ninth: None,
-                bit_clocks: 0,
+                bit_clocks: Clocks(0),
             },
         )
         .unwrap_err();

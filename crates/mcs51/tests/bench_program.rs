@@ -93,7 +93,7 @@ fn the_checksum_runs_4705006_instructions_and_the_busy_one_keeps_sending() {
             Stop::Events => {
                 while let Some(e) = cpu.poll_event() {
                     if let Event::Serial(f) = e {
-                        assert_eq!(f.bit_clocks(), 1152);
+                        assert_eq!(f.bit_clocks(), Clocks(1152));
                         frames += 1;
                     }
                 }

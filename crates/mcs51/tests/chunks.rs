@@ -38,7 +38,7 @@ fn setup(body: &[u8], frames: &[(u64, u8)]) -> (Mcs51, FlatMemory) {
         let frame = LineFrame {
             data,
             ninth: None,
-            bit_clocks: 1152,
+            bit_clocks: Clocks(1152),
         };
         cpu.send_rxd(Clocks(at), frame).unwrap();
     }

@@ -11,7 +11,7 @@
 use std::collections::VecDeque;
 
 use buslab_bus::{CanError, ControllerProblems, ErrorFrame};
-use buslab_can::Frame;
+use buslab_can::{Frame, Nanos};
 
 use crate::codec::{
     CodecError, Command, Line, LineSplitter, Reply, STANDARD_BITRATES, StatusFlags,
@@ -245,9 +245,9 @@ impl Adapter {
         }
     }
 
-    /// A frame the adapter received from the bus at `now_ms` (any zero): sent to the host if
-    /// the channel is open.
-    pub fn deliver(&mut self, frame: &Frame, now_ms: u64) {
+    /// A frame the adapter received from the bus at `now` (since any epoch): sent to the host
+    /// if the channel is open.
+    pub fn deliver(&mut self, frame: &Frame, now: Nanos) {
         if self.mode == Mode::Closed {
             return;
         }
@@ -261,7 +261,7 @@ impl Adapter {
         }
         let timestamp_ms = self
             .timestamps
-            .then(|| (now_ms % u64::from(TIMESTAMP_WRAP_MS)) as u16);
+            .then(|| (now / Nanos::from_millis(1) % u64::from(TIMESTAMP_WRAP_MS)) as u16);
         self.reply(&Reply::Frame {
             frame: *frame,
             timestamp_ms,
@@ -441,15 +441,15 @@ mod tests {
                 AdapterEvent::Transmit(frame("7FF#R2")),
             ]
         );
-        a.deliver(&frame("321#AABB"), 5);
-        a.deliver(&frame("12345678#R3"), 6);
+        a.deliver(&frame("321#AABB"), Nanos::from_millis(5));
+        a.deliver(&frame("12345678#R3"), Nanos::from_millis(6));
         assert_eq!(
             String::from_utf8(a.take_output()).unwrap(),
             "t3212AABB\rR123456783\r"
         );
         assert_eq!(exchange(&mut a, "C\r"), "\r");
         assert_eq!(events(&mut a), [AdapterEvent::Closed]);
-        a.deliver(&frame("321#AABB"), 7);
+        a.deliver(&frame("321#AABB"), Nanos::from_millis(7));
         assert!(a.output().is_empty(), "a closed channel receives nothing");
     }
 
@@ -471,7 +471,7 @@ mod tests {
             "listen-only sends nothing"
         );
         assert!(events(&mut a).is_empty());
-        a.deliver(&frame("123#01"), 60_000 + 59_999);
+        a.deliver(&frame("123#01"), Nanos::from_millis(60_000 + 59_999));
         assert_eq!(String::from_utf8(a.take_output()).unwrap(), "t123101EA5F\r");
     }
 
@@ -508,7 +508,7 @@ mod tests {
         events(&mut a);
         let f = frame("7FF#1122334455667788");
         for t in 0..10_000 {
-            a.deliver(&f, t);
+            a.deliver(&f, Nanos::from_millis(t));
         }
         assert!(a.output().len() <= MAX_OUTPUT);
         assert!(a.dropped() > 0);

@@ -21,7 +21,7 @@
 //! assert_eq!(adapter.take_output(), b"\r\rz\r");
 //! let events: Vec<_> = std::iter::from_fn(|| adapter.poll_event()).collect();
 //! assert_eq!(events[1], AdapterEvent::Transmit("123#AABB".parse()?));
-//! adapter.deliver(&"7FF#01".parse()?, 0);
+//! adapter.deliver(&"7FF#01".parse()?, buslab_can::Nanos::ZERO);
 //! assert_eq!(adapter.take_output(), b"t7FF101\r");
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```

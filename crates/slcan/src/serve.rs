@@ -9,7 +9,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
 use std::time::{Duration, Instant};
 
 use buslab_bus::ErrorFrame;
-use buslab_can::Frame;
+use buslab_can::{Frame, Nanos};
 use nix::errno::Errno;
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
@@ -63,7 +63,7 @@ pub fn serve(
                 match inputs.recv_timeout(wait) {
                     Ok(Input::Host(bytes)) => adapter.receive(&bytes),
                     Ok(Input::Frame(frame)) => {
-                        adapter.deliver(&frame, epoch.elapsed().as_millis() as u64)
+                        adapter.deliver(&frame, Nanos::from(epoch.elapsed()))
                     }
                     Ok(Input::Error(error)) => adapter.controller_error(&error),
                     Err(RecvTimeoutError::Timeout) => {}

@@ -1,6 +1,6 @@
 //! Any bytes are a value or an error, never a panic; what is formatted parses back.
 
-use buslab_can::{Frame, Id};
+use buslab_can::{Frame, Id, Nanos};
 use buslab_slcan::{
     Adapter, Command, LineSplitter, MAX_LINE, MAX_OUTPUT, Reply, format_command, format_reply,
     parse_command, parse_reply,
@@ -54,7 +54,7 @@ proptest! {
         let mut splitter = LineSplitter::new();
         for chunk in &chunks {
             adapter.receive(chunk);
-            adapter.deliver(&"123#1122".parse().unwrap(), 1);
+            adapter.deliver(&"123#1122".parse().unwrap(), Nanos::from_millis(1));
             for &b in chunk {
                 splitter.push(b);
                 prop_assert!(splitter.pending() <= MAX_LINE);

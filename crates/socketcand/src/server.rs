@@ -23,7 +23,7 @@ use std::fmt::Write as _;
 use std::time::Duration;
 
 use buslab_bus::admin::FaultLimit;
-use buslab_can::Frame;
+use buslab_can::{Frame, Nanos};
 
 use crate::command::Command;
 use crate::element::Deframer;
@@ -58,12 +58,12 @@ pub struct RateLimit {
 
 impl RateLimit {
     /// The nanoseconds between two once the burst is used up.
-    fn interval_ns(&self) -> u64 {
-        (self.per.as_nanos() / u128::from(self.max.max(1))).min(u64::MAX as u128) as u64
+    fn interval(&self) -> Nanos {
+        self.period() / u64::from(self.max.max(1))
     }
 
-    fn per_ns(&self) -> u64 {
-        self.per.as_nanos().min(u64::MAX as u128) as u64
+    fn period(&self) -> Nanos {
+        Nanos::from(self.per)
     }
 }
 
@@ -83,10 +83,10 @@ pub struct SessionConfig {
     pub max_output: usize,
     /// How long (ns) frames wait after the rawmode `< ok >`: python-can reads that reply with
     /// one `recv()` and compares it whole, so frames must not share its read.
-    pub raw_hold_ns: u64,
+    pub raw_hold_ns: Nanos,
     /// A client that has not opened the bus this long (ns) after connecting is told so and
     /// closed, so idle connections cannot lock others out.
-    pub open_timeout_ns: u64,
+    pub open_timeout_ns: Nanos,
     /// Faults this client may put on the wire.
     pub fault_rate: RateLimit,
 }
@@ -96,8 +96,8 @@ impl SessionConfig {
         Self {
             channel: channel.into(),
             max_output: 256 * 1024,
-            raw_hold_ns: 50_000_000,
-            open_timeout_ns: 30_000_000_000,
+            raw_hold_ns: Nanos::from_millis(50),
+            open_timeout_ns: Nanos::from_secs(30),
             fault_rate: FAULT_RATE,
         }
     }
@@ -132,8 +132,8 @@ pub struct Session {
     out: VecDeque<u8>,
     /// Frames formatted while the rawmode reply must go out alone, and until when.
     held: String,
-    hold_until: Option<u64>,
-    open_deadline: Option<u64>,
+    hold_until: Option<Nanos>,
+    open_deadline: Option<Nanos>,
     closing: bool,
     /// The client will send nothing more (the host read its last byte).
     input_finished: bool,
@@ -141,14 +141,14 @@ pub struct Session {
     output_closed: bool,
     /// When the next fault is due by the client's rate, spread evenly (the generic cell rate
     /// algorithm: a request more than the rate's period ahead of this is refused).
-    fault_due: u64,
+    fault_due: Nanos,
     dropped: u64,
     errors_dropped: u64,
 }
 
 impl Session {
     /// A new connection at `now` (ns): the greeting is queued.
-    pub fn new(config: SessionConfig, now: u64) -> Self {
+    pub fn new(config: SessionConfig, now: Nanos) -> Self {
         let open_deadline = Some(now.saturating_add(config.open_timeout_ns));
         let mut s = Self {
             config,
@@ -164,7 +164,7 @@ impl Session {
             closing: false,
             input_finished: false,
             output_closed: false,
-            fault_due: 0,
+            fault_due: Nanos::ZERO,
             dropped: 0,
             errors_dropped: 0,
         };
@@ -242,7 +242,7 @@ impl Session {
 
     /// The next thing the host must do at `now` (ns), after handling every element that needs
     /// nothing from it. `None`: nothing until more bytes arrive (or the host answers).
-    pub fn poll_action(&mut self, now: u64) -> Option<Action> {
+    pub fn poll_action(&mut self, now: Nanos) -> Option<Action> {
         if self.closing {
             return None;
         }
@@ -276,24 +276,24 @@ impl Session {
     }
 
     /// Whether the client may put one more fault on the wire at `now`; if so it is counted.
-    fn fault_allowed(&mut self, now: u64) -> Result<(), FaultLimit> {
+    fn fault_allowed(&mut self, now: Nanos) -> Result<(), FaultLimit> {
         let rate = self.config.fault_rate;
         let due = self.fault_due.max(now);
         // The burst: up to `max` ahead of the even spread.
-        let tolerance = rate.per_ns().saturating_sub(rate.interval_ns());
+        let tolerance = rate.period().saturating_sub(rate.interval());
         let ahead = due - now;
         if ahead > tolerance {
             return Err(FaultLimit::Rate {
                 max: rate.max,
                 per: rate.per,
-                retry_after: Duration::from_nanos(ahead - tolerance),
+                retry_after: (ahead - tolerance).as_duration(),
             });
         }
-        self.fault_due = due.saturating_add(rate.interval_ns());
+        self.fault_due = due.saturating_add(rate.interval());
         Ok(())
     }
 
-    fn handle(&mut self, command: Command, now: u64) -> Option<Action> {
+    fn handle(&mut self, command: Command, now: Nanos) -> Option<Action> {
         match (self.mode, command) {
             (_, Command::Echo) => self.send(&ServerMessage::Echo),
             (Mode::NoBus, Command::Open(bus)) => {
@@ -311,7 +311,7 @@ impl Session {
             (Mode::Bcm, Command::RawMode) => {
                 self.mode = Mode::Raw;
                 self.send(&ServerMessage::Ok);
-                self.hold_until = Some(0);
+                self.hold_until = Some(Nanos::ZERO);
             }
             (Mode::Raw, Command::RawMode) => {
                 self.send(&ServerMessage::Error("already in raw mode".into()))
@@ -376,7 +376,7 @@ impl Session {
 
     /// A frame from the bus at `timestamp`; `false` if it was dropped because the client does
     /// not read fast enough. Frames are delivered only in raw mode.
-    pub fn deliver_frame(&mut self, frame: &Frame, timestamp: Timestamp, now: u64) -> bool {
+    pub fn deliver_frame(&mut self, frame: &Frame, timestamp: Timestamp, now: Nanos) -> bool {
         if self.mode != Mode::Raw || self.closing || self.output_closed {
             return true;
         }
@@ -384,7 +384,7 @@ impl Session {
     }
 
     /// [`Self::deliver_frame`] with the frame formatted already (once for every session).
-    pub fn deliver_formatted(&mut self, frame: &FormattedFrame, now: u64) -> bool {
+    pub fn deliver_formatted(&mut self, frame: &FormattedFrame, now: Nanos) -> bool {
         if self.mode != Mode::Raw || self.closing || self.output_closed {
             return true;
         }
@@ -410,7 +410,7 @@ impl Session {
         class: u32,
         data: &[u8; 8],
         timestamp: Timestamp,
-        now: u64,
+        now: Nanos,
     ) -> bool {
         if self.mode != Mode::Raw || self.closing || self.output_closed {
             return true;
@@ -433,7 +433,7 @@ impl Session {
         })
     }
 
-    fn deliver(&mut self, now: u64, write: impl FnOnce(&mut String)) -> bool {
+    fn deliver(&mut self, now: Nanos, write: impl FnOnce(&mut String)) -> bool {
         self.release_held(now);
         if self.out.len() + self.held.len() >= self.config.max_output {
             self.dropped += 1;
@@ -450,9 +450,9 @@ impl Session {
     }
 
     /// Releases frames held after the rawmode reply once their time has come.
-    fn release_held(&mut self, now: u64) {
+    fn release_held(&mut self, now: Nanos) {
         if let Some(until) = self.hold_until
-            && until != 0
+            && until != Nanos::ZERO
             && now >= until
         {
             self.hold_until = None;
@@ -462,7 +462,7 @@ impl Session {
     }
 
     /// Time passes: held frames are released, a client that never opened the bus is closed.
-    pub fn handle_timeout(&mut self, now: u64) -> Option<Action> {
+    pub fn handle_timeout(&mut self, now: Nanos) -> Option<Action> {
         self.release_held(now);
         if self.open_deadline.is_some_and(|d| now >= d) && !self.closing {
             self.open_deadline = None;
@@ -475,8 +475,8 @@ impl Session {
     }
 
     /// When [`Self::handle_timeout`] must be called even if nothing else happens.
-    pub fn next_deadline(&self) -> Option<u64> {
-        let hold = self.hold_until.filter(|&t| t != 0);
+    pub fn next_deadline(&self) -> Option<Nanos> {
+        let hold = self.hold_until.filter(|&t| t != Nanos::ZERO);
         [hold, self.open_deadline].into_iter().flatten().min()
     }
 
@@ -509,9 +509,9 @@ impl Session {
 
     /// `n` bytes of [`Self::output`] were written to the client. When the rawmode reply has
     /// left alone, the hold on frames starts at `now`.
-    pub fn consumed(&mut self, n: usize, now: u64) {
+    pub fn consumed(&mut self, n: usize, now: Nanos) {
         self.out.drain(..n.min(self.out.len()));
-        if self.out.is_empty() && self.hold_until == Some(0) {
+        if self.out.is_empty() && self.hold_until == Some(Nanos::ZERO) {
             self.hold_until = Some(now.saturating_add(self.config.raw_hold_ns));
         }
     }
@@ -548,7 +548,7 @@ impl Session {
 mod tests {
     use super::*;
 
-    fn output(s: &mut Session, now: u64) -> String {
+    fn output(s: &mut Session, now: Nanos) -> String {
         let (a, b) = s.output();
         let text = String::from_utf8([a, b].concat()).unwrap();
         s.consumed(text.len(), now);
@@ -565,15 +565,15 @@ mod tests {
 
     /// A session through `< open vcan0 >` and `< rawmode >`, joined as node 7.
     fn raw_session() -> Session {
-        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
-        assert_eq!(output(&mut s, 0), "< hi >");
+        let mut s = Session::new(SessionConfig::new("vcan0"), Nanos::ZERO);
+        assert_eq!(output(&mut s, Nanos::ZERO), "< hi >");
         s.receive(b"< open vcan0 >");
-        assert_eq!(s.poll_action(0), Some(Action::Join));
+        assert_eq!(s.poll_action(Nanos::ZERO), Some(Action::Join));
         assert_eq!(s.joined(Ok(7)), None);
-        assert_eq!(output(&mut s, 0), "< ok >");
+        assert_eq!(output(&mut s, Nanos::ZERO), "< ok >");
         s.receive(b"< rawmode >");
-        assert_eq!(s.poll_action(0), None);
-        assert_eq!(output(&mut s, 0), "< ok >");
+        assert_eq!(s.poll_action(Nanos::ZERO), None);
+        assert_eq!(output(&mut s, Nanos::ZERO), "< ok >");
         s
     }
 
@@ -581,17 +581,29 @@ mod tests {
     fn handshake_then_frames_both_ways() {
         let mut s = raw_session();
         s.receive(b"< send 123 2 11 22 >< send 7ff 0 >");
-        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#1122"))));
-        assert_eq!(s.poll_action(0), Some(Action::Send(frame("7FF#"))));
-        assert_eq!(s.poll_action(0), None);
+        assert_eq!(
+            s.poll_action(Nanos::ZERO),
+            Some(Action::Send(frame("123#1122")))
+        );
+        assert_eq!(
+            s.poll_action(Nanos::ZERO),
+            Some(Action::Send(frame("7FF#")))
+        );
+        assert_eq!(s.poll_action(Nanos::ZERO), None);
         // Frames wait 50 ms after the rawmode reply left, then go out.
-        assert!(s.deliver_frame(&frame("321#AA"), ts(1), 1_000));
+        assert!(s.deliver_frame(&frame("321#AA"), ts(1), Nanos::new(1_000)));
         assert!(!s.has_output());
-        assert_eq!(s.next_deadline(), Some(50_000_000));
-        assert_eq!(s.handle_timeout(50_000_000), None);
-        assert_eq!(output(&mut s, 50_000_000), "< frame 321 1.000000 AA >");
-        assert!(s.deliver_frame(&frame("1ABCDEF0#R2"), ts(2), 60_000_000));
-        assert_eq!(output(&mut s, 60_000_000), "< frame 1ABCDEF0 2.000000  >");
+        assert_eq!(s.next_deadline(), Some(Nanos::new(50_000_000)));
+        assert_eq!(s.handle_timeout(Nanos::new(50_000_000)), None);
+        assert_eq!(
+            output(&mut s, Nanos::new(50_000_000)),
+            "< frame 321 1.000000 AA >"
+        );
+        assert!(s.deliver_frame(&frame("1ABCDEF0#R2"), ts(2), Nanos::new(60_000_000)));
+        assert_eq!(
+            output(&mut s, Nanos::new(60_000_000)),
+            "< frame 1ABCDEF0 2.000000  >"
+        );
     }
 
     #[test]
@@ -599,24 +611,24 @@ mod tests {
         let mut plain = raw_session();
         let mut ext = raw_session();
         ext.receive(b"< buslab_ext >");
-        assert_eq!(ext.poll_action(0), None);
-        assert_eq!(output(&mut ext, 0), "< ok >");
+        assert_eq!(ext.poll_action(Nanos::ZERO), None);
+        assert_eq!(output(&mut ext, Nanos::ZERO), "< ok >");
         for text in ["123#0102030405060708", "1ABCDEF0#R2", "7FF#"] {
             let f = frame(text);
             for s in [&mut plain, &mut ext] {
-                assert!(s.deliver_frame(&f, ts(1), 60_000_000));
-                let direct = output(s, 60_000_000);
+                assert!(s.deliver_frame(&f, ts(1), Nanos::new(60_000_000)));
+                let direct = output(s, Nanos::new(60_000_000));
                 let once = FormattedFrame::new(&f, ts(1));
-                assert!(s.deliver_formatted(&once, 60_000_000));
-                assert_eq!(output(s, 60_000_000), direct, "{text}");
+                assert!(s.deliver_formatted(&once, Nanos::new(60_000_000)));
+                assert_eq!(output(s, Nanos::new(60_000_000)), direct, "{text}");
             }
         }
         ext.deliver_formatted(
             &FormattedFrame::new(&frame("1ABCDEF0#R2"), ts(2)),
-            60_000_000,
+            Nanos::new(60_000_000),
         );
         assert_eq!(
-            output(&mut ext, 60_000_000),
+            output(&mut ext, Nanos::new(60_000_000)),
             "< frame 1ABCDEF0 2.000000 R2 >"
         );
     }
@@ -626,26 +638,32 @@ mod tests {
         let mut s = raw_session();
         s.receive(b"< buslab_status >< send 123 0 >");
         assert_eq!(
-            s.poll_action(0),
+            s.poll_action(Nanos::ZERO),
             Some(Action::Request(Command::Status(None)))
         );
         assert!(!s.wants_input());
-        assert_eq!(s.poll_action(0), None, "waits for the reply");
+        assert_eq!(s.poll_action(Nanos::ZERO), None, "waits for the reply");
         s.reply(&ServerMessage::Other {
             name: "buslab_status".into(),
             args: vec!["7".into()],
         });
-        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#"))));
-        assert_eq!(output(&mut s, 0), "< buslab_status 7 >");
+        assert_eq!(
+            s.poll_action(Nanos::ZERO),
+            Some(Action::Send(frame("123#")))
+        );
+        assert_eq!(output(&mut s, Nanos::ZERO), "< buslab_status 7 >");
     }
 
     #[test]
     fn a_flush_does_not_hold_up_the_commands_after_it() {
         let mut s = raw_session();
         s.receive(b"< buslab_flush >< buslab_status >");
-        assert_eq!(s.poll_action(0), Some(Action::Request(Command::Flush)));
         assert_eq!(
-            s.poll_action(0),
+            s.poll_action(Nanos::ZERO),
+            Some(Action::Request(Command::Flush))
+        );
+        assert_eq!(
+            s.poll_action(Nanos::ZERO),
             Some(Action::Request(Command::Status(None)))
         );
     }
@@ -654,47 +672,47 @@ mod tests {
     fn garbage_gets_one_error_per_element_and_the_session_goes_on() {
         let mut s = raw_session();
         s.receive(b"junk< nonsense >< send 123 9 >< echo >");
-        assert_eq!(s.poll_action(0), None);
-        let text = output(&mut s, 0);
+        assert_eq!(s.poll_action(Nanos::ZERO), None);
+        let text = output(&mut s, Nanos::ZERO);
         assert_eq!(text.matches("< error").count(), 3, "{text}");
         assert!(text.ends_with("< echo >"), "{text}");
     }
 
     #[test]
     fn the_wrong_bus_and_a_failed_join_close_the_connection() {
-        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
+        let mut s = Session::new(SessionConfig::new("vcan0"), Nanos::ZERO);
         s.receive(b"< open can9 >");
-        assert_eq!(s.poll_action(0), Some(Action::Close));
-        assert!(output(&mut s, 0).ends_with("< error could not open bus >"));
+        assert_eq!(s.poll_action(Nanos::ZERO), Some(Action::Close));
+        assert!(output(&mut s, Nanos::ZERO).ends_with("< error could not open bus >"));
         assert!(s.is_closing());
-        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
+        let mut s = Session::new(SessionConfig::new("vcan0"), Nanos::ZERO);
         s.receive(b"< open vcan0 >");
-        assert_eq!(s.poll_action(0), Some(Action::Join));
+        assert_eq!(s.poll_action(Nanos::ZERO), Some(Action::Join));
         assert_eq!(s.joined(Err("the bus is full".into())), Some(Action::Close));
-        assert!(output(&mut s, 0).ends_with("< error the bus is full >"));
+        assert!(output(&mut s, Nanos::ZERO).ends_with("< error the bus is full >"));
     }
 
     #[test]
     fn a_client_that_never_opens_is_closed_after_the_timeout() {
         let mut config = SessionConfig::new("vcan0");
-        config.open_timeout_ns = 1_000;
-        let mut s = Session::new(config, 10);
-        assert_eq!(s.next_deadline(), Some(1_010));
-        assert_eq!(s.handle_timeout(1_009), None);
-        assert_eq!(s.handle_timeout(1_010), Some(Action::Close));
-        assert!(output(&mut s, 0).contains("the bus was not opened in time"));
+        config.open_timeout_ns = Nanos::new(1_000);
+        let mut s = Session::new(config, Nanos::new(10));
+        assert_eq!(s.next_deadline(), Some(Nanos::new(1_010)));
+        assert_eq!(s.handle_timeout(Nanos::new(1_009)), None);
+        assert_eq!(s.handle_timeout(Nanos::new(1_010)), Some(Action::Close));
+        assert!(output(&mut s, Nanos::ZERO).contains("the bus was not opened in time"));
     }
 
     #[test]
     fn a_client_that_does_not_read_loses_frames_beyond_its_output_limit() {
         let mut s = raw_session();
-        s.handle_timeout(u64::MAX / 2);
+        s.handle_timeout(Nanos::MAX / 2);
         let mut config = SessionConfig::new("vcan0");
         config.max_output = 100;
         s.config = config;
         let mut delivered = 0;
         for _ in 0..10 {
-            delivered += s.deliver_frame(&frame("123#11"), ts(1), u64::MAX / 2) as u32;
+            delivered += s.deliver_frame(&frame("123#11"), ts(1), Nanos::MAX / 2) as u32;
         }
         assert!(delivered > 0 && delivered < 10);
         assert_eq!(s.dropped(), 10 - delivered as u64);
@@ -704,7 +722,7 @@ mod tests {
     fn garbage_from_a_client_that_does_not_read_is_answered_within_the_output_limit() {
         let mut config = SessionConfig::new("vcan0");
         config.max_output = 4096;
-        let mut s = Session::new(config, 0);
+        let mut s = Session::new(config, Nanos::ZERO);
         // A megabyte of malformed elements, read as fast as the host can: one error each
         // until 4 KiB of replies wait, then none; input stops being wanted.
         let garbage = b"<x>".repeat(350_000);
@@ -713,20 +731,20 @@ mod tests {
             let end = (fed + 16 * 1024).min(garbage.len());
             s.receive(&garbage[fed..end]);
             fed = end;
-            assert_eq!(s.poll_action(0), None);
+            assert_eq!(s.poll_action(Nanos::ZERO), None);
         }
         assert!(s.out.len() < 4096 + 100, "{} bytes of replies", s.out.len());
         assert!(!s.wants_input());
         assert!(s.errors_dropped() > 0);
         // Once the client reads, it is served again.
-        output(&mut s, 0);
+        output(&mut s, Nanos::ZERO);
         assert!(s.wants_input());
         // A run of junk is one error, however long: a megabyte of `>`.
         let mut s = raw_session();
         s.receive(&vec![b'>'; 1 << 20]);
         s.receive(b"< echo >");
-        assert_eq!(s.poll_action(0), None);
-        let text = output(&mut s, 0);
+        assert_eq!(s.poll_action(Nanos::ZERO), None);
+        let text = output(&mut s, Nanos::ZERO);
         assert_eq!(text.matches("< error").count(), 1, "{text}");
         assert!(text.ends_with("< echo >"), "{text}");
     }
@@ -736,19 +754,22 @@ mod tests {
         // python-can's `with can.Bus(…) as bus: bus.send(…)`: the frame and the close come
         // together. The host learns of the close first (no more output), reads the rest.
         let mut s = raw_session();
-        s.deliver_frame(&frame("321#AA"), ts(1), 0);
+        s.deliver_frame(&frame("321#AA"), ts(1), Nanos::ZERO);
         s.close_output();
         assert!(!s.has_output(), "nothing waits for a client that left");
-        assert!(s.deliver_frame(&frame("321#BB"), ts(1), 0));
+        assert!(s.deliver_frame(&frame("321#BB"), ts(1), Nanos::ZERO));
         assert!(!s.has_output());
         assert!(s.wants_input(), "what it sent before it left is still read");
         s.receive(b"< send 123 1 01 >< buslab_status >< send 124 0 >< send 125 2 0");
         s.finish_input();
         assert!(!s.wants_input());
         assert!(!s.is_drained());
-        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#01"))));
         assert_eq!(
-            s.poll_action(0),
+            s.poll_action(Nanos::ZERO),
+            Some(Action::Send(frame("123#01")))
+        );
+        assert_eq!(
+            s.poll_action(Nanos::ZERO),
             Some(Action::Request(Command::Status(None)))
         );
         s.reply(&ServerMessage::Ok);
@@ -756,19 +777,22 @@ mod tests {
             !s.has_output(),
             "replies to a client that left are not queued"
         );
-        assert_eq!(s.poll_action(0), Some(Action::Send(frame("124#"))));
         assert_eq!(
-            s.poll_action(0),
+            s.poll_action(Nanos::ZERO),
+            Some(Action::Send(frame("124#")))
+        );
+        assert_eq!(
+            s.poll_action(Nanos::ZERO),
             Some(Action::Unfinished {
                 excerpt: "< send 125 2 0".into(),
                 bytes: 14
             })
         );
         assert!(s.is_drained());
-        assert_eq!(s.poll_action(0), None);
+        assert_eq!(s.poll_action(Nanos::ZERO), None);
         // Bytes after the end are not taken.
         s.receive(b"< send 126 0 >");
-        assert_eq!(s.poll_action(0), None);
+        assert_eq!(s.poll_action(Nanos::ZERO), None);
     }
 
     #[test]
@@ -776,8 +800,11 @@ mod tests {
         let mut s = raw_session();
         s.receive(b"< send 123 0 >\n");
         s.finish_input();
-        assert_eq!(s.poll_action(0), Some(Action::Send(frame("123#"))));
-        assert_eq!(s.poll_action(0), None);
+        assert_eq!(
+            s.poll_action(Nanos::ZERO),
+            Some(Action::Send(frame("123#")))
+        );
+        assert_eq!(s.poll_action(Nanos::ZERO), None);
         assert!(s.is_drained());
     }
 
@@ -789,24 +816,28 @@ mod tests {
         // The whole burst at once, then one more every 50 ms (20 per second).
         for k in 0..FAULT_RATE.max + 1 {
             s.receive(fault);
-            match s.poll_action(1_000) {
+            match s.poll_action(Nanos::new(1_000)) {
                 Some(Action::Request(Command::Fault { .. })) => s.reply(&ServerMessage::Ok),
                 None => refused.push(k),
                 other => panic!("{other:?}"),
             }
         }
         assert_eq!(refused, [FAULT_RATE.max]);
-        let text = output(&mut s, 1_000);
+        let text = output(&mut s, Nanos::new(1_000));
         assert!(
             text.ends_with("< buslab_refused fault rate max=20 per_ms=1000 retry_ms=50 >"),
             "{text}"
         );
         s.receive(fault);
-        assert_eq!(s.poll_action(1_000 + 49_999_999), None, "not yet");
-        assert!(output(&mut s, 0).contains("retry_ms=1 "));
+        assert_eq!(
+            s.poll_action(Nanos::new(1_000) + Nanos::new(49_999_999)),
+            None,
+            "not yet"
+        );
+        assert!(output(&mut s, Nanos::ZERO).contains("retry_ms=1 "));
         s.receive(fault);
         assert!(matches!(
-            s.poll_action(1_000 + 50_000_000),
+            s.poll_action(Nanos::new(1_000) + Nanos::new(50_000_000)),
             Some(Action::Request(Command::Fault { .. }))
         ));
         s.reply(&ServerMessage::Ok);
@@ -814,20 +845,20 @@ mod tests {
         for _ in 0..FAULT_RATE.max {
             s.receive(fault);
             assert!(matches!(
-                s.poll_action(2_100_000_000),
+                s.poll_action(Nanos::new(2_100_000_000)),
                 Some(Action::Request(Command::Fault { .. }))
             ));
             s.reply(&ServerMessage::Ok);
         }
         s.receive(fault);
-        assert_eq!(s.poll_action(2_100_000_000), None);
+        assert_eq!(s.poll_action(Nanos::new(2_100_000_000)), None);
     }
 
     #[test]
     fn frames_before_rawmode_are_not_delivered() {
-        let mut s = Session::new(SessionConfig::new("vcan0"), 0);
-        output(&mut s, 0);
-        assert!(s.deliver_frame(&frame("123#"), ts(0), 0));
+        let mut s = Session::new(SessionConfig::new("vcan0"), Nanos::ZERO);
+        output(&mut s, Nanos::ZERO);
+        assert!(s.deliver_frame(&frame("123#"), ts(0), Nanos::ZERO));
         assert!(!s.has_output());
     }
 }

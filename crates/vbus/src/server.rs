@@ -330,7 +330,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
     let mut session_config = SessionConfig::new(config.channel.clone());
     // A raw-mode frame line is typically 40 to 50 bytes.
     session_config.max_output = config.client_queue * 48;
-    session_config.open_timeout_ns = config.open_timeout.as_nanos().min(u64::MAX as u128) as u64;
+    session_config.open_timeout_ns = buslab_can::Nanos::from(config.open_timeout);
     session_config.fault_rate = config.fault_rate;
     let server = Server {
         poll,
@@ -472,7 +472,7 @@ struct Client {
     peer: SocketAddr,
     session: Session,
     /// When it connected (ns since the server started).
-    accepted: u64,
+    accepted: buslab_can::Nanos,
     /// Readiness not used up yet (mio is edge-triggered).
     readable: bool,
     writable: bool,
@@ -649,8 +649,8 @@ impl Server {
     }
 
     /// Nanoseconds since the server started (the sessions' clock).
-    fn now_ns(&self) -> u64 {
-        self.epoch.elapsed().as_nanos() as u64
+    fn now_ns(&self) -> buslab_can::Nanos {
+        buslab_can::Nanos::from(self.epoch.elapsed())
     }
 
     /// The bit-time the bus should have reached by now.
@@ -872,7 +872,7 @@ impl Server {
         let now_ns = self.now_ns();
         for c in self.clients.iter().flatten() {
             if let Some(d) = c.session.next_deadline() {
-                let d = Duration::from_nanos(d.saturating_sub(now_ns));
+                let d = d.saturating_sub(now_ns).as_duration();
                 wait = Some(wait.map_or(d, |w| w.min(d)));
             }
             // Room in the node's queue and finished frames come with frames ending on the wire.
@@ -936,7 +936,7 @@ impl Server {
             .iter()
             .flatten()
             .filter_map(|c| c.session.next_deadline())
-            .map(|d| Duration::from_nanos(d.saturating_sub(now_ns)))
+            .map(|d| d.saturating_sub(now_ns).as_duration())
             .min();
         if let Some(b) = &self.beacon {
             let d = b.next.saturating_duration_since(Instant::now());
@@ -1467,7 +1467,7 @@ fn deliver_error(
     session: &mut Session,
     e: &TimedErrorFrame,
     timestamp: Timestamp,
-    now_ns: u64,
+    now_ns: buslab_can::Nanos,
 ) -> bool {
     let (class, data) = e.frame.encode();
     session.deliver_error_frame(class, &data, timestamp, now_ns)

@@ -345,7 +345,7 @@ impl Chip {
         let frame = LineFrame {
             data: byte,
             ninth: None,
-            bit_clocks: BIT_CLOCKS,
+            bit_clocks: Clocks(BIT_CLOCKS),
         };
         if self.core.send_rxd(start, frame).is_err() {
             self.stats.lost_inputs += 1;
@@ -827,5 +827,5 @@ impl Chip {
 /// bit (mode 3) of 1, read as the first stop bit.
 fn readable(frame: &SerialFrame) -> bool {
     let mode = matches!(frame.mode, SerialMode::Mode1 | SerialMode::Mode3);
-    mode && frame.ninth != Some(false) && frame.bit_clocks().abs_diff(BIT_CLOCKS) <= BIT_TOLERANCE
+    mode && frame.ninth != Some(false) && frame.bit_clocks().0.abs_diff(BIT_CLOCKS) <= BIT_TOLERANCE
 }
