@@ -3,8 +3,8 @@
 the ZELLE cell, the CPU196 board) while a host keeps each line as busy as its protocol lets it,
 on an idle machine and with busy loops (`yes > /dev/null`) competing for the CPU.
 
-Usage: python3 bench/served_lines.py [--seconds 10] [--busy 4] [--zelle-ahead 128]
-                                     [--cpu196-ahead 2] [--buslab BIN]
+Usage: python3 bench/served_lines.py [--seconds 10] [--busy 4] [--zelle-ahead 256]
+                                     [--cpu196-ahead 16] [--buslab BIN]
        (default BIN: target/release/buslab, built with `cargo build --release -p buslab`)
 
 One `buslab lab -q --no-web --dir DIR` serves the three lines on pseudo-terminals (DIR/monican
@@ -17,15 +17,15 @@ no busy loop, then with `--busy` of them, in the same run:
   always queued. MoniCAN also writes every CAN frame it sees to the screen, so its line is
   near full even without a key. A redraw reaches the PTY whole once its line time is over
   (crates/served/src/ppc.rs), hence reads of ~1360 bytes.
-- ZELLE: command 2 (read the data area), the 50 ms set-up pause, then `1` per byte with 128
+- ZELLE: command 2 (read the data area), the 50 ms set-up pause, then `1` per byte with 256
   requests ahead of the replies (the 30 KiB data area outlasts the window), as `buslab zelle
   dump` does.
-- CPU196: PRGFLASH block reads (`F5 0A 00 bank block`, 259-byte reply), two ahead, as
+- CPU196: PRGFLASH block reads (`F5 0A 00 bank block`, 259-byte reply), sixteen ahead, as
   `buslab cpu196 flash read` does.
 
 The client here is Python and competes with the busy loops too: once it is descheduled for
-longer than its requests ahead last on the line (128 ZELLE bytes = 147 ms, two CPU196 blocks =
-45 ms), the device idles for want of a request, which is the client's doing. `--zelle-ahead` and
+longer than its requests ahead last on the line (256 ZELLE bytes = 293 ms, sixteen CPU196 blocks =
+364 ms), the device idles for want of a request, which is the client's doing. `--zelle-ahead` and
 `--cpu196-ahead` deepen the windows to take the client out of the measurement.
 
 Each line is read continuously; the first second is warm-up (the ZELLE set-up pause, the
@@ -143,7 +143,7 @@ class MoniCan:
 
 class Zelle:
     name, baud, stop_bits = "ZELLE cell", 9600, 2
-    AHEAD = 128  # buslab_zelle::client::WINDOW
+    AHEAD = 256  # buslab_zelle::client::WINDOW
     DATA_AREA = 0x8000 - 0x0800
 
     def start(self, fd):
@@ -179,7 +179,7 @@ class Zelle:
 
 class Cpu196:
     name, baud, stop_bits = "CPU196 board", 115200, 1
-    AHEAD = 2
+    AHEAD = 16  # buslab_cpu196::host::FLASH_READ_AHEAD
     REPLY = 259
 
     def start(self, fd):

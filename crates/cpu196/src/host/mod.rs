@@ -23,6 +23,13 @@ use crate::image::{BootConfig, encrypt_serial};
 use crate::message::*;
 use crate::wire::{FLASH_BLOCK, PIC_BLOCK, PIC_EEPROM};
 
+/// Flash block reads kept on the line ahead of the replies in [`Client::flash_read_bank`]:
+/// sixteen 262-byte replies are 364 ms of a 115200 baud line, which outlasts the round trips of
+/// a loaded host (with 4 busy loops on 2 cores two ahead, 45 ms, delivered 81 to 87 % of the
+/// line rate, eight, 182 ms, 91 to 99.6 %: stalls of up to 190 ms remained; docs/lab.md). The
+/// board queues replies far beyond that (`board::TX_BACKLOG`, 64 KiB).
+pub const FLASH_READ_AHEAD: usize = 16;
+
 /// How many times [`Client::pic_write`] writes a block the board timed out on.
 pub const PIC_WRITE_ATTEMPTS: u32 = 3;
 
@@ -348,14 +355,14 @@ impl<P: Port> Client<P> {
         )
     }
 
-    /// Reads a whole bank (256 blocks). Requests are pipelined, two ahead, so the board's
-    /// transmitter never waits for the next request.
+    /// Reads a whole bank (256 blocks). Requests are pipelined, [`FLASH_READ_AHEAD`] ahead, so
+    /// the board's transmitter never waits for the next request.
     pub fn flash_read_bank(
         &mut self,
         bank: u8,
         progress: &mut dyn FnMut(usize),
     ) -> Result<Vec<u8>, ClientError> {
-        const AHEAD: usize = 2;
+        const AHEAD: usize = FLASH_READ_AHEAD;
         let mut out = Vec::with_capacity(256 * FLASH_BLOCK);
         let mut asked = 0usize;
         while asked < AHEAD {
