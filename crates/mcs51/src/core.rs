@@ -25,8 +25,6 @@ use crate::timers::Timers;
 use crate::uart::Uart;
 use crate::{Bus, Clocks};
 
-const NEVER: Clocks = Clocks::NEVER;
-
 /// Bytes of internal RAM (an 8051: 00h..7Fh).
 pub const IRAM_SIZE: usize = 128;
 
@@ -108,7 +106,7 @@ impl Mcs51 {
             now: Clocks::ZERO,
             next_event: Clocks::ZERO,
             limit: Clocks::ZERO,
-            next_internal: NEVER,
+            next_internal: Clocks::NEVER,
             ports: Ports::new(),
             inputs: Inputs::default(),
             timers: Timers::new(Clocks::ZERO),
@@ -227,7 +225,7 @@ impl Mcs51 {
         if self.powered_down {
             None
         } else if self.idle {
-            (self.next_internal != NEVER).then_some(self.next_internal)
+            (self.next_internal != Clocks::NEVER).then_some(self.next_internal)
         } else {
             Some(self.now)
         }
@@ -765,7 +763,7 @@ impl Mcs51 {
 
     fn irq_at(&self) -> Clocks {
         if self.irq.ie & ie::EA == 0 {
-            NEVER
+            Clocks::NEVER
         } else {
             self.irq.earliest(&self.flags())
         }
@@ -826,7 +824,11 @@ impl Mcs51 {
                 self.next_event = Clocks::ZERO;
                 return Some(Stop::Limit);
             }
-            let irq_at = if self.irq_block { NEVER } else { self.irq_at() };
+            let irq_at = if self.irq_block {
+                Clocks::NEVER
+            } else {
+                self.irq_at()
+            };
             if irq_at <= self.now {
                 let flags = self.flags();
                 if let Some((source, high)) = self.irq.choose(&flags, self.now) {
