@@ -21,12 +21,9 @@ use crate::interrupts::{Flags, Interrupts, Source};
 use crate::pins::InputError;
 use crate::pins::{Inputs, Pin, Port, Ports, p3};
 use crate::sfr::{self, ie, pcon, scon, tcon};
-use crate::time::CLOCKS_PER_CYCLE;
 use crate::timers::Timers;
 use crate::uart::Uart;
 use crate::{Bus, Clocks};
-
-const NEVER: u64 = u64::MAX;
 
 /// Bytes of internal RAM (an 8051: 00h..7Fh).
 pub const IRAM_SIZE: usize = 128;
@@ -65,19 +62,19 @@ pub struct Mcs51 {
     /// Instructions run since the core was made.
     pub(crate) instructions: u64,
     /// The current instruction boundary (during an instruction: its end).
-    pub(crate) now: u64,
+    pub(crate) now: Clocks,
     /// The hot loop looks around when `now` reaches this.
-    pub(crate) next_event: u64,
-    limit: u64,
+    pub(crate) next_event: Clocks,
+    limit: Clocks,
     /// The next instant a peripheral or an announced input needs attention.
-    next_internal: u64,
+    next_internal: Clocks,
     pub(crate) ports: Ports,
     inputs: Inputs,
     pub(crate) timers: Timers,
     pub(crate) uart: Uart,
     pub(crate) irq: Interrupts,
     /// Start of the cycle IE0 / IE1 was last set in.
-    since_ext: [u64; 2],
+    since_ext: [Clocks; 2],
     pub(crate) pcon: u8,
     idle: bool,
     powered_down: bool,
@@ -106,16 +103,16 @@ impl Mcs51 {
             dptr: 0,
             iram: [0; IRAM_SIZE],
             instructions: 0,
-            now: 0,
-            next_event: 0,
-            limit: 0,
-            next_internal: NEVER,
+            now: Clocks::ZERO,
+            next_event: Clocks::ZERO,
+            limit: Clocks::ZERO,
+            next_internal: Clocks::NEVER,
             ports: Ports::new(),
             inputs: Inputs::default(),
-            timers: Timers::new(0),
-            uart: Uart::new(0, 0),
+            timers: Timers::new(Clocks::ZERO),
+            uart: Uart::new(Clocks::ZERO, 0),
             irq: Interrupts::default(),
-            since_ext: [0; 2],
+            since_ext: [Clocks::ZERO; 2],
             pcon: 0,
             idle: false,
             powered_down: false,
@@ -146,14 +143,14 @@ impl Mcs51 {
         self.timers = Timers::new(self.now);
         self.uart = Uart::new(self.now, 0);
         self.irq = Interrupts::default();
-        self.since_ext = [0; 2];
+        self.since_ext = [Clocks::ZERO; 2];
         self.pcon = 0;
         self.idle = false;
         self.powered_down = false;
         self.irq_block = false;
         self.refresh_level_interrupts(self.now);
         self.reschedule();
-        self.next_event = 0;
+        self.next_event = Clocks::ZERO;
     }
 
     // ----- running -------------------------------------------------------------------------
@@ -162,8 +159,8 @@ impl Mcs51 {
     /// the program counter enters the trap range, or the core powers down. Interrupts are
     /// taken, and IDLE waits for them, on the way.
     pub fn run<B: Bus>(&mut self, bus: &mut B, until: Clocks) -> Stop {
-        self.limit = until.0;
-        self.next_event = 0;
+        self.limit = until;
+        self.next_event = Clocks::ZERO;
         loop {
             if self.now >= self.next_event {
                 if let Some(stop) = self.service() {
@@ -182,7 +179,7 @@ impl Mcs51 {
 
     /// Runs one instruction (or enters one interrupt routine, or idles one cycle).
     pub fn step<B: Bus>(&mut self, bus: &mut B) -> Stop {
-        self.run(bus, Clocks(self.now + 1))
+        self.run(bus, self.now + Clocks(1))
     }
 
     /// Lets time pass to `until` without running instructions or taking interrupts, the
@@ -191,18 +188,18 @@ impl Mcs51 {
     pub fn stall(&mut self, until: Clocks) -> Stop {
         loop {
             if self.powered_down {
-                self.power_down_until(until.0);
+                self.power_down_until(until);
                 return Stop::PowerDown;
             }
             self.catch_up(self.now);
             if !self.events.is_empty() {
-                self.next_event = 0;
+                self.next_event = Clocks::ZERO;
                 return Stop::Events;
             }
-            if self.now >= until.0 {
+            if self.now >= until {
                 return Stop::Limit;
             }
-            self.now = next_boundary(self.now, self.next_internal.min(until.0));
+            self.now = next_boundary(self.now, self.next_internal.min(until));
         }
     }
 
@@ -213,7 +210,7 @@ impl Mcs51 {
 
     /// The time: the current instruction boundary.
     pub fn now(&self) -> Clocks {
-        Clocks(self.now)
+        self.now
     }
 
     /// Instructions run since the core was made (resets do not clear it).
@@ -228,9 +225,9 @@ impl Mcs51 {
         if self.powered_down {
             None
         } else if self.idle {
-            (self.next_internal != NEVER).then_some(Clocks(self.next_internal))
+            (self.next_internal != Clocks::NEVER).then_some(self.next_internal)
         } else {
-            Some(Clocks(self.now))
+            Some(self.now)
         }
     }
 
@@ -313,7 +310,7 @@ impl Mcs51 {
             self.p3_changed(self.now, before, after);
         }
         self.reschedule();
-        self.next_event = 0;
+        self.next_event = Clocks::ZERO;
     }
 
     /// Puts `frame` on RxD starting at `at` (the start bit's leading edge): start bit, data
@@ -335,7 +332,7 @@ impl Mcs51 {
         let mut change = |core: &mut Mcs51, bit: u64, high: bool| {
             if high != level {
                 level = high;
-                let t = Clocks(at.0.saturating_add(bit * frame.bit_clocks.0));
+                let t = at + frame.bit_clocks * bit;
                 core.inputs
                     .push(
                         t,
@@ -353,14 +350,12 @@ impl Mcs51 {
         }
         change(self, 1 + data_bits, true);
         self.after_input();
-        Ok(Clocks(
-            at.0.saturating_add((2 + data_bits) * frame.bit_clocks.0),
-        ))
+        Ok(at + frame.bit_clocks * (2 + data_bits))
     }
 
     fn after_input(&mut self) {
         self.next_internal = self.next_internal.min(self.inputs.next_at());
-        self.next_event = 0;
+        self.next_event = Clocks::ZERO;
     }
 
     // ----- looking inside ------------------------------------------------------------------
@@ -476,7 +471,7 @@ impl Mcs51 {
         self.ret();
         self.irq.reti();
         self.irq_block = true;
-        self.next_event = 0;
+        self.next_event = Clocks::ZERO;
     }
 
     /// Whether the UART is sending: SBUF was written and the frame's TI is not set yet.
@@ -509,7 +504,7 @@ impl Mcs51 {
 
     /// Reads SFR `addr` at `at`: ports give their pins, or with `latch` their latch (the
     /// read-modify-write instructions).
-    pub(crate) fn sfr_read(&mut self, addr: u8, latch: bool, at: u64) -> u8 {
+    pub(crate) fn sfr_read(&mut self, addr: u8, latch: bool, at: Clocks) -> u8 {
         match addr {
             sfr::ACC => self.a,
             sfr::B => self.b,
@@ -550,7 +545,7 @@ impl Mcs51 {
     }
 
     /// Writes SFR `addr` at `at`.
-    pub(crate) fn sfr_write(&mut self, addr: u8, value: u8, at: u64) {
+    pub(crate) fn sfr_write(&mut self, addr: u8, value: u8, at: Clocks) {
         match addr {
             sfr::ACC => self.a = value,
             sfr::B => self.b = value,
@@ -563,7 +558,7 @@ impl Mcs51 {
     }
 
     #[inline(never)]
-    fn sfr_write_peripheral(&mut self, addr: u8, value: u8, at: u64) {
+    fn sfr_write_peripheral(&mut self, addr: u8, value: u8, at: Clocks) {
         self.catch_up_fully(at);
         match addr {
             sfr::P0 => self.set_latch(Port::P0, value, at),
@@ -603,35 +598,35 @@ impl Mcs51 {
             _ => {}
         }
         self.reschedule();
-        self.next_event = 0;
+        self.next_event = Clocks::ZERO;
     }
 
     /// A `MOVX`: port 0 carries the address and data, which leaves 1s in its latch.
     #[inline]
-    pub(crate) fn external_access(&mut self, at: u64) {
+    pub(crate) fn external_access(&mut self, at: Clocks) {
         if self.ports.latch[0] != 0xFF {
             self.set_latch(Port::P0, 0xFF, at);
         }
     }
 
-    fn set_latch(&mut self, port: Port, value: u8, at: u64) {
+    fn set_latch(&mut self, port: Port, value: u8, at: Clocks) {
         let latch = &mut self.ports.latch[port.index()];
         if *latch != value {
             *latch = value;
             self.push_event(Event::Port {
                 port,
                 latch: value,
-                at: Clocks(at),
+                at,
             });
         }
     }
 
     pub(crate) fn push_event(&mut self, event: Event) {
         self.events.push_back(event);
-        self.next_event = 0;
+        self.next_event = Clocks::ZERO;
     }
 
-    fn write_tcon(&mut self, value: u8, at: u64) {
+    fn write_tcon(&mut self, value: u8, at: Clocks) {
         let old = self.timers.tcon;
         self.timers.tcon = value;
         for (t, flag) in [tcon::TF0, tcon::TF1].into_iter().enumerate() {
@@ -648,9 +643,9 @@ impl Mcs51 {
     }
 
     /// In level mode (ITx clear) IEx is the inverse of the INTx pin, whatever was written.
-    fn refresh_level_interrupts(&mut self, at: u64) {
+    fn refresh_level_interrupts(&mut self, at: Clocks) {
         let pins = self.ports.pins(3);
-        let cycle = at - at % CLOCKS_PER_CYCLE;
+        let cycle = at.cycle_start();
         for (it, flag, pin, x) in [
             (tcon::IT0, tcon::IE0, p3::INT0, 0),
             (tcon::IT1, tcon::IE1, p3::INT1, 1),
@@ -671,11 +666,11 @@ impl Mcs51 {
     }
 
     /// P3's pins went from `before` to `after`, sampled at `at` (peripherals synced to `at`).
-    fn p3_changed(&mut self, at: u64, before: u8, after: u8) {
+    fn p3_changed(&mut self, at: Clocks, before: u8, after: u8) {
         if before == after {
             return;
         }
-        let cycle = at - at % CLOCKS_PER_CYCLE;
+        let cycle = at.cycle_start();
         let fell = before & !after;
         for (it, flag, pin, x) in [
             (tcon::IT0, tcon::IE0, p3::INT0, 0),
@@ -707,7 +702,7 @@ impl Mcs51 {
 
     // ----- inside: peripherals -------------------------------------------------------------
 
-    fn sync(&mut self, t: u64) {
+    fn sync(&mut self, t: Clocks) {
         let pins = self.ports.pins(3);
         self.timers.sync(t, pins);
         self.uart.sync(t, self.timers.t1_overflows);
@@ -715,7 +710,7 @@ impl Mcs51 {
 
     /// Handles everything due by `to`, in time order. Flags and events are then as they are at
     /// `to`; counts (timer registers, baud ticks) only where something was due.
-    pub(crate) fn catch_up(&mut self, to: u64) {
+    pub(crate) fn catch_up(&mut self, to: Clocks) {
         while self.next_internal <= to {
             let t = self.next_internal;
             self.sync(t);
@@ -734,7 +729,7 @@ impl Mcs51 {
 
     /// Brings the peripherals up to `to` entirely, counts included: before the program reads
     /// or writes one of their registers.
-    fn catch_up_fully(&mut self, to: u64) {
+    fn catch_up_fully(&mut self, to: Clocks) {
         self.catch_up(to);
         self.sync(to);
     }
@@ -766,9 +761,9 @@ impl Mcs51 {
         ]
     }
 
-    fn irq_at(&self) -> u64 {
+    fn irq_at(&self) -> Clocks {
         if self.irq.ie & ie::EA == 0 {
-            NEVER
+            Clocks::NEVER
         } else {
             self.irq.earliest(&self.flags())
         }
@@ -780,7 +775,7 @@ impl Mcs51 {
         self.push(lo);
         self.push(hi);
         self.pc = source.vector();
-        self.now += 2 * CLOCKS_PER_CYCLE;
+        self.now += Clocks::from_cycles(2);
         self.irq.enter(high);
         let tcon = &mut self.timers.tcon;
         match source {
@@ -799,9 +794,9 @@ impl Mcs51 {
 
     /// Time passes to `until` with the oscillator stopped: pins still change, nothing counts
     /// or samples them.
-    fn power_down_until(&mut self, until: u64) {
+    fn power_down_until(&mut self, until: Clocks) {
         self.catch_up_fully(self.now);
-        let to = self.now.max(round_up(until));
+        let to = self.now.max(until.round_up_to_cycle());
         while let Some(input) = self.inputs.pop_due(to) {
             self.apply_levels(input.port, input.mask, input.levels);
         }
@@ -822,14 +817,18 @@ impl Mcs51 {
             }
             self.catch_up(self.now);
             if !self.events.is_empty() {
-                self.next_event = 0;
+                self.next_event = Clocks::ZERO;
                 return Some(Stop::Events);
             }
             if self.now >= self.limit {
-                self.next_event = 0;
+                self.next_event = Clocks::ZERO;
                 return Some(Stop::Limit);
             }
-            let irq_at = if self.irq_block { NEVER } else { self.irq_at() };
+            let irq_at = if self.irq_block {
+                Clocks::NEVER
+            } else {
+                self.irq_at()
+            };
             if irq_at <= self.now {
                 let flags = self.flags();
                 if let Some((source, high)) = self.irq.choose(&flags, self.now) {
@@ -844,7 +843,7 @@ impl Mcs51 {
                 continue;
             }
             self.next_event = if self.irq_block {
-                self.now + 1
+                self.now + Clocks(1)
             } else {
                 self.next_internal.min(irq_at).min(self.limit)
             };
@@ -853,14 +852,7 @@ impl Mcs51 {
     }
 }
 
-/// The first cycle boundary at or after `t`.
-fn round_up(t: u64) -> u64 {
-    t.div_ceil(CLOCKS_PER_CYCLE)
-        .saturating_mul(CLOCKS_PER_CYCLE)
-        .min(u64::MAX - u64::MAX % CLOCKS_PER_CYCLE)
-}
-
 /// The boundary to jump to from `now` when nothing happens before `t`: at least one cycle on.
-fn next_boundary(now: u64, t: u64) -> u64 {
-    round_up(t).max(now.saturating_add(CLOCKS_PER_CYCLE))
+fn next_boundary(now: Clocks, t: Clocks) -> Clocks {
+    t.round_up_to_cycle().max(now + Clocks::CYCLE)
 }

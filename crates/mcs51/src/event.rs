@@ -86,7 +86,7 @@ impl SerialFrame {
     pub fn bit_clocks(&self) -> Clocks {
         match self.mode {
             SerialMode::Mode0 => Clocks::from_cycles(1),
-            _ => Clocks((self.end.0 - self.start.0) / self.bits()),
+            _ => (self.end - self.start) / self.bits(),
         }
     }
 

@@ -5,7 +5,6 @@ use crate::core::Mcs51;
 use crate::event::Event;
 use crate::opcodes::{CYCLES, RESERVED};
 use crate::sfr::psw::{AC, CY, OV};
-use crate::time::CLOCKS_PER_CYCLE;
 use crate::{Bus, Clocks};
 
 impl Mcs51 {
@@ -16,7 +15,7 @@ impl Mcs51 {
         let op = bus.code(self.pc);
         self.pc = self.pc.wrapping_add(1);
         self.instructions += 1;
-        self.now += u64::from(CYCLES[usize::from(op)]) * CLOCKS_PER_CYCLE;
+        self.now = self.now.plus_cycles(CYCLES[usize::from(op)]);
         match op {
             0x00 => {}
             // AJMP addr11
@@ -91,7 +90,7 @@ impl Mcs51 {
                 self.ret();
                 self.irq.reti();
                 self.irq_block = true;
-                self.next_event = 0;
+                self.next_event = Clocks::ZERO;
             }
             // ADD, ADDC, ORL, ANL, XRL, SUBB A,src
             0x24..=0x2F => {
@@ -218,7 +217,7 @@ impl Mcs51 {
             }
             RESERVED => self.push_event(Event::ReservedOpcode {
                 pc: self.pc.wrapping_sub(1),
-                at: Clocks(self.now - CLOCKS_PER_CYCLE),
+                at: self.access_at(),
             }),
             0xA6 | 0xA7 => {
                 let d = self.imm(bus);
@@ -316,24 +315,24 @@ impl Mcs51 {
             // MOVX
             0xE0 => {
                 let at = self.access_at();
-                self.a = bus.read_xdata(self.dptr, Clocks(at));
+                self.a = bus.read_xdata(self.dptr, at);
                 self.external_access(at);
             }
             0xE2 | 0xE3 => {
                 let at = self.access_at();
                 let addr = self.paged(op);
-                self.a = bus.read_xdata(addr, Clocks(at));
+                self.a = bus.read_xdata(addr, at);
                 self.external_access(at);
             }
             0xF0 => {
                 let at = self.access_at();
-                bus.write_xdata(self.dptr, self.a, Clocks(at));
+                bus.write_xdata(self.dptr, self.a, at);
                 self.external_access(at);
             }
             0xF2 | 0xF3 => {
                 let at = self.access_at();
                 let addr = self.paged(op);
-                bus.write_xdata(addr, self.a, Clocks(at));
+                bus.write_xdata(addr, self.a, at);
                 self.external_access(at);
             }
             0xE4 => self.a = 0,
@@ -390,8 +389,8 @@ impl Mcs51 {
 
     /// The start of the current instruction's last machine cycle.
     #[inline(always)]
-    fn access_at(&self) -> u64 {
-        self.now - CLOCKS_PER_CYCLE
+    fn access_at(&self) -> Clocks {
+        self.now - Clocks::CYCLE
     }
 
     #[inline(always)]

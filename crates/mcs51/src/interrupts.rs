@@ -10,12 +10,11 @@
 //! Among the requests that can be taken, a high-priority one (its IP bit set) wins, then the
 //! polling order IE0, TF0, IE1, TF1, RI/TI.
 
+use crate::Clocks;
 use crate::sfr::ie;
-use crate::time::CLOCKS_PER_CYCLE;
 
-const NEVER: u64 = u64::MAX;
 /// From the start of the cycle a flag is set in to the earliest boundary it is taken at.
-const LATENCY: u64 = 2 * CLOCKS_PER_CYCLE;
+const LATENCY: Clocks = Clocks::from_cycles(2);
 const LOW: u8 = 1;
 const HIGH: u8 = 2;
 
@@ -65,7 +64,7 @@ pub(crate) struct Interrupts {
 
 /// The flags as they stand: for each source, the start of the cycle its flag was set in, if
 /// set.
-pub(crate) type Flags = [Option<u64>; 5];
+pub(crate) type Flags = [Option<Clocks>; 5];
 
 impl Interrupts {
     /// Whether `source` could interrupt now if its flag were polled: enabled, and no routine
@@ -84,26 +83,26 @@ impl Interrupts {
     }
 
     /// The earliest boundary at which some request can be taken.
-    pub fn earliest(&self, flags: &Flags) -> u64 {
+    pub fn earliest(&self, flags: &Flags) -> Clocks {
         Source::ALL
             .iter()
             .zip(flags)
             .filter_map(|(&s, since)| {
                 self.admissible(s)?;
-                Some(since.as_ref()?.saturating_add(LATENCY))
+                Some(*since.as_ref()? + LATENCY)
             })
             .min()
-            .unwrap_or(NEVER)
+            .unwrap_or(Clocks::NEVER)
     }
 
     /// The request to take at the boundary `now`, with its level (true = high).
-    pub fn choose(&self, flags: &Flags, now: u64) -> Option<(Source, bool)> {
+    pub fn choose(&self, flags: &Flags, now: Clocks) -> Option<(Source, bool)> {
         let mut best: Option<(Source, bool)> = None;
         for (&s, since) in Source::ALL.iter().zip(flags) {
             let Some(high) = self.admissible(s) else {
                 continue;
             };
-            if !since.is_some_and(|t| t.saturating_add(LATENCY) <= now) {
+            if !since.is_some_and(|t| t + LATENCY <= now) {
                 continue;
             }
             match best {
@@ -141,20 +140,23 @@ mod tests {
             ip: ie::ET1,
             in_progress: 0,
         };
-        let flags = [Some(0), None, Some(0), Some(12), Some(0)];
-        assert_eq!(irq.earliest(&flags), 24);
-        assert_eq!(irq.choose(&flags, 24), Some((Source::External0, false)));
-        assert_eq!(irq.choose(&flags, 36), Some((Source::Timer1, true)));
+        let flags = [Some(0), None, Some(0), Some(12), Some(0)].map(|f| f.map(Clocks));
+        assert_eq!(irq.earliest(&flags), Clocks(24));
+        assert_eq!(
+            irq.choose(&flags, Clocks(24)),
+            Some((Source::External0, false))
+        );
+        assert_eq!(irq.choose(&flags, Clocks(36)), Some((Source::Timer1, true)));
         irq.enter(false);
-        assert_eq!(irq.choose(&flags, 36), Some((Source::Timer1, true)));
+        assert_eq!(irq.choose(&flags, Clocks(36)), Some((Source::Timer1, true)));
         irq.enter(true);
-        assert_eq!(irq.choose(&flags, 36), None);
-        assert_eq!(irq.earliest(&flags), NEVER);
+        assert_eq!(irq.choose(&flags, Clocks(36)), None);
+        assert_eq!(irq.earliest(&flags), Clocks::NEVER);
         irq.reti();
         assert_eq!(irq.in_progress, LOW);
         irq.ie &= !ie::EA;
         irq.reti();
-        assert_eq!(irq.choose(&flags, 36), None);
+        assert_eq!(irq.choose(&flags, Clocks(36)), None);
         assert_eq!(Source::Serial.vector(), 0x23);
     }
 }

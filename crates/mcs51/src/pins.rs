@@ -9,7 +9,6 @@
 use alloc::collections::VecDeque;
 
 use crate::Clocks;
-use crate::time::CLOCKS_PER_CYCLE;
 
 /// One of the four 8-bit ports.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -122,7 +121,7 @@ impl Ports {
 /// A change of outside levels, effective at a sample instant.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Input {
-    pub at: u64,
+    pub at: Clocks,
     pub port: u8,
     pub mask: u8,
     pub levels: u8,
@@ -137,14 +136,16 @@ pub(crate) struct Inputs {
 /// Changes announced ahead at most (a frame on RxD is up to 11).
 pub const MAX_QUEUED_INPUTS: usize = 4096;
 
+/// Where in its machine cycle an input is sampled (state 5, phase 2).
+pub(crate) const S5P2: Clocks = Clocks(9);
+
 /// The sample instant (S5P2) at or after `t`.
-pub(crate) fn sample_instant(t: u64) -> u64 {
-    const S5P2: u64 = 9;
-    let cycle = t - t % CLOCKS_PER_CYCLE;
-    if t % CLOCKS_PER_CYCLE <= S5P2 {
+pub(crate) fn sample_instant(t: Clocks) -> Clocks {
+    let cycle = t.cycle_start();
+    if t.into_cycle() <= S5P2 {
         cycle + S5P2
     } else {
-        cycle.saturating_add(CLOCKS_PER_CYCLE + S5P2)
+        cycle + Clocks::CYCLE + S5P2
     }
 }
 
@@ -153,7 +154,7 @@ impl Inputs {
     pub fn push(
         &mut self,
         at: Clocks,
-        not_before: u64,
+        not_before: Clocks,
         port: Port,
         mask: u8,
         levels: u8,
@@ -164,7 +165,7 @@ impl Inputs {
             });
         }
         let input = Input {
-            at: sample_instant(at.0.max(not_before)),
+            at: sample_instant(at.max(not_before)),
             port: port as u8,
             mask,
             levels: levels & mask,
@@ -177,12 +178,12 @@ impl Inputs {
 
     /// When the next change takes effect.
     #[inline]
-    pub fn next_at(&self) -> u64 {
-        self.queue.front().map_or(u64::MAX, |i| i.at)
+    pub fn next_at(&self) -> Clocks {
+        self.queue.front().map_or(Clocks::NEVER, |i| i.at)
     }
 
     /// Takes the next change if it is due by `t`.
-    pub fn pop_due(&mut self, t: u64) -> Option<Input> {
+    pub fn pop_due(&mut self, t: Clocks) -> Option<Input> {
         if self.queue.front()?.at <= t {
             self.queue.pop_front()
         } else {
@@ -212,19 +213,25 @@ mod tests {
 
     #[test]
     fn changes_take_effect_at_the_next_sample() {
-        assert_eq!(sample_instant(0), 9);
-        assert_eq!(sample_instant(9), 9);
-        assert_eq!(sample_instant(10), 21);
-        assert_eq!(sample_instant(12), 21);
+        assert_eq!(sample_instant(Clocks(0)), Clocks(9));
+        assert_eq!(sample_instant(Clocks(9)), Clocks(9));
+        assert_eq!(sample_instant(Clocks(10)), Clocks(21));
+        assert_eq!(sample_instant(Clocks(12)), Clocks(21));
         let mut q = Inputs::default();
-        q.push(Clocks(30), 0, Port::P3, 1, 0).unwrap();
-        q.push(Clocks(5), 0, Port::P3, 1, 1).unwrap();
-        q.push(Clocks(3), 40, Port::P1, 0xFF, 0x0F).unwrap();
-        assert_eq!(q.next_at(), 9);
-        assert_eq!(q.pop_due(8).map(|i| i.at), None);
-        assert_eq!(q.pop_due(9).map(|i| i.levels), Some(1));
-        assert_eq!(q.pop_due(100).map(|i| (i.at, i.levels)), Some((33, 0)));
-        assert_eq!(q.pop_due(100).map(|i| (i.at, i.port)), Some((45, 1)));
+        q.push(Clocks(30), Clocks::ZERO, Port::P3, 1, 0).unwrap();
+        q.push(Clocks(5), Clocks::ZERO, Port::P3, 1, 1).unwrap();
+        q.push(Clocks(3), Clocks(40), Port::P1, 0xFF, 0x0F).unwrap();
+        assert_eq!(q.next_at(), Clocks(9));
+        assert_eq!(q.pop_due(Clocks(8)).map(|i| i.at), None);
+        assert_eq!(q.pop_due(Clocks(9)).map(|i| i.levels), Some(1));
+        assert_eq!(
+            q.pop_due(Clocks(100)).map(|i| (i.at, i.levels)),
+            Some((Clocks(33), 0))
+        );
+        assert_eq!(
+            q.pop_due(Clocks(100)).map(|i| (i.at, i.port)),
+            Some((Clocks(45), 1))
+        );
         assert_eq!(Pin::new(Port::P1, 8), Err(InputError::Bit(8)));
     }
 }

@@ -12,11 +12,9 @@
 //!
 //! TF is set in the cycle in which the timer overflows: `since` is that cycle's start.
 
+use crate::Clocks;
 use crate::pins::p3;
 use crate::sfr::tcon;
-use crate::time::CLOCKS_PER_CYCLE;
-
-const NEVER: u64 = u64::MAX;
 
 #[derive(Clone, Debug)]
 pub(crate) struct Timers {
@@ -25,11 +23,11 @@ pub(crate) struct Timers {
     pub tl: [u8; 2],
     pub th: [u8; 2],
     /// Counted up to here.
-    synced: u64,
+    synced: Clocks,
     /// Overflows of timer 1 itself (the UART's baud clock), ever.
     pub t1_overflows: u64,
     /// Start of the cycle in which TF0 / TF1 was last set.
-    pub since_tf: [u64; 2],
+    pub since_tf: [Clocks; 2],
 }
 
 /// What a counter does on each increment.
@@ -107,7 +105,7 @@ fn steps_to_overflow(shape: Shape, tl: u8, th: u8, k: u64) -> u64 {
 }
 
 impl Timers {
-    pub fn new(now: u64) -> Timers {
+    pub fn new(now: Clocks) -> Timers {
         Timers {
             tmod: 0,
             tcon: 0,
@@ -115,7 +113,7 @@ impl Timers {
             th: [0; 2],
             synced: now,
             t1_overflows: 0,
-            since_tf: [0; 2],
+            since_tf: [Clocks::ZERO; 2],
         }
     }
 
@@ -161,7 +159,7 @@ impl Timers {
         }
     }
 
-    fn set_tf(&mut self, t: usize, since: u64) {
+    fn set_tf(&mut self, t: usize, since: Clocks) {
         let flag = if t == 0 { tcon::TF0 } else { tcon::TF1 };
         if self.tcon & flag == 0 {
             self.tcon |= flag;
@@ -170,18 +168,19 @@ impl Timers {
     }
 
     /// Counts the machine cycles that ended in (synced, to] with the pins as `p3_pins`.
-    pub fn sync(&mut self, to: u64, p3_pins: u8) {
+    pub fn sync(&mut self, to: Clocks, p3_pins: u8) {
         if to <= self.synced {
             return;
         }
-        let n = to / CLOCKS_PER_CYCLE - self.synced / CLOCKS_PER_CYCLE;
+        // Machine cycles ended, a count of steps.
+        let n = to.cycles() - self.synced.cycles();
         // The cycle whose end is the first step.
-        let first_cycle = self.synced - self.synced % CLOCKS_PER_CYCLE;
+        let first_cycle = self.synced.cycle_start();
         self.synced = to;
         if n == 0 {
             return;
         }
-        let at = |step: u64| first_cycle + (step - 1) * CLOCKS_PER_CYCLE;
+        let at = |step: u64| first_cycle + Clocks::CYCLE * (step - 1);
         if !self.counts_edges(0) && self.t0_runs(p3_pins) {
             let shape = self.shape(0);
             let (ovf, first) = advance(shape, &mut self.tl[0], &mut self.th[0], n);
@@ -206,17 +205,17 @@ impl Timers {
     }
 
     /// Moves on to `to` without counting (the oscillator stood still).
-    pub fn skip_to(&mut self, to: u64) {
+    pub fn skip_to(&mut self, to: Clocks) {
         self.synced = self.synced.max(to);
     }
 
     /// A falling edge on T0 (`t = 0`) or T1 sampled in the cycle starting at `cycle`: a
     /// counter counts it, visible from the next cycle on.
-    pub fn count_edge(&mut self, t: usize, cycle: u64, p3_pins: u8) {
+    pub fn count_edge(&mut self, t: usize, cycle: Clocks, p3_pins: u8) {
         if !self.counts_edges(t) {
             return;
         }
-        let since = cycle + CLOCKS_PER_CYCLE;
+        let since = cycle + Clocks::CYCLE;
         if t == 0 && self.t0_runs(p3_pins) {
             let shape = self.shape(0);
             if advance(shape, &mut self.tl[0], &mut self.th[0], 1).0 > 0 {
@@ -233,14 +232,14 @@ impl Timers {
     }
 
     /// The clock (a cycle boundary) at which the step `k` cycles from the last sync happens.
-    fn step_time(&self, k: u64) -> u64 {
-        let first_end = self.synced - self.synced % CLOCKS_PER_CYCLE + CLOCKS_PER_CYCLE;
-        first_end.saturating_add((k - 1).saturating_mul(CLOCKS_PER_CYCLE))
+    fn step_time(&self, k: u64) -> Clocks {
+        let first_end = self.synced.cycle_start() + Clocks::CYCLE;
+        first_end + Clocks::CYCLE * (k - 1)
     }
 
     /// When timer 1's overflow number `number` (counted in `t1_overflows`) happens, if timer 1
     /// counts machine cycles undisturbed until then (synced first).
-    pub fn t1_overflow_time(&self, number: u64, p3_pins: u8) -> Option<u64> {
+    pub fn t1_overflow_time(&self, number: u64, p3_pins: u8) -> Option<Clocks> {
         if number <= self.t1_overflows {
             return Some(self.synced);
         }
@@ -252,8 +251,8 @@ impl Timers {
     }
 
     /// When a clear TF flag will next be set by counting machine cycles (synced first).
-    pub fn next_flag_time(&self, p3_pins: u8) -> u64 {
-        let mut next = NEVER;
+    pub fn next_flag_time(&self, p3_pins: u8) -> Clocks {
+        let mut next = Clocks::NEVER;
         if self.tcon & tcon::TF0 == 0 && !self.counts_edges(0) && self.t0_runs(p3_pins) {
             let steps = steps_to_overflow(self.shape(0), self.tl[0], self.th[0], 1);
             next = next.min(self.step_time(steps));

@@ -23,12 +23,11 @@
 
 use crate::Clocks;
 use crate::event::{SerialFrame, SerialMode};
+use crate::pins::S5P2;
 use crate::pins::p3;
 use crate::sfr::scon;
-use crate::time::CLOCKS_PER_CYCLE;
 use crate::timers::Timers;
 
-const NEVER: u64 = u64::MAX;
 /// Baud ticks per bit.
 const TICKS_PER_BIT: u64 = 16;
 
@@ -50,14 +49,14 @@ enum Tx {
     /// The start bit began at `start`; TI at tick `ti_tick`.
     Sending {
         out: Outgoing,
-        start: u64,
+        start: Clocks,
         ti_tick: u64,
     },
     /// Mode 0: shifting since `start`; TI at `ti_at`.
     Shifting {
         out: Outgoing,
-        start: u64,
-        ti_at: u64,
+        start: Clocks,
+        ti_at: Clocks,
     },
 }
 
@@ -75,7 +74,7 @@ enum Rx {
     },
     /// Mode 0: bit `bit` (0..8; 8 = done) of a reception started by the SCON write at `start`.
     Shift {
-        start: u64,
+        start: Clocks,
         bit: u8,
         shift: u8,
     },
@@ -86,9 +85,9 @@ pub(crate) struct Uart {
     pub scon: u8,
     /// The receive buffer (what reading SBUF gives).
     pub sbuf: u8,
-    pub since_ri: u64,
-    pub since_ti: u64,
-    synced: u64,
+    pub since_ri: Clocks,
+    pub since_ti: Clocks,
+    synced: Clocks,
     /// Baud ticks counted up to `synced`.
     ticks: u64,
     /// Timer 1 overflows already turned into ticks.
@@ -101,12 +100,12 @@ pub(crate) struct Uart {
 }
 
 impl Uart {
-    pub fn new(now: u64, t1_overflows: u64) -> Uart {
+    pub fn new(now: Clocks, t1_overflows: u64) -> Uart {
         Uart {
             scon: 0,
             sbuf: 0,
-            since_ri: 0,
-            since_ti: 0,
+            since_ri: Clocks::ZERO,
+            since_ti: Clocks::ZERO,
             synced: now,
             ticks: 0,
             t1_seen: t1_overflows,
@@ -127,12 +126,12 @@ impl Uart {
     }
 
     /// Mode 2's tick length in clocks.
-    fn mode2_tick(&self) -> u64 {
-        if self.smod { 2 } else { 4 }
+    fn mode2_tick(&self) -> Clocks {
+        Clocks(if self.smod { 2 } else { 4 })
     }
 
     /// Counts baud ticks up to `to` (timers synced to `to` first).
-    pub fn sync(&mut self, to: u64, t1_overflows: u64) {
+    pub fn sync(&mut self, to: Clocks, t1_overflows: u64) {
         let new = t1_overflows - self.t1_seen;
         self.t1_seen = t1_overflows;
         if to <= self.synced {
@@ -158,7 +157,7 @@ impl Uart {
     }
 
     /// Moves on to `to` without counting (the oscillator stood still).
-    pub fn skip_to(&mut self, to: u64) {
+    pub fn skip_to(&mut self, to: Clocks) {
         self.synced = self.synced.max(to);
     }
 
@@ -168,7 +167,7 @@ impl Uart {
     }
 
     /// When baud tick `n` happens; `None` while timer 1 does not count machine cycles.
-    fn tick_time(&self, n: u64, timers: &Timers, p3_pins: u8) -> Option<u64> {
+    fn tick_time(&self, n: u64, timers: &Timers, p3_pins: u8) -> Option<Clocks> {
         if n <= self.ticks {
             return Some(self.synced);
         }
@@ -176,7 +175,7 @@ impl Uart {
         match self.mode() {
             SerialMode::Mode2 => {
                 let len = self.mode2_tick();
-                Some((self.synced / len + ahead).saturating_mul(len))
+                Some(len * (self.synced / len + ahead))
             }
             SerialMode::Mode1 | SerialMode::Mode3 => {
                 let overflows = if self.smod {
@@ -191,16 +190,16 @@ impl Uart {
     }
 
     /// When the UART next has something to do.
-    pub fn next_time(&self, timers: &Timers, p3_pins: u8) -> u64 {
-        let tick = |n| self.tick_time(n, timers, p3_pins).unwrap_or(NEVER);
+    pub fn next_time(&self, timers: &Timers, p3_pins: u8) -> Clocks {
+        let tick = |n| self.tick_time(n, timers, p3_pins).unwrap_or(Clocks::NEVER);
         let tx = match self.tx {
-            Tx::Idle => NEVER,
+            Tx::Idle => Clocks::NEVER,
             Tx::Rollover { at_tick, .. } => tick(at_tick),
             Tx::Sending { ti_tick, .. } => tick(ti_tick),
             Tx::Shifting { ti_at, .. } => ti_at,
         };
         let rx = match self.rx {
-            Rx::Idle => NEVER,
+            Rx::Idle => Clocks::NEVER,
             Rx::Frame {
                 origin,
                 bit,
@@ -214,12 +213,12 @@ impl Uart {
 
     /// Does what is due at `now` (synced to `now`, `p3_pins` the pins now); returns a frame
     /// whose TI was set.
-    pub fn process(&mut self, now: u64, p3_pins: u8) -> Option<SerialFrame> {
+    pub fn process(&mut self, now: Clocks, p3_pins: u8) -> Option<SerialFrame> {
         self.receive(now, p3_pins);
         self.transmit(now)
     }
 
-    fn transmit(&mut self, now: u64) -> Option<SerialFrame> {
+    fn transmit(&mut self, now: Clocks) -> Option<SerialFrame> {
         match self.tx {
             Tx::Rollover { out, at_tick } if self.ticks >= at_tick => {
                 let bits = if out.ninth.is_some() { 10 } else { 9 };
@@ -240,19 +239,19 @@ impl Uart {
         }
     }
 
-    fn sent(&mut self, out: Outgoing, start: u64, now: u64) -> SerialFrame {
+    fn sent(&mut self, out: Outgoing, start: Clocks, now: Clocks) -> SerialFrame {
         self.tx = Tx::Idle;
         self.set_flag(scon::TI, now);
         SerialFrame {
             mode: out.mode,
             data: out.data,
             ninth: out.ninth,
-            start: Clocks(start),
-            end: Clocks(now),
+            start,
+            end: now,
         }
     }
 
-    fn receive(&mut self, now: u64, p3_pins: u8) {
+    fn receive(&mut self, now: Clocks, p3_pins: u8) {
         let level = p3_pins & p3::RXD != 0;
         loop {
             match self.rx {
@@ -318,7 +317,7 @@ impl Uart {
     }
 
     /// The last bit of a frame is in: load SBUF if the rules let it.
-    fn load(&mut self, data: u8, last: bool, now: u64) {
+    fn load(&mut self, data: u8, last: bool, now: Clocks) {
         if self.scon & scon::RI == 0 && (self.scon & scon::SM2 == 0 || last) {
             self.sbuf = data;
             self.scon = (self.scon & !scon::RB8) | if last { scon::RB8 } else { 0 };
@@ -326,10 +325,10 @@ impl Uart {
         }
     }
 
-    fn set_flag(&mut self, flag: u8, now: u64) {
+    fn set_flag(&mut self, flag: u8, now: Clocks) {
         if self.scon & flag == 0 {
             self.scon |= flag;
-            let since = now - now % CLOCKS_PER_CYCLE;
+            let since = now.cycle_start();
             if flag == scon::RI {
                 self.since_ri = since;
             } else {
@@ -339,7 +338,7 @@ impl Uart {
     }
 
     /// The program wrote SCON at `at` (synced to `at`).
-    pub fn write_scon(&mut self, value: u8, at: u64) {
+    pub fn write_scon(&mut self, value: u8, at: Clocks) {
         let old = self.scon;
         self.scon = value;
         for flag in [scon::RI, scon::TI] {
@@ -364,7 +363,7 @@ impl Uart {
     }
 
     /// The program wrote SBUF at `at` (synced to `at`).
-    pub fn write_sbuf(&mut self, data: u8, at: u64) {
+    pub fn write_sbuf(&mut self, data: u8, at: Clocks) {
         if !matches!(self.tx, Tx::Idle) {
             return;
         }
@@ -375,8 +374,8 @@ impl Uart {
         self.tx = if mode == SerialMode::Mode0 {
             Tx::Shifting {
                 out,
-                start: at + CLOCKS_PER_CYCLE,
-                ti_at: at + 10 * CLOCKS_PER_CYCLE,
+                start: at + Clocks::CYCLE,
+                ti_at: at + Clocks::from_cycles(10),
             }
         } else {
             Tx::Rollover {
@@ -410,10 +409,10 @@ fn sample_tick(origin: u64, bit: u8, sample: u8) -> u64 {
 
 /// Mode 0 reception: bit `bit` (0..8) is sampled at S5P2 of the (bit + 2)th cycle after the
 /// write at `start`; "bit 8" is RI, at the start of the 10th.
-fn shift_time(start: u64, bit: u8) -> u64 {
+fn shift_time(start: Clocks, bit: u8) -> Clocks {
     if bit == 8 {
-        start + 10 * CLOCKS_PER_CYCLE
+        start + Clocks::from_cycles(10)
     } else {
-        start + (u64::from(bit) + 2) * CLOCKS_PER_CYCLE + 9
+        start + Clocks::from_cycles(u64::from(bit) + 2) + S5P2
     }
 }
