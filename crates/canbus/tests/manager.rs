@@ -1,5 +1,7 @@
 //! The manager owning a driver, with the bus stepped by another thread.
 
+// The driver crate's test bus (shared chips on the one engine), one file for both crates.
+#[path = "../../sja1000-driver/tests/common/mod.rs"]
 mod common;
 
 use std::sync::Arc;
