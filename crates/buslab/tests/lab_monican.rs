@@ -22,30 +22,55 @@ use buslab_slio::SlioId;
 use pty_program::{PtyProgram, Stderr};
 use vt100_terminal::{CEILING, READ_SIZE, Terminal};
 
-/// The lab, stopped (SIGTERM) when the test ends.
-struct Lab(Child);
+/// The lab (or another tool), stopped (SIGTERM) when the test ends; what the lab logged is
+/// shown when the test fails (a failure seen only on loaded machines needs the lab's side).
+struct Lab {
+    child: Child,
+    log: Option<std::path::PathBuf>,
+}
 
 impl Drop for Lab {
     fn drop(&mut self) {
         let _ = Command::new("kill")
-            .args(["-TERM", &self.0.id().to_string()])
+            .args(["-TERM", &self.child.id().to_string()])
             .status();
-        let _ = self.0.wait();
+        let _ = self.child.wait();
+        if let Some(log) = self.log.as_ref().filter(|_| std::thread::panicking()) {
+            let log = std::fs::read_to_string(log).unwrap_or_default();
+            // The calibration frame MoniCAN sends every 40 ms is routine; the rest tells.
+            let tail: Vec<&str> = log
+                .lines()
+                .rev()
+                .filter(|line| !line.ends_with("PowerPC sent 0AA#AA04"))
+                .take(200)
+                .collect();
+            eprintln!("the lab's log, last {} lines but calibrations:", tail.len());
+            for line in tail.iter().rev() {
+                eprintln!("  {line}");
+            }
+        }
     }
 }
 
 /// `buslab lab` with `args` and its files in `dir`, once it is up (`DIR/bus`, written last);
 /// its bus URL.
 fn lab(dir: &Path, args: &[&str]) -> (Lab, String) {
-    let lab = Lab(Command::new(env!("CARGO_BIN_EXE_buslab"))
+    let log = dir.join("lab.log");
+    let child = Command::new(env!("CARGO_BIN_EXE_buslab"))
         .args(["lab", "-q", "--no-web", "--listen", "127.0.0.1:0", "--dir"])
         .arg(dir)
         .args(args)
         .env_remove("BUSLAB_BUS")
+        // Warnings, and what the PowerPC node's driver gives up on.
+        .env("RUST_LOG", "warn,buslab_ppc=debug")
         .stdout(Stdio::null())
-        .stderr(Stdio::null())
+        .stderr(std::fs::File::create(&log).unwrap())
         .spawn()
-        .unwrap());
+        .unwrap();
+    let lab = Lab {
+        child,
+        log: Some(log),
+    };
     let bus = dir.join("bus");
     let start = Instant::now();
     let url = loop {
@@ -330,7 +355,10 @@ fn the_last_frame_row_shows_only_frames_that_were_on_the_bus() {
         .spawn()
         .unwrap();
     let lines = BufReader::new(dump.stdout.take().unwrap()).lines();
-    let _dump = Lab(dump);
+    let _dump = Lab {
+        child: dump,
+        log: None,
+    };
     let (first_tx, first) = std::sync::mpsc::channel();
     let into = seen.clone();
     std::thread::spawn(move || {
