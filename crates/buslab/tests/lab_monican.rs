@@ -89,6 +89,46 @@ fn lab(dir: &Path, args: &[&str]) -> (Lab, String) {
     (lab, url)
 }
 
+/// Waits until the lab's MoniCAN has initialised its three SLIO boards: each board has sent
+/// its sign-on and its answers to MoniCAN's five initialisation requests (six frames). Seen
+/// through `buslab status` (administrative requests, no frame on the bus): a second SLIO host
+/// asking the boards (`buslab slio list`) would race MoniCAN's own requests, and a read and a
+/// write of one SLIO carry the same identifier with other data, so the two collide, as on a
+/// real bus, and MoniCAN's node went bus-off on a loaded machine.
+fn wait_for_initialised_boards(url: &str) {
+    const SENT_WHEN_INITIALISED: u64 = 6;
+    let start = Instant::now();
+    loop {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["status", "--bus", url])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        let sent = |board: &str| -> u64 {
+            let Some((_, after)) = text.split_once(&format!("({board})\n")) else {
+                return 0;
+            };
+            after
+                .lines()
+                .take_while(|line| !line.is_empty())
+                .find_map(|line| line.strip_prefix("sent:"))
+                .and_then(|n| n.trim().parse().ok())
+                .unwrap_or(0)
+        };
+        if ["slio0", "slio3", "slioA"]
+            .iter()
+            .all(|board| sent(board) >= SENT_WHEN_INITIALISED)
+        {
+            return;
+        }
+        assert!(
+            start.elapsed() < CEILING,
+            "the boards were never initialised: {text}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 /// The lab's MoniCAN terminal, redrawn (Ctrl L), once it shows `slios` signed on.
 fn lab_terminal(dir: &Path, slios: &[u8]) -> Terminal {
     let mut t = Terminal::open(&dir.join("monican"));
@@ -187,22 +227,8 @@ fn the_labs_monican_terminal_drives_the_three_boards() {
 fn a_terminal_opened_late_shows_the_whole_screen_without_ctrl_l() {
     let dir = tempfile::tempdir().unwrap();
     let (_lab, url) = lab(dir.path(), &["--no-devices"]);
-    // The screen is drawn (to nobody) and the boards signed on before anyone looks: the
-    // lab's MoniCAN has calibrated them once `slio list` finds all three.
-    let start = Instant::now();
-    loop {
-        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
-            .args(["slio", "--bus", &url, "list"])
-            .output()
-            .unwrap();
-        if String::from_utf8_lossy(&out.stdout).lines().count() >= 3 {
-            break;
-        }
-        assert!(
-            start.elapsed() < CEILING,
-            "the boards never signed on: {out:?}"
-        );
-    }
+    // The screen is drawn (to nobody) and the boards initialised before anyone looks.
+    wait_for_initialised_boards(&url);
     let mut t = Terminal::open_flushing(&dir.path().join("monican"));
     t.wait_until("the title, the header and the boards, no key typed", |t| {
         t.row(TITLE_ROW).contains(TITLE)
