@@ -123,7 +123,13 @@ fn clients_sending_one_frame_each_back_to_back_under_one_name_all_get_through() 
         t.write_all(format!("< send 200 4 {a:02X} {b:02X} {c:02X} {d:02X} >").as_bytes())
             .unwrap();
     }
-    assert_eq!(receive(&mut rx, 20), want);
+    // Every frame, in any order: each client is a node of its own, and two nodes with a frame
+    // queued at once arbitrate (the same identifier with other data collides, and the bus
+    // decides), as separate controllers on a real bus do; only one node's own frames keep
+    // their order.
+    let mut got = receive(&mut rx, 20);
+    got.sort();
+    assert_eq!(got, want);
     s.shutdown();
 }
 
