@@ -1018,7 +1018,14 @@ fn the_lab_dashboard_flips_a_switch_and_turns_the_potentiometer() {
     browser.until("SLIO 3's ADC2", &cell("3", "adc2"), |v| {
         v.as_str() == Some("512 (2.502 V)")
     });
-    // The panel's other frames: a read of the pins, an LED.
+    // The panel's other frames: a read of the pins, an LED. First MoniCAN's initialisation
+    // of SLIO A (P13 high: its switches readable), which the LED's write keeps; on a loaded
+    // machine it can come after SLIO 3's.
+    browser.until(
+        "SLIO A initialised by MoniCAN (its switches readable)",
+        &cell("A", "switches"),
+        |v| v.as_str().is_some_and(|s| s != "-"),
+    );
     let answered = browser.script(&cell("A", "replies"));
     browser.click("#slio-A button.read");
     browser.until("SLIO A's answer", &cell("A", "replies"), |v| *v != answered);
