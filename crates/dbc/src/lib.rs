@@ -22,6 +22,7 @@ mod error;
 mod layout;
 mod message;
 mod signal;
+pub mod text;
 
 pub use database::Database;
 pub use error::{DbcError, EncodeError};
