@@ -180,7 +180,7 @@ impl CanBus for SocketCanBus {
                     return Ok(m.into_frame());
                 }
                 Record::Error(error) => self.track_state(error),
-                Record::Frame(_) => {}
+                Record::Frame(_) | Record::Fd(_) => {}
             }
             if left.is_some_and(|l| l.is_zero()) {
                 return Ok(None);
@@ -204,7 +204,7 @@ impl CanBus for SocketCanBus {
                     self.track_state(error);
                     return Ok(Some(m));
                 }
-                Record::Frame(_) => return Ok(Some(m)),
+                Record::Frame(_) | Record::Fd(_) => return Ok(Some(m)),
             }
             if left.is_some_and(|l| l.is_zero()) {
                 return Ok(None);

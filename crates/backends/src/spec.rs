@@ -18,7 +18,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use buslab_bus::ErrorFrame;
-use buslab_can::Frame;
+use buslab_can::{FdFrame, Frame};
 
 use crate::registry::resolve;
 use crate::url::{BusUrl, UrlError};
@@ -40,8 +40,22 @@ pub struct IdFilter {
 
 impl IdFilter {
     pub fn matches(&self, frame: &Frame) -> bool {
-        let can_id = socketcan_id(frame);
+        self.matches_can_id(socketcan_id(frame))
+    }
+
+    /// Whether a frame with this SocketCAN ID (ID and flags) passes.
+    pub fn matches_can_id(&self, can_id: u32) -> bool {
         ((can_id & self.mask) == (self.id & self.mask)) != self.inverted
+    }
+}
+
+/// An FD frame's ID as SocketCAN gives it to filters (FD has no remote frames).
+pub fn fd_socketcan_id(frame: &FdFrame) -> u32 {
+    let id = frame.id().as_raw();
+    if frame.is_extended() {
+        id | EFF_FLAG
+    } else {
+        id
     }
 }
 
@@ -70,13 +84,22 @@ pub struct FilterSet {
 impl FilterSet {
     /// Whether `frame` passes (every frame does without ID filters).
     pub fn passes(&self, frame: &Frame) -> bool {
+        self.passes_can_id(socketcan_id(frame))
+    }
+
+    /// Whether an FD frame passes.
+    pub fn passes_fd(&self, frame: &FdFrame) -> bool {
+        self.passes_can_id(fd_socketcan_id(frame))
+    }
+
+    fn passes_can_id(&self, can_id: u32) -> bool {
         if self.ids.is_empty() {
             return true;
         }
         if self.join {
-            self.ids.iter().all(|f| f.matches(frame))
+            self.ids.iter().all(|f| f.matches_can_id(can_id))
         } else {
-            self.ids.iter().any(|f| f.matches(frame))
+            self.ids.iter().any(|f| f.matches_can_id(can_id))
         }
     }
 

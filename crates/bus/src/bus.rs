@@ -4,7 +4,7 @@
 use std::fmt;
 use std::time::Duration;
 
-use buslab_can::{Frame, Timestamp};
+use buslab_can::{FdFrame, Frame, Id, Timestamp};
 
 use crate::error_frame::ErrorFrame;
 pub use buslab_can::controller::ErrorState;
@@ -23,10 +23,13 @@ pub enum Direction {
     Tx,
 }
 
-/// What happened on a bus: a frame, or an error frame.
+/// What happened on a bus: a frame (classic or FD), or an error frame.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Record {
     Frame(Frame),
+    /// A CAN FD frame: from a log, or an adapter that speaks FD. Never on buslab's
+    /// bit-level bus, which is classic CAN.
+    Fd(FdFrame),
     Error(ErrorFrame),
 }
 
@@ -89,14 +92,22 @@ impl Message {
     pub fn frame(&self) -> Option<&Frame> {
         match &self.record {
             Record::Frame(f) => Some(f),
-            Record::Error(_) => None,
+            Record::Fd(_) | Record::Error(_) => None,
+        }
+    }
+
+    /// The FD frame, if this is one.
+    pub fn fd_frame(&self) -> Option<&FdFrame> {
+        match &self.record {
+            Record::Fd(f) => Some(f),
+            Record::Frame(_) | Record::Error(_) => None,
         }
     }
 
     /// The error frame, if this is one.
     pub fn error_frame(&self) -> Option<&ErrorFrame> {
         match &self.record {
-            Record::Frame(_) => None,
+            Record::Frame(_) | Record::Fd(_) => None,
             Record::Error(e) => Some(e),
         }
     }
@@ -110,7 +121,7 @@ impl Message {
                 direction: self.direction,
                 record: frame,
             }),
-            Record::Error(_) => None,
+            Record::Fd(_) | Record::Error(_) => None,
         }
     }
 }
@@ -139,7 +150,28 @@ impl fmt::Display for Record {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Record::Frame(frame) => frame.fmt(f),
+            Record::Fd(frame) => frame.fmt(f),
             Record::Error(error) => error.fmt(f),
+        }
+    }
+}
+
+impl Record {
+    /// The ID of a frame, classic or FD (an error frame has none).
+    pub fn id(&self) -> Option<Id> {
+        match self {
+            Record::Frame(f) => Some(f.id()),
+            Record::Fd(f) => Some(f.id()),
+            Record::Error(_) => None,
+        }
+    }
+
+    /// The data of a frame, classic or FD (empty for a remote frame; none for an error frame).
+    pub fn payload(&self) -> Option<&[u8]> {
+        match self {
+            Record::Frame(f) => Some(f.payload()),
+            Record::Fd(f) => Some(f.payload()),
+            Record::Error(_) => None,
         }
     }
 }
@@ -193,7 +225,11 @@ impl Filter {
     }
 
     pub fn matches(&self, frame: &Frame) -> bool {
-        let id = frame.id();
+        self.matches_id(frame.id())
+    }
+
+    /// Whether a frame with this ID (classic or FD) passes.
+    pub fn matches_id(&self, id: Id) -> bool {
         (id.as_raw() ^ self.id) & self.mask == 0
             && self.extended.is_none_or(|ext| ext == id.is_extended())
     }

@@ -37,8 +37,18 @@ pub enum ParseError {
     OddHexDigits { text: String },
     #[error("frame {text:?} has no '#': expected ID#DATA, e.g. 123#DEADBEEF or 123#R")]
     MissingSeparator { text: String },
-    #[error("frame {text:?} is CAN FD (##); buslab speaks classic CAN 2.0A/B only")]
+    #[error(
+        "frame {text:?} is CAN FD (##): an FD frame, not a classic one (buslab's bit-level bus is classic CAN)"
+    )]
     FdNotSupported { text: String },
+    #[error("frame {text:?} is not CAN FD: expected ID##FLAGS DATA, e.g. 123##1112233")]
+    NotFd { text: String },
+    #[error(
+        "frame {text:?}: after ## comes one hex flags digit (BRS = 1, ESI = 2), e.g. 123##1112233"
+    )]
+    FdFlags { text: String },
+    #[error("{len} data bytes given; a CAN FD frame carries 0..8, 12, 16, 20, 24, 32, 48 or 64")]
+    FdLength { len: usize },
     #[error("remote frame length {text:?} must be one digit 0..8 after R")]
     BadRemoteLength { text: String },
     #[error(

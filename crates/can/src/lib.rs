@@ -11,6 +11,7 @@ extern crate std;
 
 pub mod controller;
 mod error;
+mod fd;
 pub mod file;
 mod frame;
 mod id;
@@ -20,6 +21,7 @@ pub mod time;
 pub mod wire;
 
 pub use error::ParseError;
+pub use fd::{FD_LENGTHS, FD_MAX_LEN, FdFrame, dlc_of_len, fd_len_of_dlc};
 pub use frame::Frame;
 pub use id::{EFF_MAX, ExtendedId, Id, SFF_MAX, SFF_MAX_CAN20A, StandardId};
 pub use level::Level;

@@ -384,7 +384,7 @@ fn error_comment(text: &[u8]) -> Result<ErrorFrame, Problem> {
     let text = std::str::from_utf8(text::trim(text)).map_err(|_| bad())?;
     match crate::candump::parse_record(text) {
         Ok(Record::Error(e)) => Ok(e),
-        Ok(Record::Frame(_)) => Err(bad()),
+        Ok(Record::Frame(_) | Record::Fd(_)) => Err(bad()),
         Err(e) => Err(e.into()),
     }
 }
@@ -564,6 +564,7 @@ impl<W: Write> Writer<W> {
         line.extend_from_slice(b"  ");
         match &entry.record {
             Record::Error(_) => line.extend_from_slice(b"ErrorFrame"),
+            Record::Fd(_) => return Err(crate::error::fd_not_carried("ASC")),
             Record::Frame(f) => {
                 let col = line.len();
                 match f.id() {

@@ -623,6 +623,7 @@ impl<W: Write + Seek> Writer<W> {
         let channel = self.channels.number(&entry.channel);
         let mut body = [0u8; 32];
         let (ty, len) = match &entry.record {
+            Record::Fd(_) => return Err(crate::error::fd_not_carried("BLF")),
             Record::Frame(f) => {
                 body[0..2].copy_from_slice(&channel.to_le_bytes());
                 let mut flags = if f.is_remote() { REMOTE_FLAG } else { 0 };

@@ -19,7 +19,7 @@ use std::time::Duration;
 
 use buslab_bus::ErrorFrame;
 use buslab_bus::error_frame::ERROR_FLAG;
-use buslab_can::{Frame, Id};
+use buslab_can::{FdFrame, Frame, Id};
 
 use crate::codec::{Encoder, LogReader};
 pub use crate::error::LineError;
@@ -384,6 +384,7 @@ pub fn write_line(out: &mut Vec<u8>, entry: &Message, direction: bool, nanos: bo
 pub(crate) fn push_record(out: &mut Vec<u8>, record: &Record) {
     match record {
         Record::Frame(f) => push_frame(out, f),
+        Record::Fd(f) => push_fd_frame(out, f),
         Record::Error(e) => {
             let (class, data) = e.encode();
             text::push_hex(out, ERROR_FLAG | class, 8);
@@ -397,6 +398,19 @@ pub(crate) fn push_record(out: &mut Vec<u8>, record: &Record) {
 
 /// Appends a frame in can-utils syntax (`123#1122`, `12345678#R3`): the text of
 /// [`Frame`]'s `Display`, built on the stack and copied once.
+/// An FD frame in can-utils syntax: `123##1112233` (the flags nibble: BRS = 1, ESI = 2).
+pub fn push_fd_frame(out: &mut Vec<u8>, f: &FdFrame) {
+    match f.id() {
+        Id::Standard(id) => out.extend_from_slice(&text::hex_fixed::<3>(u32::from(id.as_raw()))),
+        Id::Extended(id) => out.extend_from_slice(&text::hex_fixed::<8>(id.as_raw())),
+    }
+    out.extend_from_slice(b"##");
+    out.push(b"0123456789ABCDEF"[usize::from(f.flags())]);
+    for &b in f.payload() {
+        out.extend_from_slice(&text::hex_pair(b));
+    }
+}
+
 pub fn push_frame(out: &mut Vec<u8>, f: &Frame) {
     // 8 ID digits, `#`, 16 data digits.
     let mut buf = [0u8; 25];
@@ -634,6 +648,7 @@ impl Terminal {
         out.extend_from_slice(b"  ");
         match &entry.record {
             Record::Frame(frame) => self.frame(out, frame),
+            Record::Fd(frame) => self.fd_frame(out, frame),
             Record::Error(e) => {
                 let (class, data) = e.encode();
                 let len = e.data_len();
@@ -668,9 +683,19 @@ impl Terminal {
         out.extend_from_slice(b") ");
     }
 
-    fn frame(&mut self, out: &mut Vec<u8>, frame: &Frame) {
-        self.extended_seen |= frame.is_extended();
-        match frame.id() {
+    /// candump's FD line: the length in two digits (`[03]`, `[64]`), the bytes.
+    fn fd_frame(&mut self, out: &mut Vec<u8>, frame: &FdFrame) {
+        self.id(out, frame.id());
+        let payload = frame.payload();
+        out.extend_from_slice(b"  [");
+        text::push_u64_zeros(out, payload.len() as u64, 2);
+        out.extend_from_slice(b"] ");
+        text::push_spaced_hex(out, payload);
+    }
+
+    fn id(&mut self, out: &mut Vec<u8>, id: Id) {
+        self.extended_seen |= id.is_extended();
+        match id {
             Id::Extended(id) => out.extend_from_slice(&text::hex_fixed::<8>(id.as_raw())),
             Id::Standard(id) => {
                 if self.extended_seen {
@@ -679,6 +704,10 @@ impl Terminal {
                 out.extend_from_slice(&text::hex_fixed::<3>(u32::from(id.as_raw())));
             }
         }
+    }
+
+    fn frame(&mut self, out: &mut Vec<u8>, frame: &Frame) {
+        self.id(out, frame.id());
         out.extend_from_slice(b"   [");
         out.push(b'0' + frame.dlc());
         out.extend_from_slice(b"] ");
@@ -791,6 +820,19 @@ mod tests {
                             out.push(if printable { b as char } else { '.' });
                         }
                         out.push('\'');
+                    }
+                }
+                Record::Fd(frame) => {
+                    self.extended_seen |= frame.is_extended();
+                    let id = frame.id().to_string();
+                    if self.extended_seen && !frame.is_extended() {
+                        write!(out, "{id:>8}").unwrap();
+                    } else {
+                        out.push_str(&id);
+                    }
+                    write!(out, "  [{:02}] ", frame.payload().len()).unwrap();
+                    for b in frame.payload() {
+                        write!(out, " {b:02X}").unwrap();
                     }
                 }
                 Record::Error(e) => {

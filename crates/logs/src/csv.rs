@@ -185,6 +185,7 @@ impl<W: Write> Writer<W> {
         line.extend_from_slice(b",0x");
         let mut data = [0u8; 8];
         let (raw, extended, remote, error, dlc, len) = match &entry.record {
+            Record::Fd(_) => return Err(crate::error::fd_not_carried("CSV")),
             Record::Frame(f) => {
                 let payload = f.payload();
                 data[..payload.len()].copy_from_slice(payload);

@@ -215,6 +215,16 @@ pub(crate) fn excerpt(bytes: &[u8]) -> String {
     }
 }
 
+/// A writer asked to store a CAN FD frame its format has no record for.
+pub(crate) fn fd_not_carried(format: &str) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidInput,
+        format!(
+            "{format} logs written by buslab do not carry CAN FD frames yet: convert to candump (.log)"
+        ),
+    )
+}
+
 /// A log file that cannot be opened or created.
 #[derive(Debug, thiserror::Error)]
 pub enum LogError {

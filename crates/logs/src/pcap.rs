@@ -237,7 +237,8 @@ impl<W: Write> Writer<W> {
                 "times up to 4294967295 s (2106-02-07 06:28:15 UTC, 32-bit seconds)",
             ));
         };
-        let record = socketcan::encode(&entry.record);
+        let record =
+            socketcan::encode(&entry.record).ok_or_else(|| crate::error::fd_not_carried("pcap"))?;
         self.buf.clear();
         self.buf.extend_from_slice(&secs.to_le_bytes());
         self.buf.extend_from_slice(&t.subsec_micros().to_le_bytes());

@@ -28,10 +28,12 @@ const FDF: u8 = 0x04;
 /// CAN XL records set this bit in byte 4.
 const XLF: u8 = 0x80;
 
-/// The 16-byte record of an entry's frame or error frame.
-pub fn encode(record: &Record) -> [u8; CLASSIC_LEN] {
+/// The 16-byte record of an entry's frame or error frame; `None` for an FD frame (not yet
+/// written: a 72-byte record).
+pub fn encode(record: &Record) -> Option<[u8; CLASSIC_LEN]> {
     let mut out = [0u8; CLASSIC_LEN];
     let (can_id, len) = match record {
+        Record::Fd(_) => return None,
         Record::Frame(f) => {
             let mut id = match f.id() {
                 Id::Standard(id) => u32::from(id.as_raw()),
@@ -51,7 +53,7 @@ pub fn encode(record: &Record) -> [u8; CLASSIC_LEN] {
     };
     out[..4].copy_from_slice(&can_id.to_be_bytes());
     out[4] = len;
-    out
+    Some(out)
 }
 
 /// A record's frame or error frame. CAN FD and CAN XL records are [`Problem::CanFd`] and
@@ -202,18 +204,18 @@ mod tests {
     #[test]
     fn records_as_wireshark_reads_them() {
         let f: Frame = "123#112233".parse().unwrap();
-        let bytes = encode(&Record::Frame(f));
+        let bytes = encode(&Record::Frame(f)).unwrap();
         assert_eq!(
             bytes,
             [0, 0, 1, 0x23, 3, 0, 0, 0, 0x11, 0x22, 0x33, 0, 0, 0, 0, 0]
         );
         assert_eq!(decode(&bytes).unwrap(), Record::Frame(f));
         let rtr: Frame = "12345678#R4".parse().unwrap();
-        let bytes = encode(&Record::Frame(rtr));
+        let bytes = encode(&Record::Frame(rtr)).unwrap();
         assert_eq!(&bytes[..5], &[0xD2, 0x34, 0x56, 0x78, 4]);
         assert_eq!(decode(&bytes).unwrap(), Record::Frame(rtr));
         let err = ErrorFrame::decode(0x088, &[0, 0, 0x02, 0x0A, 0, 0, 0, 0]).unwrap();
-        let bytes = encode(&Record::Error(err.clone()));
+        let bytes = encode(&Record::Error(err.clone())).unwrap();
         assert_eq!(&bytes[..5], &[0x20, 0, 0, 0x88, 8]);
         assert_eq!(decode(&bytes).unwrap(), Record::Error(err));
         let mut fd = [0u8; 72];

@@ -475,6 +475,7 @@ impl Writer {
         let (raw, extended, remote, error, dlc, data): (u32, bool, bool, bool, u8, &[u8]);
         let error_bytes;
         match &entry.record {
+            Record::Fd(_) => return Err(crate::error::fd_not_carried("SQLite")),
             Record::Frame(f) => {
                 (raw, extended, remote, error, dlc) = (
                     f.id().as_raw(),

@@ -82,6 +82,21 @@ impl LogStats {
                 s.errors += 1;
                 return None;
             }
+            Record::Fd(f) => {
+                // Counted, but not in the bus load: an FD frame's time depends on its two bit
+                // rates, which a log does not say.
+                s.frames += 1;
+                s.extended += u64::from(f.is_extended());
+                let key = (f.is_extended(), f.id().as_raw());
+                if let Some(n) = s.ids.get_mut(&key) {
+                    *n += 1;
+                } else if s.ids.len() < MAX_IDS {
+                    s.ids.insert(key, 1);
+                } else {
+                    s.ids_overflow = true;
+                }
+                return None;
+            }
             Record::Frame(f) => f,
         };
         s.frames += 1;

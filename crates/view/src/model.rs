@@ -327,6 +327,9 @@ impl BusView {
     pub fn message(&mut self, now: Duration, message: &Message) {
         match &message.record {
             Record::Frame(frame) => self.frame(now, message.at, *frame),
+            // The table and log show classic frames; FD frames come to the view with issue 29's
+            // FD work.
+            Record::Fd(_) => {}
             Record::Error(error) => self.error_frame(now, message.at, error),
         }
     }
@@ -757,6 +760,7 @@ impl Logged {
     fn passes(&self, filter: &LogFilter) -> bool {
         match &self.record {
             Record::Frame(f) => filter.matches(f),
+            Record::Fd(_) => false,
             Record::Error(e) => filter.matches_error(e),
         }
     }
@@ -764,6 +768,7 @@ impl Logged {
     fn entry(&self) -> LogEntry {
         let (frame, error) = match &self.record {
             Record::Frame(f) => (f.to_string(), None),
+            Record::Fd(f) => (f.to_string(), None),
             Record::Error(e) => {
                 let (_, data) = e.encode();
                 let bytes: String = data[..e.data_len()]

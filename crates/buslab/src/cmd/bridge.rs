@@ -80,6 +80,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Pump::spawn(name, bus, move |event| match event {
             PumpEvent::Received(m) => match m.record {
                 Record::Frame(frame) => tx.send((way, frame)).is_ok(),
+                Record::Fd(frame) => {
+                    tracing::warn!("{url}: CAN FD frame {frame} not bridged (classic frames only)");
+                    true
+                }
                 Record::Error(_) => true,
             },
             PumpEvent::SendFailed { frame, error } => {

@@ -588,6 +588,7 @@ impl<'a> Printer<'a> {
         let source = &self.sources[index];
         let passes = match &event.record {
             Record::Frame(frame) => source.filters.passes(frame),
+            Record::Fd(frame) => source.filters.passes_fd(frame),
             Record::Error(error) => source
                 .filters
                 .passes_error(error, if self.args.errors { u32::MAX } else { 0 }),
@@ -595,7 +596,7 @@ impl<'a> Printer<'a> {
         if !passes {
             return Ok(false);
         }
-        if let Record::Frame(_) = event.record {
+        if let Record::Frame(_) | Record::Fd(_) = event.record {
             self.seen += 1;
         }
         let mut entry = event;

@@ -80,6 +80,12 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         Pump::spawn("slcan-bus", bus, move |event| match event {
             PumpEvent::Received(m) => match m.record {
                 Record::Frame(frame) => feed.send(Input::Frame(frame)).is_ok(),
+                Record::Fd(frame) => {
+                    tracing::warn!(
+                        "CAN FD frame {frame} not passed to the SLCAN adapter (classic frames only)"
+                    );
+                    true
+                }
                 Record::Error(error) => feed.send(Input::Error(error)).is_ok(),
             },
             PumpEvent::SendFailed { frame, error } => {
