@@ -19,6 +19,10 @@ pub struct DbcArg {
 
 impl DbcArg {
     /// The database, if one was given.
+    #[expect(
+        dead_code,
+        reason = "the tools' --dbc options are being wired (issue 29)"
+    )]
     pub fn load(&self) -> anyhow::Result<Option<Arc<Database>>> {
         self.dbc.as_deref().map(load).transpose()
     }

@@ -7,7 +7,6 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod cmd;
 mod config;
-#[expect(dead_code, reason = "the --dbc options of issue 29 are being wired")]
 mod dbc;
 mod logging;
 mod status_line;
@@ -81,6 +80,9 @@ enum Command {
     /// The configuration file (buslab.toml): show the effective configuration and where each
     /// value came from, or write one step by step.
     Config(cmd::config::Args),
+    /// DBC databases: show messages and signals with their bits drawn, or write a skeleton
+    /// database from a log.
+    Dbc(cmd::dbc::Args),
 }
 
 fn main() -> ExitCode {
@@ -171,6 +173,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Web(args) => cmd::web::run(args, quiet),
         Command::Monitor(args) => cmd::monitor::run(args),
         Command::Config(args) => cmd::config::run(args),
+        Command::Dbc(args) => cmd::dbc::run(args),
     }
 }
 

@@ -11,6 +11,7 @@ pub mod bus;
 pub mod busopt;
 pub mod config;
 pub mod cpu196;
+pub mod dbc;
 pub mod dump;
 pub mod r#gen;
 pub mod lab;
