@@ -191,6 +191,90 @@ pub fn message_named<'a>(
     )
 }
 
+/// A signal found by `Message.Signal`, or by `Signal` alone when one message has it.
+#[derive(Clone, Copy, Debug)]
+pub struct SignalRef<'a> {
+    pub message: &'a Message,
+    /// Its index in the message's signals.
+    pub index: usize,
+}
+
+impl<'a> SignalRef<'a> {
+    pub fn signal(&self) -> &'a buslab_dbc::Signal {
+        &self.message.signals()[self.index]
+    }
+
+    /// `Message.Signal`.
+    pub fn full_name(&self) -> String {
+        format!("{}.{}", self.message.name(), self.signal().name())
+    }
+}
+
+/// `Message.Signal`, or `Signal` when exactly one message has a signal of that name.
+/// Unknown or ambiguous names are refused with the candidates.
+pub fn signal_named<'a>(
+    database: &'a Database,
+    path: &Path,
+    name: &str,
+) -> anyhow::Result<SignalRef<'a>> {
+    if let Some((message_name, signal_name)) = name.split_once('.') {
+        let message = message_named(database, path, message_name)?;
+        return match message.signal_by_name(signal_name) {
+            Some((index, _)) => Ok(SignalRef { message, index }),
+            None => {
+                let known: Vec<&str> = message.signals().iter().map(|s| s.name()).collect();
+                bail!(
+                    "message {message_name} of {} has no signal {signal_name:?}; {}",
+                    path.display(),
+                    offer(signal_name, &known, "signals")
+                )
+            }
+        };
+    }
+    let found: Vec<SignalRef> = database
+        .messages()
+        .iter()
+        .filter_map(|message| {
+            message
+                .signal_by_name(name)
+                .map(|(index, _)| SignalRef { message, index })
+        })
+        .collect();
+    match found[..] {
+        [one] => Ok(one),
+        [] => {
+            let known: Vec<String> = database
+                .messages()
+                .iter()
+                .flat_map(|m| {
+                    m.signals()
+                        .iter()
+                        .map(|s| format!("{}.{}", m.name(), s.name()))
+                })
+                .collect();
+            let known: Vec<&str> = known.iter().map(String::as_str).collect();
+            // A bare name is compared with the signal part of each `Message.Signal`.
+            let close = close_names(name, &known, |full| {
+                full.split_once('.').map_or(full, |(_, s)| s)
+            });
+            let offered = if close.is_empty() {
+                list("signals", &known)
+            } else {
+                format!("close names: {}", close.join(", "))
+            };
+            bail!("{} has no signal {name:?}; {offered}", path.display())
+        }
+        _ => {
+            let names: Vec<String> = found.iter().map(SignalRef::full_name).collect();
+            bail!(
+                "{name} is a signal of {} messages: name one as {}",
+                names.len(),
+                names.join(" or ")
+            )
+        }
+    }
+}
+
 /// The names close to `name` (a typo, another case), else the list of them all.
 fn offer(name: &str, known: &[&str], what: &str) -> String {
     let close = close_names(name, known, |k| k);
@@ -267,6 +351,26 @@ VAL_ 291 Mode 0 "Off" 1 "On" ;
     }
 
     #[test]
+    fn a_signal_is_found_by_its_full_name_or_alone_when_one_message_has_it() {
+        let db = db();
+        assert_eq!(
+            signal_named(&db, path(), "Engine.Mode")
+                .unwrap()
+                .full_name(),
+            "Engine.Mode"
+        );
+        assert_eq!(
+            signal_named(&db, path(), "Speed").unwrap().full_name(),
+            "Engine.Speed"
+        );
+        let e = signal_named(&db, path(), "Mode").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "Mode is a signal of 2 messages: name one as Engine.Mode or Brake.Mode"
+        );
+    }
+
+    #[test]
     fn unknown_names_are_refused_with_the_close_ones_or_the_list() {
         let db = db();
         let e = message_named(&db, path(), "engine")
@@ -278,6 +382,24 @@ VAL_ 291 Mode 0 "Off" 1 "On" ;
             e,
             "car.dbc has no message \"Xyz\"; its messages: Engine, Brake"
         );
+        let e = signal_named(&db, path(), "Engine.Sped")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "message Engine of car.dbc has no signal \"Sped\"; close names: Speed"
+        );
+        let e = signal_named(&db, path(), "Presure")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "car.dbc has no signal \"Presure\"; close names: Brake.Pressure"
+        );
+        let e = signal_named(&db, path(), "Nope.Speed")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("car.dbc has no message \"Nope\""), "{e}");
     }
 
     #[test]
