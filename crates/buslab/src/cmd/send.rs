@@ -57,7 +57,7 @@ pub fn parse_btr(text: &str) -> Result<(u8, u8), String> {
 }
 
 /// The bus and frames from `[IFACE] FRAME…` and `--bus`: a first word without `#` is the
-/// interface.
+/// interface (with `--dbc`: unless it names a message, or `--bus` gives the bus).
 fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
     // A database is read first: a bad one is refused before anything else.
     let database = match &args.dbc.dbc {
@@ -70,10 +70,22 @@ fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
             .is_some_and(|(_, db)| db.message_by_name(word).is_some())
     };
     let (iface, frames) = match args.words.split_first() {
-        Some((first, rest)) if !first.contains(['#', '=']) && !is_message(first) => {
+        Some((first, rest))
+            if !first.contains('#')
+                && !(database.is_some()
+                    && (args.bus.is_some()
+                        || is_message(first)
+                        || encode::assignment(first).is_some())) =>
+        {
             (Some(first), rest)
         }
         _ => (None, &args.words[..]),
+    };
+    // Messages are encoded before the interface is looked at: a word meant as a message is
+    // named as one.
+    let encoded = match &database {
+        Some((path, db)) => Some(encode::frames(db, path, frames, iface.map(String::as_str))?),
+        None => None,
     };
     let url = match (iface, &args.bus) {
         (Some(_), Some(_)) => bail!(
@@ -87,8 +99,8 @@ fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
     if frames.is_empty() && args.jerrycan.is_empty() {
         bail!("no frame to send: expected [IFACE] FRAME…, e.g. `buslab send vcan0 123#1122`");
     }
-    let mut frames = match &database {
-        Some((path, db)) => encode::frames(db, path, frames, iface.map(String::as_str))?,
+    let mut frames = match encoded {
+        Some(frames) => frames,
         None => frames
             .iter()
             .map(|f| parse_frame(f))

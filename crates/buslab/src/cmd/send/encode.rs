@@ -28,20 +28,28 @@ pub fn frames(
                 frames.push(p.encode()?);
             }
             frames.push(super::parse_frame(word)?);
-        } else if let Some((name, value)) = word.split_once('=') {
+        } else if let Some((name, value)) = assignment(word) {
             let Some(p) = &mut pending else {
-                let hint = match iface {
-                    Some(iface) => format!(
-                        " ({iface} was taken as the interface: it is not a message of {})",
-                        path.display()
-                    ),
-                    None => String::new(),
+                let hint = match iface.map(|i| (i, message_named(database, path, i))) {
+                    Some((iface, Err(not_a_message))) => {
+                        format!(" ({iface} was taken as the interface: {not_a_message})")
+                    }
+                    _ => String::new(),
                 };
                 bail!("{word}: no message named before it, e.g. `Engine {word}`{hint}");
             };
             p.give(database, path, name, value)?;
         } else {
             if let Some(p) = pending.take() {
+                // `Engine Speed`: a signal without its value.
+                if database.message_by_name(word).is_none()
+                    && p.message.signal_by_name(word).is_some()
+                {
+                    bail!(
+                        "{word} is a signal of {}: give its value, e.g. {word}=1",
+                        p.message.name()
+                    );
+                }
                 frames.push(p.encode()?);
             }
             pending = Some(Pending {
@@ -54,6 +62,16 @@ pub fn frames(
         frames.push(p.encode()?);
     }
     Ok(frames)
+}
+
+/// `SIGNAL=VALUE`: a word whose part before the first `=` could be a signal's name (a DBC
+/// name is a C identifier), so that a URL with a query (`slcan:/dev/ttyACM0?bitrate=500000`)
+/// is not one.
+pub fn assignment(word: &str) -> Option<(&str, &str)> {
+    let (name, value) = word.split_once('=')?;
+    name.bytes()
+        .all(|b| b.is_ascii_alphanumeric() || b == b'_')
+        .then_some((name, value))
 }
 
 /// A message being given its signals.
@@ -157,6 +175,18 @@ VAL_ 291 Mode 0 "Off" 1 "On" 2 "Eco" ;
     }
 
     #[test]
+    fn a_signal_after_a_word_taken_as_the_interface_says_so() {
+        let db = Database::parse(DBC).unwrap();
+        let words = vec!["Speed=1".to_string()];
+        let e = frames(&db, Path::new("car.dbc"), &words, Some("Engien")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "Speed=1: no message named before it, e.g. `Engine Speed=1` (Engien was taken as \
+             the interface: car.dbc has no message \"Engien\"; close names: Engine)"
+        );
+    }
+
+    #[test]
     fn messages_are_encoded_from_numbers_and_labels_between_plain_frames() {
         assert_eq!(
             run(&[
@@ -200,6 +230,10 @@ VAL_ 291 Mode 0 "Off" 1 "On" 2 "Eco" ;
         assert_eq!(
             error(&["Engine", "Speed=1", "Speed=2"]),
             "Engine.Speed is given twice"
+        );
+        assert_eq!(
+            error(&["Engine", "Speed"]),
+            "Speed is a signal of Engine: give its value, e.g. Speed=1"
         );
         assert_eq!(
             error(&["Speed=1"]),
