@@ -50,7 +50,7 @@ pub struct Selection {
     #[command(flatten)]
     pub dbc: DbcArg,
     /// Only frames of this message of the --dbc database (by name; repeatable, or several
-    /// separated by commas). Error frames are not messages: -e still shows them.
+    /// separated by commas). Error frames are not messages: this does not filter them.
     #[arg(
         short = 'm',
         long = "message",

@@ -619,3 +619,58 @@ fn every_command_refuses_a_missing_or_garbage_database_naming_it() {
     }
     assert!(!d.join("out.csv").exists() && !d.join("x.svg").exists());
 }
+
+/// Nothing acknowledged is lost: once `-v` said an entry was flushed, its row is in the file,
+/// even after `kill -9`.
+#[test]
+fn a_followed_csv_holds_every_flushed_row_after_kill_9() {
+    let dir = setup();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_buslab"))
+        .args([
+            "-v", "log", "convert", "in.log", "out.csv", "--dbc", "car.dbc",
+        ])
+        .args(["--follow", "-m", "Muxed"])
+        .env_remove("RUST_LOG")
+        .current_dir(dir.path())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (tx, flushed) = mpsc::channel();
+    let lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    thread::spawn(move || {
+        for line in lines.map_while(Result::ok) {
+            if line.contains("entries flushed") {
+                let _ = tx.send(line);
+            }
+        }
+    });
+    let wait_for = |want: &str| loop {
+        match flushed.recv_timeout(EVENT) {
+            Ok(line) if line.contains(want) => break,
+            Ok(_) => continue,
+            Err(_) => panic!("never saw {want:?}"),
+        }
+    };
+    // The two Muxed frames (the other four are not kept).
+    wait_for("out.csv: 2 entries flushed");
+    let header = "time,id,message,Muxed.Sel,Muxed.A,Muxed.B\n";
+    let rows = "1700000000.000200,0x400,Muxed,0,100.0,\n1700000000.000300,0x400,Muxed,1,,5\n";
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("out.csv")).unwrap(),
+        format!("{header}{rows}")
+    );
+    let mut log = std::fs::OpenOptions::new()
+        .append(true)
+        .open(dir.path().join("in.log"))
+        .unwrap();
+    std::io::Write::write_all(&mut log, b"(1700000001.000000) can0 400#0109000000000000\n")
+        .unwrap();
+    wait_for("out.csv: 3 entries flushed");
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("out.csv")).unwrap(),
+        format!("{header}{rows}1700000001.000000,0x400,Muxed,1,,9\n")
+    );
+}
