@@ -72,6 +72,8 @@ enum Command {
     Recvfile(cmd::recvfile::Args),
     /// Replay a log onto a bus at the pace of its timestamps, like canplayer.
     Play(cmd::play::Args),
+    /// Signals of a DBC database over the time of a log, drawn as an SVG figure.
+    Plot(cmd::plot::Args),
     /// The bus as web pages (the seed's CAN WebServer) and a live dashboard.
     Web(cmd::web::Args),
     /// The bus in this terminal: per-ID table with changed bytes, frame log, load, node
@@ -166,6 +168,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Monican(args) => cmd::monican::run(args),
         Command::Log(args) => cmd::log::run(args, quiet),
         Command::Play(args) => cmd::play::run(args, quiet),
+        Command::Plot(args) => cmd::plot::run(args),
         Command::Load(args) => cmd::load::run(args),
         Command::Sendfile(args) => cmd::sendfile::run(args),
         Command::Mail(args) => cmd::mail::run(args),

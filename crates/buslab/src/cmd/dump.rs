@@ -3,6 +3,10 @@
 //! lines instead; interface arguments and filters are `buslab_backends::BusSpec`, `any` every
 //! bus this machine names.
 //!
+//! With `--dbc FILE` each frame of a message of the database is followed by its decoded signals
+//! (`cantools decode`'s layout, or `--single-line`), and `--message NAME` keeps the frames of
+//! named messages only.
+//!
 //! Nothing is printed before it is in the log: frames are taken in batches (what is waiting,
 //! and for BLF and SQLite what comes within [`Log::LINGER`]), written, flushed (a BLF
 //! container and header, an SQLite commit), and only then printed. A `kill -9` at any moment
@@ -22,6 +26,7 @@ use buslab_logs::text;
 use buslab_logs::{Format, LogWriter, Message, WriteOptions, create_writer_with};
 
 use super::busopt::{open, set_name};
+use crate::dbc::{Decoder, Layout, MessageFilter, Selected};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -99,6 +104,12 @@ pub struct Args {
     #[arg(short = 's', long = "silent", value_name = "LEVEL",
           value_parser = clap::value_parser!(u8).range(0..=2))]
     pub silent: Option<u8>,
+    #[command(flatten)]
+    pub dbc: crate::dbc::Selection,
+    /// With --dbc: each decoded message on its frame's line (`LINE :: Name(Sig: 1.5 V, …)`, as
+    /// `cantools decode --single-line`) instead of one signal per line below it.
+    #[arg(long, requires = "dbc")]
+    pub single_line: bool,
     /// candump -H (hardware timestamps): refused, with the reason.
     #[arg(short = 'H', hide = true)]
     pub hardware_timestamps: bool,
@@ -357,6 +368,9 @@ fn dump(args: Args) -> anyhow::Result<()> {
         )?),
         (None, false) => None,
     };
+    // The database first: a bad one or an unknown --message ends the dump before any file or
+    // bus is touched.
+    let selected = args.dbc.resolve()?;
     let mut log = match &log_path {
         Some(path) => Some(Log::create(path, args.to, args.extra)?),
         None => None,
@@ -419,7 +433,7 @@ fn dump(args: Args) -> anyhow::Result<()> {
             }
         );
     }
-    let mut printer = Printer::new(&args, &sources);
+    let mut printer = Printer::new(&args, &sources, selected);
     let linger = log.as_ref().map_or(Duration::ZERO, |l| l.linger);
     let idle = args.idle_timeout.map(|i| i.after);
     let mut last_heard = Instant::now();
@@ -521,10 +535,14 @@ struct Printer<'a> {
     /// A terminal line before the date goes in front of it (`-t A`).
     scratch: Vec<u8>,
     spin: usize,
+    /// `--message`: the frames kept.
+    messages: Option<MessageFilter>,
+    /// `--dbc`: the decoded message after each frame's line.
+    decoder: Option<Decoder>,
 }
 
 impl<'a> Printer<'a> {
-    fn new(args: &'a Args, sources: &'a [Source]) -> Self {
+    fn new(args: &'a Args, sources: &'a [Source], selected: Option<Selected>) -> Self {
         let (timestamps, dated) = match args.timestamps {
             Some(Stamp::Plain(mode)) => (Some(mode), false),
             Some(Stamp::Date) => (None, true),
@@ -547,6 +565,15 @@ impl<'a> Printer<'a> {
             lines: 0,
             scratch: Vec::new(),
             spin: 0,
+            messages: selected.as_ref().and_then(|s| s.filter.clone()),
+            decoder: selected.map(|s| {
+                let layout = if args.single_line {
+                    Layout::SingleLine
+                } else {
+                    Layout::MultiLine
+                };
+                Decoder::new(s.database, layout)
+            }),
         }
     }
 
@@ -593,7 +620,12 @@ impl<'a> Printer<'a> {
                 .filters
                 .passes_error(error, if self.args.errors { u32::MAX } else { 0 }),
         };
-        if !passes {
+        if !passes
+            || self
+                .messages
+                .as_ref()
+                .is_some_and(|m| !m.passes(&event.record))
+        {
             return Ok(false);
         }
         if let Record::Frame(_) | Record::Fd(_) = event.record {
@@ -620,6 +652,9 @@ impl<'a> Printer<'a> {
                     self.held.push(b'm');
                 }
                 self.line(&mut entry);
+                if let Some(decoder) = &mut self.decoder {
+                    decoder.append(&mut self.held, &entry.record);
+                }
                 if self.args.color {
                     self.held.extend_from_slice(b"\x1b[0m");
                 }

@@ -1,5 +1,9 @@
 //! `buslab log convert|info|cat`: CAN log files in every format `buslab_logs` reads (candump,
-//! ASC, BLF, TRC, CSV, pcap, pcapng, SQLite).
+//! ASC, BLF, TRC, CSV, pcap, pcapng, SQLite). With `--dbc FILE`, `cat` decodes the frames of
+//! the database's messages and `convert` to CSV writes their signals as a table
+//! ([`signals`]); `--message NAME` keeps the frames of named messages.
+
+mod signals;
 
 use std::io::{self, IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -15,6 +19,7 @@ use buslab_logs::{
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+use crate::dbc::{Decoder, Layout, Selection};
 use crate::units::Human;
 
 #[derive(clap::Args)]
@@ -30,7 +35,7 @@ pub enum LogCommand {
     Convert(ConvertArgs),
     /// What a log holds: entries, interfaces, IDs, time span, bus load.
     Info(InfoArgs),
-    /// Print a log as candump log lines (`(SECONDS) IFACE FRAME`).
+    /// Print a log as candump log lines (`(SECONDS) IFACE FRAME`), decoded with --dbc.
     Cat(CatArgs),
 }
 
@@ -67,6 +72,11 @@ pub struct ConvertArgs {
     /// replaced (rotated), a warning says which and its new content is read from the start.
     #[arg(short, long)]
     pub follow: bool,
+    // With --dbc and a CSV OUT: one row per frame of a message of the database (time, ID,
+    // message, then a column per signal, `Message.Signal`); with another format, --dbc only
+    // names the messages --message keeps.
+    #[command(flatten)]
+    pub dbc: Selection,
 }
 
 #[derive(clap::Args)]
@@ -93,6 +103,12 @@ pub struct CatArgs {
     /// Nine decimals (nanoseconds, as candump -N) instead of six.
     #[arg(short = 'N', long)]
     pub nanos: bool,
+    #[command(flatten)]
+    pub dbc: Selection,
+    /// With --dbc: each decoded message on its frame's line (`LINE :: Name(Sig: 1.5 V, …)`, as
+    /// `cantools decode --single-line`) instead of one signal per line below it.
+    #[arg(long, requires = "dbc")]
+    pub single_line: bool,
 }
 
 pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
@@ -114,7 +130,7 @@ fn is_broken_pipe(e: &anyhow::Error) -> bool {
 }
 
 /// The input's format: `--from`, else its extension.
-fn input_format(input: &Input) -> anyhow::Result<Format> {
+pub(crate) fn input_format(input: &Input) -> anyhow::Result<Format> {
     Ok(match input.from {
         Some(f) => f,
         None => Format::from_path(&input.input)?,
@@ -123,7 +139,7 @@ fn input_format(input: &Input) -> anyhow::Result<Format> {
 
 /// What reading a log came to.
 #[derive(Default)]
-struct Tally {
+pub(crate) struct Tally {
     entries: u64,
     bad: u64,
 }
@@ -131,7 +147,7 @@ struct Tally {
 /// Reads every entry of `source` into `each` until the end, `stop` or an error. Bad records
 /// are skipped with a warning when `skip_bad`; otherwise (and for fatal errors) the error is
 /// returned, after `each` has seen everything before it.
-fn read_all(
+pub(crate) fn read_all(
     source: &mut LogSource,
     skip_bad: bool,
     stop: &AtomicBool,
@@ -156,13 +172,13 @@ fn read_all(
     Ok(())
 }
 
-enum ReadFailure {
+pub(crate) enum ReadFailure {
     Read(ReadError),
     Other(anyhow::Error),
 }
 
 impl ReadFailure {
-    fn into_error(self, tally: &Tally, kept: &str) -> anyhow::Error {
+    pub(crate) fn into_error(self, tally: &Tally, kept: &str) -> anyhow::Error {
         match self {
             ReadFailure::Read(e) => {
                 let hint = if e.is_fatal() {
@@ -196,12 +212,28 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
     if same_file(input, output) {
         bail!("{} is both input and output", input.display());
     }
+    let selected = args.dbc.resolve()?;
+    let filter = selected.as_ref().and_then(|s| s.filter.clone());
+    let signals = match selected {
+        Some(s) if to == Format::Csv => Some(s),
+        Some(_) if filter.is_none() => bail!(
+            "--dbc writes decoded signals to a CSV file, and {} is {to}: name a .csv OUT (or \
+             --to csv), or add --message NAME to keep some messages' frames in {to}",
+            output.display()
+        ),
+        _ => None,
+    };
     let stop = super::interrupted()?;
     super::file_size_limit_as_error()?;
-    let writer = if args.follow {
-        create_writer(output, to)?
-    } else {
-        create_writer_atomic(output, to)?
+    let writer: Box<dyn LogWriter + Send> = match &signals {
+        Some(s) => Box::new(signals::SignalCsv::create(
+            output,
+            s.database.clone(),
+            filter.as_ref(),
+            args.follow,
+        )?),
+        None if args.follow => create_writer(output, to)?,
+        None => create_writer_atomic(output, to)?,
     };
     // Shared with the follower, which flushes it whenever the input has nothing new.
     let writer: Arc<Mutex<Box<dyn LogWriter + Send>>> = Arc::new(Mutex::new(writer));
@@ -234,12 +266,17 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
     let mut tally = Tally::default();
     let bytes = source.bytes_read.clone();
     let mut last_flush = Instant::now();
+    let mut other_messages = 0u64;
     let read = read_all(
         &mut source,
         args.input.skip_bad,
         &stop,
         &mut tally,
         |entry| {
+            if filter.as_ref().is_some_and(|f| !f.passes(&entry.record)) {
+                other_messages += 1;
+                return Ok(());
+            }
             lock(&writer)
                 .write(entry)
                 .with_context(|| format!("writing {}", output.display()))?;
@@ -283,7 +320,17 @@ fn convert(args: ConvertArgs, quiet: bool) -> anyhow::Result<()> {
             output.display(),
             Human(started.elapsed())
         );
-        if left_out > 0 {
+        if other_messages > 0 {
+            line.push_str(&format!(
+                "; {other_messages} frames of other messages left out (--message)"
+            ));
+        }
+        if left_out > 0 && signals.is_some() {
+            line.push_str(&format!(
+                "; {left_out} left out (error frames, remote frames and frames of messages \
+                 the database does not have)"
+            ));
+        } else if left_out > 0 {
             line.push_str(&format!("; {left_out} left out ({to} cannot hold them)"));
         }
         if stop.load(Ordering::Relaxed) && !args.follow {
@@ -478,6 +525,7 @@ fn kbit(bits_per_s: u32) -> String {
 }
 
 fn cat(args: CatArgs) -> anyhow::Result<()> {
+    let selected = args.dbc.resolve()?;
     let format = input_format(&args.input)?;
     let mut source = open_source(&args.input.input, format, &OpenOptions::default())?;
     let stop = super::interrupted()?;
@@ -485,9 +533,22 @@ fn cat(args: CatArgs) -> anyhow::Result<()> {
     let mut out = io::BufWriter::with_capacity(64 * 1024, stdout.lock());
     let mut line = Vec::with_capacity(128);
     let mut tally = Tally::default();
+    let layout = if args.single_line {
+        Layout::SingleLine
+    } else {
+        Layout::MultiLine
+    };
+    let filter = selected.as_ref().and_then(|s| s.filter.clone());
+    let mut decoder = selected.map(|s| Decoder::new(s.database, layout));
     let read = read_all(&mut source, args.input.skip_bad, &stop, &mut tally, |e| {
+        if filter.as_ref().is_some_and(|f| !f.passes(&e.record)) {
+            return Ok(());
+        }
         line.clear();
         candump::write_line(&mut line, e, args.direction, args.nanos);
+        if let Some(decoder) = &mut decoder {
+            decoder.append(&mut line, &e.record);
+        }
         line.push(b'\n');
         out.write_all(&line)?;
         Ok(())

@@ -1,5 +1,9 @@
 //! `buslab send [IFACE] 123#1122`: send frames in cansend syntax (the interface first, as
-//! cansend takes it, or `--bus`), and wait until they were sent.
+//! cansend takes it, or `--bus`), and wait until they were sent. With `--dbc FILE`, messages
+//! of the database by name and their signals by value: `buslab send --dbc car.dbc Engine
+//! Speed=88.5 Mode=On` ([`encode`]).
+
+mod encode;
 
 use std::time::Duration;
 
@@ -17,8 +21,12 @@ pub struct Args {
     pub bus: Option<BusUrl>,
     /// `[IFACE] FRAME…`: the interface as cansend takes it (vcan0, can0, /dev/ttyACM0 or a
     /// URL), then frames in can-utils syntax: 123#DEADBEEF, 1F334455#, 123#R, 00000123#R3.
+    /// With --dbc also messages by name, each followed by its SIGNAL=VALUE (a number in the
+    /// signal's unit, or a label of its value table); signals left out are sent as 0.
     #[arg(required_unless_present = "jerrycan", value_name = "[IFACE] FRAME")]
     pub words: Vec<String>,
+    #[command(flatten)]
+    pub dbc: crate::dbc::DbcArg,
     /// A frame whose ID is spelled the JerryCAN way (3 hex digits: the ID shifted left by
     /// one, e.g. 246#1122 is 123#1122); repeatable, sent after the others.
     #[arg(long, value_name = "FRAME", value_parser = Frame::from_jerrycan)]
@@ -49,11 +57,35 @@ pub fn parse_btr(text: &str) -> Result<(u8, u8), String> {
 }
 
 /// The bus and frames from `[IFACE] FRAME…` and `--bus`: a first word without `#` is the
-/// interface.
+/// interface (with `--dbc`: unless it names a message, or `--bus` gives the bus).
 fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
+    // A database is read first: a bad one is refused before anything else.
+    let database = match &args.dbc.dbc {
+        Some(path) => Some((path.as_path(), crate::dbc::load(path)?)),
+        None => None,
+    };
+    let is_message = |word: &str| {
+        database
+            .as_ref()
+            .is_some_and(|(_, db)| db.message_by_name(word).is_some())
+    };
     let (iface, frames) = match args.words.split_first() {
-        Some((first, rest)) if !first.contains('#') => (Some(first), rest),
+        Some((first, rest))
+            if !first.contains('#')
+                && !(database.is_some()
+                    && (args.bus.is_some()
+                        || is_message(first)
+                        || encode::assignment(first).is_some())) =>
+        {
+            (Some(first), rest)
+        }
         _ => (None, &args.words[..]),
+    };
+    // Messages are encoded before the interface is looked at: a word meant as a message is
+    // named as one.
+    let encoded = match &database {
+        Some((path, db)) => Some(encode::frames(db, path, frames, iface.map(String::as_str))?),
+        None => None,
     };
     let url = match (iface, &args.bus) {
         (Some(_), Some(_)) => bail!(
@@ -67,15 +99,21 @@ fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
     if frames.is_empty() && args.jerrycan.is_empty() {
         bail!("no frame to send: expected [IFACE] FRAME…, e.g. `buslab send vcan0 123#1122`");
     }
-    let mut frames = frames
-        .iter()
-        .map(|f| {
-            f.parse::<Frame>()
-                .with_context(|| format!("invalid value '{f}' for '[IFACE] FRAME'"))
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut frames = match encoded {
+        Some(frames) => frames,
+        None => frames
+            .iter()
+            .map(|f| parse_frame(f))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+    };
     frames.extend(args.jerrycan.iter().cloned());
     Ok((url, frames))
+}
+
+/// A frame in can-utils syntax, the error naming the word.
+fn parse_frame(word: &str) -> anyhow::Result<Frame> {
+    word.parse::<Frame>()
+        .with_context(|| format!("invalid value '{word}' for '[IFACE] FRAME'"))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
