@@ -7,7 +7,6 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod cmd;
 mod config;
-#[expect(dead_code, reason = "the --dbc options of issue 29 are being wired")]
 mod dbc;
 mod logging;
 mod status_line;
