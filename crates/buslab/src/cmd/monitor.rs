@@ -491,6 +491,16 @@ impl Monitor {
         let height = usize::from(area.height.saturating_sub(3));
         // Each message takes a line at least: no more messages than lines are put in words.
         let shown = self.view.messages_page(now, self.scroll, height);
+        // The names as wide as they are (within reason); the values take the rest.
+        let names = shown
+            .iter()
+            .flat_map(|m| {
+                std::iter::once(m.name.len())
+                    .chain(m.signals.iter().map(|s| s.name.len() + SIGNAL_INDENT.len()))
+            })
+            .max()
+            .unwrap_or(0)
+            .clamp(16, 32);
         let rows = signal_lines(&shown, highlight)
             .into_iter()
             .take(height)
@@ -509,13 +519,15 @@ impl Monitor {
                 rows,
                 [
                     Constraint::Length(9),
-                    Constraint::Min(16),
-                    Constraint::Min(14),
-                    Constraint::Length(8),
-                    Constraint::Length(8),
+                    Constraint::Length(names as u16),
+                    Constraint::Fill(1),
                 ],
             )
-            .header(Row::new(["ID", "message / signal", "value", "count", "ms"]))
+            .header(Row::new([
+                "ID",
+                "message / signal",
+                "value (a message: frames, period)",
+            ]))
             .block(Block::bordered().title(title)),
             area,
         );
@@ -537,7 +549,10 @@ fn statuses(bus: &mut DynBus, own: Option<u32>) -> Option<Vec<NodeStatus>> {
     )
 }
 
-/// The signal panel's lines: a message's own line (ID, name, count, period), then one per
+/// What a signal's name is indented by, under its message's.
+const SIGNAL_INDENT: &str = "  ";
+
+/// The signal panel's lines: a message's own line (ID, name, frames, period), then one per
 /// signal (name, value); a value that changed lately is highlighted, an inactive branch's
 /// dimmed.
 fn signal_lines(messages: &[MessageRow], highlight: Style) -> Vec<(Vec<Line<'_>>, Style)> {
@@ -549,9 +564,10 @@ fn signal_lines(messages: &[MessageRow], highlight: Style) -> Vec<(Vec<Line<'_>>
             vec![
                 Line::from(m.id.as_str()),
                 Line::from(m.name.as_str()),
-                Line::from(""),
-                Line::from(m.count.to_string()),
-                Line::from(m.period_ms.map_or("-".into(), |p| format!("{p:.1}"))),
+                Line::from(match m.period_ms {
+                    Some(p) => format!("{} frames, {p:.1} ms", m.count),
+                    None => format!("{} frames", m.count),
+                }),
             ],
             bold,
         ));
@@ -563,7 +579,11 @@ fn signal_lines(messages: &[MessageRow], highlight: Style) -> Vec<(Vec<Line<'_>>
                 Line::from(value)
             };
             lines.push((
-                vec![Line::from(""), Line::from(format!("  {}", s.name)), value],
+                vec![
+                    Line::from(""),
+                    Line::from(format!("{SIGNAL_INDENT}{}", s.name)),
+                    value,
+                ],
                 if s.active { Style::default() } else { dim },
             ));
         }
