@@ -1005,6 +1005,20 @@ fn the_lab_dashboard_shows_named_signals_live_and_plots_one() {
     );
     let pins = browser.script(&signal_value("SLIO3_Reply.In_P13_Select"));
     assert_eq!(pins[2], true, "DATA_INPUT's pins dimmed: {pins}");
+    // The updates carry the signals that changed; the rows stay in the database's order,
+    // the ADC (heard last, defined last) at the end.
+    let order = browser.script(
+        "return [...document.querySelectorAll('#messages tbody[data-id=\"29D\"] tr[data-signal]')]\
+         .map(r => [Number(r.dataset.position), r.dataset.signal])",
+    );
+    let order = order.as_array().unwrap();
+    assert!(
+        order
+            .windows(2)
+            .all(|w| w[0][0].as_u64() < w[1][0].as_u64()),
+        "{order:?}"
+    );
+    assert_eq!(order.last().unwrap()[1], "SLIO3_Reply.ADC", "{order:?}");
 
     // A click on a signal's name plots it: the counter as a rising line, on an axis that
     // says its scale, over the whole window once the lab is older than it.

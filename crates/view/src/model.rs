@@ -235,7 +235,8 @@ pub struct Delta {
     /// Rows that changed (their count, data, or highlight), sorted by ID.
     pub ids: Vec<IdRow>,
     /// With a DBC database: the messages that changed (a frame, or a highlight that ran
-    /// out), sorted by ID, each with all its signals.
+    /// out), sorted by ID; each with all its signals in a whole view, else with those whose
+    /// value, highlight or activity changed (merge them by name).
     pub messages: Vec<MessageRow>,
     /// Frames of IDs beyond the table's size, counted only.
     pub ids_dropped: u64,

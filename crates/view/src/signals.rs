@@ -36,7 +36,8 @@ pub struct MessageRow {
     pub period_ms: Option<f64>,
     /// Milliseconds since its last frame.
     pub age_ms: u64,
-    /// Every signal decoded so far, in the database's order.
+    /// The signals decoded so far, in the database's order: all of them, or in a delta to a
+    /// consumer that has the rest, those whose value, highlight or activity changed.
     pub signals: Vec<SignalRow>,
     #[serde(skip)]
     key: Id,
@@ -51,6 +52,9 @@ impl MessageRow {
 /// A signal's latest value.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SignalRow {
+    /// Its place among the message's signals in the database (a consumer that gets only the
+    /// changed ones puts a new one in its place).
+    pub position: usize,
     pub name: String,
     /// The physical value as a number alone, with the decimals its scaling resolves (`4000`,
     /// `83.6`, `2.502`).
@@ -151,7 +155,8 @@ struct Latest {
     /// The message's frame count when this signal was last in a frame.
     frame: u64,
     changed_at: Option<Duration>,
-    seq: u64,
+    /// When its row last changed (its value, or whether the last frame carried it).
+    shown: u64,
     history: VecDeque<Sample>,
 }
 
@@ -264,6 +269,7 @@ impl SignalTable {
             tracked.period =
                 (at >= tracked.last_time).then(|| at.saturating_since(tracked.last_time));
         }
+        let before = tracked.count;
         tracked.count += 1;
         tracked.last_time = at;
         tracked.seen_at = now;
@@ -283,17 +289,21 @@ impl SignalTable {
                         physical: d.physical,
                         frame: tracked.count,
                         changed_at: None,
-                        seq,
+                        shown: seq,
                         history: VecDeque::from([sample]),
                     });
                 }
                 Some(latest) => {
+                    if latest.frame != before {
+                        // Its branch is back.
+                        latest.shown = seq;
+                    }
                     latest.frame = tracked.count;
                     if latest.raw != d.raw {
                         latest.raw = d.raw;
                         latest.physical = d.physical;
                         latest.changed_at = Some(now);
-                        latest.seq = seq;
+                        latest.shown = seq;
                         latest.history.push_back(sample);
                         while latest.history.len() > cap {
                             latest.history.pop_front();
@@ -306,31 +316,37 @@ impl SignalTable {
                 }
             }
         }
+        // The branches the last frame carried and this one does not.
+        for latest in tracked.values.iter_mut().flatten() {
+            if latest.frame == before && before > 0 {
+                latest.shown = seq;
+            }
+        }
     }
 
-    /// The messages changed since `since` (or whose highlight ran out between `from` and
-    /// `now`), at `now`.
+    /// The messages with a frame since `since`, or a highlight that ran out since `after`
+    /// (when given, the consumer has the rest), at `now`: for a consumer that has the rest,
+    /// only the signals whose rows changed.
     pub(crate) fn changed(
         &self,
         since: u64,
-        expired_after: Option<Duration>,
+        after: Option<Duration>,
         now: Duration,
         highlight: Duration,
     ) -> Vec<MessageRow> {
-        let expired = |tracked: &Tracked| {
-            expired_after.is_some_and(|after| {
-                tracked.values.iter().flatten().any(|v| {
-                    v.changed_at.is_some_and(|c| {
-                        let end = c + highlight;
-                        end > after && end <= now
-                    })
+        let expired = |latest: &Latest| {
+            after.is_some_and(|after| {
+                latest.changed_at.is_some_and(|c| {
+                    let end = c + highlight;
+                    end > after && end <= now
                 })
             })
         };
+        let changed = |latest: &Latest| after.is_none() || latest.shown > since || expired(latest);
         self.messages
             .iter()
-            .filter(|(_, t)| t.seq > since || expired(t))
-            .map(|(&id, t)| self.row(id, t, now, highlight))
+            .filter(|(_, t)| t.seq > since || t.values.iter().flatten().any(expired))
+            .map(|(&id, t)| self.row(id, t, now, highlight, changed))
             .collect()
     }
 
@@ -346,7 +362,7 @@ impl SignalTable {
             .iter()
             .skip(skip)
             .take(n)
-            .map(|(&id, t)| self.row(id, t, now, highlight))
+            .map(|(&id, t)| self.row(id, t, now, highlight, |_| true))
             .collect()
     }
 
@@ -354,15 +370,25 @@ impl SignalTable {
         self.messages.len()
     }
 
-    fn row(&self, key: Id, tracked: &Tracked, now: Duration, highlight: Duration) -> MessageRow {
+    /// A message's row with the signals `shown` picks.
+    fn row(
+        &self,
+        key: Id,
+        tracked: &Tracked,
+        now: Duration,
+        highlight: Duration,
+        shown: impl Fn(&Latest) -> bool,
+    ) -> MessageRow {
         let message = &self.db.messages()[tracked.index];
         let signals = message
             .signals()
             .iter()
             .zip(&tracked.values)
-            .filter_map(|(signal, latest)| {
-                let latest = latest.as_ref()?;
+            .enumerate()
+            .filter_map(|(position, (signal, latest))| {
+                let latest = latest.as_ref().filter(|l| shown(l))?;
                 Some(SignalRow {
+                    position,
                     name: signal.name().to_string(),
                     number: number_text(signal, latest.physical),
                     label: signal.choice(latest.raw).map(str::to_string),

@@ -462,10 +462,33 @@ fn with_a_database_deltas_carry_the_messages_whose_signals_changed() {
         ]
     );
     let cursor = view.advance(ms(11));
-    // The highlight running out is a change too.
+    // The highlight running out is a change too: of the Register only.
     let d = view.delta(&cursor, ms(1_011), &all, 100);
     assert_eq!(d.messages.len(), 1);
-    assert!(d.messages[0].signals.iter().all(|s| !s.changed));
+    let shown: Vec<(usize, &str, bool)> = d.messages[0]
+        .signals
+        .iter()
+        .map(|s| (s.position, s.name.as_str(), s.changed))
+        .collect();
+    assert_eq!(shown, [(0, "Register", false)]);
+    // A frame that changes nothing but the count: the count, no signal.
+    let cursor = view.advance(ms(1_011));
+    view.message(ms(1_012), &msg(1.012, "285#280200"));
+    let d = view.delta(&cursor, ms(1_013), &all, 100);
+    assert_eq!((d.messages[0].count, d.messages[0].signals.len()), (3, 0));
+    // The other branch again: it is active, the ADC no longer.
+    let cursor = view.advance(ms(1_013));
+    view.message(ms(1_014), &msg(1.014, "285#200080"));
+    let d = view.delta(&cursor, ms(1_015), &all, 100);
+    let shown: Vec<(&str, bool)> = d.messages[0]
+        .signals
+        .iter()
+        .map(|s| (s.name.as_str(), s.active))
+        .collect();
+    assert_eq!(
+        shown,
+        [("Register", true), ("In_P7_LED", true), ("ADC", false)]
+    );
     // Remote frames carry no signals.
     let cursor = view.advance(ms(1_011));
     view.message(ms(1_020), &msg(1.020, "0C0#R"));

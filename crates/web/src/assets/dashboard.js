@@ -101,8 +101,9 @@ function apply(d) {
 
 // A DBC message's rows: its own (ID, name, count, period), then one per signal: the name (a
 // button that plots it), the value (the label, or the number and its unit) marked when it
-// changed lately, dimmed when its multiplexed branch was not in the last frame. Rows are
-// updated in place (a name clicked while its value changes stays the same button).
+// changed lately, dimmed when its multiplexed branch was not in the last frame. An update
+// carries the signals whose rows changed; rows are updated in place (a name clicked while its
+// value changes stays the same button), a new one goes in its place in the database's order.
 function applyMessage(m) {
   let entry = state.messages.get(m.id);
   if (!entry) {
@@ -125,13 +126,13 @@ function applyMessage(m) {
   c[3].textContent = m.count;
   c[4].textContent = m.period_ms == null ? "-" : m.period_ms.toFixed(1);
   const plotted = $("plotsignal").value;
-  let added = false;
   for (const s of m.signals) {
     const full = m.name + "." + s.name;
     let tr = entry.rows.get(s.name);
     if (!tr) {
       tr = document.createElement("tr");
       tr.dataset.signal = full;
+      tr.dataset.position = s.position;
       tr.appendChild(document.createElement("td"));
       const name = text("button", s.name, "plot");
       name.type = "button";
@@ -143,8 +144,10 @@ function applyMessage(m) {
       tr.appendChild(cell);
       tr.appendChild(document.createElement("td"));
       tr.appendChild(document.createElement("td"));
+      // The rows are in the database's order: before the first one after it.
+      const next = [...entry.body.rows].find((r) => Number(r.dataset.position) > s.position);
+      entry.body.insertBefore(tr, next || null);
       entry.rows.set(s.name, tr);
-      added = true;
       if (!state.signalNames.has(full)) {
         state.signalNames.add(full);
         const o = text("option", full);
@@ -158,8 +161,6 @@ function applyMessage(m) {
     cell.title = "raw " + s.raw;
     cell.replaceChildren(s.changed ? text("mark", value) : document.createTextNode(value));
   }
-  // A signal heard for the first time takes its place in the database's order.
-  if (added) entry.body.append(...m.signals.map((s) => entry.rows.get(s.name)));
 }
 
 // The plotted signal's values: all of the window in a whole update, new ones after.
