@@ -147,11 +147,49 @@ fn value(p: &PtyProgram, name: &str) -> Option<(String, bool, bool)> {
     None
 }
 
+/// Whether the log shows a frame from SLIO A (395) about register `register` (the low
+/// digit of its first byte).
+fn reply_in_log(screen: &str, register: char) -> bool {
+    screen.lines().any(|l| {
+        l.split("395#")
+            .nth(1)
+            .is_some_and(|data| data.chars().nth(1) == Some(register))
+    })
+}
+
+/// Waits until MoniCAN has initialised SLIO A (P13 high: its input switches selected), as
+/// `buslab slio read` tells: its later writes would undo the test's.
+fn wait_for_slio_a(url: &str) {
+    let start = Instant::now();
+    loop {
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["-q", "slio", "--bus", url, "read", "A", "DATA_INPUT"])
+            .env_remove("BUSLAB_BUS")
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        let inputs = text
+            .trim()
+            .rsplit("0x")
+            .next()
+            .and_then(|hex| u16::from_str_radix(hex, 16).ok());
+        if inputs.is_some_and(|v| v & 1 << 13 != 0) {
+            return;
+        }
+        assert!(
+            start.elapsed() < pty_program::CEILING,
+            "SLIO A was never initialised: {text}"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
 #[test]
 fn the_lab_then_the_monitor_with_its_dbc_shows_named_signals_and_highlights_what_changes() {
     let dir = tempfile::tempdir().unwrap();
     let lab_dir = dir.path().join("lab");
     let (_lab, url) = start_lab(&lab_dir);
+    wait_for_slio_a(&url);
     let dbc = lab_dir.join("lab.dbc");
     // Rows enough for a SLIO's register file: 16 pins and the ADC under its status.
     let mut s = monitor_with(&url, &["--dbc", dbc.to_str().unwrap()], Stderr::Null, 50);
@@ -192,18 +230,21 @@ fn the_lab_then_the_monitor_with_its_dbc_shows_named_signals_and_highlights_what
 
     // SLIO A's LED P9 from the monitor (DATA_OUTPUT 0x2200: P13 keeps the input switches),
     // then a conversion of ADC1: its replies read as the register file, the outputs dimmed
-    // once the last reply is the ADC's.
+    // once the last reply is the ADC's. The log shows SLIO A's replies only.
+    s.type_keys("f395\r");
+    s.wait_for_text("frames (filtered)");
     s.type_keys("s394#032200\r");
-    s.wait_for_text("sent 394#032200");
-    s.wait_for_contents("SLIO A's reply", |t| t.contains("signals of 8 messages"));
+    s.wait_for_contents("SLIO A's DATA_OUTPUT", |t| reply_in_log(t, '3'));
     s.type_keys("s394#0500E0\r");
-    s.wait_for_text("sent 394#0500E0");
-    // 080, 0AA, 0C0, 200, 300, 394 and 395 (18FF0010, extended, comes last): the reply at the
-    // top.
-    s.type_keys("jjjjjj");
+    s.wait_for_contents("SLIO A's ADC", |t| reply_in_log(t, '8'));
+    // The reply at the top of the signals (they are sorted by ID).
+    while !s.row(4).contains("SLIOA_Reply") {
+        let title = s.row(2);
+        s.type_keys("j");
+        s.wait_until("the next message at the top", |p| p.row(2) != title);
+    }
     s.wait_until("SLIO A's register file", |p| {
-        p.contents().contains("from message 7")
-            && value(p, "ADC").is_some_and(|(v, _, dim)| v == "1.251 V" && !dim)
+        value(p, "ADC").is_some_and(|(v, _, dim)| v == "1.251 V" && !dim)
     });
     assert_eq!(
         value(&s, "Out_P9_LED").map(|(v, _, dim)| (v, dim)),

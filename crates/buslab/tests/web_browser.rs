@@ -924,8 +924,8 @@ fn signal_value(signal: &str) -> String {
 /// message's named signals, live (the counter's count rising, highlighted as it changes; the
 /// engine's constant speed not), the SLIO replies by register, and plots a signal picked by a
 /// click on its name. The screenshots go to the test's directory as `lab-dashboard-signals.png`
-/// (the page), `web-signals.png` (the signals section) and `web-signals-slio.png` (SLIO 3's
-/// replies).
+/// (the page), `web-signals.png` (the signals section), `web-signals-slio.png` (SLIO 3's
+/// replies) and `web-signals-page.png` (`/signals`, without JavaScript).
 #[test]
 fn the_lab_dashboard_shows_named_signals_live_and_plots_one() {
     if !tools() {
@@ -987,8 +987,14 @@ fn the_lab_dashboard_shows_named_signals_live_and_plots_one() {
         "{register}"
     );
 
-    // A conversion of SLIO 3's potentiometer from its panel: the reply's register is the
-    // ADC, in volts; what DATA_INPUT said is still there, dimmed (not in that frame).
+    // A conversion of SLIO 3's potentiometer from its panel, once MoniCAN has initialised it
+    // (its switches readable; its writes would come after otherwise): the reply's register
+    // is the ADC, in volts; what DATA_INPUT said is still there, dimmed (not in that frame).
+    browser.until(
+        "SLIO 3 initialised by MoniCAN",
+        &cell("3", "switches"),
+        |v| v.as_str().is_some_and(|s| s != "-"),
+    );
     browser.until(
         "SLIO 3's pins",
         &signal_value("SLIO3_Reply.In_P13_Select"),
@@ -1092,9 +1098,19 @@ fn the_lab_dashboard_shows_named_signals_live_and_plots_one() {
         &format!("/element/{id}/screenshot"),
         "web-signals-slio.png",
     );
+    // The page without JavaScript has them too, and draws the plot on the server.
+    let base = dashboard.split("dashboard#").next().unwrap();
+    browser.open(&format!("{base}signals?plot=Counter.Count&refresh=0"));
+    let page = browser.script(
+        "return [document.querySelector('tr[data-signal=\"Engine.EngineSpeed\"] td.value').textContent, \
+         document.querySelector('svg polyline.signal').getAttribute('points').split(' ').length]",
+    );
+    assert_eq!(page[0], "4000 rpm", "{page}");
+    assert!(page[1].as_u64() > Some(2 * 150), "{page}");
+    screenshot(&browser, "/screenshot", "web-signals-page.png");
     browser.pages_work_under_the_policy(
-        dashboard.split("dashboard#").next().unwrap(),
-        &["dashboard"],
+        base,
+        &["dashboard", "signals", "signals?plot=Counter.Count"],
     );
 }
 

@@ -77,27 +77,31 @@ impl ViewQuery {
                 )));
             }
         };
-        let plot = match self.plot.as_deref().map(str::trim) {
-            None | Some("") => None,
-            Some(name) if name.len() > MAX_SIGNAL_NAME => {
-                return Err(ApiError::bad_request(format!(
-                    "plot: {} bytes, at most {MAX_SIGNAL_NAME} (MESSAGE.SIGNAL)",
-                    name.len()
-                )));
-            }
-            Some(name) if !name.contains('.') || name.chars().any(char::is_control) => {
-                return Err(ApiError::bad_request(format!(
-                    "plot={name:?}: expected MESSAGE.SIGNAL, as the DBC database names them"
-                )));
-            }
-            Some(name) => Some(name.to_string()),
-        };
+        let plot = plot_name(self.plot.as_deref())?;
         Ok(ViewRequest {
             filter,
             frames,
             window,
             plot,
         })
+    }
+}
+
+/// A `plot=MESSAGE.SIGNAL` of a query: none if empty or absent; at most [`MAX_SIGNAL_NAME`]
+/// bytes, with a dot and no control character (the database's names are checked by the view).
+pub fn plot_name(plot: Option<&str>) -> Result<Option<String>, ApiError> {
+    match plot.map(str::trim) {
+        None | Some("") => Ok(None),
+        Some(name) if name.len() > MAX_SIGNAL_NAME => Err(ApiError::bad_request(format!(
+            "plot: {} bytes, at most {MAX_SIGNAL_NAME} (MESSAGE.SIGNAL)",
+            name.len()
+        ))),
+        Some(name) if !name.contains('.') || name.chars().any(char::is_control) => {
+            Err(ApiError::bad_request(format!(
+                "plot={name:?}: expected MESSAGE.SIGNAL, as the DBC database names them"
+            )))
+        }
+        Some(name) => Ok(Some(name.to_string())),
     }
 }
 

@@ -626,8 +626,32 @@ fn with_a_dbc_the_updates_carry_each_messages_signals_and_the_plotted_values() {
     );
     assert_eq!(later["messages"][0]["signals"][0]["number"], "4352");
 
+    // The page without JavaScript: the table, and the plot as steps on its own axis.
+    let (status, page) = get(addr, "/signals?plot=Engine.EngineSpeed&refresh=0&window=60");
+    assert_eq!(status, 200, "{page}");
+    assert!(page.contains("<td>0C0</td><td>Engine</td>"), "{page}");
+    assert!(
+        page.contains(">4352 rpm<") && page.contains(">first<"),
+        "{page}"
+    );
+    assert!(
+        page.contains("href=\"/signals?plot=Engine.Gear&amp;window=60&amp;refresh=0\""),
+        "{page}"
+    );
+    assert!(
+        page.contains("Engine.EngineSpeed over the last 60 s (scale 0 to 5000 rpm;"),
+        "{page}"
+    );
+    // Three values: each held until the next (two steps), the last until now.
+    let line = page
+        .split("<polyline class=signal points=\"")
+        .nth(1)
+        .and_then(|r| r.split('"').next())
+        .unwrap_or_else(|| panic!("no line: {page}"));
+    assert_eq!(line.split(' ').count(), 6, "{line}");
+
     // A signal the database does not have is refused, naming what it has.
-    for path in ["/api/events", "/api/state"] {
+    for path in ["/api/events", "/api/state", "/signals"] {
         let (status, body) = get(addr, &format!("{path}?plot=Engine.Rpm"));
         assert_eq!(status, 400, "{path}: {body}");
         assert_eq!(
@@ -637,6 +661,9 @@ fn with_a_dbc_the_updates_carry_each_messages_signals_and_the_plotted_values() {
     }
     // Without a database there is nothing to plot.
     let plain = Bench::start();
+    let (status, page) = get(plain.addr(), "/signals?refresh=0");
+    assert_eq!(status, 200);
+    assert!(page.contains("No DBC database"), "{page}");
     assert_eq!(
         json(plain.addr(), "/api/state?n=0")["dbc_messages"],
         Value::Null
