@@ -39,20 +39,35 @@ pub type Devices = Vec<(String, Box<dyn BusNode>)>;
 /// The names of the bench's simulated nodes, in the order they join.
 pub const SIMULATED: [&str; 4] = ["brakes", "engine", "body", "dash"];
 
-/// The simulated nodes of the bench ([`SIMULATED`]) and their traffic.
+/// The frame each simulated node sends ([`SIMULATED`]'s order), as can-utils writes it.
+pub const TRAFFIC: [&str; 4] = [
+    "080#0140",
+    "0C0#0FA0003C00000000",
+    "18FF0010#A5",
+    "300#D1D2D3D4",
+];
+
+/// The lab's DBC database: its simulated nodes' frames, the counter's, the SLIO bench's
+/// (calibration, each board's commands and replies, register by register), the mail and
+/// loader frames, with names, units and value tables. `buslab lab` decodes with it unless
+/// given `--dbc`, and writes it to `DIR/lab.dbc` for the other tools.
+pub const LAB_DBC: &str = include_str!("lab.dbc");
+
+/// The simulated nodes of the bench ([`SIMULATED`]) and their traffic ([`TRAFFIC`]).
 pub fn lab_nodes(bitrate: u32, seed: u64) -> Simulation {
     let mut bus = Simulation::new(bitrate, seed);
     let ms = |m: u64| Nanos::from_millis(m).bit_times_at(bitrate);
     let f = |text: &str| -> Frame { text.parse().expect("built-in frame") };
     let plain = ControllerConfig::default();
     let [brakes, engine, body, dash] = SIMULATED.map(|name| bus.add_node(name, plain));
-    bus.add_traffic(brakes, periodic(f("080#0140"), ms(20), BitTime::ZERO));
-    bus.add_traffic(engine, periodic(f("0C0#0FA0003C00000000"), ms(10), ms(1)));
-    bus.add_traffic(body, periodic(f("18FF0010#A5"), ms(100), ms(3)));
+    let [brakes_frame, engine_frame, body_frame, dash_frame] = TRAFFIC.map(f);
+    bus.add_traffic(brakes, periodic(brakes_frame, ms(20), BitTime::ZERO));
+    bus.add_traffic(engine, periodic(engine_frame, ms(10), ms(1)));
+    bus.add_traffic(body, periodic(body_frame, ms(100), ms(3)));
     bus.add_traffic(
         dash,
         Traffic::Burst {
-            frame: f("300#D1D2D3D4"),
+            frame: dash_frame,
             count: 4,
             period: ms(250),
             start: ms(5),

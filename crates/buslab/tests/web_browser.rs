@@ -910,6 +910,210 @@ fn the_dashboard_after_ten_minutes_of_lab_with_the_experiment() {
     );
 }
 
+/// A signal's value cell on the dashboard: [text, highlighted (changed lately), dimmed
+/// (an inactive multiplexed branch)], or null while the page has no such row.
+fn signal_value(signal: &str) -> String {
+    format!(
+        "const r = document.querySelector('#messages tr[data-signal=\"{signal}\"]'); \
+         return r ? [r.querySelector('td.value').textContent, \
+         !!r.querySelector('td.value mark'), r.classList.contains('inactive')] : null;"
+    )
+}
+
+/// Issue 29: `buslab lab` decodes its own traffic with its DBC: the dashboard shows each
+/// message's named signals, live (the counter's count rising, highlighted as it changes; the
+/// engine's constant speed not), the SLIO replies by register, and plots a signal picked by a
+/// click on its name. The screenshots go to the test's directory as `lab-dashboard-signals.png`
+/// (the page), `web-signals.png` (the signals section), `web-signals-slio.png` (SLIO 3's
+/// replies) and `web-signals-page.png` (`/signals`, without JavaScript).
+#[test]
+fn the_lab_dashboard_shows_named_signals_live_and_plots_one() {
+    if !tools() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (_lab, dashboard) = start_lab();
+    let browser = Browser::start(&dir.path().join("profile"));
+    // A 10-s window: the plot below spans it once the lab is that old.
+    browser.open(&format!("{dashboard}&window=10"));
+    browser.until(
+        "the signals section",
+        "return [document.getElementById('signals').hidden, \
+         document.getElementById('dbcsize').textContent]",
+        |v| v[0] == false && v[1] == "14",
+    );
+    // The lab's simulated nodes by name, with units and value tables.
+    for (signal, shown) in [
+        ("Engine.EngineSpeed", "4000 rpm"),
+        ("Engine.VehicleSpeed", "60 km/h"),
+        ("Brakes.BrakePressure", "32.0 bar"),
+        ("Body.Lights", "low beam"),
+        ("Dash.FuelLevel", "83.6 %"),
+    ] {
+        let v = browser.until(signal, &signal_value(signal), |v| !v.is_null());
+        assert_eq!(
+            v,
+            json!([shown, false, false]),
+            "{signal}: a constant value"
+        );
+    }
+    // The counter counts: its value rises from update to update, highlighted as it changes.
+    let count = |v: &Value| v[0].as_str().and_then(|s| s.parse::<u64>().ok());
+    let first = browser.until("the counter", &signal_value("Counter.Count"), |v| {
+        count(v).is_some()
+    });
+    let later = browser.until(
+        "the counter rising, highlighted",
+        &signal_value("Counter.Count"),
+        |v| count(v) > count(&first) && v[1] == true,
+    );
+    assert_eq!(later[2], false, "{later}");
+    // The SLIO boards' answers to the panels' reads: registers by name.
+    let register = browser.until(
+        "SLIO 3's answer",
+        &signal_value("SLIO3_Reply.Register"),
+        |v| !v.is_null(),
+    );
+    assert!(
+        [
+            "DATA_INPUT",
+            "ADC",
+            "DATA_OUTPUT",
+            "OUTPUT_ENABLE",
+            "DPM1",
+            "DPM2"
+        ]
+        .contains(&register[0].as_str().unwrap()),
+        "{register}"
+    );
+
+    // A conversion of SLIO 3's potentiometer from its panel, once MoniCAN has initialised it
+    // (its switches readable; its writes would come after otherwise): the reply's register
+    // is the ADC, in volts; what DATA_INPUT said is still there, dimmed (not in that frame).
+    browser.until(
+        "SLIO 3 initialised by MoniCAN",
+        &cell("3", "switches"),
+        |v| v.as_str().is_some_and(|s| s != "-"),
+    );
+    browser.until(
+        "SLIO 3's pins",
+        &signal_value("SLIO3_Reply.In_P13_Select"),
+        |v| !v.is_null(),
+    );
+    browser.click("#slio-3 button.adc2");
+    browser.until("SLIO 3's ADC", &signal_value("SLIO3_Reply.Register"), |v| {
+        v[0] == "ADC"
+    });
+    let adc = browser.script(&signal_value("SLIO3_Reply.ADC"));
+    assert!(
+        adc[0].as_str().is_some_and(|s| s.ends_with(" V")) && adc[2] == false,
+        "{adc}"
+    );
+    let pins = browser.script(&signal_value("SLIO3_Reply.In_P13_Select"));
+    assert_eq!(pins[2], true, "DATA_INPUT's pins dimmed: {pins}");
+    // The updates carry the signals that changed; the rows stay in the database's order,
+    // the ADC (heard last, defined last) at the end.
+    let order = browser.script(
+        "return [...document.querySelectorAll('#messages tbody[data-id=\"29D\"] tr[data-signal]')]\
+         .map(r => [Number(r.dataset.position), r.dataset.signal])",
+    );
+    let order = order.as_array().unwrap();
+    assert!(
+        order
+            .windows(2)
+            .all(|w| w[0][0].as_u64() < w[1][0].as_u64()),
+        "{order:?}"
+    );
+    assert_eq!(order.last().unwrap()[1], "SLIO3_Reply.ADC", "{order:?}");
+
+    // A click on a signal's name plots it: the counter as a rising line, on an axis that
+    // says its scale, over the whole window once the lab is older than it.
+    browser.until("the lab 12 s old", PAGE_CLOCK, |v| {
+        v.as_f64().is_some_and(|t| t > 12.0)
+    });
+    browser.click("#messages button.plot[data-signal=\"Counter.Count\"]");
+    assert_eq!(
+        browser.script("return document.getElementById('plotsignal').value"),
+        "Counter.Count"
+    );
+    let points = browser.until(
+        "the counter plotted",
+        "const l = document.querySelector('#signalchart polyline.signal'); \
+         return l ? l.getAttribute('points').split(' ').map(xy => xy.split(',').map(Number)) : []",
+        // Every frame of the window: 20 a second.
+        |v| v.as_array().is_some_and(|p| p.len() > 2 * 150),
+    );
+    let ys: Vec<f64> = points
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|xy| xy[1].as_f64().unwrap())
+        .collect();
+    // Higher values are drawn higher (smaller y): the line never goes down.
+    assert!(ys.windows(2).all(|w| w[1] <= w[0]), "{points}");
+    assert!(ys.last() < ys.first(), "{points}");
+    let xs: Vec<f64> = points
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|xy| xy[0].as_f64().unwrap())
+        .collect();
+    assert!(
+        xs[0] < 1.0 && xs[xs.len() - 1] > 599.0,
+        "the whole window: {points}"
+    );
+    let caption =
+        browser.script("return document.querySelector('#signalchart text.caption').textContent");
+    assert!(
+        caption
+            .as_str()
+            .is_some_and(|c| c.starts_with("Counter.Count over the last 10 s (scale 0 to ")),
+        "{caption}"
+    );
+    // The page's series is the server's: the count's latest values, in order.
+    let series = browser.script("return state.plot.points.map(p => p[1])");
+    let values: Vec<f64> = series
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(values.windows(2).all(|w| w[1] > w[0]), "{series}");
+
+    screenshot(&browser, "/screenshot", "lab-dashboard-signals.png");
+    browser.script("document.getElementById('signals').scrollIntoView(); return null");
+    let id = browser.find("#signals");
+    screenshot(
+        &browser,
+        &format!("/element/{id}/screenshot"),
+        "web-signals.png",
+    );
+    // SLIO 3's register file, its ADC reply the last.
+    browser.script(
+        "document.querySelector('#messages tbody[data-id=\"29D\"]').scrollIntoView(); return null",
+    );
+    let id = browser.find(".signaltable");
+    screenshot(
+        &browser,
+        &format!("/element/{id}/screenshot"),
+        "web-signals-slio.png",
+    );
+    // The page without JavaScript has them too, and draws the plot on the server.
+    let base = dashboard.split("dashboard#").next().unwrap();
+    browser.open(&format!("{base}signals?plot=Counter.Count&refresh=0"));
+    let page = browser.script(
+        "return [document.querySelector('tr[data-signal=\"Engine.EngineSpeed\"] td.value').textContent, \
+         document.querySelector('svg polyline.signal').getAttribute('points').split(' ').length]",
+    );
+    assert_eq!(page[0], "4000 rpm", "{page}");
+    assert!(page[1].as_u64() > Some(2 * 150), "{page}");
+    screenshot(&browser, "/screenshot", "web-signals-page.png");
+    browser.pages_work_under_the_policy(
+        base,
+        &["dashboard", "signals", "signals?plot=Counter.Count"],
+    );
+}
+
 /// Issue 26 (deliverable 4): the lab's switches and potentiometer from the devices panel. A
 /// click flips switch 2 of SLIO 3 on the board; the panel reads the SLIO's pins again and
 /// shows the switch as the SLIO reads it. The potentiometer turned to 2.5 V converts as

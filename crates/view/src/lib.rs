@@ -9,7 +9,10 @@
 //!   the frames' lengths on the wire at a known bit rate);
 //! - every node's error state over time (TEC, REC, error-active/passive/bus-off) with its
 //!   latest typed status (STATUS bits, ALC and ECC);
-//! - the faults put on the wire through the consumer ([`FaultMark`]), for the time charts.
+//! - the faults put on the wire through the consumer ([`FaultMark`]), for the time charts;
+//! - with a DBC database ([`ViewConfig::dbc`]), its messages' signals: per message seen, the
+//!   latest value of each signal with the ones that changed lately ([`MessageRow`]), and any
+//!   signal's values over time ([`BusView::series`]).
 //!
 //! The load, the histories and the marks go back [`ViewConfig::retention`]; a new consumer
 //! asks for the time window its charts show ([`BusView::delta_within`]), never for the whole
@@ -24,12 +27,16 @@
 mod filter;
 
 mod model;
+mod signals;
 
 pub use buslab_can::wire::frame_bits;
 pub use filter::{FilterError, LogFilter};
 pub use model::{
     BusView, Cursor, Delta, ErrorEntry, ErrorSample, FaultMark, IdRow, LoadSample, LogEntry,
     NodeView, ViewConfig,
+};
+pub use signals::{
+    MIN_SIGNAL_POINTS, MessageRow, Series, SignalError, SignalKey, SignalRow, number_text,
 };
 
 pub use std::time::Duration;

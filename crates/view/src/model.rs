@@ -1,13 +1,16 @@
 //! The model: state, inputs, and deltas since a cursor.
 
 use std::collections::{BTreeMap, VecDeque};
+use std::sync::Arc;
 use std::time::Duration;
 
 use buslab_bus::{ErrorFrame, ErrorState, Message, NodeStatus, Record, Timestamp};
 use buslab_can::{Frame, Id};
+use buslab_dbc::Database;
 use serde::Serialize;
 
 use crate::filter::LogFilter;
+use crate::signals::{MessageRow, Series, SignalError, SignalKey, SignalTable, candump_id};
 use buslab_can::wire::frame_bits;
 
 /// Sizes and times of a view.
@@ -30,6 +33,12 @@ pub struct ViewConfig {
     pub retention: Duration,
     /// The bus's bit rate when the bus cannot tell, for estimating the load from frames.
     pub bitrate: Option<u32>,
+    /// A DBC database: the frames of its messages are also shown as signals
+    /// ([`BusView::messages_page`], [`Delta::messages`], [`BusView::series`]).
+    pub dbc: Option<Arc<Database>>,
+    /// Signal samples kept over all signals' histories; each signal keeps at least
+    /// [`crate::MIN_SIGNAL_POINTS`].
+    pub signal_points: usize,
 }
 
 impl Default for ViewConfig {
@@ -42,6 +51,8 @@ impl Default for ViewConfig {
             history_points: 4096,
             retention: Duration::from_secs(600),
             bitrate: None,
+            dbc: None,
+            signal_points: 1 << 18,
         }
     }
 }
@@ -223,6 +234,10 @@ pub struct Delta {
     pub t: f64,
     /// Rows that changed (their count, data, or highlight), sorted by ID.
     pub ids: Vec<IdRow>,
+    /// With a DBC database: the messages that changed (a frame, or a highlight that ran
+    /// out), sorted by ID; each with all its signals in a whole view, else with those whose
+    /// value, highlight or activity changed (merge them by name).
+    pub messages: Vec<MessageRow>,
     /// Frames of IDs beyond the table's size, counted only.
     pub ids_dropped: u64,
     /// New log frames that pass the consumer's filter, oldest first (at most the asked
@@ -288,11 +303,18 @@ pub struct BusView {
     cleared_at: u64,
     /// Frames ever put in the log (those that left it included).
     logged: u64,
+    /// The frames of the DBC database's messages as signals.
+    signals: Option<SignalTable>,
 }
 
 impl BusView {
     pub fn new(config: ViewConfig) -> Self {
+        let signals = config
+            .dbc
+            .clone()
+            .map(|db| SignalTable::new(db, config.signal_points, config.retention, config.max_ids));
         Self {
+            signals,
             config,
             seq: 0,
             rows: BTreeMap::new(),
@@ -377,6 +399,11 @@ impl BusView {
                 );
             }
             None => self.ids_dropped += 1,
+        }
+        if let Some(signals) = &mut self.signals
+            && !frame.is_remote()
+        {
+            signals.frame(now, at, id, frame.payload(), seq);
         }
         self.log(Logged {
             seq,
@@ -531,6 +558,9 @@ impl BusView {
         self.load.clear();
         self.ids_dropped = 0;
         self.frames = 0;
+        if let Some(signals) = &mut self.signals {
+            signals.clear();
+        }
         self.next_seq();
         self.cleared_at = self.seq;
     }
@@ -582,6 +612,9 @@ impl BusView {
             .filter(|(_, r)| r.seq > since || expired(r))
             .map(|(&key, r)| self.row(key, r, now))
             .collect();
+        let messages = self.signals.as_ref().map_or_else(Vec::new, |s| {
+            s.changed(since, (!full).then_some(cursor.at), now, highlight)
+        });
         let mut log = Vec::new();
         let mut passed = 0u64;
         let mut in_log = 0u64;
@@ -613,6 +646,7 @@ impl BusView {
             full,
             t: now.as_secs_f64(),
             ids,
+            messages,
             ids_dropped: self.ids_dropped,
             log_skipped: passed - log.len() as u64 + overrun,
             log,
@@ -660,6 +694,50 @@ impl BusView {
             .take(n)
             .map(|(&key, r)| self.row(key, r, now))
             .collect()
+    }
+
+    /// The DBC database the view decodes with, if any.
+    pub fn database(&self) -> Option<&Database> {
+        self.signals.as_ref().map(SignalTable::database)
+    }
+
+    /// At most `n` messages of the database seen on the bus, from the `skip`th, sorted by ID,
+    /// each with its signals, at `now` (none without a database).
+    pub fn messages_page(&self, now: Duration, skip: usize, n: usize) -> Vec<MessageRow> {
+        self.signals
+            .as_ref()
+            .map_or_else(Vec::new, |s| s.page(now, self.config.highlight, skip, n))
+    }
+
+    /// Messages of the database seen on the bus.
+    pub fn message_count(&self) -> usize {
+        self.signals.as_ref().map_or(0, SignalTable::len)
+    }
+
+    /// The signal a consumer names `Message.Signal`.
+    pub fn signal(&self, name: &str) -> Result<SignalKey, SignalError> {
+        self.signals
+            .as_ref()
+            .ok_or(SignalError::NoDatabase)?
+            .key(name)
+    }
+
+    /// `key`'s values since `cursor`, at `now`: for a new consumer (as [`BusView::delta`]
+    /// decides) those of the last `window` with the one before, else the new ones.
+    pub fn series(
+        &self,
+        key: &SignalKey,
+        cursor: &Cursor,
+        now: Duration,
+        window: Duration,
+    ) -> Series {
+        let full = !cursor.fresh || cursor.seq < self.cleared_at;
+        let from = now.saturating_sub(window).as_secs_f64();
+        let table = self
+            .signals
+            .as_ref()
+            .expect("a signal key comes from the view's database");
+        table.series(key, full, cursor.seq, from)
     }
 
     /// Frames per second over the last complete second.
@@ -719,10 +797,7 @@ impl BusView {
                 changed |= 1 << i;
             }
         }
-        let id = match key {
-            Id::Standard(s) => format!("{:03X}", s.as_raw()),
-            Id::Extended(e) => format!("{:08X}", e.as_raw()),
-        };
+        let id = candump_id(key);
         let data = r
             .frame
             .payload()

@@ -403,3 +403,137 @@ fn a_repair_ends_the_fault_marks_still_running() {
     );
     assert_ne!(timed, open);
 }
+
+const DBC: &str = r#"
+BO_ 192 Engine: 8 engine
+ SG_ EngineSpeed : 7|16@0+ (1,0) [0|65535] "rpm" Vector__XXX
+BO_ 645 SLIO0_Reply: 3 slio0
+ SG_ Register M : 0|4@1+ (1,0) [0|8] "" ppc
+ SG_ In_P7_LED m0 : 23|1@1+ (1,0) [0|1] "" ppc
+ SG_ ADC m8 : 9|10@0+ (0.004887585532746823,0) [0|5] "V" ppc
+VAL_ 645 Register 0 "DATA_INPUT" 8 "ADC" ;
+VAL_ 645 In_P7_LED 0 "off" 1 "on" ;
+"#;
+
+fn dbc_view() -> BusView {
+    BusView::new(ViewConfig {
+        dbc: Some(std::sync::Arc::new(
+            buslab_dbc::Database::parse(DBC).unwrap(),
+        )),
+        ..ViewConfig::default()
+    })
+}
+
+#[test]
+fn with_a_database_deltas_carry_the_messages_whose_signals_changed() {
+    let mut view = dbc_view();
+    let all = LogFilter::all();
+    view.message(ms(0), &msg(0.0, "0C0#0FA0"));
+    view.message(ms(1), &msg(0.001, "285#200080"));
+    // Not in the database: in the per-ID table only.
+    view.message(ms(2), &msg(0.002, "123#01"));
+    let first = view.delta(&Cursor::start(), ms(3), &all, 100);
+    assert_eq!(first.ids.len(), 3);
+    let names: Vec<&str> = first.messages.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["Engine", "SLIO0_Reply"]);
+    let json: serde_json::Value = serde_json::to_value(&first.messages[1]).unwrap();
+    assert_eq!(json["id"], "285");
+    assert_eq!(json["signals"][0]["label"], "DATA_INPUT");
+    assert_eq!(json["signals"][1]["name"], "In_P7_LED");
+    assert_eq!(json["signals"][1]["label"], "on");
+    let cursor = view.advance(ms(3));
+
+    // The SLIO's ADC: the register branch changes, the pins keep what DATA_INPUT said.
+    view.message(ms(10), &msg(0.010, "285#280200"));
+    let d = view.delta(&cursor, ms(11), &all, 100);
+    assert_eq!(d.messages.len(), 1, "only the SLIO's message changed");
+    let slio = &d.messages[0];
+    let shown: Vec<(String, bool, bool)> = slio
+        .signals
+        .iter()
+        .map(|s| (s.text(), s.changed, s.active))
+        .collect();
+    assert_eq!(
+        shown,
+        [
+            ("ADC".to_string(), true, true),
+            ("on".to_string(), false, false),
+            ("2.502 V".to_string(), false, true),
+        ]
+    );
+    let cursor = view.advance(ms(11));
+    // The highlight running out is a change too: of the Register only.
+    let d = view.delta(&cursor, ms(1_011), &all, 100);
+    assert_eq!(d.messages.len(), 1);
+    let shown: Vec<(usize, &str, bool)> = d.messages[0]
+        .signals
+        .iter()
+        .map(|s| (s.position, s.name.as_str(), s.changed))
+        .collect();
+    assert_eq!(shown, [(0, "Register", false)]);
+    // A frame that changes nothing but the count: the count, no signal.
+    let cursor = view.advance(ms(1_011));
+    view.message(ms(1_012), &msg(1.012, "285#280200"));
+    let d = view.delta(&cursor, ms(1_013), &all, 100);
+    assert_eq!((d.messages[0].count, d.messages[0].signals.len()), (3, 0));
+    // The other branch again: it is active, the ADC no longer.
+    let cursor = view.advance(ms(1_013));
+    view.message(ms(1_014), &msg(1.014, "285#200080"));
+    let d = view.delta(&cursor, ms(1_015), &all, 100);
+    let shown: Vec<(&str, bool)> = d.messages[0]
+        .signals
+        .iter()
+        .map(|s| (s.name.as_str(), s.active))
+        .collect();
+    assert_eq!(
+        shown,
+        [("Register", true), ("In_P7_LED", true), ("ADC", false)]
+    );
+    // Remote frames carry no signals.
+    let cursor = view.advance(ms(1_011));
+    view.message(ms(1_020), &msg(1.020, "0C0#R"));
+    assert_eq!(view.delta(&cursor, ms(1_021), &all, 100).messages, []);
+    assert_eq!(view.messages_page(ms(1_021), 0, 10)[0].count, 1);
+}
+
+#[test]
+fn a_signal_series_is_whole_for_a_new_consumer_then_grows() {
+    let mut view = dbc_view();
+    let key = view.signal("Engine.EngineSpeed").unwrap();
+    assert_eq!(
+        view.signal("Engine.Rpm").unwrap_err().to_string(),
+        "message Engine has no signal \"Rpm\" (it has EngineSpeed)"
+    );
+    for k in 0..30u64 {
+        // 4000 rpm for 10 frames, then 4100, then 4200: three samples.
+        let rpm = 4000 + 100 * (k / 10);
+        view.message(ms(k * 1000), &msg(k as f64, &format!("0C0#{rpm:04X}")));
+    }
+    let whole = view.series(&key, &Cursor::start(), ms(30_000), ms(60_000));
+    assert!(whole.full);
+    assert_eq!(whole.unit, "rpm");
+    assert_eq!(
+        whole.points,
+        [(0.0, 4000.0), (10.0, 4100.0), (20.0, 4200.0)]
+    );
+    // A 15-s window starts with the value held at its start.
+    let window = view.series(&key, &Cursor::start(), ms(30_000), ms(15_000));
+    assert_eq!(window.points, [(10.0, 4100.0), (20.0, 4200.0)]);
+    let cursor = view.advance(ms(30_000));
+    view.message(ms(31_000), &msg(31.0, "0C0#1068"));
+    view.message(ms(31_500), &msg(31.5, "0C0#1130"));
+    let more = view.series(&key, &cursor, ms(31_500), ms(60_000));
+    assert!(!more.full);
+    // The same value again is no sample; a new one is.
+    assert_eq!(more.points, [(31.5, 4400.0)]);
+    // Cleared: the next series is whole again, and empty.
+    view.clear();
+    let cleared = view.series(&key, &cursor, ms(32_000), ms(60_000));
+    assert!(cleared.full && cleared.points.is_empty());
+    // No database, no signals.
+    let plain = BusView::new(ViewConfig::default());
+    assert_eq!(
+        plain.signal("Engine.EngineSpeed").unwrap_err().to_string(),
+        "no DBC database: start with --dbc FILE to see signals"
+    );
+}

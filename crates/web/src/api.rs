@@ -15,7 +15,7 @@ use buslab_backends::TrySendError;
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::bus::Human;
 use buslab_bus::{BusAdmin, BusError, CanBus, NodeRef, WireFault};
-use buslab_view::{Cursor, Delta, LogFilter};
+use buslab_view::{BusView, Cursor, Delta, LogFilter, Series, SignalKey};
 use futures_util::Stream;
 use serde::Serialize;
 use tokio::time::MissedTickBehavior;
@@ -44,9 +44,20 @@ struct Update<'a> {
     /// The device panels, when they changed since this viewer's last update.
     #[serde(skip_serializing_if = "Option::is_none")]
     devices: Option<crate::devices::DevicesView>,
+    /// The signal the viewer plots (`plot=`): its new values, or all of the window in the
+    /// first update.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plot: Option<Series>,
 }
 
-/// `GET /api/state?filter=F&n=N`: the whole view now.
+/// The signal a request names with `plot=`, found in the view's database.
+fn plot_key(view: &BusView, plot: Option<&str>) -> Result<Option<SignalKey>, ApiError> {
+    plot.map(|name| view.signal(name))
+        .transpose()
+        .map_err(|e| ApiError::bad_request(format!("plot: {e}")))
+}
+
+/// `GET /api/state?filter=F&n=N&window=S&plot=M.S`: the whole view now.
 pub async fn state(
     State(app): State<App>,
     Query(q): Query<ViewQuery>,
@@ -55,17 +66,26 @@ pub async fn state(
         filter,
         frames: n,
         window,
+        plot,
     } = q.checked()?;
     let now = app.hub.now();
-    let delta = app
-        .hub
-        .view()
-        .delta_within(&Cursor::start(), now, &filter, n, window);
+    let (delta, plot, signals) = {
+        let view = app.hub.view();
+        let key = plot_key(&view, plot.as_deref())?;
+        let start = Cursor::start();
+        (
+            view.delta_within(&start, now, &filter, n, window),
+            key.map(|k| view.series(&k, &start, now, window)),
+            view.database().map(|db| db.messages().len()),
+        )
+    };
     Ok(Json(serde_json::json!({
         "delta": delta,
+        "plot": plot,
         "bus_failure": app.hub.failure(),
         "channel": app.hub.channel,
         "writable": app.token.is_some(),
+        "dbc_messages": signals,
     })))
 }
 
@@ -79,16 +99,25 @@ struct Viewer {
     ticker: tokio::time::Interval,
     /// The device panels' version this viewer has (`None`: none sent yet).
     devices_seen: Option<u64>,
+    /// The signal it plots.
+    plot: Option<SignalKey>,
 }
 
-/// `GET /api/events?filter=F`: server-sent events, one `update` at most every 100 ms. The
+/// `GET /api/events?filter=F&window=S&plot=M.S`: server-sent events, one `update` at most
+/// every 100 ms, with the values of the signal `plot` names. The
 /// stream is pulled only when the connection has room, so a slow viewer gets larger updates
 /// less often; the frames it missed are counted in its `lost`.
 pub async fn events(
     State(app): State<App>,
     Query(q): Query<ViewQuery>,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let ViewRequest { filter, window, .. } = q.checked()?;
+    let ViewRequest {
+        filter,
+        window,
+        plot,
+        ..
+    } = q.checked()?;
+    let plot = plot_key(&app.hub.view(), plot.as_deref())?;
     let mut ticker = tokio::time::interval(UPDATE_EVERY);
     ticker.set_missed_tick_behavior(MissedTickBehavior::Delay);
     let viewer = Viewer {
@@ -99,15 +128,21 @@ pub async fn events(
         lost: 0,
         ticker,
         devices_seen: None,
+        plot,
     };
     let stream = futures_util::stream::unfold(viewer, |mut v| async move {
         v.ticker.tick().await;
         let now = v.app.hub.now();
-        let delta = {
+        let (delta, plot) = {
             let view = v.app.hub.view();
             let delta = view.delta_within(&v.cursor, now, &v.filter, MAX_LOG, v.window);
+            let plot = v
+                .plot
+                .as_ref()
+                .map(|key| view.series(key, &v.cursor, now, v.window))
+                .filter(|s| s.full || !s.points.is_empty());
             v.cursor = view.advance(now);
-            delta
+            (delta, plot)
         };
         // A whole view holds the frames from before the viewer came: those it was never sent
         // are history, not updates it lost.
@@ -128,6 +163,7 @@ pub async fn events(
             bus_failure: v.app.hub.failure(),
             refused: v.app.hub.refused.load(std::sync::atomic::Ordering::Relaxed),
             devices,
+            plot,
         };
         let event = match serde_json::to_string(&update) {
             Ok(json) => Event::default().event("update").data(json),

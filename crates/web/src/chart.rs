@@ -96,7 +96,8 @@ pub struct Chart<'a> {
     /// The x range shown; points outside are cut off at its edges.
     pub x: (f64, f64),
     pub axis: TimeAxis,
-    /// The y axis goes from 0 to `top`.
+    /// The y axis goes from `bottom` (0 for counts and loads) to `top`.
+    pub bottom: f64,
     pub top: f64,
     /// The y values' unit, after each label (`%`, `V`; empty for counts).
     pub unit: &'a str,
@@ -116,7 +117,8 @@ impl Chart<'_> {
     }
 
     fn py(&self, y: f64) -> f64 {
-        H - (y / self.top).clamp(0.0, 1.0) * H
+        let span = (self.top - self.bottom).max(1e-12);
+        H - ((y - self.bottom) / span).clamp(0.0, 1.0) * H
     }
 
     /// The chart as an `<svg>` element.
@@ -157,7 +159,7 @@ impl Chart<'_> {
             );
         }
         for (y, text) in &self.rules {
-            if *y > self.top {
+            if *y > self.top || *y < self.bottom {
                 continue;
             }
             let _ = write!(
@@ -169,7 +171,7 @@ impl Chart<'_> {
             );
         }
         for k in 0..=2 {
-            let v = self.top * f64::from(k) / 2.0;
+            let v = self.bottom + (self.top - self.bottom) * f64::from(k) / 2.0;
             let unit = if self.unit.is_empty() { "" } else { " " };
             let _ = write!(
                 b,
@@ -261,6 +263,46 @@ impl Chart<'_> {
     }
 }
 
+/// A signal's values as steps: each `(t, value)` holds until the next, the last until `until`;
+/// a value that is no number breaks the line (pieces of a chart's series).
+pub fn steps(points: &[(f64, f64)], until: f64) -> Vec<Vec<(f64, f64)>> {
+    let mut pieces = Vec::new();
+    let mut piece: Vec<(f64, f64)> = Vec::new();
+    for &(t, v) in points {
+        if !v.is_finite() {
+            if !piece.is_empty() {
+                pieces.push(std::mem::take(&mut piece));
+            }
+            continue;
+        }
+        if let Some(&(_, last)) = piece.last() {
+            piece.push((t, last));
+        }
+        piece.push((t, v));
+    }
+    if let Some(&(t, last)) = piece.last()
+        && until > t
+    {
+        piece.push((until, last));
+    }
+    if !piece.is_empty() {
+        pieces.push(piece);
+    }
+    pieces
+}
+
+/// The y axis for values from `min` to `max`: from 0 (or the nice bottom below a negative
+/// minimum) to the nice top above the maximum (or 0); never empty.
+pub fn signal_axis(min: f64, max: f64) -> (f64, f64) {
+    let top = if max > 0.0 { nice_top(max, 0.0) } else { 0.0 };
+    let bottom = if min < 0.0 { -nice_top(-min, 0.0) } else { 0.0 };
+    if top > bottom {
+        (bottom, top)
+    } else {
+        (bottom, bottom + 1.0)
+    }
+}
+
 /// A chart's window in words: `60 s`, `5 min`.
 pub fn window_words(window: std::time::Duration) -> String {
     let s = window.as_secs();
@@ -318,6 +360,7 @@ mod tests {
         let chart = Chart {
             x: (60.0, 120.0),
             axis: TimeAxis::Ago,
+            bottom: 0.0,
             top: 128.0,
             unit: "",
             caption: "TEC".into(),
@@ -357,10 +400,46 @@ mod tests {
     }
 
     #[test]
+    fn a_signal_is_drawn_as_steps_on_an_axis_that_fits_negative_values() {
+        let pieces = steps(&[(1.0, 5.0), (2.0, -3.0), (3.0, f64::NAN), (4.0, 1.0)], 6.0);
+        assert_eq!(
+            pieces,
+            [
+                vec![(1.0, 5.0), (2.0, 5.0), (2.0, -3.0)],
+                vec![(4.0, 1.0), (6.0, 1.0)]
+            ]
+        );
+        assert_eq!(signal_axis(-3.0, 5.0), (-5.0, 5.0));
+        assert_eq!(signal_axis(0.0, 4000.0), (0.0, 5000.0));
+        assert_eq!(signal_axis(-0.3, -0.1), (-0.5, 0.0));
+        assert_eq!(signal_axis(0.0, 0.0), (0.0, 1.0));
+        let chart = Chart {
+            x: (0.0, 10.0),
+            axis: TimeAxis::Seconds,
+            bottom: -5.0,
+            top: 5.0,
+            unit: "V",
+            caption: "a signal".into(),
+            rules: vec![],
+            bands: vec![],
+            series: vec![],
+        };
+        let mut svg = String::new();
+        chart.render(&mut svg);
+        assert!(
+            svg.contains(">-5 V<") && svg.contains(">0 V<") && svg.contains(">5 V<"),
+            "{svg}"
+        );
+        // 0 V half-way up.
+        assert_eq!(chart.py(0.0), H / 2.0);
+    }
+
+    #[test]
     fn a_label_of_a_band_at_the_right_edge_stays_inside_the_chart() {
         let chart = Chart {
             x: (60.0, 120.0),
             axis: TimeAxis::Ago,
+            bottom: 0.0,
             top: 8.0,
             unit: "",
             caption: "TEC".into(),

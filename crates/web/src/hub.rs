@@ -13,7 +13,8 @@ use buslab_view::{BusView, ViewConfig};
 
 use crate::request::MAX_WINDOW;
 
-use crate::devices::{DeviceConfig, Devices};
+use crate::WebConfig;
+use crate::devices::Devices;
 
 /// What the request handlers share.
 pub struct Hub {
@@ -67,12 +68,8 @@ pub struct BusSide {
 }
 
 impl BusSide {
-    pub fn start(
-        mut bus: DynBus,
-        bitrate: Option<u32>,
-        status_every: Duration,
-        devices: &DeviceConfig,
-    ) -> std::io::Result<Self> {
+    pub fn start(mut bus: DynBus, config: &WebConfig) -> std::io::Result<Self> {
+        let status_every = config.status_every;
         let channel = bus.channel_info();
         // This server's own node is not one the user watches.
         let own = bus.admin().and_then(|admin| {
@@ -88,8 +85,9 @@ impl BusSide {
         }
         let hub = Arc::new(Hub {
             view: Mutex::new(BusView::new(ViewConfig {
-                bitrate,
+                bitrate: config.bitrate,
                 retention: MAX_WINDOW,
+                dbc: config.dbc.clone(),
                 ..ViewConfig::default()
             })),
             started: Instant::now(),
@@ -98,7 +96,7 @@ impl BusSide {
             send_failures: AtomicU64::new(0),
             refused: AtomicU64::new(0),
             has_admin,
-            devices: Devices::start(devices)?,
+            devices: Devices::start(&config.devices)?,
         });
         let pump = Pump::spawn("web-bus", bus, {
             let hub = hub.clone();

@@ -7,6 +7,8 @@
 //!   each viewer pulls what changed since its own cursor in [`buslab_view::BusView`], so a
 //!   slow viewer gets fewer, larger updates and the log lines it had no room for are counted,
 //!   never queued without bound.
+//! - **Signals** with a DBC database ([`WebConfig::dbc`]): each message seen with its signals'
+//!   latest values, live, and a plot of any signal over time.
 //! - **Device panels** ([`devices`]) in the lab: the SLIO boards (an LED changes when the
 //!   SLIO confirms it), the ZELLE cell (measurements plotted as they come, its RAM), the
 //!   CPU196 board (identity, THREAD text, the A/D stream plotted live).
@@ -38,7 +40,10 @@ mod routes;
 mod server;
 
 use std::net::SocketAddr;
+use std::sync::Arc;
 use std::time::Duration;
+
+use buslab_dbc::Database;
 
 pub use devices::DeviceConfig;
 pub use error::ApiError;
@@ -69,6 +74,8 @@ pub struct WebConfig {
     pub allowed_hosts: Vec<String>,
     /// How long a client may take to send a request, or stall while it is answered.
     pub timeouts: Timeouts,
+    /// A DBC database: the dashboard shows its messages' signals and plots any of them.
+    pub dbc: Option<Arc<Database>>,
 }
 
 impl Default for WebConfig {
@@ -82,6 +89,7 @@ impl Default for WebConfig {
             devices: DeviceConfig::default(),
             allowed_hosts: Vec::new(),
             timeouts: Timeouts::default(),
+            dbc: None,
         }
     }
 }

@@ -9,14 +9,14 @@ use axum::response::{Html, IntoResponse, Response};
 use std::time::Duration;
 
 use buslab_bus::Timestamp;
-use buslab_view::{Cursor, Delta, ErrorSample, IdRow, LogEntry, LogFilter, NodeView};
+use buslab_view::{Cursor, Delta, ErrorSample, IdRow, LogEntry, LogFilter, MessageRow, NodeView};
 use serde::Deserialize;
 
 use crate::app::App;
 use crate::chart::{self, Band, Chart, Series, TimeAxis, nice_top};
 use crate::error::ApiError;
 use crate::html::esc;
-use crate::request::{DEFAULT_WINDOW, MAX_WINDOW};
+use crate::request::{DEFAULT_WINDOW, MAX_WINDOW, plot_name};
 
 const STYLE: &str = include_str!("assets/style.css");
 const DASHBOARD: &str = include_str!("assets/dashboard.html");
@@ -38,6 +38,8 @@ pub struct PageQuery {
     n: Option<usize>,
     /// Seconds the time charts show (60 unless given, at most 600).
     window: Option<u64>,
+    /// The signal the signals page plots, `MESSAGE.SIGNAL`.
+    plot: Option<String>,
 }
 
 impl PageQuery {
@@ -164,6 +166,169 @@ pub async fn node(
     ))
 }
 
+/// `/signals`: with a DBC database, each message seen with its signals' latest values (marked
+/// when they changed in the last second, dimmed when the last frame did not carry them), and
+/// with `?plot=MESSAGE.SIGNAL` that signal over the window, as steps.
+pub async fn signals(
+    State(app): State<App>,
+    Query(q): Query<PageQuery>,
+) -> Result<Html<String>, ApiError> {
+    let window = q.window()?;
+    let plot = plot_name(q.plot.as_deref())?;
+    let refresh = q.refresh.unwrap_or(2);
+    let now = app.hub.now();
+    let (rows, series, size) = {
+        let view = app.hub.view();
+        let Some(size) = view.database().map(|db| db.messages().len()) else {
+            let b = "<h2>Signals</h2><p>No DBC database: start <code>buslab web</code> with                      <code>--dbc FILE</code> (<code>buslab lab</code> has its own).</p>";
+            return Ok(layout("signals", refresh, b));
+        };
+        let series = match plot.as_deref() {
+            None => None,
+            Some(name) => {
+                let key = view
+                    .signal(name)
+                    .map_err(|e| ApiError::bad_request(format!("plot: {e}")))?;
+                Some(view.series(&key, &Cursor::start(), now, window))
+            }
+        };
+        (
+            view.messages_page(now, 0, view.message_count()),
+            series,
+            size,
+        )
+    };
+    let t = now.as_secs_f64();
+    let mut b = String::new();
+    let _ = write!(
+        b,
+        "<h2>Signals</h2><p>{} of the database's {size} messages seen; values that changed in          the last second are marked, those the last frame did not carry (another multiplexed          branch) are grey. A signal's name plots it.</p>",
+        rows.len()
+    );
+    if let Some(series) = &series {
+        signal_chart(&mut b, series, t, window);
+    }
+    let link = |signal: &str| {
+        format!(
+            "/signals?plot={}&amp;window={}&amp;refresh={refresh}",
+            url_part(signal),
+            window.as_secs()
+        )
+    };
+    signals_table(&mut b, &rows, plot.as_deref(), link);
+    Ok(layout("signals", refresh, &b))
+}
+
+/// A signal's values over the window as steps, on an axis that fits them.
+fn signal_chart(b: &mut String, series: &buslab_view::Series, now: f64, window: Duration) {
+    let from = now - window.as_secs_f64();
+    let pieces = chart::steps(&series.points, now);
+    let shown = pieces
+        .iter()
+        .flatten()
+        .filter(|p| p.0 >= from)
+        .map(|p| p.1)
+        .chain(
+            // The value held at the window's left edge.
+            series
+                .points
+                .iter()
+                .rev()
+                .find(|p| p.0 < from && p.1.is_finite())
+                .map(|p| p.1),
+        );
+    let (min, max) = shown.fold((0.0f64, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    let (bottom, top) = chart::signal_axis(min, max);
+    let name = format!("{}.{}", series.message, series.signal);
+    let unit = if series.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", series.unit)
+    };
+    let caption = if series.points.is_empty() {
+        format!("{name}: no value yet")
+    } else {
+        format!(
+            "{name} over the last {} (scale {} to {}{unit}; a value holds until a frame changes it)",
+            chart::window_words(window),
+            chart::label(bottom),
+            chart::label(top)
+        )
+    };
+    Chart {
+        x: (from, now),
+        axis: TimeAxis::Ago,
+        bottom,
+        top,
+        unit: &series.unit,
+        caption,
+        rules: Vec::new(),
+        bands: Vec::new(),
+        series: vec![Series {
+            class: "signal",
+            pieces: pieces.iter().map(Vec::as_slice).collect(),
+        }],
+    }
+    .render(b);
+}
+
+/// Each message's own row, then its signals' (the name a link from `link`).
+fn signals_table(
+    b: &mut String,
+    rows: &[MessageRow],
+    plotted: Option<&str>,
+    link: impl Fn(&str) -> String,
+) {
+    b.push_str(
+        "<table class=signals><tr><th>ID</th><th>message / signal</th><th>value</th>         <th>count</th><th>period (ms)</th></tr>",
+    );
+    for m in rows {
+        let _ = write!(
+            b,
+            "<tr class=message><td>{}</td><td>{}</td><td></td><td>{}</td><td>{}</td></tr>",
+            esc(&m.id),
+            esc(&m.name),
+            m.count,
+            m.period_ms.map_or("-".into(), |p| format!("{p:.1}"))
+        );
+        for s in &m.signals {
+            let full = format!("{}.{}", m.name, s.name);
+            let mut class = if s.active { "" } else { "inactive" }.to_string();
+            if plotted == Some(full.as_str()) {
+                class += " plotted";
+            }
+            let value = esc(&s.text());
+            let value = if s.changed {
+                format!("<mark>{value}</mark>")
+            } else {
+                value
+            };
+            let _ = write!(
+                b,
+                "<tr class=\"{}\" data-signal=\"{}\"><td></td><td><a class=plot href=\"{}\">{}</a></td>\
+                 <td class=value>{value}</td><td></td><td></td></tr>",
+                class.trim(),
+                esc(&full),
+                link(&full),
+                esc(&s.name)
+            );
+        }
+    }
+    b.push_str("</table>");
+}
+
+/// `text` safe in a URL's query (DBC names are identifiers; anything else is escaped).
+fn url_part(text: &str) -> String {
+    text.bytes()
+        .map(|c| match c {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'_' | b'.' | b'-' => {
+                char::from(c).to_string()
+            }
+            _ => format!("%{c:02X}"),
+        })
+        .collect()
+}
+
 pub async fn dashboard() -> Html<&'static str> {
     Html(DASHBOARD)
 }
@@ -200,7 +365,7 @@ fn layout(title: &str, refresh: u32, body: &str) -> Html<String> {
     Html(format!(
         "<!doctype html><html lang=en><head><meta charset=utf-8>{reload}\
          <title>buslab: {}</title><link rel=stylesheet href=/assets/style.css></head><body>\
-         <nav><b>buslab</b> <a href=/>bus</a> <a href=/ids>per ID</a> <a href=/frames>frames</a> <a href=/devices>devices</a> <a href=/dashboard>live dashboard</a> <span class=right>{toggle}</span></nav>\
+         <nav><b>buslab</b> <a href=/>bus</a> <a href=/ids>per ID</a> <a href=/frames>frames</a> <a href=/signals>signals</a> <a href=/devices>devices</a> <a href=/dashboard>live dashboard</a> <span class=right>{toggle}</span></nav>\
          <main>{body}</main></body></html>",
         esc(title)
     ))
@@ -394,6 +559,7 @@ fn load_chart(b: &mut String, d: &Delta, window: Duration) {
     Chart {
         x: (d.t - window.as_secs_f64(), d.t),
         axis: TimeAxis::Ago,
+        bottom: 0.0,
         top,
         unit,
         caption: format!(
@@ -441,6 +607,7 @@ fn history_chart(b: &mut String, d: &Delta, history: &[ErrorSample], window: Dur
     Chart {
         x: (from, d.t),
         axis: TimeAxis::Ago,
+        bottom: 0.0,
         top,
         unit: "",
         caption: format!(
@@ -473,6 +640,7 @@ fn volts_chart(b: &mut String, series: Vec<Series<'_>>, caption: &str) {
     Chart {
         x: (x0, x1.max(x0 + 1e-3)),
         axis: TimeAxis::Seconds,
+        bottom: 0.0,
         top: 5.0,
         unit: "V",
         caption: caption.to_string(),

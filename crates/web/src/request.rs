@@ -23,15 +23,21 @@ pub const MAX_FAULT_NODES: usize = 64;
 pub const DEFAULT_WINDOW: Duration = Duration::from_secs(60);
 /// The longest window a request may ask for: what the view keeps.
 pub const MAX_WINDOW: Duration = Duration::from_secs(600);
+/// The longest `plot` (`MESSAGE.SIGNAL`) a request may name, in bytes.
+pub const MAX_SIGNAL_NAME: usize = 256;
 
-/// The query of `/api/state?filter=F&n=N&window=S` and `/api/events?filter=F&window=S`, as
-/// axum's `Query` reads it; [`ViewQuery::checked`] gives what it means.
+/// The query of `/api/state?filter=F&n=N&window=S&plot=M.S` and
+/// `/api/events?filter=F&window=S&plot=M.S`, as axum's `Query` reads it;
+/// [`ViewQuery::checked`] gives what it means.
 #[derive(Debug, Default, Deserialize)]
 pub struct ViewQuery {
     filter: Option<String>,
     n: Option<usize>,
     /// Seconds of load and TEC/REC history a whole view carries.
     window: Option<u64>,
+    /// A signal of the DBC database, `MESSAGE.SIGNAL`, whose values over time the answer
+    /// carries.
+    plot: Option<String>,
 }
 
 /// A view request: which frames, how many at most, and how far back the charts go.
@@ -42,6 +48,9 @@ pub struct ViewRequest {
     pub frames: usize,
     /// `window`, [`DEFAULT_WINDOW`] unless given; 1 s to [`MAX_WINDOW`].
     pub window: Duration,
+    /// `plot`: `MESSAGE.SIGNAL` (checked against the database by the handler), at most
+    /// [`MAX_SIGNAL_NAME`] bytes; none if empty or absent.
+    pub plot: Option<String>,
 }
 
 impl ViewQuery {
@@ -68,11 +77,31 @@ impl ViewQuery {
                 )));
             }
         };
+        let plot = plot_name(self.plot.as_deref())?;
         Ok(ViewRequest {
             filter,
             frames,
             window,
+            plot,
         })
+    }
+}
+
+/// A `plot=MESSAGE.SIGNAL` of a query: none if empty or absent; at most [`MAX_SIGNAL_NAME`]
+/// bytes, with a dot and no control character (the database's names are checked by the view).
+pub fn plot_name(plot: Option<&str>) -> Result<Option<String>, ApiError> {
+    match plot.map(str::trim) {
+        None | Some("") => Ok(None),
+        Some(name) if name.len() > MAX_SIGNAL_NAME => Err(ApiError::bad_request(format!(
+            "plot: {} bytes, at most {MAX_SIGNAL_NAME} (MESSAGE.SIGNAL)",
+            name.len()
+        ))),
+        Some(name) if !name.contains('.') || name.chars().any(char::is_control) => {
+            Err(ApiError::bad_request(format!(
+                "plot={name:?}: expected MESSAGE.SIGNAL, as the DBC database names them"
+            )))
+        }
+        Some(name) => Ok(Some(name.to_string())),
     }
 }
 
@@ -244,6 +273,21 @@ mod tests {
         for bad in ["n=1001", "filter=XYZ", "n=-1", "n=1e3", "filter=800"] {
             let e = query(bad).unwrap_err();
             assert_eq!(e.status, StatusCode::BAD_REQUEST, "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_plot_names_one_signal_in_few_bytes() {
+        assert_eq!(
+            query("plot=Engine.EngineSpeed").unwrap().plot.as_deref(),
+            Some("Engine.EngineSpeed")
+        );
+        assert_eq!(query("plot=").unwrap().plot, None);
+        let long = format!("plot=M.{}", "S".repeat(MAX_SIGNAL_NAME));
+        for bad in ["plot=EngineSpeed", "plot=Engine.%0ASpeed", long.as_str()] {
+            let e = query(bad).unwrap_err();
+            assert_eq!(e.status, StatusCode::BAD_REQUEST, "{bad}");
+            assert!(e.reason.contains("plot"), "{bad}: {}", e.reason);
         }
     }
 

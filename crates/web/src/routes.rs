@@ -22,6 +22,7 @@ pub fn router(app: App) -> Router {
         .route("/", get(pages::overview))
         .route("/ids", get(pages::ids))
         .route("/frames", get(pages::frames))
+        .route("/signals", get(pages::signals))
         .route("/nodes/{number}", get(pages::node))
         .route("/dashboard", get(pages::dashboard))
         .route("/assets/{name}", get(pages::asset))

@@ -79,8 +79,7 @@ impl WebServer {
         listener
             .set_nonblocking(true)
             .map_err(|source| WebError::Listen { addr, source })?;
-        let side = BusSide::start(bus, config.bitrate, config.status_every, &config.devices)
-            .map_err(WebError::Threads)?;
+        let side = BusSide::start(bus, &config).map_err(WebError::Threads)?;
         let app = App {
             hub: side.hub.clone(),
             sender: side.sender.clone(),

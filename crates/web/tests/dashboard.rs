@@ -2,7 +2,8 @@
 //! a stand-in bus: the time window of a whole view (not the server's age), error frames in
 //! the log and the live updates with their class and meaning, writes answered with what was
 //! done in words, faults marked on the time charts, a rate-limited fault answered 429 with
-//! `Retry-After`. (How the page draws them: crates/buslab/tests/web_browser.rs.)
+//! `Retry-After`; with a DBC database, each message's signals and the values of the signal a
+//! viewer plots. (How the page draws them: crates/buslab/tests/web_browser.rs.)
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -164,6 +165,11 @@ struct Bench {
 
 impl Bench {
     fn start() -> Self {
+        Self::start_with(None)
+    }
+
+    /// With a DBC database, for the signals.
+    fn start_with(dbc: Option<Arc<buslab_dbc::Database>>) -> Self {
         let (events, rx) = mpsc::channel();
         let control = Arc::new(Control::default());
         control.load_tenths.store(31, Ordering::SeqCst);
@@ -178,6 +184,7 @@ impl Bench {
                 token: Some(TOKEN.into()),
                 // Many TEC/REC samples quickly.
                 status_every: Duration::from_millis(20),
+                dbc,
                 ..WebConfig::default()
             },
         )
@@ -526,4 +533,146 @@ fn a_fault_over_the_rate_limit_is_429_with_retry_after_and_the_limit_in_words() 
     // A refused fault is not marked.
     let v = json(addr, "/api/state?n=0");
     assert_eq!(v["delta"]["faults"], serde_json::json!([]));
+}
+
+const DBC: &str = r#"
+BO_ 192 Engine: 8 engine
+ SG_ EngineSpeed : 7|16@0+ (1,0) [0|65535] "rpm" Vector__XXX
+ SG_ Gear : 16|8@1+ (1,0) [0|8] "" Vector__XXX
+VAL_ 192 Gear 0 "neutral" 1 "first" ;
+"#;
+
+/// The next SSE update from `lines` for which `done` holds.
+fn next_update(
+    lines: &mut impl Iterator<Item = std::io::Result<String>>,
+    done: impl Fn(&Value) -> bool,
+) -> Value {
+    loop {
+        let line = lines.next().expect("the stream ended").unwrap();
+        let Some(data) = line.strip_prefix("data: ") else {
+            continue;
+        };
+        let update: Value = serde_json::from_str(data).unwrap();
+        if done(&update) {
+            return update;
+        }
+    }
+}
+
+#[test]
+fn with_a_dbc_the_updates_carry_each_messages_signals_and_the_plotted_values() {
+    let db = buslab_dbc::Database::parse(DBC).unwrap();
+    let b = Bench::start_with(Some(Arc::new(db)));
+    let addr = b.addr();
+    let state = json(addr, "/api/state?n=0");
+    assert_eq!(state["dbc_messages"], 1, "{state}");
+    b.frame("0C0#0FA000");
+    b.frame("0C0#100001");
+    let state = until(addr, "/api/state?n=0&plot=Engine.EngineSpeed", |v| {
+        v["delta"]["messages"][0]["count"] == 2
+    });
+    let engine = &state["delta"]["messages"][0];
+    assert_eq!(
+        (&engine["id"], &engine["name"]),
+        (&json_str("0C0"), &json_str("Engine"))
+    );
+    let signals = engine["signals"].as_array().unwrap();
+    assert_eq!(
+        signals
+            .iter()
+            .map(|s| (
+                s["name"].as_str().unwrap(),
+                s["number"].as_str().unwrap(),
+                s["unit"].as_str().unwrap()
+            ))
+            .collect::<Vec<_>>(),
+        [("EngineSpeed", "4096", "rpm"), ("Gear", "1", "")]
+    );
+    assert_eq!(signals[1]["label"], "first");
+    let plot = &state["plot"];
+    assert_eq!(
+        (&plot["full"], &plot["unit"]),
+        (&Value::from(true), &json_str("rpm"))
+    );
+    let values: Vec<f64> = plot["points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p[1].as_f64().unwrap())
+        .collect();
+    assert_eq!(values, [4000.0, 4096.0]);
+
+    // Live: the whole series first, then the new values only.
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(HANG)).unwrap();
+    s.write_all(b"GET /api/events?plot=Engine.EngineSpeed HTTP/1.1\r\nHost: localhost\r\n\r\n")
+        .unwrap();
+    let mut lines = BufReader::new(s).lines();
+    let first = next_update(&mut lines, |_| true);
+    assert_eq!(first["plot"]["full"], true);
+    assert_eq!(first["plot"]["points"].as_array().unwrap().len(), 2);
+    assert_eq!(first["messages"].as_array().unwrap().len(), 1);
+    b.frame("0C0#110001");
+    let later = next_update(&mut lines, |u| u.get("plot").is_some());
+    assert_eq!(later["plot"]["full"], false);
+    assert_eq!(
+        later["plot"]["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p[1].as_f64().unwrap())
+            .collect::<Vec<_>>(),
+        [4352.0]
+    );
+    assert_eq!(later["messages"][0]["signals"][0]["number"], "4352");
+
+    // The page without JavaScript: the table, and the plot as steps on its own axis.
+    let (status, page) = get(addr, "/signals?plot=Engine.EngineSpeed&refresh=0&window=60");
+    assert_eq!(status, 200, "{page}");
+    assert!(page.contains("<td>0C0</td><td>Engine</td>"), "{page}");
+    assert!(
+        page.contains(">4352 rpm<") && page.contains(">first<"),
+        "{page}"
+    );
+    assert!(
+        page.contains("href=\"/signals?plot=Engine.Gear&amp;window=60&amp;refresh=0\""),
+        "{page}"
+    );
+    assert!(
+        page.contains("Engine.EngineSpeed over the last 60 s (scale 0 to 5000 rpm;"),
+        "{page}"
+    );
+    // Three values: each held until the next (two steps), the last until now.
+    let line = page
+        .split("<polyline class=signal points=\"")
+        .nth(1)
+        .and_then(|r| r.split('"').next())
+        .unwrap_or_else(|| panic!("no line: {page}"));
+    assert_eq!(line.split(' ').count(), 6, "{line}");
+
+    // A signal the database does not have is refused, naming what it has.
+    for path in ["/api/events", "/api/state", "/signals"] {
+        let (status, body) = get(addr, &format!("{path}?plot=Engine.Rpm"));
+        assert_eq!(status, 400, "{path}: {body}");
+        assert_eq!(
+            body.trim(),
+            "plot: message Engine has no signal \"Rpm\" (it has EngineSpeed, Gear)"
+        );
+    }
+    // Without a database there is nothing to plot.
+    let plain = Bench::start();
+    let (status, page) = get(plain.addr(), "/signals?refresh=0");
+    assert_eq!(status, 200);
+    assert!(page.contains("No DBC database"), "{page}");
+    assert_eq!(
+        json(plain.addr(), "/api/state?n=0")["dbc_messages"],
+        Value::Null
+    );
+    let (status, body) = get(plain.addr(), "/api/events?plot=Engine.EngineSpeed");
+    assert_eq!(status, 400, "{body}");
+    assert!(body.contains("no DBC database"), "{body}");
+}
+
+fn json_str(s: &str) -> Value {
+    Value::from(s)
 }

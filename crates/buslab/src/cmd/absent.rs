@@ -128,6 +128,7 @@ pub mod web {
         _url: &str,
         _slios: &[SlioId],
         _ports: Option<(&Path, &Path)>,
+        _dbc: std::sync::Arc<buslab_dbc::Database>,
     ) -> anyhow::Result<Option<WebServer>> {
         if options.listen.is_some() || !options.hosts.allow_host.is_empty() {
             return Err(NotBuilt {

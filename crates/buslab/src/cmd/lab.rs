@@ -6,11 +6,14 @@
 //! and, with `--frames`, a monitor whose receptions are printed the way `candump` prints them.
 //! By default a compact status line tells how the bench is doing. Next to the bus, a ZELLE cell
 //! and a CPU196 board are served on pseudo-terminals (`buslab_bench::devices`), and the bus is shown as web
-//! pages with a live dashboard (`buslab web`, docs/web.md).
+//! pages with a live dashboard (`buslab web`, docs/web.md). The dashboard shows the frames as
+//! signals, decoded with the lab's own DBC database (`buslab_bench::lab::LAB_DBC`, written to
+//! `DIR/lab.dbc` for the other tools, printed by `--print-dbc`) or the one `--dbc` names.
 
 use std::io::{self, IsTerminal, Write};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
@@ -18,9 +21,10 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use buslab_bench::counter::{self, CounterNode};
 use buslab_bench::devices::LabDevices;
-use buslab_bench::lab::CHANNEL;
+use buslab_bench::lab::{CHANNEL, LAB_DBC};
 use buslab_bench::status::BenchStatus;
 use buslab_canbus::CanBus;
+use buslab_dbc::Database;
 use buslab_vbus::ServerHandle;
 
 use buslab_logs::Message;
@@ -59,6 +63,14 @@ pub struct Args {
     /// Only the CAN bus: no ZELLE cell or CPU196 board.
     #[arg(long)]
     pub no_devices: bool,
+    /// A DBC database the dashboard decodes the bus with instead of the lab's own (which names
+    /// its nodes', counter's and SLIO boards' messages and signals; see --print-dbc).
+    #[arg(long, value_name = "FILE")]
+    pub dbc: Option<PathBuf>,
+    /// Print the lab's own DBC database on stdout and exit, for `buslab monitor --dbc` and other
+    /// DBC tools (a lab run with --dir also writes it to DIR/lab.dbc).
+    #[arg(long, exclusive = true)]
+    pub print_dbc: bool,
     #[command(flatten)]
     pub web: WebOptions,
 }
@@ -109,6 +121,17 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
 }
 
 fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
+    if args.print_dbc {
+        let mut out = io::stdout().lock();
+        out.write_all(LAB_DBC.as_bytes())?;
+        out.flush()?;
+        return Ok(());
+    }
+    // A bad database is named before anything starts.
+    let dbc = match &args.dbc {
+        Some(path) => crate::dbc::load(path)?,
+        None => Arc::new(Database::parse(LAB_DBC).context("the lab's own DBC database")?),
+    };
     let stop = super::interrupted()?;
     let devices = if args.no_devices {
         None
@@ -151,11 +174,17 @@ fn run_lab(args: Args, quiet: bool) -> anyhow::Result<()> {
     if let Some(devices) = &devices {
         describe_devices(devices, &hints);
     }
+    let lab_dbc = args.dir.as_deref().map(|dir| dir.join("lab.dbc"));
+    if let Some(path) = &lab_dbc {
+        write_lab_dbc(path)?;
+    }
+    describe_dbc(&args, lab_dbc.as_deref(), &hints);
     let web = super::web::lab_pages(
         &args.web,
         &url,
         slio_bench.0.ids(),
         devices.as_ref().map(|d| (d.zelle.path(), d.cpu196.path())),
+        dbc,
     )?;
     // The lab's bus for scripts (`export BUSLAB_BUS=$(cat DIR/bus)`): written last, so that
     // it is there once everything else is.
@@ -488,6 +517,47 @@ impl SlioBench {
             );
         }
     }
+}
+
+/// Writes the lab's own DBC to `path` (atomically; its folder made if need be).
+fn write_lab_dbc(path: &Path) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the lab folder {}", dir.display()))?;
+    }
+    buslab_link::fs::write_atomic(path, LAB_DBC.as_bytes())
+        .with_context(|| format!("cannot write the lab's DBC to {}", path.display()))
+}
+
+/// The banner's line for the DBC database: which one the dashboard decodes with, and where
+/// the lab's own is for the other tools.
+fn describe_dbc(args: &Args, lab_dbc: Option<&Path>, hints: &Hints) {
+    let shown = if args.web.no_web {
+        ""
+    } else {
+        "the dashboard shows its signals; "
+    };
+    let line = match (&args.dbc, lab_dbc) {
+        (Some(file), own) => format!(
+            "{} ({shown}try: {}){}",
+            file.display(),
+            hints.command("monitor", &format!("--dbc {}", file.display()), false),
+            own.map_or(String::new(), |p| format!(
+                "; the lab's own in {}",
+                p.display()
+            ))
+        ),
+        (None, Some(own)) => format!(
+            "the lab's own in {} ({shown}try: {})",
+            own.display(),
+            hints.command("monitor", &format!("--dbc {}", own.display()), false)
+        ),
+        (None, None) => format!(
+            "the lab's own ({shown}for other tools: {} lab --print-dbc > lab.dbc)",
+            hints.program
+        ),
+    };
+    eprintln!("  DBC          {line}");
 }
 
 /// The banner's lines for the serial devices.

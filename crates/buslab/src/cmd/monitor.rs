@@ -5,6 +5,12 @@
 //! terminal (raw mode and the alternate screen, restored on every way out), the keys and the
 //! bus.
 //!
+//! With `--dbc FILE`, the left panel shows the database's messages as signals instead (`d`
+//! switches between the two): each message seen with its count and period, each of its signals
+//! with its latest value (the value table's label, or the number and its unit); a value that
+//! changed within the last second is highlighted as a changed byte is, and a multiplexed
+//! branch the last frame did not carry is dimmed, showing what it last said.
+//!
 //! No backend hands a client its own frames (socketcand, SocketCAN without
 //! `CAN_RAW_RECV_OWN_MSGS`, SLCAN), so the frames the monitor sends (`s`) go into the view
 //! when the bus takes them, marked `TX` in the log as `candump -x` marks the host's own.
@@ -19,7 +25,7 @@ use anyhow::{Context, bail};
 use buslab_backends::DynBus;
 use buslab_can::Frame;
 use buslab_canbus::{NodeRef, NodeStatus, Record, Timestamp, wall_clock};
-use buslab_view::{BusView, LogFilter, ViewConfig};
+use buslab_view::{BusView, LogFilter, MessageRow, ViewConfig};
 use ratatui::Terminal;
 use ratatui::backend::CrosstermBackend;
 use ratatui::layout::{Constraint, Layout};
@@ -28,6 +34,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Paragraph, Row, Sparkline, Table};
 
 use super::busopt::{BusOpt, open};
+use crate::dbc::DbcArg;
 use crate::terminal::{self, RawScreen, read_keys};
 
 #[derive(clap::Args)]
@@ -37,6 +44,8 @@ pub struct Args {
     /// The bus's bit rate, to estimate the load on buses that do not report it.
     #[arg(long, value_name = "BIT/S", value_parser = clap::value_parser!(u32).range(1_000..=1_000_000))]
     pub bitrate: Option<u32>,
+    #[command(flatten)]
+    pub dbc: DbcArg,
 }
 
 const CTRL_C: u8 = 3;
@@ -55,6 +64,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let url = args.bus.bus.to_string();
+    // The database before the bus: a bad file is named before anything else happens.
+    let dbc = args.dbc.load()?;
     let mut bus = open(&args.bus.bus)?;
     let own = bus.admin().and_then(|a| {
         let _ = a.set_name("monitor");
@@ -65,7 +76,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut terminal = Terminal::new(CrosstermBackend::new(std::io::stdout()))
         .context("cannot draw on this terminal")?;
     let keys = read_keys();
-    let mut monitor = Monitor::new(url, own, args.bitrate);
+    let mut monitor = Monitor::new(
+        url,
+        own,
+        ViewConfig {
+            bitrate: args.bitrate,
+            dbc,
+            ..ViewConfig::default()
+        },
+    );
     let result = monitor.run(&mut bus, &mut terminal, &keys, &quit);
     drop(terminal);
     drop(guard);
@@ -91,20 +110,22 @@ struct Monitor {
     entry: Option<(Entry, String)>,
     message: String,
     selected: usize,
+    /// The left panel shows signals (with a database) rather than bytes.
+    signals: bool,
+    /// The first message the signal panel shows.
+    scroll: usize,
     /// The frames this monitor sent that the log may still show (time and frame), to mark
     /// them `TX`.
     sent: VecDeque<(Timestamp, Frame)>,
 }
 
 impl Monitor {
-    fn new(url: String, own: Option<u32>, bitrate: Option<u32>) -> Self {
+    fn new(url: String, own: Option<u32>, config: ViewConfig) -> Self {
+        let signals = config.dbc.is_some();
         Self {
             url,
             own,
-            view: BusView::new(ViewConfig {
-                bitrate,
-                ..ViewConfig::default()
-            }),
+            view: BusView::new(config),
             epoch: Instant::now(),
             filter: LogFilter::all(),
             paused: false,
@@ -112,6 +133,8 @@ impl Monitor {
             entry: None,
             message: String::new(),
             selected: 0,
+            signals,
+            scroll: 0,
             sent: VecDeque::new(),
         }
     }
@@ -228,6 +251,11 @@ impl Monitor {
             b'f' => self.entry = Some((Entry::Filter, String::new())),
             b's' => self.entry = Some((Entry::Send, String::new())),
             b'n' => self.selected += 1,
+            b'd' if self.view.database().is_some() => self.signals = !self.signals,
+            b'j' if self.signals => {
+                self.scroll = (self.scroll + 1).min(self.view.message_count().saturating_sub(1));
+            }
+            b'k' if self.signals => self.scroll = self.scroll.saturating_sub(1),
             _ => {}
         }
         true
@@ -311,45 +339,11 @@ impl Monitor {
             Layout::horizontal([Constraint::Percentage(58), Constraint::Percentage(42)])
                 .areas(middle);
         let highlight = Style::default().add_modifier(Modifier::REVERSED);
-        // The rows that fit between the borders and under the header, not the whole table
-        // (thousands of IDs on a busy bus, redrawn ten times a second).
-        let shown = self
-            .view
-            .rows_page(now, 0, usize::from(ids.height.saturating_sub(3)));
-        let rows = shown.iter().map(|r| {
-            let mut data = Vec::new();
-            for (i, at) in (0..r.data.len()).step_by(2).enumerate() {
-                let byte = &r.data[at..at + 2];
-                if r.changed & (1 << i) != 0 {
-                    data.push(Span::styled(byte, highlight));
-                } else {
-                    data.push(Span::raw(byte));
-                }
-                data.push(Span::raw(" "));
-            }
-            Row::new(vec![
-                Line::from(r.id.as_str()),
-                Line::from(r.count.to_string()),
-                Line::from(r.period_ms.map_or("-".into(), |p| format!("{p:.1}"))),
-                Line::from(r.dlc.to_string()),
-                Line::from(data),
-            ])
-        });
-        f.render_widget(
-            Table::new(
-                rows,
-                [
-                    Constraint::Length(8),
-                    Constraint::Length(8),
-                    Constraint::Length(8),
-                    Constraint::Length(3),
-                    Constraint::Min(24),
-                ],
-            )
-            .header(Row::new(["ID", "count", "ms", "DLC", "data"]))
-            .block(Block::bordered().title(" per ID ")),
-            ids,
-        );
+        if self.signals {
+            self.draw_signals(f, ids, now, highlight);
+        } else {
+            self.draw_ids(f, ids, now, highlight);
+        }
         let mut lines = Vec::new();
         let nodes_shown = self.view.node_views();
         let selected = if nodes_shown.is_empty() {
@@ -420,11 +414,123 @@ impl Monitor {
             Some((Entry::Filter, t)) => format!("filter (123, 120:7F0, 300~700; empty: all): {t}_"),
             Some((Entry::Send, t)) => format!("send (123#1122): {t}_"),
             None => format!(
-                "q quit  p pause  f filter  c clear  s send  n next node   {}",
+                "q quit  p pause  f filter  c clear  s send  n next node{}   {}",
+                if self.view.database().is_some() {
+                    "  d signals/bytes  j/k scroll"
+                } else {
+                    ""
+                },
                 self.message
             ),
         };
         f.render_widget(Paragraph::new(help), bottom);
+    }
+
+    /// The per-ID table: the rows that fit, changed bytes highlighted.
+    fn draw_ids(
+        &self,
+        f: &mut ratatui::Frame,
+        ids: ratatui::layout::Rect,
+        now: Duration,
+        highlight: Style,
+    ) {
+        // The rows that fit between the borders and under the header, not the whole table
+        // (thousands of IDs on a busy bus, redrawn ten times a second).
+        let shown = self
+            .view
+            .rows_page(now, 0, usize::from(ids.height.saturating_sub(3)));
+        let rows = shown.iter().map(|r| {
+            let mut data = Vec::new();
+            for (i, at) in (0..r.data.len()).step_by(2).enumerate() {
+                let byte = &r.data[at..at + 2];
+                if r.changed & (1 << i) != 0 {
+                    data.push(Span::styled(byte, highlight));
+                } else {
+                    data.push(Span::raw(byte));
+                }
+                data.push(Span::raw(" "));
+            }
+            Row::new(vec![
+                Line::from(r.id.as_str()),
+                Line::from(r.count.to_string()),
+                Line::from(r.period_ms.map_or("-".into(), |p| format!("{p:.1}"))),
+                Line::from(r.dlc.to_string()),
+                Line::from(data),
+            ])
+        });
+        f.render_widget(
+            Table::new(
+                rows,
+                [
+                    Constraint::Length(8),
+                    Constraint::Length(8),
+                    Constraint::Length(8),
+                    Constraint::Length(3),
+                    Constraint::Min(24),
+                ],
+            )
+            .header(Row::new(["ID", "count", "ms", "DLC", "data"]))
+            .block(Block::bordered().title(if self.view.database().is_some() {
+                " per ID (d: signals) "
+            } else {
+                " per ID "
+            })),
+            ids,
+        );
+    }
+
+    /// The database's messages seen, each with its signals: the lines that fit from the
+    /// message scrolled to, changed values highlighted, inactive branches dimmed.
+    fn draw_signals(
+        &self,
+        f: &mut ratatui::Frame,
+        area: ratatui::layout::Rect,
+        now: Duration,
+        highlight: Style,
+    ) {
+        let height = usize::from(area.height.saturating_sub(3));
+        // Each message takes a line at least: no more messages than lines are put in words.
+        let shown = self.view.messages_page(now, self.scroll, height);
+        // The names as wide as they are (within reason); the values take the rest.
+        let names = shown
+            .iter()
+            .flat_map(|m| {
+                std::iter::once(m.name.len())
+                    .chain(m.signals.iter().map(|s| s.name.len() + SIGNAL_INDENT.len()))
+            })
+            .max()
+            .unwrap_or(0)
+            .clamp(16, 32);
+        let rows = signal_lines(&shown, highlight)
+            .into_iter()
+            .take(height)
+            .map(|(cells, style)| Row::new(cells).style(style));
+        let count = self.view.message_count();
+        let title = if self.scroll == 0 {
+            format!(" signals of {count} messages (d: bytes, j/k: scroll) ")
+        } else {
+            format!(
+                " signals of {count} messages, from message {} (d: bytes, j/k: scroll) ",
+                self.scroll + 1
+            )
+        };
+        f.render_widget(
+            Table::new(
+                rows,
+                [
+                    Constraint::Length(9),
+                    Constraint::Length(names as u16),
+                    Constraint::Fill(1),
+                ],
+            )
+            .header(Row::new([
+                "ID",
+                "message / signal",
+                "value (a message: frames, period)",
+            ]))
+            .block(Block::bordered().title(title)),
+            area,
+        );
     }
 }
 
@@ -441,4 +547,46 @@ fn statuses(bus: &mut DynBus, own: Option<u32>) -> Option<Vec<NodeStatus>> {
             .map(super::status::shown)
             .collect(),
     )
+}
+
+/// What a signal's name is indented by, under its message's.
+const SIGNAL_INDENT: &str = "  ";
+
+/// The signal panel's lines: a message's own line (ID, name, frames, period), then one per
+/// signal (name, value); a value that changed lately is highlighted, an inactive branch's
+/// dimmed.
+fn signal_lines(messages: &[MessageRow], highlight: Style) -> Vec<(Vec<Line<'_>>, Style)> {
+    let bold = Style::default().add_modifier(Modifier::BOLD);
+    let dim = Style::default().add_modifier(Modifier::DIM);
+    let mut lines = Vec::new();
+    for m in messages {
+        lines.push((
+            vec![
+                Line::from(m.id.as_str()),
+                Line::from(m.name.as_str()),
+                Line::from(match m.period_ms {
+                    Some(p) => format!("{} frames, {p:.1} ms", m.count),
+                    None => format!("{} frames", m.count),
+                }),
+            ],
+            bold,
+        ));
+        for s in &m.signals {
+            let value = s.text();
+            let value = if s.changed {
+                Line::from(Span::styled(value, highlight))
+            } else {
+                Line::from(value)
+            };
+            lines.push((
+                vec![
+                    Line::from(""),
+                    Line::from(format!("{SIGNAL_INDENT}{}", s.name)),
+                    value,
+                ],
+                if s.active { Style::default() } else { dim },
+            ));
+        }
+    }
+    lines
 }

@@ -1,17 +1,20 @@
-//! `buslab web --bus URL [--listen ADDR] [--token [TOKEN]]`: the bus as web pages (the seed's
-//! CAN WebServer) and a live dashboard (docs/web.md).
+//! `buslab web --bus URL [--listen ADDR] [--token [TOKEN]] [--dbc FILE]`: the bus as web pages
+//! (the seed's CAN WebServer) and a live dashboard (docs/web.md), with a DBC database's signals.
 
 use std::net::{Ipv4Addr, SocketAddr};
 use std::path::Path;
+use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use anyhow::Context;
+use buslab_dbc::Database;
 use buslab_slio::SlioId;
 use buslab_web::{DeviceConfig, Timeouts, WebConfig, WebError, WebServer, generate_token};
 
 use super::busopt::{BusOpt, open};
 use super::lab::{AllowHost, WebOptions};
+use crate::dbc::DbcArg;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -35,6 +38,8 @@ pub struct Args {
     pub max_connections: u32,
     #[command(flatten)]
     pub hosts: AllowHost,
+    #[command(flatten)]
+    pub dbc: DbcArg,
     /// How long a client may take to send a request's head, then its body, and may leave a
     /// kept-alive connection idle (for tests; docs/web.md).
     #[arg(long, value_name = "DURATION", value_parser = crate::units::duration, hide = true)]
@@ -49,6 +54,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
         Some(t) => Some(t.to_string()),
     };
     let url = &args.bus.bus;
+    let dbc = args.dbc.load()?;
     let bus = open(url)?;
     let server = WebServer::start(
         bus,
@@ -62,6 +68,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
                 request: args.request_timeout.unwrap_or(Timeouts::default().request),
                 ..Timeouts::default()
             },
+            dbc,
             ..WebConfig::default()
         },
     )
@@ -107,13 +114,14 @@ const LAB_DEFAULT: SocketAddr =
     SocketAddr::V4(std::net::SocketAddrV4::new(Ipv4Addr::LOCALHOST, 8080));
 
 /// The lab's web pages on its bus `url`, with a fresh write token (the dashboard injects
-/// faults) and panels for its SLIO boards and its ZELLE and CPU196 ports; none with
-/// `--no-web`. The addresses are printed for the banner.
+/// faults), panels for its SLIO boards and its ZELLE and CPU196 ports, and the signals of
+/// `dbc`; none with `--no-web`. The addresses are printed for the banner.
 pub fn lab_pages(
     options: &WebOptions,
     url: &str,
     slios: &[SlioId],
     ports: Option<(&Path, &Path)>,
+    dbc: Arc<Database>,
 ) -> anyhow::Result<Option<WebServer>> {
     if options.no_web {
         return Ok(None);
@@ -132,6 +140,7 @@ pub fn lab_pages(
             token: Some(token.clone()),
             devices: devices.clone(),
             allowed_hosts: options.hosts.allow_host.clone(),
+            dbc: Some(dbc.clone()),
             ..WebConfig::default()
         };
         Ok(WebServer::start(bus, config))

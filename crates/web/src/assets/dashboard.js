@@ -17,6 +17,9 @@ const state = {
   held: 0,
   lastTime: null,       // the time of the last log line (for "since the previous frame")
   source: null,
+  messages: new Map(),  // DBC message ID -> <tbody> of its signals
+  signalNames: new Set(), // "Message.Signal" offered in the plot's choice
+  plot: null,           // the plotted signal: {message, signal, unit, points: [[t, value]]}
 };
 
 function text(tag, value, cls) {
@@ -27,7 +30,7 @@ function text(tag, value, cls) {
 }
 
 // Settings may come in the address's fragment (never sent to the server):
-// #token=...&window=10
+// #token=...&window=10&plot=Counter.Count
 function fragment(name) {
   const m = location.hash.match(new RegExp("[#&]" + name + "=([A-Za-z0-9._-]+)"));
   return m ? m[1] : null;
@@ -43,6 +46,8 @@ function connect() {
   const filter = $("filter").value.trim();
   const query = new URLSearchParams({ window: windowSeconds() });
   if (filter) query.set("filter", filter);
+  const plot = $("plotsignal").value;
+  if (plot) query.set("plot", plot);
   const url = "/api/events?" + query;
   $("filtererror").textContent = "";
   const source = new EventSource(url);
@@ -67,6 +72,8 @@ function apply(d) {
     state.faults.clear();
     state.lastTime = null;
     $("log").replaceChildren();
+    for (const entry of state.messages.values()) entry.body.remove();
+    state.messages.clear();
   }
   state.now = d.t;
   $("frames").textContent = d.frames;
@@ -86,7 +93,143 @@ function apply(d) {
   drawLoad();
   applyNodes(d.nodes);
   appendLog(d.log, d.log_skipped);
+  for (const m of d.messages || []) applyMessage(m);
+  if (d.plot) applyPlot(d.plot);
+  if (!$("signals").hidden) drawSignal();
   if (d.devices) applyDevices(d.devices);
+}
+
+// A DBC message's rows: its own (ID, name, count, period), then one per signal: the name (a
+// button that plots it), the value (the label, or the number and its unit) marked when it
+// changed lately, dimmed when its multiplexed branch was not in the last frame. An update
+// carries the signals whose rows changed; rows are updated in place (a name clicked while its
+// value changes stays the same button), a new one goes in its place in the database's order.
+function applyMessage(m) {
+  let entry = state.messages.get(m.id);
+  if (!entry) {
+    const body = document.createElement("tbody");
+    body.dataset.id = m.id;
+    const head = document.createElement("tr");
+    head.className = "message";
+    for (let i = 0; i < 5; i++) head.appendChild(document.createElement("td"));
+    body.appendChild(head);
+    entry = { body, head, rows: new Map() };
+    state.messages.set(m.id, entry);
+    const table = $("messages");
+    const key = (id) => (id.length > 3 ? "1" : "0") + id.padStart(8, "0");
+    const after = [...table.tBodies].find((b) => key(b.dataset.id) > key(m.id));
+    table.insertBefore(body, after || null);
+  }
+  const c = entry.head.cells;
+  c[0].textContent = m.id;
+  c[1].textContent = m.name;
+  c[3].textContent = m.count;
+  c[4].textContent = m.period_ms == null ? "-" : m.period_ms.toFixed(1);
+  const plotted = $("plotsignal").value;
+  for (const s of m.signals) {
+    const full = m.name + "." + s.name;
+    let tr = entry.rows.get(s.name);
+    if (!tr) {
+      tr = document.createElement("tr");
+      tr.dataset.signal = full;
+      tr.dataset.position = s.position;
+      tr.appendChild(document.createElement("td"));
+      const name = text("button", s.name, "plot");
+      name.type = "button";
+      name.dataset.signal = full;
+      name.title = "plot " + full;
+      tr.appendChild(document.createElement("td")).appendChild(name);
+      const cell = document.createElement("td");
+      cell.className = "value";
+      tr.appendChild(cell);
+      tr.appendChild(document.createElement("td"));
+      tr.appendChild(document.createElement("td"));
+      // The rows are in the database's order: before the first one after it.
+      const next = [...entry.body.rows].find((r) => Number(r.dataset.position) > s.position);
+      entry.body.insertBefore(tr, next || null);
+      entry.rows.set(s.name, tr);
+      if (!state.signalNames.has(full)) {
+        state.signalNames.add(full);
+        const o = text("option", full);
+        o.value = full;
+        $("plotsignal").appendChild(o);
+      }
+    }
+    tr.className = (s.active ? "" : "inactive") + (full === plotted ? " plotted" : "");
+    const value = s.label != null ? s.label : s.number + (s.unit ? " " + s.unit : "");
+    const cell = tr.cells[2];
+    cell.title = "raw " + s.raw;
+    cell.replaceChildren(s.changed ? text("mark", value) : document.createTextNode(value));
+  }
+}
+
+// The plotted signal's values: all of the window in a whole update, new ones after.
+function applyPlot(p) {
+  if (p.full || !state.plot) state.plot = { message: p.message, signal: p.signal, unit: p.unit, points: [] };
+  for (const point of p.points) state.plot.points.push(point);
+  const from = state.now - windowSeconds();
+  let first = state.plot.points.findIndex((q) => q[0] >= from);
+  if (first < 0) first = state.plot.points.length;
+  state.plot.points = state.plot.points.slice(Math.max(first - 1, 0)).slice(-MAX_HISTORY);
+}
+
+// The plotted signal as steps: each value holds until the next one (a signal's value is
+// what its last frame said), the last one until now; a value that is no number breaks it.
+function drawSignal() {
+  const name = $("plotsignal").value;
+  const from = state.now - windowSeconds();
+  const p = name && state.plot && state.plot.message + "." + state.plot.signal === name ? state.plot : null;
+  const points = p ? p.points : [];
+  const pieces = [];
+  let piece = [];
+  let last = null;
+  for (const [t, v] of points) {
+    if (v == null) {
+      if (piece.length) pieces.push(piece);
+      piece = [];
+      last = null;
+      continue;
+    }
+    if (last != null) piece.push([t, last]);
+    piece.push([t, v]);
+    last = v;
+  }
+  if (last != null) piece.push([state.now, last]);
+  if (piece.length) pieces.push(piece);
+  const shown = pieces.flat().filter((q) => q[0] >= from).map((q) => q[1]);
+  // The value held at the window's left edge counts too.
+  const before = points.filter((q) => q[0] < from && q[1] != null).pop();
+  if (before) shown.push(before[1]);
+  const max = Math.max(0, ...shown), min = Math.min(0, ...shown);
+  let top = max > 0 ? niceTop(max, 0) : 0;
+  let bottom = min < 0 ? -niceTop(-min, 0) : 0;
+  if (top === bottom) top = bottom + 1;
+  const unit = p ? p.unit : "";
+  const caption = p
+    ? name + " over the last " + windowText() + " (scale " + label(bottom) + " to " + label(top) +
+      (unit ? " " + unit : "") + "; a value holds until a frame changes it)"
+    : "pick a signal to plot: click its name in the table";
+  drawChart($("signalchart"), {
+    x0: from, x1: state.now, axis: "ago", top, bottom, unit, caption, bands: faultBands(),
+    series: [{ name: "signal", pieces }],
+  });
+}
+
+// Plots `name` ("Message.Signal"): the server sends its values of the window again.
+function plotSignal(name) {
+  if (name && !state.signalNames.has(name)) {
+    state.signalNames.add(name);
+    const o = text("option", name);
+    o.value = name;
+    $("plotsignal").appendChild(o);
+  }
+  $("plotsignal").value = name;
+  state.plot = null;
+  for (const tr of document.querySelectorAll("#messages tr[data-signal]")) {
+    tr.classList.toggle("plotted", tr.dataset.signal === name);
+  }
+  drawSignal();
+  connect();
 }
 
 // The samples of the window and the one before it (where the line comes from).
@@ -280,15 +423,16 @@ function clip(piece, x0, x1) {
 }
 
 // A line chart as the server draws one (chart.rs): 600 x 160, x from x0 to x1 (axis "ago":
-// a window ending now; "seconds": as they are), y from 0 to top with its unit, labelled
+// a window ending now; "seconds": as they are), y from bottom (0 unless given) to top with its unit, labelled
 // rules, shaded bands {from, to, label, what}, series {name, pieces}: a gap between two
 // pieces stays a gap.
 function drawChart(el, o) {
   const W = 600, H = 160;
   el.setAttribute("viewBox", "-50 -10 660 200");
   const span = Math.max(o.x1 - o.x0, 1e-9);
+  const bottom = o.bottom || 0;
   const px = (x) => ((x - o.x0) / span) * W;
-  const py = (y) => H - Math.min(Math.max(y / o.top, 0), 1) * H;
+  const py = (y) => H - Math.min(Math.max((y - bottom) / (o.top - bottom), 0), 1) * H;
   const parts = [svg("rect", { x: 0, y: 0, width: W, height: H, class: "frame" })];
   const bands = (o.bands || []).map((b) => ({ ...b, a: Math.max(px(b.from), 0), z: Math.min(px(b.to), W) }))
     .filter((b) => b.z > b.a);
@@ -306,7 +450,7 @@ function drawChart(el, o) {
     parts.push(svg("text", { x: 4, y: py(y) - 2 }, name));
   }
   for (let k = 0; k <= 2; k++) {
-    const v = o.top * k / 2;
+    const v = bottom + (o.top - bottom) * k / 2;
     parts.push(svg("line", { class: "grid", x1: -4, x2: 0, y1: py(v), y2: py(v) }));
     parts.push(svg("text", { class: "ylabel", x: -6, y: py(v) + 4 }, label(v) + (o.unit ? " " + o.unit : "")));
   }
@@ -453,10 +597,28 @@ document.addEventListener("DOMContentLoaded", () => {
   if (token) $("token").value = token;
   const chosen = Number(fragment("window"));
   if (WINDOWS.includes(chosen)) $("window").value = String(chosen);
+  const plot = fragment("plot");
+  if (plot) {
+    state.signalNames.add(plot);
+    const o = text("option", plot);
+    o.value = plot;
+    $("plotsignal").appendChild(o);
+    $("plotsignal").value = plot;
+  }
   fetch("/api/state?n=0&window=1").then((r) => r.json()).then((s) => {
     $("channel").textContent = s.channel;
     $("writable").textContent = s.writable ? "(needs the server's token)" : "(this server is read-only)";
+    if (s.dbc_messages != null) {
+      $("signals").hidden = false;
+      $("dbcsize").textContent = s.dbc_messages;
+      drawSignal();
+    }
   }).catch(() => {});
+  $("plotsignal").addEventListener("change", () => plotSignal($("plotsignal").value));
+  $("messages").addEventListener("click", (e) => {
+    const button = e.target.closest("button.plot");
+    if (button) plotSignal(button.dataset.signal);
+  });
   $("sendform").addEventListener("submit", (e) => {
     e.preventDefault();
     write("/api/send", { frame: $("frame").value.trim() });
