@@ -5,7 +5,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use buslab_bus::ErrorFrame;
-use buslab_can::Frame;
+use buslab_can::{Frame, Id};
 
 /// One or more filters, comma-separated, any of which lets a frame through; empty: every
 /// frame and every error frame.
@@ -58,10 +58,14 @@ impl LogFilter {
     }
 
     pub fn matches(&self, frame: &Frame) -> bool {
+        self.matches_id(frame.id())
+    }
+
+    /// Whether a frame with this ID (classic or CAN FD) passes.
+    pub fn matches_id(&self, id: Id) -> bool {
         if self.is_all() {
             return true;
         }
-        let id = frame.id();
         let (raw, extended) = (id.as_raw(), id.is_extended());
         self.rules.iter().any(|r| {
             let hit = r.extended == extended && (raw ^ r.id) & r.mask == 0;

@@ -537,3 +537,41 @@ fn a_signal_series_is_whole_for_a_new_consumer_then_grows() {
         "no DBC database: start with --dbc FILE to see signals"
     );
 }
+
+#[test]
+fn can_fd_frames_are_counted_logged_filtered_and_decoded_but_not_in_the_byte_table() {
+    let db = r#"
+BO_ 2147484304 Fd: 12 x
+ SG_ Tail : 88|8@1+ (1,0) [0|255] "" Vector__XXX
+"#;
+    let mut view = BusView::new(ViewConfig {
+        dbc: Some(std::sync::Arc::new(
+            buslab_dbc::Database::parse(db).unwrap(),
+        )),
+        ..ViewConfig::default()
+    });
+    let fd = |t: f64, text: &str| Message {
+        at: Timestamp::from_secs_f64(t),
+        channel: "can0".into(),
+        direction: None,
+        record: buslab_bus::Record::Fd(text.parse().unwrap()),
+    };
+    let fd_text = format!("00000290##1{}2A", "00".repeat(11));
+    view.message(ms(0), &fd(0.0, &fd_text));
+    view.message(ms(1), &msg(0.001, "123#01"));
+    assert_eq!(view.frame_count(), 2);
+    let all = LogFilter::all();
+    let log: Vec<String> = view
+        .log_tail(&all, 10)
+        .into_iter()
+        .map(|e| e.frame)
+        .collect();
+    assert_eq!(log, [fd_text.as_str(), "123#01"]);
+    let only_fd: LogFilter = "00000290:1FFFFFFF".parse().unwrap();
+    assert_eq!(view.log_tail(&only_fd, 10).len(), 1);
+    let messages = view.messages_page(ms(2), 0, 10);
+    assert_eq!(messages[0].name, "Fd");
+    assert_eq!(messages[0].signals[0].number, "42");
+    // The byte table is classic CAN's: 8 columns.
+    assert_eq!(view.rows(ms(2)).len(), 1);
+}
