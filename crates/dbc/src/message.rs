@@ -13,7 +13,8 @@ pub struct Message {
     pub(crate) id: Id,
     pub(crate) name: String,
     pub(crate) length: usize,
-    pub(crate) transmitter: Option<String>,
+    /// The transmitter (`BO_`) first, then the nodes `BO_TX_BU_` adds.
+    pub(crate) senders: Vec<String>,
     pub(crate) signals: Vec<Signal>,
     pub(crate) cycle_time: Option<Duration>,
     pub(crate) comment: Option<String>,
@@ -44,7 +45,11 @@ impl Message {
     }
     /// The node that sends it, if the database names one.
     pub fn transmitter(&self) -> Option<&str> {
-        self.transmitter.as_deref()
+        self.senders.first().map(String::as_str)
+    }
+    /// Every node that sends it: the transmitter, then the nodes `BO_TX_BU_` adds.
+    pub fn senders(&self) -> &[String] {
+        &self.senders
     }
     pub fn signals(&self) -> &[Signal] {
         &self.signals

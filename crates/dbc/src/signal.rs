@@ -60,6 +60,8 @@ pub struct Signal {
     pub(crate) receivers: Vec<String>,
     pub(crate) choices: Vec<(i64, String)>,
     pub(crate) comment: Option<String>,
+    /// `GenSigStartValue`, raw.
+    pub(crate) start_value: Option<f64>,
     pub(crate) multiplexing: Multiplexing,
     pub(crate) layout: Layout,
 }
@@ -104,6 +106,11 @@ impl Signal {
     }
     pub fn comment(&self) -> Option<&str> {
         self.comment.as_deref()
+    }
+    /// The raw value a sender puts before it has one (`GenSigStartValue`, given for this
+    /// signal; the attribute's default is not taken, as in cantools).
+    pub fn start_value(&self) -> Option<f64> {
+        self.start_value
     }
     pub fn multiplexing(&self) -> &Multiplexing {
         &self.multiplexing
