@@ -14,7 +14,7 @@ use can_dbc::{
 use crate::error::DbcError;
 use crate::layout::Layout;
 use crate::message::Message;
-use crate::signal::{ByteOrder, Multiplexing, Signal, ValueKind};
+use crate::signal::{ByteOrder, Codec, Multiplexing, Signal, ValueKind};
 use crate::source::{RawId, Source, SourceMessage};
 
 /// The largest payload a message can declare (CAN FD).
@@ -26,9 +26,14 @@ const INDEPENDENT_SIGNALS: &str = "VECTOR__INDEPENDENT_SIG_MSG";
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Database {
     messages: Vec<Message>,
-    by_id: HashMap<Id, usize>,
+    /// Message index by standard ID (`NONE` where there is none): one load per frame.
+    standard: Vec<u32>,
+    /// (extended ID, message index), sorted by ID.
+    extended: Vec<(u32, u32)>,
     nodes: Vec<String>,
 }
+
+const NONE: u32 = u32::MAX;
 
 impl Database {
     /// A DBC file's bytes: UTF-8, or Windows-1252 as Vector's tools write them.
@@ -66,9 +71,22 @@ impl Database {
             }
             messages.push(message);
         }
+        let mut standard = Vec::new();
+        let mut extended = Vec::new();
+        for (index, message) in messages.iter().enumerate() {
+            match message.id {
+                Id::Standard(_) => {
+                    standard.resize(0x800, NONE);
+                    standard[message.id.as_raw() as usize] = index as u32;
+                }
+                Id::Extended(_) => extended.push((message.id.as_raw(), index as u32)),
+            }
+        }
+        extended.sort_unstable();
         Ok(Self {
             messages,
-            by_id,
+            standard,
+            extended,
             nodes: source.nodes.iter().map(|n| source.node_name(n)).collect(),
         })
     }
@@ -78,8 +96,17 @@ impl Database {
         &self.messages
     }
     /// The message with this ID.
+    #[inline]
     pub fn message(&self, id: Id) -> Option<&Message> {
-        self.by_id.get(&id).map(|&i| &self.messages[i])
+        let index = match id {
+            Id::Standard(_) => *self.standard.get(id.as_raw() as usize)?,
+            Id::Extended(_) => {
+                let raw = id.as_raw();
+                let at = self.extended.binary_search_by_key(&raw, |e| e.0).ok()?;
+                self.extended[at].1
+            }
+        };
+        self.messages.get(index as usize)
     }
     /// The message called `name`.
     pub fn message_by_name(&self, name: &str) -> Option<&Message> {
@@ -210,6 +237,9 @@ fn resolve_message(source: &Source, at: &SourceMessage) -> Result<Message, DbcEr
         signals.push(resolve_signal(source, at, signal, line)?);
     }
     resolve_multiplexing(source, at, &mut signals)?;
+    let multiplexed = signals
+        .iter()
+        .any(|s| matches!(s.multiplexing, Multiplexing::Multiplexed { .. }));
     let name = match source
         .message_attributes
         .get(&(at.raw_id, "SystemMessageLongSymbol".to_string()))
@@ -222,10 +252,12 @@ fn resolve_message(source: &Source, at: &SourceMessage) -> Result<Message, DbcEr
         name,
         length: message.size as usize,
         senders,
-        signals,
         cycle_time,
         comment: source.message_comments.get(&at.raw_id).cloned(),
         fd: frame_format_is_fd(source, at.raw_id),
+        multiplexed,
+        codecs: signals.iter().map(|s| s.codec).collect(),
+        signals,
     })
 }
 
@@ -332,7 +364,13 @@ fn resolve_signal(
         comment: source.signal_comments.get(&key).cloned(),
         start_value,
         multiplexing: Multiplexing::Plain,
-        layout,
+        codec: Codec {
+            layout,
+            kind,
+            size: size as u32,
+            factor: signal.factor,
+            offset: signal.offset,
+        },
     })
 }
 

@@ -5,7 +5,7 @@ use std::time::Duration;
 use buslab_can::Id;
 
 use crate::error::EncodeError;
-use crate::signal::{Multiplexing, Signal};
+use crate::signal::{Codec, Multiplexing, Signal};
 
 /// A message of the database (`BO_`).
 #[derive(Clone, Debug, PartialEq)]
@@ -19,6 +19,10 @@ pub struct Message {
     pub(crate) cycle_time: Option<Duration>,
     pub(crate) comment: Option<String>,
     pub(crate) fd: bool,
+    /// Whether any signal is multiplexed (decoding checks selection only then).
+    pub(crate) multiplexed: bool,
+    /// The signals' codecs, in order.
+    pub(crate) codecs: Vec<Codec>,
 }
 
 /// One signal's value in a frame.
@@ -85,15 +89,15 @@ impl Message {
     /// [`Message::decode`] into a buffer the caller reuses (cleared first).
     pub fn decode_into(&self, payload: &[u8], out: &mut Vec<Decoded>) {
         out.clear();
-        for (index, signal) in self.signals.iter().enumerate() {
-            if !self.selected(index, payload) {
+        for (index, codec) in self.codecs.iter().enumerate() {
+            if self.multiplexed && !self.selected(index, payload) {
                 continue;
             }
-            if let Some(raw) = signal.raw(payload) {
+            if let Some(raw) = codec.layout.extract(payload) {
                 out.push(Decoded {
                     signal: index,
                     raw,
-                    physical: signal.physical(raw),
+                    physical: codec.physical(raw),
                 });
             }
         }
@@ -112,7 +116,7 @@ impl Message {
             else {
                 return true;
             };
-            let Some(selector) = self.signals[*multiplexor].raw(payload) else {
+            let Some(selector) = self.codecs[*multiplexor].layout.extract(payload) else {
                 return false;
             };
             if !values.iter().any(|r| r.contains(&selector)) {
@@ -164,8 +168,8 @@ impl Message {
         let mut payload = vec![0u8; self.length];
         // Multiplexors first, so that the branch check reads them back from the payload.
         for (index, signal) in self.signals.iter().enumerate() {
-            if signal.is_multiplexor() && signal.layout.end() <= payload.len() {
-                signal.layout.insert(&mut payload, raws[index]);
+            if signal.is_multiplexor() && signal.codec.layout.end() <= payload.len() {
+                signal.codec.layout.insert(&mut payload, raws[index]);
             }
         }
         for (index, signal) in self.signals.iter().enumerate() {
@@ -182,8 +186,8 @@ impl Message {
                     selector: raws[multiplexor],
                 });
             }
-            if signal.layout.end() <= payload.len() {
-                signal.layout.insert(&mut payload, raws[index]);
+            if signal.codec.layout.end() <= payload.len() {
+                signal.codec.layout.insert(&mut payload, raws[index]);
             }
         }
         Ok(payload)
