@@ -63,12 +63,20 @@ impl Database {
             }
             let line = message.line;
             let message = resolve_message(&source, message)?;
-            if by_id.insert(message.id, messages.len()).is_some() {
+            if let Some(&first) = by_id.get(&message.id) {
+                let first: &Message = &messages[first];
                 return Err(DbcError::Invalid {
                     line: Some(line),
-                    what: format!("message ID {} is defined twice", message.id),
+                    what: format!(
+                        "message {}: ID {} ({}) is {}'s already",
+                        message.name,
+                        message.id.as_raw(),
+                        message.id,
+                        first.name
+                    ),
                 });
             }
+            by_id.insert(message.id, messages.len());
             messages.push(message);
         }
         let mut standard = Vec::new();

@@ -149,6 +149,22 @@ impl Signal {
     pub fn start_value(&self) -> Option<f64> {
         self.start_value
     }
+    /// [`Signal::start_value`] as the raw bits encoding sends (an integer start value is
+    /// rounded and cut to the signal's size, a float one stored as the float).
+    pub fn start_raw(&self) -> Option<u64> {
+        let value = self.start_value?;
+        let mask = if self.size == 64 {
+            u64::MAX
+        } else {
+            (1u64 << self.size) - 1
+        };
+        Some(match self.kind {
+            ValueKind::Unsigned => value.round_ties_even() as u64 & mask,
+            ValueKind::Signed => value.round_ties_even() as i64 as u64 & mask,
+            ValueKind::Float32 => u64::from((value as f32).to_bits()),
+            ValueKind::Float64 => value.to_bits(),
+        })
+    }
     pub fn multiplexing(&self) -> &Multiplexing {
         &self.multiplexing
     }

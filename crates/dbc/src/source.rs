@@ -128,7 +128,7 @@ impl Source {
 
     pub(crate) fn parse(text: &str) -> Result<Self, DbcError> {
         let file = DbcParser::parse(Rule::file, text)
-            .map_err(syntax)?
+            .map_err(|e| syntax(text, e))?
             .next()
             .expect("the grammar's file rule matched");
         let mut source = Source::default();
@@ -297,14 +297,71 @@ impl Source {
     }
 }
 
-fn syntax(e: can_dbc_pest::Error<Rule>) -> DbcError {
-    let (line, column) = match e.line_col {
-        pest::error::LineColLocation::Pos(at) => at,
-        pest::error::LineColLocation::Span(at, _) => at,
+/// A syntax error: the farthest place the grammar reached and what it expected there.
+///
+/// pest's plain error points at the start of the item that failed (`BO_ 12 Foo 8 N` fails
+/// at `BO_`, not at the missing `:`); its detailed tracking finds the place and the tokens.
+/// The tracking is a process-wide switch that slows every parse, so it is on only while a
+/// file that failed is parsed again.
+fn syntax(text: &str, plain: can_dbc_pest::Error<Rule>) -> DbcError {
+    pest::set_error_detail(true);
+    let detailed = DbcParser::parse(Rule::file, text).err();
+    pest::set_error_detail(false);
+    let attempts = detailed.as_ref().and_then(|e| e.parse_attempts());
+    let Some(attempts) = attempts else {
+        let (line, column) = match plain.line_col {
+            pest::error::LineColLocation::Pos(at) => at,
+            pest::error::LineColLocation::Span(at, _) => at,
+        };
+        return DbcError::Syntax {
+            line,
+            column,
+            expected: plain.variant.message().into_owned(),
+        };
+    };
+    let at = attempts.max_position.min(text.len());
+    let before = &text[..at];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
+    let tokens: Vec<String> = attempts
+        .expected_tokens()
+        .iter()
+        .map(ToString::to_string)
+        .filter(|t| !matches!(t.as_str(), " " | "\t" | "\n" | "\r" | "\r\n" | "//"))
+        .collect();
+    // A new item could start here: every keyword is expected; name the common ones.
+    let keyword = |t: &String| t.len() > 1 && t.chars().all(|c| c.is_ascii_uppercase() || c == '_');
+    let mut tokens: Vec<String> = if tokens.iter().filter(|t| keyword(t)).count() > 5 {
+        let mut rest: Vec<String> = tokens
+            .iter()
+            .filter(|t| !keyword(t))
+            .map(|t| format!("{t:?}"))
+            .collect();
+        rest.push("a keyword (BO_, SG_, CM_, BA_, VAL_, ...)".into());
+        rest
+    } else {
+        tokens.iter().map(|t| format!("{t:?}")).collect()
+    };
+    tokens.dedup();
+    let found = text[at..]
+        .split(['\n', '\r'])
+        .next()
+        .unwrap_or("")
+        .chars()
+        .take(24)
+        .collect::<String>();
+    let expected = match tokens.as_slice() {
+        [] => plain.variant.message().into_owned(),
+        [one] => format!("expected {one}"),
+        [first @ .., last] => format!("expected {} or {last}", first.join(", ")),
     };
     DbcError::Syntax {
         line,
         column,
-        expected: e.variant.message().into_owned(),
+        expected: if found.is_empty() {
+            format!("{expected}, found the end of the line")
+        } else {
+            format!("{expected}, found {found:?}")
+        },
     }
 }
