@@ -11,7 +11,10 @@
 # - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can);
 #   python-can's source distribution (pinned by hash) into target/python-can-sdist/, for the log
 #   files of its test/data that crates/buslab/tests/log_python_can_data.rs reads with python-can
-#   and buslab (downloaded, not committed: python-can is LGPL-3.0, see docs/decisions.md).
+#   and buslab (downloaded, not committed: python-can is LGPL-3.0, see docs/decisions.md);
+#   cantools' source distribution (its tests/files/dbc) into target/cantools-sdist/ and
+#   opendbc's wheel (its opendbc/dbc) into target/opendbc-wheel/, both pinned by hash, for the
+#   DBC files that crates/dbc/tests/golden.rs decodes with cantools and buslab.
 # Whatever cannot be installed stops the script with a message and a non-zero exit: the interop
 # tests must not pass by skipping (under CI=1 they fail when a tool is missing).
 #
@@ -102,11 +105,25 @@ pycan_dir=target/python-can-sdist
 pycan_data=$pycan_dir/python_can-$pycan_version/test/data
 need_sdist=false
 [ -f "$pycan_data/logfile.asc" ] || need_sdist=true
+# cantools' own test DBCs (tests/files/dbc in its sdist) and opendbc's real vehicle DBCs (its
+# wheel's opendbc/dbc), for the DBC golden comparison (crates/dbc/tests/golden.rs).
+cantools_version=45.1.0
+cantools_sha256=ea1619f3d6108a1c3ecd0f81c952ff2dffd023b244704f6f7a17c4f4dca75f73
+cantools_dir=target/cantools-sdist
+cantools_dbc=$cantools_dir/cantools-$cantools_version/tests/files/dbc
+need_cantools_sdist=false
+[ -f "$cantools_dbc/motohawk.dbc" ] || need_cantools_sdist=true
+opendbc_version=0.3.1
+opendbc_sha256=5552994344a885d85836f2487b85e958e69ab1a0e8d11e30ec508d316bf58ae1
+opendbc_dir=target/opendbc-wheel
+opendbc_dbc=$opendbc_dir/opendbc/dbc
+need_opendbc=false
+[ -f "$opendbc_dbc/tesla_can.dbc" ] || need_opendbc=true
 
 # --- Say it ---------------------------------------------------------------------------------
 
 if ! $need_nextest && [ ${#debs[@]} = 0 ] && ! $need_kernel && ! $need_venv && ! $need_pip &&
-    ! $need_sdist; then
+    ! $need_sdist && ! $need_cantools_sdist && ! $need_opendbc; then
     $check_only && echo "setup-test-deps: every test tool is here"
     exit 0
 fi
@@ -119,6 +136,8 @@ $need_kernel && echo "  Debian's amd64 kernel package, downloaded into target/vm
 $need_venv && echo "  a Python virtual environment in .venv/"
 $need_pip && echo "  PyPI, into .venv/: $(grep -v '^#' "$requirements" | tr '\n' ' ')"
 $need_sdist && echo "  PyPI, into $pycan_dir/: python-can $pycan_version's source distribution (for its test logs)"
+$need_cantools_sdist && echo "  PyPI, into $cantools_dir/: cantools $cantools_version's source distribution (for its test DBC files)"
+$need_opendbc && echo "  PyPI, into $opendbc_dir/: opendbc $opendbc_version's wheel (for its DBC files)"
 if $check_only; then
     exit 1
 fi
@@ -182,8 +201,8 @@ if ! cmp -s "$requirements" "$stamp"; then
         fail "pip could not install $requirements into .venv"
     cp "$requirements" "$stamp"
 fi
-.venv/bin/python -c "import serial, can" ||
-    fail "the .venv lacks pyserial or python-can; delete .venv and run this script again"
+.venv/bin/python -c "import serial, can, cantools" ||
+    fail "the .venv lacks pyserial, python-can or cantools; delete .venv and run this script again"
 
 if $need_sdist; then
     echo "downloading python-can $pycan_version's source distribution (PyPI, for its test logs)"
@@ -196,4 +215,38 @@ if $need_sdist; then
         "python_can-$pycan_version/test/data" "python_can-$pycan_version/LICENSE.txt" ||
         fail "cannot unpack test/data from $pycan_dir/python_can-$pycan_version.tar.gz"
     [ -f "$pycan_data/logfile.asc" ] || fail "python-can's sdist has no test/data/logfile.asc"
+fi
+
+if $need_cantools_sdist; then
+    echo "downloading cantools $cantools_version's source distribution (PyPI, for its test DBC files)"
+    mkdir -p "$cantools_dir"
+    printf 'cantools==%s --hash=sha256:%s\n' "$cantools_version" "$cantools_sha256" >"$cantools_dir/requirements.txt"
+    .venv/bin/pip download --quiet --disable-pip-version-check --no-deps --no-binary :all: \
+        --require-hashes -r "$cantools_dir/requirements.txt" -d "$cantools_dir" ||
+        fail "pip could not download cantools $cantools_version's sdist into $cantools_dir"
+    tar -xzf "$cantools_dir/cantools-$cantools_version.tar.gz" -C "$cantools_dir" \
+        "cantools-$cantools_version/tests/files/dbc" "cantools-$cantools_version/LICENSE" ||
+        fail "cannot unpack tests/files/dbc from $cantools_dir/cantools-$cantools_version.tar.gz"
+    [ -f "$cantools_dbc/motohawk.dbc" ] || fail "cantools' sdist has no tests/files/dbc/motohawk.dbc"
+fi
+
+if $need_opendbc; then
+    echo "downloading opendbc $opendbc_version's wheel (PyPI, for its DBC files)"
+    mkdir -p "$opendbc_dir"
+    printf 'opendbc==%s --hash=sha256:%s\n' "$opendbc_version" "$opendbc_sha256" >"$opendbc_dir/requirements.txt"
+    .venv/bin/pip download --quiet --disable-pip-version-check --no-deps --only-binary :all: \
+        --require-hashes -r "$opendbc_dir/requirements.txt" -d "$opendbc_dir" ||
+        fail "pip could not download opendbc $opendbc_version's wheel into $opendbc_dir"
+    # A wheel is a zip: its DBC files (not the generator's parts) and the licence.
+    .venv/bin/python - "$opendbc_dir/opendbc-$opendbc_version-py3-none-any.whl" "$opendbc_dir" <<'PY' ||
+import sys, zipfile
+wheel, into = sys.argv[1], sys.argv[2]
+with zipfile.ZipFile(wheel) as z:
+    for name in z.namelist():
+        top_dbc = name.startswith("opendbc/dbc/") and name.count("/") == 2 and name.endswith(".dbc")
+        if top_dbc or name.endswith("dist-info/licenses/LICENSE"):
+            z.extract(name, into)
+PY
+        fail "cannot unpack opendbc/dbc from $opendbc_dir/opendbc-$opendbc_version-py3-none-any.whl"
+    [ -f "$opendbc_dbc/tesla_can.dbc" ] || fail "opendbc's wheel has no opendbc/dbc/tesla_can.dbc"
 fi

@@ -1,19 +1,21 @@
-//! A DBC file read into messages and signals: can-dbc's syntax tree resolved (comments,
-//! value tables, value types, multiplexing, attributes) and checked, once.
+//! A DBC file read into messages and signals: the file's items (see `source`) resolved
+//! (comments, value tables, value types, multiplexing, attributes) and checked, once.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
+use std::ops::RangeInclusive;
 use std::time::Duration;
 
 use buslab_can::Id;
 use can_dbc::{
-    AttributeDefinition, AttributeValue, AttributeValueType, Dbc, MessageId, MultiplexIndicator,
-    NumericValue, SignalExtendedValueType,
+    AttributeValue, AttributeValueType, MultiplexIndicator, NumericValue, SignalExtendedValueType,
 };
 
 use crate::error::DbcError;
 use crate::layout::Layout;
 use crate::message::Message;
-use crate::signal::{ByteOrder, Multiplexing, Signal, ValueKind};
+use crate::signal::{ByteOrder, Codec, Multiplexing, Signal, ValueKind};
+use crate::source::{RawId, Source, SourceMessage};
 
 /// The largest payload a message can declare (CAN FD).
 const MAX_LENGTH: u64 = 64;
@@ -24,9 +26,14 @@ const INDEPENDENT_SIGNALS: &str = "VECTOR__INDEPENDENT_SIG_MSG";
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Database {
     messages: Vec<Message>,
-    by_id: HashMap<Id, usize>,
+    /// Message index by standard ID (`NONE` where there is none): one load per frame.
+    standard: Vec<u32>,
+    /// (extended ID, message index), sorted by ID.
+    extended: Vec<(u32, u32)>,
     nodes: Vec<String>,
 }
+
+const NONE: u32 = u32::MAX;
 
 impl Database {
     /// A DBC file's bytes: UTF-8, or Windows-1252 as Vector's tools write them.
@@ -40,28 +47,55 @@ impl Database {
         }
     }
 
-    /// A DBC file's text.
+    /// A DBC file's text. Line ends are `\n`, `\r\n` or `\r` (comments keep `\n`).
     pub fn parse(text: &str) -> Result<Self, DbcError> {
-        let dbc = Dbc::try_from(text).map_err(syntax)?;
-        let mut messages = Vec::with_capacity(dbc.messages.len());
-        let mut by_id = HashMap::with_capacity(dbc.messages.len());
-        for message in &dbc.messages {
-            if message.name == INDEPENDENT_SIGNALS {
+        let text = if text.contains('\r') {
+            Cow::Owned(text.replace("\r\n", "\n").replace('\r', "\n"))
+        } else {
+            Cow::Borrowed(text)
+        };
+        let source = Source::parse(&text)?;
+        let mut messages = Vec::with_capacity(source.messages.len());
+        let mut by_id = HashMap::with_capacity(source.messages.len());
+        for message in &source.messages {
+            if message.message.name == INDEPENDENT_SIGNALS {
                 continue;
             }
-            let message = resolve_message(&dbc, message, text)?;
-            if by_id.insert(message.id, messages.len()).is_some() {
+            let line = message.line;
+            let message = resolve_message(&source, message)?;
+            if let Some(&first) = by_id.get(&message.id) {
+                let first: &Message = &messages[first];
                 return Err(DbcError::Invalid {
-                    line: line_of(text, &format!("BO_ {}", raw_id(message.id))),
-                    what: format!("message ID {} is defined twice", message.id),
+                    line: Some(line),
+                    what: format!(
+                        "message {}: ID {} ({}) is {}'s already",
+                        message.name,
+                        message.id.as_raw(),
+                        message.id,
+                        first.name
+                    ),
                 });
             }
+            by_id.insert(message.id, messages.len());
             messages.push(message);
         }
+        let mut standard = Vec::new();
+        let mut extended = Vec::new();
+        for (index, message) in messages.iter().enumerate() {
+            match message.id {
+                Id::Standard(_) => {
+                    standard.resize(0x800, NONE);
+                    standard[message.id.as_raw() as usize] = index as u32;
+                }
+                Id::Extended(_) => extended.push((message.id.as_raw(), index as u32)),
+            }
+        }
+        extended.sort_unstable();
         Ok(Self {
             messages,
-            by_id,
-            nodes: dbc.nodes.iter().map(|n| n.0.clone()).collect(),
+            standard,
+            extended,
+            nodes: source.nodes.iter().map(|n| source.node_name(n)).collect(),
         })
     }
 
@@ -70,8 +104,17 @@ impl Database {
         &self.messages
     }
     /// The message with this ID.
+    #[inline]
     pub fn message(&self, id: Id) -> Option<&Message> {
-        self.by_id.get(&id).map(|&i| &self.messages[i])
+        let index = match id {
+            Id::Standard(_) => *self.standard.get(id.as_raw() as usize)?,
+            Id::Extended(_) => {
+                let raw = id.as_raw();
+                let at = self.extended.binary_search_by_key(&raw, |e| e.0).ok()?;
+                self.extended[at].1
+            }
+        };
+        self.messages.get(index as usize)
     }
     /// The message called `name`.
     pub fn message_by_name(&self, name: &str) -> Option<&Message> {
@@ -83,37 +126,18 @@ impl Database {
     }
 }
 
-fn syntax(error: can_dbc::DbcError) -> DbcError {
-    match error {
-        can_dbc::DbcError::Pest(e) => {
-            let (line, column) = match e.line_col {
-                pest::error::LineColLocation::Pos(at) => at,
-                pest::error::LineColLocation::Span(at, _) => at,
-            };
-            DbcError::Syntax {
-                line,
-                column,
-                expected: e.variant.message().into_owned(),
-            }
-        }
-        other => DbcError::Invalid {
-            line: None,
-            what: other.to_string(),
-        },
+/// The message ID a file's number stands for. Bit 31 flags an extended ID; a number above
+/// 0x7FF without it can only be an extended ID written without the flag (opendbc writes its
+/// 29-bit IDs so), and is taken as one.
+fn message_id(raw: RawId) -> Option<Id> {
+    const EXTENDED_FLAG: RawId = 1 << 31;
+    if raw & EXTENDED_FLAG != 0 {
+        Id::extended(u32::try_from(raw & !EXTENDED_FLAG).ok()?).ok()
+    } else if raw <= 0x7FF {
+        Id::standard(raw as u16).ok()
+    } else {
+        Id::extended(u32::try_from(raw).ok()?).ok()
     }
-}
-
-/// The DBC spelling of an ID (bit 31 set for extended).
-fn raw_id(id: Id) -> u32 {
-    match id {
-        Id::Standard(_) => id.as_raw(),
-        Id::Extended(_) => id.as_raw() | 1 << 31,
-    }
-}
-
-/// The first line (1-based) holding `needle`, for errors about the resolved model.
-fn line_of(text: &str, needle: &str) -> Option<usize> {
-    text.lines().position(|l| l.contains(needle)).map(|i| i + 1)
 }
 
 fn number(value: &NumericValue) -> f64 {
@@ -133,78 +157,131 @@ fn attribute_number(value: &AttributeValue) -> Option<f64> {
     }
 }
 
-/// An enum attribute's value as its name (DBC stores the index into the definition's list).
-fn enum_name<'a>(dbc: &'a Dbc, attribute: &str, value: &'a AttributeValue) -> Option<&'a str> {
-    if let AttributeValue::String(s) = value {
-        return Some(s);
-    }
-    let index = attribute_number(value)? as usize;
-    dbc.attribute_definitions.iter().find_map(|d| match d {
-        AttributeDefinition::Message(name, AttributeValueType::Enum(names))
-            if name == attribute =>
-        {
-            names.get(index).map(String::as_str)
-        }
-        _ => None,
-    })
+/// A message attribute: its value for the message, else the default, when the file defines
+/// the attribute (`BA_DEF_ BO_`), as cantools reads GenMsgCycleTime and VFrameFormat.
+fn message_attribute<'a>(source: &'a Source, id: RawId, name: &str) -> Option<&'a AttributeValue> {
+    source.message_attribute_types.get(name)?;
+    source
+        .message_attributes
+        .get(&(id, name.to_string()))
+        .or_else(|| source.defaults.get(name))
 }
 
-fn resolve_message(dbc: &Dbc, message: &can_dbc::Message, text: &str) -> Result<Message, DbcError> {
-    let at = || line_of(text, &format!("BO_ {} {}", message.id.raw(), message.name));
-    let id = match message.id {
-        MessageId::Standard(raw) => Id::standard(raw),
-        MessageId::Extended(raw) => Id::extended(raw),
-    }
-    .map_err(|e| DbcError::Invalid {
-        line: at(),
-        what: format!("message {}: {e}", message.name),
+/// Whether the message is sent as CAN FD: `VFrameFormat` (its value, else its default) names
+/// a `…CAN_FD` format. An INT `VFrameFormat` indexes Vector's list of formats, as in cantools.
+fn frame_format_is_fd(source: &Source, id: RawId) -> bool {
+    const VECTOR_FORMATS: [&str; 16] = [
+        "StandardCAN",
+        "ExtendedCAN",
+        "reserved",
+        "J1939PG",
+        "reserved",
+        "reserved",
+        "reserved",
+        "reserved",
+        "reserved",
+        "reserved",
+        "reserved",
+        "reserved",
+        "reserved",
+        "reserved",
+        "StandardCAN_FD",
+        "ExtendedCAN_FD",
+    ];
+    let Some(kind) = source.message_attribute_types.get("VFrameFormat") else {
+        return false;
+    };
+    let Some(value) = message_attribute(source, id, "VFrameFormat") else {
+        return false;
+    };
+    let name = match (kind, value) {
+        (_, AttributeValue::String(name)) => Some(name.as_str()),
+        (AttributeValueType::Enum(names), v) => attribute_number(v)
+            .and_then(|i| names.get(i as usize))
+            .map(String::as_str),
+        (_, v) => attribute_number(v)
+            .and_then(|i| VECTOR_FORMATS.get(i as usize))
+            .copied(),
+    };
+    name.is_some_and(|n| n.ends_with("CAN_FD"))
+}
+
+fn resolve_message(source: &Source, at: &SourceMessage) -> Result<Message, DbcError> {
+    let message = &at.message;
+    let invalid = |what: String| DbcError::Invalid {
+        line: Some(at.line),
+        what: format!("message {}: {what}", message.name),
+    };
+    let id = message_id(at.raw_id).ok_or_else(|| {
+        invalid(format!(
+            "ID {} is neither a standard (up to 0x7FF) nor an extended ID (bit 31 and up to 0x1FFFFFFF)",
+            at.raw_id
+        ))
     })?;
     if message.size > MAX_LENGTH {
-        return Err(DbcError::Invalid {
-            line: at(),
-            what: format!(
-                "message {} is {} bytes long: at most {MAX_LENGTH} (CAN FD)",
-                message.name, message.size
-            ),
-        });
+        return Err(invalid(format!(
+            "{} bytes long: at most {MAX_LENGTH} (CAN FD)",
+            message.size
+        )));
     }
-    let cycle_time = dbc
-        .resolved_message_attribute(message.id, "GenMsgCycleTime")
+    // A cycle time of 0 is no cycle time.
+    let cycle_time = message_attribute(source, at.raw_id, "GenMsgCycleTime")
         .and_then(attribute_number)
         .filter(|&ms| ms > 0.0 && ms.is_finite())
         .map(|ms| Duration::from_secs_f64(ms / 1000.0));
-    let fd = dbc
-        .resolved_message_attribute(message.id, "VFrameFormat")
-        .and_then(|v| enum_name(dbc, "VFrameFormat", v))
-        .is_some_and(|name| name.contains("FD"));
-    let mut signals = Vec::with_capacity(message.signals.len());
-    for signal in &message.signals {
-        signals.push(resolve_signal(dbc, message, signal, text)?);
+    let mut senders: Vec<String> = message
+        .transmitter
+        .iter()
+        .map(|n| source.node_name(n))
+        .collect();
+    for node in source.senders.get(&at.raw_id).into_iter().flatten() {
+        let node = source.node_name(node);
+        if !senders.contains(&node) && node != "Vector__XXX" {
+            senders.push(node);
+        }
     }
-    resolve_multiplexing(dbc, message, &mut signals, text)?;
+    let mut signals = Vec::with_capacity(message.signals.len());
+    for (signal, &line) in message.signals.iter().zip(&at.signal_lines) {
+        signals.push(resolve_signal(source, at, signal, line)?);
+    }
+    resolve_multiplexing(source, at, &mut signals)?;
+    let multiplexed = signals
+        .iter()
+        .any(|s| matches!(s.multiplexing, Multiplexing::Multiplexed { .. }));
+    let name = match source
+        .message_attributes
+        .get(&(at.raw_id, "SystemMessageLongSymbol".to_string()))
+    {
+        Some(AttributeValue::String(long)) => long.clone(),
+        _ => message.name.clone(),
+    };
     Ok(Message {
         id,
-        name: message.name.clone(),
+        name,
         length: message.size as usize,
-        transmitter: message.transmitter.clone(),
-        signals,
+        senders,
         cycle_time,
-        comment: dbc.message_comment(message.id).map(str::to_string),
-        fd,
+        comment: source.message_comments.get(&at.raw_id).cloned(),
+        fd: frame_format_is_fd(source, at.raw_id),
+        multiplexed,
+        codecs: signals.iter().map(|s| s.codec).collect(),
+        signals,
     })
 }
 
 fn resolve_signal(
-    dbc: &Dbc,
-    message: &can_dbc::Message,
+    source: &Source,
+    at: &SourceMessage,
     signal: &can_dbc::Signal,
-    text: &str,
+    line: usize,
 ) -> Result<Signal, DbcError> {
+    let message = &at.message;
     let invalid = |what: String| DbcError::Invalid {
-        line: line_of(text, &format!("SG_ {} ", signal.name)),
+        line: Some(line),
         what: format!("signal {}.{}: {what}", message.name, signal.name),
     };
-    let kind = match dbc.extended_value_type_for_signal(message.id, &signal.name) {
+    let key = (at.raw_id, signal.name.clone());
+    let kind = match source.value_types.get(&key) {
         Some(SignalExtendedValueType::IEEEfloat32Bit) => ValueKind::Float32,
         Some(SignalExtendedValueType::IEEEdouble64bit) => ValueKind::Float64,
         _ => match signal.value_type {
@@ -224,25 +301,32 @@ fn resolve_signal(
         }
         _ => {}
     }
+    let byte_order = match signal.byte_order {
+        can_dbc::ByteOrder::LittleEndian => ByteOrder::LittleEndian,
+        can_dbc::ByteOrder::BigEndian => ByteOrder::BigEndian,
+    };
     if signal.start_bit >= 8 * MAX_LENGTH {
         return Err(invalid(format!(
             "start bit {} is past {MAX_LENGTH} bytes",
             signal.start_bit
         )));
     }
-    let byte_order = match signal.byte_order {
-        can_dbc::ByteOrder::LittleEndian => ByteOrder::LittleEndian,
-        can_dbc::ByteOrder::BigEndian => ByteOrder::BigEndian,
-    };
     let layout = Layout::new(
         signal.start_bit as u32,
         size as u32,
         byte_order == ByteOrder::BigEndian,
     );
-    if layout.end() as u64 > MAX_LENGTH {
+    // As cantools' strict loading: a signal must fit in its message.
+    if layout.end() as u64 > message.size {
         return Err(invalid(format!(
-            "its bits run past {MAX_LENGTH} bytes (start bit {}, {size} bits)",
-            signal.start_bit
+            "its bits run past the message's {} bytes (start bit {}, {size} bits, {})",
+            message.size,
+            signal.start_bit,
+            if byte_order == ByteOrder::BigEndian {
+                "Motorola"
+            } else {
+                "Intel"
+            }
         )));
     }
     if !signal.factor.is_finite() || signal.factor == 0.0 || !signal.offset.is_finite() {
@@ -251,12 +335,24 @@ fn resolve_signal(
             signal.factor, signal.offset
         )));
     }
-    let choices = dbc
-        .value_descriptions_for_signal(message.id, &signal.name)
-        .map(|v| v.iter().map(|d| (d.id, d.description.clone())).collect())
-        .unwrap_or_default();
+    let attribute = |name: &str| {
+        source
+            .signal_attributes
+            .get(&(at.raw_id, signal.name.clone(), name.to_string()))
+    };
+    let start_value = match attribute("GenSigStartValue") {
+        None => None,
+        Some(value) => Some(
+            attribute_number(value)
+                .ok_or_else(|| invalid(format!("GenSigStartValue {value:?}: a number")))?,
+        ),
+    };
+    let name = match attribute("SystemSignalLongSymbol") {
+        Some(AttributeValue::String(long)) => long.clone(),
+        _ => signal.name.clone(),
+    };
     Ok(Signal {
-        name: signal.name.clone(),
+        name,
         start_bit: signal.start_bit as u32,
         size: size as u32,
         byte_order,
@@ -270,96 +366,130 @@ fn resolve_signal(
             .receivers
             .iter()
             .filter(|r| r.as_str() != "Vector__XXX")
-            .cloned()
+            .map(|r| source.node_name(r))
             .collect(),
-        choices,
-        comment: dbc
-            .signal_comment(message.id, &signal.name)
-            .map(str::to_string),
+        choices: source.value_tables.get(&key).cloned().unwrap_or_default(),
+        comment: source.signal_comments.get(&key).cloned(),
+        start_value,
         multiplexing: Multiplexing::Plain,
-        layout,
+        codec: Codec {
+            layout,
+            kind,
+            size: size as u32,
+            factor: signal.factor,
+            offset: signal.offset,
+        },
     })
 }
 
-/// Simple multiplexing (`M`, `mN`) and extended (`mNM`, `SG_MUL_VAL_`), checked for a
-/// multiplexor that is there and for cycles.
+/// Simple multiplexing (`M`, `mN`) and extended (`mNM`, `SG_MUL_VAL_`), as cantools reads
+/// them. With one multiplexor in the message (one `M` or `mNM`), every other `mN` signal is
+/// selected by it, for `N` and for the values `SG_MUL_VAL_` lines give it under that
+/// multiplexor. With none or several, the signal's (last) `SG_MUL_VAL_` line says which
+/// multiplexor selects it and for which values (an `M` signal too, which makes it a
+/// multiplexor selected by another). Checked: the multiplexor is there, no circles.
 fn resolve_multiplexing(
-    dbc: &Dbc,
-    message: &can_dbc::Message,
+    source: &Source,
+    at: &SourceMessage,
     signals: &mut [Signal],
-    text: &str,
 ) -> Result<(), DbcError> {
+    let message = &at.message;
     let index_of = |name: &str| message.signals.iter().position(|s| s.name == name);
-    let at = || line_of(text, &format!("BO_ {} {}", message.id.raw(), message.name));
-    let simple: Vec<usize> = message
+    let invalid = |line: usize, what: String| DbcError::Invalid {
+        line: Some(line),
+        what: format!("message {}: {what}", message.name),
+    };
+    let multiplexors: Vec<usize> = message
         .signals
         .iter()
         .enumerate()
-        .filter(|(_, s)| s.multiplexer_indicator == MultiplexIndicator::Multiplexor)
+        .filter(|(_, s)| {
+            matches!(
+                s.multiplexer_indicator,
+                MultiplexIndicator::Multiplexor
+                    | MultiplexIndicator::MultiplexorAndMultiplexedSignal(_)
+            )
+        })
         .map(|(i, _)| i)
         .collect();
-    let extended: Vec<_> = dbc
-        .extended_multiplex
-        .iter()
-        .filter(|e| e.message_id == message.id)
-        .collect();
+    let single = match multiplexors.as_slice() {
+        [only] => Some(*only),
+        _ => None,
+    };
+    for index in &multiplexors {
+        signals[*index].multiplexing = Multiplexing::Multiplexor;
+    }
     for (index, signal) in message.signals.iter().enumerate() {
-        let (value, selects) = match signal.multiplexer_indicator {
+        let line = at.signal_lines[index];
+        let (marked, selects) = match signal.multiplexer_indicator {
             MultiplexIndicator::Plain => continue,
-            MultiplexIndicator::Multiplexor => {
-                signals[index].multiplexing = Multiplexing::Multiplexor;
-                continue;
-            }
-            MultiplexIndicator::MultiplexedSignal(v) => (v, false),
-            MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => (v, true),
+            MultiplexIndicator::Multiplexor => (None, true),
+            MultiplexIndicator::MultiplexedSignal(v) => (Some(v), false),
+            MultiplexIndicator::MultiplexorAndMultiplexedSignal(_) => (None, true),
         };
-        let mapped = extended.iter().find(|e| e.signal_name == signal.name);
-        let (multiplexor, values) = match mapped {
-            Some(e) => {
-                let by = index_of(&e.multiplexor_signal_name).ok_or_else(|| DbcError::Invalid {
-                    line: line_of(text, &format!("SG_MUL_VAL_ {}", message.id.raw())),
-                    what: format!(
-                        "signal {}.{} is multiplexed by {}, which the message does not have",
-                        message.name, signal.name, e.multiplexor_signal_name
-                    ),
+        let mapped = source
+            .multiplex
+            .get(&(at.raw_id, signal.name.clone()))
+            .map(Vec::as_slice)
+            .unwrap_or_default();
+        let ranges_under = |multiplexor: &str| -> Vec<RangeInclusive<u64>> {
+            mapped
+                .iter()
+                .filter(|m| m.multiplex.multiplexor_signal_name == multiplexor)
+                .flat_map(|m| m.multiplex.mappings.iter())
+                .map(|r| r.min_value..=r.max_value)
+                .collect()
+        };
+        let (multiplexor, mut values) = match single {
+            Some(only) if only == index => continue,
+            Some(only) => (only, ranges_under(&message.signals[only].name)),
+            None => {
+                // The last SG_MUL_VAL_ line of the signal names its multiplexor.
+                let Some(last) = mapped.last() else {
+                    if marked.is_none() {
+                        continue; // a multiplexor at the top of the tree
+                    }
+                    return Err(invalid(
+                        line,
+                        format!(
+                            "signal {} is multiplexed (m{}) but no multiplexor (M) or SG_MUL_VAL_ line says by what",
+                            signal.name,
+                            marked.unwrap_or_default()
+                        ),
+                    ));
+                };
+                let name = &last.multiplex.multiplexor_signal_name;
+                let by = index_of(name).ok_or_else(|| {
+                    invalid(
+                        last.line,
+                        format!(
+                            "signal {} is multiplexed by {name}, which the message does not have",
+                            signal.name
+                        ),
+                    )
                 })?;
-                let values = e
-                    .mappings
-                    .iter()
-                    .map(|m| m.min_value..=m.max_value)
-                    .collect();
-                (by, values)
+                if by == index {
+                    return Err(invalid(
+                        last.line,
+                        format!("signal {} is multiplexed by itself", signal.name),
+                    ));
+                }
+                (by, ranges_under(name))
             }
-            None => match simple.as_slice() {
-                [by] => (*by, vec![value..=value]),
-                [] => {
-                    return Err(DbcError::Invalid {
-                        line: at(),
-                        what: format!(
-                            "signal {}.{} is multiplexed (m{value}) but the message has no multiplexor (M)",
-                            message.name, signal.name
-                        ),
-                    });
-                }
-                _ => {
-                    return Err(DbcError::Invalid {
-                        line: at(),
-                        what: format!(
-                            "signal {}.{} is multiplexed (m{value}) and the message has several multiplexors without SG_MUL_VAL_ to say which",
-                            message.name, signal.name
-                        ),
-                    });
-                }
-            },
         };
-        if multiplexor == index {
-            return Err(DbcError::Invalid {
-                line: at(),
-                what: format!(
-                    "signal {}.{} is multiplexed by itself",
-                    message.name, signal.name
+        if single.is_some()
+            && let Some(v) = marked
+        {
+            values.insert(0, v..=v);
+        }
+        if values.is_empty() {
+            return Err(invalid(
+                line,
+                format!(
+                    "signal {} is multiplexed by {} for no value",
+                    signal.name, message.signals[multiplexor].name
                 ),
-            });
+            ));
         }
         signals[index].multiplexing = Multiplexing::Multiplexed {
             multiplexor,
@@ -374,13 +504,13 @@ fn resolve_multiplexing(
         while let Multiplexing::Multiplexed { multiplexor, .. } = signals[at_signal].multiplexing {
             steps += 1;
             if steps > signals.len() {
-                return Err(DbcError::Invalid {
-                    line: at(),
-                    what: format!(
-                        "message {}: the multiplexors of {} select each other in a circle",
-                        message.name, signals[start].name
+                return Err(invalid(
+                    at.line,
+                    format!(
+                        "the multiplexors of {} select each other in a circle",
+                        signals[start].name
                     ),
-                });
+                ));
             }
             at_signal = multiplexor;
         }

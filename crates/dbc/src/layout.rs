@@ -15,6 +15,9 @@ pub(crate) struct Layout {
     /// Bytes covered, 1..=9 (a 64-bit signal not on a byte boundary spans nine).
     len: usize,
     shift: u32,
+    /// The shift of the signal in the 64-bit word of the 8 bytes from `first` (signals of up
+    /// to 8 bytes, all but a 64-bit one off a byte boundary).
+    word_shift: u32,
     mask: u64,
     big_endian: bool,
 }
@@ -33,10 +36,14 @@ impl Layout {
             let end = msb + size;
             let first = msb / 8;
             let last = (end - 1) / 8;
+            let len = last - first + 1;
+            let shift = 8 * (last + 1) - end;
             Self {
                 first: first as usize,
-                len: (last - first + 1) as usize,
-                shift: 8 * (last + 1) - end,
+                len: len as usize,
+                shift,
+                // The bytes are the word's top `len`.
+                word_shift: (64 - 8 * len.min(8)) + shift,
                 mask,
                 big_endian,
             }
@@ -45,6 +52,7 @@ impl Layout {
                 first: (start_bit / 8) as usize,
                 len: (start_bit % 8 + size).div_ceil(8) as usize,
                 shift: start_bit % 8,
+                word_shift: start_bit % 8,
                 mask,
                 big_endian,
             }
@@ -59,9 +67,29 @@ impl Layout {
     /// The signal's raw bits, right-aligned; `None` when the payload is too short for it.
     #[inline]
     pub(crate) fn extract(&self, payload: &[u8]) -> Option<u64> {
-        let bytes = payload.get(self.first..self.end())?;
-        let window = self.load(bytes);
-        Some((window >> self.shift) as u64 & self.mask)
+        let end = self.end();
+        if end > payload.len() {
+            return None;
+        }
+        if self.len > 8 {
+            let window = self.load(&payload[self.first..end]);
+            return Some((window >> self.shift) as u64 & self.mask);
+        }
+        // One 8-byte load: from the payload when 8 bytes are there, else zero-padded.
+        let word: [u8; 8] = match payload.get(self.first..self.first + 8) {
+            Some(bytes) => bytes.try_into().expect("8 bytes"),
+            None => {
+                let mut word = [0; 8];
+                word[..self.len].copy_from_slice(&payload[self.first..end]);
+                word
+            }
+        };
+        let word = if self.big_endian {
+            u64::from_be_bytes(word)
+        } else {
+            u64::from_le_bytes(word)
+        };
+        Some((word >> self.word_shift) & self.mask)
     }
 
     /// Writes `raw`'s low bits into the payload, keeping every other bit. The payload must hold

@@ -22,6 +22,7 @@ mod error;
 mod layout;
 mod message;
 mod signal;
+mod source;
 pub mod text;
 
 pub use database::Database;

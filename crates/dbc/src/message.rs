@@ -5,7 +5,7 @@ use std::time::Duration;
 use buslab_can::Id;
 
 use crate::error::EncodeError;
-use crate::signal::{Multiplexing, Signal};
+use crate::signal::{Codec, Multiplexing, Signal};
 
 /// A message of the database (`BO_`).
 #[derive(Clone, Debug, PartialEq)]
@@ -13,11 +13,16 @@ pub struct Message {
     pub(crate) id: Id,
     pub(crate) name: String,
     pub(crate) length: usize,
-    pub(crate) transmitter: Option<String>,
+    /// The transmitter (`BO_`) first, then the nodes `BO_TX_BU_` adds.
+    pub(crate) senders: Vec<String>,
     pub(crate) signals: Vec<Signal>,
     pub(crate) cycle_time: Option<Duration>,
     pub(crate) comment: Option<String>,
     pub(crate) fd: bool,
+    /// Whether any signal is multiplexed (decoding checks selection only then).
+    pub(crate) multiplexed: bool,
+    /// The signals' codecs, in order.
+    pub(crate) codecs: Vec<Codec>,
 }
 
 /// One signal's value in a frame.
@@ -44,7 +49,11 @@ impl Message {
     }
     /// The node that sends it, if the database names one.
     pub fn transmitter(&self) -> Option<&str> {
-        self.transmitter.as_deref()
+        self.senders.first().map(String::as_str)
+    }
+    /// Every node that sends it: the transmitter, then the nodes `BO_TX_BU_` adds.
+    pub fn senders(&self) -> &[String] {
+        &self.senders
     }
     pub fn signals(&self) -> &[Signal] {
         &self.signals
@@ -80,15 +89,15 @@ impl Message {
     /// [`Message::decode`] into a buffer the caller reuses (cleared first).
     pub fn decode_into(&self, payload: &[u8], out: &mut Vec<Decoded>) {
         out.clear();
-        for (index, signal) in self.signals.iter().enumerate() {
-            if !self.selected(index, payload) {
+        for (index, codec) in self.codecs.iter().enumerate() {
+            if self.multiplexed && !self.selected(index, payload) {
                 continue;
             }
-            if let Some(raw) = signal.raw(payload) {
+            if let Some(raw) = codec.layout.extract(payload) {
                 out.push(Decoded {
                     signal: index,
                     raw,
-                    physical: signal.physical(raw),
+                    physical: codec.physical(raw),
                 });
             }
         }
@@ -107,7 +116,7 @@ impl Message {
             else {
                 return true;
             };
-            let Some(selector) = self.signals[*multiplexor].raw(payload) else {
+            let Some(selector) = self.codecs[*multiplexor].layout.extract(payload) else {
                 return false;
             };
             if !values.iter().any(|r| r.contains(&selector)) {
@@ -119,10 +128,12 @@ impl Message {
     }
 
     /// The payload ([`Message::length`] bytes) carrying `values` (physical, by signal name).
-    /// Signals not given are sent as raw 0; a multiplexed signal may be given only when the
-    /// multiplexors given (or 0) select it.
+    /// A signal not given is sent with its start value (`GenSigStartValue`) when the
+    /// database has one, else as raw 0; a multiplexed signal is sent only when the
+    /// multiplexors (given, else their start value or 0) select it, and giving one they do
+    /// not select is an error.
     pub fn encode(&self, values: &[(&str, f64)]) -> Result<Vec<u8>, EncodeError> {
-        let mut raws = vec![0u64; self.signals.len()];
+        let mut raws: Vec<Option<u64>> = self.signals.iter().map(Signal::start_raw).collect();
         let mut given = vec![false; self.signals.len()];
         for &(name, value) in values {
             let (index, signal) =
@@ -144,7 +155,7 @@ impl Message {
                     value,
                 });
             }
-            raws[index] = signal.raw_from_physical(value).ok_or_else(|| {
+            raws[index] = Some(signal.raw_from_physical(value).ok_or_else(|| {
                 let (min, max) = signal.allowed();
                 EncodeError::OutOfRange {
                     message: self.name.clone(),
@@ -153,34 +164,52 @@ impl Message {
                     min,
                     max,
                 }
-            })?;
+            })?);
             given[index] = true;
         }
         let mut payload = vec![0u8; self.length];
-        // Multiplexors first, so that the branch check reads them back from the payload.
-        for (index, signal) in self.signals.iter().enumerate() {
-            if signal.is_multiplexor() && signal.layout.end() <= payload.len() {
-                signal.layout.insert(&mut payload, raws[index]);
+        // Multiplexors first, so that the branch checks read them back from the payload.
+        let selector = |index: usize| self.is_selector(index);
+        for (index, codec) in self.codecs.iter().enumerate() {
+            if selector(index) {
+                codec.layout.insert(&mut payload, raws[index].unwrap_or(0));
             }
         }
-        for (index, signal) in self.signals.iter().enumerate() {
-            if !given[index] {
-                continue;
-            }
-            if let Multiplexing::Multiplexed { multiplexor, .. } = signal.multiplexing
-                && !self.selected(index, &payload)
-            {
-                return Err(EncodeError::InactiveBranch {
-                    message: self.name.clone(),
-                    signal: signal.name.clone(),
-                    multiplexor: self.signals[multiplexor].name.clone(),
-                    selector: raws[multiplexor],
-                });
-            }
-            if signal.layout.end() <= payload.len() {
-                signal.layout.insert(&mut payload, raws[index]);
+        // Then the start values of the signals not given, then the signals given (a
+        // signal given wins over a start value where they overlap).
+        for pass_given in [false, true] {
+            for (index, codec) in self.codecs.iter().enumerate() {
+                if given[index] != pass_given || (selector(index) && !pass_given) {
+                    continue;
+                }
+                let Some(raw) = raws[index] else { continue };
+                if !self.selected(index, &payload) {
+                    if !pass_given {
+                        continue;
+                    }
+                    let Multiplexing::Multiplexed { multiplexor, .. } =
+                        self.signals[index].multiplexing
+                    else {
+                        unreachable!("a signal that is not multiplexed is always selected")
+                    };
+                    return Err(EncodeError::InactiveBranch {
+                        message: self.name.clone(),
+                        signal: self.signals[index].name.clone(),
+                        multiplexor: self.signals[multiplexor].name.clone(),
+                        selector: raws[multiplexor].unwrap_or(0),
+                    });
+                }
+                codec.layout.insert(&mut payload, raw);
             }
         }
         Ok(payload)
+    }
+
+    /// Whether signal `index` selects others: marked as a multiplexor, or named as one.
+    fn is_selector(&self, index: usize) -> bool {
+        self.signals[index].is_multiplexor()
+            || self.signals.iter().any(|s| {
+                matches!(s.multiplexing, Multiplexing::Multiplexed { multiplexor, .. } if multiplexor == index)
+            })
     }
 }

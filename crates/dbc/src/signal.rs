@@ -60,8 +60,47 @@ pub struct Signal {
     pub(crate) receivers: Vec<String>,
     pub(crate) choices: Vec<(i64, String)>,
     pub(crate) comment: Option<String>,
+    /// `GenSigStartValue`, raw.
+    pub(crate) start_value: Option<f64>,
     pub(crate) multiplexing: Multiplexing,
-    pub(crate) layout: Layout,
+    pub(crate) codec: Codec,
+}
+
+/// What decoding needs of a signal, packed together: a message keeps one per signal, in
+/// order, so that decoding reads only these.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Codec {
+    pub layout: Layout,
+    pub kind: ValueKind,
+    pub size: u32,
+    pub factor: f64,
+    pub offset: f64,
+}
+
+impl Codec {
+    #[inline]
+    pub(crate) fn integer(&self, raw: u64) -> i64 {
+        match self.kind {
+            ValueKind::Signed if self.size < 64 => {
+                let unused = 64 - self.size;
+                ((raw << unused) as i64) >> unused
+            }
+            _ => raw as i64,
+        }
+    }
+
+    /// The number the bits hold times the factor plus the offset (in this order, as cantools
+    /// computes it: the same f64).
+    #[inline]
+    pub(crate) fn physical(&self, raw: u64) -> f64 {
+        let number = match self.kind {
+            ValueKind::Unsigned => raw as f64,
+            ValueKind::Signed => self.integer(raw) as f64,
+            ValueKind::Float32 => f64::from(f32::from_bits(raw as u32)),
+            ValueKind::Float64 => f64::from_bits(raw),
+        };
+        number * self.factor + self.offset
+    }
 }
 
 impl Signal {
@@ -105,6 +144,27 @@ impl Signal {
     pub fn comment(&self) -> Option<&str> {
         self.comment.as_deref()
     }
+    /// The raw value a sender puts before it has one (`GenSigStartValue`, given for this
+    /// signal; the attribute's default is not taken, as in cantools).
+    pub fn start_value(&self) -> Option<f64> {
+        self.start_value
+    }
+    /// [`Signal::start_value`] as the raw bits encoding sends (an integer start value is
+    /// rounded and cut to the signal's size, a float one stored as the float).
+    pub fn start_raw(&self) -> Option<u64> {
+        let value = self.start_value?;
+        let mask = if self.size == 64 {
+            u64::MAX
+        } else {
+            (1u64 << self.size) - 1
+        };
+        Some(match self.kind {
+            ValueKind::Unsigned => value.round_ties_even() as u64 & mask,
+            ValueKind::Signed => value.round_ties_even() as i64 as u64 & mask,
+            ValueKind::Float32 => u64::from((value as f32).to_bits()),
+            ValueKind::Float64 => value.to_bits(),
+        })
+    }
     pub fn multiplexing(&self) -> &Multiplexing {
         &self.multiplexing
     }
@@ -119,31 +179,19 @@ impl Signal {
     /// Its raw bits in `payload`, right-aligned; `None` when the payload is too short.
     #[inline]
     pub fn raw(&self, payload: &[u8]) -> Option<u64> {
-        self.layout.extract(payload)
+        self.codec.layout.extract(payload)
     }
 
     /// The raw bits as the integer a value table is keyed by (sign-extended when signed).
     #[inline]
     pub fn integer(&self, raw: u64) -> i64 {
-        match self.kind {
-            ValueKind::Signed if self.size < 64 => {
-                let unused = 64 - self.size;
-                ((raw << unused) as i64) >> unused
-            }
-            _ => raw as i64,
-        }
+        self.codec.integer(raw)
     }
 
     /// The physical value of raw bits: the number they hold times the factor plus the offset.
     #[inline]
     pub fn physical(&self, raw: u64) -> f64 {
-        let number = match self.kind {
-            ValueKind::Unsigned => raw as f64,
-            ValueKind::Signed => self.integer(raw) as f64,
-            ValueKind::Float32 => f64::from(f32::from_bits(raw as u32)),
-            ValueKind::Float64 => f64::from_bits(raw),
-        };
-        number * self.factor + self.offset
+        self.codec.physical(raw)
     }
 
     /// The value table's label for raw bits, if it has one.
