@@ -143,6 +143,7 @@ fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
         AdapterEvent::Opened {
             listen_only,
             timing,
+            ..
         } => {
             tracing::info!(
                 "the host opened the adapter{}{}",
@@ -174,6 +175,9 @@ fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
             "{frame} refused (BEL): the adapter is bus-off; the host must close and open the channel (C, O)"
         ),
         AdapterEvent::Closed => tracing::info!("the host closed the adapter"),
+        AdapterEvent::TransmitFd(frame) | AdapterEvent::RefusedFd(frame) => {
+            tracing::warn!("CAN FD frame {frame} not sent (classic frames only)")
+        }
         AdapterEvent::FilterNotModelled { code, mask } => tracing::warn!(
             "acceptance filter M{code:08X} m{mask:08X} is not modelled: the adapter delivers every frame"
         ),
