@@ -268,6 +268,14 @@ impl FdSupport {
     pub fn carried(&self) -> bool {
         *self == FdSupport::Carried
     }
+
+    /// Why the bus carries no FD frames (`None` when it carries them).
+    pub fn classic_reason(&self) -> Option<&NoFd> {
+        match self {
+            FdSupport::Carried => None,
+            FdSupport::Classic(why) => Some(why),
+        }
+    }
 }
 
 /// Why a bus carries no CAN FD frames.
