@@ -631,6 +631,92 @@ fn bridge_copies_both_ways_without_duplicates_or_echoes() {
     assert_eq!(b.recv(WAIT).unwrap().unwrap().record, frame("7FF#R1"));
 }
 
+/// Two FD buses (FD SLCAN adapters opened with `fd=1`): FD frames cross both ways as they
+/// are (BRS, extended IDs, 64 bytes), in order with classic frames, and a filter applies to
+/// FD IDs too.
+#[test]
+fn bridge_copies_fd_frames_between_fd_buses() {
+    let (one, two) = (FdBus::start(), FdBus::start());
+    let url = |bus: &FdBus| format!("slcan:{}?fd=1", bus.path.display());
+    let (_bridge, _) = Running::start(
+        &[
+            "-v",
+            "bridge",
+            &url(&one),
+            &url(&two),
+            "--filter",
+            "~7FF:7FF",
+        ],
+        "CAN FD both ways",
+    );
+    use buslab_slcan::AdapterEvent::{Transmit, TransmitFd};
+    use buslab_slcan::Input;
+    let long = fd(&format!("1ABCDEF0##1{}", hex(0..64)));
+    for input in [
+        Input::Fd(fd("123##0112233")),
+        Input::Fd(fd("7FF##0AA")),
+        Input::Frame(frame("124#01")),
+        Input::Fd(long),
+    ] {
+        one.feed.send(input).unwrap();
+    }
+    assert_eq!(
+        (0..3).map(|_| two.next_frame_event()).collect::<Vec<_>>(),
+        [
+            TransmitFd(fd("123##0112233")),
+            Transmit(frame("124#01")),
+            TransmitFd(long),
+        ],
+        "7FF is held back by the filter"
+    );
+    two.feed.send(Input::Fd(fd("00000321##1CAFE"))).unwrap();
+    assert_eq!(one.next_frame_event(), TransmitFd(fd("00000321##1CAFE")));
+}
+
+/// An FD bus bridged to buslab's bit-level bus (classic): classic frames cross, FD frames are
+/// counted, the reason is said once, and the count is shown when the bridge stops.
+#[test]
+fn bridge_to_a_classic_bus_counts_fd_frames_and_says_why_once() {
+    let fd_bus = FdBus::start();
+    let classic = Serve::start(500_000);
+    let fd_url = format!("slcan:{}?fd=1", fd_bus.path.display());
+    let (bridge, _) = Running::start(&["-v", "bridge", &fd_url, &classic.url], "CAN FD one way");
+    let mut me = classic.client();
+    use buslab_slcan::Input;
+    for input in [
+        Input::Fd(fd("123##0112233")),
+        Input::Fd(fd("123##1112233")),
+        Input::Frame(frame("124#01")),
+        Input::Fd(fd("00000125##0")),
+        Input::Frame(frame("126#02")),
+    ] {
+        fd_bus.feed.send(input).unwrap();
+    }
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("124#01"));
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("126#02"));
+    let err = bridge.interrupt();
+    let said: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("are not bridged"))
+        .collect();
+    assert_eq!(said.len(), 1, "{err}");
+    assert!(
+        said[0].contains(&format!(
+            "CAN FD frames from {fd_url} are not bridged: {} is classic CAN: buslab's bit-level bus carries no FD frames",
+            classic.url
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains("2 frames A -> B, 0 B -> A")
+            && err.contains("3 CAN FD frames not bridged (classic destination)")
+            && err.contains(
+                "bridge: 3 CAN FD frames were not bridged: their destination is classic CAN"
+            ),
+        "{err}"
+    );
+}
+
 #[test]
 fn bridge_one_way_with_a_filter() {
     let one = Serve::start(500_000);
