@@ -2,20 +2,23 @@
 //! frames from the bus and a host that reads slowly or not at all. No panic, and nothing grows
 //! without bound: the output for the host stays within `MAX_OUTPUT`, the events are drained.
 //!
-//! Input: data bytes go to the adapter; `FF` then an op byte (see `buslab_fuzz::items`):
-//! `00..7B` delivers a frame from the bus (ID and data from the op, extended above 3F),
-//! `7C..7F` an error frame of the adapter's controller (bus error, passive, bus-off, back to
-//! active), `80..FE` lets the host read `(op & 7F) * 16` bytes.
+//! Input: the first byte's top bit makes the adapter speak CAN FD (a CANable 2.0's kind) or
+//! classic CAN; then data bytes go to the adapter; `FF` then an op byte (see
+//! `buslab_fuzz::items`): `00..7B` delivers frames from the bus (a classic frame and an FD
+//! frame, ID and data from the op, extended above 3F), `7C..7F` an error frame of the
+//! adapter's controller (bus error, passive, bus-off, back to active), `80..FE` lets the host
+//! read `(op & 7F) * 16` bytes.
 #![no_main]
 
-use buslab_can::{Frame, Id};
+use buslab_can::{FD_LENGTHS, FdFrame, Frame, Id};
 use buslab_canbus::{ControllerState, Ecc, ErrorCounters, ErrorFrame};
 use buslab_fuzz::{Item, items};
 use buslab_slcan::{Adapter, AdapterEvent, MAX_OUTPUT};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let mut adapter = Adapter::default();
+    let fd = data.first().is_some_and(|b| b & 0x80 != 0);
+    let mut adapter = Adapter::default().with_fd(fd);
     let mut transmitted = 0usize;
     let mut lines = 0usize;
     // One item a millisecond.
@@ -41,10 +44,16 @@ fuzz_target!(|data: &[u8]| {
                     Id::standard((u16::from(op) * 0x21) & 0x7FF)
                 }
                 .expect("an ID in range");
-                let payload = [op; 8];
+                let payload = [op; 64];
                 let frame = Frame::data(id, &payload[..usize::from(op % 9)]).expect("0..8 bytes");
+                let long = FD_LENGTHS[usize::from(op % 16)];
+                let fd_frame = FdFrame::new(id, &payload[..long])
+                    .expect("an FD length")
+                    .with_brs(op & 1 == 1);
+                let now = buslab_can::Nanos::from_millis(now_ms);
                 for _ in 0..64 {
-                    adapter.deliver(&frame, buslab_can::Nanos::from_millis(now_ms));
+                    adapter.deliver(&frame, now);
+                    adapter.deliver_fd(&fd_frame, now);
                 }
             }
             Item::Op(op) => adapter.consume(usize::from(op & 0x7F) * 16),
@@ -55,8 +64,14 @@ fuzz_target!(|data: &[u8]| {
             adapter.output().len()
         );
         while let Some(event) = adapter.poll_event() {
-            if let AdapterEvent::Transmit(_) | AdapterEvent::RefusedBusOff(_) = event {
-                transmitted += 1;
+            match event {
+                AdapterEvent::TransmitFd(_) if !fd => panic!("a classic adapter sent FD"),
+                AdapterEvent::RefusedFd(_) if fd => panic!("an FD adapter refused FD"),
+                AdapterEvent::Transmit(_)
+                | AdapterEvent::TransmitFd(_)
+                | AdapterEvent::RefusedBusOff(_)
+                | AdapterEvent::RefusedFd(_) => transmitted += 1,
+                _ => {}
             }
         }
         // A frame to send (or refused while bus-off) is one command line.

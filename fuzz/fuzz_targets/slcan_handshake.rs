@@ -3,7 +3,7 @@
 //! send stays bounded (a handful of exchanges); once open or failed it stays so; frames are
 //! given back only once `O`/`L` went out.
 //!
-//! Input: the first byte picks the plan (bit rate, listen-only); then data bytes are the
+//! Input: the first byte picks the plan (bit rate, listen-only, an FD data bit rate); then data bytes are the
 //! adapter's output, cut into lines as the client does, and `FF` + any op byte means the line
 //! went quiet (`settled`).
 #![no_main]
@@ -14,9 +14,9 @@ use buslab_slcan::codec::{Line, LineSplitter, MAX_REPLY_LINE, parse_reply};
 use buslab_slcan::handshake::{Handshake, Plan, Status};
 use libfuzzer_sys::fuzz_target;
 
-/// Every exchange is one command and `V`: at most eight of them (sync, Z1, N, CANable's mode,
-/// the bit rate, L, and the M1 + O fallback), each under 16 bytes.
-const MAX_SENT: usize = 8 * 16;
+/// Every exchange is one command and `V`: at most nine of them (sync, Z1, N, CANable's mode,
+/// the bit rate, the data bit rate, L, and the M1 + O fallback), each under 16 bytes.
+const MAX_SENT: usize = 9 * 16;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&pick, rest)) = data.split_first() else {
@@ -37,6 +37,7 @@ fuzz_target!(|data: &[u8]| {
     let mut hs = Handshake::new(Plan {
         bitrate,
         listen_only: pick & 4 != 0,
+        data_bitrate: (pick & 8 != 0).then_some(2),
     });
     let mut splitter = LineSplitter::with_limit(MAX_REPLY_LINE);
     let mut sent = Vec::new();

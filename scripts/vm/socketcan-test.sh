@@ -194,4 +194,91 @@ fi
 show /tmp/slcan4.err
 kill $slcan4 $bridge3 $vdump3 $serve3 2>/dev/null
 
+# 5. CAN FD: vcan1 and vcan2 with MTU 72 carry FD frames (vcan's default, as vcan0's), vcan3
+#    with MTU 16 does not (a classic controller's, or a vcan made classic).
+for fdif in vcan1:72 vcan2:72 vcan3:16; do
+    ip link add dev ${fdif%:*} type vcan && ip link set ${fdif%:*} mtu ${fdif#*:} &&
+        ip link set up ${fdif%:*} || echo "  | could not make ${fdif%:*} with MTU ${fdif#*:}"
+done
+long64=$(i=0; while [ $i -lt 64 ]; do printf '%02X' $i; i=$((i + 1)); done)
+
+# 5a. cansend's FD frames -> buslab dump -L socketcan:vcan1 (flags as python-can writes them).
+buslab -v dump -L socketcan:vcan1 >/tmp/dump5 2>/tmp/dump5.err &
+dump5=$!
+if wait_for /tmp/dump5.err "dump: listening"; then
+    cansend vcan1 123##1112233445566778899AABBCC
+    cansend vcan1 1ABCDEF0##2$long64
+    cansend vcan1 321#AB
+    if wait_for /tmp/dump5 "vcan1 321#AB" &&
+        grep -qF "vcan1 123##1112233445566778899AABBCC" /tmp/dump5 &&
+        grep -qF "vcan1 1ABCDEF0##2$long64" /tmp/dump5; then
+        ok fd-cansend-to-buslab-dump
+    else
+        bad fd-cansend-to-buslab-dump "buslab dump -L did not show the FD frames"
+    fi
+else
+    bad fd-cansend-to-buslab-dump "buslab dump did not start"
+fi
+kill $dump5 2>/dev/null
+show /tmp/dump5 /tmp/dump5.err
+
+# 5b. buslab bridge between two FD interfaces, both ways, with can-utils on each side.
+#     Frames buslab writes carry FDF (0x4) as newer kernels mark FD frames: candump 2020.11
+#     prints the whole flags nibble, so BRS shows as 1 or 5 and ESI as 2 or 6.
+candump -L vcan2 >/tmp/candump5b2 2>&1 &
+c5b2=$!
+candump -L vcan1 >/tmp/candump5b1 2>&1 &
+c5b1=$!
+buslab -v bridge socketcan:vcan1 socketcan:vcan2 2>/tmp/bridge5b.err &
+bridge5b=$!
+if wait_for /tmp/bridge5b.err "CAN FD both ways" &&
+    wait_for /tmp/candump5b2 "vcan2 7FF#" "cansend vcan1 7FF#"; then
+    cansend vcan1 123##1112233445566778899AABBCC
+    cansend vcan1 1ABCDEF0##0$long64
+    wait_for /tmp/candump5b2 "vcan2 1ABCDEF0##" && to_vcan2=yes || to_vcan2=no
+    cansend vcan2 00000321##2CAFE
+    wait_for /tmp/candump5b1 "vcan1 00000321##" && to_vcan1=yes || to_vcan1=no
+    if [ "$to_vcan2" = yes ] && [ "$to_vcan1" = yes ] &&
+        grep -qE "vcan2 123##[15]112233445566778899AABBCC$" /tmp/candump5b2 &&
+        grep -qE "vcan2 1ABCDEF0##[04]$long64$" /tmp/candump5b2 &&
+        grep -qE "vcan1 00000321##[26]CAFE$" /tmp/candump5b1 &&
+        [ "$(count /tmp/candump5b1 '123##')" = 1 ]; then
+        ok fd-bridge-vcan1-vcan2
+    else
+        bad fd-bridge-vcan1-vcan2 "to vcan2: $to_vcan2, to vcan1: $to_vcan1 (or a frame changed or echoed)"
+    fi
+else
+    bad fd-bridge-vcan1-vcan2 "the bridge did not start"
+fi
+kill $bridge5b $c5b1 $c5b2 2>/dev/null
+show /tmp/candump5b1 /tmp/candump5b2 /tmp/bridge5b.err
+
+# 5c. An FD interface bridged to a classic one (MTU 16): classic frames cross, FD frames are
+#     counted with the reason said once, and the count is shown when the bridge stops.
+candump -L vcan3 >/tmp/candump5c 2>&1 &
+c5c=$!
+buslab -v bridge socketcan:vcan1 socketcan:vcan3 2>/tmp/bridge5c.err &
+bridge5c=$!
+if wait_for /tmp/bridge5c.err "CAN FD one way" &&
+    wait_for /tmp/candump5c "vcan3 7FF#" "cansend vcan1 7FF#"; then
+    cansend vcan1 123##1AABB
+    cansend vcan1 124##0CC
+    cansend vcan1 125#DD
+    wait_for /tmp/candump5c "vcan3 125#DD"
+    kill -INT $bridge5c
+    wait $bridge5c
+    if wait_for /tmp/bridge5c.err "stopped" &&
+        [ "$(count /tmp/bridge5c.err 'are not bridged: socketcan:vcan3 is classic CAN: interface vcan3 has MTU 16')" = 1 ] &&
+        grep -qF "2 CAN FD frames were not bridged" /tmp/bridge5c.err &&
+        [ "$(count /tmp/candump5c '##')" = 0 ]; then
+        ok fd-to-a-classic-interface-counted
+    else
+        bad fd-to-a-classic-interface-counted "the FD frames were not refused once and counted"
+    fi
+else
+    bad fd-to-a-classic-interface-counted "the bridge did not start"
+fi
+kill $c5c 2>/dev/null
+show /tmp/candump5c /tmp/bridge5c.err
+
 echo "VMTEST DONE passed=$pass failed=$fail"

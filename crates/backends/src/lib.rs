@@ -5,7 +5,7 @@
 //! |---|---|
 //! | `socketcand://HOST[:PORT][/CHANNEL]` | socketcand raw mode over TCP (port 29536, channel vcan0 by default) |
 //! | `socketcan:IFACE` | a Linux SocketCAN interface (raw socket, kernel timestamps and filters, error frames) |
-//! | `slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]` | an SLCAN (Lawicel) serial adapter |
+//! | `slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1&fd=1&data_bitrate=N]` | an SLCAN (Lawicel) serial adapter |
 //!
 //! [`resolve`] turns names as can-utils users type them (`vcan0`, `can0`, `/dev/ttyACM0`)
 //! into URLs; [`Pump`] drives a bus from a thread of its own so a program can send to it while

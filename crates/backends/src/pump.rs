@@ -11,8 +11,8 @@ use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use buslab_bus::{BusError, CanBus, Message};
-use buslab_can::Frame;
+use buslab_bus::{BusError, CanBus, Message, Record};
+use buslab_can::{FdFrame, Frame};
 
 use crate::DynBus;
 
@@ -28,8 +28,9 @@ pub const QUEUE: usize = 1024;
 pub enum PumpEvent {
     /// A frame or error frame from the bus.
     Received(Message),
-    /// A frame the bus refused (it is dropped).
-    SendFailed { frame: Frame, error: BusError },
+    /// A frame (classic or FD: [`Record::Frame`] or [`Record::Fd`]) the bus refused; it is
+    /// dropped.
+    SendFailed { frame: Record, error: BusError },
     /// Receiving failed: the pump stops.
     Failed(BusError),
 }
@@ -38,8 +39,31 @@ pub enum PumpEvent {
 pub type BusJob = Box<dyn FnOnce(&mut dyn CanBus) + Send>;
 
 enum Job {
-    Send(Frame),
+    Send(Outgoing),
     Run(BusJob),
+}
+
+/// A frame to send, classic or FD.
+#[derive(Clone, Copy)]
+enum Outgoing {
+    Classic(Frame),
+    Fd(FdFrame),
+}
+
+impl Outgoing {
+    fn send(&self, bus: &mut dyn CanBus) -> Result<(), BusError> {
+        match self {
+            Outgoing::Classic(frame) => bus.send(frame),
+            Outgoing::Fd(frame) => bus.send_fd(frame),
+        }
+    }
+
+    fn into_record(self) -> Record {
+        match self {
+            Outgoing::Classic(frame) => Record::Frame(frame),
+            Outgoing::Fd(frame) => Record::Fd(frame),
+        }
+    }
 }
 
 /// The pump was stopped or its bus failed.
@@ -63,7 +87,17 @@ pub struct PumpSender(SyncSender<Job>);
 impl PumpSender {
     /// Queues a frame for the bus (blocks while [`QUEUE`] jobs wait).
     pub fn send(&self, frame: Frame) -> Result<(), PumpStopped> {
-        self.0.send(Job::Send(frame)).map_err(|_| PumpStopped)
+        self.0
+            .send(Job::Send(Outgoing::Classic(frame)))
+            .map_err(|_| PumpStopped)
+    }
+
+    /// Queues a CAN FD frame for the bus (blocks while [`QUEUE`] jobs wait); a bus that
+    /// carries no FD refuses it ([`PumpEvent::SendFailed`]).
+    pub fn send_fd(&self, frame: FdFrame) -> Result<(), PumpStopped> {
+        self.0
+            .send(Job::Send(Outgoing::Fd(frame)))
+            .map_err(|_| PumpStopped)
     }
 
     /// Queues a frame unless [`QUEUE`] jobs wait already. Whoever forwards frames between
@@ -71,7 +105,16 @@ impl PumpSender {
     /// forever): a full queue means the bus does not take frames as fast as they come, and
     /// the frame is dropped, as a gateway drops them when the interface queue is full.
     pub fn try_send(&self, frame: Frame) -> Result<(), TrySendError> {
-        self.0.try_send(Job::Send(frame)).map_err(|e| match e {
+        self.try_queue(Job::Send(Outgoing::Classic(frame)))
+    }
+
+    /// [`Self::try_send`] for a CAN FD frame.
+    pub fn try_send_fd(&self, frame: FdFrame) -> Result<(), TrySendError> {
+        self.try_queue(Job::Send(Outgoing::Fd(frame)))
+    }
+
+    fn try_queue(&self, job: Job) -> Result<(), TrySendError> {
+        self.0.try_send(job).map_err(|e| match e {
             mpsc::TrySendError::Full(_) => TrySendError::Full,
             mpsc::TrySendError::Disconnected(_) => TrySendError::Stopped(PumpStopped),
         })
@@ -125,6 +168,11 @@ impl Pump {
         self.sender.try_send(frame)
     }
 
+    /// Queues a CAN FD frame unless the queue is full (see [`PumpSender::try_send`]).
+    pub fn try_send_fd(&self, frame: FdFrame) -> Result<(), TrySendError> {
+        self.sender.try_send_fd(frame)
+    }
+
     /// Whether the thread has ended (its bus failed or the callback said stop).
     pub fn is_finished(&self) -> bool {
         self.thread.as_ref().is_none_or(JoinHandle::is_finished)
@@ -147,7 +195,7 @@ fn run(
     mut on_event: impl FnMut(PumpEvent) -> bool,
 ) {
     // A frame the bus's queue had no room for: tried again before any later job.
-    let mut held: Option<Frame> = None;
+    let mut held: Option<Outgoing> = None;
     loop {
         let stopping = stop.load(Ordering::SeqCst);
         loop {
@@ -158,20 +206,25 @@ fn run(
                     Err(TryRecvError::Empty | TryRecvError::Disconnected) => break,
                 },
             };
-            match job {
-                Job::Send(frame) => match bus.send(&frame) {
-                    Ok(()) => {}
-                    Err(BusError::QueueFull(_)) if !stopping => {
-                        held = Some(frame);
-                        break;
+            let frame = match job {
+                Job::Send(frame) => frame,
+                Job::Run(job) => {
+                    job(bus.as_mut());
+                    continue;
+                }
+            };
+            match frame.send(bus.as_mut()) {
+                Ok(()) => {}
+                Err(BusError::QueueFull(_)) if !stopping => {
+                    held = Some(frame);
+                    break;
+                }
+                Err(error) => {
+                    let frame = frame.into_record();
+                    if !on_event(PumpEvent::SendFailed { frame, error }) {
+                        return;
                     }
-                    Err(error) => {
-                        if !on_event(PumpEvent::SendFailed { frame, error }) {
-                            return;
-                        }
-                    }
-                },
-                Job::Run(job) => job(bus.as_mut()),
+                }
             }
         }
         if stopping {
@@ -234,5 +287,89 @@ mod tests {
         }
         assert_eq!(pump.try_send(f), Err(TrySendError::Full));
         drop(pump);
+    }
+
+    /// A bus that keeps what it was given; it carries FD when `fd`.
+    struct Keeping {
+        fd: bool,
+        sent: Sender<Record>,
+    }
+
+    impl CanBus for Keeping {
+        fn fd_support(&self) -> buslab_bus::FdSupport {
+            if self.fd {
+                buslab_bus::FdSupport::Carried
+            } else {
+                buslab_bus::FdSupport::Classic(buslab_bus::NoFd::BitLevelBus)
+            }
+        }
+        fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
+            let _ = self.sent.send(Record::Frame(*frame));
+            Ok(())
+        }
+        fn send_fd(&mut self, frame: &FdFrame) -> Result<(), BusError> {
+            if !self.fd {
+                return Err(BusError::ClassicOnly {
+                    bus: "keeping".into(),
+                    why: buslab_bus::NoFd::BitLevelBus,
+                });
+            }
+            let _ = self.sent.send(Record::Fd(*frame));
+            Ok(())
+        }
+        fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
+            std::thread::sleep(timeout.unwrap_or(JOB_LATENCY));
+            Ok(None)
+        }
+        fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
+            Ok(())
+        }
+        fn state(&mut self) -> Result<ErrorState, BusError> {
+            Ok(ErrorState::Active)
+        }
+        fn channel_info(&self) -> String {
+            "keeping".into()
+        }
+    }
+
+    #[test]
+    fn fd_frames_reach_a_bus_that_carries_fd_in_order_with_classic_ones() {
+        let (tx, sent) = mpsc::channel();
+        let pump = Pump::spawn("fd", Box::new(Keeping { fd: true, sent: tx }), |_| true).unwrap();
+        let classic: Frame = "123#01".parse().unwrap();
+        let fd: FdFrame = "456##1112233445566778899AABBCC".parse().unwrap();
+        pump.try_send(classic).unwrap();
+        pump.try_send_fd(fd).unwrap();
+        pump.sender().send_fd(fd).unwrap();
+        drop(pump);
+        let got: Vec<Record> = sent.iter().collect();
+        assert_eq!(
+            got,
+            [Record::Frame(classic), Record::Fd(fd), Record::Fd(fd)]
+        );
+    }
+
+    #[test]
+    fn an_fd_frame_a_classic_bus_refuses_is_reported_with_the_frame_and_why() {
+        let (tx, sent) = mpsc::channel();
+        let (report, reports) = mpsc::channel();
+        let bus = Box::new(Keeping {
+            fd: false,
+            sent: tx,
+        });
+        let pump = Pump::spawn("classic", bus, move |event| {
+            if let PumpEvent::SendFailed { frame, error } = event {
+                let _ = report.send((frame, error));
+            }
+            true
+        })
+        .unwrap();
+        let fd: FdFrame = "456##0AA".parse().unwrap();
+        pump.try_send_fd(fd).unwrap();
+        let (frame, error) = reports.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert_eq!(frame, Record::Fd(fd));
+        assert!(matches!(error, BusError::ClassicOnly { .. }), "{error:?}");
+        drop(pump);
+        assert_eq!(sent.iter().count(), 0);
     }
 }

@@ -138,7 +138,7 @@ pub static BACKENDS: &[Backend] = &[
     },
     Backend {
         scheme: "slcan",
-        syntax: "slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]",
+        syntax: "slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1&fd=1&data_bitrate=N]",
         description: "an SLCAN (Lawicel) serial adapter: CANable, CANUSB, `buslab slcan serve`",
         parse: url::parse_slcan,
         open: Some(open_slcan),
@@ -296,11 +296,13 @@ fn open_slcan(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> 
         baud,
         bitrate,
         listen_only,
+        fd,
+        data_bitrate,
     } = url
     else {
         return Err(wrong_kind(
             url,
-            "slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]",
+            "slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1&fd=1&data_bitrate=N]",
         ));
     };
     let settings = options.controller;
@@ -312,6 +314,8 @@ fn open_slcan(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> 
         bitrate: bitrate.or(asked_rate),
         listen_only: *listen_only || listen,
         reply_timeout: options.reply_timeout,
+        fd: *fd,
+        data_bitrate: *data_bitrate,
     };
     let acceptance = settings
         .filter

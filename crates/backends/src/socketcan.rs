@@ -5,60 +5,120 @@
 //! As with candump, the socket does not receive the frames it sends itself (the kernel's
 //! `CAN_RAW_RECV_OWN_MSGS` is off), but it does receive those of other programs on the same
 //! interface.
+//!
+//! CAN FD: an interface whose MTU is 72 (`ip link set vcan0 mtu 72`) carries FD frames; the
+//! socket is then opened with `CAN_RAW_FD_FRAMES` and FD frames go both ways (read from
+//! [`CanBus::recv_event`], sent with [`CanBus::send_fd`]). On an interface with MTU 16 the
+//! socket is the classic one it always was, and an FD frame is refused naming the MTU. The MTU
+//! is read once, when the bus is opened (as cansend reads it before each frame).
 
 use std::io;
-use std::time::{Duration, UNIX_EPOCH};
+use std::os::fd::AsRawFd;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use buslab_bus::bus::matches_any;
 use buslab_bus::error_frame::class;
 use buslab_bus::{
-    BusError, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorState, Filter, Message,
-    Record, Timestamp,
+    BusError, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorState, FdSupport, Filter,
+    Message, NoFd, Record, Timestamp, matches_any_id,
 };
-use buslab_can::{Frame, Id};
-use socketcan::frame::can_frame_default;
-use socketcan::{CanFilter, CanFrame, CanSocket, Socket, SocketOptions};
+use buslab_can::{FD_LENGTHS, FdFrame, Frame, Id};
+use socketcan::frame::{can_frame_default, canfd_frame_default};
+use socketcan::{
+    CanAnyFrame, CanFdFrame, CanFdSocket, CanFilter, CanFrame, CanSocket, Socket, SocketOptions,
+};
 
 const EFF_FLAG: u32 = libc::CAN_EFF_FLAG;
 const RTR_FLAG: u32 = libc::CAN_RTR_FLAG;
 const ERR_FLAG: u32 = libc::CAN_ERR_FLAG;
 const EFF_MASK: u32 = libc::CAN_EFF_MASK;
 const ERR_MASK: u32 = libc::CAN_ERR_MASK;
+const BRS: u8 = libc::CANFD_BRS as u8;
+const ESI: u8 = libc::CANFD_ESI as u8;
+const FDF: u8 = libc::CANFD_FDF as u8;
 
 /// Error classes the bus always asks the kernel for, to know its state; they reach the user
 /// only after `set_error_frames(true)`.
 const STATE_CLASSES: u32 = class::CONTROLLER | class::BUS_OFF | class::RESTARTED;
 
+/// The socket: classic (`can_frame` only) or with `CAN_RAW_FD_FRAMES` on an FD interface.
+enum Raw {
+    Classic(CanSocket),
+    Fd(CanFdSocket),
+}
+
+/// The same call on either kind of socket.
+macro_rules! on_socket {
+    ($raw:expr, $s:ident => $call:expr) => {
+        match $raw {
+            Raw::Classic($s) => $call,
+            Raw::Fd($s) => $call,
+        }
+    };
+}
+
+/// What one read gave: a classic frame (or error frame) or an FD frame, in the kernel's layout.
+enum Read {
+    Classic(libc::can_frame),
+    Fd(libc::canfd_frame),
+}
+
 /// A raw CAN socket bound to one interface.
 pub struct SocketCanBus {
-    socket: CanSocket,
+    socket: Raw,
     interface: String,
+    /// The interface's MTU when the bus was opened (16 classic, 72 FD).
+    mtu: u32,
     filters: Vec<Filter>,
     error_frames: bool,
     state: ErrorState,
 }
 
 impl SocketCanBus {
-    /// Opens a raw socket on `interface` (which must exist and be up to carry frames).
+    /// Opens a raw socket on `interface` (which must exist and be up to carry frames); with
+    /// FD frames when the interface's MTU is 72.
     pub fn open(interface: &str) -> io::Result<Self> {
-        let socket = CanSocket::open(interface)?;
-        socket.set_recv_timestamp(true)?;
-        socket.set_error_filter(STATE_CLASSES)?;
+        let classic = CanSocket::open(interface)?;
+        let mtu = interface_mtu(&classic, interface)?;
+        let socket = if mtu as usize == libc::CANFD_MTU {
+            Raw::Fd(CanFdSocket::try_from(classic)?)
+        } else {
+            Raw::Classic(classic)
+        };
+        on_socket!(&socket, s => {
+            s.set_recv_timestamp(true)?;
+            s.set_error_filter(STATE_CLASSES)?;
+        });
         Ok(Self {
             socket,
             interface: interface.to_string(),
+            mtu,
             filters: Vec::new(),
             error_frames: false,
             state: ErrorState::Active,
         })
     }
 
-    /// The next frame or error frame from the socket, or `None` after `timeout`.
+    /// The next frame, FD frame or error frame from the socket, or `None` after `timeout`.
     fn read(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         // SO_RCVTIMEO: `None` blocks; a zero timeout would too, so wait at least 1 µs.
         let timeout = timeout.map(|t| t.max(Duration::from_micros(1)));
-        self.socket.as_raw_socket().set_read_timeout(timeout)?;
-        let (frame, time) = match self.socket.read_frame_with_timestamp() {
+        on_socket!(&self.socket, s => s.as_raw_socket().set_read_timeout(timeout))?;
+        let read = match &self.socket {
+            Raw::Classic(s) => s
+                .read_frame_with_timestamp()
+                .map(|(frame, time)| (Read::Classic(*frame.as_ref()), time)),
+            Raw::Fd(s) => s.read_frame_with_timestamp().map(|(frame, time)| {
+                let raw = match frame {
+                    CanAnyFrame::Normal(f) => Read::Classic(*f.as_ref()),
+                    CanAnyFrame::Remote(f) => Read::Classic(*f.as_ref()),
+                    CanAnyFrame::Error(f) => Read::Classic(*f.as_ref()),
+                    CanAnyFrame::Fd(f) => Read::Fd(*f.as_ref()),
+                };
+                (raw, time)
+            }),
+        };
+        let (raw, time) = match read {
             Ok(read) => read,
             Err(e)
                 if matches!(
@@ -70,14 +130,47 @@ impl SocketCanBus {
             }
             Err(e) => return Err(e.into()),
         };
-        let at = time
-            .duration_since(UNIX_EPOCH)
-            .map_or(Timestamp::EPOCH, Timestamp::since_epoch);
-        let raw: &libc::can_frame = frame.as_ref();
-        Ok(Some(match decode(raw) {
-            Ok(frame) => Message::rx(at, self.interface.clone(), frame).into_record(),
-            Err(error) => Message::error(at, self.interface.clone(), error),
+        let at = stamp(time);
+        let channel = self.interface.clone();
+        Ok(Some(match raw {
+            Read::Classic(raw) => match decode(&raw) {
+                Ok(frame) => Message::rx(at, channel, frame).into_record(),
+                Err(error) => Message::error(at, channel, error),
+            },
+            Read::Fd(raw) => Message::fd(at, channel, decode_fd(&raw)),
         }))
+    }
+
+    /// Whether a received record passes the filters (error frames are not filtered by ID).
+    fn passes(&self, record: &Record) -> bool {
+        match record {
+            Record::Frame(frame) => matches_any(&self.filters, frame),
+            Record::Fd(frame) => matches_any_id(&self.filters, frame.id()),
+            Record::Error(_) => true,
+        }
+    }
+
+    /// A write's outcome as the bus tells it.
+    fn sent(&self, written: io::Result<()>) -> Result<(), BusError> {
+        match written {
+            Ok(()) => Ok(()),
+            // The interface's transmit queue is full: CAN sockets say so instead of blocking.
+            Err(e) if e.raw_os_error() == Some(libc::ENOBUFS) => Err(BusError::QueueFull(format!(
+                "{}: the interface's transmit queue is full",
+                self.interface
+            ))),
+            Err(e) => Err(e.into()),
+        }
+    }
+
+    fn refused_fd(&self) -> BusError {
+        BusError::ClassicOnly {
+            bus: self.channel_info(),
+            why: NoFd::ClassicInterface {
+                interface: self.interface.clone(),
+                mtu: self.mtu,
+            },
+        }
     }
 
     /// Follows the controller's state through the error frames that say it changed.
@@ -136,6 +229,66 @@ fn encode(frame: &Frame) -> libc::can_frame {
     raw
 }
 
+/// A kernel FD frame as buslab's. The kernel gives only FD lengths; any other is rounded up
+/// to the next (its padding is zeros), as the socketcan crate does.
+fn decode_fd(raw: &libc::canfd_frame) -> FdFrame {
+    let id = if raw.can_id & EFF_FLAG != 0 {
+        Id::extended(raw.can_id & EFF_MASK)
+    } else {
+        Id::standard((raw.can_id & libc::CAN_SFF_MASK) as u16)
+    }
+    .expect("masked to the ID's width");
+    let len = FD_LENGTHS
+        .into_iter()
+        .find(|&l| l >= usize::from(raw.len))
+        .unwrap_or(buslab_can::FD_MAX_LEN);
+    FdFrame::new(id, &raw.data[..len])
+        .expect("an FD length")
+        .with_brs(raw.flags & BRS != 0)
+        .with_esi(raw.flags & ESI != 0)
+}
+
+/// A buslab FD frame as the kernel's (with FDF, as kernels since 6.0 mark FD frames).
+fn encode_fd(frame: &FdFrame) -> libc::canfd_frame {
+    let mut raw = canfd_frame_default();
+    raw.can_id = frame.id().as_raw();
+    if frame.is_extended() {
+        raw.can_id |= EFF_FLAG;
+    }
+    raw.flags = FDF | if frame.brs() { BRS } else { 0 } | if frame.esi() { ESI } else { 0 };
+    raw.len = frame.payload().len() as u8;
+    raw.data[..frame.payload().len()].copy_from_slice(frame.payload());
+    raw
+}
+
+/// The interface's MTU (16: classic CAN, 72: CAN FD), asked as cansend asks it.
+fn interface_mtu(socket: &CanSocket, interface: &str) -> io::Result<u32> {
+    // SAFETY: `ifreq` is plain data (zeroes are a valid value); the kernel reads the name,
+    // which is NUL-terminated within IFNAMSIZ (longer names were refused when the socket was
+    // bound), and writes the MTU into the union.
+    #[allow(unsafe_code)]
+    let mtu = unsafe {
+        let mut req: libc::ifreq = std::mem::zeroed();
+        for (dst, &src) in req
+            .ifr_name
+            .iter_mut()
+            .zip(interface.as_bytes().iter().take(libc::IFNAMSIZ - 1))
+        {
+            *dst = src as libc::c_char;
+        }
+        if libc::ioctl(socket.as_raw_fd(), libc::SIOCGIFMTU as _, &mut req) < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        req.ifr_ifru.ifru_mtu
+    };
+    Ok(mtu.max(0) as u32)
+}
+
+fn stamp(time: SystemTime) -> Timestamp {
+    time.duration_since(UNIX_EPOCH)
+        .map_or(Timestamp::EPOCH, Timestamp::since_epoch)
+}
+
 /// python-can filters as kernel filters. A filter no 29-bit ID can match (such as
 /// [`Filter::NONE`]) is left out; when only such filters are given, nothing passes.
 fn kernel_filters(filters: &[Filter]) -> Option<Vec<CanFilter>> {
@@ -155,16 +308,30 @@ fn kernel_filters(filters: &[Filter]) -> Option<Vec<CanFilter>> {
 }
 
 impl CanBus for SocketCanBus {
+    fn fd_support(&self) -> FdSupport {
+        match self.socket {
+            Raw::Fd(_) => FdSupport::Carried,
+            Raw::Classic(_) => FdSupport::Classic(NoFd::ClassicInterface {
+                interface: self.interface.clone(),
+                mtu: self.mtu,
+            }),
+        }
+    }
+
     fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
         let raw = CanFrame::from(encode(frame));
-        match self.socket.write_frame(&raw) {
-            Ok(()) => Ok(()),
-            // The interface's transmit queue is full: CAN sockets say so instead of blocking.
-            Err(e) if e.raw_os_error() == Some(libc::ENOBUFS) => Err(BusError::QueueFull(format!(
-                "{}: the interface's transmit queue is full",
-                self.interface
-            ))),
-            Err(e) => Err(e.into()),
+        let sent = on_socket!(&self.socket, s => s.write_frame(&raw));
+        self.sent(sent)
+    }
+
+    fn send_fd(&mut self, frame: &FdFrame) -> Result<(), BusError> {
+        let Raw::Fd(socket) = &self.socket else {
+            return Err(self.refused_fd());
+        };
+        match socket.write_frame(&CanFdFrame::from(encode_fd(frame))) {
+            // The interface's MTU went down to 16 since the bus was opened.
+            Err(e) if e.raw_os_error() == Some(libc::EINVAL) => Err(self.refused_fd()),
+            sent => self.sent(sent),
         }
     }
 
@@ -188,23 +355,21 @@ impl CanBus for SocketCanBus {
         }
     }
 
+    /// Frames, FD frames (on an FD interface) and, once asked for, error frames.
     fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
-        if !self.error_frames {
-            return Ok(self.recv(timeout)?.map(Message::into_record));
-        }
         let deadline = timeout.map(|t| std::time::Instant::now() + t);
         loop {
             let left = deadline.map(|d| d.saturating_duration_since(std::time::Instant::now()));
             let Some(m) = self.read(left)? else {
                 return Ok(None);
             };
-            match &m.record {
-                Record::Frame(frame) if !matches_any(&self.filters, frame) => {}
-                Record::Error(error) => {
-                    self.track_state(error);
+            if let Record::Error(error) = &m.record {
+                self.track_state(error);
+                if self.error_frames {
                     return Ok(Some(m));
                 }
-                Record::Frame(_) | Record::Fd(_) => return Ok(Some(m)),
+            } else if self.passes(&m.record) {
+                return Ok(Some(m));
             }
             if left.is_some_and(|l| l.is_zero()) {
                 return Ok(None);
@@ -213,19 +378,18 @@ impl CanBus for SocketCanBus {
     }
 
     fn set_error_frames(&mut self, on: bool) -> Result<(), BusError> {
-        self.socket
-            .set_error_filter(if on { ERR_MASK } else { STATE_CLASSES })?;
+        on_socket!(&self.socket, s => s.set_error_filter(if on { ERR_MASK } else { STATE_CLASSES }))?;
         self.error_frames = on;
         Ok(())
     }
 
     /// Filters in the kernel (fewer wake-ups), checked again here as python-can does.
     fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError> {
-        match kernel_filters(filters) {
-            Some(k) if k.is_empty() => self.socket.set_filter_accept_all()?,
-            Some(k) => self.socket.set_filters(&k)?,
-            None => self.socket.set_filter_drop_all()?,
-        }
+        on_socket!(&self.socket, s => match kernel_filters(filters) {
+            Some(k) if k.is_empty() => s.set_filter_accept_all()?,
+            Some(k) => s.set_filters(&k)?,
+            None => s.set_filter_drop_all()?,
+        });
         self.filters = filters.to_vec();
         Ok(())
     }
@@ -264,6 +428,36 @@ mod tests {
         let raw = encode(&frame("12345678#AA"));
         assert_eq!(raw.can_id, 0x9234_5678);
         assert_eq!(raw.can_dlc, 1);
+    }
+
+    #[test]
+    fn fd_frames_cross_the_kernel_layout_both_ways() {
+        let full = format!("7FF##1{}", "A5".repeat(64));
+        for text in [
+            "123##0",
+            "123##1112233",
+            "1FFFFFFF##3112233445566778899AABBCC",
+            "000##2",
+            &full,
+        ] {
+            let fd: FdFrame = text.parse().unwrap();
+            let raw = encode_fd(&fd);
+            assert_eq!(decode_fd(&raw), fd, "{text}");
+        }
+        let raw = encode_fd(&"12345678##3AABB".parse().unwrap());
+        assert_eq!(raw.can_id, 0x9234_5678);
+        assert_eq!((raw.len, raw.flags), (2, FDF | BRS | ESI));
+    }
+
+    #[test]
+    fn a_kernel_fd_length_between_fd_lengths_is_rounded_up_with_zeros() {
+        let mut raw = canfd_frame_default();
+        raw.can_id = 0x123;
+        raw.len = 10;
+        raw.data[..10].copy_from_slice(&[1; 10]);
+        let fd = decode_fd(&raw);
+        assert_eq!(fd.payload().len(), 12);
+        assert_eq!(&fd.payload()[10..], [0, 0]);
     }
 
     #[test]

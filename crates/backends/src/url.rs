@@ -1,5 +1,5 @@
 //! Bus URLs: which backend, and where (`socketcand://HOST[:PORT]/CHANNEL`, `socketcan:IFACE`,
-//! `slcan:DEVICE[@BAUD][?bitrate=N]`).
+//! `slcan:DEVICE[@BAUD][?bitrate=N&data_bitrate=N&fd=1&listen_only=1]`).
 
 use std::fmt;
 
@@ -20,12 +20,15 @@ pub enum BusUrl {
     /// A Linux SocketCAN interface.
     SocketCan { interface: String },
     /// An SLCAN (Lawicel) serial adapter: the device, its line's baud rate, the CAN bit rate,
-    /// and whether to open it listen-only.
+    /// whether to open it listen-only, whether it speaks CAN FD and the FD data bit rate to
+    /// set (which implies FD).
     Slcan {
         device: String,
         baud: Option<u32>,
         bitrate: Option<u32>,
         listen_only: bool,
+        fd: bool,
+        data_bitrate: Option<u32>,
     },
 }
 
@@ -68,10 +71,14 @@ pub enum UrlProblem {
     Baud(String),
     #[error("bitrate {0:?} must be a number of bit/s 1..1000000")]
     Bitrate(String),
-    #[error("unknown option {0:?}: slcan takes ?bitrate=N&listen_only=1")]
+    #[error("unknown option {0:?}: slcan takes ?bitrate=N&data_bitrate=N&fd=1&listen_only=1")]
     Option(String),
-    #[error("listen_only={0:?} must be 0 or 1")]
-    ListenOnly(String),
+    #[error("{0}={1:?} must be 0 or 1")]
+    Switch(&'static str, String),
+    #[error(
+        "data_bitrate {0:?} must be one of SLCAN's Y rates: 500000, 1000000, 2000000, 3000000, 4000000, 5000000, 8000000"
+    )]
+    DataBitrate(String),
     #[error(
         "bus name {0:?}: expected an interface name (vcan0, can0), a device path or a bus URL ({1})"
     )]
@@ -182,7 +189,7 @@ pub(crate) fn parse_socketcan(url: &str) -> Result<BusUrl, UrlError> {
     })
 }
 
-/// `slcan:DEVICE[@BAUD][?bitrate=N]`.
+/// `slcan:DEVICE[@BAUD][?bitrate=N&data_bitrate=N&fd=1&listen_only=1]`.
 pub(crate) fn parse_slcan(url: &str) -> Result<BusUrl, UrlError> {
     let err = |p| UrlError::new(url, p);
     let rest = url.strip_prefix("slcan:").ok_or_else(|| {
@@ -206,8 +213,15 @@ pub(crate) fn parse_slcan(url: &str) -> Result<BusUrl, UrlError> {
     if device.is_empty() {
         return Err(err(UrlProblem::NoDevice));
     }
+    let switch = |name: &'static str, v: &str| match v {
+        "0" => Ok(false),
+        "1" => Ok(true),
+        _ => Err(err(UrlProblem::Switch(name, v.to_string()))),
+    };
     let mut bitrate = None;
     let mut listen_only = None;
+    let mut fd = None;
+    let mut data_bitrate = None;
     for option in query.split('&').filter(|o| !o.is_empty()) {
         match option.split_once('=') {
             Some(("bitrate", v)) if bitrate.is_none() => {
@@ -216,11 +230,15 @@ pub(crate) fn parse_slcan(url: &str) -> Result<BusUrl, UrlError> {
                 );
             }
             Some(("listen_only", v)) if listen_only.is_none() => {
-                listen_only = Some(match v {
-                    "0" => false,
-                    "1" => true,
-                    _ => return Err(err(UrlProblem::ListenOnly(v.to_string()))),
-                });
+                listen_only = Some(switch("listen_only", v)?);
+            }
+            Some(("fd", v)) if fd.is_none() => fd = Some(switch("fd", v)?),
+            Some(("data_bitrate", v)) if data_bitrate.is_none() => {
+                data_bitrate = Some(
+                    number(v, u32::MAX)
+                        .filter(|r| buslab_slcan::DATA_BITRATES.iter().any(|(_, d)| d == r))
+                        .ok_or_else(|| err(UrlProblem::DataBitrate(v.to_string())))?,
+                );
             }
             _ => return Err(err(UrlProblem::Option(option.to_string()))),
         }
@@ -230,6 +248,9 @@ pub(crate) fn parse_slcan(url: &str) -> Result<BusUrl, UrlError> {
         baud,
         bitrate,
         listen_only: listen_only.unwrap_or(false),
+        // A data bit rate is CAN FD's.
+        fd: fd.unwrap_or(false) || data_bitrate.is_some(),
+        data_bitrate,
     })
 }
 
@@ -273,18 +294,27 @@ impl fmt::Display for BusUrl {
                 baud,
                 bitrate,
                 listen_only,
+                fd,
+                data_bitrate,
             } => {
                 write!(f, "slcan:{device}")?;
                 if let Some(b) = baud {
                     write!(f, "@{b}")?;
                 }
-                let mut sep = '?';
+                let mut options = Vec::new();
                 if let Some(r) = bitrate {
-                    write!(f, "{sep}bitrate={r}")?;
-                    sep = '&';
+                    options.push(format!("bitrate={r}"));
+                }
+                match data_bitrate {
+                    Some(r) => options.push(format!("data_bitrate={r}")),
+                    None if *fd => options.push("fd=1".into()),
+                    None => {}
                 }
                 if *listen_only {
-                    write!(f, "{sep}listen_only=1")?;
+                    options.push("listen_only=1".into());
+                }
+                if !options.is_empty() {
+                    write!(f, "?{}", options.join("&"))?;
                 }
                 Ok(())
             }
@@ -379,6 +409,8 @@ mod tests {
                 baud: Some(115_200),
                 bitrate: Some(500_000),
                 listen_only: false,
+                fd: false,
+                data_bitrate: None,
             }
         );
         let plain = url("slcan:/dev/ttyUSB0");
@@ -415,6 +447,50 @@ mod tests {
         ] {
             let err = resolve(bad).unwrap_err().to_string();
             assert!(err.contains(want), "{bad:?}: {err}");
+        }
+    }
+
+    #[test]
+    fn slcan_fd_is_an_option_and_a_data_bit_rate_implies_it() {
+        let u = url("slcan:/dev/x?fd=1");
+        assert!(matches!(
+            u,
+            BusUrl::Slcan {
+                fd: true,
+                data_bitrate: None,
+                ..
+            }
+        ));
+        assert_eq!(u.to_string(), "slcan:/dev/x?fd=1");
+        let u = url("slcan:/dev/x?data_bitrate=2000000&bitrate=500000");
+        assert!(matches!(
+            u,
+            BusUrl::Slcan {
+                fd: true,
+                data_bitrate: Some(2_000_000),
+                ..
+            }
+        ));
+        assert_eq!(
+            u.to_string(),
+            "slcan:/dev/x?bitrate=500000&data_bitrate=2000000"
+        );
+        assert_eq!(url(&u.to_string()), u);
+        assert!(matches!(
+            url("slcan:/dev/x?fd=0"),
+            BusUrl::Slcan { fd: false, .. }
+        ));
+        for (bad, want) in [
+            ("slcan:/dev/x?fd=yes", "fd=\"yes\" must be 0 or 1"),
+            (
+                "slcan:/dev/x?data_bitrate=6000000",
+                "data_bitrate \"6000000\" must be one of SLCAN's Y rates: 500000,",
+            ),
+            ("slcan:/dev/x?data_bitrate=", "data_bitrate \"\""),
+            ("slcan:/dev/x?fd=1&fd=1", "unknown option \"fd=1\""),
+        ] {
+            let err = bad.parse::<BusUrl>().unwrap_err().to_string();
+            assert!(err.contains(want), "{bad}: {err}");
         }
     }
 
@@ -464,7 +540,7 @@ mod tests {
             ("slcan:/dev/x?speed=1", "unknown option \"speed=1\""),
             (
                 "tcp://x",
-                "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE or slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1]",
+                "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE or slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1&fd=1&data_bitrate=N]",
             ),
             ("", "unknown backend \"\""),
             ("vcan0", "unknown backend \"\""),

@@ -78,6 +78,16 @@ impl From<Message<Frame>> for Message {
 }
 
 impl Message {
+    /// A CAN FD frame, received.
+    pub fn fd(at: Timestamp, channel: impl Into<String>, frame: FdFrame) -> Self {
+        Self {
+            at,
+            channel: channel.into(),
+            direction: Some(Direction::Rx),
+            record: Record::Fd(frame),
+        }
+    }
+
     /// An error frame, received.
     pub fn error(at: Timestamp, channel: impl Into<String>, error: ErrorFrame) -> Self {
         Self {
@@ -240,6 +250,64 @@ pub fn matches_any(filters: &[Filter], frame: &Frame) -> bool {
     filters.is_empty() || filters.iter().any(|f| f.matches(frame))
 }
 
+/// Software filtering of an ID (a classic or an FD frame's): whether any filter matches.
+pub fn matches_any_id(filters: &[Filter], id: Id) -> bool {
+    filters.is_empty() || filters.iter().any(|f| f.matches_id(id))
+}
+
+/// Whether a bus carries CAN FD frames ([`CanBus::fd_support`](crate::CanBus::fd_support)).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FdSupport {
+    /// FD frames go both ways.
+    Carried,
+    /// Classic CAN only, for this reason.
+    Classic(NoFd),
+}
+
+impl FdSupport {
+    pub fn carried(&self) -> bool {
+        *self == FdSupport::Carried
+    }
+
+    /// Why the bus carries no FD frames (`None` when it carries them).
+    pub fn classic_reason(&self) -> Option<&NoFd> {
+        match self {
+            FdSupport::Carried => None,
+            FdSupport::Classic(why) => Some(why),
+        }
+    }
+}
+
+/// Why a bus carries no CAN FD frames.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum NoFd {
+    /// buslab's virtual bus, its engine and its nodes (SJA1000, SLIO) are classic CAN, as the
+    /// seed's bench is.
+    #[error(
+        "buslab's bit-level bus carries no FD frames (its engine, SJA1000 and SLIO nodes are classic CAN)"
+    )]
+    BitLevelBus,
+    /// socketcand's protocol (its master branch, and python-can's client) has no FD frames.
+    #[error("socketcand's protocol has no CAN FD frames")]
+    Socketcand,
+    /// A SocketCAN interface whose MTU is a classic frame's.
+    #[error(
+        "interface {interface} has MTU {mtu}, classic CAN only (as root, `ip link set {interface} mtu 72` lets an FD-capable interface carry FD frames)"
+    )]
+    ClassicInterface { interface: String, mtu: u32 },
+    /// An SLCAN adapter opened for classic CAN.
+    #[error(
+        "the adapter was opened for classic CAN (for an FD adapter such as a CANable 2.0 add fd=1 or data_bitrate=N to the slcan: URL)"
+    )]
+    ClassicAdapter,
+    /// An SLCAN adapter served on a classic bus.
+    #[error("the adapter's bus is classic CAN")]
+    ClassicAdapterBus,
+    /// A backend that has not said it carries FD.
+    #[error("this backend sends classic CAN frames only")]
+    Backend,
+}
+
 /// Why a bus operation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum BusError {
@@ -261,6 +329,9 @@ pub enum BusError {
     Timeout { what: String, after: Duration },
     #[error("{backend} cannot deliver {what}")]
     Unsupported { what: &'static str, backend: String },
+    /// A CAN FD frame offered to a bus that carries classic frames only: the bus and why.
+    #[error("{bus} is classic CAN: {why}")]
+    ClassicOnly { bus: String, why: NoFd },
     /// A limit of the bus refused a fault: too many on the wire, or too many from this client
     /// for now (then with the time until the next is allowed).
     #[error("{0}")]

@@ -4,13 +4,13 @@
 
 use std::time::Duration;
 
-use buslab_can::Frame;
+use buslab_can::{FdFrame, Frame};
 use buslab_chips::slio::SlioId;
 
 use crate::admin::{
     BoardInput, BoardState, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
-use crate::bus::{BusError, ErrorState, Filter, Message};
+use crate::bus::{BusError, ErrorState, FdSupport, Filter, Message};
 use crate::settings::{BusOffRecovery, ControllerSettings};
 
 /// One bus: a socketcand connection, a managed SJA1000, a simulated node.
@@ -21,6 +21,13 @@ use crate::settings::{BusOffRecovery, ControllerSettings};
 /// Error frames are off by default; after `set_error_frames(true)` [`CanBus::recv_event`]
 /// gives them in order with the frames, while `recv` keeps giving frames only (and drops the
 /// error frames it passes).
+///
+/// CAN FD frames travel on buses that carry them ([`CanBus::fd_support`]): they are sent with
+/// [`CanBus::send_fd`] and received from [`CanBus::recv_event`] as
+/// [`Record::Fd`](crate::Record::Fd). `recv` gives classic frames only and passes FD frames
+/// by, as it passes error frames (its type has no room for them). A bus that carries no FD
+/// (buslab's bit-level bus, socketcand, a classic SocketCAN interface or SLCAN adapter)
+/// refuses an FD frame with [`BusError::ClassicOnly`], naming itself and why.
 pub trait CanBus {
     /// Queues `frame` for transmission (does not wait for it to reach the bus).
     fn send(&mut self, frame: &Frame) -> Result<(), BusError>;
@@ -30,10 +37,31 @@ pub trait CanBus {
     fn send_all(&mut self, frames: &[Frame]) -> Result<(), BusError> {
         frames.iter().try_for_each(|f| self.send(f))
     }
-    /// The next frame that passes the filters, or `None` after `timeout`.
+    /// Whether this bus carries CAN FD frames, and if not, why.
+    fn fd_support(&self) -> FdSupport {
+        FdSupport::Classic(crate::NoFd::Backend)
+    }
+    /// Queues a CAN FD frame for transmission; a bus that carries none refuses it with
+    /// [`BusError::ClassicOnly`].
+    fn send_fd(&mut self, frame: &FdFrame) -> Result<(), BusError> {
+        let _ = frame;
+        Err(match self.fd_support() {
+            FdSupport::Classic(why) => BusError::ClassicOnly {
+                bus: self.channel_info(),
+                why,
+            },
+            FdSupport::Carried => BusError::Unsupported {
+                what: "sending CAN FD frames",
+                backend: self.channel_info(),
+            },
+        })
+    }
+    /// The next classic frame that passes the filters, or `None` after `timeout` (FD frames
+    /// are passed by: [`CanBus::recv_event`] gives them).
     fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError>;
-    /// The next frame that passes the filters or error frame, in the order they happened, or
-    /// `None` after `timeout`. Backends without error frames give frames only.
+    /// The next frame (classic or FD) that passes the filters or error frame, in the order
+    /// they happened, or `None` after `timeout`. Backends without error frames give frames
+    /// only.
     fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         Ok(self.recv(timeout)?.map(Message::into_record))
     }
@@ -132,5 +160,48 @@ pub trait BusAdmin {
             what: "demo boards",
             backend: "this bus".into(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::NoFd;
+
+    /// A bus that implements only what every backend must: classic frames.
+    struct Classic;
+
+    impl CanBus for Classic {
+        fn send(&mut self, _: &Frame) -> Result<(), BusError> {
+            Ok(())
+        }
+        fn recv(&mut self, _: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
+            Ok(None)
+        }
+        fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
+            Ok(())
+        }
+        fn state(&mut self) -> Result<ErrorState, BusError> {
+            Ok(ErrorState::Active)
+        }
+        fn channel_info(&self) -> String {
+            "a classic test bus".into()
+        }
+    }
+
+    #[test]
+    fn a_bus_that_says_nothing_about_fd_refuses_fd_frames_by_name() {
+        let mut bus = Classic;
+        assert_eq!(bus.fd_support(), FdSupport::Classic(NoFd::Backend));
+        let frame = "123##1112233".parse().unwrap();
+        let err = bus.send_fd(&frame).unwrap_err();
+        assert!(
+            matches!(&err, BusError::ClassicOnly { bus, why: NoFd::Backend } if bus == "a classic test bus"),
+            "{err:?}"
+        );
+        assert_eq!(
+            err.to_string(),
+            "a classic test bus is classic CAN: this backend sends classic CAN frames only"
+        );
     }
 }

@@ -41,7 +41,8 @@ pub use admin::{
     Probability, TxReport, WireFault, switch_bits,
 };
 pub use bus::{
-    BusError, Direction, Filter, Human, Message, Reason, Record, matches_any, wall_clock,
+    BusError, Direction, FdSupport, Filter, Human, Message, NoFd, Reason, Record, matches_any,
+    matches_any_id, wall_clock,
 };
 pub use buslab_can::Timestamp;
 pub use buslab_can::controller::ErrorState;

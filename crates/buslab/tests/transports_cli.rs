@@ -122,6 +122,22 @@ impl Running {
         (out, err)
     }
 
+    /// Stops the process as Ctrl-C does and waits (bounded by EVENT) for it to end by
+    /// itself; its stderr, with what it said on the way out.
+    fn interrupt(mut self) -> String {
+        let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
+        nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).unwrap();
+        let deadline = Instant::now() + EVENT;
+        while self.child.try_wait().unwrap().is_none() {
+            if Instant::now() >= deadline {
+                let err = self.stop();
+                panic!("still running {EVENT:?} after SIGINT; stderr:\n{err}");
+            }
+            thread::sleep(Duration::from_millis(20));
+        }
+        self.stderr.take().unwrap().join().unwrap()
+    }
+
     /// Kills the process; its stderr so far.
     fn stop(&mut self) -> String {
         let _ = self.child.kill();
@@ -141,18 +157,22 @@ impl Drop for Running {
 
 /// `buslab slcan serve` plugged into `bus`, its PTY linked at DIR/ttySL0.
 fn slcan_serve(bus: &str, dir: &Path) -> (Running, PathBuf) {
+    slcan_serve_with(&[], bus, dir)
+}
+
+/// [`slcan_serve`] with options before the subcommand (`-v`).
+fn slcan_serve_with(options: &[&str], bus: &str, dir: &Path) -> (Running, PathBuf) {
     let link = dir.join("ttySL0");
-    let (serve, first) = Running::start(
-        &[
-            "slcan",
-            "serve",
-            "--bus",
-            bus,
-            "--link",
-            link.to_str().unwrap(),
-        ],
-        "",
-    );
+    let mut args = options.to_vec();
+    args.extend([
+        "slcan",
+        "serve",
+        "--bus",
+        bus,
+        "--link",
+        link.to_str().unwrap(),
+    ]);
+    let (serve, first) = Running::start(&args, "");
     assert_eq!(first, link.to_str().unwrap());
     (serve, link)
 }
@@ -203,6 +223,191 @@ fn python_can_slcan_exchanges_frames_with_buslab_dump() {
     assert_eq!(next(), "rx 12345678 1 0 1 01");
     assert_eq!(next(), "rx F0 0 1 3 -");
     assert!(peer.wait().unwrap().success(), "python-can script failed");
+}
+
+/// A CAN FD bus for `buslab slcan serve` to plug into: an FD SLCAN adapter (buslab's model,
+/// CANable 2.0's kind) served on a PTY in this process; what the adapter's host sends comes out
+/// of `events`, and `feed` gives it frames from "the bus".
+struct FdBus {
+    path: PathBuf,
+    feed: mpsc::SyncSender<buslab_slcan::Input>,
+    events: mpsc::Receiver<buslab_slcan::AdapterEvent>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl FdBus {
+    fn start() -> Self {
+        let pty = buslab_link::Pty::open().unwrap();
+        let path = pty.path().to_path_buf();
+        let (feed, inputs) = mpsc::sync_channel(buslab_slcan::INPUT_QUEUE);
+        let (events_tx, events) = mpsc::channel();
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let thread = thread::spawn({
+            let (feed, stop) = (feed.clone(), stop.clone());
+            move || {
+                let mut adapter = buslab_slcan::Adapter::default().with_fd(true);
+                buslab_slcan::serve(
+                    std::os::fd::AsFd::as_fd(&pty),
+                    &mut adapter,
+                    feed,
+                    inputs,
+                    |event| {
+                        let _ = events_tx.send(event);
+                    },
+                    &stop,
+                )
+                .unwrap();
+            }
+        });
+        Self {
+            path,
+            feed,
+            events,
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// The next event that is not `Opened`/`Closed` (sessions come and go).
+    fn next_frame_event(&self) -> buslab_slcan::AdapterEvent {
+        loop {
+            match self
+                .events
+                .recv_timeout(EVENT)
+                .expect("an event from the FD bus")
+            {
+                buslab_slcan::AdapterEvent::Opened { .. } | buslab_slcan::AdapterEvent::Closed => {}
+                event => return event,
+            }
+        }
+    }
+}
+
+impl Drop for FdBus {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn fd(text: &str) -> buslab_can::FdFrame {
+    text.parse().unwrap()
+}
+
+fn hex(bytes: impl IntoIterator<Item = u8>) -> String {
+    bytes.into_iter().map(|b| format!("{b:02X}")).collect()
+}
+
+/// python-can's `slcan` interface with CAN FD (BitTimingFd 500 kbit/s / 2 Mbit/s: S6, Y2)
+/// through `buslab slcan serve`, whose bus is an FD SLCAN adapter opened with
+/// `?data_bitrate=2000000`: FD frames with and without BRS, extended IDs, 0 and 64 bytes, both
+/// ways, in order with classic frames.
+#[test]
+fn python_can_fd_frames_cross_slcan_serve_to_an_fd_bus_and_back() {
+    let Some(python) = python_can() else {
+        return;
+    };
+    let bus = FdBus::start();
+    let dir = tempfile::tempdir().unwrap();
+    let url = format!(
+        "slcan:{}?bitrate=500000&data_bitrate=2000000",
+        bus.path.display()
+    );
+    let (_adapter, pty) = slcan_serve(&url, dir.path());
+    // The serve's client opened the FD bus with the data bit rate.
+    match bus.events.recv_timeout(EVENT).expect("the FD bus opened") {
+        buslab_slcan::AdapterEvent::Opened {
+            data_bitrate,
+            timing,
+            ..
+        } => {
+            assert_eq!(data_bitrate, Some(2_000_000));
+            assert_eq!(timing, Some(buslab_slcan::Timing::Bitrate(500_000)));
+        }
+        other => panic!("{other:?}"),
+    }
+    let mut peer = Command::new(&python)
+        .arg(root().join("tests/interop/can_slcan_fd_peer.py"))
+        .arg(&pty)
+        .arg("3")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(peer.stdout.take().unwrap()).lines();
+    let mut next = || {
+        lines
+            .next()
+            .expect("python-can script ended early")
+            .unwrap()
+    };
+    assert_eq!(next(), "sent");
+    use buslab_slcan::AdapterEvent::{Transmit, TransmitFd};
+    let long = format!("1ABCDEF0##1{}", hex(0..64));
+    assert_eq!(
+        (0..4).map(|_| bus.next_frame_event()).collect::<Vec<_>>(),
+        [
+            TransmitFd(fd(&format!("123##0{}", hex(0..12)))),
+            TransmitFd(fd(&long)),
+            TransmitFd(fd("7FF##0")),
+            Transmit(frame("100#AA")),
+        ],
+        "what python-can sent reached the FD bus as it was"
+    );
+    use buslab_slcan::Input;
+    for input in [
+        Input::Fd(fd(&format!("321##1{}", hex(0xA0..0xAC)))),
+        Input::Fd(fd(&format!("12345678##0{}", hex(0..64)))),
+        Input::Frame(frame("0F0#0102")),
+    ] {
+        bus.feed.send(input).unwrap();
+    }
+    assert_eq!(next(), format!("rx 321 0 1 1 12 {}", hex(0xA0..0xAC)));
+    assert_eq!(next(), format!("rx 12345678 1 1 0 64 {}", hex(0..64)));
+    assert_eq!(next(), "rx F0 0 0 0 2 0102");
+    assert!(peer.wait().unwrap().success(), "python-can script failed");
+}
+
+/// The same python-can session on buslab's bit-level bus, which is classic: the FD frames get
+/// BEL (python-can does not wait for answers), the classic frame goes through, and the
+/// refusal is said once with the bus's reason and counted at the end.
+#[test]
+fn python_can_fd_frames_on_a_classic_bus_get_bel_said_once_and_counted() {
+    let Some(python) = python_can() else {
+        return;
+    };
+    let serve = Serve::start(500_000);
+    let dir = tempfile::tempdir().unwrap();
+    let (adapter, pty) = slcan_serve_with(&["-v"], &serve.url, dir.path());
+    let mut me = serve.client();
+    let peer = Command::new(&python)
+        .arg(root().join("tests/interop/can_slcan_fd_peer.py"))
+        .arg(&pty)
+        .arg("0")
+        .output()
+        .unwrap();
+    assert!(peer.status.success(), "python-can script failed");
+    assert_eq!(String::from_utf8_lossy(&peer.stdout), "sent\n");
+    let m = me.recv(WAIT).unwrap().expect("the classic frame");
+    assert_eq!(m.record.to_string(), "100#AA");
+    let err = adapter.interrupt();
+    let said: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("the host sends CAN FD frames"))
+        .collect();
+    assert_eq!(said.len(), 1, "{err}");
+    assert!(
+        said[0].contains(&format!(
+            "(first 123##0{}): answered BEL, as a classic adapter does: {} is classic CAN: buslab's bit-level bus carries no FD frames",
+            hex(0..12),
+            serve.url
+        )),
+        "{err}"
+    );
+    assert!(err.contains("3 CAN FD frames refused"), "{err}");
 }
 
 #[test]
@@ -424,6 +629,92 @@ fn bridge_copies_both_ways_without_duplicates_or_echoes() {
     // And B's frame did not come back to bus two: B's next frame is a fresh one from A.
     a.send(&frame("7FF#R1")).unwrap();
     assert_eq!(b.recv(WAIT).unwrap().unwrap().record, frame("7FF#R1"));
+}
+
+/// Two FD buses (FD SLCAN adapters opened with `fd=1`): FD frames cross both ways as they
+/// are (BRS, extended IDs, 64 bytes), in order with classic frames, and a filter applies to
+/// FD IDs too.
+#[test]
+fn bridge_copies_fd_frames_between_fd_buses() {
+    let (one, two) = (FdBus::start(), FdBus::start());
+    let url = |bus: &FdBus| format!("slcan:{}?fd=1", bus.path.display());
+    let (_bridge, _) = Running::start(
+        &[
+            "-v",
+            "bridge",
+            &url(&one),
+            &url(&two),
+            "--filter",
+            "~7FF:7FF",
+        ],
+        "CAN FD both ways",
+    );
+    use buslab_slcan::AdapterEvent::{Transmit, TransmitFd};
+    use buslab_slcan::Input;
+    let long = fd(&format!("1ABCDEF0##1{}", hex(0..64)));
+    for input in [
+        Input::Fd(fd("123##0112233")),
+        Input::Fd(fd("7FF##0AA")),
+        Input::Frame(frame("124#01")),
+        Input::Fd(long),
+    ] {
+        one.feed.send(input).unwrap();
+    }
+    assert_eq!(
+        (0..3).map(|_| two.next_frame_event()).collect::<Vec<_>>(),
+        [
+            TransmitFd(fd("123##0112233")),
+            Transmit(frame("124#01")),
+            TransmitFd(long),
+        ],
+        "7FF is held back by the filter"
+    );
+    two.feed.send(Input::Fd(fd("00000321##1CAFE"))).unwrap();
+    assert_eq!(one.next_frame_event(), TransmitFd(fd("00000321##1CAFE")));
+}
+
+/// An FD bus bridged to buslab's bit-level bus (classic): classic frames cross, FD frames are
+/// counted, the reason is said once, and the count is shown when the bridge stops.
+#[test]
+fn bridge_to_a_classic_bus_counts_fd_frames_and_says_why_once() {
+    let fd_bus = FdBus::start();
+    let classic = Serve::start(500_000);
+    let fd_url = format!("slcan:{}?fd=1", fd_bus.path.display());
+    let (bridge, _) = Running::start(&["-v", "bridge", &fd_url, &classic.url], "CAN FD one way");
+    let mut me = classic.client();
+    use buslab_slcan::Input;
+    for input in [
+        Input::Fd(fd("123##0112233")),
+        Input::Fd(fd("123##1112233")),
+        Input::Frame(frame("124#01")),
+        Input::Fd(fd("00000125##0")),
+        Input::Frame(frame("126#02")),
+    ] {
+        fd_bus.feed.send(input).unwrap();
+    }
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("124#01"));
+    assert_eq!(me.recv(WAIT).unwrap().unwrap().record, frame("126#02"));
+    let err = bridge.interrupt();
+    let said: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("are not bridged"))
+        .collect();
+    assert_eq!(said.len(), 1, "{err}");
+    assert!(
+        said[0].contains(&format!(
+            "CAN FD frames from {fd_url} are not bridged: {} is classic CAN: buslab's bit-level bus carries no FD frames",
+            classic.url
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains("2 frames A -> B, 0 B -> A")
+            && err.contains("3 CAN FD frames not bridged (classic destination)")
+            && err.contains(
+                "bridge: 3 CAN FD frames were not bridged: their destination is classic CAN"
+            ),
+        "{err}"
+    );
 }
 
 #[test]

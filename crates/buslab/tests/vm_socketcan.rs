@@ -5,7 +5,9 @@
 //! cansend → `buslab dump socketcan:vcan0` (frames, and an error frame in candump's words),
 //! `buslab send socketcan:vcan0` → candump,
 //! `buslab bridge` between `buslab bus serve` and vcan0, and `buslab slcan serve` attached
-//! with slcand as slcan0 and read by candump.
+//! with slcand as slcan0 and read by candump; CAN FD on interfaces with MTU 72 (cansend's FD
+//! frames in `buslab dump -L`, `buslab bridge` between two FD interfaces both ways, and to a
+//! classic interface, where FD frames are counted and the MTU named).
 //!
 //! Without QEMU, the kernel package or the tools this test fails under `CI` and is skipped
 //! elsewhere (scripts/setup-test-deps.sh installs them).
@@ -17,13 +19,16 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 /// What must pass inside the VM.
-const CHECKS: [&str; 6] = [
+const CHECKS: [&str; 9] = [
     "cansend-to-buslab-dump",
     "error-frame-decoded",
     "buslab-send-to-candump",
     "bridge-virtual-bus-and-vcan0",
     "slcand-slcan0-candump",
     "cansend-slcan0-to-virtual-bus",
+    "fd-cansend-to-buslab-dump",
+    "fd-bridge-vcan1-vcan2",
+    "fd-to-a-classic-interface-counted",
 ];
 
 /// Booting took 16 s of QEMU's CPU time here (TCG, measured): a boot that has used 7 times

@@ -7,23 +7,29 @@
 //! open, a frame while closed), `z`/`Z` CR for a queued frame. Output waiting for the host is
 //! bounded ([`MAX_OUTPUT`]): a host that does not read loses frames, and `F` reports the
 //! overrun, as a real adapter's receive FIFO overflows.
+//!
+//! CAN FD: an adapter made [`Adapter::with_fd`] (a CANable 2.0's kind, on a bus that carries
+//! FD) takes `d`/`D`/`b`/`B` frames and `Yn` data bit rates before opening, and gives the
+//! host the FD frames it receives; a classic one (a CANUSB's kind, or any adapter on buslab's
+//! bit-level bus) answers them BEL, and an FD frame refused so is told
+//! ([`AdapterEvent::RefusedFd`]).
 
 use std::collections::VecDeque;
 
-use buslab_bus::{CanError, ControllerProblems, ErrorFrame};
-use buslab_can::{Frame, Nanos};
+use buslab_bus::{CanError, ControllerProblems, ErrorFrame, Record};
+use buslab_can::{FdFrame, Frame, Nanos};
 
 use crate::codec::{
-    CodecError, Command, Line, LineSplitter, Reply, STANDARD_BITRATES, StatusFlags,
-    TIMESTAMP_WRAP_MS, format_reply, parse_command,
+    CodecError, Command, Line, LineSplitter, MAX_LINE, Reply, STANDARD_BITRATES, StatusFlags,
+    TIMESTAMP_WRAP_MS, data_bitrate, format_reply, parse_command,
 };
 
 /// Bytes waiting for the host at most (a USB adapter's buffers are smaller; a PTY holds 4 KiB
 /// more).
 pub const MAX_OUTPUT: usize = 64 * 1024;
 
-/// The longest reply: an extended frame with 8 bytes and a timestamp, with its CR.
-const MAX_REPLY: usize = 31;
+/// The longest reply: an extended FD frame with 64 bytes and a timestamp, with its CR.
+const MAX_REPLY: usize = MAX_LINE + 1;
 
 /// What the adapter says about itself (`V`, `v`, `N`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -72,15 +78,21 @@ pub enum Timing {
 /// What the host asked for, for the adapter's bus side.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum AdapterEvent {
-    /// `O` or `L`: the channel opened, with the timing set before (if any).
+    /// `O` or `L`: the channel opened, with the timing set before (if any) and the CAN FD
+    /// data bit rate in bit/s (`Yn`, on an FD adapter).
     Opened {
         listen_only: bool,
         timing: Option<Timing>,
+        data_bitrate: Option<u32>,
     },
     /// `C`: the channel closed.
     Closed,
     /// A frame to put on the bus.
     Transmit(Frame),
+    /// A CAN FD frame to put on the bus (an FD adapter's).
+    TransmitFd(FdFrame),
+    /// An FD frame the host sent a classic adapter: refused with BEL.
+    RefusedFd(FdFrame),
     /// The channel opened with an acceptance filter that is not "accept all": the model
     /// delivers every frame anyway.
     FilterNotModelled { code: u32, mask: u32 },
@@ -88,9 +100,10 @@ pub enum AdapterEvent {
     Garbage(CodecError),
     /// Output for the host filled up: frames are being dropped (said once per episode).
     Overrun,
-    /// A frame refused with BEL: the adapter's controller is bus-off (until the host closes
-    /// and opens the channel). Said for the first refused frame of each bus-off.
-    RefusedBusOff(Frame),
+    /// A frame (classic or FD) refused with BEL: the adapter's controller is bus-off (until
+    /// the host closes and opens the channel). Said for the first refused frame of each
+    /// bus-off.
+    RefusedBusOff(Record),
 }
 
 /// The error level of the adapter's controller, as its error frames tell it.
@@ -142,6 +155,10 @@ pub struct Adapter {
     level: ErrorLevel,
     /// A frame was refused in this bus-off already.
     refused: bool,
+    /// The adapter speaks CAN FD.
+    fd: bool,
+    /// `Yn`: the FD data bit rate set before opening.
+    data_bitrate: Option<u32>,
 }
 
 impl Default for Adapter {
@@ -167,7 +184,20 @@ impl Adapter {
             dropped: 0,
             level: ErrorLevel::Active,
             refused: false,
+            fd: false,
+            data_bitrate: None,
         }
+    }
+
+    /// The same adapter speaking CAN FD (`fd`) or classic CAN only (the default).
+    pub fn with_fd(mut self, fd: bool) -> Self {
+        self.fd = fd;
+        self
+    }
+
+    /// Whether the adapter speaks CAN FD.
+    pub fn carries_fd(&self) -> bool {
+        self.fd
     }
 
     /// The controller's error level, as its error frames told it.
@@ -248,24 +278,54 @@ impl Adapter {
     /// A frame the adapter received from the bus at `now` (since any epoch): sent to the host
     /// if the channel is open.
     pub fn deliver(&mut self, frame: &Frame, now: Nanos) {
-        if self.mode == Mode::Closed {
+        if self.mode == Mode::Closed || !self.room_for_frame() {
             return;
         }
-        if self.output.len() + MAX_REPLY > MAX_OUTPUT {
-            self.dropped += 1;
-            if self.sticky & StatusFlags::DATA_OVERRUN == 0 {
-                self.events.push_back(AdapterEvent::Overrun);
-            }
-            self.sticky |= StatusFlags::DATA_OVERRUN | StatusFlags::RX_FIFO_FULL;
-            return;
-        }
-        let timestamp_ms = self
-            .timestamps
-            .then(|| (now / Nanos::from_millis(1) % u64::from(TIMESTAMP_WRAP_MS)) as u16);
+        let timestamp_ms = self.timestamp(now);
         self.reply(&Reply::Frame {
             frame: *frame,
             timestamp_ms,
         });
+    }
+
+    /// A CAN FD frame the adapter received from the bus at `now`: sent to the host if the
+    /// channel is open. A classic adapter has none to give (its controller knows no FD): the
+    /// frame is dropped and counted with [`dropped`](Self::dropped).
+    pub fn deliver_fd(&mut self, frame: &FdFrame, now: Nanos) {
+        if self.mode == Mode::Closed {
+            return;
+        }
+        if !self.fd {
+            self.dropped += 1;
+            return;
+        }
+        if !self.room_for_frame() {
+            return;
+        }
+        let timestamp_ms = self.timestamp(now);
+        self.reply(&Reply::FdFrame {
+            frame: *frame,
+            timestamp_ms,
+        });
+    }
+
+    /// Whether a received frame fits in the output; if not, it is dropped and the overrun
+    /// told.
+    fn room_for_frame(&mut self) -> bool {
+        if self.output.len() + MAX_REPLY <= MAX_OUTPUT {
+            return true;
+        }
+        self.dropped += 1;
+        if self.sticky & StatusFlags::DATA_OVERRUN == 0 {
+            self.events.push_back(AdapterEvent::Overrun);
+        }
+        self.sticky |= StatusFlags::DATA_OVERRUN | StatusFlags::RX_FIFO_FULL;
+        false
+    }
+
+    fn timestamp(&self, now: Nanos) -> Option<u16> {
+        self.timestamps
+            .then(|| (now / Nanos::from_millis(1) % u64::from(TIMESTAMP_WRAP_MS)) as u16)
     }
 
     /// The bytes waiting for the host.
@@ -296,6 +356,14 @@ impl Adapter {
         format_reply(reply, &mut self.output);
     }
 
+    /// A frame refused because the controller is bus-off; the first of each bus-off is told.
+    fn refuse_bus_off(&mut self, frame: Record) -> Option<Reply> {
+        if !std::mem::replace(&mut self.refused, true) {
+            self.events.push_back(AdapterEvent::RefusedBusOff(frame));
+        }
+        Some(Reply::Error)
+    }
+
     /// Carries out one command; the answer, if any.
     fn command(&mut self, command: Command) -> Option<Reply> {
         let closed = self.mode == Mode::Closed;
@@ -315,7 +383,15 @@ impl Adapter {
                 self.timing = Some(Timing::Cnf(regs));
                 Some(Reply::Ok)
             }
-            Command::Bitrate(_) | Command::Btr { .. } | Command::Cnf(_) => Some(Reply::Error),
+            Command::DataBitrate(code) if closed && self.fd => {
+                self.data_bitrate = data_bitrate(code);
+                Some(Reply::Ok)
+            }
+            // While open, as `S`; on a classic adapter, as an unknown command.
+            Command::Bitrate(_)
+            | Command::Btr { .. }
+            | Command::Cnf(_)
+            | Command::DataBitrate(_) => Some(Reply::Error),
             Command::Open | Command::ListenOnly if closed => {
                 let listen_only = command == Command::ListenOnly;
                 self.mode = if listen_only {
@@ -329,6 +405,7 @@ impl Adapter {
                 self.events.push_back(AdapterEvent::Opened {
                     listen_only,
                     timing: self.timing,
+                    data_bitrate: self.data_bitrate.filter(|_| self.fd),
                 });
                 if self.acceptance_mask != 0xFFFF_FFFF {
                     self.events.push_back(AdapterEvent::FilterNotModelled {
@@ -350,10 +427,7 @@ impl Adapter {
             Command::Transmit(frame)
                 if self.mode == Mode::Open && self.level == ErrorLevel::BusOff =>
             {
-                if !std::mem::replace(&mut self.refused, true) {
-                    self.events.push_back(AdapterEvent::RefusedBusOff(frame));
-                }
-                Some(Reply::Error)
+                self.refuse_bus_off(Record::Frame(frame))
             }
             Command::Transmit(frame) if self.mode == Mode::Open => {
                 self.events.push_back(AdapterEvent::Transmit(frame));
@@ -362,6 +436,22 @@ impl Adapter {
                 })
             }
             Command::Transmit(_) => Some(Reply::Error),
+            Command::TransmitFd(frame) if !self.fd => {
+                self.events.push_back(AdapterEvent::RefusedFd(frame));
+                Some(Reply::Error)
+            }
+            Command::TransmitFd(frame)
+                if self.mode == Mode::Open && self.level == ErrorLevel::BusOff =>
+            {
+                self.refuse_bus_off(Record::Fd(frame))
+            }
+            Command::TransmitFd(frame) if self.mode == Mode::Open => {
+                self.events.push_back(AdapterEvent::TransmitFd(frame));
+                Some(Reply::Queued {
+                    extended: frame.is_extended(),
+                })
+            }
+            Command::TransmitFd(_) => Some(Reply::Error),
             Command::Status => {
                 let flags = StatusFlags(std::mem::take(&mut self.sticky) | self.level.flags());
                 Some(Reply::Status(flags))
@@ -388,9 +478,9 @@ impl Adapter {
                 ok_if(closed)
             }
             // As slcanpty: auto-poll is always on (X1 fine, X0 and polling refused); UART rate,
-            // filter mode, auto-start and the FD data bit rate are accepted and have no effect.
+            // filter mode and auto-start are accepted and have no effect.
             Command::Other { letter, argument } => match (letter, argument.as_str()) {
-                (b'X', "1") | (b'U' | b'W' | b'Q' | b'Y', _) => Some(Reply::Ok),
+                (b'X', "1") | (b'U' | b'W' | b'Q', _) => Some(Reply::Ok),
                 _ => Some(Reply::Error),
             },
         }
@@ -426,7 +516,8 @@ mod tests {
             events(&mut a),
             [AdapterEvent::Opened {
                 listen_only: false,
-                timing: Some(Timing::Bitrate(500_000))
+                timing: Some(Timing::Bitrate(500_000)),
+                data_bitrate: None,
             }]
         );
         assert_eq!(
@@ -462,7 +553,8 @@ mod tests {
             events(&mut a),
             [AdapterEvent::Opened {
                 listen_only: true,
-                timing: Some(Timing::Bitrate(250_000))
+                timing: Some(Timing::Bitrate(250_000)),
+                data_bitrate: None,
             }]
         );
         assert_eq!(
@@ -575,11 +667,120 @@ mod tests {
             events(&mut a),
             [
                 AdapterEvent::Transmit(frame("123#")),
-                AdapterEvent::RefusedBusOff(frame("123#"))
+                AdapterEvent::RefusedBusOff(Record::Frame(frame("123#")))
             ],
             "the first refused frame is told"
         );
         // Closing and opening again initialises the controller, as a CANUSB's C and O.
         assert_eq!(exchange(&mut a, "C\rS4\rO\rF\rt1230\r"), "\r\r\rF00\rz\r");
+    }
+
+    fn fd(text: &str) -> FdFrame {
+        text.parse().unwrap()
+    }
+
+    /// python-can 4.6.1 with `timing=BitTimingFd(500 kbit/s, 2 Mbit/s)`: C, S6, Y2, O, then
+    /// FD frames as its `send` spells them, on an FD adapter.
+    #[test]
+    fn an_fd_adapter_takes_python_cans_fd_session_both_ways() {
+        let mut a = Adapter::default().with_fd(true);
+        assert!(a.carries_fd());
+        assert_eq!(exchange(&mut a, "C\rS6\rY2\rO\r"), "\r\r\r\r");
+        assert_eq!(
+            events(&mut a),
+            [AdapterEvent::Opened {
+                listen_only: false,
+                timing: Some(Timing::Bitrate(500_000)),
+                data_bitrate: Some(2_000_000),
+            }]
+        );
+        assert_eq!(exchange(&mut a, "Y5\r"), "\x07", "Y while open, as S");
+        let long = format!("B1ABCDEF0F{}", "A5".repeat(64));
+        assert_eq!(
+            exchange(
+                &mut a,
+                &format!("d1233112233\rb123900112233445566778899AABB\r{long}\r")
+            ),
+            "z\rz\rZ\r"
+        );
+        assert_eq!(
+            events(&mut a),
+            [
+                AdapterEvent::TransmitFd(fd("123##0112233")),
+                AdapterEvent::TransmitFd(fd("123##100112233445566778899AABB")),
+                AdapterEvent::TransmitFd(fd(&format!("1ABCDEF0##1{}", "A5".repeat(64)))),
+            ]
+        );
+        a.deliver_fd(&fd("321##1AABBCCDDEEFF001122334455"), Nanos::from_millis(5));
+        a.deliver(&frame("321#AABB"), Nanos::from_millis(6));
+        a.deliver_fd(&fd("12345678##0"), Nanos::from_millis(7));
+        assert_eq!(
+            String::from_utf8(a.take_output()).unwrap(),
+            "b3219AABBCCDDEEFF001122334455\rt3212AABB\rD123456780\r"
+        );
+    }
+
+    #[test]
+    fn fd_frames_on_a_classic_adapter_get_bel_and_are_told() {
+        let mut a = Adapter::default();
+        assert!(!a.carries_fd());
+        assert_eq!(exchange(&mut a, "S6\rY2\rO\r"), "\r\x07\r", "Y unknown");
+        assert_eq!(
+            events(&mut a),
+            [AdapterEvent::Opened {
+                listen_only: false,
+                timing: Some(Timing::Bitrate(500_000)),
+                data_bitrate: None,
+            }]
+        );
+        assert_eq!(exchange(&mut a, "d1233112233\rt1230\r"), "\x07z\r");
+        assert_eq!(
+            events(&mut a),
+            [
+                AdapterEvent::RefusedFd(fd("123##0112233")),
+                AdapterEvent::Transmit(frame("123#")),
+            ]
+        );
+        // An FD frame from the bus has nowhere to go: dropped and counted.
+        a.deliver_fd(&fd("321##0AA"), Nanos::ZERO);
+        assert!(a.output().is_empty());
+        assert_eq!(a.dropped(), 1);
+    }
+
+    #[test]
+    fn fd_frames_follow_the_channels_state() {
+        let mut a = Adapter::default().with_fd(true);
+        assert_eq!(exchange(&mut a, "d1230\r"), "\x07", "closed");
+        a.deliver_fd(&fd("321##0AA"), Nanos::ZERO);
+        assert!(a.output().is_empty(), "a closed channel receives nothing");
+        assert_eq!(
+            exchange(&mut a, "Z1\rL\rd1230\r"),
+            "\r\r\x07",
+            "listen-only"
+        );
+        a.deliver_fd(&fd("321##0AA"), Nanos::from_millis(60_001));
+        assert_eq!(a.take_output(), b"d3211AA0001\r", "with its timestamp");
+        exchange(&mut a, "C\rO\r");
+        events(&mut a);
+        a.controller_error(&ErrorFrame::new(vec![CanError::BusOff], None));
+        assert_eq!(exchange(&mut a, "b1230\rd1230\r"), "\x07\x07", "bus-off");
+        assert_eq!(
+            events(&mut a),
+            [AdapterEvent::RefusedBusOff(Record::Fd(fd("123##1")))]
+        );
+    }
+
+    #[test]
+    fn a_host_that_does_not_read_loses_fd_frames_within_the_bound() {
+        let mut a = Adapter::default().with_fd(true);
+        exchange(&mut a, "O\r");
+        events(&mut a);
+        let f = fd(&format!("1FFFFFFF##1{}", "00".repeat(64)));
+        for t in 0..10_000 {
+            a.deliver_fd(&f, Nanos::from_millis(t));
+        }
+        assert!(a.output().len() <= MAX_OUTPUT);
+        assert!(a.dropped() > 0);
+        assert_eq!(events(&mut a), [AdapterEvent::Overrun]);
     }
 }

@@ -10,23 +10,32 @@
 //! then closes the channel. Frames are sent without waiting for the adapter's answer (as
 //! python-can does); a refused frame (BEL) is logged. Received frames carry the host time,
 //! refined by the adapter's timestamps.
+//!
+//! CAN FD (CANable 2.0 style, as python-can's `slcan` interface speaks it): an adapter opened
+//! with [`SlcanOptions::fd`] takes FD frames ([`CanBus::send_fd`] writes `d`/`D`, or `b`/`B`
+//! with BRS), and with [`SlcanOptions::data_bitrate`] the opening also sets the data bit rate
+//! (`Yn`, after the nominal one). No SLCAN command asks an adapter whether it speaks FD, so the
+//! user says so; without it FD frames are refused by name ([`NoFd::ClassicAdapter`]). FD frames
+//! the adapter sends (`d`, `D`, `b`, `B`) are received either way.
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use buslab_bus::bus::matches_any;
-use buslab_bus::{BitTiming, BusError, CanBus, ErrorState, Filter, Message, wall_clock};
-use buslab_can::Frame;
+use buslab_bus::{
+    BitTiming, BusError, CanBus, ErrorState, FdSupport, Filter, Message, NoFd, matches_any_id,
+    wall_clock,
+};
+use buslab_can::{FdFrame, Frame};
 use buslab_device::LineSettings;
 use buslab_link::{SerialError, open_tty};
 use serialport::{ClearBuffer, SerialPort, TTYPort};
 
 use crate::clock::DeviceClock;
 use crate::codec::{
-    CodecError, Command, Line, LineSplitter, MAX_REPLY_LINE, Reply, STANDARD_BITRATES, StatusFlags,
-    format_command, parse_reply,
+    CodecError, Command, DATA_BITRATES, Line, LineSplitter, MAX_REPLY_LINE, Reply,
+    STANDARD_BITRATES, StatusFlags, format_command, parse_reply,
 };
 use crate::handshake::{
     AcceptanceAnswer, CANABLE_BITRATES, Firmware, Handshake, HandshakeError, Plan, Status,
@@ -50,6 +59,11 @@ pub struct SlcanOptions {
     pub listen_only: bool,
     /// How long to wait for each answer while opening.
     pub reply_timeout: Duration,
+    /// The adapter speaks CAN FD (a CANable 2.0's firmware): FD frames may be sent.
+    pub fd: bool,
+    /// The CAN FD data bit rate to set while opening (`Yn`: one of [`DATA_BITRATES`]); it
+    /// implies [`Self::fd`]. `None` keeps what the adapter has.
+    pub data_bitrate: Option<u32>,
 }
 
 /// After the first version line, the line must stay quiet this long (or [`SETTLE_CHARS`]
@@ -67,6 +81,8 @@ impl Default for SlcanOptions {
             bitrate: None,
             listen_only: false,
             reply_timeout: Duration::from_secs(2),
+            fd: false,
+            data_bitrate: None,
         }
     }
 }
@@ -81,6 +97,11 @@ pub enum SlcanError {
         standard_rates()
     )]
     Bitrate { bitrate: u32 },
+    #[error(
+        "data bit rate {bitrate} bit/s cannot be set: SLCAN's Y command has {}",
+        data_rates()
+    )]
+    DataBitrate { bitrate: u32 },
     #[error("{device}: the adapter refused {command:?} (answered BEL)")]
     Refused { device: String, command: String },
     #[error("{device}: {source}")]
@@ -102,6 +123,14 @@ pub enum SlcanError {
     },
     #[error("{device}: {source}")]
     Io { device: String, source: io::Error },
+}
+
+fn data_rates() -> String {
+    DATA_BITRATES
+        .iter()
+        .map(|(code, rate)| format!("Y{code} = {rate}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn standard_rates() -> String {
@@ -131,7 +160,8 @@ pub struct SlcanBus {
     device: String,
     channel: String,
     splitter: LineSplitter,
-    inbox: VecDeque<Message<Frame>>,
+    /// Received frames and FD frames.
+    inbox: VecDeque<Message>,
     /// Answers owed to frames sent (python-can style: not waited for).
     owed: usize,
     /// The adapter answers commands and frames (CANable's firmware does not).
@@ -144,6 +174,7 @@ pub struct SlcanBus {
     serial: Option<[u8; 4]>,
     refused: u64,
     acceptance: AcceptanceAnswer,
+    fd: bool,
 }
 
 impl SlcanBus {
@@ -170,6 +201,16 @@ impl SlcanBus {
                 Err(e) => return Err(e),
             },
         };
+        let data_bitrate = match options.data_bitrate {
+            None => None,
+            Some(rate) => Some(
+                DATA_BITRATES
+                    .iter()
+                    .find(|(_, r)| *r == rate)
+                    .map(|&(code, _)| code)
+                    .ok_or(SlcanError::DataBitrate { bitrate: rate })?,
+            ),
+        };
         let port = open_tty(
             Path::new(device),
             LineSettings::n81(options.baud),
@@ -195,10 +236,12 @@ impl SlcanBus {
             serial: None,
             refused: 0,
             acceptance: AcceptanceAnswer::NotSent,
+            fd: options.fd || data_bitrate.is_some(),
         };
         let plan = Plan {
             bitrate,
             listen_only: options.listen_only,
+            data_bitrate,
         };
         let (hs, after) = bus.handshake(plan, options, acceptance)?;
         bus.acceptance = hs.acceptance_answer();
@@ -213,6 +256,10 @@ impl SlcanBus {
                     frame,
                     timestamp_ms,
                 }) => bus.keep_frame(frame, timestamp_ms),
+                Ok(Reply::FdFrame {
+                    frame,
+                    timestamp_ms,
+                }) => bus.keep_fd(frame, timestamp_ms),
                 Ok(reply) => bus.later(reply),
                 Err(e) => tracing::debug!("{device}: ignored from the adapter: {e}"),
             }
@@ -221,12 +268,13 @@ impl SlcanBus {
             tracing::debug!("{device}: no timestamps (Z1 refused): frames get the host's time");
         }
         tracing::info!(
-            "{device}: SLCAN adapter open{} (version {}, serial {}{}{})",
+            "{device}: SLCAN adapter open{}{} (version {}, serial {}{}{})",
             if options.listen_only {
                 " listen-only"
             } else {
                 ""
             },
+            if bus.fd { " for CAN FD" } else { "" },
             bus.version().unwrap_or("?"),
             bus.serial_number().unwrap_or("?"),
             if bus.acknowledges {
@@ -301,12 +349,16 @@ impl SlcanBus {
                         None
                     }
                 };
-                if let Some(Reply::Frame {
-                    frame,
-                    timestamp_ms,
-                }) = kept
-                {
-                    self.keep_frame(frame, timestamp_ms);
+                match kept {
+                    Some(Reply::Frame {
+                        frame,
+                        timestamp_ms,
+                    }) => self.keep_frame(frame, timestamp_ms),
+                    Some(Reply::FdFrame {
+                        frame,
+                        timestamp_ms,
+                    }) => self.keep_fd(frame, timestamp_ms),
+                    _ => {}
                 }
                 if matches!(hs.status(), Status::Open | Status::Failed(_)) {
                     break;
@@ -439,6 +491,10 @@ impl SlcanBus {
                     frame,
                     timestamp_ms,
                 }) => self.keep_frame(frame, timestamp_ms),
+                Ok(Reply::FdFrame {
+                    frame,
+                    timestamp_ms,
+                }) => self.keep_fd(frame, timestamp_ms),
                 Ok(reply) => replies.push(reply),
                 Err(e) => tracing::debug!("{}: ignored from the adapter: {e}", self.device),
             }
@@ -499,7 +555,13 @@ impl SlcanBus {
     /// A received frame, stamped now (refined by the adapter's counter).
     fn keep_frame(&mut self, frame: Frame, timestamp_ms: Option<u16>) {
         let t = self.clock.stamp(wall_clock(), timestamp_ms);
-        self.keep(Message::rx(t, self.channel.clone(), frame));
+        self.keep(Message::rx(t, self.channel.clone(), frame).into_record());
+    }
+
+    /// A received FD frame, stamped as frames are.
+    fn keep_fd(&mut self, frame: FdFrame, timestamp_ms: Option<u16>) {
+        let t = self.clock.stamp(wall_clock(), timestamp_ms);
+        self.keep(Message::fd(t, self.channel.clone(), frame));
     }
 
     /// A reply nobody waits for: only answers to sent frames are expected.
@@ -513,8 +575,8 @@ impl SlcanBus {
         }
     }
 
-    fn keep(&mut self, m: Message<Frame>) {
-        if !matches_any(&self.filters, &m.record) {
+    fn keep(&mut self, m: Message) {
+        if !passes(&self.filters, &m) {
             return;
         }
         if self.inbox.len() == MAX_INBOX {
@@ -528,6 +590,11 @@ impl SlcanBus {
     }
 }
 
+/// Whether a received frame (classic or FD) passes the filters.
+fn passes(filters: &[Filter], m: &Message) -> bool {
+    m.record.id().is_none_or(|id| matches_any_id(filters, id))
+}
+
 /// `S6`, `t1230`: a command as written, for messages.
 fn shown(command: &Command) -> String {
     let mut bytes = Vec::new();
@@ -536,10 +603,11 @@ fn shown(command: &Command) -> String {
     String::from_utf8_lossy(&bytes).into_owned()
 }
 
-impl CanBus for SlcanBus {
-    fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
-        let mut bytes = Vec::with_capacity(32);
-        format_command(&Command::Transmit(*frame), &mut bytes);
+impl SlcanBus {
+    /// Writes a frame command; its answer is owed.
+    fn transmit(&mut self, command: &Command) -> Result<(), BusError> {
+        let mut bytes = Vec::with_capacity(160);
+        format_command(command, &mut bytes);
         self.port.write_all(&bytes)?;
         if self.acknowledges {
             self.owed += 1;
@@ -547,7 +615,8 @@ impl CanBus for SlcanBus {
         Ok(())
     }
 
-    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
+    /// The next received frame or FD frame, or `None` after `timeout`.
+    fn next_record(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         let deadline = timeout.map(|t| Instant::now() + t);
         loop {
             if let Some(m) = self.inbox.pop_front() {
@@ -559,10 +628,53 @@ impl CanBus for SlcanBus {
             }
         }
     }
+}
+
+impl CanBus for SlcanBus {
+    fn fd_support(&self) -> FdSupport {
+        if self.fd {
+            FdSupport::Carried
+        } else {
+            FdSupport::Classic(NoFd::ClassicAdapter)
+        }
+    }
+
+    fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
+        self.transmit(&Command::Transmit(*frame))
+    }
+
+    /// `d`/`D`, or `b`/`B` with BRS (SLCAN has no ESI: it is left out).
+    fn send_fd(&mut self, frame: &FdFrame) -> Result<(), BusError> {
+        if !self.fd {
+            return Err(BusError::ClassicOnly {
+                bus: self.channel_info(),
+                why: NoFd::ClassicAdapter,
+            });
+        }
+        self.transmit(&Command::TransmitFd(*frame))
+    }
+
+    /// Classic frames; FD frames received meanwhile are passed by.
+    fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
+        let deadline = timeout.map(|t| Instant::now() + t);
+        loop {
+            let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
+            let Some(m) = self.next_record(left)? else {
+                return Ok(None);
+            };
+            if let Some(m) = m.into_frame() {
+                return Ok(Some(m));
+            }
+        }
+    }
+
+    fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+        self.next_record(timeout)
+    }
 
     fn set_filters(&mut self, filters: &[Filter]) -> Result<(), BusError> {
         self.filters = filters.to_vec();
-        self.inbox.retain(|m| matches_any(filters, &m.record));
+        self.inbox.retain(|m| passes(filters, m));
         Ok(())
     }
 

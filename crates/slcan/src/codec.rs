@@ -4,21 +4,49 @@
 //! A line ends with CR (`\r`); an adapter's error answer is a lone BEL (`\a`). IDs are 3 hex
 //! digits (standard) or 8 (extended), the DLC one digit `0`..`8`, data 2 hex digits a byte
 //! (either case in, upper case out). [`LineSplitter`] cuts a byte stream into lines, bounded.
+//!
+//! CAN FD as CANable 2.0's firmware and python-can's `slcan` interface spell it: `d`/`D` an FD
+//! frame without bit-rate switch, `b`/`B` one with it (standard/extended ID), the DLC one hex
+//! digit `0`..`F` (lengths 0..8, 12, 16, 20, 24, 32, 48, 64), and `Yn` the data bit rate
+//! ([`DATA_BITRATES`]). The protocol has no spelling for ESI: an FD frame with ESI goes out
+//! without it.
 //! Every parser takes any bytes and gives a value or an error naming what is wrong; none
 //! panics (`tests/codec_props.rs`).
 
 use std::fmt;
 
-use buslab_can::{Frame, Id};
+use buslab_can::{FdFrame, Frame, Id, fd_len_of_dlc};
 
-/// The longest line kept: an extended frame with 8 bytes and a timestamp is 30 bytes with its
-/// CR (`T1111222281122334455667788EA5F`); commands are shorter. Longer lines are garbage.
-pub const MAX_LINE: usize = 64;
+/// The longest line kept: an extended FD frame with 64 bytes and a timestamp is 142 bytes
+/// without its CR (`B`, 8 ID digits, the DLC, 128 data digits, 4 timestamp digits); commands
+/// are shorter. Longer lines are garbage.
+pub const MAX_LINE: usize = 142;
 
 /// The longest reply line a host keeps ([`LineSplitter::with_limit`]): CANable's answer to `V`
 /// is its firmware's `git describe` and repository URL, 50 to 70 characters
-/// (`8ca5d39 https://github.com/normaldotcom/canable-fw.git`), longer for forks.
-pub const MAX_REPLY_LINE: usize = 128;
+/// (`8ca5d39 https://github.com/normaldotcom/canable-fw.git`), longer for forks; and any
+/// frame ([`MAX_LINE`]).
+pub const MAX_REPLY_LINE: usize = 160;
+
+/// The data bit rates of `Y0`..`Y8`, in bit/s, for CAN FD: the codes CANable 2.0's firmware
+/// and its forks document (`Y2` = 2 Mbit/s is the one python-can also sends, with `Y5`).
+pub const DATA_BITRATES: [(u8, u32); 7] = [
+    (0, 500_000),
+    (1, 1_000_000),
+    (2, 2_000_000),
+    (3, 3_000_000),
+    (4, 4_000_000),
+    (5, 5_000_000),
+    (8, 8_000_000),
+];
+
+/// The data bit rate of a `Yn` code.
+pub fn data_bitrate(code: u8) -> Option<u32> {
+    DATA_BITRATES
+        .iter()
+        .find(|(c, _)| *c == code)
+        .map(|&(_, rate)| rate)
+}
 
 /// The bit rates of `S0`..`S8`, in bit/s.
 pub const STANDARD_BITRATES: [u32; 9] = [
@@ -52,6 +80,10 @@ pub enum Command {
     Close,
     /// `t`, `T`, `r`, `R`: transmit a frame.
     Transmit(Frame),
+    /// `d`, `D`, `b`, `B`: transmit a CAN FD frame (`b`/`B` with BRS).
+    TransmitFd(FdFrame),
+    /// `Yn`: the CAN FD data bit rate, [`data_bitrate`]`(n)`.
+    DataBitrate(u8),
     /// `F`: read the status flags.
     Status,
     /// `V`: hardware and software version.
@@ -67,8 +99,8 @@ pub enum Command {
     /// `mxxxxxxxx`: SJA1000 acceptance mask.
     AcceptanceMask(u32),
     /// Legacy or extension commands with one argument an adapter may accept or refuse: `X`
-    /// (auto-poll), `U` (UART rate), `W` (filter mode), `Q` (auto-start), `Y` (CAN FD data
-    /// bit rate), `P`/`A` (poll one/all). The letter and the text after it.
+    /// (auto-poll), `U` (UART rate), `W` (filter mode), `Q` (auto-start), `P`/`A` (poll
+    /// one/all). The letter and the text after it.
     Other { letter: u8, argument: String },
 }
 
@@ -84,6 +116,11 @@ pub enum Reply {
     /// A received frame, with its timestamp in ms (`0`..`59999`) when timestamps are on.
     Frame {
         frame: Frame,
+        timestamp_ms: Option<u16>,
+    },
+    /// A received CAN FD frame (`d`, `D`, `b`, `B`), with its timestamp as for frames.
+    FdFrame {
+        frame: FdFrame,
         timestamp_ms: Option<u16>,
     },
     /// `Fxx`: the status flags.
@@ -166,8 +203,6 @@ pub enum CodecError {
         line: Shown,
         problem: buslab_can::ParseError,
     },
-    #[error("{line}: CAN FD frames (d, D, b, B) are not supported; buslab speaks classic CAN")]
-    Fd { line: Shown },
     #[error("a line longer than an SLCAN line can be (dropped)")]
     TooLong,
 }
@@ -251,9 +286,19 @@ pub fn parse_command(line: &[u8]) -> Result<Command, CodecError> {
             (frame, None) => Ok(Command::Transmit(frame)),
             (_, Some(_)) => Err(field("the data", "2 hex digits per byte of the DLC")),
         },
-        b'd' | b'D' | b'b' | b'B' => Err(CodecError::Fd {
-            line: Shown::new(line),
-        }),
+        b'd' | b'D' | b'b' | b'B' => match parse_fd_frame(line)? {
+            (frame, None) => Ok(Command::TransmitFd(frame)),
+            (_, Some(_)) => Err(field("the data", "2 hex digits per byte of the FD DLC")),
+        },
+        b'Y' => match arg {
+            [d @ b'0'..=b'9'] if data_bitrate(d - b'0').is_some() => {
+                Ok(Command::DataBitrate(d - b'0'))
+            }
+            _ => Err(field(
+                "the data bit rate code",
+                "one of 0, 1, 2, 3, 4, 5, 8 (Y2 = 2 Mbit/s)",
+            )),
+        },
         b'Z' => match arg {
             b"0" => Ok(Command::Timestamps(false)),
             b"1" => Ok(Command::Timestamps(true)),
@@ -270,7 +315,7 @@ pub fn parse_command(line: &[u8]) -> Result<Command, CodecError> {
                 Command::AcceptanceMask(value)
             })
         }
-        b'X' | b'U' | b'W' | b'Q' | b'Y' | b'P' | b'A' => {
+        b'X' | b'U' | b'W' | b'Q' | b'P' | b'A' => {
             if arg.len() > 8 || !arg.iter().all(u8::is_ascii_alphanumeric) {
                 return Err(field("the argument", "up to 8 letters or digits"));
             }
@@ -326,6 +371,13 @@ pub fn parse_reply(line: &[u8], bell: bool) -> Result<Reply, CodecError> {
                 timestamp_ms,
             })
         }
+        [b'd' | b'D' | b'b' | b'B', ..] => {
+            let (frame, timestamp_ms) = parse_fd_frame(line)?;
+            Ok(Reply::FdFrame {
+                frame,
+                timestamp_ms,
+            })
+        }
         _ => Err(CodecError::UnknownReply {
             line: Shown::new(line),
         }),
@@ -344,11 +396,67 @@ fn parse_frame(line: &[u8]) -> Result<(Frame, Option<u16>), CodecError> {
         line: Shown::new(line),
         problem,
     };
-    let (kind, rest) = line
+    let (kind, id, dlc, rest) = frame_head(line)?;
+    let dlc = match dlc {
+        d @ b'0'..=b'8' => d - b'0',
+        _ => return Err(field("the DLC", "one digit 0..8")),
+    };
+    let remote = matches!(kind, b'r' | b'R');
+    let data_len = if remote { 0 } else { usize::from(dlc) };
+    let (data, timestamp_ms) = frame_tail(
+        line,
+        rest,
+        data_len,
+        "2 hex digits per byte of the DLC, then nothing or a 4-digit timestamp",
+    )?;
+    let frame = if remote {
+        Frame::remote(id, dlc)
+    } else {
+        Frame::data(id, &data)
+    }
+    .map_err(frame_error)?;
+    Ok((frame, timestamp_ms))
+}
+
+/// `dIIIL…`, `DIIIIIIIIL…`, `bIIIL…`, `BIIIIIIIIL…` (`b`/`B` with BRS), the DLC one hex
+/// digit, with an optional timestamp as for frames.
+fn parse_fd_frame(line: &[u8]) -> Result<(FdFrame, Option<u16>), CodecError> {
+    let (kind, id, dlc, rest) = frame_head(line)?;
+    let len = char::from(dlc)
+        .to_digit(16)
+        .and_then(|d| fd_len_of_dlc(d as u8))
+        .ok_or_else(|| CodecError::Field {
+            line: Shown::new(line),
+            what: "the FD DLC",
+            expected: "one hex digit 0..F",
+        })?;
+    let (data, timestamp_ms) = frame_tail(
+        line,
+        rest,
+        len,
+        "2 hex digits per byte of the FD DLC's length, then nothing or a 4-digit timestamp",
+    )?;
+    let frame = FdFrame::new(id, &data)
+        .map_err(|problem| CodecError::Frame {
+            line: Shown::new(line),
+            problem,
+        })?
+        .with_brs(matches!(kind, b'b' | b'B'));
+    Ok((frame, timestamp_ms))
+}
+
+/// A frame line's kind letter, ID (3 hex digits for a lower-case letter, 8 for upper case),
+/// DLC character, and what follows it.
+fn frame_head(line: &[u8]) -> Result<(u8, Id, u8, &[u8]), CodecError> {
+    let field = |what, expected| CodecError::Field {
+        line: Shown::new(line),
+        what,
+        expected,
+    };
+    let (&kind, rest) = line
         .split_first()
         .ok_or_else(|| field("the line", "a frame"))?;
     let extended = kind.is_ascii_uppercase();
-    let remote = matches!(kind, b'r' | b'R');
     let id_len = if extended { 8 } else { 3 };
     if rest.len() < id_len + 1 {
         return Err(field(
@@ -367,30 +475,33 @@ fn parse_frame(line: &[u8]) -> Result<(Frame, Option<u16>), CodecError> {
     } else {
         Id::standard(raw as u16)
     }
-    .map_err(frame_error)?;
-    let dlc = match rest[0] {
-        d @ b'0'..=b'8' => d - b'0',
-        _ => return Err(field("the DLC", "one digit 0..8")),
+    .map_err(|problem| CodecError::Frame {
+        line: Shown::new(line),
+        problem,
+    })?;
+    Ok((kind, id, rest[0], &rest[1..]))
+}
+
+/// `len` data bytes (2 hex digits each) and the optional 4-digit timestamp after them;
+/// `expected` says what the data must be when it does not fit.
+fn frame_tail(
+    line: &[u8],
+    rest: &[u8],
+    len: usize,
+    expected: &'static str,
+) -> Result<(Vec<u8>, Option<u16>), CodecError> {
+    let field = |what, expected| CodecError::Field {
+        line: Shown::new(line),
+        what,
+        expected,
     };
-    let rest = &rest[1..];
-    let data_len = if remote { 0 } else { 2 * dlc as usize };
+    let data_len = 2 * len;
     let (data_text, stamp) = match rest.len() {
         n if n == data_len => (rest, None),
         n if n == data_len + 4 => (&rest[..data_len], Some(&rest[data_len..])),
-        _ => {
-            return Err(field(
-                "the data",
-                "2 hex digits per byte of the DLC, then nothing or a 4-digit timestamp",
-            ));
-        }
+        _ => return Err(field("the data", expected)),
     };
-    let frame = if remote {
-        Frame::remote(id, dlc)
-    } else {
-        let data = hex_bytes(data_text).ok_or_else(|| field("the data", "hexadecimal"))?;
-        Frame::data(id, &data)
-    }
-    .map_err(frame_error)?;
+    let data = hex_bytes(data_text).ok_or_else(|| field("the data", "hexadecimal"))?;
     let timestamp_ms = match stamp {
         None => None,
         Some(text) => Some(
@@ -400,7 +511,7 @@ fn parse_frame(line: &[u8]) -> Result<(Frame, Option<u16>), CodecError> {
                 as u16,
         ),
     };
-    Ok((frame, timestamp_ms))
+    Ok((data, timestamp_ms))
 }
 
 /// Appends a command with its CR.
@@ -418,6 +529,11 @@ pub fn format_command(command: &Command, out: &mut Vec<u8>) {
             format_frame(frame, None, out);
             Ok(())
         }
+        Command::TransmitFd(frame) => {
+            format_fd_frame(frame, None, out);
+            Ok(())
+        }
+        Command::DataBitrate(code) => write!(out, "Y{code}"),
         Command::Status => write!(out, "F"),
         Command::Version => write!(out, "V"),
         Command::DetailedVersion => write!(out, "v"),
@@ -447,6 +563,10 @@ pub fn format_reply(reply: &Reply, out: &mut Vec<u8>) {
             frame,
             timestamp_ms,
         } => format_frame(frame, *timestamp_ms, out),
+        Reply::FdFrame {
+            frame,
+            timestamp_ms,
+        } => format_fd_frame(frame, *timestamp_ms, out),
         Reply::Status(flags) => {
             out.push(b'F');
             push_hex(out, u32::from(flags.0), 2);
@@ -492,6 +612,30 @@ pub fn format_frame(frame: &Frame, timestamp_ms: Option<u16>, out: &mut Vec<u8>)
     }
 }
 
+/// An FD frame's text without a terminator: `d1233112233`, `B1ABCDEF09` followed by 12 bytes,
+/// and the timestamp (taken modulo 60000) when given. ESI has no spelling and is left out.
+pub fn format_fd_frame(frame: &FdFrame, timestamp_ms: Option<u16>, out: &mut Vec<u8>) {
+    let kind = match (frame.brs(), frame.is_extended()) {
+        (false, false) => b'd',
+        (false, true) => b'D',
+        (true, false) => b'b',
+        (true, true) => b'B',
+    };
+    out.push(kind);
+    push_hex(
+        out,
+        frame.id().as_raw(),
+        if frame.is_extended() { 8 } else { 3 },
+    );
+    push_hex(out, u32::from(frame.dlc()), 1);
+    for &b in frame.payload() {
+        push_hex(out, u32::from(b), 2);
+    }
+    if let Some(t) = timestamp_ms {
+        push_hex(out, u32::from(t % TIMESTAMP_WRAP_MS), 4);
+    }
+}
+
 fn push_hex(out: &mut Vec<u8>, value: u32, digits: u32) {
     const HEX: &[u8; 16] = b"0123456789ABCDEF";
     for i in (0..digits).rev() {
@@ -508,9 +652,9 @@ fn hex_value(text: &[u8]) -> Option<u32> {
         .try_fold(0u32, |acc, &d| Some(acc << 4 | char::from(d).to_digit(16)?))
 }
 
-/// Pairs of hex digits as bytes (at most 8 bytes).
+/// Pairs of hex digits as bytes (at most 64 bytes, an FD frame's).
 fn hex_bytes(text: &[u8]) -> Option<Vec<u8>> {
-    if !text.len().is_multiple_of(2) || text.len() > 16 {
+    if !text.len().is_multiple_of(2) || text.len() > 128 {
         return None;
     }
     text.chunks(2)
@@ -642,13 +786,61 @@ mod tests {
         );
         assert_eq!(command("Z1"), Timestamps(true));
         assert_eq!(command("MFFFFFFFF"), AcceptanceCode(0xFFFF_FFFF));
+        assert_eq!(command("Y2"), DataBitrate(2));
+    }
+
+    /// What python-can 4.6.1's slcan interface writes for FD messages (its `send`: the FD
+    /// DLC as one hex digit, `b`/`B` with bitrate_switch) and reads back.
+    #[test]
+    fn python_can_fd_lines_parse_both_ways() {
+        let fd = |text: &str| -> FdFrame { text.parse().unwrap() };
+        for (line, want) in [
+            ("d1233112233", fd("123##0112233")),
+            ("b1233112233", fd("123##1112233")),
+            ("D1ABCDEF00", fd("1ABCDEF0##0")),
+            (
+                "B1ABCDEF09112233445566778899AABBCC",
+                fd("1ABCDEF0##1112233445566778899AABBCC"),
+            ),
+            (
+                &format!("d7FFF{}", "5A".repeat(64)),
+                fd(&format!("7FF##0{}", "5A".repeat(64))),
+            ),
+        ] {
+            assert_eq!(command(line), Command::TransmitFd(want), "{line}");
+            let mut out = Vec::new();
+            format_command(&Command::TransmitFd(want), &mut out);
+            assert_eq!(out, format!("{line}\r").as_bytes());
+            assert_eq!(
+                parse_reply(line.as_bytes(), false),
+                Ok(Reply::FdFrame {
+                    frame: want,
+                    timestamp_ms: None
+                })
+            );
+        }
+        // Lower-case hex in, a timestamp after the data from an adapter with Z1.
         assert_eq!(
-            command("Y2"),
-            Other {
-                letter: b'Y',
-                argument: "2".into()
-            }
+            parse_reply(b"b123911223344556677889900aabbEA5F", false),
+            Ok(Reply::FdFrame {
+                frame: fd("123##111223344556677889900AABB"),
+                timestamp_ms: Some(59_999)
+            })
         );
+        // ESI has no SLCAN spelling: it is left out.
+        let mut out = Vec::new();
+        format_fd_frame(&fd("123##3AA"), None, &mut out);
+        assert_eq!(out, b"b1231AA");
+        // The longest line fits in MAX_LINE.
+        let mut out = Vec::new();
+        format_reply(
+            &Reply::FdFrame {
+                frame: fd(&format!("1FFFFFFF##1{}", "00".repeat(64))),
+                timestamp_ms: Some(0),
+            },
+            &mut out,
+        );
+        assert_eq!(out.len(), MAX_LINE + 1);
     }
 
     #[test]
@@ -676,6 +868,9 @@ mod tests {
             "R000000000",
             "X1",
             "U1",
+            "Y5",
+            "d1230",
+            "B1FFFFFFFF00112233445566778899AABBCCDDEEFF00112233445566778899AABBCCDDEEFF00112233445566778899AABBCCDDEEFF00112233445566778899AABBCCDDEEFF",
             "",
         ] {
             let mut out = Vec::new();
@@ -746,7 +941,18 @@ mod tests {
             ("t1232AA", "2 hex digits per byte of the DLC"),
             ("t1231GG", "the data must be hexadecimal"),
             ("T2000000000", "extended ID 0x20000000 is out of range"),
-            ("d1231AA", "CAN FD frames"),
+            (
+                "d1239AA",
+                "the data must be 2 hex digits per byte of the FD DLC's length",
+            ),
+            ("d123G", "the FD DLC must be one hex digit 0..F"),
+            ("b12", "3 hex digits of ID and a DLC digit"),
+            ("D20000000000", "extended ID 0x20000000 is out of range"),
+            (
+                "Y6",
+                "the data bit rate code must be one of 0, 1, 2, 3, 4, 5, 8",
+            ),
+            ("Y", "the data bit rate code"),
             ("Z2", "the timestamp switch must be 0 or 1"),
             ("M123", "8 hex digits"),
             ("?", "unknown command letter '?'"),

@@ -51,6 +51,9 @@ pub struct Plan {
     pub bitrate: Option<(u32, Option<Command>)>,
     /// Open with `L` (receive only).
     pub listen_only: bool,
+    /// The CAN FD data bit rate code to set (`Yn`, [`crate::codec::DATA_BITRATES`]); `None`
+    /// keeps what the adapter has.
+    pub data_bitrate: Option<u8>,
 }
 
 /// What the adapter did with the acceptance code and mask (`M`/`m`, Lawicel's SJA1000 ACR
@@ -225,13 +228,16 @@ impl Handshake {
             return None;
         }
         if self.open {
-            return Some(reply).filter(|r| matches!(r, Reply::Frame { .. }));
+            return Some(reply)
+                .filter(|r| matches!(r, Reply::Frame { .. } | Reply::FdFrame { .. }));
         }
         let purpose = self.current.as_ref().map(|s| s.purpose);
         let firmware = match reply {
             Reply::Version(v) => Firmware::Lawicel(v),
             Reply::FirmwareText(t) => Firmware::Text(t),
-            Reply::Frame { .. } if purpose == Some(Purpose::Open) && !self.settling => {
+            Reply::Frame { .. } | Reply::FdFrame { .. }
+                if purpose == Some(Purpose::Open) && !self.settling =>
+            {
                 return Some(reply);
             }
             Reply::Ok | Reply::Error if !self.settling && purpose != Some(Purpose::Sync) => {
@@ -397,6 +403,14 @@ impl Handshake {
                 command,
             });
         }
+        // After the nominal rate, as python-can sends it; refused (BEL) by an adapter that
+        // knows no FD, which fails the opening as a refused bit rate does.
+        if let Some(code) = self.plan.data_bitrate {
+            self.steps.push_back(Step {
+                purpose: Purpose::Bitrate,
+                command: Command::DataBitrate(code),
+            });
+        }
         if let (Some((code, mask)), Some(Firmware::Lawicel(_))) = (self.acceptance, &self.firmware)
         {
             for command in [Command::AcceptanceMask(mask), Command::AcceptanceCode(code)] {
@@ -460,6 +474,7 @@ mod tests {
                 (b, Some(Command::Bitrate(code as u8)))
             }),
             listen_only,
+            data_bitrate: None,
         }
     }
 

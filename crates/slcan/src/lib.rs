@@ -37,9 +37,9 @@ pub use adapter::{Adapter, AdapterEvent, ErrorLevel, Identity, MAX_OUTPUT, Mode,
 pub use client::{BTR_CLOCK_HZ, SlcanBus, SlcanError, SlcanOptions, bitrate_command};
 pub use clock::DeviceClock;
 pub use codec::{
-    BEL, CR, CodecError, Command, Line, LineSplitter, MAX_LINE, MAX_REPLY_LINE, Reply,
-    STANDARD_BITRATES, StatusFlags, format_command, format_frame, format_reply, parse_command,
-    parse_reply,
+    BEL, CR, CodecError, Command, DATA_BITRATES, Line, LineSplitter, MAX_LINE, MAX_REPLY_LINE,
+    Reply, STANDARD_BITRATES, StatusFlags, data_bitrate, format_command, format_fd_frame,
+    format_frame, format_reply, parse_command, parse_reply,
 };
 pub use handshake::{AcceptanceAnswer, Firmware, Handshake, HandshakeError, Plan};
 pub use serve::{INPUT_QUEUE, Input, serve};

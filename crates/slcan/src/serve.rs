@@ -9,7 +9,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
 use std::time::{Duration, Instant};
 
 use buslab_bus::ErrorFrame;
-use buslab_can::{Frame, Nanos};
+use buslab_can::{FdFrame, Frame, Nanos};
 use nix::errno::Errno;
 use nix::poll::{PollFd, PollFlags, PollTimeout, poll};
 
@@ -22,6 +22,8 @@ pub enum Input {
     Host(Vec<u8>),
     /// A frame the adapter received from the bus.
     Frame(Frame),
+    /// A CAN FD frame the adapter received from the bus (see [`Adapter::deliver_fd`]).
+    Fd(FdFrame),
     /// An error frame of the adapter's own controller (see [`Adapter::controller_error`]).
     Error(ErrorFrame),
 }
@@ -64,6 +66,9 @@ pub fn serve(
                     Ok(Input::Host(bytes)) => adapter.receive(&bytes),
                     Ok(Input::Frame(frame)) => {
                         adapter.deliver(&frame, Nanos::from(epoch.elapsed()))
+                    }
+                    Ok(Input::Fd(frame)) => {
+                        adapter.deliver_fd(&frame, Nanos::from(epoch.elapsed()))
                     }
                     Ok(Input::Error(error)) => adapter.controller_error(&error),
                     Err(RecvTimeoutError::Timeout) => {}

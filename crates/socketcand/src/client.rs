@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::bus::Human;
 use buslab_bus::{
-    BusAdmin, BusError, BusOffRecovery, CanBus, ControllerSettings, ErrorState, Filter, Message,
-    NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
+    BusAdmin, BusError, BusOffRecovery, CanBus, ControllerSettings, ErrorState, FdSupport, Filter,
+    Message, NoFd, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
 };
 use buslab_can::Frame;
 
@@ -563,6 +563,17 @@ enum Pumped {
 }
 
 impl CanBus for SocketcandBus {
+    /// Never: socketcand's protocol has no FD frames (an unmerged branch of socketcand adds
+    /// `< sendfd … >` without flags; docs/decisions.md), and a buslab server's bus is the
+    /// bit-level one, classic CAN. [`CanBus::send_fd`] refuses with this reason.
+    fn fd_support(&self) -> FdSupport {
+        FdSupport::Classic(if self.extensions {
+            NoFd::BitLevelBus
+        } else {
+            NoFd::Socketcand
+        })
+    }
+
     fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
         self.write(&Command::Send(*frame))?;
         self.sent += 1;

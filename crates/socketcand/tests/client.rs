@@ -331,3 +331,52 @@ fn garbage_in_a_status_reply_is_an_error_naming_the_key() {
         "{reason:?}"
     );
 }
+
+#[test]
+fn fd_frames_are_refused_with_the_reason_and_nothing_is_sent() {
+    use buslab_bus::{BusError, NoFd};
+    let fd: buslab_can::FdFrame = "123##1112233445566778899AABBCC".parse().unwrap();
+    for (plain, why) in [(false, NoFd::BitLevelBus), (true, NoFd::Socketcand)] {
+        let fake = Fake::start(plain, |_| String::new());
+        let mut bus = fake.client();
+        assert!(!bus.fd_support().carried());
+        let err = bus.send_fd(&fd).unwrap_err();
+        let BusError::ClassicOnly {
+            bus: name,
+            why: got,
+        } = &err
+        else {
+            panic!("{err:?}");
+        };
+        assert_eq!(*got, why);
+        assert_eq!(*name, bus.channel_info());
+        let text = err.to_string();
+        assert!(
+            text.starts_with(&format!(
+                "socketcand://{}/vcan0 is classic CAN: ",
+                fake.addr
+            )),
+            "{text}"
+        );
+        // A classic frame after it goes out alone: the FD frame left nothing on the wire.
+        bus.send(&frame("100#")).unwrap();
+        drop(bus);
+        // The server has read everything once its thread ended.
+        let seen = fake.seen.clone();
+        drop(fake);
+        let seen = seen.lock().unwrap().clone();
+        let sent: Vec<&Command> = seen
+            .iter()
+            .filter(|c| !matches!(c, Command::Open(_) | Command::RawMode | Command::Extensions))
+            .collect();
+        assert_eq!(sent, [&Command::Send(frame("100#"))], "plain={plain}");
+    }
+    let fake = Fake::start(false, |_| String::new());
+    assert_eq!(
+        fake.client().send_fd(&fd).unwrap_err().to_string(),
+        format!(
+            "socketcand://{}/vcan0 is classic CAN: buslab's bit-level bus carries no FD frames (its engine, SJA1000 and SLIO nodes are classic CAN)",
+            fake.addr
+        )
+    );
+}

@@ -6,15 +6,20 @@
 //! (socketcand clients do not get their own frames, a SocketCAN socket does not receive what
 //! it sent, an SLCAN adapter does not echo), so a frame from A sent to B is never seen on B's
 //! side of the bridge. Bridging a bus to itself is refused.
+//!
+//! CAN FD frames are copied to a bus that carries FD (a SocketCAN interface with MTU 72, an
+//! SLCAN adapter opened with `fd=1`); a classic destination (buslab's bit-level bus,
+//! socketcand, an interface with MTU 16) cannot take them: they are counted, the reason is
+//! said once per destination, and the count is shown when the bridge stops.
 
-use std::sync::atomic::Ordering;
-use std::sync::mpsc;
+use std::collections::HashSet;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
 use anyhow::bail;
 use buslab_backends::{BusUrl, FilterItem, Pump, PumpEvent, TrySendError, filter_set, resolve};
-use buslab_can::Frame;
-use buslab_canbus::{Filter, Record};
+use buslab_canbus::{BusError, CanBus, Filter, Record};
 
 use super::busopt::open;
 
@@ -46,6 +51,41 @@ enum Way {
     BtoA,
 }
 
+/// CAN FD frames a destination could not take: counted, each reason said once.
+#[derive(Default)]
+struct FdRefusals {
+    count: AtomicU64,
+    said: Mutex<HashSet<String>>,
+}
+
+impl FdRefusals {
+    /// One FD frame from `from` that `refusal` (the destination's words) kept out.
+    fn refused(&self, from: &BusUrl, refusal: &str) {
+        self.count.fetch_add(1, Ordering::Relaxed);
+        let first = self
+            .said
+            .lock()
+            .map(|mut said| said.insert(refusal.to_string()))
+            .unwrap_or(false);
+        if first {
+            tracing::warn!(
+                "CAN FD frames from {from} are not bridged: {refusal} (counted; the count is shown when the bridge stops)"
+            );
+        }
+    }
+}
+
+/// Why `bus` cannot take FD frames, in its words; `None` when it can.
+fn fd_refusal(bus: &dyn CanBus, url: &BusUrl) -> Option<String> {
+    bus.fd_support().classic_reason().map(|why| {
+        BusError::ClassicOnly {
+            bus: url.to_string(),
+            why: why.clone(),
+        }
+        .to_string()
+    })
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.a == args.b {
         bail!(
@@ -68,24 +108,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // B's traffic is not wanted: nothing kept for it.
         b.set_filters(&[Filter::NONE])?;
     }
-    // Frames go through this thread: each pump hands what it receives over, tagged.
-    let (tx, frames) = mpsc::sync_channel::<(Way, Frame)>(buslab_backends::pump::QUEUE);
+    // Why each side cannot take FD frames, if it cannot.
+    let (a_refuses_fd, b_refuses_fd) = (
+        fd_refusal(a.as_ref(), &args.a),
+        fd_refusal(b.as_ref(), &args.b),
+    );
+    let fd_refusals = Arc::new(FdRefusals::default());
+    // Frames (classic or FD) go through this thread: each pump hands what it receives over,
+    // tagged.
+    let (tx, frames) = mpsc::sync_channel::<(Way, Record)>(buslab_backends::pump::QUEUE);
     let pump = |name: &str, bus, way: Way| {
         let tx = tx.clone();
         let stop = stop.clone();
-        let url = match way {
-            Way::AtoB => args.a.clone(),
-            Way::BtoA => args.b.clone(),
+        let fd_refusals = fd_refusals.clone();
+        // This pump's bus, and the one whose frames it sends.
+        let (url, from) = match way {
+            Way::AtoB => (args.a.clone(), args.b.clone()),
+            Way::BtoA => (args.b.clone(), args.a.clone()),
         };
         Pump::spawn(name, bus, move |event| match event {
             PumpEvent::Received(m) => match m.record {
-                Record::Frame(frame) => tx.send((way, frame)).is_ok(),
-                Record::Fd(frame) => {
-                    tracing::warn!("{url}: CAN FD frame {frame} not bridged (classic frames only)");
-                    true
-                }
+                record @ (Record::Frame(_) | Record::Fd(_)) => tx.send((way, record)).is_ok(),
                 Record::Error(_) => true,
             },
+            // An FD frame the bus found it could not carry after all (an interface whose MTU
+            // went down to 16): counted with the others.
+            PumpEvent::SendFailed {
+                frame: Record::Fd(_),
+                error: error @ BusError::ClassicOnly { .. },
+            } => {
+                fd_refusals.refused(&from, &error.to_string());
+                true
+            }
             PumpEvent::SendFailed { frame, error } => {
                 tracing::warn!("{url} refused {frame}: {error}");
                 true
@@ -101,7 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let pump_b = pump("bridge-b", b, Way::BtoA)?;
     drop(tx);
     tracing::info!(
-        "bridge: {} {} {}{}",
+        "bridge: {} {} {}{}{}",
         args.a,
         if args.one_way { "->" } else { "<->" },
         args.b,
@@ -110,24 +164,45 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } else {
             let shown: Vec<String> = filters.ids.iter().map(ToString::to_string).collect();
             format!(" (frames passing {})", shown.join(","))
+        },
+        match (&a_refuses_fd, &b_refuses_fd) {
+            (None, None) => ", CAN FD both ways",
+            (Some(_), Some(_)) => ", classic CAN",
+            _ => ", CAN FD one way",
         }
     );
     let (mut a_to_b, mut b_to_a, mut filtered, mut dropped) = (0u64, 0u64, 0u64, 0u64);
     while !stop.load(Ordering::SeqCst) && args.count.is_none_or(|n| a_to_b + b_to_a < n) {
-        let (way, frame) = match frames.recv_timeout(Duration::from_millis(100)) {
+        let (way, record) = match frames.recv_timeout(Duration::from_millis(100)) {
             Ok(got) => got,
             Err(mpsc::RecvTimeoutError::Timeout) => continue,
             Err(mpsc::RecvTimeoutError::Disconnected) => break,
         };
-        if !filters.passes(&frame) {
+        let passes = match &record {
+            Record::Frame(frame) => filters.passes(frame),
+            Record::Fd(frame) => filters.passes_fd(frame),
+            Record::Error(_) => false,
+        };
+        if !passes {
             filtered += 1;
             continue;
         }
+        if way == Way::BtoA && args.one_way {
+            continue;
+        }
+        let (to, from, refusal) = match way {
+            Way::AtoB => (&pump_b, &args.a, &b_refuses_fd),
+            Way::BtoA => (&pump_a, &args.b, &a_refuses_fd),
+        };
         // Never blocks: this thread also drains what both pumps receive.
-        let sent = match way {
-            Way::AtoB => pump_b.try_send(frame),
-            Way::BtoA if args.one_way => continue,
-            Way::BtoA => pump_a.try_send(frame),
+        let sent = match &record {
+            Record::Fd(_) if let Some(refusal) = refusal => {
+                fd_refusals.refused(from, refusal);
+                continue;
+            }
+            Record::Fd(frame) => to.try_send_fd(*frame),
+            Record::Frame(frame) => to.try_send(*frame),
+            Record::Error(_) => continue,
         };
         match sent {
             Ok(()) if way == Way::AtoB => a_to_b += 1,
@@ -146,15 +221,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Err(TrySendError::Stopped(_)) => break,
         }
         tracing::debug!(
-            "{frame} {}",
+            "{record} {}",
             if way == Way::AtoB { "A -> B" } else { "B -> A" }
         );
     }
     // Dropping the pumps sends what is queued.
     drop(pump_a);
     drop(pump_b);
+    let fd_refused = fd_refusals.count.load(Ordering::Relaxed);
     tracing::info!(
-        "bridge: stopped; {a_to_b} frames A -> B, {b_to_a} B -> A, {filtered} held back by the filter, {dropped} dropped (a bus too slow)"
+        "bridge: stopped; {a_to_b} frames A -> B, {b_to_a} B -> A, {filtered} held back by the filter, {dropped} dropped (a bus too slow), {fd_refused} CAN FD frames not bridged (classic destination)"
     );
+    if fd_refused > 0 {
+        tracing::warn!(
+            "bridge: {fd_refused} CAN FD frames were not bridged: their destination is classic CAN"
+        );
+    }
     Ok(())
 }

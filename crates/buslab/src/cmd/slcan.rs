@@ -1,6 +1,11 @@
 //! `buslab slcan serve`: an SLCAN (Lawicel) USB adapter model on a pseudo-terminal, plugged
 //! into any bus buslab can open. python-can's `interface='slcan'` and Linux's `slcand` use
 //! the PTY as if an adapter were plugged in.
+//!
+//! On a bus that carries CAN FD (a SocketCAN interface with MTU 72, an FD SLCAN adapter) the
+//! adapter is a CANable 2.0's kind: FD frames (`d`, `D`, `b`, `B`) and data bit rates (`Yn`)
+//! pass both ways. On a classic bus (buslab's bit-level bus, socketcand) it is a CANUSB's
+//! kind: the host's FD frames are answered BEL, said once with the bus's reason, and counted.
 
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -63,6 +68,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let url = args.bus.clone();
     let mut bus = open(&url)?;
+    // The adapter speaks FD exactly when its bus carries FD.
+    let no_fd = bus.fd_support().classic_reason().map(|why| {
+        BusError::ClassicOnly {
+            bus: url.to_string(),
+            why: why.clone(),
+        }
+        .to_string()
+    });
     // The adapter's controller tells its host its state (`F`, BEL when bus-off).
     if let Err(e) = bus.set_error_frames(true) {
         tracing::debug!("no error frames from {url}: {e}");
@@ -80,12 +93,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         Pump::spawn("slcan-bus", bus, move |event| match event {
             PumpEvent::Received(m) => match m.record {
                 Record::Frame(frame) => feed.send(Input::Frame(frame)).is_ok(),
-                Record::Fd(frame) => {
-                    tracing::warn!(
-                        "CAN FD frame {frame} not passed to the SLCAN adapter (classic frames only)"
-                    );
-                    true
-                }
+                Record::Fd(frame) => feed.send(Input::Fd(frame)).is_ok(),
                 Record::Error(error) => feed.send(Input::Error(error)).is_ok(),
             },
             PumpEvent::SendFailed { frame, error } => {
@@ -103,51 +111,85 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     // The first line on stdout: what clients open (scripts and tests read it).
     println!("{}", shown.display());
     tracing::info!(
-        "slcan serve: an SLCAN adapter on {} (PTY {}), plugged into {url}",
+        "slcan serve: an SLCAN adapter on {} (PTY {}), plugged into {url}{}",
         shown.display(),
-        pty.path().display()
+        pty.path().display(),
+        if no_fd.is_none() { ", CAN FD" } else { "" }
     );
     let mut adapter = Adapter::new(Identity {
         serial: args.serial,
         ..Identity::default()
-    });
+    })
+    .with_fd(no_fd.is_none());
     let to_bus = pump.sender();
-    let mut garbage = 0u64;
+    let mut tally = Tally {
+        no_fd,
+        ..Tally::default()
+    };
     let result = buslab_slcan::serve(
         std::os::fd::AsFd::as_fd(&pty),
         &mut adapter,
         feed,
         inputs,
-        |event| on_adapter_event(event, &to_bus, &mut garbage),
+        |event| on_adapter_event(event, &to_bus, &mut tally),
         &stop,
     );
     drop(pump);
     tracing::info!(
-        "slcan serve: stopped ({garbage} bad lines answered with BEL, {} frames the host did not read in time)",
+        "slcan serve: stopped ({} bad lines answered with BEL, {} CAN FD frames refused, {} frames the host did not read in time)",
+        tally.garbage,
+        tally.refused_fd,
         adapter.dropped()
     );
     Ok(result?)
 }
 
+/// What the serve loop counts of the host's doings, and why the bus refuses FD (if it does).
+#[derive(Default)]
+struct Tally {
+    garbage: u64,
+    refused_fd: u64,
+    no_fd: Option<String>,
+}
+
+/// A frame, classic or FD, handed to the bus without blocking (the pump may be waiting for
+/// this loop to take what it received).
+fn to_bus(frame: impl std::fmt::Display, sent: Result<(), TrySendError>) {
+    match sent {
+        Ok(()) => {}
+        Err(TrySendError::Full) => {
+            tracing::warn!("{frame} dropped: the host sends faster than the bus takes frames")
+        }
+        Err(TrySendError::Stopped(_)) => tracing::warn!("{frame} not sent: the bus is gone"),
+    }
+}
+
 /// What the host asked of the adapter, carried out on the bus.
-fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
+fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, tally: &mut Tally) {
     match event {
-        // Never blocks: the pump may be waiting for this loop to take what it received.
-        AdapterEvent::Transmit(frame) => match bus.try_send(frame) {
-            Ok(()) => {}
-            Err(TrySendError::Full) => {
-                tracing::warn!("{frame} dropped: the host sends faster than the bus takes frames")
+        AdapterEvent::Transmit(frame) => to_bus(frame, bus.try_send(frame)),
+        AdapterEvent::TransmitFd(frame) => to_bus(frame, bus.try_send_fd(frame)),
+        AdapterEvent::RefusedFd(frame) => {
+            tally.refused_fd += 1;
+            if tally.refused_fd == 1 {
+                tracing::warn!(
+                    "the host sends CAN FD frames (first {frame}): answered BEL, as a classic adapter does: {} (counted; the count is shown at the end)",
+                    tally.no_fd.as_deref().unwrap_or("the bus is classic CAN")
+                );
             }
-            Err(TrySendError::Stopped(_)) => tracing::warn!("{frame} not sent: the bus is gone"),
-        },
+        }
         AdapterEvent::Opened {
             listen_only,
             timing,
+            data_bitrate,
         } => {
             tracing::info!(
-                "the host opened the adapter{}{}",
+                "the host opened the adapter{}{}{}",
                 if listen_only { " listen-only" } else { "" },
-                timing.map_or(String::new(), |t| format!(" ({})", describe(t)))
+                timing.map_or(String::new(), |t| format!(" ({})", describe(t))),
+                data_bitrate.map_or(String::new(), |r| format!(
+                    ", CAN FD data phase at {r} bit/s (as the bus runs it)"
+                ))
             );
             let host = timing.map(describe);
             // On buslab's bus the adapter's node takes the host's timing: a bit rate that
@@ -178,8 +220,8 @@ fn on_adapter_event(event: AdapterEvent, bus: &PumpSender, garbage: &mut u64) {
             "acceptance filter M{code:08X} m{mask:08X} is not modelled: the adapter delivers every frame"
         ),
         AdapterEvent::Garbage(e) => {
-            *garbage += 1;
-            if *garbage == 1 {
+            tally.garbage += 1;
+            if tally.garbage == 1 {
                 tracing::warn!("answered BEL to a bad line from the host: {e} (more at -v)");
             } else {
                 tracing::debug!("answered BEL: {e}");

@@ -7,7 +7,7 @@
 //! | `Canable` | normaldotcom/canable-fw and canable2-fw: **nothing** but `V` (`<git describe> <repository>`); an empty line runs the previous command again; `M1` silent mode, no `L`, `S7` = 750k |
 //! | `CanableAcking` | the same firmware with its CR/BEL answers on (a 2019 variant): CR or BEL to every line, `V`'s text then CR |
 //! | `Canable2Fork` | Nakakiyo092/canable2-fw: Lawicel-like, `V` answered `VL2K0 <describe> <repository>`, CR to an empty line, `N1A2B` |
-//! | `Model` | buslab's own `buslab_slcan::Adapter` |
+//! | `Model` | buslab's own `buslab_slcan::Adapter` (with CAN FD after `speak_fd`) |
 //!
 //! A fake can hold its answer to `C` (and a frame queued before it) until the host writes
 //! again, as an adapter whose output was still queued when the session closed the port: the
@@ -84,6 +84,7 @@ impl Firmware {
                     AdapterEvent::Opened {
                         listen_only,
                         timing,
+                        ..
                     } => {
                         self.seen.open = true;
                         self.seen.silent = listen_only;
@@ -96,6 +97,7 @@ impl Firmware {
                     }
                     AdapterEvent::Closed => self.seen.open = false,
                     AdapterEvent::Transmit(f) => self.seen.transmitted.push(f.to_string()),
+                    AdapterEvent::TransmitFd(f) => self.seen.transmitted.push(f.to_string()),
                     _ => {}
                 }
             }
@@ -336,6 +338,14 @@ impl FakeAdapter {
     /// the session that closes the channel leaves them for the next one.
     pub fn hold_close_answers(&self) {
         self.firmware.lock().unwrap().hold_close = true;
+    }
+
+    /// The model speaks CAN FD (a CANable 2.0's kind) from now on.
+    #[allow(dead_code)] // not every test file has an FD adapter
+    pub fn speak_fd(&self) {
+        let mut fw = self.firmware.lock().unwrap();
+        assert_eq!(fw.kind, Kind::Model, "only the model speaks FD");
+        fw.model = Adapter::default().with_fd(true);
     }
 
     /// Each answer written on its own, a millisecond apart.
