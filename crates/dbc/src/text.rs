@@ -1,6 +1,6 @@
 //! Decoded signals as people read them, in cantools' spelling: `Name(Signal: value unit, …)`
 //! on one line, or one signal per line with `{:#}`. A value with a label in the value table
-//! shows the label in quotes; a number keeps the integer/float distinction of the database
+//! shows the label alone, as cantools 45 prints it (`Enable: Enabled`); a number keeps the integer/float distinction of the database
 //! (an integer signal with an integer factor and offset prints without a decimal point).
 
 use std::fmt;
@@ -8,7 +8,7 @@ use std::fmt;
 use crate::message::{Decoded, Message};
 use crate::signal::{Signal, ValueKind};
 
-/// A signal's value as text: `'Label'`, or the number with its unit.
+/// A signal's value as text: its label, or the number with its unit.
 pub struct Value<'a> {
     pub signal: &'a Signal,
     pub decoded: Decoded,
@@ -17,7 +17,7 @@ pub struct Value<'a> {
 impl fmt::Display for Value<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if let Some(label) = self.signal.choice(self.decoded.raw) {
-            return write!(f, "'{label}'");
+            return f.write_str(label);
         }
         write!(f, "{}", Number::of(self.signal, self.decoded.physical))?;
         if !self.signal.unit().is_empty() {
@@ -119,11 +119,11 @@ VAL_ 496 Enable 0 "Disabled" -1 "Enabled" ;
         };
         assert_eq!(
             decoded.to_string(),
-            "ExampleMessage(Enable: 'Enabled', AverageRadius: 0.0 m, Temperature: 255.92 degK)"
+            "ExampleMessage(Enable: Enabled, AverageRadius: 0.0 m, Temperature: 255.92 degK)"
         );
         assert_eq!(
             format!("{decoded:#}"),
-            "ExampleMessage(\n    Enable: 'Enabled',\n    AverageRadius: 0.0 m,\n    Temperature: 255.92 degK\n)"
+            "ExampleMessage(\n    Enable: Enabled,\n    AverageRadius: 0.0 m,\n    Temperature: 255.92 degK\n)"
         );
     }
 }
