@@ -855,3 +855,53 @@ fn a_bridge_flooded_both_ways_keeps_copying() {
         }
     }
 }
+
+/// `buslab send` with can-utils' FD syntax and with an FD message of a database: on an FD bus
+/// the frames go out as FD frames; buslab's own bus (classic) refuses them, naming itself.
+#[test]
+fn send_writes_fd_frames_on_an_fd_bus_and_a_classic_bus_refuses_them_by_name() {
+    let fd_bus = FdBus::start();
+    let dir = tempfile::tempdir().unwrap();
+    let dbc = dir.path().join("fd.dbc");
+    std::fs::write(
+        &dbc,
+        "BO_ 2147484304 Wide: 12 X\n SG_ Tail : 88|8@1+ (1,0) [0|255] \"\" X\n",
+    )
+    .unwrap();
+    let url = format!("slcan:{}?fd=1", fd_bus.path.display());
+    let out = buslab()
+        .args(["send", &url, "123##1AABB", "124#01"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    use buslab_slcan::AdapterEvent::{Transmit, TransmitFd};
+    assert_eq!(fd_bus.next_frame_event(), TransmitFd(fd("123##1AABB")));
+    assert_eq!(fd_bus.next_frame_event(), Transmit(frame("124#01")));
+    let out = buslab()
+        .args(["send", "--dbc"])
+        .arg(&dbc)
+        .args([&url, "Wide", "Tail=42"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        fd_bus.next_frame_event(),
+        TransmitFd(fd(&format!("00000290##0{}2A", "00".repeat(11))))
+    );
+    let serve = Serve::start(500_000);
+    let out = buslab()
+        .args(["send", "--bus", &serve.url, "123##1AABB"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("classic CAN"), "{err}");
+}

@@ -9,7 +9,8 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use buslab_backends::{BusUrl, resolve};
-use buslab_can::Frame;
+use buslab_can::{FD_LENGTHS, FdFrame, Frame};
+use buslab_logs::Record;
 
 use super::busopt::{admin, confirm_sent, open, set_name};
 
@@ -20,7 +21,8 @@ pub struct Args {
     #[arg(long, value_name = "BUS", value_parser = resolve)]
     pub bus: Option<BusUrl>,
     /// `[IFACE] FRAME…`: the interface as cansend takes it (vcan0, can0, /dev/ttyACM0 or a
-    /// URL), then frames in can-utils syntax: 123#DEADBEEF, 1F334455#, 123#R, 00000123#R3.
+    /// URL), then frames in can-utils syntax: 123#DEADBEEF, 1F334455#, 123#R, 00000123#R3,
+    /// CAN FD 123##1112233 (flags digit: BRS 1, ESI 2; on a bus that carries FD).
     /// With --dbc also messages by name, each followed by its SIGNAL=VALUE (a number in the
     /// signal's unit, or a label of its value table); signals left out are sent as 0.
     #[arg(required_unless_present = "jerrycan", value_name = "[IFACE] FRAME")]
@@ -58,7 +60,7 @@ pub fn parse_btr(text: &str) -> Result<(u8, u8), String> {
 
 /// The bus and frames from `[IFACE] FRAME…` and `--bus`: a first word without `#` is the
 /// interface (with `--dbc`: unless it names a message, or `--bus` gives the bus).
-fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
+fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Record>)> {
     // A database is read first: a bad one is refused before anything else.
     let database = match &args.dbc.dbc {
         Some(path) => Some((path.as_path(), crate::dbc::load(path)?)),
@@ -106,14 +108,31 @@ fn bus_and_frames(args: &Args) -> anyhow::Result<(BusUrl, Vec<Frame>)> {
             .map(|f| parse_frame(f))
             .collect::<anyhow::Result<Vec<_>>>()?,
     };
-    frames.extend(args.jerrycan.iter().cloned());
+    frames.extend(args.jerrycan.iter().copied().map(Record::Frame));
     Ok((url, frames))
 }
 
-/// A frame in can-utils syntax, the error naming the word.
-fn parse_frame(word: &str) -> anyhow::Result<Frame> {
-    word.parse::<Frame>()
-        .with_context(|| format!("invalid value '{word}' for '[IFACE] FRAME'"))
+/// A frame in can-utils syntax, classic or FD (`##`), the error naming the word.
+fn parse_frame(word: &str) -> anyhow::Result<Record> {
+    let record = if word.contains("##") {
+        word.parse::<FdFrame>().map(Record::Fd)
+    } else {
+        word.parse::<Frame>().map(Record::Frame)
+    };
+    record.with_context(|| format!("invalid value '{word}' for '[IFACE] FRAME'"))
+}
+
+/// An FD frame carrying `payload`, padded with zeros to the next CAN FD length (a database may
+/// declare a length such as 10 that no FD frame has).
+fn fd_frame(id: buslab_can::Id, payload: &[u8]) -> anyhow::Result<FdFrame> {
+    let len = FD_LENGTHS
+        .iter()
+        .copied()
+        .find(|&l| l >= payload.len())
+        .with_context(|| format!("{} bytes: a CAN FD frame carries 64 at most", payload.len()))?;
+    let mut padded = payload.to_vec();
+    padded.resize(len, 0);
+    Ok(FdFrame::new(id, &padded)?)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -126,8 +145,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // Only this client's own frames matter now; what the bus carries is not kept.
     bus.set_filters(&[buslab_canbus::Filter::NONE])?;
-    for f in &frames {
-        bus.send(f)?;
+    for record in &frames {
+        match record {
+            Record::Frame(f) => bus.send(f)?,
+            Record::Fd(f) => bus.send_fd(f)?,
+            Record::Error(e) => bail!("{e}: an error frame is not sent"),
+        }
     }
     confirm_sent(&mut bus, url, frames.len() as u64, args.timeout)
 }

@@ -9,6 +9,7 @@ use std::path::Path;
 use anyhow::{Context, bail};
 use buslab_can::Frame;
 use buslab_dbc::{Database, Message, Signal};
+use buslab_logs::Record;
 
 use crate::dbc::{message_named, signal_named};
 
@@ -19,7 +20,7 @@ pub fn frames(
     path: &Path,
     words: &[String],
     iface: Option<&str>,
-) -> anyhow::Result<Vec<Frame>> {
+) -> anyhow::Result<Vec<Record>> {
     let mut frames = Vec::new();
     let mut pending: Option<Pending> = None;
     for word in words {
@@ -100,22 +101,24 @@ impl<'a> Pending<'a> {
         Ok(())
     }
 
-    /// The frame: the payload the database encodes, at the message's ID.
-    fn encode(self) -> anyhow::Result<Frame> {
+    /// The frame: the payload the database encodes, at the message's ID; a CAN FD frame for a
+    /// message the database sends as FD (`VFrameFormat`) or longer than 8 bytes, without BRS.
+    fn encode(self) -> anyhow::Result<Record> {
         let message = self.message;
-        if message.is_fd() || message.length() > 8 {
-            bail!(
-                "message {} is a CAN FD message ({} bytes): send writes classic CAN frames \
-                 (8 bytes at most)",
-                message.name(),
-                message.length()
-            );
-        }
         let payload = message.encode(&self.values)?;
-        let frame = Frame::data(message.id(), &payload)
-            .with_context(|| format!("message {}", message.name()))?;
-        tracing::info!("{} → {frame}", message.name());
-        Ok(frame)
+        let record = if message.is_fd() || payload.len() > 8 {
+            Record::Fd(
+                super::fd_frame(message.id(), &payload)
+                    .with_context(|| format!("message {}", message.name()))?,
+            )
+        } else {
+            Record::Frame(
+                Frame::data(message.id(), &payload)
+                    .with_context(|| format!("message {}", message.name()))?,
+            )
+        };
+        tracing::info!("{} → {record}", message.name());
+        Ok(record)
     }
 }
 
@@ -166,7 +169,7 @@ VAL_ 291 Mode 0 "Off" 1 "On" 2 "Eco" ;
         let words: Vec<String> = words.iter().map(|w| w.to_string()).collect();
         Ok(frames(&db, Path::new("car.dbc"), &words, None)?
             .iter()
-            .map(Frame::to_string)
+            .map(Record::to_string)
             .collect())
     }
 
@@ -243,9 +246,14 @@ VAL_ 291 Mode 0 "Off" 1 "On" 2 "Eco" ;
             error(&["Muxed", "Sel=0", "B=1"]),
             "Muxed.B is not sent when Sel = 0"
         );
+    }
+
+    #[test]
+    fn messages_longer_than_eight_bytes_are_sent_as_can_fd_frames() {
+        let sent = run(&["Wide", "X=171", "123##1AB"]).unwrap();
         assert_eq!(
-            error(&["Wide"]),
-            "message Wide is a CAN FD message (64 bytes): send writes classic CAN frames (8 bytes at most)"
+            sent,
+            [format!("401##0AB{}", "00".repeat(63)), "123##1AB".into()]
         );
     }
 }
