@@ -185,9 +185,30 @@ impl Browser {
             .to_string()
     }
 
+    /// Clicks `css`'s element. A page that is still growing (rows and panels appearing as
+    /// the bus is heard) can move it between chromedriver's scroll and its click; then the
+    /// click is tried again on the element where it now is, as a person clicks again.
     fn click(&self, css: &str) {
-        let id = self.find(css);
-        self.call("POST", &format!("/element/{id}/click"), json!({}));
+        const TRIES: usize = 50;
+        for _ in 0..TRIES {
+            let id = self.find(css);
+            let (status, text) = http(
+                self.driver,
+                "POST",
+                &format!("/session/{}/element/{id}/click", self.session),
+                "",
+                "{}",
+            );
+            if status == 200 {
+                return;
+            }
+            assert!(
+                text.contains("element click intercepted"),
+                "click {css}: {text}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        panic!("click {css}: another element was over it {TRIES} times in a row");
     }
 
     /// The browser's console messages since the last call that report a
