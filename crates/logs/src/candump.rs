@@ -292,12 +292,7 @@ fn parse_after_time(
     if i < n && !is_blank(line[i]) {
         return None;
     }
-    // Classic frames first: an FD frame costs them nothing but this branch.
     let text = &line[start..i];
-    let record = match fast_frame(text) {
-        Some(frame) => Record::Frame(frame),
-        None => Record::Fd(fast_fd_frame(text)?),
-    };
     while i < n && is_blank(line[i]) {
         i += 1;
     }
@@ -318,6 +313,11 @@ fn parse_after_time(
     } else {
         None
     };
+    // Classic frames first, stored in place: an FD frame costs them one branch.
+    match fast_frame(text) {
+        Some(frame) => entry.record = Record::Frame(frame),
+        None => entry.record = Record::Fd(fast_fd_frame(text)?),
+    }
     entry.at = Timestamp::since_epoch(Duration::new(secs, frac));
     // Mostly the same interface as the line before: then nothing to copy.
     if entry.channel.as_bytes() != interface {
@@ -327,7 +327,6 @@ fn parse_after_time(
             .channel
             .extend(interface.iter().map(|&b| char::from(b)));
     }
-    entry.record = record;
     entry.direction = direction;
     Some(())
 }
