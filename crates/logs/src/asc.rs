@@ -227,11 +227,11 @@ impl State {
                         let dlc = self.number(dlc, "a DLC")?;
                         if let Some(len) = fd_length_in_classic_line(dlc) {
                             // python-can 3's FD frames: `d 40` and 64 bytes.
-                            let data = self.bytes(rest, len)?;
+                            let data = self.bytes::<FD_MAX_LEN>(rest, len)?;
                             Record::Fd(FdFrame::new(id, &data[..len])?)
                         } else {
                             let len = usize::from(classic_dlc(dlc)?.1);
-                            let data = self.bytes(rest, len)?;
+                            let data = self.bytes::<8>(rest, len)?;
                             Record::Frame(Frame::data(id, &data[..len])?)
                         }
                     }
@@ -403,8 +403,9 @@ impl State {
         })
     }
 
-    fn bytes(&self, mut rest: &[u8], len: usize) -> Result<[u8; FD_MAX_LEN], Problem> {
-        let mut data = [0u8; FD_MAX_LEN];
+    /// `len` data bytes (at most `N`: 8 for a classic frame, 64 for an FD frame).
+    fn bytes<const N: usize>(&self, mut rest: &[u8], len: usize) -> Result<[u8; N], Problem> {
+        let mut data = [0u8; N];
         for slot in data.iter_mut().take(len) {
             let (w, r) = field(rest);
             if w.is_empty() {
