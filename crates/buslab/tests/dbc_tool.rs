@@ -107,12 +107,14 @@ fn a_skeleton_learns_ids_lengths_and_periods_from_a_log_and_reads_back() {
         }
     }
     log += "(1700000009.000000) can0 7FF#R\n";
+    log += "(1700000009.100000) can0 333##1112233445566778899AABBCC\n";
     std::fs::write(dir.path().join("bus.log"), log).unwrap();
     let (ok, _, err) = run(&["dbc", "skeleton", "bus.log", "-o", "bus.dbc"], dir.path());
     assert!(ok, "{err}");
     let (ok, out, err) = run(&["dbc", "show", "bus.dbc"], dir.path());
     assert!(ok, "{err}");
-    assert!(out.contains("3 messages"), "{out}");
+    assert!(out.contains("4 messages"), "{out}");
+    assert!(out.contains("333 MSG_333  12 bytes  CAN FD\n"), "{out}");
     assert!(out.contains("123 MSG_123  4 bytes  every 102 ms"), "{out}");
     // Event-driven: no period claimed.
     assert!(out.contains("1ABCDEF0 MSG_X1ABCDEF0  2 bytes\n"), "{out}");

@@ -6,9 +6,9 @@
 //! direction, as far as the format carries them.
 //!
 //! The differences that remain are deliberate, pinned file by file in `EXPECTED` and
-//! explained in docs/logs.md: buslab's frames are classic CAN, so it leaves CAN FD frames out
-//! (`--skip-bad` steps over them) and takes a classic frame of a CANFD line as classic; a
-//! classical DLC 9..15 is 8 bytes; a standard ID above 0x7FF is refused.
+//! explained in docs/logs.md: buslab takes a classic frame of a CANFD line as classic and an FD
+//! length in a classic ASC line (`d 40`) as that CAN FD frame; a classical DLC 9..15 is 8
+//! bytes; a standard ID above 0x7FF is refused.
 //!
 //! `scripts/setup-test-deps.sh` downloads the sdist (pinned by hash) into
 //! `target/python-can-sdist/`; under `CI=1` a missing download fails the test.
@@ -144,8 +144,9 @@ fn buslab_reads(path: &Path) -> Vec<Result<Message, ReadError>> {
 /// A deliberate difference between python-can's reading and buslab's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Deliberate {
-    /// A CAN FD frame: buslab reads classic CAN and refuses it as CAN FD (python-can reads it).
-    CanFd,
+    /// `d 40` and 64 bytes in a classic ASC line (python-can 3's FD frame): python-can keeps 8
+    /// of the bytes, buslab reads the 64-byte CAN FD frame.
+    FdLengthInClassicLine,
     /// A classic frame in a CANFD line (Vector's flags without EDL): python-can marks it FD,
     /// buslab reads the classic frame (same ID, data, DLC).
     ClassicInFdLine,
@@ -178,14 +179,11 @@ fn compare(
         Ok(entry) => entry,
         Err(e) => {
             return match e.problem() {
-                Problem::CanFd if want.kind == 'F' || want.dlc > 8 || want.data.len() > 8 => {
-                    Ok(Some(Deliberate::CanFd))
-                }
                 Problem::Frame(buslab_can::ParseError::IdOutOfRange {
                     extended: false, ..
                 })
                 | Problem::Expected { .. }
-                    if !want.extended && want.id > 0x7FF && matches!(want.kind, 'D' | 'R') =>
+                    if !want.extended && want.id > 0x7FF && matches!(want.kind, 'D' | 'R' | 'F') =>
                 {
                     Ok(Some(Deliberate::StandardIdAbove7ff))
                 }
@@ -245,6 +243,20 @@ fn compare(
             };
             Ok(deliberate)
         }
+        (Record::Fd(f), 'F') => {
+            if f.id().as_raw() != want.id || f.is_extended() != want.extended {
+                return mismatch("ID");
+            }
+            if f.payload() != &want.data[..] {
+                return mismatch("data");
+            }
+            Ok(None)
+        }
+        (Record::Fd(f), 'D')
+            if f.payload().len() == want.dlc && f.payload().starts_with(&want.data) =>
+        {
+            Ok(Some(Deliberate::FdLengthInClassicLine))
+        }
         _ => mismatch("kind"),
     }
 }
@@ -279,17 +291,17 @@ fn compare_file(path: &Path, want: &[PyMessage]) -> Result<String, String> {
 const EXPECTED: &[(&str, &str)] = &[
     ("issue_1256.asc", "1457 same"),
     ("issue_1299.asc", "3 same, 1 ClassicDlcAbove8"),
-    ("issue_1905.blf", "0 same, 22 CanFd"),
-    ("logfile.asc", "17 same, 2 CanFd, 1 ClassicInFdLine"),
+    ("issue_1905.blf", "22 same"),
+    ("logfile.asc", "19 same, 1 ClassicInFdLine"),
     ("logfile_errorframes.asc", "12 same"),
-    ("single_frame.asc", "0 same, 1 CanFd"),
+    ("single_frame.asc", "0 same, 1 FdLengthInClassicLine"),
     ("single_frame_us_locale.asc", "1 same"),
     ("test_CanErrorFrameExt.blf", "2 same"),
     ("test_CanErrorFrames.asc", "4 same"),
-    ("test_CanFdMessage.asc", "0 same, 3 CanFd"),
-    ("test_CanFdMessage.blf", "0 same, 2 CanFd"),
-    ("test_CanFdMessage64.asc", "0 same, 2 CanFd"),
-    ("test_CanFdMessage64.blf", "0 same, 2 CanFd"),
+    ("test_CanFdMessage.asc", "3 same"),
+    ("test_CanFdMessage.blf", "0 same, 2 StandardIdAbove7ff"),
+    ("test_CanFdMessage64.asc", "2 same"),
+    ("test_CanFdMessage64.blf", "0 same, 2 StandardIdAbove7ff"),
     ("test_CanFdRemoteMessage.asc", "0 same, 1 ClassicInFdLine"),
     ("test_CanMessage.asc", "2 same"),
     ("test_CanMessage.asc.gz", "2 same"),

@@ -10,6 +10,7 @@
 //!    0.000000 1  123             Rx   d 3 11 22 33
 //!    0.001000 2  12345678x       Tx   d 4 DE AD BE EF
 //!    0.002000 1  7FF             Rx   r 2
+//!    0.003000 CANFD   1 Rx        321                                   1 0 9 12 00 01 02 03 04 05 06 07 08 09 0A 0B        0    0     3000        0        0        0        0        0
 //! // buslab error-frame 20000088#0000020A00000102
 //!    0.005000 1  ErrorFrame
 //! End TriggerBlock
@@ -23,9 +24,18 @@
 //! before it carries the SocketCAN frame in candump's syntax, so buslab reads it back byte for
 //! byte. An `ErrorFrame` without that comment reads as a bus error, as asc2log reads it.
 //!
+//! A CAN FD frame is a `CANFD` line, python-can's layout: channel, direction, ID, a blank
+//! symbolic name, BRS, ESI, the DLC (hex), the data length (decimal), the data, then duration
+//! and bit count (0: not measured), the flags (EDL 0x1000, BRS 0x2000, ESI 0x4000), CRC and
+//! bit timings (0). A `CANFD` line is CAN FD when its flags have EDL or its length is above 8;
+//! BRS and ESI are read from their columns and the data by its length (python-can reads them
+//! so too: the flags and the DLC are not checked against them).
+//!
 //! The reader takes `base hex|dec`, `timestamps absolute|relative`, the dates of log2asc,
 //! python-can and Vector (English or German, am/pm), classic frames in `CANFD` lines, remote
-//! frames with or without a DLC, a classic DLC of 9..15 (8 data bytes, as CAN has it), the
+//! frames with or without a DLC, a classic DLC of 9..15 (8 data bytes, as CAN has it), a
+//! classic data line whose DLC is a CAN FD length above 15 as that CAN FD frame (python-can 3
+//! wrote FD frames so: `d 40` and 64 bytes), the
 //! `Length = … BitCount = … ID = …` fields CANoe writes after a frame (the lengths, the
 //! frames' time on the wire in nanoseconds, give the channel's bit rate:
 //! [`LogReader::bit_rate`]), and skips the events it does not know (statistics, status, J1939,
@@ -36,7 +46,7 @@ use std::time::Duration;
 
 use buslab_bus::ErrorFrame;
 use buslab_bus::error_frame::CanError;
-use buslab_can::{Frame, Id};
+use buslab_can::{FD_MAX_LEN, FdFrame, Frame, Id};
 
 use crate::LogBitRate;
 use crate::bitrate::FrameLengths;
@@ -51,6 +61,13 @@ use crate::{Direction, Location, Message, Record, Timestamp};
 const START_COMMENT: &str = "// buslab start-time ";
 /// The comment buslab writes before an `ErrorFrame` line: the SocketCAN error frame.
 const ERROR_COMMENT: &str = "// buslab error-frame ";
+
+/// A `CANFD` line's flags: extended data length (CAN FD), bit rate switch, error state
+/// indicator, and a remote frame (classic frames only).
+const EDL: u32 = 0x1000;
+const FLAG_BRS: u32 = 0x2000;
+const FLAG_ESI: u32 = 0x4000;
+const FLAG_REMOTE: u32 = 0x10;
 
 /// What an ASC error frame reads back as: a bus error (what asc2log makes of it).
 pub fn error_frame() -> ErrorFrame {
@@ -208,9 +225,15 @@ impl State {
                     }
                     b"d" | b"D" => {
                         let dlc = self.number(dlc, "a DLC")?;
-                        let len = usize::from(classic_dlc(dlc)?.1);
-                        let data = self.bytes(rest, len)?;
-                        Record::Frame(Frame::data(id, &data[..len])?)
+                        if let Some(len) = fd_length_in_classic_line(dlc) {
+                            // python-can 3's FD frames: `d 40` and 64 bytes.
+                            let data = self.bytes::<FD_MAX_LEN>(rest, len)?;
+                            Record::Fd(FdFrame::new(id, &data[..len])?)
+                        } else {
+                            let len = usize::from(classic_dlc(dlc)?.1);
+                            let data = self.bytes::<8>(rest, len)?;
+                            Record::Frame(Frame::data(id, &data[..len])?)
+                        }
                     }
                     other => {
                         return Err(Problem::Expected {
@@ -238,8 +261,8 @@ impl State {
         Ok(true)
     }
 
-    /// `CANFD CH DIR ID [NAME] BRS ESI DLC LEN DATA… DURATION BITS FLAGS …`: a classic frame
-    /// when the flags lack EDL (0x1000), else CAN FD.
+    /// `CANFD CH DIR ID [NAME] BRS ESI DLC LEN DATA… DURATION BITS FLAGS …`: CAN FD when the
+    /// flags have EDL (0x1000) or the length is above 8, else a classic frame.
     fn fd_line(
         &self,
         rest: &[u8],
@@ -264,12 +287,10 @@ impl State {
             words.push(w);
             rest = r;
         }
-        // A symbolic name may stand before BRS: BRS and ESI are single digits 0/1.
-        let is_bit = |w: &[u8]| w == b"0" || w == b"1";
-        let start = if words.len() >= 2 && is_bit(words[0]) && is_bit(words[1]) {
-            0
-        } else {
-            1
+        // A symbolic name may stand before BRS: a word of digits is BRS (python-can's rule).
+        let start = match words.first() {
+            Some(w) if w.iter().all(u8::is_ascii_digit) => 0,
+            _ => 1,
         };
         let get = |i: usize| {
             words.get(start + i).copied().ok_or(Problem::Expected {
@@ -281,27 +302,65 @@ impl State {
             expected: "a data length",
             found: excerpt(words.get(start + 3).copied().unwrap_or_default()),
         })? as usize;
+        if len > FD_MAX_LEN {
+            return Err(Problem::Expected {
+                expected: "a CAN FD data length 0..8, 12, 16, 20, 24, 32, 48 or 64",
+                found: len.to_string(),
+            });
+        }
         let flags = words
             .get(start + 4 + len + 2)
             .and_then(|w| text::hex_u32(w))
-            .unwrap_or(0x1000);
-        if flags & 0x1000 != 0 || len > 8 {
-            return Err(Problem::CanFd);
-        }
+            .unwrap_or(EDL);
         let data = (0..len)
             .map(|i| {
                 let w = get(4 + i)?;
                 self.byte(w)
             })
             .collect::<Result<Vec<u8>, Problem>>()?;
-        let remote = flags & 0x10 != 0;
-        let record = if remote {
-            let dlc = self.number(get(2)?, "a DLC")?;
+        let dlc = self.number(get(2)?, "a DLC")?;
+        let record = if flags & EDL != 0 || len > 8 {
+            Record::Fd(self.fd_frame(id, &words[start..], dlc, &data, flags)?)
+        } else if flags & FLAG_REMOTE != 0 {
             Record::Frame(Frame::remote(id, classic_dlc(dlc)?.0)?)
         } else {
             Record::Frame(Frame::data(id, &data)?)
         };
         Ok(Some((record, Some(direction), channel)))
+    }
+
+    /// A `CANFD` line's FD frame: `words` from BRS on.
+    fn fd_frame(
+        &self,
+        id: Id,
+        words: &[&[u8]],
+        dlc: u64,
+        data: &[u8],
+        flags: u32,
+    ) -> Result<FdFrame, Problem> {
+        if flags & FLAG_REMOTE != 0 {
+            return Err(Problem::Expected {
+                expected: "a CAN FD frame without the remote flag 0x10 (CAN FD has no remote frames)",
+                found: format!("flags {flags:X}"),
+            });
+        }
+        let bit = |w: &[u8]| match w {
+            b"0" => Ok(false),
+            b"1" => Ok(true),
+            other => Err(Problem::Expected {
+                expected: "BRS and ESI as 0 or 1 before the DLC",
+                found: excerpt(other),
+            }),
+        };
+        let frame = FdFrame::new(id, data)?;
+        if u64::from(frame.dlc()) != dlc {
+            // The data length says how many bytes there are; python-can reads it so too.
+            tracing::debug!(
+                "CANFD line: DLC {dlc:X} with {} data bytes, read by its data",
+                data.len()
+            );
+        }
+        Ok(frame.with_brs(bit(words[0])?).with_esi(bit(words[1])?))
     }
 
     fn id(&self, text: &[u8]) -> Result<Id, Problem> {
@@ -344,8 +403,9 @@ impl State {
         })
     }
 
-    fn bytes(&self, mut rest: &[u8], len: usize) -> Result<[u8; 8], Problem> {
-        let mut data = [0u8; 8];
+    /// `len` data bytes (at most `N`: 8 for a classic frame, 64 for an FD frame).
+    fn bytes<const N: usize>(&self, mut rest: &[u8], len: usize) -> Result<[u8; N], Problem> {
+        let mut data = [0u8; N];
         for slot in data.iter_mut().take(len) {
             let (w, r) = field(rest);
             if w.is_empty() {
@@ -362,17 +422,23 @@ impl State {
 }
 
 /// A classic frame's DLC field: (the DLC buslab's frames carry, the data bytes). Classical
-/// CAN's DLC 9..15 means 8 bytes (ISO 11898-1); a larger number is a CAN FD length.
+/// CAN's DLC 9..15 means 8 bytes (ISO 11898-1).
 fn classic_dlc(dlc: u64) -> Result<(u8, u8), Problem> {
     match dlc {
         0..=8 => Ok((dlc as u8, dlc as u8)),
         9..=15 => Ok((8, 8)),
-        16..=64 => Err(Problem::CanFd),
         _ => Err(Problem::Expected {
-            expected: "a DLC 0..15",
-            found: dlc.to_string(),
+            expected: "a DLC 0..15, or a CAN FD length 16..64 (a CAN FD frame is a CANFD line)",
+            found: format!("{dlc:X}"),
         }),
     }
+}
+
+/// A data line whose DLC field is a CAN FD length above 15 (`d 40`: 64 bytes), as python-can 3
+/// wrote CAN FD frames: that many bytes. A DLC of 9..15 stays classical CAN's 8 bytes.
+fn fd_length_in_classic_line(dlc: u64) -> Option<usize> {
+    let len = usize::try_from(dlc).ok()?;
+    (len > 15 && buslab_can::FD_LENGTHS.contains(&len)).then_some(len)
 }
 
 /// The error frame of a `// buslab error-frame 20000088#…` comment.
@@ -560,11 +626,15 @@ impl<W: Write> Writer<W> {
         line.push(b'.');
         text::push_u64_zeros(line, offset % 1_000_000, 6);
         line.push(b' ');
+        if let Record::Fd(f) = &entry.record {
+            push_fd_line(line, channel, entry.direction, f);
+            return self.out.write_all(line);
+        }
         text::push_u64(line, u64::from(channel));
         line.extend_from_slice(b"  ");
         match &entry.record {
             Record::Error(_) => line.extend_from_slice(b"ErrorFrame"),
-            Record::Fd(_) => return Err(crate::error::fd_not_carried("ASC")),
+            Record::Fd(_) => unreachable!("written above"),
             Record::Frame(f) => {
                 let col = line.len();
                 match f.id() {
@@ -605,6 +675,45 @@ impl<W: Write> Writer<W> {
         self.out.flush()?;
         Ok(self.out)
     }
+}
+
+/// `CANFD CH DIR ID NAME BRS ESI DLC LEN DATA… DURATION BITS FLAGS CRC BTR…` after the
+/// time, in python-can's columns (durations, CRC and bit timings 0: not measured), with the
+/// newline.
+fn push_fd_line(line: &mut Vec<u8>, channel: u16, direction: Option<Direction>, f: &FdFrame) {
+    line.extend_from_slice(b"CANFD ");
+    text::push_u64_right(line, u64::from(channel), 3);
+    line.extend_from_slice(match direction {
+        Some(Direction::Tx) => b" Tx   ",
+        _ => b" Rx   ",
+    });
+    let col = line.len();
+    match f.id() {
+        Id::Standard(id) => text::push_hex(line, u32::from(id.as_raw()), 1),
+        Id::Extended(id) => {
+            text::push_hex(line, id.as_raw(), 1);
+            line.push(b'x');
+        }
+    }
+    let id_len = line.len() - col;
+    if id_len < 8 {
+        line.splice(col..col, std::iter::repeat_n(b' ', 8 - id_len));
+    }
+    // Two spaces, the blank symbolic name (32 wide), a space.
+    line.extend_from_slice(&[b' '; 35]);
+    line.extend_from_slice(if f.brs() { b"1 " } else { b"0 " });
+    line.extend_from_slice(if f.esi() { b"1 " } else { b"0 " });
+    text::push_hex(line, u32::from(f.dlc()), 1);
+    line.push(b' ');
+    text::push_u64_right(line, f.payload().len() as u64, 2);
+    text::push_spaced_hex(line, f.payload());
+    line.extend_from_slice(b"        0    0 ");
+    let flags = EDL | if f.brs() { FLAG_BRS } else { 0 } | if f.esi() { FLAG_ESI } else { 0 };
+    let col = line.len();
+    text::push_hex(line, flags, 1);
+    let flags_len = line.len() - col;
+    line.splice(col..col, std::iter::repeat_n(b' ', 8 - flags_len));
+    line.extend_from_slice(b"        0        0        0        0        0\n");
 }
 
 impl<W: Write + Send> Encoder<W> for Writer<W> {

@@ -8,12 +8,16 @@
 //!
 //! Read: CAN_MESSAGE (1) and CAN_MESSAGE2 (86) as frames, CAN_ERROR_EXT (73) as error frames
 //! (the ID as the SocketCAN error class and the data bytes, as python-can writes them),
-//! CAN_ERROR (2) as a bus error, classic frames in CAN_FD_MESSAGE (100) and
-//! CAN_FD_MESSAGE_64 (101) objects; other objects are skipped. The frame length CAN_MESSAGE2
+//! CAN_ERROR (2) as a bus error, CAN_FD_MESSAGE (100) and CAN_FD_MESSAGE_64 (101) as CAN FD
+//! frames when their EDL flag is set (BRS and ESI from their flags; the valid data bytes, a
+//! CAN_FD_MESSAGE_64 whose data ends early padded with zeros as CANoe and python-can do) and as
+//! classic frames when not; other objects are skipped. The frame length CAN_MESSAGE2
 //! and CAN_FD_MESSAGE carry (the frame's time on the wire, ns) gives the channel's bit rate
-//! ([`LogReader::bit_rate`]). Written: CAN_MESSAGE and
+//! ([`LogReader::bit_rate`]). Written: CAN_MESSAGE, CAN_FD_MESSAGE_64 (CANoe's CAN FD object;
+//! CAN_FD_MESSAGE, python-can's, for a channel above 255, which the former cannot number) and
 //! CAN_ERROR_EXT in zlib containers (level 1) of about 128 KiB (python-can's size), nanosecond times
-//! from the first entry's millisecond. The header is written at creation and rewritten at each
+//! from the first entry's millisecond; each object is followed by its size modulo 4 in zero
+//! bytes, as python-can pads them. The header is written at creation and rewritten at each
 //! flush, so a writer killed at any moment leaves a file that reads up to its last whole object
 //! (python-can reads objects to the end of the file and uses none of the header's counts).
 
@@ -21,7 +25,7 @@ use std::io::{self, Read, Seek, SeekFrom, Write};
 use std::time::Duration;
 
 use buslab_bus::ErrorFrame;
-use buslab_can::{Frame, Id};
+use buslab_can::{FD_MAX_LEN, FdFrame, Frame, Id};
 use flate2::{Compress, Compression, Decompress, FlushCompress, FlushDecompress, Status};
 
 use crate::asc::error_frame as bus_error;
@@ -56,6 +60,18 @@ const TIME_ONE_NANS: u32 = 2;
 const EXT_FLAG: u32 = 0x8000_0000;
 const REMOTE_FLAG: u8 = 0x80;
 const DIR_TX: u8 = 0x01;
+/// CAN_FD_MESSAGE's FD flags: extended data length (CAN FD), bit rate switch, error state
+/// indicator.
+const FD_EDL: u8 = 0x01;
+const FD_BRS: u8 = 0x02;
+const FD_ESI: u8 = 0x04;
+/// CAN_FD_MESSAGE_64's flags: remote frame, EDL, BRS, ESI.
+const FD64_REMOTE: u32 = 0x0010;
+const FD64_EDL: u32 = 0x1000;
+const FD64_BRS: u32 = 0x2000;
+const FD64_ESI: u32 = 0x4000;
+/// CAN_FD_MESSAGE_64's fixed part, before the data.
+const FD64_HEADER: usize = 40;
 
 /// The largest container (compressed or not) and object the reader accepts.
 pub const MAX_OBJECT: u32 = 16 << 20;
@@ -265,7 +281,7 @@ impl<R: Read> Reader<R> {
                 Ok(Some((u16_at(body, 0), Record::Error(bus_error()), None)))
             }
             CAN_FD_MESSAGE => fd_message(body).map(Some),
-            CAN_FD_MESSAGE_64 => fd_message_64(body).map(Some),
+            CAN_FD_MESSAGE_64 => fd_message_64(body, header).map(Some),
             _ => Ok(None),
         };
         let Some((channel, record, direction)) = decoded.map_err(|p| ReadError::bad(at, p))? else {
@@ -465,20 +481,35 @@ fn error_ext(body: &[u8]) -> Result<Decoded, Problem> {
 }
 
 /// CAN_FD_MESSAGE: channel u16, flags u8, dlc u8, id u32, frame length u32, bit count u8,
-/// FD flags u8 (EDL 1), valid bytes u8, 5 reserved, data\[64\].
+/// FD flags u8 (EDL 1, BRS 2, ESI 4), valid bytes u8, 5 reserved, data\[64\].
 fn fd_message(body: &[u8]) -> Result<Decoded, Problem> {
     if body.len() < 20 {
         return Err(short("a CAN FD message of at least 20 bytes", body));
     }
     let fd_flags = body[13];
-    if fd_flags & 0x01 != 0 {
-        return Err(Problem::CanFd);
-    }
     let channel = u16_at(body, 0);
     let flags = body[2];
+    let id = id_of(u32_at(body, 4))?;
+    let direction = Some(if flags & DIR_TX != 0 {
+        Direction::Tx
+    } else {
+        Direction::Rx
+    });
+    if fd_flags & FD_EDL != 0 {
+        if flags & REMOTE_FLAG != 0 {
+            return Err(fd_remote(u32::from(flags)));
+        }
+        let valid = usize::from(body[14]);
+        let data = body
+            .get(20..20 + valid)
+            .ok_or_else(|| short("its valid data bytes", body))?;
+        let frame = FdFrame::new(id, data)?
+            .with_brs(fd_flags & FD_BRS != 0)
+            .with_esi(fd_flags & FD_ESI != 0);
+        return Ok((channel, Record::Fd(frame), direction));
+    }
     let dlc = body[3].min(8);
     let valid = usize::from(body[14]).min(8).min(usize::from(dlc));
-    let id = id_of(u32_at(body, 4))?;
     let data = body
         .get(20..20 + valid)
         .ok_or_else(|| short("its data bytes", body))?;
@@ -487,37 +518,63 @@ fn fd_message(body: &[u8]) -> Result<Decoded, Problem> {
     } else {
         Frame::data(id, data)?
     };
-    let direction = Some(if flags & DIR_TX != 0 {
-        Direction::Tx
-    } else {
-        Direction::Rx
-    });
     Ok((channel, Record::Frame(frame), direction))
 }
 
+fn fd_remote(flags: u32) -> Problem {
+    Problem::Expected {
+        expected: "a CAN FD frame without the remote flag (CAN FD has no remote frames)",
+        found: format!("flags 0x{flags:X}"),
+    }
+}
+
 /// CAN_FD_MESSAGE_64: channel u8, dlc u8, valid bytes u8, tx count u8, id u32, frame length
-/// u32, flags u32 (EDL 0x1000, remote 0x10), … direction u8 at 36, data from 40.
-fn fd_message_64(body: &[u8]) -> Result<Decoded, Problem> {
-    if body.len() < 40 {
+/// u32, flags u32 (remote 0x10, EDL 0x1000, BRS 0x2000, ESI 0x4000), four bit-timing and
+/// offset u32s, bit count u16, direction u8, extended data offset u8, crc u32, then the data
+/// (up to the extended data's offset in the object, when there is one).
+fn fd_message_64(body: &[u8], header: usize) -> Result<Decoded, Problem> {
+    if body.len() < FD64_HEADER {
         return Err(short("a CAN FD 64 message of at least 40 bytes", body));
     }
     let flags = u32_at(body, 12);
-    if flags & 0x1000 != 0 {
-        return Err(Problem::CanFd);
-    }
     let channel = u16::from(body[0]);
-    let dlc = body[1].min(8);
-    let valid = usize::from(body[2]).min(usize::from(dlc));
     let id = id_of(u32_at(body, 4))?;
-    let direction = Some(if body[36] != 0 {
+    let direction = Some(if body[34] != 0 {
         Direction::Tx
     } else {
         Direction::Rx
     });
+    // The data, up to the extended data (an offset in the object) or the object's end.
+    let ext_data = usize::from(body[35]);
+    let end = if ext_data == 0 {
+        body.len()
+    } else {
+        ext_data.saturating_sub(header).min(body.len())
+    };
+    let stored = body.get(FD64_HEADER..end).unwrap_or_default();
+    if flags & FD64_EDL != 0 {
+        if flags & FD64_REMOTE != 0 {
+            return Err(fd_remote(flags));
+        }
+        let valid = usize::from(body[2]);
+        if valid > FD_MAX_LEN {
+            return Err(buslab_can::ParseError::FdLength { len: valid }.into());
+        }
+        // Valid bytes beyond the stored data are zeros (CANoe's and python-can's reading).
+        let mut data = [0u8; FD_MAX_LEN];
+        let have = stored.len().min(valid);
+        data[..have].copy_from_slice(&stored[..have]);
+        let frame = FdFrame::new(id, &data[..valid])?
+            .with_brs(flags & FD64_BRS != 0)
+            .with_esi(flags & FD64_ESI != 0);
+        return Ok((channel, Record::Fd(frame), direction));
+    }
+    let dlc = body[1].min(8);
+    let valid = usize::from(body[2]).min(usize::from(dlc));
     let mut data = [0u8; 8];
-    let avail = body.len().saturating_sub(40).min(valid);
-    data[..avail].copy_from_slice(&body[40..40 + avail]);
-    let frame = if flags & 0x10 != 0 {
+    let have = stored.len().min(valid);
+    data[..have].copy_from_slice(&stored[..have]);
+    let frame = if flags & FD64_REMOTE != 0 {
         Frame::remote(id, dlc)?
     } else {
         Frame::data(id, &data[..valid])?
@@ -531,6 +588,43 @@ impl<R: Read + Send> LogReader for Reader<R> {
     }
     fn bit_rate(&self, channel: &str) -> Option<LogBitRate> {
         self.lengths.rate(channel_of(channel)?)
+    }
+}
+
+/// An FD frame's object body into `body`: CAN_FD_MESSAGE_64 (CANoe's), or CAN_FD_MESSAGE
+/// (python-can's) for a channel the former's one byte cannot hold. Returns the type and size.
+fn fd_body(
+    body: &mut [u8; FD64_HEADER + FD_MAX_LEN],
+    channel: u16,
+    direction: Option<Direction>,
+    f: &FdFrame,
+) -> (u32, usize) {
+    let tx = direction == Some(Direction::Tx);
+    let id = match f.id() {
+        Id::Standard(i) => u32::from(i.as_raw()),
+        Id::Extended(i) => i.as_raw() | EXT_FLAG,
+    };
+    let payload = f.payload();
+    if let Ok(channel) = u8::try_from(channel) {
+        body[0] = channel;
+        body[1] = f.dlc();
+        body[2] = payload.len() as u8;
+        body[4..8].copy_from_slice(&id.to_le_bytes());
+        let flags =
+            FD64_EDL | if f.brs() { FD64_BRS } else { 0 } | if f.esi() { FD64_ESI } else { 0 };
+        body[12..16].copy_from_slice(&flags.to_le_bytes());
+        body[34] = u8::from(tx);
+        body[FD64_HEADER..FD64_HEADER + payload.len()].copy_from_slice(payload);
+        (CAN_FD_MESSAGE_64, FD64_HEADER + payload.len())
+    } else {
+        body[0..2].copy_from_slice(&channel.to_le_bytes());
+        body[2] = if tx { DIR_TX } else { 0 };
+        body[3] = f.dlc();
+        body[4..8].copy_from_slice(&id.to_le_bytes());
+        body[13] = FD_EDL | if f.brs() { FD_BRS } else { 0 } | if f.esi() { FD_ESI } else { 0 };
+        body[14] = payload.len() as u8;
+        body[20..20 + payload.len()].copy_from_slice(payload);
+        (CAN_FD_MESSAGE, 20 + FD_MAX_LEN)
     }
 }
 
@@ -621,9 +715,9 @@ impl<W: Write + Seek> Writer<W> {
             .as_nanos()
             .min(u128::from(u64::MAX)) as u64;
         let channel = self.channels.number(&entry.channel);
-        let mut body = [0u8; 32];
+        let mut body = [0u8; FD64_HEADER + FD_MAX_LEN];
         let (ty, len) = match &entry.record {
-            Record::Fd(_) => return Err(crate::error::fd_not_carried("BLF")),
+            Record::Fd(f) => fd_body(&mut body, channel, entry.direction, f),
             Record::Frame(f) => {
                 body[0..2].copy_from_slice(&channel.to_le_bytes());
                 let mut flags = if f.is_remote() { REMOTE_FLAG } else { 0 };
@@ -661,6 +755,8 @@ impl<W: Write + Seek> Writer<W> {
         b.extend_from_slice(&0u16.to_le_bytes()); // object version
         b.extend_from_slice(&ticks.to_le_bytes());
         b.extend_from_slice(&body[..len]);
+        // python-can's padding: the object's size modulo 4 in zero bytes.
+        b.extend_from_slice(&[0u8; 4][..len % 4]);
         self.objects = self.objects.saturating_add(1);
         if self.buf.len() >= CONTAINER_SIZE {
             self.write_container()?;
@@ -789,6 +885,7 @@ impl<W: Write + Seek + Send> Encoder<W> for Writer<W> {
 mod tests {
     use super::*;
     use crate::BitRateSource;
+    use crate::ReadError;
 
     /// A CAN_MESSAGE2 object (header version 1, ns) with `frame` on `channel`, recorded as
     /// taking `length_ns` on the wire.
@@ -812,6 +909,197 @@ mod tests {
         o.extend_from_slice(&length_ns.to_le_bytes());
         o.extend_from_slice(&[0; 4]);
         o
+    }
+
+    /// An object of type `ty` (header version 1, ns) with `body`.
+    fn object(ty: u32, body: &[u8]) -> Vec<u8> {
+        let mut o = Vec::new();
+        o.extend_from_slice(OBJ_SIGNATURE);
+        o.extend_from_slice(&32u16.to_le_bytes());
+        o.extend_from_slice(&1u16.to_le_bytes());
+        o.extend_from_slice(&(32 + body.len() as u32).to_le_bytes());
+        o.extend_from_slice(&ty.to_le_bytes());
+        o.extend_from_slice(&TIME_ONE_NANS.to_le_bytes());
+        o.extend_from_slice(&[0; 4]);
+        o.extend_from_slice(&1_000u64.to_le_bytes());
+        o.extend_from_slice(body);
+        o
+    }
+
+    /// A CAN_FD_MESSAGE_64 body: channel, DLC, valid bytes, ID word, flags, direction, data.
+    fn fd64(
+        channel: u8,
+        dlc: u8,
+        valid: u8,
+        id: u32,
+        flags: u32,
+        tx: bool,
+        data: &[u8],
+    ) -> Vec<u8> {
+        let mut b = vec![0u8; FD64_HEADER];
+        b[0] = channel;
+        b[1] = dlc;
+        b[2] = valid;
+        b[4..8].copy_from_slice(&id.to_le_bytes());
+        b[12..16].copy_from_slice(&flags.to_le_bytes());
+        b[34] = u8::from(tx);
+        b.extend_from_slice(data);
+        b
+    }
+
+    fn read_objects(objects: &[Vec<u8>]) -> Vec<Result<Message, ReadError>> {
+        let mut reader = Reader::new(io::empty());
+        reader.data = objects.concat();
+        let mut out = Vec::new();
+        loop {
+            let mut entry = Message::default();
+            match reader.next_object(&mut entry) {
+                Ok(Some(true)) => out.push(Ok(entry)),
+                Ok(Some(false)) => {}
+                Ok(None) => return out,
+                Err(e) => out.push(Err(e)),
+            }
+        }
+    }
+
+    /// CANoe's CAN_FD_MESSAGE_64: the direction at byte 34, BRS/ESI in the flags, the valid
+    /// bytes padded with zeros past the stored data (issue 1905 of python-can: 64 valid bytes,
+    /// 48 stored), the data ending at the extended data's offset.
+    #[test]
+    fn can_fd_message_64_objects() {
+        let got = read_objects(&[
+            object(
+                CAN_FD_MESSAGE_64,
+                &fd64(2, 9, 12, 0x123, FD64_EDL | FD64_BRS, true, &[7; 12]),
+            ),
+            object(
+                CAN_FD_MESSAGE_64,
+                &fd64(
+                    1,
+                    15,
+                    64,
+                    0x8000_0ABC,
+                    FD64_EDL | FD64_ESI,
+                    false,
+                    &[0xFF; 48],
+                ),
+            ),
+            object(CAN_FD_MESSAGE_64, &{
+                // Extended data at object offset 32 + 40 + 4: 4 stored bytes of 8.
+                let mut b = fd64(1, 8, 8, 0x100, FD64_EDL, false, &[1, 2, 3, 4, 9, 9, 9, 9]);
+                b[35] = 76;
+                b
+            }),
+            object(
+                CAN_FD_MESSAGE_64,
+                &fd64(1, 3, 3, 0x100, 0, false, &[1, 2, 3]),
+            ),
+        ]);
+        let text: Vec<String> = got
+            .iter()
+            .map(|r| {
+                let e = r.as_ref().unwrap();
+                format!("{} {} {:?}", e.channel, e.record, e.direction.unwrap())
+            })
+            .collect();
+        let mut long = String::from("00000ABC##2");
+        long.push_str(&"FF".repeat(48));
+        long.push_str(&"00".repeat(16));
+        assert_eq!(
+            text,
+            [
+                "can1 123##1070707070707070707070707 Tx".to_string(),
+                format!("can0 {long} Rx"),
+                "can0 100##00102030400000000 Rx".into(),
+                "can0 100#010203 Rx".into(),
+            ]
+        );
+    }
+
+    #[test]
+    fn bad_fd_objects_say_what_was_expected() {
+        let got = read_objects(&[
+            object(
+                CAN_FD_MESSAGE_64,
+                &fd64(1, 10, 10, 0x100, FD64_EDL, false, &[0; 10]),
+            ),
+            object(
+                CAN_FD_MESSAGE_64,
+                &fd64(1, 15, 65, 0x100, FD64_EDL, false, &[0; 65]),
+            ),
+            object(
+                CAN_FD_MESSAGE_64,
+                &fd64(1, 0, 0, 0x100, FD64_EDL | FD64_REMOTE, false, &[]),
+            ),
+            object(CAN_FD_MESSAGE_64, &[0; 20]),
+            object(CAN_FD_MESSAGE, &{
+                let mut b = vec![0u8; 20 + 64];
+                b[13] = FD_EDL;
+                b[14] = 20;
+                b[4..8].copy_from_slice(&0x900u32.to_le_bytes());
+                b
+            }),
+            object(CAN_FD_MESSAGE, &{
+                let mut b = vec![0u8; 20 + 4];
+                b[13] = FD_EDL;
+                b[14] = 12;
+                b
+            }),
+        ]);
+        let errors: Vec<String> = got
+            .iter()
+            .map(|r| r.as_ref().unwrap_err().to_string())
+            .collect();
+        let wants = [
+            "10 data bytes given",
+            "65 data bytes given",
+            "without the remote flag",
+            "a CAN FD 64 message of at least 40 bytes",
+            "standard ID 0x900 is out of range",
+            "its valid data bytes",
+        ];
+        assert_eq!(errors.len(), wants.len(), "{errors:?}");
+        for (e, want) in errors.iter().zip(wants) {
+            assert!(e.contains(want), "{e}");
+        }
+    }
+
+    /// FD frames are written as CAN_FD_MESSAGE_64, or CAN_FD_MESSAGE for a channel above 255;
+    /// each object is padded with its size modulo 4 in zeros (python-can's rule).
+    #[test]
+    fn fd_frames_are_written_as_can_fd_message_64() {
+        let mut w = Writer::new(io::Cursor::new(Vec::new())).unwrap();
+        let fd: FdFrame = "123##3112233".parse().unwrap();
+        for channel in ["can1", "can300"] {
+            w.write(&Message {
+                at: Timestamp::since_epoch(Duration::from_secs(1_700_000_000)),
+                channel: channel.into(),
+                direction: Some(Direction::Tx),
+                record: Record::Fd(fd),
+            })
+            .unwrap();
+        }
+        let b = &w.buf;
+        assert_eq!(u32_at(b, 8), 32 + 40 + 3);
+        assert_eq!(u32_at(b, 12), CAN_FD_MESSAGE_64);
+        let body = &b[32..75];
+        assert_eq!((body[0], body[1], body[2], body[34]), (2, 3, 3, 1));
+        assert_eq!(u32_at(body, 12), FD64_EDL | FD64_BRS | FD64_ESI);
+        assert_eq!(&body[40..43], &[0x11, 0x22, 0x33]);
+        assert_eq!(&b[75..78], &[0, 0, 0]);
+        let second = &b[78..];
+        assert_eq!(u32_at(second, 8), 32 + 84);
+        assert_eq!(u32_at(second, 12), CAN_FD_MESSAGE);
+        let body = &second[32..];
+        assert_eq!(u16_at(body, 0), 301);
+        assert_eq!((body[2], body[3], body[13], body[14]), (DIR_TX, 3, 7, 3));
+        assert_eq!(second.len(), 32 + 84);
+        let back = read_objects(std::slice::from_ref(b));
+        let back: Vec<String> = back
+            .iter()
+            .map(|e| e.as_ref().unwrap().record.to_string())
+            .collect();
+        assert_eq!(back, ["123##3112233", "123##3112233"]);
     }
 
     #[test]

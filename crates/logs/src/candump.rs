@@ -5,9 +5,14 @@
 //! ```text
 //! (1700000000.123456) vcan0 123#1122334455667788
 //! (1700000000.200000) can0 7FF#R
+//! (1700000000.300000) can0 321##1112233                  <- CAN FD: `##`, flags, data
 //! (1700000000.400000) can0 20000088#0000000000000000     <- an error frame
 //! (1700000000.500000) can0 123#112233 T                  <- with candump -x: R or T
 //! ```
+//!
+//! A CAN FD frame's flags nibble holds BRS (1) and ESI (2); can-utils v2025.01 and later also
+//! set FDF (4), so readers mask it: any hex digit is read, its two low bits kept. Written as
+//! python-can and older can-utils write it, `0`..`3`.
 //!
 //! [`parse_line`] reads one (never panics, whatever the text), [`format_line`] writes one;
 //! [`Reader`] and [`Writer`] stream them. The **terminal layout** (candump without `-L`) is
@@ -19,7 +24,7 @@ use std::time::Duration;
 
 use buslab_bus::ErrorFrame;
 use buslab_bus::error_frame::ERROR_FLAG;
-use buslab_can::{FdFrame, Frame, Id};
+use buslab_can::{FD_MAX_LEN, FdFrame, Frame, Id};
 
 use crate::codec::{Encoder, LogReader};
 pub use crate::error::LineError;
@@ -73,8 +78,14 @@ fn parse_timestamp(text: &str) -> Result<Duration, LineError> {
     Ok(Duration::new(secs, nanos))
 }
 
-/// A frame in can-utils syntax, or an error frame (`20000088#…`: 8 digits with the error flag).
+/// A frame in can-utils syntax, a CAN FD frame (`123##1…`), or an error frame (`20000088#…`:
+/// 8 digits with the error flag).
 pub(crate) fn parse_record(text: &str) -> Result<Record, LineError> {
+    if let Some((_, fd)) = text.split_once('#')
+        && fd.starts_with('#')
+    {
+        return Ok(Record::Fd(text.parse::<FdFrame>()?));
+    }
     if let Some((id, data)) = text.split_once('#')
         && id.len() == 8
         && let Ok(raw) = u32::from_str_radix(id, 16)
@@ -153,8 +164,8 @@ const POW10: [u32; 10] = [
 ];
 
 /// The common shape of a line, parsed byte by byte: `(SECS.FRAC) IFACE ID#DATA [R|T]` with a
-/// 3- or 8-digit ID and plain hex data or `R[dlc]`. `None` for anything else (then
-/// [`parse_line`] decides, with its precise error).
+/// 3- or 8-digit ID and plain hex data or `R[dlc]`, or `ID##FDATA` (CAN FD). `None` for
+/// anything else (then [`parse_line`] decides, with its precise error).
 #[inline]
 fn parse_fast(line: &[u8], entry: &mut Message) -> Option<()> {
     let n = line.len();
@@ -281,7 +292,7 @@ fn parse_after_time(
     if i < n && !is_blank(line[i]) {
         return None;
     }
-    let frame = fast_frame(&line[start..i])?;
+    let text = &line[start..i];
     while i < n && is_blank(line[i]) {
         i += 1;
     }
@@ -302,6 +313,11 @@ fn parse_after_time(
     } else {
         None
     };
+    // Classic frames first, stored in place: an FD frame costs them one branch.
+    match fast_frame(text) {
+        Some(frame) => entry.record = Record::Frame(frame),
+        None => entry.record = Record::Fd(fast_fd_frame(text)?),
+    }
     entry.at = Timestamp::since_epoch(Duration::new(secs, frac));
     // Mostly the same interface as the line before: then nothing to copy.
     if entry.channel.as_bytes() != interface {
@@ -311,7 +327,6 @@ fn parse_after_time(
             .channel
             .extend(interface.iter().map(|&b| char::from(b)));
     }
-    entry.record = Record::Frame(frame);
     entry.direction = direction;
     Some(())
 }
@@ -350,6 +365,38 @@ fn fast_frame(text: &[u8]) -> Option<Frame> {
         return None;
     }
     Frame::data(id, &data[..rest.len() / 2]).ok()
+}
+
+/// `ID##FDATA`: a 3- or 8-digit ID, the flags digit, plain hex data of an FD length.
+fn fast_fd_frame(text: &[u8]) -> Option<FdFrame> {
+    let hash = match text.get(3..5) {
+        Some(b"##") => 3,
+        _ if text.get(8..10) == Some(b"##") => 8,
+        _ => return None,
+    };
+    let raw = text::hex_u32(&text[..hash])?;
+    let id = match hash {
+        3 if raw <= 0x7FF => Id::standard(raw as u16).ok()?,
+        8 if raw <= 0x1FFF_FFFF => Id::extended(raw).ok()?,
+        _ => return None,
+    };
+    let (&flags, rest) = text[hash + 2..].split_first()?;
+    let flags = text::hex_digit(flags);
+    if flags > 15 || rest.len() % 2 != 0 || rest.len() > 2 * FD_MAX_LEN {
+        return None;
+    }
+    let mut data = [0u8; FD_MAX_LEN];
+    let mut bad = 0u8;
+    for (k, pair) in rest.chunks_exact(2).enumerate() {
+        let (hi, lo) = (text::hex_digit(pair[0]), text::hex_digit(pair[1]));
+        bad |= hi | lo;
+        data[k] = (hi << 4) | (lo & 15);
+    }
+    if bad > 15 {
+        return None;
+    }
+    let frame = FdFrame::new(id, &data[..rest.len() / 2]).ok()?;
+    Some(frame.with_brs(flags & 1 != 0).with_esi(flags & 2 != 0))
 }
 
 /// Appends one log line without the newline: `(%010u.%06u) IFACE FRAME` (microseconds, cut
@@ -396,9 +443,8 @@ pub(crate) fn push_record(out: &mut Vec<u8>, record: &Record) {
     }
 }
 
-/// Appends a frame in can-utils syntax (`123#1122`, `12345678#R3`): the text of
-/// [`Frame`]'s `Display`, built on the stack and copied once.
-/// An FD frame in can-utils syntax: `123##1112233` (the flags nibble: BRS = 1, ESI = 2).
+/// Appends an FD frame in can-utils syntax: `123##1112233` (the flags nibble: BRS = 1,
+/// ESI = 2): the text of [`FdFrame`]'s `Display`.
 pub fn push_fd_frame(out: &mut Vec<u8>, f: &FdFrame) {
     match f.id() {
         Id::Standard(id) => out.extend_from_slice(&text::hex_fixed::<3>(u32::from(id.as_raw()))),
@@ -411,6 +457,8 @@ pub fn push_fd_frame(out: &mut Vec<u8>, f: &FdFrame) {
     }
 }
 
+/// Appends a frame in can-utils syntax (`123#1122`, `12345678#R3`): the text of
+/// [`Frame`]'s `Display`, built on the stack and copied once.
 pub fn push_frame(out: &mut Vec<u8>, f: &Frame) {
     // 8 ID digits, `#`, 16 data digits.
     let mut buf = [0u8; 25];
@@ -868,8 +916,20 @@ mod tests {
     }
 
     fn any_entry() -> impl Strategy<Value = Message> {
+        let fd = (
+            any_frame(),
+            prop::sample::select(buslab_can::FD_LENGTHS.to_vec()),
+            vec(any::<u8>(), 64),
+            any::<bool>(),
+            any::<bool>(),
+        )
+            .prop_map(|(f, len, data, brs, esi)| {
+                let fd = FdFrame::new(f.id(), &data[..len]).unwrap();
+                Record::Fd(fd.with_brs(brs).with_esi(esi))
+            });
         let record = prop_oneof![
             4 => any_frame().prop_map(Record::Frame),
+            1 => fd,
             1 => (prop_oneof![0u32..=0x3FF, 0u32..=0x1FFF_FFFF], vec(any::<u8>(), 0..=8))
                 .prop_map(|(class, data)| Record::Error(ErrorFrame::decode(class, &data).unwrap())),
         ];
@@ -919,10 +979,31 @@ mod tests {
 
         /// A frame's log text is its `Display` (can-utils' compact syntax).
         #[test]
+        fn pushed_fd_frames_are_their_display(e in any_entry()) {
+            if let Record::Fd(f) = e.record {
+                let mut out = Vec::new();
+                push_fd_frame(&mut out, &f);
+                prop_assert_eq!(String::from_utf8(out).unwrap(), f.to_string());
+            }
+        }
+
+        /// A frame's log text is its `Display` (can-utils' compact syntax).
+        #[test]
         fn pushed_frames_are_their_display(f in any_frame()) {
             let mut out = Vec::new();
             push_frame(&mut out, &f);
             prop_assert_eq!(String::from_utf8(out).unwrap(), f.to_string());
+        }
+
+        /// An entry's log line reads back as the entry (microseconds), FD frames included.
+        #[test]
+        fn written_lines_read_back(e in any_entry()) {
+            let line = format_line(&e, true);
+            let mut fast = Message::default();
+            parse_line_into(line.as_bytes(), &mut fast).unwrap();
+            let mut want = e.clone();
+            want.at = Timestamp::from_micros(e.at.since_epoch_duration().as_micros() as u64);
+            prop_assert_eq!(fast, want);
         }
     }
 

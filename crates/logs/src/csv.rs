@@ -10,13 +10,20 @@
 //! data bytes, as many as it has (as python-can logs SocketCAN error frames). No interface and no
 //! direction: entries read back on `can0`. The reader, like python-can's, takes the first line
 //! for the header whatever it says.
+//!
+//! python-can's columns have no place for CAN FD: its writer puts an FD frame in a row like any
+//! frame, its length as the `dlc` and its data (up to 64 bytes), and loses the FD mark, BRS and
+//! ESI; buslab writes it so too (python-can reads such a file), and reads a row of more than 8
+//! data bytes back as a CAN FD frame without BRS and ESI. An FD frame of 8 bytes or fewer
+//! comes back classic. The columns stay python-can's so that python-can reads every file
+//! buslab writes.
 
 use std::io::{self, BufRead, Write};
 
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD as BASE64;
 use buslab_bus::ErrorFrame;
-use buslab_can::{Frame, Id};
+use buslab_can::{FD_MAX_LEN, FdFrame, Frame, Id};
 
 use crate::codec::{Encoder, LogReader};
 use crate::error::{Problem, ReadError};
@@ -106,27 +113,28 @@ pub fn parse_row(line: &[u8], entry: &mut Message) -> Result<(), Problem> {
     let extended = flag(text::trim(extended), "extended 0 or 1")?;
     let remote = flag(text::trim(remote), "remote 0 or 1")?;
     let error = flag(text::trim(error), "error 0 or 1")?;
+    let dlc_text = dlc;
     let dlc = text::dec_u64(text::trim(dlc))
-        .filter(|&d| d <= 64)
-        .ok_or_else(|| bad("a dlc 0..8", dlc))? as u8;
+        .filter(|&d| d <= FD_MAX_LEN as u64)
+        .ok_or_else(|| bad("a dlc 0..8 (or a CAN FD length up to 64)", dlc))? as u8;
     let mut bytes = [0u8; 96];
     let data = text::trim(data);
     let len = BASE64
         .decode_slice(data, &mut bytes)
-        .map_err(|_| bad("data in base64 (at most 8 bytes)", data))?;
+        .map_err(|_| bad("data in base64 (at most 64 bytes)", data))?;
     let bytes = &bytes[..len];
     let record = if error {
         Record::Error(ErrorFrame::decode(raw & 0x1FFF_FFFF, bytes)?)
     } else {
-        if dlc > 8 || len > 8 {
-            return Err(Problem::CanFd);
-        }
         let id = if extended {
             Id::extended(raw)?
         } else {
             Id::standard(u16::try_from(raw).map_err(|_| bad("a standard ID 0x0..0x7ff", id))?)?
         };
         if remote {
+            if dlc > 8 {
+                return Err(bad("a remote frame's dlc 0..8", text::trim(dlc_text)));
+            }
             Record::Frame(Frame::remote(id, dlc)?)
         } else {
             if usize::from(dlc) != len {
@@ -135,7 +143,7 @@ pub fn parse_row(line: &[u8], entry: &mut Message) -> Result<(), Problem> {
                     found: format!("dlc {dlc} with {len} bytes"),
                 });
             }
-            Record::Frame(Frame::data(id, bytes)?)
+            frame_of_row(id, bytes)?
         }
     };
     entry.at = Timestamp::since_epoch(timestamp);
@@ -144,6 +152,26 @@ pub fn parse_row(line: &[u8], entry: &mut Message) -> Result<(), Problem> {
     entry.record = record;
     entry.direction = None;
     Ok(())
+}
+
+/// A data row's frame, as python-can's files hold them: up to 8 bytes a classic frame, more
+/// a CAN FD frame (python-can writes one so and keeps no BRS or ESI).
+pub(crate) fn frame_of_row(id: Id, data: &[u8]) -> Result<Record, Problem> {
+    Ok(if data.len() <= 8 {
+        Record::Frame(Frame::data(id, data)?)
+    } else {
+        Record::Fd(FdFrame::new(id, data)?)
+    })
+}
+
+/// Warns, once per writer, of what python-can's columns lose of CAN FD frames.
+pub(crate) fn warn_fd_loss(warned: &mut bool, format: &str) {
+    if !*warned {
+        *warned = true;
+        tracing::warn!(
+            "{format} (python-can's columns) keeps a CAN FD frame's ID and data but not BRS, ESI or, for 8 bytes or fewer, that it is FD: candump, ASC, BLF, TRC 2.1, pcap and pcapng keep them"
+        );
+    }
 }
 
 impl<R: BufRead + Send> LogReader for Reader<R> {
@@ -156,6 +184,7 @@ impl<R: BufRead + Send> LogReader for Reader<R> {
 pub struct Writer<W> {
     out: W,
     header: bool,
+    fd_warned: bool,
     line: Vec<u8>,
 }
 
@@ -164,7 +193,8 @@ impl<W: Write> Writer<W> {
         Self {
             out,
             header: false,
-            line: Vec::with_capacity(96),
+            fd_warned: false,
+            line: Vec::with_capacity(160),
         }
     }
 
@@ -183,9 +213,22 @@ impl<W: Write> Writer<W> {
         line.clear();
         push_seconds(line, entry.at.since_epoch_duration());
         line.extend_from_slice(b",0x");
-        let mut data = [0u8; 8];
+        let mut data = [0u8; FD_MAX_LEN];
         let (raw, extended, remote, error, dlc, len) = match &entry.record {
-            Record::Fd(_) => return Err(crate::error::fd_not_carried("CSV")),
+            Record::Fd(f) => {
+                warn_fd_loss(&mut self.fd_warned, "CSV");
+                let payload = f.payload();
+                data[..payload.len()].copy_from_slice(payload);
+                let len = payload.len();
+                (
+                    f.id().as_raw(),
+                    f.is_extended(),
+                    false,
+                    false,
+                    len as u8,
+                    len,
+                )
+            }
             Record::Frame(f) => {
                 let payload = f.payload();
                 data[..payload.len()].copy_from_slice(payload);
@@ -194,7 +237,7 @@ impl<W: Write> Writer<W> {
             }
             Record::Error(e) => {
                 let (class, bytes) = e.encode();
-                data = bytes;
+                data[..8].copy_from_slice(&bytes);
                 let len = e.data_len();
                 (class, false, false, true, len as u8, len)
             }
@@ -206,7 +249,7 @@ impl<W: Write> Writer<W> {
         line.push(b',');
         text::push_u64(line, u64::from(dlc));
         line.push(b',');
-        let mut b64 = [0u8; 12];
+        let mut b64 = [0u8; FD_MAX_LEN.div_ceil(3) * 4];
         let n = BASE64
             .encode_slice(&data[..len], &mut b64)
             .map_err(io::Error::other)?;

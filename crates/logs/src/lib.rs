@@ -14,7 +14,9 @@
 //! whatever the input size, names the line or byte offset of a bad record, and goes on after
 //! one that it can step over. Every reader's core works on any `BufRead`/`Read`, so a fuzz
 //! target can feed it bytes. Error frames go through every format that holds them byte for
-//! byte (class, bytes and length).
+//! byte (class, bytes and length). CAN FD frames (with BRS and ESI) go through candump, ASC,
+//! BLF, TRC 2.1, pcap and pcapng whole; TRC 1.1 has no FD record and refuses them by name;
+//! python-can's CSV and SQLite columns keep their ID and data only, as python-can does.
 //!
 //! Times are [`Timestamp`]s since the Unix epoch (or since whatever zero the log uses), exact
 //! to the nanosecond a format carries.

@@ -222,7 +222,7 @@ impl<W: Write> Writer<W> {
         out.write_all(&h)?;
         Ok(Self {
             out,
-            buf: Vec::with_capacity(32),
+            buf: Vec::with_capacity(16 + socketcan::FD_LEN),
         })
     }
 
@@ -237,8 +237,7 @@ impl<W: Write> Writer<W> {
                 "times up to 4294967295 s (2106-02-07 06:28:15 UTC, 32-bit seconds)",
             ));
         };
-        let record =
-            socketcan::encode(&entry.record).ok_or_else(|| crate::error::fd_not_carried("pcap"))?;
+        let record = socketcan::encode(&entry.record);
         self.buf.clear();
         self.buf.extend_from_slice(&secs.to_le_bytes());
         self.buf.extend_from_slice(&t.subsec_micros().to_le_bytes());

@@ -494,8 +494,7 @@ impl<W: Write> Writer<W> {
             ));
         };
         let iface = self.interface(&entry.channel)?;
-        let record = socketcan::encode(&entry.record)
-            .ok_or_else(|| crate::error::fd_not_carried("pcapng"))?;
+        let record = socketcan::encode(&entry.record);
         let buf = &mut self.buf;
         buf.clear();
         buf.extend_from_slice(&BLOCK_EPB.to_le_bytes());

@@ -5,6 +5,10 @@
 //! Seconds as a float (microseconds survive; a float cannot hold nanoseconds at today's
 //! epoch), no interface and no direction (entries read back on `can0`). An error frame is a
 //! row with `error` 1, the class as its ID and its SocketCAN data bytes (as many as it has).
+//! A CAN FD frame is a row like any frame, its length as the `dlc` and its data, as
+//! python-can's writer stores it: BRS, ESI and the FD mark have no column, so a row of more
+//! than 8 data bytes reads back as a CAN FD frame without BRS and ESI and an FD frame of 8
+//! bytes or fewer comes back classic (the columns stay python-can's, which reads every row).
 //!
 //! The writer keeps one transaction open and commits it at least every half second (from a
 //! timer thread when idle, from `write` when busy), on [`Writer::commit`] and on
@@ -50,9 +54,8 @@ pub const INTERFACE: &str = "can0";
 pub const COMMIT_EVERY: Duration = Duration::from_millis(500);
 const BATCH: i64 = 1024;
 
-/// The most bytes a value of a row may hold: a CAN FD frame's 64 data bytes (python-can logs
-/// them; buslab refuses them as CAN FD). A longer blob or text is an error naming its row and
-/// size, found without reading the value.
+/// The most bytes a value of a row may hold: a CAN FD frame's 64 data bytes. A longer blob or
+/// text is an error naming its row and size, found without reading the value.
 pub const MAX_VALUE: i64 = 64;
 
 /// python-can's columns, in its order, with how an error names each one's value.
@@ -348,14 +351,15 @@ fn decode_row(row: &Row, entry: &mut Message) -> Result<(), Problem> {
     let record = if error {
         Record::Error(ErrorFrame::decode(raw & 0x1FFF_FFFF, data)?)
     } else {
-        if !(0..=8).contains(&dlc) || data.len() > 8 {
-            return Err(if (0..=64).contains(&dlc) {
-                Problem::CanFd
-            } else {
-                Problem::Expected {
-                    expected: "a dlc 0..8",
-                    found: dlc.to_string(),
-                }
+        let dlc_range = if remote { 0..=8 } else { 0..=MAX_VALUE };
+        if !dlc_range.contains(&dlc) {
+            return Err(Problem::Expected {
+                expected: if remote {
+                    "a remote frame's dlc 0..8"
+                } else {
+                    "a dlc 0..8 (or a CAN FD length up to 64)"
+                },
+                found: dlc.to_string(),
             });
         }
         let id = if extended {
@@ -369,7 +373,13 @@ fn decode_row(row: &Row, entry: &mut Message) -> Result<(), Problem> {
         if remote {
             Record::Frame(Frame::remote(id, dlc as u8)?)
         } else {
-            Record::Frame(Frame::data(id, data)?)
+            if dlc != data.len() as i64 {
+                return Err(Problem::Expected {
+                    expected: "as many data bytes as the dlc",
+                    found: format!("dlc {dlc} with {} bytes", data.len()),
+                });
+            }
+            crate::csv::frame_of_row(id, data)?
         }
     };
     entry.at = Timestamp::from_secs_f64(ts);
@@ -387,6 +397,7 @@ impl LogReader for Reader {
 }
 
 struct State {
+    fd_warned: bool,
     conn: Option<Connection>,
     pending: u64,
     last_commit: Instant,
@@ -439,6 +450,7 @@ impl Writer {
         conn.execute_batch(CREATE_TABLE)?;
         conn.execute_batch("BEGIN")?;
         let state = Arc::new(Mutex::new(State {
+            fd_warned: false,
             conn: Some(conn),
             pending: 0,
             last_commit: Instant::now(),
@@ -475,7 +487,17 @@ impl Writer {
         let (raw, extended, remote, error, dlc, data): (u32, bool, bool, bool, u8, &[u8]);
         let error_bytes;
         match &entry.record {
-            Record::Fd(_) => return Err(crate::error::fd_not_carried("SQLite")),
+            Record::Fd(f) => {
+                crate::csv::warn_fd_loss(&mut state.fd_warned, "SQLite");
+                (raw, extended, remote, error, dlc) = (
+                    f.id().as_raw(),
+                    f.is_extended(),
+                    false,
+                    false,
+                    f.payload().len() as u8,
+                );
+                data = f.payload();
+            }
             Record::Frame(f) => {
                 (raw, extended, remote, error, dlc) = (
                     f.id().as_raw(),

@@ -1,6 +1,8 @@
 //! What a log holds, counted as its entries go by (`buslab log info`): per interface, frames
 //! by kind, error frames, the time span, the bits on the wire for the load, the busiest IDs.
-//! Bounded: at most [`MAX_IDS`] distinct IDs are counted per interface.
+//! Bounded: at most [`MAX_IDS`] distinct IDs are counted per interface. CAN FD frames are
+//! counted (and among them in [`InterfaceStats::fd`]) but not in the load: an FD frame's time
+//! on the wire depends on its data phase's bit rate, which no log gives.
 
 use std::collections::{BTreeMap, HashMap};
 use std::time::Duration;
@@ -15,11 +17,14 @@ pub const MAX_IDS: usize = 100_000;
 /// One interface's counts.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct InterfaceStats {
+    /// Frames, classic and CAN FD.
     pub frames: u64,
+    /// CAN FD frames among them (their bits are not in [`bits`](Self::bits)).
+    pub fd: u64,
     pub errors: u64,
     pub remote: u64,
     pub extended: u64,
-    /// Bit-times the frames took on the wire, stuffing and intermission included.
+    /// Bit-times the classic frames took on the wire, stuffing and intermission included.
     pub bits: u64,
     pub first: Option<Timestamp>,
     pub last: Option<Timestamp>,
@@ -68,8 +73,8 @@ pub struct LogStats {
 }
 
 impl LogStats {
-    /// Counts `entry`; returns the bit-times a frame took on the wire (`None` for an error
-    /// frame).
+    /// Counts `entry`; returns the bit-times a classic frame took on the wire (`None` for an
+    /// error frame or a CAN FD frame).
     pub fn add(&mut self, entry: &Message) -> Option<u64> {
         let s = match self.interfaces.get_mut(&entry.channel) {
             Some(s) => s,
@@ -77,34 +82,17 @@ impl LogStats {
         };
         s.first = Some(s.first.map_or(entry.at, |f| f.min(entry.at)));
         s.last = Some(s.last.map_or(entry.at, |l| l.max(entry.at)));
-        let f = match &entry.record {
+        let (extended, raw) = match &entry.record {
             Record::Error(_) => {
                 s.errors += 1;
                 return None;
             }
-            Record::Fd(f) => {
-                // Counted, but not in the bus load: an FD frame's time depends on its two bit
-                // rates, which a log does not say.
-                s.frames += 1;
-                s.extended += u64::from(f.is_extended());
-                let key = (f.is_extended(), f.id().as_raw());
-                if let Some(n) = s.ids.get_mut(&key) {
-                    *n += 1;
-                } else if s.ids.len() < MAX_IDS {
-                    s.ids.insert(key, 1);
-                } else {
-                    s.ids_overflow = true;
-                }
-                return None;
-            }
-            Record::Frame(f) => f,
+            Record::Fd(f) => (f.is_extended(), f.id().as_raw()),
+            Record::Frame(f) => (f.is_extended(), f.id().as_raw()),
         };
         s.frames += 1;
-        s.remote += u64::from(f.is_remote());
-        s.extended += u64::from(f.is_extended());
-        let bits = frame_bits(f);
-        s.bits += bits;
-        let key = (f.is_extended(), f.id().as_raw());
+        s.extended += u64::from(extended);
+        let key = (extended, raw);
         if let Some(n) = s.ids.get_mut(&key) {
             *n += 1;
         } else if s.ids.len() < MAX_IDS {
@@ -112,7 +100,20 @@ impl LogStats {
         } else {
             s.ids_overflow = true;
         }
-        Some(bits)
+        match &entry.record {
+            Record::Frame(f) => {
+                s.remote += u64::from(f.is_remote());
+                let bits = frame_bits(f);
+                s.bits += bits;
+                Some(bits)
+            }
+            _ => {
+                // Counted, but not in the bus load: an FD frame's time depends on its two
+                // bit rates, which a log does not say.
+                s.fd += 1;
+                None
+            }
+        }
     }
 
     pub fn frames(&self) -> u64 {
@@ -184,6 +185,27 @@ mod tests {
             stats.first_last(),
             Some((Timestamp::EPOCH, Timestamp::from_micros(40_000)))
         );
+    }
+
+    #[test]
+    fn fd_frames_are_counted_but_not_in_the_load() {
+        let mut stats = LogStats::default();
+        assert!(stats.add(&entry(0, "can0", "123#11")).is_some());
+        for (t, fd) in [(10, "123##1112233"), (20, "12345678##0")] {
+            let e = Message {
+                record: Record::Fd(fd.parse().unwrap()),
+                ..entry(t, "can0", "123#")
+            };
+            assert_eq!(stats.add(&e), None);
+        }
+        let can0 = &stats.interfaces["can0"];
+        assert_eq!(
+            (can0.frames, can0.fd, can0.extended, can0.ids()),
+            (3, 2, 1, 2)
+        );
+        assert_eq!(can0.busiest(1), [(false, 0x123, 2)]);
+        assert_eq!(can0.bits, frame_bits(&"123#11".parse().unwrap()));
+        assert_eq!(can0.span(), Duration::from_millis(20));
     }
 
     #[test]

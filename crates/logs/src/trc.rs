@@ -21,7 +21,10 @@
 //!
 //! `$STARTTIME` is days since 1899-12-30 (UTC, as python-can reads and writes it); buslab
 //! writes it with 15 decimals, the first entry's time to the nanosecond. IDs have 4 hex digits
-//! (standard) or 8 (extended). The writer leaves error frames out (TRC's error records are
+//! (standard) or 8 (extended). CAN FD frames are 2.x records of type `FD` (neither flag), `FB`
+//! (BRS), `FE` (ESI) or `BI` (BRS and ESI) whose `L` column is the DLC (0..15) and `l` column,
+//! when a file has it, the data length; version 1.x has no CAN FD, so a 1.1 writer refuses an
+//! FD frame by name. The writer leaves error frames out (TRC's error records are
 //! not SocketCAN's; python-can leaves them out too), counted by `left_out`. The reader takes
 //! versions 1.0 to 2.1 and skips status, error-counter and event records. The bit rates of a
 //! PCAN-View header's connection table (`;   1    Connection1   TestNet@pcan_usb   CAN   500
@@ -30,7 +33,7 @@
 use std::io::{self, BufRead, Write};
 use std::time::Duration;
 
-use buslab_can::{Frame, Id};
+use buslab_can::{FD_MAX_LEN, FdFrame, Frame, Id, fd_len_of_dlc};
 
 use crate::LogBitRate;
 use crate::bitrate::HeaderRates;
@@ -195,8 +198,7 @@ impl State {
                     }
                 }
                 match ty {
-                    b"DT" | b"RR" => {}
-                    b"FD" | b"FB" | b"FE" | b"BI" => return Err(Problem::CanFd),
+                    b"DT" | b"RR" | b"FD" | b"FB" | b"FE" | b"BI" => {}
                     _ => return Ok(false),
                 }
             }
@@ -244,22 +246,15 @@ impl State {
         } else {
             Id::standard(raw as u16)?
         };
-        let dlc = text::dec_u64(dlc)
-            .filter(|&d| d <= 64)
-            .ok_or_else(|| Problem::Expected {
-                expected: "a data length 0..8",
-                found: excerpt(dlc),
-            })? as u8;
-        if dlc > 8 {
-            return Err(if dlc <= 15 || !length_is_dlc {
-                Problem::CanFd
-            } else {
-                Problem::Expected {
-                    expected: "a data length 0..8",
-                    found: dlc.to_string(),
-                }
-            });
-        }
+        // BRS and ESI of a CAN FD record's type.
+        let fd = match ty {
+            b"FD" => Some((false, false)),
+            b"FB" => Some((true, false)),
+            b"FE" => Some((false, true)),
+            b"BI" => Some((true, true)),
+            _ => None,
+        };
+        let len = data_length(dlc, fd.is_some(), length_is_dlc, &self.layout)?;
         let direction = match dir {
             b"Rx" => Direction::Rx,
             b"Tx" => Direction::Tx,
@@ -276,12 +271,12 @@ impl State {
                 expected: "a bus number",
                 found: excerpt(bus),
             })?;
-        let frame = if ty == b"RR" {
-            Frame::remote(id, dlc)?
+        let record = if ty == b"RR" {
+            Record::Frame(Frame::remote(id, len as u8)?)
         } else {
-            let mut data = [0u8; 8];
+            let mut data = [0u8; FD_MAX_LEN];
             let mut words = rest;
-            for slot in data.iter_mut().take(usize::from(dlc)) {
+            for slot in data.iter_mut().take(len) {
                 let (w, r) = field(words);
                 words = r;
                 *slot = match w {
@@ -296,13 +291,48 @@ impl State {
                     }
                 };
             }
-            Frame::data(id, &data[..usize::from(dlc)])?
+            match fd {
+                Some((brs, esi)) => {
+                    Record::Fd(FdFrame::new(id, &data[..len])?.with_brs(brs).with_esi(esi))
+                }
+                None => Record::Frame(Frame::data(id, &data[..len])?),
+            }
         };
         entry.at = Timestamp::since_epoch(self.start + offset);
         set_channel_name(&mut entry.channel, bus);
-        entry.record = Record::Frame(frame);
+        entry.record = record;
         entry.direction = Some(direction);
         Ok(true)
+    }
+}
+
+/// A record's data length: a classic record's 0..8; a CAN FD record's from its DLC (0..15,
+/// the `L` column) or its length (the `l` column).
+fn data_length(
+    text: &[u8],
+    fd: bool,
+    length_is_dlc: bool,
+    layout: &Layout,
+) -> Result<usize, Problem> {
+    let value = text::dec_u64(text);
+    let bad = |expected| Problem::Expected {
+        expected,
+        found: excerpt(text),
+    };
+    match (fd, value) {
+        (false, Some(n @ 0..=8)) => Ok(n as usize),
+        (false, _) if matches!(layout, Layout::V2(_)) => Err(bad(
+            "a data length 0..8 (a CAN FD record's type is FD, FB, FE or BI)",
+        )),
+        (false, _) => Err(bad("a data length 0..8 (TRC 1.x has no CAN FD)")),
+        (true, Some(dlc)) if length_is_dlc => u8::try_from(dlc)
+            .ok()
+            .and_then(fd_len_of_dlc)
+            .ok_or_else(|| bad("a CAN FD DLC 0..15")),
+        (true, Some(n)) if n <= FD_MAX_LEN as u64 => Ok(n as usize),
+        (true, _) => Err(bad(
+            "a CAN FD data length 0..8, 12, 16, 20, 24, 32, 48 or 64",
+        )),
     }
 }
 
@@ -380,15 +410,27 @@ impl<W: Write> Writer<W> {
         Ok(())
     }
 
+    /// Writes one entry. An error frame is left out (counted); an FD frame in a 1.1 file is
+    /// refused with [`io::ErrorKind::InvalidInput`] and nothing is written.
     pub fn write(&mut self, entry: &Message) -> io::Result<()> {
-        let Record::Frame(frame) = &entry.record else {
-            if self.left_out == 0 {
-                tracing::warn!(
-                    "TRC files hold no SocketCAN error frames: they are left out (as python-can does)"
-                );
+        let frame = match &entry.record {
+            Record::Frame(f) => TrcFrame::Classic(f),
+            Record::Fd(f) if self.version == Version::V2_1 => TrcFrame::Fd(f),
+            Record::Fd(_) => {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    "TRC 1.1 has no CAN FD records: write TRC 2.1 (.trc, --to trc21) or another format that carries CAN FD (candump, ASC, BLF, pcap, pcapng)",
+                ));
             }
-            self.left_out += 1;
-            return Ok(());
+            Record::Error(_) => {
+                if self.left_out == 0 {
+                    tracing::warn!(
+                        "TRC files hold no SocketCAN error frames: they are left out (as python-can does)"
+                    );
+                }
+                self.left_out += 1;
+                return Ok(());
+            }
         };
         let start = match self.start {
             Some(s) => s,
@@ -445,7 +487,7 @@ impl<W: Write> Writer<W> {
                 line.push(b'.');
                 text::push_u64_zeros(line, (micros % 1000) as u64, 3);
                 right_align(line, col, 13);
-                line.extend_from_slice(if frame.is_remote() { b" RR " } else { b" DT " });
+                line.extend_from_slice(frame.kind());
                 let col = line.len();
                 text::push_u64(line, u64::from(bus));
                 text::pad_to(line, col, 2);
@@ -485,6 +527,50 @@ impl<W: Write> Writer<W> {
         }
         self.out.flush()?;
         Ok(self.out)
+    }
+}
+
+/// A frame a TRC record holds: classic, or CAN FD (2.x only).
+enum TrcFrame<'a> {
+    Classic(&'a Frame),
+    Fd(&'a FdFrame),
+}
+
+impl TrcFrame<'_> {
+    fn id(&self) -> Id {
+        match self {
+            TrcFrame::Classic(f) => f.id(),
+            TrcFrame::Fd(f) => f.id(),
+        }
+    }
+    /// The `L` column: a classic frame's DLC 0..8, an FD frame's 0..15.
+    fn dlc(&self) -> u8 {
+        match self {
+            TrcFrame::Classic(f) => f.dlc(),
+            TrcFrame::Fd(f) => f.dlc(),
+        }
+    }
+    fn is_remote(&self) -> bool {
+        matches!(self, TrcFrame::Classic(f) if f.is_remote())
+    }
+    fn payload(&self) -> &[u8] {
+        match self {
+            TrcFrame::Classic(f) => f.payload(),
+            TrcFrame::Fd(f) => f.payload(),
+        }
+    }
+    /// The 2.x type column, with a space on each side.
+    fn kind(&self) -> &'static [u8] {
+        match self {
+            TrcFrame::Classic(f) if f.is_remote() => b" RR ",
+            TrcFrame::Classic(_) => b" DT ",
+            TrcFrame::Fd(f) => match (f.brs(), f.esi()) {
+                (false, false) => b" FD ",
+                (true, false) => b" FB ",
+                (false, true) => b" FE ",
+                (true, true) => b" BI ",
+            },
+        }
     }
 }
 

@@ -5,12 +5,15 @@ use std::io::Cursor;
 use std::time::Duration;
 
 use buslab_bus::{CanError, ErrorFrame};
-use buslab_can::Frame;
+use buslab_can::{Frame, Id};
 use buslab_logs::Timestamp;
 use buslab_logs::asc::{Reader, Writer};
-use buslab_logs::{Direction, Location, Message, Problem, ReadError, Record};
+use buslab_logs::{Direction, Location, Message, ReadError, Record};
 
 /// An ASC file of `body` lines (times from 0: no date header).
+#[path = "support/fd.rs"]
+mod fd;
+
 fn asc(body: &str) -> String {
     format!("base hex  timestamps absolute\nBegin Triggerblock\n{body}End TriggerBlock\n")
 }
@@ -103,27 +106,149 @@ fn data_lines_with_length_and_bitcount_fields() {
 }
 
 /// Classical CAN's DLC 9..15 means 8 data bytes (CANoe writes `d D`): read as an 8-byte frame.
-/// A larger number is a CAN FD length in a classic line: refused as CAN FD.
+/// A CAN FD length above 15 in a classic line is that CAN FD frame (python-can 3 wrote them so,
+/// python-can's `single_frame.asc`); any other number is refused.
 #[test]
 fn classic_dlc_above_8_and_fd_lengths() {
     let text = asc(
         "  13.258671 1  3FF             Tx   d D 55 AA 01 02 03 04 05 06  Length = 232016 BitCount = 119 ID = 1023\n \
          0.000000 1  123x            Rx   d 40 00 01 02 03 04 05 06 07 08 09 0A 0B 0C 0D 0E 0F 10 11 12 13 14 15 16 17 18 19 1A 1B 1C 1D 1E 1F 20 21 22 23 24 25 26 27 28 29 2A 2B 2C 2D 2E 2F 30 31 32 33 34 35 36 37 38 39 3A 3B 3C 3D 3E 3F\n \
          1.000000 1  100             Rx   r F\n \
-         2.000000 1  100             Rx   d 41 00\n",
+         2.000000 1  100             Rx   d 41 00\n \
+         3.000000 1  100             Rx   d 11 00\n \
+         4.000000 1  100             Rx   d 10 00 01 02\n",
     );
     let got = read(&text);
     assert_eq!(
         got[0].as_ref().unwrap().frame(),
         Some(&frame("3FF#55AA010203040506"))
     );
-    let err = got[1].as_ref().unwrap_err();
-    assert!(matches!(err.problem(), Problem::CanFd), "{err}");
-    assert_eq!(err.at(), Some(Location::Line(4)));
+    let fd = got[1].as_ref().unwrap().fd_frame().unwrap();
+    assert_eq!(fd.id(), Id::extended(0x123).unwrap());
+    assert_eq!(fd.payload(), (0..64).collect::<Vec<u8>>());
+    assert!(!fd.brs() && !fd.esi());
     assert_eq!(got[2].as_ref().unwrap().frame(), Some(&frame("100#R8")));
-    let err = got[3].as_ref().unwrap_err().to_string();
-    assert!(err.contains("a DLC 0..15") && err.contains("65"), "{err}");
-    assert_eq!(got.len(), 4);
+    for (i, dlc) in [(3, "41"), (4, "11")] {
+        let err = got[i].as_ref().unwrap_err().to_string();
+        assert!(
+            err.contains("a DLC 0..15, or a CAN FD length 16..64") && err.contains(dlc),
+            "{err}"
+        );
+    }
+    // 16 bytes announced, 4 there.
+    let err = got[5].as_ref().unwrap_err().to_string();
+    assert!(err.contains("as many data bytes as the DLC"), "{err}");
+    assert_eq!(got[5].as_ref().unwrap_err().at(), Some(Location::Line(8)));
+    assert_eq!(got.len(), 6);
+}
+
+/// `CANFD` lines as CANoe writes them (python-can's test data: a symbolic name, the BRS and
+/// ESI columns, flags with EDL, a 64-byte frame whose flags are 0, a classic remote frame) and
+/// as python-can writes them (length 0 included, which python-can's own reader takes for a
+/// remote frame).
+#[test]
+fn canfd_lines_as_canoe_and_python_can_write_them() {
+    let long_line = format!(
+        "  30.506898 CANFD   4 Rx        4EE                                   0 1 f 64 A1 02 03 04 {}64 1331984 11 0 46500250 460a0250 20011736 20010205\n",
+        "00 ".repeat(59)
+    );
+    let text = asc(&[
+        "  30.005021 CANFD   1 Rx        300                                   1 0 8  8 11 c2 03 04 05 06 07 08   102203  133   303000 e0006659 46500250 4b140250 20011736 2001040d\n",
+        "  30.005041 CANFD   2 Tx        1C4D80A7x                                   0 1 8  8 12 c2 03 04 05 06 07 08   102203  133   303000 e0006659 46500250 4b140250 20011736 2001040d\n",
+        "  30.005071 CANFD   3 Rx        30a  Generic_Name_12                  1 1 8  8 01 02 03 04 05 06 07 08   102203  133   303000 e0006659 46500250 4b140250 20011736 2001040d\n",
+        "  30.300981 CANFD   3 Tx     50005x                                0 0 5 0 140000 73 200050 7a60 46500250 460a0250 20011736 20010205\n",
+        &long_line,
+        " 0.000000 CANFD   1 Tx        100                                   0 0 0  0         0    0     1000        0        0        0        0        0\n",
+        " 0.001500 CANFD   2 Rx   1ABC0001x                                   1 1 9 12 00 01 02 03 04 05 06 07 08 09 0A 0B        0    0     7000        0        0        0        0        0\n",
+    ]
+    .join(""));
+    let got: Vec<Message> = read(&text).into_iter().map(Result::unwrap).collect();
+    let records: Vec<(String, Option<Direction>, String)> = got
+        .iter()
+        .map(|e| (e.channel.clone(), e.direction, e.record.to_string()))
+        .collect();
+    let mut long = String::from("4EE##2A1020304");
+    long.push_str(&"00".repeat(59));
+    long.push_str("64");
+    assert_eq!(
+        records,
+        [
+            (
+                "can0".into(),
+                Some(Direction::Rx),
+                "300##111C2030405060708".into()
+            ),
+            (
+                "can1".into(),
+                Some(Direction::Tx),
+                "1C4D80A7##212C2030405060708".into()
+            ),
+            (
+                "can2".into(),
+                Some(Direction::Rx),
+                "30A##30102030405060708".into()
+            ),
+            ("can2".into(), Some(Direction::Tx), "00050005#R5".into()),
+            ("can3".into(), Some(Direction::Rx), long),
+            ("can0".into(), Some(Direction::Tx), "100##0".into()),
+            (
+                "can1".into(),
+                Some(Direction::Rx),
+                "1ABC0001##3000102030405060708090A0B".into()
+            ),
+        ]
+    );
+}
+
+/// Every FD length, BRS/ESI combination and ID kind through the writer and the reader, in
+/// python-can's columns.
+#[test]
+fn every_fd_frame_round_trips_in_canfd_lines() {
+    let entries = fd::every_fd_entry();
+    let mut w = Writer::new(Vec::new());
+    for e in &entries {
+        w.write(e).unwrap();
+    }
+    let text = String::from_utf8(w.finish().unwrap()).unwrap();
+    // The 12-byte extended frame with BRS and ESI (n = 9 * 8 + 3 * 2 + 1).
+    assert!(
+        text.contains(
+            "   0.118500 CANFD   2 Rx   1ABC004Fx                                   1 1 9 12 4F 48 41 5A 53 6C 65 7E 77 70 09 02        0    0     7000        0        0        0        0        0\n"
+        ),
+        "{text}"
+    );
+    let back: Vec<Message> = read(&text).into_iter().map(Result::unwrap).collect();
+    assert_eq!(back, entries);
+}
+
+#[test]
+fn garbage_canfd_lines_name_what_is_wrong() {
+    let line = |rest: &str| {
+        format!("  1.000000 CANFD   1 Rx        123                                   {rest}\n")
+    };
+    let cases = [
+        (
+            "1 0 a 10 00 01 02 03 04 05 06 07 08 09 0 0 1000",
+            "10 data bytes given; a CAN FD frame carries",
+        ),
+        (
+            "1 0 f 65 00",
+            "a CAN FD data length 0..8, 12, 16, 20, 24, 32, 48 or 64, found \"65\"",
+        ),
+        ("2 0 1 1 00 0 0 1000", "BRS and ESI as 0 or 1"),
+        ("1 0 1 1 00 0 0 1010", "without the remote flag 0x10"),
+        ("1 0 c 12 00 01 02", "CANFD: BRS ESI DLC LENGTH DATA"),
+        ("1 0 1 1 GG 0 0 1000", "a data byte, found \"GG\""),
+        ("1 0 1 x 00", "a data length, found \"x\""),
+    ];
+    let text = asc(&cases.iter().map(|(rest, _)| line(rest)).collect::<String>());
+    let got = read(&text);
+    assert_eq!(got.len(), cases.len());
+    for (i, ((rest, want), result)) in cases.iter().zip(&got).enumerate() {
+        let err = result.as_ref().unwrap_err();
+        assert_eq!(err.at(), Some(Location::Line(3 + i as u64)), "{rest}");
+        assert!(err.to_string().contains(want), "{rest}: {err}");
+    }
 }
 
 fn error_entry(e: ErrorFrame, micros: u64) -> Message {

@@ -10,6 +10,9 @@ use buslab_logs::candump::{LineError, MAX_LINE, Reader, Writer, format_line, par
 use buslab_logs::{Direction, Location, Message, Problem, ReadError, Record};
 use proptest::prelude::*;
 
+#[path = "support/fd.rs"]
+mod fd;
+
 /// A bad line `line` whose error passes `check`.
 fn is_line(err: &ReadError, line: u64, check: impl Fn(&LineError) -> bool) -> bool {
     err.at() == Some(Location::Line(line))
@@ -105,9 +108,63 @@ fn lines_round_trip() {
         "(1700000000.200000) can0 7FF#R",
         "(1700000000.200000) can0 00000123#R3",
         "(1700000000.400000) can0 20000288#0000080A00000800",
+        "(1700000000.500000) can0 321##1112233",
+        "(1700000000.500000) can0 1F334455##3",
+        "(1700000000.500000) can0 7FF##0000102030405060708090A0B",
     ] {
         assert_eq!(format_line(&parse_line(line).unwrap(), false), line);
     }
+}
+
+/// The flags nibble as can-utils writes it: `0`..`3` (python-can, can-utils before v2025.01),
+/// `4`..`7` with FDF (v2025.01 and later); read masked to BRS and ESI, written `0`..`3`.
+#[test]
+fn fd_lines_with_any_flags_nibble() {
+    for (nibble, brs, esi) in [
+        ('0', false, false),
+        ('1', true, false),
+        ('2', false, true),
+        ('3', true, true),
+        ('4', false, false),
+        ('5', true, false),
+        ('6', false, true),
+        ('7', true, true),
+        ('F', true, true),
+        ('d', true, false),
+    ] {
+        let line = format!("(1700000000.000001) can0 12345678##{nibble}00112233445566778899AABB T");
+        let entry = parse_line(&line).unwrap();
+        let Record::Fd(fd) = entry.record else {
+            panic!("{line}: {entry:?}")
+        };
+        assert_eq!((fd.brs(), fd.esi()), (brs, esi), "{line}");
+        assert_eq!(fd.id(), Id::extended(0x1234_5678).unwrap());
+        assert_eq!(fd.payload().len(), 12);
+        assert_eq!(entry.direction, Some(Direction::Tx));
+        let written = format_line(&entry, true);
+        let want = u8::from(brs) | u8::from(esi) << 1;
+        assert_eq!(
+            written,
+            format!("(1700000000.000001) can0 12345678##{want}00112233445566778899AABB T")
+        );
+    }
+}
+
+/// Every FD length, BRS/ESI combination and ID kind through the writer and the reader.
+#[test]
+fn every_fd_frame_round_trips() {
+    let entries = fd::every_fd_entry();
+    let mut w = Writer::new(Vec::new()).with_direction(true);
+    for e in &entries {
+        w.write(e).unwrap();
+    }
+    let text = String::from_utf8(w.into_inner()).unwrap();
+    assert!(
+        text.contains("(1700000000.001500) can1 1ABC0001##0 R\n"),
+        "{text}"
+    );
+    let back: Vec<Message> = Reader::new(Cursor::new(text)).map(Result::unwrap).collect();
+    assert_eq!(back, entries);
 }
 
 #[test]
@@ -139,7 +196,15 @@ fn garbage_lines_name_what_is_wrong() {
     }
     for (line, want) in [
         ("(1.5) vcan0 123", "has no '#'"),
-        ("(1.5) vcan0 123##1112233", "CAN FD"),
+        ("(1.5) vcan0 123##", "one hex flags digit"),
+        ("(1.5) vcan0 123##G11", "one hex flags digit"),
+        ("(1.5) vcan0 123##0112", "odd number"),
+        ("(1.5) vcan0 123##0112233445566778899", "9 data bytes given"),
+        ("(1.5) vcan0 123##01122334455667788991", "odd number"),
+        ("(1.5) vcan0 123##0ZZ", "not valid hexadecimal"),
+        ("(1.5) vcan0 800##0", "out of range"),
+        ("(1.5) vcan0 0123##0", "3 hex digits"),
+        ("(1.5) vcan0 123##1112233 X", "only R or T"),
         ("(1.5) vcan0 800#", "out of range"),
         ("(1.5) vcan0 123#112", "odd number"),
         ("(1.5) vcan0 123#11223344556677889900", "0..8"),
@@ -261,6 +326,17 @@ proptest! {
         id in "[0-9A-Fa-f]{0,9}", data in "[0-9A-Fa-fR.#_]{0,20}", tail in "( [RTX])?",
     ) {
         let _ = parse_line(&format!("({secs}.{frac}) {iface} {id}#{data}{tail}"));
+    }
+
+    #[test]
+    fn any_fd_frame_round_trips(f in fd::fd_frame(), secs in 0u64..10_000_000_000, micros in 0u32..1_000_000) {
+        let e = Message {
+            at: Timestamp::since_epoch(Duration::new(secs, micros * 1000)),
+            channel: "can0".into(),
+            record: Record::Fd(f),
+            direction: None,
+        };
+        prop_assert_eq!(parse_line(&format_line(&e, false)).unwrap(), e);
     }
 
     #[test]

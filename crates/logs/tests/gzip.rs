@@ -21,8 +21,9 @@ fn read(path: &Path, format: Format) -> Vec<Message> {
         .unwrap()
 }
 
-const LOG: &str =
-    "(1700000000.000000) can0 123#1122\n(1700000000.500000) can1 20000088#0000020A00000102\n";
+const LOG: &str = "(1700000000.000000) can0 123#1122\n\
+    (1700000000.250000) can0 12345678##3112233445566778899AABBCC\n\
+    (1700000000.500000) can1 20000088#0000020A00000102\n";
 
 #[test]
 fn compressed_logs_read_as_their_format() {
@@ -30,12 +31,15 @@ fn compressed_logs_read_as_their_format() {
     let plain = dir.path().join("a.log");
     std::fs::write(&plain, LOG).unwrap();
     let want = read(&plain, Format::Candump);
-    assert_eq!(want.len(), 2);
+    assert_eq!(want.len(), 3);
+    assert!(matches!(want[1].record, buslab_logs::Record::Fd(_)));
     for format in [
         Format::Candump,
         Format::Asc,
         Format::Blf,
+        Format::Trc21,
         Format::Csv,
+        Format::Pcap,
         Format::Pcapng,
     ] {
         // Written plain by buslab, compressed, read back by its `.EXT.gz` name.
@@ -46,6 +50,13 @@ fn compressed_logs_read_as_their_format() {
         }
         w.finish().unwrap();
         let expected = read(&path, format);
+        // CAN FD frames too, where the format keeps them (CSV keeps the bytes).
+        assert!(
+            expected
+                .iter()
+                .any(|e| e.record.payload() == want[1].record.payload()),
+            "{format}"
+        );
         let gz = dir.path().join(format!("b.{}.gz", format.extension()));
         std::fs::write(&gz, gzip(&std::fs::read(&path).unwrap())).unwrap();
         assert_eq!(Format::from_path(&gz).unwrap(), format);
@@ -56,7 +67,7 @@ fn compressed_logs_read_as_their_format() {
     let mut bytes = gzip(LOG.as_bytes());
     bytes.extend(gzip(LOG.as_bytes()));
     std::fs::write(&two, bytes).unwrap();
-    assert_eq!(read(&two, Format::Candump).len(), 4);
+    assert_eq!(read(&two, Format::Candump).len(), 6);
 }
 
 #[test]

@@ -1,18 +1,22 @@
 //! Every format: what a writer writes, the reader reads back identical, as far as the format
-//! keeps it (`kept` says what each one keeps); no reader panics or hangs on arbitrary bytes.
+//! keeps it (`kept` says what each one keeps), CAN FD frames included; no reader panics or
+//! hangs on arbitrary bytes.
 
 use std::io::Cursor;
 use std::path::Path;
 use std::time::Duration;
 
 use buslab_bus::ErrorFrame;
-use buslab_can::{Frame, Id};
+use buslab_can::{FdFrame, Frame, Id};
 use buslab_logs::Timestamp;
 use buslab_logs::{
-    ChannelMap, Direction, Format, Message, Record, create_writer, create_writer_atomic,
+    ChannelMap, Direction, Format, LogWriter, Message, Record, create_writer, create_writer_atomic,
     open_reader, reader,
 };
 use proptest::prelude::*;
+
+#[path = "support/fd.rs"]
+mod fd;
 
 fn frame() -> impl Strategy<Value = Frame> {
     let id = prop_oneof![
@@ -45,8 +49,27 @@ fn error_frame() -> impl Strategy<Value = ErrorFrame> {
 fn record() -> impl Strategy<Value = Record> {
     prop_oneof![
         4 => frame().prop_map(Record::Frame),
+        2 => fd::fd_frame().prop_map(Record::Fd),
         1 => error_frame().prop_map(Record::Error),
     ]
+}
+
+/// Whether `format` holds `record` (TRC holds no error frames, TRC 1.1 no CAN FD frames).
+fn holds(format: Format, record: &Record) -> bool {
+    !matches!(
+        (format, record),
+        (Format::Trc11 | Format::Trc21, Record::Error(_)) | (Format::Trc11, Record::Fd(_))
+    )
+}
+
+/// Writes `e`; a TRC 1.1 writer must refuse a CAN FD frame by name.
+fn write_entry(w: &mut dyn LogWriter, format: Format, e: &Message) {
+    match w.write(e) {
+        Err(err) if format == Format::Trc11 && matches!(e.record, Record::Fd(_)) => {
+            assert!(err.to_string().contains("TRC 1.1 has no CAN FD"), "{err}");
+        }
+        result => result.unwrap_or_else(|err| panic!("{format}: {err}")),
+    }
 }
 
 fn direction() -> impl Strategy<Value = Option<Direction>> {
@@ -101,18 +124,20 @@ fn floor_at(t: Timestamp, unit_ns: u128) -> Timestamp {
 fn kept(format: Format, entries: &[Message]) -> Vec<Message> {
     let mut channels = ChannelMap::new();
     let mut numbered = |e: &Message| format!("can{}", channels.number(&e.channel) - 1);
-    let first = entries.iter().find(|e| {
-        !matches!(format, Format::Trc11 | Format::Trc21) || matches!(e.record, Record::Frame(_))
-    });
+    let first = entries.iter().find(|e| holds(format, &e.record));
     let first_t = first.map(|e| e.at).unwrap_or_default();
     entries
         .iter()
-        .filter(|e| {
-            !(matches!(format, Format::Trc11 | Format::Trc21)
-                && matches!(e.record, Record::Error(_)))
-        })
+        .filter(|e| holds(format, &e.record))
         .map(|e| {
             let mut k = e.clone();
+            // python-can's CSV and SQLite columns: no FD mark, BRS or ESI.
+            if let (Format::Csv | Format::Sqlite, Record::Fd(f)) = (format, &e.record) {
+                k.record = match Frame::data(f.id(), f.payload()) {
+                    Ok(classic) => Record::Frame(classic),
+                    Err(_) => Record::Fd(FdFrame::new(f.id(), f.payload()).unwrap()),
+                };
+            }
             let rx = Some(e.direction.unwrap_or(Direction::Rx));
             match format {
                 Format::Candump => {
@@ -175,7 +200,7 @@ fn write_then_read(dir: &Path, format: Format, entries: &[Message], atomic: bool
         create_writer(&path, format).unwrap()
     };
     for e in entries {
-        w.write(e).unwrap();
+        write_entry(w.as_mut(), format, e);
     }
     w.finish().unwrap();
     open_reader(&path, format)
@@ -226,7 +251,7 @@ proptest! {
             let path = dir.path().join(format!("x.{}", format.extension()));
             let mut w = create_writer(&path, format).unwrap();
             for e in &entries {
-                w.write(e).unwrap();
+                write_entry(w.as_mut(), format, e);
             }
             w.finish().unwrap();
             let mut bytes = std::fs::read(&path).unwrap();
