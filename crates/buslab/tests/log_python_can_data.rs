@@ -183,7 +183,9 @@ fn compare(
                     extended: false, ..
                 })
                 | Problem::Expected { .. }
-                    if !want.extended && want.id > 0x7FF && matches!(want.kind, 'D' | 'R' | 'F') =>
+                    if !want.extended
+                        && want.id > 0x7FF
+                        && matches!(want.kind, 'D' | 'R' | 'F') =>
                 {
                     Ok(Some(Deliberate::StandardIdAbove7ff))
                 }
