@@ -428,3 +428,21 @@ fn play_sends_only_the_assigned_interfaces_and_no_error_frames() {
     let (ok, _, err) = run(&["play", "x.log", "vcan0"], Path::new("."));
     assert!(!ok && err.contains("WRITE=LOG"), "{err}");
 }
+
+/// `log info` on a log with CAN FD frames counts them apart (their time on the wire needs a
+/// data bit rate no log gives, so the load leaves them out and says so).
+#[test]
+fn info_counts_can_fd_frames_apart_from_the_load() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("fd.log"),
+        "(1.000000) can0 123#11\n(1.100000) can0 333##1112233\n(1.200000) can0 12345678##0\n",
+    )
+    .unwrap();
+    let (ok, out, err) = run(&["log", "info", "fd.log"], dir.path());
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("can0        3 frames (1 extended, 0 remote, 2 CAN FD, not in the load)"),
+        "{out}"
+    );
+}

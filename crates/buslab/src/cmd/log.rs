@@ -442,10 +442,16 @@ fn info(args: InfoArgs) -> anyhow::Result<()> {
             .collect();
         writeln!(
             out,
-            "{name:<11} {} frames ({} extended, {} remote), {} error frames, {}{} IDs, load {load}",
+            "{name:<11} {} frames ({} extended, {} remote{}), {} error frames, {}{} IDs, load {load}",
             s.frames,
             s.extended,
             s.remote,
+            if s.fd > 0 {
+                // The load counts classic frames: an FD frame's time needs its data bit rate.
+                format!(", {} CAN FD, not in the load", s.fd)
+            } else {
+                String::new()
+            },
             s.errors,
             if s.ids_overflow { "more than " } else { "" },
             s.ids()
