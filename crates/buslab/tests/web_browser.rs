@@ -675,10 +675,16 @@ fn the_lab_dashboard_charts_the_experiment_in_its_window_on_axes_that_fit() {
         "const f = [...state.faults.values()][0]; return f && state.now > f.until",
         |v| v == true,
     );
-    let band = browser.script(
+    // The chart is drawn at its next update after that (a loaded machine can be between two).
+    let band = browser.until(
+        "the chart drawn with the whole cut",
         "const b = document.querySelector('#tecchart rect.band'); \
-         return [Number(b.getAttribute('width')), b.textContent, \
+         return b && [Number(b.getAttribute('width')), b.textContent, \
          document.querySelector('#tecchart text.bandlabel').textContent]",
+        |v| {
+            v[0].as_f64()
+                .is_some_and(|w| (w - 600.0 * 3.0 / WINDOW).abs() < 0.2)
+        },
     );
     let width = band[0].as_f64().unwrap();
     assert!(
