@@ -27,10 +27,8 @@ pub struct DbcArg {
 
 impl DbcArg {
     /// The database, if one was given.
-    #[allow(
-        dead_code,
-        reason = "for the views' --dbc (monitor, web), wired beside this"
-    )]
+    // Its users, the monitor and the web pages, are features of their own.
+    #[cfg_attr(not(any(feature = "web", feature = "tui")), expect(dead_code))]
     pub fn load(&self) -> anyhow::Result<Option<Arc<Database>>> {
         self.dbc.as_deref().map(load).transpose()
     }

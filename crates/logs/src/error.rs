@@ -66,10 +66,6 @@ pub enum Problem {
     Frame(#[from] buslab_can::ParseError),
     #[error("error frame: {0}")]
     ErrorFrame(#[from] buslab_bus::error_frame::ErrorFrameError),
-    /// No reader gives it any more: every format that holds CAN FD frames reads them
-    /// (issue 29). Kept while `crates/buslab/tests/log_python_can_data.rs` still names it.
-    #[error("a CAN FD frame")]
-    CanFd,
     #[error("{what} claims {claimed} bytes, more than the {limit} accepted")]
     TooBig {
         what: &'static str,
