@@ -189,8 +189,8 @@ impl Browser {
     /// the bus is heard) can move it between chromedriver's scroll and its click; then the
     /// click is tried again on the element where it now is, as a person clicks again.
     fn click(&self, css: &str) {
-        const TRIES: usize = 50;
-        for _ in 0..TRIES {
+        let deadline = Instant::now() + HANG;
+        loop {
             let id = self.find(css);
             let (status, text) = http(
                 self.driver,
@@ -206,9 +206,12 @@ impl Browser {
                 text.contains("element click intercepted"),
                 "click {css}: {text}"
             );
+            assert!(
+                Instant::now() < deadline,
+                "click {css}: another element stayed over it: {text}"
+            );
             std::thread::sleep(Duration::from_millis(50));
         }
-        panic!("click {css}: another element was over it {TRIES} times in a row");
     }
 
     /// The browser's console messages since the last call that report a
