@@ -7,7 +7,8 @@
 #   the log-format interop tests) and tshark/editcap (decode buslab's pcap and pcapng); for the
 #   SocketCAN test VM (scripts/vm/, crates/buslab/tests/vm_socketcan.rs): qemu-system-x86,
 #   busybox-static, cpio, can-utils, binutils, and Debian's kernel package downloaded (not
-#   installed) into target/vm-cache/; sdcc-ucsim (s51) and as31 for the MCS-51 core;
+#   installed) into target/vm-cache/; sdcc-ucsim (s51) and as31 for the MCS-51 core; qemu-user (qemu-ppc) and the
+#   PowerPC cross binutils and gcc for the PowerPC 403 core and examples/ppc/;
 # - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can);
 #   python-can's source distribution (pinned by hash) into target/python-can-sdist/, for the log
 #   files of its test/data that crates/buslab/tests/log_python_can_data.rs reads with python-can
@@ -87,6 +88,11 @@ want_tools log2asc:can-utils asc2log:can-utils tshark:tshark editcap:tshark
 # crates/mcs51/tests/bench_program.rs, bench/mcs51_speed.sh); SDCC builds the C example of
 # the ZELLE cell's programs (examples/zelle/, crates/buslab/tests/zelle_programs.rs).
 want_tools s51:sdcc-ucsim as31:as31 sdcc:sdcc
+# The PowerPC 403 core (crates/ppc403): its differential test against QEMU's user-mode
+# emulator (qemu-ppc) on programs the cross toolchain builds, and the example programs the
+# PowerPC node loads over CAN (examples/ppc/).
+want_tools qemu-ppc:qemu-user powerpc-linux-gnu-as:binutils-powerpc-linux-gnu \
+    powerpc-linux-gnu-gcc:gcc-powerpc-linux-gnu
 # Python for the interop tests, with its venv module (Debian's python3 needs python3-venv).
 requirements=scripts/test-requirements.txt
 stamp=.venv/.requirements
