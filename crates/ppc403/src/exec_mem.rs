@@ -15,8 +15,8 @@ const LOAD_EXTRA: u64 = 1;
 /// The data cache's line size (dcbz zeroes one line).
 const CACHE_LINE: u32 = 16;
 
-/// BESR's bits for a data-side bus error (the 403's bus error syndrome: DSES, with DMES
-/// for a store... kept simple: "data side error", plus "write" for a store).
+/// What a data-side bus error leaves in BESR: "a data-side error", plus "a write" for a
+/// store (a simplification of the 403's syndrome; documented in docs/ppc403.md).
 const BESR_DATA_ERROR: u32 = 0x8000_0000;
 const BESR_WRITE: u32 = 0x0800_0000;
 
