@@ -190,10 +190,7 @@ fn vectors_follow_evpr_and_handlers_can_return() {
 
 #[test]
 fn the_msr_keeps_only_the_403s_bits() {
-    let b = exec(
-        &[(3, u32::MAX & !msr::WE & !msr::PR)],
-        &[mtmsr(3), mfmsr(4)],
-    );
+    let b = exec(&[(3, !(msr::WE | msr::PR))], &[mtmsr(3), mfmsr(4)]);
     assert_eq!(b.r(4), msr::IMPLEMENTED & !msr::WE & !msr::PR);
     assert_eq!(msr::IMPLEMENTED, 0x000F_D20D);
 }
