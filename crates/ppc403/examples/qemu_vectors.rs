@@ -241,6 +241,8 @@ enum Form {
     Stswx,
     Lwarx,
     Stwcx,
+    Cache(u32),
+    Trap(bool),
     Branch { aa: bool, lk: bool },
     Bc { aa: bool, lk: bool },
     Bclr(bool),
@@ -276,6 +278,8 @@ fn all_forms() -> Vec<Form> {
     v.extend((0..D_MEM.len()).map(DMem));
     v.extend((0..X_MEM.len()).map(XMem));
     v.extend([Lmw, Stmw, Lswi, Stswi, Lswx, Stswx, Lwarx, Stwcx]);
+    v.extend(CACHE_OPS.iter().map(|f| Cache(f.1)));
+    v.extend([Trap(false), Trap(true)]);
     for aa in [false, true] {
         for lk in [false, true] {
             v.extend([Branch { aa, lk }, Bc { aa, lk }]);
@@ -304,6 +308,7 @@ struct Gen {
     /// The registers of the last `lwarx`'s address, and whether a store came since.
     reserve: Option<(u32, u32)>,
     stored_since_reserve: bool,
+    hot: [u32; 4],
 }
 
 fn generate_case(seed: u64, addr: u32) -> Case {
@@ -323,7 +328,9 @@ fn generate_case(seed: u64, addr: u32) -> Case {
         count_pinned: false,
         reserve: None,
         stored_since_reserve: false,
+        hot: [0; 4],
     };
+    g.hot = std::array::from_fn(|_| g.rng.below(32));
     g.n = g.rng.below(MAX_INSNS as u32) as usize + 1;
     let mut code = Vec::with_capacity(g.n);
     for j in 0..g.n {
@@ -349,8 +356,14 @@ fn string_regs(first: u32, bytes: u32) -> u32 {
 }
 
 impl Gen {
+    /// Any register; half the time one of the case's few hot ones, so that results feed
+    /// later instructions.
     fn reg(&mut self) -> u32 {
-        self.rng.below(32)
+        if self.rng.chance(1, 2) {
+            self.hot[self.rng.below(self.hot.len() as u32) as usize]
+        } else {
+            self.rng.below(32)
+        }
     }
 
     /// A register no earlier instruction writes and no earlier constraint fixed, outside
@@ -591,7 +604,12 @@ impl Gen {
                     return None;
                 }
                 if !self.count_pinned {
-                    let count = self.rng.below(32) + 1;
+                    // Mostly a few registers' worth, sometimes up to XER's 127 bytes.
+                    let count = if self.rng.chance(1, 4) {
+                        self.rng.below(127) + 1
+                    } else {
+                        self.rng.below(32) + 1
+                    };
                     self.s.xer = self.s.xer & !0x7F | count;
                     self.count_pinned = true;
                 }
@@ -635,6 +653,37 @@ impl Gen {
                 };
                 self.stored();
                 x(150) | d(rs) | a(ra) | b(rb) | RC
+            }
+            Cache(xo) => {
+                let ea = self.ea(1, 1);
+                let (ra, rb) = self.x_address(ea, true, 0)?;
+                x(xo) | a(ra) | b(rb)
+            }
+            Trap(immediate) => {
+                // Operands the generator knows, and only the conditions that do not hold
+                // (a trap ends the case in a signal).
+                let ra = self.fresh(0, true)?;
+                let va = interesting(&mut self.rng);
+                self.pin(ra, va);
+                let (rb, vb) = if immediate {
+                    let imm = interesting(&mut self.rng) & 0xFFFF;
+                    (imm, imm as u16 as i16 as u32)
+                } else {
+                    let rb = self.fresh(1 << ra, true)?;
+                    let vb = interesting(&mut self.rng);
+                    self.pin(rb, vb);
+                    (rb, vb)
+                };
+                let (sa, sb) = (va as i32, vb as i32);
+                let fires = [sa < sb, sa > sb, va == vb, va < vb, va > vb]
+                    .iter()
+                    .fold(0, |m, &c| m << 1 | u32::from(c));
+                let to = self.rng.below(32) & !fires;
+                if immediate {
+                    op(3) | d(to) | a(ra) | rb
+                } else {
+                    x(4) | d(to) | a(ra) | b(rb)
+                }
             }
             Branch { aa, lk } => {
                 let t = self.target(j);

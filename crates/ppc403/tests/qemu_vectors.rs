@@ -29,6 +29,7 @@ fn mnemonics(v: &Vector) -> Vec<String> {
         .enumerate()
         .map(|(i, &w)| disassemble(w, c.addr + 4 * i as u32).0)
         .collect();
+    names.sort();
     names.dedup();
     names
 }
@@ -96,14 +97,15 @@ fn every_committed_vector_matches_qemu() {
 fn a_vector_that_does_not_match_is_reported_with_its_instructions() {
     let good = committed()
         .into_iter()
-        .find(|v| v.case.code.len() == 1 && mnemonics(v) == ["add"])
-        .expect("a case of a lone add");
+        .find(|v| v.case.code.len() == 1)
+        .expect("a case of one instruction");
     assert_eq!(check(&good), Ok(()));
+    let text = disassemble(good.case.code[0], good.case.addr).1;
     let mut wrong = good.clone();
     wrong.after.gpr[7] ^= 1;
     wrong.after.scratch[3] ^= 0x80;
     let err = check(&wrong).unwrap_err();
-    assert!(err.contains("add r"), "{err}");
+    assert!(err.contains(&text), "{err} should show {text}");
     assert!(err.contains("r7: qemu"), "{err}");
     assert!(err.contains("mem 7003: qemu"), "{err}");
 }
