@@ -14,9 +14,12 @@
 //! aligned, no invalid forms (an update load with rA = rD or rA = 0, `lmw`/`lswi`/`lswx`
 //! loading their own address registers), no division by zero or 0x8000_0000 / -1, no `lswx`
 //! with a zero byte count, `stwcx.` only without a reservation or on the address of the
-//! `lwarx` before it with no store in between, branches only forward inside the case (so it
-//! always ends), `bclr`/`bcctr` only while LR/CTR still hold the target the generator put
-//! there, XER only with its defined bits.
+//! `lwarx` before it with no store in between, `tw`/`twi` only on conditions that do not
+//! hold, XER only with its defined bits. Every case ends: branches go forward inside the case,
+//! `bclr`/`bcctr` only while LR/CTR still hold the target the generator put there, except two
+//! shapes that go back: a loop (`bc` decrementing CTR, set to 1..5, back over instructions
+//! that may run again) and a detour (`b` forward over straight code, `b` back into it, which
+//! ends in a `b` past the first).
 //!
 //! Many cases go into one program (BATCH), linked below 0x8000 so that the absolute branches
 //! and the rA = 0 addressing reach the code and the scratch area: for each case the driver
@@ -243,10 +246,18 @@ enum Form {
     Stwcx,
     Cache(u32),
     Trap(bool),
-    Branch { aa: bool, lk: bool },
-    Bc { aa: bool, lk: bool },
+    Branch {
+        aa: bool,
+        lk: bool,
+    },
+    Bc {
+        aa: bool,
+        lk: bool,
+    },
     Bclr(bool),
     Bcctr(bool),
+    /// `bc` back to an earlier instruction with CTR counting the passes (a loop).
+    Loop(bool),
     Sync,
     Isync,
     Eieio,
@@ -286,6 +297,8 @@ fn all_forms() -> Vec<Form> {
         }
     }
     v.extend([Bclr(false), Bclr(true), Bcctr(false), Bcctr(true)]);
+    // Twice: a loop is often impossible (CTR already written).
+    v.extend([Loop(false), Loop(true), Loop(false), Loop(true)]);
     v.extend([Sync, Isync, Eieio]);
     v
 }
@@ -309,6 +322,33 @@ struct Gen {
     reserve: Option<(u32, u32)>,
     stored_since_reserve: bool,
     hot: [u32; 4],
+    /// The first of the instructions before the current one that a loop may run again: they
+    /// read no register whose value the generator fixed (addresses, divisors) and branch
+    /// only forward.
+    loop_start: usize,
+}
+
+impl Form {
+    /// Safe to run more than once (see `Gen::loop_start`).
+    fn repeatable(self) -> bool {
+        use Form::*;
+        match self {
+            Arith(i, _, _) => !XO_ARITH[i].0.starts_with("div"),
+            DArith(_) | DLogic(_) | XLogic(..) | XUnary(..) | Srawi(_) | Rotate(..) => true,
+            Cmp(_) | CmpImm(_) | CrLogic(_) | Mcrf | Mcrxr | Mtcrf | Mfcr | Mfspr(_) => true,
+            Mtspr(n) => n == 8,
+            Branch { .. } | Bc { .. } | Sync | Isync | Eieio => true,
+            _ => false,
+        }
+    }
+
+    fn branches(self) -> bool {
+        use Form::*;
+        matches!(
+            self,
+            Branch { .. } | Bc { .. } | Bclr(_) | Bcctr(_) | Loop(_)
+        )
+    }
 }
 
 fn generate_case(seed: u64, addr: u32) -> Case {
@@ -329,18 +369,18 @@ fn generate_case(seed: u64, addr: u32) -> Case {
         reserve: None,
         stored_since_reserve: false,
         hot: [0; 4],
+        loop_start: 0,
     };
     g.hot = std::array::from_fn(|_| g.rng.below(32));
     g.n = g.rng.below(MAX_INSNS as u32) as usize + 1;
+    let straight: Vec<Form> = forms.iter().copied().filter(|f| !f.branches()).collect();
     let mut code = Vec::with_capacity(g.n);
-    for j in 0..g.n {
-        let word = (0..100)
-            .find_map(|_| {
-                let form = g.rng.pick(&forms);
-                g.emit(form, j)
-            })
-            .expect("an unconstrained form is always possible");
-        code.push(word);
+    while code.len() < g.n {
+        if g.n - code.len() >= 3 && g.rng.chance(1, 20) {
+            g.detour(&mut code, &straight);
+        } else {
+            g.one(&mut code, &forms);
+        }
     }
     Case {
         seed,
@@ -356,6 +396,56 @@ fn string_regs(first: u32, bytes: u32) -> u32 {
 }
 
 impl Gen {
+    /// The next instruction, of a form from `forms`.
+    fn one(&mut self, code: &mut Vec<u32>, forms: &[Form]) {
+        let j = code.len();
+        let (form, word) = (0..100)
+            .find_map(|_| {
+                let form = self.rng.pick(forms);
+                self.emit(form, j).map(|w| (form, w))
+            })
+            .expect("an unconstrained form is always possible");
+        if !form.repeatable() {
+            self.loop_start = j + 1;
+        }
+        code.push(word);
+    }
+
+    /// A backward `b`: at j a branch forward to t, then (j+1..t-1) straight code ending in a
+    /// branch past t, and at t the branch back to j+1. Every path leaves past t.
+    fn detour(&mut self, code: &mut Vec<u32>, straight: &[Form]) {
+        let j = code.len();
+        let t = j + 2 + self.rng.below((self.n - j - 2) as u32) as usize;
+        let u = t + 1 + self.rng.below((self.n - t) as u32) as usize;
+        let (lk_in, lk_out, lk_back) = (
+            self.rng.chance(1, 3),
+            self.rng.chance(1, 3),
+            self.rng.chance(1, 3),
+        );
+        let aa_in = self.rng.chance(1, 3);
+        let aa_out = self.rng.chance(1, 3);
+        // The branch back runs before the straight code: its link is written by then.
+        self.lr_written |= lk_in || lk_back;
+        code.push(self.b(j, t, aa_in, lk_in));
+        while code.len() < t - 1 {
+            self.one(code, straight);
+        }
+        self.lr_written |= lk_out;
+        code.push(self.b(t - 1, u, aa_out, lk_out));
+        code.push(self.b(t, j + 1, false, lk_back));
+        self.loop_start = t + 1;
+    }
+
+    /// `b` from instruction `from` to `to`.
+    fn b(&self, from: usize, to: usize, aa: bool, lk: bool) -> u32 {
+        let field = if aa {
+            self.at(to)
+        } else {
+            (4 * to as u32).wrapping_sub(4 * from as u32)
+        };
+        op(18) | (field & 0x03FF_FFFC) | if aa { AA } else { 0 } | if lk { LK } else { 0 }
+    }
+
     /// Any register; half the time one of the case's few hot ones, so that results feed
     /// later instructions.
     fn reg(&mut self) -> u32 {
@@ -738,6 +828,22 @@ impl Gen {
                     self.lr_written = true;
                 }
                 op(19) | d(bo) | a(bi) | 528 << 1 | if lk { LK } else { 0 }
+            }
+            Loop(lk) => {
+                if self.ctr_written || self.ctr_target.is_some() {
+                    return None;
+                }
+                let k = self.loop_start + self.rng.below((j - self.loop_start + 1) as u32) as usize;
+                self.s.ctr = self.rng.below(5) + 1;
+                self.ctr_written = true;
+                // Decrement CTR and branch while it is not zero (and the condition holds).
+                let bo = self.rng.pick(&[0, 1, 8, 9, 16, 17]);
+                let bi = self.reg();
+                if lk {
+                    self.lr_written = true;
+                }
+                let disp = (4 * k as u32).wrapping_sub(4 * j as u32);
+                op(16) | d(bo) | a(bi) | (disp & 0xFFFC) | if lk { LK } else { 0 }
             }
             Sync => x(598),
             Isync => op(19) | 150 << 1,

@@ -94,6 +94,24 @@ fn every_committed_vector_matches_qemu() {
 }
 
 #[test]
+fn the_committed_vectors_branch_backwards_too() {
+    // Relative `b` and `bc` with a negative displacement (loops counted by CTR, detours):
+    // the sign extension of LI and BD is compared, not only forward jumps.
+    let (mut b, mut bc) = (0, 0);
+    for v in committed() {
+        for &w in &v.case.code {
+            let relative = w & 2 == 0;
+            match w >> 26 {
+                18 if relative && w & 0x0200_0000 != 0 => b += 1,
+                16 if relative && w & 0x8000 != 0 => bc += 1,
+                _ => {}
+            }
+        }
+    }
+    assert!(b >= 48 && bc >= 48, "{b} backward b, {bc} backward bc");
+}
+
+#[test]
 fn a_vector_that_does_not_match_is_reported_with_its_instructions() {
     let good = committed()
         .into_iter()
