@@ -11,7 +11,7 @@ use libfuzzer_sys::fuzz_target;
 /// The memory the program sees (the rest of the address space is a bus error).
 const MEMORY: usize = 64 * 1024;
 /// Cycles an input runs at most, in slices between which the interrupt lines change.
-const SLICE: u64 = 2_000;
+const SLICE: u64 = 1_000;
 const SLICES: u64 = 16;
 /// The longest an instruction runs past a limit: a division, a 32-register `lmw`, a 127-byte
 /// string, with an exception taken, stays well inside.
@@ -116,8 +116,12 @@ fn run(data: &[u8]) {
                     );
                     break;
                 }
-                // Waiting ends at the limit or at the next timer event.
-                Stop::Wait | Stop::Exception { .. } | Stop::SystemCall { .. } => {
+                // Waiting ends at the limit or at the next timer event; a watchdog reset
+                // leaves the core running from its reset vector.
+                Stop::Wait
+                | Stop::Exception { .. }
+                | Stop::SystemCall { .. }
+                | Stop::Reset { .. } => {
                     if now >= limit {
                         break;
                     }
