@@ -23,6 +23,7 @@ mod bus;
 mod core;
 pub mod dcr;
 mod decode;
+pub mod disasm;
 pub mod exceptions;
 mod exec;
 mod exec_branch;
@@ -35,5 +36,6 @@ pub mod timers;
 
 pub use crate::core::{Exception, Irq, Ppc403, Registers, Stop};
 pub use bus::{Bus, BusError, FlatMemory, Size};
+pub use disasm::{Disassembly, disassemble};
 pub use time::Cycles;
 pub use timers::WatchdogReset;

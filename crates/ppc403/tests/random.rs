@@ -59,3 +59,24 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    /// Every word disassembles, and a word the core runs is never shown as `.long`.
+    #[test]
+    fn what_runs_has_a_disassembly(word in instruction()) {
+        let mut mem = FlatMemory::new(0x2_0000);
+        mem.load_words(0x1000, &[word]);
+        let mut cpu = Ppc403::new();
+        cpu.set_pc(0x1000);
+        cpu.set_trap_sc(true);
+        let stop = cpu.run(&mut mem, Cycles(1));
+        let text = buslab_ppc403::disassemble(word, 0x1000).to_string();
+        let illegal = matches!(
+            stop,
+            Stop::Exception { kind: buslab_ppc403::Exception::Illegal { .. }, .. }
+        );
+        prop_assert!(illegal || !text.starts_with(".long"), "{word:#010x} ran but shows as {text}");
+    }
+}
