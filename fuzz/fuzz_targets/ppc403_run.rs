@@ -13,9 +13,9 @@ const MEMORY: usize = 64 * 1024;
 /// Cycles an input runs at most, in slices between which the interrupt lines change.
 const SLICE: u64 = 1_000;
 const SLICES: u64 = 16;
-/// The longest an instruction runs past a limit: a division, a 32-register `lmw`, a 127-byte
-/// string, with an exception taken, stays well inside.
-const OVERSHOOT: u64 = 1_000;
+/// The longest an instruction runs past a limit, as docs/ppc403.md gives it: 32 cycles (a
+/// `divw`, a 32-word `lmw`, a 127-byte string).
+const OVERSHOOT: u64 = 32;
 /// `run` calls an input may make: a call that ends before its limit took an exception or ran
 /// `sc`, which costs its instruction at least a cycle, or took an interrupt, which masks
 /// further ones of its kind until the program unmasks them with an instruction.
