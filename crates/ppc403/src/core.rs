@@ -8,8 +8,9 @@
 //! timers brought up to date, interrupts taken at that instruction boundary.
 
 use crate::dcr::Dcrs;
-use crate::exceptions::msr;
+use crate::exceptions::{Exception, msr};
 use crate::interrupts::Interrupts;
+use crate::interrupts::Irq;
 use crate::spr::Sprs;
 use crate::timers::Timers;
 use crate::{Bus, Cycles};
@@ -34,47 +35,6 @@ pub struct Registers {
     pub evpr: u32,
     pub esr: u32,
     pub dear: u32,
-}
-
-/// An interrupt input of the 403's interrupt controller (EXISR/EXIER). Level-sensitive: the
-/// board sets the line's level, the controller latches it in EXISR while it is high.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Irq {
-    /// The critical interrupt pin (vector 0x0100, saved in SRR2/SRR3).
-    Critical,
-    /// The on-chip serial port's receiver (a byte is ready or a receive error).
-    SerialReceive,
-    /// The on-chip serial port's transmitter (ready for the next byte).
-    SerialTransmit,
-    /// External interrupt pin INT0..INT4 (a higher number is ignored).
-    External(u8),
-}
-
-/// Why an exception was taken.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Exception {
-    /// A load, store or fetch where nothing answered (vector 0x0200).
-    MachineCheck { addr: u32 },
-    /// An external or on-chip interrupt through EXISR/EXIER (vector 0x0500).
-    External,
-    /// A misaligned load or store (vector 0x0600).
-    Alignment { addr: u32 },
-    /// An illegal instruction word (vector 0x0700, ESR[PIL]).
-    Illegal { word: u32 },
-    /// A supervisor instruction in problem state (vector 0x0700, ESR[PPR]).
-    Privileged { word: u32 },
-    /// `tw`/`twi` whose condition held (vector 0x0700, ESR[PTR]).
-    Trap,
-    /// `sc` (vector 0x0C00).
-    SystemCall,
-    /// The programmable interval timer reached zero (vector 0x1000).
-    Pit,
-    /// The fixed interval timer (vector 0x1010).
-    Fit,
-    /// The watchdog's first time-out (vector 0x1020, critical).
-    Watchdog,
-    /// The critical interrupt pin (vector 0x0100, critical).
-    Critical,
 }
 
 /// Why [`Ppc403::run`] returned.
@@ -325,4 +285,16 @@ pub(crate) fn compare_field<T: Ord>(a: T, b: T) -> u32 {
         core::cmp::Ordering::Greater => 0b0100,
         core::cmp::Ordering::Equal => 0b0010,
     }
+}
+
+/// An illegal instruction.
+#[cold]
+pub(crate) fn illegal(word: u32) -> Executed {
+    Err(Event::Exception(Exception::Illegal { word }))
+}
+
+/// A supervisor instruction in problem state.
+#[cold]
+pub(crate) fn privileged(word: u32) -> Executed {
+    Err(Event::Exception(Exception::Privileged { word }))
 }

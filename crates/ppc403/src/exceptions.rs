@@ -2,9 +2,6 @@
 //! (SRR0/SRR1, or SRR2/SRR3 for the critical class), the MSR bits the 403 clears, and
 //! returning from them (`rfi`, `rfci`).
 
-use crate::Exception;
-use crate::core::{Event, Executed, Ppc403, Stop};
-
 /// The MSR's bits (PowerPC numbering in the comments).
 pub mod msr {
     /// Auxiliary processor available (bit 12; no APU on the 403GA: kept as written).
@@ -62,24 +59,6 @@ pub mod vector {
     pub const DEBUG: u32 = 0x2000;
 }
 
-/// The MSR bits a non-critical exception keeps (it clears WE, EE, PR, PE, PX, LE).
-const KEPT_NONCRITICAL: u32 = msr::APE | msr::CE | msr::ILE | msr::ME | msr::DE;
-/// The MSR bits a critical exception keeps (it also clears CE and DE; a machine check clears
-/// ME as well).
-const KEPT_CRITICAL: u32 = msr::APE | msr::ILE | msr::ME;
-
-/// An illegal instruction.
-#[cold]
-pub(crate) fn illegal(word: u32) -> Executed {
-    Err(Event::Exception(Exception::Illegal { word }))
-}
-
-/// A supervisor instruction in problem state.
-#[cold]
-pub(crate) fn privileged(word: u32) -> Executed {
-    Err(Event::Exception(Exception::Privileged { word }))
-}
-
 impl Exception {
     /// The vector offset.
     pub fn vector(self) -> u32 {
@@ -107,50 +86,29 @@ impl Exception {
     }
 }
 
-impl Ppc403 {
-    /// Takes `kind`: saves `srr0` (the instruction to return to) and the MSR, sets ESR for
-    /// program exceptions, clears the MSR bits, jumps to the vector. `at` is what
-    /// [`Stop::Exception`] reports.
-    pub(crate) fn take_exception(&mut self, kind: Exception, srr0: u32, at: u32) -> Stop {
-        match kind {
-            Exception::Illegal { .. } => self.regs.esr = esr::PIL,
-            Exception::Privileged { .. } => self.regs.esr = esr::PPR,
-            Exception::Trap => self.regs.esr = esr::PTR,
-            _ => {}
-        }
-        let old = self.regs.msr;
-        if kind.is_critical() {
-            self.regs.srr2 = srr0;
-            self.regs.srr3 = old;
-            let mut kept = KEPT_CRITICAL;
-            if matches!(kind, Exception::MachineCheck { .. }) {
-                kept &= !msr::ME;
-            }
-            self.regs.msr = old & kept;
-        } else {
-            self.regs.srr0 = srr0;
-            self.regs.srr1 = old;
-            self.regs.msr = old & KEPT_NONCRITICAL;
-        }
-        self.reservation = None;
-        self.regs.pc = (self.regs.evpr & 0xFFFF_0000) | kind.vector();
-        Stop::Exception { kind, at }
-    }
-
-    /// `rfi` (`critical`: `rfci`): PC and MSR back from SRR0/SRR1 (SRR2/SRR3).
-    pub(crate) fn return_from_interrupt(&mut self, w: u32, critical: bool) -> Executed {
-        if self.problem_state() {
-            return privileged(w);
-        }
-        let (pc, msr) = if critical {
-            (self.regs.srr2, self.regs.srr3)
-        } else {
-            (self.regs.srr0, self.regs.srr1)
-        };
-        self.regs.pc = pc & !3;
-        self.regs.msr = msr & msr::IMPLEMENTED;
-        self.reservation = None;
-        self.spend(1);
-        Err(Event::Sync)
-    }
+/// Why an exception was taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Exception {
+    /// A load, store or fetch where nothing answered (vector 0x0200).
+    MachineCheck { addr: u32 },
+    /// An external or on-chip interrupt through EXISR/EXIER (vector 0x0500).
+    External,
+    /// A misaligned load or store (vector 0x0600).
+    Alignment { addr: u32 },
+    /// An illegal instruction word (vector 0x0700, ESR[PIL]).
+    Illegal { word: u32 },
+    /// A supervisor instruction in problem state (vector 0x0700, ESR[PPR]).
+    Privileged { word: u32 },
+    /// `tw`/`twi` whose condition held (vector 0x0700, ESR[PTR]).
+    Trap,
+    /// `sc` (vector 0x0C00).
+    SystemCall,
+    /// The programmable interval timer reached zero (vector 0x1000).
+    Pit,
+    /// The fixed interval timer (vector 0x1010).
+    Fit,
+    /// The watchdog's first time-out (vector 0x1020, critical).
+    Watchdog,
+    /// The critical interrupt pin (vector 0x0100, critical).
+    Critical,
 }

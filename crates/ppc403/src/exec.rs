@@ -3,9 +3,8 @@
 //! ones and anything unassigned are illegal instructions.
 
 use crate::Bus;
-use crate::core::{Event, Executed, Ppc403};
+use crate::core::{Event, Executed, Ppc403, illegal};
 use crate::decode::{opcd, xo};
-use crate::exceptions::illegal;
 
 impl Ppc403 {
     /// Executes `w`, fetched from `pc`; the PC already points past it.

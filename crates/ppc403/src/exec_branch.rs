@@ -1,9 +1,8 @@
 //! Branches: `b`, `bc`, `bclr`, `bcctr` with every BO and BI, the link register, the count
 //! register's decrement. A taken branch costs one cycle more than an untaken one.
 
-use crate::core::{Executed, Ppc403};
+use crate::core::{Executed, Ppc403, illegal};
 use crate::decode::{ra, rd};
-use crate::exceptions::illegal;
 
 /// Cycles a taken branch costs beyond the first (the 403 refills its fetch).
 const TAKEN_EXTRA: u64 = 1;

@@ -1,9 +1,8 @@
 //! Integer arithmetic, logic, shifts, rotates, compares and the condition register's own
 //! instructions, with XER[SO, OV, CA] and CR0 exactly as Book I defines them.
 
-use crate::core::{Event, Executed, Ppc403, compare_field};
+use crate::core::{Event, Executed, Ppc403, compare_field, illegal};
 use crate::decode::{mb, me, oe, ra, rb, rc, rd, rotate_mask, simm, uimm};
-use crate::exceptions::illegal;
 
 const XER_SO: u32 = 0x8000_0000;
 const XER_OV: u32 = 0x4000_0000;
@@ -345,7 +344,7 @@ impl Ppc403 {
             || (to & 0x02 != 0 && a < b)
             || (to & 0x01 != 0 && a > b);
         if hit {
-            Err(Event::Exception(crate::Exception::Trap))
+            Err(Event::Exception(crate::exceptions::Exception::Trap))
         } else {
             Ok(())
         }

@@ -5,10 +5,11 @@
 //! address). A bus error is the data machine check (BEAR = the address). A load costs one
 //! cycle more than other instructions; `lmw`/`stmw` and the strings one cycle per word.
 
-use crate::core::{Event, Executed, Ppc403};
+use crate::core::{Event, Executed, Ppc403, illegal, privileged};
 use crate::decode::{ra, rb, rd, simm};
-use crate::exceptions::{esr, illegal, privileged};
-use crate::{Bus, Cycles, Exception, Size};
+use crate::exceptions::Exception;
+use crate::exceptions::esr;
+use crate::{Bus, Cycles, Size};
 
 /// Cycles a load costs beyond the first.
 const LOAD_EXTRA: u64 = 1;

@@ -3,11 +3,6 @@
 //! critical pin (and the watchdog), MSR[EE] the others (and the PIT and FIT). The lines are
 //! level-sensitive: a status bit cleared while its line is still high is set again at once.
 
-use crate::Exception;
-use crate::core::{Irq, Ppc403};
-use crate::exceptions::msr;
-use crate::timers::{tcr, tsr};
-
 /// EXISR's and EXIER's bits.
 pub mod exisr {
     /// The critical interrupt pin.
@@ -57,35 +52,16 @@ impl Interrupts {
     }
 }
 
-impl Ppc403 {
-    /// The interrupt to take at this instruction boundary, the most urgent first: the
-    /// critical pin, the watchdog, the external inputs, the PIT, the FIT.
-    pub(crate) fn deliverable_interrupt(&self) -> Option<Exception> {
-        let msr = self.regs.msr;
-        if msr & (msr::CE | msr::EE) == 0 {
-            return None;
-        }
-        let pending = self.irq.status & self.irq.enable;
-        let (tcr, tsr) = (self.timers.tcr, self.timers.tsr);
-        if msr & msr::CE != 0 {
-            if pending & exisr::CIS != 0 {
-                return Some(Exception::Critical);
-            }
-            if tsr & tsr::WIS != 0 && tcr & tcr::WIE != 0 {
-                return Some(Exception::Watchdog);
-            }
-        }
-        if msr & msr::EE != 0 {
-            if pending & !exisr::CIS != 0 {
-                return Some(Exception::External);
-            }
-            if tsr & tsr::PIS != 0 && tcr & tcr::PIE != 0 {
-                return Some(Exception::Pit);
-            }
-            if tsr & tsr::FIS != 0 && tcr & tcr::FIE != 0 {
-                return Some(Exception::Fit);
-            }
-        }
-        None
-    }
+/// An interrupt input of the 403's interrupt controller (EXISR/EXIER). Level-sensitive: the
+/// board sets the line's level, the controller latches it in EXISR while it is high.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Irq {
+    /// The critical interrupt pin (vector 0x0100, saved in SRR2/SRR3).
+    Critical,
+    /// The on-chip serial port's receiver (a byte is ready or a receive error).
+    SerialReceive,
+    /// The on-chip serial port's transmitter (ready for the next byte).
+    SerialTransmit,
+    /// External interrupt pin INT0..INT4 (a higher number is ignored).
+    External(u8),
 }
