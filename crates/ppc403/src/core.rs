@@ -50,11 +50,11 @@ pub enum Stop {
     /// `sc` ran while [`Ppc403::set_trap_sc`] is on: nothing was saved or vectored, the PC is
     /// past the `sc`; the board serves the call (registers as the program left them).
     SystemCall { at: u32 },
-    /// MSR[WE] is set: the core waits for an interrupt; time was advanced to the limit or to
+    /// `MSR[WE]` is set: the core waits for an interrupt; time was advanced to the limit or to
     /// the next timer event.
     Wait,
-    /// The watchdog's second time-out with TCR[WRC] ≠ 0: the core has reset itself (PC
-    /// 0xFFFF_FFFC, MSR 0, TCR 0; TSR[WRS] tells which reset). The board decides what the
+    /// The watchdog's second time-out with `TCR[WRC]` ≠ 0: the core has reset itself (PC
+    /// 0xFFFF_FFFC, MSR 0, TCR 0; `TSR[WRS]` tells which reset). The board decides what the
     /// reset does to the rest of the system (for the node: back to the resident firmware).
     Reset { by: crate::WatchdogReset },
 }
@@ -67,7 +67,7 @@ pub(crate) enum Event {
     /// `sc` (vectored or trapped, depending on `trap_sc`).
     SystemCall,
     /// The instruction completed and changed something the outer loop must look at
-    /// (interrupt enables, timers, MSR[WE]).
+    /// (interrupt enables, timers, `MSR[WE]`).
     Sync,
 }
 
@@ -245,7 +245,7 @@ impl Ppc403 {
         self.instructions
     }
 
-    /// CR0 from a signed result, with XER[SO].
+    /// CR0 from a signed result, with `XER[SO]`.
     #[inline(always)]
     pub(crate) fn set_cr0(&mut self, value: u32) {
         let field = compare_field(value as i32, 0) | self.xer_so();
@@ -259,7 +259,7 @@ impl Ppc403 {
         self.regs.cr = (self.regs.cr & !(0xF << shift)) | ((field & 0xF) << shift);
     }
 
-    /// XER[SO] as the low bit of a CR field (1 or 0).
+    /// `XER[SO]` as the low bit of a CR field (1 or 0).
     #[inline(always)]
     pub(crate) fn xer_so(&self) -> u32 {
         self.regs.xer >> 31

@@ -211,7 +211,7 @@ impl Ppc403 {
     }
 
     /// The watchdog's reset: the core's registers as after a power-on (PC 0xFFFF_FFFC, MSR
-    /// 0, TCR 0), the time base running on, TSR[WRS] telling what happened.
+    /// 0, TCR 0), the time base running on, `TSR[WRS]` telling what happened.
     pub(crate) fn watchdog_reset(&mut self) {
         self.regs = Registers {
             pc: 0xFFFF_FFFC,

@@ -95,11 +95,11 @@ pub enum Exception {
     External,
     /// A misaligned load or store (vector 0x0600).
     Alignment { addr: u32 },
-    /// An illegal instruction word (vector 0x0700, ESR[PIL]).
+    /// An illegal instruction word (vector 0x0700, `ESR[PIL]`).
     Illegal { word: u32 },
-    /// A supervisor instruction in problem state (vector 0x0700, ESR[PPR]).
+    /// A supervisor instruction in problem state (vector 0x0700, `ESR[PPR]`).
     Privileged { word: u32 },
-    /// `tw`/`twi` whose condition held (vector 0x0700, ESR[PTR]).
+    /// `tw`/`twi` whose condition held (vector 0x0700, `ESR[PTR]`).
     Trap,
     /// `sc` (vector 0x0C00).
     SystemCall,

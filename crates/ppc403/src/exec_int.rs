@@ -1,5 +1,5 @@
 //! Integer arithmetic, logic, shifts, rotates, compares and the condition register's own
-//! instructions, with XER[SO, OV, CA] and CR0 exactly as Book I defines them.
+//! instructions, with `XER[SO, OV, CA]` and CR0 exactly as Book I defines them.
 
 use crate::core::{Event, Executed, Ppc403, compare_field, illegal};
 use crate::decode::{mb, me, oe, ra, rb, rc, rd, rotate_mask, simm, uimm};
@@ -36,7 +36,7 @@ impl Ppc403 {
         self.regs.xer = (self.regs.xer & !XER_CA) | if ca { XER_CA } else { 0 };
     }
 
-    /// XER[OV] = `ov`; SO is sticky.
+    /// `XER[OV]` = `ov`; SO is sticky.
     #[inline(always)]
     fn set_ov(&mut self, ov: bool) {
         self.regs.xer = (self.regs.xer & !XER_OV) | if ov { XER_OV | XER_SO } else { 0 };

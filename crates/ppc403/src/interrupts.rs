@@ -1,6 +1,6 @@
 //! The 403's interrupt controller: EXISR latches the interrupt inputs (the critical pin, the
-//! serial port's receiver and transmitter, INT0..INT4), EXIER enables them; MSR[CE] gates the
-//! critical pin (and the watchdog), MSR[EE] the others (and the PIT and FIT). The lines are
+//! serial port's receiver and transmitter, INT0..INT4), EXIER enables them; `MSR[CE]` gates the
+//! critical pin (and the watchdog), `MSR[EE]` the others (and the PIT and FIT). The lines are
 //! level-sensitive: a status bit cleared while its line is still high is set again at once.
 
 /// EXISR's and EXIER's bits.

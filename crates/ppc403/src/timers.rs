@@ -1,9 +1,9 @@
 //! The 403's timers, all clocked by the CPU clock: the 64-bit time base (TBHI:TBLO), the
-//! programmable interval timer (PIT, a 32-bit down-counter, reloaded with TCR[ARE]), the fixed
+//! programmable interval timer (PIT, a 32-bit down-counter, reloaded with `TCR[ARE]`), the fixed
 //! interval timer (FIT, an event each time the time base crosses a multiple of 2^9, 2^13,
 //! 2^17 or 2^21) and the watchdog (a time-out each 2^17, 2^21, 2^25 or 2^29 cycles: the first
-//! sets TSR[ENW], the second TSR[WIS] (an interrupt with TCR[WIE]), the third resets the core
-//! when TCR[WRC] asks for it).
+//! sets `TSR[ENW]`, the second `TSR[WIS]` (an interrupt with `TCR[WIE]`), the third resets the core
+//! when `TCR[WRC]` asks for it).
 //!
 //! Nothing counts per cycle: the time base is `now` plus an offset, the PIT an expiry cycle,
 //! and `catch_up_timers` works out what happened since it last looked.
@@ -26,13 +26,13 @@ pub mod tcr {
 pub mod tsr {
     pub const ENW: u32 = 0x8000_0000;
     pub const WIS: u32 = 0x4000_0000;
-    /// The watchdog reset that happened (TCR[WRC] at the time).
+    /// The watchdog reset that happened (`TCR[WRC]` at the time).
     pub const WRS: u32 = 0x3000_0000;
     pub const PIS: u32 = 0x0800_0000;
     pub const FIS: u32 = 0x0400_0000;
 }
 
-/// The watchdog's reset, as TCR[WRC] asked for it.
+/// The watchdog's reset, as `TCR[WRC]` asked for it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum WatchdogReset {
     Core,
@@ -50,7 +50,7 @@ pub(crate) struct Timers {
     pub checked: u64,
     /// The cycle the PIT reaches 0 (`None`: it is 0, stopped).
     pub pit_expiry: Option<u64>,
-    /// The PIT's last written value (what TCR[ARE] reloads).
+    /// The PIT's last written value (what `TCR[ARE]` reloads).
     pub pit_reload: u32,
     /// A watchdog reset due, not yet reported.
     pub reset: Option<WatchdogReset>,
