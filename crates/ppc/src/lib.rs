@@ -1,5 +1,6 @@
 //! The seed's PowerPC node (seed 002 §4): a PPC403 board with an SJA1000, running MoniCAN on
-//! a VT100 terminal at 19200 baud.
+//! a VT100 terminal at 19200 baud, and the programs its CAN loader loads on the PPC403 core
+//! ([`buslab_ppc403`]) with the board around it ([`board`], [`spu`], [`program`]).
 //!
 //! [`PpcNode`] is a [`BusNode`](buslab_can::node::BusNode): it sits on the one bus engine like
 //! any node. Its SJA1000 ([`buslab_sja1000::Sja1000`]) is driven only through its registers by
@@ -9,12 +10,16 @@
 //! gives the VT100 bytes for it; whoever serves the port paces them (19200 baud, 8N1).
 #![forbid(unsafe_code)]
 
+pub mod board;
 pub mod node;
+pub mod program;
+pub mod spu;
 
 pub use node::{
     Activity, CRYSTAL_HZ, GIVE_UP, IMAGE_HEADER, LoadRecord, MAX_KEYS, PpcError, PpcNode,
     chip_config, slio_timing,
 };
+pub use program::{Ending, registers_line};
 
 /// The PowerPC node's serial line: 19200 baud (seed §4.3.3.1), 8 data bits, no parity, 1 stop
 /// bit.

@@ -7,8 +7,10 @@
 //! program into its memory image ([`PpcNode::memory`], kept by the host in a state file through
 //! [`Persistent`]). With a host that keeps it ([`PpcNode::set_durable`]) the loader's report
 //! waits until the image is saved ([`PpcNode::persisted`]): what the terminal says was loaded
-//! survives a kill. Then MoniCAN starts again, as the loaded program would, with the report on
-//! its screen until a key. PowerPC code is not executed (docs/loader.md).
+//! survives a kill. Then the loader jumps to the program's entry point: the program runs on
+//! the PPC403 core ([`crate::program`]), owns the SJA1000 and the terminal, until it exits,
+//! crashes (a report on the terminal until a key) or the board is reset; MoniCAN then starts
+//! again. A file without an entry point is loaded, not run: MoniCAN shows the report.
 
 use std::any::Any;
 use std::collections::VecDeque;
@@ -21,11 +23,16 @@ use buslab_loader::report::report;
 use buslab_loader::{Loader, MemoryImage, MemoryMap, Outcome};
 use buslab_monican::screen::Screen;
 use buslab_monican::{Config, ConfigError, MoniCan, Transmit};
+use buslab_ppc403::Registers;
 use buslab_sja1000::{BitTiming, Sja1000, TimingError};
 use buslab_sja1000_driver::{
     ControllerState, DriverError, DriverEvent, Sja1000Config, Sja1000Driver, Timing, TxFailure,
 };
 use tracing::{debug, info, warn};
+
+use crate::board::{Board, CPU_HZ};
+use crate::program::{Ending, Running, register_lines};
+use crate::spu::MAX_OUTPUT;
 
 /// The PowerPC board's SJA1000 crystal (the seed: "Xtal de 16MHz"); the CAN clock is half.
 pub const CRYSTAL_HZ: u32 = 16_000_000;
@@ -98,9 +105,17 @@ struct InFlight {
 pub const IMAGE_HEADER: &str = "buslab PowerPC node memory";
 /// The title of the loader's screen and report page.
 pub const LOADER_TITLE: &str = "*** CAN loader (loadcan) ***";
-/// The report's last line: what "runs" means here.
-pub const NOT_EXECUTED: &str =
-    "PowerPC code is not executed in this model: MoniCAN started again in its place.";
+/// The report's last line when the loader jumps to the program.
+pub const RUNS: &str =
+    "The loader jumps to the entry point: the program has the terminal and the SJA1000.";
+/// The report's last line when the file had no entry point.
+pub const NOT_RUN: &str = "No entry point (S7/S8/S9): the program was loaded, not run.";
+/// The title of the page MoniCAN shows after a program ended.
+pub const PROGRAM_TITLE: &str = "*** the program ended ***";
+/// The crash report's last line.
+pub const PRESS_ANY_KEY: &str = "press any key to return to MoniCAN";
+/// Clears the terminal (the firmware's report before the program's own output).
+const CLEAR: &[u8] = b"\x1b[0m\x1b[H\x1b[2J";
 /// The report's line when the image was saved before the report was shown.
 pub const SAVED: &str = "Saved in the node's memory image (its state file) before this report.";
 
@@ -119,10 +134,21 @@ enum Program {
         generation: u64,
         screen: Screen,
     },
+    /// The loaded program runs on the core; `start` is the bit-time its cycle 0 began.
+    Running {
+        run: Box<Running>,
+        start: Option<BitTime>,
+    },
+    /// The firmware caught an exception: the report is on the terminal until a key.
+    Stopped {
+        reason: String,
+        pc: u32,
+        report: Vec<u8>,
+    },
 }
 
 /// What the node is doing, for its host (the control socket).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Activity {
     MoniCan,
     /// The loader receives a file: bytes so far.
@@ -131,6 +157,19 @@ pub enum Activity {
     },
     /// A program was loaded and the memory image is being saved.
     Saving,
+    /// The loaded program runs; the PC at the end of its last slice.
+    Running {
+        pc: u32,
+    },
+    /// The program stopped: why, and the instruction's address.
+    Stopped {
+        reason: String,
+        pc: u32,
+    },
+    /// The program exited; MoniCAN shows its status until a key.
+    Exited {
+        status: i32,
+    },
 }
 
 /// A finished transfer, for the host.
@@ -174,6 +213,14 @@ pub struct PpcNode {
     next: Option<Transmit>,
     restart_at: Option<BitTime>,
     now: BitTime,
+    chip_config: Sja1000Config,
+    /// Bytes for the terminal before the current program's own (the end of a program's
+    /// output, the firmware's reports).
+    pending_output: Vec<u8>,
+    /// The registers of the program running or of the last one.
+    last_registers: Option<Registers>,
+    /// The status of the program that exited, while MoniCAN shows it.
+    exited: Option<i32>,
 }
 
 impl core::fmt::Debug for PpcNode {
@@ -195,7 +242,8 @@ impl PpcNode {
         let bitrate = config.bitrate;
         let app = MoniCan::new(config.clone(), Nanos::ZERO)?;
         let mut driver = Sja1000Driver::new(Sja1000::new());
-        driver.init(&chip_config(bitrate)?)?;
+        let chip = chip_config(bitrate)?;
+        driver.init(&chip)?;
         Ok(Self {
             driver,
             app,
@@ -216,6 +264,10 @@ impl PpcNode {
             next: None,
             restart_at: None,
             now: BitTime::ZERO,
+            chip_config: chip,
+            pending_output: Vec::new(),
+            last_registers: None,
+            exited: None,
         })
     }
 
@@ -242,9 +294,11 @@ impl PpcNode {
     /// (the screen is diffed now: call it when the serial line has room, not at every
     /// bit-time).
     pub fn take_screen(&mut self) -> Vec<u8> {
-        let mut out = Vec::new();
+        let mut out = std::mem::take(&mut self.pending_output);
         match &mut self.program {
-            Program::MoniCan => return self.app.take_screen(),
+            Program::MoniCan => out.extend(self.app.take_screen()),
+            Program::Running { run, .. } => out.extend(run.board_mut().spu.take_output()),
+            Program::Stopped { .. } => {}
             Program::Loader { loader, screen } => {
                 draw_loader(screen, loader.received(), false);
                 screen.render(&mut out);
@@ -265,17 +319,30 @@ impl PpcNode {
         match &mut self.program {
             Program::MoniCan => self.app.redraw(),
             Program::Loader { screen, .. } | Program::Saving { screen, .. } => screen.redraw(),
+            // The program's output is a stream, not a screen: nothing to draw again.
+            Program::Running { .. } => {}
+            Program::Stopped { report, .. } => {
+                self.pending_output = [CLEAR, report.as_slice()].concat();
+            }
         }
     }
 
     /// What the CPU is doing.
     pub fn activity(&self) -> Activity {
         match &self.program {
-            Program::MoniCan => Activity::MoniCan,
+            Program::MoniCan => match self.exited {
+                Some(status) if self.app.showing_page() => Activity::Exited { status },
+                _ => Activity::MoniCan,
+            },
             Program::Loader { loader, .. } => Activity::Loading {
                 received: loader.received(),
             },
             Program::Saving { .. } => Activity::Saving,
+            Program::Running { run, .. } => Activity::Running { pc: run.pc() },
+            Program::Stopped { reason, pc, .. } => Activity::Stopped {
+                reason: reason.clone(),
+                pc: *pc,
+            },
         }
     }
 
@@ -321,6 +388,72 @@ impl PpcNode {
     /// The last transfer the loader finished.
     pub fn last_load(&self) -> Option<&LoadRecord> {
         self.last_load.as_ref()
+    }
+
+    /// The registers of the running program, or of the last one (`None`: none ran yet).
+    pub fn registers(&self) -> Option<Registers> {
+        match &self.program {
+            Program::Running { run, .. } => Some(*run.registers()),
+            _ => self.last_registers,
+        }
+    }
+
+    /// The running program's RAM (`None` when no program runs, or past the RAM's end).
+    pub fn ram(&self, address: u32, len: usize) -> Option<Vec<u8>> {
+        match &self.program {
+            Program::Running { run, .. } => run.board().ram(address, len).map(<[u8]>::to_vec),
+            _ => None,
+        }
+    }
+
+    /// The running program (its core and board), to look at.
+    pub fn running(&self) -> Option<&Running> {
+        match &self.program {
+            Program::Running { run, .. } => Some(run),
+            _ => None,
+        }
+    }
+
+    /// A power cycle: a fresh SJA1000 initialised by the resident firmware's driver and
+    /// MoniCAN started; a running program, a transfer and waiting keys are gone (the memory
+    /// image is kept: it is the loader's, saved by the host).
+    pub fn reset(&mut self) {
+        info!("the PowerPC node is reset");
+        if let Program::Running { run, .. } = &self.program {
+            self.last_registers = Some(*run.registers());
+        }
+        self.driver = Sja1000Driver::new(Sja1000::new());
+        self.keys.clear();
+        self.pending_output.clear();
+        self.exited = None;
+        let ns = self.now.at_bitrate(self.bitrate);
+        self.firmware(ns);
+    }
+
+    /// The resident firmware takes the board back: the SJA1000 initialised by its driver,
+    /// MoniCAN started.
+    fn firmware(&mut self, ns: Nanos) {
+        self.in_flight = None;
+        self.next = None;
+        self.restart_at = None;
+        if let Err(e) = self.driver.init(&self.chip_config) {
+            warn!("the PowerPC node's SJA1000 did not initialise: {e}");
+        }
+        match MoniCan::new(self.config.clone(), ns) {
+            Ok(app) => self.app = app,
+            Err(e) => warn!("MoniCAN cannot start again: {e}"),
+        }
+        self.program = Program::MoniCan;
+    }
+
+    /// Bytes for the terminal ahead of what comes next, the oldest lost beyond
+    /// [`MAX_OUTPUT`] (nobody reads the line).
+    fn say(&mut self, bytes: &[u8]) {
+        self.pending_output.extend_from_slice(bytes);
+        if self.pending_output.len() > MAX_OUTPUT {
+            let excess = self.pending_output.len() - MAX_OUTPUT;
+            self.pending_output.drain(..excess);
+        }
     }
 
     /// MoniCAN, to look at (what the screen shows of each SLIO, the inventory).
@@ -458,8 +591,9 @@ impl PpcNode {
                 loader.handle_frame(ns, frame);
                 self.check_outcome(ns);
             }
-            // Nothing runs but the save: the frame is lost to the CPU.
-            Program::Saving { .. } => {}
+            // Nothing runs but the save: the frame is lost to the CPU. (A program reads the
+            // chip itself; a stopped one reads nothing.)
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => {}
         }
     }
 
@@ -504,11 +638,15 @@ impl PpcNode {
     /// report on its screen.
     fn resume(&mut self, ns: Nanos, outcome: Outcome, saved: bool) {
         let mut lines = report(&outcome);
+        let entry = match &outcome {
+            Outcome::Loaded { program, .. } => program.start,
+            _ => None,
+        };
         if outcome.is_loaded() {
             if saved {
                 lines.push(SAVED.to_string());
             }
-            lines.push(NOT_EXECUTED.to_string());
+            lines.push(if entry.is_some() { RUNS } else { NOT_RUN }.to_string());
         }
         self.loads += 1;
         let (ranges, entry) = match &outcome {
@@ -526,11 +664,100 @@ impl PpcNode {
             ranges,
             entry,
         });
+        if let Some(entry) = entry {
+            self.start_program(entry, &lines);
+            return;
+        }
         match MoniCan::new(self.config.clone(), ns) {
             Ok(app) => self.app = app,
             Err(e) => warn!("MoniCAN cannot start again: {e}"),
         }
         self.app.show_page(LOADER_TITLE, lines);
+    }
+
+    /// The loader prints its report and jumps to `entry`: the memory image in the board's
+    /// RAM, the SJA1000 the program's (the firmware's driver no longer touches it).
+    fn start_program(&mut self, entry: u32, report: &[String]) {
+        let mut text = CLEAR.to_vec();
+        for line in std::iter::once(LOADER_TITLE).chain(report.iter().map(String::as_str)) {
+            text.extend_from_slice(line.as_bytes());
+            text.extend_from_slice(b"\r\n");
+        }
+        text.extend_from_slice(b"\r\n");
+        self.say(&text);
+        let mut board = Board::new();
+        for (address, bytes) in self.memory.runs() {
+            board.load(address, bytes);
+        }
+        self.in_flight = None;
+        self.next = None;
+        self.restart_at = None;
+        self.exited = None;
+        self.program = Program::Running {
+            run: Box::new(Running::start(board, entry)),
+            start: None,
+        };
+    }
+
+    /// Runs the program through bit-time `now`: the cycles of this bit-time at 25 MHz.
+    fn run_program(&mut self, now: BitTime) {
+        let chip = self.driver.registers();
+        let Program::Running { run, start } = &mut self.program else {
+            return;
+        };
+        let start = *start.get_or_insert(now);
+        let bits = u128::from(now.get() - start.get().min(now.get()) + 1);
+        let until = buslab_ppc403::Cycles(
+            (bits * u128::from(CPU_HZ) / u128::from(self.bitrate.max(1))) as u64,
+        );
+        let at = run.cycles();
+        for key in self.keys.drain(..) {
+            run.board_mut().spu.key(at, key);
+        }
+        let Some(ending) = run.run(chip, until) else {
+            return;
+        };
+        let registers = *run.registers();
+        let output = run.board_mut().spu.take_output();
+        let ns = now.at_bitrate(self.bitrate);
+        self.last_registers = Some(registers);
+        self.say(&output);
+        self.end_program(ns, ending, &registers);
+    }
+
+    /// The program ended: MoniCAN with its status, or the crash report until a key.
+    fn end_program(&mut self, ns: Nanos, ending: Ending, registers: &Registers) {
+        match ending {
+            Ending::Exited { status, returned } => {
+                info!("the program exited with status {status}");
+                self.firmware(ns);
+                let how = if returned {
+                    format!(
+                        "The program returned to the firmware (blr to {:08X}) with r3 = {status}.",
+                        registers.pc
+                    )
+                } else {
+                    format!("The program exited with status {status}.")
+                };
+                self.app.show_page(PROGRAM_TITLE, vec![how]);
+                self.exited = Some(status);
+            }
+            Ending::Stopped { reason, pc } => {
+                warn!("the program stopped: {reason} at {pc:08X}");
+                let mut lines = vec![
+                    String::new(),
+                    format!("*** the program stopped: {reason} at {pc:08X} ***"),
+                ];
+                lines.extend(register_lines(registers));
+                lines.push(PRESS_ANY_KEY.to_string());
+                let report: Vec<u8> = lines
+                    .iter()
+                    .flat_map(|l| l.bytes().chain(*b"\r\n"))
+                    .collect();
+                self.say(&report);
+                self.program = Program::Stopped { reason, pc, report };
+            }
+        }
     }
 
     /// The program's next frame, handed to the chip's driver at `ns`.
@@ -541,7 +768,7 @@ impl PpcNode {
                 frame,
                 single_shot: false,
             }),
-            Program::Saving { .. } => None,
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => None,
         }
     }
 
@@ -549,7 +776,10 @@ impl PpcNode {
         match &self.program {
             Program::MoniCan => self.app.queued(),
             // The answer, when it waits: the loader keeps at most one frame.
-            Program::Loader { .. } | Program::Saving { .. } => 0,
+            Program::Loader { .. }
+            | Program::Saving { .. }
+            | Program::Running { .. }
+            | Program::Stopped { .. } => 0,
         }
     }
 
@@ -557,7 +787,7 @@ impl PpcNode {
         match &self.program {
             Program::MoniCan => self.app.next_deadline(),
             Program::Loader { loader, .. } => loader.next_deadline(),
-            Program::Saving { .. } => None,
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => None,
         }
     }
 
@@ -568,7 +798,7 @@ impl PpcNode {
                 loader.handle_timeout(ns);
                 self.check_outcome(ns);
             }
-            Program::Saving { .. } => {}
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => {}
         }
     }
 }
@@ -637,11 +867,25 @@ impl BusNode for PpcNode {
         chip.sample(bus);
         let interrupt = chip.interrupt();
         let ns = now.at_bitrate(self.bitrate);
+        match self.program {
+            Program::Running { .. } => return self.run_program(now),
+            Program::Stopped { .. } if !self.keys.is_empty() => {
+                // The key that returns to MoniCAN is the report's, not MoniCAN's.
+                self.keys.pop_front();
+                info!("the PowerPC node returns to MoniCAN after the program stopped");
+                self.firmware(ns);
+            }
+            Program::Stopped { .. } => return,
+            _ => {}
+        }
         while let Some(key) = self.keys.pop_front() {
             // The loader does not read the keyboard.
             if let Program::MoniCan = self.program {
                 self.app.handle_key(ns, key);
             }
+        }
+        if self.exited.is_some() && !self.app.showing_page() {
+            self.exited = None;
         }
         if interrupt {
             self.service(now);
@@ -677,6 +921,16 @@ impl BusNode for PpcNode {
     }
 
     fn quiet_until(&self) -> Option<BitTime> {
+        match &self.program {
+            // The core runs every bit-time.
+            Program::Running { .. } => return None,
+            // The firmware waits for a key; the chip goes on as the program left it.
+            Program::Stopped { .. } => {
+                let idle = self.keys.is_empty() && self.driver.chip().is_quiescent();
+                return idle.then_some(BitTime::MAX);
+            }
+            _ => {}
+        }
         if !self.keys.is_empty()
             || self.in_flight.is_some()
             || self.next.is_some()
@@ -705,6 +959,9 @@ impl BusNode for PpcNode {
     }
 
     fn pending(&self) -> usize {
+        if let Program::Running { .. } | Program::Stopped { .. } = self.program {
+            return usize::from(self.driver.chip().transmission_pending());
+        }
         self.program_queued()
             + usize::from(self.next.is_some())
             + usize::from(self.driver.tx_pending())
