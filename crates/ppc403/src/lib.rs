@@ -21,8 +21,19 @@ extern crate std;
 
 mod bus;
 mod core;
+pub mod dcr;
+mod decode;
+pub mod exceptions;
+mod exec;
+mod exec_branch;
+mod exec_int;
+mod exec_mem;
+pub mod interrupts;
+pub mod spr;
 mod time;
+pub mod timers;
 
 pub use crate::core::{Exception, Irq, Ppc403, Registers, Stop};
 pub use bus::{Bus, BusError, FlatMemory, Size};
 pub use time::Cycles;
+pub use timers::WatchdogReset;
