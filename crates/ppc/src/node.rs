@@ -718,7 +718,7 @@ impl PpcNode {
             return;
         };
         let registers = *run.registers();
-        let output = run.board_mut().spu.take_output();
+        let output = run.board_mut().spu.flush();
         let ns = now.at_bitrate(self.bitrate);
         self.last_registers = Some(registers);
         self.say(&output);
@@ -731,16 +731,24 @@ impl PpcNode {
             Ending::Exited { status, returned } => {
                 info!("the program exited with status {status}");
                 self.firmware(ns);
-                let how = if returned {
-                    format!(
-                        "The program returned to the firmware (blr to {:08X}) with r3 = {status}.",
-                        registers.pc
-                    )
-                } else {
-                    format!("The program exited with status {status}.")
+                let how = match returned {
+                    Some(at) => format!(
+                        "The program returned to the firmware (blr to {at:08X}) with r3 = {status}."
+                    ),
+                    None => format!("The program exited with status {status}."),
                 };
                 self.app.show_page(PROGRAM_TITLE, vec![how]);
                 self.exited = Some(status);
+            }
+            Ending::WatchdogReset { by } => {
+                warn!("the program's watchdog reset the board ({by:?} reset)");
+                self.firmware(ns);
+                self.app.show_page(
+                    PROGRAM_TITLE,
+                    vec![format!(
+                        "The watchdog reset the board ({by:?} reset): MoniCAN started again."
+                    )],
+                );
             }
             Ending::Stopped { reason, pc } => {
                 warn!("the program stopped: {reason} at {pc:08X}");

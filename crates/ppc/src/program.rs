@@ -8,7 +8,7 @@
 //! the program with a report. A program that points EVPR into its own memory handles its
 //! exceptions itself. A branch into the flash (a top-level `blr`) returns to the firmware.
 
-use buslab_ppc403::{Exception, Irq, Ppc403, Registers, Stop};
+use buslab_ppc403::{Exception, Irq, Ppc403, Registers, Stop, WatchdogReset};
 use buslab_sja1000::Sja1000;
 use tracing::{debug, info};
 
@@ -34,10 +34,12 @@ const STALLS: u32 = 1000;
 /// How a program ended.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Ending {
-    /// exit(status), or a return into the firmware with r3 = status.
-    Exited { status: i32, returned: bool },
+    /// exit(status), or a return into the firmware at `returned` with r3 = status.
+    Exited { status: i32, returned: Option<u32> },
     /// The firmware caught an exception: `reason`, at the instruction at `pc`.
     Stopped { reason: String, pc: u32 },
+    /// The watchdog's second time-out reset the core: the board restarts the firmware.
+    WatchdogReset { by: WatchdogReset },
 }
 
 /// The program, the core it runs on and the board.
@@ -120,6 +122,7 @@ impl Running {
                 Stop::Limit | Stop::Wait => None,
                 Stop::SystemCall { at } => self.service(at),
                 Stop::Exception { kind, at } => self.exception(kind, at),
+                Stop::Reset { by } => Some(Ending::WatchdogReset { by }),
             };
             if ending.is_some() {
                 return ending;
@@ -146,7 +149,7 @@ impl Running {
             info!("the program returned to the firmware at {addr:08X} (r3 = {status})");
             return Some(Ending::Exited {
                 status,
-                returned: true,
+                returned: Some(addr),
             });
         }
         let vector = self.core.pc();
@@ -186,7 +189,7 @@ impl Running {
         match r.gpr[0] {
             SYS_EXIT => Some(Ending::Exited {
                 status: r.gpr[3] as i32,
-                returned: false,
+                returned: None,
             }),
             SYS_WRITE => {
                 let result = self.write(r.gpr[3], r.gpr[4], r.gpr[5]);
@@ -221,7 +224,8 @@ impl Running {
             return Err(EFAULT);
         }
         let bytes = self.board.ram(buf, n as usize).ok_or(EFAULT)?.to_vec();
-        self.board.spu.put_output(&bytes);
+        let now = self.core.now();
+        self.board.spu.firmware_write(now, &bytes);
         Ok(n)
     }
 }

@@ -85,6 +85,8 @@ pub struct Spu {
     received: u8,
     /// The byte written to SPTB, waiting for the shift register.
     tx_buffer: Option<u8>,
+    /// Bytes the firmware's `write` service sends, ahead of the next byte written to SPTB.
+    firmware: VecDeque<u8>,
     /// The byte on the line and the cycle its stop bit ends.
     shifting: Option<(u8, Cycles)>,
     /// Keys on the line towards the receiver, and when the first of them is complete.
@@ -108,6 +110,7 @@ impl Spu {
             sptc: ENABLE,
             received: 0,
             tx_buffer: None,
+            firmware: VecDeque::new(),
             shifting: None,
             incoming: VecDeque::new(),
             incoming_done: Cycles::ZERO,
@@ -193,7 +196,33 @@ impl Spu {
         self.output_lost
     }
 
-    /// Bytes for the terminal that did not come through the transmitter (the firmware's).
+    /// Bytes the firmware sends for the program (its `write` service), at cycle `now`: on the
+    /// line after the byte in the transmit buffer, ahead of what the program writes next, at
+    /// the line's pace (the firmware sends them in the background; TSR is clear meanwhile).
+    /// Bounded as the output is: beyond [`MAX_OUTPUT`] waiting, bytes are lost.
+    pub fn firmware_write(&mut self, now: Cycles, bytes: &[u8]) {
+        self.advance(now);
+        if let Some(byte) = self.tx_buffer.take() {
+            self.firmware.push_back(byte);
+        }
+        let room = MAX_OUTPUT.saturating_sub(self.firmware.len());
+        let take = bytes.len().min(room);
+        self.firmware.extend(&bytes[..take]);
+        self.lose_output((bytes.len() - take) as u64);
+        self.start_shifting(now);
+    }
+
+    /// Everything still on its way to the terminal, in order, at once (the program ended: the
+    /// firmware lets the port finish before it takes it back).
+    pub fn flush(&mut self) -> Vec<u8> {
+        let mut out = self.take_output();
+        out.extend(self.shifting.take().map(|(b, _)| b));
+        out.extend(self.firmware.drain(..));
+        out.extend(self.tx_buffer.take());
+        out
+    }
+
+    /// Bytes for the terminal that did not come through the transmitter.
     pub fn put_output(&mut self, bytes: &[u8]) {
         let room = MAX_OUTPUT.saturating_sub(self.output.len());
         let take = bytes.len().min(room);
@@ -253,7 +282,14 @@ impl Spu {
 
     /// The transmit buffer's byte onto the line at cycle `at`, if the transmitter may.
     fn start_shifting(&mut self, at: Cycles) {
-        if self.shifting.is_some() || self.sptc & ENABLE == 0 {
+        if self.shifting.is_some() {
+            return;
+        }
+        if let Some(byte) = self.firmware.pop_front() {
+            self.shifting = Some((byte, at + Cycles(self.character_cycles())));
+            return;
+        }
+        if self.sptc & ENABLE == 0 {
             return;
         }
         if let Some(byte) = self.tx_buffer.take() {
@@ -404,6 +440,20 @@ mod tests {
         spu.advance(Cycles(CHAR));
         assert!(spu.take_output().is_empty());
         assert_eq!(spu.read(SPRB, Cycles(CHAR)), Some(b'L'));
+    }
+
+    #[test]
+    fn the_firmwares_bytes_go_after_the_buffers_and_before_what_follows() {
+        let mut spu = Spu::new();
+        spu.write(SPRB, b'a', Cycles(0));
+        spu.write(SPRB, b'b', Cycles(0));
+        spu.firmware_write(Cycles(0), b"cd");
+        assert_eq!(spu.line_status() & (TBR | TSR), TBR);
+        spu.write(SPRB, b'e', Cycles(0));
+        spu.advance(Cycles(3 * CHAR));
+        assert_eq!(spu.take_output(), b"abc");
+        assert_eq!(spu.flush(), b"de");
+        assert_eq!(spu.line_status(), TBR | TSR);
     }
 
     #[test]
