@@ -41,6 +41,11 @@ pub const MAX_KEYS: usize = 256;
 /// A frame that stays in the TX buffer this many bit-times (nobody acknowledges it: the
 /// PowerPC alone on the bus) is aborted, so the periodic calibration never waits behind it.
 pub const GIVE_UP: BitTime = buslab_slio::master::ANSWER_WITHIN;
+/// While the bus is idle and the program's SJA1000 has nothing to do, the core runs this many
+/// bit-times at once (the bus engine may skip them): a frame the program asks for in that time
+/// starts up to this late (0.5 ms at 125 kbit/s), as with an interrupt's latency. It keeps a
+/// running program from making the whole bus step bit by bit.
+pub const IDLE_BATCH: BitTime = BitTime::new(64);
 /// How long a bus-off SJA1000 waits before MoniCAN restarts it.
 pub const RESTART_AFTER: Nanos = Nanos::from_millis(100);
 
@@ -930,8 +935,12 @@ impl BusNode for PpcNode {
 
     fn quiet_until(&self) -> Option<BitTime> {
         match &self.program {
-            // The core runs every bit-time.
-            Program::Running { .. } => return None,
+            // The core runs in batches while nothing happens on the bus or at the chip.
+            Program::Running { .. } => {
+                let chip = self.driver.chip();
+                let idle = self.keys.is_empty() && chip.is_quiescent() && !chip.interrupt();
+                return idle.then_some(self.now + IDLE_BATCH);
+            }
             // The firmware waits for a key; the chip goes on as the program left it.
             Program::Stopped { .. } => {
                 let idle = self.keys.is_empty() && self.driver.chip().is_quiescent();

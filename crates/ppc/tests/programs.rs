@@ -153,19 +153,6 @@ impl Lab {
     }
 }
 
-/// The seed's frame format in r3, r4, r5 (§4.1.1) for `frame` (standard, 8 bytes at most):
-/// `ld32b` lines.
-fn frame_registers(frame: &Frame) -> String {
-    let raw = frame.id().as_raw();
-    let ffi = u32::from(frame.dlc()) | if frame.is_remote() { 0x40 } else { 0 };
-    let r3 = ffi << 16 | (raw >> 3) << 8 | (raw & 7) << 5;
-    let mut data = [0u8; 8];
-    data[..frame.payload().len()].copy_from_slice(frame.payload());
-    let r4 = u32::from_be_bytes(data[..4].try_into().unwrap());
-    let r5 = u32::from_be_bytes(data[4..].try_into().unwrap());
-    format!("\tld32b r3,0x{r3:08X}\n\tld32b r4,0x{r4:08X}\n\tld32b r5,0x{r5:08X}\n")
-}
-
 /// (a) `sja_init_pelican` as the seed writes it (reset mode, PeliCAN, accept all, the bit
 /// timing, OCR 0xDB, normal mode), then `send_trame`: the supervisor receives the frame.
 #[test]
@@ -175,7 +162,7 @@ fn the_seeds_sja_init_pelican_then_a_frame_the_supervisor_receives() {
     let program = asm::assemble(
         &format!(
             "_start:\n\tbl sja_init_pelican\n{}\tbl send_trame\nforever:\n\tb forever\n",
-            frame_registers(&frame)
+            asm::frame_registers(&frame)
         ),
         btr(),
     );
@@ -230,8 +217,9 @@ fn a_program_echoes_the_frames_it_receives() {
 fn a_program_calibrates_the_slio_boards_and_lights_a_led() {
     let mut lab = Lab::new(&[3, 10]);
     let slio = SlioId::new(3).unwrap();
-    let write =
-        |register, value| frame_registers(&Request::Write { register, value }.frame(slio).unwrap());
+    let write = |register, value| {
+        asm::frame_registers(&Request::Write { register, value }.frame(slio).unwrap())
+    };
     let program = asm::assemble(
         &format!(
             "_start:\n\tbl sja_init_pelican\n\tbl calibration_slio\n{}\tbl send_trame\n{}\tbl send_trame\n\

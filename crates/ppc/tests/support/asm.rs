@@ -44,6 +44,19 @@ fn run(tool: &str, args: &[&str], dir: &std::path::Path) {
     );
 }
 
+/// The seed's frame format in r3, r4, r5 (§4.1.1) for `frame` (standard, 8 bytes at most):
+/// `ld32b` lines.
+pub fn frame_registers(frame: &buslab_can::Frame) -> String {
+    let raw = frame.id().as_raw();
+    let ffi = u32::from(frame.dlc()) | if frame.is_remote() { 0x40 } else { 0 };
+    let r3 = ffi << 16 | (raw >> 3) << 8 | (raw & 7) << 5;
+    let mut data = [0u8; 8];
+    data[..frame.payload().len()].copy_from_slice(frame.payload());
+    let r4 = u32::from_be_bytes(data[..4].try_into().unwrap());
+    let r5 = u32::from_be_bytes(data[4..].try_into().unwrap());
+    format!("\tld32b r3,0x{r3:08X}\n\tld32b r4,0x{r4:08X}\n\tld32b r5,0x{r5:08X}\n")
+}
+
 /// Assembles `source` (with [`SEED`] and `.equ`s for `btr` before it, [`ROUTINES`] after), links it at
 /// [`TEXT`] with `_start` as the entry point, and returns the S-record file (S3 records, S7).
 pub fn assemble(source: &str, btr: (u8, u8)) -> Vec<u8> {
