@@ -13,6 +13,7 @@
 pub mod board;
 pub mod node;
 pub mod program;
+pub mod sampling;
 pub mod spu;
 
 pub use node::{

@@ -32,6 +32,7 @@ use tracing::{debug, info, warn};
 
 use crate::board::{Board, CPU_HZ};
 use crate::program::{Ending, Running, register_lines};
+use crate::sampling::Sampling;
 use crate::spu::MAX_OUTPUT;
 
 /// The PowerPC board's SJA1000 crystal (the seed: "Xtal de 16MHz"); the CAN clock is half.
@@ -226,6 +227,8 @@ pub struct PpcNode {
     last_registers: Option<Registers>,
     /// The status of the program that exited, while MoniCAN shows it.
     exited: Option<i32>,
+    /// What the chip reads from the wire while a program owns it (noise at a wrong bit rate).
+    sampling: Sampling,
 }
 
 impl core::fmt::Debug for PpcNode {
@@ -273,6 +276,7 @@ impl PpcNode {
             pending_output: Vec::new(),
             last_registers: None,
             exited: None,
+            sampling: Sampling::default(),
         })
     }
 
@@ -698,6 +702,7 @@ impl PpcNode {
         self.next = None;
         self.restart_at = None;
         self.exited = None;
+        self.sampling = Sampling::default();
         self.program = Program::Running {
             run: Box::new(Running::start(board, entry)),
             start: None,
@@ -877,7 +882,13 @@ impl BusNode for PpcNode {
     fn sample(&mut self, now: BitTime, bus: Level) {
         self.now = now;
         let chip = self.driver.registers();
-        chip.sample(bus);
+        let seen = match self.program {
+            Program::Running { .. } | Program::Stopped { .. } => {
+                self.sampling.level(chip, self.bitrate, now, bus)
+            }
+            _ => bus,
+        };
+        chip.sample(seen);
         let interrupt = chip.interrupt();
         let ns = now.at_bitrate(self.bitrate);
         match self.program {
@@ -938,12 +949,17 @@ impl BusNode for PpcNode {
             // The core runs in batches while nothing happens on the bus or at the chip.
             Program::Running { .. } => {
                 let chip = self.driver.chip();
-                let idle = self.keys.is_empty() && chip.is_quiescent() && !chip.interrupt();
+                let idle = self.keys.is_empty()
+                    && chip.is_quiescent()
+                    && !chip.interrupt()
+                    && !self.sampling.mistimed();
                 return idle.then_some(self.now + IDLE_BATCH);
             }
             // The firmware waits for a key; the chip goes on as the program left it.
             Program::Stopped { .. } => {
-                let idle = self.keys.is_empty() && self.driver.chip().is_quiescent();
+                let idle = self.keys.is_empty()
+                    && self.driver.chip().is_quiescent()
+                    && !self.sampling.mistimed();
                 return idle.then_some(BitTime::MAX);
             }
             _ => {}

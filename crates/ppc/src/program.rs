@@ -166,21 +166,34 @@ impl Running {
                     r.msr = r.srr1;
                     self.service(at)
                 } else {
+                    self.unvector(kind, at);
                     Some(Ending::Stopped {
                         reason: describe(kind),
                         pc: at,
                     })
                 }
             }
-            _ => Some(Ending::Stopped {
-                reason: format!(
-                    "{}, and its vector {vector:08X} is outside memory (EVPR {:08X})",
-                    describe(kind),
-                    self.core.registers().evpr
-                ),
-                pc: at,
-            }),
+            _ => {
+                let evpr = self.core.registers().evpr;
+                self.unvector(kind, at);
+                Some(Ending::Stopped {
+                    reason: format!(
+                        "{}, and its vector {vector:08X} is outside memory (EVPR {evpr:08X})",
+                        describe(kind),
+                    ),
+                    pc: at,
+                })
+            }
         }
+    }
+
+    /// The registers as the program left them at `at` (the report shows the program's state,
+    /// not the firmware's vector): PC at the instruction, MSR from SRR1 (SRR3 for the
+    /// critical class).
+    fn unvector(&mut self, kind: Exception, at: u32) {
+        let r = self.core.registers_mut();
+        r.pc = at;
+        r.msr = if kind.is_critical() { r.srr3 } else { r.srr1 };
     }
 
     /// The firmware's service call from the `sc` at `at`.
@@ -266,8 +279,8 @@ pub fn register_lines(r: &Registers) -> Vec<String> {
             r.cr, r.xer, r.srr0, r.srr1
         ),
         format!(
-            "evpr {:08X}  esr  {:08X}  dear {:08X}",
-            r.evpr, r.esr, r.dear
+            "evpr {:08X}  esr  {:08X}  dear {:08X}  srr2 {:08X}  srr3 {:08X}",
+            r.evpr, r.esr, r.dear, r.srr2, r.srr3
         ),
     ];
     for row in 0..8 {
@@ -296,6 +309,8 @@ pub fn registers_line(r: &Registers) -> String {
     parts.extend([
         format!("srr0={:08X}", r.srr0),
         format!("srr1={:08X}", r.srr1),
+        format!("srr2={:08X}", r.srr2),
+        format!("srr3={:08X}", r.srr3),
         format!("evpr={:08X}", r.evpr),
         format!("esr={:08X}", r.esr),
         format!("dear={:08X}", r.dear),

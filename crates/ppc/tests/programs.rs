@@ -182,6 +182,37 @@ fn the_seeds_sja_init_pelican_then_a_frame_the_supervisor_receives() {
     );
 }
 
+/// The seed's own bit timing (BTR0 0x07, BTR1 0x4D: 20 µs bits, its 50 kbit/s bus) is not
+/// this 125 kbit/s bus: the chip samples at the wrong instants, its frame never arrives and
+/// its error counter climbs (the right timing's frame came within a few thousand bit-times).
+#[test]
+fn a_program_with_another_buss_bit_timing_is_not_on_this_one() {
+    let mut lab = Lab::new(&[]);
+    let frame: Frame = "123#CAFE".parse().unwrap();
+    let program = asm::assemble(
+        &format!(
+            "_start:\n\tbl sja_init_pelican\n{}\tbl send_trame\nforever:\n\tb forever\n",
+            asm::frame_registers(&frame)
+        ),
+        (0x07, 0x4D),
+    );
+    lab.load(&program);
+    lab.run(100_000);
+    assert!(
+        !lab.host_received().contains(&"123#CAFE".to_string()),
+        "{:?}",
+        lab.host_received()
+    );
+    let chip = lab.ppc().chip();
+    assert_eq!(chip.bit_timing().registers(), (0x07, 0x4D));
+    assert_ne!(
+        chip.error_state(),
+        buslab_can::controller::ErrorState::Active,
+        "TXERR {}",
+        buslab_can::node::BusNode::tec(chip)
+    );
+}
+
 /// (b) A program that sends every frame it receives back with the next identifier.
 #[test]
 fn a_program_echoes_the_frames_it_receives() {

@@ -1,6 +1,8 @@
 //! The PowerPC node's host side, while the node itself runs on a virtual bus server's thread:
-//! its VT100 terminal on a pseudo-terminal at 19200 8N1, its memory image in a state file, and a
-//! control socket that reads its memory back ([`serve`] starts what the options ask for).
+//! its VT100 terminal on a pseudo-terminal at 19200 8N1 (MoniCAN's screen, or the running
+//! program's serial output), its memory image in a state file, and a control socket that says
+//! what the node runs, reads its memory and registers back and resets it ([`serve`] starts
+//! what the options ask for).
 //!
 //! The PTY side is a [`ByteDevice`] paced by `buslab_link`: keys the terminal sends are posted
 //! to the bus thread ([`PpcNode::key`]); screen updates are pulled from the node only when the
