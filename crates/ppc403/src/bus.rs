@@ -96,15 +96,25 @@ impl FlatMemory {
 }
 
 impl Bus for FlatMemory {
+    #[inline]
     fn fetch(&mut self, addr: u32) -> Result<u32, BusError> {
         self.read(addr, Size::Word, Cycles::ZERO)
     }
 
+    #[inline]
     fn read(&mut self, addr: u32, size: Size, _at: Cycles) -> Result<u32, BusError> {
-        let r = self.range(addr, size.bytes())?;
-        Ok(self.bytes[r]
-            .iter()
-            .fold(0u32, |acc, &b| (acc << 8) | u32::from(b)))
+        let start = addr as usize;
+        let bytes = &self.bytes;
+        let value = match size {
+            Size::Byte => bytes.get(start).map(|&b| u32::from(b)),
+            Size::Half => bytes
+                .get(start..start + 2)
+                .map(|b| u32::from(u16::from_be_bytes([b[0], b[1]]))),
+            Size::Word => bytes
+                .get(start..start + 4)
+                .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]])),
+        };
+        value.ok_or(BusError { addr })
     }
 
     fn write(&mut self, addr: u32, size: Size, value: u32, _at: Cycles) -> Result<(), BusError> {

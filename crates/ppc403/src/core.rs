@@ -154,6 +154,26 @@ impl Ppc403 {
         }
     }
 
+    /// A reset (the chip's reset input, a power cycle): the registers, timers, interrupt
+    /// controller and DCRs as [`new`](Self::new) makes them, but time goes on: `now()`,
+    /// `instructions()` and the time base keep counting, the interrupt lines keep their
+    /// levels (EXISR latches those that are high), `set_trap_sc` stays as it was.
+    pub fn reset(&mut self) {
+        let fresh = Ppc403 {
+            now: self.now,
+            instructions: self.instructions,
+            trap_sc: self.trap_sc,
+            ..Ppc403::new()
+        };
+        let levels = self.irq.levels;
+        let tb = self.time_base();
+        *self = fresh;
+        self.timers.checked = self.now;
+        self.timers.tb_offset = tb.wrapping_sub(self.now);
+        self.irq.levels = levels;
+        self.irq.status = levels;
+    }
+
     /// Runs instructions until `limit` (the cycle count, not a duration) or an event. An
     /// instruction started before `limit` completes, so `now()` may pass `limit` by the
     /// cycles of one instruction.

@@ -15,8 +15,8 @@ const LOAD_EXTRA: u64 = 1;
 /// The data cache's line size (dcbz zeroes one line).
 const CACHE_LINE: u32 = 16;
 
-/// BESR's bits for a data-side bus error (the 403's bus error syndrome: DSES, with DMES
-/// for a store... kept simple: "data side error", plus "write" for a store).
+/// What a data-side bus error leaves in BESR: "a data-side error", plus "a write" for a
+/// store (a simplification of the 403's syndrome; documented in docs/ppc403.md).
 const BESR_DATA_ERROR: u32 = 0x8000_0000;
 const BESR_WRITE: u32 = 0x0800_0000;
 
@@ -196,9 +196,9 @@ impl Ppc403 {
                     0 => 32,
                     n => n as u32,
                 };
-                self.load_string(bus, w, self.ea_base(w), n)
+                self.load_string(bus, w, self.ea_base(w), n, false)
             }
-            533 => self.load_string(bus, w, ea, self.regs.xer & 0x7F),
+            533 => self.load_string(bus, w, ea, self.regs.xer & 0x7F, true),
             725 => {
                 let n = match rb(w) {
                     0 => 32,
@@ -243,7 +243,28 @@ impl Ppc403 {
         Ok(())
     }
 
-    fn load_string(&mut self, bus: &mut impl Bus, w: u32, ea: u32, n: u32) -> Executed {
+    /// `lswi`/`lswx` of `n` bytes; a form that would load rA (`lswi`: even r0; `lswx`: a
+    /// nonzero rA) or rB (`lswx`) is invalid: illegal, as QEMU has it.
+    fn load_string(
+        &mut self,
+        bus: &mut impl Bus,
+        w: u32,
+        ea: u32,
+        n: u32,
+        indexed: bool,
+    ) -> Executed {
+        let loads = |reg: usize| {
+            let count = n.div_ceil(4) as usize;
+            (reg + 32 - rd(w)) % 32 < count
+        };
+        let clobbers = if indexed {
+            (ra(w) != 0 && loads(ra(w))) || loads(rb(w))
+        } else {
+            loads(ra(w))
+        };
+        if clobbers {
+            return illegal(w);
+        }
         let mut r = rd(w);
         for i in 0..n {
             if i > 0 && i % 4 == 0 {

@@ -27,7 +27,7 @@ pub(crate) struct Interrupts {
     /// EXIER.
     pub enable: u32,
     /// The lines that are high, as EXISR bits.
-    levels: u32,
+    pub levels: u32,
 }
 
 impl Interrupts {

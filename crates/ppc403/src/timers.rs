@@ -9,6 +9,7 @@
 //! and `catch_up_timers` works out what happened since it last looked.
 
 use crate::core::{Ppc403, Registers};
+use crate::exceptions::msr;
 
 /// TCR's bits.
 pub mod tcr {
@@ -47,9 +48,9 @@ pub(crate) struct Timers {
     pub tcr: u32,
     pub tsr: u32,
     /// The time base is `now + tb_offset` (wrapping).
-    tb_offset: u64,
+    pub tb_offset: u64,
     /// The cycle the status bits are up to date for.
-    checked: u64,
+    pub checked: u64,
     /// The cycle the PIT reaches 0 (`None`: it is 0, stopped).
     pit_expiry: Option<u64>,
     /// The PIT's last written value (what TCR[ARE] reloads).
@@ -99,7 +100,7 @@ impl Ppc403 {
             t.tsr |= tsr::PIS;
             t.pit_expiry = if t.tcr & tcr::ARE != 0 && t.pit_reload != 0 {
                 let reload = u64::from(t.pit_reload);
-                Some(expiry + ((now - expiry) / reload + 1) * reload)
+                Some(expiry.saturating_add(((now - expiry) / reload + 1) * reload))
             } else {
                 None
             };
@@ -127,21 +128,32 @@ impl Ppc403 {
         t.checked = now;
     }
 
-    /// The next cycle a timer can interrupt or reset (`u64::MAX`: none can).
+    /// The next cycle a timer can interrupt (as TCR and the MSR stand) or reset the core
+    /// (`u64::MAX`: none can). Events that can do neither are left to `catch_up_timers`.
     pub(crate) fn next_timer_event(&self) -> u64 {
         let t = &self.timers;
+        let msr = self.regs.msr;
         let tb = self.time_base();
+        let ee = msr & msr::EE != 0;
         let mut next = u64::MAX;
-        if t.tcr & tcr::PIE != 0
+        if ee
+            && t.tcr & tcr::PIE != 0
             && let Some(expiry) = t.pit_expiry
         {
             next = next.min(expiry);
         }
-        if t.tcr & tcr::FIE != 0 {
-            next = next.min(self.now + to_next_multiple(tb, fit_bits(t.tcr)));
+        if ee && t.tcr & tcr::FIE != 0 {
+            next = next.min(
+                self.now
+                    .saturating_add(to_next_multiple(tb, fit_bits(t.tcr))),
+            );
         }
-        if t.tcr & (tcr::WIE | tcr::WRC) != 0 {
-            next = next.min(self.now + to_next_multiple(tb, watchdog_bits(t.tcr)));
+        let watchdog_interrupts = msr & msr::CE != 0 && t.tcr & tcr::WIE != 0;
+        if watchdog_interrupts || t.tcr & tcr::WRC != 0 {
+            next = next.min(
+                self.now
+                    .saturating_add(to_next_multiple(tb, watchdog_bits(t.tcr))),
+            );
         }
         next
     }
@@ -155,7 +167,7 @@ impl Ppc403 {
     pub(crate) fn write_pit(&mut self, value: u32) {
         self.catch_up_timers();
         self.timers.pit_reload = value;
-        self.timers.pit_expiry = (value != 0).then(|| self.now + u64::from(value));
+        self.timers.pit_expiry = (value != 0).then(|| self.now.saturating_add(u64::from(value)));
     }
 
     pub(crate) fn write_tcr(&mut self, value: u32) {

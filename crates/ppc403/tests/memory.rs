@@ -193,6 +193,47 @@ fn strings_move_bytes_across_registers_and_wrap_to_r0() {
 }
 
 #[test]
+fn a_string_load_over_its_address_register_is_illegal() {
+    let lswi = |rt: u32, ra: u32, nb: u32| x31(rt, ra, nb, 597, false);
+    let lswx = |rt: u32, ra: u32, rb: u32| x31(rt, ra, rb, 533, false);
+    for (word, xer) in [
+        (lswi(3, 4, 8), 0),  // r3, r4: r4 is rA
+        (lswi(31, 0, 8), 0), // r31, r0: even rA = 0 counts
+        (lswx(3, 5, 4), 8),  // r3, r4: r4 is rB
+        (lswx(3, 4, 6), 8),  // r4 is rA
+    ] {
+        let mut b = Board::new(&[word]);
+        b.cpu.registers_mut().xer = xer;
+        b.cpu.set_gpr(3, DATA);
+        b.cpu.set_gpr(4, DATA);
+        b.cpu.set_gpr(5, DATA);
+        b.cpu.set_gpr(6, 0);
+        assert_eq!(
+            b.run(100),
+            Stop::Exception {
+                kind: Exception::Illegal { word },
+                at: ORG
+            },
+            "{word:#010x}"
+        );
+    }
+    // 32 bytes from r5 load r5..r12: rA = r3 is outside.
+    let b = exec_mem(
+        |b| b.mem.load(DATA + 28, b"last"),
+        &[(3, DATA)],
+        &[lswi(5, 3, 0)],
+    );
+    assert_eq!(b.r(12), u32::from_be_bytes(*b"last"));
+    // lswx with rA = 0 in the range, or a count of 0, is fine.
+    let b = exec_mem(
+        |_| {},
+        &[(4, DATA)],
+        &[li(9, 8), mtspr(1, 9), lswx(31, 0, 4)],
+    );
+    assert_eq!((b.r(31), b.r(0)), (0, 0));
+}
+
+#[test]
 fn lwarx_stwcx_store_only_with_the_reservation() {
     let b = exec_mem(
         with_data(&[5]),
