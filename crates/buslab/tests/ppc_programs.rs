@@ -200,6 +200,20 @@ fn the_demo_program_runs_on_the_labs_powerpc_node() {
     // A key typed on the terminal is the program's: it echoes it.
     terminal.type_keys(b"Z");
     terminal.wait_for_text("Z");
+    // A load request now is the program's business: nothing answers, and the tool says why.
+    let (ok, _, err) = buslab(&[
+        "load",
+        examples.join("hello.s37").to_str().unwrap(),
+        "--bus",
+        &url,
+        "--verify",
+        socket.to_str().unwrap(),
+        "--timeout",
+        "1s",
+    ]);
+    assert!(!ok);
+    assert!(err.contains("no loader answered on ID 000"), "{err}");
+    assert!(err.contains("a program owns the SJA1000"), "{err}");
     // Reset: MoniCAN again, on the terminal and in the state.
     assert_eq!(control(&socket, "reset"), "reset: MoniCAN started");
     assert_eq!(control(&socket, "state"), "monican");

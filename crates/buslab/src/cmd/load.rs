@@ -121,15 +121,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let stop = super::interrupted()?;
     let mut control = args.verify.as_deref().map(Control::connect).transpose()?;
-    let loads_before = match &mut control {
-        Some(c) => c.load_number()?,
-        None => 0,
+    let (loads_before, running) = match &mut control {
+        Some(c) => {
+            let state = c.ask("state")?;
+            let running = (state.starts_with("running") || state.starts_with("stopped"))
+                .then(|| format!("{state}: a program owns the SJA1000, so a load request is its business; `reset` on {} gives the board back to the firmware", c.path.display()));
+            (c.load_number()?, running)
+        }
+        None => (0, None),
     };
     let url = &args.bus.bus;
     let mut bus = open(url)?;
     let id = Id::standard(args.id).context("the loader's identifier")?;
     bus.set_filters(&[Filter::standard(args.id)])?;
-    handshake(&mut bus, id, args.timeout)?;
+    handshake(&mut bus, id, args.timeout).map_err(|e| match running {
+        Some(note) => e.context(format!("the node's state was {note}")),
+        None => e,
+    })?;
     let started = Instant::now();
     let bar = transfer::bar(text.len() as u64, "sending");
     let stall = Some(buslab_loader::loader::IDLE_TIMEOUT.as_duration());
