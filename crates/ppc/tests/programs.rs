@@ -241,6 +241,85 @@ fn a_program_echoes_the_frames_it_receives() {
     }
 }
 
+/// (b') The same echo driven by the SJA1000's interrupt: the program's own vectors at EVPR
+/// 0x00030000, the external interrupt (INT0, the card's INT) enabled in EXIER and MSR[EE];
+/// the handler reads the frame (which lowers INT), sends it back on the next identifier,
+/// counts it at 0x37000, clears EXISR and returns; the main loop waits with MSR[WE].
+#[test]
+fn an_interrupt_driven_program_echoes_the_frames_it_receives() {
+    let mut lab = Lab::new(&[]);
+    let program = r#"
+_start:
+	b     main
+	.org  0x500
+external:
+	stwu  r1,-32(r1)
+	stw   r0,8(r1)
+	mflr  r0
+	stw   r0,12(r1)
+	stw   r3,16(r1)
+	stw   r4,20(r1)
+	stw   r5,24(r1)
+	stw   r6,28(r1)
+	bl    receive_trame
+	cmpwi r6,0
+	beq   done
+	addi  r3,r3,0x20
+	bl    send_trame
+	lis   r7,0x0003
+	lwz   r8,0x7000(r7)
+	addi  r8,r8,1
+	stw   r8,0x7000(r7)
+done:
+	li    r0,0x10
+	mtdcr 0x40,r0
+	lwz   r6,28(r1)
+	lwz   r5,24(r1)
+	lwz   r4,20(r1)
+	lwz   r3,16(r1)
+	lwz   r0,12(r1)
+	mtlr  r0
+	lwz   r0,8(r1)
+	addi  r1,r1,32
+	rfi
+main:
+	bl    sja_init_pelican
+	wrsjai 0x01,INTERRUPT_ENABLE
+	lis   r9,0x0003
+	mtspr 982,r9
+	li    r9,0x10
+	mtdcr 0x42,r9
+	lis   r9,0x0004
+	ori   r9,r9,0x8000
+wait:
+	mtmsr r9
+	b     wait
+"#;
+    lab.load(&asm::assemble_at(program, btr(), 0x30000));
+    lab.run_until("the chip's interrupt enabled", |l| {
+        l.ppc().chip().peek(4) == 0x01
+    });
+    for (sent, echo) in [
+        ("200#0102030405060708", "201#0102030405060708"),
+        ("7F0#AB", "7F1#AB"),
+    ] {
+        lab.records.clear();
+        lab.send(sent.parse().unwrap());
+        lab.run_until(&format!("the echo of {sent}"), |l| {
+            l.host_received().contains(&echo.to_string())
+        });
+    }
+    lab.run(1000);
+    assert!(matches!(lab.activity(), Activity::Running { .. }));
+    // The handler's count of echoes, at 0x37000.
+    let count = lab.ppc().ram(0x37000, 4).unwrap();
+    assert_eq!(
+        u32::from_be_bytes(count.try_into().unwrap()),
+        2,
+        "one echo a frame"
+    );
+}
+
 /// (c) The seed's `calibration_slio`, then OUTPUT_ENABLE and DATA_OUTPUT written to SLIO 3
 /// (the frames of `make_slio_ffi` and `wr_reg_slio`): its P7 LED lights, and stays lit while
 /// the program keeps calibrating (the SLIO's watchdog is 8192 bit-times).

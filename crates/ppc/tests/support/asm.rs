@@ -60,6 +60,12 @@ pub fn frame_registers(frame: &buslab_can::Frame) -> String {
 /// Assembles `source` (with [`SEED`] and `.equ`s for `btr` before it, [`ROUTINES`] after), links it at
 /// [`TEXT`] with `_start` as the entry point, and returns the S-record file (S3 records, S7).
 pub fn assemble(source: &str, btr: (u8, u8)) -> Vec<u8> {
+    assemble_at(source, btr, TEXT)
+}
+
+/// [`assemble`], linked at `text` (0x30000: the seed's interrupt handlers' area, so the
+/// program's own vectors can be at EVPR 0x00030000 + the vector's offset).
+pub fn assemble_at(source: &str, btr: (u8, u8), text: u32) -> Vec<u8> {
     for tool in TOOLS {
         let found = std::env::var_os("PATH")
             .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(tool).is_file()));
@@ -70,21 +76,22 @@ pub fn assemble(source: &str, btr: (u8, u8)) -> Vec<u8> {
     }
     let dir = tempfile::tempdir().unwrap();
     let path: PathBuf = dir.path().join("prog.s");
-    let text = format!(
+    let file = format!(
         "\t.equ BTR0_VALUE,0x{:02X}\n\t.equ BTR1_VALUE,0x{:02X}\n{SEED}\n\t.text\n\t.globl _start\n{source}\n{ROUTINES}\n",
         btr.0, btr.1
     );
-    std::fs::write(&path, text).unwrap();
+    std::fs::write(&path, file).unwrap();
     let d = dir.path();
+    // -m403: the 403's own instructions too (mtdcr, mfdcr, wrteei).
     run(
         "powerpc-linux-gnu-as",
-        &["-mregnames", "-o", "prog.o", "prog.s"],
+        &["-m403", "-mregnames", "-o", "prog.o", "prog.s"],
         d,
     );
     run(
         "powerpc-linux-gnu-ld",
         &[
-            &format!("-Ttext=0x{TEXT:X}"),
+            &format!("-Ttext=0x{text:X}"),
             "-e",
             "_start",
             "-o",
