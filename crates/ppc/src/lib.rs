@@ -3,11 +3,13 @@
 //! ([`buslab_ppc403`]) with the board around it ([`board`], [`spu`], [`program`]).
 //!
 //! [`PpcNode`] is a [`BusNode`](buslab_can::node::BusNode): it sits on the one bus engine like
-//! any node. Its SJA1000 ([`buslab_sja1000::Sja1000`]) is driven only through its registers by
-//! the SJA1000 driver the host library runs too ([`buslab_sja1000_driver::Sja1000Driver`],
-//! PeliCAN as the seed's `sja_init_pelican`), and the CPU's program is [`buslab_monican::MoniCan`]. The serial port
-//! is sans-IO too: [`PpcNode::key`] takes a byte from the terminal, [`PpcNode::take_screen`]
-//! gives the VT100 bytes for it; whoever serves the port paces them (19200 baud, 8N1).
+//! any node. Its SJA1000 ([`buslab_sja1000::Sja1000`]) is driven only through its registers:
+//! by the resident firmware — the SJA1000 driver the host library runs too
+//! ([`buslab_sja1000_driver::Sja1000Driver`], PeliCAN as the seed's `sja_init_pelican`), with
+//! [`buslab_monican::MoniCan`] and the CAN loader as its program — or, once the loader has
+//! jumped to a loaded program, by that program through the card's ports. The serial port is
+//! sans-IO too: [`PpcNode::key`] takes a byte from the terminal, [`PpcNode::take_screen`]
+//! gives the bytes for it; whoever serves the port paces them (19200 baud, 8N1).
 #![forbid(unsafe_code)]
 
 pub mod board;
