@@ -85,13 +85,13 @@ impl FlatMemory {
         &mut self.bytes
     }
 
+    #[inline(always)]
     fn range(&self, addr: u32, size: u32) -> Result<core::ops::Range<usize>, BusError> {
         let start = addr as usize;
-        let end = start + size as usize;
-        if end > self.bytes.len() {
-            return Err(BusError { addr });
+        match start.checked_add(size as usize) {
+            Some(end) if end <= self.bytes.len() => Ok(start..end),
+            _ => Err(BusError { addr }),
         }
-        Ok(start..end)
     }
 }
 
@@ -103,18 +103,13 @@ impl Bus for FlatMemory {
 
     #[inline]
     fn read(&mut self, addr: u32, size: Size, _at: Cycles) -> Result<u32, BusError> {
-        let start = addr as usize;
-        let bytes = &self.bytes;
-        let value = match size {
-            Size::Byte => bytes.get(start).map(|&b| u32::from(b)),
-            Size::Half => bytes
-                .get(start..start + 2)
-                .map(|b| u32::from(u16::from_be_bytes([b[0], b[1]]))),
-            Size::Word => bytes
-                .get(start..start + 4)
-                .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]])),
-        };
-        value.ok_or(BusError { addr })
+        let r = self.range(addr, size.bytes())?;
+        let b = &self.bytes[r];
+        Ok(match size {
+            Size::Byte => u32::from(b[0]),
+            Size::Half => u32::from(u16::from_be_bytes([b[0], b[1]])),
+            Size::Word => u32::from_be_bytes([b[0], b[1], b[2], b[3]]),
+        })
     }
 
     fn write(&mut self, addr: u32, size: Size, value: u32, _at: Cycles) -> Result<(), BusError> {

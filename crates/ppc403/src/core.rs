@@ -218,7 +218,7 @@ impl Ppc403 {
                 }
             };
             self.regs.pc = pc.wrapping_add(4);
-            self.now += 1;
+            self.now = self.now.saturating_add(1);
             match self.execute(bus, word, pc) {
                 Ok(()) => self.instructions += 1,
                 Err(Event::Sync) => {
@@ -313,7 +313,7 @@ impl Ppc403 {
     /// Adds cycles beyond the one every instruction takes.
     #[inline(always)]
     pub(crate) fn spend(&mut self, cycles: u64) {
-        self.now += cycles;
+        self.now = self.now.saturating_add(cycles);
     }
 }
 

@@ -28,6 +28,8 @@ pub mod msr {
     pub const PX: u32 = 0x0000_0004;
     /// Little-endian mode (bit 31; stored, not honoured).
     pub const LE: u32 = 0x0000_0001;
+    /// The bits the 403GA has: `mtmsr`, `rfi`, `rfci` keep only these (the others read 0).
+    pub const IMPLEMENTED: u32 = APE | WE | CE | ILE | EE | PR | ME | DE | PE | PX | LE;
 }
 
 /// The Exception Syndrome Register's bits.
@@ -146,7 +148,7 @@ impl Ppc403 {
             (self.regs.srr0, self.regs.srr1)
         };
         self.regs.pc = pc & !3;
-        self.regs.msr = msr;
+        self.regs.msr = msr & msr::IMPLEMENTED;
         self.reservation = None;
         self.spend(1);
         Err(Event::Sync)

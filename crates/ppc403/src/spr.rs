@@ -203,7 +203,7 @@ impl Ppc403 {
                 self.regs.gpr[rd(w)] = self.regs.msr;
                 return Ok(());
             }
-            146 => self.regs.msr = self.regs.gpr[rd(w)],
+            146 => self.regs.msr = self.regs.gpr[rd(w)] & crate::exceptions::msr::IMPLEMENTED,
             131 => self.regs.msr = (self.regs.msr & !ee) | (self.regs.gpr[rd(w)] & ee),
             _ => self.regs.msr = (self.regs.msr & !ee) | (w & ee),
         }

@@ -67,3 +67,19 @@ fn waiting_at_the_largest_limit_does_not_overflow() {
     assert_eq!(b.cpu.now(), Cycles::MAX);
     assert_eq!(b.cpu.run(&mut b.mem, Cycles::MAX), Stop::Wait);
 }
+
+#[test]
+fn running_at_the_end_of_time_saturates() {
+    // A wait to the cycle before the last one, then a 33-cycle divide: time stops at the
+    // last cycle instead of wrapping.
+    let mut board = Board::new(&[lis(3, 4), mtmsr(3)]); // MSR[WE]
+    assert_eq!(board.run(u64::MAX - 1), Stop::Wait);
+    board
+        .mem
+        .load_words(0x500, &[x31(3, 3, 4, 491, false), b(0)]);
+    board.cpu.registers_mut().msr = 0;
+    board.cpu.set_pc(0x500);
+    assert_eq!(board.cpu.run(&mut board.mem, Cycles::MAX), Stop::Limit);
+    assert_eq!(board.cpu.now(), Cycles::MAX);
+    assert_eq!(board.cpu.pc(), 0x504);
+}

@@ -189,6 +189,13 @@ fn vectors_follow_evpr_and_handlers_can_return() {
 }
 
 #[test]
+fn the_msr_keeps_only_the_403s_bits() {
+    let b = exec(&[(3, !(msr::WE | msr::PR))], &[mtmsr(3), mfmsr(4)]);
+    assert_eq!(b.r(4), msr::IMPLEMENTED & !msr::WE & !msr::PR);
+    assert_eq!(msr::IMPLEMENTED, 0x000F_D20D);
+}
+
+#[test]
 fn mtmsr_mfmsr_wrtee_wrteei() {
     let mut b = Board::new(&[
         load_const(3, 0x0002_9000)[0],
