@@ -1,6 +1,6 @@
 //! `buslab load` onto the PowerPC node of `buslab bus serve --ppc`: a bad line is named and
 //! nothing is sent; a good program is loaded, reported on the node's VT100 terminal (read by an
-//! independent emulator, the `vt100` crate), saved in the memory file and read back.
+//! independent emulator, the `vt100` crate), saved in the memory file, read back, and run.
 
 #[path = "support/vt100_terminal.rs"]
 mod vt100_terminal;
@@ -20,11 +20,15 @@ fn record(kind: u8, address: u32, data: &[u8], address_len: usize) -> String {
     format!("S{kind}{hex}{sum:02X}")
 }
 
-/// A program of 64 records of 32 bytes at 0x32000 with its entry point; its lines.
+/// A program of 64 records of 32 bytes at 0x32000 with its entry point; its lines. Its first
+/// word is `b .` (0x48000000): run, it loops there.
 fn program() -> Vec<String> {
     let mut lines = vec![record(0, 0, b"test", 2)];
     for i in 0..64u32 {
-        let data: Vec<u8> = (0..32u32).map(|j| (i * 7 + j * 13) as u8).collect();
+        let mut data: Vec<u8> = (0..32u32).map(|j| (i * 7 + j * 13) as u8).collect();
+        if i == 0 {
+            data[..4].copy_from_slice(&[0x48, 0, 0, 0]);
+        }
         lines.push(record(3, 0x32000 + i * 32, &data, 4));
     }
     lines.push(record(7, 0x32000, &[], 4));
@@ -79,6 +83,11 @@ fn a_program_is_checked_loaded_reported_saved_and_read_back() {
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("verified"), "{stderr}");
     assert!(stderr.contains("00032000-000327FF"), "{stderr}");
+    // The loader jumped: the program loops at its entry point.
+    assert!(
+        stderr.contains("the node runs the program: running pc=00032000"),
+        "{stderr}"
+    );
     terminal.wait_for_text("Program loaded: 2048 bytes");
     terminal.wait_for_text("00032000");
     terminal.wait_for_text("Entry point: 00032000");

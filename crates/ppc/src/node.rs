@@ -7,8 +7,10 @@
 //! program into its memory image ([`PpcNode::memory`], kept by the host in a state file through
 //! [`Persistent`]). With a host that keeps it ([`PpcNode::set_durable`]) the loader's report
 //! waits until the image is saved ([`PpcNode::persisted`]): what the terminal says was loaded
-//! survives a kill. Then MoniCAN starts again, as the loaded program would, with the report on
-//! its screen until a key. PowerPC code is not executed (docs/loader.md).
+//! survives a kill. Then the loader jumps to the program's entry point: the program runs on
+//! the PPC403 core ([`crate::program`]), owns the SJA1000 and the terminal, until it exits,
+//! crashes (a report on the terminal until a key) or the board is reset; MoniCAN then starts
+//! again. A file without an entry point is loaded, not run: MoniCAN shows the report.
 
 use std::any::Any;
 use std::collections::VecDeque;
@@ -21,11 +23,17 @@ use buslab_loader::report::report;
 use buslab_loader::{Loader, MemoryImage, MemoryMap, Outcome};
 use buslab_monican::screen::Screen;
 use buslab_monican::{Config, ConfigError, MoniCan, Transmit};
+use buslab_ppc403::Registers;
 use buslab_sja1000::{BitTiming, Sja1000, TimingError};
 use buslab_sja1000_driver::{
     ControllerState, DriverError, DriverEvent, Sja1000Config, Sja1000Driver, Timing, TxFailure,
 };
 use tracing::{debug, info, warn};
+
+use crate::program::Running;
+use crate::sampling::Sampling;
+
+mod firmware;
 
 /// The PowerPC board's SJA1000 crystal (the seed: "Xtal de 16MHz"); the CAN clock is half.
 pub const CRYSTAL_HZ: u32 = 16_000_000;
@@ -34,6 +42,11 @@ pub const MAX_KEYS: usize = 256;
 /// A frame that stays in the TX buffer this many bit-times (nobody acknowledges it: the
 /// PowerPC alone on the bus) is aborted, so the periodic calibration never waits behind it.
 pub const GIVE_UP: BitTime = buslab_slio::master::ANSWER_WITHIN;
+/// While the bus is idle and the program's SJA1000 has nothing to do, the core runs this many
+/// bit-times at once (the bus engine may skip them): a frame the program asks for in that time
+/// starts up to this late (0.5 ms at 125 kbit/s), as with an interrupt's latency. It keeps a
+/// running program from making the whole bus step bit by bit.
+pub const IDLE_BATCH: BitTime = BitTime::new(64);
 /// How long a bus-off SJA1000 waits before MoniCAN restarts it.
 pub const RESTART_AFTER: Nanos = Nanos::from_millis(100);
 
@@ -98,9 +111,17 @@ struct InFlight {
 pub const IMAGE_HEADER: &str = "buslab PowerPC node memory";
 /// The title of the loader's screen and report page.
 pub const LOADER_TITLE: &str = "*** CAN loader (loadcan) ***";
-/// The report's last line: what "runs" means here.
-pub const NOT_EXECUTED: &str =
-    "PowerPC code is not executed in this model: MoniCAN started again in its place.";
+/// The report's last line when the loader jumps to the program.
+pub const RUNS: &str =
+    "The loader jumps to the entry point: the program has the terminal and the SJA1000.";
+/// The report's last line when the file had no entry point.
+pub const NOT_RUN: &str = "No entry point (S7/S8/S9): the program was loaded, not run.";
+/// The title of the page MoniCAN shows after a program ended.
+pub const PROGRAM_TITLE: &str = "*** the program ended ***";
+/// The crash report's last line.
+pub const PRESS_ANY_KEY: &str = "press any key to return to MoniCAN";
+/// Clears the terminal (the firmware's report before the program's own output).
+const CLEAR: &[u8] = b"\x1b[0m\x1b[H\x1b[2J";
 /// The report's line when the image was saved before the report was shown.
 pub const SAVED: &str = "Saved in the node's memory image (its state file) before this report.";
 
@@ -119,10 +140,21 @@ enum Program {
         generation: u64,
         screen: Screen,
     },
+    /// The loaded program runs on the core; `start` is the bit-time its cycle 0 began.
+    Running {
+        run: Box<Running>,
+        start: Option<BitTime>,
+    },
+    /// The firmware caught an exception: the report is on the terminal until a key.
+    Stopped {
+        reason: String,
+        pc: u32,
+        report: Vec<u8>,
+    },
 }
 
 /// What the node is doing, for its host (the control socket).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Activity {
     MoniCan,
     /// The loader receives a file: bytes so far.
@@ -131,6 +163,19 @@ pub enum Activity {
     },
     /// A program was loaded and the memory image is being saved.
     Saving,
+    /// The loaded program runs; the PC at the end of its last slice.
+    Running {
+        pc: u32,
+    },
+    /// The program stopped: why, and the instruction's address.
+    Stopped {
+        reason: String,
+        pc: u32,
+    },
+    /// The program exited; MoniCAN shows its status until a key.
+    Exited {
+        status: i32,
+    },
 }
 
 /// A finished transfer, for the host.
@@ -147,7 +192,7 @@ pub struct LoadRecord {
     pub entry: Option<u32>,
 }
 
-/// The PowerPC node running MoniCAN.
+/// The PowerPC node: MoniCAN, the loader, or a loaded program on the core.
 pub struct PpcNode {
     driver: Sja1000Driver<Sja1000>,
     app: MoniCan,
@@ -174,6 +219,16 @@ pub struct PpcNode {
     next: Option<Transmit>,
     restart_at: Option<BitTime>,
     now: BitTime,
+    chip_config: Sja1000Config,
+    /// Bytes for the terminal before the current program's own (the end of a program's
+    /// output, the firmware's reports).
+    pending_output: Vec<u8>,
+    /// The registers of the program running or of the last one.
+    last_registers: Option<Registers>,
+    /// The status of the program that exited, while MoniCAN shows it.
+    exited: Option<i32>,
+    /// What the chip reads from the wire while a program owns it (noise at a wrong bit rate).
+    sampling: Sampling,
 }
 
 impl core::fmt::Debug for PpcNode {
@@ -195,7 +250,8 @@ impl PpcNode {
         let bitrate = config.bitrate;
         let app = MoniCan::new(config.clone(), Nanos::ZERO)?;
         let mut driver = Sja1000Driver::new(Sja1000::new());
-        driver.init(&chip_config(bitrate)?)?;
+        let chip = chip_config(bitrate)?;
+        driver.init(&chip)?;
         Ok(Self {
             driver,
             app,
@@ -216,10 +272,16 @@ impl PpcNode {
             next: None,
             restart_at: None,
             now: BitTime::ZERO,
+            chip_config: chip,
+            pending_output: Vec::new(),
+            last_registers: None,
+            exited: None,
+            sampling: Sampling::default(),
         })
     }
 
-    /// A byte the terminal sent; MoniCAN takes it at the node's next bit-time.
+    /// A byte the terminal sent; MoniCAN (or a running program's serial port) takes it at the
+    /// node's next bit-time.
     pub fn key(&mut self, byte: u8) {
         if self.keys.len() >= MAX_KEYS {
             self.keys_dropped += 1;
@@ -238,13 +300,15 @@ impl PpcNode {
         self.keys_dropped
     }
 
-    /// The VT100 bytes the running program produced for the terminal since the last call
-    /// (the screen is diffed now: call it when the serial line has room, not at every
-    /// bit-time).
+    /// The bytes for the terminal since the last call: MoniCAN's or the loader's VT100 screen
+    /// (diffed now: call it when the serial line has room, not at every bit-time), or what a
+    /// running program's serial port sent.
     pub fn take_screen(&mut self) -> Vec<u8> {
-        let mut out = Vec::new();
+        let mut out = std::mem::take(&mut self.pending_output);
         match &mut self.program {
-            Program::MoniCan => return self.app.take_screen(),
+            Program::MoniCan => out.extend(self.app.take_screen()),
+            Program::Running { run, .. } => out.extend(run.board_mut().spu.take_output()),
+            Program::Stopped { .. } => {}
             Program::Loader { loader, screen } => {
                 draw_loader(screen, loader.received(), false);
                 screen.render(&mut out);
@@ -265,17 +329,30 @@ impl PpcNode {
         match &mut self.program {
             Program::MoniCan => self.app.redraw(),
             Program::Loader { screen, .. } | Program::Saving { screen, .. } => screen.redraw(),
+            // The program's output is a stream, not a screen: nothing to draw again.
+            Program::Running { .. } => {}
+            Program::Stopped { report, .. } => {
+                self.pending_output = [CLEAR, report.as_slice()].concat();
+            }
         }
     }
 
     /// What the CPU is doing.
     pub fn activity(&self) -> Activity {
         match &self.program {
-            Program::MoniCan => Activity::MoniCan,
+            Program::MoniCan => match self.exited {
+                Some(status) if self.app.showing_page() => Activity::Exited { status },
+                _ => Activity::MoniCan,
+            },
             Program::Loader { loader, .. } => Activity::Loading {
                 received: loader.received(),
             },
             Program::Saving { .. } => Activity::Saving,
+            Program::Running { run, .. } => Activity::Running { pc: run.pc() },
+            Program::Stopped { reason, pc, .. } => Activity::Stopped {
+                reason: reason.clone(),
+                pc: *pc,
+            },
         }
     }
 
@@ -458,8 +535,9 @@ impl PpcNode {
                 loader.handle_frame(ns, frame);
                 self.check_outcome(ns);
             }
-            // Nothing runs but the save: the frame is lost to the CPU.
-            Program::Saving { .. } => {}
+            // Nothing runs but the save: the frame is lost to the CPU. (A program reads the
+            // chip itself; a stopped one reads nothing.)
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => {}
         }
     }
 
@@ -504,11 +582,15 @@ impl PpcNode {
     /// report on its screen.
     fn resume(&mut self, ns: Nanos, outcome: Outcome, saved: bool) {
         let mut lines = report(&outcome);
+        let entry = match &outcome {
+            Outcome::Loaded { program, .. } => program.start,
+            _ => None,
+        };
         if outcome.is_loaded() {
             if saved {
                 lines.push(SAVED.to_string());
             }
-            lines.push(NOT_EXECUTED.to_string());
+            lines.push(if entry.is_some() { RUNS } else { NOT_RUN }.to_string());
         }
         self.loads += 1;
         let (ranges, entry) = match &outcome {
@@ -526,6 +608,10 @@ impl PpcNode {
             ranges,
             entry,
         });
+        if let Some(entry) = entry {
+            self.start_program(entry, &lines);
+            return;
+        }
         match MoniCan::new(self.config.clone(), ns) {
             Ok(app) => self.app = app,
             Err(e) => warn!("MoniCAN cannot start again: {e}"),
@@ -541,7 +627,7 @@ impl PpcNode {
                 frame,
                 single_shot: false,
             }),
-            Program::Saving { .. } => None,
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => None,
         }
     }
 
@@ -549,7 +635,10 @@ impl PpcNode {
         match &self.program {
             Program::MoniCan => self.app.queued(),
             // The answer, when it waits: the loader keeps at most one frame.
-            Program::Loader { .. } | Program::Saving { .. } => 0,
+            Program::Loader { .. }
+            | Program::Saving { .. }
+            | Program::Running { .. }
+            | Program::Stopped { .. } => 0,
         }
     }
 
@@ -557,7 +646,7 @@ impl PpcNode {
         match &self.program {
             Program::MoniCan => self.app.next_deadline(),
             Program::Loader { loader, .. } => loader.next_deadline(),
-            Program::Saving { .. } => None,
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => None,
         }
     }
 
@@ -568,7 +657,7 @@ impl PpcNode {
                 loader.handle_timeout(ns);
                 self.check_outcome(ns);
             }
-            Program::Saving { .. } => {}
+            Program::Saving { .. } | Program::Running { .. } | Program::Stopped { .. } => {}
         }
     }
 }
@@ -634,14 +723,34 @@ impl BusNode for PpcNode {
     fn sample(&mut self, now: BitTime, bus: Level) {
         self.now = now;
         let chip = self.driver.registers();
-        chip.sample(bus);
+        let seen = match self.program {
+            Program::Running { .. } | Program::Stopped { .. } => {
+                self.sampling.level(chip, self.bitrate, now, bus)
+            }
+            _ => bus,
+        };
+        chip.sample(seen);
         let interrupt = chip.interrupt();
         let ns = now.at_bitrate(self.bitrate);
+        match self.program {
+            Program::Running { .. } => return self.run_program(now),
+            Program::Stopped { .. } if !self.keys.is_empty() => {
+                // The key that returns to MoniCAN is the report's, not MoniCAN's.
+                self.keys.pop_front();
+                info!("the PowerPC node returns to MoniCAN after the program stopped");
+                self.firmware(ns);
+            }
+            Program::Stopped { .. } => return,
+            _ => {}
+        }
         while let Some(key) = self.keys.pop_front() {
             // The loader does not read the keyboard.
             if let Program::MoniCan = self.program {
                 self.app.handle_key(ns, key);
             }
+        }
+        if self.exited.is_some() && !self.app.showing_page() {
+            self.exited = None;
         }
         if interrupt {
             self.service(now);
@@ -677,6 +786,25 @@ impl BusNode for PpcNode {
     }
 
     fn quiet_until(&self) -> Option<BitTime> {
+        match &self.program {
+            // The core runs in batches while nothing happens on the bus or at the chip.
+            Program::Running { .. } => {
+                let chip = self.driver.chip();
+                let idle = self.keys.is_empty()
+                    && chip.is_quiescent()
+                    && !chip.interrupt()
+                    && !self.sampling.mistimed();
+                return idle.then_some(self.now + IDLE_BATCH);
+            }
+            // The firmware waits for a key; the chip goes on as the program left it.
+            Program::Stopped { .. } => {
+                let idle = self.keys.is_empty()
+                    && self.driver.chip().is_quiescent()
+                    && !self.sampling.mistimed();
+                return idle.then_some(BitTime::MAX);
+            }
+            _ => {}
+        }
         if !self.keys.is_empty()
             || self.in_flight.is_some()
             || self.next.is_some()
@@ -705,6 +833,9 @@ impl BusNode for PpcNode {
     }
 
     fn pending(&self) -> usize {
+        if let Program::Running { .. } | Program::Stopped { .. } = self.program {
+            return usize::from(self.driver.chip().transmission_pending());
+        }
         self.program_queued()
             + usize::from(self.next.is_some())
             + usize::from(self.driver.tx_pending())

@@ -433,8 +433,9 @@ fn load(bench: &mut Bench, supervisor: usize, text: &[u8]) -> Frame {
     answer.unwrap()
 }
 
+/// A file without an entry point is loaded, not run: MoniCAN starts again with the report.
 #[test]
-fn the_loader_takes_a_program_reports_it_and_monican_starts_again() {
+fn the_loader_takes_a_program_without_an_entry_point_reports_it_and_monican_starts_again() {
     let mut bench = started(&[(0x3, 0)]);
     let supervisor = bench
         .sim
@@ -442,7 +443,7 @@ fn the_loader_takes_a_program_reports_it_and_monican_starts_again() {
     let program = buslab_loader::srec::write(
         b"monican2",
         [(0x30000, &[0x11u8; 64][..]), (0x32000, &[0x22u8; 300][..])],
-        Some(0x32000),
+        None,
     );
     let answer = load(&mut bench, supervisor, &program);
     // §4.4.1.1: a data frame with ID 0 and no data.
@@ -460,10 +461,10 @@ fn the_loader_takes_a_program_reports_it_and_monican_starts_again() {
         screen.contains("00032000-0003212B       300 bytes"),
         "{screen}"
     );
-    assert!(screen.contains("Entry point: 00032000"), "{screen}");
+    assert!(screen.contains(buslab_ppc::node::NOT_RUN), "{screen}");
     let ppc = bench.ppc();
     assert_eq!(ppc.memory().read(0x3212B, 2), [0x22, 0]);
-    assert_eq!(ppc.memory().entry(), Some(0x32000));
+    assert_eq!(ppc.activity(), buslab_ppc::Activity::MoniCan);
     assert!(ppc.last_load().unwrap().loaded);
     // MoniCAN started again underneath: it calibrates and finds the board anew.
     bench.type_keys(" ");

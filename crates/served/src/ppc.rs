@@ -1,6 +1,8 @@
 //! The PowerPC node's host side, while the node itself runs on a virtual bus server's thread:
-//! its VT100 terminal on a pseudo-terminal at 19200 8N1, its memory image in a state file, and a
-//! control socket that reads its memory back ([`serve`] starts what the options ask for).
+//! its VT100 terminal on a pseudo-terminal at 19200 8N1 (MoniCAN's screen, or the running
+//! program's serial output), its memory image in a state file, and a control socket that says
+//! what the node runs, reads its memory and registers back and resets it ([`serve`] starts
+//! what the options ask for).
 //!
 //! The PTY side is a [`ByteDevice`] paced by `buslab_link`: keys the terminal sends are posted
 //! to the bus thread ([`PpcNode::key`]); screen updates are pulled from the node only when the
@@ -381,11 +383,19 @@ pub enum ControlCommand {
         address: u32,
         len: usize,
     },
+    /// The running program's RAM.
+    Ram {
+        address: u32,
+        len: usize,
+    },
+    /// The registers of the running program (or of the last one).
+    Regs,
+    /// A power cycle: the resident firmware and MoniCAN.
+    Reset,
 }
 
 /// What the control socket understands.
-pub const CONTROL_HELP: &str =
-    "commands: state | load | ranges | entry | read ADDR LEN (hex address, LEN 1..=4096) | help";
+pub const CONTROL_HELP: &str = "commands: state | load | ranges | entry | read ADDR LEN (the loaded image; hex address, LEN 1..=4096) | ram ADDR LEN (the running program's RAM) | regs | reset | help";
 
 fn hex_u32(text: &str) -> Option<u32> {
     let t = text
@@ -404,7 +414,9 @@ impl ControlCommand {
             ["load"] => Ok(Self::Load),
             ["ranges"] => Ok(Self::Ranges),
             ["entry"] => Ok(Self::Entry),
-            ["read", address, len] => {
+            ["regs"] => Ok(Self::Regs),
+            ["reset"] => Ok(Self::Reset),
+            [command @ ("read" | "ram"), address, len] => {
                 let address = hex_u32(address)
                     .ok_or_else(|| format!("address {address:?} is not a 32-bit hex number"))?;
                 let len = len
@@ -417,7 +429,11 @@ impl ControlCommand {
                         "0x{address:08X} + {len} runs past the end of the address space"
                     ));
                 }
-                Ok(Self::Read { address, len })
+                Ok(if *command == "read" {
+                    Self::Read { address, len }
+                } else {
+                    Self::Ram { address, len }
+                })
             }
             _ => Err(format!("unknown command {line:?}; {CONTROL_HELP}")),
         }
@@ -435,14 +451,36 @@ fn ranges_text(ranges: &[(u32, u32)]) -> String {
         .join(" ")
 }
 
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02X}")).collect()
+}
+
 /// The reply to `command` from `node` (one line).
-pub fn answer(node: &PpcNode, command: &ControlCommand) -> String {
+pub fn answer(node: &mut PpcNode, command: &ControlCommand) -> String {
     match command {
         ControlCommand::Help => CONTROL_HELP.to_string(),
         ControlCommand::State => match node.activity() {
             Activity::MoniCan => "monican".to_string(),
             Activity::Loading { received } => format!("loading {received}"),
             Activity::Saving => "saving".to_string(),
+            Activity::Running { pc } => format!("running pc={pc:08X}"),
+            Activity::Stopped { reason, pc } => format!("stopped: {reason} at {pc:08X}"),
+            Activity::Exited { status } => format!("exited {status}"),
+        },
+        ControlCommand::Regs => node
+            .registers()
+            .map_or("none".to_string(), |r| buslab_ppc::registers_line(&r)),
+        ControlCommand::Reset => {
+            node.reset();
+            "reset: MoniCAN started".to_string()
+        }
+        ControlCommand::Ram { address, len } => match node.ram(*address, *len) {
+            Some(bytes) => hex(&bytes),
+            None if node.running().is_none() => "error: no program runs".to_string(),
+            None => format!(
+                "error: {address:08X} + {len} is outside the RAM (0..{:08X})",
+                buslab_ppc::board::RAM_SIZE
+            ),
         },
         ControlCommand::Load => match node.last_load() {
             None => "none".to_string(),
@@ -473,12 +511,7 @@ pub fn answer(node: &PpcNode, command: &ControlCommand) -> String {
             .memory()
             .entry()
             .map_or("none".to_string(), |e| format!("{e:08X}")),
-        ControlCommand::Read { address, len } => node
-            .memory()
-            .read(*address, *len)
-            .iter()
-            .map(|b| format!("{b:02X}"))
-            .collect(),
+        ControlCommand::Read { address, len } => hex(&node.memory().read(*address, *len)),
     }
 }
 
@@ -661,16 +694,38 @@ mod tests {
                 .starts_with("unknown command")
         );
         let mut node = PpcNode::new(buslab_monican::Config::default()).unwrap();
-        assert_eq!(answer(&node, &ControlCommand::State), "monican");
-        assert_eq!(answer(&node, &ControlCommand::Load), "none");
-        assert_eq!(answer(&node, &ControlCommand::Ranges), "none");
+        assert_eq!(answer(&mut node, &ControlCommand::State), "monican");
+        assert_eq!(answer(&mut node, &ControlCommand::Load), "none");
+        assert_eq!(answer(&mut node, &ControlCommand::Ranges), "none");
+        assert_eq!(answer(&mut node, &ControlCommand::Regs), "none");
+        assert_eq!(
+            answer(
+                &mut node,
+                &ControlCommand::Ram {
+                    address: 0x32000,
+                    len: 4
+                }
+            ),
+            "error: no program runs"
+        );
+        assert_eq!(
+            ControlCommand::parse("ram 32000 4096").unwrap(),
+            ControlCommand::Ram {
+                address: 0x32000,
+                len: 4096
+            }
+        );
+        assert_eq!(ControlCommand::parse("reset"), Ok(ControlCommand::Reset));
         let mut image = MemoryImage::new();
         image.write(0x32000, &[0xAB, 0xCD]);
         node.restore_memory(image);
-        assert_eq!(answer(&node, &ControlCommand::Ranges), "00032000-00032001");
+        assert_eq!(
+            answer(&mut node, &ControlCommand::Ranges),
+            "00032000-00032001"
+        );
         assert_eq!(
             answer(
-                &node,
+                &mut node,
                 &ControlCommand::Read {
                     address: 0x31FFF,
                     len: 4

@@ -7,8 +7,11 @@
 //!    empty frame on the same ID — a data frame (§4.4.1.1, what buslab's node sends) or a
 //!    remote frame (§5.4.4.6, what JerryCAN waited for): both are taken (docs/decisions.md).
 //! 3. The text goes as ASCII, 8 bytes a frame, the last shorter (the file protocol).
-//! 4. With `--verify SOCKET` (the node's control socket), the node's verdict is awaited and
-//!    every loaded byte is read back and compared.
+//! 4. The node's loader jumps to the entry point (the S7/S8/S9 record), as the seed's does;
+//!    `--no-run` sends the file without that record: loaded, not run.
+//! 5. With `--verify SOCKET` (the node's control socket), the node's verdict is awaited, every
+//!    loaded byte is read back and compared, and the node's state after the jump is printed
+//!    (`running pc=…`; a program that stopped at once is an error).
 
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::UnixStream;
@@ -48,6 +51,10 @@ pub struct Args {
     /// Only check the file (the first step), send nothing.
     #[arg(long)]
     pub check: bool,
+    /// Load without running: the file is sent without its entry point record (S7/S8/S9), so
+    /// the node's loader does not jump to it and MoniCAN starts again.
+    #[arg(long)]
+    pub no_run: bool,
 }
 
 /// The loader's ID: 0 (the seed's) up to 0x7EF, as `loader_id` in buslab.toml.
@@ -58,11 +65,27 @@ fn parse_loader_id(text: &str) -> Result<u16, String> {
 /// The largest S-record file the node's receive buffer takes.
 const MAX_TEXT: u64 = buslab_loader::memory::TEXT_BUFFER as u64;
 
-/// Reads and checks the file as the loader will.
-fn checked_program(path: &Path) -> anyhow::Result<(Vec<u8>, Program)> {
+/// Whether `line` is an entry point record (S7, S8, S9).
+fn is_entry_record(line: &[u8]) -> bool {
+    let line = line.trim_ascii_start();
+    matches!(line, [b'S' | b's', b'7'..=b'9', ..])
+}
+
+/// The text without its entry point records (`--no-run`): every other byte as it was.
+fn without_entry(text: &[u8]) -> Vec<u8> {
+    text.split_inclusive(|&b| b == b'\n')
+        .filter(|line| !is_entry_record(line))
+        .flatten()
+        .copied()
+        .collect()
+}
+
+/// Reads and checks the file as the loader will (without its entry point if `no_run`).
+fn checked_program(path: &Path, no_run: bool) -> anyhow::Result<(Vec<u8>, Program)> {
     let text = buslab_link::fs::read_limited(path, MAX_TEXT).with_context(|| {
         format!("the loader's receive buffer takes {MAX_TEXT} bytes of S-records at most")
     })?;
+    let text = if no_run { without_entry(&text) } else { text };
     match buslab_loader::check(&MemoryMap::ppc403(), &text) {
         Ok(program) => Ok((text, program)),
         Err(errors) => bail!(
@@ -80,7 +103,7 @@ fn describe(program: &Program) -> String {
         .map(|&(a, b)| format!("{a:08X}-{b:08X}"))
         .collect();
     let entry = program.start.map_or_else(
-        || "no entry point".to_string(),
+        || "no entry point: loaded, not run".to_string(),
         |e| format!("entry {e:08X}"),
     );
     format!(
@@ -91,22 +114,30 @@ fn describe(program: &Program) -> String {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let (text, program) = checked_program(&args.file)?;
+    let (text, program) = checked_program(&args.file, args.no_run)?;
     eprintln!("{}: {}", args.file.display(), describe(&program));
     if args.check {
         return Ok(());
     }
     let stop = super::interrupted()?;
     let mut control = args.verify.as_deref().map(Control::connect).transpose()?;
-    let loads_before = match &mut control {
-        Some(c) => c.load_number()?,
-        None => 0,
+    let (loads_before, running) = match &mut control {
+        Some(c) => {
+            let state = c.ask("state")?;
+            let running = (state.starts_with("running") || state.starts_with("stopped"))
+                .then(|| format!("{state}: a program owns the SJA1000, so a load request is its business; `reset` on {} gives the board back to the firmware", c.path.display()));
+            (c.load_number()?, running)
+        }
+        None => (0, None),
     };
     let url = &args.bus.bus;
     let mut bus = open(url)?;
     let id = Id::standard(args.id).context("the loader's identifier")?;
     bus.set_filters(&[Filter::standard(args.id)])?;
-    handshake(&mut bus, id, args.timeout)?;
+    handshake(&mut bus, id, args.timeout).map_err(|e| match running {
+        Some(note) => e.context(format!("the node's state was {note}")),
+        None => e,
+    })?;
     let started = Instant::now();
     let bar = transfer::bar(text.len() as u64, "sending");
     let stall = Some(buslab_loader::loader::IDLE_TIMEOUT.as_duration());
@@ -132,8 +163,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "verified: the node's memory holds every byte ({})",
             verdict.trim_start_matches("load ")
         );
+        if program.start.is_some() {
+            // The loader jumped as it reported: the state says what the program does.
+            let state = control.ask("state")?;
+            if state.starts_with("stopped") {
+                bail!("the program {state}");
+            }
+            eprintln!("the node {}", describe_state(&state));
+        }
     }
     Ok(())
+}
+
+/// The node's `state` after a jump, as a sentence's end.
+fn describe_state(state: &str) -> String {
+    if state.starts_with("running") {
+        format!("runs the program: {state}")
+    } else if state.starts_with("exited") {
+        format!("ran the program, which already {state}")
+    } else {
+        format!("says {state}")
+    }
 }
 
 /// The remote frame that asks for the loader, and its answer: an empty frame on the same ID,
@@ -210,11 +260,12 @@ impl Control {
             .unwrap_or(0))
     }
 
-    /// Waits until a transfer after `before` is finished, and returns its line.
+    /// Waits until a transfer after `before` is finished (its report shown: the image saved,
+    /// the program started), and returns its line.
     fn wait_load(&mut self, before: u64, timeout: Duration) -> anyhow::Result<String> {
         let deadline = Instant::now() + timeout;
         loop {
-            if self.load_number()? > before && self.ask("state")? == "monican" {
+            if self.load_number()? > before {
                 return self.ask("load");
             }
             if Instant::now() >= deadline {
@@ -250,5 +301,22 @@ impl Control {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn no_run_drops_only_the_entry_records() {
+        let text =
+            b"S00600004844521B\r\nS1070000010203F2\n  S9030000FC\ns705000320003F\nS5030001FB";
+        assert_eq!(
+            without_entry(text),
+            b"S00600004844521B\r\nS1070000010203F2\nS5030001FB"
+        );
+        assert!(!is_entry_record(b"S3"));
+        assert!(!is_entry_record(b""));
     }
 }
