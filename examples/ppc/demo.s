@@ -27,12 +27,15 @@ _start:
         ori     r3,r3,sent@l
         bl      puts
         bl      calibration_slio
-        bl      light_led
-        lis     r3,lit@h
-        ori     r3,r3,lit@l
-        bl      puts
+        bl      light_led               /* ends with a calibration frame */
         bl      time_now
         mr      r16,r3                  /* the last calibration frame */
+        li      r0,4                    /* write(1, lit, lit_len): the firmware sends it while */
+        li      r3,1                    /* the program goes on (the SLIOs' watchdog runs) */
+        lis     r4,lit@h
+        ori     r4,r4,lit@l
+        li      r5,lit_end-lit
+        sc
 loop:
         bl      receive_trame
         cmpwi   r6,0
@@ -61,4 +64,5 @@ banner:
 sent:
         .asciz  "SJA1000 initialised (PeliCAN, accept all); sent 123#505043343033\r\n"
 lit:
-        .asciz  "SLIO A: LED P7 lit. Frames on 600..67F are echoed on ID + 80; keys are echoed.\r\n"
+        .ascii  "SLIO A: LED P7 lit. Frames on 600..67F are echoed on ID + 80; keys are echoed.\r\n"
+lit_end:

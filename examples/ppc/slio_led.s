@@ -14,10 +14,13 @@ _start:
         ori     r3,r3,calibrating@l
         bl      puts
         bl      calibration_slio
-        bl      light_led
-        lis     r3,lit@h
-        ori     r3,r3,lit@l
-        bl      puts
+        bl      light_led               /* ends with a calibration frame */
+        li      r0,4                    /* write(1, lit, lit_len), sent by the firmware while */
+        li      r3,1                    /* the program keeps the SLIOs calibrated */
+        lis     r4,lit@h
+        ori     r4,r4,lit@l
+        li      r5,lit_end-lit
+        sc
         bl      keep_calibrated         /* never returns */
 
         .text
@@ -40,4 +43,5 @@ keep_calibrated:
 calibrating:
         .asciz  "\r\nslio_led: calibrating the SLIOs (48 frames on 0AA)\r\n"
 lit:
-        .asciz  "SLIO A: outputs enabled, LED P7 lit (DATA_OUTPUT = 2080)\r\n"
+        .ascii  "SLIO A: outputs enabled, LED P7 lit (DATA_OUTPUT = 2080)\r\n"
+lit_end:

@@ -186,9 +186,10 @@ fn the_demo_program_runs_on_the_labs_powerpc_node() {
     assert_eq!(next(), "rx 123#505043343033");
     // Its text on MoniCAN's terminal, after the load's report.
     terminal.wait_for_text("*** buslab PowerPC 403 demo (examples/ppc/demo.s) ***");
-    // (demo.s says so once SLIO A confirmed it; the board itself is looked at in
-    // a_program_lights_a_led_on_the_labs_demo_board.)
+    // demo.s says so once SLIO A confirmed it; the board shows it, and still a second later
+    // (the program keeps the SLIOs calibrated).
     terminal.wait_for_text("SLIO A: LED P7 lit.");
+    wait_for_led_p7(&url);
     // A frame on 0x600 comes back on 0x680.
     writeln!(peer_in, "go").unwrap();
     assert_eq!(next(), "echo 680#C0FFEE");
@@ -306,8 +307,15 @@ fn a_program_lights_a_led_on_the_labs_demo_board() {
         socket.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
+    wait_for_led_p7(&url);
+}
+
+/// LED P7 of demo board A lit, as `buslab slio board A` shows it, and still lit a second
+/// later (more than ten times the SLIOs' calibration watchdog at 125 kbit/s: the program keeps
+/// them calibrated).
+fn wait_for_led_p7(url: &str) {
     let board = || {
-        let (ok, out, err) = buslab(&["slio", "board", "A", "--bus", &url]);
+        let (ok, out, err) = buslab(&["slio", "board", "A", "--bus", url]);
         assert!(ok, "{err}");
         out
     };

@@ -8,7 +8,8 @@
 
         .text
 /* light_led: SLIO A's outputs enabled (the demo board's 3F90), then DATA_OUTPUT = 2080 (P13,
- * the input selection, and LED P7), each write repeated until the SLIO answers it. */
+ * the input selection, and LED P7), each write repeated until the SLIO answers it; ends with
+ * a calibration frame. */
         .globl light_led
 light_led:
         mflr    r0
@@ -19,19 +20,26 @@ light_led:
         li      r6,DATA_OUTPUT_REG
         li      r7,0x2080
         bl      write_slio
+        /* A calibration frame now: the SLIOs' 8192 bit-times (65 ms at 125 kbit/s) start
+         * again, so the caller may spend a few tens of milliseconds (a line on the terminal
+         * takes 0.5 ms a character) before its own periodic calibration. */
+        bl      send_calibration
         lwz     r0,0(r1)
         addi    r1,r1,4
         mtlr    r0
         blr
 
 /* write_slio: register r6 of SLIO A := r7, sent again every 20 ms until the SLIO's reply with
- * that register arrives. GPRs changed: r2..r9, r14, r15. */
+ * that register arrives, each time after a calibration frame (some of calibration_slio's 48
+ * may have lost arbitration on a busy bus and been aborted: the SLIO then waits for one more,
+ * and the others keep theirs). GPRs changed: r2..r9, r14, r15. */
 write_slio:
         mflr    r0
         stwu    r0,-4(r1)
         mr      r14,r6
         mr      r15,r7
-1:      mr      r6,r14
+1:      bl      send_calibration        /* a SLIO still calibrating needs one to answer */
+        mr      r6,r14
         bl      wr_reg_slio             /* r4, r5 = the data */
         li      r6,SLIO
         bl      make_slio_ffi           /* r3 = the frame's information and ID */
