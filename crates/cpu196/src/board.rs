@@ -157,6 +157,12 @@ pub struct Board {
 impl Board {
     /// Powers a board on at `now` with `image`; its line runs at the image's baud rate, 8N1.
     pub fn new(image: Image, inputs: Inputs, now: Nanos) -> Self {
+        Self::with_registry(image, inputs, Registry::default(), now)
+    }
+
+    /// [`new`](Self::new) with these programs (and module runtime) already there for the
+    /// boot START.
+    pub fn with_registry(image: Image, inputs: Inputs, registry: Registry, now: Nanos) -> Self {
         let line = LineSettings::n81(if image.boot.protocol == Protocol::Midi {
             31250
         } else {
@@ -166,7 +172,7 @@ impl Board {
             pic: Pic::with_memory(image.pic_eeprom, image.pic_program.clone()),
             image,
             inputs,
-            registry: Registry::default(),
+            registry,
             line,
             decoder: Decoder::new(),
             tx: Tx {

@@ -102,6 +102,16 @@ pub fn read_config(prginf: &[u8], ptrprg: &[u8], n: u8) -> Option<ConfigSet> {
     })
 }
 
+/// Sets config set `n`'s program word and arguments in a `ptrprg` block, leaving the rest of
+/// the block as it is.
+pub fn set_program(ptrprg: &mut [u8; FLASH_BLOCK], n: u8, program: u16, args: [u16; 7]) {
+    let u = USER + 16 * (n as usize & 7);
+    put(ptrprg, u, program);
+    for (i, &arg) in args.iter().enumerate() {
+        put(ptrprg, u + 2 + 2 * i, arg);
+    }
+}
+
 /// Builds the two blocks from 8 config sets.
 pub fn encode(sets: &[ConfigSet; 8]) -> ([u8; FLASH_BLOCK], [u8; FLASH_BLOCK]) {
     let mut a = [0xFFu8; FLASH_BLOCK];
@@ -141,6 +151,11 @@ mod tests {
             assert_eq!(read_config(&a, &p, n).as_ref(), Some(&sets[n as usize]));
         }
         assert_eq!(read_config(&[0xFF; 256], &p, 0), None);
+        let mut patched = p;
+        set_program(&mut patched, 3, 0x8260, [9; 7]);
+        let set = read_config(&a, &patched, 3).unwrap();
+        assert_eq!((set.program, set.args), (0x8260, [9; 7]));
+        assert_eq!(read_config(&a, &patched, 2), read_config(&a, &p, 2));
     }
 
     #[test]
