@@ -19,6 +19,7 @@ for src in "$here"/*.c; do
     # clang from taking fopen/fwrite for stdio's.
     clang --target=wasm32 -O2 -ffreestanding -nostdlib -Wl,--no-entry -Wl,-z,stack-size=4096 \
         -I "$here" -o "$out/$name.wasm" "$src"
+    chmod a-x "$out/$name.wasm" # data, not a program of this machine
     echo "$out/$name.wasm"
 done
 for src in "$here"/*.wat; do

@@ -576,3 +576,33 @@ fn memory_grows_only_to_the_limit() {
         })
     );
 }
+
+#[test]
+fn the_client_reports_why_the_board_refused_a_start() {
+    use buslab_cpu196::host::{Client, ClientError};
+    use buslab_device::SimPort;
+    let mut board = Board::new(
+        image_with(&wasm(SPIN), [0; 7]),
+        Inputs::default(),
+        Nanos::ZERO,
+    );
+    board
+        .registry_mut()
+        .set_module_runtime(Box::new(WasmRuntime::new()));
+    let line = board.line();
+    let mut c = Client::new(SimPort::new(board, line, Nanos::ZERO), line.baud);
+    match c.start(Start::run(BANK, 2, false)) {
+        Err(e @ ClientError::StartRefused { .. }) => assert_eq!(
+            e.to_string(),
+            "the board answered msg_invalid_parameter_value: the module at bank 2 block 80h: no module starts at bank 2 block 80h (its first bytes are [FF, FF, FF, FF], not `W196`); flash one with `buslab cpu196 program flash`"
+        ),
+        other => panic!("{other:?}"),
+    }
+    // The line was the reason, not traffic left for later.
+    assert!(
+        !c.take_backlog()
+            .iter()
+            .any(|m| matches!(m, Message::Thread(_)))
+    );
+    c.start(Start::run(BANK, 1, false)).unwrap();
+}
