@@ -110,6 +110,12 @@ pub fn check(engine: &Engine, bytes: &[u8]) -> Result<(Module, ModuleInfo), Modu
     if bytes.len() > MAX_MODULE {
         return Err(ModuleError::TooLarge(bytes.len()));
     }
+    // Validated whole first: wasmi 2.0.0 translates each operator as it validates it, and an
+    // operator after a function's final `end` trips a debug assertion in its fuel metering
+    // before the validator refuses the body (a panic in debug builds).
+    wasmparser::Validator::new()
+        .validate_all(bytes)
+        .map_err(|e| ModuleError::Invalid(e.to_string()))?;
     let module = Module::new(engine, bytes).map_err(|e| ModuleError::Invalid(e.to_string()))?;
     let mut imports = Vec::new();
     for import in module.imports() {

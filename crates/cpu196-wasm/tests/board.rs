@@ -436,6 +436,28 @@ fn a_set_naming_no_module_or_an_erased_one_is_refused_with_the_reason_on_the_dis
 }
 
 #[test]
+fn cpuformat_new_serial_erases_the_module_with_all_flash() {
+    let mut b = Bench::with(SPIN);
+    let nsc = buslab_cpu196::image::encrypt_serial(&b.board.image().serial);
+    b.send(&Message::Format(Format::NewSerial {
+        nsc,
+        new: *b"NEW00002",
+    }));
+    b.run_for(5 * MS);
+    assert_eq!(b.take(), [COMPLETED]);
+    let flash = &b.board.image().flash;
+    assert!(flash.is_blank(BANK, DEFAULT_BLOCK));
+    assert!(matches!(
+        layout::read(flash, BANK, DEFAULT_BLOCK),
+        Err(layout::LayoutError::NoModule { .. })
+    ));
+    assert_eq!(
+        b.start(1, false, 5),
+        [Message::Msg(MsgCode::INVALID_PARAMETER_VALUE)]
+    );
+}
+
+#[test]
 fn a_board_without_the_runtime_says_so() {
     let mut board = Board::new(
         image_with(&wasm(SPIN), [0; 7]),
@@ -605,4 +627,35 @@ fn the_client_reports_why_the_board_refused_a_start() {
             .any(|m| matches!(m, Message::Thread(_)))
     );
     c.start(Start::run(BANK, 1, false)).unwrap();
+}
+
+/// wasmi 2.0.0's translator asserts (a debug assertion) that its control stack is not empty
+/// when it meters the fuel of an operator; an operator after a function's final `end` reached
+/// it before validation refused the body (found by the cpu196_wasm fuzz target).
+#[test]
+fn regression_an_operator_after_a_functions_end_is_refused_not_a_panic() {
+    let module = [
+        &b"\0asm\x01\0\0\0"[..],
+        // type section: () -> i32
+        &[0x01, 0x05, 0x01, 0x60, 0x00, 0x01, 0x7F],
+        // function section: one function of type 0
+        &[0x03, 0x02, 0x01, 0x00],
+        // export section: "AD_prog" func 0
+        &[0x07, 0x0B, 0x01, 0x07],
+        b"AD_prog",
+        &[0x00, 0x00],
+        // code section: no locals; i32.const 0, end, local.get 0, end
+        &[
+            0x0A, 0x08, 0x01, 0x06, 0x00, 0x41, 0x00, 0x0B, 0x20, 0x00, 0x0B,
+        ],
+    ]
+    .concat();
+    let e = WasmRuntime::new().check(&module).unwrap_err();
+    assert!(matches!(e, ModuleError::Invalid(_)), "{e}");
+    let fuzzed =
+        include_bytes!("../../../fuzz/corpus/cpu196_wasm/regression-operator-after-function-end");
+    assert!(matches!(
+        WasmRuntime::new().check(fuzzed),
+        Err(ModuleError::Invalid(_))
+    ));
 }
