@@ -205,7 +205,7 @@ fn define(linker: &mut Linker<Host>) -> Result<(), wasmi::errors::LinkerError> {
     linker.func_wrap(
         m,
         "affiche",
-        |caller: Caller<'_, Host>, n: i32, format: i32, ptr: i32| -> Res {
+        |mut caller: Caller<'_, Host>, n: i32, format: i32, ptr: i32| -> Res {
             let call = "affiche";
             let code = within(call, "format", format, 0..=15)?;
             let Some(f) = DisplayFormat::from_code(code as u8) else {
@@ -222,7 +222,6 @@ fn define(linker: &mut Linker<Host>) -> Result<(), wasmi::errors::LinkerError> {
                 data,
                 newline: code & 8 != 0,
             };
-            let mut caller = caller;
             caller.data_mut().emit(call, effect, bytes)
         },
     )?;
