@@ -93,6 +93,10 @@ want_tools s51:sdcc-ucsim as31:as31 sdcc:sdcc
 # PowerPC node loads over CAN (examples/ppc/).
 want_tools qemu-ppc:qemu-user powerpc-linux-gnu-as:binutils-powerpc-linux-gnu \
     powerpc-linux-gnu-gcc:gcc-powerpc-linux-gnu
+# The CPU196 user programs (examples/cpu196/, crates/buslab/tests/cpu196_programs.rs): hooks
+# in C built by Debian's clang for wasm32 and linked by lld's wasm-ld, hooks in WAT assembled
+# by wabt's wat2wasm.
+want_tools clang:clang wasm-ld:lld wat2wasm:wabt
 # Python for the interop tests, with its venv module (Debian's python3 needs python3-venv).
 requirements=scripts/test-requirements.txt
 stamp=.venv/.requirements
@@ -179,7 +183,7 @@ fi
 for pair in sigrok-cli:sigrok-cli openssl:openssl chromium:chromium chromedriver:chromium-driver \
     qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio candump:can-utils \
     slcand:can-utils strip:binutils log2asc:can-utils asc2log:can-utils tshark:tshark \
-    editcap:tshark s51:sdcc-ucsim as31:as31 sdcc:sdcc; do
+    editcap:tshark s51:sdcc-ucsim as31:as31 sdcc:sdcc clang:clang wasm-ld:lld wat2wasm:wabt; do
     has "${pair%%:*}" || fail "${pair%%:*} is still missing after installing ${pair#*:}"
 done
 [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"

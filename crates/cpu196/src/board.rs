@@ -157,6 +157,12 @@ pub struct Board {
 impl Board {
     /// Powers a board on at `now` with `image`; its line runs at the image's baud rate, 8N1.
     pub fn new(image: Image, inputs: Inputs, now: Nanos) -> Self {
+        Self::with_registry(image, inputs, Registry::default(), now)
+    }
+
+    /// [`new`](Self::new) with these programs (and module runtime) already there for the
+    /// boot START.
+    pub fn with_registry(image: Image, inputs: Inputs, registry: Registry, now: Nanos) -> Self {
         let line = LineSettings::n81(if image.boot.protocol == Protocol::Midi {
             31250
         } else {
@@ -166,7 +172,7 @@ impl Board {
             pic: Pic::with_memory(image.pic_eeprom, image.pic_program.clone()),
             image,
             inputs,
-            registry: Registry::default(),
+            registry,
             line,
             decoder: Decoder::new(),
             tx: Tx {
@@ -755,20 +761,26 @@ impl Board {
         } else {
             None
         };
-        let program = match set.program {
-            0 => None,
-            id => match self.registry.make(id, set.args) {
-                Some(p) => Some(p),
-                None => {
-                    return self.bad_param(
-                        now,
-                        format!(
-                            "configuration {} names program {id}, which is not installed",
-                            s.config()
-                        ),
-                    );
-                }
-            },
+        let made = set
+            .program_ref()
+            .map_err(Into::into)
+            .and_then(|program| self.registry.make_ref(program, &self.image.flash, set.args));
+        let program = match made {
+            Ok(p) => p,
+            Err(e) => {
+                let why = format!("configuration {}: {e}", s.config());
+                // Said on the THREAD display too: the monitor shows it, where an FE 04 alone
+                // would leave the user guessing.
+                self.send(
+                    now,
+                    &Message::Thread(Thread::Display {
+                        format: DisplayFormat::Text,
+                        newline: true,
+                        data: why.as_bytes()[..why.len().min(255)].to_vec(),
+                    }),
+                );
+                return self.bad_param(now, why);
+            }
         };
         if self.run.is_some() {
             self.end_run(now);
@@ -811,9 +823,6 @@ impl Board {
                 },
             );
         }
-        for &(cmd, len) in program.as_ref().map_or(&[][..], |p| p.user_commands()) {
-            self.decoder.set_user_len(cmd, len);
-        }
         self.page = s.bank();
         self.mode = Mode::Lower {
             bank: s.bank(),
@@ -828,6 +837,12 @@ impl Board {
         });
         self.last_rx = self.last_rx.max(now);
         self.call_hook(now, |p, k| p.init(k));
+        // After init_prog: a module declares its user commands there.
+        if let Some(p) = self.run.as_ref().and_then(|r| r.program.as_ref()) {
+            for &(cmd, len) in p.user_commands() {
+                self.decoder.set_user_len(cmd, len);
+            }
+        }
     }
 
     fn end_run(&mut self, now: Nanos) {
@@ -860,6 +875,7 @@ impl Board {
         let ad = run.acq.as_ref().map_or([0; 8], |a| a.values);
         let args = run.set.args;
         let mut out = Vec::new();
+        let mut pic = Vec::new();
         let flow = {
             let mut api = Api {
                 now_ns: now,
@@ -869,14 +885,23 @@ impl Board {
                 pwm: &mut self.pwm196,
                 out: &mut out,
                 next_file: &mut self.next_file,
+                pic: &mut pic,
+                stop: false,
             };
-            f(program.as_mut(), &mut api)
+            let flow = f(program.as_mut(), &mut api);
+            Flow {
+                stop: flow.stop || api.stop,
+                ..flow
+            }
         };
         if let Some(run) = self.run.as_mut() {
             run.program = Some(program);
         }
         for m in &out {
             self.send(now, m);
+        }
+        for command in pic {
+            self.pic.execute(now, command);
         }
         if flow.stop {
             self.end_run(now);

@@ -85,10 +85,13 @@ impl Alert {
     pub const AD_OVERRUN: Self = Self(0x21);
     /// The PIC reported an error event.
     pub const PIC_ERROR: Self = Self(0x22);
+    /// A user program was stopped by the kernel: it ran past its share of CPU time (fuel),
+    /// trapped, or misused the kernel API (a THREAD line says which).
+    pub const USER_PROGRAM_STOPPED: Self = Self(0x23);
     /// A user program raised an alarm (e.g. the shipped threshold alarm).
     pub const USER_ALARM: Self = Self(0x30);
 
-    const NAMES: [(Alert, &'static str); 8] = [
+    const NAMES: [(Alert, &'static str); 9] = [
         (Self::BATTERY_DISCHARGED, "alert_battery_discharged"),
         (Self::BATTERY_LOW, "alert_battery_low"),
         (Self::BATTERY_OK, "alert_battery_ok"),
@@ -96,6 +99,7 @@ impl Alert {
         (Self::LINK_LOST, "alert_link_lost"),
         (Self::AD_OVERRUN, "alert_ad_overrun"),
         (Self::PIC_ERROR, "alert_pic_error"),
+        (Self::USER_PROGRAM_STOPPED, "alert_user_program_stopped"),
         (Self::USER_ALARM, "alert_user_alarm"),
     ];
 

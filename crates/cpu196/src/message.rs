@@ -28,7 +28,8 @@ impl DisplayFormat {
         }
     }
 
-    fn from_code(c: u8) -> Option<Self> {
+    /// The format of a THREAD display sub-code (bits 0..2; 1 is no format).
+    pub fn from_code(c: u8) -> Option<Self> {
         Some(match c & 7 {
             0 => Self::Text,
             2 => Self::Hex8,

@@ -5,9 +5,11 @@
 //! `adon[8][2]` · `adrs[8]` · `cycle[8][2]` · `cycle1[8]` · `cycle2[8]`.
 //!
 //! `ptrprg`: 7 upper-level pointers, then `user[8]` of 8 words each. The model cannot run
-//! 80C196 code, so word 0 of `user[n]` selects a built-in Rust program (0 or FFFFh: none) and
+//! 80C196 code, so word 0 of `user[n]` names the program ([`ProgramRef`]: 0 or FFFFh none,
+//! 1..7FFFh a built-in Rust program, `8000h | bank << 8 | block` a module stored in flash) and
 //! words 1..7 are its arguments.
 
+use crate::program::{InvalidProgramWord, ProgramRef};
 use crate::wire::FLASH_BLOCK;
 
 pub const PRGINF_BLOCK: u8 = 0x28;
@@ -38,7 +40,7 @@ pub struct ConfigSet {
     /// model).
     pub cycle1: u16,
     pub cycle2: u16,
-    /// Built-in program id (0 = none) and its 7 arguments.
+    /// Word 0 of `ptrprg.user[n]` (0 = none; see [`ProgramRef`]) and its 7 arguments.
     pub program: u16,
     pub args: [u16; 7],
 }
@@ -56,6 +58,13 @@ impl Default for ConfigSet {
             program: 0,
             args: [0; 7],
         }
+    }
+}
+
+impl ConfigSet {
+    /// The program word 0 names.
+    pub fn program_ref(&self) -> Result<ProgramRef, InvalidProgramWord> {
+        ProgramRef::from_word(self.program)
     }
 }
 
@@ -91,6 +100,16 @@ pub fn read_config(prginf: &[u8], ptrprg: &[u8], n: u8) -> Option<ConfigSet> {
         program,
         args: core::array::from_fn(|i| word(ptrprg, u + 2 + 2 * i)),
     })
+}
+
+/// Sets config set `n`'s program word and arguments in a `ptrprg` block, leaving the rest of
+/// the block as it is.
+pub fn set_program(ptrprg: &mut [u8; FLASH_BLOCK], n: u8, program: u16, args: [u16; 7]) {
+    let u = USER + 16 * (n as usize & 7);
+    put(ptrprg, u, program);
+    for (i, &arg) in args.iter().enumerate() {
+        put(ptrprg, u + 2 + 2 * i, arg);
+    }
 }
 
 /// Builds the two blocks from 8 config sets.
@@ -132,5 +151,28 @@ mod tests {
             assert_eq!(read_config(&a, &p, n).as_ref(), Some(&sets[n as usize]));
         }
         assert_eq!(read_config(&[0xFF; 256], &p, 0), None);
+        let mut patched = p;
+        set_program(&mut patched, 3, 0x8260, [9; 7]);
+        let set = read_config(&a, &patched, 3).unwrap();
+        assert_eq!((set.program, set.args), (0x8260, [9; 7]));
+        assert_eq!(read_config(&a, &patched, 2), read_config(&a, &p, 2));
+    }
+
+    #[test]
+    fn the_program_word_names_nothing_a_built_in_or_a_module_in_flash() {
+        assert_eq!(ProgramRef::from_word(0), Ok(ProgramRef::None));
+        assert_eq!(ProgramRef::from_word(0xFFFF), Ok(ProgramRef::None));
+        assert_eq!(ProgramRef::from_word(4), Ok(ProgramRef::BuiltIn(4)));
+        let module = ProgramRef::Module {
+            bank: 5,
+            block: 0x60,
+        };
+        assert_eq!(ProgramRef::from_word(0x8560), Ok(module));
+        assert_eq!(module.word(), Some(0x8560));
+        assert_eq!(
+            ProgramRef::from_word(0x8860).unwrap_err().to_string(),
+            "program word 8860h names no program: a module is 8000h | bank << 8 | block (bank 0..7, bits 11..14 zero)"
+        );
+        assert_eq!(ProgramRef::BuiltIn(0x8000).word(), None);
     }
 }

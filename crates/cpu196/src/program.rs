@@ -1,13 +1,15 @@
 //! User hooks (SPEC C2): the kernel calls a configuration set's program on events of the lower
-//! loop. Programs are Rust trait objects; a few useful ones ship with the model.
+//! loop. Programs are Rust trait objects: a few useful ones ship with the model, and a
+//! [`ModuleRuntime`] (`buslab-cpu196-wasm`) makes them from modules a user stored in flash.
 
 use std::collections::BTreeMap;
 
 use buslab_device::Nanos;
 
 use crate::codes::Alert;
+use crate::flash::Flash;
 use crate::message::{AdSample, DisplayFormat, FileMode, Message, Start, Thread};
-use crate::pic::PicEvent;
+use crate::pic::{PicCommand, PicEvent};
 
 /// What a hook returns: continue or stop the lower loop (`_ContExec_` / `_StopExec_`), and
 /// optionally a START to perform (the 16-bit value; `0x8000` = none).
@@ -47,6 +49,8 @@ pub struct Api<'a> {
     pub pwm: &'a mut [u8; 3],
     pub(crate) out: &'a mut Vec<Message>,
     pub(crate) next_file: &'a mut u8,
+    pub(crate) pic: &'a mut Vec<PicCommand>,
+    pub(crate) stop: bool,
 }
 
 impl Api<'_> {
@@ -73,6 +77,19 @@ impl Api<'_> {
                 format,
                 newline,
                 data,
+            }));
+        }
+    }
+
+    /// `affiche` in any format: `data` holds the items as the board keeps them (2 bytes per
+    /// 16-bit word, little-endian); cut into displays of at most 255 items.
+    pub fn display(&mut self, format: DisplayFormat, data: &[u8], newline: bool) {
+        let item = if format.is_word() { 2 } else { 1 };
+        for chunk in data.chunks(255 * item) {
+            self.send(Message::Thread(Thread::Display {
+                format,
+                newline,
+                data: chunk.to_vec(),
             }));
         }
     }
@@ -118,6 +135,22 @@ impl Api<'_> {
     pub fn fclose(&mut self, file: u8) {
         self.send(Message::Thread(Thread::Close { file }));
     }
+
+    /// The handle the next [`fopen`](Self::fopen) returns.
+    pub fn next_file(&self) -> u8 {
+        *self.next_file
+    }
+
+    /// The kernel ends the lower loop as this hook returns, whatever it returns (a program
+    /// the kernel stopped, from a hook without a return value).
+    pub fn stop_lower_loop(&mut self) {
+        self.stop = true;
+    }
+
+    /// A command to the PIC (`pic_wrc`); the kernel sends it as the hook returns.
+    pub fn pic_command(&mut self, command: PicCommand) {
+        self.pic.push(command);
+    }
 }
 
 /// The hooks of one configuration set. Every method has a do-nothing default; software timers
@@ -135,7 +168,7 @@ pub trait UserProgram: Send {
     }
     /// Parameter counts of the user commands this program understands (`(cmd, len)`); the
     /// kernel's decoder delimits them while the program runs. Others carry no parameters.
-    fn user_commands(&self) -> &'static [(u8, u8)] {
+    fn user_commands(&self) -> &[(u8, u8)] {
         &[]
     }
     /// `RS_prog`: a user command (00h..EFh) from the PC. No return value (as in the seed).
@@ -165,9 +198,68 @@ pub trait UserProgram: Send {
 /// Makes a program from its 7 arguments.
 pub type ProgramFactory = Box<dyn Fn([u16; 7]) -> Box<dyn UserProgram> + Send>;
 
-/// Programs by id (word 0 of `ptrprg.user[n]`).
+/// What word 0 of `ptrprg.user[n]` names: nothing (0 or FFFFh), a built-in program
+/// (1..7FFFh), or a module stored in flash (`1000 0bbb kkkk kkkk`: bank b, first block k).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ProgramRef {
+    None,
+    BuiltIn(u16),
+    Module { bank: u8, block: u8 },
+}
+
+/// Word 0 of `ptrprg.user[n]` with bit 15 set and any of bits 11..14 too.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "program word {0:04X}h names no program: a module is 8000h | bank << 8 | block (bank 0..7, bits 11..14 zero)"
+)]
+pub struct InvalidProgramWord(pub u16);
+
+impl ProgramRef {
+    const MODULE: u16 = 0x8000;
+
+    pub fn from_word(word: u16) -> Result<Self, InvalidProgramWord> {
+        Ok(match word {
+            0 | 0xFFFF => Self::None,
+            w if w & Self::MODULE == 0 => Self::BuiltIn(w),
+            w if w & 0x7800 != 0 => return Err(InvalidProgramWord(w)),
+            w => Self::Module {
+                bank: (w >> 8) as u8 & 7,
+                block: w as u8,
+            },
+        })
+    }
+
+    /// The word; `None` for a built-in id outside 1..7FFFh.
+    pub fn word(self) -> Option<u16> {
+        match self {
+            Self::None => Some(0),
+            Self::BuiltIn(id) => (1..Self::MODULE).contains(&id).then_some(id),
+            Self::Module { bank, block } => {
+                (bank < 8).then(|| Self::MODULE | u16::from(bank) << 8 | u16::from(block))
+            }
+        }
+    }
+}
+
+/// Why a program stored in flash could not be made.
+pub type LoadError = Box<dyn std::error::Error + Send + Sync>;
+
+/// Makes programs from modules stored in flash (`buslab-cpu196-wasm` runs WebAssembly ones):
+/// the kernel knows only where a module starts, the runtime its layout and how to run it.
+pub trait ModuleRuntime: Send {
+    fn load(
+        &self,
+        flash: &Flash,
+        bank: u8,
+        block: u8,
+        args: [u16; 7],
+    ) -> Result<Box<dyn UserProgram>, LoadError>;
+}
+
+/// Programs by id (word 0 of `ptrprg.user[n]`), and the runtime of the modules in flash.
 pub struct Registry {
     programs: BTreeMap<u16, (&'static str, ProgramFactory)>,
+    runtime: Option<Box<dyn ModuleRuntime>>,
 }
 
 impl Default for Registry {
@@ -176,6 +268,7 @@ impl Default for Registry {
     fn default() -> Self {
         let mut r = Self {
             programs: BTreeMap::new(),
+            runtime: None,
         };
         r.register(LOGGER, "logger", Box::new(|a| Box::new(Logger::new(a))));
         r.register(
@@ -213,6 +306,36 @@ impl Registry {
 
     pub fn list(&self) -> impl Iterator<Item = (u16, &'static str)> + '_ {
         self.programs.iter().map(|(id, (name, _))| (*id, *name))
+    }
+
+    /// Installs the runtime that runs modules stored in flash.
+    pub fn set_module_runtime(&mut self, runtime: Box<dyn ModuleRuntime>) {
+        self.runtime = Some(runtime);
+    }
+
+    /// The program a configuration set names, made with its arguments.
+    pub fn make_ref(
+        &self,
+        program: ProgramRef,
+        flash: &Flash,
+        args: [u16; 7],
+    ) -> Result<Option<Box<dyn UserProgram>>, LoadError> {
+        match program {
+            ProgramRef::None => Ok(None),
+            ProgramRef::BuiltIn(id) => match self.make(id, args) {
+                Some(p) => Ok(Some(p)),
+                None => Err(format!("program {id} is not installed").into()),
+            },
+            ProgramRef::Module { bank, block } => match &self.runtime {
+                Some(rt) => rt.load(flash, bank, block, args).map(Some).map_err(|e| {
+                    format!("the module at bank {bank} block {block:02X}h: {e}").into()
+                }),
+                None => Err(format!(
+                    "the module at bank {bank} block {block:02X}h cannot run: this board has no module runtime"
+                )
+                .into()),
+            },
+        }
     }
 }
 

@@ -11,8 +11,10 @@ use buslab_cpu196::codes::MsgCode;
 use buslab_cpu196::host::FileRequests;
 use buslab_cpu196::message::{FileMode, Message, Thread};
 use buslab_cpu196::pic::Peer;
+use buslab_cpu196::program::Registry;
 use buslab_cpu196::source::Inputs;
 use buslab_cpu196::{Board, Image};
+use buslab_cpu196_wasm::WasmRuntime;
 use buslab_device::Nanos;
 use buslab_link::fs::{open_regular, read_text_limited};
 use buslab_link::{Serve, Served};
@@ -51,7 +53,10 @@ pub fn spawn_board(options: BoardOptions) -> Result<Served<Board>, ServeError> {
         }
         None => Image::default(),
     };
-    let mut board = Board::new(image, options.inputs, Nanos::ZERO);
+    // Modules a user flashed run (also from the boot START).
+    let mut programs = Registry::default();
+    programs.set_module_runtime(Box::new(WasmRuntime::new()));
+    let mut board = Board::with_registry(image, options.inputs, programs, Nanos::ZERO);
     board.set_peer(options.peer);
     if board.line().baud != options.baud {
         board.set_baud(options.baud);

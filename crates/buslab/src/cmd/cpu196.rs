@@ -56,6 +56,9 @@ fn show(text: &mut String) {
     }
 }
 
+#[path = "cpu196_program.rs"]
+mod program;
+
 /// The line rate a new board image boots with.
 pub const DEFAULT_BAUD: u32 = 115_200;
 
@@ -145,6 +148,10 @@ pub enum Cmd {
     /// Flash banks (8 × 256 blocks × 256 bytes).
     #[command(subcommand)]
     Flash(FlashCmd),
+    /// User programs: WebAssembly modules in flash that the kernel runs on its hooks
+    /// (docs/cpu196.md).
+    #[command(subcommand)]
+    Program(program::ProgramCmd),
     /// PIC program blocks (1..3, 4096 bytes).
     #[command(subcommand)]
     Pic(PicCmd),
@@ -444,6 +451,9 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
         }
         return serve(s, quiet);
     }
+    if let Cmd::Program(program::ProgramCmd::Check { module }) = &args.command {
+        return program::check(module);
+    }
     let baud = args.baud.unwrap_or(DEFAULT_BAUD);
     let path = args
         .port
@@ -510,6 +520,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
             Ok(())
         }
         Cmd::Flash(f) => flash(&mut c, f, yes),
+        Cmd::Program(p) => program::run(&mut c, p, yes),
         Cmd::Pic(p) => pic(&mut c, p, yes),
         Cmd::Eeprom(e) => eeprom(&mut c, e, yes),
         Cmd::Cfgad { bank, config } => {

@@ -56,6 +56,10 @@ pub enum ClientError {
         /// Why, as the set's CFGAD tells; `None` if it could not be read.
         why: Option<AdRefusal>,
     },
+    /// A START the board refused with `msg_invalid_parameter_value`, with the reason it gave
+    /// on the THREAD display (a set whose program cannot be made).
+    #[error("the board answered msg_invalid_parameter_value: {why}")]
+    StartRefused { why: String },
     #[error("unexpected answer: {0}")]
     Unexpected(String),
     #[error("verification failed: {0}")]
@@ -320,7 +324,29 @@ impl<P: Port> Client<P> {
                     why,
                 })
             }
+            Err(ClientError::Board(MsgCode::INVALID_PARAMETER_VALUE)) => {
+                match self.take_start_reason(s.config()) {
+                    Some(why) => Err(ClientError::StartRefused { why }),
+                    None => Err(ClientError::Board(MsgCode::INVALID_PARAMETER_VALUE)),
+                }
+            }
             other => other,
+        }
+    }
+
+    /// The line a refusing kernel shows before its `FE 04` (`configuration N: …`), taken out
+    /// of the backlog.
+    fn take_start_reason(&mut self, config: u8) -> Option<String> {
+        let prefix = format!("configuration {config}: ");
+        let at = self.backlog.iter().position(|m| {
+            matches!(m, Message::Thread(Thread::Display { format: DisplayFormat::Text, data, .. })
+                if data.starts_with(prefix.as_bytes()))
+        })?;
+        match self.backlog.remove(at) {
+            Some(Message::Thread(Thread::Display { data, .. })) => {
+                Some(String::from_utf8_lossy(&data[prefix.len()..]).into_owned())
+            }
+            _ => None,
         }
     }
 
