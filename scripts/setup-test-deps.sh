@@ -183,7 +183,9 @@ fi
 for pair in sigrok-cli:sigrok-cli openssl:openssl chromium:chromium chromedriver:chromium-driver \
     qemu-system-x86_64:qemu-system-x86 busybox:busybox-static cpio:cpio candump:can-utils \
     slcand:can-utils strip:binutils log2asc:can-utils asc2log:can-utils tshark:tshark \
-    editcap:tshark s51:sdcc-ucsim as31:as31 sdcc:sdcc clang:clang wasm-ld:lld wat2wasm:wabt; do
+    editcap:tshark s51:sdcc-ucsim as31:as31 sdcc:sdcc qemu-ppc:qemu-user \
+    powerpc-linux-gnu-as:binutils-powerpc-linux-gnu powerpc-linux-gnu-gcc:gcc-powerpc-linux-gnu \
+    clang:clang wasm-ld:lld wat2wasm:wabt; do
     has "${pair%%:*}" || fail "${pair%%:*} is still missing after installing ${pair#*:}"
 done
 [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"
