@@ -18,8 +18,7 @@ use buslab_sja1000::Sja1000;
 
 use crate::spu::{self, Spu};
 
-/// The CPU clock: a PPC403GA-25.
-pub const CPU_HZ: u32 = 25_000_000;
+pub use crate::clocks::CPU_HZ;
 /// DRAM from address 0.
 pub const RAM_SIZE: u32 = 4 * 1024 * 1024;
 /// Below this the RAM is the firmware's (its data and exception vectors).

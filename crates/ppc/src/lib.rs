@@ -13,6 +13,7 @@
 #![forbid(unsafe_code)]
 
 pub mod board;
+pub mod clocks;
 pub mod node;
 pub mod program;
 pub mod sampling;

@@ -35,8 +35,7 @@ use crate::sampling::Sampling;
 
 mod firmware;
 
-/// The PowerPC board's SJA1000 crystal (the seed: "Xtal de 16MHz"); the CAN clock is half.
-pub const CRYSTAL_HZ: u32 = 16_000_000;
+pub use crate::clocks::CRYSTAL_HZ;
 /// Keys waiting for the CPU at most; beyond, a key is lost as on an overrun UART (counted).
 pub const MAX_KEYS: usize = 256;
 /// A frame that stays in the TX buffer this many bit-times (nobody acknowledges it: the

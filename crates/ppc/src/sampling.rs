@@ -8,7 +8,7 @@
 use buslab_can::{BitTime, Level};
 use buslab_sja1000::Sja1000;
 
-use crate::node::CRYSTAL_HZ;
+use crate::clocks::CRYSTAL_HZ;
 
 /// The bit rate a chip may be off the bus's and still follow it (per mille).
 pub const TOLERANCE_PERMILLE: u64 = 10;

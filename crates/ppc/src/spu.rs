@@ -62,7 +62,7 @@ const BUFFER_INTERRUPT: u8 = 0x20;
 const SECOND_INTERRUPT: u8 = 0x10;
 
 /// The CPU clock that drives the serial clock.
-pub const CLOCK_HZ: u32 = crate::board::CPU_HZ;
+pub const CLOCK_HZ: u32 = crate::clocks::CPU_HZ;
 /// The divisor the firmware programs for the terminal (19290 baud).
 pub const FIRMWARE_BRD: u16 = 80;
 /// SPCTL as the firmware leaves it: DTR and RTS on, 8 data bits, no parity, 1 stop bit.

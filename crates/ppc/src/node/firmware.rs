@@ -11,7 +11,8 @@ use buslab_sja1000_driver::Sja1000Driver;
 use tracing::{info, warn};
 
 use super::{CLEAR, LOADER_TITLE, PRESS_ANY_KEY, PROGRAM_TITLE, PpcNode, Program};
-use crate::board::{Board, CPU_HZ};
+use crate::board::Board;
+use crate::clocks::CPU_HZ;
 use crate::program::{Ending, Running, register_lines};
 use crate::sampling::Sampling;
 use crate::spu::MAX_OUTPUT;
