@@ -22,10 +22,10 @@ pub const SYS_EXIT: u32 = 1;
 pub const SYS_WRITE: u32 = 4;
 /// Bytes one `write` call takes at most (a longer one is a partial write: r3 says how many).
 pub const MAX_WRITE: u32 = 4096;
-/// The errors a service returns (r3, with CR0[SO] set, as Linux does).
+/// The errors a service returns (r3, with `CR0[SO]` set, as Linux does).
 pub const EBADF: u32 = 9;
 pub const EFAULT: u32 = 14;
-/// CR0[SO].
+/// `CR0[SO]`.
 const CR0_SO: u32 = 0x1000_0000;
 /// How often the core may stop without its time moving before the board gives up on it
 /// (a core that never advances would hang the bus).
