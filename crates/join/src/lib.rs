@@ -18,6 +18,6 @@ pub mod track;
 
 pub use batch::{BATCH_INTERVAL_US, Batcher, MAX_BATCH_FRAMES};
 pub use envelope::{Envelope, EnvelopeError, MAX_ENVELOPE, MAX_HOPS, Stamped};
-pub use track::{Accepted, MAX_GAPS, PeerStats, Tracker};
+pub use track::{Accepted, JoinReport, MAX_GAPS, PeerStats, Tracker};
 
 pub use buslab_cannelloni::CanFrame;

@@ -40,7 +40,7 @@ pub enum Accepted {
     Frames(Vec<Stamped>),
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct Peer {
     stats: PeerStats,
     /// The sequence number expected next.
@@ -81,19 +81,36 @@ impl Tracker {
         self.peers().map(|p| p.lost).sum()
     }
 
+    /// Takes one numbered unit from a transport that numbers its packets, not its frames
+    /// (cannelloni's 8-bit sequence, widened by the caller): whether to deliver it. `name`
+    /// labels the peer the first time it is heard.
+    pub fn accept_numbered(&mut self, origin: u64, name: &str, seq: u64) -> bool {
+        let peer = self.peer(origin, seq, || name.to_string());
+        peer.take(seq)
+    }
+
+    /// The peer `origin`, new ones starting at `first` (what came before is not a gap).
+    fn peer(&mut self, origin: u64, first: u64, name: impl FnOnce() -> String) -> &mut Peer {
+        self.peers.entry(origin).or_insert_with(|| Peer {
+            stats: PeerStats {
+                origin: name(),
+                ..PeerStats::default()
+            },
+            next: first,
+            gaps: BTreeMap::new(),
+        })
+    }
+
     /// Takes one envelope: its frames numbered `first_seq..`.
     pub fn accept(&mut self, envelope: Envelope) -> Accepted {
         if envelope.origin == self.me {
             self.echoes += 1;
             return Accepted::Echo;
         }
-        let fresh = !self.peers.contains_key(&envelope.origin);
-        let peer = self.peers.entry(envelope.origin).or_default();
-        if fresh {
-            // Whatever the origin sent before this receiver listened is not a gap.
-            peer.stats.origin = format!("{:016x}", envelope.origin);
-            peer.next = envelope.first_seq;
-        }
+        // Whatever the origin sent before this receiver listened is not a gap.
+        let peer = self.peer(envelope.origin, envelope.first_seq, || {
+            format!("{:016x}", envelope.origin)
+        });
         peer.stats.last_wall_us = peer.stats.last_wall_us.max(envelope.wall_us);
         if envelope.hops > MAX_HOPS {
             peer.stats.too_many_hops += envelope.frames.len() as u64;
@@ -243,5 +260,54 @@ mod tests {
         // A frame of a forgotten gap: late.
         assert_eq!(delivered(t.accept(envelope(2, 5, 1))), 0);
         assert_eq!(t.peers().next().unwrap().late, 1);
+    }
+}
+
+/// What one member of a join says about itself: published as its retained statistics
+/// (MQTT), printed when `bus serve --join` stops.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct JoinReport {
+    /// This member's origin ID (hex).
+    pub origin: String,
+    /// Frames handed to the transport.
+    pub sent: u64,
+    /// Frames that could not leave (no connection, a full queue): their sequence numbers are
+    /// spent, so receivers count them as lost.
+    pub unsent: u64,
+    /// Own envelopes back from the broker, dropped.
+    pub echoes: u64,
+    /// Bytes from the network that were not the transport's format (dropped, counted).
+    pub garbage: u64,
+    /// Every origin heard.
+    pub peers: Vec<PeerStats>,
+}
+
+impl JoinReport {
+    /// Frames delivered from every origin.
+    pub fn received(&self) -> u64 {
+        self.peers.iter().map(|p| p.received).sum()
+    }
+
+    /// Frames lost from every origin.
+    pub fn lost(&self) -> u64 {
+        self.peers.iter().map(|p| p.lost).sum()
+    }
+}
+
+impl std::fmt::Display for JoinReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "origin {}: sent {}, unsent {}, echoes dropped {}, garbage {}",
+            self.origin, self.sent, self.unsent, self.echoes, self.garbage
+        )?;
+        for p in &self.peers {
+            write!(
+                f,
+                "; from {}: received {}, lost {}, reordered {}, duplicates {}, late {}, too many hops {}",
+                p.origin, p.received, p.lost, p.reordered, p.duplicates, p.late, p.too_many_hops
+            )?;
+        }
+        Ok(())
     }
 }
