@@ -29,11 +29,32 @@ pub const DATAGRAM_SIZE: usize = 1472;
 const POLL: Duration = Duration::from_millis(100);
 
 /// Stops the threads when the bus is dropped.
-struct Stop(Arc<AtomicBool>);
+/// Stops the threads when the bus is dropped, after the sending thread sent what was queued
+/// (a `buslab send` that exits at once still gets its frames out).
+struct Stop {
+    stop: Arc<AtomicBool>,
+    /// The sending thread first, then the receiving one (which lets go of the socket within
+    /// [`POLL`], so the address can be bound again).
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
 
 impl Drop for Stop {
     fn drop(&mut self) {
-        self.0.store(true, Ordering::SeqCst);
+        self.stop.store(true, Ordering::SeqCst);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The next frame to send; `None` once the bus is closing and nothing is queued.
+fn next_frame(outbox: &Receiver<CanFrame>, stop: &AtomicBool) -> Option<CanFrame> {
+    loop {
+        match outbox.recv_timeout(POLL) {
+            Ok(f) => return Some(f),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) if !stop.load(Ordering::SeqCst) => {}
+            Err(_) => return None,
+        }
     }
 }
 
@@ -69,11 +90,12 @@ pub fn open_udp(url: String, peer: SocketAddr, listen: SocketAddr) -> io::Result
     );
     let tx_socket = socket.try_clone()?;
     let tx_shared = shared.clone();
-    std::thread::Builder::new()
+    let tx_stop = stop.clone();
+    let sender = std::thread::Builder::new()
         .name("cannelloni-tx".into())
         .spawn(move || {
             let mut seq = 0u8;
-            while let Ok(first) = outbox.recv() {
+            while let Some(first) = next_frame(&outbox, &tx_stop) {
                 let frames = drain(first, &outbox, 4096);
                 let Ok(packets) = encode_packets(seq, &frames, DATAGRAM_SIZE) else {
                     unreachable!("DATAGRAM_SIZE is a valid size");
@@ -94,7 +116,7 @@ pub fn open_udp(url: String, peer: SocketAddr, listen: SocketAddr) -> io::Result
         })?;
     let rx_stop = stop.clone();
     let rx_shared = shared.clone();
-    std::thread::Builder::new()
+    let receiver = std::thread::Builder::new()
         .name("cannelloni-rx".into())
         .spawn(move || {
             let mut buf = vec![0u8; MAX_DATAGRAM + 1];
@@ -153,7 +175,10 @@ pub fn open_udp(url: String, peer: SocketAddr, listen: SocketAddr) -> io::Result
         out_tx,
         inbox,
         shared,
-        Box::new(Stop(stop)),
+        Box::new(Stop {
+            stop,
+            threads: vec![sender, receiver],
+        }),
     ))
 }
 
@@ -206,10 +231,10 @@ pub fn open_tcp_client(
     let ((out_tx, outbox), (inbox_tx, inbox)) = JoinBus::queues();
     let stop = Arc::new(AtomicBool::new(false));
     let writer: Arc<Mutex<Option<TcpStream>>> = Arc::new(Mutex::new(Some(stream.try_clone()?)));
-    spawn_tcp_writer(outbox, writer, shared.clone())?;
+    let sender = spawn_tcp_writer(outbox, writer, shared.clone(), stop.clone())?;
     let rx_stop = stop.clone();
     let rx_shared = shared.clone();
-    std::thread::Builder::new()
+    let receiver = std::thread::Builder::new()
         .name("cannelloni-rx".into())
         .spawn(move || {
             let end = read_stream(stream, decoder, &inbox_tx, &rx_stop, &rx_shared);
@@ -222,7 +247,10 @@ pub fn open_tcp_client(
         out_tx,
         inbox,
         shared,
-        Box::new(Stop(stop)),
+        Box::new(Stop {
+            stop,
+            threads: vec![sender, receiver],
+        }),
     ))
 }
 
@@ -239,11 +267,11 @@ pub fn open_tcp_server(url: String, listen: SocketAddr) -> io::Result<JoinBus> {
     let ((out_tx, outbox), (inbox_tx, inbox)) = JoinBus::queues();
     let stop = Arc::new(AtomicBool::new(false));
     let writer: Arc<Mutex<Option<TcpStream>>> = Arc::new(Mutex::new(None));
-    spawn_tcp_writer(outbox, writer.clone(), shared.clone())?;
+    let sender = spawn_tcp_writer(outbox, writer.clone(), shared.clone(), stop.clone())?;
     let rx_stop = stop.clone();
     let rx_url = url.clone();
     let rx_shared = shared.clone();
-    std::thread::Builder::new()
+    let receiver = std::thread::Builder::new()
         .name("cannelloni-accept".into())
         .spawn(move || {
             while !rx_stop.load(Ordering::SeqCst) {
@@ -299,7 +327,10 @@ pub fn open_tcp_server(url: String, listen: SocketAddr) -> io::Result<JoinBus> {
         out_tx,
         inbox,
         shared,
-        Box::new(Stop(stop)),
+        Box::new(Stop {
+            stop,
+            threads: vec![sender, receiver],
+        }),
     ))
 }
 
@@ -308,12 +339,13 @@ fn spawn_tcp_writer(
     outbox: Receiver<CanFrame>,
     writer: Arc<Mutex<Option<TcpStream>>>,
     shared: Shared,
-) -> io::Result<()> {
+    stop: Arc<AtomicBool>,
+) -> io::Result<std::thread::JoinHandle<()>> {
     std::thread::Builder::new()
         .name("cannelloni-tx".into())
         .spawn(move || {
             let mut bytes = Vec::new();
-            while let Ok(first) = outbox.recv() {
+            while let Some(first) = next_frame(&outbox, &stop) {
                 let frames = drain(first, &outbox, 4096);
                 bytes.clear();
                 for f in &frames {
@@ -332,8 +364,7 @@ fn spawn_tcp_writer(
                     }
                 });
             }
-        })?;
-    Ok(())
+        })
 }
 
 /// Reads frames until the stream ends (`None`: closed by the peer or the bus dropped) or

@@ -29,6 +29,8 @@ pub const ENV_PASSWORD: &str = "BUSLAB_MQTT_PASSWORD";
 
 /// How often the statistics are republished when they changed.
 const STATS_INTERVAL: Duration = Duration::from_millis(500);
+/// How often the idle publisher looks whether the bus is closing.
+const CLOSING_POLL: Duration = Duration::from_millis(50);
 /// Requests (publications) waiting for rumqttc's event loop at most.
 const REQUESTS: usize = 1024;
 
@@ -80,18 +82,31 @@ fn options(client_id: String, host: &str, port: u16, tls: bool) -> Result<MqttOp
     Ok(o)
 }
 
-/// Stops the member when the bus is dropped: says `offline`, disconnects.
+/// Stops the member when the bus is dropped: publishes what is queued, says `offline`,
+/// disconnects.
 struct Leave {
     client: Client,
     topics: Topics,
+    closing: Arc<AtomicBool>,
+    publisher: Option<std::thread::JoinHandle<()>>,
+    events: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Drop for Leave {
     fn drop(&mut self) {
+        self.closing.store(true, Ordering::SeqCst);
+        if let Some(t) = self.publisher.take() {
+            let _ = t.join();
+        }
         let _ = self
             .client
             .try_publish(&self.topics.status, QoS::AtLeastOnce, true, "offline");
         let _ = self.client.try_disconnect();
+        // Until the disconnection went out (or the connection broke): what was published
+        // before is on its way to the broker.
+        if let Some(t) = self.events.take() {
+            let _ = t.join();
+        }
     }
 }
 
@@ -118,6 +133,7 @@ pub fn open(
     let shared: Shared = Arc::new(Mutex::new(Accounting::new(origin)));
     let ((out_tx, outbox), (inbox_tx, inbox)) = JoinBus::queues();
     let connected = Arc::new(AtomicBool::new(false));
+    let closing = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready) = mpsc::channel::<Result<(), MqttError>>();
 
     // The event loop: connection, subscription, incoming envelopes.
@@ -126,7 +142,8 @@ pub fn open(
     let ev_connected = connected.clone();
     let ev_shared = shared.clone();
     let ev_url = url.clone();
-    std::thread::Builder::new()
+    let ev_closing = closing.clone();
+    let events = std::thread::Builder::new()
         .name("mqtt-events".into())
         .spawn(move || {
             let mut ready_tx = Some(ready_tx);
@@ -138,6 +155,7 @@ pub fn open(
                     Err(_) => return,
                 };
                 match event {
+                    Ok(Event::Outgoing(rumqttc::Outgoing::Disconnect)) => return,
                     Ok(Event::Incoming(Packet::ConnAck(_))) => {
                         // A clean session: subscribe again after each connection.
                         let _ = ev_client.try_subscribe(&ev_topics.frames, QoS::AtMostOnce);
@@ -184,6 +202,9 @@ pub fn open(
                             let _ = tx.send(Err(e.into()));
                             return;
                         }
+                        if ev_closing.load(Ordering::SeqCst) {
+                            return;
+                        }
                         if !said_down {
                             tracing::warn!(
                                 "{ev_url}: broker unreachable ({e}); frames sent meanwhile are dropped and counted, trying again"
@@ -213,7 +234,8 @@ pub fn open(
     let pub_client = client.clone();
     let pub_topics = topics.clone();
     let pub_shared = shared.clone();
-    std::thread::Builder::new()
+    let pub_closing = closing.clone();
+    let publisher = std::thread::Builder::new()
         .name("mqtt-publish".into())
         .spawn(move || {
             let start = Instant::now();
@@ -244,7 +266,8 @@ pub fn open(
                 let wait = batcher
                     .deadline()
                     .map(|d| Duration::from_micros(d.saturating_sub(now_us())))
-                    .unwrap_or(STATS_INTERVAL)
+                    .unwrap_or(CLOSING_POLL)
+                    .min(CLOSING_POLL)
                     .min(stats_due.saturating_duration_since(Instant::now()));
                 match outbox.recv_timeout(wait) {
                     Ok(frame) => {
@@ -256,8 +279,8 @@ pub fn open(
                             publish(&mut batcher);
                         }
                     }
-                    Err(RecvTimeoutError::Timeout) => {}
-                    Err(RecvTimeoutError::Disconnected) => {
+                    Err(RecvTimeoutError::Timeout) if !pub_closing.load(Ordering::SeqCst) => {}
+                    Err(_) => {
                         publish(&mut batcher);
                         publish_stats(&pub_client, &pub_topics, &pub_shared, &mut last_stats);
                         return;
@@ -278,7 +301,13 @@ pub fn open(
         out_tx,
         inbox,
         shared,
-        Box::new(Leave { client, topics }),
+        Box::new(Leave {
+            client,
+            topics,
+            closing,
+            publisher: Some(publisher),
+            events: Some(events),
+        }),
     ))
 }
 

@@ -120,6 +120,10 @@ pub enum UrlProblem {
     )]
     CannelloniOption(String),
     #[error(
+        "a user name or password in the URL is refused (it would show in process lists and shell history): set $BUSLAB_MQTT_USERNAME and $BUSLAB_MQTT_PASSWORD"
+    )]
+    Credentials,
+    #[error(
         "topic prefix {0:?} must be 1..200 characters of one or more levels, without +, #, spaces, empty levels or a leading /"
     )]
     Prefix(String),
@@ -279,6 +283,9 @@ pub(crate) fn parse_mqtt(url: &str) -> Result<BusUrl, UrlError> {
         return Err(err(UrlProblem::MqttOption(query.to_string())));
     }
     let (hostport, prefix) = rest.split_once('/').unwrap_or((rest, ""));
+    if hostport.contains('@') {
+        return Err(err(UrlProblem::Credentials));
+    }
     let (host, port) = host_port(url, hostport, if tls { MQTTS_PORT } else { MQTT_PORT })?;
     let prefix = prefix.strip_suffix('/').unwrap_or(prefix);
     if prefix.is_empty()
@@ -768,7 +775,7 @@ mod tests {
             ("mqtt://broker/a//b", "topic prefix \"a//b\""),
             ("mqtt://broker/a/#", "without +, #"),
             ("mqtt://broker/a+b", "without +, #"),
-            ("mqtt://user:secret@broker/a", "port \"secret@broker\""),
+            ("mqtt://user:secret@broker/a", "$BUSLAB_MQTT_PASSWORD"),
             ("mqtt://broker/a?password=x", "never"),
             ("vcan0", "unknown backend \"\""),
         ] {

@@ -135,3 +135,26 @@ fn a_tcp_peer_that_is_not_cannelloni_is_refused_at_open() {
     assert!(text.contains("expected \"CANNELLONIv1\""), "{text}");
     server.join().unwrap();
 }
+
+#[test]
+fn a_frame_sent_right_before_the_bus_is_dropped_still_leaves() {
+    // `buslab send cannelloni://…` exits right after handing its frame over: the bus's drop
+    // waits until the sending thread sent what was queued.
+    let peer = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let me = free_udp();
+    for k in 0..20 {
+        let mut bus = join(&format!(
+            "cannelloni://{}?listen={me}",
+            peer.local_addr().unwrap()
+        ));
+        bus.send(&frame(k)).unwrap();
+        drop(bus);
+        let mut buf = [0u8; 2048];
+        peer.set_read_timeout(WAIT).unwrap();
+        let (n, _) = peer.recv_from(&mut buf).expect("the frame left");
+        assert_eq!(
+            decode_packet(&buf[..n]).unwrap().frames,
+            [CanFrame::Classic(frame(k))]
+        );
+    }
+}

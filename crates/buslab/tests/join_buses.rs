@@ -473,3 +473,35 @@ fn pypi_can_cannelloni_exchanges_frames_with_buslab_both_ways() {
     assert!(line.contains("sent 1000, unsent 0"), "{line}");
     assert!(line.contains("received 1000, lost 0"), "{line}");
 }
+
+#[test]
+fn buslab_send_to_mqtt_gets_its_frame_out_before_it_exits() {
+    // `buslab send mqtt://…` exited before its batch was published: the frame never came.
+    if !present(Path::new(MOSQUITTO).exists(), "mosquitto") {
+        return;
+    }
+    let broker = Mosquitto::start();
+    let url = broker.url("bench/send");
+    let mut dump = buslab_backends::open_join(
+        &url.parse().unwrap(),
+        &buslab_backends::OpenOptions::default(),
+    )
+    .unwrap();
+    for k in 0..5 {
+        let text = format!("123#{k:02X}");
+        let out = Command::new(env!("CARGO_BIN_EXE_buslab"))
+            .args(["send", &url, &text])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let got = dump
+            .recv(Some(deadline_for(1)))
+            .unwrap()
+            .expect("the frame sent");
+        assert_eq!(got.record.to_string(), text);
+    }
+}
