@@ -103,6 +103,14 @@ impl JoinSender {
     }
 }
 
+impl std::fmt::Debug for JoinSender {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("JoinSender")
+            .field("report", &self.report())
+            .finish()
+    }
+}
+
 /// A bus joined to remote buses through a transport.
 pub struct JoinBus {
     url: String,
