@@ -48,7 +48,7 @@ pub fn encode_record(frame: &CanFrame, out: &mut Vec<u8>) {
             out.extend_from_slice(f.payload());
         }
         CanFrame::Error { class, data } => {
-            out.extend_from_slice(&(class | ERR_FLAG).to_be_bytes());
+            out.extend_from_slice(&((class & 0x1FFF_FFFF) | ERR_FLAG).to_be_bytes());
             out.push(8);
             out.extend_from_slice(data);
         }
@@ -72,7 +72,11 @@ pub fn decode_record(bytes: &[u8]) -> Result<Option<(CanFrame, usize)>, DecodeEr
     } else {
         (0, rest, 5)
     };
-    let id = if word & EFF_FLAG != 0 {
+    let error = word & ERR_FLAG != 0;
+    // An error frame's ID word is its class bits, not an ID.
+    let id = if error {
+        Id::standard(0)
+    } else if word & EFF_FLAG != 0 {
         Id::extended(word & 0x1FFF_FFFF)
     } else if word & 0x1FFF_F800 == 0 {
         Id::standard((word & 0x7FF) as u16)
@@ -81,7 +85,7 @@ pub fn decode_record(bytes: &[u8]) -> Result<Option<(CanFrame, usize)>, DecodeEr
     }
     .map_err(|_| DecodeError::Id { id: word })?;
     let remote = word & RTR_FLAG != 0;
-    if fd && remote {
+    if fd && remote && !error {
         return Err(DecodeError::FdRemote { id: word });
     }
     if !fd && len > 8 {
@@ -94,7 +98,7 @@ pub fn decode_record(bytes: &[u8]) -> Result<Option<(CanFrame, usize)>, DecodeEr
     let Some(payload) = data.get(..carried) else {
         return Ok(None);
     };
-    let frame = if word & ERR_FLAG != 0 {
+    let frame = if error {
         let mut bytes = [0; 8];
         let n = payload.len().min(8);
         bytes[..n].copy_from_slice(&payload[..n]);
@@ -152,6 +156,26 @@ mod tests {
             data: [1, 2, 3, 4, 5, 6, 7, 8],
         };
         assert_eq!(&round_trip(error)[..5], [0x20, 0, 0, 0x40, 8]);
+    }
+
+    #[test]
+    fn error_frames_with_any_class_bits_decode_and_encode_again() {
+        // Found by fuzzing: an error frame whose ID word also had the EFF bit and high class
+        // bits decoded, then its record failed to decode ("a standard ID is at most 0x7FF").
+        for word in [0xADBC_DEF0u32, 0x6000_0004, 0x2000_0040] {
+            let mut bytes = word.to_be_bytes().to_vec();
+            bytes.push(8);
+            bytes.extend_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8]);
+            let (frame, _) = decode_record(&bytes).unwrap().unwrap();
+            assert!(matches!(frame, CanFrame::Error { .. }), "{word:#X}");
+            let mut again = Vec::new();
+            encode_record(&frame, &mut again);
+            assert_eq!(
+                decode_record(&again).unwrap().unwrap().0,
+                frame,
+                "{word:#X}"
+            );
+        }
     }
 
     #[test]
