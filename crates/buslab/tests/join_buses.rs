@@ -329,6 +329,7 @@ fn buses_joined_through_mosquitto_carry_100k_frames_without_loss() {
         m.from == [(FRAMES, 0)]
     });
     let (a, b) = (a.stop(), b.stop());
+    eprintln!("{a}\n{b}");
     assert!(a.contains(&format!("sent {FRAMES}, unsent 0")), "{a}");
     assert!(b.contains(&format!("received {FRAMES}, lost 0")), "{b}");
 }
@@ -371,6 +372,7 @@ fn the_gap_counter_equals_the_frames_lost_while_the_broker_is_stopped() {
     let (counted_received, lost) = members(&url).unwrap().from[0];
     let got = received(&mut rx, counted_received);
     rx.finish();
+    eprintln!("broker stopped for 2 s: python-can received {got} of {FRAMES}, gap counter {lost}");
     assert!(lost > 0, "the outage lost nothing: the test did not test");
     assert_eq!(lost, FRAMES - got, "gap counter against python-can's count");
     let b = b.stop();
@@ -401,6 +403,7 @@ fn buses_joined_through_cannelloni_udp_carry_100k_frames_without_loss() {
         &format!("cannelloni://127.0.0.1:{pa}?listen=127.0.0.1:{pb}"),
         &python,
     );
+    eprintln!("{a}\n{b}");
     assert!(a.contains(&format!("sent {FRAMES}, unsent 0")), "{a}");
     // Counted in packets: none lost, none out of order.
     assert!(b.contains("lost 0, reordered 0, duplicates 0"), "{b}");
@@ -417,6 +420,7 @@ fn buses_joined_through_cannelloni_tcp_carry_100k_frames_without_loss() {
         &format!("cannelloni+tcp://127.0.0.1:{port}"),
         &python,
     );
+    eprintln!("{a}\n{b}");
     assert!(a.contains(&format!("sent {FRAMES}, unsent 0")), "{a}");
     assert!(b.contains(&format!("received {FRAMES}, lost 0")), "{b}");
 }
