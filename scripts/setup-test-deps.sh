@@ -3,13 +3,15 @@
 # - crates.io: cargo-nextest, the test runner of scripts/test.sh (the machine image has it in
 #   /usr/local/bin; elsewhere it is built once with `cargo install --locked`, a few minutes);
 # - Debian: dovecot-imapd (the real IMAP server of `buslab mail`'s test, started per test on a
-#   loopback port with a throwaway configuration); sigrok-cli (decodes our VCD waveforms independently); can-utils (log2asc/asc2log,
+#   loopback port with a throwaway configuration); mosquitto (the MQTT broker of the joined-buses
+#   tests, likewise); sigrok-cli (decodes our VCD waveforms independently); can-utils (log2asc/asc2log,
 #   the log-format interop tests) and tshark/editcap (decode buslab's pcap and pcapng); for the
 #   SocketCAN test VM (scripts/vm/, crates/buslab/tests/vm_socketcan.rs): qemu-system-x86,
 #   busybox-static, cpio, can-utils, binutils, and Debian's kernel package downloaded (not
 #   installed) into target/vm-cache/; sdcc-ucsim (s51) and as31 for the MCS-51 core; qemu-user (qemu-ppc) and the
 #   PowerPC cross binutils and gcc for the PowerPC 403 core and examples/ppc/;
-# - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can);
+# - PyPI, into .venv/: the pinned packages of scripts/test-requirements.txt (pyserial, python-can,
+#   can-cannelloni);
 #   python-can's source distribution (pinned by hash) into target/python-can-sdist/, for the log
 #   files of its test/data that crates/buslab/tests/log_python_can_data.rs reads with python-can
 #   and buslab (downloaded, not committed: python-can is LGPL-3.0, see docs/decisions.md);
@@ -62,6 +64,9 @@ want_tools() {
 
 # sigrok-cli decodes our VCD waveforms independently.
 want_tools sigrok-cli:sigrok-cli
+# The MQTT broker of the joined-buses tests (crates/buslab/tests/join_buses.rs starts its own
+# on a free loopback port; the service the package enables on 1883 is not used).
+[ -x /usr/sbin/mosquitto ] || want_deb mosquitto
 # The mail notifier's IMAP server (crates/buslab/tests/mail_dovecot.rs runs /usr/sbin/dovecot).
 [ -x /usr/sbin/dovecot ] || want_deb dovecot-imapd
 # The mail tests make a throwaway certificate authority with it (Dovecot's TLS, the hostile
@@ -189,6 +194,7 @@ for pair in sigrok-cli:sigrok-cli openssl:openssl chromium:chromium chromedriver
     has "${pair%%:*}" || fail "${pair%%:*} is still missing after installing ${pair#*:}"
 done
 [ -x /usr/sbin/dovecot ] || fail "dovecot is still missing after installing dovecot-imapd"
+[ -x /usr/sbin/mosquitto ] || fail "mosquitto is still missing after installing mosquitto"
 ldd "$(command -v busybox)" >/dev/null 2>&1 && fail "busybox is dynamically linked; install busybox-static"
 
 if $need_kernel; then

@@ -6,6 +6,9 @@
 //! | `socketcand://HOST[:PORT][/CHANNEL]` | socketcand raw mode over TCP (port 29536, channel vcan0 by default) |
 //! | `socketcan:IFACE` | a Linux SocketCAN interface (raw socket, kernel timestamps and filters, error frames) |
 //! | `slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1&fd=1&data_bitrate=N]` | an SLCAN (Lawicel) serial adapter |
+//! | `cannelloni://PEER:PORT[?listen=HOST:PORT]` | cannelloni over UDP, point to point |
+//! | `cannelloni+tcp://HOST:PORT[?role=server]` | cannelloni over TCP, connecting or listening |
+//! | `mqtt://BROKER[:PORT]/PREFIX` (`mqtts://` with TLS) | buses joined through an MQTT broker |
 //!
 //! [`resolve`] turns names as can-utils users type them (`vcan0`, `can0`, `/dev/ttyACM0`)
 //! into URLs; [`Pump`] drives a bus from a thread of its own so a program can send to it while
@@ -26,8 +29,12 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod cannelloni;
 pub mod confirm;
 pub mod controller;
+pub mod gateway;
+pub mod join;
+pub mod mqtt;
 pub mod pump;
 pub mod registry;
 #[cfg(target_os = "linux")]
@@ -37,13 +44,18 @@ pub mod url;
 
 pub use confirm::{ConfirmError, Confirmation, confirm_sent};
 pub use controller::{Accepting, ControllerReport, Outcome};
+pub use gateway::Gateway;
+pub use join::{JoinBus, JoinSender};
 pub use pump::{BusJob, JOB_LATENCY, Pump, PumpEvent, PumpSender, PumpStopped, TrySendError};
 pub use registry::{
     BACKENDS, Backend, OpenError, OpenFn, OpenOptions, Opened, backend, open, open_configured,
-    open_url, resolve,
+    open_join, open_url, resolve,
 };
 pub use spec::{BusSpec, FilterItem, FilterSet, IdFilter, SpecError, filter_set};
-pub use url::{BusUrl, DEFAULT_CHANNEL, DEFAULT_NAME, SOCKETCAND_PORT, UrlError, UrlProblem};
+pub use url::{
+    BusUrl, CANNELLONI_PORT, CannelloniTransport, DEFAULT_CHANNEL, DEFAULT_NAME, MQTT_PORT,
+    SOCKETCAND_PORT, UrlError, UrlProblem,
+};
 
 /// An open bus, of whichever backend.
 pub type DynBus = Box<dyn buslab_bus::CanBus + Send>;

@@ -72,6 +72,13 @@ pub enum OpenError {
         url: String,
         source: buslab_slcan::SlcanError,
     },
+    /// A join transport (cannelloni, MQTT) that cannot be set up: its socket, its peer, its
+    /// broker.
+    #[error("cannot join {url}: {reason}")]
+    Join {
+        url: String,
+        reason: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The controller settings cannot be used on this bus (a timing no command of the
     /// adapter reaches, a combination the chip refuses).
     #[error("{url}: cannot set this client's controller ({settings}): {reason}")]
@@ -142,6 +149,34 @@ pub static BACKENDS: &[Backend] = &[
         description: "an SLCAN (Lawicel) serial adapter: CANable, CANUSB, `buslab slcan serve`",
         parse: url::parse_slcan,
         open: Some(open_slcan),
+    },
+    Backend {
+        scheme: "cannelloni",
+        syntax: "cannelloni://PEER:PORT[?listen=HOST:PORT]",
+        description: "cannelloni over UDP: frames to the peer's port, from this side's listen address (cannelloni, another buslab)",
+        parse: url::parse_cannelloni,
+        open: Some(open_cannelloni),
+    },
+    Backend {
+        scheme: "cannelloni+tcp",
+        syntax: "cannelloni+tcp://HOST:PORT[?role=server]",
+        description: "cannelloni over TCP: connects to HOST:PORT, or listens there for one peer with role=server (python-can's can-cannelloni connects)",
+        parse: url::parse_cannelloni,
+        open: Some(open_cannelloni),
+    },
+    Backend {
+        scheme: "mqtt",
+        syntax: "mqtt://BROKER[:PORT]/TOPIC-PREFIX",
+        description: "buses joined through an MQTT broker (Mosquitto): numbered envelopes on PREFIX/frames, status and counters per member",
+        parse: url::parse_mqtt,
+        open: Some(open_mqtt),
+    },
+    Backend {
+        scheme: "mqtts",
+        syntax: "mqtts://BROKER[:PORT]/TOPIC-PREFIX",
+        description: "the same over TLS (buslab built with the mqtt-tls feature)",
+        parse: url::parse_mqtt,
+        open: Some(open_mqtt),
     },
 ];
 
@@ -376,6 +411,98 @@ fn open_slcan(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> 
         bus: accepting(Box::new(bus), settings.filter),
         controller,
     })
+}
+
+/// The first address `host:port` resolves to.
+fn address(url: &BusUrl, host: &str, port: u16) -> Result<std::net::SocketAddr, OpenError> {
+    use std::net::ToSocketAddrs;
+    (host, port)
+        .to_socket_addrs()
+        .and_then(|mut a| {
+            a.next()
+                .ok_or_else(|| io::Error::other(format!("{host} has no address")))
+        })
+        .map_err(|e| OpenError::Join {
+            url: url.to_string(),
+            reason: e.into(),
+        })
+}
+
+/// A joined bus has no controller of its own: the settings are refused as such.
+fn joined(bus: crate::join::JoinBus, options: &OpenOptions) -> Opened {
+    let settings = options.controller;
+    Opened {
+        bus: accepting(Box::new(bus), settings.filter),
+        controller: without_controller(
+            &settings,
+            "a bus joined over the network has no controller of its own",
+        ),
+    }
+}
+
+/// Opens a join transport as its own type (a gateway sends from one thread and receives on
+/// another: [`crate::join::JoinBus::sender`]).
+pub fn open_join(url: &BusUrl, options: &OpenOptions) -> Result<crate::join::JoinBus, OpenError> {
+    let failed = |reason: Box<dyn std::error::Error + Send + Sync>| OpenError::Join {
+        url: url.to_string(),
+        reason,
+    };
+    match url {
+        BusUrl::Cannelloni {
+            transport,
+            host,
+            port,
+            listen,
+        } => {
+            let peer = address(url, host, *port)?;
+            match transport {
+                url::CannelloniTransport::Udp => {
+                    let listen = match listen {
+                        Some((h, p)) => address(url, h, *p)?,
+                        None if peer.is_ipv6() => (std::net::Ipv6Addr::UNSPECIFIED, *port).into(),
+                        None => (std::net::Ipv4Addr::UNSPECIFIED, *port).into(),
+                    };
+                    crate::cannelloni::open_udp(url.to_string(), peer, listen)
+                }
+                url::CannelloniTransport::TcpClient => crate::cannelloni::open_tcp_client(
+                    url.to_string(),
+                    peer,
+                    options.connect_timeout,
+                    options.reply_timeout,
+                ),
+                url::CannelloniTransport::TcpServer => {
+                    crate::cannelloni::open_tcp_server(url.to_string(), peer)
+                }
+            }
+            .map_err(|e| failed(e.into()))
+        }
+        BusUrl::Mqtt {
+            host,
+            port,
+            prefix,
+            tls,
+        } => crate::mqtt::open(
+            url.to_string(),
+            host,
+            *port,
+            prefix,
+            *tls,
+            options.connect_timeout,
+        )
+        .map_err(|e| failed(e.into())),
+        _ => Err(wrong_kind(
+            url,
+            "cannelloni://PEER:PORT, cannelloni+tcp://HOST:PORT or mqtt://BROKER/PREFIX",
+        )),
+    }
+}
+
+fn open_cannelloni(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> {
+    Ok(joined(open_join(url, options)?, options))
+}
+
+fn open_mqtt(url: &BusUrl, options: &OpenOptions) -> Result<Opened, OpenError> {
+    Ok(joined(open_join(url, options)?, options))
 }
 
 /// Connects, turns buslab's extensions on when the server has them, and programs this

@@ -30,7 +30,43 @@ pub enum BusUrl {
         fd: bool,
         data_bitrate: Option<u32>,
     },
+    /// cannelloni: SocketCAN frames over UDP (point to point: frames go to the peer's
+    /// `host:port`, come in on `listen`) or over TCP (this side connects to `host:port`, or
+    /// with `role=server` listens there for one peer at a time).
+    Cannelloni {
+        transport: CannelloniTransport,
+        host: String,
+        port: u16,
+        /// UDP: where this side listens (`0.0.0.0:PORT`, the peer's port, if not given).
+        listen: Option<(String, u16)>,
+    },
+    /// An MQTT broker: frames in envelopes on `PREFIX/frames`, each member's status on
+    /// `PREFIX/status/ORIGIN` (retained, last will `offline`) and counters on
+    /// `PREFIX/stats/ORIGIN` (retained).
+    Mqtt {
+        host: String,
+        port: u16,
+        prefix: String,
+        /// `mqtts://`: TLS to the broker.
+        tls: bool,
+    },
 }
+
+/// How cannelloni travels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CannelloniTransport {
+    Udp,
+    /// Connects to the peer (what PyPI's can-cannelloni does).
+    TcpClient,
+    /// Listens for one peer at a time (cannelloni's `-C s`).
+    TcpServer,
+}
+
+/// cannelloni's usual port.
+pub const CANNELLONI_PORT: u16 = 20000;
+/// MQTT's port without TLS, and with it.
+pub const MQTT_PORT: u16 = 1883;
+pub const MQTTS_PORT: u16 = 8883;
 
 /// A bus URL that cannot be read, with what is wrong.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -80,6 +116,22 @@ pub enum UrlProblem {
     )]
     DataBitrate(String),
     #[error(
+        "unknown option {0:?}: cannelloni takes ?listen=HOST:PORT (UDP) or ?role=client|server (TCP)"
+    )]
+    CannelloniOption(String),
+    #[error(
+        "a user name or password in the URL is refused (it would show in process lists and shell history): set $BUSLAB_MQTT_USERNAME and $BUSLAB_MQTT_PASSWORD"
+    )]
+    Credentials,
+    #[error(
+        "topic prefix {0:?} must be 1..200 characters of one or more levels, without +, #, spaces, empty levels or a leading /"
+    )]
+    Prefix(String),
+    #[error(
+        "unknown option {0:?}: mqtt takes no options (a user name and password are never part of the URL: they come from $BUSLAB_MQTT_USERNAME and $BUSLAB_MQTT_PASSWORD)"
+    )]
+    MqttOption(String),
+    #[error(
         "bus name {0:?}: expected an interface name (vcan0, can0), a device path or a bus URL ({1})"
     )]
     Name(String, String),
@@ -120,6 +172,21 @@ pub(crate) fn parse_socketcand(url: &str) -> Result<BusUrl, UrlError> {
     {
         return Err(err(UrlProblem::Channel(channel.to_string())));
     }
+    let (host, port) = host_port(url, hostport, SOCKETCAND_PORT)?;
+    Ok(BusUrl::Socketcand {
+        host,
+        port,
+        channel: channel.to_string(),
+    })
+}
+
+/// `HOST[:PORT]` as socketcand URLs write it (IPv6 in brackets, `default` without a port).
+pub(crate) fn host_port(
+    url: &str,
+    hostport: &str,
+    default: u16,
+) -> Result<(String, u16), UrlError> {
+    let err = |p| UrlError::new(url, p);
     let parse_port = |p: &str| {
         p.parse::<u16>()
             .ok()
@@ -132,7 +199,7 @@ pub(crate) fn parse_socketcand(url: &str) -> Result<BusUrl, UrlError> {
             .split_once(']')
             .ok_or_else(|| err(UrlProblem::UnclosedBracket))?;
         let port = match after {
-            "" => SOCKETCAND_PORT,
+            "" => default,
             _ => parse_port(
                 after
                     .strip_prefix(':')
@@ -142,10 +209,10 @@ pub(crate) fn parse_socketcand(url: &str) -> Result<BusUrl, UrlError> {
         (h, port)
     } else {
         match hostport.rsplit_once(':') {
-            None => (hostport, SOCKETCAND_PORT),
+            None => (hostport, default),
             // `fe80::1` without brackets: an IPv6 address on the default port (a port after
             // an IPv6 address needs the brackets).
-            Some((h, _)) if h.contains(':') => (hostport, SOCKETCAND_PORT),
+            Some((h, _)) if h.contains(':') => (hostport, default),
             Some((h, p)) => (h, parse_port(p)?),
         }
     };
@@ -159,10 +226,82 @@ pub(crate) fn parse_socketcand(url: &str) -> Result<BusUrl, UrlError> {
     {
         return Err(err(UrlProblem::Host(host.to_string())));
     }
-    Ok(BusUrl::Socketcand {
-        host: host.to_string(),
+    Ok((host.to_string(), port))
+}
+
+/// `cannelloni://HOST:PORT[?listen=HOST:PORT]` (UDP) and
+/// `cannelloni+tcp://HOST:PORT[?role=client|server]`.
+pub(crate) fn parse_cannelloni(url: &str) -> Result<BusUrl, UrlError> {
+    let err = |p| UrlError::new(url, p);
+    let (transport, rest) = if let Some(rest) = url.strip_prefix("cannelloni://") {
+        (CannelloniTransport::Udp, rest)
+    } else if let Some(rest) = url.strip_prefix("cannelloni+tcp://") {
+        (CannelloniTransport::TcpClient, rest)
+    } else {
+        return Err(err(UrlProblem::Syntax {
+            expected: "cannelloni://HOST:PORT[?listen=HOST:PORT] or cannelloni+tcp://HOST:PORT[?role=server]",
+        }));
+    };
+    let (hostport, query) = rest.split_once('?').unwrap_or((rest, ""));
+    let (host, port) = host_port(url, hostport.trim_end_matches('/'), CANNELLONI_PORT)?;
+    let mut transport = transport;
+    let mut listen = None;
+    for option in query.split('&').filter(|o| !o.is_empty()) {
+        match (transport, option.split_once('=')) {
+            (CannelloniTransport::Udp, Some(("listen", v))) if listen.is_none() => {
+                listen = Some(host_port(url, v, port)?);
+            }
+            (CannelloniTransport::TcpClient, Some(("role", "server"))) => {
+                transport = CannelloniTransport::TcpServer;
+            }
+            (CannelloniTransport::TcpClient, Some(("role", "client"))) => {}
+            _ => return Err(err(UrlProblem::CannelloniOption(option.to_string()))),
+        }
+    }
+    Ok(BusUrl::Cannelloni {
+        transport,
+        host,
         port,
-        channel: channel.to_string(),
+        listen,
+    })
+}
+
+/// `mqtt://BROKER[:PORT]/PREFIX` and `mqtts://…` (TLS).
+pub(crate) fn parse_mqtt(url: &str) -> Result<BusUrl, UrlError> {
+    let err = |p| UrlError::new(url, p);
+    let (tls, rest) = if let Some(rest) = url.strip_prefix("mqtt://") {
+        (false, rest)
+    } else if let Some(rest) = url.strip_prefix("mqtts://") {
+        (true, rest)
+    } else {
+        return Err(err(UrlProblem::Syntax {
+            expected: "mqtt://BROKER[:PORT]/TOPIC-PREFIX",
+        }));
+    };
+    let (rest, query) = rest.split_once('?').unwrap_or((rest, ""));
+    if !query.is_empty() {
+        return Err(err(UrlProblem::MqttOption(query.to_string())));
+    }
+    let (hostport, prefix) = rest.split_once('/').unwrap_or((rest, ""));
+    if hostport.contains('@') {
+        return Err(err(UrlProblem::Credentials));
+    }
+    let (host, port) = host_port(url, hostport, if tls { MQTTS_PORT } else { MQTT_PORT })?;
+    let prefix = prefix.strip_suffix('/').unwrap_or(prefix);
+    if prefix.is_empty()
+        || prefix.len() > 200
+        || prefix.split('/').any(str::is_empty)
+        || !prefix
+            .bytes()
+            .all(|b| b.is_ascii_graphic() && !matches!(b, b'+' | b'#'))
+    {
+        return Err(err(UrlProblem::Prefix(prefix.to_string())));
+    }
+    Ok(BusUrl::Mqtt {
+        host,
+        port,
+        prefix: prefix.to_string(),
+        tls,
     })
 }
 
@@ -261,6 +400,13 @@ impl BusUrl {
             BusUrl::Socketcand { .. } => "socketcand",
             BusUrl::SocketCan { .. } => "socketcan",
             BusUrl::Slcan { .. } => "slcan",
+            BusUrl::Cannelloni {
+                transport: CannelloniTransport::Udp,
+                ..
+            } => "cannelloni",
+            BusUrl::Cannelloni { .. } => "cannelloni+tcp",
+            BusUrl::Mqtt { tls: false, .. } => "mqtt",
+            BusUrl::Mqtt { tls: true, .. } => "mqtts",
         }
     }
 
@@ -270,7 +416,18 @@ impl BusUrl {
             BusUrl::Socketcand { channel, .. } => channel,
             BusUrl::SocketCan { interface } => interface,
             BusUrl::Slcan { device, .. } => device.rsplit('/').next().unwrap_or(device),
+            BusUrl::Cannelloni { .. } => "cannelloni",
+            BusUrl::Mqtt { prefix, .. } => prefix,
         }
+    }
+}
+
+/// `host:port`, an IPv6 host in brackets.
+fn bracketed(host: &str, port: u16) -> String {
+    if host.contains(':') {
+        format!("[{host}]:{port}")
+    } else {
+        format!("{host}:{port}")
     }
 }
 
@@ -318,6 +475,24 @@ impl fmt::Display for BusUrl {
                 }
                 Ok(())
             }
+            BusUrl::Cannelloni {
+                transport,
+                host,
+                port,
+                listen,
+            } => {
+                write!(f, "{}://{}", self.scheme(), bracketed(host, *port))?;
+                match (transport, listen) {
+                    (CannelloniTransport::Udp, Some((h, p))) => {
+                        write!(f, "?listen={}", bracketed(h, *p))
+                    }
+                    (CannelloniTransport::TcpServer, _) => write!(f, "?role=server"),
+                    _ => Ok(()),
+                }
+            }
+            BusUrl::Mqtt {
+                host, port, prefix, ..
+            } => write!(f, "{}://{}/{prefix}", self.scheme(), bracketed(host, *port)),
         }
     }
 }
@@ -514,6 +689,47 @@ mod tests {
     }
 
     #[test]
+    fn join_urls_parse_and_print_back() {
+        for (text, full) in [
+            (
+                "cannelloni://10.0.0.2:20000?listen=0.0.0.0:20001",
+                "cannelloni://10.0.0.2:20000?listen=0.0.0.0:20001",
+            ),
+            ("cannelloni://peer", "cannelloni://peer:20000"),
+            ("cannelloni+tcp://[::1]:7", "cannelloni+tcp://[::1]:7"),
+            (
+                "cannelloni+tcp://0.0.0.0:20000?role=server",
+                "cannelloni+tcp://0.0.0.0:20000?role=server",
+            ),
+            ("cannelloni+tcp://h:1?role=client", "cannelloni+tcp://h:1"),
+            ("mqtt://broker/bench/a", "mqtt://broker:1883/bench/a"),
+            ("mqtts://broker:9/x/", "mqtts://broker:9/x"),
+        ] {
+            let u = url(text);
+            assert_eq!(u.to_string(), full, "{text}");
+            assert_eq!(url(full), u);
+        }
+        assert_eq!(
+            url("cannelloni://h:5?listen=127.0.0.1:6"),
+            BusUrl::Cannelloni {
+                transport: CannelloniTransport::Udp,
+                host: "h".into(),
+                port: 5,
+                listen: Some(("127.0.0.1".into(), 6)),
+            }
+        );
+        assert_eq!(
+            url("mqtt://b:1/p/q"),
+            BusUrl::Mqtt {
+                host: "b".into(),
+                port: 1,
+                prefix: "p/q".into(),
+                tls: false
+            }
+        );
+    }
+
+    #[test]
     fn bad_urls_name_the_url_and_what_is_wrong() {
         for (bad, want) in [
             ("socketcand://[::1/x", "unclosed ["),
@@ -540,9 +756,27 @@ mod tests {
             ("slcan:/dev/x?speed=1", "unknown option \"speed=1\""),
             (
                 "tcp://x",
-                "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE or slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1&fd=1&data_bitrate=N]",
+                "unknown backend \"tcp\": expected socketcand://HOST[:PORT][/CHANNEL], socketcan:IFACE, slcan:DEVICE[@BAUD][?bitrate=N&listen_only=1&fd=1&data_bitrate=N], cannelloni://PEER:PORT[?listen=HOST:PORT], cannelloni+tcp://HOST:PORT[?role=server], mqtt://BROKER[:PORT]/TOPIC-PREFIX or mqtts://BROKER[:PORT]/TOPIC-PREFIX",
             ),
             ("", "unknown backend \"\""),
+            ("cannelloni://h:0", "port \"0\""),
+            ("cannelloni://:20000", "has no host"),
+            ("cannelloni://h:1?listen=x:y", "port \"y\""),
+            (
+                "cannelloni://h:1?role=server",
+                "unknown option \"role=server\"",
+            ),
+            (
+                "cannelloni+tcp://h:1?listen=h:2",
+                "unknown option \"listen=h:2\"",
+            ),
+            ("cannelloni+tcp://h:1?role=boss", "role=client|server"),
+            ("mqtt://broker", "topic prefix \"\""),
+            ("mqtt://broker/a//b", "topic prefix \"a//b\""),
+            ("mqtt://broker/a/#", "without +, #"),
+            ("mqtt://broker/a+b", "without +, #"),
+            ("mqtt://user:secret@broker/a", "$BUSLAB_MQTT_PASSWORD"),
+            ("mqtt://broker/a?password=x", "never"),
             ("vcan0", "unknown backend \"\""),
         ] {
             let err = bad.parse::<BusUrl>().unwrap_err();

@@ -8,7 +8,18 @@ use buslab_backends::{BACKENDS, OpenError, open};
 #[test]
 fn every_scheme_has_one_backend() {
     let schemes: Vec<&str> = BACKENDS.iter().map(|b| b.scheme).collect();
-    assert_eq!(schemes, ["socketcand", "socketcan", "slcan"]);
+    assert_eq!(
+        schemes,
+        [
+            "socketcand",
+            "socketcan",
+            "slcan",
+            "cannelloni",
+            "cannelloni+tcp",
+            "mqtt",
+            "mqtts"
+        ]
+    );
     for b in BACKENDS {
         assert!(b.syntax.starts_with(b.scheme), "{}", b.syntax);
     }

@@ -19,6 +19,8 @@ pub struct App {
     /// The hosts this server answers to.
     pub hosts: Arc<HostGuard>,
     pub timeouts: Timeouts,
+    /// A joined bus's counters.
+    pub join: Option<buslab_backends::JoinSender>,
 }
 
 /// Writes need the server's token in the `X-Buslab-Token` header

@@ -76,6 +76,9 @@ pub struct WebConfig {
     pub timeouts: Timeouts,
     /// A DBC database: the dashboard shows its messages' signals and plots any of them.
     pub dbc: Option<Arc<Database>>,
+    /// The bus is joined to remote buses (cannelloni, MQTT): the overview shows its counters
+    /// per peer (sent, lost, reordered).
+    pub join: Option<buslab_backends::JoinSender>,
 }
 
 impl Default for WebConfig {
@@ -90,6 +93,7 @@ impl Default for WebConfig {
             allowed_hosts: Vec::new(),
             timeouts: Timeouts::default(),
             dbc: None,
+            join: None,
         }
     }
 }

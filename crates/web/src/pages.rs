@@ -72,6 +72,9 @@ pub async fn overview(
     let d = snapshot(&app, &LogFilter::all(), OVERVIEW_FRAMES, window);
     let mut b = String::new();
     bus_summary(&mut b, &app, &d);
+    if let Some(join) = &app.join {
+        join_table(&mut b, &join.report());
+    }
     b.push_str("<h2>Nodes</h2>");
     nodes_table(&mut b, &d.nodes, app.hub.has_admin);
     b.push_str("<h2>Bus load</h2>");
@@ -369,6 +372,35 @@ fn layout(title: &str, refresh: u32, body: &str) -> Html<String> {
          <main>{body}</main></body></html>",
         esc(title)
     ))
+}
+
+/// A joined bus's counters: what it sent, and per peer what came, was lost or came late.
+fn join_table(b: &mut String, r: &buslab_join::JoinReport) {
+    let _ = write!(
+        b,
+        "<h2>Joined buses</h2><p>this member {}: sent {}, unsent {}, echoes dropped {}, \
+         garbage {}</p><table><tr><th>from</th><th>received</th><th>lost</th><th>reordered</th>\
+         <th>duplicates</th><th>late</th></tr>",
+        esc(&r.origin),
+        r.sent,
+        r.unsent,
+        r.echoes,
+        r.garbage
+    );
+    for p in &r.peers {
+        let _ = write!(
+            b,
+            "<tr><td>{}</td><td>{}</td><td class={}>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            esc(&p.origin),
+            p.received,
+            if p.lost > 0 { "warn" } else { "ok" },
+            p.lost,
+            p.reordered,
+            p.duplicates,
+            p.late
+        );
+    }
+    b.push_str("</table>");
 }
 
 fn bus_summary(b: &mut String, app: &App, d: &Delta) {

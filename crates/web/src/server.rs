@@ -86,6 +86,7 @@ impl WebServer {
             token: config.token.clone().map(Arc::from),
             hosts,
             timeouts: config.timeouts,
+            join: config.join.clone(),
         };
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)

@@ -593,3 +593,51 @@ fn a_slio_led_set_over_the_api_shows_only_once_the_slio_answers() {
     let page = until(addr, "/devices", |t| t.contains("SLIO boards"));
     assert!(page.contains("class=\"led on\""), "{page}");
 }
+
+#[test]
+fn a_joined_bus_shows_its_counters_per_peer_on_the_overview() {
+    use buslab_backends::{OpenOptions, open_join};
+    let port = |_| {
+        std::net::UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+    };
+    let (a, b) = (port(0), port(1));
+    let mut peer = open_join(
+        &format!("cannelloni://{b}?listen={a}").parse().unwrap(),
+        &OpenOptions::default(),
+    )
+    .unwrap();
+    let joined = open_join(
+        &format!("cannelloni://{a}?listen={b}").parse().unwrap(),
+        &OpenOptions::default(),
+    )
+    .unwrap();
+    let join = joined.sender();
+    let server = WebServer::start(
+        Box::new(joined),
+        WebConfig {
+            listen: "127.0.0.1:0".parse().unwrap(),
+            join: Some(join),
+            ..WebConfig::default()
+        },
+    )
+    .unwrap();
+    for k in 0..3u8 {
+        buslab_bus::CanBus::send(
+            &mut peer,
+            &Frame::data(buslab_can::Id::standard(0x100).unwrap(), &[k]).unwrap(),
+        )
+        .unwrap();
+    }
+    let page = until(server.addr(), "/", |t| {
+        t.contains("<h2>Joined buses</h2>") && t.contains("<td id=frames>3</td>")
+    });
+    // cannelloni counts packets: the 3 frames came in 1 to 3 of them, none lost.
+    assert!(
+        page.contains(&format!("<td>cannelloni {a} (packets)</td>")),
+        "{page}"
+    );
+    assert!(page.contains("<td class=ok>0</td>"), "{page}");
+}

@@ -84,6 +84,26 @@ pub struct ServeArgs {
     /// instead of the seed's recovery (the chip counts 128 × 11 recessive bits, TXERR falling).
     #[arg(long)]
     pub fast_restart: bool,
+    /// Join this bus to remote buses (repeatable): cannelloni://PEER:PORT?listen=HOST:PORT,
+    /// cannelloni+tcp://HOST:PORT[?role=server] or mqtt://BROKER[:PORT]/PREFIX. A gateway node
+    /// on this bus sends the remote frames here, where they arbitrate with the local ones, and
+    /// the local frames there; its counters (sent, lost, reordered per peer) are printed when
+    /// the server stops (docs/transports.md).
+    #[arg(long, value_name = "URL", value_parser = parse_join_url)]
+    pub join: Vec<buslab_backends::BusUrl>,
+}
+
+/// A join transport's URL (`--join`).
+fn parse_join_url(text: &str) -> Result<buslab_backends::BusUrl, String> {
+    let url: buslab_backends::BusUrl = text.parse().map_err(|e| format!("{e}"))?;
+    match url {
+        buslab_backends::BusUrl::Cannelloni { .. } | buslab_backends::BusUrl::Mqtt { .. } => {
+            Ok(url)
+        }
+        _ => Err(format!(
+            "{url} is not a join transport: expected cannelloni://PEER:PORT?listen=HOST:PORT, cannelloni+tcp://HOST:PORT[?role=server] or mqtt://BROKER[:PORT]/PREFIX (to copy frames to another kind of bus, use `buslab bridge`)"
+        )),
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -154,6 +174,25 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         ),
         None => None,
     };
+    // Each gateway is a client node of this bus, on its loopback side.
+    let mut local = server.local_addr();
+    if local.ip().is_unspecified() {
+        local.set_ip(std::net::Ipv4Addr::LOCALHOST.into());
+    }
+    let mut gateways = Vec::new();
+    for url in &args.join {
+        let remote = buslab_backends::open_join(url, &buslab_backends::OpenOptions::default())
+            .with_context(|| format!("--join {url}"))?;
+        let mut node = buslab_backends::open(&format!("socketcand://{local}/{}", args.name))
+            .context("the gateway cannot join this bus")?;
+        if let Some(admin) = node.admin() {
+            admin.set_name(&format!("join-{}", url.scheme().replace('+', "-")))?;
+        }
+        gateways.push((
+            url.clone(),
+            buslab_backends::Gateway::spawn(url.scheme(), node, remote)?,
+        ));
+    }
     // The URL on stdout (tests and scripts read it when the port was 0).
     println!("socketcand://{}/{}", server.local_addr(), args.name);
     if let (Some(path), Some(t)) = (&args.ppc, &terminal) {
@@ -170,6 +209,10 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     tracing::info!("Ctrl-C to stop");
     while !stop.load(Ordering::SeqCst) {
         std::thread::sleep(Duration::from_millis(50));
+    }
+    // Each join's counters on stdout (what a script checks after stopping the server).
+    for (url, gateway) in gateways {
+        println!("joined {url}: {}", gateway.stop());
     }
     server.shutdown();
     Ok(())

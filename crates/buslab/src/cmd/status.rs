@@ -1,4 +1,6 @@
-//! `buslab status [--node N]`: error state, STATUS bits, error counters, ALC and ECC in words.
+//! `buslab status [--node N]`: error state, STATUS bits, error counters, ALC and ECC in words;
+//! for a bus joined through MQTT (`--bus mqtt://BROKER/PREFIX`), every member's status and
+//! counters (sent, lost, reordered per peer) as the broker keeps them.
 
 use buslab_canbus::{NodeRef, NodeStatus};
 use buslab_device::printable;
@@ -17,6 +19,18 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let url = &args.bus.bus;
+    match url {
+        buslab_backends::BusUrl::Mqtt {
+            host,
+            port,
+            prefix,
+            tls,
+        } => return join_members(url, host, *port, prefix, *tls),
+        buslab_backends::BusUrl::Cannelloni { .. } => anyhow::bail!(
+            "{url}: cannelloni has no channel for counters: the process that joined prints them (`bus serve --join` when it stops, `bridge` in its log)"
+        ),
+        _ => {}
+    }
     let mut bus = open(url)?;
     let admin = admin(&mut bus, url, "node status")?;
     let nodes = match &args.node {
@@ -46,4 +60,47 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 pub fn shown(mut status: NodeStatus) -> NodeStatus {
     status.name = printable(status.name.as_bytes());
     status
+}
+
+/// Every member of an MQTT join: online or not, what it sent and what it lost from whom.
+fn join_members(
+    url: &buslab_backends::BusUrl,
+    host: &str,
+    port: u16,
+    prefix: &str,
+    tls: bool,
+) -> anyhow::Result<()> {
+    let timeout = buslab_backends::OpenOptions::default().connect_timeout;
+    let members = buslab_backends::mqtt::members(host, port, prefix, tls, timeout)
+        .map_err(|e| anyhow::anyhow!("{url}: {e}"))?;
+    if members.is_empty() {
+        println!("{url}: no member has joined");
+    }
+    for m in members {
+        let state = match m.online {
+            Some(true) => "online",
+            Some(false) => "offline",
+            None => "status unknown",
+        };
+        println!("member {}: {state}", printable(m.origin.as_bytes()));
+        if let Some(r) = m.report {
+            println!(
+                "  sent {}, unsent {}, echoes dropped {}, garbage {}",
+                r.sent, r.unsent, r.echoes, r.garbage
+            );
+            for p in r.peers {
+                println!(
+                    "  from {}: received {}, lost {}, reordered {}, duplicates {}, late {}, too many hops {}",
+                    printable(p.origin.as_bytes()),
+                    p.received,
+                    p.lost,
+                    p.reordered,
+                    p.duplicates,
+                    p.late,
+                    p.too_many_hops
+                );
+            }
+        }
+    }
+    Ok(())
 }

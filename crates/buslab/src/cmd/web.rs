@@ -55,7 +55,15 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     };
     let url = &args.bus.bus;
     let dbc = args.dbc.load()?;
-    let bus = open(url)?;
+    // A joined bus keeps its counters for the overview page.
+    let (bus, join): (buslab_backends::DynBus, _) = match url {
+        buslab_backends::BusUrl::Cannelloni { .. } | buslab_backends::BusUrl::Mqtt { .. } => {
+            let bus = buslab_backends::open_join(url, &buslab_backends::OpenOptions::default())?;
+            let join = bus.sender();
+            (Box::new(bus), Some(join))
+        }
+        _ => (open(url)?, None),
+    };
     let server = WebServer::start(
         bus,
         WebConfig {
@@ -69,6 +77,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
                 ..Timeouts::default()
             },
             dbc,
+            join,
             ..WebConfig::default()
         },
     )
