@@ -7,14 +7,14 @@ use buslab_cannelloni::{MAX_DATAGRAM, OpCode, decode_packet, encode_packets};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(packet) = decode_packet(data) {
-        if packet.op == OpCode::Data {
-            let again = encode_packets(packet.seq, &packet.frames, MAX_DATAGRAM).unwrap();
-            let frames: Vec<_> = again
-                .iter()
-                .flat_map(|d| decode_packet(d).unwrap().frames)
-                .collect();
-            assert_eq!(frames, packet.frames);
-        }
+    if let Ok(packet) = decode_packet(data)
+        && packet.op == OpCode::Data
+    {
+        let again = encode_packets(packet.seq, &packet.frames, MAX_DATAGRAM).unwrap();
+        let frames: Vec<_> = again
+            .iter()
+            .flat_map(|d| decode_packet(d).unwrap().frames)
+            .collect();
+        assert_eq!(frames, packet.frames);
     }
 });
