@@ -69,12 +69,24 @@ struct Mosquitto {
 
 impl Mosquitto {
     fn start() -> Self {
+        Self::start_with(|_| "allow_anonymous true\n".into())
+    }
+
+    /// With `extra(dir)` in its configuration (`dir`: the broker's throwaway folder, for
+    /// files the lines name); it runs as the user running the tests.
+    fn start_with(extra: impl FnOnce(&Path) -> String) -> Self {
         let dir = tempfile::tempdir().unwrap();
         let port = free_tcp_port();
         let config = dir.path().join("mosquitto.conf");
+        let user =
+            String::from_utf8(Command::new("id").arg("-un").output().unwrap().stdout).unwrap();
         std::fs::write(
             &config,
-            format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
+            format!(
+                "listener {port} 127.0.0.1\npersistence false\nuser {}\n{}",
+                user.trim(),
+                extra(dir.path())
+            ),
         )
         .unwrap();
         let mut broker = Self {
@@ -134,15 +146,31 @@ struct Joined {
     stdout: Lines<BufReader<ChildStdout>>,
 }
 
+/// `buslab [CONFIG…] bus serve --join URL` (`config`: `--no-config` or `--config FILE`), with
+/// no credentials from this environment.
+fn serve_command(config: &[&std::ffi::OsStr], join: &str) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_buslab"));
+    command
+        .args(config)
+        .args(["bus", "serve", "--listen", "127.0.0.1:0", "--bitrate"])
+        .arg(BITRATE.to_string())
+        .args(["--join", join])
+        .env_remove("BUSLAB_BUS")
+        .env_remove("BUSLAB_MQTT_USERNAME")
+        .env_remove("BUSLAB_MQTT_PASSWORD");
+    command
+}
+
 impl Joined {
     fn start(join: &str) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_buslab"))
-            .args(["bus", "serve", "--listen", "127.0.0.1:0", "--bitrate"])
-            .arg(BITRATE.to_string())
+        Self::start_with(&["--no-config".as_ref()], join)
+    }
+
+    fn start_with(config: &[&std::ffi::OsStr], join: &str) -> Self {
+        let mut child = serve_command(config, join)
             // Every frame kept for slow readers: a frame dropped by the server would be lost
             // where no sequence number sees it.
-            .args(["--client-queue", "1048576", "--join", join])
-            .env_remove("BUSLAB_BUS")
+            .args(["--client-queue", "1048576"])
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -508,4 +536,90 @@ fn buslab_send_to_mqtt_gets_its_frame_out_before_it_exits() {
             .expect("the frame sent");
         assert_eq!(got.record.to_string(), text);
     }
+}
+
+/// A broker that wants a password (mosquitto_passwd's file): buslab logs in with the
+/// credentials of its configuration file; without them, or with a wrong password, it is
+/// refused with a message saying where credentials come from, never repeating the password.
+#[test]
+fn a_broker_that_wants_a_password_accepts_the_credentials_of_the_configuration_file() {
+    let Some(python) = tools(true) else {
+        return;
+    };
+    if !present(
+        Path::new("/usr/bin/mosquitto_passwd").exists(),
+        "mosquitto_passwd",
+    ) {
+        return;
+    }
+    let broker = Mosquitto::start_with(|dir| {
+        let passwords = dir.join("passwords");
+        let made = Command::new("mosquitto_passwd")
+            .args(["-c", "-b"])
+            .arg(&passwords)
+            .args(["bench", "s3cret-pw"])
+            .status()
+            .unwrap();
+        assert!(made.success());
+        format!(
+            "allow_anonymous false\npassword_file {}\n",
+            passwords.display()
+        )
+    });
+    let url = broker.url("bench/login");
+    let dir = tempfile::tempdir().unwrap();
+    let config = |name: &str, password: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(
+            &path,
+            format!("[mqtt]\nusername = \"bench\"\npassword = \"{password}\"\n"),
+        )
+        .unwrap();
+        path
+    };
+    let good = config("good.toml", "s3cret-pw");
+    let wrong = config("wrong.toml", "not-the-pw");
+
+    // Refused: no credentials, then the wrong password.
+    let refused = |config: &[&std::ffi::OsStr]| {
+        let out = serve_command(config, &url)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "joined without the right password");
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let err = refused(&["--no-config".as_ref()]);
+    eprintln!("without credentials: {err}");
+    assert!(
+        err.contains("the broker refused a connection without user name and password")
+            && err.contains("[mqtt]")
+            && err.contains("$BUSLAB_MQTT_PASSWORD"),
+        "{err}"
+    );
+    let err = refused(&["--config".as_ref(), wrong.as_os_str()]);
+    eprintln!("wrong password: {err}");
+    assert!(
+        err.contains(&format!(
+            "the broker refused user \"bench\" (from {}:2 and {}:3)",
+            wrong.display(),
+            wrong.display()
+        )) && !err.contains("not-the-pw"),
+        "{err}"
+    );
+
+    // Accepted: frames cross from one bus to the other.
+    let login = ["--config".as_ref(), good.as_os_str()];
+    let a = Joined::start_with(&login, &url);
+    let b = Joined::start_with(&login, &url);
+    let mut rx = receiver(&python, b.port);
+    let mut tx = sender(&python, a.port, 1000, "");
+    assert_eq!(tx.line(), "sent 1000");
+    tx.finish();
+    assert_eq!(received(&mut rx, 1000), 1000);
+    rx.finish();
+    let (a, b) = (a.stop(), b.stop());
+    eprintln!("{a}\n{b}");
+    assert!(b.contains("received 1000, lost 0"), "{b}");
 }
