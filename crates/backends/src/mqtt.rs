@@ -98,6 +98,8 @@ pub enum MqttError {
     Timeout(Duration),
     #[error("mqtts:// needs buslab built with the `mqtt-tls` feature")]
     NoTls,
+    #[error("TLS: {0}")]
+    Tls(String),
     #[error("the MQTT client stopped")]
     Stopped,
 }
@@ -147,11 +149,36 @@ fn options(client_id: String, broker: &Broker<'_>) -> Result<MqttOptions, MqttEr
     }
     if tls {
         #[cfg(feature = "mqtt-tls")]
-        o.set_transport(rumqttc::Transport::tls_with_default_config());
+        o.set_transport(rumqttc::Transport::tls_with_config(tls_config()?));
         #[cfg(not(feature = "mqtt-tls"))]
         return Err(MqttError::NoTls);
     }
     Ok(o)
+}
+
+/// rustls with ring and the platform's certificates (or `$SSL_CERT_FILE`'s, as
+/// rustls-native-certs reads it).
+#[cfg(feature = "mqtt-tls")]
+fn tls_config() -> Result<rumqttc::TlsConfiguration, MqttError> {
+    let found = rustls_native_certs::load_native_certs();
+    let mut roots = rustls::RootCertStore::empty();
+    let (added, _) = roots.add_parsable_certificates(found.certs);
+    if added == 0 {
+        let why = found
+            .errors
+            .first()
+            .map_or_else(|| "none found".to_string(), ToString::to_string);
+        return Err(MqttError::Tls(format!(
+            "no CA certificate to check the broker with ({why}); set $SSL_CERT_FILE to a PEM file"
+        )));
+    }
+    let provider = std::sync::Arc::new(rustls::crypto::ring::default_provider());
+    let config = rustls::ClientConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .map_err(|e| MqttError::Tls(e.to_string()))?
+        .with_root_certificates(roots)
+        .with_no_client_auth();
+    Ok(config.into())
 }
 
 /// Stops the member when the bus is dropped: publishes what is queued, says `offline`,

@@ -9,6 +9,9 @@
 //! frame takes on a 1 Mbit/s bus × a generous factor). The broker is stopped for 2 s because
 //! that is the scenario (an outage), not a margin.
 
+#[cfg(feature = "mqtt-tls")]
+#[path = "mail_support/mod.rs"]
+mod mail_support;
 #[path = "support/outside_tools.rs"]
 mod outside_tools;
 
@@ -167,7 +170,11 @@ impl Joined {
     }
 
     fn start_with(config: &[&std::ffi::OsStr], join: &str) -> Self {
-        let mut child = serve_command(config, join)
+        Self::spawn(serve_command(config, join))
+    }
+
+    fn spawn(mut command: Command) -> Self {
+        let mut child = command
             // Every frame kept for slow readers: a frame dropped by the server would be lost
             // where no sequence number sees it.
             .args(["--client-queue", "1048576"])
@@ -699,4 +706,58 @@ fn the_gap_counter_equals_the_frames_the_broker_discards_for_a_stalled_member() 
     let b = b.stop();
     assert!(b.contains(&format!("received {got}, lost {lost}")), "{b}");
     drop(a);
+}
+
+/// `mqtts://` to a Mosquitto TLS listener whose certificate a throwaway CA signed: with the CA
+/// given as `$SSL_CERT_FILE` frames cross; without it (the system's roots) the broker's
+/// certificate is refused.
+#[cfg(feature = "mqtt-tls")]
+#[test]
+fn buses_joined_through_mqtts_check_the_broker_s_certificate() {
+    let Some(python) = tools(true) else {
+        return;
+    };
+    if !mail_support::have_openssl() {
+        return;
+    }
+    let certs_dir = tempfile::tempdir().unwrap();
+    let certs = mail_support::Certs::generate(certs_dir.path());
+    let broker = Mosquitto::start_with(|_| {
+        format!(
+            "allow_anonymous true\ncafile {}\ncertfile {}\nkeyfile {}\n",
+            certs.ca.display(),
+            certs.cert.display(),
+            certs.key.display()
+        )
+    });
+    let url = format!("mqtts://127.0.0.1:{}/bench/tls", broker.port);
+    let no_config: &[&std::ffi::OsStr] = &["--no-config".as_ref()];
+
+    let out = serve_command(no_config, &url)
+        .env_remove("SSL_CERT_FILE")
+        .env_remove("SSL_CERT_DIR")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    let err = String::from_utf8(out.stderr).unwrap();
+    eprintln!("without the CA: {err}");
+    assert!(!out.status.success(), "joined a broker it cannot check");
+    assert!(err.to_lowercase().contains("certificate"), "{err}");
+
+    let joined = || {
+        let mut command = serve_command(no_config, &url);
+        command.env("SSL_CERT_FILE", &certs.ca);
+        Joined::spawn(command)
+    };
+    let (a, b) = (joined(), joined());
+    let mut rx = receiver(&python, b.port);
+    let mut tx = sender(&python, a.port, 1000, "");
+    assert_eq!(tx.line(), "sent 1000");
+    tx.finish();
+    assert_eq!(received(&mut rx, 1000), 1000);
+    rx.finish();
+    let (a, b) = (a.stop(), b.stop());
+    eprintln!("{a}\n{b}");
+    assert!(b.contains("received 1000, lost 0"), "{b}");
 }
