@@ -9,8 +9,8 @@
 //! Frames are batched for up to [`buslab_join::BATCH_INTERVAL_US`]; a batch that cannot be
 //! published now (no connection, the client's queue full) is dropped and counted as unsent:
 //! its sequence numbers are spent, so every receiver counts the frames as lost. The user name
-//! and password come from `$BUSLAB_MQTT_USERNAME` and `$BUSLAB_MQTT_PASSWORD`, never from the
-//! URL or the command line.
+//! and password are [`Credentials`] in [`crate::OpenOptions`] (the `buslab` binary takes them
+//! from its configuration: `[mqtt]` in `buslab.toml` or the environment), never the URL.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
@@ -23,9 +23,43 @@ use rumqttc::{Client, ConnectionError, Event, LastWill, MqttOptions, Packet, QoS
 
 use crate::join::{Accounting, Inbound, JoinBus, Shared, new_origin, wall_us};
 
-/// The environment variables with the broker's credentials.
-pub const ENV_USERNAME: &str = "BUSLAB_MQTT_USERNAME";
-pub const ENV_PASSWORD: &str = "BUSLAB_MQTT_PASSWORD";
+/// A user name and password for the broker, and where they came from (the broker's refusal
+/// names it). `Debug` does not show the password.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Credentials {
+    pub username: String,
+    password: String,
+    /// Where they were read, as the user can find it (`buslab.toml:4`, an environment
+    /// variable).
+    pub from: String,
+}
+
+impl Credentials {
+    pub fn new(
+        username: impl Into<String>,
+        password: impl Into<String>,
+        from: impl Into<String>,
+    ) -> Self {
+        Self {
+            username: username.into(),
+            password: password.into(),
+            from: from.into(),
+        }
+    }
+}
+
+impl std::fmt::Debug for Credentials {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Credentials")
+            .field("username", &self.username)
+            .field("password", &"********")
+            .field("from", &self.from)
+            .finish()
+    }
+}
+
+/// Where credentials come from, for the message when none were given.
+const CREDENTIALS_HELP: &str = "set username and password under [mqtt] in buslab.toml, or $BUSLAB_MQTT_USERNAME and $BUSLAB_MQTT_PASSWORD (docs/config.md)";
 
 /// How often the statistics are republished when they changed.
 const STATS_INTERVAL: Duration = Duration::from_millis(500);
@@ -57,29 +91,94 @@ impl Topics {
 pub enum MqttError {
     #[error("{0}")]
     Connection(Box<ConnectionError>),
+    /// The broker refused the user name and password, or their absence.
+    #[error("the broker refused {who}: {why}")]
+    Refused { who: String, why: String },
     #[error("no answer from the broker within {0:?}")]
     Timeout(Duration),
     #[error("mqtts:// needs buslab built with the `mqtt-tls` feature")]
     NoTls,
+    #[error("TLS: {0}")]
+    Tls(String),
     #[error("the MQTT client stopped")]
     Stopped,
 }
 
-fn options(client_id: String, host: &str, port: u16, tls: bool) -> Result<MqttOptions, MqttError> {
+/// Where the broker is and how to log in.
+#[derive(Clone, Copy, Debug)]
+pub struct Broker<'a> {
+    pub host: &'a str,
+    pub port: u16,
+    pub tls: bool,
+    pub credentials: Option<&'a Credentials>,
+}
+
+/// The connection error, told with the credentials' origin when the broker refused them.
+fn connection_error(e: ConnectionError, credentials: Option<&Credentials>) -> MqttError {
+    use rumqttc::ConnectReturnCode as Code;
+    let ConnectionError::ConnectionRefused(
+        code @ (Code::BadUserNamePassword | Code::NotAuthorized),
+    ) = e
+    else {
+        return e.into();
+    };
+    let what = match code {
+        Code::BadUserNamePassword => "bad user name or password",
+        _ => "not authorized",
+    };
+    match credentials {
+        Some(c) => MqttError::Refused {
+            who: format!("user {:?} (from {})", c.username, c.from),
+            why: what.to_string(),
+        },
+        None => MqttError::Refused {
+            who: "a connection without user name and password".into(),
+            why: format!("{what}; {CREDENTIALS_HELP}"),
+        },
+    }
+}
+
+fn options(client_id: String, broker: &Broker<'_>) -> Result<MqttOptions, MqttError> {
+    let (host, port, tls) = (broker.host, broker.port, broker.tls);
     let mut o = MqttOptions::new(client_id, host, port);
     o.set_keep_alive(Duration::from_secs(5))
         .set_clean_session(true)
         .set_max_packet_size(MAX_ENVELOPE + 1024, MAX_ENVELOPE + 1024);
-    if let (Ok(user), Ok(password)) = (std::env::var(ENV_USERNAME), std::env::var(ENV_PASSWORD)) {
-        o.set_credentials(user, password);
+    if let Some(c) = broker.credentials {
+        o.set_credentials(c.username.clone(), c.password.clone());
     }
     if tls {
         #[cfg(feature = "mqtt-tls")]
-        o.set_transport(rumqttc::Transport::tls_with_default_config());
+        o.set_transport(rumqttc::Transport::tls_with_config(tls_config()?));
         #[cfg(not(feature = "mqtt-tls"))]
         return Err(MqttError::NoTls);
     }
     Ok(o)
+}
+
+/// rustls with ring and the platform's certificates (or `$SSL_CERT_FILE`'s, as
+/// rustls-native-certs reads it).
+#[cfg(feature = "mqtt-tls")]
+fn tls_config() -> Result<rumqttc::TlsConfiguration, MqttError> {
+    let found = rustls_native_certs::load_native_certs();
+    let mut roots = rustls::RootCertStore::empty();
+    let (added, _) = roots.add_parsable_certificates(found.certs);
+    if added == 0 {
+        let why = found
+            .errors
+            .first()
+            .map_or_else(|| "none found".to_string(), ToString::to_string);
+        return Err(MqttError::Tls(format!(
+            "no CA certificate to check the broker with ({why}); set $SSL_CERT_FILE to a PEM file"
+        )));
+    }
+    let provider = std::sync::Arc::new(rustls::crypto::ring::default_provider());
+    let config = rustls::ClientConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .map_err(|e| MqttError::Tls(e.to_string()))?
+        .with_root_certificates(roots)
+        .with_no_client_auth();
+    Ok(config.into())
 }
 
 /// Stops the member when the bus is dropped: publishes what is queued, says `offline`,
@@ -114,15 +213,13 @@ impl Drop for Leave {
 /// missed.
 pub fn open(
     url: String,
-    host: &str,
-    port: u16,
+    broker: Broker<'_>,
     prefix: &str,
-    tls: bool,
     connect_timeout: Duration,
 ) -> Result<JoinBus, MqttError> {
     let origin = new_origin();
     let topics = Topics::new(prefix, origin);
-    let mut o = options(format!("buslab-{origin:016x}"), host, port, tls)?;
+    let mut o = options(format!("buslab-{origin:016x}"), &broker)?;
     o.set_last_will(LastWill::new(
         &topics.status,
         "offline",
@@ -143,6 +240,7 @@ pub fn open(
     let ev_shared = shared.clone();
     let ev_url = url.clone();
     let ev_closing = closing.clone();
+    let ev_credentials = broker.credentials.cloned();
     let events = std::thread::Builder::new()
         .name("mqtt-events".into())
         .spawn(move || {
@@ -197,9 +295,10 @@ pub fn open(
                     }
                     Ok(_) => {}
                     Err(e) => {
+                        let e = connection_error(e, ev_credentials.as_ref());
                         ev_connected.store(false, Ordering::SeqCst);
                         if let Some(tx) = ready_tx.take() {
-                            let _ = tx.send(Err(e.into()));
+                            let _ = tx.send(Err(e));
                             return;
                         }
                         if ev_closing.load(Ordering::SeqCst) {
@@ -340,18 +439,14 @@ pub struct Member {
 /// Every member's retained status and statistics under `prefix`: subscribes, then waits for
 /// its own probe to come back (the broker sends retained messages before it).
 pub fn members(
-    host: &str,
-    port: u16,
+    broker: Broker<'_>,
     prefix: &str,
-    tls: bool,
     timeout: Duration,
 ) -> Result<Vec<Member>, MqttError> {
     let me = new_origin();
     let probe = format!("{prefix}/probe/{me:016x}");
-    let (client, mut connection) = Client::new(
-        options(format!("buslab-status-{me:016x}"), host, port, tls)?,
-        64,
-    );
+    let (client, mut connection) =
+        Client::new(options(format!("buslab-status-{me:016x}"), &broker)?, 64);
     let deadline = Instant::now() + timeout;
     let mut members: std::collections::BTreeMap<String, Member> = Default::default();
     let status = format!("{prefix}/status/");
@@ -361,7 +456,7 @@ pub fn members(
         let left = deadline.saturating_duration_since(Instant::now());
         let event = match connection.recv_timeout(left) {
             Ok(Ok(e)) => e,
-            Ok(Err(e)) => return Err(e.into()),
+            Ok(Err(e)) => return Err(connection_error(e, broker.credentials)),
             Err(_) => return Err(MqttError::Timeout(timeout)),
         };
         match event {

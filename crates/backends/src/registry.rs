@@ -12,8 +12,9 @@ use crate::controller::{Accepting, ControllerReport, Outcome};
 use crate::url::{self, BusUrl, DEFAULT_NAME, UrlError, UrlProblem, parse_slcan, parse_socketcan};
 use std::str::FromStr;
 
-/// Deadlines for opening a bus, and what to ask of this client's controller.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Deadlines for opening a bus, what to ask of this client's controller, and how to log in to
+/// an MQTT broker.
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct OpenOptions {
     /// How long to wait for a connection.
     pub connect_timeout: Duration,
@@ -22,6 +23,8 @@ pub struct OpenOptions {
     /// The controller configuration to apply where the bus has the setting (see
     /// [`crate::controller`]); empty by default: the bus or adapter as it is.
     pub controller: ControllerSettings,
+    /// The user name and password `mqtt://` logs in with; none by default.
+    pub mqtt_credentials: Option<crate::mqtt::Credentials>,
 }
 
 impl Default for OpenOptions {
@@ -31,6 +34,7 @@ impl Default for OpenOptions {
             connect_timeout: c.connect_timeout,
             reply_timeout: c.reply_timeout,
             controller: ControllerSettings::default(),
+            mqtt_credentials: None,
         }
     }
 }
@@ -483,10 +487,13 @@ pub fn open_join(url: &BusUrl, options: &OpenOptions) -> Result<crate::join::Joi
             tls,
         } => crate::mqtt::open(
             url.to_string(),
-            host,
-            *port,
+            crate::mqtt::Broker {
+                host,
+                port: *port,
+                tls: *tls,
+                credentials: options.mqtt_credentials.as_ref(),
+            },
             prefix,
-            *tls,
             options.connect_timeout,
         )
         .map_err(|e| failed(e.into())),

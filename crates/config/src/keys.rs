@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use buslab_backends::mqtt::Credentials;
 use buslab_backends::resolve;
 use buslab_canbus::{
     AcceptanceFilter, CanMode, ClockOut, ConfigError as ChipError, ControllerMode,
@@ -10,7 +11,7 @@ use buslab_canbus::{
 };
 
 use super::value::{self, Raw, quoted};
-use super::{Config, ConfigError, MailSettings, Source, expand_home};
+use super::{Config, ConfigError, MailSettings, Password, Source, expand_home};
 
 /// The acceptance filter's kind (`controller.filter`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -56,6 +57,8 @@ pub struct Settings {
     pub mail_port: u16,
     pub mail_user: Option<String>,
     pub mail_interval: Duration,
+    pub mqtt_username: Option<String>,
+    pub mqtt_password: Option<Password>,
     pub poll_interval: Duration,
     pub mode: ControllerMode,
     pub crystal_hz: u32,
@@ -89,6 +92,8 @@ impl Default for Settings {
             mail_port: 143,
             mail_user: None,
             mail_interval: Duration::from_secs(60),
+            mqtt_username: None,
+            mqtt_password: None,
             poll_interval: ManagerConfig::default().poll_interval,
             mode: ControllerMode::PeliCan,
             crystal_hz: chip.crystal_hz,
@@ -290,6 +295,30 @@ pub static KEYS: &[Key] = &[
         show: |s| duration_text(s.mail_interval),
     },
     Key {
+        name: "mqtt.username",
+        allowed: "must be a user name, 1..=256 characters without control characters",
+        help: "the user name mqtt:// buses log in to the broker with (never on the command line)",
+        jerrycan: None,
+        used_by: "every command given an mqtt:// or mqtts:// bus, bus serve --join, status --bus",
+        apply: |s, raw, allowed| {
+            s.mqtt_username = Some(plain(raw, 256, allowed)?);
+            Ok(())
+        },
+        show: |s| s.mqtt_username.as_deref().map(quoted),
+    },
+    Key {
+        name: "mqtt.password",
+        allowed: "must be a password, 1..=1024 characters without control characters",
+        help: "the password with mqtt.username (never on the command line; keep the file readable by you only)",
+        jerrycan: None,
+        used_by: "every command given an mqtt:// or mqtts:// bus, bus serve --join, status --bus",
+        apply: |s, raw, allowed| {
+            s.mqtt_password = Some(Password::new(plain(raw, 1024, allowed)?));
+            Ok(())
+        },
+        show: |s| s.mqtt_password.as_ref().map(|p| quoted(p.expose())),
+    },
+    Key {
         name: "manager.poll_interval",
         allowed: "must be a duration with its unit from 0s (poll without pause) to 10s, e.g. \"1ms\"",
         help: "the host library's manager: the pause between polls of the chip when no request arrives",
@@ -483,7 +512,16 @@ pub fn controller_part(name: &str) -> Option<buslab_canbus::ControllerPart> {
 }
 
 /// The sections (tables) of the file.
-pub const SECTIONS: [&str; 3] = ["mail", "manager", "controller"];
+pub const SECTIONS: [&str; 4] = ["mail", "mqtt", "manager", "controller"];
+
+/// The keys `--set` refuses (`ps` shows a command line to every user) and `config show` and
+/// error messages do not print.
+pub const SECRET_KEYS: [&str; 2] = ["mqtt.username", "mqtt.password"];
+
+/// Keys whose value is never printed.
+pub fn hidden(name: &str) -> bool {
+    name == "mqtt.password"
+}
 
 /// A key's index in [`KEYS`].
 pub fn index(name: &str) -> Option<usize> {
@@ -609,6 +647,8 @@ impl Settings {
             "log_file" => self.log_file = None,
             "mail.host" => self.mail_host = None,
             "mail.user" => self.mail_user = None,
+            "mqtt.username" => self.mqtt_username = None,
+            "mqtt.password" => self.mqtt_password = None,
             "controller.sample_point" => self.sample_point = None,
             "controller.bitrate" => self.bitrate = None,
             _ => {}
@@ -663,6 +703,32 @@ impl Settings {
             .validate()
             .map_err(|e| self.chip_error(sources, e))?;
         let controller_settings = self.controller_settings(&controller, sources);
+        let mqtt_credentials = match (&self.mqtt_username, &self.mqtt_password) {
+            (Some(user), Some(password)) => {
+                let (u, p) = (sources.of("mqtt.username"), sources.of("mqtt.password"));
+                let from = if u == p {
+                    u.to_string()
+                } else {
+                    format!("{u} and {p}")
+                };
+                Some(Credentials::new(user.clone(), password.expose(), from))
+            }
+            (None, None) => None,
+            (Some(_), None) => {
+                return Err(conflict(
+                    "mqtt.username",
+                    "mqtt.password",
+                    "go together: the password is missing",
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(conflict(
+                    "mqtt.password",
+                    "mqtt.username",
+                    "go together: the user name is missing",
+                ));
+            }
+        };
         Ok(Config {
             bus,
             bus_name: self.bus.clone(),
@@ -676,6 +742,7 @@ impl Settings {
                 password: None,
                 interval: self.mail_interval,
             },
+            mqtt_credentials,
             manager_poll_interval: self.poll_interval,
             controller,
             controller_settings,

@@ -1,6 +1,7 @@
 //! `buslab.toml`, the configuration file (JerryCAN's `jerrycan.properties`, seed 002 §5.4.1):
 //! the default bus, the log file, the loader's and the mail notifier's identifiers, the mail
-//! server, the manager's polling interval and the SJA1000 controller (docs/config.md).
+//! server, the MQTT broker's credentials, the manager's polling interval and the SJA1000
+//! controller (docs/config.md).
 //!
 //! Every value comes from one of four places, each overriding the one before: the built-in
 //! default, the configuration file, an environment variable `BUSLAB_<KEY>` and `--set KEY=VALUE`
@@ -23,7 +24,7 @@ use std::time::Duration;
 use buslab_backends::BusUrl;
 use buslab_canbus::{ControllerSettings, ManagerConfig, Sja1000Config};
 
-pub use keys::{DEFAULT_BUS_BITRATE, FilterKind, KEYS, Key, MODE_NAMES, Settings};
+pub use keys::{DEFAULT_BUS_BITRATE, FilterKind, KEYS, Key, MODE_NAMES, SECRET_KEYS, Settings};
 pub use lookup::{Found, Lookup, load, load_text};
 pub use render::{registers, render_file, render_show};
 pub use value::{Raw, integer_text};
@@ -52,6 +53,9 @@ pub struct Config {
     /// The identifier the mail notifier announces mail on (JerryCAN's `idmail`).
     pub mail_id: u16,
     pub mail: MailSettings,
+    /// The user name and password `mqtt://` buses log in with (`[mqtt]`, the environment
+    /// overriding the file; never `--set`), and where they were read.
+    pub mqtt_credentials: Option<buslab_backends::mqtt::Credentials>,
     /// How long the host library's manager pauses between polls of the chip when no request
     /// arrives (JerryCAN's `managersleepingtime`; zero polls without pause).
     pub manager_poll_interval: Duration,
@@ -196,6 +200,10 @@ pub enum ConfigError {
         "{origin}: the mail password is never read from a file or the command line: set $BUSLAB_MAIL_PASSWORD, or let the command ask for it"
     )]
     PasswordNotHere { origin: Source },
+    #[error(
+        "--set {0}: the MQTT user name and password are never taken from the command line (ps shows it to every user): put them under [mqtt] in the configuration file, or set $BUSLAB_MQTT_USERNAME and $BUSLAB_MQTT_PASSWORD"
+    )]
+    SecretOnCommandLine(&'static str),
     #[error("--set {0:?}: expected KEY=VALUE, e.g. --set mail.interval=30s")]
     SetSyntax(String),
     #[error("configuration file {} ({found}): {source}", path.display())]

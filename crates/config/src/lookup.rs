@@ -132,6 +132,9 @@ pub fn load_text(
             .ok_or_else(|| ConfigError::SetSyntax(set.clone()))?;
         let name = name.trim();
         let i = keys::index(name).ok_or_else(|| unknown(name, Source::CommandLine))?;
+        if keys::SECRET_KEYS.contains(&KEYS[i].name) {
+            return Err(ConfigError::SecretOnCommandLine(KEYS[i].name));
+        }
         let raw = Raw::Text(text.to_string());
         apply(
             i,
@@ -192,7 +195,11 @@ fn apply(
         .map_err(|allowed| ConfigError::Value {
             origin: source.clone(),
             key: key.name,
-            value: shown,
+            value: if keys::hidden(key.name) {
+                "(not shown)".to_string()
+            } else {
+                shown
+            },
             allowed,
         })?;
     sources.set(i, source);

@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use buslab_canbus::{CanMode, Sja1000Config};
 
-use super::keys::{KEYS, Settings, Sources, controller_part};
+use super::keys::{KEYS, Settings, Sources, controller_part, hidden};
 use super::{ENV_MAIL_PASSWORD, Loaded, Source};
 
 /// Where the `# source` comments start.
@@ -105,6 +105,7 @@ fn body(
         let source = sources.map_or(&Source::Default, |s| s.get(i));
         let _ = writeln!(out, "# {}: {}", key.leaf(), key.used_by);
         let line = match key.show(settings) {
+            Some(_) if hidden(key.name) => format!("# {} = (set, not shown)", key.leaf()),
             Some(value) if !settings.relevant(key.name) => {
                 format!("# {} = {value} (not used)", key.leaf())
             }

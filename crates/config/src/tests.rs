@@ -394,6 +394,75 @@ fn the_password_comes_from_the_environment_only_and_is_never_shown() {
 }
 
 #[test]
+fn mqtt_credentials_come_from_the_file_or_the_environment_never_set_and_are_not_shown() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("buslab.toml");
+    fs::write(
+        &path,
+        "[mqtt]\nusername = \"bench\"\npassword = \"hunter2\"\n",
+    )
+    .unwrap();
+    let lookup = Lookup {
+        file: Some(path.clone()),
+        ..Lookup::default()
+    };
+    let loaded = load_with(&lookup, &[], dir.path(), None).unwrap();
+    let c = loaded.config.mqtt_credentials.clone().unwrap();
+    let from_file = format!("{}:2 and {}:3", path.display(), path.display());
+    assert_eq!(
+        c,
+        buslab_backends::mqtt::Credentials::new("bench", "hunter2", &from_file)
+    );
+    let shown = render_show(&loaded);
+    assert!(!shown.contains("hunter2"), "{shown}");
+    assert!(shown.contains("# password = (set, not shown)"), "{shown}");
+    assert!(!format!("{:?}", loaded).contains("hunter2"));
+    // The wizard's file keeps it (it rewrites the file it read).
+    assert!(render_file(&loaded.settings).contains("password = \"hunter2\""));
+
+    // The environment overrides the file.
+    let vars = [("BUSLAB_MQTT_PASSWORD", "env-secret")];
+    let loaded = load_with(&lookup, &vars, dir.path(), None).unwrap();
+    let c = loaded.config.mqtt_credentials.unwrap();
+    assert_eq!(c.username, "bench");
+    assert_eq!(
+        c,
+        buslab_backends::mqtt::Credentials::new(
+            "bench",
+            "env-secret",
+            format!("{}:2 and environment BUSLAB_MQTT_PASSWORD", path.display())
+        )
+    );
+
+    // Never from the command line, the user name either; the value is not repeated.
+    for set in ["mqtt.password=hunter2", "mqtt.username=bench"] {
+        let set = Lookup {
+            sets: vec![set.into()],
+            ..Lookup::default()
+        };
+        let err = load_with(&set, &[], dir.path(), None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("--set mqtt.") && err.contains("[mqtt]") && !err.contains("hunter2"),
+            "{err}"
+        );
+    }
+
+    // One without the other; a bad password is not printed back.
+    let err = error("[mqtt]\nusername = \"bench\"\n");
+    assert!(
+        err.contains("mqtt.username") && err.contains("the password is missing"),
+        "{err}"
+    );
+    let err = error("[mqtt]\nusername = \"bench\"\npassword = \"bad\\u0007\"\n");
+    assert!(
+        err.contains("buslab.toml:3") && err.contains("(not shown)") && !err.contains("bad"),
+        "{err}"
+    );
+}
+
+#[test]
 fn only_regular_files_of_a_bounded_size_are_read() {
     let dir = tempfile::tempdir().unwrap();
     let read = |path: &Path| {

@@ -181,7 +181,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
     }
     let mut gateways = Vec::new();
     for url in &args.join {
-        let remote = buslab_backends::open_join(url, &buslab_backends::OpenOptions::default())
+        let remote = buslab_backends::open_join(url, &super::busopt::open_options())
             .with_context(|| format!("--join {url}"))?;
         let mut node = buslab_backends::open(&format!("socketcand://{local}/{}", args.name))
             .context("the gateway cannot join this bus")?;

@@ -35,10 +35,7 @@ pub fn one_bus(iface: Option<&BusUrl>, bus: Option<&BusUrl>) -> anyhow::Result<B
 /// has the setting: on buslab's bus, its own SJA1000 (docs/config.md). What the bus cannot
 /// apply is said once per run, as a warning naming the setting and why.
 pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
-    let options = OpenOptions {
-        controller: crate::config::get().controller_settings,
-        ..OpenOptions::default()
-    };
+    let options = open_options();
     let mut opened = buslab_backends::open_configured(url, &options)?;
     if options.controller.timing.is_some()
         && let Some(admin) = opened.bus.admin()
@@ -79,6 +76,17 @@ pub fn open(url: &BusUrl) -> anyhow::Result<DynBus> {
         }
     }
     Ok(opened.bus)
+}
+
+/// How buses are opened with the configuration: its `[controller]` (the keys given) and the
+/// MQTT broker's credentials (`[mqtt]` or the environment, never the command line).
+pub fn open_options() -> OpenOptions {
+    let config = crate::config::get();
+    OpenOptions {
+        controller: config.controller_settings,
+        mqtt_credentials: config.mqtt_credentials.clone(),
+        ..OpenOptions::default()
+    }
 }
 
 /// The bus's administration side, or an error saying `what` needs a buslab bus.

@@ -70,8 +70,14 @@ fn join_members(
     prefix: &str,
     tls: bool,
 ) -> anyhow::Result<()> {
-    let timeout = buslab_backends::OpenOptions::default().connect_timeout;
-    let members = buslab_backends::mqtt::members(host, port, prefix, tls, timeout)
+    let options = super::busopt::open_options();
+    let broker = buslab_backends::mqtt::Broker {
+        host,
+        port,
+        tls,
+        credentials: options.mqtt_credentials.as_ref(),
+    };
+    let members = buslab_backends::mqtt::members(broker, prefix, options.connect_timeout)
         .map_err(|e| anyhow::anyhow!("{url}: {e}"))?;
     if members.is_empty() {
         println!("{url}: no member has joined");

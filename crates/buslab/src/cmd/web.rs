@@ -58,7 +58,7 @@ pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
     // A joined bus keeps its counters for the overview page.
     let (bus, join): (buslab_backends::DynBus, _) = match url {
         buslab_backends::BusUrl::Cannelloni { .. } | buslab_backends::BusUrl::Mqtt { .. } => {
-            let bus = buslab_backends::open_join(url, &buslab_backends::OpenOptions::default())?;
+            let bus = buslab_backends::open_join(url, &super::busopt::open_options())?;
             let join = bus.sender();
             (Box::new(bus), Some(join))
         }

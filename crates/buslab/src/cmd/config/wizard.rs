@@ -45,7 +45,17 @@ pub trait Prompter {
 
 pub fn run(args: WizardArgs) -> anyhow::Result<()> {
     let (start, in_use) = match config::loaded() {
-        Some(Ok(loaded)) => (loaded.settings.clone(), loaded.file.clone().map(|(p, _)| p)),
+        Some(Ok(loaded)) => {
+            let mut settings = loaded.settings.clone();
+            // The MQTT credentials are written back only as the file gave them: one from the
+            // environment never lands in a file.
+            for key in config::SECRET_KEYS {
+                if !matches!(loaded.source(key), Some(config::Source::File { .. })) {
+                    settings.unset(key);
+                }
+            }
+            (settings, loaded.file.clone().map(|(p, _)| p))
+        }
         Some(Err(e)) => {
             tracing::warn!("the configuration in use is refused ({e}); starting from the defaults");
             (Settings::default(), None)
