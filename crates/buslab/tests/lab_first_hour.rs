@@ -9,6 +9,7 @@ use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
 use std::process::{Command, Stdio};
 use std::sync::mpsc;
+use std::time::{Duration, Instant};
 
 use assert_cmd::cargo::CommandCargoExt;
 use pty_program::{CEILING, PtyProgram, Stderr};
@@ -86,9 +87,21 @@ fn lab_status_line_stays_on_one_row_of_an_80_column_terminal() {
 
 #[test]
 fn lab_hints_name_its_bus_when_the_usual_port_is_taken() {
-    // Another server on socketcand's port (if a test beside this one already holds it, the
-    // port is just as taken).
-    let other = TcpListener::bind(("127.0.0.1", SOCKETCAND_PORT)).ok();
+    // Another server on socketcand's port, held by this test for its whole run. A test beside
+    // this one (a lab of its own) may hold it now and let it go at any moment, so wait until it
+    // is ours: taking "already held" as "taken" let the lab get the port when the other one
+    // stopped in between (CI saw the lab on 29536).
+    let start = Instant::now();
+    let other = loop {
+        match TcpListener::bind(("127.0.0.1", SOCKETCAND_PORT)) {
+            Ok(listener) => break listener,
+            Err(e) => assert!(
+                start.elapsed() < CEILING,
+                "port {SOCKETCAND_PORT} stayed taken by another test: {e}"
+            ),
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
     let dir = tempfile::tempdir().unwrap();
     let mut lab = buslab()
         .args(["lab", "--no-devices", "--no-web", "--dir"])
@@ -120,9 +133,7 @@ fn lab_hints_name_its_bus_when_the_usual_port_is_taken() {
         .unwrap()
         .to_string();
     assert!(!url.contains(":29536/"), "{text}");
-    if other.is_some() {
-        assert!(text.contains("port 29536 is taken"), "{text}");
-    }
+    assert!(text.contains("port 29536 is taken"), "{text}");
     // The lab's bus for scripts, once the lab is up.
     let written = std::fs::read_to_string(dir.path().join("bus")).unwrap();
     assert_eq!(written.trim_end(), url);
