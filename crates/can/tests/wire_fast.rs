@@ -66,7 +66,7 @@ fn assert_matches_reference(frame: &Frame, dlc: u8) {
     let old = reference::encode_with_dlc(frame, dlc);
     let context = format!("{frame} DLC {dlc}");
     assert_eq!(new.crc(), old.crc, "{context}");
-    assert_eq!(*new.unstuffed(), old.unstuffed, "{context}");
+    assert_eq!(new.unstuffed(), old.unstuffed, "{context}");
     assert_eq!(*new.stuffed(), old.stuffed, "{context}");
     let stuff: Vec<usize> = (0..Bits::CAPACITY)
         .filter(|&i| new.is_stuff_bit(i))

@@ -105,7 +105,7 @@ impl View {
             (false, true) => enc.on_bus(),
             (false, false) => *enc.stuffed(),
             (true, true) => enc.unstuffed_on_bus(),
-            (true, false) => *enc.unstuffed(),
+            (true, false) => enc.unstuffed(),
         }
     }
 }

@@ -67,9 +67,12 @@ pub(crate) fn crc15_of(value: u128, len: u32) -> u16 {
     // The register, left-aligned in 16 bits, is replaced whole by each pair: XORed with the
     // pair, its high byte goes through two bytes' worth of steps and its low byte through one,
     // two lookups that do not wait for each other (the CRC is linear).
+    // Pairs read from memory rather than shifted out (a variable shift of a u128 is several
+    // instructions).
+    let bytes = value.to_le_bytes();
     let mut reg = 0u16;
     for pair in (0..pairs).rev() {
-        let x = reg ^ (value >> (16 * pair)) as u16;
+        let x = reg ^ u16::from_le_bytes([bytes[2 * pair], bytes[2 * pair + 1]]);
         reg = PAIR_HIGH_TABLE[(x >> 8) as usize] ^ BYTE_TABLE[(x & 0xFF) as usize];
     }
     reg >> 1

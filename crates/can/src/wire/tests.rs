@@ -344,3 +344,49 @@ fn frame_bits_count_stuffing_and_the_intermission() {
         frame_bits(&full)
     );
 }
+
+/// The stuff-bit mask is derived from the stuffed bits (five equal bits before a bit make it a
+/// stuff bit): it must name exactly the bits the encoder inserted, which de-stuffing removes to
+/// give the de-stuffed bits back, on frames full of long runs and on random ones.
+#[test]
+fn the_stuff_mask_names_exactly_the_inserted_bits() {
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let mut checked = 0;
+    for round in 0..4000 {
+        let r = next();
+        let id = if r & 1 == 0 {
+            Id::standard((r >> 8) as u16 & 0x7FF).unwrap()
+        } else {
+            Id::extended((r >> 8) as u32 & 0x1FFF_FFFF).unwrap()
+        };
+        let len = (r >> 40) as usize % 9;
+        // Half the rounds all-equal bytes: the most stuff bits a frame can have.
+        let byte = |_| match round % 4 {
+            0 => 0x00,
+            1 => 0xFF,
+            _ => next() as u8,
+        };
+        let data: Vec<u8> = (0..len).map(byte).collect();
+        let enc = encode(&Frame::data(id, &data).unwrap());
+        let mask = enc.stuff_mask();
+        let wire = enc.stuffed();
+        assert_eq!(mask.len(), wire.len());
+        let destuffed: Bits = (0..wire.len())
+            .filter(|&i| !mask.bit(i))
+            .map(|i| wire.bit(i))
+            .collect();
+        assert_eq!(destuffed, enc.unstuffed(), "{}", enc.frame());
+        for i in 0..wire.len() {
+            assert_eq!(mask.bit(i), enc.is_stuff_bit(i), "{} bit {i}", enc.frame());
+        }
+        assert_eq!(mask.count_ones() as usize, enc.stuff_bits());
+        checked += 1;
+    }
+    assert_eq!(checked, 4000);
+}
