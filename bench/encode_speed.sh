@@ -6,7 +6,7 @@
 # for that revision built the same way in a temporary worktree (the example and the mix are
 # copied in, so both encode the same frames), with the ratio of both.
 #
-# Goal (issue 33): at least 30 M frames/s. Frames/s are the best of RUNS runs (the machine is
+# Goal (issue 33): at least 30 M frames/s. Frames/s are the best of RUNS runs of one thread (the machine is
 # shared; read the load average printed above the table); instructions are exact.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -53,7 +53,7 @@ target=${CARGO_TARGET_DIR:-$PWD/target}
 after=$(build . "$target")
 echo "# wire encoder, $("$after" 1 | sed -n 's/^mix: //p')"
 echo "# load average: $(cut -d' ' -f1-3 /proc/loadavg)"
-printf '%-28s %16s %14s\n' encoder "M frames/s (CPU)" "instr/frame"
+printf '%-28s %16s %14s\n' encoder "M frames/s (best)" "instr/frame"
 ia=$(instructions "$after")
 ra=$(rate "$after")
 if [ -n "$BEFORE" ]; then

@@ -75,7 +75,10 @@ fn covered(frame: &Frame, dlc: u8) -> (u128, u32) {
 #[inline]
 fn region(covered: u128, covered_len: u32, crc: u16) -> (u128, u32) {
     let len = covered_len + 15;
-    ((covered << 15 | crc as u128).reverse_bits() >> (128 - len), len)
+    (
+        (covered << 15 | crc as u128).reverse_bits() >> (128 - len),
+        len,
+    )
 }
 
 fn encode_bits(frame: &Frame, dlc: u8) -> Encoded {
@@ -228,7 +231,8 @@ const fn stuff_bits_of(state: u32, byte: u32, count: u32) -> u32 {
         }
         i += 1;
     }
-    bits | len << LEN_SHIFT | (2 * run_len + run_bit) * 256 << ROW_SHIFT
+    let row = (2 * run_len + run_bit) * 256;
+    bits | len << LEN_SHIFT | row << ROW_SHIFT
 }
 
 /// Appends table entries' bits to 64-bit words (up to 192 bits: a frame has ≤ 157). No field
