@@ -622,6 +622,65 @@ impl Sja1000 {
         self.after_bits();
     }
 
+    // ------------------------------------------------ receptions counted for a serviced chip
+
+    /// Whether a clean frame received whole from now on leaves this chip exactly as a CPU that
+    /// services RI at once leaves it (RI raised, the message read and released, nothing else):
+    /// PeliCAN in operating mode, awake, not bus-off, RI enabled, IR clear, FIFO empty, no data
+    /// overrun, no transmission requested, RXERR 0 (a good reception then changes no counter)
+    /// and no protocol event kept unread. Such a frame may be counted
+    /// ([`Self::count_received`]) and the controller brought up later
+    /// ([`Self::settle_received`]).
+    #[inline]
+    pub fn counts_receptions(&self) -> bool {
+        self.mode == CanMode::Peli
+            && !self.reset
+            && !self.sleeping
+            && !self.bs
+            && self.ier & IR_RI != 0
+            && self.ir == 0
+            && self.fifo.count() == 0
+            && !self.dos
+            && self.pending.is_none()
+            && self.bus_events.is_empty()
+            && self.mac.pending() == 0
+            && self.mac.rec() == 0
+    }
+
+    /// A clean frame received while [`Self::counts_receptions`] held, as the register side
+    /// keeps it once its CPU has read and released it: through the acceptance filter, its
+    /// message written to the FIFO RAM and RBSA moved past it. `true` if it was accepted
+    /// (the CPU read it). The controller's side is [`Self::settle_received`].
+    #[inline]
+    pub fn count_received(&mut self, frame: &Frame) -> bool {
+        let filter_mode = if self.mod_bits & MOD_AFM != 0 {
+            FilterMode::Single
+        } else {
+            FilterMode::Dual
+        };
+        if !filter::accepts(filter_mode, self.acr, self.amr, frame) {
+            return false;
+        }
+        let mut message = [0u8; 13];
+        let len = layout::encode(self.mode, frame, &mut message);
+        // Stored in an empty FIFO (it fits), then released by RRB as the CPU does.
+        if self.fifo.store(&message[..len]).is_ok() {
+            self.fifo.release(self.mode);
+        }
+        true
+    }
+
+    /// The controller's side of frames counted with [`Self::count_received`]: wire bits `bits`
+    /// of `frame`, the last one counted, pass as a receiver, and its events (the node that
+    /// counted the frame reported them) are dropped. The earlier counted frames need nothing:
+    /// a good reception with RXERR 0 leaves a receiver's controller as the frame's end alone
+    /// says.
+    pub fn settle_received(&mut self, frame: &WireFrame, bits: Range<u32>) {
+        self.mac.advance_frame(frame, FrameRole::Receiver, bits);
+        while self.mac.poll_event().is_some() {}
+        self.update_error_status();
+    }
+
     /// What the register logic does after the controller moved on: its events, then the
     /// counters and SR.ES.
     fn after_bits(&mut self) {
