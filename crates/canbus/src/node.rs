@@ -75,6 +75,10 @@ pub enum NodeNotice {
     Recovering(Result<(), String>),
 }
 
+/// Messages that fill the 64-byte FIFO RAM whatever their length (the shortest takes 3 bytes):
+/// an older one's bytes are all overwritten by these.
+const MESSAGES_COVERING_FIFO: usize = 64 / 3 + 1;
+
 /// An SJA1000 and the CPU running its driver, with the host's queues.
 #[derive(Debug)]
 pub struct Sja1000Node {
@@ -116,10 +120,11 @@ pub struct Sja1000Node {
 }
 
 /// Frames a receiving node took by counting (see [`Sja1000Node::counts`]): the client got
-/// them, the counters and the FIFO RAM moved on, and the chip's protocol controller waits for
-/// them until someone looks at the chip ([`Sja1000Node::settle`]). A good reception leaves a
+/// them and the counters moved on; the chip's protocol controller and FIFO RAM wait for them
+/// until someone looks at the chip ([`Sja1000Node::settle`]). A good reception leaves a
 /// receiver's controller as the frame's end alone says, so only the last frame is kept, and
-/// the one under way with the bits it has had.
+/// the one under way with the bits it has had; of the messages for the FIFO RAM only the last
+/// [`MESSAGES_COVERING_FIFO`] (older ones only move RBSA on).
 ///
 /// Meanwhile the chip answers every question asked without settling it (its output, whether
 /// it is ready for a frame, its counters and error state, its queue) as the settled chip
@@ -132,6 +137,8 @@ struct Counted {
     ended: Option<WireFrame>,
     /// The counted frame under way and the wire bits it has had.
     under_way: Option<(WireFrame, u32)>,
+    /// Accepted counted frames whose messages are not in the FIFO RAM yet, oldest first.
+    unwritten: VecDeque<Frame>,
     /// Frames counted since the node was made.
     frames: u64,
 }
@@ -481,20 +488,26 @@ impl Sja1000Node {
     }
 
     /// Wire bits `bits` of a counted frame: at EOF bit 6 what the chip, its CPU and the engine
-    /// would have of it (the frame reported, and if the filter takes it, the FIFO RAM written
-    /// and released, the client's delivery and counter), without stepping the controller.
+    /// would have of it (the frame reported, and if the filter takes it, the client's delivery
+    /// and counter), without stepping the controller or writing the FIFO RAM.
     fn count_bits(&mut self, frame: &WireFrame, bits: Range<u32>) {
         let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
         self.now = now;
         if bits.contains(&frame.eof_bit(6)) {
             let received = *frame.frame();
             self.engine_events.push_back(Event::Received(received));
-            if self.driver.registers().count_received(&received) {
+            if self.chip().accepts(&received) {
                 self.counters.received += 1;
                 self.rx.push(Delivery {
                     frame: received,
                     time: now,
                 });
+                self.counted.unwritten.push_back(received);
+                if self.counted.unwritten.len() > MESSAGES_COVERING_FIFO
+                    && let Some(old) = self.counted.unwritten.pop_front()
+                {
+                    self.driver.registers().pass_over_released(&old);
+                }
             }
         }
         if bits.end >= frame.total() {
@@ -516,6 +529,9 @@ impl Sja1000Node {
     #[inline(never)]
     fn settle_counted(&mut self) {
         let chip = self.driver.registers();
+        for frame in self.counted.unwritten.drain(..) {
+            chip.store_released(&frame);
+        }
         if let Some(frame) = self.counted.ended.take() {
             chip.settle_received(&frame, 0..frame.total());
         }

@@ -12,8 +12,9 @@ use buslab_sim::{Simulation, Traffic};
 
 const BITRATE: u32 = 500_000;
 
-/// A controller sending 5 bursts of 9 frames of every shape, back to back, then nothing; client 1 takes all, client 2 only
-/// IDs 0x100..0x107; `extra` adds traffic (e.g. a client's own frame at a chosen bit-time).
+/// A controller sending 5 bursts of 9 frames of every shape, back to back, then nothing;
+/// client 1 takes all, client 2 only IDs 0x100..0x107; `extra` adds traffic (e.g. a client's
+/// own frame at a chosen bit-time).
 fn bus(whole: bool, extra: &[(usize, Traffic)]) -> Simulation {
     let mut sim = Simulation::new(BITRATE, 7);
     sim.set_whole_frames(whole);

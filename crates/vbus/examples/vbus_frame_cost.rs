@@ -10,7 +10,8 @@
 //! cargo build --release -p buslab-vbus --example vbus_frame_cost
 //! for n in 1 8; do valgrind --tool=callgrind --callgrind-out-file=cg.$n \
 //!     target/release/examples/vbus_frame_cost 2000000 $n; done
-//! # per receiver and frame, whole program: (Ir(cg.8) - Ir(cg.1)) / (deliveries(8) - deliveries(1));
+//! # per receiver and frame, whole program:
+//! #   (Ir(cg.8) - Ir(cg.1)) / (deliveries(8) - deliveries(1))
 //! # the client node alone: the same with the inclusive Ir of
 //! # `<buslab_canbus::node::Sja1000Node as buslab_can::node::BusNode>::advance_frame`
 //! # (callgrind_annotate --inclusive=yes).
