@@ -75,6 +75,10 @@ pub enum NodeNotice {
     Recovering(Result<(), String>),
 }
 
+/// Messages that fill the 64-byte FIFO RAM whatever their length (the shortest takes 3 bytes):
+/// an older one's bytes are all overwritten by these.
+const MESSAGES_COVERING_FIFO: usize = 64 / 3 + 1;
+
 /// An SJA1000 and the CPU running its driver, with the host's queues.
 #[derive(Debug)]
 pub struct Sja1000Node {
@@ -111,6 +115,32 @@ pub struct Sja1000Node {
     now: BitTime,
     /// The bit-time of the SOF of the frame the engine applies whole.
     frame_sof: BitTime,
+    /// Frames received whole that only counted: the chip's controller has not seen them yet.
+    counted: Counted,
+}
+
+/// Frames a receiving node took by counting (see [`Sja1000Node::counts`]): the client got
+/// them and the counters moved on; the chip's protocol controller and FIFO RAM wait for them
+/// until someone looks at the chip ([`Sja1000Node::settle`]). A good reception leaves a
+/// receiver's controller as the frame's end alone says, so only the last frame is kept, and
+/// the one under way with the bits it has had; of the messages for the FIFO RAM only the last
+/// [`MESSAGES_COVERING_FIFO`] (older ones only move RBSA on).
+///
+/// Meanwhile the chip answers every question asked without settling it (its output, whether
+/// it is ready for a frame, its counters and error state, its queue) as the settled chip
+/// would: between frames a receiver's controller waits for SOF, driving recessive, either way.
+/// Inside a frame only the queue and the counters are asked (the [`BusNode::advance_frame`]
+/// contract), and whether the node is quiet, which the frame under way answers.
+#[derive(Debug, Default)]
+struct Counted {
+    /// The last counted frame that ended.
+    ended: Option<WireFrame>,
+    /// The counted frame under way and the wire bits it has had.
+    under_way: Option<(WireFrame, u32)>,
+    /// Accepted counted frames whose messages are not in the FIFO RAM yet, oldest first.
+    unwritten: VecDeque<Frame>,
+    /// Frames counted since the node was made.
+    frames: u64,
 }
 
 impl Sja1000Node {
@@ -148,6 +178,7 @@ impl Sja1000Node {
             notices: Vec::new(),
             now: BitTime::ZERO,
             frame_sof: BitTime::ZERO,
+            counted: Counted::default(),
         })
     }
 
@@ -156,6 +187,7 @@ impl Sja1000Node {
         if self.tx.len() >= TX_QUEUE {
             return Err(frame);
         }
+        self.settle();
         self.tx.push_back(frame);
         self.submitted += 1;
         self.feed();
@@ -165,6 +197,7 @@ impl Sja1000Node {
     /// Gives up the frame in the chip's buffer (CMR.AT: one on the wire finishes this attempt
     /// and is not retried) and every frame queued behind it; they count as failed.
     pub fn abort(&mut self) {
+        self.settle();
         self.counters.tx_failed += self.tx.len() as u64;
         self.tx.clear();
         self.driver.abort();
@@ -238,12 +271,21 @@ impl Sja1000Node {
         self.driver.state()
     }
 
+    /// The driver and through it the chip, brought up to date with the frames the node only
+    /// counted.
     pub fn driver(&mut self) -> &mut Sja1000Driver<Sja1000> {
+        self.settle();
         &mut self.driver
     }
 
     fn chip(&self) -> &Sja1000 {
         self.driver.chip()
+    }
+
+    /// Frames the node took by only counting them (received whole while its chip and CPU had
+    /// nothing else to do), for benchmarks and tests: they changed nothing else it shows.
+    pub fn frames_counted(&self) -> u64 {
+        self.counted.frames
     }
 
     /// Frames and error frames received for the client and not taken yet.
@@ -275,6 +317,7 @@ impl Sja1000Node {
     }
 
     fn reprogram(&mut self, config: Sja1000Config) -> Result<(), String> {
+        self.settle();
         if let Err(e) = self.driver.init(&config) {
             // Back to what worked: the node stays on the bus as it was.
             let _ = self.driver.init(&self.config);
@@ -426,6 +469,77 @@ impl Sja1000Node {
         }
     }
 
+    /// Whether the frame starting now, received whole, may only be counted: the chip would take
+    /// it and its CPU service it with nothing else to do (see
+    /// [`Sja1000::counts_receptions`]); the CPU has no frame to send, no restart due and no
+    /// event waiting for the engine, and the node follows the bus.
+    #[inline]
+    fn counts(&self) -> bool {
+        self.tx.is_empty()
+            && !self.driver.tx_pending()
+            && self.mismatch.is_none()
+            && self.restart_at.is_none()
+            && self.engine_events.is_empty()
+            && self
+                .driver
+                .config()
+                .is_some_and(|config| config.mode == buslab_sja1000::CanMode::Peli)
+            && self.chip().counts_receptions()
+    }
+
+    /// Wire bits `bits` of a counted frame: at EOF bit 6 what the chip, its CPU and the engine
+    /// would have of it (the frame reported, and if the filter takes it, the client's delivery
+    /// and counter), without stepping the controller or writing the FIFO RAM.
+    fn count_bits(&mut self, frame: &WireFrame, bits: Range<u32>) {
+        let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
+        self.now = now;
+        if bits.contains(&frame.eof_bit(6)) {
+            let received = *frame.frame();
+            self.engine_events.push_back(Event::Received(received));
+            if self.chip().accepts(&received) {
+                self.counters.received += 1;
+                self.rx.push(Delivery {
+                    frame: received,
+                    time: now,
+                });
+                self.counted.unwritten.push_back(received);
+                if self.counted.unwritten.len() > MESSAGES_COVERING_FIFO
+                    && let Some(old) = self.counted.unwritten.pop_front()
+                {
+                    self.driver.registers().pass_over_released(&old);
+                }
+            }
+        }
+        if bits.end >= frame.total() {
+            self.counted.ended = self.counted.under_way.take().map(|(frame, _)| frame);
+        } else if let Some((_, done)) = &mut self.counted.under_way {
+            *done = bits.end;
+        }
+    }
+
+    /// Brings the chip's controller up to the frames the node only counted (see [`Counted`]).
+    #[inline]
+    fn settle(&mut self) {
+        if self.counted.ended.is_some() || self.counted.under_way.is_some() {
+            self.settle_counted();
+        }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn settle_counted(&mut self) {
+        let chip = self.driver.registers();
+        for frame in self.counted.unwritten.drain(..) {
+            chip.store_released(&frame);
+        }
+        if let Some(frame) = self.counted.ended.take() {
+            chip.settle_received(&frame, 0..frame.total());
+        }
+        if let Some((frame, done)) = self.counted.under_way.take() {
+            chip.settle_received(&frame, 0..done);
+        }
+    }
+
     /// Wire bits `bits` of a whole frame through the chip, then the CPU at the last of them.
     fn advance_chip(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
         let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
@@ -441,6 +555,7 @@ impl BusNode for Sja1000Node {
     }
 
     fn sample(&mut self, now: BitTime, bus: Level) {
+        self.settle();
         self.now = now;
         let idle = self.recessive_run >= IDLE_BITS;
         self.recessive_run = match bus {
@@ -476,6 +591,15 @@ impl BusNode for Sja1000Node {
     }
 
     fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, mut bits: Range<u32>) {
+        if bits.start == 0 && role == FrameRole::Receiver && self.counts() {
+            // A new counted frame: the one before it (if counted) needs no settling.
+            self.counted.under_way = Some((frame.clone(), 0));
+            self.counted.frames += 1;
+        }
+        if self.counted.under_way.is_some() {
+            return self.count_bits(frame, bits);
+        }
+        self.settle();
         // Events (and so interrupts) come at the last bit of a range. An interrupt the CPU left
         // asserted (a FIFO with more messages than one service reads) is serviced again at
         // every bit, as sampling would: those bits go one at a time.
@@ -508,7 +632,8 @@ impl BusNode for Sja1000Node {
     }
 
     fn quiet_until(&self) -> Option<BitTime> {
-        let quiet = self.mismatch.is_none()
+        let quiet = self.counted.under_way.is_none()
+            && self.mismatch.is_none()
             && self.tx.is_empty()
             && !self.driver.tx_pending()
             && self.chip().is_quiescent();

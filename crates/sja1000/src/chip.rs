@@ -622,6 +622,72 @@ impl Sja1000 {
         self.after_bits();
     }
 
+    // ------------------------------------------------ receptions counted for a serviced chip
+
+    /// Whether a clean frame received whole from now on leaves this chip exactly as a CPU that
+    /// services RI at once leaves it (RI raised, the message read and released, nothing else):
+    /// PeliCAN in operating mode, awake, not bus-off, RI enabled, IR clear, FIFO empty, no data
+    /// overrun, no transmission requested, RXERR 0 (a good reception then changes no counter)
+    /// and no protocol event kept unread. Such a frame may be counted: whether the CPU reads
+    /// it is [`Self::accepts`]; its message goes to the FIFO RAM with
+    /// [`Self::store_released`] (or [`Self::pass_over_released`] when later ones overwrite
+    /// it), and the controller is brought up later with [`Self::settle_received`].
+    #[inline]
+    pub fn counts_receptions(&self) -> bool {
+        self.mode == CanMode::Peli
+            && !self.reset
+            && !self.sleeping
+            && !self.bs
+            && self.ier & IR_RI != 0
+            && self.ir == 0
+            && self.fifo.count() == 0
+            && !self.dos
+            && self.pending.is_none()
+            && self.bus_events.is_empty()
+            && self.mac.pending() == 0
+            && self.mac.rec() == 0
+    }
+
+    /// Whether the PeliCAN acceptance filter takes `frame` into the FIFO (for a frame counted
+    /// while [`Self::counts_receptions`] held).
+    #[inline]
+    pub fn accepts(&self, frame: &Frame) -> bool {
+        let filter_mode = if self.mod_bits & MOD_AFM != 0 {
+            FilterMode::Single
+        } else {
+            FilterMode::Dual
+        };
+        filter::accepts(filter_mode, self.acr, self.amr, frame)
+    }
+
+    /// An accepted counted frame as the register side keeps it once its CPU has read and
+    /// released it: its message written to the (empty) FIFO RAM and RBSA moved past it.
+    pub fn store_released(&mut self, frame: &Frame) {
+        let mut message = [0u8; 13];
+        let len = layout::encode(self.mode, frame, &mut message);
+        if self.fifo.store(&message[..len]).is_ok() {
+            self.fifo.release(self.mode);
+        }
+    }
+
+    /// [`Self::store_released`] for a message whose bytes the later ones overwrite: only RBSA
+    /// moves past it.
+    #[inline]
+    pub fn pass_over_released(&mut self, frame: &Frame) {
+        self.fifo.pass_over(layout::message_len(self.mode, frame));
+    }
+
+    /// The controller's side of counted frames (see [`Self::counts_receptions`]): wire bits
+    /// `bits` of `frame`, the last one counted, pass as a receiver, and its events (the node
+    /// that counted the frame reported them) are dropped. The earlier counted frames need
+    /// nothing: a good reception with RXERR 0 leaves a receiver's controller as the frame's end
+    /// alone says.
+    pub fn settle_received(&mut self, frame: &WireFrame, bits: Range<u32>) {
+        self.mac.advance_frame(frame, FrameRole::Receiver, bits);
+        while self.mac.poll_event().is_some() {}
+        self.update_error_status();
+    }
+
     /// What the register logic does after the controller moved on: its events, then the
     /// counters and SR.ES.
     fn after_bits(&mut self) {

@@ -61,6 +61,12 @@ impl RxFifo {
         self.count -= 1;
     }
 
+    /// RBSA moves past a message of `len` bytes stored and released at once, its bytes not
+    /// written: for a message whose bytes later ones overwrite anyway.
+    pub(crate) fn pass_over(&mut self, len: usize) {
+        self.start = ((self.start as usize + len) % FIFO_SIZE) as u8;
+    }
+
     /// Byte `k` of the receive window (may run into the next message).
     pub fn window(&self, k: usize) -> u8 {
         self.ram[(self.start as usize + k) % FIFO_SIZE]

@@ -40,6 +40,17 @@ pub fn encode(mode: CanMode, frame: &Frame, out: &mut [u8; 13]) -> usize {
     header + data.len()
 }
 
+/// Length of the message [`encode`] makes of `frame` in `mode`.
+#[inline]
+pub fn message_len(mode: CanMode, frame: &Frame) -> usize {
+    let header = match (mode, frame.id()) {
+        (CanMode::Basic, _) => 2,
+        (CanMode::Peli, Id::Standard(_)) => 3,
+        (CanMode::Peli, Id::Extended(_)) => 5,
+    };
+    header + frame.payload().len()
+}
+
 /// Length of the message whose first bytes are `first` and `second` (enough to see the format,
 /// RTR and DLC). DLC 9..15 stores 8 data bytes.
 #[inline]

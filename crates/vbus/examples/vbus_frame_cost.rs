@@ -1,12 +1,20 @@
-//! A fixed amount of `--speed max` work for instruction counting: 1 sender kept busy and 8
-//! receivers on a 1 Mbit/s bus for a given number of bit-times, every frame carrying a new
-//! sequence number (as real traffic does), deliveries taken. Prints the frames carried, so
-//! that a profiler's instruction count divides into instructions per frame:
+//! A fixed amount of `--speed max` work for instruction counting: 1 sender kept busy and N
+//! receivers (8 unless told) on a 1 Mbit/s bus for a given number of bit-times, every frame
+//! carrying a new sequence number (as real traffic does), deliveries taken. Prints the frames
+//! carried and the deliveries, so that a profiler's instruction counts divide into
+//! instructions per frame and per receiver. A receiver's own cost is the difference between
+//! two runs that differ only in the number of receivers (same bit-times: same frames),
+//! divided by the extra deliveries:
 //!
 //! ```text
 //! cargo build --release -p buslab-vbus --example vbus_frame_cost
-//! valgrind --tool=callgrind --callgrind-out-file=cg.out \
-//!     target/release/examples/vbus_frame_cost 2000000
+//! for n in 1 8; do valgrind --tool=callgrind --callgrind-out-file=cg.$n \
+//!     target/release/examples/vbus_frame_cost 2000000 $n; done
+//! # per receiver and frame, whole program:
+//! #   (Ir(cg.8) - Ir(cg.1)) / (deliveries(8) - deliveries(1))
+//! # the client node alone: the same with the inclusive Ir of
+//! # `<buslab_canbus::node::Sja1000Node as buslab_can::node::BusNode>::advance_frame`
+//! # (callgrind_annotate --inclusive=yes).
 //! ```
 
 use buslab_can::BitTime;
@@ -14,7 +22,7 @@ use buslab_can::{Frame, Id};
 use buslab_vbus::VirtualBus;
 
 const BITRATE: u32 = 1_000_000;
-const RECEIVERS: usize = 8;
+const DEFAULT_RECEIVERS: usize = 8;
 const DEFAULT_BITS: u64 = 2_000_000;
 // The longest classic frame with its stuff bits and intermission: as the server's
 // `--speed max` loop, each stretch runs long enough for the queued frames to end inside it
@@ -26,9 +34,18 @@ fn main() {
         .nth(1)
         .map(|arg| arg.parse::<u64>().expect("bit-times: a whole number"))
         .unwrap_or(DEFAULT_BITS);
+    let receivers = std::env::args()
+        .nth(2)
+        .map(|arg| arg.parse::<usize>().expect("receivers: a whole number"))
+        .unwrap_or(DEFAULT_RECEIVERS);
+    assert!(
+        (1..buslab_vbus::MAX_NODES).contains(&receivers),
+        "receivers: 1..{} (a frame needs a receiver to acknowledge it)",
+        buslab_vbus::MAX_NODES
+    );
     let mut bus = VirtualBus::new(BITRATE).expect("1 Mbit/s is a valid bit rate");
     let sender = bus.join().expect("room for the sender");
-    for _ in 0..RECEIVERS {
+    for _ in 0..receivers {
         bus.join().expect("room for a receiver");
     }
     let id = Id::standard(0x123).expect("11 bits");
@@ -54,5 +71,5 @@ fn main() {
         }
     }
     let frames = bus.stats().frames;
-    println!("bit-times {bits} frames {frames} deliveries {delivered}");
+    println!("receivers {receivers} bit-times {bits} frames {frames} deliveries {delivered}");
 }
