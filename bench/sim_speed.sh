@@ -23,7 +23,7 @@ FAST_S=${FAST_S:-30}
 BIT_S=${BIT_S:-2}
 NODES=${NODES:-"2 16 32 64"}
 BASELINE=${BASELINE:-}
-CG_S=${CG_S:-0.05}
+CG_S=${CG_S:-0.5}
 TRACE_S=${TRACE_S:-$BIT_S}
 
 [ -x /usr/bin/time ] || {

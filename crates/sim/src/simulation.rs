@@ -170,9 +170,19 @@ struct Schedule {
     due: Vec<usize>,
 }
 
+/// Up to this many generators a look at each costs less than keeping the queue in order.
+const SCAN_GENERATORS: usize = 16;
+
 impl Schedule {
+    /// Few generators: scanned, no queue kept.
+    #[inline]
+    fn scanned(&self) -> bool {
+        self.generators.len() <= SCAN_GENERATORS
+    }
+
     fn recompute(&mut self) {
         self.queue.clear();
+        self.next = BitTime::MAX;
         for at in 0..self.generators.len() {
             self.push(at);
         }
@@ -183,13 +193,24 @@ impl Schedule {
     #[inline]
     fn push(&mut self, at: usize) {
         if let Some(t) = self.generators[at].next() {
-            self.queue.push(Reverse((t, at)));
+            if !self.scanned() {
+                self.queue.push(Reverse((t, at)));
+            }
             self.next = self.next.min(t);
         }
     }
 
     /// Drops stale entries at the head of the queue; `next` is the earliest time again.
     fn settle(&mut self) {
+        if self.scanned() {
+            self.next = self
+                .generators
+                .iter()
+                .filter_map(Generator::next)
+                .min()
+                .unwrap_or(BitTime::MAX);
+            return;
+        }
         while let Some(&Reverse((t, at))) = self.queue.peek() {
             if self.generators[at].next() == Some(t) {
                 self.next = t;
@@ -204,6 +225,14 @@ impl Schedule {
     /// they act (as added).
     fn take_due(&mut self, now: BitTime) {
         self.due.clear();
+        if self.scanned() {
+            for (at, g) in self.generators.iter().enumerate() {
+                if g.next().is_some_and(|t| t <= now) {
+                    self.due.push(at);
+                }
+            }
+            return;
+        }
         while let Some(&Reverse((t, at))) = self.queue.peek() {
             if t > now {
                 break;

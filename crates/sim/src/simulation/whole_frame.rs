@@ -35,7 +35,6 @@
 //! arbitration compares the best of them with the few nodes taken one by one: a frame costs
 //! about the same whatever the number of nodes.
 
-use std::collections::BTreeSet;
 use std::sync::Arc;
 
 use buslab_can::controller::{ArbitrationBits, Bystander, Event, FrameRole, FrameStart, WireFrame};
@@ -103,9 +102,10 @@ struct Group {
     /// reports).
     taken: u64,
     last: Option<Arc<CachedFrame>>,
-    /// The losers by priority (arbitration key, node): the first one competes with the
-    /// individual senders, the rest lose to it.
-    losers: BTreeSet<(u32, u32)>,
+    /// The losers by priority: `(arbitration key, node)`, the best last (it competes with
+    /// the nodes taken one by one; the rest lose to it). A sorted vector: a winner usually
+    /// comes from its end and goes back near it.
+    losers: Losers,
     /// Members that acknowledge (not listen-only).
     ackers: usize,
     members: usize,
@@ -115,6 +115,35 @@ impl Group {
     #[inline]
     fn is_member(&self, i: usize) -> bool {
         self.joined.get(i).is_some_and(|&j| j != NOT_LAZY)
+    }
+}
+
+/// `(arbitration key, node)` of the group's losers, sorted, the best last.
+#[derive(Debug, Default)]
+struct Losers(Vec<(u32, u32)>);
+
+impl Losers {
+    #[inline]
+    fn position(&self, entry: (u32, u32)) -> Result<usize, usize> {
+        self.0.binary_search_by(|probe| entry.cmp(probe))
+    }
+
+    fn insert(&mut self, entry: (u32, u32)) {
+        if let Err(at) = self.position(entry) {
+            self.0.insert(at, entry);
+        }
+    }
+
+    fn remove(&mut self, entry: (u32, u32)) {
+        if let Ok(at) = self.position(entry) {
+            self.0.remove(at);
+        }
+    }
+
+    /// The best two (fewer if there are fewer), best first.
+    #[inline]
+    fn best_two(&self) -> impl Iterator<Item = &(u32, u32)> {
+        self.0.iter().rev().take(2)
     }
 }
 
@@ -340,7 +369,7 @@ impl Simulation {
         group.ackers -= group.acks[i] as usize;
         let kind = group.kind[i];
         if let Bystander::Loser { key } = kind {
-            group.losers.remove(&(key, i as u32));
+            group.losers.remove((key, i as u32));
         }
         // A member filled in up to the end of the frame being applied has taken it already.
         let frames = group.frames.saturating_sub(joined);
@@ -434,7 +463,7 @@ impl Simulation {
             return;
         }
         if let Bystander::Loser { key } = old {
-            group.losers.remove(&(key, i as u32));
+            group.losers.remove((key, i as u32));
         }
         if let Bystander::Loser { key } = new {
             group.losers.insert((key, i as u32));
@@ -462,7 +491,7 @@ impl Simulation {
             }
         }
         // The group's losers are in priority order: only its first two can matter.
-        for &(key, i) in whole.group.losers.iter().take(2) {
+        for &(key, i) in whole.group.losers.best_two() {
             consider(&mut best, &mut tie, key, i as usize);
         }
         let (_, w) = best?;
