@@ -360,6 +360,7 @@ impl Simulation {
 
     fn push_node(&mut self, name: String, device: Device) -> usize {
         self.others += matches!(device, Device::Other(_)) as usize;
+        self.whole.nodes_changed = true;
         self.nodes.push(Node {
             name,
             device,
@@ -382,6 +383,7 @@ impl Simulation {
     pub fn remove_node(&mut self, index: usize) -> Node {
         let node = self.nodes.remove(index);
         self.others -= matches!(node.device, Device::Other(_)) as usize;
+        self.whole.nodes_changed = true;
         self.outputs.remove(index);
         self.schedule.generators.retain(|g| g.node != index);
         for g in &mut self.schedule.generators {

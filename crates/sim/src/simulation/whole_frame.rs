@@ -176,6 +176,8 @@ pub(super) struct WholeFrames {
     ind: Vec<usize>,
     group: Group,
     frame: Option<InFrame>,
+    /// A node was added or removed since the tables were sized ([`Self::prepare`]).
+    pub(super) nodes_changed: bool,
     /// Recently seen frames on the wire ([`cache_key`] of each beside it); when full, the
     /// oldest entry (at `cache_next`) makes room.
     cache_keys: Vec<u128>,
@@ -199,6 +201,7 @@ impl Default for WholeFrames {
             ind: Vec::new(),
             group: Group::default(),
             frame: None,
+            nodes_changed: true,
             cache_keys: Vec::new(),
             cache: Vec::new(),
             cache_next: 0,
@@ -226,9 +229,11 @@ impl WholeFrames {
     /// Sizes the per-node tables for `n` nodes; with no member, every node is taken one by
     /// one.
     fn prepare(&mut self, n: usize) {
-        if self.group.members + self.ind.len() == n && self.roles.len() == n {
+        if !self.nodes_changed && self.group.members + self.ind.len() == n && self.roles.len() == n
+        {
             return;
         }
+        self.nodes_changed = false;
         debug_assert_eq!(
             self.group.members, 0,
             "nodes changed with members in the group"
@@ -237,6 +242,7 @@ impl WholeFrames {
         self.ind.extend(0..n);
         self.roles.resize(n, FrameRole::Receiver);
         self.done.resize(n, 0);
+        self.ranged.clear();
         self.ranged.resize(n, false);
         self.group.joined.clear();
         self.group.joined.resize(n, NOT_LAZY);
@@ -539,10 +545,19 @@ impl Simulation {
             return false;
         }
         let Self { nodes, whole, .. } = self;
-        for &i in &whole.ind {
-            whole.roles[i] = FrameRole::Receiver;
-            whole.ranged[i] = matches!(nodes[i].device, Device::Other(_));
-            whole.done[i] = 0;
+        if whole.group.members == 0 {
+            whole.roles.fill(FrameRole::Receiver);
+        } else {
+            for &i in &whole.ind {
+                whole.roles[i] = FrameRole::Receiver;
+            }
+        }
+        // Only nodes of another kind go through ranges (none on a bus of bare controllers).
+        if self.others > 0 {
+            for &i in &whole.ind {
+                whole.ranged[i] = matches!(nodes[i].device, Device::Other(_));
+                whole.done[i] = 0;
+            }
         }
         whole.roles[w] = FrameRole::Transmitter;
         whole.losers.clear();
