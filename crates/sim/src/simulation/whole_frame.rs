@@ -591,11 +591,16 @@ impl Simulation {
             cached: cached.clone(),
         });
 
+        // With no member every node is taken one by one: no look into the index list. (No
+        // node joins or leaves during the stages: a generator gives a member its frame in
+        // the group, see `before_enqueue`.)
+        let all = self.whole.group.members == 0;
+        let count = self.whole.ind.len();
         // SOF: every controller takes part in the frame. Nothing to report but what waited
         // already (counters forced between runs report their warning and state here, as the
         // bit-level path polls them after the node samples SOF).
-        for k in 0..self.whole.ind.len() {
-            let i = self.whole.ind[k];
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
             let Self {
                 nodes,
                 obs,
@@ -643,8 +648,8 @@ impl Simulation {
         }
         let [ack, eof6, eof7] = wire.event_bits();
         self.handle_due_inside(wire, t0, &mut at, ack);
-        for k in 0..self.whole.ind.len() {
-            let i = self.whole.ind[k];
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
             if i == w {
                 continue;
             }
@@ -671,8 +676,8 @@ impl Simulation {
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof6);
-        for k in 0..self.whole.ind.len() {
-            let i = self.whole.ind[k];
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
             if i == w {
                 continue;
             }
@@ -699,8 +704,8 @@ impl Simulation {
         self.stage_done(wire, t0, w, eof7);
         let last = total - 1;
         self.handle_due_inside(wire, t0, &mut at, last);
-        for k in 0..self.whole.ind.len() {
-            let i = self.whole.ind[k];
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
             let Self {
                 nodes,
                 obs,
