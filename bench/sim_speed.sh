@@ -11,6 +11,11 @@
 #
 # BASELINE=path/to/an/older/buslab adds, in the same run, that binary's fast path (CPU time)
 # and how many times faster this one is: e.g. one built from main before a change.
+#
+# Instructions per frame (load-independent) come from callgrind: the fast path run for CG_S
+# and for 2 × CG_S simulated seconds, the difference in instructions over the difference in
+# frames (start-up cancels out). A second table does the same with the trace printed (not
+# --quiet; stdout to a file), as `buslab sim` prints it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -18,6 +23,8 @@ FAST_S=${FAST_S:-30}
 BIT_S=${BIT_S:-2}
 NODES=${NODES:-"2 16 32 64"}
 BASELINE=${BASELINE:-}
+CG_S=${CG_S:-0.5}
+TRACE_S=${TRACE_S:-$BIT_S}
 
 [ -x /usr/bin/time ] || {
     echo "bench/sim_speed.sh: /usr/bin/time is missing (apt-get install time)" >&2
@@ -44,22 +51,53 @@ scenario() {
 }
 
 # run FILE SECONDS OUT [ARGS...]: prints "wall cpu" in seconds (binary: $bin, else $buslab).
+# QUIET=0 prints the trace.
 run() {
     local file=$1 secs=$2 out=$3
     shift 3
+    local quiet=--quiet
+    [ "${QUIET:-1}" = 1 ] || quiet=
     /usr/bin/time -f "%e %U %S" -o "$work/time" \
-        "${bin:-$buslab}" sim "$file" --quiet --duration "${secs}s" "$@" >"$out"
+        "${bin:-$buslab}" sim "$file" $quiet --duration "${secs}s" "$@" >"$out"
     awk '{ printf "%s %.3f", $1, $2 + $3 }' "$work/time"
+}
+
+# frames OUT: the frame count of a run's summary.
+frames() { sed -n 's/.* \([0-9][0-9]*\) frames, .*/\1/p' "$1" | tail -n 1; }
+
+# irs FILE SECONDS: total instructions (callgrind) of the fast path for that long.
+irs() {
+    local quiet=--quiet
+    [ "${QUIET:-1}" = 1 ] || quiet=
+    valgrind --tool=callgrind --callgrind-out-file="$work/cg.out" \
+        "${bin:-$buslab}" sim "$1" $quiet --duration "${2}s" >"$work/cg.txt" 2>/dev/null
+    sed -n 's/^summary: \([0-9]*\).*/\1/p' "$work/cg.out"
+}
+
+# ir_per_frame FILE: instructions per frame, start-up cancelled (see the top).
+ir_per_frame() {
+    local a b fa fb
+    a=$(irs "$1" "$CG_S")
+    fa=$(frames "$work/cg.txt")
+    b=$(irs "$1" "$(awk -v s="$CG_S" 'BEGIN { print 2 * s }')")
+    fb=$(frames "$work/cg.txt")
+    awk -v a="$a" -v b="$b" -v fa="$fa" -v fb="$fb" 'BEGIN { printf "%.0f", (b - a) / (fb - fa) }'
 }
 
 factor() { awk -v s="$1" -v t="$2" 'BEGIN { printf (t > 0 ? "%.1f" : "inf"), s / t }'; }
 
+command -v valgrind >/dev/null || {
+    echo "bench/sim_speed.sh: valgrind is missing (apt-get install valgrind)" >&2
+    exit 1
+}
+
 echo "# buslab sim, saturated 1 Mbit/s bus, 8-byte frames; real-time factor = simulated s / s"
 echo "# fast path: ${FAST_S} s simulated per run; --bit-level: ${BIT_S} s; load average: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "# Ir/frame: callgrind instructions per frame of the fast path (${CG_S} s against $(awk -v s="$CG_S" 'BEGIN { print 2 * s }') s)"
 [ -z "$BASELINE" ] || echo "# baseline: $BASELINE (fast path, CPU time, same scenario and duration)"
-printf '%-6s %14s %14s %14s %14s %10s %10s %-11s' nodes "fast (wall)" "fast (CPU)" \
-    "bit (wall)" "bit (CPU)" "wall ratio" "CPU ratio" "same output"
-[ -z "$BASELINE" ] && echo || printf ' %14s %9s\n' "baseline (CPU)" "speed-up"
+printf '%-6s %14s %14s %14s %14s %10s %10s %-11s %9s' nodes "fast (wall)" "fast (CPU)" \
+    "bit (wall)" "bit (CPU)" "wall ratio" "CPU ratio" "same output" "Ir/frame"
+[ -z "$BASELINE" ] && echo || printf ' %14s %9s %13s\n' "baseline (CPU)" "speed-up" "base Ir/frame"
 for n in $NODES; do
     file=$work/sat$n.toml
     scenario "$n" "$file"
@@ -73,12 +111,35 @@ for n in $NODES; do
     ffc=$(factor "$FAST_S" "$fc")
     fbw=$(factor "$BIT_S" "$bw")
     fbc=$(factor "$BIT_S" "$bc")
-    printf '%-6s %13s× %13s× %13s× %13s× %9s× %9s× %-11s' "$n" "$ffw" "$ffc" "$fbw" "$fbc" \
-        "$(factor "$ffw" "$fbw")" "$(factor "$ffc" "$fbc")" "$same"
+    printf '%-6s %13s× %13s× %13s× %13s× %9s× %9s× %-11s %9s' "$n" "$ffw" "$ffc" "$fbw" "$fbc" \
+        "$(factor "$ffw" "$fbw")" "$(factor "$ffc" "$fbc")" "$same" "$(ir_per_frame "$file")"
     if [ -n "$BASELINE" ]; then
         read -r _ oc <<<"$(bin=$BASELINE run "$file" "$FAST_S" "$work/base.out")"
         fo=$(factor "$FAST_S" "$oc")
-        printf ' %13s× %8s×\n' "$fo" "$(factor "$ffc" "$fo")"
+        printf ' %13s× %8s× %13s\n' "$fo" "$(factor "$ffc" "$fo")" "$(bin=$BASELINE ir_per_frame "$file")"
+    else
+        echo
+    fi
+done
+
+echo "#"
+echo "# the same with the trace printed (stdout to a file): ${TRACE_S} s simulated per run"
+printf '%-6s %14s %14s %-11s %9s' nodes "fast (wall)" "fast (CPU)" "same output" "Ir/frame"
+[ -z "$BASELINE" ] && echo || printf ' %14s %9s %13s\n' "baseline (CPU)" "speed-up" "base Ir/frame"
+for n in $NODES; do
+    file=$work/sat$n.toml
+    read -r fw fc <<<"$(QUIET=0 run "$file" "$TRACE_S" "$work/fast.out")"
+    QUIET=0 run "$file" "$TRACE_S" "$work/bit.out" --bit-level >/dev/null
+    same=no
+    cmp -s "$work/fast.out" "$work/bit.out" && same=yes
+    ffc=$(factor "$TRACE_S" "$fc")
+    printf '%-6s %13s× %13s× %-11s %9s' "$n" "$(factor "$TRACE_S" "$fw")" "$ffc" "$same" \
+        "$(QUIET=0 ir_per_frame "$file")"
+    if [ -n "$BASELINE" ]; then
+        read -r _ oc <<<"$(QUIET=0 bin=$BASELINE run "$file" "$TRACE_S" "$work/base.out")"
+        fo=$(factor "$TRACE_S" "$oc")
+        printf ' %13s× %8s× %13s\n' "$fo" "$(factor "$ffc" "$fo")" \
+            "$(QUIET=0 bin=$BASELINE ir_per_frame "$file")"
     else
         echo
     fi

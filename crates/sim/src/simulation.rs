@@ -11,6 +11,8 @@ use crate::observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats,
 use crate::rng::SplitMix64;
 use crate::time::BitTime;
 use crate::traffic::{Generator, Traffic};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 
 mod whole_frame;
 
@@ -160,16 +162,88 @@ struct Schedule {
     next: BitTime,
     /// Some generator sends a file: only those act when a node's frame leaves the bus.
     files: bool,
+    /// `(time, generator)` for every generator waiting for a time, earliest first, so a
+    /// generator acting costs no look at the others. An entry whose generator has moved to
+    /// another time since is stale and dropped when met.
+    queue: BinaryHeap<Reverse<(BitTime, usize)>>,
+    /// The generators due now (see [`Self::take_due`]).
+    due: Vec<usize>,
 }
 
+/// Up to this many generators a look at each costs less than keeping the queue in order.
+const SCAN_GENERATORS: usize = 16;
+
 impl Schedule {
+    /// Few generators: scanned, no queue kept.
+    #[inline]
+    fn scanned(&self) -> bool {
+        self.generators.len() <= SCAN_GENERATORS
+    }
+
     fn recompute(&mut self) {
-        self.next = self
-            .generators
-            .iter()
-            .filter_map(Generator::next)
-            .min()
-            .unwrap_or(BitTime::MAX);
+        self.queue.clear();
+        self.next = BitTime::MAX;
+        for at in 0..self.generators.len() {
+            self.push(at);
+        }
+        self.settle();
+    }
+
+    /// Generator `at` waits for its (new) time, if any.
+    #[inline]
+    fn push(&mut self, at: usize) {
+        if let Some(t) = self.generators[at].next() {
+            if !self.scanned() {
+                self.queue.push(Reverse((t, at)));
+            }
+            self.next = self.next.min(t);
+        }
+    }
+
+    /// Drops stale entries at the head of the queue; `next` is the earliest time again.
+    fn settle(&mut self) {
+        if self.scanned() {
+            self.next = self
+                .generators
+                .iter()
+                .filter_map(Generator::next)
+                .min()
+                .unwrap_or(BitTime::MAX);
+            return;
+        }
+        while let Some(&Reverse((t, at))) = self.queue.peek() {
+            if self.generators[at].next() == Some(t) {
+                self.next = t;
+                return;
+            }
+            self.queue.pop();
+        }
+        self.next = BitTime::MAX;
+    }
+
+    /// Takes the generators due at or before `now` off the queue into `due`, in the order
+    /// they act (as added).
+    fn take_due(&mut self, now: BitTime) {
+        self.due.clear();
+        if self.scanned() {
+            for (at, g) in self.generators.iter().enumerate() {
+                if g.next().is_some_and(|t| t <= now) {
+                    self.due.push(at);
+                }
+            }
+            return;
+        }
+        while let Some(&Reverse((t, at))) = self.queue.peek() {
+            if t > now {
+                break;
+            }
+            self.queue.pop();
+            if self.generators[at].next() == Some(t) {
+                self.due.push(at);
+            }
+        }
+        self.due.sort_unstable();
+        self.due.dedup();
     }
 }
 
@@ -241,9 +315,8 @@ impl Simulation {
             now: BitTime::ZERO,
             nodes: Vec::new(),
             schedule: Schedule {
-                generators: Vec::new(),
                 next: BitTime::MAX,
-                files: false,
+                ..Default::default()
             },
             faults: Vec::new(),
             fault_active: Vec::new(),
@@ -287,6 +360,7 @@ impl Simulation {
 
     fn push_node(&mut self, name: String, device: Device) -> usize {
         self.others += matches!(device, Device::Other(_)) as usize;
+        self.whole.nodes_changed = true;
         self.nodes.push(Node {
             name,
             device,
@@ -309,6 +383,7 @@ impl Simulation {
     pub fn remove_node(&mut self, index: usize) -> Node {
         let node = self.nodes.remove(index);
         self.others -= matches!(node.device, Device::Other(_)) as usize;
+        self.whole.nodes_changed = true;
         self.outputs.remove(index);
         self.schedule.generators.retain(|g| g.node != index);
         for g in &mut self.schedule.generators {
@@ -523,6 +598,12 @@ impl Simulation {
     /// jumps there (idle controllers that sample recessive stay idle, and every level stays
     /// recessive).
     pub fn run_until(&mut self, end: BitTime) {
+        self.run_until_inner(end);
+        // Every node is filled in for whoever looks at it next.
+        self.dissolve_group();
+    }
+
+    fn run_until_inner(&mut self, end: BitTime) {
         while self.now < end {
             self.handle_due();
             let horizon = end
@@ -586,25 +667,37 @@ impl Simulation {
 
     /// Everything scheduled at or before `now`: fault changes, traffic, counter samples.
     fn handle_due(&mut self) {
+        self.handle_due_taken(false);
+    }
+
+    /// [`Self::handle_due`]; `taken`: the due generators are already in `schedule.due`.
+    fn handle_due_taken(&mut self, taken: bool) {
         let now = self.now;
         if self.next_fault_change <= now {
             self.update_faults();
         }
-        if self.schedule.next <= now {
-            // Firing one generator changes no other's time: the next one is found on the way.
-            let mut next = BitTime::MAX;
-            for g in &mut self.schedule.generators {
-                if g.next().is_some_and(|t| t <= now) {
-                    let node = &mut self.nodes[g.node];
-                    let q = g.fire(now, node.device.node_mut());
-                    node.stats.queued += q.queued;
-                    node.stats.queue_overflows += q.overflows;
-                }
-                if let Some(t) = g.next() {
-                    next = next.min(t);
-                }
+        if taken || self.schedule.next <= now {
+            if !taken {
+                self.schedule.take_due(now);
             }
-            self.schedule.next = next;
+            for k in 0..self.schedule.due.len() {
+                let at = self.schedule.due[k];
+                // A node advanced with the group is filled in before it is given a frame.
+                let i = self.schedule.generators[at].node;
+                let member = self.whole.is_member(i);
+                if member {
+                    self.before_enqueue(i);
+                }
+                let node = &mut self.nodes[i];
+                let q = self.schedule.generators[at].fire(now, node.device.node_mut());
+                node.stats.queued += q.queued;
+                node.stats.queue_overflows += q.overflows;
+                if member && q.queued > 0 {
+                    self.after_enqueue(i);
+                }
+                self.schedule.push(at);
+            }
+            self.schedule.settle();
         }
         if self.next_sample <= now {
             for (i, n) in self.nodes.iter().enumerate() {
@@ -825,14 +918,20 @@ fn handle_event(
     match &event {
         Event::Transmitted(frame) | Event::Dropped(frame) => {
             obs.bus.frames += matches!(event, Event::Transmitted(_)) as u64;
-            let files = schedule.files.then_some(&mut schedule.generators);
-            for g in files.into_iter().flatten().filter(|g| g.node == i) {
+            let files = if schedule.files {
+                schedule.generators.len()
+            } else {
+                0
+            };
+            for at in 0..files {
+                let g = &mut schedule.generators[at];
+                if g.node != i {
+                    continue;
+                }
                 let q = g.on_done(frame, now, node.device.node_mut());
                 node.stats.queued += q.queued;
                 node.stats.queue_overflows += q.overflows;
-                if let Some(t) = g.next() {
-                    schedule.next = schedule.next.min(t);
-                }
+                schedule.push(at);
             }
         }
         Event::Error { .. } => obs.bus.errors += 1,

@@ -519,3 +519,227 @@ fn a_saturated_bus_without_a_trace_ends_the_same() {
     assert!(fast.records().is_empty());
     assert_eq!(observed(&fast).1, observed(&slow).1);
 }
+
+/// What a user may do between two runs of a bus whose bystanders are advanced as a group:
+/// every one of them looks at the nodes or changes the bus, so the members must be filled in
+/// exactly as stepping every bit leaves them.
+#[derive(Clone, Debug)]
+enum Action {
+    Run(u64),
+    /// Queue a frame on a node by hand.
+    Enqueue(usize, Frame),
+    /// Record the trace from now on, or stop recording it.
+    Trace(bool),
+    /// A fault from now on for that long.
+    Fault(u8, usize, u64),
+    AddNode(bool),
+    RemoveNode(usize),
+    /// Force a node's counters (a REC above 0 takes it out of the group).
+    Counters(usize, u16, u16),
+}
+
+fn action() -> impl Strategy<Value = Action> {
+    prop_oneof![
+        6 => (1u64..4_000).prop_map(Action::Run),
+        2 => (0usize..64, any_frame()).prop_map(|(n, f)| Action::Enqueue(n, f)),
+        1 => any::<bool>().prop_map(Action::Trace),
+        1 => (0u8..6, 0usize..64, 1u64..300).prop_map(|(k, n, len)| Action::Fault(k, n, len)),
+        1 => any::<bool>().prop_map(Action::AddNode),
+        1 => (0usize..64).prop_map(Action::RemoveNode),
+        1 => (0usize..64, 0u16..140, 0u16..4).prop_map(|(n, t, r)| Action::Counters(n, t, r)),
+    ]
+}
+
+/// `bus` (untraced at first), then `actions`, with what can be seen compared after each
+/// action between the fast path and the bit-level path.
+fn act(bus: &Bus, actions: &[Action], whole: bool) -> Vec<(String, String)> {
+    let mut sim = build(bus, whole);
+    sim.set_record_events(false);
+    let mut seen = Vec::new();
+    for a in actions {
+        let n = sim.nodes().len();
+        match a {
+            Action::Run(bits) => sim.run_for(BitTime::new(*bits)),
+            Action::Enqueue(node, f) => {
+                let _ = sim.enqueue(node % n, *f);
+            }
+            Action::Trace(on) => sim.set_record_events(*on),
+            Action::Fault(kind, node, len) => {
+                let node = node % n;
+                let kind = match kind {
+                    0 => FaultKind::Disconnect { node },
+                    1 => FaultKind::Flip { node: Some(node) },
+                    2 => FaultKind::StuckDominant,
+                    _ => FaultKind::Noise {
+                        nodes: vec![node],
+                        rate: 0.05,
+                    },
+                };
+                sim.add_fault(Fault {
+                    kind,
+                    start: sim.now(),
+                    end: sim.now() + BitTime::new(*len),
+                });
+            }
+            Action::AddNode(sends) => {
+                let i = sim.add_node(format!("new{n}"), ControllerConfig::default());
+                if *sends {
+                    sim.add_traffic(
+                        i,
+                        Traffic::Periodic {
+                            frame: Frame::data(Id::standard(0x0F0 + n as u16).unwrap(), &[1; 8])
+                                .unwrap(),
+                            period: BitTime::new(400),
+                            start: sim.now(),
+                            count: None,
+                        },
+                    );
+                }
+            }
+            Action::RemoveNode(node) => {
+                if n > 2 {
+                    sim.remove_node(node % n);
+                }
+            }
+            Action::Counters(node, tec, rec) => {
+                sim.controller_mut(node % n)
+                    .unwrap()
+                    .set_counters(*tec, *rec);
+            }
+        }
+        seen.push(observed(&sim));
+    }
+    seen
+}
+
+/// A saturated bus: every node always has a frame waiting, most lose every arbitration.
+fn saturated_bus() -> impl Strategy<Value = Bus> {
+    (3usize..24).prop_flat_map(|n| {
+        (
+            prop::collection::vec(
+                prop_oneof![
+                    8 => Just(NodeSpec {
+                        listen_only: false,
+                        single_shot: false,
+                        self_reception: false,
+                        auto_recover: true,
+                        capacity: 4,
+                        counters: (0, 0),
+                    }),
+                    2 => node_spec(),
+                ],
+                n,
+            ),
+            prop::option::weighted(0.3, 50u64..700),
+        )
+            .prop_map(move |(nodes, sample_every)| Bus {
+                traffic: (0..nodes.len())
+                    .map(|i| {
+                        (
+                            i,
+                            TrafficSpec::Periodic {
+                                frame: Frame::data(
+                                    Id::standard(0x100 + i as u16).unwrap(),
+                                    &[i as u8; 8],
+                                )
+                                .unwrap(),
+                                period: 50 * nodes.len() as u64,
+                                start: i as u64 % 7,
+                            },
+                        )
+                    })
+                    .collect(),
+                nodes,
+                faults: Vec::new(),
+                sample_every,
+                steps: Vec::new(),
+            })
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Reads, hand-queued frames, the trace switched on and off, faults starting, counters
+    /// forced and nodes added and removed between runs: after every one the fast path (with
+    /// its group of bystanders) shows what the bit-level path shows.
+    #[test]
+    fn the_group_is_filled_in_whatever_looks_between_runs(
+        bus in prop_oneof![saturated_bus(), crowded_bus(), bus()],
+        actions in prop::collection::vec(action(), 1..24),
+    ) {
+        let fast = act(&bus, &actions, true);
+        let slow = act(&bus, &actions, false);
+        for (k, (f, s)) in fast.iter().zip(&slow).enumerate() {
+            prop_assert_eq!(&f.0, &s.0, "trace differs after action {}: {:?}", k, &actions[k]);
+            prop_assert_eq!(&f.1, &s.1, "state differs after action {}: {:?}", k, &actions[k]);
+        }
+    }
+}
+
+/// A saturated bus of 64 nodes without a trace, with counter samples inside frames: every
+/// frame is applied whole, and everything (counters, series, every controller) is the same
+/// as bit by bit, though most nodes were advanced as a group.
+#[test]
+fn a_saturated_bus_of_64_nodes_advanced_as_a_group_ends_the_same() {
+    let bus = |whole: bool| {
+        let mut sim = Simulation::new(1_000_000, 1);
+        sim.set_whole_frames(whole);
+        sim.set_record_events(false);
+        for i in 0..64u16 {
+            let n = sim.add_node(format!("n{i}"), ControllerConfig::default());
+            sim.add_traffic(
+                n,
+                Traffic::Periodic {
+                    frame: Frame::data(Id::standard(0x100 + i).unwrap(), &[i as u8; 8]).unwrap(),
+                    period: BitTime::new(50 * 64),
+                    start: BitTime::new(u64::from(i % 5)),
+                    count: None,
+                },
+            );
+        }
+        sim.sample_counters_every(BitTime::new(977));
+        for _ in 0..10 {
+            sim.run_for(BitTime::new(20_000));
+        }
+        sim
+    };
+    let fast = bus(true);
+    let slow = bus(false);
+    assert!(
+        fast.whole_frames() * 10 >= fast.bus_stats().frames * 9,
+        "{} of {} frames applied whole",
+        fast.whole_frames(),
+        fast.bus_stats().frames
+    );
+    // Most nodes took most frames as members of the group.
+    assert!(
+        fast.frames_in_group() * 10 >= fast.whole_frames() * 64 * 9,
+        "{} node-frames in the group of {} frames on 64 nodes",
+        fast.frames_in_group(),
+        fast.whole_frames()
+    );
+    assert_eq!(observed(&fast), observed(&slow));
+}
+
+/// Regression: counters forced between two runs queue a warning (and a state change) in the
+/// controller; a frame applied whole next reported them with the frame's events instead of at
+/// its SOF, where the bit-level path polls them after the node samples the bit.
+#[test]
+fn counters_forced_between_runs_report_at_the_next_frame_start() {
+    let bus = |whole: bool| {
+        let mut sim = bus_with(&[("a", &["100#"]), ("b", &["092B4D6F#93A542F202161800"])]);
+        sim.set_whole_frames(whole);
+        sim.run_for(BitTime::new(200));
+        sim.controller_mut(0).unwrap().set_counters(117, 0);
+        sim.controller_mut(1).unwrap().set_counters(28, 100);
+        sim.enqueue(0, frame("100#")).unwrap();
+        sim.enqueue(1, frame("092B4D6F#93A542F202161800")).unwrap();
+        sim.run_for(BitTime::new(400));
+        sim
+    };
+    let fast = bus(true);
+    let slow = bus(false);
+    assert!(fast.whole_frames() > 0);
+    assert_eq!(observed(&fast), observed(&slow));
+}

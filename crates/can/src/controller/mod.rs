@@ -21,7 +21,7 @@ use crate::{Frame, Level};
 use fault::Counters;
 use queue::TxQueue;
 
-pub use whole_frame::{ArbitrationBits, FrameRole, FrameStart, WireFrame};
+pub use whole_frame::{ArbitrationBits, Bystander, FrameRole, FrameStart, WireFrame};
 
 /// Options that change how the controller behaves on the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

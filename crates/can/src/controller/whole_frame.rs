@@ -42,6 +42,15 @@ pub enum FrameRole {
     Receiver,
 }
 
+/// What a [`Controller::bystander`] does in the frames going by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bystander {
+    /// Receives them (acknowledging them unless listen-only).
+    Receiver,
+    /// Sends SOF with its frame (arbitration key `key`) each time and loses, then receives.
+    Loser { key: u32 },
+}
+
 /// A clean, acknowledged frame on the wire, from SOF to the end of intermission, as every node
 /// sees it.
 #[derive(Clone, Debug)]
@@ -275,6 +284,55 @@ impl Controller {
         }
     }
 
+    /// What this controller, lined up at a frame start, does in the next whole frames as
+    /// long as nobody looks at it: `None` unless it only watches them go by, with no
+    /// report of its own but the frame received (and the arbitration lost, for a
+    /// [`Bystander::Loser`]). Such a node's state after any number of frames is known
+    /// without applying each one ([`Self::bystander_frames`]): the engine advances these
+    /// nodes as a group and fills them in when something looks at them.
+    ///
+    /// The conditions: error-active, REC 0 (a reception leaves it 0; listen-only nodes do
+    /// not count it), no event waiting, not single-shot, and either nothing to send (or
+    /// listen-only) or one frame it retries after losing (no abort pending, nothing queued
+    /// since it was chosen, so the frame end keeps it). Given a frame to send, such a node is
+    /// a bystander again.
+    #[inline]
+    pub fn bystander(&self) -> Option<Bystander> {
+        // Single-shot nodes never: one given a frame to send would drop it when it loses.
+        if self.phase != Phase::Idle
+            || self.state() != ErrorState::Active
+            || (self.counters.rec != 0 && !self.config.listen_only)
+            || !self.events.is_empty()
+            || self.config.single_shot
+        {
+            return None;
+        }
+        match (self.drive, &self.tx) {
+            (Level::Recessive, _) if self.config.listen_only => Some(Bystander::Receiver),
+            (Level::Recessive, None) => Some(Bystander::Receiver),
+            (Level::Dominant, Some(tx)) if self.tx_is_best && !self.abort_in_flight => {
+                Some(Bystander::Loser {
+                    key: tx.frame().arbitration_key(),
+                })
+            }
+            _ => None,
+        }
+    }
+
+    /// One or more whole frames, the last of them `last`, have gone by this
+    /// [`Self::bystander`] (which said what it is): where they leave it. Its reports are one
+    /// [`Event::Received`] per frame, and one [`Event::ArbitrationLost`] for a loser, which
+    /// the caller counts itself.
+    pub fn bystander_frames(&mut self, last: &WireFrame) {
+        // `frame_begin` .. `frame_end` as a receiver (or a loser, a receiver from its lost
+        // bit on): the counters, the queue and the level driven stay as they were.
+        self.phase = Phase::Idle;
+        self.transmitting = false;
+        self.was_transmitter = false;
+        self.rx.clone_from(&last.receiver);
+        self.frame_bit = last.total();
+    }
+
     /// The last (3rd) intermission bit of a whole frame: waiting for SOF again, or suspended.
     #[inline]
     pub fn frame_end(&mut self, frame: &WireFrame) {
@@ -293,7 +351,10 @@ impl Controller {
 mod tests {
     use super::*;
     use crate::Id;
+    use crate::controller::ControllerConfig;
     use crate::wire::encode;
+    use alloc::format;
+    use alloc::vec::Vec;
     use proptest::prelude::*;
 
     /// [`WireFrame::lost_bit`] the plain way, bit by bit.
@@ -339,6 +400,71 @@ mod tests {
                     Frame::data(id, &data).unwrap()
                 }
             })
+    }
+
+    /// A controller lined up at a frame start: idle after integrating, `queued` waiting.
+    fn lined_up(config: ControllerConfig, queued: &[Frame]) -> Controller {
+        let mut c = Controller::new(config);
+        for _ in 0..11 {
+            c.sample(Level::Recessive);
+        }
+        for f in queued {
+            c.enqueue(*f).unwrap();
+        }
+        c
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(500))]
+
+        /// A bystander filled in at once after some frames is the controller that took each
+        /// of them whole, and its reports are one `Received` (and one `ArbitrationLost`) per
+        /// frame.
+        #[test]
+        fn a_bystander_filled_in_at_once_is_the_one_that_took_every_frame(
+            frames in prop::collection::vec(any_frame(), 1..6),
+            own in prop::option::of(any_frame()),
+            listen_only in any::<bool>(),
+        ) {
+            let config = ControllerConfig { listen_only, ..Default::default() };
+            let queued: Vec<Frame> = own.into_iter().collect();
+            let mut stepped = lined_up(config, &queued);
+            let mut lazy = stepped.clone();
+            let kind = lazy.bystander();
+            prop_assert!(kind.is_some());
+            let mut last = None;
+            let mut reports = 0;
+            for f in &frames {
+                let FrameStart::Ready { sends, .. } = stepped.frame_start() else {
+                    return Err(TestCaseError::fail("not lined up"));
+                };
+                let winner = encode(f);
+                let role = match sends {
+                    Some(mine) => match WireFrame::lost_bit(mine, &winner) {
+                        Some(role) => role,
+                        // Not a loser to this frame (the same arbitration field, or it would
+                        // win): not a case of the group.
+                        None => return Ok(()),
+                    },
+                    None => FrameRole::Receiver,
+                };
+                let wire = WireFrame::new(&winner).unwrap();
+                stepped.advance_frame(&wire, role, 0..wire.total());
+                while let Some(event) = stepped.poll_event() {
+                    let loser = matches!(kind, Some(Bystander::Loser { .. }));
+                    let expected = matches!(event, Event::Received(_))
+                        || matches!(event, Event::ArbitrationLost { .. } if loser);
+                    prop_assert!(expected, "{:?}", event);
+                    reports += 1;
+                }
+                last = Some(wire);
+            }
+            lazy.bystander_frames(last.as_ref().unwrap());
+            prop_assert_eq!(format!("{lazy:?}"), format!("{stepped:?}"));
+            let per_frame = 1 + matches!(kind, Some(Bystander::Loser { .. })) as usize;
+            prop_assert_eq!(reports, per_frame * frames.len());
+            prop_assert_eq!(stepped.bystander(), kind);
+        }
     }
 
     proptest! {

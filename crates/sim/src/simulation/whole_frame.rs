@@ -19,10 +19,25 @@
 //! each stage and each time something looks at them (a receiver whose REC is 0 has nothing to
 //! report at the ACK slot: its ACK stage goes with the next one). Within a stage nodes go in index order,
 //! as the bit-by-bit path steps them, so the trace comes out in the same order.
+//!
+//! With no trace recorded and only bare controllers on the bus, the *bystanders* of a frame —
+//! error-active controllers with REC 0 that only receive it, or that lose arbitration with
+//! the same frame again and again ([`Controller::bystander`](buslab_can::controller::Controller::bystander)) —
+//! are not moved at all: after a frame they join a group whose members' controllers and
+//! counters stand where they were when they joined, and the group counts the frames applied
+//! since. A member is filled in ([`Controller::bystander_frames`](buslab_can::controller::Controller::bystander_frames),
+//! one `received` and, for a loser, one `arbitration lost` per frame) when it wins
+//! arbitration, when a generator gives it a frame its queue has room for (in the middle of a
+//! frame it then goes on through the frame's bits in ranges, as other node kinds do), and for
+//! everybody when the frame cannot be applied whole or the run ends (whoever looks at a
+//! node next sees it filled in). Counter samples read members as they are: a bystander's
+//! counters and state do not move. The losers in the group are kept in priority order, so
+//! arbitration compares the best of them with the few nodes taken one by one: a frame costs
+//! about the same whatever the number of nodes.
 
 use std::sync::Arc;
 
-use buslab_can::controller::{ArbitrationBits, Event, FrameRole, FrameStart, WireFrame};
+use buslab_can::controller::{ArbitrationBits, Bystander, Event, FrameRole, FrameStart, WireFrame};
 use buslab_can::wire::Encoded;
 use buslab_can::{Frame, Id};
 
@@ -68,6 +83,76 @@ fn cache_key(frame: &Frame, dlc: u8) -> u128 {
         | u128::from(u64::from_le_bytes(data)) << 64
 }
 
+/// A node's group frame count when it joined: it is no member.
+const NOT_LAZY: u64 = u64::MAX;
+
+/// The bystanders (`Controller::bystander`) advanced together: a member's controller and
+/// counters stand where they were when it joined; it has since taken every frame applied
+/// (`frames` minus its `joined`), the last of them `last`, as a plain receiver or as a loser
+/// retrying the same frame. `Simulation::leave_group` fills it in.
+#[derive(Debug, Default)]
+struct Group {
+    /// Per node: `frames` when it joined, or [`NOT_LAZY`].
+    joined: Vec<u64>,
+    /// Per node: what a member does in each frame, and whether it acknowledges.
+    kind: Vec<Bystander>,
+    acks: Vec<bool>,
+    frames: u64,
+    /// Frames taken by members, summed over members (what [`Simulation::frames_in_group`]
+    /// reports).
+    taken: u64,
+    last: Option<Arc<CachedFrame>>,
+    /// The losers by priority: `(arbitration key, node)`, the best last (it competes with
+    /// the nodes taken one by one; the rest lose to it). A sorted vector: a winner usually
+    /// comes from its end and goes back near it.
+    losers: Losers,
+    /// Members that acknowledge (not listen-only).
+    ackers: usize,
+    members: usize,
+}
+
+impl Group {
+    #[inline]
+    fn is_member(&self, i: usize) -> bool {
+        self.joined.get(i).is_some_and(|&j| j != NOT_LAZY)
+    }
+}
+
+/// `(arbitration key, node)` of the group's losers, sorted, the best last.
+#[derive(Debug, Default)]
+struct Losers(Vec<(u32, u32)>);
+
+impl Losers {
+    #[inline]
+    fn position(&self, entry: (u32, u32)) -> Result<usize, usize> {
+        self.0.binary_search_by(|probe| entry.cmp(probe))
+    }
+
+    fn insert(&mut self, entry: (u32, u32)) {
+        if let Err(at) = self.position(entry) {
+            self.0.insert(at, entry);
+        }
+    }
+
+    fn remove(&mut self, entry: (u32, u32)) {
+        if let Ok(at) = self.position(entry) {
+            self.0.remove(at);
+        }
+    }
+
+    /// The best two (fewer if there are fewer), best first.
+    #[inline]
+    fn best_two(&self) -> impl Iterator<Item = &(u32, u32)> {
+        self.0.iter().rev().take(2)
+    }
+}
+
+/// The frame being applied, for a member filled in in the middle of it.
+#[derive(Debug)]
+struct InFrame {
+    cached: Arc<CachedFrame>,
+}
+
 /// State of the fast path.
 #[derive(Debug)]
 pub(super) struct WholeFrames {
@@ -75,19 +160,30 @@ pub(super) struct WholeFrames {
     /// The engine declined a frame start at this bit-time (it ran bit by bit from there).
     refused_at: Option<BitTime>,
     applied: u64,
+    /// Per node (valid for `ind`): its part in the frame being applied.
     roles: Vec<FrameRole>,
     /// Nodes that send SOF, with the start of their frames.
     senders: Vec<(usize, ArbitrationBits)>,
     /// The losers in the order they lose: `wire_bit << 32 | node`, sorted.
     losers: Vec<u64>,
     sorted: Vec<u64>,
-    /// How far each node of another kind than a bare controller has been moved on.
+    /// Per node: how far it has been moved on through the frame, when `ranged`.
     done: Vec<u32>,
+    /// Per node: moved on through ranges of wire bits (`BusNode::advance_frame`), not
+    /// stage by stage: nodes of another kind than a bare controller.
+    ranged: Vec<bool>,
+    /// The nodes taken one by one (every node not in `group`), in index order.
+    ind: Vec<usize>,
+    group: Group,
+    frame: Option<InFrame>,
+    /// A node was added or removed since the tables were sized ([`Self::prepare`]).
+    pub(super) nodes_changed: bool,
     /// Recently seen frames on the wire ([`cache_key`] of each beside it); when full, the
     /// oldest entry (at `cache_next`) makes room.
     cache_keys: Vec<u128>,
     cache: Vec<Arc<CachedFrame>>,
     cache_next: usize,
+    cache_last: usize,
 }
 
 impl Default for WholeFrames {
@@ -101,9 +197,15 @@ impl Default for WholeFrames {
             losers: Vec::new(),
             sorted: Vec::new(),
             done: Vec::new(),
+            ranged: Vec::new(),
+            ind: Vec::new(),
+            group: Group::default(),
+            frame: None,
+            nodes_changed: true,
             cache_keys: Vec::new(),
             cache: Vec::new(),
             cache_next: 0,
+            cache_last: 0,
         }
     }
 }
@@ -118,20 +220,57 @@ impl WholeFrames {
         }
     }
 
+    /// Whether node `i` is advanced with the group (its state not filled in).
+    #[inline]
+    pub(super) fn is_member(&self, i: usize) -> bool {
+        self.group.is_member(i)
+    }
+
+    /// Sizes the per-node tables for `n` nodes; with no member, every node is taken one by
+    /// one.
+    fn prepare(&mut self, n: usize) {
+        if !self.nodes_changed && self.group.members + self.ind.len() == n && self.roles.len() == n
+        {
+            return;
+        }
+        self.nodes_changed = false;
+        debug_assert_eq!(
+            self.group.members, 0,
+            "nodes changed with members in the group"
+        );
+        self.ind.clear();
+        self.ind.extend(0..n);
+        self.roles.resize(n, FrameRole::Receiver);
+        self.done.resize(n, 0);
+        self.ranged.clear();
+        self.ranged.resize(n, false);
+        self.group.joined.clear();
+        self.group.joined.resize(n, NOT_LAZY);
+        self.group.kind.resize(n, Bystander::Receiver);
+        self.group.acks.resize(n, false);
+    }
+
     fn wire_frame(&mut self, winner: &Encoded) -> Option<Arc<CachedFrame>> {
         let key = cache_key(winner.frame(), winner.dlc());
+        // A saturated bus sends the same frame again and again: try the last hit first.
+        if self.cache_keys.get(self.cache_last) == Some(&key) {
+            return Some(self.cache[self.cache_last].clone());
+        }
         if let Some(hit) = self.cache_keys.iter().position(|&k| k == key) {
+            self.cache_last = hit;
             return Some(self.cache[hit].clone());
         }
         let fresh = CachedFrame::new(WireFrame::new(winner)?);
         if self.cache.len() < CACHE_FRAMES {
             self.cache_keys.push(key);
             self.cache.push(Arc::new(fresh));
+            self.cache_last = self.cache.len() - 1;
             return self.cache.last().cloned();
         }
         let slot = self.cache_next;
         self.cache_next = (slot + 1) % CACHE_FRAMES;
         self.cache_keys[slot] = key;
+        self.cache_last = slot;
         // A saturated bus of ever-new frames (sequence numbers) replaces an entry per frame:
         // reuse its allocation when nobody holds it any more.
         match Arc::get_mut(&mut self.cache[slot]) {
@@ -154,6 +293,19 @@ pub(super) fn lined_up(nodes: &[super::Node]) -> bool {
     sending
 }
 
+/// Keeps the lowest `key` seen in `best`, noting in `tie` whether another node has it too.
+#[inline(always)]
+fn consider(best: &mut Option<(u32, usize)>, tie: &mut bool, key: u32, i: usize) {
+    match *best {
+        Some((b, _)) if key > b => {}
+        Some((b, _)) if key == b => *tie = true,
+        _ => {
+            *best = Some((key, i));
+            *tie = false;
+        }
+    }
+}
+
 impl Simulation {
     /// Apply whole frames when every node is lined up at a frame start (on by default).
     /// Turning it off (`buslab sim --bit-level`) changes nothing but the speed: every frame is
@@ -167,47 +319,197 @@ impl Simulation {
         self.whole.applied
     }
 
+    /// Frames that nodes took as members of the group of bystanders (summed over the nodes):
+    /// node-frames that cost nothing one by one.
+    pub fn frames_in_group(&self) -> u64 {
+        self.whole.group.taken
+    }
+
     /// Applies the frame starting now, whole, if the conditions hold (see the module doc);
-    /// false if it did nothing.
+    /// false if it did nothing (every node is then filled in, to go on bit by bit).
     pub(super) fn try_whole_frame(&mut self, end: BitTime) -> bool {
         if !self.whole.on || self.faulty || self.levels.is_some() {
+            self.dissolve_group();
             return false;
         }
         let applied = self.whole_frame(end);
         if !applied {
             self.whole.refused_at = Some(self.now);
+            self.dissolve_group();
         }
         applied
     }
 
+    /// Whether bystanders may be advanced as a group: nothing needs their reports one by one
+    /// in order (no trace), and every node is a bare controller.
+    fn grouping(&self) -> bool {
+        !self.obs.record_events && self.others == 0
+    }
+
+    /// Fills in every member of the group (see [`Self::leave_group`]): every node is then
+    /// taken one by one again.
+    pub(super) fn dissolve_group(&mut self) {
+        if self.whole.group.members == 0 {
+            return;
+        }
+        for i in 0..self.nodes.len() {
+            if self.whole.group.is_member(i) {
+                self.leave_group(i, false);
+            }
+        }
+        let n = self.nodes.len();
+        self.whole.ind.clear();
+        self.whole.ind.extend(0..n);
+    }
+
+    /// Fills in member `i` up to the end of the last frame applied (its controller, its
+    /// counters) and takes it one by one from now on (`insert`: into `ind`).
+    fn leave_group(&mut self, i: usize, insert: bool) {
+        let group = &mut self.whole.group;
+        let joined = group.joined[i];
+        if joined == NOT_LAZY {
+            return;
+        }
+        group.joined[i] = NOT_LAZY;
+        group.members -= 1;
+        group.ackers -= group.acks[i] as usize;
+        let kind = group.kind[i];
+        if let Bystander::Loser { key } = kind {
+            group.losers.remove((key, i as u32));
+        }
+        // A member filled in up to the end of the frame being applied has taken it already.
+        let frames = group.frames.saturating_sub(joined);
+        let node = &mut self.nodes[i];
+        if frames > 0
+            && let (Some(last), Device::Controller(c)) = (&group.last, &mut node.device)
+        {
+            c.bystander_frames(&last.wire);
+            node.stats.received += frames;
+            if matches!(kind, Bystander::Loser { .. }) {
+                node.stats.arbitration_lost += frames;
+            }
+        }
+        if insert {
+            let at = self.whole.ind.partition_point(|&k| k < i);
+            self.whole.ind.insert(at, i);
+        }
+    }
+
+    /// Node `i` joins the group if it is a bystander; whether it did.
+    #[inline]
+    fn try_join(&mut self, i: usize) -> bool {
+        let Device::Controller(c) = &self.nodes[i].device else {
+            return false;
+        };
+        let Some(kind) = c.bystander() else {
+            return false;
+        };
+        let acks = !c.config().listen_only;
+        let group = &mut self.whole.group;
+        group.joined[i] = group.frames;
+        group.kind[i] = kind;
+        group.acks[i] = acks;
+        group.ackers += acks as usize;
+        group.members += 1;
+        if let Bystander::Loser { key } = kind {
+            group.losers.insert((key, i as u32));
+        }
+        self.whole.ranged[i] = false;
+        true
+    }
+
+    /// A generator is about to queue a frame on node `i`, a member: it is filled in first,
+    /// unless its queue is full, which refuses the frame without looking further. It stays
+    /// in the group ([`Self::after_enqueue`]): with no trace, a frame queued in the middle of
+    /// a frame shows nowhere before the frame's end, where the controller picks the frame to
+    /// send next. So a member is filled in up to the end of the frame being applied, then
+    /// given the frame: the same state as queueing it mid-frame and taking the frame's end.
+    pub(super) fn before_enqueue(&mut self, i: usize) {
+        if let Device::Controller(c) = &self.nodes[i].device
+            && c.pending() >= c.config().tx_queue_capacity
+        {
+            return;
+        }
+        let group = &mut self.whole.group;
+        let (through, last) = match &self.whole.frame {
+            Some(frame) => (group.frames + 1, Some(&frame.cached)),
+            None => (group.frames, group.last.as_ref()),
+        };
+        let joined = group.joined[i];
+        if joined >= through {
+            return;
+        }
+        group.joined[i] = through;
+        let frames = through - joined;
+        let node = &mut self.nodes[i];
+        if let (Some(last), Device::Controller(c)) = (last, &mut node.device) {
+            c.bystander_frames(&last.wire);
+            node.stats.received += frames;
+            if matches!(group.kind[i], Bystander::Loser { .. }) {
+                node.stats.arbitration_lost += frames;
+            }
+        }
+    }
+
+    /// Member `i` was given a frame (see [`Self::before_enqueue`]): what it does in the frames
+    /// to come may have changed (a receiver now sends; a loser sends a better frame).
+    pub(super) fn after_enqueue(&mut self, i: usize) {
+        let Device::Controller(c) = &self.nodes[i].device else {
+            return;
+        };
+        let group = &mut self.whole.group;
+        let old = group.kind[i];
+        // An error-active controller with REC 0 that was given a frame while waiting for SOF
+        // is a bystander again: it sends that frame (or still its own, if better) and loses.
+        let Some(new) = c.bystander() else {
+            debug_assert!(false, "a member given a frame is no bystander: {c:?}");
+            return self.leave_group(i, true);
+        };
+        if new == old {
+            return;
+        }
+        if let Bystander::Loser { key } = old {
+            group.losers.remove((key, i as u32));
+        }
+        if let Bystander::Loser { key } = new {
+            group.losers.insert((key, i as u32));
+        }
+        group.kind[i] = new;
+    }
+
     /// Who sends, who wins (the lowest arbitration key) and whether someone else acknowledges;
-    /// fills `whole.senders`. The winner and its frame; `None` if the frame cannot be applied
-    /// whole.
+    /// fills `whole.senders` (the nodes taken one by one; a winner from the group leaves it).
+    /// The winner and its frame; `None` if the frame cannot be applied whole.
     fn arbitration(&mut self) -> Option<(usize, Encoded)> {
-        let senders = &mut self.whole.senders;
-        senders.clear();
-        let mut winner: Option<(usize, u32)> = None;
+        let whole = &mut self.whole;
+        whole.senders.clear();
+        let mut best: Option<(u32, usize)> = None;
         let mut tie = false;
-        let mut ackers = 0usize;
-        for (i, node) in self.nodes.iter().enumerate() {
-            let FrameStart::Ready { sends, acks } = node.device.frame_start() else {
+        let mut ackers = whole.group.ackers;
+        for &i in &whole.ind {
+            let FrameStart::Ready { sends, acks } = self.nodes[i].device.frame_start() else {
                 return None;
             };
             ackers += acks as usize;
             if let Some(e) = sends {
-                senders.push((i, ArbitrationBits::of(e)));
-                let key = e.frame().arbitration_key();
-                match winner {
-                    Some((_, best)) if key > best => {}
-                    Some((_, best)) if key == best => tie = true,
-                    _ => {
-                        winner = Some((i, key));
-                        tie = false;
-                    }
-                }
+                whole.senders.push((i, ArbitrationBits::of(e)));
+                consider(&mut best, &mut tie, e.frame().arbitration_key(), i);
             }
         }
-        let (w, _) = winner?;
+        // The group's losers are in priority order: only its first two can matter.
+        for &(key, i) in whole.group.losers.best_two() {
+            consider(&mut best, &mut tie, key, i as usize);
+        }
+        let (_, w) = best?;
+        if tie {
+            return None;
+        }
+        if whole.group.is_member(w) {
+            self.leave_group(w, true);
+            if let FrameStart::Ready { sends: Some(e), .. } = self.nodes[w].device.frame_start() {
+                self.whole.senders.push((w, ArbitrationBits::of(e)));
+            }
+        }
         let FrameStart::Ready {
             sends: Some(winning),
             acks: winner_acks,
@@ -215,10 +517,12 @@ impl Simulation {
         else {
             return None;
         };
-        (!tie && ackers > winner_acks as usize).then_some((w, *winning))
+        (ackers > winner_acks as usize).then_some((w, *winning))
     }
 
     fn whole_frame(&mut self, end: BitTime) -> bool {
+        let n = self.nodes.len();
+        self.whole.prepare(n);
         // Nodes with a clock of their own (timestamps, timers) learn when the frame starts.
         if self.others > 0 {
             for node in &mut self.nodes {
@@ -240,13 +544,20 @@ impl Simulation {
         if done > end || self.next_fault_change < done {
             return false;
         }
-        let n = self.nodes.len();
-        let whole = &mut self.whole;
-        if whole.roles.len() == n {
+        let Self { nodes, whole, .. } = self;
+        if whole.group.members == 0 {
             whole.roles.fill(FrameRole::Receiver);
         } else {
-            whole.roles.clear();
-            whole.roles.resize(n, FrameRole::Receiver);
+            for &i in &whole.ind {
+                whole.roles[i] = FrameRole::Receiver;
+            }
+        }
+        // Only nodes of another kind go through ranges (none on a bus of bare controllers).
+        if self.others > 0 {
+            for &i in &whole.ind {
+                whole.ranged[i] = matches!(nodes[i].device, Device::Other(_));
+                whole.done[i] = 0;
+            }
         }
         whole.roles[w] = FrameRole::Transmitter;
         whole.losers.clear();
@@ -272,18 +583,39 @@ impl Simulation {
         let in_order = self.obs.record_events
             || self.others > 0
             || self.schedule.next.min(self.next_sample) <= t0 + BitTime::from(last_lost);
+        let whole = &mut self.whole;
         if in_order {
             order_losers(&mut whole.losers, &mut whole.sorted, last_lost);
         }
-        if self.others > 0 {
-            whole.done.clear();
-            whole.done.resize(n, 0);
-        }
+        whole.frame = Some(InFrame {
+            cached: cached.clone(),
+        });
 
-        // SOF: every controller takes part in the frame (nothing to report).
-        for (node, role) in self.nodes.iter_mut().zip(&self.whole.roles) {
-            if let Device::Controller(c) = &mut node.device {
-                c.frame_begin(*role);
+        // With no member every node is taken one by one: no look into the index list. (No
+        // node joins or leaves during the stages: a generator gives a member its frame in
+        // the group, see `before_enqueue`.)
+        let all = self.whole.group.members == 0;
+        let count = self.whole.ind.len();
+        // SOF: every controller takes part in the frame. Nothing to report but what waited
+        // already (counters forced between runs report their warning and state here, as the
+        // bit-level path polls them after the node samples SOF).
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
+            let Self {
+                nodes,
+                obs,
+                schedule,
+                whole,
+                ..
+            } = self;
+            let node = &mut nodes[i];
+            if let Device::Controller(c) = &mut node.device
+                && !whole.ranged[i]
+            {
+                c.frame_begin(whole.roles[i]);
+                if c.has_events() {
+                    drain_node(obs, schedule, i, node, t0);
+                }
             }
         }
         let mut at = 0u32;
@@ -301,8 +633,8 @@ impl Simulation {
                 ..
             } = self;
             let node = &mut nodes[i];
-            match (&mut node.device, whole.roles[i]) {
-                (Device::Controller(c), FrameRole::LostArbitration { index, .. }) => {
+            match (&mut node.device, whole.roles[i], whole.ranged[i]) {
+                (Device::Controller(c), FrameRole::LostArbitration { index, .. }, false) => {
                     let time = t0 + BitTime::from(bit);
                     if let Some(event) = c.frame_lost(index) {
                         record(obs, i, node, time, event);
@@ -316,7 +648,8 @@ impl Simulation {
         }
         let [ack, eof6, eof7] = wire.event_bits();
         self.handle_due_inside(wire, t0, &mut at, ack);
-        for i in 0..n {
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
             if i == w {
                 continue;
             }
@@ -324,61 +657,66 @@ impl Simulation {
                 nodes,
                 obs,
                 schedule,
+                whole,
                 ..
             } = self;
             let node = &mut nodes[i];
-            match &mut node.device {
-                Device::Controller(c) => {
-                    c.frame_ack();
-                    if c.has_events() {
-                        drain_node(obs, schedule, i, node, t0 + BitTime::from(ack));
-                    }
-                }
+            if whole.ranged[i] {
                 // With REC at 0 the ACK slot changes nothing a node could report (a successful
                 // reception only lowers a REC above 0, rule 8): the slot goes with the next
                 // stage's bits, one call fewer per receiver and frame.
-                Device::Other(other) if other.rec() == 0 => {}
-                Device::Other(_) => self.advance_other(wire, i, ack + 1, t0),
+                if node.device.node().rec() != 0 {
+                    self.advance_other(wire, i, ack + 1, t0);
+                }
+            } else if let Device::Controller(c) = &mut node.device {
+                c.frame_ack();
+                if c.has_events() {
+                    drain_node(obs, schedule, i, node, t0 + BitTime::from(ack));
+                }
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof6);
-        for i in 0..n {
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
             if i == w {
                 continue;
             }
             let Self {
-                nodes,
-                obs,
-                schedule: _,
-                ..
+                nodes, obs, whole, ..
             } = self;
             let node = &mut nodes[i];
-            if let Device::Controller(c) = &mut node.device {
-                // Handed on at once rather than queued in the controller and polled.
-                if let Some(event) = c.frame_received(wire) {
-                    let time = t0 + BitTime::from(eof6);
-                    record(obs, i, node, time, event);
-                }
-            } else {
+            if whole.ranged[i] {
                 self.advance_other(wire, i, eof6 + 1, t0);
+            } else if let Device::Controller(c) = &mut node.device
+                // Handed on at once rather than queued in the controller and polled.
+                && let Some(event) = c.frame_received(wire)
+            {
+                let time = t0 + BitTime::from(eof6);
+                record(obs, i, node, time, event);
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof7);
-        if let Device::Controller(c) = &mut self.nodes[w].device {
+        if let Device::Controller(c) = &mut self.nodes[w].device
+            && !self.whole.ranged[w]
+        {
             c.frame_eof7();
         }
         self.stage_done(wire, t0, w, eof7);
         let last = total - 1;
         self.handle_due_inside(wire, t0, &mut at, last);
-        for i in 0..n {
+        for k in 0..count {
+            let i = if all { k } else { self.whole.ind[k] };
             let Self {
                 nodes,
                 obs,
                 schedule,
+                whole,
                 ..
             } = self;
             let node = &mut nodes[i];
-            if let Device::Controller(c) = &mut node.device {
+            if whole.ranged[i] {
+                self.advance_other(wire, i, total, t0);
+            } else if let Device::Controller(c) = &mut node.device {
                 // The others' EOF bit 7 changes nothing anybody looks at before now.
                 if i != w {
                     c.frame_eof7();
@@ -387,13 +725,30 @@ impl Simulation {
                 if c.has_events() {
                     drain_node(obs, schedule, i, node, t0 + BitTime::from(last));
                 }
-            } else {
-                self.advance_other(wire, i, total, t0);
             }
         }
         self.obs.bus.add_frame(&cached.stats);
         self.now = done;
         self.whole.applied += 1;
+        self.whole.frame = None;
+        self.whole.group.frames += 1;
+        self.whole.group.taken += self.whole.group.members as u64;
+        if self.grouping() {
+            // Bystanders join the group: until something looks at them, the frames to come
+            // cost them nothing.
+            let mut kept = 0;
+            for k in 0..self.whole.ind.len() {
+                let i = self.whole.ind[k];
+                if !self.try_join(i) {
+                    self.whole.ind[kept] = i;
+                    kept += 1;
+                }
+            }
+            self.whole.ind.truncate(kept);
+            if self.whole.group.members > 0 {
+                self.whole.group.last = Some(cached);
+            }
+        }
         true
     }
 
@@ -415,52 +770,60 @@ impl Simulation {
                 return;
             }
             *at = (due - t0).get() as u32;
-            // Controllers are up to date at every stage; other nodes are moved on here.
-            if self.others > 0 && self.next_sample <= due {
-                for i in 0..self.nodes.len() {
+            // Controllers taken stage by stage are up to date at every stage, and members of
+            // the group show nothing but their queue before they are filled in (as a
+            // generator queues a frame, `before_enqueue`); nodes moved on through ranges are
+            // moved on here.
+            let generators = self.schedule.next <= due;
+            if generators {
+                self.schedule.take_due(due);
+            }
+            if self.next_sample <= due {
+                for k in 0..self.whole.ind.len() {
+                    let i = self.whole.ind[k];
                     self.advance_other(wire, i, *at, t0);
                 }
-            } else if self.others > 0 {
-                for g in 0..self.schedule.generators.len() {
-                    let generator = &self.schedule.generators[g];
-                    if generator.next().is_some_and(|t| t <= due) {
-                        self.advance_other(wire, generator.node, *at, t0);
-                    }
+            } else {
+                for k in 0..self.schedule.due.len() {
+                    let i = self.schedule.generators[self.schedule.due[k]].node;
+                    self.advance_other(wire, i, *at, t0);
                 }
             }
             self.now = due;
-            self.handle_due();
+            self.handle_due_taken(generators);
         }
     }
 
-    /// Node `i` has taken wire bit `bit` of the frame: a node of another kind is moved on
-    /// through it; the events are handled at that bit-time.
+    /// Node `i` has taken wire bit `bit` of the frame: a node moved on through ranges is
+    /// moved on through it; the events are handled at that bit-time.
     #[inline(always)]
     fn stage_done(&mut self, wire: &WireFrame, t0: BitTime, i: usize, bit: u32) {
-        let node = &mut self.nodes[i];
-        match &mut node.device {
-            Device::Controller(c) => {
-                if c.has_events() {
-                    drain(self, i, t0 + BitTime::from(bit));
-                }
-            }
-            Device::Other(_) => self.advance_other(wire, i, bit + 1, t0),
+        if self.whole.ranged[i] {
+            return self.advance_other(wire, i, bit + 1, t0);
+        }
+        if let Device::Controller(c) = &self.nodes[i].device
+            && c.has_events()
+        {
+            drain(self, i, t0 + BitTime::from(bit));
         }
     }
 
-    /// Moves node `i`, if it is not a bare controller, on through the frame's bits up to `to`
-    /// (exclusive) and handles its events, which happen at bit `to - 1`.
+    /// Moves node `i`, if it is moved on through ranges, on through the frame's bits up to
+    /// `to` (exclusive) and handles its events, which happen at bit `to - 1`.
     fn advance_other(&mut self, wire: &WireFrame, i: usize, to: u32, t0: BitTime) {
-        let node = &mut self.nodes[i];
-        let Device::Other(device) = &mut node.device else {
+        if !self.whole.ranged[i] {
             return;
-        };
+        }
         let from = self.whole.done[i];
         if from >= to {
             return;
         }
         self.whole.done[i] = to;
-        device.advance_frame(wire, self.whole.roles[i], from..to);
+        let role = self.whole.roles[i];
+        self.nodes[i]
+            .device
+            .node_mut()
+            .advance_frame(wire, role, from..to);
         drain(self, i, t0 + BitTime::from(to) - BitTime::ONE);
     }
 }
