@@ -1239,7 +1239,10 @@ impl Server {
             // sent before its FIN, and before its RST too (the read after the last byte fails).
             match c.stream.read(buf) {
                 Ok(0) => self.input_ended(c),
-                Ok(n) => c.session.receive(&buf[..n]),
+                Ok(n) => {
+                    self.idle_bus_to_the_wall_clock();
+                    c.session.receive(&buf[..n]);
+                }
                 // After the peer closed, nothing more can come.
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock && c.left => self.input_ended(c),
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
@@ -1251,6 +1254,19 @@ impl Server {
                     debug!("reading from {}: {e}", c.peer);
                     self.input_ended(c);
                 }
+            }
+        }
+    }
+
+    /// Paced, an idle bus catches up with the wall clock now that bytes were read: a frame
+    /// among them starts no earlier than they came (they may have come after the turn ran
+    /// the bus), so it ends no earlier than its wire time after it was sent. Not later
+    /// either: the clock is read before they are parsed.
+    fn idle_bus_to_the_wall_clock(&mut self) {
+        if matches!(self.speed, Speed::Times(_)) && self.bus.is_idle() {
+            let target = self.target_bits();
+            if self.bus.now() < target {
+                self.bus.run_until(target);
             }
         }
     }
@@ -1267,15 +1283,6 @@ impl Server {
         let Some(number) = c.session.node() else {
             return true;
         };
-        // A frame put on an idle bus starts at the wall clock, not where the turn started the
-        // bus (its bytes may have come since): it ends no earlier than its wire time after it
-        // was sent.
-        if matches!(self.speed, Speed::Times(_)) && self.bus.is_idle() {
-            let target = self.target_bits();
-            if self.bus.now() < target {
-                self.bus.run_until(target);
-            }
-        }
         match self.bus.submit(number, frame) {
             Ok(Ok(())) | Err(_) => true,
             Ok(Err(frame)) => {
