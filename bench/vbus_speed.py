@@ -17,15 +17,18 @@ bench/can_bus_serve.py's raw socketcand client (bus serve), python-can's socketc
 times are virtual). frames/s is what the
 slowest receiver got per second from the first frame sent to its last frame; loss counts
 frames any receiver missed (every receiver must get every frame, in order); latency is from
-the send call to the receive call; CPU/frame is the server's CPU time (user + system, /proc,
-all its threads) over the run divided by the frames it delivered (to all receivers).
+the send call to the receive call; CPU per delivered frame is the server's CPU time (all its
+threads, /proc/PID/task/*/schedstat in ns; /proc/PID/stat's utime + stime count 10 ms ticks)
+over the run divided by the frames it delivered (to all receivers).
 `--before BINARY` adds the rows for another buslab binary (e.g. one built from main before a
 change), measured the same way in the same run.
 
 The second table is the latency of isolated frames at real time (`--latency-bitrates`,
 500 kbit/s and 1 Mbit/s by default): a raw socketcand client sends `123#` (45 bits on the wire
 with its stuff bit), another one waits for it, one frame every 2 ms; p50 and p99 from the send
-call to the receive call, and the server's CPU time per frame (/proc/PID/task/*/schedstat:
+call to the receive call, from the frame's timestamp (the Unix time of its end on the wire)
+to the receive call (how late after its end it arrives: what the loop's wake-up adds, with
+the receiver's own), and the server's CPU time per frame (/proc/PID/task/*/schedstat:
 nanoseconds). The floor beside it is a plain TCP relay (a Python process that reads the
 sender's bytes and writes a frame line to the receiver) plus the frame's wire time: what
 any server that delivers a frame at its end on the wire can reach with these clients.
@@ -122,22 +125,30 @@ class RawClient:
 
 
 def isolated_latency(addr, frames):
-    """p50 and p99 (ms) of single `123#` frames from A's send call to B's receive call."""
+    """p50 and p99 (ms) of single `123#` frames from A's send call to B's receive call, and
+    the p50 (ms) from the frame's timestamp (the Unix time of its end on the wire) to B's
+    receive call: how late after its end the frame arrives."""
     a, b = RawClient(addr), RawClient(addr)
     # Frames wait 50 ms after the rawmode reply (python-can's quirk).
     time.sleep(0.2)
-    samples = []
+    samples, after_end = [], []
     for i in range(frames + WARM_UP):
         t0 = time.perf_counter_ns()
         a.s.sendall(b"< send 123 0 >")
         b.expect(b"< frame 123 ")
         t1 = time.perf_counter_ns()
+        now = time.time()
+        while b">" not in b.buf:
+            b.buf += b.s.recv(4096)
+        stamp = float(b.buf.split()[0])
+        b.buf = b.buf[b.buf.index(b">") + 1:]
         if i >= WARM_UP:
             samples.append((t1 - t0) / 1e6)
+            after_end.append((now - stamp) * 1e3)
         time.sleep(ISOLATED_EVERY)
     a.s.close()
     b.s.close()
-    return cbs.percentile(samples, 50), cbs.percentile(samples, 99)
+    return cbs.percentile(samples, 50), cbs.percentile(samples, 99), cbs.percentile(after_end, 50)
 
 
 def relay(ports):
@@ -263,9 +274,9 @@ def main():
         """One measurement on a fresh bus serve, with its CPU time."""
         server, (host, port) = cbs.start_server(bin_, args.bitrate, MAX_SPEED)
         try:
-            cpu0 = cbs.cpu_seconds(server.pid)
+            cpu0 = cbs.cpu_ns(server.pid)
             r = measure(host, port)
-            r["cpu_s"] = cbs.cpu_seconds(server.pid) - cpu0
+            r["cpu_s"] = (cbs.cpu_ns(server.pid) - cpu0) / 1e9
             return r
         finally:
             server.terminate()
@@ -308,8 +319,8 @@ def main():
         for bitrate in bitrates
         for label, measure in
         [("TCP relay + wire time (floor)", lambda b=bitrate: relay_latency(args.latency_frames))]
-        + [(name, lambda b=bitrate, x=bin_: serve_latency(x, b, args.latency_frames))
-           for name, x in binaries]
+        + [(name, lambda b=bitrate, path=path: serve_latency(path, b, args.latency_frames))
+           for name, path in binaries]
     ]
 
     loops = busy_loops(args.busy_loops)
@@ -363,9 +374,9 @@ def main():
               f"{args.latency_frames} per run; {args.repeat} runs per row, medians of the runs' "
               f"percentiles; load average {load}{beside}")
         print()
-        print("| bit rate | path | latency p50 | latency p99 | p50 over the floor | server CPU "
-              "per frame | all runs' p50 |")
-        print("|---|---|---|---|---|---|---|")
+        print("| bit rate | path | latency p50 | latency p99 | p50 over the floor | frame end "
+              "to receive, p50 | server CPU per frame | all runs' p50 |")
+        print("|---|---|---|---|---|---|---|---|")
         for bitrate in bitrates:
             wire = WIRE_BITS / bitrate * 1e3
             floor = None
@@ -385,8 +396,10 @@ def main():
                 cpus = sorted(x[1] for x in rs if x[1] is not None)
                 cpu = f"{cpus[len(cpus) // 2]:.1f} µs" if cpus else "-"
                 every = " / ".join(f"{x[0][0] + wire_add:.3f}" for x in rs)
+                ends = sorted(x[0][2] for x in rs)
+                end = "-" if over == "-" else f"{ends[len(ends) // 2]:.3f} ms"
                 print(f"| {bitrate // 1000} kbit/s | {label} | {p50:.3f} ms | {p99:.3f} ms | "
-                      f"{over} | {cpu} | {every} |")
+                      f"{over} | {end} | {cpu} | {every} |")
         print()
         print(f"(the floor's wire time: {WIRE_BITS} bits, "
               + ", ".join(f"{WIRE_BITS / b * 1e3:.3f} ms at {b // 1000} kbit/s" for b in bitrates)
