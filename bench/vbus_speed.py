@@ -4,6 +4,7 @@ its client nodes (SJA1000 chips operated by buslab's driver) on the simulator's 
 fast path; and python-can's udp_multicast measured the same way in the same run, as the peer.
 
 Usage: .venv/bin/python bench/vbus_speed.py [--frames N] [--receivers 8] [--repeat 3] [--before BINARY]
+       [--only max|latency] [--latency-frames 400] [--busy-loops N] [--callgrind]
 (python-can and msgpack in .venv come from scripts/setup-test-deps.sh; without them the
 udp_multicast row is left out. Builds buslab and the Rust client with --release first.)
 
@@ -16,12 +17,30 @@ bench/can_bus_serve.py's raw socketcand client (bus serve), python-can's socketc
 times are virtual). frames/s is what the
 slowest receiver got per second from the first frame sent to its last frame; loss counts
 frames any receiver missed (every receiver must get every frame, in order); latency is from
-the send call to the receive call. `--before BINARY` adds the rows for another buslab binary
-(e.g. one built before the SJA1000 nodes took whole frames).
+the send call to the receive call; CPU per delivered frame is the server's CPU time (all its
+threads, /proc/PID/task/*/schedstat in ns; /proc/PID/stat's utime + stime count 10 ms ticks)
+over the run divided by the frames it delivered (to all receivers).
+`--before BINARY` adds the rows for another buslab binary (e.g. one built from main before a
+change), measured the same way in the same run.
+
+The second table is the latency of isolated frames at real time (`--latency-bitrates`,
+500 kbit/s and 1 Mbit/s by default): a raw socketcand client sends `123#` (45 bits on the wire
+with its stuff bit), another one waits for it, one frame every 2 ms; p50 and p99 from the send
+call to the receive call, from the frame's timestamp (the Unix time of its end on the wire)
+to the receive call (how late after its end it arrives: what the loop's wake-up adds, with
+the receiver's own), and the server's CPU time per frame (/proc/PID/task/*/schedstat:
+nanoseconds). The floor beside it is a plain TCP relay (a Python process that reads the
+sender's bytes and writes a frame line to the receiver) plus the frame's wire time: what
+any server that delivers a frame at its end on the wire can reach with these clients.
+`--callgrind` adds the instructions the server executes per delivered frame at `max`
+(valgrind's callgrind: load-independent), and `--busy-loops N` runs everything with N shell
+busy loops beside (`while :; do :; done`), killed after.
 """
 
 import argparse
+import multiprocessing as mp
 import os
+import socket
 import subprocess
 import sys
 import time
@@ -65,12 +84,161 @@ def rust_run(client, url, frames, receivers):
         "frames_s": min(got) / elapsed if elapsed > 0 else float("nan"),
         "loss": 100.0 * (expected - sum(got)) / expected,
         "min_rx": min(got),
+        "delivered": sum(got),
         "in_order": in_order,
         # The receivers' own percentiles: the worst receiver's.
         "p50": max(lats_p50) / 1000,
         "p99": max(lats_p99) / 1000,
         "sender": sender.stdout.strip(),
     }
+
+
+# ---------------------------------------------------------------- isolated frames, real time
+
+# `123#`: 44 bits from start of frame to the end of its end of frame, and one stuff bit.
+WIRE_BITS = 45
+ISOLATED_EVERY = 0.002
+WARM_UP = 20
+
+
+class RawClient:
+    """A socketcand client in raw mode on vcan0 (plain sockets: small and the same for every
+    server)."""
+
+    def __init__(self, addr):
+        self.s = socket.create_connection(addr)
+        self.s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.buf = b""
+        self.expect(b"< hi >")
+        self.s.sendall(b"< open vcan0 >")
+        self.expect(b"< ok >")
+        self.s.sendall(b"< rawmode >")
+        self.expect(b"< ok >")
+
+    def expect(self, text):
+        while text not in self.buf:
+            chunk = self.s.recv(65536)
+            if not chunk:
+                raise RuntimeError("server closed")
+            self.buf += chunk
+        self.buf = self.buf[self.buf.index(text) + len(text):]
+
+
+def isolated_latency(addr, frames):
+    """p50 and p99 (ms) of single `123#` frames from A's send call to B's receive call, and
+    the p50 (ms) from the frame's timestamp (the Unix time of its end on the wire) to B's
+    receive call: how late after its end the frame arrives."""
+    a, b = RawClient(addr), RawClient(addr)
+    # Frames wait 50 ms after the rawmode reply (python-can's quirk).
+    time.sleep(0.2)
+    samples, after_end = [], []
+    for i in range(frames + WARM_UP):
+        t0 = time.perf_counter_ns()
+        a.s.sendall(b"< send 123 0 >")
+        b.expect(b"< frame 123 ")
+        t1 = time.perf_counter_ns()
+        now = time.time()
+        while b">" not in b.buf:
+            b.buf += b.s.recv(4096)
+        stamp = float(b.buf.split()[0])
+        b.buf = b.buf[b.buf.index(b">") + 1:]
+        if i >= WARM_UP:
+            samples.append((t1 - t0) / 1e6)
+            after_end.append((now - stamp) * 1e3)
+        time.sleep(ISOLATED_EVERY)
+    a.s.close()
+    b.s.close()
+    return cbs.percentile(samples, 50), cbs.percentile(samples, 99), cbs.percentile(after_end, 50)
+
+
+def relay(ports):
+    """A plain TCP relay speaking just enough socketcand: the sender's `< send … >` becomes
+    one frame line to the receiver, nothing simulated."""
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen(2)
+    ports.put(listener.getsockname()[1])
+
+    def joined():
+        s, _ = listener.accept()
+        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        s.sendall(b"< hi >")
+        got = b""
+        for reply in (b"< ok >", b"< ok >"):
+            while got.count(b">") < 1:
+                got += s.recv(4096)
+            got = got[got.index(b">") + 1:]
+            s.sendall(reply)
+        return s
+
+    a = joined()
+    b = joined()
+    while True:
+        chunk = a.recv(65536)
+        if not chunk:
+            return
+        for _ in range(chunk.count(b">")):
+            b.sendall(b"< frame 123 0.000000 >")
+
+
+def relay_latency(frames):
+    ctx = mp.get_context("fork")
+    ports = ctx.Queue()
+    p = ctx.Process(target=relay, args=(ports,))
+    p.start()
+    try:
+        return isolated_latency(("127.0.0.1", ports.get(timeout=10)), frames), None
+    finally:
+        p.join(timeout=5)
+        if p.is_alive():
+            p.terminate()
+
+
+def serve_latency(binary, bitrate, frames):
+    """Latency and the server's CPU per isolated frame (µs) on a real-time bus serve."""
+    server, addr = cbs.start_server(binary, bitrate, 1.0)
+    try:
+        cpu0 = cbs.cpu_ns(server.pid)
+        lat = isolated_latency(addr, frames)
+        cpu = (cbs.cpu_ns(server.pid) - cpu0) / (frames + WARM_UP) / 1000
+        return lat, cpu
+    finally:
+        server.terminate()
+        server.wait()
+
+
+# ---------------------------------------------------------------- instructions (callgrind)
+
+
+def callgrind_per_frame(binary, client, frames, receivers, bitrate):
+    """Instructions the server executes per delivered frame at `max` (its whole run, start
+    and clients' joining included, over the frames delivered)."""
+    out = f"/tmp/vbus_speed.callgrind.{os.getpid()}"
+    p = subprocess.Popen(
+        ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", binary, "bus", "serve",
+         "--listen", "127.0.0.1:0", "--bitrate", str(bitrate), "--speed", MAX_SPEED],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    url = p.stdout.readline().decode().strip()
+    host, port = url[len("socketcand://"):].split("/")[0].rsplit(":", 1)
+    try:
+        r = rust_run(client, f"socketcand://{host}:{port}/vcan0", frames, receivers)
+    finally:
+        p.terminate()
+        p.wait()
+    total = None
+    with open(out) as f:
+        for line in f:
+            if line.startswith(("summary:", "totals:")):
+                total = int(line.split()[1])
+    os.remove(out)
+    return total / r["delivered"] if total and r["delivered"] else float("nan")
+
+
+# ---------------------------------------------------------------- main
+
+
+def busy_loops(n):
+    return [subprocess.Popen(["sh", "-c", "while :; do :; done"]) for _ in range(n)]
 
 
 def main():
@@ -81,6 +249,13 @@ def main():
     ap.add_argument("--before", help="another buslab binary to measure the same way")
     ap.add_argument("--repeat", type=int, default=3,
                     help="runs per row, in rounds (the median run is shown)")
+    ap.add_argument("--only", choices=["max", "latency"], help="one table only")
+    ap.add_argument("--latency-frames", type=int, default=400)
+    ap.add_argument("--latency-bitrates", default="500000,1000000")
+    ap.add_argument("--busy-loops", type=int, default=0,
+                    help="shell busy loops running beside every measurement")
+    ap.add_argument("--callgrind", action="store_true",
+                    help="instructions per delivered frame at max (valgrind)")
     args = ap.parse_args()
     target = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
     subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "buslab", "--bin", "buslab"],
@@ -96,10 +271,13 @@ def main():
         binaries.append(("bus serve (BEFORE)", args.before))
 
     def served(bin_, measure):
-        """One measurement on a fresh bus serve."""
+        """One measurement on a fresh bus serve, with its CPU time."""
         server, (host, port) = cbs.start_server(bin_, args.bitrate, MAX_SPEED)
         try:
-            return measure(host, port)
+            cpu0 = cbs.cpu_ns(server.pid)
+            r = measure(host, port)
+            r["cpu_s"] = (cbs.cpu_ns(server.pid) - cpu0) / 1e9
+            return r
         finally:
             server.terminate()
             server.wait()
@@ -132,28 +310,101 @@ def main():
                          lambda: cbs.run("multicast", n // 4, args.receivers, 0)))
     except ImportError:
         print("udp_multicast left out: python-can or msgpack is not installed", file=sys.stderr)
+    if args.only == "latency":
+        measures = []
 
-    # Rows in turn, `--repeat` rounds: each row's runs see the same changes of load.
-    runs = {label: [] for label, _, _ in measures}
-    for _ in range(args.repeat):
-        for label, _, measure in measures:
-            runs[label].append(measure())
+    bitrates = [int(b) for b in args.latency_bitrates.split(",")]
+    latencies = [] if args.only == "max" else [
+        (bitrate, label, measure)
+        for bitrate in bitrates
+        for label, measure in
+        [("TCP relay + wire time (floor)", lambda b=bitrate: relay_latency(args.latency_frames))]
+        + [(name, lambda b=bitrate, path=path: serve_latency(path, b, args.latency_frames))
+           for name, path in binaries]
+    ]
 
-    print(f"1 sender, {args.receivers} receivers, 8-byte frames; {args.bitrate} bit/s bus; "
-          f"Rust rows {n} frames, python rows {n // 4}; {args.repeat} runs per row, the median "
-          f"run shown; load average {open('/proc/loadavg').read().split()[0]}")
-    print()
-    print("| transport | frames/s (slowest receiver), median run | all runs | loss (worst run) "
-          "| in order | latency p50 | latency p99 |")
-    print("|---|---|---|---|---|---|---|")
-    for label, ordered, _ in measures:
-        rs = sorted(runs[label], key=lambda r: r["frames_s"])
-        r = rs[len(rs) // 2]
-        worst_loss = max(x["loss"] for x in rs)
-        every = " / ".join(f"{x['frames_s']:.0f}" for x in runs[label])
-        order = "-" if ordered is None else ("yes" if all(x["in_order"] for x in rs) else "NO")
-        print(f"| {label} | {r['frames_s']:.0f} | {every} | {worst_loss:.2f} % | {order} | "
-              f"{r['p50']:.2f} ms | {r['p99']:.2f} ms |")
+    loops = busy_loops(args.busy_loops)
+    try:
+        load = open('/proc/loadavg').read().split()[0]
+        # Rows in turn, `--repeat` rounds: each row's runs see the same changes of load.
+        runs = {label: [] for label, _, _ in measures}
+        lat_runs = {(b, label): [] for b, label, _ in latencies}
+        for _ in range(args.repeat):
+            for label, _, measure in measures:
+                runs[label].append(measure())
+            for b, label, measure in latencies:
+                lat_runs[(b, label)].append(measure())
+        instructions = {}
+        if args.callgrind and args.only != "latency":
+            for name, bin_ in binaries:
+                instructions[name] = callgrind_per_frame(bin_, client, max(n // 20, 1000),
+                                                         args.receivers, args.bitrate)
+    finally:
+        for p in loops:
+            p.kill()
+            p.wait()
+
+    beside = f"; {args.busy_loops} busy loops beside" if args.busy_loops else ""
+    if measures:
+        print(f"1 sender, {args.receivers} receivers, 8-byte frames; {args.bitrate} bit/s bus; "
+              f"Rust rows {n} frames, python rows {n // 4}; {args.repeat} runs per row, the "
+              f"median run shown; load average {load}{beside}")
+        print()
+        print("| transport | frames/s (slowest receiver), median run | all runs | loss (worst run) "
+              "| in order | latency p50 | latency p99 | server CPU per delivered frame |")
+        print("|---|---|---|---|---|---|---|---|")
+        for label, ordered, _ in measures:
+            rs = sorted(runs[label], key=lambda r: r["frames_s"])
+            r = rs[len(rs) // 2]
+            worst_loss = max(x["loss"] for x in rs)
+            every = " / ".join(f"{x['frames_s']:.0f}" for x in runs[label])
+            order = "-" if ordered is None else ("yes" if all(x["in_order"] for x in rs) else "NO")
+            cpu = (f"{1e6 * r['cpu_s'] / r['delivered']:.2f} µs"
+                   if "cpu_s" in r and r["delivered"] else "-")
+            print(f"| {label} | {r['frames_s']:.0f} | {every} | {worst_loss:.2f} % | {order} | "
+                  f"{r['p50']:.2f} ms | {r['p99']:.2f} ms | {cpu} |")
+        if instructions:
+            print()
+            for name, per in instructions.items():
+                print(f"{name} --speed max, Rust client: {per:.0f} instructions per delivered "
+                      f"frame (callgrind, {max(n // 20, 1000)} frames)")
+        print()
+    if latencies:
+        print(f"Isolated `123#` frames at real time, one every {ISOLATED_EVERY * 1e3:.0f} ms, "
+              f"{args.latency_frames} per run; {args.repeat} runs per row, medians of the runs' "
+              f"percentiles; load average {load}{beside}")
+        print()
+        print("| bit rate | path | latency p50 | latency p99 | p50 over the floor | frame end "
+              "to receive, p50 | server CPU per frame | all runs' p50 |")
+        print("|---|---|---|---|---|---|---|---|")
+        for bitrate in bitrates:
+            wire = WIRE_BITS / bitrate * 1e3
+            floor = None
+            for b, label, _ in latencies:
+                if b != bitrate:
+                    continue
+                rs = lat_runs[(b, label)]
+                wire_add = wire if floor is None else 0.0
+                p50s = sorted(x[0][0] + wire_add for x in rs)
+                p99s = sorted(x[0][1] + wire_add for x in rs)
+                p50, p99 = p50s[len(p50s) // 2], p99s[len(p99s) // 2]
+                if floor is None:
+                    floor = p50
+                    over = "-"
+                else:
+                    over = f"{p50 / floor:.2f}x"
+                cpus = sorted(x[1] for x in rs if x[1] is not None)
+                cpu = f"{cpus[len(cpus) // 2]:.1f} µs" if cpus else "-"
+                every = " / ".join(f"{x[0][0] + wire_add:.3f}" for x in rs)
+                ends = sorted(x[0][2] for x in rs)
+                end = "-" if over == "-" else f"{ends[len(ends) // 2]:.3f} ms"
+                print(f"| {bitrate // 1000} kbit/s | {label} | {p50:.3f} ms | {p99:.3f} ms | "
+                      f"{over} | {end} | {cpu} | {every} |")
+        print()
+        print(f"(the floor's wire time: {WIRE_BITS} bits, "
+              + ", ".join(f"{WIRE_BITS / b * 1e3:.3f} ms at {b // 1000} kbit/s" for b in bitrates)
+              + ")")
+
 
 if __name__ == "__main__":
     main()

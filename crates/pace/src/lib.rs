@@ -18,8 +18,15 @@
 //! ([`Pacer::skipped`]) and the virtual clock stays that much behind the wall from then on.
 //! An idle core (nothing due before the wall clock) follows the wall clock however long the
 //! loop slept: catching up on nothing is no burst.
+//!
+//! **Punctual waits.** Timers wake a thread late (tens of µs); for a deadline that must be met
+//! to the microsecond (a frame's end on a served bus), a [`Punctual`] wait sleeps until a
+//! little before it and spins the rest, bounded.
 
 use std::time::Duration;
+
+mod punctual;
+pub use punctual::{Punctual, Step};
 
 /// A point on a paced core's clock, in its own ticks: nanoseconds of a device's time,
 /// bit-times of a bus. One pacer's ticks are one unit, given by its [`Rate`].

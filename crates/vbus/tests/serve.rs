@@ -893,3 +893,32 @@ fn at_max_speed_a_slow_reader_with_a_small_queue_loses_nothing() {
 fn at_max_speed_a_reader_quiet_for_a_while_loses_nothing() {
     reader_at_max_gets_every_frame(64, Duration::from_millis(1500), Duration::ZERO);
 }
+
+/// The loop wakes a little before a client's frame ends on the wire and spins the rest
+/// (`buslab_pace::Punctual`): the frame still reaches the other client no earlier than its
+/// end (virtual time never runs ahead of the wall clock), the sleep, the spin and a frame
+/// short enough to be spun to at once alike.
+#[test]
+fn a_frame_reaches_its_receivers_no_earlier_than_its_end_on_the_wire() {
+    // `123#`: 45 bits with its stuff bit; 360 µs at 125 kbit/s (a sleep, then a spin), 45 µs
+    // at 1 Mbit/s (within the spin bound: spun to at once).
+    for bitrate in [125_000u32, 1_000_000] {
+        // The bus's clock is the wall clock rounded down to a bit: the frame may start up to
+        // one bit-time before the server read it.
+        let wire = Duration::from_nanos(44 * 1_000_000_000 / u64::from(bitrate));
+        let s = server(bitrate, 1024);
+        let mut a = client(&s);
+        let mut b = client(&s);
+        for _ in 0..20 {
+            let sent = std::time::Instant::now();
+            a.send(&frame("123#")).unwrap();
+            assert_eq!(recv(&mut b), "123#");
+            let took = sent.elapsed();
+            assert!(
+                took >= wire,
+                "{bitrate} bit/s: {took:?} < {wire:?} on the wire, less a bit"
+            );
+        }
+        s.shutdown();
+    }
+}
