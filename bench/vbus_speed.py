@@ -101,47 +101,24 @@ ISOLATED_EVERY = 0.002
 WARM_UP = 20
 
 
-class RawClient:
-    """A socketcand client in raw mode on vcan0 (plain sockets: small and the same for every
-    server)."""
-
-    def __init__(self, addr):
-        self.s = socket.create_connection(addr)
-        self.s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        self.buf = b""
-        self.expect(b"< hi >")
-        self.s.sendall(b"< open vcan0 >")
-        self.expect(b"< ok >")
-        self.s.sendall(b"< rawmode >")
-        self.expect(b"< ok >")
-
-    def expect(self, text):
-        while text not in self.buf:
-            chunk = self.s.recv(65536)
-            if not chunk:
-                raise RuntimeError("server closed")
-            self.buf += chunk
-        self.buf = self.buf[self.buf.index(text) + len(text):]
-
-
 def isolated_latency(addr, frames):
     """p50 and p99 (ms) of single `123#` frames from A's send call to B's receive call, and
     the p50 (ms) from the frame's timestamp (the Unix time of its end on the wire) to B's
     receive call: how late after its end the frame arrives."""
-    a, b = RawClient(addr), RawClient(addr)
+    a, b = cbs.Socketcand(*addr), cbs.Socketcand(*addr)
     # Frames wait 50 ms after the rawmode reply (python-can's quirk).
     time.sleep(0.2)
     samples, after_end = [], []
     for i in range(frames + WARM_UP):
         t0 = time.perf_counter_ns()
         a.s.sendall(b"< send 123 0 >")
-        b.expect(b"< frame 123 ")
+        # `< frame 123 SECONDS.MICROS >`: its timestamp is the frame's end on the wire.
+        element = b.element()
         t1 = time.perf_counter_ns()
         now = time.time()
-        while b">" not in b.buf:
-            b.buf += b.s.recv(4096)
-        stamp = float(b.buf.split()[0])
-        b.buf = b.buf[b.buf.index(b">") + 1:]
+        if not element.startswith(b"< frame 123 "):
+            raise RuntimeError(f"expected the frame back, got {element!r}")
+        stamp = float(element.split()[3])
         if i >= WARM_UP:
             samples.append((t1 - t0) / 1e6)
             after_end.append((now - stamp) * 1e3)
