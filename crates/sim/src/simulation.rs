@@ -676,7 +676,24 @@ impl Simulation {
         if self.next_fault_change <= now {
             self.update_faults();
         }
-        if taken || self.schedule.next <= now {
+        if !taken && self.schedule.next <= now && self.schedule.scanned() && self.whole.no_members()
+        {
+            // Few generators and nobody in the group: one look at each fires the due ones
+            // and finds the next time (firing one changes no other's time).
+            let mut next = BitTime::MAX;
+            for g in &mut self.schedule.generators {
+                if g.next().is_some_and(|t| t <= now) {
+                    let node = &mut self.nodes[g.node];
+                    let q = g.fire(now, node.device.node_mut());
+                    node.stats.queued += q.queued;
+                    node.stats.queue_overflows += q.overflows;
+                }
+                if let Some(t) = g.next() {
+                    next = next.min(t);
+                }
+            }
+            self.schedule.next = next;
+        } else if taken || self.schedule.next <= now {
             if !taken {
                 self.schedule.take_due(now);
             }
