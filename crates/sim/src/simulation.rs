@@ -738,7 +738,7 @@ impl Simulation {
 
     /// Generator `at` acts at `now`. A node advanced with the group is filled in before it
     /// is given a frame.
-    #[inline]
+    #[inline(always)]
     fn fire(&mut self, at: usize, now: BitTime) {
         let i = self.schedule.generators[at].node;
         let member = self.whole.is_member(i);
