@@ -676,25 +676,46 @@ impl Simulation {
         if self.next_fault_change <= now {
             self.update_faults();
         }
-        if taken || self.schedule.next <= now {
+        let scan = !taken && self.schedule.next <= now && self.schedule.scanned();
+        if scan && self.whole.no_members() {
+            // Few generators and nobody in the group (always so with the trace): the loop
+            // below without looking for members, measurably cheaper.
+            let mut next = BitTime::MAX;
+            for g in &mut self.schedule.generators {
+                if g.next().is_some_and(|t| t <= now) {
+                    let node = &mut self.nodes[g.node];
+                    let q = g.fire(now, node.device.node_mut());
+                    node.stats.queued += q.queued;
+                    node.stats.queue_overflows += q.overflows;
+                }
+                if let Some(t) = g.next() {
+                    next = next.min(t);
+                }
+            }
+            self.schedule.next = next;
+        } else if scan {
+            // Few generators: one look at each fires the due ones and finds the next time
+            // (firing one changes no other's time), in the order they were added.
+            let mut next = BitTime::MAX;
+            for at in 0..self.schedule.generators.len() {
+                if self.schedule.generators[at]
+                    .next()
+                    .is_some_and(|t| t <= now)
+                {
+                    self.fire(at, now);
+                }
+                if let Some(t) = self.schedule.generators[at].next() {
+                    next = next.min(t);
+                }
+            }
+            self.schedule.next = next;
+        } else if taken || self.schedule.next <= now {
             if !taken {
                 self.schedule.take_due(now);
             }
             for k in 0..self.schedule.due.len() {
                 let at = self.schedule.due[k];
-                // A node advanced with the group is filled in before it is given a frame.
-                let i = self.schedule.generators[at].node;
-                let member = self.whole.is_member(i);
-                if member {
-                    self.before_enqueue(i);
-                }
-                let node = &mut self.nodes[i];
-                let q = self.schedule.generators[at].fire(now, node.device.node_mut());
-                node.stats.queued += q.queued;
-                node.stats.queue_overflows += q.overflows;
-                if member && q.queued > 0 {
-                    self.after_enqueue(i);
-                }
+                self.fire(at, now);
                 self.schedule.push(at);
             }
             self.schedule.settle();
@@ -712,6 +733,24 @@ impl Simulation {
             self.next_sample = self
                 .sample_every
                 .map_or(BitTime::MAX, |every| now.saturating_add(every));
+        }
+    }
+
+    /// Generator `at` acts at `now`. A node advanced with the group is filled in before it
+    /// is given a frame.
+    #[inline(always)]
+    fn fire(&mut self, at: usize, now: BitTime) {
+        let i = self.schedule.generators[at].node;
+        let member = self.whole.is_member(i);
+        if member {
+            self.before_enqueue(i);
+        }
+        let node = &mut self.nodes[i];
+        let q = self.schedule.generators[at].fire(now, node.device.node_mut());
+        node.stats.queued += q.queued;
+        node.stats.queue_overflows += q.overflows;
+        if member && q.queued > 0 {
+            self.after_enqueue(i);
         }
     }
 

@@ -141,10 +141,17 @@ impl WireFrame {
 pub struct ArbitrationBits {
     /// Wire bits 0..64, first bit lowest; zero past the frame's end.
     bits: u64,
-    /// Which of them are stuff bits.
-    stuff: u64,
     len: u32,
     extended: bool,
+}
+
+/// Which of the first 64 wire bits `bits` (inside the stuffed region) are stuff bits: from
+/// bit 5 on, those after five equal bits (as the encoder inserts them).
+#[inline]
+fn stuff_bits(bits: u64) -> u64 {
+    // equal[i]: bit i equals bit i - 1.
+    let equal = !(bits ^ bits << 1);
+    equal << 1 & equal << 2 & equal << 3 & equal << 4 & !0x1F
 }
 
 impl ArbitrationBits {
@@ -152,7 +159,6 @@ impl ArbitrationBits {
     pub fn of(frame: &Encoded) -> Self {
         Self {
             bits: frame.stuffed().window(0) as u64,
-            stuff: frame.stuff_mask().window(0) as u64,
             len: frame.stuffed().len() as u32,
             extended: frame.frame().is_extended(),
         }
@@ -167,11 +173,12 @@ impl ArbitrationBits {
             return None;
         }
         let bit = 1u64 << i;
-        let index = i - (self.stuff & (bit - 1)).count_ones();
+        // Up to bit `i` both frames have the same bits, so the same stuff bits: found here
+        // from the bits, only where needed, rather than for every sender and frame.
+        let stuff = stuff_bits(self.bits) & (bit << 1).wrapping_sub(1);
+        let index = i - (stuff & (bit - 1)).count_ones();
         let arbitration_end = if self.extended { 32 } else { 12 };
-        let ok = self.bits & bit != 0
-            && (self.stuff | winner.stuff) & bit == 0
-            && (1..=arbitration_end).contains(&index);
+        let ok = self.bits & bit != 0 && stuff & bit == 0 && (1..=arbitration_end).contains(&index);
         ok.then_some(FrameRole::LostArbitration { wire_bit: i, index })
     }
 }

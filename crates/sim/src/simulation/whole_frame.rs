@@ -226,6 +226,12 @@ impl WholeFrames {
         self.group.is_member(i)
     }
 
+    /// Whether the group is empty: every node is taken one by one.
+    #[inline]
+    pub(super) fn no_members(&self) -> bool {
+        self.group.members == 0
+    }
+
     /// Sizes the per-node tables for `n` nodes; with no member, every node is taken one by
     /// one.
     fn prepare(&mut self, n: usize) {
@@ -395,15 +401,20 @@ impl Simulation {
         }
     }
 
-    /// Node `i` joins the group if it is a bystander; whether it did.
+    /// Node `i` joins the group if it is a bystander; whether it did. The `winner` of the
+    /// frame just applied stays out while it has another frame to send: it is likely to win
+    /// the next one too, and would only leave the group again at once.
     #[inline]
-    fn try_join(&mut self, i: usize) -> bool {
+    fn try_join(&mut self, i: usize, winner: bool) -> bool {
         let Device::Controller(c) = &self.nodes[i].device else {
             return false;
         };
         let Some(kind) = c.bystander() else {
             return false;
         };
+        if winner && matches!(kind, Bystander::Loser { .. }) {
+            return false;
+        }
         let acks = !c.config().listen_only;
         let group = &mut self.whole.group;
         group.joined[i] = group.frames;
@@ -595,6 +606,8 @@ impl Simulation {
         // node joins or leaves during the stages: a generator gives a member its frame in
         // the group, see `before_enqueue`.)
         let all = self.whole.group.members == 0;
+        // Only nodes of another kind go through ranges: without them no look at `ranged`.
+        let ranged = self.others > 0;
         let count = self.whole.ind.len();
         // SOF: every controller takes part in the frame. Nothing to report but what waited
         // already (counters forced between runs report their warning and state here, as the
@@ -610,7 +623,7 @@ impl Simulation {
             } = self;
             let node = &mut nodes[i];
             if let Device::Controller(c) = &mut node.device
-                && !whole.ranged[i]
+                && !(ranged && whole.ranged[i])
             {
                 c.frame_begin(whole.roles[i]);
                 if c.has_events() {
@@ -633,7 +646,7 @@ impl Simulation {
                 ..
             } = self;
             let node = &mut nodes[i];
-            match (&mut node.device, whole.roles[i], whole.ranged[i]) {
+            match (&mut node.device, whole.roles[i], ranged && whole.ranged[i]) {
                 (Device::Controller(c), FrameRole::LostArbitration { index, .. }, false) => {
                     let time = t0 + BitTime::from(bit);
                     if let Some(event) = c.frame_lost(index) {
@@ -661,7 +674,7 @@ impl Simulation {
                 ..
             } = self;
             let node = &mut nodes[i];
-            if whole.ranged[i] {
+            if ranged && whole.ranged[i] {
                 // With REC at 0 the ACK slot changes nothing a node could report (a successful
                 // reception only lowers a REC above 0, rule 8): the slot goes with the next
                 // stage's bits, one call fewer per receiver and frame.
@@ -685,7 +698,7 @@ impl Simulation {
                 nodes, obs, whole, ..
             } = self;
             let node = &mut nodes[i];
-            if whole.ranged[i] {
+            if ranged && whole.ranged[i] {
                 self.advance_other(wire, i, eof6 + 1, t0);
             } else if let Device::Controller(c) = &mut node.device
                 // Handed on at once rather than queued in the controller and polled.
@@ -714,7 +727,7 @@ impl Simulation {
                 ..
             } = self;
             let node = &mut nodes[i];
-            if whole.ranged[i] {
+            if ranged && whole.ranged[i] {
                 self.advance_other(wire, i, total, t0);
             } else if let Device::Controller(c) = &mut node.device {
                 // The others' EOF bit 7 changes nothing anybody looks at before now.
@@ -739,7 +752,7 @@ impl Simulation {
             let mut kept = 0;
             for k in 0..self.whole.ind.len() {
                 let i = self.whole.ind[k];
-                if !self.try_join(i) {
+                if !self.try_join(i, i == w) {
                     self.whole.ind[kept] = i;
                     kept += 1;
                 }
@@ -774,6 +787,12 @@ impl Simulation {
             // the group show nothing but their queue before they are filled in (as a
             // generator queues a frame, `before_enqueue`); nodes moved on through ranges are
             // moved on here.
+            self.now = due;
+            // With bare controllers only, no node goes through ranges: nothing to move on.
+            if self.others == 0 {
+                self.handle_due();
+                continue;
+            }
             let generators = self.schedule.next <= due;
             if generators {
                 self.schedule.take_due(due);
@@ -789,7 +808,6 @@ impl Simulation {
                     self.advance_other(wire, i, *at, t0);
                 }
             }
-            self.now = due;
             self.handle_due_taken(generators);
         }
     }
