@@ -70,7 +70,7 @@ impl ServeBench {
                 });
             }
             let mut sim = scenario.build().map_err(ServeError::Scenario)?;
-            sim.set_record_events(false);
+            sim.set_record_events(buslab_sim::RecordedEvents::empty());
             config.scenario = Some(sim);
         }
         Ok(())

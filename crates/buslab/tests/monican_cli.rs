@@ -11,7 +11,7 @@ use assert_cmd::cargo::CommandCargoExt;
 use buslab_can::BitTime;
 use buslab_can::controller::Event;
 use buslab_monican::layout::*;
-use buslab_sim::{Happening, Simulation};
+use buslab_sim::{Happening, RecordedEvents, Simulation};
 use buslab_slio::board::volts_to_code;
 use buslab_slio::{DemoBoard, Direction, SlioId};
 use buslab_vbus::server::{ServerConfig, ServerHandle, spawn};
@@ -172,7 +172,7 @@ fn frames_to_slios(server: &ServerHandle) -> Vec<String> {
 fn monicans_reads_are_three_byte_frames_and_answered() {
     let server = std::sync::Arc::new(bus());
     server
-        .with_bus(|bus| bus.sim_mut().set_record_events(true))
+        .with_bus(|bus| bus.sim_mut().set_record_events(RecordedEvents::all()))
         .unwrap();
     let mut s = monican(&server);
     let handle = server.clone();

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use buslab_can::BitTime;
 use buslab_can::controller::ControllerConfig;
 use buslab_can::{Frame, Id};
-use buslab_sim::{Simulation, Traffic};
+use buslab_sim::{RecordedEvents, Simulation, Traffic};
 use criterion::{Criterion, Throughput, criterion_group};
 
 const BITRATE: u32 = 1_000_000;
@@ -20,7 +20,7 @@ const BITRATE: u32 = 1_000_000;
 fn saturated(nodes: usize, whole_frames: bool) -> Simulation {
     let mut sim = Simulation::new(BITRATE, 1);
     sim.set_whole_frames(whole_frames);
-    sim.set_record_events(false);
+    sim.set_record_events(RecordedEvents::empty());
     for i in 0..nodes {
         let node = sim.add_node(format!("n{i}"), ControllerConfig::default());
         let id = Id::standard(0x100 + i as u16).unwrap();

@@ -24,7 +24,9 @@ pub mod vcd;
 
 pub use error::DurationError;
 pub use fault::{Fault, FaultKind};
-pub use observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats, Record};
+pub use observe::{
+    BusStats, CounterSample, Happening, LevelChange, NodeStats, Record, RecordedEvents,
+};
 pub use simulation::{Node, Simulation};
 pub use time::{BitTime, Span};
 pub use traffic::Traffic;

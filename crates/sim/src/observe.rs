@@ -25,6 +25,55 @@ pub enum Happening {
     FaultEnded { index: usize },
 }
 
+bitflags::bitflags! {
+    /// Which kinds of node events the trace records (all by default; see
+    /// [`crate::Simulation::set_record_events`]). Fault starts and ends are always recorded.
+    ///
+    /// Recording only what is read is more than thrift: with neither [`Self::RECEIVED`] nor
+    /// [`Self::ARBITRATION_LOST`] the engine may advance nodes that only watch frames go by as
+    /// one group instead of one by one.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub struct RecordedEvents: u16 {
+        const RECEIVED = 1 << 0;
+        const TRANSMITTED = 1 << 1;
+        const ARBITRATION_LOST = 1 << 2;
+        const ERROR = 1 << 3;
+        const STATE_CHANGED = 1 << 4;
+        const WARNING = 1 << 5;
+        const OVERLOAD = 1 << 6;
+        const DROPPED = 1 << 7;
+    }
+}
+
+/// Every kind, as a new simulation records.
+impl Default for RecordedEvents {
+    fn default() -> Self {
+        Self::all()
+    }
+}
+
+impl RecordedEvents {
+    /// The kind of `event`.
+    pub fn of(event: &Event) -> Self {
+        match event {
+            Event::Received(_) => Self::RECEIVED,
+            Event::Transmitted(_) => Self::TRANSMITTED,
+            Event::ArbitrationLost { .. } => Self::ARBITRATION_LOST,
+            Event::Error { .. } => Self::ERROR,
+            Event::StateChanged { .. } => Self::STATE_CHANGED,
+            Event::Warning { .. } => Self::WARNING,
+            Event::Overload => Self::OVERLOAD,
+            Event::Dropped(_) => Self::DROPPED,
+        }
+    }
+
+    /// Whether `event` is of a recorded kind.
+    #[inline]
+    pub fn records(self, event: &Event) -> bool {
+        self.intersects(Self::of(event))
+    }
+}
+
 /// Counters of one node.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NodeStats {

@@ -7,7 +7,9 @@ use buslab_can::node::BusNode;
 use buslab_can::{Frame, Level};
 
 use crate::fault::{Fault, FaultKind, Wiring};
-use crate::observe::{BusStats, CounterSample, Happening, LevelChange, NodeStats, Record};
+use crate::observe::{
+    BusStats, CounterSample, Happening, LevelChange, NodeStats, Record, RecordedEvents,
+};
 use crate::rng::SplitMix64;
 use crate::time::BitTime;
 use crate::traffic::{Generator, Traffic};
@@ -151,7 +153,7 @@ impl Node {
 #[derive(Debug, Default)]
 struct Observers {
     records: Vec<Record>,
-    record_events: bool,
+    record_events: RecordedEvents,
     bus: BusStats,
 }
 
@@ -329,7 +331,7 @@ impl Simulation {
             seg_levels: Vec::new(),
             outputs: Vec::new(),
             obs: Observers {
-                record_events: true,
+                record_events: RecordedEvents::all(),
                 // The bus has been idle since forever.
                 bus: BusStats {
                     recessive_run: 11,
@@ -470,9 +472,10 @@ impl Simulation {
         self.skipped
     }
 
-    /// Record node events in the trace (on by default). Counters are kept either way.
-    pub fn set_record_events(&mut self, on: bool) {
-        self.obs.record_events = on;
+    /// Which node events to record in the trace (all by default; `RecordedEvents::empty()`
+    /// for none). Counters are kept either way.
+    pub fn set_record_events(&mut self, kinds: RecordedEvents) {
+        self.obs.record_events = kinds;
     }
 
     /// Sample every node's TEC/REC every `interval` bit-times into [`Self::series`].
@@ -976,7 +979,7 @@ fn handle_event(
         Event::Error { .. } => obs.bus.errors += 1,
         _ => {}
     }
-    if obs.record_events {
+    if obs.record_events.records(&event) {
         obs.records.push(Record {
             time: now,
             what: Happening::Node { node: i, event },

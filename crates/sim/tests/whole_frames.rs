@@ -9,7 +9,7 @@ mod common;
 use buslab_can::BitTime;
 use buslab_can::controller::{Controller, ControllerConfig};
 use buslab_can::{Frame, Id};
-use buslab_sim::{Fault, FaultKind, Simulation, Traffic};
+use buslab_sim::{Fault, FaultKind, RecordedEvents, Simulation, Traffic};
 use common::*;
 use proptest::prelude::*;
 
@@ -444,7 +444,7 @@ fn receivers_in_different_states_are_applied_whole_and_the_same() {
 /// then takes the losers of a frame in node order where only the trace could tell.
 fn run_untraced(bus: &Bus) -> (Simulation, (String, String)) {
     let mut sim = build(bus, true);
-    sim.set_record_events(false);
+    sim.set_record_events(RecordedEvents::empty());
     for step in &bus.steps {
         sim.run_for(BitTime::new(*step));
         let _ = sim.enqueue(0, frame("7FF#EE"));
@@ -478,7 +478,11 @@ fn a_saturated_bus_without_a_trace_ends_the_same() {
     let bus = |whole: bool| {
         let mut sim = Simulation::new(1_000_000, 1);
         sim.set_whole_frames(whole);
-        sim.set_record_events(!whole);
+        sim.set_record_events(if whole {
+            RecordedEvents::empty()
+        } else {
+            RecordedEvents::all()
+        });
         for i in 0..16u16 {
             let n = sim.add_node(
                 format!("n{i}"),
@@ -528,8 +532,8 @@ enum Action {
     Run(u64),
     /// Queue a frame on a node by hand.
     Enqueue(usize, Frame),
-    /// Record the trace from now on, or stop recording it.
-    Trace(bool),
+    /// Record these kinds of events in the trace from now on.
+    Trace(RecordedEvents),
     /// A fault from now on for that long.
     Fault(u8, usize, u64),
     AddNode(bool),
@@ -542,7 +546,14 @@ fn action() -> impl Strategy<Value = Action> {
     prop_oneof![
         6 => (1u64..4_000).prop_map(Action::Run),
         2 => (0usize..64, any_frame()).prop_map(|(n, f)| Action::Enqueue(n, f)),
-        1 => any::<bool>().prop_map(Action::Trace),
+        1 => prop_oneof![
+            Just(RecordedEvents::all()),
+            Just(RecordedEvents::empty()),
+            // What `buslab sim` records: the group stays on.
+            Just(RecordedEvents::all() - RecordedEvents::RECEIVED - RecordedEvents::ARBITRATION_LOST),
+            any::<u16>().prop_map(RecordedEvents::from_bits_truncate),
+        ]
+        .prop_map(Action::Trace),
         1 => (0u8..6, 0usize..64, 1u64..300).prop_map(|(k, n, len)| Action::Fault(k, n, len)),
         1 => any::<bool>().prop_map(Action::AddNode),
         1 => (0usize..64).prop_map(Action::RemoveNode),
@@ -554,7 +565,7 @@ fn action() -> impl Strategy<Value = Action> {
 /// action between the fast path and the bit-level path.
 fn act(bus: &Bus, actions: &[Action], whole: bool) -> Vec<(String, String)> {
     let mut sim = build(bus, whole);
-    sim.set_record_events(false);
+    sim.set_record_events(RecordedEvents::empty());
     let mut seen = Vec::new();
     for a in actions {
         let n = sim.nodes().len();
@@ -563,7 +574,7 @@ fn act(bus: &Bus, actions: &[Action], whole: bool) -> Vec<(String, String)> {
             Action::Enqueue(node, f) => {
                 let _ = sim.enqueue(node % n, *f);
             }
-            Action::Trace(on) => sim.set_record_events(*on),
+            Action::Trace(kinds) => sim.set_record_events(*kinds),
             Action::Fault(kind, node, len) => {
                 let node = node % n;
                 let kind = match kind {
@@ -685,7 +696,7 @@ fn a_saturated_bus_of_64_nodes_advanced_as_a_group_ends_the_same() {
     let bus = |whole: bool| {
         let mut sim = Simulation::new(1_000_000, 1);
         sim.set_whole_frames(whole);
-        sim.set_record_events(false);
+        sim.set_record_events(RecordedEvents::empty());
         for i in 0..64u16 {
             let n = sim.add_node(format!("n{i}"), ControllerConfig::default());
             sim.add_traffic(

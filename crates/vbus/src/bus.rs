@@ -17,7 +17,7 @@ use buslab_canbus::{
     BusOffRecovery, BusSummary, ControllerSettings, ErrorRegisters, NodeCounters, NodeInfo,
     NodeRef, NodeRegisters, NodeStatus, NodeTiming, Sja1000Config,
 };
-use buslab_sim::{BusStats, Fault, FaultKind, Simulation};
+use buslab_sim::{BusStats, Fault, FaultKind, RecordedEvents, Simulation};
 use buslab_sja1000::BitTiming;
 
 use buslab_slio::{Calibration, ModeChangeCause, SlioId, SlioNotice};
@@ -369,7 +369,7 @@ impl VirtualBus {
             .validate()
             .map_err(|e| VbusError::Bitrate(bitrate, format!("bit rate {bitrate} bit/s: {e}")))?;
         let mut sim = Simulation::new(bitrate, 1);
-        sim.set_record_events(false);
+        sim.set_record_events(RecordedEvents::empty());
         Ok(Self::around(sim))
     }
 
@@ -402,7 +402,7 @@ impl VirtualBus {
             self.bitrate(),
             "a scenario at another bit rate"
         );
-        sim.set_record_events(false);
+        sim.set_record_events(RecordedEvents::empty());
         Self {
             error_frames: self.error_frames,
             bus_off_recovery: self.bus_off_recovery,

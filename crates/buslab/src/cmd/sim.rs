@@ -15,7 +15,9 @@ use buslab_can::{Frame, Timestamp};
 use buslab_logs::{candump, text};
 use buslab_plot::{Band, Figure, Lane, Panel, Series, Shade, StateLanes};
 use buslab_sim::observe::signal_names;
-use buslab_sim::{BitTime, CounterSample, Happening, Record, Simulation, Span, VcdWriter};
+use buslab_sim::{
+    BitTime, CounterSample, Happening, Record, RecordedEvents, Simulation, Span, VcdWriter,
+};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -53,6 +55,23 @@ pub struct Args {
 
 /// Bit-times simulated between two flushes of the output.
 const CHUNK: BitTime = BitTime::new(100_000);
+
+/// The kinds of events the trace printer (unless `quiet`) and the plot read.
+fn recorded_events(args: &Args, quiet: bool) -> RecordedEvents {
+    let mut kinds = RecordedEvents::empty();
+    if !quiet {
+        kinds |= RecordedEvents::TRANSMITTED
+            | RecordedEvents::STATE_CHANGED
+            | RecordedEvents::WARNING
+            | RecordedEvents::DROPPED;
+        kinds.set(RecordedEvents::RECEIVED, args.rx);
+        kinds.set(RecordedEvents::ERROR, args.errors);
+    }
+    if args.plot.is_some() {
+        kinds |= RecordedEvents::STATE_CHANGED;
+    }
+    kinds
+}
 
 /// `quiet` (the global `-q`): print only the summary.
 pub fn run(args: Args, quiet: bool) -> anyhow::Result<()> {
@@ -111,11 +130,10 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
         sim.set_whole_frames(false);
         sim.set_fast_forward(false);
     }
-    // Only the trace printer and the plot read the trace; the summary's counters are kept
-    // either way.
-    if quiet && args.plot.is_none() {
-        sim.set_record_events(false);
-    }
+    // Only what the trace printer and the plot read is recorded (the summary's counters are
+    // kept either way): without receptions and lost arbitrations the engine advances the
+    // nodes that only watch as a group.
+    sim.set_record_events(recorded_events(&args, quiet));
     let mut counters = match &args.counters {
         Some(path) => {
             let file = File::create(path)
@@ -312,9 +330,8 @@ impl CounterPlot {
 }
 
 /// Formats trace records as candump log lines and `#` status lines into one buffer per chunk
-/// of the run, written at once: nothing allocated per line, digits and hex by table, and the
-/// records no line shows (receptions without `--rx`, errors without `--errors`, lost
-/// arbitrations) passed over before any formatting.
+/// of the run, written at once: nothing allocated per line, digits and hex by table. Records
+/// no line shows are not recorded at all (see [`recorded_events`]) and passed over here.
 struct Printer<'a> {
     scenario: &'a Scenario,
     bitrate: u32,

@@ -42,7 +42,7 @@ use buslab_can::wire::Encoded;
 use buslab_can::{Frame, Id};
 
 use super::{Device, Node, Observers, Schedule, Simulation, handle_event};
-use crate::observe::{BusStats, Happening, Record};
+use crate::observe::{BusStats, Happening, Record, RecordedEvents};
 use crate::time::BitTime;
 
 /// Frames kept decoded: a saturated bus repeats a few frames over and over.
@@ -347,9 +347,14 @@ impl Simulation {
     }
 
     /// Whether bystanders may be advanced as a group: nothing needs their reports one by one
-    /// in order (no trace), and every node is a bare controller.
+    /// in order (the trace records neither receptions nor lost arbitrations, the only events
+    /// of a bystander), and every node is a bare controller.
     fn grouping(&self) -> bool {
-        !self.obs.record_events && self.others == 0
+        !self
+            .obs
+            .record_events
+            .intersects(RecordedEvents::RECEIVED | RecordedEvents::ARBITRATION_LOST)
+            && self.others == 0
     }
 
     /// Fills in every member of the group (see [`Self::leave_group`]): every node is then
@@ -591,7 +596,10 @@ impl Simulation {
         // due in between; a loser's own events (a single-shot frame dropped) touch only it
         // and its own generators. With no trace, nothing due before the last lost bit and
         // only bare controllers (no node moved on bit by bit), node order does as well.
-        let in_order = self.obs.record_events
+        let in_order = self
+            .obs
+            .record_events
+            .intersects(RecordedEvents::ARBITRATION_LOST | RecordedEvents::DROPPED)
             || self.others > 0
             || self.schedule.next.min(self.next_sample) <= t0 + BitTime::from(last_lost);
         let whole = &mut self.whole;
@@ -875,7 +883,7 @@ fn record(obs: &mut Observers, i: usize, node: &mut Node, time: BitTime, event: 
         Event::Received(_) | Event::ArbitrationLost { .. }
     ));
     node.stats.count(&event);
-    if obs.record_events {
+    if obs.record_events.records(&event) {
         obs.records.push(Record {
             time,
             what: Happening::Node { node: i, event },
