@@ -34,6 +34,7 @@ use crate::board::{Board, CRYSTAL};
 use crate::converter::line;
 use crate::memory::PROGRAM_AREA;
 use crate::rom::{self, cycles};
+use crate::sfr as os_sfr;
 use crate::timing::BYTE_NS;
 
 /// One bit at 9600 baud, in clocks of the 11.0592 MHz crystal.
@@ -56,19 +57,20 @@ const MAX_TRACE_QUEUE: usize = 10_000;
 /// generator, the UART in mode 3 (8N2: the 9th bit is the second stop bit), INT0
 /// edge-triggered and of high priority, interrupts enabled for it.
 pub const START_SFRS: [(u8, u8); 10] = [
-    (sfr::TMOD, 0x20),
-    (sfr::TH1, 0xFD),
-    (sfr::TL1, 0xFD),
+    (sfr::TMOD, os_sfr::TMOD_BAUD),
+    (sfr::TH1, os_sfr::BAUD_RELOAD),
+    (sfr::TL1, os_sfr::BAUD_RELOAD),
     (sfr::TH0, 0x00),
     (sfr::TL0, 0x00),
     (sfr::PCON, 0x00),
-    (sfr::SCON, 0xDC),
-    (sfr::TCON, 0x41),
+    (sfr::SCON, os_sfr::SCON_8N2),
+    (sfr::TCON, os_sfr::TCON_RUNNING),
     (sfr::IP, 0x01),
     (sfr::IE, 0x81),
 ];
-/// SP when the program's first instruction runs: the OS's return address at 08h..09h.
-pub const START_SP: u8 = 0x09;
+/// SP when the program's first instruction runs: the OS's return address at 08h..09h, as
+/// inside any command.
+pub const START_SP: u8 = os_sfr::SP_IN_COMMAND;
 
 /// Why a program stopped running.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

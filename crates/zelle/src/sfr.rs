@@ -8,48 +8,15 @@
 
 use crate::memory::OPEN_BUS;
 
-/// Port 0: the multiplexed address/data bus; its latch holds 1s after every external access.
-pub const P0: u8 = 0x80;
-/// Stack pointer.
-pub const SP: u8 = 0x81;
-/// Data pointer, low byte.
-pub const DPL: u8 = 0x82;
-/// Data pointer, high byte.
-pub const DPH: u8 = 0x83;
-/// Power control.
-pub const PCON: u8 = 0x87;
-/// Timer control.
-pub const TCON: u8 = 0x88;
-/// Timer mode.
-pub const TMOD: u8 = 0x89;
-/// Timer 0 low byte.
-pub const TL0: u8 = 0x8A;
-/// Timer 1 low byte.
-pub const TL1: u8 = 0x8B;
-/// Timer 0 high byte.
-pub const TH0: u8 = 0x8C;
-/// Timer 1 high byte (the baud-rate reload value).
-pub const TH1: u8 = 0x8D;
-/// Port 1: A/D lines (bits 0..3, the LED on bit 0) and digital I/O (bits 4..7).
-pub const P1: u8 = 0x90;
-/// Serial control.
-pub const SCON: u8 = 0x98;
-/// Serial buffer: the last byte received.
-pub const SBUF: u8 = 0x99;
-/// Port 2: the high address byte, and P2.6.
-pub const P2: u8 = 0xA0;
-/// Interrupt enable.
-pub const IE: u8 = 0xA8;
-/// Port 3: RxD, TxD, INT0 (wired to RxD), INT1 (the START key), T0, T1, WR, RD.
-pub const P3: u8 = 0xB0;
-/// Interrupt priority.
-pub const IP: u8 = 0xB8;
-/// Program status word.
-pub const PSW: u8 = 0xD0;
-/// Accumulator.
-pub const ACC: u8 = 0xE0;
-/// B register.
-pub const B: u8 = 0xF0;
+// The addresses are the 8051's; what this board wires to the ports: P0 is the multiplexed
+// address/data bus (its latch holds 1s after every external access), P1 the A/D lines (bits
+// 0..3, the LED on bit 0) and digital I/O (bits 4..7), P2 the high address byte and P2.6,
+// P3 RxD, TxD, INT0 (wired to RxD), INT1 (the START key), T0, T1, WR, RD; TH1 holds the
+// baud-rate reload value.
+pub use buslab_mcs51::sfr::{
+    ACC, B, DPH, DPL, IE, IP, P0, P1, P2, P3, PCON, PSW, SBUF, SCON, SP, TCON, TH0, TH1, TL0, TL1,
+    TMOD,
+};
 
 /// SP inside a command: the reset value 07h (the stack starts in register bank 1) plus the
 /// command loop's call of the command's function.
