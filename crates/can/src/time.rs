@@ -261,6 +261,24 @@ impl BitTime {
         self.0 as f64 / f64::from(bitrate.max(1))
     }
 
+    /// [`Self::at_bitrate`] as whole seconds and microseconds (rounded down), as logs print
+    /// a time; without its 128-bit division, as a trace prints one per line.
+    pub fn secs_and_micros_at(self, bitrate: u32) -> (u64, u32) {
+        // Below about 584 years at any bit rate `at_bitrate` does not saturate, and
+        // ⌊⌊t·10⁹/b⌋ / 10⁹⌋ = ⌊t/b⌋, ⌊(⌊t·10⁹/b⌋ mod 10⁹) / 10³⌋ = ⌊(t mod b)·10⁶/b⌋.
+        const UNSATURATED_SECS: u64 = u64::MAX / 1_000_000_000 - 1;
+        let b = u64::from(bitrate.max(1));
+        let secs = self.0 / b;
+        if secs >= UNSATURATED_SECS {
+            let nanos = self.at_bitrate(bitrate).0;
+            return (
+                nanos / 1_000_000_000,
+                (nanos % 1_000_000_000 / 1_000) as u32,
+            );
+        }
+        (secs, ((self.0 % b) * 1_000_000 / b) as u32)
+    }
+
     /// These bit-times as nanoseconds at `bitrate` bit/s (rounded down; a zero bitrate counts
     /// as 1 bit/s). The one conversion from a bus's clock to a host's.
     pub const fn at_bitrate(self, bitrate: u32) -> Nanos {
@@ -444,5 +462,20 @@ mod tests {
         );
         assert_eq!(BitTime::new(42).to_string(), "42");
         assert_eq!(BitTime::from(111u32), BitTime::new(111));
+    }
+
+    proptest::proptest! {
+        /// The shortcut gives what the nanoseconds give, saturated or not, any bit rate.
+        #[test]
+        fn seconds_and_microseconds_are_those_of_the_nanoseconds(
+            t in proptest::prop_oneof![
+                0u64..1 << 40,
+                proptest::num::u64::ANY,
+            ],
+            bitrate in proptest::prop_oneof![0u32..2_000_000, proptest::num::u32::ANY],
+        ) {
+            let via_nanos = Timestamp::from(BitTime::new(t).at_bitrate(bitrate)).secs_and_micros();
+            proptest::prop_assert_eq!(BitTime::new(t).secs_and_micros_at(bitrate), via_nanos);
+        }
     }
 }

@@ -264,6 +264,23 @@ pub fn push_u64_zeros(out: &mut Vec<u8>, v: u64, width: usize) {
     out.extend_from_slice(&digits[i.min(digits.len().saturating_sub(width))..]);
 }
 
+/// `v`'s low `N` decimal digits (leading zeros): a fixed-width field, such as a timestamp's
+/// seconds and microseconds, formatted without a look at the output's capacity.
+#[inline]
+pub fn decimal_fixed<const N: usize>(mut v: u64) -> [u8; N] {
+    let mut digits = [b'0'; N];
+    let mut i = N;
+    while i >= 2 && v > 0 {
+        i -= 2;
+        digits[i..i + 2].copy_from_slice(&DEC_PAIRS[(v % 100) as usize]);
+        v /= 100;
+    }
+    if i == 1 {
+        digits[0] = b'0' + (v % 10) as u8;
+    }
+    digits
+}
+
 /// Appends `v` right-aligned in `width` columns (leading spaces).
 #[inline]
 pub fn push_u64_right(out: &mut Vec<u8>, v: u64, width: usize) {
@@ -446,6 +463,12 @@ mod tests {
                 push_u64_right(&mut out, v, width);
                 assert_eq!(out, format!("{v:>width$}").as_bytes(), "{v} {width}");
             }
+            // The low digits in a fixed field: as many as fit, zeros before.
+            let low = |n: u32| format!("{:0n$}", v % 10u64.pow(n), n = n as usize);
+            assert_eq!(decimal_fixed::<1>(v), low(1).as_bytes(), "{v}");
+            assert_eq!(decimal_fixed::<6>(v), low(6).as_bytes(), "{v}");
+            assert_eq!(decimal_fixed::<10>(v), low(10).as_bytes(), "{v}");
+            assert_eq!(decimal_fixed::<19>(v), low(19).as_bytes(), "{v}");
         }
         for b in 0..=255u8 {
             let mut out = Vec::new();

@@ -10,8 +10,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use buslab_bench::Scenario;
+use buslab_can::Frame;
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
-use buslab_can::{Frame, Timestamp};
 use buslab_logs::{candump, text};
 use buslab_plot::{Band, Figure, Lane, Panel, Series, Shade, StateLanes};
 use buslab_sim::observe::signal_names;
@@ -198,7 +198,7 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
 /// The `--counters` rows of `series`: `time_s,node,tec,rec,state`.
 fn counter_rows(out: &mut Vec<u8>, scenario: &Scenario, series: &[CounterSample]) {
     for c in series {
-        let (secs, us) = Timestamp::from(c.time.at_bitrate(scenario.bitrate)).secs_and_micros();
+        let (secs, us) = c.time.secs_and_micros_at(scenario.bitrate);
         text::push_u64(out, secs);
         out.push(b'.');
         text::push_u64_zeros(out, u64::from(us), 6);
@@ -393,12 +393,21 @@ impl<'a> Printer<'a> {
 
     /// `(0000000001.250000)`: the candump log timestamp of bit-time `t`.
     fn stamp(&mut self, t: BitTime) {
-        let (s, us) = Timestamp::from(t.at_bitrate(self.bitrate)).secs_and_micros();
-        self.buf.push(b'(');
-        text::push_u64_zeros(&mut self.buf, s, 10);
-        self.buf.push(b'.');
-        text::push_u64_zeros(&mut self.buf, u64::from(us), 6);
-        self.buf.push(b')');
+        let (s, us) = t.secs_and_micros_at(self.bitrate);
+        if s >= 10_000_000_000 {
+            // Past 317 years: more than ten digits of seconds.
+            self.buf.push(b'(');
+            text::push_u64_zeros(&mut self.buf, s, 10);
+            self.buf.push(b'.');
+            text::push_u64_zeros(&mut self.buf, u64::from(us), 6);
+            self.buf.push(b')');
+            return;
+        }
+        // Every line starts with one: formatted in place, appended at once.
+        let mut field = *b"(0000000000.000000)";
+        field[1..11].copy_from_slice(&text::decimal_fixed::<10>(s));
+        field[12..18].copy_from_slice(&text::decimal_fixed::<6>(u64::from(us)));
+        self.buf.extend_from_slice(&field);
     }
 
     /// `# (…) `: the start of a status line.
@@ -581,7 +590,7 @@ fn summary(out: &mut impl Write, sim: &Simulation) -> io::Result<()> {
         )?;
     }
     let bus = sim.bus_stats();
-    let (secs, us) = Timestamp::from(sim.now().at_bitrate(sim.bitrate())).secs_and_micros();
+    let (secs, us) = sim.now().secs_and_micros_at(sim.bitrate());
     writeln!(
         out,
         "# bus: {} bit/s, {secs}.{us:06} s ({} bit-times), load {:.1} %, {} frames, {} errors",
