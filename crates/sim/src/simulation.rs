@@ -754,8 +754,12 @@ impl Simulation {
     fn fire(&mut self, at: usize, now: BitTime) {
         let i = self.schedule.generators[at].node;
         let member = self.whole.is_member(i);
-        if member {
-            self.before_enqueue(i);
+        if member && !self.before_enqueue(i) {
+            // Its queue is full (usual on a saturated bus): the frames are refused without a
+            // call into the node.
+            let q = self.schedule.generators[at].refuse(now);
+            self.nodes[i].stats.queue_overflows += q.overflows;
+            return;
         }
         let node = &mut self.nodes[i];
         let q = self.schedule.generators[at].fire(now, node.device.node_mut());

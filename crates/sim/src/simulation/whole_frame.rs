@@ -430,16 +430,17 @@ impl Simulation {
     }
 
     /// A generator is about to queue a frame on node `i`, a member: it is filled in first,
-    /// unless its queue is full, which refuses the frame without looking further. It stays
+    /// unless its queue is full, which refuses the frame without looking further (then
+    /// false: the generator's frames are refused, nothing else changes). It stays
     /// in the group ([`Self::after_enqueue`]): with no trace, a frame queued in the middle of
     /// a frame shows nowhere before the frame's end, where the controller picks the frame to
     /// send next. So a member is filled in up to the end of the frame being applied, then
     /// given the frame: the same state as queueing it mid-frame and taking the frame's end.
-    pub(super) fn before_enqueue(&mut self, i: usize) {
+    pub(super) fn before_enqueue(&mut self, i: usize) -> bool {
         if let Device::Controller(c) = &self.nodes[i].device
             && c.pending() >= c.config().tx_queue_capacity
         {
-            return;
+            return false;
         }
         let group = &mut self.whole.group;
         let (through, last) = match &self.whole.frame {
@@ -448,7 +449,7 @@ impl Simulation {
         };
         let joined = group.joined[i];
         if joined >= through {
-            return;
+            return true;
         }
         group.joined[i] = through;
         let frames = through - joined;
@@ -460,6 +461,7 @@ impl Simulation {
                 node.stats.arbitration_lost += frames;
             }
         }
+        true
     }
 
     /// Member `i` was given a frame (see [`Self::before_enqueue`]): what it does in the frames
