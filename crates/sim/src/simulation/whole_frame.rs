@@ -68,19 +68,18 @@ impl CachedFrame {
 
 /// The frame and DLC packed in one number, so the cache compares keys kept side by side
 /// instead of following a pointer per entry: identifier (29 bits), IDE, RTR, raw DLC and
-/// the data bytes (zero-padded; their number follows from RTR and the DLC).
+/// the data bytes as a number (their number follows from RTR and the DLC).
+#[inline]
 fn cache_key(frame: &Frame, dlc: u8) -> u128 {
     let (raw, extended) = match frame.id() {
         Id::Standard(id) => (u32::from(id.as_raw()), false),
         Id::Extended(id) => (id.as_raw(), true),
     };
-    let mut data = [0u8; 8];
-    data[..frame.payload().len()].copy_from_slice(frame.payload());
     u128::from(raw)
         | u128::from(extended) << 29
         | u128::from(frame.is_remote()) << 30
         | u128::from(dlc) << 32
-        | u128::from(u64::from_le_bytes(data)) << 64
+        | u128::from(frame.payload_bits()) << 64
 }
 
 /// A node's group frame count when it joined: it is no member.
