@@ -45,8 +45,10 @@ use super::{Device, Node, Observers, Schedule, Simulation, handle_event};
 use crate::observe::{BusStats, Happening, Record};
 use crate::time::BitTime;
 
-/// Frames kept decoded: a saturated bus repeats a few frames over and over.
+/// Frames kept decoded: a saturated bus repeats a few frames over and over. (At most 256:
+/// slots are kept in a byte.)
 const CACHE_FRAMES: usize = 64;
+const _: () = assert!(CACHE_FRAMES <= 256);
 
 /// A frame seen on the wire, decoded once, with what it adds to the bus statistics.
 #[derive(Debug)]
@@ -182,7 +184,8 @@ pub(super) struct WholeFrames {
     cache_keys: Vec<u128>,
     cache: Vec<Arc<CachedFrame>>,
     cache_next: usize,
-    cache_last: usize,
+    /// Per node: the slot of the frame it sent last (checked: nodes come and go).
+    cache_hints: Vec<u8>,
 }
 
 impl Default for WholeFrames {
@@ -204,7 +207,7 @@ impl Default for WholeFrames {
             cache_keys: Vec::new(),
             cache: Vec::new(),
             cache_next: 0,
-            cache_last: 0,
+            cache_hints: Vec::new(),
         }
     }
 }
@@ -233,11 +236,17 @@ impl WholeFrames {
 
     /// Sizes the per-node tables for `n` nodes; with no member, every node is taken one by
     /// one.
+    #[inline]
     fn prepare(&mut self, n: usize) {
         if !self.nodes_changed && self.group.members + self.ind.len() == n && self.roles.len() == n
         {
             return;
         }
+        self.resize(n);
+    }
+
+    #[inline(never)]
+    fn resize(&mut self, n: usize) {
         self.nodes_changed = false;
         debug_assert_eq!(
             self.group.members, 0,
@@ -253,36 +262,46 @@ impl WholeFrames {
         self.group.joined.resize(n, NOT_LAZY);
         self.group.kind.resize(n, Bystander::Receiver);
         self.group.acks.resize(n, false);
+        self.cache_hints.resize(n, 0);
     }
 
-    fn wire_frame(&mut self, winner: &Encoded) -> Option<Arc<CachedFrame>> {
+    /// The winner's frame (`node` sends it) decoded, from the cache if it is there.
+    fn wire_frame(&mut self, winner: &Encoded, node: usize) -> Option<Arc<CachedFrame>> {
         let key = cache_key(winner.frame(), winner.dlc());
-        // A saturated bus sends the same frame again and again: try the last hit first.
-        if self.cache_keys.get(self.cache_last) == Some(&key) {
-            return Some(self.cache[self.cache_last].clone());
+        // A saturated bus sends the same frames again and again, each node its own: try the
+        // node's last hit first.
+        let hint = self.cache_hints.get(node).map_or(0, |&h| usize::from(h));
+        if self.cache_keys.get(hint) == Some(&key) {
+            return Some(self.cache[hint].clone());
         }
-        if let Some(hit) = self.cache_keys.iter().position(|&k| k == key) {
-            self.cache_last = hit;
-            return Some(self.cache[hit].clone());
+        let slot = match self.cache_keys.iter().position(|&k| k == key) {
+            Some(hit) => hit,
+            None => self.insert_frame(winner, key)?,
+        };
+        if let Some(h) = self.cache_hints.get_mut(node) {
+            *h = slot as u8;
         }
+        Some(self.cache[slot].clone())
+    }
+
+    /// Decodes the winner's frame into the cache; its slot.
+    fn insert_frame(&mut self, winner: &Encoded, key: u128) -> Option<usize> {
         let fresh = CachedFrame::new(WireFrame::new(winner)?);
         if self.cache.len() < CACHE_FRAMES {
             self.cache_keys.push(key);
             self.cache.push(Arc::new(fresh));
-            self.cache_last = self.cache.len() - 1;
-            return self.cache.last().cloned();
+            return Some(self.cache.len() - 1);
         }
         let slot = self.cache_next;
         self.cache_next = (slot + 1) % CACHE_FRAMES;
         self.cache_keys[slot] = key;
-        self.cache_last = slot;
         // A saturated bus of ever-new frames (sequence numbers) replaces an entry per frame:
         // reuse its allocation when nobody holds it any more.
         match Arc::get_mut(&mut self.cache[slot]) {
             Some(entry) => *entry = fresh,
             None => self.cache[slot] = Arc::new(fresh),
         }
-        Some(self.cache[slot].clone())
+        Some(slot)
     }
 }
 
@@ -435,12 +454,20 @@ impl Simulation {
     /// a frame shows nowhere before the frame's end, where the controller picks the frame to
     /// send next. So a member is filled in up to the end of the frame being applied, then
     /// given the frame: the same state as queueing it mid-frame and taking the frame's end.
+    #[inline]
     pub(super) fn before_enqueue(&mut self, i: usize) -> bool {
         if let Device::Controller(c) = &self.nodes[i].device
             && c.pending() >= c.config().tx_queue_capacity
         {
             return false;
         }
+        self.fill_in_for_enqueue(i);
+        true
+    }
+
+    /// [`Self::before_enqueue`] with room in the queue.
+    #[inline(never)]
+    fn fill_in_for_enqueue(&mut self, i: usize) {
         let group = &mut self.whole.group;
         let (through, last) = match &self.whole.frame {
             Some(frame) => (group.frames + 1, Some(&frame.cached)),
@@ -448,7 +475,7 @@ impl Simulation {
         };
         let joined = group.joined[i];
         if joined >= through {
-            return true;
+            return;
         }
         group.joined[i] = through;
         let frames = through - joined;
@@ -460,7 +487,6 @@ impl Simulation {
                 node.stats.arbitration_lost += frames;
             }
         }
-        true
     }
 
     /// Member `i` was given a frame (see [`Self::before_enqueue`]): what it does in the frames
@@ -546,7 +572,7 @@ impl Simulation {
         let Some((w, winning)) = self.arbitration() else {
             return false;
         };
-        let Some(cached) = self.whole.wire_frame(&winning) else {
+        let Some(cached) = self.whole.wire_frame(&winning, w) else {
             return false;
         };
         let wire = &cached.wire;
