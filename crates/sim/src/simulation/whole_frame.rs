@@ -120,25 +120,41 @@ impl Group {
 }
 
 /// `(arbitration key, node)` of the group's losers, sorted, the best last.
+///
+/// Entries come and go near the end as a rule (a node that wins leaves from there, and goes
+/// back among the best when given its next frame): both look from the end, moving the few
+/// entries after the place one by one.
 #[derive(Debug, Default)]
 struct Losers(Vec<(u32, u32)>);
 
 impl Losers {
-    #[inline]
-    fn position(&self, entry: (u32, u32)) -> Result<usize, usize> {
-        self.0.binary_search_by(|probe| entry.cmp(probe))
-    }
-
     fn insert(&mut self, entry: (u32, u32)) {
-        if let Err(at) = self.position(entry) {
-            self.0.insert(at, entry);
+        let v = &mut self.0;
+        let mut at = v.len();
+        while at > 0 && v[at - 1] < entry {
+            at -= 1;
         }
+        if at > 0 && v[at - 1] == entry {
+            return;
+        }
+        v.push(entry);
+        let mut k = v.len() - 1;
+        while k > at {
+            v[k] = v[k - 1];
+            k -= 1;
+        }
+        v[at] = entry;
     }
 
     fn remove(&mut self, entry: (u32, u32)) {
-        if let Ok(at) = self.position(entry) {
-            self.0.remove(at);
+        let v = &mut self.0;
+        let Some(at) = v.iter().rposition(|&e| e == entry) else {
+            return;
+        };
+        for k in at..v.len() - 1 {
+            v[k] = v[k + 1];
         }
+        v.pop();
     }
 
     /// The best two (fewer if there are fewer), best first.
@@ -936,4 +952,34 @@ fn order_losers(losers: &mut Vec<u64>, sorted: &mut Vec<u64>, last: u32) {
         *at += 1;
     }
     core::mem::swap(losers, sorted);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Losers;
+    use proptest::prelude::*;
+    use std::collections::BTreeSet;
+
+    proptest! {
+        /// The group's losers stay a set in priority order, the best last, whatever comes and
+        /// goes (entries near the end, as on a saturated bus, or anywhere).
+        #[test]
+        fn losers_stay_sorted_best_last(
+            ops in prop::collection::vec((any::<bool>(), 0u32..12, 0u32..6), 0..80)
+        ) {
+            let mut losers = Losers::default();
+            let mut model = BTreeSet::new();
+            for (add, key, node) in ops {
+                if add {
+                    losers.insert((key, node));
+                    model.insert((key, node));
+                } else {
+                    losers.remove((key, node));
+                    model.remove(&(key, node));
+                }
+                let best_last: Vec<_> = model.iter().rev().copied().collect();
+                prop_assert_eq!(&losers.0, &best_last);
+            }
+        }
+    }
 }
