@@ -65,6 +65,7 @@ impl Frame {
         self.dlc
     }
     /// The data bytes (empty for a remote frame).
+    #[inline]
     pub fn payload(&self) -> &[u8] {
         if self.remote {
             &[]
@@ -74,9 +75,10 @@ impl Frame {
     }
 
     /// The payload as a number, first byte most significant (0 for a remote frame): the wire
-    /// encoder's input, without a copy of a slice of variable length.
+    /// encoder's input, without a copy of a slice of variable length. With the DLC (and
+    /// whether it is a remote frame) it gives the payload back.
     #[inline]
-    pub(crate) fn payload_bits(&self) -> u64 {
+    pub fn payload_bits(&self) -> u64 {
         let len = self.payload().len() as u32;
         if len == 0 {
             0

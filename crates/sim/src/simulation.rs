@@ -601,12 +601,24 @@ impl Simulation {
     /// jumps there (idle controllers that sample recessive stay idle, and every level stays
     /// recessive).
     pub fn run_until(&mut self, end: BitTime) {
-        self.run_until_inner(end);
-        // Every node is filled in for whoever looks at it next.
-        self.dissolve_group();
+        self.run_past(end, end);
     }
 
-    fn run_until_inner(&mut self, end: BitTime) {
+    /// Simulates up to `end`, or on past it to the end of the frame on the bus at `end` if
+    /// that frame is applied whole and ends by `limit`; returns the bit-time reached (from
+    /// `end` to `limit`). Everything then stands as after [`Self::run_until`] that time.
+    ///
+    /// For a long run cut into pieces (to print the trace between them): a piece that ends
+    /// in the middle of a frame no longer makes every node step that frame bit by bit.
+    pub fn run_past(&mut self, end: BitTime, limit: BitTime) -> BitTime {
+        self.run_until_inner(end, limit.max(end));
+        // Every node is filled in for whoever looks at it next.
+        self.dissolve_group();
+        self.now
+    }
+
+    /// Runs to `end`; a whole frame may end as late as `limit`.
+    fn run_until_inner(&mut self, end: BitTime, limit: BitTime) {
         while self.now < end {
             self.handle_due();
             let horizon = end
@@ -614,7 +626,7 @@ impl Simulation {
                 .min(self.next_fault_change)
                 .min(self.next_sample);
             debug_assert!(horizon > self.now);
-            if self.try_whole_frame(end) {
+            if self.try_whole_frame(limit) {
                 continue;
             }
             let quiet = if self.fast_forward && !self.faulty {
@@ -745,8 +757,12 @@ impl Simulation {
     fn fire(&mut self, at: usize, now: BitTime) {
         let i = self.schedule.generators[at].node;
         let member = self.whole.is_member(i);
-        if member {
-            self.before_enqueue(i);
+        if member && !self.before_enqueue(i) {
+            // Its queue is full (usual on a saturated bus): the frames are refused without a
+            // call into the node.
+            let q = self.schedule.generators[at].refuse(now);
+            self.nodes[i].stats.queue_overflows += q.overflows;
+            return;
         }
         let node = &mut self.nodes[i];
         let q = self.schedule.generators[at].fire(now, node.device.node_mut());

@@ -97,16 +97,25 @@ impl Generator {
 
     /// Queue what is due at `now` (call when `next() <= now`).
     pub fn fire(&mut self, now: BitTime, controller: &mut dyn BusNode) -> Queued {
+        self.fire_with(now, &mut |frame| controller.enqueue(frame).is_ok())
+    }
+
+    /// [`Self::fire`] into a queue known to be full: every frame is refused (a full queue
+    /// changes nothing else), and the node need not be looked at.
+    #[inline]
+    pub fn refuse(&mut self, now: BitTime) -> Queued {
+        self.fire_with(now, &mut |_| false)
+    }
+
+    /// [`Self::fire`] with `enqueue` offering each frame to the node (whether it took it).
+    #[inline(always)]
+    fn fire_with(&mut self, now: BitTime, enqueue: &mut impl FnMut(Frame) -> bool) -> Queued {
         let mut q = Queued::default();
-        let mut push = |frame: Frame| match controller.enqueue(frame) {
-            Ok(()) => {
-                q.queued += 1;
-                true
-            }
-            Err(_) => {
-                q.overflows += 1;
-                false
-            }
+        let mut push = |frame: Frame| {
+            let taken = enqueue(frame);
+            q.queued += taken as u64;
+            q.overflows += !taken as u64;
+            taken
         };
         match &self.traffic {
             Traffic::Periodic {
@@ -137,7 +146,7 @@ impl Generator {
             }
             Traffic::File { .. } => {
                 self.next = None;
-                self.queue_chunk(now, controller, &mut q);
+                self.queue_chunk(now, enqueue, &mut q);
             }
         }
         q
@@ -150,12 +159,17 @@ impl Generator {
         if self.in_flight.as_ref() == Some(frame) {
             self.in_flight = None;
             self.chunk += 1;
-            self.queue_chunk(now, controller, &mut q);
+            self.queue_chunk(now, &mut |frame| controller.enqueue(frame).is_ok(), &mut q);
         }
         q
     }
 
-    fn queue_chunk(&mut self, now: BitTime, controller: &mut dyn BusNode, q: &mut Queued) {
+    fn queue_chunk(
+        &mut self,
+        now: BitTime,
+        enqueue: &mut impl FnMut(Frame) -> bool,
+        q: &mut Queued,
+    ) {
         let Traffic::File { id, data, .. } = &self.traffic else {
             return;
         };
@@ -163,16 +177,13 @@ impl Generator {
             self.finished_at = Some(now);
             return;
         };
-        match controller.enqueue(frame) {
-            Ok(()) => {
-                q.queued += 1;
-                self.in_flight = Some(frame);
-            }
+        if enqueue(frame) {
+            q.queued += 1;
+            self.in_flight = Some(frame);
+        } else {
             // Queue full: try again a little later.
-            Err(_) => {
-                q.overflows += 1;
-                self.next = Some(now + BitTime::ONE);
-            }
+            q.overflows += 1;
+            self.next = Some(now + BitTime::ONE);
         }
     }
 }

@@ -754,3 +754,72 @@ fn counters_forced_between_runs_report_at_the_next_frame_start() {
     assert!(fast.whole_frames() > 0);
     assert_eq!(observed(&fast), observed(&slow));
 }
+
+/// What can be seen after each piece of a run.
+type Seen = Vec<(String, String)>;
+
+/// `bus` run in pieces with [`Simulation::run_past`] (fast path; the trace recording
+/// `recorded`), and the same bus run bit by bit to each time it returned: what can be seen
+/// after each piece (each piece ends between its end and its limit).
+fn run_in_pieces(bus: &Bus, pieces: &[(u64, u64)], recorded: RecordedEvents) -> (Seen, Seen) {
+    let mut fast = build(bus, true);
+    let mut slow = build(bus, false);
+    fast.set_record_events(recorded);
+    slow.set_record_events(recorded);
+    let (mut fast_seen, mut slow_seen) = (Vec::new(), Vec::new());
+    for &(len, slack) in pieces {
+        let end = fast.now() + BitTime::new(len);
+        let limit = end + BitTime::new(slack);
+        let reached = fast.run_past(end, limit);
+        assert!(
+            end <= reached && reached <= limit,
+            "{reached} not in {end}..={limit}"
+        );
+        slow.run_until(reached);
+        fast_seen.push(observed(&fast));
+        slow_seen.push(observed(&slow));
+    }
+    (fast_seen, slow_seen)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// A run in pieces that may end a little late, at the end of a frame applied whole,
+    /// leaves everything as the bit-level path run to the same times.
+    #[test]
+    fn run_past_stands_as_the_bit_level_path_at_the_time_it_returns(
+        bus in prop_oneof![saturated_bus(), crowded_bus(), bus()],
+        pieces in prop::collection::vec((1u64..3_000, prop_oneof![Just(0u64), 0u64..400]), 1..12),
+        recorded in any::<u16>().prop_map(RecordedEvents::from_bits_truncate),
+    ) {
+        let (fast, slow) = run_in_pieces(&bus, &pieces, recorded);
+        for (k, (f, s)) in fast.iter().zip(&slow).enumerate() {
+            prop_assert_eq!(&f.0, &s.0, "trace differs after piece {}", k);
+            prop_assert_eq!(&f.1, &s.1, "state differs after piece {}", k);
+        }
+    }
+}
+
+/// On a saturated bus a piece that ends inside a frame goes on to the frame's end (applied
+/// whole), never past the limit; with no room for the frame it ends on time.
+#[test]
+fn run_past_finishes_the_frame_it_would_cut_within_the_limit() {
+    let mut sim = bus_with(&[("a", &["100#0102030405060708"]), ("b", &[])]);
+    sim.set_record_events(RecordedEvents::empty());
+    sim.run_until(BitTime::new(1_000));
+    assert_eq!(sim.nodes()[0].stats().sent, 1);
+    let frames = sim.whole_frames();
+    // The frame queued now starts at once; 20 bits on is inside it: on to its end.
+    sim.enqueue(0, frame("100#0102030405060708")).unwrap();
+    let start = sim.now();
+    let reached = sim.run_past(start + BitTime::new(20), start + BitTime::new(1_000));
+    assert!(reached > start + BitTime::new(100), "stopped at {reached}");
+    assert_eq!(sim.whole_frames(), frames + 1);
+    assert_eq!(sim.nodes()[0].stats().sent, 2);
+    // No room before the limit: bit by bit up to the end asked for.
+    sim.enqueue(0, frame("100#0102030405060708")).unwrap();
+    let end = sim.now() + BitTime::new(30);
+    assert_eq!(sim.run_past(end, end + BitTime::new(10)), end);
+    assert_eq!(sim.whole_frames(), frames + 1);
+}

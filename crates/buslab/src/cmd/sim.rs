@@ -162,7 +162,9 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let mut printer = Printer::new(&scenario, &args);
     let mut csv = Vec::new();
     while sim.now() < end {
-        sim.run_until(end.min(sim.now() + CHUNK));
+        // A chunk may end a little late, at the end of the frame it would have cut (that
+        // frame is then applied whole); the run still ends at `end` exactly.
+        sim.run_past(end.min(sim.now() + CHUNK), end);
         let records = sim.take_records();
         let series = sim.take_series();
         if let Some(w) = &mut counters {

@@ -45,8 +45,10 @@ use super::{Device, Node, Observers, Schedule, Simulation, handle_event};
 use crate::observe::{BusStats, Happening, Record, RecordedEvents};
 use crate::time::BitTime;
 
-/// Frames kept decoded: a saturated bus repeats a few frames over and over.
+/// Frames kept decoded: a saturated bus repeats a few frames over and over. (At most 256:
+/// slots are kept in a byte.)
 const CACHE_FRAMES: usize = 64;
+const _: () = assert!(CACHE_FRAMES <= 256);
 
 /// A frame seen on the wire, decoded once, with what it adds to the bus statistics.
 #[derive(Debug)]
@@ -68,19 +70,18 @@ impl CachedFrame {
 
 /// The frame and DLC packed in one number, so the cache compares keys kept side by side
 /// instead of following a pointer per entry: identifier (29 bits), IDE, RTR, raw DLC and
-/// the data bytes (zero-padded; their number follows from RTR and the DLC).
+/// the data bytes as a number (their number follows from RTR and the DLC).
+#[inline]
 fn cache_key(frame: &Frame, dlc: u8) -> u128 {
     let (raw, extended) = match frame.id() {
         Id::Standard(id) => (u32::from(id.as_raw()), false),
         Id::Extended(id) => (id.as_raw(), true),
     };
-    let mut data = [0u8; 8];
-    data[..frame.payload().len()].copy_from_slice(frame.payload());
     u128::from(raw)
         | u128::from(extended) << 29
         | u128::from(frame.is_remote()) << 30
         | u128::from(dlc) << 32
-        | u128::from(u64::from_le_bytes(data)) << 64
+        | u128::from(frame.payload_bits()) << 64
 }
 
 /// A node's group frame count when it joined: it is no member.
@@ -119,25 +120,41 @@ impl Group {
 }
 
 /// `(arbitration key, node)` of the group's losers, sorted, the best last.
+///
+/// Entries come and go near the end as a rule (a node that wins leaves from there, and goes
+/// back among the best when given its next frame): both look from the end, moving the few
+/// entries after the place one by one.
 #[derive(Debug, Default)]
 struct Losers(Vec<(u32, u32)>);
 
 impl Losers {
-    #[inline]
-    fn position(&self, entry: (u32, u32)) -> Result<usize, usize> {
-        self.0.binary_search_by(|probe| entry.cmp(probe))
-    }
-
     fn insert(&mut self, entry: (u32, u32)) {
-        if let Err(at) = self.position(entry) {
-            self.0.insert(at, entry);
+        let v = &mut self.0;
+        let mut at = v.len();
+        while at > 0 && v[at - 1] < entry {
+            at -= 1;
         }
+        if at > 0 && v[at - 1] == entry {
+            return;
+        }
+        v.push(entry);
+        let mut k = v.len() - 1;
+        while k > at {
+            v[k] = v[k - 1];
+            k -= 1;
+        }
+        v[at] = entry;
     }
 
     fn remove(&mut self, entry: (u32, u32)) {
-        if let Ok(at) = self.position(entry) {
-            self.0.remove(at);
+        let v = &mut self.0;
+        let Some(at) = v.iter().rposition(|&e| e == entry) else {
+            return;
+        };
+        for k in at..v.len() - 1 {
+            v[k] = v[k + 1];
         }
+        v.pop();
     }
 
     /// The best two (fewer if there are fewer), best first.
@@ -183,7 +200,8 @@ pub(super) struct WholeFrames {
     cache_keys: Vec<u128>,
     cache: Vec<Arc<CachedFrame>>,
     cache_next: usize,
-    cache_last: usize,
+    /// Per node: the slot of the frame it sent last (checked: nodes come and go).
+    cache_hints: Vec<u8>,
 }
 
 impl Default for WholeFrames {
@@ -205,7 +223,7 @@ impl Default for WholeFrames {
             cache_keys: Vec::new(),
             cache: Vec::new(),
             cache_next: 0,
-            cache_last: 0,
+            cache_hints: Vec::new(),
         }
     }
 }
@@ -234,11 +252,17 @@ impl WholeFrames {
 
     /// Sizes the per-node tables for `n` nodes; with no member, every node is taken one by
     /// one.
+    #[inline]
     fn prepare(&mut self, n: usize) {
         if !self.nodes_changed && self.group.members + self.ind.len() == n && self.roles.len() == n
         {
             return;
         }
+        self.resize(n);
+    }
+
+    #[inline(never)]
+    fn resize(&mut self, n: usize) {
         self.nodes_changed = false;
         debug_assert_eq!(
             self.group.members, 0,
@@ -254,36 +278,46 @@ impl WholeFrames {
         self.group.joined.resize(n, NOT_LAZY);
         self.group.kind.resize(n, Bystander::Receiver);
         self.group.acks.resize(n, false);
+        self.cache_hints.resize(n, 0);
     }
 
-    fn wire_frame(&mut self, winner: &Encoded) -> Option<Arc<CachedFrame>> {
+    /// The winner's frame (`node` sends it) decoded, from the cache if it is there.
+    fn wire_frame(&mut self, winner: &Encoded, node: usize) -> Option<Arc<CachedFrame>> {
         let key = cache_key(winner.frame(), winner.dlc());
-        // A saturated bus sends the same frame again and again: try the last hit first.
-        if self.cache_keys.get(self.cache_last) == Some(&key) {
-            return Some(self.cache[self.cache_last].clone());
+        // A saturated bus sends the same frames again and again, each node its own: try the
+        // node's last hit first.
+        let hint = self.cache_hints.get(node).map_or(0, |&h| usize::from(h));
+        if self.cache_keys.get(hint) == Some(&key) {
+            return Some(self.cache[hint].clone());
         }
-        if let Some(hit) = self.cache_keys.iter().position(|&k| k == key) {
-            self.cache_last = hit;
-            return Some(self.cache[hit].clone());
+        let slot = match self.cache_keys.iter().position(|&k| k == key) {
+            Some(hit) => hit,
+            None => self.insert_frame(winner, key)?,
+        };
+        if let Some(h) = self.cache_hints.get_mut(node) {
+            *h = slot as u8;
         }
+        Some(self.cache[slot].clone())
+    }
+
+    /// Decodes the winner's frame into the cache; its slot.
+    fn insert_frame(&mut self, winner: &Encoded, key: u128) -> Option<usize> {
         let fresh = CachedFrame::new(WireFrame::new(winner)?);
         if self.cache.len() < CACHE_FRAMES {
             self.cache_keys.push(key);
             self.cache.push(Arc::new(fresh));
-            self.cache_last = self.cache.len() - 1;
-            return self.cache.last().cloned();
+            return Some(self.cache.len() - 1);
         }
         let slot = self.cache_next;
         self.cache_next = (slot + 1) % CACHE_FRAMES;
         self.cache_keys[slot] = key;
-        self.cache_last = slot;
         // A saturated bus of ever-new frames (sequence numbers) replaces an entry per frame:
         // reuse its allocation when nobody holds it any more.
         match Arc::get_mut(&mut self.cache[slot]) {
             Some(entry) => *entry = fresh,
             None => self.cache[slot] = Arc::new(fresh),
         }
-        Some(self.cache[slot].clone())
+        Some(slot)
     }
 }
 
@@ -435,17 +469,26 @@ impl Simulation {
     }
 
     /// A generator is about to queue a frame on node `i`, a member: it is filled in first,
-    /// unless its queue is full, which refuses the frame without looking further. It stays
+    /// unless its queue is full, which refuses the frame without looking further (then
+    /// false: the generator's frames are refused, nothing else changes). It stays
     /// in the group ([`Self::after_enqueue`]): with no trace, a frame queued in the middle of
     /// a frame shows nowhere before the frame's end, where the controller picks the frame to
     /// send next. So a member is filled in up to the end of the frame being applied, then
     /// given the frame: the same state as queueing it mid-frame and taking the frame's end.
-    pub(super) fn before_enqueue(&mut self, i: usize) {
+    #[inline]
+    pub(super) fn before_enqueue(&mut self, i: usize) -> bool {
         if let Device::Controller(c) = &self.nodes[i].device
             && c.pending() >= c.config().tx_queue_capacity
         {
-            return;
+            return false;
         }
+        self.fill_in_for_enqueue(i);
+        true
+    }
+
+    /// [`Self::before_enqueue`] with room in the queue.
+    #[inline(never)]
+    fn fill_in_for_enqueue(&mut self, i: usize) {
         let group = &mut self.whole.group;
         let (through, last) = match &self.whole.frame {
             Some(frame) => (group.frames + 1, Some(&frame.cached)),
@@ -550,7 +593,7 @@ impl Simulation {
         let Some((w, winning)) = self.arbitration() else {
             return false;
         };
-        let Some(cached) = self.whole.wire_frame(&winning) else {
+        let Some(cached) = self.whole.wire_frame(&winning, w) else {
             return false;
         };
         let wire = &cached.wire;
@@ -917,4 +960,34 @@ fn order_losers(losers: &mut Vec<u64>, sorted: &mut Vec<u64>, last: u32) {
         *at += 1;
     }
     core::mem::swap(losers, sorted);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Losers;
+    use proptest::prelude::*;
+    use std::collections::BTreeSet;
+
+    proptest! {
+        /// The group's losers stay a set in priority order, the best last, whatever comes and
+        /// goes (entries near the end, as on a saturated bus, or anywhere).
+        #[test]
+        fn losers_stay_sorted_best_last(
+            ops in prop::collection::vec((any::<bool>(), 0u32..12, 0u32..6), 0..80)
+        ) {
+            let mut losers = Losers::default();
+            let mut model = BTreeSet::new();
+            for (add, key, node) in ops {
+                if add {
+                    losers.insert((key, node));
+                    model.insert((key, node));
+                } else {
+                    losers.remove((key, node));
+                    model.remove(&(key, node));
+                }
+                let best_last: Vec<_> = model.iter().rev().copied().collect();
+                prop_assert_eq!(&losers.0, &best_last);
+            }
+        }
+    }
 }
