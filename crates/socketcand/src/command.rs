@@ -416,9 +416,11 @@ fn parse_send(args: &[&str]) -> Result<Frame, ProtocolError> {
                 text: b.to_string(),
             });
         }
-        *slot = u8::from_str_radix(b, 16).map_err(|_| ProtocolError::BadByte {
-            text: b.to_string(),
-        })?;
+        // One or two hex digits, checked above: no `from_str_radix` (every frame a client
+        // sends comes through here).
+        *slot = b.bytes().fold(0, |value, digit| {
+            (value << 4) | crate::message::hex_digit(digit)
+        });
     }
     Frame::data(id, &data[..n as usize]).map_err(|_| bad_dlc())
 }

@@ -254,7 +254,7 @@ fn error_text(args: &[&str]) -> String {
 }
 
 /// The value of a hex digit (checked by the caller).
-fn hex_digit(b: u8) -> u8 {
+pub(crate) fn hex_digit(b: u8) -> u8 {
     match b {
         b'0'..=b'9' => b - b'0',
         b'a'..=b'f' => b - b'a' + 10,

@@ -247,24 +247,23 @@ impl Session {
             return None;
         }
         while self.waiting == Waiting::Nothing {
-            let Some(element) = self.deframer.next_element() else {
+            // Parsed where it lies in the input buffer (not copied into a String first: every
+            // frame a client sends is an element).
+            let Some(inside) = self.deframer.next_inside() else {
                 if !self.input_finished {
                     return None;
                 }
                 let (excerpt, bytes) = self.deframer.take_unfinished()?;
                 return Some(Action::Unfinished { excerpt, bytes });
             };
-            let element = match element {
-                Ok(e) => e,
-                Err(e) => {
-                    self.protocol_error(e.to_string());
-                    continue;
-                }
+            let parsed = match inside.and_then(crate::element::element_text) {
+                Ok(text) => Command::parse(text).map_err(|e| e.to_string()),
+                Err(e) => Err(e.to_string()),
             };
-            let command = match Command::parse(&element) {
+            let command = match parsed {
                 Ok(c) => c,
                 Err(e) => {
-                    self.protocol_error(e.to_string());
+                    self.protocol_error(e);
                     continue;
                 }
             };
