@@ -178,7 +178,7 @@ static HEX: [u8; 256] = {
 const NOT_HEX: u8 = 0x10;
 
 /// 1..8 hex digits as [`parse_id`] reads them (8: extended, fewer: standard).
-fn fast_id(text: &[u8]) -> Option<Id> {
+pub(crate) fn fast_id(text: &[u8]) -> Option<Id> {
     if text.is_empty() || text.len() > 8 {
         return None;
     }
@@ -194,6 +194,17 @@ fn fast_id(text: &[u8]) -> Option<Id> {
     } else {
         Id::standard(u16::try_from(raw).ok()?).ok()
     }
+}
+
+/// One or two hex digits as a byte (a `send` element's data byte); `None` for anything else.
+pub(crate) fn fast_byte(text: &[u8]) -> Option<u8> {
+    if text.is_empty() || text.len() > 2 {
+        return None;
+    }
+    text.iter().try_fold(0u8, |value, &b| {
+        let digit = HEX[usize::from(b)];
+        (digit != NOT_HEX).then_some(value << 4 | digit)
+    })
 }
 
 /// Decimal digits as a u64 (`None` for anything else, or beyond u64).
@@ -369,24 +380,29 @@ impl Default for Line {
 }
 
 impl Line {
-    fn push(&mut self, text: &[u8]) {
-        let end = (self.len + text.len()).min(LONGEST_FRAME_LINE);
-        self.bytes[self.len..end].copy_from_slice(&text[..end - self.len]);
-        self.len = end;
+    /// One byte; none past [`LONGEST_FRAME_LINE`] (the layout never gets there).
+    #[inline(always)]
+    fn byte(&mut self, b: u8) {
+        if let Some(slot) = self.bytes.get_mut(self.len) {
+            *slot = b;
+            self.len += 1;
+        }
     }
 
-    /// `value` in upper-case hex, at least `width` digits (zero-padded).
-    fn hex(&mut self, value: u32, width: usize) {
-        const HEX: &[u8; 16] = b"0123456789ABCDEF";
-        let mut digits = [0u8; 8];
-        let mut n = 0;
-        let mut rest = value;
-        while n < 8 && (rest > 0 || n < width) {
-            digits[7 - n] = HEX[(rest & 15) as usize];
-            rest >>= 4;
-            n += 1;
+    fn push(&mut self, text: &[u8]) {
+        for &b in text {
+            self.byte(b);
         }
-        self.push(&digits[8 - n..]);
+    }
+
+    /// The low `width` hex digits of `value`, upper case (the widths fit the values: 3
+    /// digits for a standard ID, 8 for an extended one, 2 for a byte).
+    #[inline(always)]
+    fn hex(&mut self, value: u32, width: u32) {
+        const HEX: &[u8; 16] = b"0123456789ABCDEF";
+        for k in (0..width).rev() {
+            self.byte(HEX[((value >> (4 * k)) & 15) as usize]);
+        }
     }
 
     /// `value` in decimal, at least `width` digits (zero-padded).
@@ -422,7 +438,7 @@ pub struct FormattedFrame {
 impl FormattedFrame {
     pub fn new(frame: &Frame, timestamp: Timestamp) -> Self {
         let format = |remote_as_r| {
-            let mut text = String::with_capacity(48);
+            let mut text = String::with_capacity(LONGEST_FRAME_LINE);
             let _ = format_frame(&mut text, frame, timestamp, remote_as_r);
             text
         };
