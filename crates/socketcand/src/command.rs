@@ -394,7 +394,7 @@ pub(crate) fn parse_id(text: &str) -> Result<Id, ProtocolError> {
 fn parse_send_fast(inner: &[u8]) -> Option<Frame> {
     let fields = inner.strip_prefix(b" send ")?.strip_suffix(b" ")?;
     let mut parts = fields.split(|&b| b == b' ');
-    let id = crate::message::fast_id(parts.next()?)?;
+    let id = crate::hex::fast_id(parts.next()?)?;
     let dlc = match parts.next()? {
         [digit @ b'0'..=b'8'] => usize::from(digit - b'0'),
         _ => return None,
@@ -403,7 +403,7 @@ fn parse_send_fast(inner: &[u8]) -> Option<Frame> {
     let mut len = 0;
     for part in parts {
         let slot = data.get_mut(len).filter(|_| len < dlc)?;
-        *slot = crate::message::fast_byte(part)?;
+        *slot = crate::hex::fast_byte(part)?;
         len += 1;
     }
     if len != dlc {
@@ -454,7 +454,7 @@ fn parse_send(args: &[&str]) -> Result<Frame, ProtocolError> {
         // One or two hex digits, checked above: no `from_str_radix` (every frame a client
         // sends comes through here).
         *slot = b.bytes().fold(0, |value, digit| {
-            (value << 4) | crate::message::hex_digit(digit)
+            (value << 4) | crate::hex::hex_digit(digit)
         });
     }
     Frame::data(id, &data[..n as usize]).map_err(|_| bad_dlc())

@@ -18,6 +18,7 @@ pub mod client;
 pub mod command;
 pub mod controller;
 pub mod element;
+mod hex;
 pub mod message;
 pub mod reply;
 pub mod server;

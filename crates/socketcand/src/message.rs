@@ -7,6 +7,7 @@ use buslab_can::{Frame, Id};
 #[cfg(test)]
 use crate::command::IdText;
 use crate::command::parse_id;
+use crate::hex::{HEX, NOT_HEX, fast_id, hex_digit};
 use crate::{ProtocolError, tokens};
 
 pub use buslab_can::Timestamp;
@@ -159,54 +160,6 @@ fn split_at_space(text: &[u8]) -> Option<(&[u8], &[u8])> {
     Some((&text[..space], &text[space + 1..]))
 }
 
-/// Each byte's value as a hex digit; `NOT_HEX` for the others.
-static HEX: [u8; 256] = {
-    let mut table = [NOT_HEX; 256];
-    let mut i = 0;
-    while i < 10 {
-        table[b'0' as usize + i] = i as u8;
-        i += 1;
-    }
-    let mut i = 0;
-    while i < 6 {
-        table[b'a' as usize + i] = 10 + i as u8;
-        table[b'A' as usize + i] = 10 + i as u8;
-        i += 1;
-    }
-    table
-};
-const NOT_HEX: u8 = 0x10;
-
-/// 1..8 hex digits as [`parse_id`] reads them (8: extended, fewer: standard).
-pub(crate) fn fast_id(text: &[u8]) -> Option<Id> {
-    if text.is_empty() || text.len() > 8 {
-        return None;
-    }
-    let (raw, bad) = text.iter().fold((0u32, 0u8), |(raw, bad), &b| {
-        let digit = HEX[usize::from(b)];
-        ((raw << 4) | u32::from(digit & 15), bad | digit)
-    });
-    if bad & NOT_HEX != 0 {
-        return None;
-    }
-    if text.len() == 8 {
-        Id::extended(raw).ok()
-    } else {
-        Id::standard(u16::try_from(raw).ok()?).ok()
-    }
-}
-
-/// One or two hex digits as a byte (a `send` element's data byte); `None` for anything else.
-pub(crate) fn fast_byte(text: &[u8]) -> Option<u8> {
-    if text.is_empty() || text.len() > 2 {
-        return None;
-    }
-    text.iter().try_fold(0u8, |value, &b| {
-        let digit = HEX[usize::from(b)];
-        (digit != NOT_HEX).then_some(value << 4 | digit)
-    })
-}
-
 /// Decimal digits as a u64 (`None` for anything else, or beyond u64).
 fn decimal(text: &[u8]) -> Option<u64> {
     if text.is_empty() {
@@ -262,16 +215,6 @@ fn fast_data(text: &[u8], out: &mut [u8; 8]) -> Option<usize> {
 fn error_text(args: &[&str]) -> String {
     let text = crate::sanitize(&args.join(" "));
     text.split_ascii_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// The value of a hex digit (checked by the caller).
-pub(crate) fn hex_digit(b: u8) -> u8 {
-    match b {
-        b'0'..=b'9' => b - b'0',
-        b'a'..=b'f' => b - b'a' + 10,
-        b'A'..=b'F' => b - b'A' + 10,
-        _ => 0,
-    }
 }
 
 /// Data as packed hex (`1A2203`) or one byte per token (`1A 22 03`).
