@@ -4,7 +4,7 @@ its client nodes (SJA1000 chips operated by buslab's driver) on the simulator's 
 fast path; and python-can's udp_multicast measured the same way in the same run, as the peer.
 
 Usage: .venv/bin/python bench/vbus_speed.py [--frames N] [--receivers 8] [--repeat 3] [--before BINARY]
-       [--only max|latency] [--latency-frames 400] [--busy-loops N] [--callgrind]
+       [--only max|latency] [--latency-frames 400] [--busy-loops N] [--callgrind [--marginal]]
 (python-can and msgpack in .venv come from scripts/setup-test-deps.sh; without them the
 udp_multicast row is left out. Builds buslab and the Rust client with --release first.)
 
@@ -33,7 +33,12 @@ nanoseconds). The floor beside it is a plain TCP relay (a Python process that re
 sender's bytes and writes a frame line to the receiver) plus the frame's wire time: what
 any server that delivers a frame at its end on the wire can reach with these clients.
 `--callgrind` adds the instructions the server executes per delivered frame at `max`
-(valgrind's callgrind: load-independent), and `--busy-loops N` runs everything with N shell
+(valgrind's callgrind: load-independent; the whole run over the frames delivered, the server's
+start and the clients' joining included); with `--marginal` also the same without the start
+(a run with twice the frames against the first: the start drops out of the difference) and
+what one more receiver costs per frame (a run with 1 receiver against one with
+`--receivers`: the same frames and start, so the difference is the receivers' alone), and
+`--busy-loops N` runs everything with N shell
 busy loops beside (`while :; do :; done`), killed after.
 """
 
@@ -187,9 +192,16 @@ def serve_latency(binary, bitrate, frames):
 # ---------------------------------------------------------------- instructions (callgrind)
 
 
-def callgrind_per_frame(binary, client, frames, receivers, bitrate):
-    """Instructions the server executes per delivered frame at `max` (its whole run, start
-    and clients' joining included, over the frames delivered)."""
+def callgrind_marginal(more, fewer):
+    """Instructions per delivered frame from two runs (`callgrind_run`) that differ in
+    receivers or in frames: the difference over the extra deliveries (what the server's start
+    and the clients' joining cost is the same in both and drops out)."""
+    extra = more[1] - fewer[1]
+    return (more[0] - fewer[0]) / extra if more[0] and fewer[0] and extra > 0 else float("nan")
+
+
+def callgrind_run(binary, client, frames, receivers, bitrate):
+    """The server's instructions over a run at `max` (callgrind), and the frames delivered."""
     out = f"/tmp/vbus_speed.callgrind.{os.getpid()}"
     p = subprocess.Popen(
         ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", binary, "bus", "serve",
@@ -208,7 +220,7 @@ def callgrind_per_frame(binary, client, frames, receivers, bitrate):
             if line.startswith(("summary:", "totals:")):
                 total = int(line.split()[1])
     os.remove(out)
-    return total / r["delivered"] if total and r["delivered"] else float("nan")
+    return total, r["delivered"]
 
 
 # ---------------------------------------------------------------- main
@@ -233,6 +245,10 @@ def main():
                     help="shell busy loops running beside every measurement")
     ap.add_argument("--callgrind", action="store_true",
                     help="instructions per delivered frame at max (valgrind)")
+    ap.add_argument("--marginal", action="store_true",
+                    help="with --callgrind: also the instructions per delivered frame without "
+                         "the start (twice the frames against the first run) and per receiver "
+                         "and frame (a run with 1 receiver against one with --receivers)")
     args = ap.parse_args()
     target = os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
     subprocess.run(["cargo", "build", "--release", "--quiet", "-p", "buslab", "--bin", "buslab"],
@@ -311,11 +327,19 @@ def main():
                 runs[label].append(measure())
             for b, label, measure in latencies:
                 lat_runs[(b, label)].append(measure())
-        instructions = {}
+        instructions, marginal, steady = {}, {}, {}
         if args.callgrind and args.only != "latency":
             for name, bin_ in binaries:
-                instructions[name] = callgrind_per_frame(bin_, client, max(n // 20, 1000),
-                                                         args.receivers, args.bitrate)
+                cg_frames = max(n // 20, 1000)
+                many = callgrind_run(bin_, client, cg_frames, args.receivers, args.bitrate)
+                instructions[name] = many[0] / many[1] if many[0] and many[1] else float("nan")
+                if args.marginal:
+                    longer = callgrind_run(bin_, client, 2 * cg_frames, args.receivers,
+                                           args.bitrate)
+                    steady[name] = callgrind_marginal(longer, many)
+                if args.marginal and args.receivers > 1:
+                    one = callgrind_run(bin_, client, cg_frames, 1, args.bitrate)
+                    marginal[name] = callgrind_marginal(many, one)
     finally:
         for p in loops:
             p.kill()
@@ -345,6 +369,14 @@ def main():
             for name, per in instructions.items():
                 print(f"{name} --speed max, Rust client: {per:.0f} instructions per delivered "
                       f"frame (callgrind, {max(n // 20, 1000)} frames)")
+            for name, per in steady.items():
+                print(f"{name} --speed max, Rust client: {per:.0f} instructions per delivered "
+                      f"frame without the start (callgrind: {2 * max(n // 20, 1000)} frames "
+                      f"against {max(n // 20, 1000)})")
+            for name, per in marginal.items():
+                print(f"{name} --speed max, Rust client: {per:.0f} instructions per receiver "
+                      f"and frame (callgrind: {args.receivers} receivers against 1, "
+                      f"{max(n // 20, 1000)} frames)")
         print()
     if latencies:
         print(f"Isolated `123#` frames at real time, one every {ISOLATED_EVERY * 1e3:.0f} ms, "

@@ -98,6 +98,15 @@ const UNSUPPORTED: &[&str] = &[
 impl Command {
     /// Parses an element's inside (`send 123 2 11 22`).
     pub fn parse(inner: &str) -> Result<Self, ProtocolError> {
+        // Every frame a client sends, without allocating; the rest token by token.
+        match parse_send_fast(inner.as_bytes()) {
+            Some(frame) => Ok(Command::Send(frame)),
+            None => Self::parse_tokens(inner),
+        }
+    }
+
+    /// [`Self::parse`] for any command, from its tokens.
+    fn parse_tokens(inner: &str) -> Result<Self, ProtocolError> {
         let t = tokens(inner);
         let (&name, args) = t.split_first().ok_or(ProtocolError::Empty)?;
         let no_args = |cmd: Command, command: &'static str| {
@@ -377,6 +386,32 @@ pub(crate) fn parse_id(text: &str) -> Result<Id, ProtocolError> {
     })
 }
 
+/// A `send` element's inside as buslab's client and python-can write every frame (` send ID
+/// DLC B… `: one space around each field, a DLC of 0..8 and as many bytes of one or two hex
+/// digits), read from the bytes without allocating. `None` for anything else, even a frame in
+/// another layout or a bad one: [`Command::parse`] reads those token by token (and names what
+/// is wrong). What this accepts, the tokens read the same (tests compare them).
+fn parse_send_fast(inner: &[u8]) -> Option<Frame> {
+    let fields = inner.strip_prefix(b" send ")?.strip_suffix(b" ")?;
+    let mut parts = fields.split(|&b| b == b' ');
+    let id = crate::hex::fast_id(parts.next()?)?;
+    let dlc = match parts.next()? {
+        [digit @ b'0'..=b'8'] => usize::from(digit - b'0'),
+        _ => return None,
+    };
+    let mut data = [0u8; 8];
+    let mut len = 0;
+    for part in parts {
+        let slot = data.get_mut(len).filter(|_| len < dlc)?;
+        *slot = crate::hex::fast_byte(part)?;
+        len += 1;
+    }
+    if len != dlc {
+        return None;
+    }
+    Frame::data(id, &data[..len]).ok()
+}
+
 fn parse_send(args: &[&str]) -> Result<Frame, ProtocolError> {
     let [id, dlc, bytes @ ..] = args else {
         return Err(arguments("send", "ID DLC BYTES…", args));
@@ -416,9 +451,11 @@ fn parse_send(args: &[&str]) -> Result<Frame, ProtocolError> {
                 text: b.to_string(),
             });
         }
-        *slot = u8::from_str_radix(b, 16).map_err(|_| ProtocolError::BadByte {
-            text: b.to_string(),
-        })?;
+        // One or two hex digits, checked above: no `from_str_radix` (every frame a client
+        // sends comes through here).
+        *slot = b.bytes().fold(0, |value, digit| {
+            (value << 4) | crate::hex::hex_digit(digit)
+        });
     }
     Frame::data(id, &data[..n as usize]).map_err(|_| bad_dlc())
 }
@@ -526,7 +563,83 @@ impl fmt::Display for Command {
 
 #[cfg(test)]
 mod tests {
+    use proptest::prelude::*;
+
     use super::*;
+
+    /// Element insides near the `send` layout: names, IDs, DLCs and bytes slightly off.
+    fn send_like() -> impl Strategy<Value = String> {
+        let name = prop_oneof!["send", "sen", "sends", "Send", "open"];
+        let space = "[ \t\n]{1,2}";
+        let id = "[0-9a-fA-F+gR -]{0,10}";
+        let dlc = "[0-9Rr+ -]{0,3}";
+        let bytes = prop::collection::vec("[0-9a-fA-Fg+]{0,3}", 0..10);
+        let gap = prop_oneof![
+            Just(" ".to_string()),
+            Just("  ".to_string()),
+            Just("\t".to_string())
+        ];
+        (space, name, " {1,2}", id, " {1,2}", dlc, bytes, gap, space).prop_map(
+            |(a, name, b, id, c, dlc, bytes, gap, e)| {
+                let mut text = format!("{a}{name}{b}{id}{c}{dlc}");
+                for byte in bytes {
+                    text += &gap;
+                    text += &byte;
+                }
+                text + &e
+            },
+        )
+    }
+
+    proptest! {
+        /// What the fast path reads, the tokens read the same; it never refuses for them.
+        #[test]
+        fn the_fast_send_path_reads_as_the_tokens_do(inner in send_like()) {
+            if let Some(frame) = parse_send_fast(inner.as_bytes()) {
+                prop_assert_eq!(Command::parse_tokens(&inner), Ok(Command::Send(frame)));
+            }
+            prop_assert_eq!(Command::parse(&inner), Command::parse_tokens(&inner));
+        }
+
+        /// Every data frame buslab's client sends takes the fast path.
+        #[test]
+        fn sent_data_frames_take_the_fast_path(
+            raw in 0u32..0x2000_0000,
+            extended: bool,
+            data in prop::collection::vec(any::<u8>(), 0..=8),
+        ) {
+            let id = if extended {
+                Id::extended(raw).unwrap()
+            } else {
+                Id::standard((raw & 0x7FF) as u16).unwrap()
+            };
+            let frame = Frame::data(id, &data).unwrap();
+            let text = Command::Send(frame).to_string();
+            let inner = &text[1..text.len() - 1];
+            prop_assert_eq!(parse_send_fast(inner.as_bytes()), Some(frame));
+        }
+    }
+
+    #[test]
+    fn python_can_s_send_layout_takes_the_fast_path() {
+        // python-can's socketcand interface: bytes in lower-case hex without padding.
+        let frame = Frame::data(Id::standard(0x12).unwrap(), &[0x1, 0xab]).unwrap();
+        assert_eq!(parse_send_fast(b" send 12 2 1 ab "), Some(frame));
+        assert_eq!(
+            parse_send_fast(b" send 12 0 "),
+            Some(Frame::data(Id::standard(0x12).unwrap(), &[]).unwrap())
+        );
+        // Not this layout: the tokens decide (a remote frame, a bad count, spaces).
+        for inner in [
+            " send 12 2 ",
+            " send 12 R2 ",
+            " send 12 1 1 2 ",
+            " send  12 0 ",
+            " send 12 9 ",
+        ] {
+            assert_eq!(parse_send_fast(inner.as_bytes()), None, "{inner:?}");
+        }
+    }
 
     fn slio(n: u8) -> SlioId {
         SlioId::new(n).unwrap()

@@ -18,6 +18,7 @@ pub mod client;
 pub mod command;
 pub mod controller;
 pub mod element;
+mod hex;
 pub mod message;
 pub mod reply;
 pub mod server;
@@ -61,8 +62,17 @@ pub enum ProtocolError {
 
 /// Splits an element's inside into tokens (runs of spaces separate them).
 pub(crate) fn tokens(inner: &str) -> Vec<&str> {
-    inner.split_ascii_whitespace().collect()
+    // Room for the longest common element (`send` with 8 data bytes: 11 tokens) at once: a
+    // collected iterator of unknown length grew 4 → 8 → 16, two reallocations per frame
+    // a sender sends (about 1 000 instructions each frame at `--speed max`).
+    let mut tokens = Vec::with_capacity(TOKENS_EXPECTED);
+    tokens.extend(inner.split_ascii_whitespace());
+    tokens
 }
+
+/// Tokens of the longest frame element (`send ID DLC` and 8 data bytes, `frame ID TIME` and
+/// 8), rounded up.
+const TOKENS_EXPECTED: usize = 16;
 
 /// Replaces the characters an element cannot carry (`<`, `>`, control characters, and
 /// anything not ASCII: python-can decodes every read as ASCII and fails on the rest) so a

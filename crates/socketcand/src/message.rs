@@ -4,7 +4,10 @@ use core::fmt;
 
 use buslab_can::{Frame, Id};
 
-use crate::command::{IdText, parse_id};
+#[cfg(test)]
+use crate::command::IdText;
+use crate::command::parse_id;
+use crate::hex::{HEX, NOT_HEX, fast_id, hex_digit};
 use crate::{ProtocolError, tokens};
 
 pub use buslab_can::Timestamp;
@@ -157,43 +160,6 @@ fn split_at_space(text: &[u8]) -> Option<(&[u8], &[u8])> {
     Some((&text[..space], &text[space + 1..]))
 }
 
-/// Each byte's value as a hex digit; `NOT_HEX` for the others.
-static HEX: [u8; 256] = {
-    let mut table = [NOT_HEX; 256];
-    let mut i = 0;
-    while i < 10 {
-        table[b'0' as usize + i] = i as u8;
-        i += 1;
-    }
-    let mut i = 0;
-    while i < 6 {
-        table[b'a' as usize + i] = 10 + i as u8;
-        table[b'A' as usize + i] = 10 + i as u8;
-        i += 1;
-    }
-    table
-};
-const NOT_HEX: u8 = 0x10;
-
-/// 1..8 hex digits as [`parse_id`] reads them (8: extended, fewer: standard).
-fn fast_id(text: &[u8]) -> Option<Id> {
-    if text.is_empty() || text.len() > 8 {
-        return None;
-    }
-    let (raw, bad) = text.iter().fold((0u32, 0u8), |(raw, bad), &b| {
-        let digit = HEX[usize::from(b)];
-        ((raw << 4) | u32::from(digit & 15), bad | digit)
-    });
-    if bad & NOT_HEX != 0 {
-        return None;
-    }
-    if text.len() == 8 {
-        Id::extended(raw).ok()
-    } else {
-        Id::standard(u16::try_from(raw).ok()?).ok()
-    }
-}
-
 /// Decimal digits as a u64 (`None` for anything else, or beyond u64).
 fn decimal(text: &[u8]) -> Option<u64> {
     if text.is_empty() {
@@ -251,16 +217,6 @@ fn error_text(args: &[&str]) -> String {
     text.split_ascii_whitespace().collect::<Vec<_>>().join(" ")
 }
 
-/// The value of a hex digit (checked by the caller).
-fn hex_digit(b: u8) -> u8 {
-    match b {
-        b'0'..=b'9' => b - b'0',
-        b'a'..=b'f' => b - b'a' + 10,
-        b'A'..=b'F' => b - b'A' + 10,
-        _ => 0,
-    }
-}
-
 /// Data as packed hex (`1A2203`) or one byte per token (`1A 22 03`).
 fn parse_data(tokens: &[&str]) -> Result<Vec<u8>, ProtocolError> {
     let mut out = Vec::with_capacity(8);
@@ -306,30 +262,109 @@ fn parse_data(tokens: &[&str]) -> Result<Vec<u8>, ProtocolError> {
 
 /// Writes a frame in raw-mode layout; remote frames as `R<dlc>` if `remote_as_r`, else with
 /// no data (python-can cannot represent them; socketcand drops them).
+///
+/// By hand into a buffer on the stack and appended at once, not through `write!`: a frame
+/// line is formatted for every frame a bus delivers (`write!` with its formatter took about
+/// 1 300 instructions a line; `format_frame_is_what_write_gives` pins the layout).
 pub fn format_frame(
     out: &mut String,
     frame: &Frame,
     timestamp: Timestamp,
     remote_as_r: bool,
 ) -> fmt::Result {
-    use fmt::Write;
+    let mut line = Line::default();
+    line.push(b"< frame ");
+    // socketcand's ID text: `%03X` standard, `%08X` extended (the IDs fit those widths).
+    match frame.id() {
+        Id::Standard(id) => line.hex(u32::from(id.as_raw()), 3),
+        Id::Extended(id) => line.hex(id.as_raw(), 8),
+    }
+    line.push(b" ");
+    // Seconds with six decimals, truncated as candump prints them (see `Timestamp`).
+    let (secs, micros) = timestamp.secs_and_micros();
+    line.decimal(secs, 1);
+    line.push(b".");
+    line.decimal(u64::from(micros), 6);
+    line.push(b" ");
     // Empty data still leaves the data field: `< frame 123 1.000000  >`, as socketcand
     // writes it and python-can splits it (it needs the third field, even empty).
-    write!(out, "< frame {} {} ", IdText(frame.id()), timestamp)?;
     if frame.is_remote() {
         if remote_as_r {
-            write!(out, "R{}", frame.dlc())?;
+            line.push(b"R");
+            line.decimal(u64::from(frame.dlc()), 1);
         }
     } else {
-        // By table: a frame line is formatted for every frame a client gets.
-        const HEX: &[u8; 16] = b"0123456789ABCDEF";
         for &b in frame.payload() {
-            out.push(HEX[usize::from(b >> 4)] as char);
-            out.push(HEX[usize::from(b & 15)] as char);
+            line.hex(u32::from(b), 2);
         }
     }
-    out.push_str(" >");
+    line.push(b" >");
+    out.push_str(line.as_str());
     Ok(())
+}
+
+/// The longest frame line: `< frame `, 8 ID digits, a space, 20 digits of seconds, a point,
+/// 6 digits, a space, 16 data digits, ` >` (63 bytes).
+const LONGEST_FRAME_LINE: usize = 64;
+
+/// A frame line being written: ASCII only, never longer than [`LONGEST_FRAME_LINE`].
+struct Line {
+    bytes: [u8; LONGEST_FRAME_LINE],
+    len: usize,
+}
+
+impl Default for Line {
+    fn default() -> Self {
+        Self {
+            bytes: [0; LONGEST_FRAME_LINE],
+            len: 0,
+        }
+    }
+}
+
+impl Line {
+    /// One byte; none past [`LONGEST_FRAME_LINE`] (the layout never gets there).
+    #[inline(always)]
+    fn byte(&mut self, b: u8) {
+        if let Some(slot) = self.bytes.get_mut(self.len) {
+            *slot = b;
+            self.len += 1;
+        }
+    }
+
+    fn push(&mut self, text: &[u8]) {
+        for &b in text {
+            self.byte(b);
+        }
+    }
+
+    /// The low `width` hex digits of `value`, upper case (the widths fit the values: 3
+    /// digits for a standard ID, 8 for an extended one, 2 for a byte).
+    #[inline(always)]
+    fn hex(&mut self, value: u32, width: u32) {
+        const HEX: &[u8; 16] = b"0123456789ABCDEF";
+        for k in (0..width).rev() {
+            self.byte(HEX[((value >> (4 * k)) & 15) as usize]);
+        }
+    }
+
+    /// `value` in decimal, at least `width` digits (zero-padded).
+    fn decimal(&mut self, value: u64, width: usize) {
+        let mut digits = [0u8; 20];
+        let mut n = 0;
+        let mut rest = value;
+        while n < 20 && (rest > 0 || n < width) {
+            digits[19 - n] = b'0' + (rest % 10) as u8;
+            rest /= 10;
+            n += 1;
+        }
+        self.push(&digits[20 - n..]);
+    }
+
+    fn as_str(&self) -> &str {
+        // Only ASCII digits and the layout's ASCII are pushed.
+        std::str::from_utf8(&self.bytes[..self.len]).unwrap_or_default()
+    }
 }
 
 /// A frame from the bus formatted once in raw-mode layout, for every session that delivers it
@@ -346,7 +381,7 @@ pub struct FormattedFrame {
 impl FormattedFrame {
     pub fn new(frame: &Frame, timestamp: Timestamp) -> Self {
         let format = |remote_as_r| {
-            let mut text = String::with_capacity(48);
+            let mut text = String::with_capacity(LONGEST_FRAME_LINE);
             let _ = format_frame(&mut text, frame, timestamp, remote_as_r);
             text
         };
@@ -468,6 +503,44 @@ mod tests {
             let text = FormattedFrame::new(&frame, timestamp).text(true).to_string();
             let inner = &text[1..text.len() - 1];
             prop_assert_eq!(parse_frame_fast(inner.as_bytes()), Some((frame, timestamp)));
+        }
+
+        /// The line written by hand is the one `write!` gives with socketcand's widths
+        /// (`%03X`/`%08X`, seconds, six decimals, upper-case data, `R<dlc>` or nothing).
+        #[test]
+        fn format_frame_is_what_write_gives(
+            raw in 0u32..0x2000_0000,
+            extended: bool,
+            remote: bool,
+            remote_as_r: bool,
+            data in prop::collection::vec(any::<u8>(), 0..=8),
+            dlc in 0u8..=15,
+            secs: u64,
+            micros in 0u32..1_000_000,
+        ) {
+            let id = if extended {
+                Id::extended(raw).unwrap()
+            } else {
+                Id::standard((raw & 0x7FF) as u16).unwrap()
+            };
+            let frame = if remote {
+                Frame::remote(id, dlc.min(8)).unwrap()
+            } else {
+                Frame::data(id, &data).unwrap()
+            };
+            let timestamp = Timestamp::from_secs_micros(secs, micros);
+            let mut written = String::new();
+            format_frame(&mut written, &frame, timestamp, remote_as_r).unwrap();
+            let mut expected = format!("< frame {} {secs}.{micros:06} ", IdText(frame.id()));
+            if remote && remote_as_r {
+                expected += &format!("R{}", frame.dlc());
+            } else if !remote {
+                for b in frame.payload() {
+                    expected += &format!("{b:02X}");
+                }
+            }
+            expected += " >";
+            prop_assert_eq!(written, expected);
         }
     }
 

@@ -247,24 +247,23 @@ impl Session {
             return None;
         }
         while self.waiting == Waiting::Nothing {
-            let Some(element) = self.deframer.next_element() else {
+            // Parsed where it lies in the input buffer (not copied into a String first: every
+            // frame a client sends is an element).
+            let Some(inside) = self.deframer.next_inside() else {
                 if !self.input_finished {
                     return None;
                 }
                 let (excerpt, bytes) = self.deframer.take_unfinished()?;
                 return Some(Action::Unfinished { excerpt, bytes });
             };
-            let element = match element {
-                Ok(e) => e,
-                Err(e) => {
-                    self.protocol_error(e.to_string());
-                    continue;
-                }
+            let parsed = match inside.and_then(crate::element::element_text) {
+                Ok(text) => Command::parse(text).map_err(|e| e.to_string()),
+                Err(e) => Err(e.to_string()),
             };
-            let command = match Command::parse(&element) {
+            let command = match parsed {
                 Ok(c) => c,
                 Err(e) => {
-                    self.protocol_error(e.to_string());
+                    self.protocol_error(e);
                     continue;
                 }
             };
@@ -398,6 +397,30 @@ impl Session {
             self.held.push_str(text);
         } else {
             self.out.extend(text.as_bytes());
+        }
+        true
+    }
+
+    /// Frames formatted already, their lines one after another (no remote frame among them:
+    /// whether the client takes those as `R<dlc>` changes nothing), as one
+    /// [`Self::deliver_formatted`] per line when the output has room for all of them: then
+    /// `true`. `false` when it may not, and nothing is delivered: the caller hands them over
+    /// one by one, so that those that do not fit are dropped and counted as ever. (A receiver
+    /// gets the same run of frames as every other: one copy instead of one call per frame.)
+    pub fn deliver_formatted_lines(&mut self, lines: &str, now: Nanos) -> bool {
+        if self.mode != Mode::Raw || self.closing || self.output_closed {
+            return true;
+        }
+        self.release_held(now);
+        // Each line is checked against the limit before it goes in: if all of them fit,
+        // each did.
+        if self.out.len() + self.held.len() + lines.len() > self.config.max_output {
+            return false;
+        }
+        if self.hold_until.is_some() {
+            self.held.push_str(lines);
+        } else {
+            self.out.extend(lines.as_bytes());
         }
         true
     }
@@ -604,6 +627,59 @@ mod tests {
             output(&mut s, Nanos::new(60_000_000)),
             "< frame 1ABCDEF0 2.000000  >"
         );
+    }
+
+    /// A run of lines goes in as the same frames one by one would, held after `rawmode` as
+    /// they are; a run that might not fit is refused whole, and one by one the frames that
+    /// fit go in and the rest are dropped and counted.
+    #[test]
+    fn a_run_of_formatted_lines_is_what_its_frames_one_by_one_give() {
+        let frames = [frame("123#0102"), frame("7FF#"), frame("1ABCDEF0#AA")];
+        let formatted: Vec<_> = frames
+            .iter()
+            .enumerate()
+            .map(|(k, f)| FormattedFrame::new(f, ts(k as u64)))
+            .collect();
+        let lines: String = formatted.iter().map(|f| f.text(false)).collect();
+        let (mut one_by_one, mut run) = (raw_session(), raw_session());
+        let now = Nanos::new(1_000);
+        for f in &formatted {
+            assert!(one_by_one.deliver_formatted(f, now));
+        }
+        assert!(run.deliver_formatted_lines(&lines, now));
+        // Both held until 50 ms after the rawmode reply.
+        assert!(!run.has_output());
+        let later = Nanos::new(50_000_000);
+        assert_eq!(run.handle_timeout(later), None);
+        assert_eq!(one_by_one.handle_timeout(later), None);
+        assert_eq!(output(&mut run, later), output(&mut one_by_one, later));
+        // A raw session (no hold) whose output takes `max` bytes.
+        let limited = |max| {
+            let mut config = SessionConfig::new("vcan0");
+            config.max_output = max;
+            let mut s = Session::new(config, Nanos::ZERO);
+            assert_eq!(output(&mut s, Nanos::ZERO), "< hi >");
+            s.mode = Mode::Raw;
+            s
+        };
+        // An output limit inside the run: refused whole, nothing delivered or counted.
+        let mut small = limited(lines.len() - 1);
+        assert!(!small.deliver_formatted_lines(&lines, later));
+        assert!(!small.has_output());
+        assert_eq!(small.dropped, 0);
+        let delivered: Vec<bool> = formatted
+            .iter()
+            .map(|f| small.deliver_formatted(f, later))
+            .collect();
+        assert_eq!(delivered, [true, true, true]);
+        let mut tiny = limited(formatted[0].text(false).len());
+        assert!(!tiny.deliver_formatted_lines(&lines, later));
+        let delivered: Vec<bool> = formatted
+            .iter()
+            .map(|f| tiny.deliver_formatted(f, later))
+            .collect();
+        assert_eq!(delivered, [true, false, false]);
+        assert_eq!(tiny.dropped, 2);
     }
 
     #[test]

@@ -352,6 +352,7 @@ pub fn spawn(mut config: ServerConfig) -> Result<ServerHandle, ServerError> {
         pacer,
         punctual: Punctual::new(MAX_SPIN),
         read_buf: vec![0; READ_CHUNK],
+        taken: Vec::new(),
         unix0: SystemTime::now()
             .duration_since(UNIX_EPOCH)
             .unwrap_or_default()
@@ -533,6 +534,9 @@ struct Server {
     punctual: Punctual,
     /// What a client sent, read into one buffer allocated once ([`READ_CHUNK`]).
     read_buf: Vec<u8>,
+    /// A client's deliveries of one round: their bit-times and places in the round's
+    /// formatted frames (allocated once).
+    taken: Vec<(BitTime, usize)>,
     unix0: u128,
     lag_state: LagState,
     last_summary: Instant,
@@ -1354,6 +1358,7 @@ impl Server {
         let now_ns = self.now_ns();
         // Every receiver gets the same frames in the same order: each is formatted once.
         let mut formatted = FormattedFrames::default();
+        let taken = &mut self.taken;
         for c in self.clients.iter_mut().flatten() {
             let Some(number) = c.session.node() else {
                 continue;
@@ -1366,12 +1371,21 @@ impl Server {
             let mut errors = errors.into_iter().peekable();
             let mut lost = 0;
             formatted.rewind();
-            for d in node.take_deliveries() {
-                while let Some(e) = errors.next_if(|e| e.time <= d.time) {
+            taken.clear();
+            taken.extend(
+                node.take_deliveries()
+                    .map(|d| (d.time, formatted.find(d.time, &d.frame, &stamp))),
+            );
+            // The run of frames every receiver gets, and nothing else: in one piece.
+            let whole = errors.peek().is_none()
+                && formatted
+                    .run(taken)
+                    .is_some_and(|lines| c.session.deliver_formatted_lines(lines, now_ns));
+            for &(time, at) in taken.iter().filter(|_| !whole) {
+                while let Some(e) = errors.next_if(|e| e.time <= time) {
                     lost += !deliver_error(&mut c.session, &e, stamp(e.time), now_ns) as u64;
                 }
-                let text = formatted.get(d.time, &d.frame, &stamp);
-                lost += !c.session.deliver_formatted(text, now_ns) as u64;
+                lost += !c.session.deliver_formatted(formatted.text(at), now_ns) as u64;
             }
             for e in errors {
                 lost += !deliver_error(&mut c.session, &e, stamp(e.time), now_ns) as u64;
@@ -1520,10 +1534,15 @@ fn client_left(c: &mut Client, bus: &mut VirtualBus) {
 
 /// The frames of one delivery round, formatted once: receivers look them up in the order they
 /// got them (a receiver misses its own frames, so a few places ahead are looked at; what is
-/// not found is formatted and added).
+/// not found is formatted and added). Their lines are also kept one after another, so that a
+/// receiver that gets a run of them in order takes the run in one piece.
 #[derive(Default)]
 struct FormattedFrames {
     frames: Vec<(BitTime, buslab_can::Frame, FormattedFrame)>,
+    /// The frames' lines as every client gets them, one after another; frame `k`'s ends at
+    /// `ends[k]`.
+    lines: String,
+    ends: Vec<usize>,
     cursor: usize,
 }
 
@@ -1536,29 +1555,50 @@ impl FormattedFrames {
         self.cursor = 0;
     }
 
-    fn get(
+    /// Where the frame is (formatted now if it is new).
+    fn find(
         &mut self,
         time: BitTime,
         frame: &buslab_can::Frame,
         stamp: &impl Fn(BitTime) -> Timestamp,
-    ) -> &FormattedFrame {
+    ) -> usize {
         let end = self.frames.len().min(self.cursor + LOOK_AHEAD);
         let found = self.frames[self.cursor.min(end)..end]
             .iter()
             .position(|(t, f, _)| *t == time && f == frame)
             .map(|k| self.cursor + k);
-        let at = match found {
+        match found {
             Some(at) => {
                 self.cursor = at + 1;
                 at
             }
             None => {
                 let text = FormattedFrame::new(frame, stamp(time));
+                self.lines.push_str(text.text(false));
+                self.ends.push(self.lines.len());
                 self.frames.push((time, *frame, text));
                 self.frames.len() - 1
             }
-        };
+        }
+    }
+
+    fn text(&self, at: usize) -> &FormattedFrame {
         &self.frames[at].2
+    }
+
+    /// The lines of frames `taken` (places from [`Self::find`]) in one piece, if they are
+    /// consecutive, none of them is a remote frame (a client may take those as `R<dlc>`),
+    /// and there is at least one.
+    fn run(&self, taken: &[(BitTime, usize)]) -> Option<&str> {
+        let (&(_, first), &(_, last)) = (taken.first()?, taken.last()?);
+        if !taken.windows(2).all(|w| w[1].1 == w[0].1 + 1) {
+            return None;
+        }
+        let plain = self.frames[first..=last]
+            .iter()
+            .all(|(_, f, _)| !f.is_remote());
+        let start = first.checked_sub(1).map_or(0, |k| self.ends[k]);
+        plain.then(|| &self.lines[start..self.ends[last]])
     }
 }
 
