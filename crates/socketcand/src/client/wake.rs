@@ -41,10 +41,11 @@ impl WakeLine {
         self.waker.clone()
     }
 
-    /// Takes the pending wakes: one wait ends for all of them.
+    /// Takes the pending wakes: one wait ends for all of them. One read takes all there are
+    /// unless the buffer fills (a stream socket hands out everything it holds).
     pub(super) fn clear(&self) {
         let mut buf = [0u8; 64];
-        while matches!((&self.pending).read(&mut buf), Ok(n) if n > 0) {}
+        while matches!((&self.pending).read(&mut buf), Ok(n) if n == buf.len()) {}
     }
 
     pub(super) fn fd(&self) -> BorrowedFd<'_> {
