@@ -485,6 +485,44 @@ mod tests {
     }
 
     #[test]
+    fn frames_handed_over_from_several_threads_at_once_all_reach_an_idle_bus() {
+        let (tx, sent) = mpsc::channel();
+        let bus = Silent {
+            woken: Arc::default(),
+            sent: tx,
+        };
+        let pump = Pump::spawn("silent", Box::new(bus), |_| true).unwrap();
+        let (threads, each) = (4u32, 2000u32);
+        let senders: Vec<_> = (0..threads)
+            .map(|t| {
+                let to = pump.sender();
+                std::thread::spawn(move || {
+                    for k in 0..each {
+                        let [k0, k1, k2, k3] = k.to_le_bytes();
+                        let id = buslab_can::Id::standard(0x100).unwrap();
+                        let f = Frame::data(id, &[t as u8, k0, k1, k2, k3]).unwrap();
+                        to.send(f).unwrap();
+                    }
+                })
+            })
+            .collect();
+        // A wake lost on the way would leave the rest waiting for a bus where nothing happens.
+        let mut next = vec![0u32; threads as usize];
+        for _ in 0..threads * each {
+            let f = sent.recv_timeout(Duration::from_secs(60)).unwrap();
+            let t = usize::from(f.payload()[0]);
+            assert_eq!(
+                f.payload()[1..],
+                next[t].to_le_bytes(),
+                "in order per sender"
+            );
+            next[t] += 1;
+        }
+        senders.into_iter().for_each(|s| s.join().unwrap());
+        drop(pump);
+    }
+
+    #[test]
     fn fd_frames_reach_a_bus_that_carries_fd_in_order_with_classic_ones() {
         let (tx, sent) = mpsc::channel();
         let pump = Pump::spawn("fd", Box::new(Keeping { fd: true, sent: tx }), |_| true).unwrap();
