@@ -527,11 +527,16 @@ impl SocketcandBus {
                 PollTimeout::try_from(t.as_micros().div_ceil(1000)).unwrap_or(PollTimeout::MAX)
             }
         };
-        let mut fds = vec![PollFd::new(self.stream.as_fd(), PollFlags::POLLIN)];
-        if let Some(w) = wake {
-            fds.push(PollFd::new(w.fd(), PollFlags::POLLIN));
-        }
-        match nix::poll::poll(&mut fds, timeout) {
+        let connection = PollFd::new(self.stream.as_fd(), PollFlags::POLLIN);
+        let mut fds = [connection.clone(), connection];
+        let polled = match wake {
+            Some(w) => {
+                fds[1] = PollFd::new(w.fd(), PollFlags::POLLIN);
+                &mut fds[..]
+            }
+            None => &mut fds[..1],
+        };
+        match nix::poll::poll(polled, timeout) {
             Ok(0) => return Ok(false),
             Ok(_) => {}
             // A signal: the caller's loop looks at its deadline and waits again.
