@@ -493,8 +493,12 @@ impl SocketcandBus {
                 Some(left)
             }
         };
-        if !self.readable(timeout, wakeable)? {
-            return Ok(false);
+        match self.readable(timeout, wakeable) {
+            Ok(true) => {}
+            Ok(false) => return Ok(false),
+            // A signal: as an interrupted read, the caller waits again until its deadline.
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => return Ok(true),
+            Err(e) => return Err(e.into()),
         }
         match self.stream.read(&mut self.buf) {
             Ok(0) => Err(ClientError::Closed),
@@ -539,8 +543,6 @@ impl SocketcandBus {
         match nix::poll::poll(polled, timeout) {
             Ok(0) => return Ok(false),
             Ok(_) => {}
-            // A signal: the caller's loop looks at its deadline and waits again.
-            Err(nix::errno::Errno::EINTR) => return Ok(false),
             Err(e) => return Err(e.into()),
         }
         // Bytes first; the wake stays pending until a poll finds none (it ends the wait then),
