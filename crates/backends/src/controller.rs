@@ -161,6 +161,11 @@ impl CanBus for Accepting {
     fn admin(&mut self) -> Option<&mut dyn BusAdmin> {
         self.inner.admin()
     }
+
+    /// The inner bus's: a wake ends the inner wait, which ends this one (`None`).
+    fn recv_waker(&mut self) -> Option<std::sync::Arc<dyn buslab_bus::RecvWaker>> {
+        self.inner.recv_waker()
+    }
 }
 
 #[cfg(test)]

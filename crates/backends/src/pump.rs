@@ -3,20 +3,23 @@
 //! must send to a bus and receive from it at once.
 //!
 //! The thread alternates between the jobs handed to it (frames to send, work on the bus) and
-//! waiting for the bus at most [`JOB_LATENCY`]; everything it receives goes to a callback.
+//! waiting for the bus; everything it receives goes to a callback. A job ends the wait: the
+//! bus's [`RecvWaker`] wakes it, so a frame handed to an idle bus is sent at once. A bus
+//! without one is waited for at most [`JOB_LATENCY`] at a time.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering, fence};
 use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use buslab_bus::{BusError, CanBus, Message, Record};
+use buslab_bus::{BusError, CanBus, Message, Record, RecvWaker};
 use buslab_can::{FdFrame, Frame};
 
 use crate::DynBus;
 
-/// How long a job (a frame to send) waits at most while the thread waits for the bus.
+/// How long a job (a frame to send) waits at most while the thread waits for a bus that has
+/// no [`RecvWaker`], and how long a frame the bus's full queue refused waits to be tried again.
 pub const JOB_LATENCY: Duration = Duration::from_millis(2);
 
 /// Jobs waiting for the thread at most; beyond, [`Pump::send`] blocks (pushing back on whoever
@@ -80,24 +83,69 @@ pub enum TrySendError {
     Stopped(#[from] PumpStopped),
 }
 
+/// Wakes the pump's thread when a job comes while it waits for the bus.
+struct Alarm {
+    waker: Option<Arc<dyn RecvWaker>>,
+    /// The thread waits for the bus (or is about to): a job must wake it. Only then, so a
+    /// busy pump is not woken once per frame.
+    waiting: AtomicBool,
+}
+
+impl Alarm {
+    /// After a job was queued.
+    fn job_queued(&self) {
+        let Some(waker) = &self.waker else { return };
+        // Pairs with the fence in [`Alarm::about_to_wait`]: either the thread sees the job
+        // before it waits, or this sees it waiting.
+        fence(Ordering::SeqCst);
+        if self.waiting.swap(false, Ordering::SeqCst) {
+            waker.wake();
+        }
+    }
+
+    /// Before the thread looks at the queue a last time and waits.
+    fn about_to_wait(&self) {
+        self.waiting.store(true, Ordering::SeqCst);
+        fence(Ordering::SeqCst);
+    }
+
+    fn done_waiting(&self) {
+        self.waiting.store(false, Ordering::SeqCst);
+    }
+
+    /// How long the thread waits for the bus: until a frame or a job when a job wakes it,
+    /// else [`JOB_LATENCY`].
+    fn wait(&self) -> Option<Duration> {
+        match self.waker {
+            Some(_) => None,
+            None => Some(JOB_LATENCY),
+        }
+    }
+}
+
 /// A handle that hands frames to a pump from any thread.
 #[derive(Clone)]
-pub struct PumpSender(SyncSender<Job>);
+pub struct PumpSender {
+    jobs: SyncSender<Job>,
+    alarm: Arc<Alarm>,
+}
 
 impl PumpSender {
     /// Queues a frame for the bus (blocks while [`QUEUE`] jobs wait).
     pub fn send(&self, frame: Frame) -> Result<(), PumpStopped> {
-        self.0
-            .send(Job::Send(Outgoing::Classic(frame)))
-            .map_err(|_| PumpStopped)
+        self.queue(Job::Send(Outgoing::Classic(frame)))
     }
 
     /// Queues a CAN FD frame for the bus (blocks while [`QUEUE`] jobs wait); a bus that
     /// carries no FD refuses it ([`PumpEvent::SendFailed`]).
     pub fn send_fd(&self, frame: FdFrame) -> Result<(), PumpStopped> {
-        self.0
-            .send(Job::Send(Outgoing::Fd(frame)))
-            .map_err(|_| PumpStopped)
+        self.queue(Job::Send(Outgoing::Fd(frame)))
+    }
+
+    fn queue(&self, job: Job) -> Result<(), PumpStopped> {
+        self.jobs.send(job).map_err(|_| PumpStopped)?;
+        self.alarm.job_queued();
+        Ok(())
     }
 
     /// Queues a frame unless [`QUEUE`] jobs wait already. Whoever forwards frames between
@@ -114,15 +162,17 @@ impl PumpSender {
     }
 
     fn try_queue(&self, job: Job) -> Result<(), TrySendError> {
-        self.0.try_send(job).map_err(|e| match e {
+        self.jobs.try_send(job).map_err(|e| match e {
             mpsc::TrySendError::Full(_) => TrySendError::Full,
             mpsc::TrySendError::Disconnected(_) => TrySendError::Stopped(PumpStopped),
-        })
+        })?;
+        self.alarm.job_queued();
+        Ok(())
     }
 
     /// Runs `job` on the bus from the pump's thread.
     pub fn run(&self, job: BusJob) -> Result<(), PumpStopped> {
-        self.0.send(Job::Run(job)).map_err(|_| PumpStopped)
+        self.queue(Job::Run(job))
     }
 }
 
@@ -138,17 +188,22 @@ impl Pump {
     /// receives; `on_event` returns `false` to stop the pump.
     pub fn spawn(
         name: &str,
-        bus: DynBus,
+        mut bus: DynBus,
         on_event: impl FnMut(PumpEvent) -> bool + Send + 'static,
     ) -> std::io::Result<Self> {
         let (tx, rx) = mpsc::sync_channel(QUEUE);
         let stop = Arc::new(AtomicBool::new(false));
+        let alarm = Arc::new(Alarm {
+            waker: bus.recv_waker(),
+            waiting: AtomicBool::new(false),
+        });
         let thread = std::thread::Builder::new().name(name.to_string()).spawn({
             let stop = stop.clone();
-            move || run(bus, &rx, &stop, on_event)
+            let alarm = alarm.clone();
+            move || run(bus, &rx, &alarm, &stop, on_event)
         })?;
         Ok(Self {
-            sender: PumpSender(tx),
+            sender: PumpSender { jobs: tx, alarm },
             stop,
             thread: Some(thread),
         })
@@ -182,6 +237,10 @@ impl Pump {
 impl Drop for Pump {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::SeqCst);
+        // A thread waiting for the bus sees the stop now.
+        if let Some(waker) = &self.sender.alarm.waker {
+            waker.wake();
+        }
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
@@ -191,17 +250,21 @@ impl Drop for Pump {
 fn run(
     mut bus: DynBus,
     jobs: &Receiver<Job>,
+    alarm: &Alarm,
     stop: &AtomicBool,
     mut on_event: impl FnMut(PumpEvent) -> bool,
 ) {
     // A frame the bus's queue had no room for: tried again before any later job.
     let mut held: Option<Outgoing> = None;
+    // A job found while getting ready to wait: done before any later one.
+    let mut next: Option<Job> = None;
     loop {
         let stopping = stop.load(Ordering::SeqCst);
         loop {
-            let job = match held.take() {
-                Some(frame) => Job::Send(frame),
-                None => match jobs.try_recv() {
+            let job = match (held.take(), next.take()) {
+                (Some(frame), _) => Job::Send(frame),
+                (None, Some(job)) => job,
+                (None, None) => match jobs.try_recv() {
                     Ok(job) => job,
                     Err(TryRecvError::Empty | TryRecvError::Disconnected) => break,
                 },
@@ -230,7 +293,28 @@ fn run(
         if stopping {
             return;
         }
-        match bus.recv_event(Some(JOB_LATENCY)) {
+        // A frame the bus refused is tried again after a while, not when the next job comes.
+        let wait = if held.is_some() {
+            Some(JOB_LATENCY)
+        } else {
+            alarm.about_to_wait();
+            // A job queued before the alarm was set did not wake the bus: do it first.
+            match jobs.try_recv() {
+                Ok(job) => {
+                    alarm.done_waiting();
+                    next = Some(job);
+                    continue;
+                }
+                Err(TryRecvError::Empty | TryRecvError::Disconnected) => {}
+            }
+            if stop.load(Ordering::SeqCst) {
+                continue;
+            }
+            alarm.wait()
+        };
+        let received = bus.recv_event(wait);
+        alarm.done_waiting();
+        match received {
             Ok(Some(event)) => {
                 if !on_event(PumpEvent::Received(event)) {
                     return;
@@ -330,6 +414,112 @@ mod tests {
         fn channel_info(&self) -> String {
             "keeping".into()
         }
+    }
+
+    /// A bus on which nothing ever happens: its wait for frames ends only when it is woken
+    /// (whatever the timeout), so a pump that waited it out would never send.
+    struct Silent {
+        woken: Arc<Wake>,
+        sent: Sender<Frame>,
+    }
+
+    #[derive(Default)]
+    struct Wake {
+        pending: std::sync::Mutex<bool>,
+        changed: std::sync::Condvar,
+    }
+
+    impl RecvWaker for Wake {
+        fn wake(&self) {
+            *self.pending.lock().unwrap() = true;
+            self.changed.notify_all();
+        }
+    }
+
+    impl CanBus for Silent {
+        fn send(&mut self, frame: &Frame) -> Result<(), BusError> {
+            let _ = self.sent.send(*frame);
+            Ok(())
+        }
+        fn recv(&mut self, _: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
+            let mut pending = self.woken.pending.lock().unwrap();
+            while !*pending {
+                pending = self.woken.changed.wait(pending).unwrap();
+            }
+            *pending = false;
+            Ok(None)
+        }
+        fn set_filters(&mut self, _: &[Filter]) -> Result<(), BusError> {
+            Ok(())
+        }
+        fn state(&mut self) -> Result<ErrorState, BusError> {
+            Ok(ErrorState::Active)
+        }
+        fn channel_info(&self) -> String {
+            "silent".into()
+        }
+        fn recv_waker(&mut self) -> Option<Arc<dyn RecvWaker>> {
+            Some(self.woken.clone())
+        }
+    }
+
+    #[test]
+    fn a_frame_for_an_idle_bus_is_sent_without_waiting_for_the_bus() {
+        let (tx, sent) = mpsc::channel();
+        let bus = Silent {
+            woken: Arc::default(),
+            sent: tx,
+        };
+        let pump = Pump::spawn("silent", Box::new(bus), |_| true).unwrap();
+        // Each frame is handed over while the pump waits for the bus (or is about to).
+        for text in ["123#01", "124#02", "125#03"] {
+            let f: Frame = text.parse().unwrap();
+            pump.try_send(f).unwrap();
+            assert_eq!(sent.recv_timeout(Duration::from_secs(60)), Ok(f));
+        }
+        let f: Frame = "126#04".parse().unwrap();
+        pump.sender().send(f).unwrap();
+        assert_eq!(sent.recv_timeout(Duration::from_secs(60)), Ok(f));
+        // Dropping it ends the wait too.
+        drop(pump);
+    }
+
+    #[test]
+    fn frames_handed_over_from_several_threads_at_once_all_reach_an_idle_bus() {
+        let (tx, sent) = mpsc::channel();
+        let bus = Silent {
+            woken: Arc::default(),
+            sent: tx,
+        };
+        let pump = Pump::spawn("silent", Box::new(bus), |_| true).unwrap();
+        let (threads, each) = (4u32, 2000u32);
+        let senders: Vec<_> = (0..threads)
+            .map(|t| {
+                let to = pump.sender();
+                std::thread::spawn(move || {
+                    for k in 0..each {
+                        let [k0, k1, k2, k3] = k.to_le_bytes();
+                        let id = buslab_can::Id::standard(0x100).unwrap();
+                        let f = Frame::data(id, &[t as u8, k0, k1, k2, k3]).unwrap();
+                        to.send(f).unwrap();
+                    }
+                })
+            })
+            .collect();
+        // A wake lost on the way would leave the rest waiting for a bus where nothing happens.
+        let mut next = vec![0u32; threads as usize];
+        for _ in 0..threads * each {
+            let f = sent.recv_timeout(Duration::from_secs(60)).unwrap();
+            let t = usize::from(f.payload()[0]);
+            assert_eq!(
+                f.payload()[1..],
+                next[t].to_le_bytes(),
+                "in order per sender"
+            );
+            next[t] += 1;
+        }
+        senders.into_iter().for_each(|s| s.join().unwrap());
+        drop(pump);
     }
 
     #[test]

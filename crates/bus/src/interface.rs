@@ -2,6 +2,7 @@
 //! of python-can's `BusABC`) and, for a bus that has more to tell than frames,
 //! [`BusAdmin`] (nodes, status, registers, this client's own controller).
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use buslab_can::{FdFrame, Frame};
@@ -87,6 +88,20 @@ pub trait CanBus {
     fn admin(&mut self) -> Option<&mut dyn BusAdmin> {
         None
     }
+    /// A handle that ends this bus's wait in [`CanBus::recv`] or [`CanBus::recv_event`] from
+    /// another thread (the wait then returns `Ok(None)` early), if the backend has one. A
+    /// thread that owns a bus and also takes frames to send from others wakes itself with it
+    /// when a frame comes, instead of waiting out a timeout (`buslab_backends::Pump`).
+    fn recv_waker(&mut self) -> Option<Arc<dyn RecvWaker>> {
+        None
+    }
+}
+
+/// Ends a bus's current or next wait for frames ([`CanBus::recv_waker`]). A wake that comes
+/// while nobody waits ends the next wait at once, so a wake is never lost; waits for answers
+/// to requests are not ended by it.
+pub trait RecvWaker: Send + Sync {
+    fn wake(&self);
 }
 
 /// The administration side of a bus: nodes, status, registers, and settings of this client's

@@ -51,7 +51,7 @@ pub use error_frame::{
     ArbitrationBit, CanError, CapturedBusError, ControllerProblems, ErrorCounters, ErrorFrame,
     ErrorFrameError, ProtocolLocation, ProtocolViolation, TransceiverStatus,
 };
-pub use interface::{BusAdmin, CanBus};
+pub use interface::{BusAdmin, CanBus, RecvWaker};
 pub use settings::{
     AcceptanceFilter, BusOffRecovery, ClockOut, ControllerMode, ControllerPart, ControllerSettings,
     TimingSetting,

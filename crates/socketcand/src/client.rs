@@ -2,16 +2,21 @@
 //! with buslab's extensions as a [`BusAdmin`] when the server has them.
 
 pub mod inbound;
+mod wake;
 
 use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
+use std::os::fd::AsFd;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+use nix::poll::{PollFd, PollFlags, PollTimeout};
 
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::bus::Human;
 use buslab_bus::{
     BusAdmin, BusError, BusOffRecovery, CanBus, ControllerSettings, ErrorState, FdSupport, Filter,
-    Message, NoFd, NodeInfo, NodeRef, NodeRegisters, NodeStatus, TxReport, WireFault,
+    Message, NoFd, NodeInfo, NodeRef, NodeRegisters, NodeStatus, RecvWaker, TxReport, WireFault,
 };
 use buslab_can::Frame;
 
@@ -22,6 +27,7 @@ use crate::reply::{self, ReplyError};
 use crate::{ProtocolError, sanitize};
 use inbound::Inbound;
 pub use inbound::MAX_INBOX;
+use wake::WakeLine;
 
 /// Deadlines of a client.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,6 +118,8 @@ pub struct SocketcandBus {
     late: Vec<&'static str>,
     options: ClientOptions,
     buf: Vec<u8>,
+    /// Ends a wait for frames from another thread, once [`CanBus::recv_waker`] asked for it.
+    wake: Option<WakeLine>,
 }
 
 impl SocketcandBus {
@@ -139,6 +147,7 @@ impl SocketcandBus {
             late: Vec::new(),
             options,
             buf: vec![0; 64 * 1024],
+            wake: None,
         };
         let deadline = Instant::now() + options.reply_timeout;
         match bus.next_message(Some(deadline))? {
@@ -438,7 +447,7 @@ impl SocketcandBus {
         deadline: Option<Instant>,
     ) -> Result<Option<ServerMessage>, ClientError> {
         loop {
-            match self.pump(deadline)? {
+            match self.pump(deadline, Wakeable::No)? {
                 Pumped::Message(m) => return Ok(Some(m)),
                 Pumped::Frames => {}
                 Pumped::Deadline => return Ok(None),
@@ -447,8 +456,12 @@ impl SocketcandBus {
     }
 
     /// Handles what is buffered, reading once if nothing is: a message, or the news that
-    /// frames arrived (now in the inbox), or the deadline.
-    fn pump(&mut self, deadline: Option<Instant>) -> Result<Pumped, ClientError> {
+    /// frames arrived (now in the inbox), or the deadline (or a wake, when `wakeable`).
+    fn pump(
+        &mut self,
+        deadline: Option<Instant>,
+        wakeable: Wakeable,
+    ) -> Result<Pumped, ClientError> {
         loop {
             let received = self.inbound.received();
             while let Some(other) = self.inbound.next_message()? {
@@ -462,14 +475,14 @@ impl SocketcandBus {
             if self.inbound.received() != received {
                 return Ok(Pumped::Frames);
             }
-            if !self.fill(deadline)? {
+            if !self.fill(deadline, wakeable)? {
                 return Ok(Pumped::Deadline);
             }
         }
     }
 
-    /// Reads more bytes; `false` at the deadline.
-    fn fill(&mut self, deadline: Option<Instant>) -> Result<bool, ClientError> {
+    /// Reads more bytes; `false` at the deadline (or woken, when `wakeable`).
+    fn fill(&mut self, deadline: Option<Instant>, wakeable: Wakeable) -> Result<bool, ClientError> {
         let timeout = match deadline {
             None => None,
             Some(d) => {
@@ -480,7 +493,13 @@ impl SocketcandBus {
                 Some(left)
             }
         };
-        self.stream.set_read_timeout(timeout)?;
+        match self.readable(timeout, wakeable) {
+            Ok(true) => {}
+            Ok(false) => return Ok(false),
+            // A signal: as an interrupted read, the caller waits again until its deadline.
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => return Ok(true),
+            Err(e) => return Err(e.into()),
+        }
         match self.stream.read(&mut self.buf) {
             Ok(0) => Err(ClientError::Closed),
             Ok(n) => {
@@ -500,6 +519,43 @@ impl SocketcandBus {
         }
     }
 
+    /// Waits until the connection has bytes (or was closed); `false` after `timeout` or when
+    /// woken. poll(2), not a read timeout: the kernel counts SO_RCVTIMEO in whole scheduler
+    /// ticks (a 2 ms wait took at least 4 ms at HZ=250), and a wake line is polled beside it.
+    fn readable(&self, timeout: Option<Duration>, wakeable: Wakeable) -> io::Result<bool> {
+        let wake = self.wake.as_ref().filter(|_| wakeable == Wakeable::Yes);
+        let timeout = match timeout {
+            None => PollTimeout::NONE,
+            // Whole milliseconds, rounded up: a wait never ends before its deadline.
+            Some(t) => {
+                PollTimeout::try_from(t.as_micros().div_ceil(1000)).unwrap_or(PollTimeout::MAX)
+            }
+        };
+        let connection = PollFd::new(self.stream.as_fd(), PollFlags::POLLIN);
+        let mut fds = [connection.clone(), connection];
+        let polled = match wake {
+            Some(w) => {
+                fds[1] = PollFd::new(w.fd(), PollFlags::POLLIN);
+                &mut fds[..]
+            }
+            None => &mut fds[..1],
+        };
+        match nix::poll::poll(polled, timeout) {
+            Ok(0) => return Ok(false),
+            Ok(_) => {}
+            Err(e) => return Err(e.into()),
+        }
+        // Bytes first; the wake stays pending until a poll finds none (it ends the wait then),
+        // so it is not lost while the bytes turn out to be no frame.
+        if fds[0].any().unwrap_or(true) {
+            return Ok(true);
+        }
+        if let Some(w) = wake {
+            w.clear();
+        }
+        Ok(false)
+    }
+
     /// The next event (see [`Inbound::pop`]) or `None` after `timeout`.
     fn next_event(
         &mut self,
@@ -513,7 +569,7 @@ impl SocketcandBus {
                 return Ok(Some(event));
             }
             let deadline = *deadline.get_or_insert_with(|| timeout.map(|t| Instant::now() + t));
-            match self.pump(deadline)? {
+            match self.pump(deadline, Wakeable::Yes)? {
                 Pumped::Deadline => return Ok(None),
                 // An error sent without a request (e.g. for a refused command): report it.
                 Pumped::Message(ServerMessage::Error(text)) => {
@@ -553,6 +609,14 @@ fn connect_any(addr: impl ToSocketAddrs, timeout: Duration) -> io::Result<TcpStr
     Err(last.unwrap_or_else(|| {
         io::Error::new(io::ErrorKind::InvalidInput, "the host name has no address")
     }))
+}
+
+/// Whether a wait ends when the client is woken ([`CanBus::recv_waker`]): a wait for frames
+/// does; a wait for the answer to a request does not (the wake is kept for the next wait).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Wakeable {
+    Yes,
+    No,
 }
 
 /// What [`SocketcandBus::pump`] found.
@@ -640,6 +704,19 @@ impl CanBus for SocketcandBus {
 
     fn admin(&mut self) -> Option<&mut dyn BusAdmin> {
         if self.extensions { Some(self) } else { None }
+    }
+
+    fn recv_waker(&mut self) -> Option<Arc<dyn RecvWaker>> {
+        if self.wake.is_none() {
+            match WakeLine::new() {
+                Ok(line) => self.wake = Some(line),
+                Err(e) => {
+                    tracing::debug!("no wake line for {}: {e}", self.channel_info());
+                    return None;
+                }
+            }
+        }
+        self.wake.as_ref().map(WakeLine::waker)
     }
 }
 

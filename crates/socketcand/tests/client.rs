@@ -380,3 +380,43 @@ fn fd_frames_are_refused_with_the_reason_and_nothing_is_sent() {
         )
     );
 }
+
+#[test]
+fn a_wait_for_frames_ends_when_another_thread_wakes_it() {
+    // The server never sends a frame: only the wake can end the wait.
+    let fake = Fake::start(false, |_| String::new());
+    let mut bus = fake.client();
+    let waker = bus.recv_waker().expect("a socketcand client can be woken");
+    let woken = thread::spawn(move || waker.wake());
+    assert!(bus.recv(None).unwrap().is_none());
+    woken.join().unwrap();
+}
+
+#[test]
+fn a_wake_does_not_end_a_request_and_ends_the_next_wait_for_frames() {
+    let fake = Fake::start(false, |cmd| match cmd {
+        Command::Status(None) => status_with(3, 0),
+        _ => "< error unexpected >".into(),
+    });
+    let mut bus = fake.client();
+    let waker = bus.recv_waker().unwrap();
+    waker.wake();
+    let status = bus.admin().unwrap().node_status(None).unwrap();
+    assert_eq!(status.counters.sent, 3);
+    assert!(bus.recv_event(None).unwrap().is_none());
+}
+
+#[test]
+fn frames_that_came_are_received_before_a_wake_ends_the_wait() {
+    let fake = Fake::start(false, |cmd| match cmd {
+        Command::Status(None) => format!("< frame 321 1.000000 AA >{}", status_with(0, 0)),
+        _ => "< error unexpected >".into(),
+    });
+    let mut bus = fake.client();
+    let waker = bus.recv_waker().unwrap();
+    // The frame comes with the answer, and is kept for recv.
+    bus.admin().unwrap().node_status(None).unwrap();
+    waker.wake();
+    assert_eq!(bus.recv(None).unwrap().unwrap().record, frame("321#AA"));
+    assert!(bus.recv(None).unwrap().is_none());
+}
