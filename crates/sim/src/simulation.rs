@@ -13,8 +13,7 @@ use crate::observe::{
 use crate::rng::SplitMix64;
 use crate::time::BitTime;
 use crate::traffic::{Generator, Traffic};
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::BTreeMap;
 
 mod whole_frame;
 
@@ -164,10 +163,15 @@ struct Schedule {
     next: BitTime,
     /// Some generator sends a file: only those act when a node's frame leaves the bus.
     files: bool,
-    /// `(time, generator)` for every generator waiting for a time, earliest first, so a
-    /// generator acting costs no look at the others. An entry whose generator has moved to
-    /// another time since is stale and dropped when met.
-    queue: BinaryHeap<Reverse<(BitTime, usize)>>,
+    /// For every time some generator waits for, those generators, earliest time first, so a
+    /// generator acting costs no look at the others. Kept by time rather than one entry per
+    /// generator: generators started together with one period (a saturated bus of periodic
+    /// senders) are due at the same bit-times, and all of them cost one look at the map
+    /// instead of one heap operation each. An entry whose generator has moved to another
+    /// time since is stale and dropped when met.
+    queue: BTreeMap<BitTime, Vec<usize>>,
+    /// Emptied lists of `queue`, reused for the next times.
+    spare: Vec<Vec<usize>>,
     /// The generators due now (see [`Self::take_due`]).
     due: Vec<usize>,
 }
@@ -196,7 +200,11 @@ impl Schedule {
     fn push(&mut self, at: usize) {
         if let Some(t) = self.generators[at].next() {
             if !self.scanned() {
-                self.queue.push(Reverse((t, at)));
+                let spare = &mut self.spare;
+                self.queue
+                    .entry(t)
+                    .or_insert_with(|| spare.pop().unwrap_or_default())
+                    .push(at);
             }
             self.next = self.next.min(t);
         }
@@ -213,12 +221,18 @@ impl Schedule {
                 .unwrap_or(BitTime::MAX);
             return;
         }
-        while let Some(&Reverse((t, at))) = self.queue.peek() {
-            if self.generators[at].next() == Some(t) {
+        while let Some(entry) = self.queue.first_entry() {
+            let t = *entry.key();
+            if entry
+                .get()
+                .iter()
+                .any(|&at| self.generators[at].next() == Some(t))
+            {
                 self.next = t;
                 return;
             }
-            self.queue.pop();
+            let waiting = entry.remove();
+            self.reuse(waiting);
         }
         self.next = BitTime::MAX;
     }
@@ -235,17 +249,27 @@ impl Schedule {
             }
             return;
         }
-        while let Some(&Reverse((t, at))) = self.queue.peek() {
-            if t > now {
+        while let Some(entry) = self.queue.first_entry() {
+            if *entry.key() > now {
                 break;
             }
-            self.queue.pop();
-            if self.generators[at].next() == Some(t) {
-                self.due.push(at);
+            let (t, waiting) = entry.remove_entry();
+            for &at in &waiting {
+                if self.generators[at].next() == Some(t) {
+                    self.due.push(at);
+                }
             }
+            self.reuse(waiting);
         }
         self.due.sort_unstable();
         self.due.dedup();
+    }
+
+    /// Keeps an emptied list of `queue` for a later time.
+    #[inline]
+    fn reuse(&mut self, mut waiting: Vec<usize>) {
+        waiting.clear();
+        self.spare.push(waiting);
     }
 }
 
@@ -1000,5 +1024,74 @@ fn handle_event(
             time: now,
             what: Happening::Node { node: i, event },
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{BitTime, Generator, SCAN_GENERATORS, Schedule};
+    use crate::traffic::Traffic;
+    use buslab_can::{Frame, Id};
+    use proptest::prelude::*;
+
+    fn traffic(kind: u8, start: u64, period: u64, count: u8) -> Traffic {
+        let frame = Frame::data(Id::standard(0x123).unwrap(), &[1, 2]).unwrap();
+        let (start, period) = (BitTime::new(start), BitTime::new(period));
+        match kind % 3 {
+            0 => Traffic::Periodic {
+                frame,
+                period,
+                start,
+                count: (count > 0).then_some(u64::from(count)),
+            },
+            1 => Traffic::Burst {
+                frame,
+                count: u32::from(count % 4 + 1),
+                period,
+                start,
+            },
+            _ => Traffic::Once { frame, at: start },
+        }
+    }
+
+    proptest! {
+        /// With more generators than are scanned, the queue by time fires exactly the
+        /// generators a look at each would, at the same bit-times, in the order added; many
+        /// of them due at the same bit-time (one period, one start) as on a saturated bus.
+        #[test]
+        fn queued_generators_fire_as_scanned_ones(
+            specs in prop::collection::vec(
+                (any::<u8>(), 0u64..4, 1u64..4, 0u8..6),
+                SCAN_GENERATORS + 1..SCAN_GENERATORS + 40,
+            )
+        ) {
+            let mut schedule = Schedule::default();
+            for (node, &(kind, start, period, count)) in specs.iter().enumerate() {
+                // Few distinct starts and periods: many generators share their bit-times.
+                let traffic = traffic(kind, start * 100, period * 100, count);
+                schedule.generators.push(Generator::new(node, traffic));
+            }
+            prop_assert!(!schedule.scanned());
+            schedule.recompute();
+            // Periodic generators go on for ever: up to a horizon.
+            let horizon = BitTime::new(2_000);
+            while schedule.next < horizon {
+                let now = schedule.next;
+                let expected: Vec<usize> = (0..schedule.generators.len())
+                    .filter(|&at| schedule.generators[at].next().is_some_and(|t| t <= now))
+                    .collect();
+                prop_assert!(!expected.is_empty(), "nothing due at the next time {now:?}");
+                schedule.take_due(now);
+                prop_assert_eq!(&schedule.due, &expected);
+                for k in 0..schedule.due.len() {
+                    let at = schedule.due[k];
+                    schedule.generators[at].refuse(now);
+                    schedule.push(at);
+                }
+                schedule.settle();
+                let earliest = schedule.generators.iter().filter_map(Generator::next).min();
+                prop_assert_eq!(schedule.next, earliest.unwrap_or(BitTime::MAX));
+            }
+        }
     }
 }

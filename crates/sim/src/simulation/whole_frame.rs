@@ -123,14 +123,22 @@ impl Group {
 ///
 /// Entries come and go near the end as a rule (a node that wins leaves from there, and goes
 /// back among the best when given its next frame): both look from the end, moving the few
-/// entries after the place one by one.
+/// entries after the place one by one. An entry that goes deep (many nodes given their
+/// frames at once, each worse than the last) is placed by a binary search instead.
 #[derive(Debug, Default)]
 struct Losers(Vec<(u32, u32)>);
+
+/// How deep from the end [`Losers::insert`] moves entries one by one; deeper, it searches.
+const LOSERS_FROM_END: usize = 16;
 
 impl Losers {
     fn insert(&mut self, entry: (u32, u32)) {
         let v = &mut self.0;
-        let mut at = v.len();
+        let len = v.len();
+        if len > LOSERS_FROM_END && v[len - LOSERS_FROM_END] < entry {
+            return self.insert_deep(entry);
+        }
+        let mut at = len;
         while at > 0 && v[at - 1] < entry {
             at -= 1;
         }
@@ -138,12 +146,23 @@ impl Losers {
             return;
         }
         v.push(entry);
-        let mut k = v.len() - 1;
+        let mut k = len;
         while k > at {
             v[k] = v[k - 1];
             k -= 1;
         }
         v[at] = entry;
+    }
+
+    /// [`Self::insert`] of an entry that goes deeper than [`LOSERS_FROM_END`].
+    #[inline(never)]
+    fn insert_deep(&mut self, entry: (u32, u32)) {
+        let v = &mut self.0;
+        // Sorted best last: the worse entries come first.
+        let at = v.partition_point(|&e| e > entry);
+        if v.get(at) != Some(&entry) {
+            v.insert(at, entry);
+        }
     }
 
     fn remove(&mut self, entry: (u32, u32)) {
