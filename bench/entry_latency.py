@@ -35,26 +35,9 @@ import time
 
 import can
 
-
-def now_us():
-    return time.monotonic_ns() // 1000
-
-
-def percentile(values, p):
-    if not values:
-        return float("nan")
-    values = sorted(values)
-    return values[min(len(values) - 1, int(round(p / 100 * (len(values) - 1))))]
-
-
-def free_port(kind=socket.SOCK_STREAM):
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def connect(port):
-    return can.Bus(interface="socketcand", host="127.0.0.1", port=port, channel="vcan0")
+# The helpers of the joined-buses benchmark: one clock, one percentile, one python-can client.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from join_transports import connect, free_port, now_us, percentile  # noqa: E402
 
 
 def payload(k):
