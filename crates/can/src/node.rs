@@ -75,6 +75,19 @@ pub trait BusNode: Any + Send {
         let _ = (frame, role, bits);
     }
 
+    /// Whether the node, as `role` in the frame about to be applied whole, only counts it:
+    /// moved on through all the frame's bits in one [`Self::advance_frame`] call, it reports
+    /// the same events as through any ranges, every one of them due at EOF bit 6 (when it
+    /// has received the frame), and what the engine may ask of it inside a frame (its
+    /// counters, its queue) stays as it was at SOF. The engine then moves it through the
+    /// whole frame at EOF bit 6 with one call and one look at its events, if nothing looks
+    /// at it before the frame's end. Asked before the node's first range of the frame; the
+    /// default, `false`, keeps it on ranges.
+    fn only_counts(&self, role: FrameRole) -> bool {
+        let _ = role;
+        false
+    }
+
     /// The node as [`Any`], so its owner can reach its own type.
     fn as_any(&self) -> &dyn Any;
     /// The node as mutable [`Any`].

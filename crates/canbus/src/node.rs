@@ -493,14 +493,16 @@ impl Sja1000Node {
     fn count_bits(&mut self, frame: &WireFrame, bits: Range<u32>) {
         let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
         self.now = now;
-        if bits.contains(&frame.eof_bit(6)) {
+        let eof6 = frame.eof_bit(6);
+        if bits.contains(&eof6) {
             let received = *frame.frame();
             self.engine_events.push_back(Event::Received(received));
             if self.chip().accepts(&received) {
                 self.counters.received += 1;
+                // At EOF bit 6, also when the range goes on to the frame's end.
                 self.rx.push(Delivery {
                     frame: received,
-                    time: now,
+                    time: self.frame_sof + BitTime::from(eof6),
                 });
                 self.counted.unwritten.push_back(received);
                 if self.counted.unwritten.len() > MESSAGES_COVERING_FIFO
@@ -612,6 +614,12 @@ impl BusNode for Sja1000Node {
             self.advance_chip(frame, role, bits.start..end);
             bits.start = end;
         }
+    }
+
+    /// A counted reception (see `Counted`) reports the frame and delivers it at EOF bit 6
+    /// whatever the ranges, and changes neither the counters nor the queue.
+    fn only_counts(&self, role: FrameRole) -> bool {
+        role == FrameRole::Receiver && self.counts()
     }
 
     fn poll_event(&mut self) -> Option<Event> {

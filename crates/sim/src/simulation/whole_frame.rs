@@ -740,6 +740,11 @@ impl Simulation {
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof6);
+        // Nothing looks at a node between EOF bit 6 and the frame's end (a generator that
+        // becomes due in between acts on the winner only, whose frame ends: see
+        // `handle_event`): a node that only counts the frame takes all of it now.
+        let unobserved_to_end =
+            ranged && self.schedule.next.min(self.next_sample) > t0 + BitTime::from(total - 1);
         for k in 0..count {
             let i = if all { k } else { self.whole.ind[k] };
             if i == w {
@@ -750,7 +755,14 @@ impl Simulation {
             } = self;
             let node = &mut nodes[i];
             if ranged && whole.ranged[i] {
-                self.advance_other(wire, i, eof6 + 1, t0);
+                if unobserved_to_end
+                    && whole.done[i] == 0
+                    && node.device.node().only_counts(whole.roles[i])
+                {
+                    self.count_whole(wire, i, t0, eof6);
+                } else {
+                    self.advance_other(wire, i, eof6 + 1, t0);
+                }
             } else if let Device::Controller(c) = &mut node.device
                 // Handed on at once rather than queued in the controller and polled.
                 && let Some(event) = c.frame_received(wire)
@@ -875,6 +887,21 @@ impl Simulation {
         {
             drain(self, i, t0 + BitTime::from(bit));
         }
+    }
+
+    /// Moves node `i`, which only counts the frame ([`BusNode::only_counts`]), through all
+    /// of its bits in one call, and handles its events at EOF bit 6 (wire bit `eof6`).
+    ///
+    /// [`BusNode::only_counts`]: buslab_can::node::BusNode::only_counts
+    fn count_whole(&mut self, wire: &WireFrame, i: usize, t0: BitTime, eof6: u32) {
+        let total = wire.total();
+        self.whole.done[i] = total;
+        let role = self.whole.roles[i];
+        self.nodes[i]
+            .device
+            .node_mut()
+            .advance_frame(wire, role, 0..total);
+        drain(self, i, t0 + BitTime::from(eof6));
     }
 
     /// Moves node `i`, if it is moved on through ranges, on through the frame's bits up to
