@@ -75,16 +75,15 @@ pub trait BusNode: Any + Send {
         let _ = (frame, role, bits);
     }
 
-    /// Whether the node, as `role` in the frame about to be applied whole, only counts it:
-    /// moved on through all the frame's bits in one [`Self::advance_frame`] call, it reports
-    /// the same events as through any ranges, every one of them due at EOF bit 6 (when it
-    /// has received the frame), and what the engine may ask of it inside a frame (its
-    /// counters, its queue) stays as it was at SOF. The engine then moves it through the
-    /// whole frame at EOF bit 6 with one call and one look at its events, if nothing looks
-    /// at it before the frame's end. Asked before the node's first range of the frame; the
-    /// default, `false`, keeps it on ranges.
-    fn only_counts(&self, role: FrameRole) -> bool {
-        let _ = role;
+    /// Takes all of `frame` as `role` in one go if the node only counts it, and says whether
+    /// it did (the default: no, nothing changed). Only counting means: it ends with the same
+    /// state and events as [`Self::advance_frame`] over all the frame's bits, every event
+    /// due at EOF bit 6 (when it has received the frame), and what the engine may ask of it
+    /// inside a frame (its counters, its queue) stays as it was at SOF. Called instead of the
+    /// node's first range of the frame, at EOF bit 6, when nothing looks at the node before
+    /// the frame's end: one call and one look at its events instead of a range per stage.
+    fn count_frame(&mut self, frame: &WireFrame, role: FrameRole) -> bool {
+        let _ = (frame, role);
         false
     }
 

@@ -493,29 +493,33 @@ impl Sja1000Node {
     fn count_bits(&mut self, frame: &WireFrame, bits: Range<u32>) {
         let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
         self.now = now;
-        let eof6 = frame.eof_bit(6);
-        if bits.contains(&eof6) {
-            let received = *frame.frame();
-            self.engine_events.push_back(Event::Received(received));
-            if self.chip().accepts(&received) {
-                self.counters.received += 1;
-                // At EOF bit 6, also when the range goes on to the frame's end.
-                self.rx.push(Delivery {
-                    frame: received,
-                    time: self.frame_sof + BitTime::from(eof6),
-                });
-                self.counted.unwritten.push_back(received);
-                if self.counted.unwritten.len() > MESSAGES_COVERING_FIFO
-                    && let Some(old) = self.counted.unwritten.pop_front()
-                {
-                    self.driver.registers().pass_over_released(&old);
-                }
-            }
+        if bits.contains(&frame.eof_bit(6)) {
+            self.count_reception(frame);
         }
         if bits.end >= frame.total() {
             self.counted.ended = self.counted.under_way.take().map(|(frame, _)| frame);
         } else if let Some((_, done)) = &mut self.counted.under_way {
             *done = bits.end;
+        }
+    }
+
+    /// EOF bit 6 of a counted frame: the frame reported, and if the filter takes it, the
+    /// client's delivery (at that bit) and counter.
+    fn count_reception(&mut self, frame: &WireFrame) {
+        let received = *frame.frame();
+        self.engine_events.push_back(Event::Received(received));
+        if self.chip().accepts(&received) {
+            self.counters.received += 1;
+            self.rx.push(Delivery {
+                frame: received,
+                time: self.frame_sof + BitTime::from(frame.eof_bit(6)),
+            });
+            self.counted.unwritten.push_back(received);
+            if self.counted.unwritten.len() > MESSAGES_COVERING_FIFO
+                && let Some(old) = self.counted.unwritten.pop_front()
+            {
+                self.driver.registers().pass_over_released(&old);
+            }
         }
     }
 
@@ -616,10 +620,20 @@ impl BusNode for Sja1000Node {
         }
     }
 
-    /// A counted reception (see `Counted`) reports the frame and delivers it at EOF bit 6
-    /// whatever the ranges, and changes neither the counters nor the queue.
-    fn only_counts(&self, role: FrameRole) -> bool {
-        role == FrameRole::Receiver && self.counts()
+    /// A counted reception (see `Counted`) reports the frame and delivers it at EOF bit 6,
+    /// and changes neither the counters nor the queue: all of it at once, as
+    /// [`Self::advance_frame`] over `0..total` would count it.
+    fn count_frame(&mut self, frame: &WireFrame, role: FrameRole) -> bool {
+        if role != FrameRole::Receiver || !self.counts() {
+            return false;
+        }
+        // The frame counted before this one (if any) needs no settling.
+        self.counted.frames += 1;
+        self.now = self.frame_sof + BitTime::from(frame.total()) - BitTime::ONE;
+        self.count_reception(frame);
+        self.counted.under_way = None;
+        self.counted.ended = Some(frame.clone());
+        true
     }
 
     fn poll_event(&mut self) -> Option<Event> {

@@ -755,11 +755,8 @@ impl Simulation {
             } = self;
             let node = &mut nodes[i];
             if ranged && whole.ranged[i] {
-                if unobserved_to_end
-                    && whole.done[i] == 0
-                    && node.device.node().only_counts(whole.roles[i])
-                {
-                    self.count_whole(wire, i, t0, eof6);
+                if unobserved_to_end && whole.done[i] == 0 {
+                    self.count_or_advance(wire, i, t0, eof6);
                 } else {
                     self.advance_other(wire, i, eof6 + 1, t0);
                 }
@@ -889,18 +886,21 @@ impl Simulation {
         }
     }
 
-    /// Moves node `i`, which only counts the frame ([`BusNode::only_counts`]), through all
-    /// of its bits in one call, and handles its events at EOF bit 6 (wire bit `eof6`).
+    /// Node `i`, moved on through ranges and not yet moved in this frame, takes all of it in
+    /// one call if it only counts it ([`BusNode::count_frame`]), or else the frame's bits up
+    /// to EOF bit 6 (wire bit `eof6`); its events are handled at EOF bit 6 either way.
     ///
-    /// [`BusNode::only_counts`]: buslab_can::node::BusNode::only_counts
-    fn count_whole(&mut self, wire: &WireFrame, i: usize, t0: BitTime, eof6: u32) {
-        let total = wire.total();
-        self.whole.done[i] = total;
+    /// [`BusNode::count_frame`]: buslab_can::node::BusNode::count_frame
+    fn count_or_advance(&mut self, wire: &WireFrame, i: usize, t0: BitTime, eof6: u32) {
         let role = self.whole.roles[i];
-        self.nodes[i]
-            .device
-            .node_mut()
-            .advance_frame(wire, role, 0..total);
+        let node = self.nodes[i].device.node_mut();
+        let to = if node.count_frame(wire, role) {
+            wire.total()
+        } else {
+            node.advance_frame(wire, role, 0..eof6 + 1);
+            eof6 + 1
+        };
+        self.whole.done[i] = to;
         drain(self, i, t0 + BitTime::from(eof6));
     }
 
