@@ -17,7 +17,9 @@
 //! (generators queueing frames, counter samples); other node kinds are moved on through the
 //! frame's bits with [`BusNode::advance_frame`](buslab_can::node::BusNode::advance_frame) up to
 //! each stage and each time something looks at them (a receiver whose REC is 0 has nothing to
-//! report at the ACK slot: its ACK stage goes with the next one). Within a stage nodes go in index order,
+//! report at the ACK slot: its ACK stage goes with the next one; one that only counts the frame,
+//! [`BusNode::count_frame`](buslab_can::node::BusNode::count_frame), takes all of it at EOF bit
+//! 6 in one call when nothing is due before the frame's end). Within a stage nodes go in index order,
 //! as the bit-by-bit path steps them, so the trace comes out in the same order.
 //!
 //! With no trace recorded and only bare controllers on the bus, the *bystanders* of a frame —
