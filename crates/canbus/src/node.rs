@@ -13,7 +13,7 @@ use std::collections::VecDeque;
 use std::ops::Range;
 
 use buslab_can::controller::{ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame};
-use buslab_can::node::BusNode;
+use buslab_can::node::{BusNode, Counting};
 use buslab_can::{BitTime, Frame, Level, Nanos};
 use buslab_sja1000::Sja1000;
 
@@ -494,7 +494,8 @@ impl Sja1000Node {
         let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
         self.now = now;
         if bits.contains(&frame.eof_bit(6)) {
-            self.count_reception(frame);
+            let event = self.count_reception(frame);
+            self.engine_events.push_back(event);
         }
         if bits.end >= frame.total() {
             self.counted.ended = self.counted.under_way.take().map(|(frame, _)| frame);
@@ -503,11 +504,10 @@ impl Sja1000Node {
         }
     }
 
-    /// EOF bit 6 of a counted frame: the frame reported, and if the filter takes it, the
-    /// client's delivery (at that bit) and counter.
-    fn count_reception(&mut self, frame: &WireFrame) {
+    /// EOF bit 6 of a counted frame: if the filter takes it, the client's delivery (at that
+    /// bit) and counter; the event to report.
+    fn count_reception(&mut self, frame: &WireFrame) -> Event {
         let received = *frame.frame();
-        self.engine_events.push_back(Event::Received(received));
         if self.chip().accepts(&received) {
             self.counters.received += 1;
             self.rx.push(Delivery {
@@ -521,6 +521,7 @@ impl Sja1000Node {
                 self.driver.registers().pass_over_released(&old);
             }
         }
+        Event::Received(received)
     }
 
     /// Brings the chip's controller up to the frames the node only counted (see [`Counted`]).
@@ -622,18 +623,19 @@ impl BusNode for Sja1000Node {
 
     /// A counted reception (see `Counted`) reports the frame and delivers it at EOF bit 6,
     /// and changes neither the counters nor the queue: all of it at once, as
-    /// [`Self::advance_frame`] over `0..total` would count it.
-    fn count_frame(&mut self, frame: &WireFrame, role: FrameRole) -> bool {
+    /// [`Self::advance_frame`] over `0..total` would count it (nothing else waits: see
+    /// `counts`).
+    fn count_frame(&mut self, frame: &WireFrame, role: FrameRole) -> Counting {
         if role != FrameRole::Receiver || !self.counts() {
-            return false;
+            return Counting::Declined;
         }
         // The frame counted before this one (if any) needs no settling.
         self.counted.frames += 1;
         self.now = self.frame_sof + BitTime::from(frame.total()) - BitTime::ONE;
-        self.count_reception(frame);
+        let event = self.count_reception(frame);
         self.counted.under_way = None;
         self.counted.ended = Some(frame.clone());
-        true
+        Counting::Counted(Some(event))
     }
 
     fn poll_event(&mut self) -> Option<Event> {

@@ -40,6 +40,7 @@
 use std::sync::Arc;
 
 use buslab_can::controller::{ArbitrationBits, Bystander, Event, FrameRole, FrameStart, WireFrame};
+use buslab_can::node::Counting;
 use buslab_can::wire::Encoded;
 use buslab_can::{Frame, Id};
 
@@ -895,15 +896,30 @@ impl Simulation {
     /// [`BusNode::count_frame`]: buslab_can::node::BusNode::count_frame
     fn count_or_advance(&mut self, wire: &WireFrame, i: usize, t0: BitTime, eof6: u32) {
         let role = self.whole.roles[i];
-        let node = self.nodes[i].device.node_mut();
-        let to = if node.count_frame(wire, role) {
-            wire.total()
-        } else {
-            node.advance_frame(wire, role, 0..eof6 + 1);
-            eof6 + 1
-        };
-        self.whole.done[i] = to;
-        drain(self, i, t0 + BitTime::from(eof6));
+        let time = t0 + BitTime::from(eof6);
+        let Self {
+            nodes,
+            obs,
+            schedule,
+            whole,
+            ..
+        } = self;
+        let node = &mut nodes[i];
+        match node.device.node_mut().count_frame(wire, role) {
+            Counting::Counted(event) => {
+                whole.done[i] = wire.total();
+                if let Some(event) = event {
+                    handle_event(obs, schedule, i, node, time, event);
+                }
+            }
+            Counting::Declined => {
+                node.device
+                    .node_mut()
+                    .advance_frame(wire, role, 0..eof6 + 1);
+                whole.done[i] = eof6 + 1;
+                drain_node(obs, schedule, i, node, time);
+            }
+        }
     }
 
     /// Moves node `i`, if it is moved on through ranges, on through the frame's bits up to
