@@ -16,6 +16,16 @@ use crate::controller::{
     Controller, ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame,
 };
 
+/// What [`BusNode::count_frame`] did with a frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Counting {
+    /// Not counted, nothing changed: the node goes through the frame's bits in ranges.
+    Declined,
+    /// Counted whole, with the frame's one event if it has one (at EOF bit 6); nothing else
+    /// waits in [`BusNode::poll_event`].
+    Counted(Option<Event>),
+}
+
 /// A bit-level node on a CAN wire, driven once per bit-time: read [`output`](Self::output),
 /// then [`sample`](Self::sample) the bus, then drain [`poll_event`](Self::poll_event).
 pub trait BusNode: Any + Send {
@@ -73,6 +83,20 @@ pub trait BusNode: Any + Send {
     /// [`Controller::advance_frame`].
     fn advance_frame(&mut self, frame: &WireFrame, role: FrameRole, bits: Range<u32>) {
         let _ = (frame, role, bits);
+    }
+
+    /// Takes all of `frame` as `role` in one go if the node only counts it, and says whether
+    /// it did (the default: [`Counting::Declined`], nothing changed). Only counting means: it
+    /// ends with the same state and events as [`Self::advance_frame`] over all the frame's
+    /// bits, with at most one event, due at EOF bit 6 (when it has received the frame), which
+    /// it hands over in [`Counting::Counted`] instead of keeping it for
+    /// [`Self::poll_event`]; and what the engine may ask of it inside a frame (its counters,
+    /// its queue) stays as it was at SOF. Called instead of the node's first range of the
+    /// frame, at EOF bit 6, when nothing looks at the node before the frame's end: one call
+    /// instead of a range per stage and a look at its events after each.
+    fn count_frame(&mut self, frame: &WireFrame, role: FrameRole) -> Counting {
+        let _ = (frame, role);
+        Counting::Declined
     }
 
     /// The node as [`Any`], so its owner can reach its own type.

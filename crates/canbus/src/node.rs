@@ -13,7 +13,7 @@ use std::collections::VecDeque;
 use std::ops::Range;
 
 use buslab_can::controller::{ErrorState, Event, FrameRole, FrameStart, QueueFull, WireFrame};
-use buslab_can::node::BusNode;
+use buslab_can::node::{BusNode, Counting};
 use buslab_can::{BitTime, Frame, Level, Nanos};
 use buslab_sja1000::Sja1000;
 
@@ -494,27 +494,34 @@ impl Sja1000Node {
         let now = self.frame_sof + BitTime::from(bits.end) - BitTime::ONE;
         self.now = now;
         if bits.contains(&frame.eof_bit(6)) {
-            let received = *frame.frame();
-            self.engine_events.push_back(Event::Received(received));
-            if self.chip().accepts(&received) {
-                self.counters.received += 1;
-                self.rx.push(Delivery {
-                    frame: received,
-                    time: now,
-                });
-                self.counted.unwritten.push_back(received);
-                if self.counted.unwritten.len() > MESSAGES_COVERING_FIFO
-                    && let Some(old) = self.counted.unwritten.pop_front()
-                {
-                    self.driver.registers().pass_over_released(&old);
-                }
-            }
+            let event = self.count_reception(frame);
+            self.engine_events.push_back(event);
         }
         if bits.end >= frame.total() {
             self.counted.ended = self.counted.under_way.take().map(|(frame, _)| frame);
         } else if let Some((_, done)) = &mut self.counted.under_way {
             *done = bits.end;
         }
+    }
+
+    /// EOF bit 6 of a counted frame: if the filter takes it, the client's delivery (at that
+    /// bit) and counter; the event to report.
+    fn count_reception(&mut self, frame: &WireFrame) -> Event {
+        let received = *frame.frame();
+        if self.chip().accepts(&received) {
+            self.counters.received += 1;
+            self.rx.push(Delivery {
+                frame: received,
+                time: self.frame_sof + BitTime::from(frame.eof_bit(6)),
+            });
+            self.counted.unwritten.push_back(received);
+            if self.counted.unwritten.len() > MESSAGES_COVERING_FIFO
+                && let Some(old) = self.counted.unwritten.pop_front()
+            {
+                self.driver.registers().pass_over_released(&old);
+            }
+        }
+        Event::Received(received)
     }
 
     /// Brings the chip's controller up to the frames the node only counted (see [`Counted`]).
@@ -612,6 +619,23 @@ impl BusNode for Sja1000Node {
             self.advance_chip(frame, role, bits.start..end);
             bits.start = end;
         }
+    }
+
+    /// A counted reception (see `Counted`) reports the frame and delivers it at EOF bit 6,
+    /// and changes neither the counters nor the queue: all of it at once, as
+    /// [`Self::advance_frame`] over `0..total` would count it (nothing else waits: see
+    /// `counts`).
+    fn count_frame(&mut self, frame: &WireFrame, role: FrameRole) -> Counting {
+        if role != FrameRole::Receiver || !self.counts() {
+            return Counting::Declined;
+        }
+        // The frame counted before this one (if any) needs no settling.
+        self.counted.frames += 1;
+        self.now = self.frame_sof + BitTime::from(frame.total()) - BitTime::ONE;
+        let event = self.count_reception(frame);
+        self.counted.under_way = None;
+        self.counted.ended = Some(frame.clone());
+        Counting::Counted(Some(event))
     }
 
     fn poll_event(&mut self) -> Option<Event> {

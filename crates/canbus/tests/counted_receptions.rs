@@ -6,8 +6,8 @@
 
 use buslab_can::controller::ControllerConfig;
 use buslab_can::{BitTime, Frame, Id};
-use buslab_canbus::AcceptanceFilter;
 use buslab_canbus::node::{Sja1000Node, node_config};
+use buslab_canbus::{AcceptanceFilter, ControllerMode, ControllerSettings};
 use buslab_sim::{Simulation, Traffic};
 
 const BITRATE: u32 = 500_000;
@@ -132,4 +132,60 @@ fn a_client_handed_a_frame_inside_a_counted_one_goes_on_as_stepped() {
             "handed over at bit-time {at}"
         );
     }
+}
+
+/// A client reprogrammed between runs cut in the middle of frames (its filter, listen-only,
+/// back to accept-all), with counter samples inside some frames, read after every run: each
+/// frame it only counts is taken in one call at EOF bit 6 when nothing looks at it before
+/// the frame's end, and in ranges otherwise, and it reads the same as stepped bits.
+#[test]
+fn a_client_reprogrammed_between_runs_reads_as_stepped_bits() {
+    let only_0x300 = ControllerSettings {
+        filter: Some(AcceptanceFilter::Single {
+            code: [0x60, 0x00, 0, 0],
+            mask: [0x00, 0x1F, 0xFF, 0xFF],
+        }),
+        ..ControllerSettings::default()
+    };
+    let listen_only = ControllerSettings {
+        mode: Some(ControllerMode::ListenOnly),
+        ..ControllerSettings::default()
+    };
+    let accept_all = ControllerSettings {
+        mode: Some(ControllerMode::PeliCan),
+        filter: Some(AcceptanceFilter::Single {
+            code: [0; 4],
+            mask: [0xFF; 4],
+        }),
+        ..ControllerSettings::default()
+    };
+    let steps = [only_0x300, listen_only, accept_all];
+    let mut fast = bus(true, &[]);
+    let mut slow = bus(false, &[]);
+    // Samples inside some frames: those go in ranges.
+    fast.sample_counters_every(BitTime::new(1_501));
+    slow.sample_counters_every(BitTime::new(1_501));
+    for piece in 0..12u64 {
+        // Pieces of odd lengths end inside frames.
+        let length = BitTime::new(337 + 91 * piece);
+        fast.run_for(length);
+        slow.run_for(length);
+        assert_eq!(seen(&mut fast), seen(&mut slow), "after piece {piece}");
+        let settings = &steps[piece as usize % steps.len()];
+        for sim in [&mut fast, &mut slow] {
+            let client = sim.node_mut(1).get_mut::<Sja1000Node>().expect("a client");
+            client.configure(settings).expect("a valid configuration");
+        }
+    }
+    assert!(fast.whole_frames() > 30, "frames applied whole");
+    assert!(counted(&fast) > fast.whole_frames(), "frames only counted");
+    assert!(!fast.series().is_empty(), "counters sampled");
+    assert_eq!(
+        format!("{:?}", fast.series()),
+        format!("{:?}", slow.series())
+    );
+    assert_eq!(
+        format!("{:?}", fast.records()),
+        format!("{:?}", slow.records())
+    );
 }

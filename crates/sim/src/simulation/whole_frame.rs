@@ -17,7 +17,9 @@
 //! (generators queueing frames, counter samples); other node kinds are moved on through the
 //! frame's bits with [`BusNode::advance_frame`](buslab_can::node::BusNode::advance_frame) up to
 //! each stage and each time something looks at them (a receiver whose REC is 0 has nothing to
-//! report at the ACK slot: its ACK stage goes with the next one). Within a stage nodes go in index order,
+//! report at the ACK slot: its ACK stage goes with the next one; one that only counts the frame,
+//! [`BusNode::count_frame`](buslab_can::node::BusNode::count_frame), takes all of it at EOF bit
+//! 6 in one call when nothing is due before the frame's end). Within a stage nodes go in index order,
 //! as the bit-by-bit path steps them, so the trace comes out in the same order.
 //!
 //! With no trace recorded and only bare controllers on the bus, the *bystanders* of a frame —
@@ -38,6 +40,7 @@
 use std::sync::Arc;
 
 use buslab_can::controller::{ArbitrationBits, Bystander, Event, FrameRole, FrameStart, WireFrame};
+use buslab_can::node::Counting;
 use buslab_can::wire::Encoded;
 use buslab_can::{Frame, Id};
 
@@ -759,6 +762,11 @@ impl Simulation {
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof6);
+        // Nothing looks at a node between EOF bit 6 and the frame's end (a generator that
+        // becomes due in between acts on the winner only, whose frame ends: see
+        // `handle_event`): a node that only counts the frame takes all of it now.
+        let unobserved_to_end =
+            ranged && self.schedule.next.min(self.next_sample) > t0 + BitTime::from(total - 1);
         for k in 0..count {
             let i = if all { k } else { self.whole.ind[k] };
             if i == w {
@@ -769,7 +777,11 @@ impl Simulation {
             } = self;
             let node = &mut nodes[i];
             if ranged && whole.ranged[i] {
-                self.advance_other(wire, i, eof6 + 1, t0);
+                if unobserved_to_end && whole.done[i] == 0 {
+                    self.count_or_advance(wire, i, t0, eof6);
+                } else {
+                    self.advance_other(wire, i, eof6 + 1, t0);
+                }
             } else if let Device::Controller(c) = &mut node.device
                 // Handed on at once rather than queued in the controller and polled.
                 && let Some(event) = c.frame_received(wire)
@@ -893,6 +905,39 @@ impl Simulation {
             && c.has_events()
         {
             drain(self, i, t0 + BitTime::from(bit));
+        }
+    }
+
+    /// Node `i`, moved on through ranges and not yet moved in this frame, takes all of it in
+    /// one call if it only counts it ([`BusNode::count_frame`]), or else the frame's bits up
+    /// to EOF bit 6 (wire bit `eof6`); its events are handled at EOF bit 6 either way.
+    ///
+    /// [`BusNode::count_frame`]: buslab_can::node::BusNode::count_frame
+    fn count_or_advance(&mut self, wire: &WireFrame, i: usize, t0: BitTime, eof6: u32) {
+        let role = self.whole.roles[i];
+        let time = t0 + BitTime::from(eof6);
+        let Self {
+            nodes,
+            obs,
+            schedule,
+            whole,
+            ..
+        } = self;
+        let node = &mut nodes[i];
+        match node.device.node_mut().count_frame(wire, role) {
+            Counting::Counted(event) => {
+                whole.done[i] = wire.total();
+                if let Some(event) = event {
+                    handle_event(obs, schedule, i, node, time, event);
+                }
+            }
+            Counting::Declined => {
+                node.device
+                    .node_mut()
+                    .advance_frame(wire, role, 0..eof6 + 1);
+                whole.done[i] = eof6 + 1;
+                drain_node(obs, schedule, i, node, time);
+            }
         }
     }
 
