@@ -13,8 +13,8 @@
 //! # per receiver and frame, whole program:
 //! #   (Ir(cg.8) - Ir(cg.1)) / (deliveries(8) - deliveries(1))
 //! # the client node alone: the same with the inclusive Ir of
-//! # `<buslab_canbus::node::Sja1000Node as buslab_can::node::BusNode>::advance_frame`
-//! # (callgrind_annotate --inclusive=yes).
+//! # `<buslab_canbus::node::Sja1000Node as buslab_can::node::BusNode>::count_frame`
+//! # and `…::advance_frame` (callgrind_annotate --inclusive=yes).
 //! ```
 
 use buslab_can::BitTime;
@@ -29,20 +29,42 @@ const DEFAULT_BITS: u64 = 2_000_000;
 // (a frame cut by a stretch's end would be stepped bit by bit).
 use buslab_can::wire::LONGEST_FRAME_BITS;
 
-fn main() {
-    let bits = std::env::args()
-        .nth(1)
-        .map(|arg| arg.parse::<u64>().expect("bit-times: a whole number"))
-        .unwrap_or(DEFAULT_BITS);
-    let receivers = std::env::args()
-        .nth(2)
-        .map(|arg| arg.parse::<usize>().expect("receivers: a whole number"))
-        .unwrap_or(DEFAULT_RECEIVERS);
-    assert!(
-        (1..buslab_vbus::MAX_NODES).contains(&receivers),
-        "receivers: 1..{} (a frame needs a receiver to acknowledge it)",
-        buslab_vbus::MAX_NODES
-    );
+/// `[BIT_TIMES [RECEIVERS]]`, or what is wrong with them.
+fn arguments() -> Result<(u64, usize), String> {
+    let mut args = std::env::args().skip(1);
+    let bits = match args.next() {
+        None => DEFAULT_BITS,
+        Some(arg) => arg
+            .parse::<u64>()
+            .ok()
+            .filter(|&bits| bits > 0)
+            .ok_or(format!("bit-times {arg:?}: a whole number above 0"))?,
+    };
+    let most = buslab_vbus::MAX_NODES - 1;
+    let receivers = match args.next() {
+        None => DEFAULT_RECEIVERS,
+        Some(arg) => arg
+            .parse::<usize>()
+            .ok()
+            .filter(|n| (1..=most).contains(n))
+            .ok_or(format!(
+                "receivers {arg:?}: 1 to {most} (a frame needs a receiver to acknowledge it)"
+            ))?,
+    };
+    match args.next() {
+        Some(extra) => Err(format!("{extra:?}: only BIT_TIMES and RECEIVERS are taken")),
+        None => Ok((bits, receivers)),
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    let (bits, receivers) = match arguments() {
+        Ok(args) => args,
+        Err(error) => {
+            eprintln!("vbus_frame_cost: {error}; usage: vbus_frame_cost [BIT_TIMES [RECEIVERS]]");
+            return std::process::ExitCode::from(2);
+        }
+    };
     let mut bus = VirtualBus::new(BITRATE).expect("1 Mbit/s is a valid bit rate");
     let sender = bus.join().expect("room for the sender");
     for _ in 0..receivers {
@@ -72,4 +94,5 @@ fn main() {
     }
     let frames = bus.stats().frames;
     println!("receivers {receivers} bit-times {bits} frames {frames} deliveries {delivered}");
+    std::process::ExitCode::SUCCESS
 }
