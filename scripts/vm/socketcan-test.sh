@@ -132,7 +132,8 @@ candump -L vcan0 >/tmp/candump3 2>&1 &
 candump3=$!
 if wait_for /tmp/bridge3.err "bridge: socketcand://" &&
     wait_for /tmp/candump3 "7FF#" "cansend vcan0 7FF#"; then
-    # virtual -> vcan0
+    # virtual -> vcan0, through the pump of socketcan:vcan0: it waits for vcan0 with no
+    # timeout, and nothing comes on vcan0 meanwhile, so only its wake line sends the frame.
     buslab send vcan0 321#AB 2>/tmp/send3.err
     wait_for /tmp/candump3 "vcan0 321#AB" && to_vcan=yes || to_vcan=no
     # vcan0 -> virtual

@@ -11,18 +11,24 @@
 //! [`CanBus::recv_event`], sent with [`CanBus::send_fd`]). On an interface with MTU 16 the
 //! socket is the classic one it always was, and an FD frame is refused naming the MTU. The MTU
 //! is read once, when the bus is opened (as cansend reads it before each frame).
+//!
+//! Once [`CanBus::recv_waker`] was asked for, a wait for frames polls the socket beside a
+//! [`WakeLine`], so a pump hands a frame to an idle bus at once (and waits with poll(2), whose
+//! timeout is not rounded up to whole scheduler ticks as SO_RCVTIMEO's is).
 
 use std::io;
-use std::os::fd::AsRawFd;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::os::fd::{AsFd, AsRawFd};
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use buslab_bus::bus::matches_any;
 use buslab_bus::error_frame::class;
 use buslab_bus::{
     BusError, CanBus, CanError, ControllerProblems, ErrorFrame, ErrorState, FdSupport, Filter,
-    Message, NoFd, Record, Timestamp, matches_any_id,
+    Message, NoFd, Record, RecvWaker, Timestamp, matches_any_id,
 };
 use buslab_can::{FD_LENGTHS, FdFrame, Frame, Id};
+use buslab_socketcand::{WakeLine, wait_readable};
 use socketcan::frame::{can_frame_default, canfd_frame_default};
 use socketcan::{
     CanAnyFrame, CanFdFrame, CanFdSocket, CanFilter, CanFrame, CanSocket, Socket, SocketOptions,
@@ -72,6 +78,8 @@ pub struct SocketCanBus {
     filters: Vec<Filter>,
     error_frames: bool,
     state: ErrorState,
+    /// Ends a wait for frames from another thread, once [`CanBus::recv_waker`] asked for it.
+    wake: Option<WakeLine>,
 }
 
 impl SocketCanBus {
@@ -96,11 +104,19 @@ impl SocketCanBus {
             filters: Vec::new(),
             error_frames: false,
             state: ErrorState::Active,
+            wake: None,
         })
     }
 
-    /// The next frame, FD frame or error frame from the socket, or `None` after `timeout`.
+    /// The next frame, FD frame or error frame from the socket, or `None` after `timeout` (or
+    /// when woken).
     fn read(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
+        let timeout = match &self.wake {
+            Some(wake) if !wait_for_frame(&self.socket, wake, timeout)? => return Ok(None),
+            // The poll waited: the read below must not wait again.
+            Some(_) => Some(Duration::ZERO),
+            None => timeout,
+        };
         // SO_RCVTIMEO: `None` blocks; a zero timeout would too, so wait at least 1 µs.
         let timeout = timeout.map(|t| t.max(Duration::from_micros(1)));
         on_socket!(&self.socket, s => s.as_raw_socket().set_read_timeout(timeout))?;
@@ -190,6 +206,20 @@ impl SocketCanBus {
                 }
                 _ => continue,
             };
+        }
+    }
+}
+
+/// Waits until `socket` has a frame (`true`), or `timeout` passed or `wake` was woken. A
+/// signal does not end the wait: it goes on until the deadline.
+fn wait_for_frame(socket: &Raw, wake: &WakeLine, timeout: Option<Duration>) -> io::Result<bool> {
+    let deadline = timeout.map(|t| Instant::now() + t);
+    loop {
+        let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
+        let fd = on_socket!(socket, s => s.as_raw_socket().as_fd());
+        match wait_readable(fd, Some(wake), left) {
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            waited => return waited,
         }
     }
 }
@@ -336,9 +366,9 @@ impl CanBus for SocketCanBus {
     }
 
     fn recv(&mut self, timeout: Option<Duration>) -> Result<Option<Message<Frame>>, BusError> {
-        let deadline = timeout.map(|t| std::time::Instant::now() + t);
+        let deadline = timeout.map(|t| Instant::now() + t);
         loop {
-            let left = deadline.map(|d| d.saturating_duration_since(std::time::Instant::now()));
+            let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
             let Some(m) = self.read(left)? else {
                 return Ok(None);
             };
@@ -357,9 +387,9 @@ impl CanBus for SocketCanBus {
 
     /// Frames, FD frames (on an FD interface) and, once asked for, error frames.
     fn recv_event(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
-        let deadline = timeout.map(|t| std::time::Instant::now() + t);
+        let deadline = timeout.map(|t| Instant::now() + t);
         loop {
-            let left = deadline.map(|d| d.saturating_duration_since(std::time::Instant::now()));
+            let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
             let Some(m) = self.read(left)? else {
                 return Ok(None);
             };
@@ -402,6 +432,11 @@ impl CanBus for SocketCanBus {
 
     fn channel_info(&self) -> String {
         format!("SocketCAN interface {}", self.interface)
+    }
+
+    fn recv_waker(&mut self) -> Option<Arc<dyn RecvWaker>> {
+        let bus = self.channel_info();
+        WakeLine::opened_waker(&mut self.wake, &bus)
     }
 }
 

@@ -2,15 +2,12 @@
 //! with buslab's extensions as a [`BusAdmin`] when the server has them.
 
 pub mod inbound;
-mod wake;
 
 use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::os::fd::AsFd;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-use nix::poll::{PollFd, PollFlags, PollTimeout};
 
 use buslab_bus::admin::FaultLimit;
 use buslab_bus::bus::Human;
@@ -24,10 +21,10 @@ use crate::command::Command;
 use crate::element::ElementError;
 use crate::message::ServerMessage;
 use crate::reply::{self, ReplyError};
+use crate::wake::{WakeLine, wait_readable};
 use crate::{ProtocolError, sanitize};
 use inbound::Inbound;
 pub use inbound::MAX_INBOX;
-use wake::WakeLine;
 
 /// Deadlines of a client.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -520,40 +517,10 @@ impl SocketcandBus {
     }
 
     /// Waits until the connection has bytes (or was closed); `false` after `timeout` or when
-    /// woken. poll(2), not a read timeout: the kernel counts SO_RCVTIMEO in whole scheduler
-    /// ticks (a 2 ms wait took at least 4 ms at HZ=250), and a wake line is polled beside it.
+    /// woken (see [`wait_readable`]).
     fn readable(&self, timeout: Option<Duration>, wakeable: Wakeable) -> io::Result<bool> {
         let wake = self.wake.as_ref().filter(|_| wakeable == Wakeable::Yes);
-        let timeout = match timeout {
-            None => PollTimeout::NONE,
-            // Whole milliseconds, rounded up: a wait never ends before its deadline.
-            Some(t) => {
-                PollTimeout::try_from(t.as_micros().div_ceil(1000)).unwrap_or(PollTimeout::MAX)
-            }
-        };
-        let connection = PollFd::new(self.stream.as_fd(), PollFlags::POLLIN);
-        let mut fds = [connection.clone(), connection];
-        let polled = match wake {
-            Some(w) => {
-                fds[1] = PollFd::new(w.fd(), PollFlags::POLLIN);
-                &mut fds[..]
-            }
-            None => &mut fds[..1],
-        };
-        match nix::poll::poll(polled, timeout) {
-            Ok(0) => return Ok(false),
-            Ok(_) => {}
-            Err(e) => return Err(e.into()),
-        }
-        // Bytes first; the wake stays pending until a poll finds none (it ends the wait then),
-        // so it is not lost while the bytes turn out to be no frame.
-        if fds[0].any().unwrap_or(true) {
-            return Ok(true);
-        }
-        if let Some(w) = wake {
-            w.clear();
-        }
-        Ok(false)
+        wait_readable(self.stream.as_fd(), wake, timeout)
     }
 
     /// The next event (see [`Inbound::pop`]) or `None` after `timeout`.
@@ -707,16 +674,8 @@ impl CanBus for SocketcandBus {
     }
 
     fn recv_waker(&mut self) -> Option<Arc<dyn RecvWaker>> {
-        if self.wake.is_none() {
-            match WakeLine::new() {
-                Ok(line) => self.wake = Some(line),
-                Err(e) => {
-                    tracing::debug!("no wake line for {}: {e}", self.channel_info());
-                    return None;
-                }
-            }
-        }
-        self.wake.as_ref().map(WakeLine::waker)
+        let bus = self.channel_info();
+        WakeLine::opened_waker(&mut self.wake, &bus)
     }
 }
 
