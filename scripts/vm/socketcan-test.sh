@@ -150,6 +150,12 @@ if wait_for /tmp/bridge3.err "bridge: socketcand://" &&
     else
         bad bridge-virtual-bus-and-vcan0 "to vcan0: $to_vcan, to the virtual bus: $to_virtual (or a frame twice)"
     fi
+    # Frames to vcan0 are sent when they come, not after a read timeout.
+    if grep -qF "a job wakes the wait for SocketCAN interface vcan0" /tmp/bridge3.err; then
+        ok bridge-pump-woken-for-vcan0
+    else
+        bad bridge-pump-woken-for-vcan0 "the pump of socketcan:vcan0 cannot be woken"
+    fi
 else
     bad bridge-virtual-bus-and-vcan0 "the bridge did not start"
 fi

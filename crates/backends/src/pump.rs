@@ -193,8 +193,16 @@ impl Pump {
     ) -> std::io::Result<Self> {
         let (tx, rx) = mpsc::sync_channel(QUEUE);
         let stop = Arc::new(AtomicBool::new(false));
+        let waker = bus.recv_waker();
+        match waker {
+            Some(_) => tracing::debug!("{name}: a job wakes the wait for {}", bus.channel_info()),
+            None => tracing::debug!(
+                "{name}: {} cannot be woken, a job waits up to {JOB_LATENCY:?}",
+                bus.channel_info()
+            ),
+        }
         let alarm = Arc::new(Alarm {
-            waker: bus.recv_waker(),
+            waker,
             waiting: AtomicBool::new(false),
         });
         let thread = std::thread::Builder::new().name(name.to_string()).spawn({

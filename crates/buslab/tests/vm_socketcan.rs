@@ -4,7 +4,8 @@
 //! `scripts/vm/socketcan-test.sh` run inside and report over the serial console:
 //! cansend → `buslab dump socketcan:vcan0` (frames, and an error frame in candump's words),
 //! `buslab send socketcan:vcan0` → candump,
-//! `buslab bridge` between `buslab bus serve` and vcan0, and `buslab slcan serve` attached
+//! `buslab bridge` between `buslab bus serve` and vcan0 (whose pump is woken by the frames it
+//! is handed), and `buslab slcan serve` attached
 //! with slcand as slcan0 and read by candump; CAN FD on interfaces with MTU 72 (cansend's FD
 //! frames in `buslab dump -L`, `buslab bridge` between two FD interfaces both ways, and to a
 //! classic interface, where FD frames are counted and the MTU named).
@@ -19,11 +20,12 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 /// What must pass inside the VM.
-const CHECKS: [&str; 9] = [
+const CHECKS: [&str; 10] = [
     "cansend-to-buslab-dump",
     "error-frame-decoded",
     "buslab-send-to-candump",
     "bridge-virtual-bus-and-vcan0",
+    "bridge-pump-woken-for-vcan0",
     "slcand-slcan0-candump",
     "cansend-slcan0-to-virtual-bus",
     "fd-cansend-to-buslab-dump",
