@@ -257,6 +257,25 @@ pub fn setup(op: u8, seed: u32) -> Setup {
     }
 }
 
+/// Whether `s` leaves what `s51` models as the hardware does: `JMP @A+DPTR` and
+/// `MOVC A,@A+DPTR` with A + DPTR past FFFFh. The 8051 forms that address in 16 bits (its
+/// address bus has 16 lines), so it wraps to the bottom of code memory; `s51` does not wrap
+/// and reads 00h there (docs/decisions.md). The random comparison draws another state instead.
+pub fn beyond_s51(s: &Setup) -> bool {
+    if !matches!(s.op, 0x73 | 0x93) {
+        return false;
+    }
+    let sfr = |addr: u8| {
+        s.sfrs
+            .iter()
+            .rev()
+            .find(|(a, _)| *a == addr)
+            .map_or(0, |v| v.1)
+    };
+    let dptr = u16::from_be_bytes([sfr(sfr::DPH), sfr(sfr::DPL)]);
+    dptr.checked_add(u16::from(sfr(sfr::ACC))).is_none()
+}
+
 /// What is compared.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Snapshot {
