@@ -6,8 +6,9 @@
 # `--bit-level`. Both outputs are compared too (they must be identical).
 #
 # Per wall second and per second of CPU time (user + system; the machine is shared). FAST_S
-# and BIT_S set the simulated seconds of each run; NODES the sizes. Machines are noisy: compare
-# the ratios of one run, and read the load average printed with the table.
+# and BIT_S set the simulated seconds of each run; NODES the sizes; REPEAT how many runs each
+# figure is the median of (by CPU time). Machines are noisy: compare the ratios of one run,
+# and read the load average printed with the table.
 #
 # BASELINE=path/to/an/older/buslab adds, in the same run, that binary's fast path (CPU time)
 # and how many times faster this one is: e.g. one built from main before a change.
@@ -25,11 +26,8 @@ NODES=${NODES:-"2 16 32 64"}
 BASELINE=${BASELINE:-}
 CG_S=${CG_S:-0.5}
 TRACE_S=${TRACE_S:-$BIT_S}
+REPEAT=${REPEAT:-1}
 
-[ -x /usr/bin/time ] || {
-    echo "bench/sim_speed.sh: /usr/bin/time is missing (apt-get install time)" >&2
-    exit 1
-}
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -50,16 +48,30 @@ scenario() {
     } >"$2"
 }
 
-# run FILE SECONDS OUT [ARGS...]: prints "wall cpu" in seconds (binary: $bin, else $buslab).
-# QUIET=0 prints the trace.
+# run FILE SECONDS OUT [ARGS...]: prints "wall cpu" in seconds (binary: $bin, else $buslab),
+# the median of REPEAT runs by CPU time, read with wait4 to the microsecond (GNU time's
+# hundredths are a tenth of a 100 s run at 1 000×). QUIET=0 prints the trace.
 run() {
     local file=$1 secs=$2 out=$3
     shift 3
     local quiet=--quiet
     [ "${QUIET:-1}" = 1 ] || quiet=
-    /usr/bin/time -f "%e %U %S" -o "$work/time" \
-        "${bin:-$buslab}" sim "$file" $quiet --duration "${secs}s" "$@" >"$out"
-    awk '{ printf "%s %.3f", $1, $2 + $3 }' "$work/time"
+    python3 - "$REPEAT" "$out" "${bin:-$buslab}" sim "$file" $quiet --duration "${secs}s" "$@" <<'PY'
+import os, subprocess, sys, time
+repeat, out, argv = int(sys.argv[1]), sys.argv[2], sys.argv[3:]
+runs = []
+for _ in range(repeat):
+    with open(out, "wb") as f:
+        start = time.monotonic()
+        child = subprocess.Popen(argv, stdout=f)
+        _, status, usage = os.wait4(child.pid, 0)
+        wall = time.monotonic() - start
+    if status != 0:
+        sys.exit(f"bench/sim_speed.sh: {' '.join(argv)} failed (wait status {status})")
+    runs.append((usage.ru_utime + usage.ru_stime, wall))
+cpu, wall = sorted(runs)[len(runs) // 2]
+print(f"{wall:.4f} {cpu:.4f}")
+PY
 }
 
 # frames OUT: the frame count of a run's summary.
@@ -92,7 +104,7 @@ command -v valgrind >/dev/null || {
 }
 
 echo "# buslab sim, saturated 1 Mbit/s bus, 8-byte frames; real-time factor = simulated s / s"
-echo "# fast path: ${FAST_S} s simulated per run; --bit-level: ${BIT_S} s; load average: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "# fast path: ${FAST_S} s simulated per run; --bit-level: ${BIT_S} s; median of ${REPEAT} run(s); load average: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "# Ir/frame: callgrind instructions per frame of the fast path (${CG_S} s against $(awk -v s="$CG_S" 'BEGIN { print 2 * s }') s)"
 [ -z "$BASELINE" ] || echo "# baseline: $BASELINE (fast path, CPU time, same scenario and duration)"
 printf '%-6s %14s %14s %14s %14s %10s %10s %-11s %9s' nodes "fast (wall)" "fast (CPU)" \
@@ -104,7 +116,7 @@ for n in $NODES; do
     read -r fw fc <<<"$(run "$file" "$FAST_S" "$work/fast.out")"
     read -r bw bc <<<"$(run "$file" "$BIT_S" "$work/bit.out" --bit-level)"
     # The same stretch of simulated time must print the same with either path.
-    run "$file" "$BIT_S" "$work/fast_short.out" >/dev/null
+    REPEAT=1 run "$file" "$BIT_S" "$work/fast_short.out" >/dev/null
     same=no
     cmp -s "$work/fast_short.out" "$work/bit.out" && same=yes
     ffw=$(factor "$FAST_S" "$fw")
@@ -129,7 +141,7 @@ printf '%-6s %14s %14s %-11s %9s' nodes "fast (wall)" "fast (CPU)" "same output"
 for n in $NODES; do
     file=$work/sat$n.toml
     read -r fw fc <<<"$(QUIET=0 run "$file" "$TRACE_S" "$work/fast.out")"
-    QUIET=0 run "$file" "$TRACE_S" "$work/bit.out" --bit-level >/dev/null
+    REPEAT=1 QUIET=0 run "$file" "$TRACE_S" "$work/bit.out" --bit-level >/dev/null
     same=no
     cmp -s "$work/fast.out" "$work/bit.out" && same=yes
     ffc=$(factor "$TRACE_S" "$fc")

@@ -696,3 +696,49 @@ fn printed_trace_is_the_same_byte_for_byte() {
         "sim-every-line.counters.csv: the outputs differ"
     );
 }
+
+/// A trace going to a regular file is written in whole blocks (the rest at the end, then the
+/// summary): the file holds the same bytes a pipe gets, from where the file's offset stood
+/// (after what it held, for `>>`), whatever the number of blocks.
+#[test]
+fn a_trace_into_a_file_is_the_trace_through_a_pipe() {
+    let dir = tempfile::tempdir().unwrap();
+    // Eight saturated nodes for 2 s: about 750 KB of trace, several blocks and a rest.
+    let busy = dir.path().join("busy.toml");
+    let mut text = String::from("bitrate = 1000000\nduration = \"2s\"\n");
+    for i in 0..8 {
+        text += &format!(
+            "[[nodes]]\nname = \"n{i}\"\n  [[nodes.traffic]]\n  kind = \"periodic\"\n  \
+             frame = \"{:03X}#{i:02X}55AA0001020304\"\n  period = \"400us\"\n",
+            0x100 + i
+        );
+    }
+    std::fs::write(&busy, text).unwrap();
+    let seed = scenario("seed-cut-wire.toml");
+    // The busy one spans two blocks of 256 KiB and a rest; the seed's is less than a block.
+    for (path, at_least) in [
+        (busy.to_str().unwrap(), 2 << 18),
+        (seed.to_str().unwrap(), 1),
+    ] {
+        let piped = stdout_of(&["sim", path]);
+        assert!(piped.len() >= at_least, "{path}: {} bytes", piped.len());
+        for before in ["", "earlier content, not a whole line"] {
+            let out = dir.path().join("trace.log");
+            std::fs::write(&out, before).unwrap();
+            let file = std::fs::OpenOptions::new().append(true).open(&out).unwrap();
+            let status = std::process::Command::new(assert_cmd::cargo::cargo_bin("buslab"))
+                .args(["sim", path])
+                .stdout(file)
+                .status()
+                .unwrap();
+            assert!(status.success());
+            let got = std::fs::read_to_string(&out).unwrap();
+            assert!(
+                got.strip_prefix(before) == Some(piped.as_str()),
+                "{path} after {before:?}: {} bytes in the file, {} through a pipe",
+                got.len(),
+                piped.len()
+            );
+        }
+    }
+}

@@ -2,7 +2,12 @@
 //! [`write_atomic`]), read with a size limit ([`read_limited`]), opened only when they are
 //! regular files ([`open_regular`]). std, `tempfile` and `libc` only, so any host crate can
 //! write its files the one way (`buslab-link` re-exports it as `buslab_link::fs`, `buslab-logs`
-//! puts its converted logs in place with it).
+//! puts its converted logs in place with it). Long output to a regular file goes in whole,
+//! aligned blocks ([`BlockWriter`]).
+
+mod blocks;
+
+pub use blocks::{BLOCK, BlockWriter};
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Read, Write};

@@ -22,6 +22,7 @@
 //! to the nanosecond a format carries.
 
 pub mod asc;
+mod bit_stamps;
 mod bitrate;
 pub mod blf;
 pub mod candump;
@@ -44,6 +45,7 @@ pub mod text;
 mod time;
 pub mod trc;
 
+pub use bit_stamps::BitTimeStamps;
 pub use bitrate::{BitRateSource, LogBitRate};
 pub use channel::{ChannelMap, channel_name};
 pub use codec::{ByteCounter, Entries, LogReader, LogWriter};

@@ -12,7 +12,8 @@ use anyhow::Context;
 use buslab_bench::Scenario;
 use buslab_can::Frame;
 use buslab_can::controller::{ErrorKind, ErrorState, Event};
-use buslab_logs::{candump, text};
+use buslab_link::fs::BlockWriter;
+use buslab_logs::{BitTimeStamps, candump, text};
 use buslab_plot::{Band, Figure, Lane, Panel, Series, Shade, StateLanes};
 use buslab_sim::observe::signal_names;
 use buslab_sim::{
@@ -157,6 +158,13 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     };
 
     let mut plot = args.plot.as_ref().map(|_| CounterPlot::new(&scenario));
+    // A trace going to a regular file is written in whole, aligned blocks (half the kernel's
+    // time); one whose descriptor cannot be duplicated goes the other way.
+    let mut blocks = if quiet {
+        None
+    } else {
+        BlockWriter::for_stdout().ok().flatten()
+    };
     let stdout = io::stdout();
     let mut out = BufWriter::new(stdout.lock());
     let mut printer = Printer::new(&scenario, &args);
@@ -176,7 +184,14 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
             plot.add(&records, &series);
         }
         if !quiet {
-            printer.print_merged(&mut out, &records, &series)?;
+            printer.print_merged(&records, &series);
+            match &mut blocks {
+                Some(blocks) => blocks.write_blocks(&mut printer.buf)?,
+                None => {
+                    out.write_all(&printer.buf)?;
+                    printer.buf.clear();
+                }
+            }
         }
         if let Some(vcd) = &mut vcd {
             vcd.write_changes(&sim.take_level_changes())?;
@@ -191,6 +206,10 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     if let (Some(plot), Some(path)) = (plot, &args.plot) {
         let title = format!("{}: error counters and states", args.scenario.display());
         super::plot::write(&plot.figure(&scenario, title, sim.now()), path)?;
+    }
+    if let Some(blocks) = &mut blocks {
+        // Before the summary, which goes through `out` (the same file offset).
+        blocks.write_rest(&mut printer.buf)?;
     }
     summary(&mut out, &sim)?;
     out.flush()?;
@@ -331,12 +350,12 @@ impl CounterPlot {
     }
 }
 
-/// Formats trace records as candump log lines and `#` status lines into one buffer per chunk
-/// of the run, written at once: nothing allocated per line, digits and hex by table. Records
+/// Formats trace records as candump log lines and `#` status lines into one buffer, written
+/// once per chunk of the run (or in blocks to a file): nothing allocated per line, digits and
+/// hex by table, a node's transmitted frame formatted once while it sends the same one. Records
 /// no line shows are not recorded at all (see [`recorded_events`]) and passed over here.
 struct Printer<'a> {
     scenario: &'a Scenario,
-    bitrate: u32,
     /// Each node's name right-aligned to the longest, the frame lines' interface column
     /// (names are ASCII: the scenario checks them).
     columns: Vec<String>,
@@ -344,7 +363,10 @@ struct Printer<'a> {
     errors: bool,
     /// The last TEC/REC values printed, to print the series only when it changes.
     last_counters: Vec<(u16, u16)>,
-    /// The chunk's text.
+    /// Each node's last transmitted frame and its line after the timestamp (` NAME FRAME`).
+    sent: Vec<(Option<Frame>, Vec<u8>)>,
+    stamps: BitTimeStamps,
+    /// The text not yet written.
     buf: Vec<u8>,
 }
 
@@ -358,7 +380,6 @@ impl<'a> Printer<'a> {
             .unwrap_or(0);
         Self {
             scenario,
-            bitrate: scenario.bitrate,
             columns: scenario
                 .nodes
                 .iter()
@@ -367,17 +388,15 @@ impl<'a> Printer<'a> {
             rx: args.rx,
             errors: args.errors,
             last_counters: vec![(0, 0); scenario.nodes.len()],
+            sent: vec![(None, Vec::new()); scenario.nodes.len()],
+            stamps: BitTimeStamps::new(scenario.bitrate),
             buf: Vec::with_capacity(64 * 1024),
         }
     }
 
-    /// Prints records and counter samples in time order (samples first at equal times).
-    fn print_merged(
-        &mut self,
-        out: &mut impl Write,
-        records: &[Record],
-        series: &[CounterSample],
-    ) -> io::Result<()> {
+    /// Prints records and counter samples in time order (samples first at equal times) into
+    /// `buf`.
+    fn print_merged(&mut self, records: &[Record], series: &[CounterSample]) {
         let mut samples = series.chunk_by(|a, b| a.time == b.time).peekable();
         for record in records {
             while let Some(group) = samples.next_if(|g| g[0].time <= record.time) {
@@ -388,28 +407,11 @@ impl<'a> Printer<'a> {
         for group in samples {
             self.counters(group);
         }
-        out.write_all(&self.buf)?;
-        self.buf.clear();
-        Ok(())
     }
 
     /// `(0000000001.250000)`: the candump log timestamp of bit-time `t`.
     fn stamp(&mut self, t: BitTime) {
-        let (s, us) = t.secs_and_micros_at(self.bitrate);
-        if s >= 10_000_000_000 {
-            // Past 317 years: more than ten digits of seconds.
-            self.buf.push(b'(');
-            text::push_u64_zeros(&mut self.buf, s, 10);
-            self.buf.push(b'.');
-            text::push_u64_zeros(&mut self.buf, u64::from(us), 6);
-            self.buf.push(b')');
-            return;
-        }
-        // Every line starts with one: formatted in place, appended at once.
-        let mut field = *b"(0000000000.000000)";
-        field[1..11].copy_from_slice(&text::decimal_fixed::<10>(s));
-        field[12..18].copy_from_slice(&text::decimal_fixed::<6>(u64::from(us)));
-        self.buf.extend_from_slice(&field);
+        self.stamps.push(&mut self.buf, t);
     }
 
     /// `# (…) `: the start of a status line.
@@ -470,7 +472,7 @@ impl<'a> Printer<'a> {
             Happening::Node { node, event } => (*node, event),
         };
         match event {
-            Event::Transmitted(frame) => self.frame(t, node, frame, b" T\n"),
+            Event::Transmitted(frame) => self.sent_frame(t, node, frame),
             Event::Received(frame) if self.rx => self.frame(t, node, frame, b" R\n"),
             Event::StateChanged { from, to, tec, rec } => {
                 self.node_status(t, node);
@@ -514,6 +516,24 @@ impl<'a> Printer<'a> {
             }
             _ => {}
         }
+    }
+
+    /// [`Self::frame`] for a frame `node` sent: its text after the timestamp is formatted
+    /// once while the node sends the same frame.
+    fn sent_frame(&mut self, t: BitTime, node: usize, frame: &Frame) {
+        self.stamp(t);
+        let (last, line) = &mut self.sent[node];
+        if *last != Some(*frame) {
+            *last = Some(*frame);
+            line.clear();
+            line.push(b' ');
+            line.extend_from_slice(self.columns[node].as_bytes());
+            line.push(b' ');
+            candump::push_frame(line, frame);
+        }
+        self.buf.extend_from_slice(line);
+        let end: &[u8] = if self.rx { b" T\n" } else { b"\n" };
+        self.buf.extend_from_slice(end);
     }
 
     /// `(…) NODE FRAME`, then ` T`/` R` with `--rx`, and the end of the line.
