@@ -28,7 +28,7 @@ use buslab_bus::{
     Message, NoFd, Record, RecvWaker, Timestamp, matches_any_id,
 };
 use buslab_can::{FD_LENGTHS, FdFrame, Frame, Id};
-use buslab_socketcand::{WakeLine, wait_readable};
+use buslab_link::wake::{WakeLine, wait_readable};
 use socketcan::frame::{can_frame_default, canfd_frame_default};
 use socketcan::{
     CanAnyFrame, CanFdFrame, CanFdSocket, CanFilter, CanFrame, CanSocket, Socket, SocketOptions,

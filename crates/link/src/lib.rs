@@ -12,6 +12,8 @@
 //!   size limit.
 //! - [`journal`]: a served device's changes between two state files, synced before the
 //!   device's next byte leaves, replayed after a crash.
+//! - [`wake`]: a bus's wait for frames ended from another thread ([`WakeLine`]), polled beside
+//!   the bus's own descriptor ([`wait_readable`]).
 
 mod control;
 pub mod journal;
@@ -19,12 +21,14 @@ mod pty;
 mod serial;
 mod serve;
 mod served;
+pub mod wake;
 
 pub use buslab_device::{ByteDevice, LineSettings, Parity, Persistent, Port};
 /// Files written atomically and read with a limit: `buslab-fs`, under the path it had here.
 pub use buslab_fs as fs;
 pub use control::{ControlLimits, ControlSocket, LineHandler};
 pub use pty::Pty;
-pub use serial::{SerialError, SerialLine, open_serial, open_tty};
+pub use serial::{SerialError, SerialLine, open_serial, open_tty, tty_fd};
 pub use serve::{Control, serve};
 pub use served::{Handle, Serve, Served, ServedError};
+pub use wake::{WakeLine, wait_readable};

@@ -80,11 +80,17 @@ pub fn open_tty(
         .map_err(open_error)?;
     // serialport leaves the descriptor inheritable: a child process started meanwhile would
     // keep the port (and its exclusive lock) after we close it.
-    // SAFETY: the descriptor is owned by `port`, which outlives this borrow.
-    let fd = unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) };
-    fcntl(fd, FcntlArg::F_SETFD(FdFlag::FD_CLOEXEC))
+    fcntl(tty_fd(&port), FcntlArg::F_SETFD(FdFlag::FD_CLOEXEC))
         .map_err(|errno| open_error(serialport::Error::from(std::io::Error::from(errno))))?;
     Ok(port)
+}
+
+/// The descriptor of `port`, borrowed for as long as the port (serialport's Unix port has no
+/// `AsFd`): to poll it beside others ([`crate::wait_readable`]).
+pub fn tty_fd(port: &TTYPort) -> BorrowedFd<'_> {
+    // SAFETY: the descriptor is owned by `port`, open until it drops, and the borrow cannot
+    // outlive `port`.
+    unsafe { BorrowedFd::borrow_raw(port.as_raw_fd()) }
 }
 
 /// A serial port (or the slave side of a PTY) as the [`Port`] host clients talk through,

@@ -21,8 +21,8 @@ use crate::command::Command;
 use crate::element::ElementError;
 use crate::message::ServerMessage;
 use crate::reply::{self, ReplyError};
-use crate::wake::{WakeLine, wait_readable};
 use crate::{ProtocolError, sanitize};
+use buslab_link::wake::{WakeLine, wait_readable};
 use inbound::Inbound;
 pub use inbound::MAX_INBOX;
 

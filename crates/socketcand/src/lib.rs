@@ -9,8 +9,6 @@
 //! - [`client::inbound`]: the client's receive path, sans-IO ([`Inbound`]).
 //! - [`client`]: a [`CanBus`](buslab_bus::CanBus) over a TCP connection ([`SocketcandBus`]),
 //!   and a [`BusAdmin`](buslab_bus::BusAdmin) when the server has buslab's extensions.
-//! - [`wake`]: ending a wait for frames from another thread ([`WakeLine`], [`wait_readable`]),
-//!   also used by the SocketCAN bus of `buslab-backends`.
 //!
 //! The codec is sans-IO: strings in, values out, and back. buslab's own extensions are
 //! commands and replies whose name starts with `buslab_`; a real socketcand answers them with
@@ -24,7 +22,6 @@ mod hex;
 pub mod message;
 pub mod reply;
 pub mod server;
-pub mod wake;
 
 pub use client::inbound::Inbound;
 pub use client::{ClientError, ClientOptions, SocketcandBus};
@@ -35,7 +32,6 @@ pub use reply::{
     ReplyError, flushed_reply, nodes_reply, parse_flushed, parse_nodes, parse_refused, parse_regs,
     parse_status, refused_reply, regs_reply, status_fields, status_reply,
 };
-pub use wake::{WakeLine, wait_readable};
 
 /// The error from parsing one element.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]

@@ -1,6 +1,7 @@
 //! Ending a bus's wait for frames from another thread ([`buslab_bus::CanBus::recv_waker`]): a
-//! socket pair whose reading end the wait polls beside the bus's own descriptor. Shared by
-//! the socketcand client and the SocketCAN bus of `buslab-backends`.
+//! socket pair whose reading end the wait polls beside the bus's own descriptor (a TCP
+//! connection, a CAN socket, a serial port). Shared by the socketcand client, the SLCAN bus
+//! and the SocketCAN bus of `buslab-backends`.
 
 use std::io::{self, Read, Write};
 use std::os::fd::{AsFd, BorrowedFd};
