@@ -16,6 +16,9 @@ the last bus and takes the difference (one clock: the same machine). Rows:
   own client does) sends to that bus: the server's side of a buslab client.
 * `bridge A -> B`: python-can sends on bus A, `buslab bridge --one-way A B` copies to bus B
   (two pumps: A's receives, B's sends).
+* `bridge A -> slcan adapter on B`: the same, B reached through an SLCAN adapter (`buslab slcan
+  serve` on a pseudo-terminal, plugged into bus B): the bridge's pump hands frames to an
+  `slcan:` bus.
 * `cannelloni udp -> gateway -> bus`: a raw UDP socket sends one cannelloni packet per frame to
   `bus serve --join` (the gateway's pump hands it to the bus): a frame handed to a pump.
 
@@ -114,16 +117,29 @@ def serve(binary, join=None):
     return p, int(line.rsplit(":", 1)[1].split("/")[0])
 
 
-def bridge(binary, pa, pb, log):
+def bridge(binary, pa, pb, log, to=None):
     p = subprocess.Popen(
         [binary, "bridge", "--one-way", "socketcand://127.0.0.1:%d/vcan0" % pa,
-         "socketcand://127.0.0.1:%d/vcan0" % pb],
+         to or "socketcand://127.0.0.1:%d/vcan0" % pb],
         stdout=subprocess.DEVNULL, stderr=log)
     # Both sides joined once the bridge says what it bridges.
     deadline = time.monotonic() + 30
     while b"bridge:" not in open(log.name, "rb").read():
         if time.monotonic() > deadline or p.poll() is not None:
             raise RuntimeError("the bridge did not start")
+        time.sleep(0.02)
+    return p
+
+
+def slcan_adapter(binary, pb, tty):
+    """`buslab slcan serve` plugged into bus B, its pseudo-terminal at `tty`."""
+    p = subprocess.Popen(
+        [binary, "slcan", "serve", "--bus", "socketcand://127.0.0.1:%d/vcan0" % pb,
+         "--link", tty], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 30
+    while not os.path.exists(tty):
+        if time.monotonic() > deadline or p.poll() is not None:
+            raise RuntimeError("the SLCAN adapter did not start")
         time.sleep(0.02)
     return p
 
@@ -161,6 +177,15 @@ def run_row(binary, row, frames, rate):
             procs.append(b)
             procs.append(bridge(binary, pa, pb, log))
             return measure(pb, frames, lambda: send_python_can(pa, frames, rate))
+        if row == "bridge A -> slcan adapter on B":
+            a, pa = serve(binary)
+            procs.append(a)
+            b, pb = serve(binary)
+            procs.append(b)
+            tty = os.path.join(tempfile.mkdtemp(), "ttyACM0")
+            procs.append(slcan_adapter(binary, pb, tty))
+            procs.append(bridge(binary, pa, pb, log, "slcan:" + tty))
+            return measure(pb, frames, lambda: send_python_can(pa, frames, rate))
         ua, ub = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_DGRAM)
         b, pb = serve(binary, "cannelloni://127.0.0.1:%d?listen=127.0.0.1:%d" % (ua, ub))
         procs.append(b)
@@ -197,7 +222,7 @@ def idle_cpu(binary, seconds):
 
 
 ROWS = ["socketcand -> bus", "buslab_ext client -> bus", "bridge A -> B",
-        "cannelloni udp -> gateway -> bus"]
+        "bridge A -> slcan adapter on B", "cannelloni udp -> gateway -> bus"]
 
 
 def main():

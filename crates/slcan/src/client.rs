@@ -21,15 +21,17 @@
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::path::Path;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use buslab_bus::{
-    BitTiming, BusError, CanBus, ErrorState, FdSupport, Filter, Message, NoFd, matches_any_id,
-    wall_clock,
+    BitTiming, BusError, CanBus, ErrorState, FdSupport, Filter, Message, NoFd, RecvWaker,
+    matches_any_id, wall_clock,
 };
 use buslab_can::{FdFrame, Frame};
 use buslab_device::LineSettings;
-use buslab_link::{SerialError, open_tty};
+use buslab_link::wake::{WakeLine, wait_readable};
+use buslab_link::{SerialError, open_tty, tty_fd};
 use serialport::{ClearBuffer, SerialPort, TTYPort};
 
 use crate::clock::DeviceClock;
@@ -175,6 +177,9 @@ pub struct SlcanBus {
     refused: u64,
     acceptance: AcceptanceAnswer,
     fd: bool,
+    /// Ends a wait for frames from another thread, once [`CanBus::recv_waker`] asked for it
+    /// (a wait for an answer to a command is not ended by it).
+    wake: Option<WakeLine>,
 }
 
 impl SlcanBus {
@@ -237,6 +242,7 @@ impl SlcanBus {
             refused: 0,
             acceptance: AcceptanceAnswer::NotSent,
             fd: options.fd || data_bitrate.is_some(),
+            wake: None,
         };
         let plan = Plan {
             bitrate,
@@ -604,6 +610,21 @@ fn shown(command: &Command) -> String {
 }
 
 impl SlcanBus {
+    /// With a wake line: waits until the port has bytes (`true`), or `deadline` passed or a
+    /// wake came (`false`). Without one: `true`, the read waits.
+    fn wait_for_bytes(&self, deadline: Option<Instant>) -> io::Result<bool> {
+        let Some(wake) = &self.wake else {
+            return Ok(true);
+        };
+        loop {
+            let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
+            match wait_readable(tty_fd(&self.port), Some(wake), left) {
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                other => return other,
+            }
+        }
+    }
+
     /// Writes a frame command; its answer is owed.
     fn transmit(&mut self, command: &Command) -> Result<(), BusError> {
         let mut bytes = Vec::with_capacity(160);
@@ -615,12 +636,16 @@ impl SlcanBus {
         Ok(())
     }
 
-    /// The next received frame or FD frame, or `None` after `timeout`.
+    /// The next received frame or FD frame, or `None` after `timeout` or when woken
+    /// ([`CanBus::recv_waker`]).
     fn next_record(&mut self, timeout: Option<Duration>) -> Result<Option<Message>, BusError> {
         let deadline = timeout.map(|t| Instant::now() + t);
         loop {
             if let Some(m) = self.inbox.pop_front() {
                 return Ok(Some(m));
+            }
+            if !self.wait_for_bytes(deadline)? {
+                return Ok(None);
             }
             match self.read_some(deadline)? {
                 Some(replies) => replies.into_iter().for_each(|r| self.later(r)),
@@ -693,6 +718,11 @@ impl CanBus for SlcanBus {
 
     fn channel_info(&self) -> String {
         format!("SLCAN adapter on {}", self.device)
+    }
+
+    fn recv_waker(&mut self) -> Option<Arc<dyn RecvWaker>> {
+        let bus = self.channel_info();
+        WakeLine::opened_waker(&mut self.wake, &bus)
     }
 }
 
