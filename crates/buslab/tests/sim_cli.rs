@@ -742,3 +742,57 @@ fn a_trace_into_a_file_is_the_trace_through_a_pipe() {
         }
     }
 }
+
+/// Ctrl-C, SIGTERM and SIGHUP end a long run as cleanly: every frame line the run printed is
+/// in the file (none left in a buffer, none cut), the summary follows and counts exactly the
+/// frames printed, and the exit is a success.
+#[test]
+fn a_signal_ends_the_run_with_the_trace_and_summary_so_far() {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+    let dir = tempfile::tempdir().unwrap();
+    // One frame every 2 ms for an hour: a run that is still going when the signal comes.
+    let long = dir.path().join("long.toml");
+    std::fs::write(
+        &long,
+        "bitrate = 500000\nduration = \"3600s\"\n[[nodes]]\nname = \"tx\"\n  [[nodes.traffic]]\n  \
+         kind = \"periodic\"\n  frame = \"123#0011223344556677\"\n  period = \"2ms\"\n\
+         [[nodes]]\nname = \"rx\"\n",
+    )
+    .unwrap();
+    for signal in [Signal::SIGINT, Signal::SIGTERM, Signal::SIGHUP] {
+        let out = dir.path().join("trace.log");
+        let mut child = std::process::Command::new(assert_cmd::cargo::cargo_bin("buslab"))
+            .args(["sim", long.to_str().unwrap()])
+            .stdout(std::fs::File::create(&out).unwrap())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Signalled once some blocks are out: the run is under way, with a rest in hand.
+        while std::fs::metadata(&out).unwrap().len() < 600_000 {
+            assert!(
+                child.try_wait().unwrap().is_none(),
+                "the run ended by itself"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        kill(Pid::from_raw(child.id() as i32), signal).unwrap();
+        let done = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        assert!(done.status.success(), "{signal}: {stderr}");
+        assert!(stderr.contains("interrupted at"), "{signal}: {stderr}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let frames = text.lines().filter(|l| l.starts_with('(')).count();
+        assert!(
+            text.lines()
+                .filter(|l| l.starts_with('('))
+                .all(|l| l.len() == "(0000000000.000000) tx 123#0011223344556677".len()),
+            "{signal}: a cut line"
+        );
+        let bus = text.lines().last().unwrap();
+        assert!(
+            bus.starts_with("# bus:") && bus.contains(&format!(" {frames} frames,")),
+            "{signal}: {frames} frame lines, summary {bus:?}"
+        );
+    }
+}

@@ -2,11 +2,13 @@
 //!
 //! Frames go to stdout in candump log format with the transmitting node as the interface and
 //! virtual time as the timestamp, so `canplayer` and `log2asc` can read the output (they skip
-//! the `#` status lines). A per-node summary ends the run.
+//! the `#` status lines). A per-node summary ends the run. Ctrl-C, SIGTERM and SIGHUP end it
+//! early as cleanly: the trace, the files and the summary go up to where the run got.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::PathBuf;
+use std::sync::atomic::Ordering;
 
 use anyhow::Context;
 use buslab_bench::Scenario;
@@ -169,7 +171,15 @@ fn simulate(args: Args, quiet: bool) -> anyhow::Result<()> {
     let mut out = BufWriter::new(stdout.lock());
     let mut printer = Printer::new(&scenario, &args);
     let mut csv = Vec::new();
+    let stop = super::interrupted()?;
     while sim.now() < end {
+        if stop.load(Ordering::Relaxed) {
+            let (secs, us) = sim.now().secs_and_micros_at(sim.bitrate());
+            tracing::warn!(
+                "interrupted at {secs}.{us:06} s of virtual time: the output ends there"
+            );
+            break;
+        }
         // A chunk may end a little late, at the end of the frame it would have cut (that
         // frame is then applied whole); the run still ends at `end` exactly.
         sim.run_past(end.min(sim.now() + CHUNK), end);
