@@ -294,14 +294,36 @@ pub fn format_frame(
             line.decimal(u64::from(frame.dlc()), 1);
         }
     } else {
-        for &b in frame.payload() {
-            line.hex(u32::from(b), 2);
-        }
+        line.hex_bytes(frame.payload());
     }
     line.push(b" >");
     out.push_str(line.as_str());
     Ok(())
 }
+
+const HEX_DIGITS: &[u8; 16] = b"0123456789ABCDEF";
+
+/// `00` to `99`: two decimal digits in one load.
+static DEC_PAIRS: [[u8; 2]; 100] = {
+    let mut table = [[0u8; 2]; 100];
+    let mut i = 0;
+    while i < 100 {
+        table[i] = [b'0' + (i / 10) as u8, b'0' + (i % 10) as u8];
+        i += 1;
+    }
+    table
+};
+
+/// `00` to `FF`: a byte's two hex digits in one load.
+static HEX_PAIRS: [[u8; 2]; 256] = {
+    let mut table = [[0u8; 2]; 256];
+    let mut i = 0;
+    while i < 256 {
+        table[i] = [HEX_DIGITS[i >> 4], HEX_DIGITS[i & 15]];
+        i += 1;
+    }
+    table
+};
 
 /// The longest frame line: `< frame `, 8 ID digits, a space, 20 digits of seconds, a point,
 /// 6 digits, a space, 16 data digits, ` >` (63 bytes).
@@ -323,42 +345,52 @@ impl Default for Line {
 }
 
 impl Line {
-    /// One byte; none past [`LONGEST_FRAME_LINE`] (the layout never gets there).
+    /// `text` at once (one look at the room left, one copy).
     #[inline(always)]
-    fn byte(&mut self, b: u8) {
-        if let Some(slot) = self.bytes.get_mut(self.len) {
-            *slot = b;
-            self.len += 1;
-        }
-    }
-
     fn push(&mut self, text: &[u8]) {
-        for &b in text {
-            self.byte(b);
+        if let Some(room) = self.bytes.get_mut(self.len..self.len + text.len()) {
+            room.copy_from_slice(text);
+            self.len += text.len();
         }
     }
 
     /// The low `width` hex digits of `value`, upper case (the widths fit the values: 3
-    /// digits for a standard ID, 8 for an extended one, 2 for a byte).
+    /// digits for a standard ID, 8 for an extended one).
     #[inline(always)]
-    fn hex(&mut self, value: u32, width: u32) {
-        const HEX: &[u8; 16] = b"0123456789ABCDEF";
-        for k in (0..width).rev() {
-            self.byte(HEX[((value >> (4 * k)) & 15) as usize]);
+    fn hex(&mut self, value: u32, width: usize) {
+        let mut digits = [0u8; 8];
+        for (k, digit) in digits.iter_mut().rev().enumerate() {
+            *digit = HEX_DIGITS[((value >> (4 * k)) & 15) as usize];
         }
+        self.push(&digits[8 - width.min(8)..]);
     }
 
-    /// `value` in decimal, at least `width` digits (zero-padded).
-    fn decimal(&mut self, value: u64, width: usize) {
-        let mut digits = [0u8; 20];
-        let mut n = 0;
-        let mut rest = value;
-        while n < 20 && (rest > 0 || n < width) {
-            digits[19 - n] = b'0' + (rest % 10) as u8;
-            rest /= 10;
-            n += 1;
+    /// Each byte as two upper-case hex digits (up to 8 bytes: a classic frame's data).
+    #[inline(always)]
+    fn hex_bytes(&mut self, bytes: &[u8]) {
+        let mut digits = [0u8; 16];
+        for (pair, &b) in digits.chunks_exact_mut(2).zip(bytes) {
+            pair.copy_from_slice(&HEX_PAIRS[usize::from(b)]);
         }
-        self.push(&digits[20 - n..]);
+        self.push(&digits[..2 * bytes.len().min(8)]);
+    }
+
+    /// `value` in decimal, at least `width` digits (zero-padded, up to 20).
+    fn decimal(&mut self, value: u64, width: usize) {
+        // Two digits a step (a Unix time's seconds have ten).
+        let mut digits = [b'0'; 20];
+        let mut start = digits.len();
+        let mut rest = value;
+        while rest >= 10 {
+            start -= 2;
+            digits[start..start + 2].copy_from_slice(&DEC_PAIRS[(rest % 100) as usize]);
+            rest /= 100;
+        }
+        if rest > 0 {
+            start -= 1;
+            digits[start] = b'0' + rest as u8;
+        }
+        self.push(&digits[start.min(20 - width.min(20))..]);
     }
 
     fn as_str(&self) -> &str {
