@@ -47,6 +47,10 @@ import tempfile
 import termios
 import time
 
+# The per-thread CPU clock of the bus benchmarks (/proc/PID/task/*/schedstat).
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import can_bus_serve as cbs  # noqa: E402
+
 ROWS, COLS = 40, 120
 # Allowances (generous: the machine is shared and often loaded; valgrind is 50-100× slower).
 START_S = 60.0
@@ -185,14 +189,7 @@ class TopLine:
 
 def cpu_of(pid):
     """CPU seconds (user + system) of PID's threads so far, to the nanosecond."""
-    total = 0
-    for task in os.listdir(f"/proc/{pid}/task"):
-        try:
-            with open(f"/proc/{pid}/task/{task}/schedstat") as f:
-                total += int(f.read().split()[0])
-        except (FileNotFoundError, ProcessLookupError):
-            pass  # a thread that ended meanwhile
-    return total / 1e9
+    return cbs.cpu_ns(pid) / 1e9
 
 
 def read_for(master, seconds, top):
