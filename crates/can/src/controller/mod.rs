@@ -672,12 +672,17 @@ impl Controller {
             let frame = *tx.frame();
             self.last_sent = Some(tx);
             self.abort_in_flight = false;
+            // With TEC at 0 it stays 0, and the state, already derived from the counters,
+            // stays the same: nothing to update (the usual case on a healthy bus).
+            let counted = self.counters.tec != 0;
             self.counters.transmit_ok();
             self.events.push_back(Event::Transmitted(frame));
             if self.config.self_reception {
                 self.events.push_back(Event::Received(frame));
             }
-            self.update_state();
+            if counted {
+                self.update_state();
+            }
         }
         self.end_of_frame();
     }
