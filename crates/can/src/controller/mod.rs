@@ -659,12 +659,15 @@ impl Controller {
             self.phase = Phase::Eof { n: n + 1 };
             return;
         }
-        self.last_eof_bit();
+        self.last_eof_bit_queued();
     }
 
     /// EOF bit 7 sampled recessive: the transmitter's frame is sent (facts §3), everybody
-    /// enters intermission.
-    fn last_eof_bit(&mut self) {
+    /// enters intermission. Returns the transmitter's [`Event::Transmitted`] without queueing
+    /// it (the whole-frame engine hands it on directly); what follows it (the frame received
+    /// back with self-reception, a warning or state change) is queued.
+    fn last_eof_bit(&mut self) -> Option<Event> {
+        let mut sent = None;
         if self.transmitting
             && let Some(tx) = self.tx.take()
         {
@@ -676,7 +679,7 @@ impl Controller {
             // stays the same: nothing to update (the usual case on a healthy bus).
             let counted = self.counters.tec != 0;
             self.counters.transmit_ok();
-            self.events.push_back(Event::Transmitted(frame));
+            sent = Some(Event::Transmitted(frame));
             if self.config.self_reception {
                 self.events.push_back(Event::Received(frame));
             }
@@ -685,6 +688,15 @@ impl Controller {
             }
         }
         self.end_of_frame();
+        sent
+    }
+
+    /// [`Self::last_eof_bit`] with its event queued ahead of what follows it.
+    fn last_eof_bit_queued(&mut self) {
+        let at = self.events.len();
+        if let Some(event) = self.last_eof_bit() {
+            self.events.insert(at, event);
+        }
     }
 
     /// Into intermission after EOF or a delimiter.

@@ -791,12 +791,11 @@ impl Simulation {
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof7);
-        if let Device::Controller(c) = &mut self.nodes[w].device
-            && !self.whole.ranged[w]
-        {
-            c.frame_eof7();
+        if self.whole.ranged[w] {
+            self.advance_other(wire, w, eof7 + 1, t0);
+        } else {
+            self.winner_eof7(w, t0 + BitTime::from(eof7));
         }
-        self.stage_done(wire, t0, w, eof7);
         let last = total - 1;
         self.handle_due_inside(wire, t0, &mut at, last);
         for k in 0..count {
@@ -814,7 +813,8 @@ impl Simulation {
             } else if let Device::Controller(c) = &mut node.device {
                 // The others' EOF bit 7 changes nothing anybody looks at before now.
                 if i != w {
-                    c.frame_eof7();
+                    let sent = c.frame_eof7();
+                    debug_assert!(sent.is_none(), "a receiver sent a frame: {sent:?}");
                 }
                 c.frame_end(wire);
                 if c.has_events() {
@@ -894,17 +894,31 @@ impl Simulation {
         }
     }
 
-    /// Node `i` has taken wire bit `bit` of the frame: a node moved on through ranges is
-    /// moved on through it; the events are handled at that bit-time.
+    /// EOF bit 7 (at `time`) of the winner `w`, a controller taken stage by stage: its frame
+    /// is sent. The `Transmitted` event is handed on directly, not queued and polled.
     #[inline(always)]
-    fn stage_done(&mut self, wire: &WireFrame, t0: BitTime, i: usize, bit: u32) {
-        if self.whole.ranged[i] {
-            return self.advance_other(wire, i, bit + 1, t0);
+    fn winner_eof7(&mut self, w: usize, time: BitTime) {
+        let Self {
+            nodes,
+            obs,
+            schedule,
+            ..
+        } = self;
+        let node = &mut nodes[w];
+        let Device::Controller(c) = &mut node.device else {
+            return;
+        };
+        // Whatever waits comes first (nothing, as a rule: every stage drains the winner).
+        if c.has_events() {
+            drain_node(obs, schedule, w, node, time);
         }
-        if let Device::Controller(c) = &self.nodes[i].device
-            && c.has_events()
+        if let Device::Controller(c) = &mut node.device
+            && let Some(event) = c.frame_eof7()
         {
-            drain(self, i, t0 + BitTime::from(bit));
+            handle_event(obs, schedule, w, node, time, event);
+        }
+        if matches!(&node.device, Device::Controller(c) if c.has_events()) {
+            drain_node(obs, schedule, w, node, time);
         }
     }
 
