@@ -275,6 +275,18 @@ impl Controller {
         } else {
             frame.dlc()
         };
+        if self.phase == Phase::Idle
+            && self.tx.is_none()
+            && self.queue.len() == 0
+            && !self.config.listen_only
+        {
+            // Nothing waits on an idle bus: what `load_tx` would make of it at once, without
+            // going through the queue (a periodic sender that keeps up does this every time).
+            self.tx = Some(self.encoding(&frame, dlc));
+            self.tx_is_best = true;
+            self.drive = Level::Dominant;
+            return Ok(());
+        }
         self.queue.push(frame, dlc);
         self.tx_is_best = false;
         if self.phase == Phase::Idle {
@@ -528,12 +540,7 @@ impl Controller {
             }
         };
         if better && let Some((next, dlc)) = self.queue.pop() {
-            // The same frame and raw DLC encode the same: an encoding made with a DLC that did
-            // not fit carries the frame's own, so `dlc` matches it only if it fits.
-            let encoded = match self.last_sent {
-                Some(sent) if sent.dlc() == dlc && *sent.frame() == next => sent,
-                _ => wire::encode_with_dlc(&next, dlc).unwrap_or_else(|| wire::encode(&next)),
-            };
+            let encoded = self.encoding(&next, dlc);
             if let Some(old) = self.tx.replace(encoded) {
                 self.queue.push(*old.frame(), old.dlc());
             }
@@ -541,6 +548,18 @@ impl Controller {
         // The best queued frame replaced a worse one, or was not better.
         self.tx_is_best = self.tx.is_some();
         self.tx_is_best
+    }
+
+    /// `frame` encoded with the raw `dlc`: the last frame sent's encoding if it is the same
+    /// frame again, as periodic traffic queues it.
+    #[inline]
+    fn encoding(&self, frame: &Frame, dlc: u8) -> Encoded {
+        // The same frame and raw DLC encode the same: an encoding made with a DLC that did
+        // not fit carries the frame's own, so `dlc` matches it only if it fits.
+        match self.last_sent {
+            Some(sent) if sent.dlc() == dlc && sent.frame() == frame => sent,
+            _ => wire::encode_with_dlc(frame, dlc).unwrap_or_else(|| wire::encode(frame)),
+        }
     }
 
     /// SOF sampled. `transmit`: we take part as a transmitter (sent SOF, or have a frame ready
