@@ -304,14 +304,28 @@ impl WholeFrames {
     }
 
     /// The winner's frame (`node` sends it) decoded, from the cache if it is there.
+    #[inline]
     fn wire_frame(&mut self, winner: &Encoded, node: usize) -> Option<Arc<CachedFrame>> {
         let key = cache_key(winner.frame(), winner.dlc());
         // A saturated bus sends the same frames again and again, each node its own: try the
         // node's last hit first.
         let hint = self.cache_hints.get(node).map_or(0, |&h| usize::from(h));
-        if self.cache_keys.get(hint) == Some(&key) {
-            return Some(self.cache[hint].clone());
+        if let (Some(&k), Some(hit)) = (self.cache_keys.get(hint), self.cache.get(hint))
+            && k == key
+        {
+            return Some(hit.clone());
         }
+        self.wire_frame_looked_up(winner, node, key)
+    }
+
+    /// [`Self::wire_frame`] when the node's last hit is not it: looked up, or decoded.
+    #[inline(never)]
+    fn wire_frame_looked_up(
+        &mut self,
+        winner: &Encoded,
+        node: usize,
+        key: u128,
+    ) -> Option<Arc<CachedFrame>> {
         let slot = match self.cache_keys.iter().position(|&k| k == key) {
             Some(hit) => hit,
             None => self.insert_frame(winner, key)?,
