@@ -599,11 +599,9 @@ impl Simulation {
         if tie {
             return None;
         }
-        if whole.group.is_member(w) {
+        let from_group = whole.group.is_member(w);
+        if from_group {
             self.leave_group(w, true);
-            if let FrameStart::Ready { sends: Some(e), .. } = self.nodes[w].device.frame_start() {
-                self.whole.senders.push((w, ArbitrationBits::of(e)));
-            }
         }
         let FrameStart::Ready {
             sends: Some(winning),
@@ -612,6 +610,9 @@ impl Simulation {
         else {
             return None;
         };
+        if from_group {
+            self.whole.senders.push((w, ArbitrationBits::of(winning)));
+        }
         (ackers > winner_acks as usize).then_some((w, *winning))
     }
 
