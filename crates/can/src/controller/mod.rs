@@ -275,6 +275,18 @@ impl Controller {
         } else {
             frame.dlc()
         };
+        if self.phase == Phase::Idle
+            && self.tx.is_none()
+            && self.queue.len() == 0
+            && !self.config.listen_only
+        {
+            // Nothing waits on an idle bus: what `load_tx` would make of it at once, without
+            // going through the queue (a periodic sender that keeps up does this every time).
+            self.tx = Some(self.encoding(&frame, dlc));
+            self.tx_is_best = true;
+            self.drive = Level::Dominant;
+            return Ok(());
+        }
         self.queue.push(frame, dlc);
         self.tx_is_best = false;
         if self.phase == Phase::Idle {
@@ -528,12 +540,7 @@ impl Controller {
             }
         };
         if better && let Some((next, dlc)) = self.queue.pop() {
-            // The same frame and raw DLC encode the same: an encoding made with a DLC that did
-            // not fit carries the frame's own, so `dlc` matches it only if it fits.
-            let encoded = match self.last_sent {
-                Some(sent) if sent.dlc() == dlc && *sent.frame() == next => sent,
-                _ => wire::encode_with_dlc(&next, dlc).unwrap_or_else(|| wire::encode(&next)),
-            };
+            let encoded = self.encoding(&next, dlc);
             if let Some(old) = self.tx.replace(encoded) {
                 self.queue.push(*old.frame(), old.dlc());
             }
@@ -541,6 +548,18 @@ impl Controller {
         // The best queued frame replaced a worse one, or was not better.
         self.tx_is_best = self.tx.is_some();
         self.tx_is_best
+    }
+
+    /// `frame` encoded with the raw `dlc`: the last frame sent's encoding if it is the same
+    /// frame again, as periodic traffic queues it.
+    #[inline]
+    fn encoding(&self, frame: &Frame, dlc: u8) -> Encoded {
+        // The same frame and raw DLC encode the same: an encoding made with a DLC that did
+        // not fit carries the frame's own, so `dlc` matches it only if it fits.
+        match self.last_sent {
+            Some(sent) if sent.dlc() == dlc && sent.frame() == frame => sent,
+            _ => wire::encode_with_dlc(frame, dlc).unwrap_or_else(|| wire::encode(frame)),
+        }
     }
 
     /// SOF sampled. `transmit`: we take part as a transmitter (sent SOF, or have a frame ready
@@ -659,12 +678,15 @@ impl Controller {
             self.phase = Phase::Eof { n: n + 1 };
             return;
         }
-        self.last_eof_bit();
+        self.last_eof_bit_queued();
     }
 
     /// EOF bit 7 sampled recessive: the transmitter's frame is sent (facts §3), everybody
-    /// enters intermission.
-    fn last_eof_bit(&mut self) {
+    /// enters intermission. Returns the transmitter's [`Event::Transmitted`] without queueing
+    /// it (the whole-frame engine hands it on directly); what follows it (the frame received
+    /// back with self-reception, a warning or state change) is queued.
+    fn last_eof_bit(&mut self) -> Option<Event> {
+        let mut sent = None;
         if self.transmitting
             && let Some(tx) = self.tx.take()
         {
@@ -672,14 +694,28 @@ impl Controller {
             let frame = *tx.frame();
             self.last_sent = Some(tx);
             self.abort_in_flight = false;
+            // With TEC at 0 it stays 0, and the state, already derived from the counters,
+            // stays the same: nothing to update (the usual case on a healthy bus).
+            let counted = self.counters.tec != 0;
             self.counters.transmit_ok();
-            self.events.push_back(Event::Transmitted(frame));
+            sent = Some(Event::Transmitted(frame));
             if self.config.self_reception {
                 self.events.push_back(Event::Received(frame));
             }
-            self.update_state();
+            if counted {
+                self.update_state();
+            }
         }
         self.end_of_frame();
+        sent
+    }
+
+    /// [`Self::last_eof_bit`] with its event queued ahead of what follows it.
+    fn last_eof_bit_queued(&mut self) {
+        let at = self.events.len();
+        if let Some(event) = self.last_eof_bit() {
+            self.events.insert(at, event);
+        }
     }
 
     /// Into intermission after EOF or a delimiter.

@@ -230,7 +230,7 @@ impl Controller {
             self.events.push_back(event);
         }
         if bits.contains(&frame.eof_bit(7)) {
-            self.frame_eof7();
+            self.last_eof_bit_queued();
         }
         if bits.contains(&(frame.total() - 1)) {
             self.frame_end(frame);
@@ -280,15 +280,14 @@ impl Controller {
         (!self.transmitting).then_some(Event::Received(frame.frame))
     }
 
-    /// EOF bit 7 of a whole frame: the transmitter's frame is sent.
+    /// EOF bit 7 of a whole frame: the transmitter's frame is sent. Returns its
+    /// [`Event::Transmitted`] to hand on (not queued, as with [`Self::frame_received`]; what
+    /// may follow it, such as the frame received back with self-reception, is: handle
+    /// whatever was queued before, then the returned event, then poll). `None` for a
+    /// receiver.
     #[inline]
-    pub fn frame_eof7(&mut self) {
-        if self.transmitting {
-            self.last_eof_bit();
-        } else {
-            // What `last_eof_bit` does for a receiver.
-            self.end_of_frame();
-        }
+    pub fn frame_eof7(&mut self) -> Option<Event> {
+        self.last_eof_bit()
     }
 
     /// What this controller, lined up at a frame start, does in the next whole frames as

@@ -304,14 +304,28 @@ impl WholeFrames {
     }
 
     /// The winner's frame (`node` sends it) decoded, from the cache if it is there.
+    #[inline]
     fn wire_frame(&mut self, winner: &Encoded, node: usize) -> Option<Arc<CachedFrame>> {
         let key = cache_key(winner.frame(), winner.dlc());
         // A saturated bus sends the same frames again and again, each node its own: try the
         // node's last hit first.
         let hint = self.cache_hints.get(node).map_or(0, |&h| usize::from(h));
-        if self.cache_keys.get(hint) == Some(&key) {
-            return Some(self.cache[hint].clone());
+        if let (Some(&k), Some(hit)) = (self.cache_keys.get(hint), self.cache.get(hint))
+            && k == key
+        {
+            return Some(hit.clone());
         }
+        self.wire_frame_looked_up(winner, node, key)
+    }
+
+    /// [`Self::wire_frame`] when the node's last hit is not it: looked up, or decoded.
+    #[inline(never)]
+    fn wire_frame_looked_up(
+        &mut self,
+        winner: &Encoded,
+        node: usize,
+        key: u128,
+    ) -> Option<Arc<CachedFrame>> {
         let slot = match self.cache_keys.iter().position(|&k| k == key) {
             Some(hit) => hit,
             None => self.insert_frame(winner, key)?,
@@ -585,11 +599,9 @@ impl Simulation {
         if tie {
             return None;
         }
-        if whole.group.is_member(w) {
+        let from_group = whole.group.is_member(w);
+        if from_group {
             self.leave_group(w, true);
-            if let FrameStart::Ready { sends: Some(e), .. } = self.nodes[w].device.frame_start() {
-                self.whole.senders.push((w, ArbitrationBits::of(e)));
-            }
         }
         let FrameStart::Ready {
             sends: Some(winning),
@@ -598,6 +610,9 @@ impl Simulation {
         else {
             return None;
         };
+        if from_group {
+            self.whole.senders.push((w, ArbitrationBits::of(winning)));
+        }
         (ackers > winner_acks as usize).then_some((w, *winning))
     }
 
@@ -791,12 +806,11 @@ impl Simulation {
             }
         }
         self.handle_due_inside(wire, t0, &mut at, eof7);
-        if let Device::Controller(c) = &mut self.nodes[w].device
-            && !self.whole.ranged[w]
-        {
-            c.frame_eof7();
+        if self.whole.ranged[w] {
+            self.advance_other(wire, w, eof7 + 1, t0);
+        } else {
+            self.winner_eof7(w, t0 + BitTime::from(eof7));
         }
-        self.stage_done(wire, t0, w, eof7);
         let last = total - 1;
         self.handle_due_inside(wire, t0, &mut at, last);
         for k in 0..count {
@@ -814,7 +828,8 @@ impl Simulation {
             } else if let Device::Controller(c) = &mut node.device {
                 // The others' EOF bit 7 changes nothing anybody looks at before now.
                 if i != w {
-                    c.frame_eof7();
+                    let sent = c.frame_eof7();
+                    debug_assert!(sent.is_none(), "a receiver sent a frame: {sent:?}");
                 }
                 c.frame_end(wire);
                 if c.has_events() {
@@ -894,17 +909,31 @@ impl Simulation {
         }
     }
 
-    /// Node `i` has taken wire bit `bit` of the frame: a node moved on through ranges is
-    /// moved on through it; the events are handled at that bit-time.
+    /// EOF bit 7 (at `time`) of the winner `w`, a controller taken stage by stage: its frame
+    /// is sent. The `Transmitted` event is handed on directly, not queued and polled.
     #[inline(always)]
-    fn stage_done(&mut self, wire: &WireFrame, t0: BitTime, i: usize, bit: u32) {
-        if self.whole.ranged[i] {
-            return self.advance_other(wire, i, bit + 1, t0);
+    fn winner_eof7(&mut self, w: usize, time: BitTime) {
+        let Self {
+            nodes,
+            obs,
+            schedule,
+            ..
+        } = self;
+        let node = &mut nodes[w];
+        let Device::Controller(c) = &mut node.device else {
+            return;
+        };
+        // Whatever waits comes first (nothing, as a rule: every stage drains the winner).
+        if c.has_events() {
+            drain_node(obs, schedule, w, node, time);
         }
-        if let Device::Controller(c) = &self.nodes[i].device
-            && c.has_events()
+        if let Device::Controller(c) = &mut node.device
+            && let Some(event) = c.frame_eof7()
         {
-            drain(self, i, t0 + BitTime::from(bit));
+            handle_event(obs, schedule, w, node, time, event);
+        }
+        if matches!(&node.device, Device::Controller(c) if c.has_events()) {
+            drain_node(obs, schedule, w, node, time);
         }
     }
 
