@@ -19,7 +19,7 @@ use alloc::collections::VecDeque;
 use crate::wire::{self, Encoded, Field, Receiver, Step, WireErrorKind};
 use crate::{Frame, Level};
 use fault::Counters;
-use queue::TxQueue;
+use queue::{Queued, TxQueue};
 
 pub use whole_frame::{ArbitrationBits, Bystander, FrameRole, FrameStart, WireFrame};
 
@@ -197,6 +197,11 @@ pub struct Controller {
     rx: Receiver,
     /// The frame being (or next to be) attempted, already encoded.
     tx: Option<Encoded>,
+    /// The number `tx` was queued with: it keeps its place among frames of its arbitration
+    /// field if a more important frame displaces it ([`TxQueue`]).
+    tx_seq: u64,
+    /// The number the next frame queued gets.
+    next_seq: u64,
     /// `tx` is at least as important as every queued frame: nothing was queued since
     /// [`Self::load_tx`] compared them (always false without `tx`). Saves the comparison for a
     /// node that keeps losing arbitration with a full queue.
@@ -232,6 +237,8 @@ impl Controller {
             drive: Level::Recessive,
             rx: Receiver::new(),
             tx: None,
+            tx_seq: 0,
+            next_seq: 0,
             tx_is_best: false,
             queue: TxQueue::with_capacity(config.tx_queue_capacity),
             last_sent: None,
@@ -283,11 +290,15 @@ impl Controller {
             // Nothing waits on an idle bus: what `load_tx` would make of it at once, without
             // going through the queue (a periodic sender that keeps up does this every time).
             self.tx = Some(self.encoding(&frame, dlc));
+            self.tx_seq = self.next_seq;
+            self.next_seq += 1;
             self.tx_is_best = true;
             self.drive = Level::Dominant;
             return Ok(());
         }
-        self.queue.push(frame, dlc);
+        let seq = self.next_seq;
+        self.next_seq += 1;
+        self.queue.push(Queued { frame, dlc, seq });
         self.tx_is_best = false;
         if self.phase == Phase::Idle {
             self.drive = self.next_drive();
@@ -528,21 +539,23 @@ impl Controller {
         if self.tx_is_best {
             return true;
         }
+        // Only a more important arbitration field displaces the frame waiting to be sent:
+        // frames of one field leave in the order they were queued, whenever this is asked
+        // (at once on an idle bus, or at the end of the frame on the wire).
         let better = match (&self.tx, self.queue.peek()) {
             (_, None) => false,
             (None, Some(_)) => true,
-            // The arbitration key decides first (as `Frame`'s order does), cheaply.
-            (Some(tx), Some(next)) => {
-                match next.arbitration_key().cmp(&tx.frame().arbitration_key()) {
-                    core::cmp::Ordering::Equal => next != tx.frame() && next < tx.frame(),
-                    order => order.is_lt(),
-                }
-            }
+            (Some(tx), Some(next)) => next.arbitration_key() < tx.frame().arbitration_key(),
         };
-        if better && let Some((next, dlc)) = self.queue.pop() {
-            let encoded = self.encoding(&next, dlc);
+        if better && let Some(next) = self.queue.pop() {
+            let encoded = self.encoding(&next.frame, next.dlc);
+            let displaced_seq = core::mem::replace(&mut self.tx_seq, next.seq);
             if let Some(old) = self.tx.replace(encoded) {
-                self.queue.push(*old.frame(), old.dlc());
+                self.queue.push(Queued {
+                    frame: *old.frame(),
+                    dlc: old.dlc(),
+                    seq: displaced_seq,
+                });
             }
         }
         // The best queued frame replaced a worse one, or was not better.

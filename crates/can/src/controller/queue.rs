@@ -8,11 +8,29 @@ use crate::Frame;
 pub(super) struct TxQueue {
     /// Sorted from most to least important (arbitration field only: what follows it cannot
     /// change who wins), so the next frame to send is at the front. Frames with equal
-    /// arbitration fields keep their enqueue order, as a controller's FIFO does. Each with the
-    /// DLC to send (9..15 for some 8-byte frames). A deque, most important first: a frame no
-    /// more important than the last one (a node queueing the same frame again and again, as
-    /// periodic traffic on a saturated bus does) goes at the back without moving the others.
-    frames: VecDeque<(Frame, u8)>,
+    /// arbitration fields keep their enqueue order, as a controller's FIFO does: each carries
+    /// the number it was queued with, which it keeps when a more important frame displaces
+    /// it from the transmit slot and it comes back ([`Queued`]). A deque, most important
+    /// first: a frame no more important than the last one (a node queueing the same frame
+    /// again and again, as periodic traffic on a saturated bus does) goes at the back without
+    /// moving the others.
+    frames: VecDeque<Queued>,
+}
+
+/// A waiting frame: the frame, the DLC to send (9..15 for some 8-byte frames) and its place
+/// in the order frames were queued.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Queued {
+    pub frame: Frame,
+    pub dlc: u8,
+    pub seq: u64,
+}
+
+impl Queued {
+    /// The order frames leave in: arbitration field, then the order they were queued in.
+    fn order(&self) -> (u32, u64) {
+        (self.frame.arbitration_key(), self.seq)
+    }
 }
 
 impl TxQueue {
@@ -26,27 +44,22 @@ impl TxQueue {
         self.frames.len()
     }
 
-    pub(super) fn push(&mut self, frame: Frame, dlc: u8) {
-        // After any equal ones: those were queued earlier and go first.
-        let key = frame.arbitration_key();
-        let last_or_empty = self
-            .frames
-            .back()
-            .is_none_or(|(last, _)| last.arbitration_key() <= key);
-        if last_or_empty {
-            return self.frames.push_back((frame, dlc));
+    /// Puts `queued` in its place: a frame queued now after the equal ones, a frame that
+    /// comes back from the transmit slot where it was queued.
+    pub(super) fn push(&mut self, queued: Queued) {
+        let order = queued.order();
+        if self.frames.back().is_none_or(|last| last.order() <= order) {
+            return self.frames.push_back(queued);
         }
-        let at = self
-            .frames
-            .partition_point(|(queued, _)| queued.arbitration_key() <= key);
-        self.frames.insert(at, (frame, dlc));
+        let at = self.frames.partition_point(|q| q.order() <= order);
+        self.frames.insert(at, queued);
     }
 
     pub(super) fn peek(&self) -> Option<&Frame> {
-        self.frames.front().map(|(frame, _)| frame)
+        self.frames.front().map(|q| &q.frame)
     }
 
-    pub(super) fn pop(&mut self) -> Option<(Frame, u8)> {
+    pub(super) fn pop(&mut self) -> Option<Queued> {
         self.frames.pop_front()
     }
 
@@ -56,7 +69,7 @@ impl TxQueue {
 
     /// Most important first.
     pub(super) fn iter(&self) -> impl Iterator<Item = &Frame> {
-        self.frames.iter().map(|(frame, _)| frame)
+        self.frames.iter().map(|q| &q.frame)
     }
 }
 
@@ -76,14 +89,38 @@ mod tests {
     fn priority_first_and_equal_identifiers_in_the_order_queued() {
         let mut q = TxQueue::with_capacity(8);
         // A SLIO answering two requests: DATA_OUTPUT first, then DATA_INPUT, same ID.
-        for text in ["29D#232000", "300#", "29D#206001", "100#"] {
+        for (seq, text) in ["29D#232000", "300#", "29D#206001", "100#"]
+            .iter()
+            .enumerate()
+        {
             let frame = f(text);
             let dlc = frame.dlc();
-            q.push(frame, dlc);
+            q.push(Queued {
+                frame,
+                dlc,
+                seq: seq as u64,
+            });
         }
         let order: Vec<String> =
-            core::iter::from_fn(|| q.pop().map(|(f, _)| f.to_string())).collect();
+            core::iter::from_fn(|| q.pop().map(|q| q.frame.to_string())).collect();
         assert_eq!(order, ["100#", "29D#232000", "29D#206001", "300#"]);
+    }
+
+    #[test]
+    fn a_frame_put_back_goes_where_it_was_queued_among_equal_ones() {
+        let mut q = TxQueue::with_capacity(8);
+        let queued = |text: &str, seq| Queued {
+            frame: f(text),
+            dlc: f(text).dlc(),
+            seq,
+        };
+        q.push(queued("29D#02", 2));
+        q.push(queued("29D#03", 3));
+        // Queued first, then displaced from the transmit slot by a more important frame.
+        q.push(queued("29D#01", 1));
+        let order: Vec<String> =
+            core::iter::from_fn(|| q.pop().map(|q| q.frame.to_string())).collect();
+        assert_eq!(order, ["29D#01", "29D#02", "29D#03"]);
     }
 
     proptest! {
@@ -96,6 +133,7 @@ mod tests {
         ) {
             let mut q = TxQueue::with_capacity(4);
             let mut model: Vec<Frame> = Vec::new();
+            let mut pushed = 0;
             for op in ops {
                 match op {
                     Some((id, remote, byte)) => {
@@ -106,7 +144,9 @@ mod tests {
                         } else {
                             Frame::data(id, &[byte]).unwrap()
                         };
-                        q.push(frame, frame.dlc());
+                        let seq = pushed;
+                        pushed += 1;
+                        q.push(Queued { frame, dlc: frame.dlc(), seq });
                         model.push(frame);
                     }
                     None => {
@@ -115,7 +155,7 @@ mod tests {
                             let at = model.iter().position(|f| f.arbitration_key() == key).unwrap();
                             model.remove(at)
                         });
-                        prop_assert_eq!(q.pop().map(|(f, _)| f), expected);
+                        prop_assert_eq!(q.pop().map(|q| q.frame), expected);
                     }
                 }
                 prop_assert_eq!(q.len(), model.len());
