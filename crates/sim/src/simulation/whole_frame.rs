@@ -186,10 +186,12 @@ impl Losers {
     }
 }
 
-/// The frame being applied, for a member filled in in the middle of it.
+/// The frame being applied, for a member filled in in the middle of it: its slot in the
+/// cache, which nothing changes before the frame ends (a slot, not a count on the `Arc`: two
+/// atomic counts per frame fewer).
 #[derive(Debug)]
 struct InFrame {
-    cached: Arc<CachedFrame>,
+    slot: usize,
 }
 
 /// State of the fast path.
@@ -303,9 +305,10 @@ impl WholeFrames {
         self.cache_hints.resize(n, 0);
     }
 
-    /// The winner's frame (`node` sends it) decoded, from the cache if it is there.
+    /// The winner's frame (`node` sends it) decoded, from the cache if it is there, and its
+    /// slot there.
     #[inline]
-    fn wire_frame(&mut self, winner: &Encoded, node: usize) -> Option<Arc<CachedFrame>> {
+    fn wire_frame(&mut self, winner: &Encoded, node: usize) -> Option<(usize, Arc<CachedFrame>)> {
         let key = cache_key(winner.frame(), winner.dlc());
         // A saturated bus sends the same frames again and again, each node its own: try the
         // node's last hit first.
@@ -313,7 +316,7 @@ impl WholeFrames {
         if let (Some(&k), Some(hit)) = (self.cache_keys.get(hint), self.cache.get(hint))
             && k == key
         {
-            return Some(hit.clone());
+            return Some((hint, hit.clone()));
         }
         self.wire_frame_looked_up(winner, node, key)
     }
@@ -325,7 +328,7 @@ impl WholeFrames {
         winner: &Encoded,
         node: usize,
         key: u128,
-    ) -> Option<Arc<CachedFrame>> {
+    ) -> Option<(usize, Arc<CachedFrame>)> {
         let slot = match self.cache_keys.iter().position(|&k| k == key) {
             Some(hit) => hit,
             None => self.insert_frame(winner, key)?,
@@ -333,7 +336,7 @@ impl WholeFrames {
         if let Some(h) = self.cache_hints.get_mut(node) {
             *h = slot as u8;
         }
-        Some(self.cache[slot].clone())
+        Some((slot, self.cache[slot].clone()))
     }
 
     /// Decodes the winner's frame into the cache; its slot.
@@ -527,7 +530,7 @@ impl Simulation {
     fn fill_in_for_enqueue(&mut self, i: usize) {
         let group = &mut self.whole.group;
         let (through, last) = match &self.whole.frame {
-            Some(frame) => (group.frames + 1, Some(&frame.cached)),
+            Some(frame) => (group.frames + 1, Some(&self.whole.cache[frame.slot])),
             None => (group.frames, group.last.as_ref()),
         };
         let joined = group.joined[i];
@@ -630,7 +633,7 @@ impl Simulation {
         let Some((w, winning)) = self.arbitration() else {
             return false;
         };
-        let Some(cached) = self.whole.wire_frame(&winning, w) else {
+        let Some((slot, cached)) = self.whole.wire_frame(&winning, w) else {
             return false;
         };
         let wire = &cached.wire;
@@ -686,9 +689,7 @@ impl Simulation {
         if in_order {
             order_losers(&mut whole.losers, &mut whole.sorted, last_lost);
         }
-        whole.frame = Some(InFrame {
-            cached: cached.clone(),
-        });
+        whole.frame = Some(InFrame { slot });
 
         // With no member every node is taken one by one: no look into the index list. (No
         // node joins or leaves during the stages: a generator gives a member its frame in
