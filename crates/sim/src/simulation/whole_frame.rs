@@ -186,6 +186,15 @@ impl Losers {
     }
 }
 
+/// The winner of an arbitration ([`Simulation::arbitration`]).
+struct Winner {
+    node: usize,
+    bits: ArbitrationBits,
+    /// Its frame decoded, and the frame's slot in the cache.
+    slot: usize,
+    cached: Arc<CachedFrame>,
+}
+
 /// The frame being applied, for a member filled in in the middle of it: its slot in the
 /// cache, which nothing changes before the frame ends (a slot, not a count on the `Arc`: two
 /// atomic counts per frame fewer).
@@ -577,8 +586,11 @@ impl Simulation {
 
     /// Who sends, who wins (the lowest arbitration key) and whether someone else acknowledges;
     /// fills `whole.senders` (the nodes taken one by one; a winner from the group leaves it).
-    /// The winner and its frame; `None` if the frame cannot be applied whole.
-    fn arbitration(&mut self) -> Option<(usize, Encoded)> {
+    /// The winner, its frame's arbitration bits and the frame decoded (from the cache);
+    /// `None` if the frame cannot be applied whole. The frame is looked up here, where the
+    /// winner's encoding is at hand: copied out instead (some 50 bytes in pieces, read back
+    /// whole) its loads stalled on the copy's stores.
+    fn arbitration(&mut self) -> Option<Winner> {
         let whole = &mut self.whole;
         whole.senders.clear();
         let mut best: Option<(u32, usize)> = None;
@@ -613,10 +625,20 @@ impl Simulation {
         else {
             return None;
         };
+        let bits = ArbitrationBits::of(winning);
         if from_group {
-            self.whole.senders.push((w, ArbitrationBits::of(winning)));
+            self.whole.senders.push((w, bits));
         }
-        (ackers > winner_acks as usize).then_some((w, *winning))
+        if ackers <= winner_acks as usize {
+            return None;
+        }
+        let (slot, cached) = self.whole.wire_frame(winning, w)?;
+        Some(Winner {
+            node: w,
+            bits,
+            slot,
+            cached,
+        })
     }
 
     fn whole_frame(&mut self, end: BitTime) -> bool {
@@ -630,10 +652,13 @@ impl Simulation {
                 }
             }
         }
-        let Some((w, winning)) = self.arbitration() else {
-            return false;
-        };
-        let Some((slot, cached)) = self.whole.wire_frame(&winning, w) else {
+        let Some(Winner {
+            node: w,
+            bits: winner_bits,
+            slot,
+            cached,
+        }) = self.arbitration()
+        else {
             return false;
         };
         let wire = &cached.wire;
@@ -661,7 +686,6 @@ impl Simulation {
         whole.roles[w] = FrameRole::Transmitter;
         whole.losers.clear();
         let mut last_lost = 0;
-        let winner_bits = ArbitrationBits::of(&winning);
         for &(i, bits) in &whole.senders {
             if i == w {
                 continue;
