@@ -125,7 +125,12 @@ impl Browser {
             assert!(Instant::now() < deadline, "chromedriver never listened");
             std::thread::sleep(Duration::from_millis(20));
         }
+        // The driver's own limits (a script: 30 s by default) are timing margins a loaded
+        // machine runs out of: a page busy for longer fails the test instead of being waited
+        // for. The hang guard bounds them.
+        let hang_ms = HANG.as_millis() as u64;
         let caps = json!({"capabilities": {"alwaysMatch": {"browserName": "chrome",
+            "timeouts": {"script": hang_ms, "pageLoad": hang_ms},
             "goog:loggingPrefs": {"browser": "ALL"},
             "goog:chromeOptions": {"binary": "/usr/bin/chromium", "args": [
                 "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
