@@ -63,6 +63,13 @@ impl Bus {
         }
     }
 
+    /// Whether node `i` has lost arbitration so far.
+    fn lost_arbitration(&self, i: usize) -> bool {
+        self.events[i]
+            .iter()
+            .any(|(_, e)| matches!(e, Event::ArbitrationLost { .. }))
+    }
+
     /// Run until every node is idle with nothing pending (or `max` bits).
     fn settle(&mut self, max: u64) {
         for _ in 0..max {
@@ -255,18 +262,13 @@ fn a_more_important_frame_queued_while_another_loses_goes_next() {
     bus.nodes[1].enqueue(frame("100#01")).unwrap();
     bus.nodes[1].enqueue(frame("100#02")).unwrap();
     bus.nodes[0].enqueue(frame("300#")).unwrap();
-    let lost = |bus: &Bus| {
-        bus.events[0]
-            .iter()
-            .any(|(_, e)| matches!(e, Event::ArbitrationLost { .. }))
-    };
     for _ in 0..1000 {
-        if lost(&bus) {
+        if bus.lost_arbitration(0) {
             break;
         }
         bus.step();
     }
-    assert!(lost(&bus), "300# loses to 100#01 first");
+    assert!(bus.lost_arbitration(0), "300# loses to 100#01 first");
     bus.nodes[0].enqueue(frame("200#")).unwrap();
     bus.settle(1000);
     let sent: Vec<String> = bus.transmitted(0).iter().map(|f| f.to_string()).collect();
@@ -296,12 +298,7 @@ fn frames_of_one_field_leave_in_queue_order_whenever_the_queue_is_looked_at() {
     let mut bus = Bus::with_nodes(2);
     bus.nodes[1].enqueue(frame("050#")).unwrap();
     bus.nodes[0].enqueue(frame("100#05")).unwrap();
-    let lost = |bus: &Bus| {
-        bus.events[0]
-            .iter()
-            .any(|(_, e)| matches!(e, Event::ArbitrationLost { .. }))
-    };
-    while !lost(&bus) {
+    while !bus.lost_arbitration(0) {
         assert!(bus.time < 1000, "100#05 loses to 050#");
         bus.step();
     }
